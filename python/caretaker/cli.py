@@ -1,0 +1,58 @@
+"""The ``caretaker`` command: one entry point that starts any part of the system.
+
+Each subcommand lives with its part (docs/interfaces.md) and is imported only when used, so
+``caretaker lint`` never loads rclpy and ``caretaker sim`` never loads the JVM.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+__all__ = ["SUBCOMMANDS", "main"]
+
+#: subcommand -> (module, function, one-line help). Each function takes argv and returns an exit code.
+SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
+    "sim": ("sim.sim_node", "main", "run the pybullet simulation node (--scene iva|eva)"),
+    "planner": ("at_ros.planner_node", "main", "run the OMPL planner node (--robot NAME)"),
+    "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME)"),
+    "bridge": ("bridge.rosbridge.server", "main", "run the rosbridge v2 server"),
+    "lint": ("pride.cli", "lint_main", "check procedures against their schema and SysReps"),
+    "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
+    "report": ("pride.cli", "report_main", "write the after-action report of a run"),
+    "serve": ("pride.web.server", "main", "serve the operator web view"),
+    "up": ("caretaker.stack", "up_main", "start the robot side and the rosbridge server"),
+    "demo": ("caretaker.stack", "demo_main", "run the IVA or EVA demonstration end to end"),
+}
+
+
+def _usage() -> str:
+    width = max(map(len, SUBCOMMANDS))
+    lines = ["usage: caretaker COMMAND [ARGS...]", "", "commands:"]
+    lines += [f"  {name.ljust(width)}  {help_}" for name, (_, _, help_) in SUBCOMMANDS.items()]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``caretaker COMMAND ARGS...`` to the part that implements COMMAND."""
+    args = sys.argv[1:] if argv is None else argv
+    if not args or args[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if args else 2
+    name, rest = args[0], args[1:]
+    if name not in SUBCOMMANDS:
+        print(f"caretaker: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    module_name, function_name, _ = SUBCOMMANDS[name]
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            print(f"caretaker: {name!r} is not available in this checkout ({module_name} is missing)", file=sys.stderr)
+            return 2
+        raise
+    return int(getattr(module, function_name)(rest) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

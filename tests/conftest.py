@@ -1,0 +1,45 @@
+"""Test-session settings shared by every suite.
+
+ROS 2 traffic stays on loopback and in a domain of this session's own, so parallel test runs
+on one machine do not see each other.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from typing import Callable
+
+import pytest
+
+from support.processes import ManagedProcess, caretaker
+
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+
+
+@pytest.fixture(scope="session")
+def ros_env() -> dict[str, str]:
+    """Environment for child processes: this session's ROS domain, loopback only."""
+    return dict(os.environ)
+
+
+@pytest.fixture
+def launch(ros_env: dict[str, str]) -> Iterator[Callable[..., ManagedProcess]]:
+    """Start ``caretaker`` subcommands; every one started is stopped at teardown.
+
+    ``launch("sim", "--scene", "iva")`` returns the process once it printed READY.
+    """
+    started: list[ManagedProcess] = []
+
+    def start(*args: str, ready_timeout: float = 90.0, wait: bool = True) -> ManagedProcess:
+        proc = caretaker(*args, env=ros_env)
+        started.append(proc)
+        if wait:
+            proc.wait_ready(ready_timeout)
+        return proc
+
+    yield start
+    for proc in reversed(started):
+        proc.stop()

@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# Brings a Debian 12 machine to a working Caretaker checkout: Debian packages, .venv with the
+# pinned Python dependencies, the ROS 2 interface packages (rosidl), the Java plugins and the
+# Node test clients. Idempotent: each step records a hash of its inputs in .venv/.stamps and is
+# skipped while they are unchanged, so a second run takes seconds.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+VENV=$ROOT/.venv
+STAMPS=$VENV/.stamps
+PYTHON=${PYTHON:-python3}
+
+log() { printf '[setup] %s\n' "$*"; }
+
+# hash_of FILE_OR_DIR...: one hash over the contents of every file under the arguments.
+hash_of() {
+  find "$@" -type f -not -path '*/target/*' -not -path '*/node_modules/*' -print0 \
+    | sort -z | xargs -0 sha256sum | sha256sum | cut -d' ' -f1
+}
+
+# step NAME HASH: true when step NAME must run (its stamp differs from HASH).
+step_needed() { [ "$(cat "$STAMPS/$1" 2>/dev/null)" != "$2" ]; }
+step_done() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
+
+# 1. Debian packages: Maven and the Java libraries it builds against offline, Chromium for
+#    browser tests, the compilers rosidl needs.
+APT_PACKAGES=(
+  maven junit5 libsurefire-java libmaven-compiler-plugin-java libmaven-jar-plugin-java
+  libmaven-resources-plugin-java libmaven-clean-plugin-java libmaven-install-plugin-java
+  libgoogle-gson-java libyaml-snake-java
+  cmake g++ make chromium
+)
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q 'install ok installed' || missing+=("$pkg")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  log "installing Debian packages: ${missing[*]}"
+  SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO=sudo
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+# 2. The virtual environment with pinned Python dependencies.
+if [ ! -x "$VENV/bin/python" ]; then
+  log "creating $VENV"
+  "$PYTHON" -m venv "$VENV"
+fi
+h=$(hash_of requirements.txt)
+if step_needed pip "$h"; then
+  log "installing Python dependencies (requirements.txt)"
+  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt 2>&1 | { grep -v "is ignored: it is neither" || true; }
+  step_done pip "$h"
+fi
+
+# 3. ROS 2 interface packages, generated with rosidl into the venv. The wheels' exported CMake
+#    targets hard-code the manylinux build paths of Python and numpy: point them at ours.
+INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs)
+h=$(hash_of "${INTERFACE_PACKAGES[@]}" requirements.txt)
+if step_needed interfaces "$h"; then
+  py_include=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
+  np_include=$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')
+  { grep -rlE '/opt/python/cp311-cp311' "$VENV"/share/*/cmake/ 2>/dev/null || true; } | while read -r f; do
+    sed -i -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$np_include#g" \
+           -e "s#/opt/python/cp311-cp311/include/python3.11#$py_include#g" "$f"
+  done
+  for pkg in "${INTERFACE_PACKAGES[@]}"; do
+    name=$(basename "$pkg")
+    log "building ROS interfaces $name"
+    build=$ROOT/build/rosidl/$name
+    rm -rf "$build"; mkdir -p "$build"
+    CMAKE_PREFIX_PATH=$VENV AMENT_PREFIX_PATH=$VENV cmake -S "$pkg" -B "$build" \
+      -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$VENV/bin/python" \
+      -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$build.log" 2>&1 \
+      && cmake --build "$build" -j 2 >> "$build.log" 2>&1 \
+      && cmake --install "$build" >> "$build.log" 2>&1 \
+      || { tail -40 "$build.log"; log "building $name failed: see $build.log"; exit 1; }
+  done
+  step_done interfaces "$h"
+fi
+
+# 4. The caretaker distribution itself (editable, so the checkout is what runs).
+h=$(hash_of pyproject.toml)
+if step_needed caretaker "$h"; then
+  log "installing the caretaker package (editable)"
+  "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps -e . 2>&1 | { grep -v "is ignored: it is neither" || true; }
+  step_done caretaker "$h"
+fi
+
+# 5. The Java PAX plugins, built offline against Debian's Maven repository (.mvn/maven.config).
+if [ -f pom.xml ]; then
+  h=$(hash_of pom.xml .mvn java)
+  if step_needed java "$h" || [ ! -d java/pax-plugins/target/dependency ]; then
+    log "building the Java PAX plugins (mvn package)"
+    mvn -q package -DskipTests
+    step_done java "$h"
+  fi
+fi
+
+# 6. Node test clients (roslibjs) from the npm registry.
+if [ -f tests/js/package.json ]; then
+  h=$(hash_of tests/js/package.json tests/js/package-lock.json)
+  if step_needed npm "$h" || [ ! -d tests/js/node_modules ]; then
+    log "installing Node test clients (npm ci)"
+    (cd tests/js && npm ci --silent --no-audit --no-fund)
+    step_done npm "$h"
+  fi
+fi
+
+log "ready"
