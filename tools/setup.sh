@@ -90,7 +90,7 @@ fi
 # 5. The Java PAX plugins, built offline against Debian's Maven repository (.mvn/maven.config).
 if [ -f pom.xml ]; then
   h=$(hash_of pom.xml .mvn java)
-  if step_needed java "$h" || [ ! -d java/pax-plugins/target/dependency ]; then
+  if step_needed java "$h" || [ ! -f java/pax-plugins/target/pax-plugins.jar ]; then
     log "building the Java PAX plugins (mvn package)"
     mvn -q package -DskipTests
     step_done java "$h"
