@@ -1,0 +1,131 @@
+"""Child processes of the stack launcher and the tests: await readiness, always stop them.
+
+Long-running Caretaker processes print ``READY <what>`` on stdout once they serve
+(docs/interfaces.md), so launchers wait on that event instead of sleeping. Each child runs in
+its own process group (Ctrl-C reaches it through us, and stopping it stops its children) and is
+killed by the kernel if this process dies first, so a crashed launcher leaves no orphans.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+VENV_BIN = REPO / ".venv" / "bin"
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: get SIGTERM when the parent dies (Linux prctl).
+
+    The kernel ties this to the *thread* that forked, so start children from a thread that
+    outlives them (the main thread, in the launcher and in tests).
+    """
+    import ctypes
+
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+
+
+class ProcessFailed(RuntimeError):
+    """A managed process exited or did not become ready; the message carries its last output."""
+
+
+class ManagedProcess:
+    """A child process in its own process group, with its output kept for error messages."""
+
+    def __init__(
+        self,
+        argv: list[str],
+        env: dict[str, str],
+        name: str | None = None,
+        *,
+        on_line: Callable[[str, str], None] | None = None,
+    ) -> None:
+        """Start ``argv``; ``on_line(name, line)`` is called for every line it prints."""
+        self.argv = argv
+        self._on_line = on_line
+        self.name = name or Path(argv[0]).name
+        self.output: deque[str] = deque(maxlen=400)
+        self._ready = threading.Event()
+        self._ready_marker = "READY"
+        self._lines_lock = threading.Lock()
+        self.proc = subprocess.Popen(
+            argv,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            bufsize=1,
+            start_new_session=True,
+            preexec_fn=_die_with_parent,
+        )
+        self._reader = threading.Thread(target=self._read, name=f"{self.name}-output", daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            with self._lines_lock:
+                self.output.append(line.rstrip("\n"))
+            if self._on_line is not None:
+                self._on_line(self.name, line.rstrip("\n"))
+            if line.startswith(self._ready_marker):
+                self._ready.set()
+        self._ready.set()  # wake waiters: the process has exited
+
+    def tail(self, lines: int = 60) -> str:
+        """The last ``lines`` lines the process printed."""
+        with self._lines_lock:
+            return "\n".join(list(self.output)[-lines:])
+
+    def wait_ready(self, timeout: float = 60.0) -> None:
+        """Block until the process printed its READY line; raise ProcessFailed otherwise."""
+        if not self._ready.wait(timeout) or self.proc.poll() is not None:
+            state = f"exited with {self.proc.returncode}" if self.proc.poll() is not None else f"not ready after {timeout} s"
+            raise ProcessFailed(f"{self.name} {state}; its output:\n{self.tail()}")
+
+    @property
+    def running(self) -> bool:
+        return self.proc.poll() is None
+
+    def kill(self) -> None:
+        """Kill the whole process group at once (a crash, for fault tests)."""
+        if self.running:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            self.proc.wait(10)
+
+    def stop(self, timeout: float = 10.0) -> int | None:
+        """Ctrl-C the process group, then SIGKILL what is left after ``timeout``."""
+        if self.running:
+            try:
+                os.killpg(self.proc.pid, signal.SIGINT)
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+                self.proc.wait(timeout)
+            except ProcessLookupError:
+                pass
+        self._reader.join(timeout)
+        return self.proc.returncode
+
+
+def caretaker(
+    *args: str, env: dict[str, str], name: str | None = None, on_line: Callable[[str, str], None] | None = None
+) -> ManagedProcess:
+    """Start ``caretaker ARGS...`` from the venv."""
+    return ManagedProcess(
+        [str(VENV_BIN / "caretaker"), *args], env, name or (args[0] if args else "caretaker"), on_line=on_line
+    )
+
+
+def python(*args: str, env: dict[str, str], name: str | None = None) -> ManagedProcess:
+    """Start ``python ARGS...`` with this interpreter (the venv's)."""
+    return ManagedProcess([sys.executable, *args], env, name)
