@@ -1,0 +1,94 @@
+"""Joint-space motion planning with OMPL (RRTConnect + path simplification).
+
+A straight joint-space line is tried first: most moves between nearby waypoints are free, and
+checking one line costs a few milliseconds where a solve plus simplification costs tens.
+OMPL's solve() holds the GIL, which is why this runs in the planner node's own process.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+import numpy as np
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+__all__ = ["JointPlanner", "PlanningFailed", "segment_is_valid"]
+
+LOG = logging.getLogger(__name__)
+
+
+class PlanningFailed(RuntimeError):
+    """No collision-free joint path was found in the time allowed."""
+
+
+def segment_is_valid(a: np.ndarray, b: np.ndarray, is_valid: Callable[[np.ndarray], bool], resolution: float) -> bool:
+    """Check the straight joint-space line a→b at ``resolution`` rad (max-norm) steps."""
+    steps = max(1, int(np.ceil(np.max(np.abs(b - a)) / resolution)))
+    return all(is_valid(a + (b - a) * (i / steps)) for i in range(1, steps + 1))
+
+
+class JointPlanner:
+    """Plans collision-free joint paths between two configurations.
+
+    Args:
+        lower, upper: joint limits.
+        is_valid: the scene's validity check of one configuration.
+        resolution: max joint step (rad) between checked states along a motion.
+        seed: OMPL's process-wide random seed, for reproducible plans.
+    """
+
+    def __init__(
+        self,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        is_valid: Callable[[np.ndarray], bool],
+        *,
+        resolution: float = 0.03,
+        seed: int = 1,
+    ) -> None:
+        ou.setLogLevel(ou.LOG_WARN)
+        ou.RNG.setSeed(seed)
+        self.dof = len(lower)
+        self.is_valid = is_valid
+        self.resolution = resolution
+        self.space = ob.RealVectorStateSpace(self.dof)
+        bounds = ob.RealVectorBounds(self.dof)
+        for i in range(self.dof):
+            bounds.setLow(i, float(lower[i]))
+            bounds.setHigh(i, float(upper[i]))
+        self.space.setBounds(bounds)
+        self.setup = og.SimpleSetup(self.space)
+        dof = self.dof
+        self.setup.setStateValidityChecker(lambda s: is_valid(np.array(s[0:dof])))
+        info = self.setup.getSpaceInformation()
+        # OMPL's resolution is a fraction of the space's extent; convert from radians.
+        info.setStateValidityCheckingResolution(min(1.0, resolution / self.space.getMaximumExtent()))
+        self.setup.setPlanner(og.RRTConnect(info))
+
+    def plan(self, start: np.ndarray, goal: np.ndarray, *, time_limit: float, simplify_time: float) -> list[np.ndarray]:
+        """Waypoints of a collision-free path start→goal (both included).
+
+        Raises:
+            PlanningFailed: the start or goal is invalid, or no path was found in ``time_limit``.
+        """
+        if not self.is_valid(start):
+            raise PlanningFailed("the start state is in collision")
+        if not self.is_valid(goal):
+            raise PlanningFailed("the goal state is in collision")
+        if segment_is_valid(start, goal, self.is_valid, self.resolution):
+            return [np.array(start, dtype=float), np.array(goal, dtype=float)]
+        self.setup.clear()
+        s = self.space.allocState()
+        s[0 : self.dof] = [float(v) for v in start]
+        g = self.space.allocState()
+        g[0 : self.dof] = [float(v) for v in goal]
+        self.setup.setStartAndGoalStates(s, g)
+        solved = self.setup.solve(time_limit)
+        if not solved or not self.setup.haveExactSolutionPath():
+            raise PlanningFailed(f"no collision-free joint path found in {time_limit:.1f} s")
+        self.setup.simplifySolution(simplify_time)
+        path = self.setup.getSolutionPath()
+        return [np.array(path.getState(i)[0 : self.dof]) for i in range(path.getStateCount())]
