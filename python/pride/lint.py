@@ -1,0 +1,325 @@
+"""Meaning checks of a procedure against its SysReps: what ``caretaker lint`` reports.
+
+After the schema and structure (:mod:`pride.parser`), lint checks that every system, command,
+telemetry item and argument exists with the right type, that every ``${...}`` is bound on every
+path that reaches it, that go-tos land on a step, that every step can be reached, and that
+sub-procedure calls pass what the callee declares. A procedure with any problem does not start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from pride.diagnostics import Problem
+from pride.model import (
+    ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
+    GoToInstruction, Instruction, Location, Procedure, RecordInstruction, Reference, Subject,
+    VerifyInstruction, WaitInstruction,
+)
+from pride.parser import parse_procedure
+from pride.sysrep import SysRep, check_value
+
+__all__ = ["lint_file", "lint_procedure"]
+
+
+@dataclass(frozen=True)
+class _Variable:
+    """A name a procedure defines: an input/record (typed value) or a saved command result."""
+
+    name: str
+    source: str  # "input" | "record" | "result"
+    type: str | None
+    where: Location
+
+
+def lint_file(path: str | Path, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
+    """Every problem of one procedure file (and of the sub-procedures it calls)."""
+    procedure, problems = parse_procedure(path)
+    if procedure is None:
+        return problems
+    return lint_procedure(procedure, sysreps, _seen=_seen | {str(Path(path).resolve())})
+
+
+def lint_procedure(procedure: Procedure, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
+    """Every meaning problem of a parsed procedure."""
+    return _Linter(procedure, sysreps, _seen).run()
+
+
+class _Linter:
+    def __init__(self, procedure: Procedure, sysreps: Mapping[str, SysRep], seen: frozenset[str]) -> None:
+        self.proc = procedure
+        self.sysreps = sysreps
+        self.seen = seen
+        self.problems: list[Problem] = []
+        self.flat = procedure.instructions
+        self.index = {i.number: n for n, i in enumerate(self.flat)}
+        self.variables: dict[str, _Variable] = {}
+
+    def fail(self, where: Location, message: str) -> None:
+        self.problems.append(Problem(where, message))
+
+    def run(self) -> list[Problem]:
+        declared = set()
+        for system, where in self.proc.uses:
+            if system not in self.sysreps:
+                self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+            declared.add(system)
+        self.declared = declared
+        self.collect_variables()
+        for instruction in self.flat:
+            self.check(instruction)
+        successors = self.control_flow()
+        reachable = self.reachability(successors)
+        self.check_variables(successors, reachable)
+        return self.problems
+
+    # ---- names ------------------------------------------------------------------------------
+    def collect_variables(self) -> None:
+        defs: list[_Variable] = [_Variable(i.name, "input", i.type, i.where) for i in self.proc.inputs]
+        for i in self.flat:
+            if isinstance(i, RecordInstruction):
+                defs.append(_Variable(i.name, "record", i.type, i.at("name")))
+            elif isinstance(i, CommandInstruction) and i.result:
+                defs.append(_Variable(i.result, "result", None, i.at("result")))
+        for var in defs:
+            first = self.variables.get(var.name)
+            if first is None:
+                self.variables[var.name] = var
+            elif first.source != var.source or first.type != var.type:
+                self.fail(var.where, f"{var.name!r} is already a {first.source}"
+                          f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name")
+
+    def system(self, instruction: Instruction, system: str | None) -> SysRep | None:
+        where = instruction.at("system")
+        if system not in self.sysreps:
+            self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+            return None
+        if system not in self.declared:
+            self.fail(where, f"system {system!r} is not declared; add <uses system=\"{system}\"/> to the procedure")
+        return self.sysreps[system]
+
+    def step_target(self, instruction: Instruction, attribute: str, ref: str | None) -> None:
+        if ref is not None and self.proc.step(ref) is None:
+            known = ", ".join(s.id for s in self.proc.steps)
+            self.fail(instruction.at(attribute), f"go-to to nowhere: no step {ref!r} (steps: {known})")
+
+    # ---- instructions -----------------------------------------------------------------------
+    def check(self, i: Instruction) -> None:
+        if isinstance(i, CommandInstruction):
+            self.check_command(i)
+            self.step_target(i, "on-failure", i.on_failure)
+        elif isinstance(i, (VerifyInstruction, WaitInstruction, BranchInstruction)):
+            if i.subject is not None and i.condition is not None:
+                self.check_condition(i, i.subject, i.condition)
+            if isinstance(i, BranchInstruction):
+                self.step_target(i, "goto", i.goto)
+                self.step_target(i, "else", i.else_goto)
+            else:
+                self.step_target(i, "on-failure", i.on_failure)
+        elif isinstance(i, GoToInstruction):
+            self.step_target(i, "step", i.step)
+        elif isinstance(i, CallInstruction):
+            self.check_call(i)
+
+    def check_command(self, i: CommandInstruction) -> None:
+        sysrep = self.system(i, i.system)
+        if sysrep is None:
+            return
+        command = sysrep.command(i.command)
+        if command is None:
+            self.fail(i.at("name"), f"unknown command {i.command!r} in {i.system} "
+                      f"(commands: {', '.join(c.id for c in sysrep.commands)})")
+            return
+        expected = [a.name for a in command.args]
+        for binding in i.args:
+            argument = command.arg(binding.name)
+            if argument is None:
+                self.fail(binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})")
+                continue
+            self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}",
+                             lambda v, a=argument: a.check(v))
+        missing = [name for name in expected if name not in {b.name for b in i.args}]
+        if missing:
+            self.fail(i.where, f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
+                      f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})")
+
+    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check) -> None:
+        whole = binding.value.whole_reference
+        if whole is not None:
+            var = self.variables.get(whole.name)
+            if var is not None and var.type is not None and var.type != type_name and type_name != "string":
+                self.fail(binding.where, f"{what}: expected {type_name}, but {whole} is a {var.type} {var.source}")
+            return
+        if binding.value.references:
+            if type_name != "string":
+                self.fail(binding.where, f"{what}: expected {type_name}; text mixed with ${{...}} is a string")
+            return
+        try:
+            check(str(binding.value))
+        except ValueError as exc:
+            self.fail(binding.where, f"{what}: {str(exc).split(': ', 1)[-1]}")
+
+    def check_condition(self, i: Instruction, subject: Subject, condition: Condition) -> None:
+        type_name: str | None = None
+        if subject.source == "telemetry":
+            sysrep = self.system(i, subject.system)
+            if sysrep is None:
+                return
+            item = sysrep.telemetry_item(subject.name)
+            if item is None:
+                self.fail(i.at("telemetry"), f"unknown telemetry {subject.name!r} in {subject.system} "
+                          f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})")
+                return
+            type_name = item.type
+        elif subject.source == "input":
+            var = self.variables.get(subject.name)
+            type_name = var.type if var is not None and var.source != "result" else None
+            if var is not None and var.source == "result":
+                self.fail(i.at("input"), f"{subject.name!r} is a command result; write result=\"{subject.name}.success\"")
+        elif subject.source == "result":
+            var = self.variables.get(subject.name)
+            if var is not None and var.source != "result":
+                self.fail(i.at("result"), f"{subject.name!r} is a {var.source}, not a command result; write input=\"{subject.name}\"")
+            type_name = "boolean" if subject.field == "success" else None
+        if type_name is None:
+            return
+        for attribute, text in (("equals", condition.equals), ("not-equals", condition.not_equals),
+                                ("min", condition.minimum), ("max", condition.maximum)):
+            if text is None:
+                continue
+            if attribute in ("min", "max") and type_name not in ("integer", "real"):
+                self.fail(i.at(attribute), f"{attribute} compares numbers; {subject.describe()} is {type_name}")
+                continue
+            try:
+                check_value(attribute, type_name, text)
+            except ValueError as exc:
+                self.fail(i.at(attribute), f"{subject.describe()} is {type_name}: {exc}")
+        if condition.tolerance is not None and type_name not in ("integer", "real"):
+            self.fail(i.at("tolerance"), f"tolerance applies to numbers; {subject.describe()} is {type_name}")
+
+    def check_call(self, i: CallInstruction) -> None:
+        path = Path(i.resolved_path)
+        if not path.is_file():
+            self.fail(i.at("procedure"), f"sub-procedure file not found: {i.procedure} (looked at {path})")
+            return
+        if str(path) in self.seen:
+            self.fail(i.at("procedure"), f"sub-procedure {i.procedure} calls itself (directly or through others)")
+            return
+        callee, problems = parse_procedure(path)
+        if callee is not None:
+            problems = lint_procedure(callee, self.sysreps, _seen=self.seen | {str(path)})
+        if problems:
+            self.problems.extend(problems)
+            self.fail(i.at("procedure"), f"sub-procedure {i.procedure} has {len(problems)} error(s)")
+            return
+        declared = {inp.name: inp for inp in callee.inputs}
+        for binding in i.args:
+            if binding.name not in declared:
+                self.fail(binding.where, f"{callee.id}: unknown input {binding.name!r} "
+                          f"(declared inputs: {', '.join(declared) or 'none'})")
+                continue
+            inp = declared[binding.name]
+            self.check_value(binding, inp.type, f"{callee.id}: input {binding.name!r}",
+                             lambda v, t=inp.type, n=inp.name: check_value(n, t, v))
+        missing = [name for name in declared if name not in {b.name for b in i.args}]
+        if missing:
+            self.fail(i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
+
+    # ---- control flow -----------------------------------------------------------------------
+    def first_of(self, ref: str | None) -> int | None:
+        step = self.proc.step(ref) if ref is not None else None
+        return self.index[step.instructions[0].number] if step is not None and step.instructions else None
+
+    def control_flow(self) -> list[list[int]]:
+        """Successors of each instruction (index into the flat list); len(flat) means the end."""
+        end = len(self.flat)
+        successors: list[list[int]] = []
+        for n, i in enumerate(self.flat):
+            following = n + 1
+            targets: list[int | None]
+            if isinstance(i, GoToInstruction):
+                targets = [self.first_of(i.step)]
+            elif isinstance(i, BranchInstruction):
+                targets = [self.first_of(i.goto), self.first_of(i.else_goto) if i.else_goto else following]
+            elif isinstance(i, (CommandInstruction, VerifyInstruction, WaitInstruction)) and i.on_failure:
+                targets = [following, self.first_of(i.on_failure)]
+            else:
+                targets = [following]
+            successors.append(sorted({t if t is not None else end for t in targets if t is not None}))
+        return successors
+
+    def reachability(self, successors: list[list[int]]) -> set[int]:
+        reached: set[int] = set()
+        todo = [0] if self.flat else []
+        while todo:
+            n = todo.pop()
+            if n in reached or n >= len(self.flat):
+                continue
+            reached.add(n)
+            todo.extend(successors[n])
+        for step in self.proc.steps:
+            numbers = [self.index[i.number] for i in step.instructions]
+            if numbers and not any(n in reached for n in numbers):
+                self.fail(step.where, f"step {step.number} ({step.title!r}) is unreachable: "
+                          "no go-to or preceding step leads to it")
+                continue
+            for n in numbers:
+                if n not in reached:
+                    self.fail(self.flat[n].where, f"instruction {self.flat[n].number} is unreachable "
+                              "(the instruction before it always goes elsewhere)")
+        return reached
+
+    def check_variables(self, successors: list[list[int]], reachable: set[int]) -> None:
+        """Every ``${...}`` and condition input must be defined on every path that reaches it."""
+        everything = frozenset(self.variables)
+        entry = frozenset(inp.name for inp in self.proc.inputs)
+        defined_in: dict[int, frozenset[str]] = {n: everything for n in reachable}
+        if 0 in reachable:
+            defined_in[0] = entry
+        predecessors: dict[int, list[int]] = {n: [] for n in reachable}
+        for n in reachable:
+            for s in successors[n]:
+                if s in predecessors:
+                    predecessors[s].append(n)
+        changed = True
+        while changed:
+            changed = False
+            for n in sorted(reachable):
+                sets = [self.defined_out(p, defined_in[p]) for p in predecessors[n]]
+                if n == 0:
+                    sets.append(entry)
+                new = frozenset.intersection(*sets) if sets else entry
+                if new != defined_in[n]:
+                    defined_in[n] = new
+                    changed = True
+        for n in sorted(reachable):
+            for ref, where in self.uses(self.flat[n]):
+                if ref.name not in self.variables:
+                    self.fail(where, f"unbound variable {ref.name!r}: no input, record or command result of that name")
+                elif ref.name not in defined_in[n]:
+                    self.fail(where, f"unbound variable {ref.name!r}: not recorded or returned before "
+                              f"{self.flat[n].number} on every path")
+                elif ref.field is not None and self.variables[ref.name].source != "result":
+                    self.fail(where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}")
+                elif ref.field is None and self.variables[ref.name].source == "result":
+                    self.fail(where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}")
+
+    def defined_out(self, n: int, defined: frozenset[str]) -> frozenset[str]:
+        i = self.flat[n]
+        if isinstance(i, RecordInstruction):
+            return defined | {i.name}
+        if isinstance(i, CommandInstruction) and i.result:
+            return defined | {i.result}
+        return defined
+
+    @staticmethod
+    def uses(i: Instruction) -> list[tuple[Reference, Location]]:
+        found: list[tuple[Reference, Location]] = []
+        if isinstance(i, (CommandInstruction, CallInstruction)):
+            found += [(ref, b.where) for b in i.args for ref in b.value.references]
+        if isinstance(i, BranchInstruction) and i.subject.source in ("input", "result"):
+            ref = Reference(i.subject.name, i.subject.field if i.subject.source == "result" else None)
+            found.append((ref, i.at(i.subject.source)))
+        return found

@@ -1,0 +1,136 @@
+"""What the page shows of a run, folded from its audit events alone.
+
+The audit log is the record of what happened, so the view is a pure function of it: the same
+fold draws a live run (events as the executive emits them) and a past one (events read back
+from the log). Folding never touches the executive, so watching cannot change a run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from pride.events import Event, EventKind
+
+__all__ = ["InstructionState", "RunState", "fold_events"]
+
+_IMAGE_KEYS = ("image_path", "image", "path")
+
+
+@dataclass
+class InstructionState:
+    """One instruction as far as the run got with it."""
+
+    status: str = "pending"  # pending | active | awaiting | completed | failed | skipped
+    actor: str | None = None
+    time: str | None = None
+    reason: str | None = None
+    sent: dict[str, Any] | None = None
+    result: dict[str, Any] | None = None
+    value: Any = None
+    telemetry: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if v is not None}
+
+
+@dataclass
+class RunState:
+    """The run as of its last event."""
+
+    run_id: str
+    procedure: str | None = None
+    mode: str | None = None
+    status: str = "not started"  # running | paused | awaiting | completed | stopped
+    started_by: str | None = None
+    current: str | None = None
+    awaiting: str | None = None
+    breakpoints: set[str] = field(default_factory=set)
+    instructions: dict[str, InstructionState] = field(default_factory=dict)
+    latest_image: str | None = None
+    last_seq: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "run_id": self.run_id, "procedure": self.procedure, "mode": self.mode,
+            "status": self.status, "started_by": self.started_by, "current": self.current,
+            "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints),
+            "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
+            "has_image": self.latest_image is not None, "last_seq": self.last_seq,
+        }
+
+    def apply(self, event: Event) -> None:
+        """Fold one more event in (events arrive in sequence order)."""
+        self.last_seq = max(self.last_seq, event.seq)
+        data = event.data or {}
+        kind = event.kind
+        when = event.time.isoformat()
+        number = event.instruction
+        entry = self.instructions.setdefault(number, InstructionState()) if number else None
+        if kind in (EventKind.RUN_STARTED, EventKind.RUN_RESUMED):
+            self.procedure = data.get("procedure", self.procedure)
+            self.mode = data.get("mode", self.mode)
+            self.started_by = self.started_by or event.actor
+            self.status = "running"
+        elif kind is EventKind.MODE_CHANGED:
+            self.mode = data.get("mode", data.get("to", self.mode))
+        elif kind is EventKind.RUN_COMPLETED:
+            self.status, self.current, self.awaiting = "completed", None, None
+        elif kind is EventKind.RUN_STOPPED:
+            self.status, self.awaiting = "stopped", None
+        elif kind is EventKind.PAUSED:
+            self.status = "paused"
+        elif kind in (EventKind.CONTINUED, EventKind.RETRY):
+            self.status, self.awaiting = "running", None
+        elif kind is EventKind.BREAKPOINT_SET and number:
+            self.breakpoints.add(number)
+        elif kind is EventKind.BREAKPOINT_CLEARED and number:
+            self.breakpoints.discard(number)
+        if entry is None:
+            return
+        if kind is EventKind.INSTRUCTION_STARTED:
+            entry.status, entry.actor, entry.time, entry.reason = "active", event.actor, when, None
+            self.current, self.awaiting = number, None
+            if self.status == "awaiting":
+                self.status = "running"
+        elif kind in (EventKind.AWAITING_OPERATOR, EventKind.BREAKPOINT_HIT):
+            entry.status = "awaiting"
+            entry.reason = data.get("reason") or ("breakpoint" if kind is EventKind.BREAKPOINT_HIT else None)
+            self.current, self.awaiting, self.status = number, entry.reason or "operator", "awaiting"
+        elif kind is EventKind.INSTRUCTION_COMPLETED:
+            entry.status, entry.actor, entry.time, entry.reason = "completed", event.actor, when, None
+        elif kind is EventKind.INSTRUCTION_FAILED:
+            entry.status, entry.actor, entry.time = "failed", event.actor, when
+            entry.reason = data.get("reason")
+        elif kind is EventKind.INSTRUCTION_SKIPPED:
+            entry.status, entry.actor, entry.time = "skipped", event.actor, when
+            entry.reason = data.get("reason")
+        elif kind is EventKind.COMMAND_SENT:
+            entry.sent = dict(data)
+        elif kind is EventKind.COMMAND_RESULT:
+            entry.result = dict(data)
+            image = _image_path(data)
+            if image:
+                self.latest_image = image
+        elif kind is EventKind.OPERATOR_INPUT:
+            entry.value = data.get("value")
+        elif kind is EventKind.TELEMETRY_SEEN:
+            entry.telemetry = dict(data)
+
+
+def _image_path(data: dict[str, Any]) -> str | None:
+    """A PNG path in a command result (the camera SysRep's capture answers with one)."""
+    values = data.get("values") if isinstance(data.get("values"), dict) else data
+    for key in _IMAGE_KEYS:
+        value = values.get(key) if isinstance(values, dict) else None
+        if isinstance(value, str) and value.lower().endswith(".png"):
+            return value
+    return None
+
+
+def fold_events(run_id: str, events: list[Event]) -> RunState:
+    """The state of a run after ``events``."""
+    state = RunState(run_id)
+    for event in events:
+        state.apply(event)
+    return state
