@@ -1,0 +1,1 @@
+"""rosbridge protocol v2 server on rclpy (``caretaker bridge``); see docs/rosbridge.md."""

@@ -1,0 +1,159 @@
+"""``caretaker bridge``: the rosbridge v2 WebSocket server on rclpy.
+
+One asyncio thread owns every WebSocket; ROS runs on its own threads (:mod:`.ros_thread`).
+Prints ``READY bridge ws://HOST:PORT`` (the actual port, also with ``--port 0``) once it
+accepts connections.  Loopback only unless ``--address`` says otherwise.  Options for TLS,
+allow-lists, the incoming size limit and authentication are described in docs/rosbridge.md
+and :mod:`.security`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import logging
+import os
+import signal
+import ssl
+import sys
+from typing import Any
+
+from websockets.asyncio.server import ServerConnection, serve
+from websockets.exceptions import ConnectionClosed
+
+from .operations import Bridge, Policy
+from .protocol import CLOSE_POLICY_VIOLATION, Refused
+from .ros_thread import RosThread
+from .security import AllowList, authenticate
+from .services import Services
+from .session import Session, SessionState
+from .topics import Topics
+
+log = logging.getLogger("bridge.rosbridge")
+
+AUTH_SECRET_ENV = "CARETAKER_BRIDGE_SECRET"
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="caretaker bridge", description="rosbridge v2 server on rclpy")
+    parser.add_argument("--address", default="127.0.0.1", help="interface to bind (default: loopback only)")
+    parser.add_argument("--port", type=int, default=9090, help="TCP port; 0 picks a free one (default 9090)")
+    parser.add_argument("--certfile", help="TLS certificate (PEM); with --keyfile serves wss://")
+    parser.add_argument("--keyfile", help="TLS private key (PEM)")
+    parser.add_argument("--topics-glob", action="append", default=[], metavar="GLOB",
+                        help="allow only matching topics (repeatable; default: all)")
+    parser.add_argument("--services-glob", action="append", default=[], metavar="GLOB",
+                        help="allow only matching services (repeatable; /rosapi/* stays allowed)")
+    parser.add_argument("--actions-glob", action="append", default=[], metavar="GLOB",
+                        help="allow only matching actions (repeatable; default: all)")
+    parser.add_argument("--max-message-size", type=int, default=10_000_000,
+                        help="largest incoming frame in bytes; larger closes with 1009 (default 10 MB)")
+    parser.add_argument("--service-timeout", type=float, default=10.0,
+                        help="default call_service timeout in seconds when a call gives none (default 10)")
+    parser.add_argument("--auth-secret-file",
+                        help=f"file holding the shared secret clients must authenticate with "
+                             f"(or set {AUTH_SECRET_ENV}); see docs/rosbridge.md")
+    parser.add_argument("--log-level", default="INFO")
+    args = parser.parse_args(argv)
+    if bool(args.certfile) != bool(args.keyfile):
+        parser.error("--certfile and --keyfile go together")
+    return args
+
+
+class RosbridgeServer:
+    """The WebSocket side: accepts connections and runs one :class:`Session` per client."""
+
+    def __init__(self, bridge: Bridge, auth_secret: str | None) -> None:
+        self.bridge = bridge
+        self.auth_secret = auth_secret
+        self.sessions: set[Session] = set()
+
+    async def connection(self, websocket: ServerConnection) -> None:
+        session = Session(websocket, authenticated=self.auth_secret is None)
+        self.sessions.add(session)
+        log.info("client %d connected from %s (%d connected)", session.number, session.peer, len(self.sessions))
+        try:
+            async for frame in websocket:
+                if session.state is SessionState.AUTHENTICATING:
+                    if not await self._authenticate(session, frame):
+                        break
+                    continue
+                self.bridge.handle_frame(session, frame)
+        except ConnectionClosed:
+            pass
+        finally:
+            session.mark_closed()
+            self.sessions.discard(session)
+            self.bridge.drop_session(session)
+            log.info("client %d disconnected (%d connected)", session.number, len(self.sessions))
+
+    async def _authenticate(self, session: Session, frame: str | bytes) -> bool:
+        try:
+            message: Any = json.loads(frame) if isinstance(frame, str) else None
+        except json.JSONDecodeError:
+            message = None
+        try:
+            authenticate(message, self.auth_secret or "")
+        except Refused as exc:
+            log.warning("client %d refused: %s", session.number, exc)
+            await session.websocket.close(CLOSE_POLICY_VIOLATION, str(exc)[:120])
+            return False
+        session.state = SessionState.OPEN
+        return True
+
+
+async def run(args: argparse.Namespace) -> int:
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop.set)
+    secret = _read_secret(args.auth_secret_file)
+    tls = None
+    if args.certfile:
+        tls = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+        tls.load_cert_chain(args.certfile, args.keyfile)
+    ros = RosThread(loop)
+    try:
+        policy = Policy(AllowList("topic", tuple(args.topics_glob)), AllowList("service", tuple(args.services_glob)),
+                        AllowList("action", tuple(args.actions_glob)), args.max_message_size)
+        topics = Topics(ros)
+        services = Services(ros, args.service_timeout)
+        from .actions import Actions  # actions load rclpy.action, only needed once serving
+        bridge = Bridge(topics, services, Actions(ros, policy.actions), policy)
+        server = RosbridgeServer(bridge, secret)
+        async with serve(server.connection, args.address, args.port, ssl=tls, max_size=args.max_message_size,
+                         compression=None, ping_interval=20, ping_timeout=30) as ws_server:
+            port = ws_server.sockets[0].getsockname()[1]
+            scheme = "wss" if tls else "ws"
+            print(f"READY bridge {scheme}://{args.address}:{port}", flush=True)
+            await stop.wait()
+            log.info("stopping")
+    finally:
+        ros.shutdown()
+    return 0
+
+
+def _read_secret(path: str | None) -> str | None:
+    if path:
+        with open(path, encoding="utf-8") as handle:
+            secret = handle.read().strip()
+        if not secret:
+            raise SystemExit(f"caretaker bridge: {path} is empty; put the shared secret in it")
+        return secret
+    return os.environ.get(AUTH_SECRET_ENV) or None
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``caretaker bridge``."""
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    try:
+        return asyncio.run(run(args))
+    except KeyboardInterrupt:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""Services both ways: clients calling ROS services, and clients serving ROS services.
+
+Calls use one cached rclpy client per (service, type): creating a client per call costs about
+85 ms of discovery, which was the whole service tail of the peers.  A call never blocks the
+event loop or other calls: the rclpy future's completion is handed back through
+:meth:`RosThread.deliver` and awaited with a per-call (or the default) timeout.
+
+A client-served service is a ROS service on ``RosThread.server_node`` whose coroutine callback
+forwards each request as ``call_service`` (id ``service_request:<service>:<n>``) and awaits
+the client's ``service_response``.  A ROS service cannot report failure, so a request the
+client fails (``result: false``, bad values, disconnect, unadvertise) gets no response and the
+caller's own timeout reports it; the failure is logged, never turned into a fake success.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+from dataclasses import dataclass, field
+from typing import Any
+
+import rclpy.task
+
+from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
+from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, ServiceTimeout, ServiceUnavailable,
+                       TypeConflict)
+from .ros_thread import RosThread
+from .session import Session
+
+log = logging.getLogger(__name__)
+
+SERVER_WAIT_S = 1.0
+"""How long a call waits for a known service's server to match (rosbridge: 1 s)."""
+
+
+@dataclass
+class ProvidedService:
+    """A ROS service whose requests a WebSocket client answers."""
+
+    name: str
+    srv_cls: Any
+    session: Session
+    service: Any = None
+    pending: dict[str, rclpy.task.Future] = field(default_factory=dict)
+    counter: itertools.count = field(default_factory=lambda: itertools.count(1))
+
+
+class Services:
+    """Service calls from clients, and services provided by clients."""
+
+    def __init__(self, ros: RosThread, default_timeout: float) -> None:
+        self.ros = ros
+        self.default_timeout = default_timeout
+        self._clients: dict[str, tuple[Any, Any]] = {}
+        self.provided: dict[str, ProvidedService] = {}
+
+    # --- calling ROS services ----------------------------------------------------------------
+    def graph_type(self, service: str) -> str | None:
+        """The type of ``service`` on the ROS graph, or None if no server offers it."""
+        for name, types in self.ros.node.get_service_names_and_types():
+            if name == service and types:
+                return types[0]
+        return None
+
+    def _client(self, service: str) -> tuple[Any, Any]:
+        cached = self._clients.get(service)
+        if cached is not None and cached[0].service_is_ready():
+            return cached
+        graph_type = self.graph_type(service)
+        if graph_type is None:
+            raise ServiceUnavailable(f"Service {service} does not exist")
+        if cached is not None and type_name(cached[1]) == graph_type:
+            return cached
+        if cached is not None:
+            self.ros.node.destroy_client(cached[0])
+        srv_cls = load_type(graph_type, "srv")
+        cached = self._clients[service] = (self.ros.node.create_client(srv_cls, service), srv_cls)
+        return cached
+
+    def request_class(self, service: str) -> Any:
+        """The request class of a service on the graph (for rosapi details)."""
+        return self._client(service)[1]
+
+    async def call(self, service: str, args: Any, timeout: float | None) -> dict[str, Any]:
+        """Call a ROS service; the response as a dict.  Raises a BridgeError on failure."""
+        client, srv_cls = self._client(service)
+        if isinstance(args, list):
+            request = list_to_request(srv_cls.Request, args)
+        else:
+            request = dict_to_message(srv_cls.Request, args or {}, "args")
+        if not client.service_is_ready():
+            deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
+            while not client.service_is_ready():
+                if asyncio.get_running_loop().time() > deadline:
+                    raise ServiceUnavailable(f"Service {service} has no server answering")
+                await asyncio.sleep(0.01)
+        ros_future = client.call_async(request)
+        answer = self.ros.wrap(ros_future)
+        try:
+            response = await asyncio.wait_for(answer, timeout if timeout and timeout > 0 else self.default_timeout)
+        except asyncio.TimeoutError:
+            client.remove_pending_request(ros_future)
+            raise ServiceTimeout(SERVICE_TIMEOUT_TEXT) from None
+        return message_to_dict(response)
+
+    # --- services served by clients ----------------------------------------------------------
+    def advertise(self, session: Session, service: str, type_name_: str) -> None:
+        srv_cls = load_type(type_name_, "srv")
+        previous = self.provided.get(service)
+        if previous is None and self.graph_type(service) not in (None, type_name(srv_cls)):
+            raise TypeConflict(f"service {service} already exists with type {self.graph_type(service)}")
+        if previous is not None:  # rosbridge semantics: the newest advertiser replaces the old one
+            self._withdraw(previous, "replaced by a newer advertise_service")
+        provided = ProvidedService(service, srv_cls, session)
+
+        async def callback(request: Any, response: Any) -> Any:
+            return await self._forward_request(provided, request)
+
+        provided.service = self.ros.server_node.create_service(srv_cls, service, callback)
+        self.provided[service] = provided
+
+    def unadvertise(self, session: Session, service: str) -> None:
+        provided = self.provided.get(service)
+        if provided is None or provided.session is not session:
+            raise InvalidField(f"service {service} is not advertised by this client")
+        self._withdraw(provided, "unadvertised by its client")
+
+    def respond(self, session: Session, service: str, request_id: str, values: Any, result: bool) -> None:
+        """A client's ``service_response`` to a forwarded request."""
+        provided = self.provided.get(service)
+        future = provided.pending.pop(request_id, None) if provided and provided.session is session else None
+        if future is None:
+            raise InvalidField(f"no pending request {request_id!r} for service {service} of this client")
+        try:
+            response = dict_to_message(provided.srv_cls.Response, values or {}, "values") if result else None
+        except InvalidField as exc:
+            future.set_exception(RuntimeError(str(exc)))
+            raise
+        finally:
+            self.ros.server_executor.wake()
+        if response is None:
+            future.set_exception(RuntimeError(f"the client serving {service} failed the request: {values}"))
+        else:
+            future.set_result(response)
+        self.ros.server_executor.wake()
+
+    async def _forward_request(self, provided: ProvidedService, request: Any) -> Any:
+        # Runs on the ros-servers thread, inside the executor's task machinery.
+        request_id = f"service_request:{provided.name}:{next(provided.counter)}"
+        future = rclpy.task.Future()
+        provided.pending[request_id] = future
+        message = {"op": OP_CALL_SERVICE, "id": request_id, "service": provided.name, "args": message_to_dict(request)}
+        self.ros.deliver(provided.session.send, message)
+        try:
+            return await future
+        except Exception:
+            log.error("request %s of %s not answered: %s", request_id, provided.name, future.exception())
+            raise
+
+    def _withdraw(self, provided: ProvidedService, reason: str) -> None:
+        if self.provided.get(provided.name) is provided:
+            del self.provided[provided.name]
+        for future in provided.pending.values():
+            future.set_exception(RuntimeError(f"service {provided.name} {reason}"))
+        provided.pending.clear()
+        self.ros.server_node.destroy_service(provided.service)
+        self.ros.server_executor.wake()
+
+    def drop_session(self, session: Session) -> None:
+        """Withdraw the services a closed session provided."""
+        for provided in [p for p in self.provided.values() if p.session is session]:
+            self._withdraw(provided, "lost its client")
+

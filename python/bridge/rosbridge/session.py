@@ -1,0 +1,161 @@
+"""One WebSocket client: its state, its registrations and its bounded outgoing queues.
+
+Outgoing frames wait in per-subscription queues bounded by the subscription's
+``queue_length`` (oldest dropped first) and in one control queue for answers.  A single writer
+task per session drains them, so a slow client only ever slows itself down: fan-out never
+awaits a socket.  Answers are never dropped; a client that lets more than
+:data:`CONTROL_QUEUE_LIMIT` answers pile up is disconnected instead (policy violation).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import enum
+import itertools
+import json
+import logging
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+from .protocol import CLOSE_POLICY_VIOLATION, LEVELS, OP_FRAGMENT, OP_STATUS
+
+log = logging.getLogger(__name__)
+
+#: frames waiting to be sent: text, binary, or the fragments of one text message
+Frame = Union[str, bytes, list[str]]
+
+CONTROL_QUEUE_LIMIT = 10_000
+DEFAULT_QUEUE_LENGTH = 1000
+"""Backlog per subscription when the client gives no ``queue_length`` (or 0)."""
+
+_session_numbers = itertools.count(1)
+
+
+class SessionState(enum.Enum):
+    """Where a connection is in its life."""
+
+    AUTHENTICATING = "authenticating"
+    """Only an ``auth`` message is accepted (a shared secret is configured)."""
+    OPEN = "open"
+    """Requests are served."""
+    CLOSED = "closed"
+    """The socket is gone; late answers are discarded and registrations were released."""
+
+
+@dataclass
+class SubscriptionQueue:
+    """Frames of one client subscription not yet written to its socket."""
+
+    limit: int
+    frames: deque[Frame] = field(default_factory=deque)
+    dropped: int = 0
+
+    def push(self, frame: Frame) -> None:
+        if len(self.frames) >= self.limit:
+            self.frames.popleft()
+            self.dropped += 1
+        self.frames.append(frame)
+
+
+class Session:
+    """Per-connection state of the bridge, shared by the op handlers of every module."""
+
+    def __init__(self, websocket: Any, authenticated: bool) -> None:
+        self.number = next(_session_numbers)
+        self.websocket = websocket
+        self.peer = str(getattr(websocket, "remote_address", "?"))
+        self.state = SessionState.OPEN if authenticated else SessionState.AUTHENTICATING
+        self.status_level = "none"
+        self.fragment_size: int | None = None
+        self._control: deque[Frame] = deque()
+        self._queues: dict[object, SubscriptionQueue] = {}
+        self._wake = asyncio.Event()
+        self._fragment_ids = itertools.count(1)
+        self.writer = asyncio.get_running_loop().create_task(self._write(), name=f"session-{self.number}-writer")
+
+    # --- sending -------------------------------------------------------------------------------
+    def send(self, message: dict[str, Any]) -> None:
+        """Queue an answer (never dropped while the session is open)."""
+        self.send_frame(json.dumps(message, separators=(",", ":"), allow_nan=False))
+
+    def send_frame(self, frame: str | bytes, fragment_size: int | None = None) -> None:
+        """Queue an encoded answer frame, split into fragments if ``fragment_size`` asks."""
+        if self.state is SessionState.CLOSED:
+            return
+        if len(self._control) >= CONTROL_QUEUE_LIMIT:
+            log.warning("session %d: %d answers unread, disconnecting", self.number, len(self._control))
+            self.close(CLOSE_POLICY_VIOLATION, "client reads too slowly")
+            return
+        self._control.append(self._fragmented(frame, fragment_size))
+        self._wake.set()
+
+    def send_topic_frame(self, key: object, frame: str | bytes, queue_length: int, fragment_size: int | None) -> None:
+        """Queue a topic message of subscription ``key``, dropping its oldest beyond ``queue_length``."""
+        if self.state is SessionState.CLOSED:
+            return
+        queue = self._queues.get(key)
+        if queue is None:
+            queue = self._queues[key] = SubscriptionQueue(queue_length or DEFAULT_QUEUE_LENGTH)
+        queue.push(self._fragmented(frame, fragment_size))
+        self._wake.set()
+
+    def forget_queue(self, key: object) -> None:
+        """Discard the backlog of a subscription that ended."""
+        self._queues.pop(key, None)
+
+    def status(self, level: str, text: str, request_id: Any = None) -> None:
+        """Send a ``status`` message if the client asked for this level with ``set_level``."""
+        if self.status_level == "none" or LEVELS.index(level) < LEVELS.index(self.status_level):
+            return
+        message: dict[str, Any] = {"op": OP_STATUS, "level": level, "msg": text}
+        if request_id is not None:
+            message["id"] = request_id
+        self.send(message)
+
+    def _fragmented(self, frame: str | bytes, fragment_size: int | None) -> Frame:
+        size = fragment_size or self.fragment_size
+        if not size or isinstance(frame, bytes) or len(frame) <= size:
+            return frame
+        fragment_id = f"fragment:{self.number}:{next(self._fragment_ids)}"
+        parts = [frame[i:i + size] for i in range(0, len(frame), size)]
+        return [
+            json.dumps({"op": OP_FRAGMENT, "id": fragment_id, "data": part, "num": num, "total": len(parts)},
+                       separators=(",", ":"))
+            for num, part in enumerate(parts)
+        ]
+
+    async def _write(self) -> None:
+        websocket = self.websocket
+        try:
+            while self.state is not SessionState.CLOSED:
+                await self._wake.wait()
+                self._wake.clear()
+                while self._control or any(q.frames for q in self._queues.values()):
+                    while self._control:
+                        await self._send_raw(websocket, self._control.popleft())
+                    # one frame per subscription per round: fair between topics, FIFO within one
+                    for queue in list(self._queues.values()):
+                        if queue.frames:
+                            await self._send_raw(websocket, queue.frames.popleft())
+        except Exception as exc:  # the connection is gone; the reader side cleans up
+            log.debug("session %d writer stopped: %s", self.number, exc)
+
+    @staticmethod
+    async def _send_raw(websocket: Any, frame: Frame) -> None:
+        if isinstance(frame, list):
+            for part in frame:
+                await websocket.send(part)
+        else:
+            await websocket.send(frame)
+
+    def close(self, code: int, reason: str) -> None:
+        """Close the socket from the server side (the reader then releases registrations)."""
+        asyncio.get_running_loop().create_task(self.websocket.close(code, reason))
+
+    def mark_closed(self) -> None:
+        """Stop queueing and writing; called once when the connection ends."""
+        self.state = SessionState.CLOSED
+        self._control.clear()
+        self._queues.clear()
+        self._wake.set()

@@ -1,0 +1,85 @@
+"""Fixtures of the rosbridge tests: the real bridge process, the ROS peer node, clients."""
+
+from __future__ import annotations
+
+import re
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, Callable
+
+import pytest
+import roslibpy
+
+from support.processes import ManagedProcess, python
+
+PEER = Path(__file__).with_name("ros_peer.py")
+
+
+def bridge_url(process: ManagedProcess) -> str:
+    """The ws:// URL from the bridge's READY line."""
+    for line in process.output:
+        match = re.match(r"READY bridge (wss?://\S+)", line)
+        if match:
+            return match.group(1)
+    raise AssertionError(f"no READY line with a URL:\n{process.tail()}")
+
+
+@pytest.fixture(scope="module")
+def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
+    process = python(str(PEER), env=ros_env, name="ros-peer")
+    try:
+        process.wait_ready(60)
+        yield process
+    finally:
+        process.stop()
+
+
+@pytest.fixture(scope="module")
+def bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[str, int]]:
+    """A bridge on a free port, shared by a module's tests: (host, port)."""
+    from support.processes import caretaker
+
+    process = caretaker("bridge", "--port", "0", "--service-timeout", "5", env=ros_env)
+    try:
+        process.wait_ready(60)
+        url = bridge_url(process)
+        host, port = url.split("//")[1].rsplit(":", 1)
+        yield host, int(port)
+    finally:
+        process.stop()
+
+
+@pytest.fixture
+def connect(bridge: tuple[str, int]) -> Iterator[Callable[[], roslibpy.Ros]]:
+    """Connect roslibpy clients to the bridge; all are closed at teardown."""
+    clients: list[roslibpy.Ros] = []
+
+    def open_client() -> roslibpy.Ros:
+        client = roslibpy.Ros(*bridge)
+        client.run(timeout=20)
+        clients.append(client)
+        return client
+
+    yield open_client
+    for client in clients:
+        client.close()
+
+
+class Inbox:
+    """Messages received by callbacks, awaitable by count (no sleeps)."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self._condition = threading.Condition()
+
+    def __call__(self, item: Any) -> None:
+        with self._condition:
+            self.items.append(item)
+            self._condition.notify_all()
+
+    def wait_for(self, count: int, timeout: float = 20.0) -> list[Any]:
+        with self._condition:
+            self._condition.wait_for(lambda: len(self.items) >= count, timeout)
+            assert len(self.items) >= count, f"got {len(self.items)} of {count} messages: {self.items[:5]}"
+            return list(self.items)
