@@ -1,0 +1,154 @@
+package caretaker.binding;
+
+import caretaker.pax.PluginOptions;
+import caretaker.sysrep.SysRep;
+import caretaker.sysrep.SysRepException;
+import caretaker.sysrep.SysRepLoader;
+import java.io.IOException;
+import java.net.URI;
+import java.net.URISyntaxException;
+import java.nio.charset.StandardCharsets;
+import java.nio.file.Files;
+import java.nio.file.Path;
+import java.util.ArrayList;
+import java.util.HashSet;
+import java.util.List;
+import java.util.Map;
+import java.util.Set;
+import java.util.TreeSet;
+import org.yaml.snakeyaml.LoaderOptions;
+import org.yaml.snakeyaml.Yaml;
+import org.yaml.snakeyaml.constructor.SafeConstructor;
+import org.yaml.snakeyaml.error.YAMLException;
+
+/**
+ * Reads binding files:
+ *
+ * <pre>
+ * robot: iva
+ * rosbridge: ws://127.0.0.1:9090        # the robot's rosbridge server
+ * systems:
+ * - sysrep: ../affordance_templates.yaml   # relative to this file
+ *   plugins: [at_commands, at_telemetry]
+ *   namespace: /affordance_template_server
+ *   options: {stale_after: 2.0}
+ * - sysrep: ../cdra.yaml
+ *   plugins: [ros_convention]
+ *   namespace: /cdra
+ * </pre>
+ *
+ * An entry may override {@code rosbridge}. SysRep paths are relative to the binding file.
+ */
+public final class BindingLoader {
+    private static final Set<String> TOP_LEVEL_KEYS = Set.of("robot", "rosbridge", "systems", "description");
+    private static final Set<String> ENTRY_KEYS = Set.of("sysrep", "plugins", "namespace", "options", "rosbridge");
+
+    private BindingLoader() {
+    }
+
+    /**
+     * @param file the binding file
+     * @param rosbridgeOverride replaces every rosbridge URL of the file (e.g. a test's port), or null
+     * @return the binding, with its SysReps loaded
+     * @throws BindingException the file or an entry is wrong
+     * @throws SysRepException a SysRep it names is invalid
+     */
+    public static Binding load(Path file, URI rosbridgeOverride) {
+        String path = file.toString();
+        Object root;
+        try {
+            root = new Yaml(new SafeConstructor(new LoaderOptions())).load(Files.readString(file,
+                    StandardCharsets.UTF_8));
+        } catch (IOException e) {
+            throw new BindingException(path + ": cannot read: " + e.getMessage(), e);
+        } catch (YAMLException e) {
+            throw new BindingException(path + ": not valid YAML: " + e.getMessage().replace('\n', ' '), e);
+        }
+        if (!(root instanceof Map<?, ?> top)) {
+            throw new BindingException(path + ": a binding must be a mapping with robot, rosbridge, systems");
+        }
+        requireKeys(path, "", top, TOP_LEVEL_KEYS);
+        String robot = string(path, "robot", top.get("robot"));
+        URI defaultBridge = rosbridgeOverride != null ? rosbridgeOverride
+                : top.containsKey("rosbridge") ? uri(path, "rosbridge", top.get("rosbridge")) : null;
+        if (!(top.get("systems") instanceof List<?> entries) || entries.isEmpty()) {
+            throw new BindingException(path + ": systems: must be a non-empty list of {sysrep, plugins, namespace}");
+        }
+        List<SystemBinding> systems = new ArrayList<>();
+        Set<String> ids = new HashSet<>();
+        for (int index = 0; index < entries.size(); index++) {
+            String where = "systems[" + index + "]";
+            SystemBinding system = entry(file, where, entries.get(index), defaultBridge, rosbridgeOverride);
+            if (!ids.add(system.sysRep().id())) {
+                throw new BindingException(path + ": " + where + ": SysRep '" + system.sysRep().id()
+                        + "' is bound twice; bind each SysRep once (list several plugins instead)");
+            }
+            systems.add(system);
+        }
+        return new Binding(robot, systems, path);
+    }
+
+    private static SystemBinding entry(Path file, String where, Object raw, URI defaultBridge, URI override) {
+        String path = file.toString();
+        if (!(raw instanceof Map<?, ?> entry)) {
+            throw new BindingException(path + ": " + where + ": must be a mapping {sysrep, plugins, namespace}");
+        }
+        requireKeys(path, where, entry, ENTRY_KEYS);
+        Path sysrepFile = file.toAbsolutePath().getParent().resolve(string(path, where + ".sysrep",
+                entry.get("sysrep"))).normalize();
+        SysRep sysRep = SysRepLoader.load(sysrepFile);
+        if (!(entry.get("plugins") instanceof List<?> pluginList) || pluginList.isEmpty()) {
+            throw new BindingException(path + ": " + where + ".plugins: must be a non-empty list of plugin names ("
+                    + String.join(", ", PluginKind.names()) + ", or a class name)");
+        }
+        List<String> plugins = new ArrayList<>();
+        for (Object plugin : pluginList) {
+            plugins.add(string(path, where + ".plugins", plugin));
+        }
+        String namespace = entry.containsKey("namespace") ? string(path, where + ".namespace", entry.get("namespace"))
+                : "";
+        URI bridge = override != null ? override
+                : entry.containsKey("rosbridge") ? uri(path, where + ".rosbridge", entry.get("rosbridge")) : defaultBridge;
+        if (bridge == null) {
+            throw new BindingException(path + ": " + where + ": no rosbridge URL (set rosbridge at the top or here)");
+        }
+        Object options = entry.containsKey("options") ? entry.get("options") : Map.of();
+        if (!(options instanceof Map<?, ?> optionMap)) {
+            throw new BindingException(path + ": " + where + ".options: must be a mapping");
+        }
+        Map<String, Object> typed = new java.util.LinkedHashMap<>();
+        optionMap.forEach((key, value) -> typed.put(String.valueOf(key), value));
+        return new SystemBinding(sysRep, plugins, bridge, namespace, new PluginOptions(typed, path + ": " + where),
+                path + ": " + where);
+    }
+
+    private static void requireKeys(String path, String where, Map<?, ?> map, Set<String> allowed) {
+        for (Object key : map.keySet()) {
+            if (!allowed.contains(String.valueOf(key))) {
+                throw new BindingException(path + ": " + (where.isEmpty() ? "" : where + ": ") + "unknown key '" + key
+                        + "' (allowed: " + String.join(", ", new TreeSet<>(allowed)) + ")");
+            }
+        }
+    }
+
+    private static String string(String path, String where, Object value) {
+        if (!(value instanceof String text) || text.isEmpty()) {
+            throw new BindingException(path + ": " + where + ": must be a non-empty string, got " + value);
+        }
+        return text;
+    }
+
+    private static URI uri(String path, String where, Object value) {
+        String text = string(path, where, value);
+        try {
+            URI uri = new URI(text);
+            if (!"ws".equals(uri.getScheme()) && !"wss".equals(uri.getScheme()) || uri.getPort() < 0) {
+                throw new URISyntaxException(text, "expected ws://HOST:PORT");
+            }
+            return uri;
+        } catch (URISyntaxException e) {
+            throw new BindingException(path + ": " + where + ": '" + text + "' is not a rosbridge URL like"
+                    + " ws://127.0.0.1:9090", e);
+        }
+    }
+}

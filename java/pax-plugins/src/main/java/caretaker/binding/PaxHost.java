@@ -1,0 +1,207 @@
+package caretaker.binding;
+
+import caretaker.pax.CommandPlugin;
+import caretaker.pax.CommandResult;
+import caretaker.pax.PluginContext;
+import caretaker.pax.PluginException;
+import caretaker.pax.TelemetryListener;
+import caretaker.pax.TelemetryPlugin;
+import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.Ros;
+import caretaker.rosbridge.RosException;
+import caretaker.rosbridge.RosOptions;
+import caretaker.sysrep.Command;
+import caretaker.sysrep.SysRep;
+import java.net.URI;
+import java.nio.file.Path;
+import java.util.ArrayList;
+import java.util.LinkedHashMap;
+import java.util.List;
+import java.util.Map;
+
+/**
+ * The plugins of one binding, ready to use: what a procedure executive talks to. Opens one
+ * rosbridge connection per server named in the binding (kept up across drops), makes the plugins,
+ * checks and converts command arguments against the SysRep before a plugin sees them.
+ *
+ * <pre>
+ * try (PaxHost host = PaxHost.open(Path.of("sysrep/bindings/iva.yaml"), null)) {
+ *     CommandResult r = host.execute("cdra", "unlock_filter", Map.of());
+ *     TelemetryValue locked = host.telemetry("cdra", "filter_locked");
+ * }
+ * </pre>
+ */
+public final class PaxHost implements AutoCloseable {
+    private final Binding binding;
+    private final List<Ros> connections = new ArrayList<>();
+    private final List<AutoCloseable> plugins = new ArrayList<>();
+    private final Map<String, SysRep> sysReps = new LinkedHashMap<>();
+    /** sysrep id → command id → plugin. */
+    private final Map<String, Map<String, CommandPlugin>> commandPlugins = new LinkedHashMap<>();
+    /** sysrep id → item id → plugin. */
+    private final Map<String, Map<String, TelemetryPlugin>> telemetryPlugins = new LinkedHashMap<>();
+
+    private PaxHost(Binding binding) {
+        this.binding = binding;
+    }
+
+    /**
+     * Loads a binding, connects to its rosbridge servers and makes its plugins.
+     *
+     * @param bindingFile the binding file
+     * @param rosbridgeOverride replaces every rosbridge URL of the binding, or null
+     * @return the host; close it when done
+     * @throws BindingException the binding is wrong
+     * @throws caretaker.sysrep.SysRepException a SysRep is invalid
+     * @throws PluginException a plugin cannot be made (bad option, SysRep does not fit)
+     * @throws RosException a rosbridge server cannot be reached
+     */
+    public static PaxHost open(Path bindingFile, URI rosbridgeOverride) {
+        Binding binding = BindingLoader.load(bindingFile, rosbridgeOverride);
+        PaxHost host = new PaxHost(binding);
+        try {
+            host.start();
+        } catch (RuntimeException e) {
+            host.close();
+            throw e;
+        }
+        return host;
+    }
+
+    private void start() {
+        Map<URI, Ros> byUri = new LinkedHashMap<>();
+        for (SystemBinding system : binding.systems()) {
+            Ros ros = byUri.get(system.rosbridge());
+            if (ros == null) {
+                ros = new Ros(system.rosbridge(), RosOptions.defaults());
+                connections.add(ros);
+                byUri.put(system.rosbridge(), ros);
+                try {
+                    ros.connect();
+                } catch (RosException e) {
+                    throw new RosException(system.where() + ": " + e.getMessage()
+                            + " (is the robot's rosbridge server running? `caretaker bridge`)", e);
+                }
+            }
+            SysRep sysRep = system.sysRep();
+            sysReps.put(sysRep.id(), sysRep);
+            Map<String, CommandPlugin> commands = commandPlugins.computeIfAbsent(sysRep.id(),
+                    k -> new LinkedHashMap<>());
+            Map<String, TelemetryPlugin> items = telemetryPlugins.computeIfAbsent(sysRep.id(),
+                    k -> new LinkedHashMap<>());
+            for (String name : system.plugins()) {
+                AutoCloseable plugin = PluginKind.create(name, new PluginContext(sysRep, ros, system.namespace(),
+                        system.options()));
+                plugins.add(plugin);
+                if (plugin instanceof CommandPlugin commandPlugin) {
+                    commandPlugin.commands().forEach(c -> commands.put(c, commandPlugin));
+                }
+                if (plugin instanceof TelemetryPlugin telemetryPlugin) {
+                    telemetryPlugin.items().forEach(i -> items.put(i, telemetryPlugin));
+                }
+            }
+        }
+    }
+
+    /** @return the binding this host serves */
+    public Binding binding() {
+        return binding;
+    }
+
+    /** @return the bound SysReps in binding order */
+    public List<SysRep> sysReps() {
+        return List.copyOf(sysReps.values());
+    }
+
+    /**
+     * Checks and converts the arguments against the SysRep, then executes the command and waits
+     * for its real outcome.
+     *
+     * @param sysrepId a bound SysRep
+     * @param commandId one of its commands
+     * @param args argument name → value (strings are accepted for every type)
+     * @return the system's outcome
+     * @throws PluginException unknown SysRep or command, no plugin serves it, or bad arguments
+     */
+    public CommandResult execute(String sysrepId, String commandId, Map<String, ?> args) {
+        SysRep sysRep = sysRep(sysrepId);
+        Command command = sysRep.command(commandId);
+        if (command == null) {
+            throw new PluginException("SysRep '" + sysrepId + "' has no command '" + commandId + "' (commands: "
+                    + String.join(", ", sysRep.commands().stream().map(Command::id).toList()) + ")");
+        }
+        CommandPlugin plugin = commandPlugins.get(sysrepId).get(commandId);
+        if (plugin == null) {
+            throw new PluginException("no plugin serves command '" + commandId + "' of SysRep '" + sysrepId
+                    + "' in " + binding.path());
+        }
+        Map<String, Object> typed;
+        try {
+            typed = command.checkArguments(args);
+        } catch (IllegalArgumentException e) {
+            throw new PluginException(sysrepId + "." + e.getMessage(), e);
+        }
+        return plugin.execute(commandId, typed);
+    }
+
+    /**
+     * @param sysrepId a bound SysRep
+     * @param itemId one of its telemetry items
+     * @return the item's current value, timestamp and staleness
+     * @throws PluginException unknown SysRep or item, or no plugin serves it
+     */
+    public TelemetryValue telemetry(String sysrepId, String itemId) {
+        SysRep sysRep = sysRep(sysrepId);
+        if (sysRep.telemetryItem(itemId) == null) {
+            throw new PluginException("SysRep '" + sysrepId + "' has no telemetry item '" + itemId + "' (items: "
+                    + String.join(", ", sysRep.telemetry().stream().map(t -> t.id()).toList()) + ")");
+        }
+        TelemetryPlugin plugin = telemetryPlugins.get(sysrepId).get(itemId);
+        if (plugin == null) {
+            throw new PluginException("no plugin serves telemetry '" + itemId + "' of SysRep '" + sysrepId + "' in "
+                    + binding.path());
+        }
+        return plugin.value(itemId);
+    }
+
+    /** @param listener told about every telemetry change of every bound SysRep */
+    public void addListener(TelemetryListener listener) {
+        for (AutoCloseable plugin : plugins) {
+            if (plugin instanceof TelemetryPlugin telemetryPlugin) {
+                telemetryPlugin.addListener(listener);
+            }
+        }
+    }
+
+    /** @param listener a listener added before */
+    public void removeListener(TelemetryListener listener) {
+        for (AutoCloseable plugin : plugins) {
+            if (plugin instanceof TelemetryPlugin telemetryPlugin) {
+                telemetryPlugin.removeListener(listener);
+            }
+        }
+    }
+
+    private SysRep sysRep(String sysrepId) {
+        SysRep sysRep = sysReps.get(sysrepId);
+        if (sysRep == null) {
+            throw new PluginException("SysRep '" + sysrepId + "' is not bound in " + binding.path() + " (bound: "
+                    + String.join(", ", sysReps.keySet()) + ")");
+        }
+        return sysRep;
+    }
+
+    /** Closes every plugin, then every connection. */
+    @Override
+    public void close() {
+        for (AutoCloseable plugin : plugins) {
+            try {
+                plugin.close();
+            } catch (Exception e) {
+                System.getLogger(PaxHost.class.getName()).log(System.Logger.Level.WARNING, "closing a plugin failed",
+                        e);
+            }
+        }
+        connections.forEach(Ros::close);
+    }
+}

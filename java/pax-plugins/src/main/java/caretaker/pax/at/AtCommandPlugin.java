@@ -1,0 +1,313 @@
+package caretaker.pax.at;
+
+import caretaker.pax.CommandPlugin;
+import caretaker.pax.CommandResult;
+import caretaker.pax.PluginContext;
+import caretaker.pax.PluginException;
+import caretaker.rosbridge.Header;
+import caretaker.rosbridge.Pose;
+import caretaker.rosbridge.RosException;
+import caretaker.rosbridge.Service;
+import caretaker.rosbridge.ServiceRequest;
+import caretaker.rosbridge.ServiceResponse;
+import caretaker.sysrep.SysRep;
+import com.google.gson.JsonArray;
+import com.google.gson.JsonElement;
+import com.google.gson.JsonObject;
+import java.time.Duration;
+import java.util.ArrayList;
+import java.util.LinkedHashMap;
+import java.util.List;
+import java.util.Map;
+import java.util.Set;
+
+/**
+ * Carries out the six commands of the AT SysRep through the AT server's services (namespace
+ * {@code /affordance_template_server} by default).
+ *
+ * <p>{@code affordance_template} names a type ({@code cdra_filter}) or an instance
+ * ({@code cdra_filter:0}). A type is resolved with {@code get_running}: exactly one running
+ * instance of it is used; none or several is a failure that lists what runs, never a guess.
+ * Commands with an {@code id} argument take it as the instance number when it is 0 or more (a
+ * negative id means "resolve from affordance_template"); an id that contradicts an instance name
+ * is a failure.
+ *
+ * <p>Every result is the server's: {@code success: false} from the server, a missing server, or no
+ * answer in time all give a failed {@link CommandResult} with the reason.
+ *
+ * <p>Options: {@code call_timeout} (s, default 10) for quick services, {@code motion_timeout} (s,
+ * default 120) for plan and execute.
+ */
+public final class AtCommandPlugin implements CommandPlugin {
+    /** The binding options this plugin reads. */
+    public static final Set<String> OPTIONS = Set.of("call_timeout", "motion_timeout");
+    private static final Set<String> COMMANDS = Set.of("add_affordance_template", "delete_affordance_template",
+            "plan_trajectory", "execute_plan", "set_waypoint_pose", "set_display_object_pose");
+
+    private final SysRep sysRep;
+    private final Duration callTimeout;
+    private final Duration motionTimeout;
+    private final Service addTemplate;
+    private final Service deleteTemplate;
+    private final Service getRunning;
+    private final Service planCommand;
+    private final Service executeCommand;
+    private final Service setObjectPose;
+    private final Service setWaypointPose;
+
+    /**
+     * @param context the SysRep (must declare the six commands), connection, namespace, options
+     * @throws PluginException the SysRep lacks a command or an option is wrong
+     */
+    public AtCommandPlugin(PluginContext context) {
+        context.options().requireKnown("at_commands", OPTIONS);
+        this.sysRep = context.sysRep();
+        for (String command : COMMANDS) {
+            if (sysRep.command(command) == null) {
+                throw new PluginException(context.options().where() + ": SysRep '" + sysRep.id()
+                        + "' has no command '" + command + "'; at_commands serves the AT SysRep"
+                        + " (sysrep/affordance_templates.yaml)");
+            }
+        }
+        this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
+        this.motionTimeout = context.options().seconds("motion_timeout", Duration.ofSeconds(120));
+        String msgs = "affordance_template_msgs/srv/";
+        addTemplate = new Service(context.ros(), context.resolve("add_template"), msgs + "AddAffordanceTemplate");
+        deleteTemplate = new Service(context.ros(), context.resolve("delete_template"),
+                msgs + "DeleteAffordanceTemplate");
+        getRunning = new Service(context.ros(), context.resolve("get_running"),
+                msgs + "GetRunningAffordanceTemplates");
+        planCommand = new Service(context.ros(), context.resolve("plan_command"),
+                msgs + "AffordanceTemplatePlanCommand");
+        executeCommand = new Service(context.ros(), context.resolve("execute_command"),
+                msgs + "AffordanceTemplateExecuteCommand");
+        setObjectPose = new Service(context.ros(), context.resolve("set_object_pose"), msgs + "SetObjectPose");
+        setWaypointPose = new Service(context.ros(), context.resolve("set_waypoint_pose"), msgs + "SetWaypointPose");
+    }
+
+    @Override
+    public SysRep sysRep() {
+        return sysRep;
+    }
+
+    @Override
+    public Set<String> commands() {
+        return COMMANDS;
+    }
+
+    @Override
+    public CommandResult execute(String commandId, Map<String, Object> args) {
+        try {
+            return switch (commandId) {
+                case "add_affordance_template" -> add(args);
+                case "delete_affordance_template" -> delete(args);
+                case "plan_trajectory" -> plan(args);
+                case "execute_plan" -> executePlan(args);
+                case "set_waypoint_pose" -> waypointPose(args);
+                case "set_display_object_pose" -> displayObjectPose(args);
+                default -> throw new PluginException("at_commands does not serve command '" + commandId
+                        + "' (commands: " + String.join(", ", new java.util.TreeSet<>(COMMANDS)) + ")");
+            };
+        } catch (Unresolved e) {
+            return CommandResult.failure(e.getMessage());
+        } catch (RosException e) {
+            return CommandResult.failure(commandId + ": " + e.getMessage());
+        }
+    }
+
+    @Override
+    public void close() {
+        // Services hold no subscriptions; the connection belongs to the caller.
+    }
+
+    private CommandResult add(Map<String, Object> args) {
+        String template = (String) args.get("affordance_template");
+        if (template.contains(":")) {
+            throw new Unresolved("add_affordance_template takes a template type such as 'cdra_filter', not an"
+                    + " instance '" + template + "'");
+        }
+        JsonObject request = new JsonObject();
+        request.addProperty("class_type", template);
+        request.add("pose", Pose.identity().toStampedJson(new Header(caretaker.rosbridge.Time.now(), "")));
+        request.addProperty("hide_waypoints", (Boolean) args.get("hide_waypoints"));
+        JsonObject reply = call(addTemplate, request, callTimeout);
+        if (!reply.get("success").getAsBoolean()) {
+            return failed(reply);
+        }
+        Map<String, Object> values = new LinkedHashMap<>();
+        values.put("id", reply.get("id").getAsLong());
+        values.put("instance", reply.get("instance").getAsString());
+        return CommandResult.success(message(reply), values);
+    }
+
+    private CommandResult delete(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject request = new JsonObject();
+        request.addProperty("class_type", instance.type());
+        request.addProperty("id", instance.id());
+        return result(call(deleteTemplate, request, callTimeout), instance, Map.of());
+    }
+
+    private CommandResult plan(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject request = new JsonObject();
+        request.addProperty("type", instance.type());
+        request.addProperty("id", instance.id());
+        request.addProperty("trajectory_name", (String) args.get("trajectory"));
+        request.add("end_effectors", new JsonArray());
+        request.add("steps", new JsonArray());
+        request.addProperty("direct", false);
+        request.addProperty("backwards", false);
+        request.addProperty("execute", false);
+        JsonObject reply = call(planCommand, request, motionTimeout);
+        JsonObject status = reply.getAsJsonObject("affordance_template_status");
+        Map<String, Object> values = new LinkedHashMap<>();
+        if (status != null) {
+            values.put("plan_status", status.get("plan_status").getAsString());
+            values.put("plan_valid", status.get("plan_valid").getAsBoolean());
+        }
+        return result(reply, instance, values);
+    }
+
+    private CommandResult executePlan(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject request = new JsonObject();
+        request.addProperty("type", instance.type());
+        request.addProperty("id", instance.id());
+        request.addProperty("trajectory_name", (String) args.get("trajectory"));
+        request.add("end_effectors", new JsonArray());
+        JsonObject reply = call(executeCommand, request, motionTimeout);
+        JsonObject status = reply.getAsJsonObject("affordance_template_status");
+        Map<String, Object> values = new LinkedHashMap<>();
+        if (status != null) {
+            values.put("execute_status", status.get("execute_status").getAsString());
+        }
+        return result(reply, instance, values);
+    }
+
+    private CommandResult waypointPose(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject request = new JsonObject();
+        request.addProperty("type", instance.type());
+        request.addProperty("id", instance.id());
+        request.addProperty("trajectory_name", (String) args.get("trajectory"));
+        long waypoint = (Long) args.get("waypoint_id");
+        if (waypoint < Integer.MIN_VALUE || waypoint > Integer.MAX_VALUE) {
+            throw new Unresolved("waypoint_id " + waypoint + " does not fit int32");
+        }
+        request.addProperty("waypoint_id", waypoint);
+        request.addProperty("end_effector", (String) args.get("ee_name"));
+        request.add("pose", pose(args).toStampedJson(Header.now((String) args.get("frame_id"))));
+        return result(call(setWaypointPose, request, callTimeout), instance, Map.of());
+    }
+
+    private CommandResult displayObjectPose(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject object = new JsonObject();
+        object.addProperty("type", instance.type());
+        object.addProperty("name", (String) args.get("display_object"));
+        object.addProperty("id", instance.id());
+        object.add("stamped_pose", pose(args).toStampedJson(Header.now((String) args.get("frame"))));
+        JsonArray objects = new JsonArray();
+        objects.add(object);
+        JsonObject request = new JsonObject();
+        request.add("objects", objects);
+        return result(call(setObjectPose, request, callTimeout), instance, Map.of());
+    }
+
+    private static Pose pose(Map<String, Object> args) {
+        return Pose.fromRpy((Double) args.get("x"), (Double) args.get("y"), (Double) args.get("z"),
+                (Double) args.get("roll"), (Double) args.get("pitch"), (Double) args.get("yaw"));
+    }
+
+    /** Which instance a command means; see the class comment for the rules. */
+    private TemplateInstance resolve(Map<String, Object> args) {
+        String template = (String) args.get("affordance_template");
+        Long id = (Long) args.get("id");
+        TemplateInstance named;
+        try {
+            named = TemplateInstance.parse(template);
+        } catch (IllegalArgumentException e) {
+            throw new Unresolved(e.getMessage());
+        }
+        if (named != null) {
+            if (id != null && id >= 0 && id != named.id()) {
+                throw new Unresolved("affordance_template '" + template + "' and id " + id
+                        + " name different instances; give one of them");
+            }
+            return named;
+        }
+        if (id != null && id >= 0) {
+            if (id > 255) {
+                throw new Unresolved("id " + id + " is not a template instance number (0..255)");
+            }
+            return new TemplateInstance(template, id.intValue());
+        }
+        List<TemplateInstance> running = running();
+        List<TemplateInstance> matching = running.stream().filter(i -> i.type().equals(template)).toList();
+        if (matching.size() == 1) {
+            return matching.get(0);
+        }
+        String runningText = running.isEmpty() ? "none" : String.join(", ", running.stream()
+                .map(TemplateInstance::toString).toList());
+        if (matching.isEmpty()) {
+            throw new Unresolved("no running instance of template '" + template + "' (running: " + runningText
+                    + "); add it first with add_affordance_template");
+        }
+        throw new Unresolved("template '" + template + "' is ambiguous: " + matching.size()
+                + " instances run (" + runningText + "); name one as '" + template + ":<id>'");
+    }
+
+    private List<TemplateInstance> running() {
+        JsonObject reply = call(getRunning, new JsonObject(), callTimeout);
+        if (!reply.get("success").getAsBoolean()) {
+            throw new Unresolved("cannot list running templates: " + message(reply));
+        }
+        List<TemplateInstance> instances = new ArrayList<>();
+        for (JsonElement name : reply.getAsJsonArray("templates")) {
+            TemplateInstance instance = TemplateInstance.parse(name.getAsString());
+            if (instance != null) {
+                instances.add(instance);
+            }
+        }
+        return instances;
+    }
+
+    private static JsonObject call(Service service, JsonObject request, Duration timeout) {
+        ServiceResponse response = service.callServiceAndWait(new ServiceRequest(request), timeout);
+        JsonObject reply = response.toJsonObject();
+        if (!reply.has("success")) {
+            throw new RosException("reply of " + service.getName() + " has no 'success' field: " + reply);
+        }
+        return reply;
+    }
+
+    private static CommandResult result(JsonObject reply, TemplateInstance instance, Map<String, Object> extra) {
+        if (!reply.get("success").getAsBoolean()) {
+            return failed(reply);
+        }
+        Map<String, Object> values = new LinkedHashMap<>(extra);
+        values.put("instance", instance.toString());
+        return CommandResult.success(message(reply), values);
+    }
+
+    private static CommandResult failed(JsonObject reply) {
+        String message = message(reply);
+        return CommandResult.failure(message.isEmpty() ? "the AT server reported failure without a message"
+                : message);
+    }
+
+    private static String message(JsonObject reply) {
+        JsonElement message = reply.get("message");
+        return message == null || message.isJsonNull() ? "" : message.getAsString();
+    }
+
+    /** The command cannot name one instance; becomes a failed result, not an exception. */
+    private static final class Unresolved extends RuntimeException {
+        private static final long serialVersionUID = 1L;
+
+        Unresolved(String message) {
+            super(message);
+        }
+    }
+}

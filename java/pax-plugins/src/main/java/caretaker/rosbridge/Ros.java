@@ -1,0 +1,599 @@
+package caretaker.rosbridge;
+
+import com.google.gson.JsonElement;
+import com.google.gson.JsonObject;
+import com.google.gson.JsonParser;
+import java.net.URI;
+import java.net.http.HttpClient;
+import java.net.http.WebSocket;
+import java.nio.ByteBuffer;
+import java.time.Duration;
+import java.util.List;
+import java.util.Map;
+import java.util.concurrent.CompletableFuture;
+import java.util.concurrent.CompletionStage;
+import java.util.concurrent.ConcurrentHashMap;
+import java.util.concurrent.CopyOnWriteArrayList;
+import java.util.concurrent.ExecutionException;
+import java.util.concurrent.ExecutorService;
+import java.util.concurrent.Executors;
+import java.util.concurrent.ScheduledExecutorService;
+import java.util.concurrent.ThreadFactory;
+import java.util.concurrent.TimeUnit;
+import java.util.concurrent.TimeoutException;
+import java.util.concurrent.atomic.AtomicLong;
+
+/**
+ * A connection to a rosbridge v2 server. Create it, {@link #connect()}, then make
+ * {@link Topic}s and {@link Service}s on it; {@link #close()} when done.
+ *
+ * <p>After a successful {@link #connect()} the connection is kept up: when it drops, every pending
+ * service call fails at once with a {@link RosException} (the server will never answer it), and
+ * reconnect attempts follow with exponential back-off; once reconnected, every subscription and
+ * advertisement is sent again, so {@link Topic} users see a gap, not a dead topic.
+ *
+ * <p>Thread-safe. Construction does not connect.
+ */
+public final class Ros implements AutoCloseable {
+    private static final System.Logger LOG = System.getLogger(Ros.class.getName());
+
+    /** rosbridge's default port. */
+    public static final int DEFAULT_PORT = 9090;
+
+    private final URI uri;
+    private final RosOptions options;
+    private final HttpClient http;
+    private final AtomicLong idCounter = new AtomicLong();
+    private final Map<String, PendingCall> pendingCalls = new ConcurrentHashMap<>();
+    private final Map<String, Subscription> subscriptions = new ConcurrentHashMap<>();
+    private final Map<String, JsonObject> advertisements = new ConcurrentHashMap<>();
+    private final Map<String, FragmentBuffer> fragments = new ConcurrentHashMap<>();
+    private final List<RosHandler> handlers = new CopyOnWriteArrayList<>();
+    private final ExecutorService callbackThread;
+    private final ScheduledExecutorService timerThread;
+    /** Guards {@link #socket}, {@link #wanted} and {@link #closed}. */
+    private final Object connectionLock = new Object();
+    /** Serialises sends: java.net.http allows one outstanding send per WebSocket. */
+    private final Object sendLock = new Object();
+    private WebSocket socket;
+    private boolean wanted;
+    private boolean closed;
+
+    /** A connection to {@code ws://localhost:9090}. */
+    public Ros() {
+        this("localhost");
+    }
+
+    /** @param host the server's host name; port 9090 */
+    public Ros(String host) {
+        this(host, DEFAULT_PORT);
+    }
+
+    /**
+     * @param host the server's host name
+     * @param port the server's port
+     */
+    public Ros(String host, int port) {
+        this(URI.create("ws://" + host + ":" + port), RosOptions.defaults());
+    }
+
+    /**
+     * @param uri the server's WebSocket URI, e.g. {@code ws://127.0.0.1:9090}
+     * @param options timeouts and reconnect back-off
+     */
+    public Ros(URI uri, RosOptions options) {
+        if (!"ws".equals(uri.getScheme()) && !"wss".equals(uri.getScheme())) {
+            throw new IllegalArgumentException("rosbridge URI must start with ws:// or wss://, got " + uri);
+        }
+        this.uri = uri;
+        this.options = options;
+        this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).build();
+        this.callbackThread = Executors.newSingleThreadExecutor(daemon("rosbridge-callbacks " + uri));
+        this.timerThread = Executors.newSingleThreadScheduledExecutor(daemon("rosbridge-timer " + uri));
+    }
+
+    private static ThreadFactory daemon(String name) {
+        return runnable -> {
+            Thread thread = new Thread(runnable, name);
+            thread.setDaemon(true);
+            return thread;
+        };
+    }
+
+    /** @return the server's URI */
+    public URI getUri() {
+        return uri;
+    }
+
+    /** @return the options this connection was made with */
+    public RosOptions getOptions() {
+        return options;
+    }
+
+    /** @return the host of the server */
+    public String getHostname() {
+        return uri.getHost();
+    }
+
+    /** @return the port of the server */
+    public int getPort() {
+        return uri.getPort();
+    }
+
+    /**
+     * Connects and waits for the connection, at most {@link RosOptions#timeout()}. Does nothing if
+     * already connected. From now on the connection is kept up until {@link #disconnect()}.
+     *
+     * @throws RosException the server refused or is not there
+     * @throws RosTimeoutException no connection within the timeout
+     */
+    public void connect() {
+        synchronized (connectionLock) {
+            if (closed) {
+                throw new RosException("connection to " + uri + " is closed; make a new Ros");
+            }
+            if (socket != null) {
+                return;
+            }
+        }
+        WebSocket opened = open();
+        synchronized (connectionLock) {
+            wanted = true;
+            socket = opened;
+            connectionLock.notifyAll();
+        }
+        connected();
+    }
+
+    private WebSocket open() {
+        CompletableFuture<WebSocket> future = http.newWebSocketBuilder()
+                .connectTimeout(options.timeout())
+                .buildAsync(uri, new Listener());
+        try {
+            return future.get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+        } catch (TimeoutException e) {
+            future.cancel(true);
+            throw new RosTimeoutException("connect to " + uri, options.timeout());
+        } catch (InterruptedException e) {
+            Thread.currentThread().interrupt();
+            throw new RosException("interrupted while connecting to " + uri, e);
+        } catch (ExecutionException e) {
+            Throwable cause = e.getCause() == null ? e : e.getCause();
+            throw new RosException("cannot connect to rosbridge at " + uri + ": " + describe(cause), cause);
+        }
+    }
+
+    private static String describe(Throwable error) {
+        Throwable root = error;
+        while (root.getCause() != null && root.getCause() != root) {
+            root = root.getCause();
+        }
+        String text = root.getMessage();
+        return text == null || text.isEmpty() ? root.getClass().getSimpleName() : text;
+    }
+
+    /** Sends every registration again and tells the handlers; runs after each (re)connect. */
+    private void connected() {
+        for (JsonObject advertise : advertisements.values()) {
+            trySend(advertise);
+        }
+        for (Subscription subscription : subscriptions.values()) {
+            trySend(subscription.request());
+        }
+        for (RosHandler handler : handlers) {
+            callbackThread.execute(() -> runHandler(handler::handleConnection));
+        }
+    }
+
+    private void trySend(JsonObject message) {
+        try {
+            send(message);
+        } catch (RosException e) {
+            LOG.log(System.Logger.Level.WARNING, "re-sending after reconnect failed: " + e.getMessage());
+        }
+    }
+
+    /**
+     * Closes the connection and stops reconnecting. Pending calls fail. Subscriptions and
+     * advertisements are kept and re-sent by the next {@link #connect()}.
+     */
+    public void disconnect() {
+        WebSocket old;
+        synchronized (connectionLock) {
+            wanted = false;
+            old = socket;
+            socket = null;
+        }
+        if (old != null) {
+            try {
+                old.sendClose(WebSocket.NORMAL_CLOSURE, "").get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+            } catch (InterruptedException e) {
+                Thread.currentThread().interrupt();
+            } catch (ExecutionException | TimeoutException e) {
+                LOG.log(System.Logger.Level.DEBUG, "close handshake with " + uri + " failed: " + e);
+            }
+            old.abort();
+            lost("disconnected by this client");
+        }
+    }
+
+    /** Disconnects and releases this connection's threads; it cannot be connected again. */
+    @Override
+    public void close() {
+        disconnect();
+        synchronized (connectionLock) {
+            closed = true;
+        }
+        callbackThread.shutdown();
+        timerThread.shutdownNow();
+    }
+
+    /** @return whether the connection is currently up */
+    public boolean isConnected() {
+        synchronized (connectionLock) {
+            return socket != null;
+        }
+    }
+
+    /**
+     * Blocks until the connection is up, e.g. after a drop.
+     *
+     * @param timeout how long to wait
+     * @throws RosTimeoutException still not connected after {@code timeout}
+     */
+    public void awaitConnected(Duration timeout) {
+        long deadline = System.nanoTime() + timeout.toNanos();
+        synchronized (connectionLock) {
+            while (socket == null) {
+                long left = deadline - System.nanoTime();
+                if (left <= 0) {
+                    throw new RosTimeoutException("reconnect to " + uri, timeout);
+                }
+                try {
+                    TimeUnit.NANOSECONDS.timedWait(connectionLock, left);
+                } catch (InterruptedException e) {
+                    Thread.currentThread().interrupt();
+                    throw new RosException("interrupted while waiting for " + uri, e);
+                }
+            }
+        }
+    }
+
+    /** @param handler told about connects, disconnects and errors */
+    public void addRosHandler(RosHandler handler) {
+        handlers.add(handler);
+    }
+
+    /** @param handler a handler added before; no effect otherwise */
+    public void removeRosHandler(RosHandler handler) {
+        handlers.remove(handler);
+    }
+
+    /** @return a number unique on this connection, for message ids (starts at 0 like jrosbridge) */
+    public long nextId() {
+        return idCounter.getAndIncrement();
+    }
+
+    /**
+     * Sends one message, waiting at most {@link RosOptions#timeout()} for the socket to take it.
+     *
+     * @param message a complete rosbridge message with an {@code op}
+     * @throws RosException not connected, or the send failed
+     */
+    public void send(JsonObject message) {
+        WebSocket current;
+        synchronized (connectionLock) {
+            current = socket;
+        }
+        if (current == null) {
+            throw new RosException("not connected to rosbridge at " + uri);
+        }
+        String text = message.toString();
+        synchronized (sendLock) {
+            try {
+                current.sendText(text, true).get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+            } catch (InterruptedException e) {
+                Thread.currentThread().interrupt();
+                throw new RosException("interrupted while sending to " + uri, e);
+            } catch (ExecutionException e) {
+                throw new RosException("sending to " + uri + " failed: " + describe(e), e.getCause());
+            } catch (TimeoutException e) {
+                throw new RosTimeoutException("send to " + uri, options.timeout());
+            }
+        }
+    }
+
+    // ---- registrations used by Topic and Service --------------------------------------------
+
+    void subscribe(String id, String topic, JsonObject request, TopicCallback callback) {
+        subscriptions.put(id, new Subscription(topic, request, callback));
+        sendIfConnected(request);
+    }
+
+    void unsubscribe(String id, JsonObject request) {
+        if (subscriptions.remove(id) != null) {
+            sendIfConnected(request);
+        }
+    }
+
+    void advertise(String id, JsonObject request) {
+        advertisements.put(id, request);
+        sendIfConnected(request);
+    }
+
+    void unadvertise(String id, JsonObject request) {
+        if (advertisements.remove(id) != null) {
+            sendIfConnected(request);
+        }
+    }
+
+    /** Registrations survive a dropped connection: they are re-sent on reconnect. */
+    private void sendIfConnected(JsonObject request) {
+        if (isConnected()) {
+            trySend(request);
+        }
+    }
+
+    CompletableFuture<ServiceResponse> callService(String id, String service, JsonObject request, Duration timeout) {
+        CompletableFuture<ServiceResponse> future = new CompletableFuture<>();
+        pendingCalls.put(id, new PendingCall(service, future));
+        try {
+            timerThread.schedule(() -> {
+                if (pendingCalls.remove(id) != null) {
+                    future.completeExceptionally(new RosTimeoutException("call_service " + service, timeout));
+                }
+            }, timeout.toNanos(), TimeUnit.NANOSECONDS);
+            send(request);
+        } catch (RuntimeException e) {
+            pendingCalls.remove(id);
+            future.completeExceptionally(e instanceof RosException ? e : new RosException(e.getMessage(), e));
+        }
+        return future;
+    }
+
+    /** Number of service calls awaiting a reply, so tests can check nothing leaks. */
+    int pendingCallCount() {
+        return pendingCalls.size();
+    }
+
+    /** Runs user code on the callback thread; an exception is reported, never lost. */
+    void dispatch(Runnable callback) {
+        try {
+            callbackThread.execute(() -> runHandler(callback));
+        } catch (java.util.concurrent.RejectedExecutionException e) {
+            LOG.log(System.Logger.Level.DEBUG, "callback after close dropped");
+        }
+    }
+
+    private void runHandler(Runnable callback) {
+        try {
+            callback.run();
+        } catch (RuntimeException e) {
+            error(new RosException("a callback failed: " + e, e));
+        }
+    }
+
+    private void error(Throwable error) {
+        LOG.log(System.Logger.Level.WARNING, error.getMessage());
+        for (RosHandler handler : handlers) {
+            try {
+                handler.handleError(error);
+            } catch (RuntimeException e) {
+                LOG.log(System.Logger.Level.WARNING, "RosHandler.handleError threw", e);
+            }
+        }
+    }
+
+    // ---- receiving ---------------------------------------------------------------------------
+
+    private void receive(String text) {
+        try {
+            receiveMessage(text);
+        } catch (RuntimeException e) {
+            error(new RosException("cannot handle message from " + uri + ": " + e.getMessage(), e));
+        }
+    }
+
+    private void receiveMessage(String text) {
+        JsonObject message;
+        try {
+            message = JsonParser.parseString(text).getAsJsonObject();
+        } catch (RuntimeException e) {
+            error(new RosException("malformed message from " + uri + ": " + abbreviate(text)));
+            return;
+        }
+        String op = stringField(message, Protocol.FIELD_OP);
+        if (op == null) {
+            error(new RosException("message without op from " + uri + ": " + abbreviate(text)));
+            return;
+        }
+        switch (op) {
+            case Protocol.OP_PUBLISH -> receivePublish(message);
+            case Protocol.OP_SERVICE_RESPONSE -> receiveServiceResponse(message);
+            case Protocol.OP_FRAGMENT -> receiveFragment(message);
+            case Protocol.OP_STATUS -> LOG.log(System.Logger.Level.INFO, "rosbridge status: " + message);
+            default -> error(new RosException("unsupported op '" + op + "' from " + uri));
+        }
+    }
+
+    private void receivePublish(JsonObject message) {
+        String topic = stringField(message, Protocol.FIELD_TOPIC);
+        JsonElement body = message.get(Protocol.FIELD_MSG);
+        if (topic == null || body == null || !body.isJsonObject()) {
+            error(new RosException("publish without topic or msg object from " + uri));
+            return;
+        }
+        Message received = new Message(body.getAsJsonObject());
+        for (Subscription subscription : subscriptions.values()) {
+            if (subscription.topic().equals(topic)) {
+                dispatch(() -> subscription.callback().handleMessage(received));
+            }
+        }
+    }
+
+    private void receiveServiceResponse(JsonObject message) {
+        String id = stringField(message, Protocol.FIELD_ID);
+        PendingCall call = id == null ? null : pendingCalls.remove(id);
+        if (call == null) {
+            // Late replies to calls that already timed out land here; they are not errors.
+            LOG.log(System.Logger.Level.DEBUG, "service_response for no pending call: " + id);
+            return;
+        }
+        JsonElement values = message.get(Protocol.FIELD_VALUES);
+        JsonElement result = message.get(Protocol.FIELD_RESULT);
+        boolean ok = result == null || (result.isJsonPrimitive() && result.getAsJsonPrimitive().isBoolean()
+                && result.getAsBoolean());
+        if (ok && values != null && values.isJsonObject()) {
+            call.future().complete(new ServiceResponse(values.getAsJsonObject()));
+        } else if (ok && (values == null || values.isJsonNull())) {
+            call.future().complete(new ServiceResponse(new JsonObject()));
+        } else {
+            String reason = values == null || values.isJsonNull() ? "no reason given"
+                    : values.isJsonPrimitive() ? values.getAsString() : values.toString();
+            call.future().completeExceptionally(new ServiceFailedException(call.service(), reason));
+        }
+    }
+
+    private void receiveFragment(JsonObject message) {
+        String id = stringField(message, Protocol.FIELD_ID);
+        JsonElement data = message.get(Protocol.FIELD_DATA);
+        JsonElement num = message.get(Protocol.FIELD_NUM);
+        JsonElement total = message.get(Protocol.FIELD_TOTAL);
+        if (id == null || data == null || num == null || total == null) {
+            error(new RosException("fragment without id, data, num or total from " + uri));
+            return;
+        }
+        // rosbridge 2.1.0 computes total with '/', so it may arrive as a float like 3.0
+        int count = (int) Math.ceil(total.getAsDouble());
+        FragmentBuffer buffer = fragments.computeIfAbsent(id, key -> new FragmentBuffer(count));
+        String whole = buffer.add((int) num.getAsDouble(), data.getAsString());
+        if (whole != null) {
+            fragments.remove(id);
+            receive(whole);
+        }
+    }
+
+    private static String stringField(JsonObject message, String field) {
+        JsonElement element = message.get(field);
+        return element != null && element.isJsonPrimitive() ? element.getAsString() : null;
+    }
+
+    private static String abbreviate(String text) {
+        return text.length() <= 200 ? text : text.substring(0, 200) + "...";
+    }
+
+    // ---- losing and regaining the connection -------------------------------------------------
+
+    private void lost(WebSocket which, String reason) {
+        boolean reconnect;
+        synchronized (connectionLock) {
+            if (which != socket) {
+                return;
+            }
+            socket = null;
+            reconnect = wanted && !closed;
+        }
+        lost(reason);
+        if (reconnect) {
+            scheduleReconnect(options.reconnectMin());
+        }
+    }
+
+    private void lost(String reason) {
+        RosException failure = new RosException("connection to rosbridge at " + uri + " lost (" + reason
+                + ") before the reply came");
+        for (String id : List.copyOf(pendingCalls.keySet())) {
+            PendingCall call = pendingCalls.remove(id);
+            if (call != null) {
+                call.future().completeExceptionally(failure);
+            }
+        }
+        fragments.clear();
+        for (RosHandler handler : handlers) {
+            dispatch(handler::handleDisconnection);
+        }
+    }
+
+    private void scheduleReconnect(Duration delay) {
+        try {
+            timerThread.schedule(() -> reconnect(delay), delay.toNanos(), TimeUnit.NANOSECONDS);
+        } catch (java.util.concurrent.RejectedExecutionException e) {
+            LOG.log(System.Logger.Level.DEBUG, "no reconnect: connection closed");
+        }
+    }
+
+    private void reconnect(Duration lastDelay) {
+        synchronized (connectionLock) {
+            if (!wanted || closed || socket != null) {
+                return;
+            }
+        }
+        WebSocket opened;
+        try {
+            opened = open();
+        } catch (RosException e) {
+            Duration next = lastDelay.multipliedBy(2);
+            scheduleReconnect(next.compareTo(options.reconnectMax()) > 0 ? options.reconnectMax() : next);
+            return;
+        }
+        synchronized (connectionLock) {
+            if (!wanted || closed) {
+                opened.abort();
+                return;
+            }
+            socket = opened;
+            connectionLock.notifyAll();
+        }
+        LOG.log(System.Logger.Level.INFO, "reconnected to " + uri);
+        connected();
+    }
+
+    /** Reads one WebSocket; frames of a stale socket are ignored by {@link #lost(WebSocket, String)}. */
+    private final class Listener implements WebSocket.Listener {
+        private final StringBuilder partial = new StringBuilder();
+
+        @Override
+        public void onOpen(WebSocket webSocket) {
+            webSocket.request(1);
+        }
+
+        @Override
+        public CompletionStage<?> onText(WebSocket webSocket, CharSequence data, boolean last) {
+            partial.append(data);
+            if (last) {
+                String text = partial.toString();
+                partial.setLength(0);
+                receive(text);
+            }
+            webSocket.request(1);
+            return null;
+        }
+
+        @Override
+        public CompletionStage<?> onBinary(WebSocket webSocket, ByteBuffer data, boolean last) {
+            if (last) {
+                error(new RosException("binary frame from " + uri + " ignored: this client speaks JSON only"
+                        + " (do not request cbor compression)"));
+            }
+            webSocket.request(1);
+            return null;
+        }
+
+        @Override
+        public CompletionStage<?> onClose(WebSocket webSocket, int statusCode, String reason) {
+            lost(webSocket, "closed by the server, code " + statusCode + (reason.isEmpty() ? "" : ": " + reason));
+            return null;
+        }
+
+        @Override
+        public void onError(WebSocket webSocket, Throwable error) {
+            lost(webSocket, describe(error));
+        }
+    }
+
+    private record PendingCall(String service, CompletableFuture<ServiceResponse> future) {
+    }
+
+    private record Subscription(String topic, JsonObject request, TopicCallback callback) {
+    }
+}

@@ -1,0 +1,20 @@
+package caretaker.rosbridge;
+
+/** Hears about the connection's life; every method has an empty default. */
+public interface RosHandler {
+    /** The connection is up (also after an automatic reconnect). */
+    default void handleConnection() {
+    }
+
+    /** The connection went down; a reconnect follows unless {@link Ros#disconnect()} was called. */
+    default void handleDisconnection() {
+    }
+
+    /**
+     * Something failed that no caller is waiting for (a malformed message, a callback that threw).
+     *
+     * @param error what failed
+     */
+    default void handleError(Throwable error) {
+    }
+}
