@@ -47,12 +47,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind, Journal
 from pride.model import (
     BranchInstruction, CallInstruction, CommandInstruction, GoToInstruction, Instruction,
     ManualInstruction, Procedure, RecordInstruction, Subject, VerifyInstruction, WaitInstruction,
     lookup, Reference,
 )
+from pride.lint import lint_procedure
 from pride.parser import load_procedure
 from pride.sysrep import SysRep, check_value
 from pride.systems import SystemGateway
@@ -199,6 +201,10 @@ class Executive:
         sysreps: Mapping[str, SysRep] | None = None,
         load: Callable[[str], Procedure] = load_procedure,
     ) -> None:
+        if sysreps is not None:
+            problems = lint_procedure(procedure, sysreps)
+            if problems:
+                raise ProcedureError(problems)  # no procedure with errors starts
         self.procedure = procedure
         self.run_id = run_id
         self._gateway = gateway
@@ -457,7 +463,7 @@ class Executive:
                                           f"{'enter a value' if isinstance(instruction, RecordInstruction) else 'mark it done'}")
             if self._failure or self._in_flight:
                 raise OperatorActionError(f"{self._current_number()} failed or was interrupted: retry or skip it")
-            if self._is_hazardous(instruction) and not self._confirmed:
+            if self.is_hazardous(instruction) and not self._confirmed:
                 raise OperatorActionError(f"{self._current_number()} is a hazardous command: confirm it first")
             self._request = _Request(user, then_pause)
             self._at_breakpoint = False
@@ -467,7 +473,7 @@ class Executive:
         """Confirm the current hazardous command (needed before it is sent, in either mode)."""
         with self._changed:
             instruction = self._require_idle()
-            if not self._is_hazardous(instruction):
+            if not self.is_hazardous(instruction):
                 raise OperatorActionError(f"{self._current_number()} is not a hazardous command")
             self._confirmed = True
             self._emit(EventKind.CONFIRMATION, user, self._current_number(), command=instruction.describe())
@@ -503,7 +509,7 @@ class Executive:
             instruction = self._require_idle()
             if not (self._failure or self._in_flight):
                 raise OperatorActionError(f"{self._current_number()} has not failed")
-            if self._is_hazardous(instruction) and not self._confirmed:
+            if self.is_hazardous(instruction) and not self._confirmed:
                 raise OperatorActionError(f"{self._current_number()} is a hazardous command: confirm it first")
             self._emit(EventKind.RETRY, user, self._current_number(), after=self._failure or self._in_flight)
             self._failure = self._in_flight = None
@@ -546,7 +552,8 @@ class Executive:
         frame = self._frames[-1]
         return frame.number() if frame.instruction is not None else None
 
-    def _is_hazardous(self, instruction: Instruction) -> bool:
+    def is_hazardous(self, instruction: Instruction) -> bool:
+        """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
         if not isinstance(instruction, CommandInstruction):
             return False
         sysrep = self._sysreps.get(instruction.system)
@@ -556,7 +563,7 @@ class Executive:
     # ---- state (called with the lock held) ---------------------------------------------------
     def _hold(self) -> tuple[Hold | None, str]:
         instruction = self._frames[-1].instruction
-        if self._status is not RunStatus.ACTIVE or instruction is None or self._executing:
+        if self._status is not RunStatus.ACTIVE or instruction is None or self._executing or self._request:
             return None, ""
         number = self._current_number()
         if self._in_flight:
@@ -575,7 +582,7 @@ class Executive:
             return Hold.PAUSED, f"automation paused at {number}"
         if not instruction.automatable:
             return Hold.NOT_AUTOMATABLE, f"{number} must be performed by an operator: {instruction.describe()}"
-        if self._is_hazardous(instruction) and not self._confirmed:
+        if self.is_hazardous(instruction) and not self._confirmed:
             return Hold.CONFIRMATION, f"{number} is hazardous; confirm to send: {instruction.describe()}"
         return None, ""
 
@@ -782,7 +789,7 @@ class Executive:
                 return _Outcome(False, f"argument {exc}")
         with self._lock:
             self._emit(EventKind.COMMAND_SENT, actor, number, system=instruction.system, command=instruction.command,
-                       args=args, hazardous=self._is_hazardous(instruction))
+                       args=args, hazardous=self.is_hazardous(instruction))
         result = self._gateway.execute(instruction.system, instruction.command, args)
         success = bool(getattr(result, "success", False))
         message = str(getattr(result, "message", "") or "")

@@ -1,0 +1,187 @@
+"""``caretaker lint``, ``caretaker run`` and ``caretaker report`` (docs/interfaces.md).
+
+Exit codes: 0 success; 1 the procedure has errors, the run stopped, or the run failed;
+2 bad command line or environment (missing file, unknown run, gateway cannot serve a system).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import uuid
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+
+from pride.audit_log import DEFAULT_DB, AuditLog
+from pride.events import EventKind
+from pride.executive import Executive, Mode, OperatorActionError, RunStatus
+from pride.lint import lint_file
+from pride.parser import load_procedure
+from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
+from pride.systems import gateway_system_ids, open_gateway
+from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
+
+__all__ = ["lint_main", "report_main", "run_main"]
+
+log = logging.getLogger(__name__)
+
+REPO = Path(__file__).resolve().parents[2]
+DEFAULT_SYSREP_DIR = REPO / "sysrep"
+
+
+def _load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
+    sysreps: dict[str, SysRep] = {}
+    for directory in directories or [str(DEFAULT_SYSREP_DIR)]:
+        for sysrep_id, sysrep in load_sysrep_dir(directory).items():
+            if sysrep_id in sysreps:
+                raise SysRepError(sysrep.path, 0, "id", f"duplicate SysRep id {sysrep_id!r} (also in {sysreps[sysrep_id].path})")
+            sysreps[sysrep_id] = sysrep
+    return sysreps
+
+
+def _sysrep_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--sysrep-dir", action="append", metavar="DIR",
+                        help=f"directory of SysRep *.yaml files (repeatable; default {DEFAULT_SYSREP_DIR})")
+
+
+def lint_main(argv: list[str] | None = None) -> int:
+    """``caretaker lint FILE...``: print every problem as file:line:col: message."""
+    parser = argparse.ArgumentParser(prog="caretaker lint", description="check procedures against their schema and SysReps")
+    parser.add_argument("files", nargs="+", metavar="FILE")
+    _sysrep_option(parser)
+    args = parser.parse_args(argv)
+    try:
+        sysreps = _load_sysreps(args.sysrep_dir)
+    except SysRepError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    failed = 0
+    for path in args.files:
+        problems = lint_file(path, sysreps)
+        for problem in problems:
+            print(problem)
+        failed += bool(problems)
+    if failed:
+        print(f"{failed} of {len(args.files)} procedure(s) have errors", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _new_run_id(procedure_id: str) -> str:
+    return f"{procedure_id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:4]}"
+
+
+def run_main(argv: list[str] | None = None) -> int:
+    """``caretaker run PROC --binding FILE --auto|--manual --user NAME ...``."""
+    parser = argparse.ArgumentParser(prog="caretaker run", description="run a procedure with PAX")
+    parser.add_argument("procedure", nargs="?", metavar="PROC", help="procedure XML (not needed with --resume)")
+    parser.add_argument("--binding", required=True, metavar="FILE", help="which plugins serve which SysRep")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--auto", action="store_const", const=Mode.AUTONOMOUS, dest="mode", help="PAX runs automatable instructions")
+    mode.add_argument("--manual", action="store_const", const=Mode.MANUAL, dest="mode", help="the operator performs every instruction")
+    parser.add_argument("--user", required=True, metavar="NAME", help="who runs it (recorded with every operator action)")
+    parser.add_argument("--db", default=DEFAULT_DB, metavar="URL", help=f"audit log SQLAlchemy URL (default {DEFAULT_DB})")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="answer the record NAME")
+    parser.add_argument("--confirm-manual", action="store_true", help="mark manual instructions done unattended")
+    parser.add_argument("--confirm-hazardous", action="store_true", help="confirm hazardous commands unattended")
+    parser.add_argument("--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N")
+    parser.add_argument("--resume", metavar="RUN", help="continue an interrupted run from the audit log")
+    parser.add_argument("--in-flight", choices=("resend", "skip"), help="on --resume: what to do with an instruction in flight at the crash")
+    _sysrep_option(parser)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+
+    values: dict[str, str] = {}
+    for item in args.set:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            parser.error(f"--set expects NAME=VALUE, got {item!r}")
+        values[name] = value
+    audit = AuditLog(args.db)
+    events = audit.events(args.resume) if args.resume else []
+    if args.resume and not events:
+        print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
+        return 2
+    path = args.procedure or (events[0].data.get("path") if events else None)
+    if not path:
+        parser.error("give PROC (or --resume RUN)")
+    try:
+        sysreps = _load_sysreps(args.sysrep_dir)
+    except SysRepError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+    problems = lint_file(path, sysreps)
+    if problems:
+        for problem in problems:
+            print(problem, file=sys.stderr)
+        print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
+        return 1
+    procedure = load_procedure(path)
+    gateway = open_gateway(args.binding)
+    try:
+        missing = {s for s, _ in procedure.uses} - gateway_system_ids(gateway)
+        if missing:
+            print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
+            return 2
+        printer = ProgressPrinter(procedure)
+        try:
+            if args.resume:
+                executive = Executive.resume(procedure, gateway, audit, events, args.user, mode=args.mode, sysreps=sysreps)
+                # the printer joins after the replay: the resumed run's own events follow
+            else:
+                executive = Executive(procedure, gateway, audit, run_id=_new_run_id(procedure.id),
+                                      mode=args.mode or Mode.MANUAL, sysreps=sysreps)
+        except OperatorActionError as exc:
+            print(f"caretaker run: {exc}", file=sys.stderr)
+            return 2
+        executive.add_listener(printer)
+        for number in args.breakpoints:
+            executive.set_breakpoint(args.user, number)
+        if not args.resume:
+            executive.start(args.user)
+        print(f"READY run {executive.run_id}", flush=True)
+        answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight)
+        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty())
+        try:
+            final = console.run()
+        except KeyboardInterrupt:
+            executive.stop(args.user, "interrupted at the terminal (Ctrl-C)")
+            final = executive.snapshot()
+        executive.join(30)
+        if final.error:
+            print(f"caretaker run: recording failed, run stopped: {final.error}", file=sys.stderr)
+        print(f"RESULT {final.status.value} run {executive.run_id} (report: caretaker report {executive.run_id}"
+              f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})", flush=True)
+        return 0 if final.status is RunStatus.COMPLETED else 1
+    finally:
+        gateway.close()
+        audit.close()
+
+
+def report_main(argv: list[str] | None = None) -> int:
+    """``caretaker report RUN``: write the after-action report (HTML and Markdown)."""
+    from pride.report import write_report
+
+    parser = argparse.ArgumentParser(prog="caretaker report", description="write the after-action report of a run")
+    parser.add_argument("run", metavar="RUN", nargs="?", help="run id (omit with --list)")
+    parser.add_argument("--db", default=DEFAULT_DB, metavar="URL")
+    parser.add_argument("--out", default="var/reports", metavar="DIR", help="where to write RUN.html and RUN.md")
+    parser.add_argument("--list", action="store_true", help="list the runs in the audit log")
+    args = parser.parse_args(argv)
+    audit = AuditLog(args.db)
+    try:
+        if args.list or not args.run:
+            for run_id, started, procedure_id in audit.runs():
+                print(f"{run_id}  {started:%Y-%m-%d %H:%M:%S}Z  {procedure_id}")
+            return 0
+        events = audit.events(args.run)
+        if not events or events[0].kind is not EventKind.RUN_STARTED:
+            print(f"caretaker report: no run {args.run!r} in {args.db}", file=sys.stderr)
+            return 2
+        html_path, md_path = write_report(events, Path(args.out))
+        print(html_path)
+        print(md_path)
+        return 0
+    finally:
+        audit.close()

@@ -1,0 +1,311 @@
+"""After-action report of one run, from its audit records: HTML and Markdown.
+
+Who did what when, how long each step took, the telemetry values verifies decided on, a
+timeline (hand-made inline SVG: no plotting library), and the images captured during the run
+(command results whose values carry an image ``path``; copied next to the report so it stays
+complete when the run's files are cleaned up).
+"""
+
+from __future__ import annotations
+
+import html
+import shutil
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+from pride.events import PAX, Event, EventKind
+
+__all__ = ["RunSummary", "StepSummary", "summarize", "to_html", "to_markdown", "write_report"]
+
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".gif", ".svg", ".webp"}
+
+
+@dataclass
+class StepSummary:
+    """One step of the procedure as it went in this run; ``visits`` are (start, end) intervals."""
+
+    number: int
+    title: str
+    visits: list[list[datetime]] = field(default_factory=list)
+    completed: int = 0
+    failed: int = 0
+    skipped: int = 0
+    actors: set[str] = field(default_factory=set)
+
+    @property
+    def seconds(self) -> float:
+        return sum((end - start).total_seconds() for start, end in self.visits)
+
+
+@dataclass
+class Image:
+    instruction: str
+    time: datetime
+    source: str
+    label: str
+    copied: str | None = None
+
+
+@dataclass
+class RunSummary:
+    run_id: str
+    procedure: str
+    title: str
+    version: str
+    started: datetime
+    ended: datetime
+    started_by: str
+    outcome: str
+    steps: list[StepSummary]
+    events: list[Event]
+    telemetry: list[Event]
+    images: list[Image]
+
+    @property
+    def seconds(self) -> float:
+        return (self.ended - self.started).total_seconds()
+
+
+def summarize(events: list[Event]) -> RunSummary:
+    """Fold a run's events into what the report shows."""
+    start = events[0]
+    steps = [StepSummary(s["number"], s["title"]) for s in start.data.get("steps", [])]
+    by_number = {s.number: s for s in steps}
+    last_step: StepSummary | None = None
+    for event in events:
+        if not event.instruction:
+            continue
+        head = event.instruction.split("/")[0].split(".")[0]
+        step = by_number.get(int(head)) if head.isdigit() else None
+        if step is None:
+            continue
+        if step is not last_step or not step.visits:
+            step.visits.append([event.time, event.time])
+        step.visits[-1][1] = event.time
+        last_step = step
+        step.actors.add(event.actor)
+        if "/" not in event.instruction:  # count the step's own instructions, not a sub-procedure's
+            step.completed += event.kind is EventKind.INSTRUCTION_COMPLETED
+            step.failed += event.kind is EventKind.INSTRUCTION_FAILED
+            step.skipped += event.kind is EventKind.INSTRUCTION_SKIPPED
+    outcome = "interrupted"
+    for event in events:
+        if event.kind is EventKind.RUN_COMPLETED:
+            outcome = "completed"
+        elif event.kind is EventKind.RUN_STOPPED:
+            outcome = "stopped"
+        elif event.kind is EventKind.RUN_RESUMED:
+            outcome = "interrupted"
+    images = [
+        Image(e.instruction or "", e.time, str(e.data["values"]["path"]), str(e.data["values"].get("label", "")))
+        for e in events
+        if e.kind is EventKind.COMMAND_RESULT and isinstance(e.data.get("values"), dict)
+        and Path(str(e.data["values"].get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES
+    ]
+    return RunSummary(
+        run_id=start.run_id, procedure=start.data.get("procedure", ""), title=start.data.get("title", ""),
+        version=start.data.get("version", ""), started=start.time, ended=events[-1].time, started_by=start.actor,
+        outcome=outcome, steps=steps, events=events,
+        telemetry=[e for e in events if e.kind is EventKind.TELEMETRY_SEEN], images=images,
+    )
+
+
+def describe(event: Event) -> str:
+    """One line saying what an event was."""
+    d = event.data
+    kind = event.kind
+    if kind is EventKind.RUN_STARTED:
+        return f"started {d.get('procedure')} v{d.get('version')} in {d.get('mode')} mode"
+    if kind is EventKind.COMMAND_SENT:
+        args = ", ".join(f"{k}={v!r}" for k, v in d.get("args", {}).items())
+        return f"sent {d['system']}.{d['command']}({args})" + (" [hazardous]" if d.get("hazardous") else "")
+    if kind is EventKind.COMMAND_RESULT:
+        values = f" {d['values']}" if d.get("values") else ""
+        return f"{'succeeded' if d['success'] else 'FAILED'}: {d.get('message', '')}{values}"
+    if kind is EventKind.TELEMETRY_SEEN:
+        verdict = "" if "ok" not in d else (" ✓" if d["ok"] else " ✗")
+        return f"saw {d['system']}.{d['item']} = {d['value']!r}{' (stale)' if d.get('stale') else ''}{verdict}"
+    if kind is EventKind.OPERATOR_INPUT:
+        return f"recorded {d['name']} = {d['value']!r}"
+    if kind is EventKind.INSTRUCTION_FAILED:
+        return f"failed: {d.get('reason', '')}" + (f" → step {d['branch']}" if d.get("branch") else "")
+    if kind is EventKind.INSTRUCTION_SKIPPED:
+        return f"skipped: {d.get('reason', '')}"
+    if kind is EventKind.INSTRUCTION_COMPLETED:
+        return "completed" + (f" → step {d['went_to']}" if d.get("went_to") else "")
+    if kind is EventKind.INSTRUCTION_STARTED:
+        return f"started: {d.get('text', '')}"
+    if kind is EventKind.AWAITING_OPERATOR:
+        return f"waiting for an operator: {d.get('reason', '')}"
+    if kind is EventKind.MODE_CHANGED:
+        return f"mode → {d['mode']}"
+    if kind is EventKind.RUN_STOPPED:
+        return f"stopped: {d.get('reason', '')}"
+    if kind is EventKind.RETRY:
+        return f"retry after: {d.get('after', '')}"
+    if kind is EventKind.CALL_ENTERED:
+        return f"entered {d.get('procedure')} with {d.get('inputs')}"
+    return kind.value.replace("_", " ")
+
+
+def _clock(moment: datetime) -> str:
+    return moment.strftime("%H:%M:%S.") + f"{moment.microsecond // 1000:03d}"
+
+
+def _duration(seconds: float) -> str:
+    minutes, rest = divmod(seconds, 60)
+    return f"{int(minutes)} min {rest:04.1f} s" if minutes else f"{rest:.1f} s"
+
+
+def timeline_svg(summary: RunSummary, width: int = 860) -> str:
+    """Steps as rows, visits as bars on a shared time axis; operator actions and failures marked."""
+    left, row, top = 210, 26, 28
+    total = max(summary.seconds, 1e-3)
+    scale = (width - left - 20) / total
+    height = top + row * len(summary.steps) + 34
+
+    def x(moment: datetime) -> float:
+        return left + (moment - summary.started).total_seconds() * scale
+
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12" role="img" '
+             f'aria-label="Timeline of run {html.escape(summary.run_id)}">']
+    for tick in range(6):
+        seconds = total * tick / 5
+        tx = left + seconds * scale
+        parts.append(f'<line x1="{tx:.1f}" y1="{top - 6}" x2="{tx:.1f}" y2="{height - 28}" stroke="#ddd"/>')
+        parts.append(f'<text x="{tx:.1f}" y="{height - 12}" text-anchor="middle" fill="#555">{seconds:.1f} s</text>')
+    rows = {s.number: i for i, s in enumerate(summary.steps)}
+    for i, step in enumerate(summary.steps):
+        y = top + i * row
+        label = html.escape(f"{step.number}. {step.title}"[:30])
+        parts.append(f'<text x="{left - 8}" y="{y + 15}" text-anchor="end">{label}</text>')
+        color = "#c0392b" if step.failed and not step.completed else "#2e86c1" if step.visits else "#bbb"
+        for start, end in step.visits:
+            w = max((end - start).total_seconds() * scale, 2)
+            parts.append(f'<rect x="{x(start):.1f}" y="{y + 4}" width="{w:.1f}" height="{row - 10}" rx="3" fill="{color}">'
+                         f'<title>step {step.number}: {_duration((end - start).total_seconds())}</title></rect>')
+    for event in summary.events:
+        head = (event.instruction or "").split("/")[0].split(".")[0]
+        if not head.isdigit() or int(head) not in rows:
+            continue
+        y = top + rows[int(head)] * row
+        if event.kind is EventKind.INSTRUCTION_FAILED:
+            parts.append(f'<circle cx="{x(event.time):.1f}" cy="{y + row / 2 - 1:.1f}" r="4" fill="#e74c3c">'
+                         f'<title>{html.escape(event.instruction or "")} failed</title></circle>')
+        elif event.actor != PAX and event.kind in (EventKind.OPERATOR_INPUT, EventKind.INSTRUCTION_COMPLETED,
+                                                   EventKind.CONFIRMATION, EventKind.INSTRUCTION_SKIPPED,
+                                                   EventKind.COMMAND_SENT, EventKind.RETRY):
+            px, py = x(event.time), y + 2
+            parts.append(f'<path d="M{px - 4:.1f},{py:.1f} L{px + 4:.1f},{py:.1f} L{px:.1f},{py + 7:.1f} Z" fill="#f39c12">'
+                         f'<title>{html.escape(event.actor)}: {html.escape(describe(event))}</title></path>')
+    parts.append(f'<text x="{left}" y="14" fill="#555">bars: time in step · ▼ operator action · ● failure</text>')
+    parts.append("</svg>")
+    return "\n".join(parts)
+
+
+def _copy_images(summary: RunSummary, out_dir: Path) -> None:
+    folder = out_dir / f"{summary.run_id}-images"
+    for n, image in enumerate(summary.images, start=1):
+        source = Path(image.source)
+        if source.is_file():
+            folder.mkdir(parents=True, exist_ok=True)
+            target = folder / f"{n:02d}-{source.name}"
+            shutil.copyfile(source, target)
+            image.copied = f"{folder.name}/{target.name}"
+
+
+def to_markdown(summary: RunSummary) -> str:
+    lines = [
+        f"# After-action report: {summary.title}", "",
+        f"- Run: `{summary.run_id}`", f"- Procedure: `{summary.procedure}` version {summary.version}",
+        f"- Started: {summary.started:%Y-%m-%d %H:%M:%S} UTC by {summary.started_by}",
+        f"- Duration: {_duration(summary.seconds)}", f"- Outcome: **{summary.outcome}**", "",
+        "## Steps", "", "| step | title | time | completed | failed | skipped | by |", "|---|---|---|---|---|---|---|",
+    ]
+    for s in summary.steps:
+        by = ", ".join(sorted(s.actors)) or "—"
+        when = _duration(s.seconds) if s.visits else "not reached"
+        lines.append(f"| {s.number} | {s.title} | {when} | {s.completed} | {s.failed} | {s.skipped} | {by} |")
+    lines += ["", "## Timeline", "", f"![timeline]({summary.run_id}-timeline.svg)", "",
+              "## Verified telemetry", "", "| time | instruction | item | value | condition | result |", "|---|---|---|---|---|---|"]
+    for e in summary.telemetry:
+        d = e.data
+        verdict = "ok" if d.get("ok", True) and not d.get("stale") else "not met"
+        lines.append(f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{d['value']!r}` | "
+                     f"{d.get('condition', '(branch)')} | {verdict} |")
+    lines += ["", "## Images", ""]
+    for image in summary.images:
+        target = image.copied or image.source
+        lines.append(f"- {image.instruction} at {_clock(image.time)} {image.label}: "
+                     + (f"![{image.label}]({target})" if image.copied else f"missing file {image.source}"))
+    if not summary.images:
+        lines.append("None captured.")
+    lines += ["", "## Actions", "", "| # | time (UTC) | actor | instruction | action |", "|---|---|---|---|---|"]
+    for e in summary.events:
+        lines.append(f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe(e).replace('|', '/')} |")
+    return "\n".join(lines) + "\n"
+
+
+def to_html(summary: RunSummary) -> str:
+    esc = html.escape
+    rows = "".join(
+        f"<tr><td>{s.number}</td><td>{esc(s.title)}</td><td>{_duration(s.seconds) if s.visits else 'not reached'}</td>"
+        f"<td>{s.completed}</td><td>{s.failed}</td><td>{s.skipped}</td><td>{esc(', '.join(sorted(s.actors)))}</td></tr>"
+        for s in summary.steps
+    )
+    telemetry = "".join(
+        f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td><td>{esc(e.data['system'])}.{esc(e.data['item'])}</td>"
+        f"<td><code>{esc(repr(e.data['value']))}</code></td><td>{esc(e.data.get('condition', '(branch)'))}</td>"
+        f"<td>{'ok' if e.data.get('ok', True) and not e.data.get('stale') else '<b>not met</b>'}</td></tr>"
+        for e in summary.telemetry
+    )
+    images = "".join(
+        f"<figure><img src=\"{esc(i.copied)}\" alt=\"{esc(i.label)}\" style=\"max-width:320px\">"
+        f"<figcaption>{esc(i.instruction)} {_clock(i.time)} {esc(i.label)}</figcaption></figure>"
+        if i.copied else f"<p>{esc(i.instruction)}: missing file {esc(i.source)}</p>"
+        for i in summary.images
+    ) or "<p>None captured.</p>"
+    actions = "".join(
+        f"<tr class=\"{'operator' if e.actor != PAX else ''}\"><td>{e.seq}</td><td>{_clock(e.time)}</td><td>{esc(e.actor)}</td>"
+        f"<td>{esc(e.instruction or '')}</td><td>{esc(describe(e))}</td></tr>"
+        for e in summary.events
+    )
+    return f"""<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><title>Run {esc(summary.run_id)}</title>
+<style>
+body{{font-family:sans-serif;margin:2em;max-width:1000px}} table{{border-collapse:collapse;margin:1em 0}}
+td,th{{border:1px solid #ccc;padding:3px 8px;text-align:left;font-size:14px}} tr.operator td{{background:#fdf2e3}}
+figure{{display:inline-block;margin:0 1em 1em 0}}
+</style></head><body>
+<h1>After-action report: {esc(summary.title)}</h1>
+<p>Run <code>{esc(summary.run_id)}</code> · procedure <code>{esc(summary.procedure)}</code> v{esc(summary.version)} ·
+started {summary.started:%Y-%m-%d %H:%M:%S} UTC by {esc(summary.started_by)} · {_duration(summary.seconds)} ·
+outcome <b>{esc(summary.outcome)}</b></p>
+<h2>Steps</h2>
+<table><tr><th>step</th><th>title</th><th>time</th><th>completed</th><th>failed</th><th>skipped</th><th>by</th></tr>{rows}</table>
+<h2>Timeline</h2>
+{timeline_svg(summary)}
+<h2>Verified telemetry</h2>
+<table><tr><th>time</th><th>instruction</th><th>item</th><th>value</th><th>condition</th><th>result</th></tr>{telemetry}</table>
+<h2>Images</h2>
+{images}
+<h2>Actions</h2>
+<table><tr><th>#</th><th>time (UTC)</th><th>actor</th><th>instruction</th><th>action</th></tr>{actions}</table>
+</body></html>
+"""
+
+
+def write_report(events: list[Event], out_dir: Path) -> tuple[Path, Path]:
+    """Write ``RUN.html``, ``RUN.md`` and ``RUN-timeline.svg`` (and copied images) into ``out_dir``."""
+    summary = summarize(events)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _copy_images(summary, out_dir)
+    html_path = out_dir / f"{summary.run_id}.html"
+    md_path = out_dir / f"{summary.run_id}.md"
+    html_path.write_text(to_html(summary), encoding="utf-8")
+    md_path.write_text(to_markdown(summary), encoding="utf-8")
+    (out_dir / f"{summary.run_id}-timeline.svg").write_text(timeline_svg(summary), encoding="utf-8")
+    return html_path, md_path

@@ -1,0 +1,213 @@
+"""The runner's terminal: progress step by step, and the operator's answers when PAX holds.
+
+:class:`ProgressPrinter` is an executive listener (it only prints). :class:`OperatorConsole`
+answers holds on the main thread: from ``--set``/``--confirm-*`` options for unattended runs
+(recorded under the runner's user), else by prompting when stdin is a terminal, else it stops
+the run and says which option would have answered.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from typing import Any, TextIO
+
+from pride.events import Event, EventKind
+from pride.executive import Executive, Hold, Mode, OperatorActionError, Snapshot
+from pride.model import Procedure, RecordInstruction
+
+__all__ = ["OperatorConsole", "ProgressPrinter", "Unattended"]
+
+
+class ProgressPrinter:
+    """Prints one line per meaningful event, with a header when a new step begins."""
+
+    def __init__(self, procedure: Procedure, stream: TextIO = sys.stdout) -> None:
+        self.procedure = procedure
+        self.stream = stream
+        self._step: str | None = None
+
+    def __call__(self, event: Event) -> None:
+        number = event.instruction or ""
+        data = event.data
+        line: str | None = None
+        kind = event.kind
+        if kind is EventKind.RUN_STARTED:
+            line = f"Run {event.run_id}: {data['title']} (v{data['version']}) by {event.actor}, {data['mode']} mode"
+        elif kind is EventKind.RUN_RESUMED:
+            line = f"Run {event.run_id} resumed by {event.actor} at {number}, {data['mode']} mode"
+        elif kind is EventKind.INSTRUCTION_STARTED:
+            self._header(number)
+            line = f"  {number:<8} {event.actor:<10} {data.get('text', '')}"
+        elif kind is EventKind.COMMAND_SENT:
+            args = ", ".join(f"{k}={v!r}" for k, v in data["args"].items())
+            line = f"  {number:<8} {event.actor:<10} sent {data['system']}.{data['command']}({args})"
+        elif kind is EventKind.COMMAND_RESULT:
+            mark = "ok" if data["success"] else "FAILED"
+            line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (f" {data['values']}" if data["values"] else "")
+        elif kind is EventKind.TELEMETRY_SEEN:
+            line = f"  {number:<8} {'':<10} {data['system']}.{data['item']} = {data['value']!r}" + (" (stale)" if data["stale"] else "")
+        elif kind is EventKind.INSTRUCTION_COMPLETED:
+            line = f"  {number:<8} {event.actor:<10} done" + (f", go to step {data['went_to']}" if data.get("went_to") else "")
+        elif kind is EventKind.INSTRUCTION_FAILED:
+            branch = f"; branching to step {data['branch']}" if data.get("branch") else ""
+            line = f"  {number:<8} {event.actor:<10} FAILED: {data['reason']}{branch}"
+        elif kind is EventKind.INSTRUCTION_SKIPPED:
+            line = f"  {number:<8} {event.actor:<10} skipped: {data['reason']}"
+        elif kind is EventKind.OPERATOR_INPUT:
+            self._header(number)
+            line = f"  {number:<8} {event.actor:<10} recorded {data['name']} = {data['value']!r}"
+        elif kind is EventKind.AWAITING_OPERATOR:
+            self._header(number)
+            line = f"  {number:<8} {'PAX':<10} waiting for an operator: {data['reason']}"
+        elif kind in (EventKind.CONFIRMATION, EventKind.PAUSED, EventKind.CONTINUED, EventKind.BREAKPOINT_HIT,
+                      EventKind.RETRY, EventKind.MODE_CHANGED, EventKind.BREAKPOINT_SET):
+            extra = data.get("mode", "")
+            line = f"  {number:<8} {event.actor:<10} {kind.value.replace('_', ' ')} {extra}".rstrip()
+        elif kind is EventKind.RUN_COMPLETED:
+            line = f"Run {event.run_id} completed"
+        elif kind is EventKind.RUN_STOPPED:
+            line = f"Run {event.run_id} stopped by {event.actor}" + (f": {data['reason']}" if data.get("reason") else "")
+        if line is not None:
+            print(line, file=self.stream, flush=True)
+
+    def _header(self, number: str) -> None:
+        top = number.split(".")[0]
+        if top != self._step and top.isdigit():
+            self._step = top
+            step = self.procedure.steps[int(top) - 1]
+            print(f"Step {step.number}  {step.title}", file=self.stream, flush=True)
+
+
+@dataclass
+class Unattended:
+    """Answers given on the command line for a run nobody watches."""
+
+    values: dict[str, str] = field(default_factory=dict)
+    confirm_manual: bool = False
+    confirm_hazardous: bool = False
+    in_flight: str | None = None  # "resend" | "skip"
+
+
+class OperatorConsole:
+    """Answers the executive's holds as ``user``, until the run ends."""
+
+    def __init__(self, executive: Executive, user: str, answers: Unattended, *, interactive: bool,
+                 stream: TextIO = sys.stdout, read: Any = input) -> None:
+        self.executive = executive
+        self.user = user
+        self.answers = answers
+        self.interactive = interactive
+        self.stream = stream
+        self._read = read
+
+    def run(self) -> Snapshot:
+        """Block until the run completes or stops; return its last snapshot."""
+        while True:
+            snap = self.executive.wait_for(lambda s: s.status.value != "active" or s.hold is not None)
+            assert snap is not None
+            if snap.status.value != "active":
+                return snap
+            try:
+                self._answer(snap)
+            except OperatorActionError as exc:
+                self._say(f"  not accepted: {exc}")
+                if not self.interactive:
+                    self.executive.stop(self.user, str(exc))
+
+    def _say(self, text: str) -> None:
+        print(text, file=self.stream, flush=True)
+
+    def _unattended_stop(self, snap: Snapshot, option: str) -> None:
+        self._say(f"  {snap.reason}\n  nobody at the terminal to answer: {option}")
+        self.executive.stop(self.user, f"unattended run needs an operator at {snap.current}: {snap.reason}")
+
+    def _answer(self, snap: Snapshot) -> None:
+        ex, user, hold = self.executive, self.user, snap.hold
+        instruction = ex.current_instruction()
+        if hold is Hold.OPERATOR_INPUT and isinstance(instruction, RecordInstruction):
+            if instruction.name in self.answers.values:
+                ex.enter(user, self.answers.values[instruction.name])
+            elif self.interactive:
+                self._notices(instruction)
+                answer = self._ask(f"{snap.current} {instruction.text} ({instruction.type}) > ")
+                if answer == "!skip":
+                    ex.skip(user, self._ask("reason > "))
+                else:
+                    ex.enter(user, answer)
+            else:
+                self._unattended_stop(snap, f"pass --set {instruction.name}=VALUE")
+        elif hold is Hold.OPERATOR_ACTION:
+            if self.answers.confirm_manual:
+                ex.mark_done(user)
+            elif self.interactive:
+                self._notices(instruction)
+                self._choose(snap, {"": ("done", lambda: ex.mark_done(user))})
+            else:
+                self._unattended_stop(snap, "pass --confirm-manual to mark manual instructions done")
+        elif hold is Hold.CONFIRMATION:
+            if self.answers.confirm_hazardous:
+                ex.confirm(user)
+            elif self.interactive:
+                self._notices(instruction)
+                self._choose(snap, {"y": ("confirm and send", lambda: ex.confirm(user))})
+            else:
+                self._unattended_stop(snap, "pass --confirm-hazardous to confirm hazardous commands")
+        elif hold is Hold.IN_FLIGHT:
+            if self.answers.in_flight == "resend":
+                self._resend(snap, instruction)
+            elif self.answers.in_flight == "skip":
+                ex.skip(user, "in flight when the runner stopped; operator chose not to resend (--in-flight skip)")
+            elif self.interactive:
+                self._choose(snap, {"r": ("resend", lambda: ex.retry(user))})
+            else:
+                self._unattended_stop(snap, "pass --in-flight resend or --in-flight skip")
+        elif hold is Hold.FAILURE:
+            if self.interactive:
+                self._choose(snap, {"r": ("retry", lambda: ex.retry(user))})
+            else:
+                self._unattended_stop(snap, "resume the run at a terminal to retry or skip it")
+        elif hold in (Hold.MANUAL_MODE, Hold.NOT_AUTOMATABLE):
+            if self.interactive:
+                self._notices(instruction)
+                self._choose(snap, {"": ("perform", lambda: ex.perform(user)),
+                                    "a": ("switch to autonomous", lambda: ex.set_mode(user, Mode.AUTONOMOUS))})
+            else:
+                self._unattended_stop(snap, "run with --auto, or at a terminal")
+        elif hold in (Hold.BREAKPOINT, Hold.PAUSED):
+            if self.interactive:
+                self._choose(snap, {"c": ("continue", lambda: ex.resume_automation(user)),
+                                    "n": ("step", lambda: ex.step(user))})
+            else:
+                ex.resume_automation(user)
+
+    def _resend(self, snap: Snapshot, instruction: Any) -> None:
+        if self.executive.is_hazardous(instruction):
+            if not self.answers.confirm_hazardous:
+                self._unattended_stop(snap, "the in-flight command is hazardous: add --confirm-hazardous to resend it")
+                return
+            self.executive.confirm(self.user)
+        self.executive.retry(self.user)
+
+    def _notices(self, instruction: Any) -> None:
+        for notice in getattr(instruction, "notices", ()):
+            self._say(f"  {notice.level.upper()}: {notice.text}")
+
+    def _choose(self, snap: Snapshot, options: dict[str, tuple[str, Any]]) -> None:
+        menu = ", ".join(f"[{key or 'Enter'}] {label}" for key, (label, _) in options.items())
+        answer = self._ask(f"{snap.reason}\n  {menu}, [s] skip, [q] stop > ").strip().lower()
+        if answer in options:
+            options[answer][1]()
+        elif answer == "s":
+            self.executive.skip(self.user, self._ask("reason > ") or "skipped at the terminal")
+        elif answer == "q":
+            self.executive.stop(self.user, "stopped at the terminal")
+        else:
+            self._say(f"  unknown answer {answer!r}")
+
+    def _ask(self, prompt: str) -> str:
+        try:
+            return self._read(prompt)
+        except EOFError:
+            self.executive.stop(self.user, "terminal closed")
+            return ""

@@ -1,0 +1,107 @@
+"""Operator actions from the page, sent to the executive under the signed-in user's id.
+
+This is the only place the web view changes a run. Each action is one executive method; the
+executive records it in the audit log with the user id and refuses what does not apply now
+(:class:`~pride.executive.OperatorActionError`). The role check happens here, on the server,
+before anything reaches the executive: an observer's request is refused whatever the page shows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pride.executive import Executive, Mode, OperatorActionError
+from pride.web.accounts import Account
+
+__all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action"]
+
+
+class ActionRefused(Exception):
+    """The request cannot be carried out; ``status`` is the HTTP status that says why."""
+
+    def __init__(self, status: int, message: str) -> None:
+        super().__init__(message)
+        self.status = status
+        self.message = message
+
+
+@dataclass(frozen=True)
+class ActionRequest:
+    """What the page asks: an action name, the instruction it was clicked on, and its values."""
+
+    action: str
+    instruction: str | None = None
+    value: Any = None
+    reason: str = ""
+    mode: str | None = None
+
+    @staticmethod
+    def from_json(body: Any) -> ActionRequest:
+        if not isinstance(body, dict) or not isinstance(body.get("action"), str):
+            raise ActionRefused(400, "expected a JSON object with an 'action' string")
+        mode = body.get("mode")
+        instruction = body.get("instruction")
+        return ActionRequest(
+            action=body["action"],
+            instruction=str(instruction) if instruction is not None else None,
+            value=body.get("value"),
+            reason=str(body.get("reason") or ""),
+            mode=str(mode) if mode is not None else None,
+        )
+
+
+def _mode(request: ActionRequest) -> Mode:
+    try:
+        return Mode(request.mode)
+    except ValueError:
+        raise ActionRefused(400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {request.mode!r})") from None
+
+
+def _numbered(request: ActionRequest) -> str:
+    if not request.instruction:
+        raise ActionRefused(400, f"{request.action} needs the instruction number")
+    return request.instruction
+
+
+#: action name -> (needs the clicked instruction to be the current one, what it does)
+ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] = {
+    "perform": (True, lambda ex, user, r: ex.perform(user)),
+    "step": (False, lambda ex, user, r: ex.step(user)),
+    "confirm": (True, lambda ex, user, r: ex.confirm(user)),
+    "enter": (True, lambda ex, user, r: ex.enter(user, r.value)),
+    "done": (True, lambda ex, user, r: ex.mark_done(user)),
+    "retry": (True, lambda ex, user, r: ex.retry(user)),
+    "skip": (True, lambda ex, user, r: ex.skip(user, r.reason)),
+    "mode": (False, lambda ex, user, r: ex.set_mode(user, _mode(r))),
+    "pause": (False, lambda ex, user, r: ex.pause(user)),
+    "continue": (False, lambda ex, user, r: ex.resume_automation(user)),
+    "stop": (False, lambda ex, user, r: ex.stop(user, r.reason)),
+    "set_breakpoint": (False, lambda ex, user, r: ex.set_breakpoint(user, _numbered(r))),
+    "clear_breakpoint": (False, lambda ex, user, r: ex.clear_breakpoint(user, _numbered(r))),
+}
+
+
+def perform_action(executive: Executive, account: Account, request: ActionRequest) -> Any:
+    """Carry out ``request`` as ``account``; ActionRefused says why not.
+
+    Actions clicked on an instruction name it, and are refused unless it is still the current
+    one: two operators looking at the same run must not act on an instruction that moved on.
+    """
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+    entry = ACTIONS.get(request.action)
+    if entry is None:
+        raise ActionRefused(400, f"unknown action {request.action!r} (known: {', '.join(ACTIONS)})")
+    on_current, action = entry
+    if on_current:
+        current = executive.snapshot().current
+        if request.instruction is None:
+            raise ActionRefused(400, f"{request.action} needs the instruction number it was clicked on")
+        if request.instruction != current:
+            raise ActionRefused(409, f"{request.instruction} is not the current instruction (the run is at {current or 'no instruction'})")
+    try:
+        return action(executive, account.user, request)
+    except OperatorActionError as exc:
+        raise ActionRefused(409, str(exc)) from None

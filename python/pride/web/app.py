@@ -1,0 +1,297 @@
+"""The web view's routes: the page, its JSON API, the live WebSocket, camera images, reports.
+
+Reading is open to every signed-in person; changing anything (starting a run, any operator
+action) needs the operator role and goes through :mod:`pride.web.actions` to the executive.
+Blocking work (executive calls that take its lock, gateway reads, opening a gateway, the audit
+log) runs in the thread pool so one slow robot never stalls the other browsers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+from collections.abc import AsyncIterator, Callable
+from pathlib import Path
+from typing import Any
+
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from pride.model import Procedure
+from pride.parser import load_procedure
+from pride.web.accounts import Account
+from pride.web.actions import ActionRefused, ActionRequest, perform_action
+from pride.web.live_run import LiveRun
+from pride.web.procedure_view import procedure_json
+from pride.web.run_board import RunBoard
+from pride.web.run_state import fold_events
+from pride.web.sign_in import COOKIE, SignIns
+
+__all__ = ["build_app"]
+
+log = logging.getLogger(__name__)
+
+STATIC = Path(__file__).with_name("static")
+#: How often a watcher gets fresh telemetry ages and staleness when nothing else changed.
+_TELEMETRY_REFRESH_S = 1.0
+#: WebSocket close code for "not signed in" (RFC 6455 policy violation).
+_CLOSE_POLICY = 1008
+
+
+def _account(request: Request) -> Account:
+    account = request.app.state.sign_ins.account_of(request)
+    if account is None:
+        raise ActionRefused(401, "sign in first")
+    return account
+
+
+def _refusal(exc: ActionRefused) -> JSONResponse:
+    return JSONResponse({"error": exc.message}, status_code=exc.status)
+
+
+def _api(handler: Callable[[Request], Any]) -> Callable[[Request], Any]:
+    """Turn ActionRefused into a JSON error with its status; the page shows the message."""
+
+    async def wrapped(request: Request) -> Response:
+        try:
+            return await handler(request)
+        except ActionRefused as exc:
+            return _refusal(exc)
+
+    return wrapped
+
+
+async def _json_body(request: Request) -> Any:
+    try:
+        return await request.json()
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise ActionRefused(400, "the request body must be JSON") from None
+
+
+# ---- pages and session ----------------------------------------------------------------------
+async def index(request: Request) -> Response:
+    return FileResponse(STATIC / "index.html")
+
+
+@_api
+async def session_get(request: Request) -> Response:
+    account = _account(request)
+    return JSONResponse({"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act})
+
+
+@_api
+async def session_post(request: Request) -> Response:
+    body = await _json_body(request)
+    user = str(body.get("user", "")).strip() if isinstance(body, dict) else ""
+    signed = request.app.state.sign_ins.sign_in(user)
+    if signed is None:
+        raise ActionRefused(403, f"no account {user!r} in the accounts file")
+    token, account = signed
+    response = JSONResponse({"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act})
+    response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
+    log.info("%s signed in as %s", account.user, account.role.value)
+    return response
+
+
+async def session_delete(request: Request) -> Response:
+    token = request.cookies.get(COOKIE)
+    if token:
+        request.app.state.sign_ins.sign_out(token)
+    response = JSONResponse({"signed_out": True})
+    response.delete_cookie(COOKIE)
+    return response
+
+
+# ---- runs -----------------------------------------------------------------------------------
+@_api
+async def catalog(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    return JSONResponse({
+        "procedures": board.catalog.procedure_files(), "bindings": board.catalog.binding_files(),
+        "modes": ["manual", "autonomous"],
+    })
+
+
+@_api
+async def runs_list(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    return JSONResponse({"runs": await run_in_threadpool(board.listing)})
+
+
+@_api
+async def runs_start(request: Request) -> Response:
+    account = _account(request)
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an observer: observers may watch, not start runs")
+    body = await _json_body(request)
+    if not isinstance(body, dict):
+        raise ActionRefused(400, "expected a JSON object with procedure, binding and mode")
+    board: RunBoard = request.app.state.board
+    live = await run_in_threadpool(
+        board.start, account.user, str(body.get("procedure", "")), str(body.get("binding", "")), str(body.get("mode", "manual"))
+    )
+    return JSONResponse({"run_id": live.run_id}, status_code=201)
+
+
+def _past_procedure(events: list[Any]) -> Procedure | None:
+    path = events[0].data.get("path") if events else None
+    if not path or not Path(path).is_file():
+        return None
+    try:
+        return load_procedure(path)
+    except Exception:  # the file changed since the run: show the log without the procedure
+        log.warning("cannot load %s for a past run", path, exc_info=True)
+        return None
+
+
+def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
+    live = board.live(run_id)
+    if live is not None:
+        return {
+            "procedure": live.procedure_view, "state": live.state_json(),
+            "events": [e.to_dict() for e in live.events_since(0)], "telemetry": live.telemetry_json(),
+        }
+    events = board.past_events(run_id)
+    procedure = _past_procedure(events)
+    return {
+        "procedure": procedure_json(procedure) if procedure else None,
+        "state": {**fold_events(run_id, events).to_dict(), "live": False},
+        "events": [e.to_dict() for e in events], "telemetry": [],
+    }
+
+
+@_api
+async def run_get(request: Request) -> Response:
+    _account(request)
+    return JSONResponse(await run_in_threadpool(_run_view, request.app.state.board, request.path_params["run_id"]))
+
+
+@_api
+async def run_action(request: Request) -> Response:
+    account = _account(request)
+    if not account.may_act:  # refused before the body is even read
+        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+    board: RunBoard = request.app.state.board
+    live = board.require_live(request.path_params["run_id"])
+    action = ActionRequest.from_json(await _json_body(request))
+    result = await run_in_threadpool(perform_action, live.executive, account, action)
+    return JSONResponse({"ok": True, "action": action.action, "result": result})
+
+
+@_api
+async def run_camera(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    run_id = request.path_params["run_id"]
+    live = board.live(run_id)
+    image = live.latest_image() if live else _past_image(board, run_id)
+    if image is None:
+        raise ActionRefused(404, "no camera image yet: none of this run's command results named a PNG")
+    if not image.is_file():
+        raise ActionRefused(404, f"the camera image {image} does not exist on this server")
+    return FileResponse(image, media_type="image/png", headers={"Cache-Control": "no-store"})
+
+
+def _past_image(board: RunBoard, run_id: str) -> Path | None:
+    image = fold_events(run_id, board.past_events(run_id)).latest_image
+    return Path(image) if image else None
+
+
+# ---- live updates ---------------------------------------------------------------------------
+async def run_socket(websocket: WebSocket) -> None:
+    """Push the run's state, new audit events and telemetry to one browser until it leaves."""
+    account = websocket.app.state.sign_ins.account_of(websocket)
+    if account is None:
+        await websocket.close(code=_CLOSE_POLICY, reason="sign in first")
+        return
+    board: RunBoard = websocket.app.state.board
+    live = board.live(websocket.path_params["run_id"])
+    if live is None:
+        await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on this server")
+        return
+    await websocket.accept()
+    watcher = live.watch()
+    receiver = asyncio.create_task(_drain(websocket))
+    try:
+        while not receiver.done():
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(watcher.changed.wait(), _TELEMETRY_REFRESH_S)
+            watcher.changed.clear()
+            state, telemetry = await run_in_threadpool(lambda: (live.state_json(), live.telemetry_json()))
+            events = live.events_since(watcher.sent_seq)
+            if events:
+                watcher.sent_seq = events[-1].seq
+            await websocket.send_json({
+                "type": "update", "state": state, "events": [e.to_dict() for e in events], "telemetry": telemetry,
+            })
+    except (WebSocketDisconnect, RuntimeError):
+        pass  # the browser left (RuntimeError: send after the client closed)
+    finally:
+        live.unwatch(watcher)
+        receiver.cancel()
+
+
+async def _drain(websocket: WebSocket) -> None:
+    """Read until the browser disconnects (it sends nothing else; actions go over HTTP)."""
+    while True:
+        message = await websocket.receive()
+        if message["type"] == "websocket.disconnect":
+            return
+
+
+# ---- reports --------------------------------------------------------------------------------
+@_api
+async def run_report(request: Request) -> Response:
+    """The after-action report of a run, written by pride's report module (caretaker report)."""
+    _account(request)
+    board: RunBoard = request.app.state.board
+    run_id = request.path_params["run_id"]
+    board.past_events(run_id)  # 404 for unknown runs
+    writer = request.app.state.report_writer
+    if writer is None:
+        raise ActionRefused(501, "this installation has no report writer (pride.report); use `caretaker report RUN`")
+    path = await run_in_threadpool(writer, run_id)
+    return FileResponse(path, media_type="text/html")
+
+
+def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None) -> Starlette:
+    """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways."""
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
+        try:
+            yield
+        finally:
+            await run_in_threadpool(board.close)
+
+    app = Starlette(
+        routes=[
+            Route("/", index),
+            Route("/runs/{run_id}/report", run_report),
+            Route("/api/session", session_get, methods=["GET"]),
+            Route("/api/session", session_post, methods=["POST"]),
+            Route("/api/session", session_delete, methods=["DELETE"]),
+            Route("/api/catalog", catalog),
+            Route("/api/runs", runs_list, methods=["GET"]),
+            Route("/api/runs", runs_start, methods=["POST"]),
+            Route("/api/runs/{run_id}", run_get),
+            Route("/api/runs/{run_id}/actions", run_action, methods=["POST"]),
+            Route("/api/runs/{run_id}/camera", run_camera),
+            WebSocketRoute("/ws/runs/{run_id}", run_socket),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ],
+        lifespan=lifespan,
+    )
+    app.state.board = board
+    app.state.sign_ins = sign_ins
+    app.state.report_writer = report_writer
+    return app

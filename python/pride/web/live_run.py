@@ -1,0 +1,165 @@
+"""A run in progress as the web view holds it: its executive, its gateway, and who watches.
+
+The executive does the work; this class only observes it. Its listener (called on the
+executive's thread with the executive's lock held) appends the event and wakes the watchers'
+send loops on the asyncio side; the watchers then read :meth:`Executive.snapshot`, which takes
+the lock, so what they draw is a consistent state and never a half-applied transition. The
+one thread boundary is :meth:`_wake` (``loop.call_soon_threadsafe``).
+
+Operator actions are not here: :mod:`pride.web.actions` sends them to the executive.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from pride.events import Event
+from pride.executive import Executive, Snapshot
+from pride.model import Procedure
+from pride.systems import SystemGateway
+from pride.web.procedure_view import procedure_json, telemetry_references
+from pride.web.run_state import RunState
+
+__all__ = ["LiveRun", "Watcher", "snapshot_json"]
+
+log = logging.getLogger(__name__)
+
+
+class Watcher:
+    """One browser connection's wake-up flag: set when the run or its telemetry changed."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self.loop = loop
+        self.changed = asyncio.Event()
+        self.sent_seq = 0
+
+
+class LiveRun:
+    """One run started from the web view; lives until the server stops."""
+
+    def __init__(
+        self,
+        executive: Executive,
+        gateway: SystemGateway,
+        procedure: Procedure,
+        *,
+        binding: str,
+        started_by: str,
+    ) -> None:
+        self.executive = executive
+        self.gateway = gateway
+        self.procedure = procedure
+        self.binding = binding
+        self.started_by = started_by
+        self.procedure_view = procedure_json(procedure)
+        self._references = sorted(telemetry_references(procedure))
+        self._lock = threading.Lock()  # guards _events, _state, _telemetry, _watchers
+        self._events: list[Event] = []
+        self._state = RunState(executive.run_id)
+        self._telemetry: dict[str, dict[str, Any]] = {}
+        self._watchers: set[Watcher] = set()
+        executive.add_listener(self._event_callback)
+        gateway.add_listener(self._telemetry_callback)
+
+    @property
+    def run_id(self) -> str:
+        return self.executive.run_id
+
+    # ---- observation callbacks (other threads) ----------------------------------------------
+    def _event_callback(self, event: Event) -> None:
+        with self._lock:
+            self._events.append(event)
+            self._state.apply(event)
+        self._wake()
+
+    def _telemetry_callback(self, sysrep_id: str, item_id: str, value: Any) -> None:
+        if (sysrep_id, item_id) in self._references:
+            self._wake()
+
+    def _wake(self) -> None:
+        with self._lock:
+            watchers = list(self._watchers)
+        for watcher in watchers:
+            try:
+                watcher.loop.call_soon_threadsafe(watcher.changed.set)
+            except RuntimeError:  # that connection's loop is closed: it is going away
+                pass
+
+    # ---- watchers -----------------------------------------------------------------------------
+    def watch(self) -> Watcher:
+        watcher = Watcher(asyncio.get_running_loop())
+        watcher.changed.set()  # the first message is the whole state
+        with self._lock:
+            self._watchers.add(watcher)
+        return watcher
+
+    def unwatch(self, watcher: Watcher) -> None:
+        with self._lock:
+            self._watchers.discard(watcher)
+
+    @property
+    def watcher_count(self) -> int:
+        with self._lock:
+            return len(self._watchers)
+
+    # ---- views --------------------------------------------------------------------------------
+    def events_since(self, seq: int) -> list[Event]:
+        with self._lock:
+            return [e for e in self._events if e.seq > seq]
+
+    def latest_image(self) -> Path | None:
+        with self._lock:
+            image = self._state.latest_image
+        return Path(image) if image else None
+
+    def state_json(self) -> dict[str, Any]:
+        """The run as the page draws it: the executive's snapshot plus who did what, when."""
+        snapshot = self.executive.snapshot()
+        with self._lock:
+            details = self._state.to_dict()
+        return {
+            **details, **snapshot_json(snapshot),
+            "binding": self.binding, "started_by": self.started_by, "live": True,
+        }
+
+    def telemetry_json(self) -> list[dict[str, Any]]:
+        """The current value, age and staleness of every telemetry item the procedure reads."""
+        now = time.time()
+        readings = []
+        for system, item in self._references:
+            try:
+                reading = self.gateway.telemetry(system, item)
+            except Exception as exc:  # shown as unavailable, never as a value
+                readings.append({"system": system, "item": item, "error": f"{type(exc).__name__}: {exc}", "stale": True})
+                continue
+            timestamp = getattr(reading, "timestamp", None)
+            readings.append({
+                "system": system, "item": item, "value": getattr(reading, "value", None),
+                "timestamp": timestamp, "age": (now - timestamp) if timestamp else None,
+                "stale": bool(getattr(reading, "stale", False)),
+            })
+        return readings
+
+
+def snapshot_json(snapshot: Snapshot) -> dict[str, Any]:
+    """The executive's authoritative state (status, mode, current instruction, hold)."""
+    return {
+        "run_id": snapshot.run_id,
+        "procedure": snapshot.procedure_id,
+        "status": snapshot.status.value,
+        "mode": snapshot.mode.value,
+        "current": snapshot.current,
+        "hold": snapshot.hold.value if snapshot.hold else None,
+        "reason": snapshot.reason,
+        "executing": snapshot.executing,
+        "statuses": {n: s.value for n, s in snapshot.statuses.items()},
+        "breakpoints": sorted(snapshot.breakpoints),
+        "variables": snapshot.variables,
+        "error": snapshot.error,
+        "last_seq": snapshot.last_seq,
+    }
