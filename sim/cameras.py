@@ -1,0 +1,69 @@
+"""Scene and robot-mounted cameras rendered headless with pybullet's TinyRenderer, and PNG files.
+
+A fixed camera looks from ``eye`` to ``target``; a mounted camera looks along its link's z axis
+with the link's -y up (the ROS optical-frame convention). PNGs are written with zlib so that no
+imaging library is needed.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pybullet as p
+
+from sim.scene import CameraSpec
+
+__all__ = ["CameraImage", "render", "write_png", "capture_file_name"]
+
+
+@dataclass(frozen=True)
+class CameraImage:
+    camera: str
+    width: int
+    height: int
+    rgb: bytes  # row-major, 3 bytes per pixel
+
+
+def render(spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tuple[float, ...]] | None = None) -> CameraImage:
+    """Render one camera; ``link_pose`` is the mounting link's world pose for mounted cameras."""
+    if spec.link is not None:
+        if link_pose is None:
+            raise ValueError(f"camera {spec.name} is mounted on {spec.link}: its link pose is needed")
+        pos, orn = link_pose
+        rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        forward, up = rot[:, 2], -rot[:, 1]
+        eye = np.array(pos)
+        view = p.computeViewMatrix(eye.tolist(), (eye + forward).tolist(), up.tolist())
+    else:
+        view = p.computeViewMatrix(list(spec.eye or (0, 0, 0)), list(spec.target or (1, 0, 0)), [0, 0, 1])
+    projection = p.computeProjectionMatrixFOV(spec.fov_deg, spec.width / spec.height, spec.near, spec.far)
+    _, _, rgba, _, _ = p.getCameraImage(
+        spec.width, spec.height, view, projection, renderer=p.ER_TINY_RENDERER, shadow=0,
+        flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=client,
+    )
+    pixels = np.asarray(rgba, dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
+    return CameraImage(spec.name, spec.width, spec.height, pixels.tobytes())
+
+
+def write_png(image: CameraImage, path: Path) -> Path:
+    """Write an 8-bit RGB PNG."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    stride = image.width * 3
+    raw = b"".join(b"\x00" + image.rgb[row * stride:(row + 1) * stride] for row in range(image.height))
+    header = struct.pack(">IIBBBBB", image.width, image.height, 8, 2, 0, 0, 0)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    return path
+
+
+def capture_file_name(scene: str, camera: str, label: str, sim_time: float) -> str:
+    """``<scene>_<camera>_<label>_<sim ms>.png`` with the label reduced to safe characters."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", label).strip("_") or "capture"
+    return f"{scene}_{camera}_{safe}_{int(round(sim_time * 1000)):09d}.png"

@@ -1,0 +1,68 @@
+"""The CDRA filter cabinet: one slot, a lock, and the telemetry a crew panel would show.
+
+The lock is what physically holds the installed filter (see ``filter_slots.SlotBlocked``); the
+lamp next to the slot turns red when locked and green when unlocked so camera images show it.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import pybullet as p
+
+from sim.filter_slots import FilterSlots
+from sim.scene import CabinetSpec, World
+
+__all__ = ["CdraCabinet", "CdraTelemetry"]
+
+LOG = logging.getLogger(__name__)
+
+LOCKED_COLOR = (0.85, 0.1, 0.1, 1.0)
+UNLOCKED_COLOR = (0.1, 0.8, 0.2, 1.0)
+
+
+@dataclass(frozen=True)
+class CdraTelemetry:
+    filter_locked: bool
+    filter_present: bool
+    installed_filter_id: str
+    installed_filter_condition: str
+
+
+class CdraCabinet:
+    """Lock state of the cabinet slot; all calls under the simulation's world lock."""
+
+    def __init__(self, spec: CabinetSpec, world: World) -> None:
+        self.slot = spec.slot
+        self.locked = spec.locked
+        self._world = world
+        self._show_lock()
+
+    def is_locked(self, slot: str) -> bool:
+        return slot == self.slot and self.locked
+
+    def set_locked(self, locked: bool, filters: FilterSlots) -> str:
+        """Engage or release the lock; returns what happened, for the service response."""
+        was = self.locked
+        self.locked = locked
+        self._show_lock()
+        installed = filters.in_slot(self.slot)
+        what = f"filter {installed.id}" if installed else "no filter installed"
+        verb = "locked" if locked else "unlocked"
+        LOG.info("cabinet %s (%s)", verb, what)
+        return f"{self.slot} {'already ' if was == locked else ''}{verb} ({what})"
+
+    def telemetry(self, filters: FilterSlots) -> CdraTelemetry:
+        installed = filters.in_slot(self.slot)
+        return CdraTelemetry(
+            filter_locked=self.locked,
+            filter_present=installed is not None,
+            installed_filter_id=installed.id if installed else "",
+            installed_filter_condition=installed.condition if installed else "",
+        )
+
+    def _show_lock(self) -> None:
+        if self._world.latch is not None:
+            color = LOCKED_COLOR if self.locked else UNLOCKED_COLOR
+            p.changeVisualShape(self._world.latch, -1, rgbaColor=list(color), physicsClientId=self._world.client)

@@ -1,0 +1,370 @@
+"""``caretaker sim --scene iva|eva``: the simulated robot and world as a ROS 2 node.
+
+Names and types follow docs/interfaces.md (Simulation). One thread steps the physics (paced to
+``--time-scale`` × real time, or as fast as possible with 0 while anything moves) and publishes
+the sim-time-rate topics; the executor's threads serve the action, services and cameras. They
+meet at ``Simulation.world_lock``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.srv import CaptureImage, SetGripper
+from geometry_msgs.msg import Pose
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+
+from sim.cameras import CameraImage, capture_file_name, render, write_png
+from sim.scene import SceneError, load_scene
+from sim.simulation import Simulation
+from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
+
+__all__ = ["SimNode", "main"]
+
+LOG = logging.getLogger("sim")
+
+JOINT_STATE_PERIOD = 1.0 / 60.0  # s of sim time (>= 50 Hz)
+FRAMES_PERIOD = 0.1  # s of sim time
+STATUS_PERIOD = 1.0  # s of sim time; status topics are also published on every change
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+
+
+class SimNode(Node):
+    """ROS face of one :class:`Simulation`; owns the stepping thread."""
+
+    def __init__(self, sim: Simulation, *, time_scale: float, namespace: str, capture_dir: Path, camera_period: float) -> None:
+        super().__init__("caretaker_sim", namespace=namespace)
+        self.sim = sim
+        self.time_scale = time_scale
+        self.capture_dir = capture_dir
+        group = ReentrantCallbackGroup()
+        self.joint_state_pub = self.create_publisher(JointState, "joint_states", 10)
+        self.frames_pub = self.create_publisher(NamedPoses, "sim/frames", 10)
+        self.moving_pub = self.create_publisher(Bool, "robot/moving", LATCHED)
+        self.trajectory_server = ActionServer(
+            self, FollowJointTrajectory, "arm_controller/follow_joint_trajectory",
+            execute_callback=self.execute_callback, goal_callback=self.goal_callback,
+            cancel_callback=self.cancel_callback, callback_group=group,
+        )
+        self.capture_srv = self.create_service(CaptureImage, "camera/capture", self.capture_callback, callback_group=group)
+        self.image_pubs = {name: self.create_publisher(Image, f"camera/{name}/image", 2) for name in sim.scene.cameras}
+        if camera_period > 0:
+            self.camera_timer = self.create_timer(camera_period, self.camera_timer_callback, callback_group=group)
+        if sim.gripper is not None:
+            self.held_pub = self.create_publisher(String, "gripper/held_object", LATCHED)
+            self.gripper_srv = self.create_service(SetGripper, "gripper/set", self.gripper_callback, callback_group=group)
+        if sim.cabinet is not None:
+            self.cdra_locked_pub = self.create_publisher(Bool, "cdra/filter_locked", LATCHED)
+            self.cdra_present_pub = self.create_publisher(Bool, "cdra/filter_present", LATCHED)
+            self.cdra_id_pub = self.create_publisher(String, "cdra/installed_filter_id", LATCHED)
+            self.cdra_condition_pub = self.create_publisher(String, "cdra/installed_filter_condition", LATCHED)
+            self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, callback_group=group)
+            self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, callback_group=group)
+        self._last_status: tuple | None = None
+        self._stop = threading.Event()
+        self._stepper = threading.Thread(target=self._step_loop, name="sim-stepper", daemon=True)
+
+    # ------------------------------------------------------------------ stepping thread
+
+    def start(self) -> None:
+        self._stepper.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._stepper.is_alive():
+            self._stepper.join(10.0)
+
+    def _step_loop(self) -> None:
+        """Step, publish by sim time, and pace: real time × scale, or flat out while busy."""
+        sim = self.sim
+        next_joint_states = next_frames = next_status = 0.0
+        wall_origin, sim_origin = time.monotonic(), sim.time
+        steps = 0
+        try:
+            while not self._stop.is_set():
+                with sim.world_lock:
+                    sim.step()
+                    now = sim.time
+                    busy = sim.busy
+                    if now >= next_joint_states:
+                        next_joint_states = now + JOINT_STATE_PERIOD
+                        self._publish_joint_states()
+                    if now >= next_frames:
+                        next_frames = now + FRAMES_PERIOD
+                        self._publish_frames()
+                    status = self._status()
+                    if status != self._last_status or now >= next_status:
+                        next_status = now + STATUS_PERIOD
+                        self._publish_status(status)
+                steps += 1
+                if self.time_scale > 0 or not busy:
+                    # Idle at time scale 0 still runs at real time: nothing changes, and a
+                    # simulator spinning flat out for nothing would starve the other processes.
+                    scale = self.time_scale if self.time_scale > 0 else 1.0
+                    target = wall_origin + (now - sim_origin) / scale
+                    delay = target - time.monotonic()
+                    if delay > 0:
+                        time.sleep(delay)
+                    elif delay < -0.5:  # fell behind (machine busy): do not try to catch up
+                        wall_origin, sim_origin = time.monotonic(), now
+                else:
+                    wall_origin, sim_origin = time.monotonic(), now
+                    if steps % 50 == 0:
+                        time.sleep(0)  # let the executor threads take the GIL
+        except Exception:  # the stepper dying silently would freeze the robot while ROS looks alive
+            LOG.exception("simulation stepping failed; shutting down")
+            rclpy.try_shutdown()
+
+    def _publish_joint_states(self) -> None:
+        names, positions, velocities = self.sim.joint_state()
+        msg = JointState()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.name, msg.position, msg.velocity = names, positions, velocities
+        self.joint_state_pub.publish(msg)
+
+    def _publish_frames(self) -> None:
+        msg = NamedPoses()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = "world"
+        for name, (pos, orn) in self.sim.frames():
+            pose = Pose()
+            pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pos)
+            pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in orn)
+            msg.names.append(name)
+            msg.poses.append(pose)
+        self.frames_pub.publish(msg)
+
+    def _status(self) -> tuple:
+        sim = self.sim
+        cdra = sim.cabinet.telemetry(sim.filters) if sim.cabinet else None
+        return (sim.moving, sim.held_object(), cdra)
+
+    def _publish_status(self, status: tuple) -> None:
+        moving, held, cdra = status
+        self._last_status = status
+        self.moving_pub.publish(Bool(data=moving))
+        if self.sim.gripper is not None:
+            self.held_pub.publish(String(data=held))
+        if cdra is not None:
+            self.cdra_locked_pub.publish(Bool(data=cdra.filter_locked))
+            self.cdra_present_pub.publish(Bool(data=cdra.filter_present))
+            self.cdra_id_pub.publish(String(data=cdra.installed_filter_id))
+            self.cdra_condition_pub.publish(String(data=cdra.installed_filter_condition))
+
+    def _wait(self, done: threading.Event, sim_seconds: float) -> bool:
+        """Wait for a physics-thread event; the timeout follows the time scale, generously."""
+        scale = self.time_scale if self.time_scale > 0 else 1.0
+        return done.wait(sim_seconds / scale + 30.0)
+
+    # ------------------------------------------------------------------ trajectory action
+
+    def goal_callback(self, goal_request: FollowJointTrajectory.Goal) -> GoalResponse:
+        # Accept everything: refusals are reported through the result's error_string.
+        return GoalResponse.ACCEPT
+
+    def cancel_callback(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    def execute_callback(self, goal_handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
+        goal = goal_handle.request
+        result = FollowJointTrajectory.Result()
+        sim = self.sim
+        points = [
+            (pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9, list(pt.positions), list(pt.velocities))
+            for pt in goal.trajectory.points
+        ]
+        try:
+            if not math.isfinite(goal.goal_tolerance) or goal.goal_tolerance < 0:
+                raise TrajectoryError(ErrorCode.INVALID_GOAL, f"goal_tolerance {goal.goal_tolerance} must be a finite number >= 0")
+            with sim.world_lock:
+                current = tuple(sim.arm_positions)
+            trajectory = validate_trajectory(
+                list(goal.trajectory.joint_names), points, limits=sim.limits,
+                controller_joints=sim.arm_joints, current=current, other_joints=sim.gripper_joints,
+            )
+        except TrajectoryError as exc:
+            self.get_logger().warning(f"trajectory refused: {exc}")
+            goal_handle.abort()
+            result.error_code, result.error_string = exc.code, str(exc)
+            return result
+        with sim.world_lock:
+            run = sim.start_trajectory(trajectory, goal.goal_tolerance)
+        feedback = FollowJointTrajectory.Feedback()
+        feedback.joint_names = list(sim.arm_joints)
+        deadline_s = trajectory.duration
+        started = time.monotonic()
+        scale = self.time_scale if self.time_scale > 0 else 1.0
+        while not run.done.wait(0.05):
+            if goal_handle.is_cancel_requested:
+                with sim.world_lock:
+                    run.cancel_requested = True
+            if time.monotonic() - started > deadline_s / scale + 60.0:
+                with sim.world_lock:
+                    run.cancel_requested = True
+            feedback.desired, feedback.actual = list(run.desired), list(run.actual)
+            feedback.time_from_start = run.elapsed
+            goal_handle.publish_feedback(feedback)
+        result.error_code, result.error_string = run.error_code, run.error_string
+        if run.cancel_requested and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        elif run.error_code == ErrorCode.SUCCESSFUL and not run.cancel_requested:
+            goal_handle.succeed()
+        else:
+            if run.cancel_requested:
+                result.error_code, result.error_string = ErrorCode.PATH_TOLERANCE_VIOLATED, "trajectory did not finish in time"
+            goal_handle.abort()
+        return result
+
+    # ------------------------------------------------------------------ gripper
+
+    def gripper_callback(self, request: SetGripper.Request, response: SetGripper.Response) -> SetGripper.Response:
+        sim = self.sim
+        assert sim.gripper is not None
+        with sim.world_lock:
+            motion = sim.gripper.start(request.pose)
+        if not self._wait(motion.done, 2.0):
+            response.success, response.message = False, f"gripper did not reach {request.pose!r} in time"
+        else:
+            response.success, response.message, response.held_object = motion.success, motion.message, motion.held_object
+        return response
+
+    # ------------------------------------------------------------------ CDRA cabinet
+
+    def unlock_callback(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        return self._set_lock(False, response)
+
+    def lock_callback(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        return self._set_lock(True, response)
+
+    def _set_lock(self, locked: bool, response: Trigger.Response) -> Trigger.Response:
+        sim = self.sim
+        assert sim.cabinet is not None
+        with sim.world_lock:
+            response.message = sim.cabinet.set_locked(locked, sim.filters)
+            response.success = True
+            status = self._status()
+        self._publish_status(status)
+        return response
+
+    # ------------------------------------------------------------------ cameras
+
+    def _render(self, name: str) -> tuple[CameraImage, float]:
+        sim = self.sim
+        spec = sim.scene.cameras[name]
+        with sim.world_lock:
+            link_pose = sim.link_pose(sim.world.link_index[spec.link]) if spec.link else None
+            return render(spec, sim.client, link_pose), sim.time
+
+    def _image_msg(self, image: CameraImage) -> Image:
+        msg = Image()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = f"camera/{image.camera}"
+        msg.height, msg.width, msg.encoding, msg.step = image.height, image.width, "rgb8", image.width * 3
+        msg.data = image.rgb
+        return msg
+
+    def camera_timer_callback(self) -> None:
+        for name, pub in self.image_pubs.items():
+            if pub.get_subscription_count() > 0:  # rendering costs CPU: only for someone watching
+                image, _ = self._render(name)
+                pub.publish(self._image_msg(image))
+
+    def capture_callback(self, request: CaptureImage.Request, response: CaptureImage.Response) -> CaptureImage.Response:
+        cameras = self.sim.scene.cameras
+        if request.camera not in cameras:
+            response.success, response.message = False, f"unknown camera {request.camera!r}; cameras are {sorted(cameras)}"
+            return response
+        image, sim_time = self._render(request.camera)
+        response.image = self._image_msg(image)
+        response.success = True
+        if request.label:
+            path = self.capture_dir / capture_file_name(self.sim.scene.name, request.camera, request.label, sim_time)
+            try:
+                write_png(image, path)
+            except OSError as exc:
+                response.success, response.message = False, f"could not save {path}: {exc}"
+                return response
+            response.path = str(path.resolve())
+            response.message = f"saved {response.path}"
+        else:
+            response.message = f"{image.width}x{image.height} image from {request.camera}"
+        return response
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="caretaker sim", description="Run a pybullet world as the robot's hardware (ROS 2 node).")
+    parser.add_argument("--scene", required=True, help="scene name (iva, eva) or path to a scene YAML file")
+    parser.add_argument("--time-scale", type=float, default=1.0, help="sim seconds per wall second; 0 = as fast as possible while anything moves")
+    parser.add_argument("--seed", type=int, default=0, help="seed for every random generator")
+    parser.add_argument("--namespace", default="", help="ROS namespace for all topics and services")
+    parser.add_argument("--capture-dir", type=Path, default=Path(tempfile.gettempdir()) / "caretaker-captures", help="where /camera/capture saves PNGs")
+    parser.add_argument("--camera-period", type=float, default=1.0, help="wall seconds between published camera images (0 = only on request)")
+    parser.add_argument("--snapshot", type=Path, metavar="PNG", help="render the scene camera to this PNG and exit (no ROS)")
+    args = parser.parse_args(argv)
+    if not math.isfinite(args.time_scale) or args.time_scale < 0:
+        parser.error(f"--time-scale must be >= 0, got {args.time_scale}")
+    return args
+
+
+def snapshot(scene_name: str, path: Path, *, seed: int = 0) -> Path:
+    """Render the scene's ``scene`` camera after a short settling time: the docs images."""
+    sim = Simulation(load_scene(scene_name), seed=seed)
+    try:
+        for _ in range(int(0.5 / sim.dt)):
+            sim.step()
+        return write_png(render(sim.scene.cameras["scene"], sim.client), path)
+    finally:
+        sim.close()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parse(sys.argv[1:] if argv is None else argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    try:
+        if args.snapshot:
+            print(f"wrote {snapshot(args.scene, args.snapshot, seed=args.seed)}")
+            return 0
+        sim = Simulation(load_scene(args.scene), seed=args.seed)
+    except SceneError as exc:
+        print(f"caretaker sim: {exc}", file=sys.stderr)
+        return 2
+    rclpy.init()
+    node = SimNode(sim, time_scale=args.time_scale, namespace=args.namespace, capture_dir=args.capture_dir, camera_period=args.camera_period)
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    node.start()
+    print(f"READY sim {sim.scene.name}", flush=True)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.stop()
+        executor.shutdown()
+        node.destroy_node()
+        sim.close()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,235 @@
+"""The simulated world as the robot's hardware: one pybullet client stepped by one thread.
+
+The arm is position-controlled perfectly (kinematically), as an industrial controller tracking
+a validated trajectory would be; what the simulation adds is the world: collisions abort a
+motion, filters are grasped, carried, seated and locked. Everything that touches pybullet holds
+``world_lock`` because ROS callbacks (cameras, services) run on other threads than the stepper.
+"""
+
+from __future__ import annotations
+
+import logging
+import random
+import threading
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet as p
+
+from sim.cdra_cabinet import CdraCabinet
+from sim.filter_slots import FilterSlots, SlotBlocked
+from sim.gripper import Gripper
+from sim.scene import Scene, World, build_world
+from sim.trajectory import ErrorCode, JointLimit, Trajectory
+
+__all__ = ["Simulation", "TrajectoryRun"]
+
+LOG = logging.getLogger(__name__)
+
+#: Contacts deeper than this (m) are collisions; shallower ones are numerical touching.
+PENETRATION = 0.001
+#: Default goal tolerance (rad) when a goal gives 0.
+DEFAULT_GOAL_TOLERANCE = 0.01
+
+Pose = tuple[tuple[float, float, float], tuple[float, float, float, float]]
+
+
+@dataclass
+class TrajectoryRun:
+    """One trajectory being executed by the physics thread."""
+
+    trajectory: Trajectory
+    goal_tolerance: float
+    start_time: float = 0.0
+    done: threading.Event = field(default_factory=threading.Event)
+    error_code: int = ErrorCode.SUCCESSFUL
+    error_string: str = ""
+    desired: tuple[float, ...] = ()
+    actual: tuple[float, ...] = ()
+    elapsed: float = 0.0
+    cancel_requested: bool = False
+
+
+class Simulation:
+    """One scene in one pybullet DIRECT client; ``step`` advances it by ``dt``."""
+
+    def __init__(self, scene: Scene, *, seed: int = 0) -> None:
+        # Seeded although the dynamics are deterministic anyway: any randomness added later
+        # (sensor noise, perturbations) stays reproducible under the same --seed.
+        random.seed(seed)
+        np.random.seed(seed)
+        self.scene = scene
+        self.world_lock = threading.RLock()
+        self.client = p.connect(p.DIRECT)
+        p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
+        self.dt = 1.0 / scene.physics_rate_hz
+        p.setTimeStep(self.dt, physicsClientId=self.client)
+        self.world: World = build_world(scene, self.client)
+        self.time = 0.0
+        self.robot = self.world.robot
+        self.arm_joints = tuple(scene.robot.arm_joints)
+        self._arm_index = [self.world.joint_index[j] for j in self.arm_joints]
+        self.limits: dict[str, JointLimit] = {}
+        for name, j in self.world.joint_index.items():
+            info = p.getJointInfo(self.robot, j, physicsClientId=self.client)
+            if info[2] in (p.JOINT_REVOLUTE, p.JOINT_PRISMATIC):
+                self.limits[name] = JointLimit(info[8], info[9], info[11])
+        self.tool_link = self.world.link_index[scene.robot.tool_link]
+        self.arm_positions = list(scene.robot.initial_positions)
+        self.arm_velocities = [0.0] * len(self.arm_joints)
+        self.cabinet = CdraCabinet(scene.cabinet, self.world) if scene.cabinet else None
+        self.filters = FilterSlots(scene, self.world, self.cabinet.is_locked if self.cabinet else (lambda slot: False))
+        self.gripper = Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
+        self.gripper_joints = tuple(scene.robot.gripper.joints) if scene.robot.gripper else ()
+        self.run: TrajectoryRun | None = None
+        self._link_names = {j: name for name, j in self.world.link_index.items()}
+        self.filters.hold_kinematic()
+
+    # ------------------------------------------------------------------ commands (world_lock held by caller)
+
+    def start_trajectory(self, trajectory: Trajectory, goal_tolerance: float) -> TrajectoryRun:
+        run = TrajectoryRun(trajectory, goal_tolerance or DEFAULT_GOAL_TOLERANCE, start_time=self.time)
+        if self.run is not None:
+            run.error_code = ErrorCode.INVALID_GOAL
+            run.error_string = "another trajectory is executing; cancel it first"
+            run.done.set()
+            return run
+        self.run = run
+        return run
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def moving(self) -> bool:
+        return self.run is not None or (self.gripper is not None and self.gripper.moving)
+
+    @property
+    def busy(self) -> bool:
+        """Something changes with time: the stepper should not idle."""
+        return self.moving or self.filters.moving_free()
+
+    def link_pose(self, link: int) -> Pose:
+        if link == -1:
+            pos, orn = p.getBasePositionAndOrientation(self.robot, physicsClientId=self.client)
+            return tuple(pos), tuple(orn)  # type: ignore[return-value]
+        state = p.getLinkState(self.robot, link, computeForwardKinematics=True, physicsClientId=self.client)
+        return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]
+
+    def joint_state(self) -> tuple[list[str], list[float], list[float]]:
+        names = list(self.arm_joints) + list(self.gripper_joints)
+        positions = list(self.arm_positions) + (list(self.gripper.positions) if self.gripper else [])
+        velocities = list(self.arm_velocities) + (list(self.gripper.velocities) if self.gripper else [])
+        return names, positions, velocities
+
+    def frames(self) -> list[tuple[str, Pose]]:
+        """Ground-truth poses of every named frame (docs/interfaces.md, /sim/frames)."""
+        out: list[tuple[str, Pose]] = [
+            ("robot_base", self.link_pose(-1)),
+            (self.scene.robot.tool_link, self.link_pose(self.tool_link)),
+        ]
+        if "flange" in self.world.link_index:
+            out.append(("flange", self.link_pose(self.world.link_index["flange"])))
+        for fid in self.filters.filters:
+            out.append((f"filter/{fid}", self.filters.pose(fid)))
+        for slot, pose in self.filters.slot_poses.items():
+            out.append((slot, pose))
+        for t in self.scene.targets:
+            out.append((f"target/{t.name}", (t.pose.xyz, t.pose.quaternion)))
+        for cam in self.scene.cameras.values():
+            if cam.link:
+                out.append((f"camera/{cam.name}", self.link_pose(self.world.link_index[cam.link])))
+        return out
+
+    def held_object(self) -> str:
+        held = self.filters.held()
+        return held.id if held else ""
+
+    # ------------------------------------------------------------------ stepping
+
+    def step(self) -> None:
+        """Advance the world by one physics step (caller holds ``world_lock``)."""
+        previous = list(self.arm_positions)
+        run = self.run
+        if run is not None:
+            self._advance_arm(run)
+        if self.gripper is not None:
+            self.gripper.step(self.dt)
+        if run is not None and not run.done.is_set():
+            problem = self._held_filter_problem() or self._collision()
+            if problem is not None:
+                code, message = problem
+                self._set_arm(previous, [0.0] * len(previous))
+                self._held_filter_problem()  # put the held filter back with the arm
+                self._finish(run, code, message)
+            elif run.elapsed >= run.trajectory.duration:
+                self._finish_at_goal(run)
+        p.stepSimulation(physicsClientId=self.client)
+        self._set_arm(self.arm_positions, self.arm_velocities)  # undo what gravity did to the arm
+        if self.gripper is not None:
+            for joint, q in zip(self.gripper.joints, self.gripper.positions):
+                p.resetJointState(self.robot, joint, q, physicsClientId=self.client)
+        self.filters.hold_kinematic()
+        self.time += self.dt
+
+    def _advance_arm(self, run: TrajectoryRun) -> None:
+        elapsed = self.time + self.dt - run.start_time
+        desired, velocity = run.trajectory.sample(elapsed)
+        if run.cancel_requested:
+            self._set_arm(self.arm_positions, [0.0] * len(self.arm_positions))
+            self._finish(run, ErrorCode.SUCCESSFUL, "canceled")
+            return
+        self._set_arm(list(desired), list(velocity))
+        run.desired, run.actual, run.elapsed = tuple(desired), tuple(self.arm_positions), elapsed
+
+    def _finish_at_goal(self, run: TrajectoryRun) -> None:
+        error = max(abs(a - b) for a, b in zip(self.arm_positions, run.trajectory.final))
+        if error > run.goal_tolerance:
+            self._finish(run, ErrorCode.GOAL_TOLERANCE_VIOLATED, f"final error {error:.4f} rad exceeds the goal tolerance {run.goal_tolerance:.4f} rad")
+        else:
+            self._finish(run, ErrorCode.SUCCESSFUL, f"reached the goal in {run.elapsed:.3f} s (max joint error {error:.5f} rad)")
+
+    def _finish(self, run: TrajectoryRun, code: int, message: str) -> None:
+        run.error_code = code
+        run.error_string = message
+        run.actual = tuple(self.arm_positions)
+        self.arm_velocities = [0.0] * len(self.arm_velocities)
+        if self.run is run:
+            self.run = None
+        log = LOG.info if code == ErrorCode.SUCCESSFUL else LOG.warning
+        log("trajectory finished (%d): %s", code, message)
+        run.done.set()
+
+    def _set_arm(self, positions: list[float], velocities: list[float]) -> None:
+        self.arm_positions = list(positions)
+        self.arm_velocities = list(velocities)
+        for j, q, v in zip(self._arm_index, positions, velocities):
+            p.resetJointState(self.robot, j, q, v, physicsClientId=self.client)
+
+    def _held_filter_problem(self) -> tuple[int, str] | None:
+        try:
+            self.filters.follow(self.link_pose(self.tool_link))
+        except SlotBlocked as exc:
+            return ErrorCode.PATH_TOLERANCE_VIOLATED, str(exc)
+        return None
+
+    def _collision(self) -> tuple[int, str] | None:
+        """The first unexpected contact of the robot (or what it holds) with the world."""
+        p.performCollisionDetection(physicsClientId=self.client)
+        held = self.filters.held()
+        held_body = held.body if held else None
+        robot_name = self.scene.robot.name
+        for c in p.getContactPoints(bodyA=self.robot, physicsClientId=self.client):
+            other, link, depth = c[2], c[3], c[8]
+            if depth > -PENETRATION or link == -1 or other == self.robot or other == held_body:
+                continue
+            return ErrorCode.COLLISION, f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)"
+        if held_body is not None:
+            for c in p.getContactPoints(bodyA=held_body, physicsClientId=self.client):
+                other, depth = c[2], c[8]
+                if depth > -PENETRATION or other == self.robot:
+                    continue
+                return ErrorCode.COLLISION, f"collision: held filter/{held.id} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)"  # type: ignore[union-attr]
+        return None
+
+    def close(self) -> None:
+        p.disconnect(physicsClientId=self.client)
