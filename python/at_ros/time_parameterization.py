@@ -93,8 +93,11 @@ def time_parameterize(
         seg_len = np.max(np.abs(seg) / vmax, axis=1)
         s_nodes = np.concatenate([[0.0], np.cumsum(seg_len)])
         length = float(s_nodes[-1])
-        # ds/dt <= 1 keeps velocities in limits; joint acceleration = dq/ds * s'' <= vmax * s''.
-        a_s = max_acceleration / float(np.max(vmax))
+        # ds/dt <= 1 keeps velocities in limits; joint acceleration = dq/ds * s'', so s'' is
+        # bounded by the fastest joint rate dq/ds along this piece.
+        moving = seg_len > 0
+        rate = float(np.max(np.abs(seg[moving]) / seg_len[moving, None]))
+        a_s = max_acceleration / rate
         t_acc, t_cruise, peak = _trapezoid(length, 1.0, a_s)
         duration = 2 * t_acc + t_cruise
         n = max(2, int(np.ceil(duration / sample_period)) + 1)

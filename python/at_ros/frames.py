@@ -1,0 +1,64 @@
+"""The latest world poses of named frames, as the simulation (or perception) publishes them.
+
+The original server resolved frames through TF and waited up to 3 s for them; here the
+simulation's ``/sim/frames`` is the ground truth and ``world`` is the identity.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+__all__ = ["FrameTable", "UnknownFrame", "WORLD_FRAME"]
+
+WORLD_FRAME = "world"
+
+
+class UnknownFrame(KeyError):
+    """A frame name nobody publishes; the message lists some that exist."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class FrameTable:
+    def __init__(self) -> None:
+        self._poses: dict[str, np.ndarray] = {}
+        self._stamp = 0.0
+        self._lock = threading.Lock()  # guards _poses and _stamp (subscription vs service threads)
+
+    def update(self, names: list[str], poses: list[np.ndarray]) -> None:
+        with self._lock:
+            self._poses = dict(zip(names, poses))
+            self._stamp = time.monotonic()
+
+    @property
+    def age(self) -> float:
+        """Seconds since the last update (infinite before the first one)."""
+        with self._lock:
+            return time.monotonic() - self._stamp if self._stamp else float("inf")
+
+    def snapshot(self) -> dict[str, np.ndarray]:
+        with self._lock:
+            out = dict(self._poses)
+        out[WORLD_FRAME] = np.eye(4)
+        return out
+
+    def lookup(self, name: str) -> np.ndarray:
+        """World pose of frame ``name``.
+
+        Raises:
+            UnknownFrame: nobody publishes ``name`` (or nothing was received yet).
+        """
+        if name in ("", WORLD_FRAME):
+            return np.eye(4)
+        with self._lock:
+            pose = self._poses.get(name)
+            known = sorted(self._poses)
+        if pose is None:
+            if not known:
+                raise UnknownFrame(f"unknown frame {name!r}: no frames received on /sim/frames yet")
+            raise UnknownFrame(f"unknown frame {name!r}; known frames: {WORLD_FRAME}, {', '.join(known)}")
+        return pose.copy()

@@ -1,0 +1,31 @@
+"""Fixtures of the AT server and planner suites."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from at_ros.library import default_library_path, load_library
+from at_ros.robot_config import load_robot_configs
+from at_ros.scene_file import build_planning_scene
+
+#: The UR10's start pose in the IVA scene file (sim/scenes/iva.yaml).
+UR10_START = np.array([0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0])
+
+
+@pytest.fixture(scope="module")
+def library():
+    return load_library(default_library_path() / "templates")
+
+
+@pytest.fixture(scope="module")
+def ur10_config():
+    return load_robot_configs()["ur10"]
+
+
+@pytest.fixture(scope="module")
+def iva_scene(ur10_config):
+    """The planner's pybullet world for the IVA scene, built from the simulation's scene file."""
+    scene = build_planning_scene(ur10_config)
+    yield scene
+    scene.close()
