@@ -492,7 +492,7 @@ class Executive:
             frame = self._frames[-1]
             frame.env[instruction.name] = converted
             self._emit(EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted)
-            self._complete(user, frame.position + 1)
+            self._complete(user, frame.procedure.following(frame.position))
             return converted
 
     def mark_done(self, user: str) -> None:
@@ -501,7 +501,7 @@ class Executive:
             instruction = self._require_idle()
             if not isinstance(instruction, ManualInstruction):
                 raise OperatorActionError(f"{self._current_number()} is a {instruction.kind.value}, not a manual instruction")
-            self._complete(user, self._frames[-1].position + 1)
+            self._complete(user, self._frames[-1].procedure.following(self._frames[-1].position))
 
     def retry(self, user: str) -> None:
         """Perform a failed (or interrupted) instruction again, as ``user``."""
@@ -526,8 +526,9 @@ class Executive:
             number = frame.number()
             self._failure = self._in_flight = None
             self._statuses[number] = InstructionStatus.SKIPPED
-            self._emit(EventKind.INSTRUCTION_SKIPPED, user, number, reason=reason, next=self._next_number(frame.position + 1))
-            self._advance(frame.position + 1)
+            following = frame.procedure.following(frame.position)
+            self._emit(EventKind.INSTRUCTION_SKIPPED, user, number, reason=reason, next=self._next_number(following))
+            self._advance(following)
 
     # ---- guards -----------------------------------------------------------------------------
     def _require_active(self) -> None:
@@ -634,7 +635,7 @@ class Executive:
             frame = self._frames[-1]
             number = frame.number()
             self._statuses[number] = InstructionStatus.COMPLETED
-            frame.position += 1
+            frame.position = frame.procedure.following(frame.position)
             self._emit(EventKind.INSTRUCTION_COMPLETED, PAX, number, next=frame.number())
         self._arrive()
 
@@ -746,7 +747,7 @@ class Executive:
     def _target(self, frame: _Frame, instruction: Instruction, outcome: _Outcome) -> int | None:
         """Where the run goes after the outcome; None means hold at a failure."""
         if outcome.ok:
-            return self._position_of(frame, outcome.goto) if outcome.goto else frame.position + 1
+            return self._position_of(frame, outcome.goto) if outcome.goto else frame.procedure.following(frame.position)
         on_failure = getattr(instruction, "on_failure", None)
         return self._position_of(frame, on_failure) if on_failure else None
 

@@ -43,8 +43,8 @@ def lint_file(path: str | Path, sysreps: Mapping[str, SysRep], *, _seen: frozens
 
 
 def lint_procedure(procedure: Procedure, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
-    """Every meaning problem of a parsed procedure."""
-    return _Linter(procedure, sysreps, _seen).run()
+    """Every meaning problem of a parsed procedure (a sub-procedure called several times reports once)."""
+    return list(dict.fromkeys(_Linter(procedure, sysreps, _seen).run()))
 
 
 class _Linter:
@@ -237,7 +237,7 @@ class _Linter:
         end = len(self.flat)
         successors: list[list[int]] = []
         for n, i in enumerate(self.flat):
-            following = n + 1
+            following = self.proc.following(n)
             targets: list[int | None]
             if isinstance(i, GoToInstruction):
                 targets = [self.first_of(i.step)]

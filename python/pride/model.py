@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import re
+from functools import cached_property
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -345,6 +346,7 @@ class Step:
     instructions: tuple[Instruction, ...]
     where: Location
     notices: tuple[Notice, ...] = ()
+    contingency: bool = False
 
 
 @dataclass(frozen=True)
@@ -370,9 +372,22 @@ class Procedure:
     where: Location
     description: str = ""
 
-    @property
+    @cached_property
     def instructions(self) -> tuple[Instruction, ...]:
         return tuple(i for s in self.steps for i in s.instructions)
+
+    def following(self, index: int) -> int:
+        """The index of the instruction after ``instructions[index]`` when nothing branches.
+
+        Contingency steps (``<step contingency="true">``) are entered only by a go-to or branch:
+        the flow passes over them, so off-nominal handling can sit after the last nominal step.
+        """
+        flat = self.instructions
+        step = flat[index].number.split(".")[0]
+        n = index + 1
+        while n < len(flat) and flat[n].number.split(".")[0] != step and self.step_of(flat[n].number).contingency:
+            n += len(self.step_of(flat[n].number).instructions)
+        return n
 
     def step(self, ref: str) -> Step | None:
         """The step named by a go-to: its id, or its number."""

@@ -119,7 +119,8 @@ class _Builder:
         where = self.pos.element(el)
         if not instructions:
             self.fail(where, f"step {number} has no instruction (notes alone cannot be performed)")
-        return Step(number, el.get("id") or str(number), el.get("title"), tuple(instructions), where, tuple(pending))
+        return Step(number, el.get("id") or str(number), el.get("title"), tuple(instructions), where, tuple(pending),
+                    contingency=_bool(el.get("contingency", "false")))
 
     def instruction(self, el: etree._Element, number: str, notices: tuple[Notice, ...]) -> Instruction:
         common: dict[str, Any] = dict(
