@@ -31,7 +31,7 @@ from rclpy.action import ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Header, String
 
@@ -68,6 +68,8 @@ HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few second
 PLAN_TIMEOUT = 60.0
 JOINT_TOLERANCE = 0.02  # rad the robot may drift from a plan's start and still run it
 STATUS_PERIOD = 0.2
+#: The simulation latches robot/moving and gripper/held_object: subscribe so as to get the last value.
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class CommandRefused(Exception):
@@ -121,13 +123,13 @@ class AffordanceTemplateServer(Node):
         inputs = ReentrantCallbackGroup()
         status = MutuallyExclusiveCallbackGroup()
 
-        self.status_publisher = self.create_publisher(ServerStatus, f"{PREFIX}/status", QoSProfile(depth=10, durability=DurabilityPolicy.VOLATILE))
+        self.status_publisher = self.create_publisher(ServerStatus, f"{PREFIX}/status", 10)
         self.status_timer = self.create_timer(STATUS_PERIOD, self.status_timer_callback, callback_group=status)
 
         self.frames_subscription = self.create_subscription(NamedPoses, "/sim/frames", self.frames_callback, 10, callback_group=inputs)
         self.joint_subscription = self.create_subscription(JointState, "/joint_states", self.joint_states_callback, 10, callback_group=inputs)
-        self.moving_subscription = self.create_subscription(Bool, "/robot/moving", self.moving_callback, 10, callback_group=inputs)
-        self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, 10, callback_group=inputs)
+        self.moving_subscription = self.create_subscription(Bool, "/robot/moving", self.moving_callback, LATCHED, callback_group=inputs)
+        self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, LATCHED, callback_group=inputs)
         self.heartbeat_subscription = self.create_subscription(Header, "/planner/heartbeat", self.heartbeat_callback, 10, callback_group=inputs)
 
         self.planner_client = self.create_client(PlanWaypoints, "/planner/plan_waypoints", callback_group=clients)
@@ -463,9 +465,10 @@ class AffordanceTemplateServer(Node):
                 for index, segment in zip(plan.indices, plan.segments):
                     self._run_segment(segment)
                     progress.current_index = index
-            except CommandRefused as exc:
+            except Exception as exc:  # whatever stopped the robot, the status must not stay EXECUTING
                 self._set_state(execute_status=ServerStatus.EXECUTE_FAILED)
-                raise CommandRefused(f"executing {trajectory!r} of {instance.key} failed: {exc}") from exc
+                reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)
+                raise CommandRefused(f"executing {trajectory!r} of {instance.key} failed: {reason}") from exc
             progress.execution_valid = True
             self._set_state(execute_status=ServerStatus.EXECUTE_SUCCEEDED)
             return f"executed {trajectory!r} of {instance.key}: waypoints {plan.indices}"
@@ -487,7 +490,7 @@ class AffordanceTemplateServer(Node):
             last = points[-1].time_from_start
             timeout = 30.0 + 3.0 * (last.sec + last.nanosec * 1e-9)
             outcome = _wait(handle.get_result_async(), timeout, "the trajectory action")
-            if outcome.result.error_code != FollowJointTrajectory.Result.SUCCESSFUL:
+            if outcome.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:  # the .action puts the codes on Goal
                 raise CommandRefused(f"waypoint {segment.label}: {outcome.result.error_string or f'error code {outcome.result.error_code}'}")
         pose = segment.end_effector_pose
         if pose and self.gripper_client is not None and pose != self._gripper_pose:

@@ -30,6 +30,8 @@ JOINT = "JOINT"
 CARTESIAN = "CARTESIAN"
 GRASP_POSES = ("closed", "close", "grasp")
 RELEASE_POSES = ("open", "release")
+#: IK solutions tried as the goal of a JOINT waypoint before giving up.
+GOAL_ALTERNATIVES = 3
 #: How far (m) from the tool point a graspable object's origin may be to count as grasped.
 GRASP_REACH = 0.25
 
@@ -85,9 +87,10 @@ class MotionPlanner:
         saved = scene.attachment
         scene.set_joints(start)
         if held_object:
-            if held_object not in scene.obstacles:
+            name = scene.object_name(held_object)
+            if name is None:
                 raise WaypointPlanningError(f"held object {held_object!r} is not in the planning scene")
-            scene.attach(held_object)
+            scene.attach(name)
         elif scene.attachment is not None:
             scene.detach()
         try:
@@ -109,16 +112,28 @@ class MotionPlanner:
 
     def _plan_one(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
         if goal.planner_type == JOINT:
-            target = self.ik.solve(goal.pose, q, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance)
-            if isinstance(target, IkFailure):
-                raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}")
-            try:
-                return self.joint_planner.plan(q, target, time_limit=self.settings.plan_time, simplify_time=self.settings.simplify_time)
-            except PlanningFailed as exc:
-                raise WaypointPlanningError(f"waypoint {goal.label}: {exc}") from exc
+            return self._joint(q, goal)
         if goal.planner_type == CARTESIAN:
             return self._cartesian(q, goal)
         raise WaypointPlanningError(f"waypoint {goal.label}: unknown planner type {goal.planner_type!r}")
+
+    def _joint(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
+        """IK nearest to ``q``, then OMPL; if no path reaches that solution, other IK solutions
+        (other arm configurations) are tried, since the nearest one may be boxed in."""
+        limits = self.scene.limits
+        failure = ""
+        for attempt in range(GOAL_ALTERNATIVES):
+            near = q if attempt == 0 else self.ik.rng.uniform(limits.lower, limits.upper)
+            target = self.ik.solve(goal.pose, near, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance)
+            if isinstance(target, IkFailure):
+                if attempt == 0:
+                    raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}")
+                continue
+            try:
+                return self.joint_planner.plan(q, target, time_limit=self.settings.plan_time / GOAL_ALTERNATIVES, simplify_time=self.settings.simplify_time)
+            except PlanningFailed as exc:
+                failure = str(exc)
+        raise WaypointPlanningError(f"waypoint {goal.label}: {failure} (tried {GOAL_ALTERNATIVES} IK solutions)")
 
     def _cartesian(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
         scene = self.scene

@@ -141,6 +141,12 @@ class PlanningScene:
         pos, quat = p.getBasePositionAndOrientation(self.obstacles[name], physicsClientId=self.client)
         return from_xyz_quat(pos, quat)
 
+    def object_name(self, name: str) -> str | None:
+        """The obstacle a simulation object name refers to: ``CDRA-F-0007`` is ``filter/CDRA-F-0007``."""
+        if name in self.obstacles:
+            return name
+        return next((n for n in self.obstacles if n.rsplit("/", 1)[-1] == name), None)
+
     def attach(self, name: str, tool_T_object: np.ndarray | None = None) -> None:
         """Carry obstacle ``name`` with the tool; by default where it is now relative to the tool."""
         if name not in self.obstacles:

@@ -1,0 +1,144 @@
+"""A test-side rclpy client of the AT server, the simulation and the planner: one cached client
+per service, calls with timeouts, and the latest of each status topic."""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+
+from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
+from affordance_template_msgs.srv import (
+    AddAffordanceTemplate,
+    AffordanceTemplateExecuteCommand,
+    AffordanceTemplatePlanCommand,
+    DeleteAffordanceTemplate,
+    GetAffordanceTemplateConfigInfo,
+    GetAffordanceTemplateServerStatus,
+    GetAffordanceTemplateStatus,
+    GetRobotConfigInfo,
+    GetRunningAffordanceTemplates,
+    SetObjectPose,
+    SetWaypointPose,
+)
+from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.srv import CaptureImage
+
+PREFIX = "/affordance_template_server"
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+SERVICES = {
+    "add_template": AddAffordanceTemplate,
+    "delete_template": DeleteAffordanceTemplate,
+    "get_running": GetRunningAffordanceTemplates,
+    "get_templates": GetAffordanceTemplateConfigInfo,
+    "get_robots": GetRobotConfigInfo,
+    "plan_command": AffordanceTemplatePlanCommand,
+    "execute_command": AffordanceTemplateExecuteCommand,
+    "set_object_pose": SetObjectPose,
+    "set_waypoint_pose": SetWaypointPose,
+    "get_template_status": GetAffordanceTemplateStatus,
+    "get_status": GetAffordanceTemplateServerStatus,
+}
+
+
+class AtClient:
+    """Drives the AT services from a test; spins its own executor thread."""
+
+    def __init__(self) -> None:
+        if not rclpy.ok():
+            rclpy.init()
+        self.node = Node("at_test_client")
+        self.clients = {name: self.node.create_client(t, f"{PREFIX}/{name}") for name, t in SERVICES.items()}
+        self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
+        self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
+        self.status: ServerStatus | None = None
+        self.status_count = 0
+        self.frames: dict[str, Any] = {}
+        self.held_object = ""
+        self.cdra_present: bool | None = None
+        self._changed = threading.Condition()
+        self.node.create_subscription(ServerStatus, f"{PREFIX}/status", self._status_callback, 10)
+        self.node.create_subscription(NamedPoses, "/sim/frames", self._frames_callback, 10)
+        self.node.create_subscription(String, "/gripper/held_object", self._held_callback, LATCHED)
+        self.node.create_subscription(Bool, "/cdra/filter_present", self._present_callback, LATCHED)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def _notify(self) -> None:
+        with self._changed:
+            self._changed.notify_all()
+
+    def _status_callback(self, msg: ServerStatus) -> None:
+        self.status = msg
+        self.status_count += 1
+        self._notify()
+
+    def _frames_callback(self, msg: NamedPoses) -> None:
+        self.frames = dict(zip(msg.names, msg.poses))
+        self._notify()
+
+    def _held_callback(self, msg: String) -> None:
+        self.held_object = msg.data
+        self._notify()
+
+    def _present_callback(self, msg: Bool) -> None:
+        self.cdra_present = msg.data
+        self._notify()
+
+    def wait_for(self, predicate, timeout: float = 30.0, what: str = "condition") -> None:
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while not predicate():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise TimeoutError(f"{what} not reached within {timeout} s")
+                self._changed.wait(remaining)
+
+    def call(self, name: str, timeout: float = 120.0, **fields: Any) -> Any:
+        client = self.clients[name]
+        request = SERVICES[name].Request()
+        for key, value in fields.items():
+            setattr(request, key, value)
+        return self._call(client, request, timeout, name)
+
+    def _call(self, client, request, timeout: float, name: str) -> Any:  # noqa: ANN001
+        if not client.wait_for_service(timeout_sec=30.0):
+            raise TimeoutError(f"service {name} not available")
+        future = client.call_async(request)
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise TimeoutError(f"service {name} did not answer in {timeout} s")
+        return future.result()
+
+    def unlock_filter(self) -> Any:
+        return self._call(self.unlock_client, Trigger.Request(), 30.0, "unlock_filter")
+
+    def capture(self, camera: str, label: str) -> Any:
+        request = CaptureImage.Request()
+        request.camera, request.label = camera, label
+        return self._call(self.capture_client, request, 60.0, "capture")
+
+    def register(self, type_name: str, instance_id: int, obj: str, frame: str, pose=None) -> Any:  # noqa: ANN001
+        info = DisplayObjectInfo()
+        info.type, info.id, info.name = type_name, instance_id, obj
+        info.stamped_pose.header.frame_id = frame
+        if pose is not None:
+            info.stamped_pose.pose = pose
+        else:
+            info.stamped_pose.pose.orientation.w = 1.0
+        return self.call("set_object_pose", objects=[info])
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self._thread.join(5)
