@@ -25,14 +25,14 @@ public final class PluginOptions {
     }
 
     /**
-     * @param plugin the plugin reading the options
-     * @param known the options it understands
+     * @param plugins the plugins sharing these options
+     * @param known the options those plugins understand together
      * @throws PluginException an option is unknown (likely a typo)
      */
-    public void requireKnown(String plugin, Set<String> known) {
+    public void requireKnown(String plugins, Set<String> known) {
         for (String key : values.keySet()) {
             if (!known.contains(key)) {
-                throw new PluginException(where + ": plugin " + plugin + " has no option '" + key + "' (options: "
+                throw new PluginException(where + ": no option '" + key + "' for " + plugins + " (options: "
                         + String.join(", ", new TreeSet<>(known)) + ")");
             }
         }

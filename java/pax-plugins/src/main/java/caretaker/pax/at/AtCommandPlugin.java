@@ -41,8 +41,10 @@ import java.util.Set;
 public final class AtCommandPlugin implements CommandPlugin {
     /** The binding options this plugin reads. */
     public static final Set<String> OPTIONS = Set.of("call_timeout", "motion_timeout");
-    private static final Set<String> COMMANDS = Set.of("add_affordance_template", "delete_affordance_template",
-            "plan_trajectory", "execute_plan", "set_waypoint_pose", "set_display_object_pose");
+    private static final List<String> COMMAND_ORDER = List.of("add_affordance_template",
+            "delete_affordance_template", "plan_trajectory", "execute_plan", "set_waypoint_pose",
+            "set_display_object_pose");
+    private static final Set<String> COMMANDS = Set.copyOf(COMMAND_ORDER);
 
     private final SysRep sysRep;
     private final Duration callTimeout;
@@ -60,9 +62,8 @@ public final class AtCommandPlugin implements CommandPlugin {
      * @throws PluginException the SysRep lacks a command or an option is wrong
      */
     public AtCommandPlugin(PluginContext context) {
-        context.options().requireKnown("at_commands", OPTIONS);
         this.sysRep = context.sysRep();
-        for (String command : COMMANDS) {
+        for (String command : COMMAND_ORDER) {
             if (sysRep.command(command) == null) {
                 throw new PluginException(context.options().where() + ": SysRep '" + sysRep.id()
                         + "' has no command '" + command + "'; at_commands serves the AT SysRep"

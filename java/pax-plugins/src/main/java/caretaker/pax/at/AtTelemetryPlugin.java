@@ -52,7 +52,6 @@ public final class AtTelemetryPlugin implements TelemetryPlugin {
      *     options {@code stale_after} and {@code status_topic}
      */
     public AtTelemetryPlugin(PluginContext context) {
-        context.options().requireKnown("at_telemetry", OPTIONS);
         this.sysRep = context.sysRep();
         Set<String> items = new LinkedHashSet<>();
         sysRep.telemetry().forEach(t -> items.add(t.id()));

@@ -70,7 +70,6 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
      * @throws PluginException an option is wrong
      */
     public RosConventionPlugin(PluginContext context) {
-        context.options().requireKnown("ros_convention", OPTIONS);
         this.sysRep = context.sysRep();
         this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
         Map<String, String> serviceNames = context.options().stringMap("services");

@@ -1,0 +1,104 @@
+package caretaker.binding;
+
+import static org.junit.jupiter.api.Assertions.assertEquals;
+import static org.junit.jupiter.api.Assertions.assertFalse;
+import static org.junit.jupiter.api.Assertions.assertThrows;
+import static org.junit.jupiter.api.Assertions.assertTrue;
+
+import caretaker.pax.CommandResult;
+import caretaker.pax.PluginException;
+import caretaker.rosbridge.RosException;
+import caretaker.rosbridge.TestServer;
+import caretaker.sysrep.SysRep;
+import caretaker.Repo;
+import com.google.gson.JsonObject;
+import com.google.gson.JsonParser;
+import java.io.IOException;
+import java.net.ServerSocket;
+import java.net.URI;
+import java.nio.file.Files;
+import java.nio.file.Path;
+import java.util.List;
+import java.util.Map;
+import org.junit.jupiter.api.Test;
+import org.junit.jupiter.api.io.TempDir;
+
+/** Binding files and the Java host: what an integrator uses without Python. */
+class PaxHostTest {
+    private static final Path BINDINGS = Repo.path("sysrep/bindings");
+
+    @Test
+    void theSameAtSysRepIsBoundOnBothRobots() {
+        Binding iva = BindingLoader.load(BINDINGS.resolve("iva.yaml"), null);
+        Binding eva = BindingLoader.load(BINDINGS.resolve("eva.yaml"), null);
+        assertEquals("iva", iva.robot());
+        assertEquals("eva", eva.robot());
+        SystemBinding ivaAt = iva.systems().get(0);
+        SystemBinding evaAt = eva.systems().get(0);
+        assertEquals(ivaAt.sysRep(), evaAt.sysRep());
+        assertEquals(List.of("at_commands", "at_telemetry"), ivaAt.plugins());
+        assertFalse(ivaAt.rosbridge().equals(evaAt.rosbridge()));
+        assertEquals(List.of("affordance_templates", "cdra"), iva.systems().stream().map(s -> s.sysRep().id()).toList());
+        assertEquals(List.of("affordance_templates", "camera"), eva.systems().stream().map(s -> s.sysRep().id()).toList());
+        URI test = URI.create("ws://127.0.0.1:1234");
+        assertTrue(BindingLoader.load(BINDINGS.resolve("iva.yaml"), test).systems().stream()
+                .allMatch(s -> s.rosbridge().equals(test)));
+    }
+
+    @Test
+    void badBindingsSayWhatToFix(@TempDir Path dir) throws IOException {
+        Path file = dir.resolve("bad.yaml");
+        Files.writeString(file, "robot: x\nrosbridge: ws://127.0.0.1:1\nsystems:\n- sysrep: "
+                + Repo.path("sysrep/cdra.yaml") + "\n  plugins: [ros_convention]\n  namspace: /c\n");
+        BindingException key = assertThrows(BindingException.class, () -> BindingLoader.load(file, null));
+        assertTrue(key.getMessage().contains("systems[0]: unknown key 'namspace'"), key.getMessage());
+        Files.writeString(file, "robot: x\nrosbridge: http://h\nsystems: []\n");
+        assertTrue(assertThrows(BindingException.class, () -> BindingLoader.load(file, null)).getMessage()
+                .contains("not a rosbridge URL"));
+    }
+
+    @Test
+    void unreachableRosbridgeIsAClearError() throws IOException {
+        int port;
+        try (ServerSocket free = new ServerSocket(0)) {
+            port = free.getLocalPort();
+        }
+        RosException error = assertThrows(RosException.class, () -> PaxHost.open(BINDINGS.resolve("iva.yaml"),
+                URI.create("ws://127.0.0.1:" + port)));
+        assertTrue(error.getMessage().contains("caretaker bridge"), error.getMessage());
+        assertTrue(error.getMessage().contains("iva.yaml"), error.getMessage());
+    }
+
+    @Test
+    void conventionCommandsAndArgumentChecksThroughTheHost() throws Exception {
+        try (TestServer server = new TestServer()) {
+            server.respond(call -> {
+                if (!"call_service".equals(call.get("op").getAsString())) {
+                    return List.of();
+                }
+                JsonObject reply = JsonParser.parseString("{\"op\":\"service_response\",\"result\":true,"
+                        + "\"values\":{\"success\":true,\"message\":\"unlocked\"}}").getAsJsonObject();
+                reply.add("id", call.get("id"));
+                reply.add("service", call.get("service"));
+                return List.of(reply);
+            });
+            try (PaxHost host = PaxHost.open(BINDINGS.resolve("iva.yaml"), server.uri())) {
+                assertEquals(List.of("affordance_templates", "cdra"), host.sysReps().stream().map(SysRep::id).toList());
+                CommandResult result = host.execute("cdra", "unlock_filter", Map.of());
+                assertTrue(result.success());
+                assertEquals("unlocked", result.message());
+                JsonObject call = server.next("call_service");
+                assertEquals("/cdra/unlock_filter", call.get("service").getAsString());
+                assertEquals("std_srvs/srv/Trigger", call.get("type").getAsString());
+                PluginException badArg = assertThrows(PluginException.class, () -> host.execute(
+                        "affordance_templates", "plan_trajectory", Map.of("affordance_template", "x")));
+                assertTrue(badArg.getMessage().contains("missing argument 'trajectory'"), badArg.getMessage());
+                assertTrue(assertThrows(PluginException.class, () -> host.telemetry("cdra", "nope")).getMessage()
+                        .contains("no telemetry item 'nope'"));
+                assertTrue(assertThrows(PluginException.class, () -> host.execute("ghost", "x", Map.of()))
+                        .getMessage().contains("not bound"));
+                assertTrue(host.telemetry("cdra", "filter_locked").stale());
+            }
+        }
+    }
+}
