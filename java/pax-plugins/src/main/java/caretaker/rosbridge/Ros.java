@@ -166,6 +166,9 @@ public final class Ros implements AutoCloseable {
     private static String describe(Throwable error) {
         Throwable root = error;
         while (root.getCause() != null && root.getCause() != root) {
+            if (root instanceof java.net.ConnectException) {
+                return "connection refused (is a server listening there?)";
+            }
             root = root.getCause();
         }
         String text = root.getMessage();

@@ -1,0 +1,222 @@
+"""The Java PAX plugins, hosted in this Python process through JPype.
+
+A procedure executive (``pride``) talks to systems through :class:`PaxHost` only
+(docs/interfaces.md)::
+
+    host = PaxHost("sysrep/bindings/iva.yaml")
+    result = host.execute("cdra", "unlock_filter", {})
+    locked = host.telemetry("cdra", "filter_locked")     # TelemetryValue(value, timestamp, stale)
+    host.add_listener(lambda sysrep, item, value: ...)
+    host.close()
+
+Everything real happens in Java (``caretaker.binding.PaxHost`` in java/pax-plugins): loading the
+binding, connecting to the robot's rosbridge, the plugins. This module converts Python values
+to the SysRep's Java types and back, and turns Java exceptions into :class:`PaxError` carrying
+the Java message, so a caller never sees a JPype type.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jpype
+
+from bridge.jvm import JarNotBuiltError, start_jvm
+from pride.sysrep import SysRep, load_sysrep
+
+__all__ = ["CommandResult", "JarNotBuiltError", "PaxError", "PaxHost", "TelemetryListener", "TelemetryValue"]
+
+_LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CommandResult:
+    """What a system answered to a command: it never claims success the system did not report."""
+
+    success: bool
+    message: str = ""
+    values: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TelemetryValue:
+    """A telemetry item's value, when it was valid (epoch seconds), and whether it is stale.
+
+    ``value`` and ``timestamp`` are None until the item is first received (then ``stale`` is True).
+    """
+
+    value: Any
+    timestamp: float | None
+    stale: bool
+
+
+TelemetryListener = Callable[[str, str, TelemetryValue], None]
+
+
+class PaxError(RuntimeError):
+    """The Java side refused or failed: bad binding, unknown command, bad argument, no rosbridge.
+
+    ``str(err)`` is the Java message; ``java_class`` names the Java exception.
+    """
+
+    def __init__(self, message: str, java_class: str = "") -> None:
+        super().__init__(message)
+        self.java_class = java_class
+
+
+def _java_error(exc: Exception) -> PaxError:
+    message = exc.getMessage() if hasattr(exc, "getMessage") else None
+    java_class = str(exc.getClass().getName()) if hasattr(exc, "getClass") else type(exc).__name__
+    return PaxError(str(message) if message is not None else java_class, java_class)
+
+
+def to_java(name: str, value: Any) -> Any:
+    """A Python argument value as the Java object the SysRep checker expects.
+
+    bool → Boolean, int → Long, float → Double, str → String; anything else is refused here
+    rather than handed to Java as an opaque proxy.
+
+    Raises:
+        PaxError: the value has no SysRep type.
+    """
+    if isinstance(value, bool):
+        return jpype.JObject(value, jpype.JClass("java.lang.Boolean"))
+    if isinstance(value, int):
+        return jpype.JObject(value, jpype.JClass("java.lang.Long"))
+    if isinstance(value, float):
+        return jpype.JObject(value, jpype.JClass("java.lang.Double"))
+    if isinstance(value, str):
+        return jpype.JString(value)
+    raise PaxError(f"argument {name!r}: {type(value).__name__} {value!r} is not a SysRep value "
+                   "(string, boolean, integer or real)")
+
+
+def to_python(value: Any) -> Any:
+    """A Java value (String, Boolean, Long/Integer, Double, null) as the Python value."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, jpype.JString) or isinstance(value, jpype.JClass("java.lang.String")):
+        return str(value)
+    if isinstance(value, jpype.JClass("java.lang.Boolean")):
+        return bool(value.booleanValue())
+    if isinstance(value, (jpype.JClass("java.lang.Long"), jpype.JClass("java.lang.Integer"))):
+        return int(value.longValue())
+    if isinstance(value, jpype.JClass("java.lang.Number")):
+        return float(value.doubleValue())
+    return str(value.toString())
+
+
+def _telemetry_value(java_value: Any) -> TelemetryValue:
+    stamp = java_value.timestamp()
+    timestamp = None if stamp is None else int(stamp.getEpochSecond()) + int(stamp.getNano()) / 1e9
+    return TelemetryValue(to_python(java_value.value()), timestamp, bool(java_value.stale()))
+
+
+class PaxHost:
+    """The SysReps of one binding file, served by the Java PAX plugins over rosbridge.
+
+    Args:
+        binding_path: a binding file such as ``sysrep/bindings/iva.yaml``.
+        rosbridge_url: replaces every rosbridge URL of the binding (e.g. a test server's port).
+
+    Raises:
+        JarNotBuiltError: the plugin jar is not built (run ``make setup``).
+        PaxError: the binding, a SysRep or a plugin option is wrong, or rosbridge is unreachable.
+    """
+
+    def __init__(self, binding_path: str | Path, *, rosbridge_url: str | None = None) -> None:
+        start_jvm()
+        self._binding_path = Path(binding_path)
+        java_host = jpype.JClass("caretaker.binding.PaxHost")
+        uri = jpype.JClass("java.net.URI").create(rosbridge_url) if rosbridge_url else None
+        path = jpype.JClass("java.nio.file.Path").of(str(self._binding_path), jpype.JArray(jpype.JString)(0))
+        try:
+            self._host = java_host.open(path, uri)
+        except jpype.JException as exc:
+            raise _java_error(exc) from None
+        self._sysreps = {str(s.id()): load_sysrep(str(s.path())) for s in self._host.sysReps()}
+        self._listeners: list[Any] = []  # the Java proxies, kept alive while Java holds them
+        self._closed = False
+        self._close_lock = threading.Lock()
+
+    def sysreps(self) -> dict[str, SysRep]:
+        """The bound SysReps, keyed by id, as ``pride.sysrep`` loads them."""
+        return dict(self._sysreps)
+
+    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any]) -> CommandResult:
+        """Execute a SysRep command and wait for the system's real outcome.
+
+        Args:
+            sysrep_id: a bound SysRep.
+            command_id: one of its commands.
+            args: every argument of the command; strings are accepted for every type.
+
+        Returns:
+            The system's outcome; ``success`` False carries its message.
+
+        Raises:
+            PaxError: unknown SysRep or command, missing, unknown or ill-typed argument.
+        """
+        java_args = jpype.JClass("java.util.LinkedHashMap")()
+        for name, value in args.items():
+            java_args.put(jpype.JString(name), to_java(name, value))
+        try:
+            result = self._host.execute(jpype.JString(sysrep_id), jpype.JString(command_id), java_args)
+        except jpype.JException as exc:
+            raise _java_error(exc) from None
+        values = {str(k): to_python(v) for k, v in result.values().items()}
+        return CommandResult(bool(result.success()), str(result.message()), values)
+
+    def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
+        """The current value, timestamp and staleness of a telemetry item.
+
+        Raises:
+            PaxError: unknown SysRep or item.
+        """
+        try:
+            return _telemetry_value(self._host.telemetry(jpype.JString(sysrep_id), jpype.JString(item_id)))
+        except jpype.JException as exc:
+            raise _java_error(exc) from None
+
+    def add_listener(self, callback: TelemetryListener) -> None:
+        """Call ``callback(sysrep_id, item_id, TelemetryValue)`` on every change of value or staleness.
+
+        The callback runs on a Java thread and must return quickly. An exception it raises is
+        logged here: Java would otherwise swallow it.
+        """
+
+        @jpype.JImplements("caretaker.pax.TelemetryListener")
+        class _Listener:
+            @jpype.JOverride
+            def telemetryChanged(self, sysrep_id: Any, item_id: Any, value: Any) -> None:  # noqa: N802 (Java name)
+                try:
+                    callback(str(sysrep_id), str(item_id), _telemetry_value(value))
+                except Exception:
+                    _LOG.exception("telemetry listener %r failed on %s.%s", callback, sysrep_id, item_id)
+
+        listener = _Listener()
+        self._listeners.append(listener)
+        self._host.addListener(listener)
+
+    def close(self) -> None:
+        """Stop the plugins and close the rosbridge connections; safe to call twice."""
+        with self._close_lock:
+            if self._closed:
+                return
+            self._closed = True
+        for listener in self._listeners:
+            self._host.removeListener(listener)
+        self._host.close()
+
+    def __enter__(self) -> PaxHost:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
