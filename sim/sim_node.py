@@ -80,6 +80,7 @@ class SimNode(Node):
             self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, callback_group=group)
             self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, callback_group=group)
         self._last_status: tuple | None = None
+        self.failed = False
         self._stop = threading.Event()
         self._stepper = threading.Thread(target=self._step_loop, name="sim-stepper", daemon=True)
 
@@ -132,6 +133,7 @@ class SimNode(Node):
                         time.sleep(0)  # let the executor threads take the GIL
         except Exception:  # the stepper dying silently would freeze the robot while ROS looks alive
             LOG.exception("simulation stepping failed; shutting down")
+            self.failed = True
             rclpy.try_shutdown()
 
     def _publish_joint_states(self) -> None:
@@ -261,8 +263,7 @@ class SimNode(Node):
         with sim.world_lock:
             response.message = sim.cabinet.set_locked(locked, sim.filters)
             response.success = True
-            status = self._status()
-        self._publish_status(status)
+        # The stepper publishes the changed telemetry on its next step (one publishing thread).
         return response
 
     # ------------------------------------------------------------------ cameras
@@ -363,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
         node.destroy_node()
         sim.close()
         rclpy.try_shutdown()
-    return 0
+    return 1 if node.failed else 0
 
 
 if __name__ == "__main__":

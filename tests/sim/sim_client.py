@@ -1,0 +1,174 @@
+"""A ROS 2 client of the simulation node for tests: its own rclpy context, spun on a thread.
+
+Every wait is on a future or a condition with a timeout, never a sleep.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Duration
+from rclpy.action import ActionClient
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.srv import CaptureImage, SetGripper
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import Bool, String
+from std_srvs.srv import Trigger
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+TIMEOUT = 60.0
+
+
+class SimClient:
+    """Latest value of every sim topic, plus blocking calls of its action and services."""
+
+    def __init__(self, name: str = "sim_test_client") -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._changed = threading.Condition()
+        self.latest: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        self.feedback: list[FollowJointTrajectory.Feedback] = []
+        for topic, kind, qos in [
+            ("/joint_states", JointState, 10),
+            ("/sim/frames", NamedPoses, 10),
+            ("/robot/moving", Bool, LATCHED),
+            ("/gripper/held_object", String, LATCHED),
+            ("/cdra/filter_locked", Bool, LATCHED),
+            ("/cdra/filter_present", Bool, LATCHED),
+            ("/cdra/installed_filter_id", String, LATCHED),
+            ("/cdra/installed_filter_condition", String, LATCHED),
+        ]:
+            self.node.create_subscription(kind, topic, self._store(topic), qos)
+        self.trajectory_client = ActionClient(self.node, FollowJointTrajectory, "/arm_controller/follow_joint_trajectory")
+        self.gripper_client = self.node.create_client(SetGripper, "/gripper/set")
+        self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
+        self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
+        self.lock_client = self.node.create_client(Trigger, "/cdra/lock_filter")
+        self._thread = threading.Thread(target=self.executor.spin, name="sim-client", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+        self._thread.join(10)
+
+    # ------------------------------------------------------------------ topics
+
+    def _store(self, topic: str) -> Callable[[Any], None]:
+        def callback(msg: Any) -> None:
+            with self._changed:
+                self.latest[topic] = msg
+                self.counts[topic] = self.counts.get(topic, 0) + 1
+                self._changed.notify_all()
+        return callback
+
+    def wait_for(self, predicate: Callable[[], bool], what: str, timeout: float = TIMEOUT) -> None:
+        with self._changed:
+            if not self._changed.wait_for(predicate, timeout):
+                raise AssertionError(f"timed out after {timeout} s waiting for {what}; latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }")
+
+    def value(self, topic: str, timeout: float = TIMEOUT) -> Any:
+        self.wait_for(lambda: topic in self.latest, f"a message on {topic}", timeout)
+        return self.latest[topic]
+
+    def fresh(self, topic: str, timeout: float = TIMEOUT) -> Any:
+        """The first message on ``topic`` stamped after this call (not one still in flight)."""
+        now = self.node.get_clock().now().nanoseconds
+
+        def stamped_after() -> bool:
+            msg = self.latest.get(topic)
+            return msg is not None and msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec > now
+
+        self.wait_for(stamped_after, f"a new message on {topic}", timeout)
+        return self.latest[topic]
+
+    def wait_value(self, topic: str, expected: Any, timeout: float = TIMEOUT) -> None:
+        self.wait_for(lambda: topic in self.latest and self.latest[topic].data == expected, f"{topic} == {expected!r}", timeout)
+
+    def joint_positions(self, names: Sequence[str]) -> list[float]:
+        msg = self.fresh("/joint_states")
+        index = {n: i for i, n in enumerate(msg.name)}
+        return [msg.position[index[n]] for n in names]
+
+    def frame(self, name: str) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+        msg = self.fresh("/sim/frames")
+        if name not in msg.names:
+            raise AssertionError(f"no frame {name!r} in /sim/frames; frames are {list(msg.names)}")
+        pose = msg.poses[list(msg.names).index(name)]
+        return (pose.position.x, pose.position.y, pose.position.z), (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w)
+
+    # ------------------------------------------------------------------ calls
+
+    def _wait_future(self, future: Any, what: str, timeout: float = TIMEOUT) -> Any:
+        done = threading.Event()
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(timeout):
+            raise AssertionError(f"{what}: no answer in {timeout} s")
+        return future.result()
+
+    def follow(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], *, velocities: Sequence[Sequence[float]] | None = None, tolerance: float = 0.0) -> FollowJointTrajectory.Result:
+        """Send a trajectory of (time_from_start, positions) points and wait for its result."""
+        if not self.trajectory_client.wait_for_server(timeout_sec=TIMEOUT):
+            raise AssertionError("trajectory action server not available")
+        goal = FollowJointTrajectory.Goal()
+        goal.trajectory.joint_names = list(joint_names)
+        for k, (t, q) in enumerate(points):
+            pt = JointTrajectoryPoint()
+            pt.positions = [float(v) for v in q]
+            if velocities is not None:
+                pt.velocities = [float(v) for v in velocities[k]]
+            sec = math.floor(t) if math.isfinite(t) else 0
+            pt.time_from_start = Duration(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) if math.isfinite(t) else 0)
+            goal.trajectory.points.append(pt)
+        goal.goal_tolerance = tolerance
+        handle = self._wait_future(self.trajectory_client.send_goal_async(goal, feedback_callback=lambda fb: self.feedback.append(fb.feedback)), "send goal")
+        assert handle.accepted, "goal not accepted"
+        return self._wait_future(handle.get_result_async(), "trajectory result").result
+
+    def _call(self, client: Any, request: Any, what: str) -> Any:
+        if not client.wait_for_service(timeout_sec=TIMEOUT):
+            raise AssertionError(f"service for {what} not available")
+        return self._wait_future(client.call_async(request), what)
+
+    def gripper(self, pose: str) -> SetGripper.Response:
+        return self._call(self.gripper_client, SetGripper.Request(pose=pose), f"gripper {pose}")
+
+    def unlock(self) -> Trigger.Response:
+        return self._call(self.unlock_client, Trigger.Request(), "unlock")
+
+    def lock(self) -> Trigger.Response:
+        return self._call(self.lock_client, Trigger.Request(), "lock")
+
+    def capture(self, camera: str, label: str = "") -> CaptureImage.Response:
+        return self._call(self.capture_client, CaptureImage.Request(camera=camera, label=label), f"capture {camera}")
+
+    def next_image(self, camera: str, timeout: float = TIMEOUT) -> Image:
+        got: list[Image] = []
+        done = threading.Event()
+
+        def callback(msg: Image) -> None:
+            got.append(msg)
+            done.set()
+
+        sub = self.node.create_subscription(Image, f"/camera/{camera}/image", callback, 2)
+        try:
+            if not done.wait(timeout):
+                raise AssertionError(f"no image on /camera/{camera}/image in {timeout} s")
+            return got[0]
+        finally:
+            self.node.destroy_subscription(sub)

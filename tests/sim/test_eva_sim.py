@@ -1,0 +1,54 @@
+"""The EVA simulator as a real process: the 7-DOF arm points its camera at hull targets."""
+
+from __future__ import annotations
+
+import pytest
+
+from arm_paths import ArmModel
+from sim_client import SimClient
+from sim.trajectory import ErrorCode
+
+SCENE = "eva"
+ARM = ["shoulder_roll_joint", "shoulder_yaw_joint", "shoulder_pitch_joint", "elbow_pitch_joint", "wrist_pitch_joint", "wrist_yaw_joint", "wrist_roll_joint"]
+
+
+@pytest.fixture(scope="module")
+def model() -> ArmModel:
+    m = ArmModel(SCENE)
+    yield m
+    m.close()
+
+
+def test_frames_name_every_target_and_the_camera(client: SimClient) -> None:
+    msg = client.fresh("/sim/frames")
+    assert msg.header.frame_id == "world"
+    for name in ("robot_base", "tool0", "camera/ee_camera", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"):
+        assert name in msg.names
+
+
+def test_arm_looks_at_a_damaged_target_and_captures_evidence(client: SimClient, model: ArmModel, capture_dir) -> None:
+    start = client.joint_positions(ARM)
+    target = next(t for t in model.scene.targets if t.name == "hull_b")
+    goal = model.look_at("ee_camera", target.pose, 1.0, start)
+    result = client.follow(ARM, model.timed([goal], start, 0.8))
+    assert result.error_code == ErrorCode.SUCCESSFUL, result.error_string
+    camera_pos, _ = client.frame("camera/ee_camera")
+    target_pos, _ = client.frame("target/hull_b")
+    assert abs(sum((a - b) ** 2 for a, b in zip(camera_pos, target_pos)) ** 0.5 - 1.0) < 0.01
+
+    response = client.capture("ee_camera", "hull_b impact")
+    assert response.success, response.message
+    assert (response.image.width, response.image.height, response.image.encoding) == (320, 240, "rgb8")
+    assert len(response.image.data) == 320 * 240 * 3
+    assert "hull_b_impact" in response.path and response.path.startswith(str(capture_dir))
+    # The panel fills the middle of the view and the impact mark sits at its centre: dark.
+    data = bytes(response.image.data)
+    centre = (120 * 320 + 160) * 3
+    assert sum(data[centre:centre + 3]) < 150, f"centre pixel {tuple(data[centre:centre + 3])} is not the dark impact mark"
+
+
+def test_scene_camera_publishes_images(client: SimClient) -> None:
+    image = client.next_image("scene")
+    assert (image.width, image.height) == (640, 480)
+    assert len(image.data) == 640 * 480 * 3
+    assert len(set(bytes(image.data[::997]))) > 10, "image is (nearly) uniform"

@@ -1,0 +1,167 @@
+"""The IVA simulator as a real process: trajectories, refusals, collisions, the CDRA filter swap.
+
+Tests in this module share one simulator (module fixture); each one starts from wherever the
+previous left the arm and moves from the current joint state.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from arm_paths import ArmModel
+from sim_client import SimClient
+from sim.trajectory import ErrorCode
+
+SCENE = "iva"
+ARM = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
+HOME = [0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0]
+
+
+@pytest.fixture(scope="module")
+def model() -> ArmModel:
+    m = ArmModel(SCENE)
+    yield m
+    m.close()
+
+
+def move_to(client: SimClient, model: ArmModel, waypoints: list[list[float]], speed_fraction: float = 0.5):
+    start = client.joint_positions(ARM)
+    return client.follow(ARM, model.timed(waypoints, start, speed_fraction))
+
+
+def assert_ok(result) -> None:
+    assert result.error_code == ErrorCode.SUCCESSFUL, f"trajectory failed ({result.error_code}): {result.error_string}"
+
+
+def close_to(a, b, tol: float) -> bool:
+    return all(abs(x - y) <= tol for x, y in zip(a, b))
+
+
+def test_valid_trajectory_reaches_its_goal_with_feedback(client: SimClient, model: ArmModel) -> None:
+    start = client.joint_positions(ARM)
+    middle = [start[0] + 0.3, start[1] + 0.2, start[2] - 0.2, start[3], start[4] + 0.3, start[5] + 0.5]
+    goal = [start[0] + 0.5, start[1] + 0.3, start[2] - 0.3, start[3] - 0.2, start[4] + 0.4, start[5] + 0.8]
+    client.feedback.clear()
+    result = client.follow(ARM, [(0.6, middle), (1.2, goal)])
+    assert_ok(result)
+    assert "reached the goal" in result.error_string
+    assert close_to(client.joint_positions(ARM), goal, 1e-3)
+    assert client.feedback, "no feedback during a 1.2 s trajectory"
+    assert list(client.feedback[-1].joint_names) == ARM
+    assert_ok(move_to(client, model, [HOME]))
+    assert close_to(client.joint_positions(ARM), HOME, 1e-3)
+    client.wait_value("/robot/moving", False)
+
+
+def test_joints_may_be_named_in_any_order_and_subset(client: SimClient) -> None:
+    start = client.joint_positions(ARM)
+    result = client.follow(["wrist_3_joint", "shoulder_pan_joint"], [(0.5, [start[5] + 0.3, start[0] - 0.2])])
+    assert_ok(result)
+    expected = list(start)
+    expected[5] += 0.3
+    expected[0] -= 0.2
+    assert close_to(client.joint_positions(ARM), expected, 1e-3)
+    assert_ok(client.follow(ARM, [(0.5, start)]))
+
+
+INVALID = [
+    ("unknown joint", lambda h: (["shoulder_pan_joint", "elbow"], [(1.0, [0.0, 0.0])], None), ErrorCode.INVALID_JOINTS, "unknown joint 'elbow'"),
+    ("gripper joint", lambda h: (["gripper_left_finger_joint"], [(1.0, [0.01])], None), ErrorCode.INVALID_JOINTS, "not an arm joint"),
+    ("NaN", lambda h: (ARM, [(1.0, h[:2] + [math.nan] + h[3:])], None), ErrorCode.INVALID_GOAL, "non-finite"),
+    ("outside limits", lambda h: (ARM, [(5.0, h[:2] + [3.5] + h[3:])], None), ErrorCode.INVALID_GOAL, "elbow_joint position 3.5000 rad is outside its limits"),
+    ("too fast", lambda h: (ARM, [(0.1, [h[0] + 1.0] + h[1:])], None), ErrorCode.INVALID_GOAL, "over its velocity limit"),
+    ("velocity over limit", lambda h: (ARM, [(2.0, [h[0] + 0.5] + h[1:])], [[5.0, 0, 0, 0, 0, 0]]), ErrorCode.INVALID_GOAL, "velocity 5.0000 rad/s exceeds its limit"),
+    ("non-increasing time", lambda h: (ARM, [(1.0, h), (1.0, [h[0] + 0.1] + h[1:])], None), ErrorCode.INVALID_GOAL, "time stamps must increase"),
+    ("no points", lambda h: (ARM, [], None), ErrorCode.INVALID_GOAL, "no points"),
+    ("jump at t=0", lambda h: (ARM, [(0.0, [h[0] + 0.5] + h[1:])], None), ErrorCode.INVALID_GOAL, "away from the current position"),
+]
+
+
+@pytest.mark.parametrize("build, code, reason", [case[1:] for case in INVALID], ids=[case[0] for case in INVALID])
+def test_invalid_trajectory_is_refused_and_nothing_moves(client: SimClient, build, code: int, reason: str) -> None:
+    before = client.joint_positions(ARM)
+    names, points, velocities = build(before)
+    result = client.follow(names, points, velocities=velocities)
+    assert result.error_code == code, result.error_string
+    assert reason in result.error_string
+    assert client.joint_positions(ARM) == before
+
+
+def test_collision_aborts_and_says_what_collided(client: SimClient, model: ArmModel) -> None:
+    # Swing the forearm down through the table top.
+    into_table = [0.0, -0.3, 2.4, -1.570796, -1.570796, 0.0]
+    result = move_to(client, model, [into_table])
+    assert result.error_code == ErrorCode.COLLISION, result.error_string
+    assert "hit table" in result.error_string
+    stopped = client.joint_positions(ARM)
+    assert not close_to(stopped, into_table, 1e-3), "the arm went through the table"
+    assert_ok(move_to(client, model, [HOME]))
+
+
+def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(client: SimClient, model: ArmModel) -> None:
+    dirty = "CDRA-F-0007"
+    client.wait_value("/cdra/filter_locked", True)
+    client.wait_value("/cdra/installed_filter_id", dirty)
+    client.wait_value("/cdra/installed_filter_condition", "dirty")
+    seated_pose = client.frame(f"filter/{dirty}")
+    assert close_to(seated_pose[0], client.frame("cabinet/slot")[0], 1e-4)
+
+    # Reach the cabinet handle: pre-grasp 15 cm out, then straight in; close on the handle.
+    assert client.gripper("open").success
+    approach = model.slot_line("cabinet/slot", 0.15, 0.0, HOME)
+    assert_ok(move_to(client, model, [approach[0]]))
+    assert_ok(move_to(client, model, approach[1:], 0.2))
+    grasp = client.gripper("closed")
+    assert grasp.success and grasp.held_object == dirty, grasp.message
+    client.wait_value("/gripper/held_object", dirty)
+
+    # Locked: pulling stops the arm and the filter stays in place.
+    pull = model.slot_line("cabinet/slot", 0.0, 0.30, approach[-1])
+    result = move_to(client, model, pull[1:], 0.2)
+    assert result.error_code == ErrorCode.PATH_TOLERANCE_VIOLATED, result.error_string
+    assert "locked" in result.error_string
+    assert close_to(client.frame(f"filter/{dirty}")[0], seated_pose[0], 1e-4)
+    client.wait_value("/cdra/filter_present", True)
+
+    # Unlocked: the same pull takes it out.
+    assert client.unlock().success
+    client.wait_value("/cdra/filter_locked", False)
+    assert_ok(move_to(client, model, pull[1:], 0.2))
+    client.wait_value("/cdra/filter_present", False)
+    client.wait_value("/cdra/installed_filter_id", "")
+    out_pos = client.frame(f"filter/{dirty}")[0]
+    assert math.dist(out_pos, seated_pose[0]) > 0.25
+
+    # Carry it to the empty rack slot 3 and slide it in; opening leaves it seated there.
+    insert = model.slot_line("rack/slot_3", 0.45, 0.0, HOME)
+    assert_ok(move_to(client, model, [HOME, insert[0]]))
+    assert_ok(move_to(client, model, insert[1:], 0.2))
+    release = client.gripper("open")
+    assert release.success and release.held_object == "", release.message
+    assert "seated in rack/slot_3" in release.message
+    client.wait_value("/gripper/held_object", "")
+    retreat = model.slot_line("rack/slot_3", 0.0, 0.15, insert[-1])
+    assert_ok(move_to(client, model, retreat[1:], 0.2))
+    assert close_to(client.frame(f"filter/{dirty}")[0], client.frame("rack/slot_3")[0], 1e-4)
+    assert_ok(move_to(client, model, [HOME]))
+
+
+def test_scene_camera_capture_saves_a_png(client: SimClient, capture_dir) -> None:
+    response = client.capture("scene", "after swap")
+    assert response.success, response.message
+    assert response.image.width == 640 and response.image.height == 480
+    assert len(response.image.data) == 640 * 480 * 3
+    assert len(set(bytes(response.image.data[::997]))) > 10, "image is (nearly) uniform"
+    assert response.path.startswith(str(capture_dir)) and response.path.endswith(".png")
+    assert "after_swap" in response.path
+    with open(response.path, "rb") as f:
+        assert f.read(8) == b"\x89PNG\r\n\x1a\n"
+
+
+def test_unknown_camera_and_gripper_pose_are_refused(client: SimClient) -> None:
+    response = client.capture("nope")
+    assert not response.success and "unknown camera 'nope'" in response.message
+    grip = client.gripper("half")
+    assert not grip.success and "unknown gripper pose 'half'" in grip.message
