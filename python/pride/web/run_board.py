@@ -139,7 +139,8 @@ class RunBoard:
                     live.executive.stop("web-server", "the web server shut down")
                 except Exception:
                     log.exception("stopping run %s", live.run_id)
-            live.executive.join(10)
+            # a command in flight finishes and is recorded before its gateway closes
+            live.executive.wait_for(lambda snapshot: not snapshot.executing, timeout=10)
             try:
                 live.gateway.close()
             except Exception:

@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.address not in ("127.0.0.1", "localhost", "::1"):
         log.warning("serving on %s: the web view is reachable beyond this machine", args.address)
     audit_log = AuditLog(args.db)
-    board = RunBoard(Catalog(args.procedures, args.bindings, args.sysreps), audit_log)
+    board = RunBoard(Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve()), audit_log)
     app = build_app(board, SignIns(accounts), report_writer=report_writer(audit_log, args.reports))
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     host, port = sock.getsockname()[:2]
     url = f"http://[{host}]:{port}" if family == socket.AF_INET6 else f"http://{host}:{port}"
-    server = _Server(uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets"), url)
+    server = _Server(uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio"), url)
     try:
         server.run(sockets=[sock])
     except KeyboardInterrupt:

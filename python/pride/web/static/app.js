@@ -296,7 +296,7 @@ function buildInstruction(instruction) {
     act(set ? "clear_breakpoint" : "set_breakpoint", {instruction: instruction.number});
   });
   line.append(breakpoint);
-  const icon = element("span", "auto-icon", instruction.automatable ? "⚙" : "✋");
+  const icon = element("span", instruction.automatable ? "auto-icon" : "auto-icon operator", instruction.automatable ? "⚙" : "OP");
   icon.title = instruction.automatable ? "automatable: PAX can run this" : "an operator must perform this";
   if (instruction.automatable) item.classList.add("automatable");
   line.append(icon, element("span", "text", instruction.text));

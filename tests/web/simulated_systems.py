@@ -1,0 +1,145 @@
+"""Simulated systems behind the executive for the browser tests: the PAX host shape in-process.
+
+The browser tests are about the web view, so the server under test opens this gateway instead
+of the JVM-hosted PAX plugins (``PRIDE_GATEWAY=simulated_systems:open_simulated_systems``, see
+pride/systems.py). It serves the SysReps the binding file names, with the state changes a
+procedure checks: plans become valid, executions succeed, the CDRA latch locks and unlocks, the
+camera writes a real PNG. The robot side itself is tested by its own suites.
+"""
+
+from __future__ import annotations
+
+import struct
+import tempfile
+import threading
+import time
+import zlib
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pride.sysrep import SysRep, load_sysrep
+from pride.systems import CommandResult, TelemetryListener, TelemetryValue
+
+__all__ = ["SimulatedSystems", "open_simulated_systems"]
+
+
+def _png(width: int, height: int, shade: int) -> bytes:
+    """A small gradient PNG (no imaging library needed): what the camera 'captured'."""
+    raw = b"".join(
+        b"\x00" + b"".join(bytes(((x * 255) // width, (y * 255) // height, shade)) for x in range(width)) for y in range(height)
+    )
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+
+
+class SimulatedSystems:
+    """Commands succeed and change the telemetry a real system would change."""
+
+    def __init__(self, binding_path: str) -> None:
+        binding = Path(binding_path)
+        document = yaml.safe_load(binding.read_text(encoding="utf-8"))
+        self._sysreps: dict[str, SysRep] = {}
+        for system in document["systems"]:
+            sysrep = load_sysrep(binding.parent / system["sysrep"])
+            self._sysreps[sysrep.id] = sysrep
+        self._lock = threading.Lock()  # guards _values, _listeners
+        self._listeners: list[TelemetryListener] = []
+        self._values: dict[tuple[str, str], Any] = {
+            ("affordance_templates", "robot_active"): True,
+            ("affordance_templates", "planner_node_active"): True,
+            ("affordance_templates", "affordance_template_server_active"): True,
+            ("affordance_templates", "execute_status"): "idle",
+            ("affordance_templates", "plan_status"): "none",
+            ("affordance_templates", "plan_valid"): False,
+            ("cdra", "filter_locked"): True,
+            ("cdra", "filter_present"): True,
+            ("cdra", "installed_filter_id"): "F-DIRTY-07",
+            ("cdra", "installed_filter_condition"): "dirty",
+        }
+        self._images = Path(tempfile.mkdtemp(prefix="caretaker-web-camera-"))
+        self._captures = 0
+        self._instances: dict[str, int] = {}
+        self._frames: dict[str, str] = {}
+
+    def sysreps(self) -> dict[str, SysRep]:
+        return dict(self._sysreps)
+
+    def _set(self, system: str, item: str, value: Any) -> None:
+        with self._lock:
+            self._values[(system, item)] = value
+            listeners = list(self._listeners)
+        for listener in listeners:
+            listener(system, item, value)
+
+    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any]) -> CommandResult:
+        sysrep = self._sysreps.get(sysrep_id)
+        if sysrep is None or sysrep.command(command_id) is None:
+            return CommandResult(False, f"{sysrep_id}.{command_id} is not served here")
+        if sysrep_id == "affordance_templates":
+            return self._at(command_id, args)
+        if sysrep_id == "cdra":
+            if command_id == "unlock_filter":
+                self._set("cdra", "filter_locked", False)
+            elif command_id == "lock_filter":
+                self._set("cdra", "filter_locked", True)
+            return CommandResult(True, f"{command_id} done")
+        if sysrep_id == "camera":
+            self._captures += 1
+            path = self._images / f"{self._captures:03d}_{args.get('label') or 'capture'}.png"
+            path.write_bytes(_png(160, 120, (self._captures * 70) % 256))
+            return CommandResult(True, "captured", {"path": str(path)})
+        return CommandResult(True, "ok")
+
+    def _at(self, command_id: str, args: dict[str, Any]) -> CommandResult:
+        template = str(args.get("affordance_template", "")).split(":")[0]
+        if command_id == "add_affordance_template":
+            self._instances[template] = len(self._instances)
+            return CommandResult(True, f"added {template}", {"id": self._instances[template], "instance": f"{template}:{self._instances[template]}"})
+        if template not in self._instances:
+            return CommandResult(False, f"no instance of {template!r}: add the template first")
+        if command_id == "set_display_object_pose":
+            self._frames[template] = str(args.get("frame", ""))
+            return CommandResult(True, f"{template} moved to {self._frames[template]}")
+        if command_id == "plan_trajectory":
+            self._set("affordance_templates", "plan_status", "SUCCEEDED")
+            self._set("affordance_templates", "plan_valid", True)
+            return CommandResult(True, "planned", {"plan_status": "SUCCEEDED", "plan_valid": True,
+                                                   "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
+        if command_id == "execute_plan":
+            self._set("affordance_templates", "execute_status", "EXECUTING")
+            at_cabinet = self._frames.get(template) == "cabinet/slot"
+            if at_cabinet and args.get("trajectory") == "grasp_and_pull":
+                self._set("cdra", "filter_present", False)
+            elif at_cabinet and args.get("trajectory") == "insert_and_release":
+                self._set("cdra", "filter_present", True)
+            self._set("affordance_templates", "execute_status", "SUCCEEDED")
+            self._set("affordance_templates", "plan_valid", False)
+            return CommandResult(True, "executed", {"execute_status": "SUCCEEDED"})
+        if command_id == "delete_affordance_template":
+            del self._instances[template]
+        return CommandResult(True, f"{command_id} done")
+
+    def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
+        with self._lock:
+            if (sysrep_id, item_id) not in self._values:
+                raise KeyError(f"{sysrep_id}.{item_id} is not served here")
+            return TelemetryValue(self._values[(sysrep_id, item_id)], time.time(), False)
+
+    def add_listener(self, callback: TelemetryListener) -> None:
+        with self._lock:
+            self._listeners.append(callback)
+
+    def close(self) -> None:
+        with self._lock:
+            self._listeners.clear()
+
+
+def open_simulated_systems(binding_path: str) -> SimulatedSystems:
+    """The factory named by PRIDE_GATEWAY in the browser tests."""
+    return SimulatedSystems(binding_path)
