@@ -61,6 +61,7 @@ class AtClient:
         self.status: ServerStatus | None = None
         self.status_count = 0
         self.frames: dict[str, Any] = {}
+        self.frames_count = 0
         self.held_object = ""
         self.cdra_present: bool | None = None
         self._changed = threading.Condition()
@@ -84,7 +85,15 @@ class AtClient:
 
     def _frames_callback(self, msg: NamedPoses) -> None:
         self.frames = dict(zip(msg.names, msg.poses))
+        self.frames_count += 1
         self._notify()
+
+    def fresh_frames(self, timeout: float = 10.0) -> dict[str, Any]:
+        """Frames published once the robot is at rest (the last ones received may predate a motion's end)."""
+        self.wait_for(lambda: self.status is not None and not self.status.robot_active, timeout, "robot at rest")
+        count = self.frames_count
+        self.wait_for(lambda: self.frames_count >= count + 2, timeout, "fresh /sim/frames")
+        return self.frames
 
     def _held_callback(self, msg: String) -> None:
         self.held_object = msg.data
@@ -103,12 +112,12 @@ class AtClient:
                     raise TimeoutError(f"{what} not reached within {timeout} s")
                 self._changed.wait(remaining)
 
-    def call(self, name: str, timeout: float = 120.0, **fields: Any) -> Any:
-        client = self.clients[name]
-        request = SERVICES[name].Request()
+    def call(self, service: str, /, *, call_timeout: float = 120.0, **fields: Any) -> Any:
+        """Call AT service ``service`` with request ``fields``; its response."""
+        request = SERVICES[service].Request()
         for key, value in fields.items():
             setattr(request, key, value)
-        return self._call(client, request, timeout, name)
+        return self._call(self.clients[service], request, call_timeout, service)
 
     def _call(self, client, request, timeout: float, name: str) -> Any:  # noqa: ANN001
         if not client.wait_for_service(timeout_sec=30.0):
