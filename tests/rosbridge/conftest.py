@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import re
-import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Callable
@@ -11,7 +10,8 @@ from typing import Any, Callable
 import pytest
 import roslibpy
 
-from support.processes import ManagedProcess, python
+from rosbridge_support import wait_until_discovered
+from support.processes import ManagedProcess, caretaker, python
 
 PEER = Path(__file__).with_name("ros_peer.py")
 
@@ -38,13 +38,12 @@ def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
 @pytest.fixture(scope="module")
 def bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[str, int]]:
     """A bridge on a free port, shared by a module's tests: (host, port)."""
-    from support.processes import caretaker
-
     process = caretaker("bridge", "--port", "0", "--service-timeout", "5", env=ros_env)
     try:
         process.wait_ready(60)
         url = bridge_url(process)
         host, port = url.split("//")[1].rsplit(":", 1)
+        wait_until_discovered(host, int(port), "/peer/echo_in", "/peer/set_bool", "/bridge_test_peer")
         yield host, int(port)
     finally:
         process.stop()
@@ -64,22 +63,3 @@ def connect(bridge: tuple[str, int]) -> Iterator[Callable[[], roslibpy.Ros]]:
     yield open_client
     for client in clients:
         client.close()
-
-
-class Inbox:
-    """Messages received by callbacks, awaitable by count (no sleeps)."""
-
-    def __init__(self) -> None:
-        self.items: list[Any] = []
-        self._condition = threading.Condition()
-
-    def __call__(self, item: Any) -> None:
-        with self._condition:
-            self.items.append(item)
-            self._condition.notify_all()
-
-    def wait_for(self, count: int, timeout: float = 20.0) -> list[Any]:
-        with self._condition:
-            self._condition.wait_for(lambda: len(self.items) >= count, timeout)
-            assert len(self.items) >= count, f"got {len(self.items)} of {count} messages: {self.items[:5]}"
-            return list(self.items)

@@ -39,7 +39,7 @@ class Rosapi:
         self.node = topics.node
         self._handlers: dict[str, Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]] = {
             "topics": self._topics, "topics_for_type": self._topics_for_type, "topic_type": self._topic_type,
-            "services": self._services, "service_type": self._service_type, "nodes": self._nodes,
+            "publishers": self._publishers, "subscribers": self._subscribers, "services": self._services, "service_type": self._service_type, "nodes": self._nodes,
             "message_details": self._message_details, "service_request_details": self._service_request_details,
             "service_response_details": self._service_response_details, "get_time": self._get_time,
             "get_ros_version": self._get_ros_version, "get_param": self._get_param, "set_param": self._set_param,
@@ -73,6 +73,14 @@ class Rosapi:
 
     async def _topic_type(self, args: dict[str, Any]) -> dict[str, Any]:
         return {"type": self.topics.graph_type(require(args, "topic", str)) or ""}
+
+    async def _publishers(self, args: dict[str, Any]) -> dict[str, Any]:
+        infos = self.node.get_publishers_info_by_topic(require(args, "topic", str))
+        return {"publishers": sorted(f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos)}
+
+    async def _subscribers(self, args: dict[str, Any]) -> dict[str, Any]:
+        infos = self.node.get_subscriptions_info_by_topic(require(args, "topic", str))
+        return {"subscribers": sorted(f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos)}
 
     async def _services(self, args: dict[str, Any]) -> dict[str, Any]:
         names = {name for name, _ in self.node.get_service_names_and_types()} | set(self.names())

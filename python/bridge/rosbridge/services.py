@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import rclpy.task
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
 from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, ServiceTimeout, ServiceUnavailable,
@@ -30,6 +31,9 @@ from .session import Session
 
 log = logging.getLogger(__name__)
 
+CLIENT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+"""Deep request/response history: with the default depth 10, a burst of concurrent calls
+overwrites requests not yet acknowledged and responses not yet taken, and those calls hang."""
 SERVER_WAIT_S = 1.0
 """How long a call waits for a known service's server to match (rosbridge: 1 s)."""
 
@@ -75,7 +79,8 @@ class Services:
         if cached is not None:
             self.ros.node.destroy_client(cached[0])
         srv_cls = load_type(graph_type, "srv")
-        cached = self._clients[service] = (self.ros.node.create_client(srv_cls, service), srv_cls)
+        client = self.ros.node.create_client(srv_cls, service, qos_profile=CLIENT_QOS)
+        cached = self._clients[service] = (client, srv_cls)
         return cached
 
     def request_class(self, service: str) -> Any:

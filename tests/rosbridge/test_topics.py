@@ -1,0 +1,69 @@
+"""Topics through the real bridge with roslibpy: pub/sub, types, options, latching."""
+
+from __future__ import annotations
+
+import base64
+
+import roslibpy
+
+from rosbridge_support import Inbox, publish_until_received
+
+
+def test_publish_reaches_ros_and_echo_comes_back_in_order(connect) -> None:
+    publisher_client, subscriber_client = connect(), connect()
+    inbox = Inbox()
+    roslibpy.Topic(subscriber_client, "/peer/echo_out", "std_msgs/msg/String").subscribe(inbox)
+    talker = roslibpy.Topic(publisher_client, "/peer/echo_in", "std_msgs/String")
+    talker.advertise()
+    start = publish_until_received(talker, {"data": "warm-up"}, inbox)
+    for index in range(200):
+        talker.publish(roslibpy.Message({"data": f"message {index}"}))
+    received = [m["data"] for m in inbox.wait_for(start + 200)[start:]]
+    assert [r for r in received if r != "warm-up"] == [f"message {i}" for i in range(200)]
+
+
+def test_latched_topic_delivers_last_value_without_a_type(connect) -> None:
+    inbox = Inbox()
+    roslibpy.Topic(connect(), "/peer/latched", None).subscribe(inbox)
+    assert inbox.wait_for(1)[0] == {"data": "latched value"}
+
+
+def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect) -> None:
+    client = connect()
+    inbox = Inbox()
+    topic = "/bridge_test/image"
+    talker = roslibpy.Topic(client, topic, "sensor_msgs/msg/Image")
+    talker.advertise()
+    roslibpy.Topic(client, topic, "sensor_msgs/Image").subscribe(inbox)
+    publish_until_received(talker, {"header": {"stamp": {"secs": 7, "nsecs": 9}, "frame_id": "cam"},
+                                    "width": 3, "height": 1, "data": [1, 2, 250]}, inbox)
+    image = inbox.items[0]
+    assert image["header"] == {"stamp": {"sec": 7, "nanosec": 9}, "frame_id": "cam"}
+    assert base64.b64decode(image["data"]) == bytes([1, 2, 250])
+
+
+def test_custom_affordance_template_type_round_trips(connect) -> None:
+    client = connect()
+    inbox = Inbox()
+    topic = "/bridge_test/waypoint"
+    talker = roslibpy.Topic(client, topic, "affordance_template_msgs/msg/WaypointInfo")
+    talker.advertise()
+    roslibpy.Topic(client, topic, "affordance_template_msgs/WaypointInfo").subscribe(inbox)
+    publish_until_received(talker, {"id": 3, "num_waypoints": 5}, inbox)
+    assert inbox.items[0]["num_waypoints"] == 5
+
+
+def test_throttled_subscriber_gets_one_message_while_another_gets_all(connect) -> None:
+    # separate connections: roslibpy hands every message of a topic to all its callbacks
+    every, throttled = Inbox(), Inbox()
+    topic = "/bridge_test/rate"
+    talker = roslibpy.Topic(connect(), topic, "std_msgs/Int32")
+    talker.advertise()
+    roslibpy.Topic(connect(), topic, "std_msgs/Int32").subscribe(every)
+    roslibpy.Topic(connect(), topic, "std_msgs/Int32", throttle_rate=600_000, queue_length=1).subscribe(throttled)
+    start = publish_until_received(talker, {"data": -1}, every)
+    throttled.wait_for(1)
+    for index in range(30):
+        talker.publish(roslibpy.Message({"data": index}))
+    assert [m["data"] for m in every.wait_for(start + 30)][-1] == 29
+    assert len(throttled.items) == 1
