@@ -130,3 +130,61 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     assert actors == {"alice", "PAX"}, actors
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "4.2"]
     assert sent and sent[0].data["args"]["frame"] == "filter/CDRA-F-0012" and sent[0].actor == "alice"
+
+
+def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) -> None:
+    alice = sign_in("alice")
+    run_id = start_run(alice, "web_walkthrough.xml", "manual")
+
+    # a breakpoint on 3.3, set while in manual mode
+    instruction(alice, "3.3").locator("button.breakpoint").click()
+    expect(instruction(alice, "3.3")).to_have_class(re.compile(r"\bhas-breakpoint\b"))
+    expect(audit_row(alice, "breakpoint_set", "3.3", "alice")).to_have_count(1)
+
+    # autonomous: 2.1 fails (its template was never added) and PAX holds with the reason
+    alice.click("#mode-autonomous")
+    failed = instruction(alice, "2.1")
+    expect(failed.locator(".mark")).to_contain_text("failed by PAX")
+    expect(failed.locator(".mark")).to_contain_text("no instance of 'ready_pose'")
+    expect(alice.locator("#hold")).to_contain_text("2.1 failed")
+    failed.locator("button.retry").click()
+    expect(audit_row(alice, "retry", "2.1", "alice")).to_have_count(1)
+    expect(audit_row(alice, "instruction_failed", "2.1", "alice")).to_have_count(1)  # the retry, as alice
+    failed.locator("button.skip").click()
+    alice.fill("#skip-reason", "no ready pose in this walk-through")
+    alice.click("#skip-yes")
+    expect(failed.locator(".mark")).to_contain_text("skipped by alice")
+    expect(failed.locator(".mark")).to_contain_text("no ready pose in this walk-through")
+
+    # the manual instruction holds automation until Done
+    expect(instruction(alice, "3.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    instruction(alice, "3.1").locator("button.done").click()
+
+    # the hazardous command waits for a confirmation, given in a dialog, even in autonomous mode
+    hazardous = instruction(alice, "3.2")
+    expect(hazardous.locator(".hazard")).to_be_visible()
+    expect(alice.locator("#hold")).to_contain_text("3.2 is hazardous")
+    hazardous.locator("button.confirm").click()
+    expect(alice.locator("#confirm-dialog")).to_be_visible()
+    expect(alice.locator("#confirm-text")).to_contain_text("3.2: Send cdra.unlock_filter()")
+    alice.screenshot(path=str(IMAGES / "web_hazard_confirmation.png"))
+    alice.click("#confirm-yes")
+    expect(audit_row(alice, "confirmation", "3.2", "alice")).to_have_count(1)
+    expect(audit_row(alice, "command_sent", "3.2", "PAX")).to_have_count(1)
+
+    # PAX stops at the breakpoint; Continue finishes the run
+    expect(alice.locator("#hold")).to_contain_text("breakpoint at 3.3")
+    expect(instruction(alice, "3.3").locator(".telemetry")).to_contain_text("cdra.filter_locked = false")
+    alice.click("#continue")
+    expect(alice.locator("#run-status")).to_have_text("completed")
+    expect(instruction(alice, "3.3").locator(".mark")).to_contain_text("completed by PAX")
+    instruction(alice, "3.2").scroll_into_view_if_needed()
+    alice.screenshot(path=str(IMAGES / "web_completed_run.png"))
+
+    # the run is in the list of runs, with its after-action report
+    alice.click("#refresh-runs")
+    listed = alice.locator(f'#run-list li[data-run-id="{run_id}"]')
+    expect(listed).to_contain_text("web_walkthrough")
+    report = alice.request.get(server.url + listed.locator("a.report-link").get_attribute("href"))
+    assert report.status == 200, report.text()
+    assert run_id in report.text() and "alice" in report.text()

@@ -296,9 +296,10 @@ function buildInstruction(instruction) {
     act(set ? "clear_breakpoint" : "set_breakpoint", {instruction: instruction.number});
   });
   line.append(breakpoint);
-  const icon = element("span", instruction.automatable ? "auto-icon" : "auto-icon operator", instruction.automatable ? "⚙" : "OP");
-  icon.title = instruction.automatable ? "automatable: PAX can run this" : "an operator must perform this";
-  if (instruction.automatable) item.classList.add("automatable");
+  const paxCan = instruction.automatable && !instruction.needs_operator;
+  const icon = element("span", paxCan ? "auto-icon" : "auto-icon operator", paxCan ? "⚙" : "OP");
+  icon.title = paxCan ? "automatable: PAX can run this" : "an operator must perform this";
+  if (paxCan) item.classList.add("automatable");
   line.append(icon, element("span", "text", instruction.text));
   if (instruction.hazardous) {
     const hazard = element("span", "hazard", "⚠ hazardous");
@@ -548,7 +549,7 @@ function renderTrajectory() {
     <circle cx="${x}" cy="${y}" r="6" class="end"/></svg>`;
   const caption = element("p", "pose-text",
     `${latest.instruction}: end pose x=${pose.x.toFixed(3)} y=${pose.y.toFixed(3)} z=${pose.z.toFixed(3)} m, ` +
-    `yaw=${(pose.yaw * 180 / Math.PI).toFixed(1)}° (robot base at the centre, 1 grid = ${(100 / scale).toFixed(2)} m)` +
+    `yaw=${(pose.yaw * 180 / Math.PI).toFixed(1)}° (top view, robot base at the centre, ±${(100 / scale).toFixed(2)} m shown)` +
     (lines.length ? ` · ${lines.join(" · ")}` : ""));
   box.append(caption);
 }
