@@ -42,11 +42,16 @@ def render(spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tu
     else:
         view = p.computeViewMatrix(list(spec.eye or (0, 0, 0)), list(spec.target or (1, 0, 0)), [0, 0, 1])
     projection = p.computeProjectionMatrixFOV(spec.fov_deg, spec.width / spec.height, spec.near, spec.far)
-    _, _, rgba, _, _ = p.getCameraImage(
+    _, _, rgba, depth, _ = p.getCameraImage(
         spec.width, spec.height, view, projection, renderer=p.ER_TINY_RENDERER, shadow=0,
         flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=client,
     )
-    pixels = np.asarray(rgba, dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
+    pixels = np.array(rgba, dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
+    if spec.background is not None:
+        # TinyRenderer clears to white; where nothing was drawn (depth at the far plane) paint the
+        # scene's background, e.g. black space outside the station.
+        empty = np.asarray(depth, dtype=np.float32).reshape(spec.height, spec.width) >= 0.99999
+        pixels[empty] = np.array([round(c * 255) for c in spec.background], dtype=np.uint8)
     return CameraImage(spec.name, spec.width, spec.height, pixels.tobytes())
 
 

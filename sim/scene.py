@@ -135,6 +135,7 @@ class CameraSpec:
     link: str | None = None
     near: float = 0.05
     far: float = 40.0
+    background: tuple[float, float, float] | None = None  # RGB 0..1 where nothing is drawn
 
 
 @dataclass(frozen=True)
@@ -434,6 +435,7 @@ def _load_camera(r: _Reader, data: dict[str, Any], where: str) -> CameraSpec:
         link=None if link is None else str(link),
         near=r.number(data.get("near", 0.05), f"{where}.near"),
         far=r.number(data.get("far", 40.0), f"{where}.far"),
+        background=None if "background" not in data else r.vector(data["background"], 3, f"{where}.background"),  # type: ignore[arg-type]
     )
 
 

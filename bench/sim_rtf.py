@@ -1,0 +1,77 @@
+"""Real-time factor of the simulator at as-fast-as-possible, per scene.
+
+Usage: .venv/bin/python bench/sim_rtf.py [--seconds 20]
+
+For each scene it runs, in one process and side by side:
+  * bare pybullet: ``stepSimulation`` on the same world (the engine's floor, no robot logic);
+  * ``Simulation.step`` idle (nothing commanded);
+  * ``Simulation.step`` executing a joint trajectory (kinematic arm, held-object and collision
+    checks every step), which is what ``--time-scale 0`` runs while the robot moves.
+RTF = simulated seconds / wall seconds. The ratio column is our step's cost relative to bare
+pybullet (how much the robot logic slows the engine down). ROS publishing is not included.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import pybullet as p
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from sim.scene import load_scene  # noqa: E402
+from sim.simulation import Simulation  # noqa: E402
+from sim.trajectory import validate_trajectory  # noqa: E402
+
+
+def rtf(step, dt: float, seconds: float) -> float:
+    steps = int(seconds / dt)
+    start = time.perf_counter()
+    for _ in range(steps):
+        step()
+    return steps * dt / (time.perf_counter() - start)
+
+
+def moving_rtf(sim: Simulation, seconds: float) -> float:
+    """Sweep the first two arm joints back and forth, 2 s per sweep, for ``seconds`` of sim time."""
+    start = time.perf_counter()
+    simulated = 0.0
+    sign = 1.0
+    while simulated < seconds:
+        current = tuple(sim.arm_positions)
+        goal = list(current)
+        goal[0] += sign * 0.4
+        goal[1] += sign * 0.1
+        sign = -sign
+        traj = validate_trajectory(list(sim.arm_joints), [(2.0, goal, [])], limits=sim.limits, controller_joints=sim.arm_joints, current=current)
+        run = sim.start_trajectory(traj, 0.0)
+        while not run.done.is_set():
+            sim.step()
+            simulated += sim.dt
+        if run.error_code != 0:
+            raise RuntimeError(f"benchmark trajectory failed: {run.error_string}")
+    return simulated / (time.perf_counter() - start)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=20.0, help="simulated seconds per measurement")
+    args = parser.parse_args(argv)
+    print(f"{'scene':6} {'case':22} {'RTF':>8} {'step µs':>9} {'vs bare':>8}")
+    for name in ("iva", "eva"):
+        sim = Simulation(load_scene(name), seed=0)
+        client = sim.client
+        bare = rtf(lambda: p.stepSimulation(physicsClientId=client), sim.dt, args.seconds)
+        idle = rtf(sim.step, sim.dt, args.seconds)
+        moving = moving_rtf(sim, args.seconds)
+        for case, value in (("bare pybullet step", bare), ("Simulation idle", idle), ("Simulation arm moving", moving)):
+            print(f"{name:6} {case:22} {value:8.1f} {sim.dt / value * 1e6:9.1f} {bare / value:7.2f}x")
+        sim.close()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
