@@ -100,9 +100,11 @@ def to_python(value: Any) -> Any:
     """A Java value (String, Boolean, Long/Integer, Double, null) as the Python value."""
     if value is None:
         return None
-    if isinstance(value, (bool, int, float, str)):
+    if not isinstance(value, jpype.JObject):
         return value
-    if isinstance(value, jpype.JString) or isinstance(value, jpype.JClass("java.lang.String")):
+    # Java's boxed types subclass Python's int/float in JPype, so test the Java class first:
+    # a java.lang.Boolean must become a real bool (``value is False`` must work).
+    if isinstance(value, jpype.JClass("java.lang.String")):
         return str(value)
     if isinstance(value, jpype.JClass("java.lang.Boolean")):
         return bool(value.booleanValue())
