@@ -1,0 +1,201 @@
+"""``caretaker up`` and ``caretaker demo``: the whole system from one command.
+
+The robot side (simulation, planner, AT server) and the rosbridge server run as separate OS
+processes, as they would in a deployment where the robot and the ground are apart. The stack
+starts them in dependency order, waits for each one's ``READY`` line, and stops them all when
+one of them dies or the operator presses Ctrl-C: it never leaves a half-running robot behind.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from caretaker.processes import REPO, ManagedProcess, ProcessFailed, caretaker
+
+__all__ = ["SCENARIOS", "Scenario", "Stack", "StackFailed", "demo_main", "up_main"]
+
+log = logging.getLogger("caretaker.stack")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """What a scene needs: the robot config it runs, and the demo procedure that goes with it."""
+
+    scene: str
+    robot: str
+    procedure: Path
+    binding: Path
+    inputs: dict[str, str] = field(default_factory=dict)
+
+
+SCENARIOS: dict[str, Scenario] = {
+    "iva": Scenario(
+        scene="iva",
+        robot="ur10",
+        procedure=REPO / "procedures" / "iva_cdra_filter_replacement.xml",
+        binding=REPO / "sysrep" / "bindings" / "iva.yaml",
+    ),
+    "eva": Scenario(
+        scene="eva",
+        robot="eva_arm",
+        procedure=REPO / "procedures" / "eva_inspection.xml",
+        binding=REPO / "sysrep" / "bindings" / "eva.yaml",
+    ),
+}
+
+
+class StackFailed(RuntimeError):
+    """A part of the stack did not start, or died while running."""
+
+
+class Stack:
+    """The robot side and the rosbridge server of one scenario, as child processes.
+
+    Start it from the main thread: children are tied to the thread that started them and are
+    killed by the kernel if it goes away (see caretaker.processes).
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        time_scale: float = 1.0,
+        bridge_address: str = "127.0.0.1",
+        bridge_port: int = 9090,
+        env: dict[str, str] | None = None,
+        ready_timeout: float = 120.0,
+        echo: bool = False,
+    ) -> None:
+        self.scenario = scenario
+        self.env = dict(os.environ if env is None else env)
+        self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        self.ready_timeout = ready_timeout
+        self.echo = echo
+        self.parts: list[tuple[str, tuple[str, ...]]] = [
+            ("sim", ("sim", "--scene", scenario.scene, "--time-scale", str(time_scale))),
+            ("planner", ("planner", "--robot", scenario.robot)),
+            ("at-server", ("at-server", "--robot", scenario.robot)),
+            ("bridge", ("bridge", "--address", bridge_address, "--port", str(bridge_port))),
+        ]
+        self.processes: dict[str, ManagedProcess] = {}
+        self.ready_lines: dict[str, str] = {}
+        self._exited = threading.Event()
+
+    def _print_line(self, name: str, line: str) -> None:
+        if self.echo:
+            print(f"  [{name}] {line}", flush=True)
+
+    def start(self) -> None:
+        """Start every part in order and wait until each serves.
+
+        Raises:
+            StackFailed: a part exited or did not become ready; everything started is stopped.
+        """
+        try:
+            for name, args in self.parts:
+                started = time.monotonic()
+                proc = caretaker(*args, env=self.env, name=name, on_line=self._print_line)
+                self.processes[name] = proc
+                threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
+                proc.wait_ready(self.ready_timeout)
+                self.ready_lines[name] = next((line for line in proc.output if line.startswith("READY")), "READY")
+                log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, self.ready_lines[name])
+        except ProcessFailed as exc:
+            self.stop()
+            raise StackFailed(str(exc)) from None
+
+    def _await_exit(self, proc: ManagedProcess) -> None:
+        proc.proc.wait()
+        self._exited.set()
+
+    def wait(self, timeout: float | None = None) -> str | None:
+        """Block until a part exits (its name is returned) or ``timeout`` passes (None)."""
+        if not self._exited.wait(timeout):
+            return None
+        return next((name for name, proc in self.processes.items() if not proc.running), None)
+
+    def dead_parts(self) -> list[str]:
+        """Names of the parts that are no longer running."""
+        return [name for name, proc in self.processes.items() if not proc.running]
+
+    def stop(self) -> None:
+        """Stop every part, last started first. Idempotent."""
+        for name, proc in reversed(list(self.processes.items())):
+            code = proc.stop()
+            log.info("%s stopped (exit %s)", name, code)
+
+
+def _parser(prog: str) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=prog)
+    parser.add_argument("--time-scale", type=float, default=1.0, help="simulation speed: 1 = real time, 0 = as fast as possible")
+    parser.add_argument("--bridge-address", default="127.0.0.1")
+    parser.add_argument("--bridge-port", type=int, default=9090)
+    parser.add_argument("--verbose", "-v", action="store_true", help="echo every part's output")
+    return parser
+
+
+def _run_until_signal(stack: Stack) -> int:
+    """Wait for Ctrl-C/SIGTERM (exit 0) or for a part to die (exit 1), then stop the stack."""
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+
+    def watch() -> None:
+        stack.wait()
+        stop.set()
+
+    threading.Thread(target=watch, name="stack-watch", daemon=True).start()
+    stop.wait()
+    dead = stack.dead_parts()
+    stack.stop()
+    if dead:
+        for name in dead:
+            print(f"caretaker up: {name} died; its last output:\n{stack.processes[name].tail(30)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def up_main(argv: list[str] | None = None) -> int:
+    """``caretaker up --scene iva|eva``: run the robot side and the bridge until Ctrl-C."""
+    parser = _parser("caretaker up")
+    parser.add_argument("--scene", choices=sorted(SCENARIOS), required=True)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    stack = Stack(
+        SCENARIOS[args.scene],
+        time_scale=args.time_scale,
+        bridge_address=args.bridge_address,
+        bridge_port=args.bridge_port,
+        echo=args.verbose,
+    )
+    try:
+        stack.start()
+    except StackFailed as exc:
+        print(f"caretaker up: {exc}", file=sys.stderr)
+        return 1
+    for name, line in stack.ready_lines.items():
+        print(f"{name:10} {line}")
+    print("READY stack", args.scene, flush=True)
+    return _run_until_signal(stack)
+
+
+def demo_main(argv: list[str] | None = None) -> int:
+    """``caretaker demo iva|eva``: bring the stack up, run the procedure autonomously, report."""
+    from caretaker.demo import run_demo
+
+    parser = _parser("caretaker demo")
+    parser.add_argument("scenario", choices=sorted(SCENARIOS))
+    parser.add_argument("--serve", action="store_true", help="leave the web view running after the procedure")
+    parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
+    parser.set_defaults(time_scale=0.0)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    return run_demo(SCENARIOS[args.scenario], args)
