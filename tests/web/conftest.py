@@ -86,11 +86,13 @@ def browser() -> Iterator[Browser]:
 def sign_in(browser: Browser, server: WebServer) -> Iterator:
     """``sign_in("alice")`` opens a fresh browser context signed in as that user."""
     contexts = []
+    script_errors: list[str] = []
 
     def open_as(user: str) -> Page:
         context = browser.new_context(viewport={"width": 1500, "height": 1000})
         contexts.append(context)
         page = context.new_page()
+        page.on("pageerror", lambda error: script_errors.append(f"{user}: {error}"))
         page.set_default_timeout(TIMEOUT_MS)
         page.goto(server.url)
         page.fill("#user-id", user)
@@ -101,3 +103,4 @@ def sign_in(browser: Browser, server: WebServer) -> Iterator:
     yield open_as
     for context in contexts:
         context.close()
+    assert not script_errors, "the page raised script errors:\n" + "\n".join(script_errors)

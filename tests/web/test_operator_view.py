@@ -188,3 +188,32 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     report = alice.request.get(server.url + listed.locator("a.report-link").get_attribute("href"))
     assert report.status == 200, report.text()
     assert run_id in report.text() and "alice" in report.text()
+
+
+def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, server) -> None:
+    alice = sign_in("alice")
+    alice.select_option("#start-procedure", "eva_inspection.xml")
+    alice.select_option("#start-binding", "eva.yaml")
+    alice.check("#start-form input[name=mode][value=autonomous]")
+    alice.click("#start-button")
+    expect(alice.locator("#connection")).to_have_attribute("data-state", "open")
+
+    # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
+    assessment = instruction(alice, "2.1/2.2")
+    expect(assessment).to_have_class(re.compile(r"\bcurrent\b"))
+    expect(instruction(alice, "2.1/2.1").locator(".mark")).to_contain_text("completed by PAX")
+    camera = alice.locator("#camera")
+    expect(camera).to_be_visible()
+    expect(alice.locator("#camera-caption")).to_contain_text("2.1/2.1")
+    expect(alice.locator("#camera-caption")).to_contain_text("hull_a.png")
+    assert camera.evaluate("image => image.decode().then(() => image.naturalWidth)") == 160
+    first_image = camera.get_attribute("src")
+    alice.screenshot(path=str(IMAGES / "web_camera.png"))
+
+    # the operator answers; PAX retreats, moves to target B and shows its new image
+    assessment.locator("select.record-value").select_option("false")
+    assessment.locator("button.record").click()
+    expect(instruction(alice, "3.1/2.2")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect(alice.locator("#camera-caption")).to_contain_text("hull_b.png")
+    assert camera.get_attribute("src") != first_image
+    expect(audit_row(alice, "operator_input", "2.1/2.2", "alice")).to_contain_text("damage = false")

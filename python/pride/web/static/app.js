@@ -283,17 +283,18 @@ function element(tag, className, text) {
   return node;
 }
 
-function buildInstruction(instruction) {
+function buildInstruction(instruction, prefix = "") {
+  const number = prefix + instruction.number;  // as the executive numbers it, e.g. 2.1/1.3
   const item = element("li", `instruction kind-${instruction.kind}`);
-  item.dataset.number = instruction.number;
+  item.dataset.number = number;
   item.append(...instruction.notices.map(noticeBox));
   const line = element("div", "line");
-  const breakpoint = element("button", "breakpoint", instruction.number);
+  const breakpoint = element("button", "breakpoint", number);
   breakpoint.type = "button";
   breakpoint.title = "toggle a breakpoint here";
   breakpoint.addEventListener("click", () => {
-    const set = view.state && view.state.breakpoints.includes(instruction.number);
-    act(set ? "clear_breakpoint" : "set_breakpoint", {instruction: instruction.number});
+    const set = view.state && view.state.breakpoints.includes(number);
+    act(set ? "clear_breakpoint" : "set_breakpoint", {instruction: number});
   });
   line.append(breakpoint);
   const paxCan = instruction.automatable && !instruction.needs_operator;
@@ -313,16 +314,28 @@ function buildInstruction(instruction) {
   }
   item.append(line);
   const controls = element("div", "instruction-controls");
-  if (instruction.kind === "record") controls.append(...recordInput(instruction));
-  else if (instruction.kind === "manual") controls.append(button("Done", "done", () => act("done", {instruction: instruction.number})));
-  else controls.append(button(KIND_LABEL[instruction.kind] || "Perform", "perform", () => perform(instruction)));
+  if (instruction.kind === "record") controls.append(...recordInput(instruction, number));
+  else if (instruction.kind === "manual") controls.append(button("Done", "done", () => act("done", {instruction: number})));
+  else controls.append(button(KIND_LABEL[instruction.kind] || "Perform", "perform", () => perform(instruction, number)));
   controls.append(
-    button("Confirm", "confirm", () => confirmHazard(instruction, false)),
-    button("Retry", "retry", () => act("retry", {instruction: instruction.number})),
-    button("Skip…", "skip", () => skip(instruction)),
+    button("Confirm", "confirm", () => confirmHazard(instruction, number, false)),
+    button("Retry", "retry", () => act("retry", {instruction: number})),
+    button("Skip…", "skip", () => skip(number)),
   );
   item.append(controls, element("div", "mark"), element("div", "detail"));
+  if (instruction.callee) item.append(buildCallee(instruction.callee, `${number}/`));
   return item;
+}
+
+// A called sub-procedure, drawn inside its call with the executive's numbers (call/number).
+function buildCallee(callee, prefix) {
+  const box = element("ol", "callee");
+  for (const step of callee.steps) {
+    const heading = element("li", "callee-step", `${prefix}${step.number}. ${step.title} (${callee.title})`);
+    box.append(heading, ...step.notices.map(noticeBox));
+    for (const instruction of step.instructions) box.append(buildInstruction(instruction, prefix));
+  }
+  return box;
 }
 
 function button(text, className, onClick) {
@@ -332,7 +345,7 @@ function button(text, className, onClick) {
   return node;
 }
 
-function recordInput(instruction) {
+function recordInput(instruction, number) {
   const record = instruction.record;
   let input;
   if (record.choices) {
@@ -359,7 +372,7 @@ function recordInput(instruction) {
   input.setAttribute("aria-label", `${record.name} (${record.type})`);
   const submit = button("Record", "record", () => {
     if (input.reportValidity && !input.reportValidity()) return;
-    act("enter", {instruction: instruction.number, value: typedValue(record.type, input.value)});
+    act("enter", {instruction: number, value: typedValue(record.type, input.value)});
   });
   return [element("span", "record-name", `${record.name} (${record.type})`), input, submit];
 }
@@ -371,34 +384,34 @@ function typedValue(type, text) {
   return text;  // the server converts and validates, and says what is wrong
 }
 
-async function perform(instruction) {
+async function perform(instruction, number) {
   if (instruction.hazardous && view.state.hold !== "failure") {
-    confirmHazard(instruction, true);
+    confirmHazard(instruction, number, true);
     return;
   }
-  await act("perform", {instruction: instruction.number});
+  await act("perform", {instruction: number});
 }
 
-function confirmHazard(instruction, thenSend) {
+function confirmHazard(instruction, number, thenSend) {
   const dialog = $("confirm-dialog");
-  $("confirm-text").textContent = `${instruction.number}: ${instruction.text}. Confirm that it is safe to send.`;
+  $("confirm-text").textContent = `${number}: ${instruction.text}. Confirm that it is safe to send.`;
   dialog.returnValue = "";
   dialog.onclose = async () => {
     if (dialog.returnValue !== "confirm") return;
-    await act("confirm", {instruction: instruction.number});
-    if (thenSend && view.state.mode === "manual") await act("perform", {instruction: instruction.number});
+    await act("confirm", {instruction: number});
+    if (thenSend && view.state.mode === "manual") await act("perform", {instruction: number});
   };
   dialog.showModal();
 }
 
-function skip(instruction) {
+function skip(number) {
   const dialog = $("skip-dialog");
-  $("skip-number").textContent = instruction.number;
+  $("skip-number").textContent = number;
   $("skip-reason").value = "";
   dialog.returnValue = "";
   dialog.onclose = () => {
     const reason = $("skip-reason").value.trim();
-    if (dialog.returnValue === "skip" && reason) act("skip", {instruction: instruction.number, reason});
+    if (dialog.returnValue === "skip" && reason) act("skip", {instruction: number, reason});
   };
   dialog.showModal();
 }
@@ -439,13 +452,14 @@ function renderInstruction(item, state, mayAct) {
   item.dataset.status = status;
   item.classList.toggle("current", current);
   item.classList.toggle("has-breakpoint", state.breakpoints.includes(number));
-  item.querySelector(".breakpoint").disabled = !mayAct;
   const idle = mayAct && current && !state.executing;
   const failed = state.hold === "failure" || state.hold === "in_flight";
   const held = state.mode === "manual" || ["not_automatable", "confirmation", "breakpoint", "paused"].includes(state.hold);
   const kind = [...item.classList].find((c) => c.startsWith("kind-")).slice(5);
+  const own = (selector) => item.querySelector(`:scope > ${selector}`);  // not those of a called sub-procedure
+  own(".line > .breakpoint").disabled = !mayAct;
   const show = (selector, visible, enabled) => {
-    const node = item.querySelector(selector);
+    const node = own(`.instruction-controls > ${selector}`);
     if (!node) return;
     node.hidden = !visible;
     node.disabled = !enabled;
@@ -455,10 +469,11 @@ function renderInstruction(item, state, mayAct) {
   show(".confirm", state.live && current && state.hold === "confirmation", idle);
   show(".done", state.live, idle && kind === "manual");
   show(".record", state.live, idle);
-  for (const input of item.querySelectorAll(".record-value")) input.disabled = !idle;
+  const input = own(".instruction-controls > .record-value");
+  if (input) input.disabled = !idle;
   show(".retry", state.live && current && failed, idle);
   show(".skip", state.live && current, idle);
-  const mark = item.querySelector(".mark");
+  const mark = own(".mark");
   const who = details.actor ? ` by ${details.actor}` : "";
   const when = details.time ? ` at ${new Date(details.time).toLocaleTimeString()}` : "";
   const reason = details.reason ? ` — ${details.reason}` : "";
@@ -467,7 +482,7 @@ function renderInstruction(item, state, mayAct) {
     skipped: `⤼ skipped${who}${when}${reason}`, executing: `… in progress${who}`,
     active: current && state.reason ? `▶ ${state.reason}` : "",
   }[status] || "";
-  const detail = item.querySelector(".detail");
+  const detail = own(".detail");
   const parts = [];
   if (details.sent) parts.push(`sent ${details.sent.system}.${details.sent.command}(${formatArgs(details.sent.args)})`);
   if (details.result) {
