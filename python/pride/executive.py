@@ -650,6 +650,7 @@ class Executive:
         self._seq += 1
         event = Event(self.run_id, self._seq, kind, actor, instruction, data)
         self._journal.append(event)  # durable first: if this raises, the action does not happen
+        self._changed.notify_all()  # every event is a change someone may be waiting for
         for listener in list(self._listeners):
             try:
                 listener(event)

@@ -1,0 +1,349 @@
+"""PAX executive: every instruction kind, both modes, breakpoints, pause/stop, retry/skip, branching.
+
+The gateway is the lab bench double (a unit test of the executive alone); the end-to-end runs
+against a killable runner process are in test_runner.py.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+
+from conftest import FIXTURES
+from lab_gateway import LabGateway
+from pride.diagnostics import ProcedureError
+from pride.events import PAX, Event, EventKind
+from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
+from pride.parser import load_procedure
+
+TIMEOUT = 20.0
+
+
+class ListJournal:
+    """Keeps events in memory, in order (the audit log's contract without the database)."""
+
+    def __init__(self) -> None:
+        self.events: list[Event] = []
+
+    def append(self, event: Event) -> None:
+        self.events.append(event)
+
+    def kinds(self, number: str | None = None) -> list[EventKind]:
+        return [e.kind for e in self.events if number is None or e.instruction == number]
+
+
+@pytest.fixture
+def bench(tmp_path, sysreps):
+    made: list[Executive] = []
+
+    def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None):
+        gateway = gateway or LabGateway(str(tmp_path / "images"))
+        journal = ListJournal()
+        executive = Executive(load_procedure(FIXTURES / name), gateway, journal, run_id="run-1", mode=mode, sysreps=sysreps)
+        made.append(executive)
+        return executive, gateway, journal
+
+    yield make
+    for executive in made:
+        if executive.snapshot().status is RunStatus.ACTIVE:
+            executive.stop("teardown")
+        executive.join(TIMEOUT)
+
+
+def held(executive: Executive, hold: Hold, at: str) -> Snapshot:
+    snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, TIMEOUT)
+    assert snap is not None, "the run neither held nor ended"
+    assert (snap.hold, snap.current) == (hold, at), snap
+    return snap
+
+
+def finished(executive: Executive) -> Snapshot:
+    snap = executive.wait_for(lambda s: s.status is not RunStatus.ACTIVE, TIMEOUT)
+    assert snap is not None
+    return snap
+
+
+def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.start("alice")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    assert gateway.sent == []
+    assert executive.enter("alice", "dock") == "dock"
+    held(executive, Hold.CONFIRMATION, "2.1")
+    assert [c for _, c, _ in gateway.sent] == ["move"]
+    executive.confirm("bob")
+    held(executive, Hold.OPERATOR_ACTION, "2.4")
+    executive.mark_done("bob")
+    snap = finished(executive)
+
+    assert snap.status is RunStatus.COMPLETED
+    assert [(c, a) for _, c, a in gateway.sent] == [
+        ("move", {"target": "dock", "speed": 0.5}), ("vent", {}), ("capture", {"label": "dock_view"}),
+        ("count", {"n": 3}), ("move", {"target": "home", "speed": 1.0}),
+    ]
+    assert [e.seq for e in journal.events] == list(range(1, len(journal.events) + 1))
+    by = {(e.kind, e.instruction): e for e in journal.events}
+    assert by[(EventKind.OPERATOR_INPUT, "1.2")].actor == "alice"
+    assert by[(EventKind.CONFIRMATION, "2.1")].actor == "bob"
+    assert by[(EventKind.INSTRUCTION_COMPLETED, "2.4")].actor == "bob"
+    assert by[(EventKind.COMMAND_SENT, "2.1")].actor == PAX and by[(EventKind.COMMAND_SENT, "2.1")].data["hazardous"]
+    assert by[(EventKind.TELEMETRY_SEEN, "1.1")].data["value"] == 21.5  # verify within tolerance
+    assert by[(EventKind.INSTRUCTION_COMPLETED, "2.6")].data["went_to"] == "finish"  # branch on a command result
+    assert by[(EventKind.INSTRUCTION_COMPLETED, "4.2")].data["went_to"] == "done"  # branch on a recorded input
+    assert by[(EventKind.CALL_ENTERED, "4.1")].data["inputs"] == {"count": 3}
+    assert by[(EventKind.COMMAND_RESULT, "4.1/1.1")].data["values"] == {"total": 6}
+    assert snap.statuses["3.1"] is InstructionStatus.PENDING  # the recover step was branched around
+    assert snap.variables["photo"]["path"].endswith("dock_view.png")
+    assert journal.events[-1].kind is EventKind.RUN_COMPLETED
+
+
+def test_manual_mode_waits_for_the_operator_at_every_instruction(bench) -> None:
+    executive, gateway, journal = bench(Mode.MANUAL)
+    executive.start("carol")
+    held(executive, Hold.MANUAL_MODE, "1.1")
+    assert executive.wait_for(lambda s: s.executing or s.current != "1.1", 0.3) is None
+    executive.perform("carol")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("carol", "shelf")
+    held(executive, Hold.MANUAL_MODE, "1.3")
+    assert gateway.sent == []
+    executive.perform("carol")  # "Send"
+    held(executive, Hold.MANUAL_MODE, "1.4")
+    assert [c for _, c, _ in gateway.sent] == ["move"]
+    executive.perform("carol")
+    held(executive, Hold.MANUAL_MODE, "2.1")
+    with pytest.raises(OperatorActionError, match="hazardous command: confirm it first"):
+        executive.perform("carol")
+    executive.confirm("carol")
+    executive.perform("carol")
+    held(executive, Hold.MANUAL_MODE, "2.2")
+    sent = [e for e in journal.events if e.kind is EventKind.COMMAND_SENT]
+    assert [e.actor for e in sent] == ["carol", "carol"]
+    assert all(e.actor != PAX for e in journal.events if e.kind is EventKind.INSTRUCTION_STARTED)
+
+
+def test_operator_switches_modes_midway(bench) -> None:
+    executive, gateway, journal = bench(Mode.MANUAL)
+    executive.start("dave")
+    held(executive, Hold.MANUAL_MODE, "1.1")
+    executive.set_mode("dave", Mode.AUTONOMOUS)
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    assert [e.actor for e in journal.events if e.kind is EventKind.INSTRUCTION_STARTED] == [PAX]
+    executive.enter("dave", "dock")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    executive.set_mode("dave", Mode.MANUAL)
+    held(executive, Hold.MANUAL_MODE, "2.1")
+    assert [e.data["mode"] for e in journal.events if e.kind is EventKind.MODE_CHANGED] == ["autonomous", "manual"]
+
+
+def test_breakpoint_holds_then_step_and_continue(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.set_breakpoint("erin", "1.3")
+    executive.start("erin")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("erin", "dock")
+    held(executive, Hold.BREAKPOINT, "1.3")
+    assert gateway.sent == []
+    executive.step("erin")  # perform 1.3 only, then hold
+    held(executive, Hold.PAUSED, "1.4")
+    assert [c for _, c, _ in gateway.sent] == ["move"]
+    assert next(e for e in journal.events if e.kind is EventKind.COMMAND_SENT).actor == "erin"
+    executive.resume_automation("erin")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    kinds = journal.kinds()
+    assert kinds.index(EventKind.BREAKPOINT_SET) < kinds.index(EventKind.BREAKPOINT_HIT) < kinds.index(EventKind.CONTINUED)
+    with pytest.raises(OperatorActionError, match="no instruction '9.9'"):
+        executive.set_breakpoint("erin", "9.9")
+
+
+def test_pause_holds_automation_and_stop_ends_the_run(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.start("frank")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.pause("frank")
+    executive.enter("frank", "dock")
+    held(executive, Hold.PAUSED, "1.3")
+    assert gateway.sent == []
+    executive.stop("frank", "end of shift")
+    snap = finished(executive)
+    assert snap.status is RunStatus.STOPPED
+    assert journal.events[-1].kind is EventKind.RUN_STOPPED and journal.events[-1].data["reason"] == "end of shift"
+    with pytest.raises(OperatorActionError, match="stopped"):
+        executive.perform("frank")
+    assert gateway.sent == []
+
+
+def test_failed_command_holds_with_the_reason_until_retried(bench) -> None:
+    executive, gateway, journal = bench()
+    gateway.fail_next["move"] = "blocked by debris"
+    executive.start("gina")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("gina", "dock")
+    snap = held(executive, Hold.FAILURE, "1.3")
+    assert "blocked by debris" in snap.reason
+    assert snap.statuses["1.3"] is InstructionStatus.FAILED
+    assert snap.statuses["1.4"] is InstructionStatus.PENDING  # never runs on as if it had succeeded
+    failed = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED)
+    assert failed.data["next"] == "1.3"
+    with pytest.raises(OperatorActionError, match="retry or skip"):
+        executive.perform("gina")
+    executive.retry("gina")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    assert [c for _, c, _ in gateway.sent] == ["move", "move"]
+    assert journal.kinds("1.3").count(EventKind.INSTRUCTION_COMPLETED) == 1
+
+
+def test_failed_verify_branches_where_the_procedure_says(bench) -> None:
+    executive, gateway, journal = bench()
+    gateway.stale.add("door_open")  # the door sensor stopped reporting: a verify must not pass
+    executive.start("hank")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("hank", "dock")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    executive.confirm("hank")
+    held(executive, Hold.OPERATOR_ACTION, "3.1")  # the recover step
+    failed = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED)
+    assert (failed.instruction, failed.data["branch"], failed.data["next"]) == ("2.2", "recover", "3.1")
+    assert "stale" in failed.data["reason"]
+    seen = [e for e in journal.events if e.kind is EventKind.TELEMETRY_SEEN and e.instruction == "2.2"]
+    assert seen[-1].data["stale"] is True and seen[-1].data["ok"] is False
+    assert ("lab", "capture", {"label": "dock_view"}) not in gateway.sent
+
+
+def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.start("ivy")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    with pytest.raises(OperatorActionError, match="say why"):
+        executive.skip("ivy", "  ")
+    executive.skip("ivy", "target decided later")
+    snap = held(executive, Hold.FAILURE, "1.3")
+    assert "${target} is not bound" in snap.reason
+    assert gateway.sent == []
+    skipped = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_SKIPPED)
+    assert (skipped.actor, skipped.data["reason"]) == ("ivy", "target decided later")
+    executive.skip("ivy", "move by hand")
+    snap = held(executive, Hold.FAILURE, "1.4")  # nobody moved it: the wait for a new state fails
+    assert snap.statuses["1.3"] is InstructionStatus.SKIPPED
+    assert "lab.state was 'idle'" in snap.reason
+
+
+def test_record_rejects_values_outside_its_constraints(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.start("jack")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    with pytest.raises(OperatorActionError, match=r"'garage' is not one of \['dock', 'shelf'\]"):
+        executive.enter("jack", "garage")
+    assert executive.snapshot().current == "1.2"
+    assert EventKind.OPERATOR_INPUT not in journal.kinds()
+    with pytest.raises(OperatorActionError, match="is a record"):
+        executive.perform("jack")
+
+
+def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run(bench) -> None:
+    executive, gateway, journal = bench()
+    seen: list[tuple[int, bool]] = []
+
+    def observer(event: Event) -> None:
+        seen.append((event.seq, event in journal.events))
+
+    def broken(event: Event) -> None:
+        raise RuntimeError("observer bug")
+
+    executive.add_listener(broken)
+    executive.add_listener(observer)
+    executive.start("kim")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    assert seen and all(stored for _, stored in seen)
+    assert [s for s, _ in seen] == [e.seq for e in journal.events]
+
+
+def test_a_procedure_with_errors_does_not_start(sysreps) -> None:
+    procedure = load_procedure(FIXTURES / "broken" / "unknown_command.xml")
+    with pytest.raises(ProcedureError, match="unknown command 'mvoe'"):
+        Executive(procedure, LabGateway(), ListJournal(), run_id="r", sysreps=sysreps)
+
+
+def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path) -> None:
+    first, gateway, journal = bench()
+    gateway.block.add("vent")
+    first.start("lena")
+    held(first, Hold.OPERATOR_INPUT, "1.2")
+    first.enter("lena", "dock")
+    held(first, Hold.CONFIRMATION, "2.1")
+    first.confirm("lena")
+    assert first.wait_for(lambda s: s.executing and s.current == "2.1", TIMEOUT)
+    assert journal.events[-1].kind is EventKind.COMMAND_SENT  # sent, no answer yet: the "crash" point
+    log = list(journal.events)
+
+    second_gateway = LabGateway(str(tmp_path / "images"))
+    second_journal = ListJournal()
+    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), second_gateway, second_journal, log,
+                               "mia", sysreps=sysreps)
+    try:
+        snap = held(resumed, Hold.IN_FLIGHT, "2.1")
+        assert "no result was recorded" in snap.reason
+        assert snap.variables["target"] == "dock" and snap.variables["moved"]["arrived"] is True
+        assert second_gateway.sent == []  # not resent by itself
+        assert second_journal.events[0].kind is EventKind.RUN_RESUMED
+        assert second_journal.events[0].seq == log[-1].seq + 1
+        with pytest.raises(OperatorActionError, match="confirm it first"):
+            resumed.retry("mia")
+        resumed.confirm("mia")
+        resumed.retry("mia")
+        held(resumed, Hold.OPERATOR_ACTION, "2.4")
+        assert [c for _, c, _ in second_gateway.sent] == ["vent", "capture"]
+        assert next(e for e in second_journal.events if e.kind is EventKind.COMMAND_SENT).actor == "mia"
+    finally:
+        resumed.stop("teardown")
+        gateway.release.set()
+
+
+def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
+    executive, gateway, journal = bench()
+    executive.start("nina")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("nina", "dock")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    executive.confirm("nina")
+    held(executive, Hold.OPERATOR_ACTION, "2.4")
+    executive.mark_done("nina")
+    finished(executive)
+    cut = next(i for i, e in enumerate(journal.events)
+               if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "4.1/1.1")
+    log = journal.events[: cut + 1]
+
+    gateway2 = LabGateway()
+    journal2 = ListJournal()
+    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway2, journal2, log, "nina",
+                               sysreps=sysreps)
+    snap = finished(resumed)
+    assert snap.status is RunStatus.COMPLETED
+    assert [c for _, c, _ in gateway2.sent] == ["move"]  # only 5.1: nothing before the cut is repeated
+    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_STARTED] == ["4.1/1.2", "4.2", "5.1"]
+    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_COMPLETED][:2] == ["4.1/1.2", "4.1"]
+
+
+def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
+    executive, gateway, journal = bench()
+    executive.start("olga")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    outcomes: list[str] = []
+    barrier = threading.Barrier(4)
+
+    def answer(user: str) -> None:
+        barrier.wait()
+        try:
+            executive.enter(user, "dock")
+            outcomes.append("entered")
+        except OperatorActionError:
+            outcomes.append("refused")
+
+    threads = [threading.Thread(target=answer, args=(f"user{i}",)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(TIMEOUT)
+    assert outcomes.count("entered") == 1 and outcomes.count("refused") == 3
+    assert journal.kinds().count(EventKind.OPERATOR_INPUT) == 1
