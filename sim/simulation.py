@@ -83,6 +83,11 @@ class Simulation:
         self.gripper_joints = tuple(scene.robot.gripper.joints) if scene.robot.gripper else ()
         self.run: TrajectoryRun | None = None
         self._link_names = {j: name for name, j in self.world.link_index.items()}
+        self._self_pairs = self._self_collision_pairs()
+        self._self_links = sorted({link for pair in self._self_pairs for link in pair})
+        # The links that hold a grasped filter and may touch it: the fingers and their palm.
+        self._gripper_links = set(self.gripper.fingers) if self.gripper else set()
+        self._gripper_links |= {p.getJointInfo(self.robot, f, physicsClientId=self.client)[16] for f in self._gripper_links}
         self.filters.hold_kinematic()
 
     # ------------------------------------------------------------------ commands (world_lock held by caller)
@@ -223,13 +228,49 @@ class Simulation:
             if depth > -PENETRATION or link == -1 or other == self.robot or other == held_body:
                 continue
             return ErrorCode.COLLISION, f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)"
+        # Exact distance queries are costly; only pairs whose bounding boxes overlap need one.
+        boxes = {link: p.getAABB(self.robot, link, physicsClientId=self.client) for link in self._self_links}
+        for a, b in self._self_pairs:
+            (amin, amax), (bmin, bmax) = boxes[a], boxes[b]
+            if any(amin[k] > bmax[k] or bmin[k] > amax[k] for k in range(3)):
+                continue
+            points = p.getClosestPoints(self.robot, self.robot, -PENETRATION, linkIndexA=a, linkIndexB=b, physicsClientId=self.client)
+            if points:
+                return ErrorCode.COLLISION, (
+                    f"self-collision: {robot_name}/{self._link_names.get(a, a)} hit {robot_name}/{self._link_names.get(b, b)} "
+                    f"({-points[0][8] * 1000:.1f} mm deep)"
+                )
         if held_body is not None:
             for c in p.getContactPoints(bodyA=held_body, physicsClientId=self.client):
-                other, depth = c[2], c[8]
-                if depth > -PENETRATION or other == self.robot:
+                other, other_link, depth = c[2], c[4], c[8]
+                if depth > -PENETRATION or (other == self.robot and other_link in self._gripper_links):
                     continue
-                return ErrorCode.COLLISION, f"collision: held filter/{held.id} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)"  # type: ignore[union-attr]
+                what = f"{robot_name}/{self._link_names.get(other_link, other_link)}" if other == self.robot else self.world.body_name(other)
+                return ErrorCode.COLLISION, f"collision: held filter/{held.id} hit {what} ({-depth * 1000:.1f} mm deep)"  # type: ignore[union-attr]
         return None
+
+    def _self_collision_pairs(self) -> list[tuple[int, int]]:
+        """Link pairs of the robot that must never touch.
+
+        Left out, as MoveIt's allowed-collision matrix would: links joined by a joint, pairs
+        already touching in the initial configuration (e.g. the gripper bolted to the wrist),
+        and the gripper's own parts (fingers touch each other when closed).
+        """
+        robot, client = self.robot, self.client
+        with_shapes = [link for link in [-1, *range(p.getNumJoints(robot, physicsClientId=client))] if p.getCollisionShapeData(robot, link, physicsClientId=client)]
+        parent = {j: p.getJointInfo(robot, j, physicsClientId=client)[16] for j in range(p.getNumJoints(robot, physicsClientId=client))}
+        gripper = set(self.gripper.fingers) if self.gripper else set()
+        if gripper:
+            gripper |= {parent[f] for f in gripper}
+        pairs = []
+        for i, a in enumerate(with_shapes):
+            for b in with_shapes[i + 1:]:
+                if parent.get(b) == a or parent.get(a) == b or (a in gripper and b in gripper):
+                    continue
+                if p.getClosestPoints(robot, robot, 0.0, linkIndexA=a, linkIndexB=b, physicsClientId=client):
+                    continue
+                pairs.append((a, b))
+        return pairs
 
     def close(self) -> None:
         p.disconnect(physicsClientId=self.client)

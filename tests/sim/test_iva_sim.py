@@ -100,6 +100,15 @@ def test_collision_aborts_and_says_what_collided(client: SimClient, model: ArmMo
     assert_ok(move_to(client, model, [HOME]))
 
 
+def test_self_collision_aborts_and_names_both_links(client: SimClient, model: ArmModel) -> None:
+    # Fold the forearm down beside the upper arm: the wrist swings into the shoulder.
+    folded = [0.0, -2.2, 3.1, -1.570796, 0.0, 0.0]
+    result = move_to(client, model, [folded])
+    assert result.error_code == ErrorCode.COLLISION, result.error_string
+    assert result.error_string.startswith("self-collision: ur10/shoulder_link hit ur10/")
+    assert_ok(move_to(client, model, [HOME]))
+
+
 def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(client: SimClient, model: ArmModel) -> None:
     dirty = "CDRA-F-0007"
     client.wait_value("/cdra/filter_locked", True)
