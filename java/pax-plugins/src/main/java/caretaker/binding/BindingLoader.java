@@ -103,7 +103,12 @@ public final class BindingLoader {
         }
         List<String> plugins = new ArrayList<>();
         for (Object plugin : pluginList) {
-            plugins.add(string(path, where + ".plugins", plugin));
+            String name = string(path, where + ".plugins", plugin);
+            if (!PluginKind.names().contains(name) && !name.contains(".")) {
+                throw new BindingException(path + ": " + where + ": unknown plugin '" + name + "' (built in: "
+                        + String.join(", ", PluginKind.names()) + "; or a class name)");
+            }
+            plugins.add(name);
         }
         String namespace = entry.containsKey("namespace") ? string(path, where + ".namespace", entry.get("namespace"))
                 : "";
@@ -118,8 +123,13 @@ public final class BindingLoader {
         }
         Map<String, Object> typed = new java.util.LinkedHashMap<>();
         optionMap.forEach((key, value) -> typed.put(String.valueOf(key), value));
-        return new SystemBinding(sysRep, plugins, bridge, namespace, new PluginOptions(typed, path + ": " + where),
-                path + ": " + where);
+        PluginOptions pluginOptions = new PluginOptions(typed, path + ": " + where);
+        try {
+            PluginKind.checkOptions(plugins, pluginOptions);
+        } catch (caretaker.pax.PluginException e) {
+            throw new BindingException(e.getMessage(), e);
+        }
+        return new SystemBinding(sysRep, plugins, bridge, namespace, pluginOptions, path + ": " + where);
     }
 
     private static void requireKeys(String path, String where, Map<?, ?> map, Set<String> allowed) {

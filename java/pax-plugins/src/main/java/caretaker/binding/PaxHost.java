@@ -89,7 +89,6 @@ public final class PaxHost implements AutoCloseable {
                     k -> new LinkedHashMap<>());
             Map<String, TelemetryPlugin> items = telemetryPlugins.computeIfAbsent(sysRep.id(),
                     k -> new LinkedHashMap<>());
-            PluginKind.checkOptions(system.plugins(), system.options());
             for (String name : system.plugins()) {
                 AutoCloseable plugin = PluginKind.create(name, new PluginContext(sysRep, ros, system.namespace(),
                         system.options()));

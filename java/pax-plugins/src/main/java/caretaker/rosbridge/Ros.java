@@ -167,7 +167,7 @@ public final class Ros implements AutoCloseable {
         Throwable root = error;
         while (root.getCause() != null && root.getCause() != root) {
             if (root instanceof java.net.ConnectException) {
-                return "connection refused (is a server listening there?)";
+                return "connection refused";
             }
             root = root.getCause();
         }

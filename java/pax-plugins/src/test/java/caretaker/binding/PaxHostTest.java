@@ -52,6 +52,11 @@ class PaxHostTest {
                 + Repo.path("sysrep/cdra.yaml") + "\n  plugins: [ros_convention]\n  namspace: /c\n");
         BindingException key = assertThrows(BindingException.class, () -> BindingLoader.load(file, null));
         assertTrue(key.getMessage().contains("systems[0]: unknown key 'namspace'"), key.getMessage());
+        Files.writeString(file, "robot: x\nrosbridge: ws://127.0.0.1:1\nsystems:\n- sysrep: "
+                + Repo.path("sysrep/affordance_templates.yaml") + "\n  plugins: [at_commands, at_telemetry]\n"
+                + "  options: {stale_afte: 1}\n");
+        BindingException option = assertThrows(BindingException.class, () -> BindingLoader.load(file, null));
+        assertTrue(option.getMessage().contains("no option 'stale_afte'"), option.getMessage());
         Files.writeString(file, "robot: x\nrosbridge: http://h\nsystems: []\n");
         assertTrue(assertThrows(BindingException.class, () -> BindingLoader.load(file, null)).getMessage()
                 .contains("not a rosbridge URL"));
