@@ -33,6 +33,7 @@ class LabGateway:
         self._listeners: list[Any] = []
         self._lock = threading.Lock()
         self.closed = False
+        self.announce = False  # print a line per command, for a runner subprocess's output
 
     def sysreps(self) -> list[str]:
         return ["lab"]
@@ -47,7 +48,8 @@ class LabGateway:
         assert sysrep_id == "lab", sysrep_id
         with self._lock:
             self.sent.append((sysrep_id, command_id, dict(args)))
-        print(f"LAB executing {command_id}", flush=True)
+        if self.announce:
+            print(f"LAB executing {command_id}", flush=True)
         if command_id in self.block:
             self.release.wait()
         if command_id in self.fail_next:
@@ -90,6 +92,7 @@ def _png(width: int, height: int) -> bytes:
 def open_lab(binding_path: str) -> LabGateway:
     """Gateway factory for ``PRIDE_GATEWAY=lab_gateway:open_lab``."""
     gateway = LabGateway()
+    gateway.announce = True
     blocked = os.environ.get("LAB_GATEWAY_BLOCK")
     if blocked:
         gateway.block.add(blocked)
