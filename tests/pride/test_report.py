@@ -1,0 +1,71 @@
+"""`caretaker report RUN`: HTML and Markdown with every step, who did what, telemetry, timeline, images."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from lxml import etree
+
+from conftest import FIXTURES
+from lab_gateway import LabGateway
+from pride.audit_log import AuditLog
+from pride.executive import Executive, Hold, Mode, RunStatus
+from pride.parser import load_procedure
+
+
+def _complete_run(tmp_path: Path, sysreps) -> tuple[str, str]:
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    log = AuditLog(db)
+    executive = Executive(load_procedure(FIXTURES / "lab_all_kinds.xml"), LabGateway(str(tmp_path / "images")), log,
+                          run_id="report-run", mode=Mode.AUTONOMOUS, sysreps=sysreps)
+    executive.start("alice")
+    answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
+               Hold.CONFIRMATION: lambda: executive.confirm("bob"),
+               Hold.OPERATOR_ACTION: lambda: executive.mark_done("bob")}
+    while True:
+        snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, 20)
+        assert snap is not None
+        if snap.status is not RunStatus.ACTIVE:
+            break
+        answers[snap.hold]()
+    executive.join(20)
+    assert snap.status is RunStatus.COMPLETED
+    return db, "report-run"
+
+
+def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, sysreps) -> None:
+    db, run_id = _complete_run(tmp_path, sysreps)
+    out = tmp_path / "reports"
+    proc = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, "--out", str(out)],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    html_path, md_path = (Path(p) for p in proc.stdout.split())
+    html_text, markdown = html_path.read_text(), md_path.read_text()
+    for title in ("Prepare the bench", "Inspect", "Recover", "Finish", "Done"):
+        assert title in html_text and title in markdown
+    assert "| 3 | Recover | not reached |" in markdown
+    rows = {line.split(" | ")[1]: line for line in markdown.splitlines() if line.startswith("| ") and " | " in line}
+    assert rows["Prepare the bench"].endswith("| 4 | 0 | 0 | PAX, alice |")
+    assert rows["Inspect"].endswith("| 6 | 0 | 0 | PAX, bob |")
+    assert "recorded target = &#x27;dock&#x27;" in html_text or "recorded target = 'dock'" in html_text
+    assert "| lab.door_open | `True` | = true | ok |" in markdown
+    assert "**completed**" in markdown
+
+    document = etree.HTML(html_text)
+    svg = document.find(".//svg")
+    assert svg is not None and len(svg.findall("rect")) >= 4  # one bar per visited step
+    images = document.findall(".//img")
+    assert len(images) == 1
+    copied = html_path.parent / images[0].get("src")
+    assert copied.read_bytes().startswith(b"\x89PNG")
+    assert f"![dock_view]({images[0].get('src')})" in markdown
+    assert (out / f"{run_id}-timeline.svg").read_text().startswith("<svg")
+
+
+def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", "nope", "--db", f"sqlite:///{tmp_path}/a.db",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert "no run 'nope'" in proc.stderr
