@@ -1,0 +1,87 @@
+"""The simulation in-process (no ROS): determinism, grasp/release physics, scene-file errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sim.scene import SceneError, load_scene
+from sim.simulation import Simulation
+from sim.trajectory import validate_trajectory
+
+from arm_paths import ArmModel
+
+HOME = [0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0]
+
+
+def run_to(sim: Simulation, waypoints: list[list[float]], model: ArmModel, speed: float = 0.3) -> None:
+    current = tuple(sim.arm_positions)
+    points = [(t, q, []) for t, q in model.timed(waypoints, current, speed)]
+    run = sim.start_trajectory(validate_trajectory(list(sim.arm_joints), points, limits=sim.limits, controller_joints=sim.arm_joints, current=current), 0.0)
+    while not run.done.is_set():
+        sim.step()
+    assert run.error_code == 0, run.error_string
+
+
+def set_gripper(sim: Simulation, pose: str) -> str:
+    assert sim.gripper is not None
+    motion = sim.gripper.start(pose)
+    while not motion.done.is_set():
+        sim.step()
+    assert motion.success, motion.message
+    return motion.message
+
+
+def pick_and_drop(model: ArmModel, lift: float) -> tuple[tuple[float, ...], tuple[float, ...], str]:
+    """Take the clean filter out of rack slot 1 and open the gripper ``lift`` m short of the slot."""
+    sim = Simulation(load_scene("iva"), seed=3)
+    try:
+        line = model.slot_line("rack/slot_1", 0.15, 0.0, HOME)
+        run_to(sim, [line[0]], model)
+        run_to(sim, line[1:], model, 0.1)
+        assert set_gripper(sim, "closed") == "closed on CDRA-F-0012"
+        out = model.slot_line("rack/slot_1", 0.0, lift, line[-1])
+        run_to(sim, out[1:], model, 0.1)
+        message = set_gripper(sim, "open")
+        for _ in range(int(2.0 / sim.dt)):  # two seconds to fall and settle
+            sim.step()
+        pos, orn = sim.filters.pose("CDRA-F-0012")
+        return pos, orn, message
+    finally:
+        sim.close()
+
+
+@pytest.fixture(scope="module")
+def model() -> ArmModel:
+    m = ArmModel("iva")
+    yield m
+    m.close()
+
+
+def test_a_filter_released_in_the_air_falls_and_the_same_run_gives_the_same_pose(model: ArmModel) -> None:
+    first = pick_and_drop(model, 0.30)
+    second = pick_and_drop(model, 0.30)
+    assert first[2].startswith("CDRA-F-0012 released (free)")
+    pos, _, _ = first
+    assert pos[2] < 0.8, f"released filter did not fall (z = {pos[2]:.3f})"
+    assert first[:2] == second[:2], "two identical runs diverged"
+
+
+def test_a_filter_released_inside_its_slot_is_seated(model: ArmModel) -> None:
+    pos, _, message = pick_and_drop(model, 0.01)
+    assert message.startswith("CDRA-F-0012 seated in rack/slot_1")
+    assert pos == pytest.approx(model.scene.slots["rack/slot_1"].pose.xyz, abs=1e-6)
+
+
+def test_scene_file_errors_name_the_file_and_key(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    text = (Path(__file__).resolve().parents[2] / "sim" / "scenes" / "iva.yaml").read_text()
+    bad.write_text(text.replace("slot: rack/slot_2}", "slot: rack/slot_9}"))
+    with pytest.raises(SceneError, match=r"bad\.yaml: filters\[1\]\.slot: unknown slot 'rack/slot_9'"):
+        load_scene(bad)
+    bad.write_text(text.replace("xyz: [0.0, 0.0, 0.75]", "xyz: [0.0, 0.75]"))
+    with pytest.raises(SceneError, match=r"robot\.base\.xyz: expected a list of 3 numbers"):
+        load_scene(bad)
+    with pytest.raises(SceneError, match="unknown scene 'moon'"):
+        load_scene("moon")
