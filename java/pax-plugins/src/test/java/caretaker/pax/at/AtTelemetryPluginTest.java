@@ -99,7 +99,9 @@ class AtTelemetryPluginTest {
         assertEquals("PLANNED", plugin.value("plan_status").value());
         assertFalse(plugin.value("affordance_template_server_active").stale());
         publishStatus("IDLE");
-        awaitChange("affordance_template_server_active=true");
+        // plan_valid is the last item a status updates: once it is fresh, all are.
+        awaitChange("plan_valid=true");
+        assertEquals(true, plugin.value("affordance_template_server_active").value());
         assertFalse(plugin.value("plan_status").stale());
         assertEquals("IDLE", plugin.value("plan_status").value());
     }
