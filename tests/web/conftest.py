@@ -44,10 +44,12 @@ def start_server(tmp: Path, procedures: Path, *extra: str) -> WebServer:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
     env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
+    env["SIMULATED_MOTION_S"] = "0.6"
     db = tmp / "audit.db"
     process = caretaker(
         "serve", "--port", "0", "--db", f"sqlite:///{db}", "--procedures", str(procedures),
-        "--reports", str(tmp / "reports"), *extra, env=env, name="serve",
+        "--reports", str(tmp / "reports"), "--camera", "ee_camera", "--camera-period", "0.1", *extra,
+        env=env, name="serve",
     )
     try:
         process.wait_ready(60)

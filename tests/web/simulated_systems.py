@@ -9,6 +9,7 @@ camera writes a real PNG. The robot side itself is tested by its own suites.
 
 from __future__ import annotations
 
+import os
 import struct
 import tempfile
 import threading
@@ -64,6 +65,9 @@ class SimulatedSystems:
         }
         self._images = Path(tempfile.mkdtemp(prefix="caretaker-web-camera-"))
         self._captures = 0
+        #: how long an execute_plan "moves the robot" (the web view's live camera captures meanwhile)
+        self._motion_s = float(os.environ.get("SIMULATED_MOTION_S", "0"))
+        self._motion = threading.Event()  # never set: waiting on it is the motion's duration
         self._instances: dict[str, int] = {}
         self._frames: dict[str, str] = {}
 
@@ -113,6 +117,7 @@ class SimulatedSystems:
                                                    "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
         if command_id == "execute_plan":
             self._set("affordance_templates", "execute_status", "EXECUTING")
+            self._motion.wait(self._motion_s)
             at_cabinet = self._frames.get(template) == "cabinet/slot"
             if at_cabinet and args.get("trajectory") == "grasp_and_pull":
                 self._set("cdra", "filter_present", False)

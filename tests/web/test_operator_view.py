@@ -198,6 +198,9 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     alice.click("#start-button")
     expect(alice.locator("#connection")).to_have_attribute("data-state", "open")
 
+    # while the arm moves to target A, the camera view follows it (live captures, not in the log)
+    expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"live view while the robot moves .*_web_view\.png"))
+
     # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
     assessment = instruction(alice, "2.1/2.2")
     expect(assessment).to_have_class(re.compile(r"\bcurrent\b"))

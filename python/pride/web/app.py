@@ -193,17 +193,18 @@ async def run_camera(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     run_id = request.path_params["run_id"]
     live = board.live(run_id)
-    image = live.latest_image() if live else _past_image(board, run_id)
+    camera = live.camera() if live else _past_image(board, run_id)
+    image = camera[0] if camera else None
     if image is None:
-        raise ActionRefused(404, "no camera image yet: none of this run's command results named a PNG")
+        raise ActionRefused(404, "no camera image yet: no command result named a PNG and the live feed captured none")
     if not image.is_file():
         raise ActionRefused(404, f"the camera image {image} does not exist on this server")
     return FileResponse(image, media_type="image/png", headers={"Cache-Control": "no-store"})
 
 
-def _past_image(board: RunBoard, run_id: str) -> Path | None:
+def _past_image(board: RunBoard, run_id: str) -> tuple[Path, Any] | None:
     image = fold_events(run_id, board.past_events(run_id)).latest_image
-    return Path(image) if image else None
+    return (Path(image), None) if image else None
 
 
 # ---- live updates ---------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from pride.events import Event
 from pride.executive import Executive, Snapshot
 from pride.model import Procedure
 from pride.systems import SystemGateway
+from pride.web.camera_feed import CameraFeed
 from pride.web.procedure_view import procedure_json, telemetry_references
 from pride.web.run_state import RunState
 
@@ -50,12 +51,14 @@ class LiveRun:
         *,
         binding: str,
         started_by: str,
+        camera_feed: CameraFeed | None = None,
     ) -> None:
         self.executive = executive
         self.gateway = gateway
         self.procedure = procedure
         self.binding = binding
         self.started_by = started_by
+        self.camera_feed = camera_feed
         self.procedure_view = procedure_json(procedure)
         self._references = sorted(telemetry_references(procedure))
         self._lock = threading.Lock()  # guards _events, _state, _telemetry, _watchers
@@ -64,6 +67,8 @@ class LiveRun:
         self._telemetry: dict[str, dict[str, Any]] = {}
         self._watchers: set[Watcher] = set()
         executive.add_listener(self._event_callback)
+        if camera_feed is not None:
+            executive.add_listener(camera_feed.event_callback)
         gateway.add_listener(self._telemetry_callback)
 
     @property
@@ -112,18 +117,27 @@ class LiveRun:
         with self._lock:
             return [e for e in self._events if e.seq > seq]
 
-    def latest_image(self) -> Path | None:
+    def camera(self) -> tuple[Path, dict[str, Any]] | None:
+        """The newest camera image, from the procedure's captures or the live feed, and its caption."""
         with self._lock:
-            image = self._state.latest_image
-        return Path(image) if image else None
+            image, from_result = self._state.latest_image, self._state.camera_json()
+            event = self._state.latest_image_event
+        live = self.camera_feed.latest() if self.camera_feed is not None else None
+        if live is not None and (event is None or live.time > event.time.timestamp()):
+            caption = f"live view while the robot moves · {time.strftime('%H:%M:%S', time.gmtime(live.time))} UTC · {live.path}"
+            return live.path, {"version": f"live{live.seq}", "caption": caption}
+        if image is None or from_result is None:
+            return None
+        return Path(image), from_result
 
     def state_json(self) -> dict[str, Any]:
         """The run as the page draws it: the executive's snapshot plus who did what, when."""
         snapshot = self.executive.snapshot()
         with self._lock:
             details = self._state.to_dict()
+        camera = self.camera()
         return {
-            **details, **snapshot_json(snapshot),
+            **details, **snapshot_json(snapshot), "camera": camera[1] if camera else None,
             "binding": self.binding, "started_by": self.started_by, "live": True,
         }
 

@@ -25,11 +25,20 @@ from pride.parser import load_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import gateway_system_ids, open_gateway
 from pride.web.actions import ActionRefused
+from pride.web.camera_feed import CameraFeed
 from pride.web.live_run import LiveRun
 
-__all__ = ["Catalog", "RunBoard"]
+__all__ = ["CameraSettings", "Catalog", "RunBoard"]
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CameraSettings:
+    """Which camera the live feed captures while the robot moves (None: no live feed), how often."""
+
+    camera: str | None = None
+    period: float = 0.5
 
 
 @dataclass(frozen=True)
@@ -62,9 +71,10 @@ def _choose(directory: Path, name: str, known: list[str], what: str) -> Path:
 class RunBoard:
     """Live runs by id, and the audit log they all write to."""
 
-    def __init__(self, catalog: Catalog, audit_log: AuditLog) -> None:
+    def __init__(self, catalog: Catalog, audit_log: AuditLog, camera: CameraSettings = CameraSettings()) -> None:
         self.catalog = catalog
         self.audit_log = audit_log
+        self.camera = camera
         self._lock = threading.Lock()  # guards _live
         self._live: dict[str, LiveRun] = {}
 
@@ -91,7 +101,10 @@ class RunBoard:
             raise ActionRefused(422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses")
         run_id = f"{procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         executive = Executive(procedure, gateway, self.audit_log, run_id=run_id, mode=mode, sysreps=sysreps)
-        live = LiveRun(executive, gateway, procedure, binding=binding_name, started_by=user)
+        feed = None
+        if self.camera.camera is not None and CameraFeed.available(gateway):
+            feed = CameraFeed(gateway, self.camera.camera, period=self.camera.period)
+        live = LiveRun(executive, gateway, procedure, binding=binding_name, started_by=user, camera_feed=feed)
         with self._lock:
             self._live[run_id] = live
         executive.start(user)
@@ -141,6 +154,8 @@ class RunBoard:
                     log.exception("stopping run %s", live.run_id)
             # a command in flight finishes and is recorded before its gateway closes
             live.executive.wait_for(lambda snapshot: not snapshot.executing, timeout=10)
+            if live.camera_feed is not None:
+                live.camera_feed.close()
             try:
                 live.gateway.close()
             except Exception:

@@ -48,6 +48,7 @@ class RunState:
     breakpoints: set[str] = field(default_factory=set)
     instructions: dict[str, InstructionState] = field(default_factory=dict)
     latest_image: str | None = None
+    latest_image_event: Event | None = None
     last_seq: int = 0
 
     def to_dict(self) -> dict[str, Any]:
@@ -56,8 +57,15 @@ class RunState:
             "status": self.status, "started_by": self.started_by, "current": self.current,
             "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints),
             "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
-            "has_image": self.latest_image is not None, "last_seq": self.last_seq,
+            "camera": self.camera_json(), "last_seq": self.last_seq,
         }
+
+    def camera_json(self) -> dict[str, Any] | None:
+        """The newest image a command result named, as the page's camera view shows it."""
+        event = self.latest_image_event
+        if event is None:
+            return None
+        return {"version": f"seq{event.seq}", "caption": f"{event.instruction} · {event.time:%H:%M:%S} UTC · {self.latest_image}"}
 
     def apply(self, event: Event) -> None:
         """Fold one more event in (events arrive in sequence order)."""
@@ -111,7 +119,7 @@ class RunState:
             entry.result = dict(data)
             image = _image_path(data)
             if image:
-                self.latest_image = image
+                self.latest_image, self.latest_image_event = image, event
         elif kind is EventKind.OPERATOR_INPUT:
             entry.value = data.get("value")
         elif kind is EventKind.TELEMETRY_SEEN:

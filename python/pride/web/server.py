@@ -18,7 +18,7 @@ from pride.audit_log import DEFAULT_DB, AuditLog
 from pride.web.accounts import EXAMPLE_ACCOUNTS, AccountsError, load_accounts
 from pride.web.app import build_app
 from pride.web.reports import report_writer
-from pride.web.run_board import Catalog, RunBoard
+from pride.web.run_board import CameraSettings, Catalog, RunBoard
 from pride.web.sign_in import SignIns
 
 __all__ = ["main"]
@@ -51,6 +51,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
     parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
+    parser.add_argument("--camera", metavar="NAME",
+                        help="camera to show while the robot moves (e.g. ee_camera, scene), when the binding serves the camera SysRep")
+    parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
     parser.add_argument("--reports", type=Path, default=REPO / "var" / "reports", help="where after-action reports are written")
     return parser
 
@@ -71,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.address not in ("127.0.0.1", "localhost", "::1"):
         log.warning("serving on %s: the web view is reachable beyond this machine", args.address)
     audit_log = AuditLog(args.db)
-    board = RunBoard(Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve()), audit_log)
+    catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
+    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period))
     app = build_app(board, SignIns(accounts), report_writer=report_writer(audit_log, args.reports))
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)

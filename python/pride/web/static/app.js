@@ -518,23 +518,13 @@ function renderTelemetry() {
 setInterval(renderTelemetry, 500);
 
 function renderCamera() {
+  const camera = view.state.camera;
+  if (!camera || camera.version === view.lastImageSeq) return;
+  view.lastImageSeq = camera.version;
   const image = $("camera");
-  const imageEvents = view.events.filter((e) => e.kind === "command_result" && pngIn(e.data));
-  if (!imageEvents.length) return;
-  const latest = imageEvents[imageEvents.length - 1];
-  if (latest.seq === view.lastImageSeq) return;
-  view.lastImageSeq = latest.seq;
-  image.src = `/api/runs/${encodeURIComponent(view.runId)}/camera?seq=${latest.seq}`;
+  image.src = `/api/runs/${encodeURIComponent(view.runId)}/camera?v=${encodeURIComponent(camera.version)}`;
   image.hidden = false;
-  $("camera-caption").textContent = `${latest.instruction} · ${new Date(latest.time).toLocaleTimeString()} · ${pngIn(latest.data)}`;
-}
-
-function pngIn(data) {
-  const values = data.values || {};
-  for (const key of ["image_path", "image", "path"]) {
-    if (typeof values[key] === "string" && values[key].toLowerCase().endsWith(".png")) return values[key];
-  }
-  return null;
+  $("camera-caption").textContent = camera.caption;
 }
 
 // The end pose of the last planned trajectory, drawn top-down (x right, y up) with its height.
