@@ -77,6 +77,7 @@ def run_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker run", description="run a procedure with PAX")
     parser.add_argument("procedure", nargs="?", metavar="PROC", help="procedure XML (not needed with --resume)")
     parser.add_argument("--binding", required=True, metavar="FILE", help="which plugins serve which SysRep")
+    parser.add_argument("--rosbridge", metavar="URL", help="override the binding's rosbridge URL (e.g. ws://127.0.0.1:9091)")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--auto", action="store_const", const=Mode.AUTONOMOUS, dest="mode", help="PAX runs automatable instructions")
     mode.add_argument("--manual", action="store_const", const=Mode.MANUAL, dest="mode", help="the operator performs every instruction")
@@ -118,7 +119,7 @@ def run_main(argv: list[str] | None = None) -> int:
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
     procedure = load_procedure(path)
-    gateway = open_gateway(args.binding)
+    gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     try:
         missing = {s for s, _ in procedure.uses} - gateway_system_ids(gateway)
         if missing:

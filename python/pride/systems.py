@@ -70,8 +70,11 @@ def gateway_system_ids(gateway: SystemGateway) -> set[str]:
     return {item if isinstance(item, str) else str(getattr(item, "id")) for item in items}
 
 
-def open_gateway(binding_path: str) -> SystemGateway:
-    """Open the gateway for a binding file: the PAX host, or the factory named by ``PRIDE_GATEWAY``."""
+def open_gateway(binding_path: str, *, rosbridge_url: str | None = None) -> SystemGateway:
+    """Open the gateway for a binding file: the PAX host, or the factory named by ``PRIDE_GATEWAY``.
+
+    ``rosbridge_url`` replaces the binding's rosbridge address (a robot served on another port).
+    """
     spec = os.environ.get(GATEWAY_ENV)
     if spec:
         module_name, _, factory_name = spec.partition(":")
@@ -81,4 +84,4 @@ def open_gateway(binding_path: str) -> SystemGateway:
         return factory(binding_path)
     from bridge.pax_host import PaxHost  # the JVM loads only when a real run needs it
 
-    return PaxHost(binding_path)
+    return PaxHost(binding_path, rosbridge_url=rosbridge_url) if rosbridge_url else PaxHost(binding_path)
