@@ -136,9 +136,14 @@ class SimClient:
             pt.time_from_start = Duration(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) if math.isfinite(t) else 0)
             goal.trajectory.points.append(pt)
         goal.goal_tolerance = tolerance
-        handle = self._wait_future(self.trajectory_client.send_goal_async(goal, feedback_callback=lambda fb: self.feedback.append(fb.feedback)), "send goal")
+        handle = self._wait_future(self.trajectory_client.send_goal_async(goal, feedback_callback=self._feedback_callback), "send goal")
         assert handle.accepted, "goal not accepted"
         return self._wait_future(handle.get_result_async(), "trajectory result").result
+
+    def _feedback_callback(self, message: Any) -> None:
+        with self._changed:
+            self.feedback.append(message.feedback)
+            self._changed.notify_all()
 
     def _call(self, client: Any, request: Any, what: str) -> Any:
         if not client.wait_for_service(timeout_sec=TIMEOUT):

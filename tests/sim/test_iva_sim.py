@@ -48,8 +48,9 @@ def test_valid_trajectory_reaches_its_goal_with_feedback(client: SimClient, mode
     assert_ok(result)
     assert "reached the goal" in result.error_string
     assert close_to(client.joint_positions(ARM), goal, 1e-3)
-    assert client.feedback, "no feedback during a 1.2 s trajectory"
+    client.wait_for(lambda: any(fb.time_from_start >= 1.2 for fb in client.feedback), "feedback from the end of the trajectory")
     assert list(client.feedback[-1].joint_names) == ARM
+    assert close_to(client.feedback[-1].actual, goal, 1e-3)
     assert_ok(move_to(client, model, [HOME]))
     assert close_to(client.joint_positions(ARM), HOME, 1e-3)
     client.wait_value("/robot/moving", False)
