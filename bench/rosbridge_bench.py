@@ -1,0 +1,421 @@
+"""Benchmark: this rosbridge server vs the Rust ``rosbridge-server-rs``, side by side, raw JSON.
+
+Both servers run in this one invocation against the same ROS echo node (a separate process),
+driven by bare WebSocket clients (no client library in the loop):
+
+* round trip through the echo node, 32 messages in flight, at 64 B, 1 KiB and 64 KiB:
+  messages/s and the share lost;
+* RTT percentiles (p50/p95/p99) with 1 message in flight (64 B);
+* ``call_service`` with 32 calls in flight: calls/s and RTT percentiles;
+* fan-out of a 100 Hz topic to 1, 10 and 50 subscribers: messages lost, p95 delivery latency;
+* server RSS (MiB) at the end.
+
+Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust]``.
+The Rust peer runs as the notes' recipe says: a ``librmw_implementation.so`` symlink to the
+venv's ``librmw_fastrtps_cpp.so`` on ``LD_LIBRARY_PATH``, ``LD_PRELOAD`` of libpython,
+``--no-rosapi``, bound to loopback; its wheel ships the binary without the execute bit, so it
+is started through the dynamic loader.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import json
+import os
+import re
+import socket
+import statistics
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+VENV = REPO / ".venv"
+IN_FLIGHT = 32
+SIZES = {"64 B": 64, "1 KiB": 1024, "64 KiB": 65536}
+FANOUT_CLIENTS = (1, 10, 50)
+FANOUT_HZ = 100
+
+
+# --- the ROS echo node (runs as its own process: ``--echo-node``) --------------------------------
+
+def echo_node() -> int:
+    import threading
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.experimental import EventsExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile
+    from std_msgs.msg import String
+    from std_srvs.srv import SetBool, Trigger
+
+    class EchoNode(Node):
+        """Echoes /bench/in to /bench/out, answers /bench/echo_srv, publishes fan-out bursts."""
+
+        def __init__(self) -> None:
+            super().__init__("bench_echo")
+            deep = QoSProfile(depth=1000)
+            self.out = self.create_publisher(String, "/bench/out", deep)
+            self.create_subscription(String, "/bench/in", self.echo_callback, deep)
+            self.create_service(SetBool, "/bench/echo_srv", self.service_callback, qos_profile=deep)
+            self.fanout = self.create_publisher(String, "/bench/fanout", deep)
+            self.create_service(Trigger, "/bench/start_fanout", self.start_callback)
+            self.remaining = 0
+            self.sequence = 0
+            self.timer = self.create_timer(1.0 / FANOUT_HZ, self.fanout_callback)
+
+        def echo_callback(self, message: String) -> None:
+            self.out.publish(message)
+
+        def service_callback(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+            response.success = request.data
+            response.message = "echo"
+            return response
+
+        def start_callback(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+            response.success = self.fanout.get_subscription_count() > 0 and self.remaining == 0
+            if response.success:
+                self.sequence, self.remaining = 0, int(os.environ.get("BENCH_FANOUT_COUNT", "200"))
+            response.message = str(self.remaining)
+            return response
+
+        def fanout_callback(self) -> None:
+            if self.remaining > 0:
+                self.remaining -= 1
+                self.fanout.publish(String(data=f"{self.sequence} {time.time()}"))
+                self.sequence += 1
+
+    rclpy.init()
+    node = EchoNode()
+    executor = EventsExecutor()
+    executor.add_node(node)
+    print("READY echo", flush=True)
+    stop = threading.Event()
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.5)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+    return 0
+
+
+# --- starting servers ----------------------------------------------------------------------------
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def wait_for_line(process: subprocess.Popen, pattern: str, timeout: float) -> str:
+    deadline = time.monotonic() + timeout
+    assert process.stdout is not None
+    while time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            raise RuntimeError(f"process exited with {process.wait()} before printing {pattern!r}")
+        if re.search(pattern, line):
+            return line
+    raise RuntimeError(f"no {pattern!r} within {timeout} s")
+
+
+def wait_for_port(port: int, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            socket.create_connection(("127.0.0.1", port), 0.5).close()
+            return
+        except OSError:
+            time.sleep(0.05)  # the peer prints no readiness line; poll its port
+    raise RuntimeError(f"nothing listens on {port} after {timeout} s")
+
+
+def start_caretaker(env: dict[str, str]) -> tuple[subprocess.Popen, int]:
+    process = subprocess.Popen([str(VENV / "bin" / "caretaker"), "bridge", "--port", "0", "--log-level", "WARNING"],
+                               env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    line = wait_for_line(process, r"^READY bridge", 60)
+    return process, int(line.strip().rsplit(":", 1)[1])
+
+
+def start_rust(env: dict[str, str], workdir: Path) -> tuple[subprocess.Popen, int]:
+    import rosbridge_server_rs
+
+    binary = Path(rosbridge_server_rs.__file__).with_name("rosbridge_server_rs_jazzy")
+    link = workdir / "librmw_implementation.so"
+    if not link.exists():
+        link.symlink_to(VENV / "lib" / "librmw_fastrtps_cpp.so")
+    libpython = Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("LDLIBRARY")
+    env = dict(env, ROS_DISTRO="jazzy", LD_LIBRARY_PATH=f"{workdir}:{env.get('LD_LIBRARY_PATH', '')}",
+               LD_PRELOAD=str(libpython))
+    port = free_port()
+    loader = "/lib64/ld-linux-x86-64.so.2"
+    process = subprocess.Popen([loader, str(binary), "--no-rosapi", "--bind", f"127.0.0.1:{port}",
+                                "--log-level", "warn"], env=env, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, text=True)
+    wait_for_port(port)
+    return process, port
+
+
+def stop(process: subprocess.Popen) -> None:
+    process.send_signal(subprocess.signal.SIGINT)
+    try:
+        process.wait(10)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(10)
+
+
+# --- measurements -------------------------------------------------------------------------------
+
+@dataclass
+class Results:
+    server: str
+    figures: dict[str, Any] = field(default_factory=dict)
+
+
+def percentile(values: list[float], share: float) -> float:
+    if not values:
+        return float("nan")
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, int(share * len(ordered)))]
+
+
+async def connect(port: int) -> Any:
+    from websockets.asyncio.client import connect as ws_connect
+
+    return await ws_connect(f"ws://127.0.0.1:{port}", max_size=None, compression=None, open_timeout=30)
+
+
+async def echo_setup(port: int) -> Any:
+    ws = await connect(port)
+    await ws.send(json.dumps({"op": "advertise", "topic": "/bench/in", "type": "std_msgs/msg/String"}))
+    await ws.send(json.dumps({"op": "subscribe", "topic": "/bench/out", "type": "std_msgs/msg/String",
+                              "queue_length": 1000}))
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:  # until ROS matched both ends: the first echo
+        await ws.send(json.dumps({"op": "publish", "topic": "/bench/in", "msg": {"data": "warm-up"}}))
+        try:
+            await asyncio.wait_for(ws.recv(), 0.2)
+            break
+        except asyncio.TimeoutError:
+            continue
+    else:
+        raise RuntimeError("no echo within 30 s")
+    while True:  # drain leftover warm-up echoes
+        try:
+            await asyncio.wait_for(ws.recv(), 0.5)
+        except asyncio.TimeoutError:
+            return ws
+
+
+async def round_trips(ws: Any, size: int, count: int, in_flight: int) -> dict[str, float]:
+    """Send ``count`` messages keeping ``in_flight`` outstanding; returns msgs/s, loss and RTTs."""
+    pad = "x" * max(0, size - 24)
+    sent_at: dict[int, float] = {}
+    rtts: list[float] = []
+    window = asyncio.Semaphore(in_flight)
+    done = asyncio.Event()
+    received = 0
+    last_receipt = [0.0]
+
+    async def reader() -> None:
+        nonlocal received
+        while received < count:
+            frame = await ws.recv()
+            # the client must not be the bottleneck: find the index without decoding JSON
+            start_of_data = frame.index('"data"') + 6
+            start_of_data = frame.index('"', start_of_data) + 1
+            index = int(frame[start_of_data:frame.index(" ", start_of_data)])
+            if index in sent_at:
+                last_receipt[0] = time.perf_counter()
+                rtts.append(last_receipt[0] - sent_at.pop(index))
+                received += 1
+                window.release()
+        done.set()
+
+    task = asyncio.create_task(reader())
+    start = time.perf_counter()
+    for index in range(count):
+        try:
+            await asyncio.wait_for(window.acquire(), 1.0)
+        except asyncio.TimeoutError:  # messages were lost: the window would never refill
+            for _ in range(in_flight):
+                window.release()
+            await window.acquire()
+        sent_at[index] = time.perf_counter()
+        await ws.send('{"op":"publish","topic":"/bench/in","msg":{"data":"%d %s"}}' % (index, pad))
+    try:
+        await asyncio.wait_for(done.wait(), 3.0)
+    except asyncio.TimeoutError:
+        pass
+    elapsed = (last_receipt[0] if received else time.perf_counter()) - start
+    task.cancel()
+    return {"msgs_s": received / elapsed,
+            "lost_pct": 100.0 * (count - received) / count, "p50_ms": 1000 * percentile(rtts, 0.5),
+            "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
+
+
+async def service_calls(port: int, count: int, in_flight: int) -> dict[str, float]:
+    ws = await connect(port)
+    sent_at: dict[str, float] = {}
+    rtts: list[float] = []
+    failures = 0
+    window = asyncio.Semaphore(in_flight)
+    all_answered = asyncio.Event()
+
+    async def reader() -> None:
+        nonlocal failures
+        answered = 0
+        while answered < count:
+            answer = json.loads(await ws.recv())
+            if answer.get("op") != "service_response":
+                continue
+            rtts.append(time.perf_counter() - sent_at.pop(answer["id"]))
+            failures += not answer.get("result")
+            answered += 1
+            window.release()
+        all_answered.set()
+
+    task = asyncio.create_task(reader())
+    start = time.perf_counter()
+    for index in range(count):
+        await window.acquire()
+        call_id = f"c{index}"
+        sent_at[call_id] = time.perf_counter()
+        await ws.send(json.dumps({"op": "call_service", "id": call_id, "service": "/bench/echo_srv",
+                                  "type": "std_srvs/srv/SetBool", "args": {"data": True}}))
+    await asyncio.wait_for(all_answered.wait(), 120)
+    elapsed = time.perf_counter() - start
+    task.cancel()
+    await ws.close()
+    return {"calls_s": count / elapsed, "failed": failures, "p50_ms": 1000 * percentile(rtts, 0.5),
+            "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
+
+
+async def fan_out(port: int, clients: int, count: int) -> dict[str, float]:
+    sockets = [await connect(port) for _ in range(clients)]
+    for ws in sockets:
+        await ws.send(json.dumps({"op": "subscribe", "topic": "/bench/fanout", "type": "std_msgs/msg/String",
+                                  "queue_length": 1000}))
+    latencies: list[float] = []
+    received = [0] * clients
+
+    async def reader(index: int, ws: Any) -> None:
+        while True:
+            data = json.loads(await ws.recv())["msg"]["data"]
+            sequence, stamp = data.split(" ")
+            latencies.append(time.time() - float(stamp))
+            received[index] += 1
+            if int(sequence) == count - 1:
+                return
+
+    readers = asyncio.gather(*(reader(i, ws) for i, ws in enumerate(sockets)))
+    control = await connect(port)
+    deadline = time.monotonic() + 30
+    while True:  # the node starts only once the bridge's subscription has matched
+        await control.send(json.dumps({"op": "call_service", "id": "start", "service": "/bench/start_fanout",
+                                       "type": "std_srvs/srv/Trigger", "args": {}}))
+        answer = json.loads(await asyncio.wait_for(control.recv(), 30))
+        if answer.get("result") and answer["values"]["success"]:
+            break
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"fan-out never started: {answer}")
+        await asyncio.sleep(0.1)  # poll the node until the bridge's subscription matched
+    try:
+        await asyncio.wait_for(readers, count / FANOUT_HZ + 10)
+    except asyncio.TimeoutError:
+        pass
+    for ws in sockets + [control]:
+        await ws.close()
+    expected = clients * count
+    return {"lost_pct": 100.0 * (expected - sum(received)) / expected, "p95_ms": 1000 * percentile(latencies, 0.95)}
+
+
+async def measure(name: str, port: int, pid: int, quick: bool) -> Results:
+    import psutil
+
+    results = Results(name)
+    scale = 4 if quick else 1
+    ws = await echo_setup(port)
+    for label, size in SIZES.items():
+        count = (4000 if size <= 1024 else 1000) // scale
+        results.figures[f"echo {label}"] = await round_trips(ws, size, count, IN_FLIGHT)
+    results.figures["rtt 64 B, 1 in flight"] = await round_trips(ws, 64, 1000 // scale, 1)
+    await ws.close()
+    results.figures["services, 32 in flight"] = await service_calls(port, 4000 // scale, IN_FLIGHT)
+    for clients in FANOUT_CLIENTS:
+        results.figures[f"fan-out {clients} clients"] = await fan_out(port, clients, fanout_count(quick))
+    results.figures["rss_mib"] = psutil.Process(pid).memory_info().rss / 2**20
+    return results
+
+
+def fanout_count(quick: bool) -> int:
+    """Messages per fan-out burst (the echo node reads it from BENCH_FANOUT_COUNT)."""
+    return 100 if quick else 300
+
+
+def report(all_results: list[Results]) -> str:
+    lines = []
+    names = [r.server for r in all_results]
+    keys = list(all_results[0].figures)
+    lines.append("| measurement | " + " | ".join(names) + (" | ratio |" if len(names) == 2 else " |"))
+    lines.append("|---" * (len(names) + 1 + (len(names) == 2)) + "|")
+    for key in keys:
+        values = [r.figures[key] for r in all_results]
+        if isinstance(values[0], dict):
+            for metric in values[0]:
+                cells = [f"{v[metric]:.2f}" if isinstance(v[metric], float) else str(v[metric]) for v in values]
+                ratio = ""
+                if len(values) == 2 and values[1][metric]:
+                    ratio = f" | {values[0][metric] / values[1][metric]:.2f}"
+                lines.append(f"| {key}: {metric} | " + " | ".join(cells) + ratio + " |")
+        else:
+            ratio = f" | {values[0] / values[1]:.2f}" if len(values) == 2 and values[1] else ""
+            lines.append(f"| {key} | " + " | ".join(f"{v:.1f}" for v in values) + ratio + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="a quarter of the messages (about a minute)")
+    parser.add_argument("--only", choices=("caretaker", "rust"), help="measure one server only")
+    parser.add_argument("--echo-node", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.echo_node:
+        return echo_node()
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", BENCH_FANOUT_COUNT=str(fanout_count(args.quick)))
+    env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
+    os.environ.update(env)
+    echo = subprocess.Popen([sys.executable, __file__, "--echo-node"], env=env, stdout=subprocess.PIPE, text=True)
+    all_results: list[Results] = []
+    try:
+        wait_for_line(echo, r"^READY echo", 60)
+        with tempfile.TemporaryDirectory() as workdir:
+            for name in ("caretaker", "rust"):
+                if args.only and args.only != name:
+                    continue
+                process, port = start_caretaker(env) if name == "caretaker" else start_rust(env, Path(workdir))
+                try:
+                    print(f"measuring {name} on port {port} ...", file=sys.stderr, flush=True)
+                    all_results.append(asyncio.run(measure(name, port, process.pid, args.quick)))
+                finally:
+                    stop(process)
+    finally:
+        stop(echo)
+    print(report(all_results))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
