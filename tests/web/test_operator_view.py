@@ -13,6 +13,7 @@ from pathlib import Path
 
 from playwright.sync_api import Page, expect
 
+from web_server import procedure_shelf, start_server
 from pride.audit_log import AuditLog
 
 REPO = Path(__file__).resolve().parents[2]
@@ -194,23 +195,31 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     alice = sign_in("alice")
     alice.select_option("#start-procedure", "eva_inspection.xml")
     alice.select_option("#start-binding", "eva.yaml")
-    alice.check("#start-form input[name=mode][value=autonomous]")
     alice.click("#start-button")
     expect(alice.locator("#connection")).to_have_attribute("data-state", "open")
 
-    # while the arm moves to target A, the camera view follows it (live captures, not in the log)
+    # a breakpoint inside the called sub-procedure, right after the arm's first motion
+    instruction(alice, "2.1/1.5").locator("button.breakpoint").click()
+    expect(instruction(alice, "2.1/1.5")).to_have_class(re.compile(r"\bhas-breakpoint\b"))
+    alice.click("#mode-autonomous")
+    expect(alice.locator("#hold")).to_contain_text("breakpoint at 2.1/1.5")
+
+    # the camera view followed the arm while it moved (live captures, not audit records)
+    camera = alice.locator("#camera")
     expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"live view while the robot moves .*_web_view\.png"))
+    assert camera.evaluate("image => image.decode().then(() => image.naturalWidth)") == 160
+    live_image = camera.get_attribute("src")
+    expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("execute_plan")
+    expect(alice.locator('#audit tbody tr[data-kind="command_sent"]', has_text="camera.capture")).to_have_count(0)
+    alice.click("#continue")
 
     # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
     assessment = instruction(alice, "2.1/2.2")
     expect(assessment).to_have_class(re.compile(r"\bcurrent\b"))
     expect(instruction(alice, "2.1/2.1").locator(".mark")).to_contain_text("completed by PAX")
-    camera = alice.locator("#camera")
-    expect(camera).to_be_visible()
-    expect(alice.locator("#camera-caption")).to_contain_text("2.1/2.1")
-    expect(alice.locator("#camera-caption")).to_contain_text("hull_a.png")
-    assert camera.evaluate("image => image.decode().then(() => image.naturalWidth)") == 160
+    expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"^2\.1/2\.1 · .*hull_a\.png"))
     first_image = camera.get_attribute("src")
+    assert first_image != live_image
     alice.screenshot(path=str(IMAGES / "web_camera.png"))
 
     # the operator answers; PAX retreats, moves to target B and shows its new image
@@ -220,3 +229,30 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     expect(alice.locator("#camera-caption")).to_contain_text("hull_b.png")
     assert camera.get_attribute("src") != first_image
     expect(audit_row(alice, "operator_input", "2.1/2.2", "alice")).to_contain_text("damage = false")
+
+
+def test_a_past_run_is_drawn_from_the_audit_log_alone(sign_in, server, browser, tmp_path) -> None:
+    alice = sign_in("alice")
+    run_id = start_run(alice, "web_walkthrough.xml", "manual")
+    instruction(alice, "1.1").locator("button.perform").click()
+    expect(instruction(alice, "1.1").locator(".mark")).to_contain_text("completed by alice")
+
+    # another server on the same audit log: the run is not live there, only recorded
+    other = start_server(tmp_path, procedure_shelf(tmp_path), db=server.db)
+    try:
+        context = browser.new_context(viewport={"width": 1500, "height": 1000})
+        try:
+            page = context.new_page()
+            page.goto(other.url)
+            page.fill("#user-id", "carol")
+            page.click("#sign-in-form button[type=submit]")
+            page.click(f'#run-list li[data-run-id="{run_id}"] a[href^="#run="]')
+            expect(page.locator("#connection")).to_have_text("past run (from the audit log)")
+            expect(instruction(page, "1.1").locator(".mark")).to_contain_text("completed by alice")
+            expect(instruction(page, "1.1").locator(".detail")).to_contain_text("result: success — added cdra_filter")
+            expect(page.locator("#controls")).to_be_hidden()
+            expect(audit_row(page, "command_result", "1.1", "alice")).to_have_count(1)
+        finally:
+            context.close()
+    finally:
+        other.process.stop()

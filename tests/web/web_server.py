@@ -1,0 +1,54 @@
+"""Starting ``caretaker serve`` for the browser tests, as a real process with simulated systems behind it."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from support.processes import ManagedProcess, caretaker
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parents[1]
+
+
+class WebServer:
+    """A running ``caretaker serve`` and where it listens."""
+
+    def __init__(self, process: ManagedProcess, url: str, db: Path) -> None:
+        self.process = process
+        self.url = url
+        self.db = db
+
+
+def _ready_url(process: ManagedProcess) -> str:
+    line = next(line for line in process.output if line.startswith("READY serve "))
+    return line.split()[-1]
+
+
+def start_server(tmp: Path, procedures: Path, *, db: Path | None = None) -> WebServer:
+    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp`` by default)."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
+    env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
+    env["SIMULATED_MOTION_S"] = "0.6"
+    db = db or tmp / "audit.db"
+    process = caretaker(
+        "serve", "--port", "0", "--db", f"sqlite:///{db}", "--procedures", str(procedures),
+        "--reports", str(tmp / "reports"), "--camera", "ee_camera", "--camera-period", "0.1",
+        env=env, name="serve",
+    )
+    try:
+        process.wait_ready(60)
+    except Exception:
+        process.stop()
+        raise
+    return WebServer(process, _ready_url(process), db)
+
+
+def procedure_shelf(tmp: Path) -> Path:
+    """The shipped procedures plus this suite's walk-through, in one directory the server lists."""
+    shelf = tmp / "procedures"
+    shelf.mkdir()
+    for source in [*sorted((REPO / "procedures").glob("*.xml")), *sorted((HERE / "fixtures" / "procedures").glob("*.xml"))]:
+        (shelf / source.name).symlink_to(source)
+    return shelf
