@@ -213,6 +213,13 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
     stack.start_at_server()
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=60.0)
     _await(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
-    added = host.execute(AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False})
+    # The new server may answer before it has heard /sim/frames; it then refuses with a reason.
+    # Retry on that answer until it accepts (same JVM, same connection throughout).
+    deadline = time.monotonic() + 30.0
+    while True:
+        added = host.execute(AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False})
+        if added.success or time.monotonic() > deadline or "no frames received" not in added.message:
+            break
+        threading.Event().wait(0.2)
     assert added.success, added.message
     assert host.execute(AT, "delete_affordance_template", {"affordance_template": added.values["instance"], "id": -1}).success

@@ -87,7 +87,10 @@ public final class Ros implements AutoCloseable {
         }
         this.uri = uri;
         this.options = options;
-        this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).build();
+        // Frames are handled on the client's own selector thread instead of being handed to a
+        // pool thread first: one thread switch less per reply. Safe because the listener never
+        // blocks and never sends; user code runs on callbackThread.
+        this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).executor(Runnable::run).build();
         this.callbackThread = Executors.newSingleThreadExecutor(daemon("rosbridge-callbacks " + uri));
         this.timerThread = Executors.newSingleThreadScheduledExecutor(daemon("rosbridge-timer " + uri));
     }
@@ -379,11 +382,13 @@ public final class Ros implements AutoCloseable {
     private void error(Throwable error) {
         LOG.log(System.Logger.Level.WARNING, error.getMessage());
         for (RosHandler handler : handlers) {
-            try {
-                handler.handleError(error);
-            } catch (RuntimeException e) {
-                LOG.log(System.Logger.Level.WARNING, "RosHandler.handleError threw", e);
-            }
+            dispatch(() -> {
+                try {
+                    handler.handleError(error);
+                } catch (RuntimeException e) {
+                    LOG.log(System.Logger.Level.WARNING, "RosHandler.handleError threw", e);
+                }
+            });
         }
     }
 
