@@ -41,12 +41,12 @@ IN_FLIGHT = 32
 SIZES = {"64 B": 64, "1 KiB": 1024, "64 KiB": 65536}
 FANOUT_CLIENTS = (1, 10, 50)
 FANOUT_HZ = 100
+SERVERS = ["caretaker", "rust"]
 
 
 # --- the ROS echo node (runs as its own process: ``--echo-node``) --------------------------------
 
 def echo_node() -> int:
-    import threading
 
     import rclpy
     from rclpy.executors import ExternalShutdownException
@@ -57,49 +57,50 @@ def echo_node() -> int:
     from std_srvs.srv import SetBool, Trigger
 
     class EchoNode(Node):
-        """Echoes /bench/in to /bench/out, answers /bench/echo_srv, publishes fan-out bursts."""
+        """Per server name N: echoes /bench/N/in to /bench/N/out, answers /bench/N/echo_srv, and
+        publishes a 100 Hz burst on /bench/N/fanout when /bench/N/start_fanout is called."""
 
-        def __init__(self) -> None:
+        def __init__(self, names: list[str]) -> None:
             super().__init__("bench_echo")
             deep = QoSProfile(depth=1000)
-            self.out = self.create_publisher(String, "/bench/out", deep)
-            self.create_subscription(String, "/bench/in", self.echo_callback, deep)
-            self.create_service(SetBool, "/bench/echo_srv", self.service_callback, qos_profile=deep)
-            self.fanout = self.create_publisher(String, "/bench/fanout", deep)
-            self.create_service(Trigger, "/bench/start_fanout", self.start_callback)
-            self.remaining = 0
-            self.sequence = 0
+            self.bursts: dict[str, list[int]] = {}
+            self.fanouts = {}
+            for name in names:
+                out = self.create_publisher(String, f"/bench/{name}/out", deep)
+                self.create_subscription(String, f"/bench/{name}/in", out.publish, deep)
+                self.create_service(SetBool, f"/bench/{name}/echo_srv", self.service_callback, qos_profile=deep)
+                self.fanouts[name] = self.create_publisher(String, f"/bench/{name}/fanout", deep)
+                self.bursts[name] = [0, 0]  # next sequence, remaining
+                self.create_service(Trigger, f"/bench/{name}/start_fanout",
+                                    lambda request, response, name=name: self.start_callback(name, response))
             self.timer = self.create_timer(1.0 / FANOUT_HZ, self.fanout_callback)
-
-        def echo_callback(self, message: String) -> None:
-            self.out.publish(message)
 
         def service_callback(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
             response.success = request.data
             response.message = "echo"
             return response
 
-        def start_callback(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-            response.success = self.fanout.get_subscription_count() > 0 and self.remaining == 0
+        def start_callback(self, name: str, response: Trigger.Response) -> Trigger.Response:
+            burst = self.bursts[name]
+            response.success = self.fanouts[name].get_subscription_count() > 0 and burst[1] == 0
             if response.success:
-                self.sequence, self.remaining = 0, int(os.environ.get("BENCH_FANOUT_COUNT", "200"))
-            response.message = str(self.remaining)
+                burst[0], burst[1] = 0, int(os.environ["BENCH_FANOUT_COUNT"])
             return response
 
         def fanout_callback(self) -> None:
-            if self.remaining > 0:
-                self.remaining -= 1
-                self.fanout.publish(String(data=f"{self.sequence} {time.time()}"))
-                self.sequence += 1
+            for name, burst in self.bursts.items():
+                if burst[1] > 0:
+                    burst[1] -= 1
+                    self.fanouts[name].publish(String(data=f"{burst[0]} {time.time()}"))
+                    burst[0] += 1
 
     rclpy.init()
-    node = EchoNode()
+    node = EchoNode(SERVERS)
     executor = EventsExecutor()
     executor.add_node(node)
     print("READY echo", flush=True)
-    stop = threading.Event()
     try:
-        while not stop.is_set() and rclpy.ok():
+        while rclpy.ok():
             executor.spin_once(timeout_sec=0.5)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -197,14 +198,14 @@ async def connect(port: int) -> Any:
     return await ws_connect(f"ws://127.0.0.1:{port}", max_size=None, compression=None, open_timeout=30)
 
 
-async def echo_setup(port: int) -> Any:
+async def echo_setup(port: int, name: str) -> Any:
     ws = await connect(port)
-    await ws.send(json.dumps({"op": "advertise", "topic": "/bench/in", "type": "std_msgs/msg/String"}))
-    await ws.send(json.dumps({"op": "subscribe", "topic": "/bench/out", "type": "std_msgs/msg/String",
+    await ws.send(json.dumps({"op": "advertise", "topic": f"/bench/{name}/in", "type": "std_msgs/msg/String"}))
+    await ws.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String",
                               "queue_length": 1000}))
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:  # until ROS matched both ends: the first echo
-        await ws.send(json.dumps({"op": "publish", "topic": "/bench/in", "msg": {"data": "warm-up"}}))
+        await ws.send(json.dumps({"op": "publish", "topic": f"/bench/{name}/in", "msg": {"data": "warm-up"}}))
         try:
             await asyncio.wait_for(ws.recv(), 0.2)
             break
@@ -219,7 +220,7 @@ async def echo_setup(port: int) -> Any:
             return ws
 
 
-async def round_trips(ws: Any, size: int, count: int, in_flight: int) -> dict[str, float]:
+async def round_trips(ws: Any, name: str, size: int, count: int, in_flight: int) -> dict[str, float]:
     """Send ``count`` messages keeping ``in_flight`` outstanding; returns msgs/s, loss and RTTs."""
     pad = "x" * max(0, size - 24)
     sent_at: dict[int, float] = {}
@@ -254,7 +255,7 @@ async def round_trips(ws: Any, size: int, count: int, in_flight: int) -> dict[st
                 window.release()
             await window.acquire()
         sent_at[index] = time.perf_counter()
-        await ws.send('{"op":"publish","topic":"/bench/in","msg":{"data":"%d %s"}}' % (index, pad))
+        await ws.send('{"op":"publish","topic":"/bench/%s/in","msg":{"data":"%d %s"}}' % (name, index, pad))
     try:
         await asyncio.wait_for(done.wait(), 3.0)
     except asyncio.TimeoutError:
@@ -266,7 +267,7 @@ async def round_trips(ws: Any, size: int, count: int, in_flight: int) -> dict[st
             "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
 
 
-async def service_calls(port: int, count: int, in_flight: int) -> dict[str, float]:
+async def service_calls(port: int, name: str, count: int, in_flight: int) -> dict[str, float]:
     ws = await connect(port)
     sent_at: dict[str, float] = {}
     rtts: list[float] = []
@@ -293,7 +294,7 @@ async def service_calls(port: int, count: int, in_flight: int) -> dict[str, floa
         await window.acquire()
         call_id = f"c{index}"
         sent_at[call_id] = time.perf_counter()
-        await ws.send(json.dumps({"op": "call_service", "id": call_id, "service": "/bench/echo_srv",
+        await ws.send(json.dumps({"op": "call_service", "id": call_id, "service": f"/bench/{name}/echo_srv",
                                   "type": "std_srvs/srv/SetBool", "args": {"data": True}}))
     await asyncio.wait_for(all_answered.wait(), 120)
     elapsed = time.perf_counter() - start
@@ -303,10 +304,10 @@ async def service_calls(port: int, count: int, in_flight: int) -> dict[str, floa
             "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
 
 
-async def fan_out(port: int, clients: int, count: int) -> dict[str, float]:
+async def fan_out(port: int, name: str, clients: int, count: int) -> dict[str, float]:
     sockets = [await connect(port) for _ in range(clients)]
     for ws in sockets:
-        await ws.send(json.dumps({"op": "subscribe", "topic": "/bench/fanout", "type": "std_msgs/msg/String",
+        await ws.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/fanout", "type": "std_msgs/msg/String",
                                   "queue_length": 1000}))
     latencies: list[float] = []
     received = [0] * clients
@@ -324,7 +325,7 @@ async def fan_out(port: int, clients: int, count: int) -> dict[str, float]:
     control = await connect(port)
     deadline = time.monotonic() + 30
     while True:  # the node starts only once the bridge's subscription has matched
-        await control.send(json.dumps({"op": "call_service", "id": "start", "service": "/bench/start_fanout",
+        await control.send(json.dumps({"op": "call_service", "id": "start", "service": f"/bench/{name}/start_fanout",
                                        "type": "std_srvs/srv/Trigger", "args": {}}))
         answer = json.loads(await asyncio.wait_for(control.recv(), 30))
         if answer.get("result") and answer["values"]["success"]:
@@ -342,22 +343,31 @@ async def fan_out(port: int, clients: int, count: int) -> dict[str, float]:
     return {"lost_pct": 100.0 * (expected - sum(received)) / expected, "p95_ms": 1000 * percentile(latencies, 0.95)}
 
 
-async def measure(name: str, port: int, pid: int, quick: bool) -> Results:
+async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Results]:
+    """Each measurement runs on every server in turn, so load from elsewhere hits both alike."""
     import psutil
 
-    results = Results(name)
+    results = {name: Results(name) for name in servers}
     scale = 4 if quick else 1
-    ws = await echo_setup(port)
+    sockets = {name: await echo_setup(port, name) for name, (port, _) in servers.items()}
+    steps: list[tuple[str, Any]] = []
     for label, size in SIZES.items():
         count = (4000 if size <= 1024 else 1000) // scale
-        results.figures[f"echo {label}"] = await round_trips(ws, size, count, IN_FLIGHT)
-    results.figures["rtt 64 B, 1 in flight"] = await round_trips(ws, 64, 1000 // scale, 1)
-    await ws.close()
-    results.figures["services, 32 in flight"] = await service_calls(port, 4000 // scale, IN_FLIGHT)
+        steps.append((f"echo {label}, {IN_FLIGHT} in flight",
+                      lambda name, port, size=size, count=count: round_trips(sockets[name], name, size, count, IN_FLIGHT)))
+    steps.append(("rtt 64 B, 1 in flight", lambda name, port: round_trips(sockets[name], name, 64, 1000 // scale, 1)))
+    steps.append((f"services, {IN_FLIGHT} in flight", lambda name, port: service_calls(port, name, 4000 // scale, IN_FLIGHT)))
     for clients in FANOUT_CLIENTS:
-        results.figures[f"fan-out {clients} clients"] = await fan_out(port, clients, fanout_count(quick))
-    results.figures["rss_mib"] = psutil.Process(pid).memory_info().rss / 2**20
-    return results
+        steps.append((f"fan-out {FANOUT_HZ} Hz to {clients}",
+                      lambda name, port, clients=clients: fan_out(port, name, clients, fanout_count(quick))))
+    for label, step in steps:
+        for name, (port, _) in servers.items():
+            print(f"  {label}: {name}", file=sys.stderr, flush=True)
+            results[name].figures[label] = await step(name, port)
+    for name, (_, pid) in servers.items():
+        results[name].figures["rss_mib"] = psutil.Process(pid).memory_info().rss / 2**20
+        await sockets[name].close()
+    return list(results.values())
 
 
 def fanout_count(quick: bool) -> int:
@@ -398,21 +408,21 @@ def main(argv: list[str] | None = None) -> int:
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
     os.environ.update(env)
     echo = subprocess.Popen([sys.executable, __file__, "--echo-node"], env=env, stdout=subprocess.PIPE, text=True)
-    all_results: list[Results] = []
+    processes: list[subprocess.Popen] = [echo]
     try:
         wait_for_line(echo, r"^READY echo", 60)
         with tempfile.TemporaryDirectory() as workdir:
-            for name in ("caretaker", "rust"):
+            servers: dict[str, tuple[int, int]] = {}
+            for name in SERVERS:
                 if args.only and args.only != name:
                     continue
                 process, port = start_caretaker(env) if name == "caretaker" else start_rust(env, Path(workdir))
-                try:
-                    print(f"measuring {name} on port {port} ...", file=sys.stderr, flush=True)
-                    all_results.append(asyncio.run(measure(name, port, process.pid, args.quick)))
-                finally:
-                    stop(process)
+                processes.append(process)
+                servers[name] = (port, process.pid)
+            all_results = asyncio.run(measure(servers, args.quick))
     finally:
-        stop(echo)
+        for process in reversed(processes):
+            stop(process)
     print(report(all_results))
     return 0
 

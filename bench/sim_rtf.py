@@ -102,8 +102,9 @@ def node_rtf(scene: str, seconds: float) -> float:
             done.set()
 
         began = time.perf_counter()
-        sent = client.send_goal_async(goal)
-        sent.add_done_callback(lambda f: f.result().get_result_async().add_done_callback(on_result))
+        # On the executor thread: rclpy 7.1's ActionClient drops a response that beats the
+        # bookkeeping of a request sent from another thread.
+        executor.create_task(lambda: client.send_goal_async(goal).add_done_callback(lambda f: f.result().get_result_async().add_done_callback(on_result)))
         if not done.wait(600):
             raise RuntimeError("no result")
         wall = time.perf_counter() - began

@@ -33,6 +33,7 @@ from .topics import Topics
 log = logging.getLogger("bridge.rosbridge")
 
 AUTH_SECRET_ENV = "CARETAKER_BRIDGE_SECRET"
+GIL_SWITCH_INTERVAL_S = 0.0002
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -113,6 +114,9 @@ async def run(args: argparse.Namespace) -> int:
     if args.certfile:
         tls = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
         tls.load_cert_chain(args.certfile, args.keyfile)
+    # Two busy threads share the GIL (asyncio and ROS); with the default 5 ms switch interval
+    # a hand-off between them can wait that long, which dominated round-trip latency.
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     ros = RosThread(loop)
     try:
         policy = Policy(AllowList("topic", tuple(args.topics_glob)), AllowList("service", tuple(args.services_glob)),

@@ -57,6 +57,7 @@ class Services:
         self.ros = ros
         self.default_timeout = default_timeout
         self._clients: dict[str, tuple[Any, Any]] = {}
+        self._matched: set[str] = set()  # services whose server matched their cached client
         self.provided: dict[str, ProvidedService] = {}
 
     # --- calling ROS services ----------------------------------------------------------------
@@ -69,19 +70,22 @@ class Services:
 
     def _client(self, service: str) -> tuple[Any, Any]:
         cached = self._clients.get(service)
-        if cached is not None and cached[0].service_is_ready():
+        if cached is not None:
             return cached
         graph_type = self.graph_type(service)
         if graph_type is None:
             raise ServiceUnavailable(f"Service {service} does not exist")
-        if cached is not None and type_name(cached[1]) == graph_type:
-            return cached
-        if cached is not None:
-            self.ros.node.destroy_client(cached[0])
         srv_cls = load_type(graph_type, "srv")
         client = self.ros.node.create_client(srv_cls, service, qos_profile=CLIENT_QOS)
         cached = self._clients[service] = (client, srv_cls)
         return cached
+
+    def _forget_client(self, service: str) -> None:
+        # After a failure the server may be gone or replaced with another type: look again next time.
+        self._matched.discard(service)
+        cached = self._clients.pop(service, None)
+        if cached is not None:
+            self.ros.node.destroy_client(cached[0])
 
     def request_class(self, service: str) -> Any:
         """The request class of a service on the graph (for rosapi details)."""
@@ -94,20 +98,42 @@ class Services:
             request = list_to_request(srv_cls.Request, args)
         else:
             request = dict_to_message(srv_cls.Request, args or {}, "args")
-        if not client.service_is_ready():
-            deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
-            while not client.service_is_ready():
-                if asyncio.get_running_loop().time() > deadline:
-                    raise ServiceUnavailable(f"Service {service} has no server answering")
-                await asyncio.sleep(0.01)
+        if service not in self._matched:
+            if not await self._server_matched(client):
+                self._forget_client(service)
+                raise ServiceUnavailable(f"Service {service} has no server answering")
+            self._matched.add(service)
         ros_future = client.call_async(request)
         answer = self.ros.wrap(ros_future)
+        timed_out = False
+
+        def expire() -> None:
+            nonlocal timed_out
+            timed_out = True
+            answer.cancel()
+
+        expiry = asyncio.get_running_loop().call_later(timeout if timeout and timeout > 0 else self.default_timeout,
+                                                       expire)
         try:
-            response = await asyncio.wait_for(answer, timeout if timeout and timeout > 0 else self.default_timeout)
-        except asyncio.TimeoutError:
+            response = await answer
+        except asyncio.CancelledError:
             client.remove_pending_request(ros_future)
+            if not timed_out:
+                raise
+            self._matched.discard(service)  # check again next time that its server is still there
             raise ServiceTimeout(SERVICE_TIMEOUT_TEXT) from None
+        finally:
+            expiry.cancel()
         return message_to_dict(response)
+
+    async def _server_matched(self, client: Any) -> bool:
+        """Wait up to SERVER_WAIT_S for a server known on the graph to match the client."""
+        deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
+        while not client.service_is_ready():
+            if asyncio.get_running_loop().time() > deadline:
+                return False
+            await asyncio.sleep(0.01)  # rclpy offers no readiness event to await
+        return True
 
     # --- services served by clients ----------------------------------------------------------
     def advertise(self, session: Session, service: str, type_name_: str) -> None:
@@ -176,4 +202,5 @@ class Services:
         """Withdraw the services a closed session provided."""
         for provided in [p for p in self.provided.values() if p.session is session]:
             self._withdraw(provided, "lost its client")
+
 

@@ -18,6 +18,8 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Union
 
+from websockets.protocol import State
+
 from .protocol import CLOSE_POLICY_VIOLATION, LEVELS, OP_FRAGMENT, OP_STATUS
 
 log = logging.getLogger(__name__)
@@ -26,6 +28,7 @@ log = logging.getLogger(__name__)
 Frame = Union[str, bytes, list[str]]
 
 CONTROL_QUEUE_LIMIT = 10_000
+WRITE_BATCH = 64
 DEFAULT_QUEUE_LENGTH = 1000
 """Backlog per subscription when the client gives no ``queue_length`` (or 0)."""
 
@@ -126,28 +129,47 @@ class Session:
         ]
 
     async def _write(self) -> None:
+        # Frames are handed to the connection's sans-I/O protocol in batches and written with one
+        # transport write and one drain per batch: per-frame ``send()`` calls cost more than the
+        # JSON encoding of a small message.  ``drain`` waits only while this client's own socket
+        # buffer is full, so a slow client pauses only its own writer.
         websocket = self.websocket
+        protocol = websocket.protocol
         try:
             while self.state is not SessionState.CLOSED:
                 await self._wake.wait()
                 self._wake.clear()
-                while self._control or any(q.frames for q in self._queues.values()):
-                    while self._control:
-                        await self._send_raw(websocket, self._control.popleft())
-                    # one frame per subscription per round: fair between topics, FIFO within one
-                    for queue in list(self._queues.values()):
-                        if queue.frames:
-                            await self._send_raw(websocket, queue.frames.popleft())
+                while True:
+                    batch = self._take_batch()
+                    if not batch:
+                        break
+                    if protocol.state is not State.OPEN:
+                        return
+                    for frame in batch:
+                        if isinstance(frame, str):
+                            protocol.send_text(frame.encode())
+                        else:
+                            protocol.send_binary(frame)
+                    websocket.send_data()
+                    await websocket.drain()
         except Exception as exc:  # the connection is gone; the reader side cleans up
             log.debug("session %d writer stopped: %s", self.number, exc)
 
-    @staticmethod
-    async def _send_raw(websocket: Any, frame: Frame) -> None:
-        if isinstance(frame, list):
-            for part in frame:
-                await websocket.send(part)
-        else:
-            await websocket.send(frame)
+    def _take_batch(self) -> list[str | bytes]:
+        """Up to WRITE_BATCH frames: answers first, then one per subscription in turn (fair
+        between topics, FIFO within one)."""
+        batch: list[str | bytes] = []
+        control = self._control
+        while control and len(batch) < WRITE_BATCH:
+            _extend(batch, control.popleft())
+        progress = True
+        while progress and len(batch) < WRITE_BATCH:
+            progress = False
+            for queue in self._queues.values():
+                if queue.frames:
+                    _extend(batch, queue.frames.popleft())
+                    progress = True
+        return batch
 
     def close(self, code: int, reason: str) -> None:
         """Close the socket from the server side (the reader then releases registrations)."""
@@ -159,3 +181,10 @@ class Session:
         self._control.clear()
         self._queues.clear()
         self._wake.set()
+
+
+def _extend(batch: list[str | bytes], frame: Frame) -> None:
+    if isinstance(frame, list):
+        batch.extend(frame)
+    else:
+        batch.append(frame)
