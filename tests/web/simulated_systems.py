@@ -63,8 +63,11 @@ class SimulatedSystems:
             ("cdra", "installed_filter_id"): "F-DIRTY-07",
             ("cdra", "installed_filter_condition"): "dirty",
         }
+        #: a sensor that stopped reporting: its last value is served, marked stale
+        self._stale = {("cdra", "installed_filter_condition")}
         self._images = Path(tempfile.mkdtemp(prefix="caretaker-web-camera-"))
         self._captures = 0
+        self._started = time.time()
         #: how long an execute_plan "moves the robot" (the web view's live camera captures meanwhile)
         self._motion_s = float(os.environ.get("SIMULATED_MOTION_S", "0"))
         self._motion = threading.Event()  # never set: waiting on it is the motion's duration
@@ -134,6 +137,8 @@ class SimulatedSystems:
         with self._lock:
             if (sysrep_id, item_id) not in self._values:
                 raise KeyError(f"{sysrep_id}.{item_id} is not served here")
+            if (sysrep_id, item_id) in self._stale:
+                return TelemetryValue(self._values[(sysrep_id, item_id)], self._started - 60.0, True)
             return TelemetryValue(self._values[(sysrep_id, item_id)], time.time(), False)
 
     def add_listener(self, callback: TelemetryListener) -> None:

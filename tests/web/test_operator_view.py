@@ -121,6 +121,21 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     instruction(carol, "4.2").scroll_into_view_if_needed()
     carol.screenshot(path=str(IMAGES / "web_observer.png"))
 
+    # step, pause, continue and stop, each recorded as alice's
+    alice.click("#step")
+    expect(instruction(alice, "4.3").locator(".mark")).to_contain_text("completed by alice")
+    alice.click("#pause")
+    expect(audit_row(alice, "paused", "4.4", "alice")).to_have_count(1)
+    alice.click("#mode-autonomous")
+    expect(alice.locator("#hold")).to_have_text("automation paused at 4.4")
+    alice.click("#continue")
+    expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
+    alice.once("dialog", lambda dialog: dialog.accept())
+    alice.click("#stop")
+    for page in (alice, carol):
+        expect(page.locator("#run-status")).to_have_text("stopped")
+    expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_have_count(1)
+
     # the audit log holds every action with its user, and nothing from the observer
     log = AuditLog(f"sqlite:///{server.db}")
     try:
@@ -156,6 +171,16 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     alice.click("#skip-yes")
     expect(failed.locator(".mark")).to_contain_text("skipped by alice")
     expect(failed.locator(".mark")).to_contain_text("no ready pose in this walk-through")
+
+    # a verify on a stale value fails, and the value is marked stale where it is shown
+    stale = instruction(alice, "2.2")
+    expect(stale.locator(".telemetry")).to_have_attribute("data-stale", "true")
+    expect(stale.locator(".telemetry")).to_contain_text(re.compile(r'cdra\.installed_filter_condition = "dirty" · \d+\.\d s ago · STALE'))
+    expect(stale.locator(".mark")).to_contain_text('cdra.installed_filter_condition was stale \'dirty\'')
+    stale.locator("button.skip").click()
+    alice.fill("#skip-reason", "condition sensor offline; checked by eye")
+    alice.click("#skip-yes")
+    expect(stale.locator(".mark")).to_contain_text("skipped by alice")
 
     # the manual instruction holds automation until Done
     expect(instruction(alice, "3.1")).to_have_class(re.compile(r"\bcurrent\b"))

@@ -46,6 +46,7 @@ class RunState:
     current: str | None = None
     awaiting: str | None = None
     breakpoints: set[str] = field(default_factory=set)
+    paused: bool = False
     instructions: dict[str, InstructionState] = field(default_factory=dict)
     latest_image: str | None = None
     latest_image_event: Event | None = None
@@ -55,7 +56,7 @@ class RunState:
         return {
             "run_id": self.run_id, "procedure": self.procedure, "mode": self.mode,
             "status": self.status, "started_by": self.started_by, "current": self.current,
-            "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints),
+            "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints), "paused": self.paused,
             "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
             "camera": self.camera_json(), "last_seq": self.last_seq,
         }
@@ -87,8 +88,10 @@ class RunState:
         elif kind is EventKind.RUN_STOPPED:
             self.status, self.awaiting = "stopped", None
         elif kind is EventKind.PAUSED:
-            self.status = "paused"
-        elif kind in (EventKind.CONTINUED, EventKind.RETRY):
+            self.status, self.paused = "paused", True
+        elif kind is EventKind.CONTINUED:
+            self.status, self.awaiting, self.paused = "running", None, False
+        elif kind is EventKind.RETRY:
             self.status, self.awaiting = "running", None
         elif kind is EventKind.BREAKPOINT_SET and number:
             self.breakpoints.add(number)

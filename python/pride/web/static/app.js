@@ -432,8 +432,9 @@ function renderRun() {
     node.setAttribute("aria-pressed", String(node.dataset.mode === state.mode));
     node.disabled = !mayAct || node.dataset.mode === state.mode;
   }
-  $("pause").disabled = !mayAct || state.mode !== "autonomous" || state.hold === "paused";
-  $("continue").disabled = !mayAct || !["paused", "breakpoint"].includes(state.hold);
+  // pausing in manual mode keeps automation held when someone switches to autonomous
+  $("pause").disabled = !mayAct || state.paused;
+  $("continue").disabled = !mayAct || !(state.paused || state.hold === "breakpoint");
   $("step").disabled = !mayAct || state.executing || !state.current;
   $("stop").disabled = !mayAct;
   $("controls").hidden = !state.live;
