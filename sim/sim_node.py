@@ -215,18 +215,17 @@ class SimNode(Node):
         deadline_s = trajectory.duration
         started = time.monotonic()
         scale = self.time_scale if self.time_scale > 0 else 1.0
-        # Feedback every 50 ms of wall time and once at the end, so even a trajectory that runs
-        # faster than that (time scale 0) reports its progress at least once.
+        # Feedback at the start and every 50 ms of wall time, so even a trajectory that runs
+        # faster than that (time scale 0) reports its progress at least once before its result.
         while True:
-            finished = run.done.wait(0.05)
-            if not finished and (goal_handle.is_cancel_requested or time.monotonic() - started > deadline_s / scale + 60.0):
-                with sim.world_lock:
-                    run.cancel_requested = True
-            feedback.desired, feedback.actual = list(run.desired), list(run.actual)
+            feedback.desired, feedback.actual = list(run.desired or trajectory.positions[0]), list(run.actual or current)
             feedback.time_from_start = run.elapsed
             goal_handle.publish_feedback(feedback)
-            if finished:
+            if run.done.wait(0.05):
                 break
+            if goal_handle.is_cancel_requested or time.monotonic() - started > deadline_s / scale + 60.0:
+                with sim.world_lock:
+                    run.cancel_requested = True
         result.error_code, result.error_string = run.error_code, run.error_string
         if run.cancel_requested and goal_handle.is_cancel_requested:
             goal_handle.canceled()

@@ -58,8 +58,17 @@ class SimClient:
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
         self.lock_client = self.node.create_client(Trigger, "/cdra/lock_filter")
-        self._thread = threading.Thread(target=self.executor.spin, name="sim-client", daemon=True)
+        self.spin_error: BaseException | None = None
+        self._thread = threading.Thread(target=self._spin, name="sim-client", daemon=True)
         self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except BaseException as exc:  # reported by the next wait instead of a silent stall
+            with self._changed:
+                self.spin_error = exc
+                self._changed.notify_all()
 
     def close(self) -> None:
         self.executor.shutdown()
@@ -79,8 +88,10 @@ class SimClient:
 
     def wait_for(self, predicate: Callable[[], bool], what: str, timeout: float = TIMEOUT) -> None:
         with self._changed:
-            if not self._changed.wait_for(predicate, timeout):
+            if not self._changed.wait_for(lambda: self.spin_error is not None or predicate(), timeout):
                 raise AssertionError(f"timed out after {timeout} s waiting for {what}; latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }")
+            if self.spin_error is not None and not predicate():
+                raise AssertionError(f"the test client's executor died: {self.spin_error!r}") from self.spin_error
 
     def value(self, topic: str, timeout: float = TIMEOUT) -> Any:
         self.wait_for(lambda: topic in self.latest, f"a message on {topic}", timeout)
@@ -136,9 +147,19 @@ class SimClient:
             pt.time_from_start = Duration(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) if math.isfinite(t) else 0)
             goal.trajectory.points.append(pt)
         goal.goal_tolerance = tolerance
-        handle = self._wait_future(self.trajectory_client.send_goal_async(goal, feedback_callback=self._feedback_callback), "send goal")
+        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(goal, feedback_callback=self._feedback_callback)), "send goal")
         assert handle.accepted, "goal not accepted"
-        return self._wait_future(handle.get_result_async(), "trajectory result").result
+        return self._wait_future(self._in_executor(handle.get_result_async), "trajectory result").result
+
+    def _in_executor(self, call: Callable[[], Any]) -> Any:
+        """Run ``call`` on the executor's thread and return what it returned.
+
+        rclpy 7.1's ActionClient records a request's sequence number after sending it, without a
+        lock: called from another thread, a fast server's response can be handled first and is
+        then dropped ("Ignoring unexpected goal response"). On the executor thread it cannot.
+        """
+        task = self.executor.create_task(call)
+        return self._wait_future(task, "a call on the executor thread")
 
     def _feedback_callback(self, message: Any) -> None:
         with self._changed:

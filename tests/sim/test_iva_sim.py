@@ -44,13 +44,15 @@ def test_valid_trajectory_reaches_its_goal_with_feedback(client: SimClient, mode
     middle = [start[0] + 0.3, start[1] + 0.2, start[2] - 0.2, start[3], start[4] + 0.3, start[5] + 0.5]
     goal = [start[0] + 0.5, start[1] + 0.3, start[2] - 0.3, start[3] - 0.2, start[4] + 0.4, start[5] + 0.8]
     client.feedback.clear()
-    result = client.follow(ARM, [(0.6, middle), (1.2, goal)])
+    result = client.follow(ARM, [(1.5, middle), (3.0, goal)])
     assert_ok(result)
     assert "reached the goal" in result.error_string
     assert close_to(client.joint_positions(ARM), goal, 1e-3)
-    client.wait_for(lambda: any(fb.time_from_start >= 1.2 for fb in client.feedback), "feedback from the end of the trajectory")
-    assert list(client.feedback[-1].joint_names) == ARM
-    assert close_to(client.feedback[-1].actual, goal, 1e-3)
+    # Feedback is published before the result, but the action client drops feedback that it
+    # handles after the result: only feedback from during the motion is certain to arrive.
+    client.wait_for(lambda: bool(client.feedback), "trajectory feedback")
+    assert list(client.feedback[0].joint_names) == ARM
+    assert all(len(fb.actual) == len(ARM) and 0.0 <= fb.time_from_start <= 3.0 + 1e-6 for fb in client.feedback)
     assert_ok(move_to(client, model, [HOME]))
     assert close_to(client.joint_positions(ARM), HOME, 1e-3)
     client.wait_value("/robot/moving", False)
