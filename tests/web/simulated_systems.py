@@ -55,8 +55,8 @@ class SimulatedSystems:
             ("affordance_templates", "robot_active"): True,
             ("affordance_templates", "planner_node_active"): True,
             ("affordance_templates", "affordance_template_server_active"): True,
-            ("affordance_templates", "execute_status"): "idle",
-            ("affordance_templates", "plan_status"): "none",
+            ("affordance_templates", "execute_status"): "IDLE",
+            ("affordance_templates", "plan_status"): "IDLE",
             ("affordance_templates", "plan_valid"): False,
             ("cdra", "filter_locked"): True,
             ("cdra", "filter_present"): True,
@@ -114,9 +114,9 @@ class SimulatedSystems:
             self._frames[template] = str(args.get("frame", ""))
             return CommandResult(True, f"{template} moved to {self._frames[template]}")
         if command_id == "plan_trajectory":
-            self._set("affordance_templates", "plan_status", "SUCCEEDED")
+            self._set("affordance_templates", "plan_status", "PLANNED")
             self._set("affordance_templates", "plan_valid", True)
-            return CommandResult(True, "planned", {"plan_status": "SUCCEEDED", "plan_valid": True,
+            return CommandResult(True, "planned", {"plan_status": "PLANNED", "plan_valid": True,
                                                    "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
         if command_id == "execute_plan":
             self._set("affordance_templates", "execute_status", "EXECUTING")

@@ -446,6 +446,7 @@ function renderRun() {
 
 function renderInstruction(item, state, mayAct) {
   const number = item.dataset.number;
+  const running = Boolean(state.live) && state.status === "active";  // controls only on a running run
   const status = (state.statuses && state.statuses[number]) ||
     (state.instructions[number] && state.instructions[number].status) || "pending";
   const details = state.instructions[number] || {};
@@ -466,14 +467,14 @@ function renderInstruction(item, state, mayAct) {
     node.disabled = !enabled;
   };
   // Send and its kin: on every such instruction in manual mode, on the held one in autonomous mode
-  show(".perform", state.live && (state.mode === "manual" || current), idle && held && !failed);
-  show(".confirm", state.live && current && state.hold === "confirmation", idle);
-  show(".done", state.live, idle && kind === "manual");
-  show(".record", state.live, idle);
+  show(".perform", running && (state.mode === "manual" || current), idle && held && !failed);
+  show(".confirm", running && current && state.hold === "confirmation", idle);
+  show(".done", running, idle && kind === "manual");
+  show(".record", running, idle);
   const input = own(".instruction-controls > .record-value");
   if (input) input.disabled = !idle;
-  show(".retry", state.live && current && failed, idle);
-  show(".skip", state.live && current, idle);
+  show(".retry", running && current && failed, idle);
+  show(".skip", running && current, idle);
   const mark = own(".mark");
   const who = details.actor ? ` by ${details.actor}` : "";
   const when = details.time ? ` at ${new Date(details.time).toLocaleTimeString()}` : "";
