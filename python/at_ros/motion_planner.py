@@ -30,8 +30,13 @@ JOINT = "JOINT"
 CARTESIAN = "CARTESIAN"
 GRASP_POSES = ("closed", "close", "grasp")
 RELEASE_POSES = ("open", "release")
+#: Halvings of a Cartesian step tried before a line counts as broken.
+CARTESIAN_SUBDIVISIONS = 3
 #: IK solutions tried as the goal of a JOINT waypoint before giving up.
 GOAL_ALTERNATIVES = 3
+#: Share of plan_time per attempt: a reachable goal is found by RRTConnect in tens of ms, so a
+#: first attempt that runs long is usually boxed in and another configuration is cheaper.
+ATTEMPT_BUDGET = (0.1, 0.3, 0.6)
 #: How far (m) from the tool point a graspable object's origin may be to count as grasped.
 GRASP_REACH = 0.25
 
@@ -55,7 +60,15 @@ class PlannedWaypoint:
 
 
 class WaypointPlanningError(RuntimeError):
-    """A waypoint could not be planned; the message names the waypoint and why."""
+    """A waypoint could not be planned; the message names the waypoint and why.
+
+    ``final`` means retrying with another arm configuration cannot help (the pose itself is
+    unreachable or every solution collides).
+    """
+
+    def __init__(self, message: str, *, final: bool = False) -> None:
+        super().__init__(message)
+        self.final = final
 
 
 def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
@@ -98,64 +111,105 @@ class MotionPlanner:
             if why is not None:
                 raise WaypointPlanningError(f"the start state is in collision ({why})")
             q = np.asarray(start, dtype=float)
-            planned = []
-            for goal in goals:
-                t0 = time.perf_counter()
-                path = self._plan_one(q, goal)
-                timed = time_parameterize(path, scene.limits.velocity, self.settings.max_acceleration, velocity_scaling=self.settings.velocity_scaling)
-                q = path[-1]
-                self._update_attachment(q, goal.end_effector_pose)
-                planned.append(PlannedWaypoint(goal.label, timed, goal.end_effector_pose, time.perf_counter() - t0))
+            planned: list[PlannedWaypoint] = []
+            i = 0
+            while i < len(goals):
+                # A unit: one goal plus the CARTESIAN goals that follow it. When a JOINT goal's
+                # IK solution leaves the following straight lines no way through, another
+                # solution (another arm configuration) is tried for the whole unit.
+                end = i + 1
+                while end < len(goals) and goals[end].planner_type == CARTESIAN:
+                    end += 1
+                unit = self._plan_unit(q, goals[i:end])
+                planned.extend(unit)
+                q = unit[-1].path.positions[-1]
+                i = end
             return planned
         finally:
             scene.attachment = saved
 
-    def _plan_one(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
-        if goal.planner_type == JOINT:
-            return self._joint(q, goal)
-        if goal.planner_type == CARTESIAN:
-            return self._cartesian(q, goal)
-        raise WaypointPlanningError(f"waypoint {goal.label}: unknown planner type {goal.planner_type!r}")
+    def _timed(self, goal: Goal, path: list[np.ndarray], started: float) -> PlannedWaypoint:
+        timed = time_parameterize(path, self.scene.limits.velocity, self.settings.max_acceleration, velocity_scaling=self.settings.velocity_scaling)
+        return PlannedWaypoint(goal.label, timed, goal.end_effector_pose, time.perf_counter() - started)
 
-    def _joint(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
-        """IK nearest to ``q``, then OMPL; if no path reaches that solution, other IK solutions
-        (other arm configurations) are tried, since the nearest one may be boxed in."""
-        limits = self.scene.limits
+    def _plan_unit(self, q: np.ndarray, unit: list[Goal]) -> list[PlannedWaypoint]:
+        first = unit[0]
+        if first.planner_type not in (JOINT, CARTESIAN):
+            raise WaypointPlanningError(f"waypoint {first.label}: unknown planner type {first.planner_type!r}")
+        attachment = self.scene.attachment
+        attempts = GOAL_ALTERNATIVES if first.planner_type == JOINT else 1
         failure = ""
-        for attempt in range(GOAL_ALTERNATIVES):
-            near = q if attempt == 0 else self.ik.rng.uniform(limits.lower, limits.upper)
-            target = self.ik.solve(goal.pose, near, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance)
-            if isinstance(target, IkFailure):
-                if attempt == 0:
-                    raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}")
-                continue
+        for attempt in range(attempts):
+            self.scene.attachment = attachment
+            started = time.perf_counter()
             try:
-                return self.joint_planner.plan(q, target, time_limit=self.settings.plan_time / GOAL_ALTERNATIVES, simplify_time=self.settings.simplify_time)
-            except PlanningFailed as exc:
+                if first.planner_type == JOINT:
+                    path = self._joint(q, first, attempt)
+                else:
+                    path = self._cartesian(q, first)
+                out = [self._timed(first, path, started)]
+                self._update_attachment(path[-1], first.end_effector_pose)
+                for goal in unit[1:]:
+                    started = time.perf_counter()
+                    path = self._cartesian(path[-1], goal)
+                    out.append(self._timed(goal, path, started))
+                    self._update_attachment(path[-1], goal.end_effector_pose)
+                return out
+            except WaypointPlanningError as exc:
                 failure = str(exc)
-        raise WaypointPlanningError(f"waypoint {goal.label}: {failure} (tried {GOAL_ALTERNATIVES} IK solutions)")
+                if exc.final:
+                    break
+        suffix = f" (tried {attempts} IK solutions for {first.label})" if attempts > 1 else ""
+        raise WaypointPlanningError(failure + suffix)
+
+    def _joint(self, q: np.ndarray, goal: Goal, attempt: int) -> list[np.ndarray]:
+        """OMPL to an IK solution of ``goal``: the one nearest to ``q`` first, later attempts
+        from random seeds (other arm configurations)."""
+        limits = self.scene.limits
+        near = q if attempt == 0 else self.ik.rng.uniform(limits.lower, limits.upper)
+        target = self.ik.solve(goal.pose, near, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance)
+        if isinstance(target, IkFailure):
+            # Every seed failed already: another attempt would not find a different answer.
+            raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}", final=True)
+        try:
+            budget = self.settings.plan_time * ATTEMPT_BUDGET[attempt]
+            return self.joint_planner.plan(q, target, time_limit=budget, simplify_time=self.settings.simplify_time)
+        except PlanningFailed as exc:
+            raise WaypointPlanningError(f"waypoint {goal.label}: {exc}") from exc
 
     def _cartesian(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
+        """A straight tool line to ``goal``, tracked by local IK from sample to sample.
+
+        Each sample is solved only from the previous one (a random restart could switch arm
+        configuration mid-line); a sample that does not converge or jumps is retried with the
+        step halved, up to CARTESIAN_SUBDIVISIONS times, before the line is declared broken.
+        """
         scene = self.scene
         start_pose = scene.forward(q)
         p0, q0 = to_xyz_quat(start_pose)
         p1, q1 = to_xyz_quat(goal.pose)
         distance = float(np.linalg.norm(p1 - p0))
         rotation = angle_between(start_pose, goal.pose)
-        steps = max(1, int(np.ceil(max(distance / self.settings.cartesian_step, rotation / 0.05))))
-        path = [q]
-        for i in range(1, steps + 1):
-            t = i / steps
-            target = from_xyz_quat(p0 + (p1 - p0) * t, _slerp(q0, q1, t))
-            # Only the previous sample as seed: a random restart could jump to another arm configuration.
-            result = self.ik.solve(target, path[-1], position_tolerance=goal.position_tolerance,
-                                   orientation_tolerance=goal.orientation_tolerance, enough=1)
-            if isinstance(result, IkFailure):
-                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line blocked at {t:.0%}: {result.describe()}")
-            jump = float(np.max(np.abs(result - path[-1])))
-            if jump > self.settings.jump_threshold:
-                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} (joint jump {jump:.2f} rad)")
+        step = 1.0 / max(1, int(np.ceil(max(distance / self.settings.cartesian_step, rotation / 0.05))))
+        path = [np.asarray(q, dtype=float)]
+        t = 0.0
+        while t < 1.0 - 1e-12:
+            dt = min(step, 1.0 - t)
+            for _ in range(CARTESIAN_SUBDIVISIONS + 1):
+                target = from_xyz_quat(p0 + (p1 - p0) * (t + dt), _slerp(q0, q1, t + dt))
+                result = self.ik.track(target, path[-1], goal.position_tolerance, goal.orientation_tolerance)
+                jump = float(np.max(np.abs(result - path[-1]))) if result is not None else np.inf
+                if jump <= self.settings.jump_threshold:
+                    break
+                dt /= 2
+            else:
+                what = "no IK solution continues the line" if result is None else f"joint jump {jump:.2f} rad"
+                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})")
+            why = scene.collision(result)
+            if why is not None:
+                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line blocked at {t + dt:.0%}: collision {why}")
             path.append(result)
+            t += dt
         return path
 
     def _update_attachment(self, q: np.ndarray, end_effector_pose: str) -> None:

@@ -1,4 +1,4 @@
-"""Joint-space motion planning with OMPL (RRTConnect + path simplification).
+"""Joint-space motion planning with OMPL (RRTConnect) and path shortcutting.
 
 A straight joint-space line is tried first: most moves between nearby waypoints are free, and
 checking one line costs a few milliseconds where a solve plus simplification costs tens.
@@ -8,6 +8,7 @@ OMPL's solve() holds the GIL, which is why this runs in the planner node's own p
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -54,6 +55,7 @@ class JointPlanner:
         self.dof = len(lower)
         self.is_valid = is_valid
         self.resolution = resolution
+        self.straight_line_first = True  # off only to measure what the shortcut saves
         self.space = ob.RealVectorStateSpace(self.dof)
         bounds = ob.RealVectorBounds(self.dof)
         for i in range(self.dof):
@@ -78,7 +80,7 @@ class JointPlanner:
             raise PlanningFailed("the start state is in collision")
         if not self.is_valid(goal):
             raise PlanningFailed("the goal state is in collision")
-        if segment_is_valid(start, goal, self.is_valid, self.resolution):
+        if self.straight_line_first and segment_is_valid(start, goal, self.is_valid, self.resolution):
             return [np.array(start, dtype=float), np.array(goal, dtype=float)]
         self.setup.clear()
         s = self.space.allocState()
@@ -89,6 +91,23 @@ class JointPlanner:
         solved = self.setup.solve(time_limit)
         if not solved or not self.setup.haveExactSolutionPath():
             raise PlanningFailed(f"no collision-free joint path found in {time_limit:.1f} s")
-        self.setup.simplifySolution(simplify_time)
         path = self.setup.getSolutionPath()
-        return [np.array(path.getState(i)[0 : self.dof]) for i in range(path.getStateCount())]
+        vertices = [np.array(path.getState(i)[0 : self.dof]) for i in range(path.getStateCount())]
+        return self.shortcut(vertices, time.perf_counter() + simplify_time)
+
+    def shortcut(self, vertices: list[np.ndarray], deadline: float) -> list[np.ndarray]:
+        """Greedy shortcutting: from each kept vertex jump to the farthest one in straight sight.
+
+        OMPL's simplifySolution overran its time budget by 10-30x here (its shortcut rounds
+        call the Python validity checker thousands of times); RRTConnect's raw paths have few
+        vertices, so this O(n^2) pass of early-exiting line checks is both bounded and enough.
+        """
+        out = [vertices[0]]
+        i = 0
+        while i < len(vertices) - 1:
+            j = len(vertices) - 1
+            while j > i + 1 and (time.perf_counter() > deadline or not segment_is_valid(vertices[i], vertices[j], self.is_valid, self.resolution)):
+                j -= 1
+            out.append(vertices[j])
+            i = j
+        return out

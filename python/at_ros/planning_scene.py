@@ -170,12 +170,16 @@ class PlanningScene:
     # --- robot -----------------------------------------------------------------------------
 
     def set_joints(self, q: np.ndarray | list[float]) -> None:
-        for idx, value in zip(self.joint_indices, q):
-            p.resetJointState(self.robot, idx, float(value), physicsClientId=self.client)
+        p.resetJointStatesMultiDof(self.robot, self.joint_indices, [[float(v)] for v in q], physicsClientId=self.client)
         if self.attachment is not None:
             pose = self.tool_pose() @ self.attachment.tool_T_object
             pos, quat = to_xyz_quat(pose)
             p.resetBasePositionAndOrientation(self.attachment.body, pos.tolist(), quat.tolist(), physicsClientId=self.client)
+
+    def movable_positions(self) -> list[float]:
+        """Positions of every movable joint (arm and gripper), in pybullet's order."""
+        states = p.getJointStates(self.robot, self._movable, physicsClientId=self.client)
+        return [s[0] for s in states]
 
     def tool_pose(self) -> np.ndarray:
         state = p.getLinkState(self.robot, self.tool_index, computeForwardKinematics=True, physicsClientId=self.client)

@@ -14,8 +14,8 @@ def test_scene_file_bodies_and_filters_are_obstacles(iva_scene) -> None:
 
 
 def test_arm_through_the_table_is_a_collision(iva_scene) -> None:
-    # Upper arm up, forearm folded down: the gripper ends in the table top beside the base.
-    q = np.array([0.0, -1.5708, 2.8, -1.57, -1.57, 0.0])
+    # Upper arm forward, elbow folded down: the forearm goes through the table top.
+    q = np.array([0.0, -0.6, 2.4, -1.57, -1.57, 0.0])
     assert "table" in (iva_scene.collision(q) or "")
 
 
