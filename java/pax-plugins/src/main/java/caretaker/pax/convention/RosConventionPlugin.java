@@ -77,13 +77,15 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
         Map<String, String> topicNames = context.options().stringMap("topics");
         checkNames(context, "services", serviceNames.keySet(), commandIds());
         checkNames(context, "service_types", serviceTypes.keySet(), commandIds());
-        checkNames(context, "topics", topicNames.keySet(), board(sysRep).items());
+        Set<String> itemIds = new LinkedHashSet<>();
+        sysRep.telemetry().forEach(t -> itemIds.add(t.id()));
+        checkNames(context, "topics", topicNames.keySet(), itemIds);
         for (Command command : sysRep.commands()) {
             String name = serviceNames.getOrDefault(command.id(), context.resolve(command.id()));
             String type = serviceTypes.getOrDefault(command.id(), command.args().isEmpty() ? TRIGGER : null);
             services.put(command.id(), new Service(context.ros(), name, type));
         }
-        this.board = board(sysRep);
+        this.board = new TelemetryBoard(sysRep.id(), itemIds);
         for (Telemetry item : sysRep.telemetry()) {
             Topic topic = new Topic(context.ros(), topicNames.getOrDefault(item.id(), context.resolve(item.id())),
                     messageType(item.type()));
@@ -102,12 +104,6 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
             long period = Math.max(TimeUnit.MILLISECONDS.toNanos(20), staleAfter.toNanos() / 5);
             watchdog.scheduleAtFixedRate(() -> markStale(staleAfter.toNanos()), period, period, TimeUnit.NANOSECONDS);
         }
-    }
-
-    private static TelemetryBoard board(SysRep sysRep) {
-        Set<String> items = new LinkedHashSet<>();
-        sysRep.telemetry().forEach(t -> items.add(t.id()));
-        return new TelemetryBoard(sysRep.id(), items);
     }
 
     private Set<String> commandIds() {
