@@ -119,7 +119,11 @@ def run_main(argv: list[str] | None = None) -> int:
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
     procedure = load_procedure(path)
-    gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
+    try:
+        gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
+    except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
+        print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
+        return 2
     try:
         missing = {s for s, _ in procedure.uses} - gateway_system_ids(gateway)
         if missing:

@@ -99,7 +99,8 @@ def summarize(events: list[Event]) -> RunSummary:
         elif event.kind is EventKind.RUN_RESUMED:
             outcome = "interrupted"
     images = [
-        Image(e.instruction or "", e.time, str(e.data["values"]["path"]), str(e.data["values"].get("label", "")))
+        Image(e.instruction or "", e.time, str(e.data["values"]["path"]),
+              str(e.data["values"].get("label") or Path(str(e.data["values"]["path"])).stem))
         for e in events
         if e.kind is EventKind.COMMAND_RESULT and isinstance(e.data.get("values"), dict)
         and Path(str(e.data["values"].get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES

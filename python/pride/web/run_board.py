@@ -71,10 +71,13 @@ def _choose(directory: Path, name: str, known: list[str], what: str) -> Path:
 class RunBoard:
     """Live runs by id, and the audit log they all write to."""
 
-    def __init__(self, catalog: Catalog, audit_log: AuditLog, camera: CameraSettings = CameraSettings()) -> None:
+    def __init__(
+        self, catalog: Catalog, audit_log: AuditLog, camera: CameraSettings = CameraSettings(), *, rosbridge_url: str | None = None
+    ) -> None:
         self.catalog = catalog
         self.audit_log = audit_log
         self.camera = camera
+        self.rosbridge_url = rosbridge_url
         self._lock = threading.Lock()  # guards _live
         self._live: dict[str, LiveRun] = {}
 
@@ -94,7 +97,11 @@ class RunBoard:
         if problems:
             raise ActionRefused(422, "the procedure has problems and cannot start:\n" + "\n".join(map(str, problems)))
         procedure = load_procedure(path)
-        gateway = open_gateway(str(binding))
+        try:
+            gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url)
+        except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) refuse the start
+            log.exception("opening %s", binding)
+            raise ActionRefused(502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}") from None
         missing = {system for system, _ in procedure.uses} - gateway_system_ids(gateway)
         if missing:
             gateway.close()

@@ -51,6 +51,7 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
     parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
+    parser.add_argument("--rosbridge", metavar="URL", help="override the bindings' rosbridge URL (e.g. ws://127.0.0.1:9091)")
     parser.add_argument("--camera", metavar="NAME",
                         help="camera to show while the robot moves (e.g. ee_camera, scene), when the binding serves the camera SysRep")
     parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
@@ -75,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         log.warning("serving on %s: the web view is reachable beyond this machine", args.address)
     audit_log = AuditLog(args.db)
     catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
-    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period))
+    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period), rosbridge_url=args.rosbridge)
     app = build_app(board, SignIns(accounts), report_writer=report_writer(audit_log, args.reports))
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
