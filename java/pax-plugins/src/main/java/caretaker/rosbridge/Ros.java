@@ -18,6 +18,8 @@ import java.util.concurrent.ExecutionException;
 import java.util.concurrent.ExecutorService;
 import java.util.concurrent.Executors;
 import java.util.concurrent.ScheduledExecutorService;
+import java.util.concurrent.ScheduledFuture;
+import java.util.concurrent.ScheduledThreadPoolExecutor;
 import java.util.concurrent.ThreadFactory;
 import java.util.concurrent.TimeUnit;
 import java.util.concurrent.TimeoutException;
@@ -92,7 +94,9 @@ public final class Ros implements AutoCloseable {
         // blocks and never sends; user code runs on callbackThread.
         this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).executor(Runnable::run).build();
         this.callbackThread = Executors.newSingleThreadExecutor(daemon("rosbridge-callbacks " + uri));
-        this.timerThread = Executors.newSingleThreadScheduledExecutor(daemon("rosbridge-timer " + uri));
+        ScheduledThreadPoolExecutor timer = new ScheduledThreadPoolExecutor(1, daemon("rosbridge-timer " + uri));
+        timer.setRemoveOnCancelPolicy(true); // answered calls leave the queue at once
+        this.timerThread = timer;
     }
 
     private static ThreadFactory daemon(String name) {
@@ -340,21 +344,34 @@ public final class Ros implements AutoCloseable {
         }
     }
 
+    /**
+     * Sends a call and registers it until its reply. With a timeout, the timer thread fails it
+     * then; without (null), the caller must wait with its own timeout and {@link #forgetCall}
+     * on expiry — the blocking path does that, so it costs no timer task per call.
+     */
     CompletableFuture<ServiceResponse> callService(String id, String service, JsonObject request, Duration timeout) {
         CompletableFuture<ServiceResponse> future = new CompletableFuture<>();
         pendingCalls.put(id, new PendingCall(service, future));
         try {
-            timerThread.schedule(() -> {
-                if (pendingCalls.remove(id) != null) {
-                    future.completeExceptionally(new RosTimeoutException("call_service " + service, timeout));
-                }
-            }, timeout.toNanos(), TimeUnit.NANOSECONDS);
+            if (timeout != null) {
+                ScheduledFuture<?> timer = timerThread.schedule(() -> forgetCall(id, timeout), timeout.toNanos(),
+                        TimeUnit.NANOSECONDS);
+                future.whenComplete((response, failure) -> timer.cancel(false));
+            }
             send(request);
         } catch (RuntimeException e) {
             pendingCalls.remove(id);
             future.completeExceptionally(e instanceof RosException ? e : new RosException(e.getMessage(), e));
         }
         return future;
+    }
+
+    /** Drops a call that got no reply within {@code timeout}; a late reply is then ignored. */
+    void forgetCall(String id, Duration timeout) {
+        PendingCall call = pendingCalls.remove(id);
+        if (call != null) {
+            call.future().completeExceptionally(new RosTimeoutException("call_service " + call.service(), timeout));
+        }
     }
 
     /** Number of service calls awaiting a reply, so tests can check nothing leaks. */

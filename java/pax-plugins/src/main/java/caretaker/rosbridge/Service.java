@@ -4,6 +4,8 @@ import com.google.gson.JsonObject;
 import java.time.Duration;
 import java.util.concurrent.CompletableFuture;
 import java.util.concurrent.ExecutionException;
+import java.util.concurrent.TimeUnit;
+import java.util.concurrent.TimeoutException;
 
 /**
  * A ROS service on a {@link Ros} connection. Every call ends: with the reply, a
@@ -57,7 +59,10 @@ public final class Service {
      * @return the reply to come
      */
     public CompletableFuture<ServiceResponse> callAsync(ServiceRequest request, Duration timeout) {
-        String id = Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId();
+        return call(Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId(), request, timeout);
+    }
+
+    private CompletableFuture<ServiceResponse> call(String id, ServiceRequest request, Duration timeout) {
         JsonObject message = new JsonObject();
         message.addProperty(Protocol.FIELD_OP, Protocol.OP_CALL_SERVICE);
         message.addProperty(Protocol.FIELD_ID, id);
@@ -105,10 +110,19 @@ public final class Service {
      * @throws RosException the connection dropped or is down
      */
     public ServiceResponse callServiceAndWait(ServiceRequest request, Duration timeout) {
+        String id = Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId();
+        // No timer task: this thread waits with the timeout itself and forgets the call on expiry.
+        CompletableFuture<ServiceResponse> reply = call(id, request, null);
         try {
-            // The future is completed by the connection's own timer, so this wait ends in time.
-            return callAsync(request, timeout).get();
+            return reply.get(timeout.toNanos(), TimeUnit.NANOSECONDS);
+        } catch (TimeoutException e) {
+            ros.forgetCall(id, timeout);
+            if (reply.isDone() && !reply.isCompletedExceptionally()) {
+                return reply.join(); // the reply won the race against the timeout
+            }
+            throw new RosTimeoutException("call_service " + name, timeout);
         } catch (InterruptedException e) {
+            ros.forgetCall(id, timeout);
             Thread.currentThread().interrupt();
             throw new RosException("interrupted while calling " + name, e);
         } catch (ExecutionException e) {
