@@ -39,7 +39,6 @@ Durability
 
 from __future__ import annotations
 
-import enum
 import logging
 import threading
 import time
@@ -47,16 +46,14 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pride.automation import Automation, Outcome
 from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind, Journal
-from pride.model import (
-    BranchInstruction, CallInstruction, CommandInstruction, GoToInstruction, Instruction,
-    ManualInstruction, Procedure, RecordInstruction, Subject, VerifyInstruction, WaitInstruction,
-    lookup, Reference,
-)
+from pride.model import CallInstruction, Instruction, ManualInstruction, Procedure, RecordInstruction
 from pride.lint import lint_procedure
 from pride.parser import load_procedure
-from pride.sysrep import SysRep, check_value
+from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
+from pride.sysrep import SysRep
 from pride.systems import SystemGateway
 
 __all__ = ["Executive", "Hold", "InstructionStatus", "Mode", "OperatorActionError", "RunStatus", "Snapshot"]
@@ -64,92 +61,6 @@ __all__ = ["Executive", "Hold", "InstructionStatus", "Mode", "OperatorActionErro
 log = logging.getLogger(__name__)
 
 _END = "end"
-_TELEMETRY_POLL_S = 0.25
-
-
-class Mode(enum.Enum):
-    """Who drives the run."""
-
-    MANUAL = "manual"
-    """The operator performs every instruction."""
-    AUTONOMOUS = "autonomous"
-    """PAX performs automatable instructions and holds for the operator where needed."""
-
-
-class RunStatus(enum.Enum):
-    """Where the run is in its life."""
-
-    READY = "ready"
-    """Created, not started."""
-    ACTIVE = "active"
-    """Started and not finished."""
-    COMPLETED = "completed"
-    """Every instruction on the path was completed or skipped."""
-    STOPPED = "stopped"
-    """An operator stopped it (or recording failed); it can be resumed from the log."""
-
-
-class InstructionStatus(enum.Enum):
-    """The state of one instruction in this run."""
-
-    PENDING = "pending"
-    """Not reached yet."""
-    ACTIVE = "active"
-    """The current instruction, waiting to be performed."""
-    EXECUTING = "executing"
-    """Being performed (command sent, telemetry watched, sub-procedure running)."""
-    COMPLETED = "completed"
-    """Done successfully."""
-    FAILED = "failed"
-    """Performed and failed."""
-    SKIPPED = "skipped"
-    """An operator skipped it with a reason."""
-
-
-class Hold(enum.Enum):
-    """Why automation is not performing the current instruction."""
-
-    OPERATOR_INPUT = "operator_input"
-    """A record: an operator must enter a value."""
-    OPERATOR_ACTION = "operator_action"
-    """A manual instruction: an operator must do it and mark it done."""
-    NOT_AUTOMATABLE = "not_automatable"
-    """The author marked it automatable=false: an operator must perform it."""
-    CONFIRMATION = "confirmation"
-    """A hazardous command: an operator must confirm it before it is sent."""
-    BREAKPOINT = "breakpoint"
-    """A breakpoint: an operator must continue or step."""
-    PAUSED = "paused"
-    """An operator paused automation."""
-    FAILURE = "failure"
-    """It failed and the procedure has no branch for that: retry or skip."""
-    IN_FLIGHT = "in_flight"
-    """It was in flight when the runner died: retry (resend) or skip."""
-    MANUAL_MODE = "manual_mode"
-    """Manual mode: the operator performs every instruction."""
-
-
-class OperatorActionError(RuntimeError):
-    """An operator action does not apply to the run's current state; the message says why."""
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """The observable state of a run at one moment."""
-
-    run_id: str
-    procedure_id: str
-    status: RunStatus
-    mode: Mode
-    current: str | None
-    hold: Hold | None
-    reason: str
-    executing: bool
-    statuses: dict[str, InstructionStatus]
-    breakpoints: frozenset[str]
-    variables: dict[str, Any]
-    last_seq: int
-    error: str | None = None
 
 
 @dataclass
@@ -170,15 +81,6 @@ class _Frame:
         position = self.position if position is None else position
         items = self.procedure.instructions
         return self.prefix + (items[position].number if position < len(items) else _END)
-
-
-@dataclass
-class _Outcome:
-    ok: bool
-    reason: str = ""
-    goto: str | None = None  # a step reference to continue at
-    result: tuple[str, dict[str, Any]] | None = None  # saved command result
-    enter: _Frame | None = None  # a sub-procedure to run
 
 
 @dataclass
@@ -209,7 +111,6 @@ class Executive:
         self.run_id = run_id
         self._gateway = gateway
         self._journal = journal
-        self._sysreps = dict(sysreps or {})
         self._load = load
         self._lock = threading.RLock()  # guards every field below
         self._changed = threading.Condition(self._lock)
@@ -229,8 +130,7 @@ class Executive:
         self._seq = 0
         self._error: str | None = None
         self._listeners: list[Callable[[Event], None]] = []
-        self._abort = threading.Event()  # wakes waits and verifies when the run stops
-        self._telemetry_changed = threading.Event()
+        self._automation = Automation(gateway, sysreps or {}, load, self._record)
         self._worker: threading.Thread | None = None
         gateway.add_listener(self._telemetry_callback)
 
@@ -430,7 +330,7 @@ class Executive:
         with self._changed:
             self._require_active()
             self._status = RunStatus.STOPPED
-            self._abort.set()
+            self._automation.abort.set()
             self._emit(EventKind.RUN_STOPPED, user, self._current_number(), reason=reason)
 
     def set_breakpoint(self, user: str, number: str) -> None:
@@ -555,11 +455,7 @@ class Executive:
 
     def is_hazardous(self, instruction: Instruction) -> bool:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
-        if not isinstance(instruction, CommandInstruction):
-            return False
-        sysrep = self._sysreps.get(instruction.system)
-        command = sysrep.command(instruction.command) if sysrep is not None else None
-        return instruction.hazardous or bool(command is not None and command.hazardous)
+        return self._automation.is_hazardous(instruction)
 
     # ---- state (called with the lock held) ---------------------------------------------------
     def _hold(self) -> tuple[Hold | None, str]:
@@ -658,6 +554,11 @@ class Executive:
                 log.exception("event listener %r failed on %s", listener, kind.value)
         return event
 
+    def _record(self, kind: EventKind, actor: str, instruction: str | None, **data: Any) -> None:
+        """Emit from PAX's thread while it does not hold the lock (automation's callback)."""
+        with self._lock:
+            self._emit(kind, actor, instruction, **data)
+
     # ---- PAX's thread -----------------------------------------------------------------------
     def _pax_loop(self) -> None:
         try:
@@ -678,12 +579,12 @@ class Executive:
                                text=instruction.describe())
                     self._changed.notify_all()
                 try:
-                    outcome = self._carry_out(frame, instruction, number, actor)
+                    outcome = self._automation.carry_out(frame.env, frame.procedure, instruction, number, actor)
                 except KeyError as exc:
-                    outcome = _Outcome(False, str(exc.args[0]) if exc.args else str(exc))
+                    outcome = Outcome(False, str(exc.args[0]) if exc.args else str(exc))
                 except Exception as exc:  # a gateway error is a failed instruction, never a success
                     log.exception("%s failed", number)
-                    outcome = _Outcome(False, f"{type(exc).__name__}: {exc}")
+                    outcome = Outcome(False, f"{type(exc).__name__}: {exc}")
                 with self._changed:
                     self._executing = False
                     self._finish(frame, instruction, number, actor, outcome)
@@ -697,7 +598,7 @@ class Executive:
                 self._error = f"{type(exc).__name__}: {exc}"
                 self._status = RunStatus.STOPPED
                 self._executing = False
-                self._abort.set()
+                self._automation.abort.set()
                 self._changed.notify_all()
 
     def _next_job(self) -> tuple[_Frame, Instruction, str, bool] | None:
@@ -713,7 +614,7 @@ class Executive:
             return frame, instruction, PAX, False
         return None
 
-    def _finish(self, frame: _Frame, instruction: Instruction, number: str, actor: str, outcome: _Outcome) -> None:
+    def _finish(self, frame: _Frame, instruction: Instruction, number: str, actor: str, outcome: Outcome) -> None:
         if outcome.result is not None:
             name, values = outcome.result
             frame.env[name] = values
@@ -726,9 +627,9 @@ class Executive:
             return
         if outcome.ok:
             if outcome.enter is not None:
-                self._frames.append(outcome.enter)
-                self._emit(EventKind.CALL_ENTERED, actor, number, procedure=outcome.enter.procedure.id,
-                           inputs=dict(outcome.enter.env))
+                callee, inputs = outcome.enter
+                self._frames.append(_Frame(callee, f"{number}/", 0, dict(inputs)))
+                self._emit(EventKind.CALL_ENTERED, actor, number, procedure=callee.id, inputs=dict(inputs))
                 self._advance(0)
                 return
             went = {"went_to": outcome.goto} if outcome.goto else {}
@@ -745,118 +646,16 @@ class Executive:
         self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)
         self._announce()
 
-    def _target(self, frame: _Frame, instruction: Instruction, outcome: _Outcome) -> int | None:
+    def _target(self, frame: _Frame, instruction: Instruction, outcome: Outcome) -> int | None:
         """Where the run goes after the outcome; None means hold at a failure."""
         if outcome.ok:
             return self._position_of(frame, outcome.goto) if outcome.goto else frame.procedure.following(frame.position)
         on_failure = getattr(instruction, "on_failure", None)
         return self._position_of(frame, on_failure) if on_failure else None
 
-    # ---- carrying out one instruction (PAX's thread, lock NOT held) -------------------------
-    def _carry_out(self, frame: _Frame, instruction: Instruction, number: str, actor: str) -> _Outcome:
-        if isinstance(instruction, CommandInstruction):
-            return self._send(frame, instruction, number, actor)
-        if isinstance(instruction, VerifyInstruction):
-            return self._watch(instruction.subject, instruction.condition, instruction.timeout, number, actor)
-        if isinstance(instruction, WaitInstruction):
-            if instruction.seconds is not None:
-                if self._abort.wait(instruction.seconds):
-                    return _Outcome(False, "the run was stopped during the wait")
-                return _Outcome(True)
-            return self._watch(instruction.subject, instruction.condition, instruction.timeout, number, actor)
-        if isinstance(instruction, BranchInstruction):
-            value = self._read(frame, instruction.subject, number, actor)
-            holds = instruction.condition.holds(value, self._type_of(frame, instruction.subject))
-            return _Outcome(True, goto=instruction.goto if holds else instruction.else_goto)
-        if isinstance(instruction, GoToInstruction):
-            return _Outcome(True, goto=instruction.step)
-        if isinstance(instruction, CallInstruction):
-            callee = self._load(instruction.resolved_path)
-            declared = {i.name: i.type for i in callee.inputs}
-            inputs = {a.name: check_value(a.name, declared.get(a.name, "string"), a.value.resolve(frame.env))
-                      for a in instruction.args}
-            return _Outcome(True, enter=_Frame(callee, f"{number}/", 0, inputs))
-        raise OperatorActionError(f"{number} is performed by an operator")
-
-    def _send(self, frame: _Frame, instruction: CommandInstruction, number: str, actor: str) -> _Outcome:
-        sysrep = self._sysreps.get(instruction.system)
-        command = sysrep.command(instruction.command) if sysrep is not None else None
-        args: dict[str, Any] = {}
-        for binding in instruction.args:
-            value = binding.value.resolve(frame.env)
-            argument = command.arg(binding.name) if command is not None else None
-            try:
-                args[binding.name] = argument.check(value) if argument is not None else value
-            except ValueError as exc:
-                return _Outcome(False, f"argument {exc}")
-        with self._lock:
-            self._emit(EventKind.COMMAND_SENT, actor, number, system=instruction.system, command=instruction.command,
-                       args=args, hazardous=self.is_hazardous(instruction))
-        result = self._gateway.execute(instruction.system, instruction.command, args)
-        success = bool(getattr(result, "success", False))
-        message = str(getattr(result, "message", "") or "")
-        values = dict(getattr(result, "values", None) or {})
-        with self._lock:
-            self._emit(EventKind.COMMAND_RESULT, actor, number, system=instruction.system, command=instruction.command,
-                       success=success, message=message, values=values, result=instruction.result)
-        saved = (instruction.result, {"success": success, "message": message, **values}) if instruction.result else None
-        if success:
-            return _Outcome(True, result=saved)
-        return _Outcome(False, f"{instruction.system}.{instruction.command} failed: {message or 'no message'}", result=saved)
-
-    def _watch(self, subject: Subject, condition: Any, timeout: float, number: str, actor: str) -> _Outcome:
-        """Watch telemetry until the condition holds (fresh value) or the timeout passes."""
-        item = self._sysreps.get(subject.system).telemetry_item(subject.name) if subject.system in self._sysreps else None
-        type_name = item.type if item is not None else None
-        deadline = time.monotonic() + timeout
-        while True:
-            self._telemetry_changed.clear()
-            reading = self._gateway.telemetry(subject.system, subject.name)
-            value, stale = getattr(reading, "value", None), bool(getattr(reading, "stale", False))
-            ok = not stale and value is not None and condition.holds(value, type_name)
-            remaining = deadline - time.monotonic()
-            if ok or remaining <= 0 or self._abort.is_set():
-                with self._lock:
-                    self._emit(EventKind.TELEMETRY_SEEN, actor, number, system=subject.system, item=subject.name,
-                               value=value, stale=stale, timestamp=getattr(reading, "timestamp", None),
-                               condition=condition.describe(), ok=ok)
-                if ok:
-                    return _Outcome(True)
-                if self._abort.is_set():
-                    return _Outcome(False, "the run was stopped while watching telemetry")
-                state = "stale " if stale else ""
-                return _Outcome(False, f"{subject.describe()} was {state}{value!r}, expected {condition.describe()} "
-                                       f"(waited {timeout:g} s)")
-            self._telemetry_changed.wait(min(_TELEMETRY_POLL_S, remaining))
-
-    def _read(self, frame: _Frame, subject: Subject, number: str, actor: str) -> Any:
-        if subject.source == "telemetry":
-            reading = self._gateway.telemetry(subject.system, subject.name)
-            value = getattr(reading, "value", None)
-            with self._lock:
-                self._emit(EventKind.TELEMETRY_SEEN, actor, number, system=subject.system, item=subject.name, value=value,
-                           stale=bool(getattr(reading, "stale", False)), timestamp=getattr(reading, "timestamp", None))
-            if getattr(reading, "stale", False):
-                raise KeyError(f"{subject.describe()} is stale; cannot decide the branch")
-            return value
-        return lookup(frame.env, Reference(subject.name, subject.field if subject.source == "result" else None))
-
-    def _type_of(self, frame: _Frame, subject: Subject) -> str | None:
-        if subject.source == "telemetry":
-            sysrep = self._sysreps.get(subject.system)
-            item = sysrep.telemetry_item(subject.name) if sysrep is not None else None
-            return item.type if item is not None else None
-        if subject.source == "result":
-            return "boolean" if subject.field == "success" else None
-        record = next((i for i in frame.procedure.instructions if isinstance(i, RecordInstruction) and i.name == subject.name), None)
-        if record is not None:
-            return record.type
-        declared = next((i for i in frame.procedure.inputs if i.name == subject.name), None)
-        return declared.type if declared is not None else None
-
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: Any) -> None:
         """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
-        self._telemetry_changed.set()
+        self._automation.telemetry_changed.set()
 
 
 def _result_values(data: dict[str, Any]) -> dict[str, Any]:

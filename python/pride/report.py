@@ -13,7 +13,6 @@ import shutil
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Any
 
 from pride.events import PAX, Event, EventKind
 
