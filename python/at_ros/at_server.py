@@ -62,7 +62,6 @@ from caretaker_sim_msgs.srv import SetGripper
 
 __all__ = ["AffordanceTemplateServer", "main"]
 
-LOG = logging.getLogger(__name__)
 PREFIX = "/affordance_template_server"
 HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few seconds
 PLAN_TIMEOUT = 60.0
@@ -461,6 +460,8 @@ class AffordanceTemplateServer(Node):
             self._set_state(execute_status=ServerStatus.EXECUTE_EXECUTING, active_template=instance.key, active_trajectory=trajectory)
             progress = instance.progress[trajectory]
             progress.execution_valid = False
+            # Command the first gripper pose even if it seems unchanged: something else may have moved it.
+            self._gripper_pose = None
             try:
                 for index, segment in zip(plan.indices, plan.segments):
                     self._run_segment(segment)

@@ -9,7 +9,6 @@ rest of the plan, opening detaches it.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass
 
@@ -24,7 +23,6 @@ from at_ros.transforms import angle_between, from_xyz_quat, to_xyz_quat
 
 __all__ = ["Goal", "PlannedWaypoint", "MotionPlanner", "WaypointPlanningError"]
 
-LOG = logging.getLogger(__name__)
 
 JOINT = "JOINT"
 CARTESIAN = "CARTESIAN"
@@ -33,10 +31,10 @@ RELEASE_POSES = ("open", "release")
 #: Halvings of a Cartesian step tried before a line counts as broken.
 CARTESIAN_SUBDIVISIONS = 3
 #: IK solutions tried as the goal of a JOINT waypoint before giving up.
-GOAL_ALTERNATIVES = 3
+GOAL_ALTERNATIVES = 5
 #: Share of plan_time per attempt: a reachable goal is found by RRTConnect in tens of ms, so a
 #: first attempt that runs long is usually boxed in and another configuration is cheaper.
-ATTEMPT_BUDGET = (0.1, 0.3, 0.6)
+ATTEMPT_BUDGET = (0.1, 0.15, 0.2, 0.25, 0.3)
 #: How far (m) from the tool point a graspable object's origin may be to count as grasped.
 GRASP_REACH = 0.25
 
@@ -90,20 +88,26 @@ class MotionPlanner:
         self.ik = IkSolver(scene, seeds=settings.ik_seeds, iterations=settings.ik_iterations, residual=settings.ik_residual, rng=rng)
         self.joint_planner = JointPlanner(scene.limits.lower, scene.limits.upper, scene.is_valid, seed=settings.seed)
 
-    def plan(self, start: np.ndarray, goals: list[Goal], *, held_object: str = "") -> list[PlannedWaypoint]:
-        """Plan every goal in order from ``start``; the scene's attachment is restored afterwards.
+    def plan(self, start: np.ndarray, goals: list[Goal], *, held_object: str = "", held_transform: np.ndarray | None = None) -> list[PlannedWaypoint]:
+        """Plan every goal in order from ``start``; the scene (attachment, object poses) is restored afterwards.
+
+        Args:
+            held_object: the object in the gripper at ``start`` ("" = none).
+            held_transform: its pose in the tool frame; by default where it is now.
 
         Raises:
             WaypointPlanningError: naming the first goal that failed and why.
         """
         scene = self.scene
         saved = scene.attachment
+        # Carrying an object during planning moves its body; the world must not keep that.
+        object_poses = {name: scene.obstacle_pose(name) for name in scene.graspable}
         scene.set_joints(start)
         if held_object:
             name = scene.object_name(held_object)
             if name is None:
                 raise WaypointPlanningError(f"held object {held_object!r} is not in the planning scene")
-            scene.attach(name)
+            scene.attach(name, held_transform)
         elif scene.attachment is not None:
             scene.detach()
         try:
@@ -127,6 +131,8 @@ class MotionPlanner:
             return planned
         finally:
             scene.attachment = saved
+            for name, pose in object_poses.items():
+                scene.set_obstacle_pose(name, pose)
 
     def _timed(self, goal: Goal, path: list[np.ndarray], started: float) -> PlannedWaypoint:
         timed = time_parameterize(path, self.scene.limits.velocity, self.settings.max_acceleration, velocity_scaling=self.settings.velocity_scaling)
@@ -156,10 +162,11 @@ class MotionPlanner:
                     self._update_attachment(path[-1], goal.end_effector_pose)
                 return out
             except WaypointPlanningError as exc:
-                failure = str(exc)
+                # Report the nearest configuration's failure: the one an operator would expect.
+                failure = failure or str(exc)
                 if exc.final:
                     break
-        suffix = f" (tried {attempts} IK solutions for {first.label})" if attempts > 1 else ""
+        suffix = f" (also with {attempts - 1} other IK solutions for {first.label})" if attempts > 1 else ""
         raise WaypointPlanningError(failure + suffix)
 
     def _joint(self, q: np.ndarray, goal: Goal, attempt: int) -> list[np.ndarray]:

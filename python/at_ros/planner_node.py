@@ -18,7 +18,8 @@ import rclpy
 from builtin_interfaces.msg import Duration
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from std_msgs.msg import Header
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool, Header, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from affordance_template_msgs.msg import PlannedSegment
@@ -29,12 +30,14 @@ from at_ros.motion_planner import Goal, MotionPlanner, PlannedWaypoint, Waypoint
 from at_ros.robot_config import RobotConfig, load_robot_configs
 from at_ros.scene_file import build_planning_scene
 from at_ros.time_parameterization import TimedPath
+from at_ros.transforms import invert
 from caretaker_sim_msgs.msg import NamedPoses
 
 __all__ = ["PlannerNode", "main", "trajectory_message"]
 
-LOG = logging.getLogger(__name__)
 WORLD_FRAME = "world"
+#: The simulation latches gripper/held_object and robot/moving.
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def trajectory_message(joint_names: tuple[str, ...], path: TimedPath) -> JointTrajectory:
@@ -56,7 +59,12 @@ class PlannerNode(Node):
         self.config = config
         self.scene = build_planning_scene(config)
         self.motion_planner = MotionPlanner(self.scene, config.planner)
+        self.held_object = ""
+        self.robot_moving = False
+        self.grasp_transform: np.ndarray | None = None  # held object in the tool frame
         self.frames_subscription = self.create_subscription(NamedPoses, "/sim/frames", self.frames_callback, 10)
+        self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, LATCHED)
+        self.moving_subscription = self.create_subscription(Bool, "/robot/moving", self.moving_callback, LATCHED)
         self.plan_service = self.create_service(PlanWaypoints, "/planner/plan_waypoints", self.plan_callback)
         self.heartbeat_publisher = self.create_publisher(Header, "/planner/heartbeat", 10)
         self.heartbeat_timer = self.create_timer(0.5, self.heartbeat_callback)
@@ -67,13 +75,30 @@ class PlannerNode(Node):
         msg.frame_id = self.config.robot_name
         self.heartbeat_publisher.publish(msg)
 
+    def held_object_callback(self, msg: String) -> None:
+        if msg.data != self.held_object:
+            self.held_object = msg.data
+            self.grasp_transform = None
+
+    def moving_callback(self, msg: Bool) -> None:
+        self.robot_moving = bool(msg.data)
+
     def frames_callback(self, msg: NamedPoses) -> None:
-        """Mirror moving things (filters) and the robot base from the simulation's ground truth."""
-        for name, pose in zip(msg.names, msg.poses):
+        """Mirror moving things (filters) and the robot base from the simulation's ground truth.
+
+        The grasp transform of a held object is measured when it is first seen held and again
+        whenever the arm carries it, never while the arm rests: a resting simulated gripper lets
+        its part sag, and planning with the sagged pose would scrape it along every slot.
+        """
+        poses = {name: matrix_from_pose(pose) for name, pose in zip(msg.names, msg.poses)}
+        for name, pose in poses.items():
             if name in self.scene.graspable:
-                self.scene.set_obstacle_pose(name, matrix_from_pose(pose))
+                self.scene.set_obstacle_pose(name, pose)
             elif name == self.config.base_frame:
-                self.scene.set_base_pose(matrix_from_pose(pose))
+                self.scene.set_base_pose(pose)
+        held = self.scene.object_name(self.held_object) if self.held_object else None
+        if held in poses and self.config.tool_link in poses and (self.grasp_transform is None or self.robot_moving):
+            self.grasp_transform = invert(poses[self.config.tool_link]) @ poses[held]
 
     def plan_callback(self, request: PlanWaypoints.Request, response: PlanWaypoints.Response) -> PlanWaypoints.Response:
         started = time.perf_counter()
@@ -82,7 +107,8 @@ class PlannerNode(Node):
             goals = [self._goal(w) for w in request.waypoints]
             if not goals:
                 raise WaypointPlanningError("no waypoints to plan")
-            planned = self.motion_planner.plan(start, goals, held_object=request.held_object)
+            grasp = self.grasp_transform if request.held_object and request.held_object == self.held_object else None
+            planned = self.motion_planner.plan(start, goals, held_object=request.held_object, held_transform=grasp)
         except WaypointPlanningError as exc:
             response.success = False
             response.message = str(exc)

@@ -8,7 +8,6 @@ object in the gripper is attached to the tool link so collision checks include i
 from __future__ import annotations
 
 import itertools
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,7 +18,6 @@ from at_ros.transforms import from_xyz_quat, invert, to_xyz_quat
 
 __all__ = ["PlanningScene", "JointLimits", "Attachment"]
 
-LOG = logging.getLogger(__name__)
 
 #: Contacts shallower than this (m) are resting contact, not collision: a filter sliding in its
 #: slot or a gripper pad touching the part it grasps.

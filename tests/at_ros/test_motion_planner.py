@@ -1,0 +1,63 @@
+"""Waypoint sequences on the IVA planning scene: chained plans, grasp attachment, failures named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from at_ros.instance import Registration, TemplateInstance
+from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
+from at_ros.transforms import angle_between, from_xyz_rpy
+
+from conftest import UR10_START
+
+CABINET_SLOT = from_xyz_rpy([0.15, 0.90, 1.05], [0.0, 0.0, np.pi / 2])
+
+
+@pytest.fixture(scope="module")
+def planner(iva_scene, ur10_config):
+    return MotionPlanner(iva_scene, ur10_config.planner)
+
+
+def _goals(library, ur10_config, trajectory: str, frame: np.ndarray) -> list[Goal]:
+    instance = TemplateInstance(library["cdra_filter"], 0, ur10_config, root_pose=np.eye(4))
+    instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), frame))
+    t = instance.trajectory(trajectory)
+    return [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose) for w in instance.resolve(t, instance.end_effector(t, []))]
+
+
+def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene, library, ur10_config) -> None:
+    goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT)
+    planned = planner.plan(UR10_START, goals)
+    assert [p.label for p in planned] == [g.label for g in goals]
+    assert [p.end_effector_pose for p in planned] == ["open", "open", "closed", "closed"]
+    np.testing.assert_allclose(planned[0].path.positions[0], UR10_START, atol=1e-9)
+    for before, after in zip(planned, planned[1:]):  # chained: each starts where the last ended
+        np.testing.assert_allclose(after.path.positions[0], before.path.positions[-1], atol=1e-9)
+    for p, goal in zip(planned, goals):
+        reached = iva_scene.forward(p.path.positions[-1])
+        assert np.linalg.norm(reached[:3, 3] - goal.pose[:3, 3]) < 1e-3 and angle_between(reached, goal.pose) < 1e-2
+        assert np.all(np.abs(p.path.velocities) <= iva_scene.limits.velocity * ur10_config.planner.velocity_scaling + 1e-6)
+        for q in p.path.positions:
+            assert iva_scene.within_limits(q)
+    assert iva_scene.attachment is None  # the plan's grasp is not left behind in the scene
+
+
+def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur10_config) -> None:
+    goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT)
+    # Pull straight through the cabinet's back plate instead of out of the slot: the carried
+    # filter (not the arm) runs into the cabinet and the wall behind it: the grasp attached it.
+    pushed = goals[:3] + [Goal(goals[3].label, goals[2].pose @ from_xyz_rpy([0, 0, 0.15], [0, 0, 0]), "CARTESIAN", "closed")]
+    with pytest.raises(WaypointPlanningError, match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)"):
+        planner.plan(UR10_START, pushed)
+
+
+def test_unreachable_registration_names_the_waypoint(planner, library, ur10_config) -> None:
+    far = from_xyz_rpy([3.0, 0.0, 1.0], [0.0, 0.0, 0.0])
+    with pytest.raises(WaypointPlanningError, match=r"waypoint 0\.0:cdra_filter:0: unreachable"):
+        planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", far))
+
+
+def test_start_in_collision_is_refused(planner) -> None:
+    with pytest.raises(WaypointPlanningError, match="start state is in collision"):
+        planner.plan(np.array([0.0, -0.6, 2.4, -1.57, -1.57, 0.0]), [Goal("x", np.eye(4), "JOINT")])
