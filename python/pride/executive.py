@@ -471,7 +471,10 @@ class Executive:
             return Hold.OPERATOR_INPUT, f"{number}: {instruction.text}"
         if isinstance(instruction, ManualInstruction):
             return Hold.OPERATOR_ACTION, f"{number}: {instruction.text}"
+        unconfirmed = self.is_hazardous(instruction) and not self._confirmed
         if self._mode is Mode.MANUAL:
+            if unconfirmed:
+                return Hold.CONFIRMATION, f"{number} is hazardous; confirm, then send: {instruction.describe()}"
             return Hold.MANUAL_MODE, f"{number}: {instruction.describe()}"
         if self._at_breakpoint:
             return Hold.BREAKPOINT, f"breakpoint at {number}"
@@ -479,7 +482,7 @@ class Executive:
             return Hold.PAUSED, f"automation paused at {number}"
         if not instruction.automatable:
             return Hold.NOT_AUTOMATABLE, f"{number} must be performed by an operator: {instruction.describe()}"
-        if self.is_hazardous(instruction) and not self._confirmed:
+        if unconfirmed:
             return Hold.CONFIRMATION, f"{number} is hazardous; confirm to send: {instruction.describe()}"
         return None, ""
 

@@ -112,10 +112,12 @@ def test_manual_mode_waits_for_the_operator_at_every_instruction(bench) -> None:
     held(executive, Hold.MANUAL_MODE, "1.4")
     assert [c for _, c, _ in gateway.sent] == ["move"]
     executive.perform("carol")
-    held(executive, Hold.MANUAL_MODE, "2.1")
+    held(executive, Hold.CONFIRMATION, "2.1")  # a hazardous command needs confirming in manual mode too
     with pytest.raises(OperatorActionError, match="hazardous command: confirm it first"):
         executive.perform("carol")
     executive.confirm("carol")
+    held(executive, Hold.MANUAL_MODE, "2.1")
+    assert gateway.sent == [("lab", "move", {"target": "shelf", "speed": 0.5})]  # confirming does not send
     executive.perform("carol")
     held(executive, Hold.MANUAL_MODE, "2.2")
     sent = [e for e in journal.events if e.kind is EventKind.COMMAND_SENT]
@@ -133,7 +135,7 @@ def test_operator_switches_modes_midway(bench) -> None:
     executive.enter("dave", "dock")
     held(executive, Hold.CONFIRMATION, "2.1")
     executive.set_mode("dave", Mode.MANUAL)
-    held(executive, Hold.MANUAL_MODE, "2.1")
+    held(executive, Hold.CONFIRMATION, "2.1")
     assert [e.data["mode"] for e in journal.events if e.kind is EventKind.MODE_CHANGED] == ["autonomous", "manual"]
 
 

@@ -1,0 +1,73 @@
+"""The runner's terminal console: prompts an operator at a TTY, answers unattended runs from options."""
+
+from __future__ import annotations
+
+import io
+import itertools
+
+import pytest
+
+from conftest import FIXTURES
+from lab_gateway import LabGateway
+from pride.events import EventKind
+from pride.executive import Executive, Mode, RunStatus
+from pride.parser import load_procedure
+from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
+from test_executive import ListJournal
+
+
+def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, ListJournal, LabGateway]:
+    journal, gateway = ListJournal(), LabGateway(str(tmp_path))
+    executive = Executive(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, journal, run_id="t",
+                          mode=mode, sysreps=sysreps)
+    return executive, journal, gateway
+
+
+def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(sysreps, tmp_path) -> None:
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
+    out = io.StringIO()
+    executive.add_listener(ProgressPrinter(executive.procedure, out))
+    prompts: list[str] = []
+    # Enter = perform; the record gets "dock" (after a refused value); y confirms the hazard
+    answers = itertools.chain(["", "garage", "dock", "", "", "y"], itertools.repeat(""))
+
+    def read(prompt: str) -> str:
+        prompts.append(prompt)
+        return next(answers)
+
+    executive.start("pat")
+    final = OperatorConsole(executive, "pat", Unattended(), interactive=True, stream=out, read=read).run()
+    assert final.status is RunStatus.COMPLETED, out.getvalue()
+    assert any("Where should the arm go? (string) >" in p for p in prompts)
+    assert any("hazardous; confirm, then send" in p and "[y] confirm and send" in p for p in prompts)
+    assert "not accepted: target: 'garage' is not one of ['dock', 'shelf']" in out.getvalue()
+    assert "CAUTION: The chamber vents to vacuum." in out.getvalue()
+    assert "Step 4  Finish" in out.getvalue()
+    assert {e.actor for e in journal.events if e.kind is EventKind.COMMAND_SENT} == {"pat"}
+
+
+def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sysreps, tmp_path) -> None:
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS)
+    out = io.StringIO()
+    executive.start("quinn")
+
+    def no_terminal(prompt: str) -> str:
+        raise AssertionError(f"prompted without a terminal: {prompt}")
+
+    final = OperatorConsole(executive, "quinn", Unattended({"target": "dock"}, confirm_manual=True), interactive=False,
+                            stream=out, read=no_terminal).run()
+    assert final.status is RunStatus.STOPPED
+    assert "pass --confirm-hazardous to confirm hazardous commands" in out.getvalue()
+    assert [c for _, c, _ in gateway.sent] == ["move"]
+    stopped = journal.events[-1]
+    assert stopped.kind is EventKind.RUN_STOPPED and stopped.actor == "quinn" and "2.1" in stopped.data["reason"]
+
+
+@pytest.mark.parametrize("answer, outcome", [("q", RunStatus.STOPPED)])
+def test_operator_can_stop_from_the_prompt(sysreps, tmp_path, answer, outcome) -> None:
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
+    executive.start("rita")
+    final = OperatorConsole(executive, "rita", Unattended(), interactive=True, stream=io.StringIO(),
+                            read=lambda prompt: answer).run()
+    assert final.status is outcome
+    assert journal.events[-1].data["reason"] == "stopped at the terminal"
