@@ -25,20 +25,28 @@ def _ready_url(process: ManagedProcess) -> str:
     return line.split()[-1]
 
 
-def start_server(tmp: Path, procedures: Path, *, db: Path | None = None) -> WebServer:
-    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp`` by default)."""
+def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None) -> WebServer:
+    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp`` by default).
+
+    With ``rosbridge`` the server opens the real PAX host (JVM plugins) on that rosbridge;
+    without, the simulated systems of simulated_systems.py.
+    """
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
-    env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
-    env["SIMULATED_MOTION_S"] = "0.6"
+    options = ["--camera", "ee_camera", "--camera-period", "0.1"]
+    if rosbridge is None:
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
+        env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
+        env["SIMULATED_MOTION_S"] = "0.6"
+    else:
+        env.pop("PRIDE_GATEWAY", None)
+        options += ["--rosbridge", rosbridge]
     db = db or tmp / "audit.db"
     process = caretaker(
         "serve", "--port", "0", "--db", f"sqlite:///{db}", "--procedures", str(procedures),
-        "--reports", str(tmp / "reports"), "--camera", "ee_camera", "--camera-period", "0.1",
-        env=env, name="serve",
+        "--reports", str(tmp / "reports"), *options, env=env, name="serve",
     )
     try:
-        process.wait_ready(60)
+        process.wait_ready(90)
     except Exception:
         process.stop()
         raise

@@ -1,0 +1,128 @@
+"""Issue #6's acceptance run, in a real browser, on the real robot stack.
+
+``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge: separate processes) and
+``caretaker serve`` with the JVM-hosted PAX plugins behind the executive: sign in; start the IVA
+procedure in manual mode; Send the first command and see its result and the audit record with
+the user's id; switch to autonomous and watch PAX stop at the manual instruction; enter a record
+an observer watching the same run cannot Send, and the server refuses it when forced. (Entering a
+record value and seeing it passed to the next command needs the run past step 3: that part runs
+on the simulated systems in test_operator_view.py, which keeps this suite inside its time budget
+and independent of OMPL's time-limited planning on a loaded machine.)
+"""
+
+from __future__ import annotations
+
+import re
+import socket
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import expect
+
+from operator_page import IMAGES, IVA, audit_row, instruction, start_run
+from pride.audit_log import AuditLog
+from support.processes import caretaker
+from web_server import REPO, WebServer, start_server
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) -> Iterator[WebServer]:
+    """The IVA stack and a web server on it (overrides conftest's simulated one for this module)."""
+    port = _free_port()
+    stack = caretaker("up", "--scene", "iva", "--bridge-port", str(port), "--time-scale", "0", env=ros_env, name="up")
+    try:
+        stack.wait_ready(180)
+        served = start_server(tmp_path_factory.mktemp("web_real"), REPO / "procedures", rosbridge=f"ws://127.0.0.1:{port}")
+        try:
+            yield served
+        finally:
+            served.process.stop()
+    finally:
+        stack.stop()
+
+
+def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, server) -> None:
+    alice = sign_in("alice")
+    expect(alice.locator("#who")).to_have_text("alice (operator)")
+    run_id = start_run(alice, IVA, "manual")
+    expect(alice.locator("#run-mode")).to_have_text("manual")
+    expect(alice.locator("#proc-title")).to_contain_text("IVA CDRA Filter Replacement")
+
+    # the procedure as written: numbering, notes/cautions, automatable icons, live telemetry
+    expect(instruction(alice, "2.1")).to_contain_text("2.1")
+    expect(alice.locator("#procedure .notice.note").first).to_contain_text("registered to the filter")
+    expect(alice.locator("#procedure .notice.caution").first).to_contain_text("within reach of the CDRA cabinet")
+    expect(instruction(alice, "1.3").locator(".auto-icon")).to_have_attribute("title", re.compile("PAX can run this"))
+    expect(instruction(alice, "1.1").locator(".telemetry")).to_contain_text(
+        re.compile(r"affordance_templates\.affordance_template_server_active = true · \d+\.\d s ago"))
+    expect(instruction(alice, "1.1")).to_have_class(re.compile(r"\bcurrent\b"))
+
+    # manual mode: the operator checks the two verifies, then Sends the first command
+    instruction(alice, "1.1").locator("button.perform").click()
+    expect(instruction(alice, "1.1").locator(".mark")).to_contain_text("completed by alice")
+    instruction(alice, "1.2").locator("button.perform").click()
+    expect(instruction(alice, "1.3")).to_have_class(re.compile(r"\bcurrent\b"))
+    send = instruction(alice, "1.3").locator("button.perform")
+    expect(send).to_have_text("Send")
+    send.click()
+    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text("result: success — added cdra_filter:0")
+    expect(instruction(alice, "1.3").locator(".mark")).to_contain_text("completed by alice")
+    expect(audit_row(alice, "command_sent", "1.3", "alice")).to_contain_text("add_affordance_template")
+    expect(audit_row(alice, "command_result", "1.3", "alice")).to_contain_text("success")
+
+    # an observer opens the same run in another browser and sees it live, without controls
+    carol = sign_in("carol")
+    expect(carol.locator("#start-panel")).to_be_hidden()
+    carol.goto(f"{server.url}/#run={run_id}")
+    expect(carol.locator("#connection")).to_have_attribute("data-state", "open")
+    expect(instruction(carol, "1.3").locator(".mark")).to_contain_text("completed by alice")
+    expect(instruction(carol, "1.4").locator("button.perform")).to_be_disabled()
+    expect(carol.locator("#mode-autonomous")).to_be_disabled()
+    forced = carol.request.post(f"{server.url}/api/runs/{run_id}/actions",
+                                data={"action": "perform", "instruction": "1.4"})
+    assert forced.status == 403, forced.text()
+    assert "observer" in forced.json()["error"]
+    assert carol.request.post(f"{server.url}/api/runs", data={"procedure": IVA, "binding": "iva.yaml"}).status == 403
+
+    # autonomous: PAX runs on and holds at the manual instruction 2.6; both browsers see it
+    alice.click("#mode-autonomous")
+    expect(alice.locator("#run-mode")).to_have_text("autonomous")
+    for page in (alice, carol):
+        expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
+        expect(page.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
+    expect(instruction(alice, "2.5").locator(".mark")).to_contain_text("completed by PAX")
+    expect(instruction(alice, "2.1").locator(".detail")).to_contain_text('frame="cabinet/slot"')
+    expect(audit_row(alice, "awaiting_operator", "2.6", "PAX")).to_have_count(1)
+    expect(instruction(carol, "2.6").locator("button.done")).to_be_disabled()
+    instruction(alice, "2.6").scroll_into_view_if_needed()
+    alice.screenshot(path=str(IMAGES / "web_autonomous_hold.png"))
+    instruction(carol, "2.6").scroll_into_view_if_needed()
+    carol.screenshot(path=str(IMAGES / "web_observer.png"))
+
+    # Done lets PAX carry on (the arm pulls the filter); the operator stops the run, both browsers see it
+    instruction(alice, "2.6").locator("button.done").click()
+    expect(instruction(alice, "2.6").locator(".mark")).to_contain_text("completed by alice")
+    alice.once("dialog", lambda dialog: dialog.accept())
+    alice.click("#stop")
+    for page in (alice, carol):
+        expect(page.locator("#run-status")).to_have_text("stopped")
+    expect(alice.locator('#audit tbody tr[data-kind="run_stopped"][data-actor="alice"]')).to_have_count(1)
+
+    # the audit log holds every action with its user, and nothing from the observer
+    log = AuditLog(f"sqlite:///{server.db}")
+    try:
+        events = log.events(run_id)
+    finally:
+        log.close()
+    actors = {e.actor for e in events}
+    assert actors == {"alice", "PAX"}, actors
+    sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]
+    assert [e.actor for e in sent] == ["alice"] and sent[0].data["args"]["affordance_template"] == "cdra_filter"
