@@ -193,8 +193,8 @@ async def run_camera(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     run_id = request.path_params["run_id"]
     live = board.live(run_id)
-    camera = live.camera() if live else _past_image(board, run_id)
-    image = camera[0] if camera else None
+    camera = live.camera() if live else None
+    image = camera[0] if camera else (None if live else _past_image(board, run_id))
     if image is None:
         raise ActionRefused(404, "no camera image yet: no command result named a PNG and the live feed captured none")
     if not image.is_file():
@@ -202,9 +202,9 @@ async def run_camera(request: Request) -> Response:
     return FileResponse(image, media_type="image/png", headers={"Cache-Control": "no-store"})
 
 
-def _past_image(board: RunBoard, run_id: str) -> tuple[Path, Any] | None:
+def _past_image(board: RunBoard, run_id: str) -> Path | None:
     image = fold_events(run_id, board.past_events(run_id)).latest_image
-    return (Path(image), None) if image else None
+    return Path(image) if image else None
 
 
 # ---- live updates ---------------------------------------------------------------------------
