@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Callable
@@ -10,19 +9,10 @@ from typing import Any, Callable
 import pytest
 import roslibpy
 
-from rosbridge_support import wait_until_discovered
+from rosbridge_support import bridge_url, wait_until_discovered
 from support.processes import ManagedProcess, caretaker, python
 
 PEER = Path(__file__).with_name("ros_peer.py")
-
-
-def bridge_url(process: ManagedProcess) -> str:
-    """The ws:// URL from the bridge's READY line."""
-    for line in process.output:
-        match = re.match(r"READY bridge (wss?://\S+)", line)
-        if match:
-            return match.group(1)
-    raise AssertionError(f"no READY line with a URL:\n{process.tail()}")
 
 
 @pytest.fixture(scope="module")

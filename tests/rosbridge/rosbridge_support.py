@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import threading
 import time
 from typing import Any
@@ -54,6 +55,8 @@ class RawClient:
         from websockets.sync.client import connect
 
         self._stack = contextlib.ExitStack()
+        # An unbounded receive queue: frames the test never reads must not stall the closing handshake.
+        options.setdefault("max_queue", None)
         self.connection = self._stack.enter_context(connect(f"ws://{host}:{port}", open_timeout=20, **options))
 
     def send(self, message: dict[str, Any] | str) -> None:
@@ -96,3 +99,12 @@ def wait_until_discovered(host: str, port: int, topic: str, service: str, node: 
         raise AssertionError(f"the bridge never saw {topic}, {service} and {node}")
     finally:
         client.close()
+
+
+def bridge_url(process: Any) -> str:
+    """The ws:// URL from the bridge's READY line."""
+    for line in process.output:
+        match = re.match(r"READY bridge (wss?://\S+)", line)
+        if match:
+            return match.group(1)
+    raise AssertionError(f"no READY line with a URL:\n{process.tail()}")
