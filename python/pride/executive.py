@@ -44,6 +44,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from pride.automation import Automation, Outcome
@@ -189,7 +190,7 @@ class Executive:
                 raise OperatorActionError(f"run {self.run_id} was already started")
             self._status = RunStatus.ACTIVE
             self._emit(EventKind.RUN_STARTED, user, None, procedure=self.procedure.id, title=self.procedure.title,
-                       version=self.procedure.version, path=self.procedure.path, mode=self._mode.value,
+                       version=self.procedure.version, path=str(Path(self.procedure.path).resolve()), mode=self._mode.value,
                        steps=[{"number": s.number, "id": s.id, "title": s.title} for s in self.procedure.steps])
             self._arrive()
             self._launch()
@@ -241,7 +242,7 @@ class Executive:
             number = event.instruction
             prefix = number.rsplit("/", 1)[0] + "/" if number and "/" in number else ""
             kind = event.kind
-            if kind is EventKind.MODE_CHANGED:
+            if kind in (EventKind.MODE_CHANGED, EventKind.RUN_RESUMED):
                 self._mode = Mode(event.data["mode"])
             elif kind is EventKind.BREAKPOINT_SET:
                 self._breakpoints.add(number)

@@ -8,9 +8,10 @@ sub-procedure calls pass what the callee declares. A procedure with any problem 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pride.diagnostics import Problem
 from pride.model import (
@@ -145,7 +146,7 @@ class _Linter:
             self.fail(i.where, f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
                       f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})")
 
-    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check) -> None:
+    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> None:
         whole = binding.value.whole_reference
         if whole is not None:
             var = self.variables.get(whole.name)
