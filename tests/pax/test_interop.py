@@ -196,6 +196,16 @@ def _await(predicate, what: str, timeout: float = 10.0) -> None:  # noqa: ANN001
         event.wait(0.05)
 
 
+def _retry_while(reason: str, command, timeout: float = 30.0):  # noqa: ANN001, ANN202
+    """Repeat a command while it fails for a transient ``reason`` (a process still starting up)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        result = command()
+        if result.success or reason not in result.message or time.monotonic() > deadline:
+            return result
+        threading.Event().wait(0.2)
+
+
 def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: PaxHost, stack: Stack) -> None:
     changes = Changes(host)
     _await(lambda: host.telemetry(AT, "affordance_template_server_active") == host.telemetry(AT, "affordance_template_server_active")
@@ -215,11 +225,25 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
     _await(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
     # The new server may answer before it has heard /sim/frames; it then refuses with a reason.
     # Retry on that answer until it accepts (same JVM, same connection throughout).
-    deadline = time.monotonic() + 30.0
-    while True:
-        added = host.execute(AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False})
-        if added.success or time.monotonic() > deadline or "no frames received" not in added.message:
-            break
-        threading.Event().wait(0.2)
+    added = _retry_while("no frames received", lambda: host.execute(
+        AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False}))
     assert added.success, added.message
     assert host.execute(AT, "delete_affordance_template", {"affordance_template": added.values["instance"], "id": -1}).success
+
+
+def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, stack: Stack) -> None:
+    changes = Changes(host)
+    url = bridge_url(stack.processes["bridge"])
+    port = url.rsplit(":", 1)[1]
+    stack.processes["bridge"].kill()
+    changes.wait(AT, "affordance_template_server_active", False, stale=False, timeout=STALE_AFTER + 10.0)
+    down = host.execute("cdra", "lock_filter", {})
+    assert not down.success and "not connected" in down.message, down.message
+
+    stack.start("bridge", "bridge", "--port", port).wait_ready(60.0)
+    # Same JVM, same PaxHost: the client reconnects and re-sends its subscriptions by itself.
+    changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=30.0)
+    _await(lambda: not host.telemetry("cdra", "filter_locked").stale, "cdra telemetry flowing again")
+    # A new bridge may not have discovered the simulation's services yet: it says so; retry on that.
+    locked = _retry_while("does not exist", lambda: host.execute("cdra", "lock_filter", {}))
+    assert locked.success, locked.message
