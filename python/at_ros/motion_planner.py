@@ -35,6 +35,10 @@ GOAL_ALTERNATIVES = 5
 #: Share of plan_time per attempt: a reachable goal is found by RRTConnect in tens of ms, so a
 #: first attempt that runs long is usually boxed in and another configuration is cheaper.
 ATTEMPT_BUDGET = (0.1, 0.15, 0.2, 0.25, 0.3)
+#: Two IK solutions are different arm configurations when some joint differs by more (rad).
+DISTINCT_CONFIGURATION = 0.5
+#: Random-seed IK solves spent looking for a configuration not tried yet.
+DISTINCT_SEARCH = 8
 #: How far (m) from the tool point a graspable object's origin may be to count as grasped.
 GRASP_REACH = 0.25
 
@@ -145,12 +149,13 @@ class MotionPlanner:
         attachment = self.scene.attachment
         attempts = GOAL_ALTERNATIVES if first.planner_type == JOINT else 1
         failure = ""
+        tried: list[np.ndarray] = []
         for attempt in range(attempts):
             self.scene.attachment = attachment
             started = time.perf_counter()
             try:
                 if first.planner_type == JOINT:
-                    path = self._joint(q, first, attempt)
+                    path = self._joint(q, first, attempt, tried)
                 else:
                     path = self._cartesian(q, first)
                 out = [self._timed(first, path, started)]
@@ -169,15 +174,25 @@ class MotionPlanner:
         suffix = f" (also with {attempts - 1} other IK solutions for {first.label})" if attempts > 1 else ""
         raise WaypointPlanningError(failure + suffix)
 
-    def _joint(self, q: np.ndarray, goal: Goal, attempt: int) -> list[np.ndarray]:
-        """OMPL to an IK solution of ``goal``: the one nearest to ``q`` first, later attempts
-        from random seeds (other arm configurations)."""
+    def _joint(self, q: np.ndarray, goal: Goal, attempt: int, tried: list[np.ndarray]) -> list[np.ndarray]:
+        """OMPL to an IK solution of ``goal``: the one nearest to ``q`` first; later attempts use
+        a solution from random seeds that differs from every one tried (another arm configuration)."""
         limits = self.scene.limits
-        near = q if attempt == 0 else self.ik.rng.uniform(limits.lower, limits.upper)
-        target = self.ik.solve(goal.pose, near, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance)
-        if isinstance(target, IkFailure):
-            # Every seed failed already: another attempt would not find a different answer.
-            raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}", final=True)
+        tolerances = {"position_tolerance": goal.position_tolerance, "orientation_tolerance": goal.orientation_tolerance}
+        if attempt == 0:
+            target = self.ik.solve(goal.pose, q, **tolerances)
+            if isinstance(target, IkFailure):
+                # Every seed failed already: another attempt would not find a different answer.
+                raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}", final=True)
+        else:
+            for _ in range(DISTINCT_SEARCH):
+                candidate = self.ik.solve(goal.pose, self.ik.rng.uniform(limits.lower, limits.upper), enough=1, **tolerances)
+                if not isinstance(candidate, IkFailure) and all(np.max(np.abs(candidate - t)) > DISTINCT_CONFIGURATION for t in tried):
+                    target = candidate
+                    break
+            else:
+                raise WaypointPlanningError(f"waypoint {goal.label}: no other arm configuration reaches it", final=True)
+        tried.append(target)
         try:
             budget = self.settings.plan_time * ATTEMPT_BUDGET[attempt]
             return self.joint_planner.plan(q, target, time_limit=budget, simplify_time=self.settings.simplify_time)

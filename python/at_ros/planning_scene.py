@@ -19,9 +19,9 @@ from at_ros.transforms import from_xyz_quat, invert, to_xyz_quat
 __all__ = ["PlanningScene", "JointLimits", "Attachment"]
 
 
-#: Contacts shallower than this (m) are resting contact, not collision: a filter sliding in its
-#: slot or a gripper pad touching the part it grasps.
-PENETRATION_ALLOWANCE = 0.002
+#: Contacts shallower than this (m) are numerical touching, not collision. Half of what the
+#: simulation tolerates (1 mm), so a plan that passes here is not refused on execution.
+PENETRATION_ALLOWANCE = 0.0005
 
 
 @dataclass(frozen=True)

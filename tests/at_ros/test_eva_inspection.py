@@ -28,7 +28,8 @@ def test_inspection_stand_off_reached_and_image_captured(at) -> None:
         target = frames["target/hull_a"].position
         camera = frames["camera/ee_camera"].position
         # The template holds the camera 1.0 m out along the target's normal (z up for hull_a).
-        assert math.dist((camera.x, camera.y, camera.z), (target.x, target.y, target.z + 1.0)) < 0.01
+        error = math.dist((camera.x, camera.y, camera.z), (target.x, target.y, target.z + 1.0))
+        assert error < 0.01, f"camera at {camera}, {error * 1000:.1f} mm from the stand-off point"
         shot = at.capture("ee_camera", "hull_a")
         assert shot.success, shot.message
         assert shot.image.width > 0 and len(shot.image.data) == shot.image.step * shot.image.height
