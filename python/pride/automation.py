@@ -104,13 +104,13 @@ class Automation:
             except ValueError as exc:
                 return Outcome(False, f"argument {exc}")
         self._record(EventKind.COMMAND_SENT, actor, number, system=instruction.system, command=instruction.command,
-                    args=args, hazardous=self.is_hazardous(instruction))
+                     args=args, hazardous=self.is_hazardous(instruction))
         result = self._gateway.execute(instruction.system, instruction.command, args)
         success = bool(getattr(result, "success", False))
         message = str(getattr(result, "message", "") or "")
         values = dict(getattr(result, "values", None) or {})
         self._record(EventKind.COMMAND_RESULT, actor, number, system=instruction.system, command=instruction.command,
-                    success=success, message=message, values=values, result=instruction.result)
+                     args=args, success=success, message=message, values=values, result=instruction.result)
         saved = (instruction.result, {"success": success, "message": message, **values}) if instruction.result else None
         if success:
             return Outcome(True, result=saved)
@@ -129,8 +129,8 @@ class Automation:
             remaining = deadline - time.monotonic()
             if ok or remaining <= 0 or self.abort.is_set():
                 self._record(EventKind.TELEMETRY_SEEN, actor, number, system=subject.system, item=subject.name,
-                           value=value, stale=stale, timestamp=getattr(reading, "timestamp", None),
-                           condition=condition.describe(), ok=ok)
+                             value=value, stale=stale, timestamp=getattr(reading, "timestamp", None),
+                             condition=condition.describe(), ok=ok)
                 if ok:
                     return Outcome(True)
                 if self.abort.is_set():
@@ -145,7 +145,7 @@ class Automation:
             reading = self._gateway.telemetry(subject.system, subject.name)
             value = getattr(reading, "value", None)
             self._record(EventKind.TELEMETRY_SEEN, actor, number, system=subject.system, item=subject.name, value=value,
-                       stale=bool(getattr(reading, "stale", False)), timestamp=getattr(reading, "timestamp", None))
+                         stale=bool(getattr(reading, "stale", False)), timestamp=getattr(reading, "timestamp", None))
             if getattr(reading, "stale", False):
                 raise KeyError(f"{subject.describe()} is stale; cannot decide the branch")
             return value

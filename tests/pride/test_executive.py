@@ -93,6 +93,7 @@ def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(benc
     assert by[(EventKind.INSTRUCTION_COMPLETED, "4.2")].data["went_to"] == "done"  # branch on a recorded input
     assert by[(EventKind.CALL_ENTERED, "4.1")].data["inputs"] == {"count": 3}
     assert by[(EventKind.COMMAND_RESULT, "4.1/1.1")].data["values"] == {"total": 6}
+    assert by[(EventKind.COMMAND_RESULT, "2.3")].data["args"] == {"label": "dock_view"}  # a result names its request
     assert snap.statuses["3.1"] is InstructionStatus.PENDING  # the recover step was branched around
     assert snap.variables["photo"]["path"].endswith("dock_view.png")
     assert journal.events[-1].kind is EventKind.RUN_COMPLETED
