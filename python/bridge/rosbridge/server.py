@@ -22,6 +22,7 @@ from typing import Any
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
 
+from .actions import Actions
 from .operations import Bridge, Policy
 from .protocol import CLOSE_POLICY_VIOLATION, Refused
 from .ros_thread import RosThread
@@ -33,7 +34,6 @@ from .topics import Topics
 log = logging.getLogger("bridge.rosbridge")
 
 AUTH_SECRET_ENV = "CARETAKER_BRIDGE_SECRET"
-GIL_SWITCH_INTERVAL_S = 0.0002
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -114,16 +114,12 @@ async def run(args: argparse.Namespace) -> int:
     if args.certfile:
         tls = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
         tls.load_cert_chain(args.certfile, args.keyfile)
-    # Two busy threads share the GIL (asyncio and ROS); with the default 5 ms switch interval
-    # a hand-off between them can wait that long, which dominated round-trip latency.
-    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
     ros = RosThread(loop)
     try:
         policy = Policy(AllowList("topic", tuple(args.topics_glob)), AllowList("service", tuple(args.services_glob)),
                         AllowList("action", tuple(args.actions_glob)), args.max_message_size)
         topics = Topics(ros)
         services = Services(ros, args.service_timeout)
-        from .actions import Actions  # actions load rclpy.action, only needed once serving
         bridge = Bridge(topics, services, Actions(ros, policy.actions), policy)
         server = RosbridgeServer(bridge, secret)
         async with serve(server.connection, args.address, args.port, ssl=tls, max_size=args.max_message_size,
