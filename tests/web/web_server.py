@@ -14,10 +14,11 @@ REPO = HERE.parents[1]
 class WebServer:
     """A running ``caretaker serve`` and where it listens."""
 
-    def __init__(self, process: ManagedProcess, url: str, db: Path) -> None:
+    def __init__(self, process: ManagedProcess, url: str, db: Path, procedures: Path) -> None:
         self.process = process
         self.url = url
         self.db = db
+        self.procedures = procedures
 
 
 def _ready_url(process: ManagedProcess) -> str:
@@ -50,7 +51,7 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
     except Exception:
         process.stop()
         raise
-    return WebServer(process, _ready_url(process), db)
+    return WebServer(process, _ready_url(process), db, procedures)
 
 
 def procedure_shelf(tmp: Path) -> Path:

@@ -28,6 +28,7 @@ from pride.model import Procedure
 from pride.parser import load_procedure
 from pride.web.accounts import Account
 from pride.web.actions import ActionRefused, ActionRequest, perform_action
+from pride.web.authoring import check_document, read_document, save_document, sysrep_palette
 from pride.web.live_run import LiveRun
 from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
@@ -264,6 +265,55 @@ async def run_report(request: Request) -> Response:
     return FileResponse(path, media_type="text/html")
 
 
+# ---- authoring ------------------------------------------------------------------------------
+async def author_page(request: Request) -> Response:
+    return FileResponse(STATIC / "author.html")
+
+
+@_api
+async def author_palette(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    sysreps = await run_in_threadpool(board.sysreps)
+    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": board.catalog.procedure_files()})
+
+
+@_api
+async def author_open(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    path = board.catalog.procedure_path(request.path_params["name"])
+    return JSONResponse(await run_in_threadpool(read_document, path))
+
+
+def _document(body: Any) -> dict[str, Any]:
+    if not isinstance(body, dict) or not isinstance(body.get("document"), dict):
+        raise ActionRefused(400, "expected a JSON object with a 'document'")
+    return body["document"]
+
+
+@_api
+async def author_check(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    document = _document(await _json_body(request))
+    checked = await run_in_threadpool(check_document, document, board.catalog.procedures, board.sysreps())
+    return JSONResponse(checked)
+
+
+@_api
+async def author_save(request: Request) -> Response:
+    account = _account(request)
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an observer: observers may read procedures, not save them")
+    board: RunBoard = request.app.state.board
+    body = await _json_body(request)
+    document = _document(body)
+    saved = await run_in_threadpool(save_document, document, str(body.get("name", "")), board.catalog.procedures, board.sysreps())
+    log.info("%s saved procedure %s", account.user, saved["saved"])
+    return JSONResponse(saved)
+
+
 def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None) -> Starlette:
     """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways."""
 
@@ -278,6 +328,11 @@ def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[st
         routes=[
             Route("/", index),
             Route("/runs/{run_id}/report", run_report),
+            Route("/author", author_page),
+            Route("/api/author/palette", author_palette),
+            Route("/api/author/procedures/{name}", author_open),
+            Route("/api/author/check", author_check, methods=["POST"]),
+            Route("/api/author/save", author_save, methods=["POST"]),
             Route("/api/session", session_get, methods=["GET"]),
             Route("/api/session", session_post, methods=["POST"]),
             Route("/api/session", session_delete, methods=["DELETE"]),

@@ -1,0 +1,436 @@
+// Caretaker Author page: palette → drag onto the canvas → typed forms → live lint → save.
+//
+// The page edits a document (elements as JSON: kind, attributes, args, text); the server turns
+// it into procedure XML and checks it with the same lint as `caretaker lint`, so every rule of
+// meaning lives on the server and problems come back placed on the item they concern.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+
+const author = {
+  me: null,
+  sysreps: [],          // palette: [{id, name, commands: [{id, label, args}], telemetry}]
+  doc: null,            // the document being edited
+  problems: [],
+  checkTimer: null,
+};
+
+const KINDS = {
+  command: {label: "command", attrs: ["system", "name", "result", "on-failure"], flags: ["hazardous", "automatable"]},
+  verify: {label: "verify telemetry", attrs: ["system", "telemetry", "equals", "not-equals", "min", "max", "tolerance", "timeout", "on-failure"], flags: ["automatable"]},
+  wait: {label: "wait", attrs: ["seconds", "system", "telemetry", "equals", "timeout"], flags: ["automatable"]},
+  record: {label: "record (operator input)", attrs: ["name", "type", "min", "max", "pattern", "one-of"], text: true},
+  manual: {label: "manual (operator marks done)", attrs: [], text: true},
+  if: {label: "branch (if)", attrs: ["input", "system", "telemetry", "result", "equals", "not-equals", "goto", "else"], flags: ["automatable"]},
+  goto: {label: "go to step", attrs: ["step"]},
+  call: {label: "call sub-procedure", attrs: ["procedure"]},
+  note: {label: "note", attrs: [], text: true},
+  caution: {label: "caution", attrs: [], text: true},
+  warning: {label: "warning", attrs: [], text: true},
+};
+const NOTICES = new Set(["note", "caution", "warning"]);
+const DEFAULTS = {verify: {timeout: "10"}, wait: {seconds: "1"}, record: {name: "", type: "string"}};
+
+async function api(method, path, body) {
+  const response = await fetch(path, {
+    method, headers: body === undefined ? {} : {"Content-Type": "application/json"},
+    body: body === undefined ? undefined : JSON.stringify(body),
+  });
+  const data = await response.json().catch(() => ({}));
+  if (!response.ok) throw new Error(data.error || `${response.status} ${response.statusText}`);
+  return data;
+}
+
+function element(tag, className, text) {
+  const node = document.createElement(tag);
+  if (className) node.className = className;
+  if (text !== undefined) node.textContent = text;
+  return node;
+}
+
+// ---- palette ---------------------------------------------------------------------------------
+function paletteItem(text, spec, detail) {
+  const item = element("li", "palette-item", text);
+  item.draggable = true;
+  item.dataset.spec = JSON.stringify(spec);
+  if (detail) item.append(element("div", "args", detail));
+  item.addEventListener("dragstart", (event) => {
+    event.dataTransfer.setData("application/x-caretaker-item", item.dataset.spec);
+    event.dataTransfer.effectAllowed = "copy";
+  });
+  return item;
+}
+
+function renderPalette() {
+  $("palette-kinds").replaceChildren(...Object.entries(KINDS).map(([kind, info]) => {
+    const item = paletteItem(info.label, {kind});
+    item.dataset.kind = kind;
+    return item;
+  }));
+  const used = new Set(author.doc ? author.doc.uses : []);
+  $("palette-sysreps").replaceChildren(...author.sysreps.filter((s) => used.has(s.id)).map((sysrep) => {
+    const box = element("section", "palette-sysrep");
+    box.dataset.sysrep = sysrep.id;
+    box.append(element("h3", "", `${sysrep.name} (${sysrep.id})`));
+    const commands = element("ul", "palette-list");
+    for (const command of sysrep.commands) {
+      const item = paletteItem(command.label, {kind: "command", system: sysrep.id, command: command.id},
+        command.args.map((a) => `${a.name}: ${a.type}`).join(", ") || "no arguments");
+      item.dataset.command = command.id;
+      commands.append(item);
+    }
+    const telemetry = element("ul", "palette-list");
+    for (const item of sysrep.telemetry) {
+      const entry = paletteItem(`verify ${item.label}`, {kind: "verify", system: sysrep.id, telemetry: item.id}, item.type);
+      entry.dataset.telemetry = item.id;
+      telemetry.append(entry);
+    }
+    box.append(element("div", "args", "commands"), commands, element("div", "args", "telemetry (drops a verify)"), telemetry);
+    return box;
+  }));
+}
+
+function newItem(spec) {
+  const item = {kind: spec.kind, attrs: {...(DEFAULTS[spec.kind] || {})}};
+  if (spec.kind === "command" || spec.kind === "call") item.args = [];
+  if (KINDS[spec.kind].text) item.text = "";
+  if (spec.kind === "command" && spec.system) {
+    item.attrs.system = spec.system;
+    item.attrs.name = spec.command;
+    const command = commandOf(spec.system, spec.command);
+    item.args = command.args.map((a) => ({name: a.name, value: a.type === "boolean" ? "false" : (a.type === "string" ? "" : "0")}));
+  }
+  if (spec.kind === "verify" && spec.system) {
+    item.attrs = {system: spec.system, telemetry: spec.telemetry, equals: "", timeout: "10"};
+  }
+  return item;
+}
+
+function commandOf(system, name) {
+  const sysrep = author.sysreps.find((s) => s.id === system);
+  return sysrep && sysrep.commands.find((c) => c.id === name);
+}
+
+// ---- canvas ----------------------------------------------------------------------------------
+function dropZone(stepIndex, itemIndex) {
+  const zone = element("div", "drop");
+  zone.dataset.step = stepIndex;
+  zone.dataset.index = itemIndex;
+  zone.addEventListener("dragover", (event) => { event.preventDefault(); zone.classList.add("over"); });
+  zone.addEventListener("dragleave", () => zone.classList.remove("over"));
+  zone.addEventListener("drop", (event) => {
+    event.preventDefault();
+    zone.classList.remove("over");
+    const spec = JSON.parse(event.dataTransfer.getData("application/x-caretaker-item") || "null");
+    if (!spec) return;
+    author.doc.steps[stepIndex].items.splice(itemIndex, 0, newItem(spec));
+    changed();
+  });
+  return zone;
+}
+
+function numbers() {
+  // what the executive will number: steps 1, 2, …; instructions n.1, n.2, … (notices unnumbered)
+  return author.doc.steps.map((step, s) => {
+    let n = 0;
+    return step.items.map((item) => (NOTICES.has(item.kind) ? null : `${s + 1}.${++n}`));
+  });
+}
+
+function scope(stepIndex, itemIndex) {
+  // names an argument may be bound to at this point: inputs, earlier records and results
+  const names = author.doc.inputs.map((i) => `\${${i.name}}`);
+  author.doc.steps.forEach((step, s) => step.items.forEach((item, i) => {
+    if (s > stepIndex || (s === stepIndex && i >= itemIndex)) return;
+    if (item.kind === "record" && item.attrs.name) names.push(`\${${item.attrs.name}}`);
+    if (item.kind === "command" && item.attrs.result) {
+      for (const field of ["id", "instance", "success", "message", "path"]) names.push(`\${${item.attrs.result}.${field}}`);
+    }
+  }));
+  return names;
+}
+
+function renderCanvas() {
+  const canvas = $("canvas");
+  const numbering = numbers();
+  canvas.replaceChildren(...author.doc.steps.map((step, s) => {
+    const box = element("li", "canvas-step");
+    box.dataset.step = s;
+    const header = element("header");
+    header.append(element("span", "number", `${s + 1}.`),
+      input("step title", step.attrs.title || "", (v) => { step.attrs.title = v; }, "step-title"),
+      input("step id", step.attrs.id || "", (v) => { step.attrs.id = v; }, "step-id"),
+      button("↑", "move step up", () => move(author.doc.steps, s, -1)),
+      button("↓", "move step down", () => move(author.doc.steps, s, 1)),
+      button("✕", "delete step", () => { author.doc.steps.splice(s, 1); changed(); }));
+    box.append(header, ...problemsAt(s, -1), dropZone(s, 0));
+    step.items.forEach((item, i) => box.append(card(item, s, i, numbering[s][i]), dropZone(s, i + 1)));
+    return box;
+  }));
+}
+
+function problemsAt(s, i) {
+  return author.problems.filter((p) => p.at && p.at[0] === s && p.at[1] === i).map((p) => element("div", "problem", `line ${p.line}: ${p.message}`));
+}
+
+// Typing updates the document and schedules a check; leaving the field redraws the canvas.
+function edits(node, apply) {
+  node.addEventListener("input", () => { if (apply() !== false) scheduleCheck(); });
+  node.addEventListener("change", () => { if (apply() !== false) changed(); });
+}
+
+function input(label, value, onChange, className) {
+  const node = document.createElement("input");
+  node.value = value;
+  node.setAttribute("aria-label", label);
+  node.placeholder = label;
+  if (className) node.className = className;
+  edits(node, () => onChange(node.value));
+  return node;
+}
+
+function button(text, title, onClick) {
+  const node = element("button", "small", text);
+  node.type = "button";
+  node.title = title;
+  node.setAttribute("aria-label", title);
+  node.addEventListener("click", onClick);
+  return node;
+}
+
+function move(list, index, delta) {
+  const target = index + delta;
+  if (target < 0 || target >= list.length) return;
+  [list[index], list[target]] = [list[target], list[index]];
+  changed();
+}
+
+function card(item, s, i, number) {
+  const box = element("div", `card kind-${item.kind}`);
+  box.dataset.number = number || "";
+  box.dataset.kind = item.kind;
+  const problems = problemsAt(s, i);
+  if (problems.length) box.classList.add("has-problem");
+  const title = item.kind === "command" ? `${item.attrs.system}.${item.attrs.name}` : KINDS[item.kind].label;
+  const header = element("header");
+  header.append(element("span", "number", number || ""), element("span", "title", title),
+    button("↑", "move up", () => move(author.doc.steps[s].items, i, -1)),
+    button("↓", "move down", () => move(author.doc.steps[s].items, i, 1)),
+    button("✕", "delete", () => { author.doc.steps[s].items.splice(i, 1); changed(); }));
+  const fields = element("div", "fields");
+  const info = KINDS[item.kind];
+  for (const name of info.attrs) {
+    if (item.kind === "command" && (name === "system" || name === "name")) continue;
+    fields.append(attrField(item, name));
+  }
+  for (const flag of info.flags || []) fields.append(flagField(item, flag));
+  if (item.kind === "command") {
+    const command = commandOf(item.attrs.system, item.attrs.name);
+    for (const arg of item.args) fields.append(argField(arg, command && command.args.find((a) => a.name === arg.name), s, i));
+  }
+  if (info.text) {
+    const text = document.createElement("textarea");
+    text.value = item.text || "";
+    text.setAttribute("aria-label", `${item.kind} text`);
+    text.className = "item-text";
+    edits(text, () => { item.text = text.value; });
+    fields.append(text);
+  }
+  box.append(header, fields, ...problems);
+  return box;
+}
+
+function attrField(item, name) {
+  const label = element("label", "", name);
+  let node;
+  if (name === "type") {
+    node = document.createElement("select");
+    for (const type of ["string", "boolean", "integer", "real"]) node.append(new Option(type, type));
+    node.value = item.attrs.type || "string";
+  } else {
+    node = document.createElement("input");
+    node.value = item.attrs[name] || "";
+  }
+  node.dataset.attr = name;
+  edits(node, () => { item.attrs[name] = node.value; });
+  label.append(node);
+  return label;
+}
+
+function flagField(item, flag) {
+  const label = element("label", "", flag);
+  const box = document.createElement("input");
+  box.type = "checkbox";
+  box.dataset.flag = flag;
+  box.checked = flag === "automatable" ? item.attrs.automatable !== "false" : item.attrs[flag] === "true";
+  box.addEventListener("change", () => {
+    if (flag === "automatable") item.attrs.automatable = box.checked ? "" : "false";  // true is the default
+    else item.attrs[flag] = box.checked ? "true" : "";
+    changed();
+  });
+  label.prepend(box);
+  return label;
+}
+
+// One argument: a control typed by the SysRep, or a binding to something in scope.
+function argField(arg, spec, s, i) {
+  const box = element("span", "arg");
+  box.dataset.arg = arg.name;
+  box.append(element("span", "", `${arg.name}${spec ? ` (${spec.type})` : ""}`));
+  const bound = /^\$\{[^}]+\}$/.test(arg.value);
+  let control;
+  if (bound || !spec) {
+    control = document.createElement("input");
+    control.value = arg.value;
+    control.readOnly = bound;
+  } else if (spec.type === "boolean") {
+    control = document.createElement("input");
+    control.type = "checkbox";
+    control.checked = arg.value === "true";
+  } else {
+    control = document.createElement("input");
+    if (spec.type === "integer" || spec.type === "real") {
+      control.type = "number";
+      control.step = spec.type === "integer" ? "1" : "any";
+      if (spec.min !== null) control.min = spec.min;
+      if (spec.max !== null) control.max = spec.max;
+    }
+    control.value = arg.value;
+  }
+  control.className = "arg-value";
+  control.setAttribute("aria-label", arg.name);
+  edits(control, () => {
+    if (control.type === "checkbox") arg.value = control.checked ? "true" : "false";
+    else if (control.type === "number" && !control.checkValidity()) return false;  // the browser shows why
+    else arg.value = control.value;
+  });
+  const bind = document.createElement("select");
+  bind.className = "arg-bind";
+  bind.setAttribute("aria-label", `bind ${arg.name}`);
+  bind.append(new Option(bound ? "literal value" : "bind to…", ""));
+  for (const name of scope(s, i)) bind.append(new Option(name, name));
+  if (bound) bind.value = arg.value;
+  bind.addEventListener("change", () => {
+    arg.value = bind.value || (spec && spec.type === "boolean" ? "false" : (spec && spec.type !== "string" ? "0" : ""));
+    changed();
+  });
+  box.append(control, bind);
+  return box;
+}
+
+// ---- document, checking, saving --------------------------------------------------------------
+function renderAttributes() {
+  for (const node of document.querySelectorAll(".proc-attrs input[data-attr]")) node.value = author.doc.attrs[node.dataset.attr] || "";
+  $("proc-description").value = author.doc.description || "";
+  $("proc-uses").replaceChildren(element("span", "", "uses: "), ...author.sysreps.map((sysrep) => {
+    const label = element("label", "", sysrep.id);
+    const box = document.createElement("input");
+    box.type = "checkbox";
+    box.value = sysrep.id;
+    box.checked = author.doc.uses.includes(sysrep.id);
+    box.addEventListener("change", () => {
+      author.doc.uses = author.sysreps.map((s) => s.id).filter((id) => id === sysrep.id ? box.checked : author.doc.uses.includes(id));
+      changed();
+    });
+    label.prepend(box);
+    return label;
+  }));
+}
+
+function render() {
+  renderAttributes();
+  renderPalette();
+  renderCanvas();
+  $("problems").replaceChildren(...author.problems.map((p) => element("li", "", `line ${p.line}:${p.col}: ${p.message}`)));
+}
+
+function changed() {
+  render();
+  scheduleCheck();
+}
+
+function scheduleCheck() {
+  clearTimeout(author.checkTimer);
+  $("check-state").textContent = "checking…";
+  delete $("check-state").dataset.ok;
+  author.checkTimer = setTimeout(check, 250);
+}
+
+function editing() {
+  const active = document.activeElement;
+  return active && active.closest("#canvas, .proc-attrs") && ["INPUT", "TEXTAREA"].includes(active.tagName);
+}
+
+async function check() {
+  const sent = JSON.stringify(author.doc);
+  try {
+    const result = await api("POST", "/api/author/check", {document: author.doc});
+    if (JSON.stringify(author.doc) !== sent) return;  // edited meanwhile: a newer check follows
+    author.problems = result.problems;
+    $("xml").textContent = result.xml;
+    $("check-state").textContent = result.problems.length ? `${result.problems.length} problem(s)` : "lint: no problems";
+    $("check-state").dataset.ok = String(!result.problems.length);
+    if (editing()) {  // keep the field being typed in; the canvas redraws when it is left
+      $("problems").replaceChildren(...author.problems.map((p) => element("li", "", `line ${p.line}:${p.col}: ${p.message}`)));
+    } else {
+      render();
+    }
+  } catch (error) {
+    $("author-error").textContent = error.message;
+  }
+}
+
+function blank() {
+  return {attrs: {id: "new_procedure", title: "New procedure", version: "1"}, description: "", uses: [], inputs: [],
+          steps: [{attrs: {title: "First step"}, items: []}]};
+}
+
+for (const node of document.querySelectorAll(".proc-attrs input[data-attr]")) {
+  edits(node, () => { author.doc.attrs[node.dataset.attr] = node.value; });
+}
+edits($("proc-description"), () => { author.doc.description = $("proc-description").value; });
+$("add-step").addEventListener("click", () => {
+  author.doc.steps.push({attrs: {title: `Step ${author.doc.steps.length + 1}`}, items: []});
+  changed();
+});
+$("new").addEventListener("click", () => { author.doc = blank(); $("save-name").value = ""; changed(); });
+$("open").addEventListener("click", async () => {
+  $("author-error").textContent = "";
+  try {
+    const name = $("open-name").value;
+    author.doc = await api("GET", `/api/author/procedures/${encodeURIComponent(name)}`);
+    $("save-name").value = name;
+    changed();
+  } catch (error) {
+    $("author-error").textContent = error.message;
+  }
+});
+$("save").addEventListener("click", async () => {
+  $("author-error").textContent = "";
+  try {
+    const result = await api("POST", "/api/author/save", {name: $("save-name").value.trim(), document: author.doc});
+    $("check-state").textContent = `saved ${result.saved}`;
+    $("check-state").dataset.ok = "true";
+  } catch (error) {
+    $("author-error").textContent = error.message;
+  }
+});
+
+async function start() {
+  try {
+    author.me = await api("GET", "/api/session");
+  } catch (error) {
+    $("signed-out").hidden = false;
+    return;
+  }
+  $("who").textContent = `${author.me.user} (${author.me.role})`;
+  $("save").disabled = !author.me.may_act;
+  const palette = await api("GET", "/api/author/palette");
+  author.sysreps = palette.sysreps;
+  $("open-name").replaceChildren(...palette.procedures.map((name) => new Option(name, name)));
+  author.doc = blank();
+  $("author-view").hidden = false;
+  changed();
+}
+
+start();
