@@ -102,6 +102,23 @@ def test_hidden_waypoints_plan_the_same_motion(at) -> None:
             at.call("delete_template", class_type="cdra_filter", id=response.id)
 
 
+def test_steps_direct_and_backwards_choose_waypoints_as_the_original(at) -> None:
+    added = at.call("add_template", class_type="cdra_filter")
+    try:
+        assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}").success
+        start = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], direct=True)
+        assert start.success and "waypoints [0]" in start.message, start.message
+        assert start.affordance_template_status.waypoint_info[0].waypoint_plan_index == 0
+        two = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[2])
+        assert two.success and "waypoints [0, 1]" in two.message, two.message
+        back = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], backwards=True)
+        assert "waypoints [3]" in back.message or "0.3:cdra_filter" in back.message  # not started: the last waypoint first
+        bad = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[9], direct=True)
+        assert not bad.success and "between 1 and 4" in bad.message
+    finally:
+        at.call("delete_template", class_type="cdra_filter", id=added.id)
+
+
 def test_set_waypoint_pose_moves_one_waypoint(at) -> None:
     added = at.call("add_template", class_type="cdra_filter")
     try:

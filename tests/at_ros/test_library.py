@@ -46,6 +46,9 @@ def test_shipped_library_has_the_task_templates() -> None:
     assert pull[0].planner_type == PLANNER_JOINT  # the first waypoint avoids obstacles, as in the original
     assert [w.ee_pose for w in pull] == [0, 0, 1, 1]  # open, open, close, keep closed while pulling
     assert library["inspection"].trajectory("inspect") is not None
+    for template in library.values():  # every package:// image the library names exists
+        assert template.image.startswith("package://at_ros/library/images/")
+        assert (default_library_path() / "images" / Path(template.image).name).is_file()
 
 
 def test_original_cube_file_loads_with_parser_defaults(tmp_path: Path) -> None:
