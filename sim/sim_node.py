@@ -132,6 +132,8 @@ class SimNode(Node):
                     if steps % 50 == 0:
                         time.sleep(0)  # let the executor threads take the GIL
         except Exception:  # the stepper dying silently would freeze the robot while ROS looks alive
+            if self._stop.is_set() or not self.context.ok():
+                return  # Ctrl-C shut the ROS context down under a publish: a normal stop
             LOG.exception("simulation stepping failed; shutting down")
             self.failed = True
             rclpy.try_shutdown()
