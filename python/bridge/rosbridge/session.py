@@ -29,6 +29,8 @@ Frame = Union[str, bytes, list[str]]
 
 CONTROL_QUEUE_LIMIT = 10_000
 WRITE_BATCH = 64
+DIRECT_WRITE_LIMIT = 64 * 1024
+"""Bytes waiting in a socket's buffer above which frames go through the queue and writer."""
 DEFAULT_QUEUE_LENGTH = 1000
 """Backlog per subscription when the client gives no ``queue_length`` (or 0)."""
 
@@ -75,6 +77,7 @@ class Session:
         self._queues: dict[object, SubscriptionQueue] = {}
         self._wake = asyncio.Event()
         self._fragment_ids = itertools.count(1)
+        self._writer_idle = False  # True while the writer waits with nothing queued
         self.writer = asyncio.get_running_loop().create_task(self._write(), name=f"session-{self.number}-writer")
 
     # --- sending -------------------------------------------------------------------------------
@@ -90,8 +93,10 @@ class Session:
             log.warning("session %d: %d answers unread, disconnecting", self.number, len(self._control))
             self.close(CLOSE_POLICY_VIOLATION, "client reads too slowly")
             return
-        self._control.append(self._fragmented(frame, fragment_size))
-        self._wake.set()
+        frame = self._fragmented(frame, fragment_size)
+        if not self._write_directly(frame):
+            self._control.append(frame)
+            self._wake.set()
 
     def send_topic_frame(self, key: object, frame: str | bytes, queue_length: int, fragment_size: int | None) -> None:
         """Queue a topic message of subscription ``key``, dropping its oldest beyond ``queue_length``."""
@@ -100,8 +105,24 @@ class Session:
         queue = self._queues.get(key)
         if queue is None:
             queue = self._queues[key] = SubscriptionQueue(queue_length or DEFAULT_QUEUE_LENGTH)
-        queue.push(self._fragmented(frame, fragment_size))
-        self._wake.set()
+        frame = self._fragmented(frame, fragment_size)
+        if not self._write_directly(frame):
+            queue.push(frame)
+            self._wake.set()
+
+    def _write_directly(self, frame: Frame) -> bool:
+        """Write ``frame`` at once if nothing waits before it and the socket keeps up; this saves
+        the writer task's loop turn on every frame of a client that reads promptly."""
+        if not self._writer_idle or self._wake.is_set():
+            return False
+        websocket = self.websocket
+        transport = websocket.transport
+        if (websocket.protocol.state is not State.OPEN or transport is None or transport.is_closing()
+                or transport.get_write_buffer_size() > DIRECT_WRITE_LIMIT):
+            return False
+        _emit(websocket.protocol, frame)
+        websocket.send_data()
+        return True
 
     def forget_queue(self, key: object) -> None:
         """Discard the backlog of a subscription that ended."""
@@ -137,7 +158,9 @@ class Session:
         protocol = websocket.protocol
         try:
             while self.state is not SessionState.CLOSED:
+                self._writer_idle = True
                 await self._wake.wait()
+                self._writer_idle = False
                 self._wake.clear()
                 while True:
                     batch = self._take_batch()
@@ -146,14 +169,13 @@ class Session:
                     if protocol.state is not State.OPEN:
                         return
                     for frame in batch:
-                        if isinstance(frame, str):
-                            protocol.send_text(frame.encode())
-                        else:
-                            protocol.send_binary(frame)
+                        _emit(protocol, frame)
                     websocket.send_data()
                     await websocket.drain()
         except Exception as exc:  # the connection is gone; the reader side cleans up
             log.debug("session %d writer stopped: %s", self.number, exc)
+        finally:
+            self._writer_idle = False
 
     def _take_batch(self) -> list[str | bytes]:
         """Up to WRITE_BATCH frames: answers first, then one per subscription in turn (fair
@@ -181,6 +203,14 @@ class Session:
         self._control.clear()
         self._queues.clear()
         self._wake.set()
+
+
+def _emit(protocol: Any, frame: Frame) -> None:
+    for part in frame if isinstance(frame, list) else (frame,):
+        if isinstance(part, str):
+            protocol.send_text(part.encode())
+        else:
+            protocol.send_binary(part)
 
 
 def _extend(batch: list[str | bytes], frame: Frame) -> None:
