@@ -57,11 +57,23 @@ def probe(stack: Stack) -> RobotProbe:
 
 
 class Changes:
-    """Telemetry changes reported to a PaxHost listener, awaited by predicate."""
+    """Telemetry changes reported to one PaxHost listener: awaited by event, never by sleeping."""
 
     def __init__(self, host: PaxHost) -> None:
+        self.host = host
         self.events: queue.Queue[tuple[str, str, TelemetryValue]] = queue.Queue()
-        host.add_listener(lambda sysrep, item, value: self.events.put((sysrep, item, value)))
+        self.condition = threading.Condition()
+        host.add_listener(self.listener_callback)
+
+    def listener_callback(self, sysrep: str, item: str, value: TelemetryValue) -> None:
+        self.events.put((sysrep, item, value))
+        with self.condition:
+            self.condition.notify_all()
+
+    def forget(self) -> None:
+        """Drop the changes seen so far, so :meth:`wait` sees only what happens next."""
+        while not self.events.empty():
+            self.events.get_nowait()
 
     def wait(self, sysrep: str, item: str, value: object, stale: bool, timeout: float) -> float:
         """Block until ``item`` reports ``value`` with ``stale``; the monotonic time it did."""
@@ -74,6 +86,21 @@ class Changes:
             if got[:2] == (sysrep, item) and got[2].value == value and got[2].stale == stale:
                 return time.monotonic()
         raise TimeoutError(f"{sysrep}.{item} did not become {value!r} (stale={stale}) within {timeout} s")
+
+    def until(self, predicate, what: str, timeout: float = 10.0) -> None:  # noqa: ANN001
+        """Block until ``predicate()`` (a read of PaxHost telemetry) holds, re-checking on each change."""
+        deadline = time.monotonic() + timeout
+        with self.condition:
+            while not predicate():
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise TimeoutError(f"{what} not seen within {timeout} s")
+                self.condition.wait(remaining)
+
+
+@pytest.fixture(scope="module")
+def changes(host: PaxHost) -> Changes:
+    return Changes(host)
 
 
 def _positions(status_response) -> list[float]:  # noqa: ANN001 - GetAffordanceTemplateStatus
@@ -105,7 +132,7 @@ def test_telemetry_follows_the_status_topic(host: PaxHost, probe: RobotProbe) ->
     assert all(abs(v.timestamp - time.time()) < 60 for v in seen.values())
 
 
-def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe: RobotProbe) -> None:
+def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe: RobotProbe, changes: Changes) -> None:
     added = host.execute(AT, "add_affordance_template", {"affordance_template": "cdra_filter", "hide_waypoints": False})
     assert added.success, added.message
     pax_id = added.values["id"]
@@ -158,13 +185,13 @@ def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe
         unlocked = host.execute("cdra", "unlock_filter", {})
         assert unlocked.success, unlocked.message
         probe.wait_for(lambda: probe.filter_locked is False, 10.0, "/cdra/filter_locked false")
-        _await(lambda: host.telemetry("cdra", "filter_locked").value is False, "cdra.filter_locked false via PAX")
+        changes.until(lambda: host.telemetry("cdra", "filter_locked").value is False, "cdra.filter_locked false via PAX")
 
         executed = host.execute(AT, "execute_plan", {"affordance_template": pax, "trajectory": "grasp_and_pull"})
         assert executed.success, executed.message
         assert executed.values["execute_status"] == "SUCCEEDED"
         probe.wait_for(lambda: probe.held_object == DIRTY, 10.0, "the dirty filter in the gripper")
-        _await(lambda: host.telemetry(AT, "execute_status").value == "SUCCEEDED", "execute_status SUCCEEDED via PAX")
+        changes.until(lambda: host.telemetry(AT, "execute_status").value == "SUCCEEDED", "execute_status SUCCEEDED via PAX")
         again = host.execute(AT, "execute_plan", {"affordance_template": pax, "trajectory": "grasp_and_pull"})
         assert not again.success and again.message  # a plan runs once: the server says so, PAX repeats it
     finally:
@@ -186,16 +213,6 @@ def test_camera_capture_by_convention(host: PaxHost, tmp_path: Path) -> None:
     assert not wrong.success and "no_such_camera" in wrong.message
 
 
-def _await(predicate, what: str, timeout: float = 10.0) -> None:  # noqa: ANN001
-    """Poll a PaxHost read until it holds: telemetry arrives on its own thread."""
-    event = threading.Event()
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"{what} not seen within {timeout} s")
-        event.wait(0.05)
-
-
 def _retry_while(reason: str, command, timeout: float = 30.0):  # noqa: ANN001, ANN202
     """Repeat a command while it fails for a transient ``reason`` (a process still starting up)."""
     deadline = time.monotonic() + timeout
@@ -206,10 +223,9 @@ def _retry_while(reason: str, command, timeout: float = 30.0):  # noqa: ANN001, 
         threading.Event().wait(0.2)
 
 
-def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: PaxHost, stack: Stack) -> None:
-    changes = Changes(host)
-    _await(lambda: host.telemetry(AT, "affordance_template_server_active") == host.telemetry(AT, "affordance_template_server_active")
-           and host.telemetry(AT, "affordance_template_server_active").value is True, "server active")
+def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: PaxHost, stack: Stack, changes: Changes) -> None:
+    changes.until(lambda: host.telemetry(AT, "affordance_template_server_active").value is True, "server active")
+    changes.forget()
     killed_at = time.monotonic()
     stack.processes["at-server"].kill()
     noticed_at = changes.wait(AT, "affordance_template_server_active", False, stale=False, timeout=STALE_AFTER + 10.0)
@@ -222,7 +238,7 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
 
     stack.start_at_server()
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=60.0)
-    _await(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
+    changes.until(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
     # The new server may answer before it has heard /sim/frames; it then refuses with a reason.
     # Retry on that answer until it accepts (same JVM, same connection throughout).
     added = _retry_while("no frames received", lambda: host.execute(
@@ -231,19 +247,22 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
     assert host.execute(AT, "delete_affordance_template", {"affordance_template": added.values["instance"], "id": -1}).success
 
 
-def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, stack: Stack) -> None:
-    changes = Changes(host)
+def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, stack: Stack, changes: Changes) -> None:
+    changes.forget()
     url = bridge_url(stack.processes["bridge"])
     port = url.rsplit(":", 1)[1]
     stack.processes["bridge"].kill()
     changes.wait(AT, "affordance_template_server_active", False, stale=False, timeout=STALE_AFTER + 10.0)
+    changes.until(lambda: host.telemetry("cdra", "filter_locked").stale, "cdra values stale once the bridge is gone")
     down = host.execute("cdra", "lock_filter", {})
     assert not down.success and "not connected" in down.message, down.message
 
     stack.start("bridge", "bridge", "--port", port).wait_ready(60.0)
     # Same JVM, same PaxHost: the client reconnects and re-sends its subscriptions by itself.
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=30.0)
-    _await(lambda: not host.telemetry("cdra", "filter_locked").stale, "cdra telemetry flowing again")
     # A new bridge may not have discovered the simulation's services yet: it says so; retry on that.
     locked = _retry_while("does not exist", lambda: host.execute("cdra", "lock_filter", {}))
     assert locked.success, locked.message
+    # The /cdra subscriptions were re-sent: the latch's new state arrives fresh.
+    changes.until(lambda: host.telemetry("cdra", "filter_locked").value is True
+                  and not host.telemetry("cdra", "filter_locked").stale, "cdra.filter_locked true and fresh")

@@ -9,6 +9,8 @@ import caretaker.pax.TelemetryListener;
 import caretaker.pax.TelemetryPlugin;
 import caretaker.pax.TelemetryValue;
 import caretaker.rosbridge.Message;
+import caretaker.rosbridge.Ros;
+import caretaker.rosbridge.RosHandler;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.Service;
 import caretaker.rosbridge.ServiceRequest;
@@ -49,7 +51,8 @@ import java.util.concurrent.TimeUnit;
  *
  * <p>Options: {@code services} / {@code topics} (name → ROS name) for the odd name that breaks
  * the convention, {@code service_types}, {@code call_timeout} (s, default 10), {@code stale_after}
- * (s; default: a value never goes stale once received, for topics published only on change).
+ * (s; default: a value goes stale only when the rosbridge connection drops, for topics published
+ * only on change).
  */
 public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin {
     /** The binding options this plugin reads. */
@@ -64,6 +67,8 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
     private final TelemetryBoard board;
     private final Map<String, Long> lastReceivedNanos = new java.util.concurrent.ConcurrentHashMap<>();
     private final ScheduledExecutorService watchdog;
+    private final Ros ros;
+    private final RosHandler disconnectHandler;
 
     /**
      * @param context the SysRep, connection, namespace and options
@@ -92,6 +97,15 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
             topic.subscribe(message -> received(item, message));
             topics.add(topic);
         }
+        // Values received over a connection that dropped are no longer known to be current.
+        this.ros = context.ros();
+        this.disconnectHandler = new RosHandler() {
+            @Override
+            public void handleDisconnection() {
+                board.markAllStale();
+            }
+        };
+        ros.addRosHandler(disconnectHandler);
         Duration staleAfter = context.options().seconds("stale_after", null);
         if (staleAfter == null || sysRep.telemetry().isEmpty()) {
             watchdog = null;
@@ -245,6 +259,7 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
 
     @Override
     public void close() {
+        ros.removeRosHandler(disconnectHandler);
         if (watchdog != null) {
             watchdog.shutdownNow();
         }
