@@ -18,7 +18,7 @@ import pybullet as p
 
 from sim.scene import CameraSpec
 
-__all__ = ["CameraImage", "render", "write_png", "capture_file_name"]
+__all__ = ["CameraImage", "capture_file_name", "fixed_camera_pose", "render", "write_png"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,30 @@ def render(spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tu
         empty = np.asarray(depth, dtype=np.float32).reshape(spec.height, spec.width) >= 0.99999
         pixels[empty] = np.array([round(c * 255) for c in spec.background], dtype=np.uint8)
     return CameraImage(spec.name, spec.width, spec.height, pixels.tobytes())
+
+
+def fixed_camera_pose(spec: CameraSpec) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+    """World pose of a fixed camera's optical frame (z forward, x right, y down) as (xyz, xyzw)."""
+    eye = np.array(spec.eye or (0.0, 0.0, 0.0))
+    z = np.array(spec.target or (1.0, 0.0, 0.0)) - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.column_stack([x, y, z])
+    # Rotation matrix to quaternion (Shepperd's method, largest diagonal term first).
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        k = 2.0 * np.sqrt(trace + 1.0)
+        q = ((m[2, 1] - m[1, 2]) / k, (m[0, 2] - m[2, 0]) / k, (m[1, 0] - m[0, 1]) / k, k / 4)
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, n = (i + 1) % 3, (i + 2) % 3
+        k = 2.0 * np.sqrt(1.0 + m[i, i] - m[j, j] - m[n, n])
+        v = [0.0, 0.0, 0.0]
+        v[i], v[j], v[n] = k / 4, (m[j, i] + m[i, j]) / k, (m[n, i] + m[i, n]) / k
+        q = (v[0], v[1], v[2], (m[n, j] - m[j, n]) / k)
+    return tuple(float(c) for c in eye), tuple(float(c) for c in q)  # type: ignore[return-value]
 
 
 def write_png(image: CameraImage, path: Path) -> Path:

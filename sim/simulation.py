@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 
+from sim.cameras import fixed_camera_pose
 from sim.cdra_cabinet import CdraCabinet
 from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
@@ -141,8 +142,8 @@ class Simulation:
         for t in self.scene.targets:
             out.append((f"target/{t.name}", (t.pose.xyz, t.pose.quaternion)))
         for cam in self.scene.cameras.values():
-            if cam.link:
-                out.append((f"camera/{cam.name}", self.link_pose(self.world.link_index[cam.link])))
+            pose = self.link_pose(self.world.link_index[cam.link]) if cam.link else fixed_camera_pose(cam)
+            out.append((f"camera/{cam.name}", pose))
         return out
 
     def held_object(self) -> str:

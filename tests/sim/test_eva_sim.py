@@ -22,7 +22,7 @@ def model() -> ArmModel:
 def test_frames_name_every_target_and_the_camera(client: SimClient) -> None:
     msg = client.fresh("/sim/frames")
     assert msg.header.frame_id == "world"
-    for name in ("robot_base", "tool0", "camera/ee_camera", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"):
+    for name in ("robot_base", "tool0", "camera/ee_camera", "camera/scene", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"):
         assert name in msg.names
 
 
