@@ -50,8 +50,8 @@ from typing import Any
 from pride.automation import Automation, Outcome
 from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind, Journal
-from pride.model import CallInstruction, Instruction, ManualInstruction, Procedure, RecordInstruction
 from pride.lint import lint_procedure
+from pride.model import CallInstruction, Instruction, ManualInstruction, Procedure, RecordInstruction
 from pride.parser import load_procedure
 from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
 from pride.sysrep import SysRep
@@ -86,6 +86,8 @@ class _Frame:
 
 @dataclass
 class _Request:
+    """An operator asked PAX's thread to perform the current instruction on their behalf."""
+
     actor: str
     then_pause: bool = False
 
@@ -104,13 +106,27 @@ class Executive:
         sysreps: Mapping[str, SysRep] | None = None,
         load: Callable[[str], Procedure] = load_procedure,
     ) -> None:
+        """Prepare a run (nothing happens until :meth:`start`).
+
+        Args:
+            procedure: what to run.
+            gateway: the systems (the PAX host shape, :mod:`pride.systems`).
+            journal: where every event goes first (the audit log).
+            run_id: the run's id in the journal.
+            mode: the initial mode.
+            sysreps: the SysReps to check the procedure against (argument types, hazardous
+                flags); when given, a procedure with lint errors is refused.
+            load: how a called sub-procedure file is loaded.
+
+        Raises:
+            ProcedureError: the procedure has errors against ``sysreps``.
+        """
         if sysreps is not None:
             problems = lint_procedure(procedure, sysreps)
             if problems:
                 raise ProcedureError(problems)  # no procedure with errors starts
         self.procedure = procedure
         self.run_id = run_id
-        self._gateway = gateway
         self._journal = journal
         self._load = load
         self._lock = threading.RLock()  # guards every field below

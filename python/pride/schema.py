@@ -6,6 +6,7 @@ because they say exactly which element and attribute is wrong, with the element'
 
 from __future__ import annotations
 
+import threading
 from functools import lru_cache
 from pathlib import Path
 
@@ -17,6 +18,7 @@ from pride.model import Location
 __all__ = ["SCHEMA_PATH", "parse_xml", "validate"]
 
 SCHEMA_PATH = Path(__file__).resolve().parents[2] / "procedures" / "schema" / "procedure.xsd"
+_validation_lock = threading.Lock()  # one XMLSchema and its error_log are shared: validate one file at a time
 
 
 @lru_cache(maxsize=1)
@@ -44,10 +46,12 @@ def parse_xml(path: Path) -> tuple[etree._ElementTree | None, list[Problem]]:
 def validate(path: Path, tree: etree._ElementTree, source_lines: list[str]) -> list[Problem]:
     """Schema errors of a parsed procedure (empty when it conforms)."""
     schema = _schema()
-    if schema.validate(tree):
-        return []
+    with _validation_lock:
+        if schema.validate(tree):
+            return []
+        entries = list(schema.error_log)
     problems = []
-    for entry in schema.error_log:
+    for entry in entries:
         col = entry.column
         if col <= 0 and 0 < entry.line <= len(source_lines):
             col = source_lines[entry.line - 1].find("<") + 1

@@ -1,6 +1,6 @@
 """The shipped procedures complete in autonomous mode against the real robot side.
 
-Each test brings up the scene's stack (simulation, planner, AT server, rosbridge: separate
+Each test brings up the scene's robot side (simulation, planner, AT server, rosbridge: separate
 processes), runs ``caretaker run`` with its JVM-hosted PAX plugins exactly as an operator would,
 unattended (recorded answers given with --set/--confirm-manual), then checks the audit log and the
 after-action report.
@@ -24,9 +24,12 @@ from pride.parser import load_procedure
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SCENES = {
-    "iva": ("iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),
-    "eva": ("eva_inspection.xml", ["--set", "damage=false"]),
+    "iva": ("ur10", "iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),
+    "eva": ("eva_arm", "eva_inspection.xml", ["--set", "damage=false"]),
 }
+#: Executing a plan is one blocking service call through rosbridge; the Java client sends no
+#: per-call timeout yet, so the bridge's default (10 s) would cut off long motions on a loaded machine.
+BRIDGE_SERVICE_TIMEOUT_S = "180"
 
 
 def _free_port() -> int:
@@ -39,9 +42,13 @@ def _free_port() -> int:
 def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_step(
     scene: str, launch, ros_env, tmp_path: Path
 ) -> None:
-    procedure_file, answers = SCENES[scene]
+    robot, procedure_file, answers = SCENES[scene]
     port = _free_port()
-    launch("up", "--scene", scene, "--bridge-port", str(port), "--time-scale", "0", ready_timeout=180)
+    # the robot side as separate processes, in the order `caretaker up` starts them
+    launch("sim", "--scene", scene, "--time-scale", "0", ready_timeout=180)
+    launch("planner", "--robot", robot, ready_timeout=180)
+    launch("at-server", "--robot", robot, ready_timeout=180)
+    launch("bridge", "--port", str(port), "--service-timeout", BRIDGE_SERVICE_TIMEOUT_S, ready_timeout=180)
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     proc = subprocess.run(
         [sys.executable, "-m", "caretaker.cli", "run", str(REPO / "procedures" / procedure_file),
