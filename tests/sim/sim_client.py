@@ -132,8 +132,23 @@ class SimClient:
             raise AssertionError(f"{what}: no answer in {timeout} s")
         return future.result()
 
+    def follow_and_cancel(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]]) -> tuple[int, FollowJointTrajectory.Result]:
+        """Send a trajectory, cancel it at its first feedback; returns (goal status, result)."""
+        self.feedback.clear()
+        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, None, 0.0), feedback_callback=self._feedback_callback)), "send goal")
+        assert handle.accepted, "goal not accepted"
+        self.wait_for(lambda: bool(self.feedback), "trajectory feedback")
+        self._wait_future(self._in_executor(handle.cancel_goal_async), "cancel")
+        response = self._wait_future(self._in_executor(handle.get_result_async), "trajectory result")
+        return response.status, response.result
+
     def follow(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], *, velocities: Sequence[Sequence[float]] | None = None, tolerance: float = 0.0) -> FollowJointTrajectory.Result:
         """Send a trajectory of (time_from_start, positions) points and wait for its result."""
+        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, velocities, tolerance), feedback_callback=self._feedback_callback)), "send goal")
+        assert handle.accepted, "goal not accepted"
+        return self._wait_future(self._in_executor(handle.get_result_async), "trajectory result").result
+
+    def _goal(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], velocities: Sequence[Sequence[float]] | None, tolerance: float) -> FollowJointTrajectory.Goal:
         if not self.trajectory_client.wait_for_server(timeout_sec=TIMEOUT):
             raise AssertionError("trajectory action server not available")
         goal = FollowJointTrajectory.Goal()
@@ -147,9 +162,7 @@ class SimClient:
             pt.time_from_start = Duration(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) if math.isfinite(t) else 0)
             goal.trajectory.points.append(pt)
         goal.goal_tolerance = tolerance
-        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(goal, feedback_callback=self._feedback_callback)), "send goal")
-        assert handle.accepted, "goal not accepted"
-        return self._wait_future(self._in_executor(handle.get_result_async), "trajectory result").result
+        return goal
 
     def _in_executor(self, call: Callable[[], Any]) -> Any:
         """Run ``call`` on the executor's thread and return what it returned.

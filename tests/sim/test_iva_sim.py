@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from action_msgs.msg import GoalStatus
 
 from arm_paths import ArmModel
 from sim_client import SimClient
@@ -67,6 +68,18 @@ def test_joints_may_be_named_in_any_order_and_subset(client: SimClient) -> None:
     expected[0] -= 0.2
     assert close_to(client.joint_positions(ARM), expected, 1e-3)
     assert_ok(client.follow(ARM, [(0.5, start)]))
+
+
+def test_cancel_stops_the_arm_part_way(client: SimClient) -> None:
+    start = client.joint_positions(ARM)
+    goal = [start[0] + 1.0] + start[1:]
+    status, result = client.follow_and_cancel(ARM, [(60.0, goal)])
+    assert status == GoalStatus.STATUS_CANCELED, result.error_string
+    assert result.error_string == "canceled"
+    stopped = client.joint_positions(ARM)
+    assert start[0] <= stopped[0] < goal[0] - 0.1, f"pan at {stopped[0]:.3f}: not stopped part way"
+    client.wait_value("/robot/moving", False)
+    assert_ok(client.follow(ARM, [(2.0, start)]))
 
 
 INVALID = [
