@@ -639,11 +639,17 @@ class Executive:
             name, values = outcome.result
             frame.env[name] = values
         if self._status is not RunStatus.ACTIVE:
-            # stopped meanwhile: record how it ended so a resume knows, but go nowhere
+            # stopped meanwhile: record how it ended so a resume knows, but go nowhere. A failure
+            # (often the stop itself ending a wait) is redone on resume, never branched from; a
+            # sub-procedure that was about to start simply starts again.
+            if outcome.enter is not None:
+                return
             self._statuses[number] = InstructionStatus.COMPLETED if outcome.ok else InstructionStatus.FAILED
-            kind = EventKind.INSTRUCTION_COMPLETED if outcome.ok else EventKind.INSTRUCTION_FAILED
-            target = self._target(frame, instruction, outcome)
-            self._emit(kind, actor, number, reason=outcome.reason, next=frame.number(target) if target is not None else number)
+            if outcome.ok:
+                next_number = frame.number(self._target(frame, instruction, outcome))
+                self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=next_number)
+            else:
+                self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)
             return
         if outcome.ok:
             if outcome.enter is not None:

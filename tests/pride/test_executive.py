@@ -350,3 +350,27 @@ def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
         t.join(TIMEOUT)
     assert outcomes.count("entered") == 1 and outcomes.count("refused") == 3
     assert journal.kinds().count(EventKind.OPERATOR_INPUT) == 1
+
+
+def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operator_redo_it(bench, sysreps) -> None:
+    executive, gateway, journal = bench()
+    gateway.stale.add("door_open")
+    executive.start("sam")
+    held(executive, Hold.OPERATOR_INPUT, "1.2")
+    executive.enter("sam", "dock")
+    held(executive, Hold.CONFIRMATION, "2.1")
+    executive.confirm("sam")
+    assert executive.wait_for(lambda s: s.executing and s.current == "2.2", TIMEOUT)  # watching a stale door
+    executive.stop("sam", "shift change")
+    executive.join(TIMEOUT)
+    failed = [e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED]
+    assert [(e.instruction, e.data["next"]) for e in failed] == [("2.2", "2.2")]  # not the on-failure branch
+
+    gateway.stale.clear()
+    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, ListJournal(),
+                               list(journal.events), "tess", sysreps=sysreps)
+    snap = held(resumed, Hold.FAILURE, "2.2")  # the operator sees why it ended and decides
+    assert "stopped while watching telemetry" in snap.reason
+    resumed.retry("tess")
+    held(resumed, Hold.OPERATOR_ACTION, "2.4")  # 2.2 verified again, now fresh; 2.3 captured
+    resumed.stop("teardown")
