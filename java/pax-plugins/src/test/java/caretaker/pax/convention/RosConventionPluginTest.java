@@ -75,6 +75,23 @@ class RosConventionPluginTest {
     }
 
     @Test
+    void valuesGoStaleWhenTheConnectionDrops() throws Exception {
+        try (RosConventionPlugin cdra = plugin("cdra.yaml", "/cdra", Map.of())) {
+            BlockingQueue<TelemetryValue> changes = new LinkedBlockingQueue<>();
+            cdra.addListener((sysrep, item, value) -> changes.add(value));
+            server.send(JsonParser.parseString("{\"op\":\"publish\",\"topic\":\"/cdra/filter_locked\","
+                    + "\"msg\":{\"data\":true}}").getAsJsonObject());
+            TelemetryValue fresh = changes.poll(5, TimeUnit.SECONDS);
+            assertEquals(true, fresh.value());
+            assertFalse(fresh.stale());
+            server.dropClient();
+            TelemetryValue stale = changes.poll(5, TimeUnit.SECONDS);
+            assertTrue(stale.stale());
+            assertEquals(true, stale.value(), "the last value is kept, marked stale");
+        }
+    }
+
+    @Test
     void argumentlessCommandIsATriggerAndRepliesBecomeResults() throws Exception {
         server.respond(call -> call.get("op").getAsString().equals("call_service") ? List.of(reply(call,
                 "{\"success\":false,\"message\":\"latch jammed\"}")) : List.of());
