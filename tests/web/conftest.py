@@ -22,8 +22,9 @@ TIMEOUT_MS = 30_000
 expect.set_options(timeout=TIMEOUT_MS)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebServer]:
+    """One server on the simulated systems for the whole suite (test_real_stack.py has its own)."""
     tmp = tmp_path_factory.mktemp("web")
     served = start_server(tmp, procedure_shelf(tmp))
     yield served

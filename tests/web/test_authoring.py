@@ -37,7 +37,9 @@ def card(page: Page, number: str):
 
 
 def drop(page: Page, palette_item: str, index: int) -> None:
+    """Drag a palette item into step 1 at ``index`` (steps start with ``index`` items)."""
     page.drag_and_drop(palette_item, f'#canvas .drop[data-step="0"][data-index="{index}"]')
+    expect(page.locator('#canvas .canvas-step[data-step="0"] .card')).to_have_count(index + 1)
 
 
 def set_arg(page: Page, number: str, name: str, value: str) -> None:

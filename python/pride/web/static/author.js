@@ -13,6 +13,7 @@ const author = {
   doc: null,            // the document being edited
   problems: [],
   checkTimer: null,
+  dragging: false,
 };
 
 const KINDS = {
@@ -55,8 +56,13 @@ function paletteItem(text, spec, detail) {
   item.dataset.spec = JSON.stringify(spec);
   if (detail) item.append(element("div", "args", detail));
   item.addEventListener("dragstart", (event) => {
+    author.dragging = true;  // the canvas must not be redrawn under a drag: its drop zones would go
     event.dataTransfer.setData("application/x-caretaker-item", item.dataset.spec);
     event.dataTransfer.effectAllowed = "copy";
+  });
+  item.addEventListener("dragend", () => {
+    author.dragging = false;
+    render();
   });
   return item;
 }
@@ -120,6 +126,7 @@ function dropZone(stepIndex, itemIndex) {
   zone.addEventListener("dragleave", () => zone.classList.remove("over"));
   zone.addEventListener("drop", (event) => {
     event.preventDefault();
+    author.dragging = false;
     zone.classList.remove("over");
     const spec = JSON.parse(event.dataTransfer.getData("application/x-caretaker-item") || "null");
     if (!spec) return;
@@ -370,7 +377,7 @@ async function check() {
     $("xml").textContent = result.xml;
     $("check-state").textContent = result.problems.length ? `${result.problems.length} problem(s)` : "lint: no problems";
     $("check-state").dataset.ok = String(!result.problems.length);
-    if (editing()) {  // keep the field being typed in; the canvas redraws when it is left
+    if (editing() || author.dragging) {  // keep the field being typed in / the drop zones; redrawn after
       $("problems").replaceChildren(...author.problems.map((p) => element("li", "", `line ${p.line}:${p.col}: ${p.message}`)));
     } else {
       render();
