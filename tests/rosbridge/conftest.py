@@ -9,13 +9,13 @@ from typing import Any, Callable
 import pytest
 import roslibpy
 
-from rosbridge_support import bridge_url, wait_until_discovered
+from .rosbridge_support import bridge_url, wait_until_discovered
 from support.processes import ManagedProcess, caretaker, python
 
 PEER = Path(__file__).with_name("ros_peer.py")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="package")
 def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
     process = python(str(PEER), env=ros_env, name="ros-peer")
     try:
@@ -25,9 +25,9 @@ def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
         process.stop()
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="package")
 def bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[str, int]]:
-    """A bridge on a free port, shared by a module's tests: (host, port)."""
+    """A bridge on a free port, shared by all rosbridge tests (each uses its own names): (host, port)."""
     process = caretaker("bridge", "--port", "0", "--service-timeout", "5", env=ros_env)
     try:
         process.wait_ready(60)

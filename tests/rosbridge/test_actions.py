@@ -5,7 +5,7 @@ from __future__ import annotations
 import roslibpy
 from roslibpy.core import GoalStatus
 
-from rosbridge_support import Inbox, RawClient
+from .rosbridge_support import Inbox, RawClient
 
 ACTION_TYPE = "caretaker_sim_msgs/action/FollowJointTrajectory"
 

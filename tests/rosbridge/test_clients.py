@@ -7,7 +7,7 @@ import time
 
 import roslibpy
 
-from rosbridge_support import Inbox, RawClient
+from .rosbridge_support import Inbox, RawClient
 
 
 def test_thirty_concurrent_clients_call_and_subscribe(bridge: tuple[str, int], connect) -> None:

@@ -10,7 +10,7 @@ import cbor2
 import pytest
 
 from bridge.rosbridge.compression import png_decode
-from rosbridge_support import RawClient
+from .rosbridge_support import RawClient
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from rosbridge_support import RawClient
+from .rosbridge_support import RawClient
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rosbridge_support import RawClient, bridge_url
+from .rosbridge_support import RawClient, bridge_url
 from support.processes import ManagedProcess, caretaker
 
 OPS = ["advertise", "unadvertise", "publish", "subscribe", "unsubscribe", "call_service", "service_response",

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from websockets.exceptions import ConnectionClosed
 
-from rosbridge_support import RawClient, bridge_url
+from .rosbridge_support import RawClient, bridge_url
 from support.processes import ManagedProcess, caretaker
 
 SECRET = "s3cret-for-tests"

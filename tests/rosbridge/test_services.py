@@ -7,7 +7,7 @@ import threading
 import pytest
 import roslibpy
 
-from rosbridge_support import Inbox
+from .rosbridge_support import Inbox
 
 
 def test_call_with_dict_and_with_list_args(connect) -> None:

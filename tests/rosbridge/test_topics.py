@@ -6,7 +6,7 @@ import base64
 
 import roslibpy
 
-from rosbridge_support import Inbox, publish_until_received
+from .rosbridge_support import Inbox, publish_until_received
 
 
 def test_publish_reaches_ros_and_echo_comes_back_in_order(connect) -> None:
