@@ -40,3 +40,7 @@ def test_parameters_of_a_node(connect) -> None:
     greeting.set("bonjour", timeout=10)
     assert greeting.get(timeout=10) == "bonjour"
     assert "/bridge_test_peer:greeting" in ros.get_params()
+
+
+def test_bridge_publishes_its_actual_port_as_a_parameter(connect, bridge: tuple[str, int]) -> None:
+    assert roslibpy.Param(connect(), "/rosbridge_websocket:actual_port").get(timeout=10) == bridge[1]

@@ -125,6 +125,8 @@ async def run(args: argparse.Namespace) -> int:
         async with serve(server.connection, args.address, args.port, ssl=tls, max_size=args.max_message_size,
                          compression=None, ping_interval=20, ping_timeout=30) as ws_server:
             port = ws_server.sockets[0].getsockname()[1]
+            # rosbridge's own launch tests read the bound port from this parameter
+            ros.node.declare_parameter("actual_port", port)
             scheme = "wss" if tls else "ws"
             print(f"READY bridge {scheme}://{args.address}:{port}", flush=True)
             await stop.wait()
