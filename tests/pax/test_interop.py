@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from bridge.pax_host import PaxHost, TelemetryValue
-from conftest import BINDINGS, REPO, Stack, bridge_url
+from pax_stack import BINDINGS, REPO, Stack, bridge_url, ros_env_module, stack  # noqa: F401 (fixtures used by name)
 from pax_probe import RobotProbe
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

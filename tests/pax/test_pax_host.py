@@ -13,7 +13,7 @@ import pytest
 
 import bridge.jvm
 from bridge.pax_host import CommandResult, PaxError, PaxHost, TelemetryValue, to_java, to_python
-from conftest import REPO, Stack, bridge_url
+from pax_stack import REPO, Stack, bridge_url, ros_env_module  # noqa: F401 (fixtures used by name)
 from pride.sysrep import SysRepError, load_sysrep
 
 AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"

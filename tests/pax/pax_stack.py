@@ -1,4 +1,9 @@
-"""Fixtures of the PAX suite: the real rosbridge server, the real IVA robot stack, one PaxHost."""
+"""Fixtures of the PAX suite: the real rosbridge server and the real IVA robot stack.
+
+Test modules import these fixtures by name. The suite has no conftest.py on purpose: other
+suites do ``from conftest import ...``, and a second directory-level conftest module would
+shadow theirs when both directories are collected in one run.
+"""
 
 from __future__ import annotations
 
