@@ -10,7 +10,8 @@ driven by bare WebSocket clients (no client library in the loop):
 * fan-out of a 100 Hz topic to 1, 10 and 50 subscribers: messages lost, p95 delivery latency;
 * server RSS (MiB) at the end.
 
-Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust]``.
+Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust] [--soak SECONDS]``
+(``--soak 600`` runs echo traffic and client churn for ten minutes and reports RSS instead).
 The Rust peer runs as the notes' recipe says: a ``librmw_implementation.so`` symlink to the
 venv's ``librmw_fastrtps_cpp.so`` on ``LD_LIBRARY_PATH``, ``LD_PRELOAD`` of libpython,
 ``--no-rosapi``, bound to loopback; its wheel ships the binary without the execute bit, so it
@@ -370,6 +371,33 @@ async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Resu
     return list(results.values())
 
 
+async def soak(servers: dict[str, tuple[int, int]], seconds: float) -> list[Results]:
+    """Echo traffic (64 B, 32 in flight, plus connecting and dropping clients) for ``seconds``
+    on every server at once; RSS sampled every 10 s.  Reports first/last/peak RSS in MiB."""
+    import psutil
+
+    results = {name: Results(name) for name in servers}
+    sockets = {name: await echo_setup(port, name) for name, (port, _) in servers.items()}
+    samples: dict[str, list[float]] = {name: [] for name in servers}
+    deadline = time.monotonic() + seconds
+    next_sample = time.monotonic()
+    while time.monotonic() < deadline:
+        for name, (port, pid) in servers.items():
+            await round_trips(sockets[name], name, 64, 500, IN_FLIGHT)
+            churn = await connect(port)
+            await churn.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String"}))
+            await churn.close()
+        if time.monotonic() >= next_sample:
+            for name, (_, pid) in servers.items():
+                samples[name].append(psutil.Process(pid).memory_info().rss / 2**20)
+            next_sample += 10
+    for name in servers:
+        rss = samples[name]
+        results[name].figures[f"soak {seconds:.0f} s: rss_mib"] = {"first": rss[0], "last": rss[-1], "peak": max(rss)}
+        await sockets[name].close()
+    return list(results.values())
+
+
 def fanout_count(quick: bool) -> int:
     """Messages per fan-out burst (the echo node reads it from BENCH_FANOUT_COUNT)."""
     return 100 if quick else 300
@@ -400,6 +428,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="a quarter of the messages")
     parser.add_argument("--only", choices=("caretaker", "rust"), help="measure one server only")
+    parser.add_argument("--soak", type=float, metavar="SECONDS",
+                        help="instead of the measurements: echo traffic for SECONDS, sampling RSS")
     parser.add_argument("--echo-node", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.echo_node:
@@ -419,7 +449,10 @@ def main(argv: list[str] | None = None) -> int:
                 process, port = start_caretaker(env) if name == "caretaker" else start_rust(env, Path(workdir))
                 processes.append(process)
                 servers[name] = (port, process.pid)
-            all_results = asyncio.run(measure(servers, args.quick))
+            if args.soak:
+                all_results = asyncio.run(soak(servers, args.soak))
+            else:
+                all_results = asyncio.run(measure(servers, args.quick))
     finally:
         for process in reversed(processes):
             stop(process)
