@@ -9,7 +9,9 @@ pose, exactly as the planner node does it (same TemplateInstance.resolve, same M
 that filter in the gripper. Reported: success rate, and plan time per trajectory (median, p95).
 
 Side by side in the same run, the same samples with the straight-line shortcut disabled
-(every JOINT waypoint solved by RRTConnect + simplification), to show what the shortcut buys.
+(every JOINT waypoint solved by RRTConnect + greedy shortcutting), to show what it buys.
+Plan times are wall clock and CPU time of this process: on a shared machine the CPU time is
+the planner's own cost, the wall clock also what the other processes took from it.
 
     .venv/bin/python bench/planning.py --samples 200
 """
