@@ -152,8 +152,7 @@ def _serve(db_url: str, env: dict[str, str]) -> None:
     """Leave the web view running on the demo's audit log until Ctrl-C."""
     web = caretaker("serve", "--db", db_url, env=env, name="serve")
     try:
-        web.wait_ready(60)
-        print(next((line for line in web.output if line.startswith("READY")), "READY serve"), "— Ctrl-C to stop", flush=True)
+        print(web.wait_ready(60), "— Ctrl-C to stop", flush=True)
         web.proc.wait()
     except KeyboardInterrupt:
         pass

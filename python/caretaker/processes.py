@@ -9,6 +9,7 @@ killed by the kernel if this process dies first, so a crashed launcher leaves no
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -53,9 +54,8 @@ class ManagedProcess:
         self._on_line = on_line
         self.name = name or Path(argv[0]).name
         self.output: deque[str] = deque(maxlen=400)
-        self._ready = threading.Event()
-        self._ready_marker = "READY"
-        self._lines_lock = threading.Lock()
+        self._output_changed = threading.Condition()
+        self._ended = False
         self.proc = subprocess.Popen(
             argv,
             env=env,
@@ -72,25 +72,45 @@ class ManagedProcess:
 
     def _read(self) -> None:
         assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            with self._lines_lock:
-                self.output.append(line.rstrip("\n"))
+        for raw in self.proc.stdout:
+            line = raw.rstrip("\n")
+            with self._output_changed:
+                self.output.append(line)
+                self._output_changed.notify_all()
             if self._on_line is not None:
-                self._on_line(self.name, line.rstrip("\n"))
-            if line.startswith(self._ready_marker):
-                self._ready.set()
-        self._ready.set()  # wake waiters: the process has exited
+                self._on_line(self.name, line)
+        with self._output_changed:
+            self._ended = True
+            self._output_changed.notify_all()
 
     def tail(self, lines: int = 60) -> str:
         """The last ``lines`` lines the process printed."""
-        with self._lines_lock:
+        with self._output_changed:
             return "\n".join(list(self.output)[-lines:])
 
-    def wait_ready(self, timeout: float = 60.0) -> None:
-        """Block until the process printed its READY line; raise ProcessFailed otherwise."""
-        if not self._ready.wait(timeout) or self.proc.poll() is not None:
-            state = f"exited with {self.proc.returncode}" if self.proc.poll() is not None else f"not ready after {timeout} s"
+    def wait_for_line(self, pattern: str, timeout: float = 60.0) -> str:
+        """Block until the process printed a line matching ``pattern`` (a regex); return that line.
+
+        Raises:
+            ProcessFailed: the process ended, or ``timeout`` passed, without printing one.
+        """
+        regex = re.compile(pattern)
+        found: list[str] = []
+
+        def printed() -> bool:
+            found[:] = [line for line in self.output if regex.search(line)][:1]
+            return bool(found) or self._ended
+
+        with self._output_changed:
+            self._output_changed.wait_for(printed, timeout)
+        if not found:
+            state = f"exited with {self.proc.poll()}" if self._ended else f"printed no line matching {pattern!r} in {timeout} s"
             raise ProcessFailed(f"{self.name} {state}; its output:\n{self.tail()}")
+        return found[0]
+
+    def wait_ready(self, timeout: float = 60.0) -> str:
+        """Block until the process printed its READY line (returned); raise ProcessFailed otherwise."""
+        return self.wait_for_line(r"^READY\b", timeout)
 
     @property
     def running(self) -> bool:

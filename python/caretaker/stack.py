@@ -105,8 +105,7 @@ class Stack:
                 proc = caretaker(*args, env=self.env, name=name, on_line=self._print_line)
                 self.processes[name] = proc
                 threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
-                proc.wait_ready(self.ready_timeout)
-                self.ready_lines[name] = next((line for line in proc.output if line.startswith("READY")), "READY")
+                self.ready_lines[name] = proc.wait_ready(self.ready_timeout)
                 log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, self.ready_lines[name])
         except ProcessFailed as exc:
             self.stop()

@@ -33,8 +33,8 @@ def bridge_url(ros_env: dict[str, str]) -> Iterator[str]:
                      ("at-server", "--robot", "ur10"), ("bridge", "--port", "0")):
             proc = caretaker(*args, env=ros_env)
             started.append(proc)
-            proc.wait_ready(120)
-        yield next(line for line in started[-1].output if line.startswith("READY")).split()[-1]
+            ready = proc.wait_ready(120)
+        yield ready.split()[-1]
     finally:
         for proc in reversed(started):
             proc.stop()

@@ -1,0 +1,219 @@
+"""Faults on the real stack: a part dies mid-procedure, the run never pretends, nothing is lost.
+
+Each test runs the IVA CDRA procedure on separate processes (simulation, planner, AT server,
+rosbridge, runner with its JVM), kills one of them at a known point, and checks that the
+procedure stops at that instruction with a reason, that the audit log holds every action up
+to the fault, and how the run goes on once the part is back.
+"""
+
+from __future__ import annotations
+
+import re
+import socket
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from urllib.parse import urlparse
+
+import pytest
+
+from caretaker.processes import REPO, VENV_BIN, ManagedProcess, caretaker
+from pride.audit_log import AuditLog
+from pride.events import EventKind
+
+from interop.terminal_session import TerminalSession
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
+BINDING = REPO / "sysrep" / "bindings" / "iva.yaml"
+CLEAN_FILTER = "CDRA-F-0012"
+# The manual instruction just before the arm moves in to pull the dirty filter.
+CONFIRM_CLEAR = "2.6"
+EXECUTE_PULL = "2.7"
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+class RobotSide:
+    """The robot side and a rosbridge server on a fixed port (so a restart keeps the URL)."""
+
+    def __init__(self, env: dict[str, str]) -> None:
+        self.env = env
+        self.port = _free_port()
+        self.url = f"ws://127.0.0.1:{self.port}"
+        self.parts: dict[str, ManagedProcess] = {}
+
+    def start(self, name: str) -> None:
+        args = {"sim": ("sim", "--scene", "iva", "--time-scale", "0"), "planner": ("planner", "--robot", "ur10"),
+                "at-server": ("at-server", "--robot", "ur10"), "bridge": ("bridge", "--port", str(self.port))}[name]
+        self.parts[name] = caretaker(*args, env=self.env, name=name)
+        self.parts[name].wait_ready(120)
+
+    def stop(self) -> None:
+        for proc in reversed(list(self.parts.values())):
+            proc.stop()
+
+
+@pytest.fixture
+def robot(ros_env: dict[str, str]) -> Iterator[RobotSide]:
+    side = RobotSide(ros_env)
+    try:
+        for name in ("sim", "planner", "at-server", "bridge"):
+            side.start(name)
+        yield side
+    finally:
+        side.stop()
+
+
+def _run_argv(robot: RobotSide, db: str, *extra: str) -> list[str]:
+    return [str(VENV_BIN / "caretaker"), "run", "--binding", str(BINDING), "--rosbridge", robot.url,
+            "--user", "ops", "--db", db, f"--set=clean_filter_id={CLEAN_FILTER}", *extra]
+
+
+class StatusWatch:
+    """The AT server's status topic, seen through rosbridge like any ground-side client sees it."""
+
+    def __init__(self, url: str) -> None:
+        import roslibpy
+
+        parsed = urlparse(url)
+        self._ros = roslibpy.Ros(host=parsed.hostname, port=parsed.port)
+        self._ros.run(30)
+        self._changed = threading.Condition()
+        self._messages: list[dict] = []
+        self._topic = roslibpy.Topic(self._ros, "/affordance_template_server/status",
+                                     "affordance_template_msgs/msg/ServerStatus")
+        self._topic.subscribe(self._take)
+
+    def _take(self, message: dict) -> None:
+        with self._changed:
+            self._messages.append(message)
+            self._changed.notify_all()
+
+    def wait_for(self, execute_status: str, trajectory: str, timeout: float = 120.0) -> None:
+        def seen() -> bool:
+            return any(m["execute_status"] == execute_status and m["active_trajectory"] == trajectory
+                       for m in self._messages)
+
+        with self._changed:
+            if not self._changed.wait_for(seen, timeout):
+                raise AssertionError(f"the AT server never reported {execute_status} for {trajectory!r}")
+
+    def close(self) -> None:
+        self._topic.unsubscribe()
+        self._ros.close()
+
+
+def _events(db: str, run_id: str) -> list:
+    audit = AuditLog(db)
+    try:
+        return audit.events(run_id)
+    finally:
+        audit.close()
+
+
+def _assert_log_is_whole(events: list) -> None:
+    assert [e.seq for e in events] == list(range(events[0].seq, events[0].seq + len(events))), "sequence has gaps"
+    assert events[0].kind is EventKind.RUN_STARTED
+
+
+def _answer_until(session: TerminalSession, stop_at: str | None = None) -> str | None:
+    """Answer manual holds with Enter until the run ends, or until a prompt at ``stop_at`` (returned)."""
+    while True:
+        match = session.expect(r"(?m)^\s*(\d+\.\d+)[^\n]*\n[^\n]*\[Enter\] done[^\n]*> |RESULT (\w+) run")
+        if match.group(2):
+            return match.group(2)
+        if match.group(1) == stop_at:
+            return None
+        session.send("")
+
+
+def test_rosbridge_killed_then_back(robot: RobotSide, tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), robot.env)
+    try:
+        run_id = session.expect(r"READY run (\S+)").group(1)
+        assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
+        robot.parts["bridge"].kill()
+        session.send("")  # the area is clear: PAX sends the pull-out with no bridge to carry it
+        failure = session.expect(rf"(?s){re.escape(EXECUTE_PULL)} failed: (.*?)\n.*?\[r\] retry[^\n]*> ")
+        assert "execute_plan" in failure.group(1)
+        events = _events(db, run_id)
+        _assert_log_is_whole(events)
+        assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
+                       for e in events), "a command that could not reach the robot was logged as a success"
+        assert any(e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL for e in events)
+        robot.start("bridge")
+        session.expect(r"reconnected to ws://")  # the plugins' rosbridge client logs its reconnection
+        session.send("r")  # the bridge is back: the operator retries
+        assert _answer_until(session) == "completed"
+        assert session.close() == 0
+    finally:
+        session.close(5)
+    events = _events(db, run_id)
+    _assert_log_is_whole(events)
+    retries = [e for e in events if e.kind is EventKind.RETRY]
+    assert [(e.instruction, e.actor) for e in retries] == [(EXECUTE_PULL, "ops")]
+    assert events[-1].kind is EventKind.RUN_COMPLETED
+
+
+def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), robot.env)
+    try:
+        run_id = session.expect(r"READY run (\S+)").group(1)
+        assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
+        session.send("")
+        session.expect(rf"{re.escape(EXECUTE_PULL)}\s+PAX\s+sent affordance_templates\.execute_plan")
+        robot.parts["at-server"].kill()
+        failure = session.expect(rf"(?s){re.escape(EXECUTE_PULL)} failed: (.*?)\n.*?\[r\] retry[^\n]*> ")
+        assert "execute_plan" in failure.group(1)
+        session.send("q")  # the AT instances died with the server: the operator stops the run
+        assert session.expect(r"RESULT (\w+) run").group(1) == "stopped"
+        assert session.close() == 1
+    finally:
+        session.close(5)
+    events = _events(db, run_id)
+    _assert_log_is_whole(events)
+    sent = [e for e in events if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL]
+    assert len(sent) == 1
+    assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
+                   for e in events), "an execute cut short by the AT server's death was logged as a success"
+    assert events[-1].kind is EventKind.RUN_STOPPED and events[-1].actor == "ops"
+
+
+def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    status = StatusWatch(robot.url)
+    runner = caretaker("run", *_run_argv(robot, db, str(PROCEDURE), "--auto", "--confirm-manual")[2:],
+                       env=robot.env, name="runner")
+    try:
+        run_id = runner.wait_ready(120).split()[2]
+        status.wait_for("EXECUTING", "grasp_and_pull")  # the robot is pulling the filter out
+        runner.kill()
+        status.wait_for("SUCCEEDED", "grasp_and_pull")  # and finishes without the runner
+    finally:
+        runner.stop()
+        status.close()
+    before = _events(db, run_id)
+    _assert_log_is_whole(before)
+    assert any(e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL for e in before)
+    assert not any(e.kind is EventKind.RUN_COMPLETED for e in before)
+    # the operator saw the pull-out finish: the in-flight command is not sent again
+    resumed = caretaker("run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual", "--in-flight", "skip")[2:],
+                        env=robot.env, name="resumed")
+    try:
+        resumed.proc.wait(timeout=300)
+    finally:
+        resumed.stop()
+    assert resumed.proc.returncode == 0, resumed.tail()
+    after = _events(db, run_id)
+    _assert_log_is_whole(after)
+    assert after[: len(before)] == before, "the resumed run changed what was already logged"
+    assert sum(1 for e in after if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL) == 1
+    assert after[-1].kind is EventKind.RUN_COMPLETED
