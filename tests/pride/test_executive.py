@@ -91,6 +91,9 @@ def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(benc
     assert by[(EventKind.TELEMETRY_SEEN, "1.1")].data["value"] == 21.5  # verify within tolerance
     assert by[(EventKind.INSTRUCTION_COMPLETED, "2.6")].data["went_to"] == "finish"  # branch on a command result
     assert by[(EventKind.INSTRUCTION_COMPLETED, "4.2")].data["went_to"] == "done"  # branch on a recorded input
+    assert by[(EventKind.TELEMETRY_SEEN, "5.2")].data["value"] == 21.5
+    assert by[(EventKind.INSTRUCTION_COMPLETED, "5.2")].data["went_to"] == "settle"  # branch on telemetry
+    assert snap.statuses["6.1"] is InstructionStatus.COMPLETED  # a contingency step, entered by that branch
     assert by[(EventKind.CALL_ENTERED, "4.1")].data["inputs"] == {"count": 3}
     assert by[(EventKind.COMMAND_RESULT, "4.1/1.1")].data["values"] == {"total": 6}
     assert by[(EventKind.COMMAND_RESULT, "2.3")].data["args"] == {"label": "dock_view"}  # a result names its request
@@ -324,7 +327,7 @@ def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
     snap = finished(resumed)
     assert snap.status is RunStatus.COMPLETED
     assert [c for _, c, _ in gateway2.sent] == ["move"]  # only 5.1: nothing before the cut is repeated
-    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_STARTED] == ["4.1/1.2", "4.2", "5.1"]
+    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_STARTED] == ["4.1/1.2", "4.2", "5.1", "5.2", "6.1"]
     assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_COMPLETED][:2] == ["4.1/1.2", "4.1"]
 
 
