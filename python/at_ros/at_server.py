@@ -67,6 +67,7 @@ HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few second
 PLAN_TIMEOUT = 60.0
 JOINT_TOLERANCE = 0.02  # rad the robot may drift from a plan's start and still run it
 STATUS_PERIOD = 0.2
+FRAME_WAIT = 3.0  # s to wait for a frame not (yet) published, as the original waited for TF
 #: The simulation latches robot/moving and gripper/held_object: subscribe so as to get the last value.
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -275,10 +276,10 @@ class AffordanceTemplateServer(Node):
             raise InstanceError(f"unknown template {request.class_type!r}; the library has: {', '.join(sorted(self.templates))}")
         frame = request.pose.header.frame_id
         if frame:
-            root = self.frames.lookup(frame) @ matrix_from_pose(request.pose.pose)
+            root = self.frames.lookup(frame, FRAME_WAIT) @ matrix_from_pose(request.pose.pose)
         else:
             # The original placed new instances at the robot config's root_offset in frame_id.
-            root = self.frames.lookup(self.robot.frame_id) @ self.robot.root_offset_matrix
+            root = self.frames.lookup(self.robot.frame_id, FRAME_WAIT) @ self.robot.root_offset_matrix
         with self._state_lock:
             used = {i.id for i in self.state.instances.values() if i.template.name == template.name}
             instance = TemplateInstance(template, next_free_id(used), self.robot, root, hide_waypoints=request.hide_waypoints)
@@ -336,7 +337,7 @@ class AffordanceTemplateServer(Node):
             if instance.template.display_object(name) is None:
                 raise InstanceError(f"template {instance.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in instance.template.display_objects)}")
             frame = obj.stamped_pose.header.frame_id or WORLD_FRAME
-            frame_pose = self.frames.lookup(frame)
+            frame_pose = self.frames.lookup(frame, FRAME_WAIT)
             updates.append((instance, name, Registration(frame, matrix_from_pose(obj.stamped_pose.pose), frame_pose)))
         for instance, name, registration in updates:
             with self._command_lock(instance.key), self._state_lock:

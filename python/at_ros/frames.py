@@ -27,12 +27,14 @@ class FrameTable:
     def __init__(self) -> None:
         self._poses: dict[str, np.ndarray] = {}
         self._stamp = 0.0
-        self._lock = threading.Lock()  # guards _poses and _stamp (subscription vs service threads)
+        # Guards _poses and _stamp (subscription vs service threads); notified on every update.
+        self._lock = threading.Condition()
 
     def update(self, names: list[str], poses: list[np.ndarray]) -> None:
         with self._lock:
             self._poses = dict(zip(names, poses))
             self._stamp = time.monotonic()
+            self._lock.notify_all()
 
     @property
     def age(self) -> float:
@@ -46,8 +48,9 @@ class FrameTable:
         out[WORLD_FRAME] = np.eye(4)
         return out
 
-    def lookup(self, name: str) -> np.ndarray:
-        """World pose of frame ``name``.
+    def lookup(self, name: str, timeout: float = 0.0) -> np.ndarray:
+        """World pose of frame ``name``, waiting up to ``timeout`` s for it to be published
+        (the original server waited up to 3 s for TF).
 
         Raises:
             UnknownFrame: nobody publishes ``name`` (or nothing was received yet).
@@ -55,6 +58,7 @@ class FrameTable:
         if name in ("", WORLD_FRAME):
             return np.eye(4)
         with self._lock:
+            self._lock.wait_for(lambda: name in self._poses, timeout)
             pose = self._poses.get(name)
             known = sorted(self._poses)
         if pose is None:

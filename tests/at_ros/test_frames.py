@@ -29,3 +29,13 @@ def test_world_and_empty_name_are_the_identity_even_before_any_frame() -> None:
     assert table.age == float("inf")
     with pytest.raises(UnknownFrame, match="no frames received on /sim/frames yet"):
         table.lookup("robot_base")
+
+
+def test_lookup_waits_for_a_frame_published_meanwhile() -> None:
+    import threading
+
+    table = FrameTable()
+    publisher = threading.Timer(0.2, lambda: table.update(["robot_base"], [np.eye(4)]))
+    publisher.start()
+    np.testing.assert_allclose(table.lookup("robot_base", timeout=30.0), np.eye(4))
+    publisher.join()
