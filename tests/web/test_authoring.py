@@ -38,6 +38,7 @@ def card(page: Page, number: str):
 
 def drop(page: Page, palette_item: str, index: int) -> None:
     """Drag a palette item into step 1 at ``index`` (steps start with ``index`` items)."""
+    expect(page.locator("#check-state")).not_to_have_text("checking…")  # the canvas is drawn
     page.drag_and_drop(palette_item, f'#canvas .drop[data-step="0"][data-index="{index}"]')
     expect(page.locator('#canvas .canvas-step[data-step="0"] .card')).to_have_count(index + 1)
 

@@ -14,6 +14,7 @@ const author = {
   problems: [],
   checkTimer: null,
   dragging: false,
+  paletteKey: null,
 };
 
 const KINDS = {
@@ -68,6 +69,9 @@ function paletteItem(text, spec, detail) {
 }
 
 function renderPalette() {
+  const key = JSON.stringify(author.doc ? author.doc.uses : []);
+  if (key === author.paletteKey) return;  // redraw only when the SysReps in use change
+  author.paletteKey = key;
   $("palette-kinds").replaceChildren(...Object.entries(KINDS).map(([kind, info]) => {
     const item = paletteItem(info.label, {kind});
     item.dataset.kind = kind;
