@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import http.cookiejar
 import json
 import urllib.error
 import urllib.request
@@ -67,3 +68,28 @@ def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server) -> None:
     with pytest.raises(websockets.InvalidStatus) as refused:  # closed before the handshake completes
         connect(ws_url, open_timeout=30)
     assert refused.value.response.status_code == 403
+
+
+def test_an_observer_may_read_procedures_but_not_save_them(server) -> None:
+    jar = http.cookiejar.CookieJar()
+    opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(jar))
+
+    def call(path: str, body: dict | None = None) -> tuple[int, dict]:
+        data = json.dumps(body).encode() if body is not None else None
+        request = urllib.request.Request(server.url + path, data=data, headers={"Content-Type": "application/json"})
+        try:
+            with opener.open(request, timeout=30) as response:
+                return response.status, json.loads(response.read())
+        except urllib.error.HTTPError as error:
+            text = error.read()
+            return error.code, json.loads(text) if text.startswith(b"{") else {"error": text.decode()}
+
+    assert call("/api/session", {"user": "carol"})[0] == 200
+    status, document = call("/api/author/procedures/web_walkthrough.xml")
+    assert status == 200 and document["attrs"]["id"] == "web_walkthrough"
+    status, body = call("/api/author/save", {"name": "carol_was_here.xml", "document": document})
+    assert status == 403 and "observer" in body["error"]
+    assert not (server.procedures / "carol_was_here.xml").exists()
+    for name in ("..%2Fsecret.xml", "secret.xml"):  # only files the procedures directory lists
+        status, body = call(f"/api/author/procedures/{name}")
+        assert status in (400, 404), body
