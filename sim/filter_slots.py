@@ -144,14 +144,17 @@ class FilterSlots:
 
     # ------------------------------------------------------------------ every step
 
-    def hold_kinematic(self) -> None:
-        """Re-place seated and held filters after a physics step (gravity must not move them)."""
+    def hold_kinematic(self, tool_pose: tuple[Vec3, Quat]) -> None:
+        """Re-place seated and held filters after a physics step (gravity must not move them).
+
+        A held filter goes back to where the grasp puts it relative to the tool, not to where the
+        step left it: re-placing it at its own pose would let it sink a little every step.
+        """
         for f in self.filters.values():
             if f.slot is not None:
                 self._place(f, *self.slot_poses[f.slot])
-            elif f.held:
-                pos, orn = self.pose(f.id)
-                self._place(f, pos, orn)
+            elif f.held and f.grasp is not None:
+                self._place(f, *p.multiplyTransforms(*tool_pose, *f.grasp))
 
     # ------------------------------------------------------------------ helpers
 

@@ -89,7 +89,7 @@ class Simulation:
         # The links that hold a grasped filter and may touch it: the fingers and their palm.
         self._gripper_links = set(self.gripper.fingers) if self.gripper else set()
         self._gripper_links |= {p.getJointInfo(self.robot, f, physicsClientId=self.client)[16] for f in self._gripper_links}
-        self.filters.hold_kinematic()
+        self.filters.hold_kinematic(self.link_pose(self.tool_link))
 
     # ------------------------------------------------------------------ commands (world_lock held by caller)
 
@@ -174,7 +174,7 @@ class Simulation:
         if self.gripper is not None:
             for joint, q in zip(self.gripper.joints, self.gripper.positions):
                 p.resetJointState(self.robot, joint, q, physicsClientId=self.client)
-        self.filters.hold_kinematic()
+        self.filters.hold_kinematic(self.link_pose(self.tool_link))
         self.time += self.dt
 
     def _advance_arm(self, run: TrajectoryRun) -> None:

@@ -85,3 +85,20 @@ def test_scene_file_errors_name_the_file_and_key(tmp_path: Path) -> None:
         load_scene(bad)
     with pytest.raises(SceneError, match="unknown scene 'moon'"):
         load_scene("moon")
+
+
+def test_held_filter_does_not_sink_while_the_arm_rests(model: ArmModel) -> None:
+    sim = Simulation(load_scene("iva"), seed=3)
+    try:
+        line = model.slot_line("rack/slot_1", 0.15, 0.0, HOME)
+        run_to(sim, [line[0]], model)
+        run_to(sim, line[1:], model, 0.1)
+        assert set_gripper(sim, "closed") == "closed on CDRA-F-0012"
+        run_to(sim, model.slot_line("rack/slot_1", 0.0, 0.15, line[-1])[1:], model, 0.1)
+        held_at, _ = sim.filters.pose("CDRA-F-0012")
+        for _ in range(int(5.0 / sim.dt)):  # five seconds at rest under gravity
+            sim.step()
+        rested_at, _ = sim.filters.pose("CDRA-F-0012")
+        assert max(abs(a - b) for a, b in zip(held_at, rested_at)) < 1e-4, (held_at, rested_at)
+    finally:
+        sim.close()
