@@ -24,7 +24,7 @@ expect.set_options(timeout=TIMEOUT_MS)
 
 @pytest.fixture(scope="session")
 def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebServer]:
-    """One server on the simulated systems for the whole suite (test_real_stack.py has its own)."""
+    """One server on the simulated systems for the whole suite (test_web_on_real_stack.py has its own)."""
     tmp = tmp_path_factory.mktemp("web")
     served = start_server(tmp, procedure_shelf(tmp))
     yield served

@@ -3,7 +3,7 @@
 These tests are about the page and its server, so the systems behind the executive are the
 simulated ones of simulated_systems.py: a failing command and a stale sensor on demand,
 deterministic camera images. The IVA acceptance run on the real robot stack is
-test_real_stack.py; the record-to-command part of it, which needs the run past three steps of
+test_web_on_real_stack.py; the record-to-command part of it, which needs the run past three steps of
 robot motion, is here.
 """
 

@@ -29,7 +29,6 @@ from pride.parser import load_procedure
 from pride.web.accounts import Account
 from pride.web.actions import ActionRefused, ActionRequest, perform_action
 from pride.web.authoring import check_document, read_document, save_document, sysrep_palette
-from pride.web.live_run import LiveRun
 from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
 from pride.web.run_state import fold_events

@@ -12,7 +12,6 @@ Operator actions are not here: :mod:`pride.web.actions` sends them to the execut
 from __future__ import annotations
 
 import asyncio
-import logging
 import threading
 import time
 from pathlib import Path
@@ -27,8 +26,6 @@ from pride.web.procedure_view import procedure_json, telemetry_references
 from pride.web.run_state import RunState
 
 __all__ = ["LiveRun", "Watcher", "snapshot_json"]
-
-log = logging.getLogger(__name__)
 
 
 class Watcher:
