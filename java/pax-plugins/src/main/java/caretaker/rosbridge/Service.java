@@ -59,10 +59,15 @@ public final class Service {
      * @return the reply to come
      */
     public CompletableFuture<ServiceResponse> callAsync(ServiceRequest request, Duration timeout) {
-        return call(Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId(), request, timeout);
+        return call(Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId(), request, timeout, timeout);
     }
 
-    private CompletableFuture<ServiceResponse> call(String id, ServiceRequest request, Duration timeout) {
+    /**
+     * Sends the call; {@code serverTimeout} goes on the wire so the bridge waits for the ROS
+     * service as long as this client does (its own default is shorter than a robot motion).
+     */
+    private CompletableFuture<ServiceResponse> call(String id, ServiceRequest request, Duration timerTimeout,
+            Duration serverTimeout) {
         JsonObject message = new JsonObject();
         message.addProperty(Protocol.FIELD_OP, Protocol.OP_CALL_SERVICE);
         message.addProperty(Protocol.FIELD_ID, id);
@@ -71,7 +76,8 @@ public final class Service {
             message.addProperty(Protocol.FIELD_TYPE, type);
         }
         message.add(Protocol.FIELD_ARGS, request.toJsonObject());
-        return ros.callService(id, name, message, timeout);
+        message.addProperty(Protocol.FIELD_TIMEOUT, serverTimeout.toNanos() / 1e9);
+        return ros.callService(id, name, message, timerTimeout);
     }
 
     /**
@@ -112,7 +118,7 @@ public final class Service {
     public ServiceResponse callServiceAndWait(ServiceRequest request, Duration timeout) {
         String id = Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId();
         // No timer task: this thread waits with the timeout itself and forgets the call on expiry.
-        CompletableFuture<ServiceResponse> reply = call(id, request, null);
+        CompletableFuture<ServiceResponse> reply = call(id, request, null, timeout);
         try {
             return reply.get(timeout.toNanos(), TimeUnit.NANOSECONDS);
         } catch (TimeoutException e) {

@@ -123,7 +123,8 @@ class RosTest {
         Service service = new Service(ros, "/add", "example_interfaces/srv/AddTwoInts");
         ServiceResponse response = service.callServiceAndWait(new ServiceRequest("{\"a\":2,\"b\":3}"));
         assertEquals(json("{\"op\":\"call_service\",\"id\":\"call_service:/add:0\",\"service\":\"/add\","
-                + "\"type\":\"example_interfaces/srv/AddTwoInts\",\"args\":{\"a\":2,\"b\":3}}"), server.next());
+                + "\"type\":\"example_interfaces/srv/AddTwoInts\",\"args\":{\"a\":2,\"b\":3},\"timeout\":5.0}"),
+                server.next());
         assertTrue(response.getResult());
         assertEquals(5, response.toJsonObject().get("sum").getAsInt());
         assertEquals(0, ros.pendingCallCount());
