@@ -25,6 +25,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import rclpy
 from rclpy.action import ActionClient
@@ -101,10 +102,21 @@ def _wait(future, timeout: float, what: str):  # noqa: ANN001, ANN202 - rclpy Fu
 
 
 class AffordanceTemplateServer(Node):
-    def __init__(self, robot: RobotConfig, templates: dict[str, Template], robots: dict[str, RobotConfig]) -> None:
+    def __init__(
+        self,
+        robot: RobotConfig,
+        templates: dict[str, Template],
+        robots: dict[str, RobotConfig],
+        *,
+        template_folder: Path | None = None,
+    ) -> None:
+        """``template_folder`` is re-read when a template is asked for by a name not yet loaded,
+        so adding a template is dropping a JSON file in the library: no restart, no code."""
         super().__init__("affordance_template_server")
         self.robot = robot
         self.templates = templates
+        self.template_folder = template_folder
+        self.frames_arrived = threading.Event()
         self.robots = robots
         self.frames = FrameTable()
         self.state = ServerState()
@@ -155,6 +167,7 @@ class AffordanceTemplateServer(Node):
 
     def frames_callback(self, msg: NamedPoses) -> None:
         self.frames.update(list(msg.names), [matrix_from_pose(p) for p in msg.poses])
+        self.frames_arrived.set()
 
     def joint_states_callback(self, msg: JointState) -> None:
         with self._state_lock:
@@ -245,14 +258,30 @@ class AffordanceTemplateServer(Node):
 
         return handle
 
+    def _template(self, name: str) -> Template:
+        """The template called ``name``, re-reading the library folder once if it is not loaded yet.
+
+        Raises:
+            InstanceError: no such template, or the library no longer loads (the message says why).
+        """
+        template = self.templates.get(name)
+        if template is None and self.template_folder is not None:
+            try:
+                self.templates = load_library(self.template_folder)
+            except LibraryError as exc:
+                raise InstanceError(f"unknown template {name!r}, and the library does not reload: {exc}") from None
+            template = self.templates.get(name)
+        if template is None:
+            raise InstanceError(f"unknown template {name!r}; the library has: {', '.join(sorted(self.templates))}")
+        return template
+
     def _instance(self, type_name: str, instance_id: int) -> TemplateInstance:
         key = f"{type_name}:{instance_id}"
         with self._state_lock:
             instance = self.state.instances.get(key)
             running = sorted(self.state.instances)
         if instance is None:
-            if type_name not in self.templates:
-                raise InstanceError(f"unknown template {type_name!r}; the library has: {', '.join(sorted(self.templates))}")
+            self._template(type_name)
             raise InstanceError(f"no running instance {key!r}; running: {', '.join(running) or 'none'} (add_template first)")
         return instance
 
@@ -271,9 +300,7 @@ class AffordanceTemplateServer(Node):
     # --- instances -------------------------------------------------------------------------
 
     def add_template_callback(self, request: AddAffordanceTemplate.Request, response: AddAffordanceTemplate.Response):
-        template = self.templates.get(request.class_type)
-        if template is None:
-            raise InstanceError(f"unknown template {request.class_type!r}; the library has: {', '.join(sorted(self.templates))}")
+        template = self._template(request.class_type)
         frame = request.pose.header.frame_id
         if frame:
             root = self.frames.lookup(frame, FRAME_WAIT) @ matrix_from_pose(request.pose.pose)
@@ -307,8 +334,8 @@ class AffordanceTemplateServer(Node):
         return response
 
     def get_templates_callback(self, request, response):  # noqa: ANN001, ANN201
-        if request.name and request.name not in self.templates:
-            raise InstanceError(f"unknown template {request.name!r}; the library has: {', '.join(sorted(self.templates))}")
+        if request.name:
+            self._template(request.name)
         names = [request.name] if request.name else sorted(self.templates)
         response.templates = [template_config(self.templates[n], self.robot) for n in names]
         response.success = True
@@ -568,8 +595,12 @@ def main(argv: list[str] | None = None) -> int:
     node = None
     executor = MultiThreadedExecutor(num_threads=6)
     try:
-        node = AffordanceTemplateServer(robots[args.robot], templates, robots)
+        node = AffordanceTemplateServer(robots[args.robot], templates, robots,
+                                        template_folder=Path(args.library) / "templates")
         executor.add_node(node)
+        # Serving means able to register templates: that needs the world's frames.
+        while not node.frames_arrived.is_set():
+            executor.spin_once(timeout_sec=0.1)
         print(f"READY at-server {args.robot}", flush=True)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
