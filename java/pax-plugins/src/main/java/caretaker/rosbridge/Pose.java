@@ -40,6 +40,32 @@ public record Pose(double x, double y, double z, double qx, double qy, double qz
                 cr * cp * cy + sr * sp * sy);
     }
 
+    /**
+     * Reads a {@code geometry_msgs/Pose} JSON object (missing fields are zero, w one).
+     *
+     * @param json {@code {"position": {x,y,z}, "orientation": {x,y,z,w}}}
+     * @return the pose
+     */
+    public static Pose fromJson(JsonObject json) {
+        JsonObject position = json.has("position") ? json.getAsJsonObject("position") : new JsonObject();
+        JsonObject orientation = json.has("orientation") ? json.getAsJsonObject("orientation") : new JsonObject();
+        return new Pose(number(position, "x", 0), number(position, "y", 0), number(position, "z", 0),
+                number(orientation, "x", 0), number(orientation, "y", 0), number(orientation, "z", 0),
+                number(orientation, "w", 1));
+    }
+
+    private static double number(JsonObject json, String key, double missing) {
+        return json.has(key) ? json.get(key).getAsDouble() : missing;
+    }
+
+    /** @return {@code [x, y, z, roll, pitch, yaw]}, the inverse of {@link #fromRpy} */
+    public java.util.List<Double> toXyzRpy() {
+        double roll = Math.atan2(2 * (qw * qx + qy * qz), 1 - 2 * (qx * qx + qy * qy));
+        double pitch = Math.asin(Math.max(-1, Math.min(1, 2 * (qw * qy - qz * qx))));
+        double yaw = Math.atan2(2 * (qw * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz));
+        return java.util.List.of(x, y, z, roll, pitch, yaw);
+    }
+
     /** @return the identity pose at the origin */
     public static Pose identity() {
         return new Pose(0, 0, 0, 0, 0, 0, 1);

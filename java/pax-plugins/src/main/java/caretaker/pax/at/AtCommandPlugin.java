@@ -166,8 +166,27 @@ public final class AtCommandPlugin implements CommandPlugin {
         if (status != null) {
             values.put("plan_status", status.get("plan_status").getAsString());
             values.put("plan_valid", status.get("plan_valid").getAsBoolean());
+            endPose(status, values);
         }
         return result(reply, instance, values);
+    }
+
+    /**
+     * Adds {@code end_pose} ([x, y, z, roll, pitch, yaw]) and {@code end_pose_frame}: where the
+     * planned trajectory leaves the end effector, for the operator to check before executing.
+     */
+    private static void endPose(JsonObject status, Map<String, Object> values) {
+        JsonArray infos = status.has("waypoint_info") ? status.getAsJsonArray("waypoint_info") : new JsonArray();
+        if (infos.isEmpty() || !infos.get(0).getAsJsonObject().has("waypoint_poses")) {
+            return;
+        }
+        JsonArray poses = infos.get(0).getAsJsonObject().getAsJsonArray("waypoint_poses");
+        if (poses.isEmpty()) {
+            return;
+        }
+        JsonObject last = poses.get(poses.size() - 1).getAsJsonObject();
+        values.put("end_pose", Pose.fromJson(last.getAsJsonObject("pose")).toXyzRpy());
+        values.put("end_pose_frame", last.getAsJsonObject("header").get("frame_id").getAsString());
     }
 
     private CommandResult executePlan(Map<String, Object> args) {

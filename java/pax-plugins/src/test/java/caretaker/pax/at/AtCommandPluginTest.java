@@ -125,13 +125,20 @@ class AtCommandPluginTest {
     void planWithATypeUsesItsOnlyRunningInstance() throws Exception {
         running.addAll(List.of("cdra_filter:3", "hatch:0"));
         nextReply = JsonParser.parseString("{\"success\":true,\"message\":\"planned\",\"affordance_template_status\":"
-                + "{\"plan_status\":\"PLANNED\",\"plan_valid\":true,\"execute_status\":\"IDLE\"}}").getAsJsonObject();
+                + "{\"plan_status\":\"PLANNED\",\"plan_valid\":true,\"execute_status\":\"IDLE\",\"waypoint_info\":"
+                + "[{\"waypoint_poses\":[{\"header\":{\"frame_id\":\"base_link\"},\"pose\":{\"position\":{\"x\":1.0}}},"
+                + "{\"header\":{\"frame_id\":\"base_link\"},\"pose\":{\"position\":{\"x\":0.5,\"y\":0.25,\"z\":0.75},"
+                + "\"orientation\":{\"z\":0.7071067811865476,\"w\":0.7071067811865476}}}]}]}}").getAsJsonObject();
         CommandResult result = run("plan_trajectory", Map.of("affordance_template", "cdra_filter",
                 "trajectory", "remove"));
         assertTrue(result.success(), result.message());
         assertEquals("planned", result.message());
         assertEquals("PLANNED", result.values().get("plan_status"));
         assertEquals(true, result.values().get("plan_valid"));
+        List<?> end = (List<?>) result.values().get("end_pose");
+        assertEquals(List.of(0.5, 0.25, 0.75), end.subList(0, 3));
+        assertEquals(Math.PI / 2, (Double) end.get(5), 1e-9);
+        assertEquals("base_link", result.values().get("end_pose_frame"));
         assertEquals("cdra_filter:3", result.values().get("instance"));
         JsonObject args = call("plan_command");
         assertEquals("cdra_filter", args.get("type").getAsString());
