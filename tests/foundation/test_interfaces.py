@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 import rclpy
+import rclpy.executors
 
 from support.processes import python
 
@@ -36,8 +37,10 @@ def test_service_round_trip_between_processes(ros_env: dict[str, str]) -> None:
     from affordance_template_msgs.srv import AddAffordanceTemplate
 
     server = python(str(HERE / "interface_server.py"), env=ros_env, name="interface_server")
-    rclpy.init()
-    node = rclpy.create_node("interface_client")
+    context = rclpy.Context()  # its own context: other suites in this process may hold the default one
+    rclpy.init(context=context)
+    node = rclpy.create_node("interface_client", context=context)
+    executor = rclpy.executors.SingleThreadedExecutor(context=context)
     try:
         server.wait_ready(60)
         client = node.create_client(AddAffordanceTemplate, "/affordance_template_server/add_template")
@@ -45,12 +48,14 @@ def test_service_round_trip_between_processes(ros_env: dict[str, str]) -> None:
         request = AddAffordanceTemplate.Request(class_type="cdra_filter", hide_waypoints=True)
         request.pose.header.frame_id = "cabinet/slot"
         future = client.call_async(request)
-        rclpy.spin_until_future_complete(node, future, timeout_sec=30)
+        executor.add_node(node)
+        executor.spin_until_future_complete(future, timeout_sec=30)
         response = future.result()
         assert response is not None, "no response"
         assert (response.success, response.id, response.instance) == (True, 7, "cdra_filter:7")
         assert response.message == "frame cabinet/slot hide=True"
     finally:
+        executor.shutdown()
         node.destroy_node()
-        rclpy.try_shutdown()
+        rclpy.try_shutdown(context=context)
         server.stop()

@@ -87,6 +87,7 @@ def via_pax_plugins(url: str) -> dict:
     with PaxHost(REPO / "sysrep" / "bindings" / "iva.yaml", rosbridge_url=url) as host:
         added = host.execute("affordance_templates", "add_affordance_template",
                              {"affordance_template": "cdra_filter", "hide_waypoints": False})
+        assert added.success, added.message
         instance = added.values["instance"]
         registered = host.execute("affordance_templates", "set_display_object_pose", {
             "affordance_template": instance, "id": added.values["id"], "display_object": "cdra_filter",
