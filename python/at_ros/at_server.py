@@ -32,7 +32,6 @@ from rclpy.action import ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Header, String
 
@@ -42,15 +41,12 @@ from affordance_template_msgs.srv import (
     AffordanceTemplateExecuteCommand,
     AffordanceTemplatePlanCommand,
     DeleteAffordanceTemplate,
-    GetAffordanceTemplateConfigInfo,
-    GetAffordanceTemplateServerStatus,
     GetAffordanceTemplateStatus,
-    GetRobotConfigInfo,
-    GetRunningAffordanceTemplates,
     PlanWaypoints,
     SetObjectPose,
     SetWaypointPose,
 )
+from at_ros.api import LATCHED, PREFIX, SERVICES, STATUS_TOPIC
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
 from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
 from at_ros.library import LibraryError, Template, default_library_path, load_library
@@ -63,14 +59,11 @@ from caretaker_sim_msgs.srv import SetGripper
 
 __all__ = ["AffordanceTemplateServer", "main"]
 
-PREFIX = "/affordance_template_server"
 HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few seconds
 PLAN_TIMEOUT = 60.0
 JOINT_TOLERANCE = 0.02  # rad the robot may drift from a plan's start and still run it
 STATUS_PERIOD = 0.2
 FRAME_WAIT = 3.0  # s to wait for a frame not (yet) published, as the original waited for TF
-#: The simulation latches robot/moving and gripper/held_object: subscribe so as to get the last value.
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class CommandRefused(Exception):
@@ -135,7 +128,7 @@ class AffordanceTemplateServer(Node):
         inputs = ReentrantCallbackGroup()
         status = MutuallyExclusiveCallbackGroup()
 
-        self.status_publisher = self.create_publisher(ServerStatus, f"{PREFIX}/status", 10)
+        self.status_publisher = self.create_publisher(ServerStatus, STATUS_TOPIC, 10)
         self.status_timer = self.create_timer(STATUS_PERIOD, self.status_timer_callback, callback_group=status)
 
         self.frames_subscription = self.create_subscription(NamedPoses, "/sim/frames", self.frames_callback, 10, callback_group=inputs)
@@ -148,19 +141,8 @@ class AffordanceTemplateServer(Node):
         self.gripper_client = self.create_client(SetGripper, robot.gripper_service, callback_group=clients) if robot.gripper_service else None
         self.trajectory_client = ActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients)
 
-        for name, srv_type, callback in (
-            ("add_template", AddAffordanceTemplate, self.add_template_callback),
-            ("delete_template", DeleteAffordanceTemplate, self.delete_template_callback),
-            ("get_running", GetRunningAffordanceTemplates, self.get_running_callback),
-            ("get_templates", GetAffordanceTemplateConfigInfo, self.get_templates_callback),
-            ("get_robots", GetRobotConfigInfo, self.get_robots_callback),
-            ("plan_command", AffordanceTemplatePlanCommand, self.plan_command_callback),
-            ("execute_command", AffordanceTemplateExecuteCommand, self.execute_command_callback),
-            ("set_object_pose", SetObjectPose, self.set_object_pose_callback),
-            ("set_waypoint_pose", SetWaypointPose, self.set_waypoint_pose_callback),
-            ("get_template_status", GetAffordanceTemplateStatus, self.get_template_status_callback),
-            ("get_status", GetAffordanceTemplateServerStatus, self.get_status_callback),
-        ):
+        for name, srv_type in SERVICES.items():
+            callback = getattr(self, f"{name}_callback")
             self.create_service(srv_type, f"{PREFIX}/{name}", self._guarded(name, callback), callback_group=services)
 
     # --- inputs ----------------------------------------------------------------------------

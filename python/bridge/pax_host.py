@@ -97,7 +97,7 @@ def to_java(name: str, value: Any) -> Any:
 
 
 def to_python(value: Any) -> Any:
-    """A Java value (String, Boolean, Long/Integer, Double, null) as the Python value."""
+    """A Java value (String, Boolean, Long/Integer, Double, null, List, Map) as the Python value."""
     if value is None:
         return None
     if not isinstance(value, jpype.JObject):
@@ -112,6 +112,10 @@ def to_python(value: Any) -> Any:
         return int(value.longValue())
     if isinstance(value, jpype.JClass("java.lang.Number")):
         return float(value.doubleValue())
+    if isinstance(value, jpype.JClass("java.util.List")):
+        return [to_python(item) for item in value]
+    if isinstance(value, jpype.JClass("java.util.Map")):
+        return {str(key): to_python(item) for key, item in value.items()}
     return str(value.toString())
 
 

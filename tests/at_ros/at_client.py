@@ -10,42 +10,14 @@ from typing import Any
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from at_ros.api import LATCHED, PREFIX, SERVICES
 from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
-from affordance_template_msgs.srv import (
-    AddAffordanceTemplate,
-    AffordanceTemplateExecuteCommand,
-    AffordanceTemplatePlanCommand,
-    DeleteAffordanceTemplate,
-    GetAffordanceTemplateConfigInfo,
-    GetAffordanceTemplateServerStatus,
-    GetAffordanceTemplateStatus,
-    GetRobotConfigInfo,
-    GetRunningAffordanceTemplates,
-    SetObjectPose,
-    SetWaypointPose,
-)
 from caretaker_sim_msgs.msg import NamedPoses
 from caretaker_sim_msgs.srv import CaptureImage
 
-PREFIX = "/affordance_template_server"
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-SERVICES = {
-    "add_template": AddAffordanceTemplate,
-    "delete_template": DeleteAffordanceTemplate,
-    "get_running": GetRunningAffordanceTemplates,
-    "get_templates": GetAffordanceTemplateConfigInfo,
-    "get_robots": GetRobotConfigInfo,
-    "plan_command": AffordanceTemplatePlanCommand,
-    "execute_command": AffordanceTemplateExecuteCommand,
-    "set_object_pose": SetObjectPose,
-    "set_waypoint_pose": SetWaypointPose,
-    "get_template_status": GetAffordanceTemplateStatus,
-    "get_status": GetAffordanceTemplateServerStatus,
-}
 
 
 class AtClient:

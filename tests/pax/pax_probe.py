@@ -11,29 +11,11 @@ from typing import Any, Callable
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
 
+from at_ros.api import LATCHED, PREFIX, SERVICES
 from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
-from affordance_template_msgs.srv import (
-    AddAffordanceTemplate,
-    DeleteAffordanceTemplate,
-    GetAffordanceTemplateStatus,
-    GetRunningAffordanceTemplates,
-    SetObjectPose,
-    SetWaypointPose,
-)
 
-PREFIX = "/affordance_template_server"
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
-SERVICES = {
-    "add_template": AddAffordanceTemplate,
-    "delete_template": DeleteAffordanceTemplate,
-    "get_running": GetRunningAffordanceTemplates,
-    "get_template_status": GetAffordanceTemplateStatus,
-    "set_object_pose": SetObjectPose,
-    "set_waypoint_pose": SetWaypointPose,
-}
 
 
 class RobotProbe:

@@ -178,7 +178,10 @@ def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe
         assert not bad.success and "no_such_trajectory" in bad.message
         planned = host.execute(AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "grasp_and_pull"})
         assert planned.success, planned.message
-        assert planned.values == {"plan_status": "PLANNED", "plan_valid": True, "instance": pax}
+        end_pose = planned.values.pop("end_pose")
+        assert planned.values == {"plan_status": "PLANNED", "plan_valid": True, "instance": pax,
+                                  "end_pose_frame": "robot_base"}
+        assert len(end_pose) == 6 and all(isinstance(v, float) for v in end_pose)
         probe.wait_for(lambda: probe.status.plan_valid, 10.0, "plan_valid in the status")
 
         # The CDRA bay through the ROS-convention plugin: unlock, and the latch telemetry follows.

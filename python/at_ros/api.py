@@ -1,0 +1,45 @@
+"""The AT server's ROS API in one place: service names and types, topics, QoS.
+
+The server creates exactly these services; clients (tests, tools) look them up here instead of
+repeating the table, so a renamed service cannot drift between them.
+"""
+
+from __future__ import annotations
+
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from affordance_template_msgs.srv import (
+    AddAffordanceTemplate,
+    AffordanceTemplateExecuteCommand,
+    AffordanceTemplatePlanCommand,
+    DeleteAffordanceTemplate,
+    GetAffordanceTemplateConfigInfo,
+    GetAffordanceTemplateServerStatus,
+    GetAffordanceTemplateStatus,
+    GetRobotConfigInfo,
+    GetRunningAffordanceTemplates,
+    SetObjectPose,
+    SetWaypointPose,
+)
+
+__all__ = ["LATCHED", "PREFIX", "SERVICES", "STATUS_TOPIC"]
+
+PREFIX = "/affordance_template_server"
+STATUS_TOPIC = f"{PREFIX}/status"
+#: service name (under PREFIX) -> service type
+SERVICES: dict[str, type] = {
+    "add_template": AddAffordanceTemplate,
+    "delete_template": DeleteAffordanceTemplate,
+    "get_running": GetRunningAffordanceTemplates,
+    "get_templates": GetAffordanceTemplateConfigInfo,
+    "get_robots": GetRobotConfigInfo,
+    "plan_command": AffordanceTemplatePlanCommand,
+    "execute_command": AffordanceTemplateExecuteCommand,
+    "set_object_pose": SetObjectPose,
+    "set_waypoint_pose": SetWaypointPose,
+    "get_template_status": GetAffordanceTemplateStatus,
+    "get_status": GetAffordanceTemplateServerStatus,
+}
+#: The simulation latches robot/moving, gripper/held_object and the CDRA telemetry: subscribe with
+#: this to get the last value at once.
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
