@@ -3,11 +3,10 @@
 ``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge: separate processes) and
 ``caretaker serve`` with the JVM-hosted PAX plugins behind the executive: sign in; start the IVA
 procedure in manual mode; Send the first command and see its result and the audit record with
-the user's id; switch to autonomous and watch PAX stop at the manual instruction; enter a record
-an observer watching the same run cannot Send, and the server refuses it when forced. (Entering a
-record value and seeing it passed to the next command needs the run past step 3: that part runs
-on the simulated systems in test_operator_view.py, which keeps this suite inside its time budget
-and independent of OMPL's time-limited planning on a loaded machine.)
+the user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry
+the real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX
+send it in the next command; an observer watching the same run cannot Send, and the server
+refuses it when forced. (test_operator_view.py covers the rest of the page on simulated systems.)
 """
 
 from __future__ import annotations
@@ -107,9 +106,18 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     instruction(carol, "2.6").scroll_into_view_if_needed()
     carol.screenshot(path=str(IMAGES / "web_observer.png"))
 
-    # Done lets PAX carry on (the arm pulls the filter); the operator stops the run, both browsers see it
+    # Done lets PAX carry on: the arm pulls the dirty filter and places it on the rack, then PAX
+    # holds at the record of the clean filter's id; the id typed in goes into the next command
     instruction(alice, "2.6").locator("button.done").click()
     expect(instruction(alice, "2.6").locator(".mark")).to_contain_text("completed by alice")
+    record = instruction(alice, "4.1")
+    expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
+    expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
+    record.locator("input.record-value").fill("CDRA-F-0012")
+    record.locator("button.record").click()
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text('clean_filter_id = "CDRA-F-0012"')
+    expect(instruction(alice, "4.2").locator(".detail")).to_contain_text('frame="filter/CDRA-F-0012"', timeout=60_000)
+    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text('"frame":"filter/CDRA-F-0012"')
     alice.once("dialog", lambda dialog: dialog.accept())
     alice.click("#stop")
     for page in (alice, carol):
@@ -122,6 +130,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
         events = log.events(run_id)
     finally:
         log.close()
+    inputs = [e for e in events if e.kind.value == "operator_input"]
+    assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [("4.1", "alice", "CDRA-F-0012")]
     actors = {e.actor for e in events}
     assert actors == {"alice", "PAX"}, actors
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]
