@@ -1,10 +1,16 @@
-"""The Author page: palette, drag-and-drop, typed forms, live lint, saving XML that runs."""
+"""The Author page: palette, drag-and-drop, typed forms, live lint, saving XML that runs.
+
+The authored procedure runs in the web view against the real robot side (``caretaker up --scene
+iva``): the arm really pulls the filter the operator names out of the rack.
+"""
 
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -15,9 +21,19 @@ from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
 from pride.web.authoring import check_document, read_document
 from pride.web.procedure_view import procedure_json
-from web_server import REPO
+from web_server import REPO, WebServer, server_on_real_stack
 
 SHIPPED = sorted(p.name for p in (REPO / "procedures").glob("*.xml"))
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) -> Iterator[WebServer]:
+    """A web server on the real IVA stack, with a procedure shelf of its own to save into."""
+    tmp = tmp_path_factory.mktemp("author")
+    shelf = tmp / "procedures"
+    shutil.copytree(REPO / "procedures", shelf)
+    with server_on_real_stack(tmp, shelf, ros_env) as served:
+        yield served
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -77,7 +93,7 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
     # the operator records the frame to pick from
     drop(alice, '#palette-kinds li[data-kind="record"]', 1)
     set_attr(alice, "1.2", "name", "pick_frame")
-    card(alice, "1.2").locator(".item-text").fill("Frame of the filter to pick (e.g. cabinet/slot)")
+    card(alice, "1.2").locator(".item-text").fill("Frame of the filter to pick (e.g. filter/CDRA-F-0012)")
     card(alice, "1.2").locator(".item-text").press("Tab")
     # register the AT there: the id from the result, the frame from the recorded input
     drop(alice, f'{at} li[data-command="set_display_object_pose"]', 2)
@@ -117,7 +133,8 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
     alice.click("#start-button")
     record = instruction(alice, "1.2")
     expect(record).to_have_class(re.compile(r"\bcurrent\b"))
-    record.locator("input.record-value").fill("cabinet/slot")
+    record.locator("input.record-value").fill("filter/CDRA-F-0012")
     record.locator("button.record").click()
-    expect(alice.locator("#run-status")).to_have_text("completed")
-    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text('frame="cabinet/slot"')
+    expect(alice.locator("#run-status")).to_have_text("completed", timeout=120_000)
+    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text('frame="filter/CDRA-F-0012"')
+    expect(instruction(alice, "1.6").locator(".detail")).to_contain_text("SUCCEEDED")

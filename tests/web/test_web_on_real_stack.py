@@ -12,7 +12,6 @@ refuses it when forced. (test_operator_view.py covers the rest of the page on si
 from __future__ import annotations
 
 import re
-import socket
 from collections.abc import Iterator
 
 import pytest
@@ -20,32 +19,16 @@ from playwright.sync_api import expect
 
 from operator_page import IMAGES, IVA, audit_row, instruction, start_run
 from pride.audit_log import AuditLog
-from support.processes import caretaker
-from web_server import REPO, WebServer, start_server
+from web_server import REPO, WebServer, server_on_real_stack
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) -> Iterator[WebServer]:
     """The IVA stack and a web server on it (overrides conftest's simulated one for this module)."""
-    port = _free_port()
-    stack = caretaker("up", "--scene", "iva", "--bridge-port", str(port), "--time-scale", "0", env=ros_env, name="up")
-    try:
-        stack.wait_ready(180)
-        served = start_server(tmp_path_factory.mktemp("web_real"), REPO / "procedures", rosbridge=f"ws://127.0.0.1:{port}")
-        try:
-            yield served
-        finally:
-            served.process.stop()
-    finally:
-        stack.stop()
+    with server_on_real_stack(tmp_path_factory.mktemp("web_real"), REPO / "procedures", ros_env) as served:
+        yield served
 
 
 def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, server) -> None:

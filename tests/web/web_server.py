@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import os
+import socket
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from support.processes import ManagedProcess, caretaker
@@ -21,9 +24,10 @@ class WebServer:
         self.procedures = procedures
 
 
-def _ready_url(process: ManagedProcess) -> str:
-    line = next(line for line in process.output if line.startswith("READY serve "))
-    return line.split()[-1]
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
 
 
 def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None) -> WebServer:
@@ -47,11 +51,27 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
         "--reports", str(tmp / "reports"), *options, env=env, name="serve",
     )
     try:
-        process.wait_ready(90)
+        ready = process.wait_ready(90)
     except Exception:
         process.stop()
         raise
-    return WebServer(process, _ready_url(process), db, procedures)
+    return WebServer(process, ready.split()[-1], db, procedures)
+
+
+@contextmanager
+def server_on_real_stack(tmp: Path, procedures: Path, env: dict[str, str]) -> Iterator[WebServer]:
+    """``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge) and a server on it."""
+    port = _free_port()
+    stack = caretaker("up", "--scene", "iva", "--bridge-port", str(port), "--time-scale", "0", env=env, name="up")
+    try:
+        stack.wait_ready(180)
+        served = start_server(tmp, procedures, rosbridge=f"ws://127.0.0.1:{port}")
+        try:
+            yield served
+        finally:
+            served.process.stop()
+    finally:
+        stack.stop()
 
 
 def procedure_shelf(tmp: Path) -> Path:
