@@ -30,11 +30,12 @@ GRASP_POSES = ("closed", "close", "grasp")
 RELEASE_POSES = ("open", "release")
 #: Halvings of a Cartesian step tried before a line counts as broken.
 CARTESIAN_SUBDIVISIONS = 3
-#: IK solutions tried as the goal of a JOINT waypoint before giving up.
-GOAL_ALTERNATIVES = 5
-#: Share of plan_time per attempt: a reachable goal is found by RRTConnect in tens of ms, so a
-#: first attempt that runs long is usually boxed in and another configuration is cheaper.
-ATTEMPT_BUDGET = (0.1, 0.15, 0.2, 0.25, 0.3)
+#: Share of plan_time per attempt, one attempt per IK solution (arm configuration) tried as the
+#: goal of a JOINT waypoint: a reachable goal is found by RRTConnect in tens of ms, so a first
+#: attempt that runs long is usually boxed in and another configuration is cheaper. A UR arm has
+#: up to eight configurations per pose.
+ATTEMPT_BUDGET = (0.1, 0.15, 0.2, 0.25, 0.3, 0.3, 0.3, 0.3)
+GOAL_ALTERNATIVES = len(ATTEMPT_BUDGET)
 #: Two IK solutions are different arm configurations when some joint differs by more (rad).
 DISTINCT_CONFIGURATION = 0.5
 #: Random-seed IK solves spent looking for a configuration not tried yet.
