@@ -7,6 +7,7 @@ import json
 import re
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import roslibpy
@@ -29,10 +30,14 @@ class Inbox:
         with self._condition:
             return self._condition.wait_for(lambda: len(self.items) >= count, timeout)
 
-    def wait_for(self, count: int, timeout: float = 20.0) -> list[Any]:
+    def wait_for(self, count: int, timeout: float = 20.0, *, counted: Callable[[Any], bool] = lambda _: True) -> list[Any]:
+        """All items, once ``count`` of them satisfy ``counted`` (by default: any item)."""
+        def enough() -> bool:
+            return sum(1 for item in self.items if counted(item)) >= count
+
         with self._condition:
-            self._condition.wait_for(lambda: len(self.items) >= count, timeout)
-            assert len(self.items) >= count, f"got {len(self.items)} of {count} messages: {self.items[:5]}"
+            self._condition.wait_for(enough, timeout)
+            assert enough(), f"got {sum(1 for i in self.items if counted(i))} of {count} messages: {self.items[:5]}"
             return list(self.items)
 
 

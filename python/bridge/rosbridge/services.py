@@ -36,6 +36,13 @@ CLIENT_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
 overwrites requests not yet acknowledged and responses not yet taken, and those calls hang."""
 SERVER_WAIT_S = 1.0
 """How long a call waits for a known service's server to match (rosbridge: 1 s)."""
+DISCOVERY_WAIT_S = 3.0
+"""How long a call waits for a service the graph does not list yet: a bridge that has just
+(re)started discovers the robot's services over DDS within a second or two, and a client that
+reconnected to it must not be told they do not exist."""
+SERVER_WATCH_S = 0.25
+"""How often a pending call checks that its server is still there: a server that dies
+mid-call fails the call at once instead of at its (possibly minutes-long) timeout."""
 
 
 @dataclass
@@ -68,6 +75,15 @@ class Services:
                 return types[0]
         return None
 
+    async def _discovered_client(self, service: str, timeout: float) -> tuple[Any, Any]:
+        """The cached client of ``service``, waiting up to ``timeout`` for DDS to discover it."""
+        deadline = asyncio.get_running_loop().time() + timeout
+        while service not in self._clients and self.graph_type(service) is None:
+            if asyncio.get_running_loop().time() > deadline:
+                break
+            await asyncio.sleep(0.05)  # rclpy offers no graph-change event to await here
+        return self._client(service)
+
     def _client(self, service: str) -> tuple[Any, Any]:
         cached = self._clients.get(service)
         if cached is not None:
@@ -93,7 +109,8 @@ class Services:
 
     async def call(self, service: str, args: Any, timeout: float | None) -> dict[str, Any]:
         """Call a ROS service; the response as a dict.  Raises a BridgeError on failure."""
-        client, srv_cls = self._client(service)
+        limit = timeout if timeout and timeout > 0 else self.default_timeout
+        client, srv_cls = await self._discovered_client(service, min(limit, DISCOVERY_WAIT_S))
         if isinstance(args, list):
             request = list_to_request(srv_cls.Request, args)
         else:
@@ -105,25 +122,36 @@ class Services:
             self._matched.add(service)
         ros_future = client.call_async(request)
         answer = self.ros.wrap(ros_future)
-        timed_out = False
+        ended = ""  # why the bridge gave up on the answer: "timeout" or "server lost"
 
-        def expire() -> None:
-            nonlocal timed_out
-            timed_out = True
+        def end(reason: str) -> None:
+            nonlocal ended
+            ended = reason
             answer.cancel()
 
-        expiry = asyncio.get_running_loop().call_later(timeout if timeout and timeout > 0 else self.default_timeout,
-                                                       expire)
+        async def watch_server() -> None:
+            while True:
+                await asyncio.sleep(SERVER_WATCH_S)
+                if not client.service_is_ready():
+                    end("server lost")
+                    return
+
+        expiry = asyncio.get_running_loop().call_later(limit, end, "timeout")
+        watcher = asyncio.get_running_loop().create_task(watch_server())
         try:
             response = await answer
         except asyncio.CancelledError:
             client.remove_pending_request(ros_future)
-            if not timed_out:
-                raise
-            self._matched.discard(service)  # check again next time that its server is still there
-            raise ServiceTimeout(SERVICE_TIMEOUT_TEXT) from None
+            if ended == "timeout":
+                self._matched.discard(service)  # check again next time that its server is still there
+                raise ServiceTimeout(SERVICE_TIMEOUT_TEXT) from None
+            if ended == "server lost":
+                self._forget_client(service)
+                raise ServiceUnavailable(f"Service {service} lost its server before answering") from None
+            raise
         finally:
             expiry.cancel()
+            watcher.cancel()
         return message_to_dict(response)
 
     async def _server_matched(self, client: Any) -> bool:
