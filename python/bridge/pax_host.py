@@ -17,6 +17,7 @@ the Java message, so a caller never sees a JPype type.
 
 from __future__ import annotations
 
+import atexit
 import logging
 import threading
 from collections.abc import Callable, Mapping
@@ -151,6 +152,9 @@ class PaxHost:
         self._listeners: list[Any] = []  # the Java proxies, kept alive while Java holds them
         self._closed = False
         self._close_lock = threading.Lock()
+        # Java threads must not call Python listeners while the interpreter shuts down (JPype
+        # crashes then): a host still open at exit is closed first (atexit runs before that).
+        atexit.register(self.close)
 
     def sysreps(self) -> dict[str, SysRep]:
         """The bound SysReps, keyed by id, as ``pride.sysrep`` loads them."""
@@ -217,6 +221,7 @@ class PaxHost:
             if self._closed:
                 return
             self._closed = True
+        atexit.unregister(self.close)
         for listener in self._listeners:
             self._host.removeListener(listener)
         self._host.close()
