@@ -149,13 +149,19 @@ public final class AtCommandPlugin implements CommandPlugin {
         return result(call(deleteTemplate, request, callTimeout), instance, Map.of());
     }
 
-    private CommandResult plan(Map<String, Object> args) {
-        TemplateInstance instance = resolve(args);
+    /** The part of plan_command and execute_command requests that names instance and trajectory. */
+    private static JsonObject trajectoryRequest(TemplateInstance instance, Map<String, Object> args) {
         JsonObject request = new JsonObject();
         request.addProperty("type", instance.type());
         request.addProperty("id", instance.id());
         request.addProperty("trajectory_name", (String) args.get("trajectory"));
         request.add("end_effectors", new JsonArray());
+        return request;
+    }
+
+    private CommandResult plan(Map<String, Object> args) {
+        TemplateInstance instance = resolve(args);
+        JsonObject request = trajectoryRequest(instance, args);
         request.add("steps", new JsonArray());
         request.addProperty("direct", false);
         request.addProperty("backwards", false);
@@ -191,12 +197,7 @@ public final class AtCommandPlugin implements CommandPlugin {
 
     private CommandResult executePlan(Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
-        JsonObject request = new JsonObject();
-        request.addProperty("type", instance.type());
-        request.addProperty("id", instance.id());
-        request.addProperty("trajectory_name", (String) args.get("trajectory"));
-        request.add("end_effectors", new JsonArray());
-        JsonObject reply = call(executeCommand, request, motionTimeout);
+        JsonObject reply = call(executeCommand, trajectoryRequest(instance, args), motionTimeout);
         JsonObject status = reply.getAsJsonObject("affordance_template_status");
         Map<String, Object> values = new LinkedHashMap<>();
         if (status != null) {
