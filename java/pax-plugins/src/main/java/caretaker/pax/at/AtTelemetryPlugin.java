@@ -1,9 +1,7 @@
 package caretaker.pax.at;
 
+import caretaker.pax.BoardTelemetryPlugin;
 import caretaker.pax.PluginContext;
-import caretaker.pax.TelemetryBoard;
-import caretaker.pax.TelemetryListener;
-import caretaker.pax.TelemetryPlugin;
 import caretaker.pax.TelemetryValue;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Time;
@@ -14,7 +12,6 @@ import com.google.gson.JsonElement;
 import com.google.gson.JsonObject;
 import java.time.Duration;
 import java.time.Instant;
-import java.util.LinkedHashSet;
 import java.util.Set;
 import java.util.concurrent.Executors;
 import java.util.concurrent.ScheduledExecutorService;
@@ -31,15 +28,13 @@ import java.util.concurrent.TimeUnit;
  * server is itself what we now know. The next status makes everything fresh again; nothing needs
  * restarting.
  */
-public final class AtTelemetryPlugin implements TelemetryPlugin {
+public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
     /** The binding options this plugin reads. */
     public static final Set<String> OPTIONS = Set.of("stale_after", "status_topic");
     /** The item that reports whether the server is there at all. */
     public static final String SERVER_ACTIVE = "affordance_template_server_active";
     private static final String STATUS_TYPE = "affordance_template_msgs/msg/ServerStatus";
 
-    private final SysRep sysRep;
-    private final TelemetryBoard board;
     private final Topic status;
     private final long staleAfterNanos;
     private final ScheduledExecutorService watchdog;
@@ -52,10 +47,7 @@ public final class AtTelemetryPlugin implements TelemetryPlugin {
      *     options {@code stale_after} and {@code status_topic}
      */
     public AtTelemetryPlugin(PluginContext context) {
-        this.sysRep = context.sysRep();
-        Set<String> items = new LinkedHashSet<>();
-        sysRep.telemetry().forEach(t -> items.add(t.id()));
-        this.board = new TelemetryBoard(sysRep.id(), items);
+        super(context.sysRep());
         Duration staleAfter = context.options().seconds("stale_after", Duration.ofSeconds(2));
         this.staleAfterNanos = staleAfter.toNanos();
         this.lastStatusNanos = System.nanoTime();
@@ -111,31 +103,6 @@ public final class AtTelemetryPlugin implements TelemetryPlugin {
                 board.put(SERVER_ACTIVE, new TelemetryValue(false, Instant.now(), false));
             }
         }
-    }
-
-    @Override
-    public SysRep sysRep() {
-        return sysRep;
-    }
-
-    @Override
-    public Set<String> items() {
-        return board.items();
-    }
-
-    @Override
-    public TelemetryValue value(String itemId) {
-        return board.get(itemId);
-    }
-
-    @Override
-    public void addListener(TelemetryListener listener) {
-        board.addListener(listener);
-    }
-
-    @Override
-    public void removeListener(TelemetryListener listener) {
-        board.removeListener(listener);
     }
 
     @Override

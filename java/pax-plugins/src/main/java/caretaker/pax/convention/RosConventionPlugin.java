@@ -1,12 +1,10 @@
 package caretaker.pax.convention;
 
+import caretaker.pax.BoardTelemetryPlugin;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
-import caretaker.pax.TelemetryBoard;
-import caretaker.pax.TelemetryListener;
-import caretaker.pax.TelemetryPlugin;
 import caretaker.pax.TelemetryValue;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Ros;
@@ -54,17 +52,15 @@ import java.util.concurrent.TimeUnit;
  * (s; default: a value goes stale only when the rosbridge connection drops, for topics published
  * only on change).
  */
-public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin {
+public final class RosConventionPlugin extends BoardTelemetryPlugin implements CommandPlugin {
     /** The binding options this plugin reads. */
     public static final Set<String> OPTIONS = Set.of("services", "topics", "service_types", "call_timeout",
             "stale_after");
     private static final String TRIGGER = "std_srvs/srv/Trigger";
 
-    private final SysRep sysRep;
     private final Duration callTimeout;
     private final Map<String, Service> services = new LinkedHashMap<>();
     private final List<Topic> topics = new ArrayList<>();
-    private final TelemetryBoard board;
     private final Map<String, Long> lastReceivedNanos = new java.util.concurrent.ConcurrentHashMap<>();
     private final ScheduledExecutorService watchdog;
     private final Ros ros;
@@ -75,7 +71,7 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
      * @throws PluginException an option is wrong
      */
     public RosConventionPlugin(PluginContext context) {
-        this.sysRep = context.sysRep();
+        super(context.sysRep());
         this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
         Map<String, String> serviceNames = context.options().stringMap("services");
         Map<String, String> serviceTypes = context.options().stringMap("service_types");
@@ -90,7 +86,6 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
             String type = serviceTypes.getOrDefault(command.id(), command.args().isEmpty() ? TRIGGER : null);
             services.put(command.id(), new Service(context.ros(), name, type));
         }
-        this.board = new TelemetryBoard(sysRep.id(), itemIds);
         for (Telemetry item : sysRep.telemetry()) {
             Topic topic = new Topic(context.ros(), topicNames.getOrDefault(item.id(), context.resolve(item.id())),
                     messageType(item.type()));
@@ -188,11 +183,6 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
     }
 
     @Override
-    public SysRep sysRep() {
-        return sysRep;
-    }
-
-    @Override
     public Set<String> commands() {
         return services.keySet();
     }
@@ -235,26 +225,6 @@ public final class RosConventionPlugin implements CommandPlugin, TelemetryPlugin
             return new JsonPrimitive(number);
         }
         return new JsonPrimitive(String.valueOf(value));
-    }
-
-    @Override
-    public Set<String> items() {
-        return board.items();
-    }
-
-    @Override
-    public TelemetryValue value(String itemId) {
-        return board.get(itemId);
-    }
-
-    @Override
-    public void addListener(TelemetryListener listener) {
-        board.addListener(listener);
-    }
-
-    @Override
-    public void removeListener(TelemetryListener listener) {
-        board.removeListener(listener);
     }
 
     @Override
