@@ -74,6 +74,12 @@ class WaypointPlanningError(RuntimeError):
         self.final = final
 
 
+def _shape_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest joint difference modulo a full turn: solutions a turn apart on a joint have the
+    same arm shape (the same collisions, the same Cartesian reach), so they are one configuration."""
+    return float(np.max(np.abs(np.angle(np.exp(1j * (np.asarray(a) - np.asarray(b)))))))
+
+
 def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
     dot = float(np.dot(q0, q1))
     if dot < 0:
@@ -104,9 +110,8 @@ class MotionPlanner:
             WaypointPlanningError: naming the first goal that failed and why.
         """
         scene = self.scene
-        saved = scene.attachment
         # Carrying an object during planning moves its body; the world must not keep that.
-        object_poses = {name: scene.obstacle_pose(name) for name in scene.graspable}
+        saved = scene.snapshot()
         scene.set_joints(start)
         if held_object:
             name = scene.object_name(held_object)
@@ -135,9 +140,7 @@ class MotionPlanner:
                 i = end
             return planned
         finally:
-            scene.attachment = saved
-            for name, pose in object_poses.items():
-                scene.set_obstacle_pose(name, pose)
+            scene.restore(saved)
 
     def _timed(self, goal: Goal, path: list[np.ndarray], started: float) -> PlannedWaypoint:
         timed = time_parameterize(path, self.scene.limits.velocity, self.settings.max_acceleration, velocity_scaling=self.settings.velocity_scaling)
@@ -147,12 +150,14 @@ class MotionPlanner:
         first = unit[0]
         if first.planner_type not in (JOINT, CARTESIAN):
             raise WaypointPlanningError(f"waypoint {first.label}: unknown planner type {first.planner_type!r}")
-        attachment = self.scene.attachment
+        # A failed attempt may have grasped and carried an object along its lines: the next
+        # attempt starts from the world as it was.
+        before = self.scene.snapshot()
         attempts = GOAL_ALTERNATIVES if first.planner_type == JOINT else 1
         failure = ""
         tried: list[np.ndarray] = []
         for attempt in range(attempts):
-            self.scene.attachment = attachment
+            self.scene.restore(before)
             started = time.perf_counter()
             try:
                 if first.planner_type == JOINT:
@@ -188,7 +193,12 @@ class MotionPlanner:
         else:
             for _ in range(DISTINCT_SEARCH):
                 candidate = self.ik.solve(goal.pose, self.ik.rng.uniform(limits.lower, limits.upper), enough=1, **tolerances)
-                if not isinstance(candidate, IkFailure) and all(np.max(np.abs(candidate - t)) > DISTINCT_CONFIGURATION for t in tried):
+                if isinstance(candidate, IkFailure):
+                    continue
+                # Solved near a random seed, it may sit a full turn away on some joint: the same
+                # arm shape nearest to where the arm is costs the least motion.
+                candidate = self.ik.wrap_into_limits(candidate, q)
+                if all(_shape_distance(candidate, t) > DISTINCT_CONFIGURATION for t in tried):
                     target = candidate
                     break
             else:

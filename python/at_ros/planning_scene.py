@@ -16,7 +16,7 @@ import pybullet as p
 
 from at_ros.transforms import from_xyz_quat, invert, to_xyz_quat
 
-__all__ = ["PlanningScene", "JointLimits", "Attachment"]
+__all__ = ["PlanningScene", "JointLimits", "Attachment", "SceneState"]
 
 
 #: Contacts shallower than this (m) are numerical touching, not collision. Half of what the
@@ -38,6 +38,14 @@ class Attachment:
     name: str
     body: int
     tool_T_object: np.ndarray
+
+
+@dataclass(frozen=True)
+class SceneState:
+    """A moment of the planning scene to go back to (see :meth:`PlanningScene.snapshot`)."""
+
+    attachment: Attachment | None
+    object_poses: dict[str, np.ndarray]
 
 
 class PlanningScene:
@@ -155,6 +163,15 @@ class PlanningScene:
 
     def detach(self) -> None:
         self.attachment = None
+
+    def snapshot(self) -> SceneState:
+        """What planning changes in the world: the attachment and where the graspable objects are."""
+        return SceneState(self.attachment, {name: self.obstacle_pose(name) for name in self.graspable})
+
+    def restore(self, state: SceneState) -> None:
+        self.attachment = state.attachment
+        for name, pose in state.object_poses.items():
+            self.set_obstacle_pose(name, pose)
 
     def nearest_graspable(self, point: np.ndarray, *, within: float) -> str | None:
         """The graspable object whose origin is closest to ``point`` (e.g. the fingers' centre)."""

@@ -7,7 +7,7 @@ import pytest
 
 from at_ros.instance import Registration, TemplateInstance
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
-from at_ros.transforms import angle_between, from_xyz_rpy
+from at_ros.transforms import angle_between, from_xyz_rpy, invert
 
 from conftest import UR10_START
 
@@ -50,6 +50,26 @@ def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur
     pushed = goals[:3] + [Goal(goals[3].label, goals[2].pose @ from_xyz_rpy([0, 0, 0.15], [0, 0, 0]), "CARTESIAN", "closed")]
     with pytest.raises(WaypointPlanningError, match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)"):
         planner.plan(UR10_START, pushed)
+
+
+def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_clean_world(iva_scene, library, ur10_config) -> None:
+    """A cabinet pose found by bench/planning.py: with the nearest arm configuration the pull
+    folds the arm into itself at its end, after the filter was grasped and carried. The next
+    configuration must start with the filter back in its slot, not where that pull left it."""
+    slot_T_moved = from_xyz_rpy([-0.0282, 0.0073, -0.0405], [-0.0789, 0.0075, -0.0673])
+    move = CABINET_SLOT @ slot_T_moved @ invert(CABINET_SLOT)
+    saved = iva_scene.snapshot()
+    cabinet, filter_ = iva_scene.obstacle_pose("cabinet"), iva_scene.obstacle_pose("filter/CDRA-F-0007")
+    iva_scene.set_obstacle_pose("cabinet", move @ cabinet)
+    iva_scene.set_obstacle_pose("filter/CDRA-F-0007", move @ filter_)
+    try:
+        goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT @ slot_T_moved)
+        planned = MotionPlanner(iva_scene, ur10_config.planner).plan(UR10_START, goals)
+        assert [p.end_effector_pose for p in planned] == ["open", "open", "closed", "closed"]
+        np.testing.assert_allclose(iva_scene.obstacle_pose("filter/CDRA-F-0007"), move @ filter_, atol=1e-6)
+    finally:
+        iva_scene.set_obstacle_pose("cabinet", cabinet)
+        iva_scene.restore(saved)
 
 
 def test_unreachable_registration_names_the_waypoint(planner, library, ur10_config) -> None:
