@@ -10,17 +10,20 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from at_ros.transforms import from_xyz_rpy
 
+Named = TypeVar("Named")
+
 __all__ = [
     "LibraryError",
+    "load_named_files",
     "Origin",
     "Shape",
     "Controls",
@@ -381,16 +384,25 @@ def load_library(folder: Path | str) -> dict[str, Template]:
     Raises:
         LibraryError: the folder is missing, any file is malformed, or two files share a name.
     """
-    folder = Path(folder)
+    return load_named_files(Path(folder), "**/*.json", load_template, "name", "template")
+
+
+def load_named_files(folder: Path, pattern: str, load: Callable[[Path], Named], key: str, kind: str) -> dict[str, Named]:
+    """Every file of ``folder`` matching ``pattern``, loaded, keyed by its ``key`` attribute.
+
+    Adding a template or a robot is adding a file, so a name two files claim is an error that
+    names both: otherwise which one wins would depend on the order files are read in.
+    """
     if not folder.is_dir():
-        raise LibraryError(folder, "", "template folder does not exist")
-    templates: dict[str, Template] = {}
-    for path in sorted(folder.rglob("*.json")):
-        template = load_template(path)
-        if template.name in templates:
-            raise LibraryError(path, "name", f"template name {template.name!r} is already used by {templates[template.name].filename}")
-        templates[template.name] = template
-    return templates
+        raise LibraryError(folder, "", f"{kind} folder does not exist")
+    loaded: dict[str, Named] = {}
+    for path in sorted(folder.glob(pattern)):
+        item = load(path)
+        name = getattr(item, key)
+        if name in loaded:
+            raise LibraryError(path, key, f"{kind} {key} {name!r} is already used by {loaded[name].filename}")
+        loaded[name] = item
+    return loaded
 
 
 def default_library_path() -> Path:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from at_ros.library import LibraryError, default_library_path
+from at_ros.library import LibraryError, default_library_path, load_named_files
 from at_ros.transforms import from_xyz_rpy
 
 __all__ = [
@@ -236,12 +236,4 @@ def load_robot_config(path: Path | str) -> RobotConfig:
 def load_robot_configs(folder: Path | str | None = None) -> dict[str, RobotConfig]:
     """Every ``*.yaml`` robot config of a folder (default: the shipped library), keyed by robot_name."""
     folder = Path(folder) if folder else default_library_path() / "robots"
-    if not folder.is_dir():
-        raise LibraryError(folder, "", "robot folder does not exist")
-    robots: dict[str, RobotConfig] = {}
-    for path in sorted(folder.glob("*.yaml")):
-        config = load_robot_config(path)
-        if config.robot_name in robots:
-            raise LibraryError(path, "robot_name", f"robot {config.robot_name!r} is already defined in {robots[config.robot_name].filename}")
-        robots[config.robot_name] = config
-    return robots
+    return load_named_files(folder, "*.yaml", load_robot_config, "robot_name", "robot")
