@@ -14,8 +14,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import expect
 
+from author_page import bind_arg, card, drop, set_arg, set_attr
 from operator_page import IMAGES, instruction
 from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
@@ -46,33 +47,6 @@ def test_opening_and_saving_a_shipped_procedure_changes_nothing(name: str, tmp_p
     saved = tmp_path / f"saved_{name}"
     saved.write_text(checked["xml"])
     assert procedure_json(load_procedure(saved)) == procedure_json(load_procedure(source))
-
-
-def card(page: Page, number: str):
-    return page.locator(f'#canvas .card[data-number="{number}"]')
-
-
-def drop(page: Page, palette_item: str, index: int) -> None:
-    """Drag a palette item into step 1 at ``index`` (steps start with ``index`` items)."""
-    expect(page.locator("#check-state")).not_to_have_text("checking…")  # the canvas is drawn
-    page.drag_and_drop(palette_item, f'#canvas .drop[data-step="0"][data-index="{index}"]')
-    expect(page.locator('#canvas .canvas-step[data-step="0"] .card')).to_have_count(index + 1)
-
-
-def set_arg(page: Page, number: str, name: str, value: str) -> None:
-    field = card(page, number).locator(f'.arg[data-arg="{name}"] .arg-value')
-    field.fill(value)
-    field.press("Tab")
-
-
-def bind_arg(page: Page, number: str, name: str, variable: str) -> None:
-    card(page, number).locator(f'.arg[data-arg="{name}"] .arg-bind').select_option(variable)
-
-
-def set_attr(page: Page, number: str, name: str, value: str) -> None:
-    field = card(page, number).locator(f'[data-attr="{name}"]')
-    field.fill(value)
-    field.press("Tab")
 
 
 def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server) -> None:

@@ -28,7 +28,7 @@ from pride.model import Procedure
 from pride.parser import load_procedure
 from pride.web.accounts import Account
 from pride.web.actions import ActionRefused, ActionRequest, perform_action
-from pride.web.authoring import check_document, read_document, save_document, sysrep_palette
+from pride.web.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
 from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
 from pride.web.run_state import fold_events
@@ -274,7 +274,9 @@ async def author_palette(request: Request) -> Response:
     _account(request)
     board: RunBoard = request.app.state.board
     sysreps = await run_in_threadpool(board.sysreps)
-    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": board.catalog.procedure_files()})
+    procedures = board.catalog.procedure_files()
+    signatures = await run_in_threadpool(procedure_inputs, board.catalog.procedures, procedures)
+    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": procedures, "procedure_inputs": signatures})
 
 
 @_api

@@ -20,7 +20,7 @@ from pride.lint import lint_file
 from pride.sysrep import SysRep
 from pride.web.actions import ActionRefused
 
-__all__ = ["check_document", "document_to_xml", "read_document", "save_document", "sysrep_palette"]
+__all__ = ["check_document", "document_to_xml", "procedure_inputs", "read_document", "save_document", "sysrep_palette"]
 
 _FILE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*\.xml$")
 _WITH_ARGS = ("command", "call")
@@ -42,6 +42,22 @@ def sysrep_palette(sysreps: dict[str, SysRep]) -> list[dict[str, Any]]:
         }
         for s in sorted(sysreps.values(), key=lambda s: s.id)
     ]
+
+
+def procedure_inputs(directory: Path, names: list[str]) -> dict[str, list[dict[str, str]]]:
+    """The declared inputs (name, type) of each procedure a ``call`` may name, to prefill its arguments.
+
+    A file that cannot be read is left out: the page then takes free-form arguments, and lint
+    reports the broken callee on the call itself.
+    """
+    signatures: dict[str, list[dict[str, str]]] = {}
+    for name in names:
+        try:
+            inputs = read_document(directory / name)["inputs"]
+        except ActionRefused:
+            continue
+        signatures[name] = [{"name": i.get("name", ""), "type": i.get("type", "string")} for i in inputs]
+    return signatures
 
 
 # ---- XML → document ---------------------------------------------------------------------------

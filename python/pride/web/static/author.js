@@ -10,6 +10,7 @@ const $ = (id) => document.getElementById(id);
 const author = {
   me: null,
   sysreps: [],          // palette: [{id, name, commands: [{id, label, args}], telemetry}]
+  procedureInputs: {},  // file → declared inputs [{name, type}], what a call passes
   doc: null,            // the document being edited
   problems: [],
   checkTimer: null,
@@ -108,7 +109,7 @@ function newItem(spec) {
     item.attrs.system = spec.system;
     item.attrs.name = spec.command;
     const command = commandOf(spec.system, spec.command);
-    item.args = command.args.map((a) => ({name: a.name, value: a.type === "boolean" ? "false" : (a.type === "string" ? "" : "0")}));
+    item.args = command.args.map((a) => ({name: a.name, value: defaultValue(a)}));
   }
   if (spec.kind === "verify" && spec.system) {
     item.attrs = {system: spec.system, telemetry: spec.telemetry, equals: "", timeout: "10"};
@@ -122,6 +123,8 @@ function commandOf(system, name) {
 }
 
 // ---- canvas ----------------------------------------------------------------------------------
+const MOVE = "application/x-caretaker-move";  // a card dragged to another place: {step, index}
+
 function dropZone(stepIndex, itemIndex) {
   const zone = element("div", "drop");
   zone.dataset.step = stepIndex;
@@ -132,6 +135,11 @@ function dropZone(stepIndex, itemIndex) {
     event.preventDefault();
     author.dragging = false;
     zone.classList.remove("over");
+    const from = JSON.parse(event.dataTransfer.getData(MOVE) || "null");
+    if (from) {
+      moveItem(from, stepIndex, itemIndex);
+      return;
+    }
     const spec = JSON.parse(event.dataTransfer.getData("application/x-caretaker-item") || "null");
     if (!spec) return;
     author.doc.steps[stepIndex].items.splice(itemIndex, 0, newItem(spec));
@@ -209,6 +217,14 @@ function button(text, title, onClick) {
   return node;
 }
 
+function moveItem(from, toStep, toIndex) {
+  const [item] = author.doc.steps[from.step].items.splice(from.index, 1);
+  // taking the card out shifts the places after it in its own step
+  const index = from.step === toStep && from.index < toIndex ? toIndex - 1 : toIndex;
+  author.doc.steps[toStep].items.splice(index, 0, item);
+  changed();
+}
+
 function move(list, index, delta) {
   const target = index + delta;
   if (target < 0 || target >= list.length) return;
@@ -228,6 +244,17 @@ function card(item, s, i, number) {
     button("↑", "move up", () => move(author.doc.steps[s].items, i, -1)),
     button("↓", "move down", () => move(author.doc.steps[s].items, i, 1)),
     button("✕", "delete", () => { author.doc.steps[s].items.splice(i, 1); changed(); }));
+  header.draggable = true;  // the header is the handle: the fields stay selectable
+  header.title = "drag to move";
+  header.addEventListener("dragstart", (event) => {
+    author.dragging = true;
+    event.dataTransfer.setData(MOVE, JSON.stringify({step: s, index: i}));
+    event.dataTransfer.effectAllowed = "move";
+  });
+  header.addEventListener("dragend", () => {
+    author.dragging = false;
+    render();
+  });
   const fields = element("div", "fields");
   const info = KINDS[item.kind];
   for (const name of info.attrs) {
@@ -238,6 +265,16 @@ function card(item, s, i, number) {
   if (item.kind === "command") {
     const command = commandOf(item.attrs.system, item.attrs.name);
     for (const arg of item.args) fields.append(argField(arg, command && command.args.find((a) => a.name === arg.name), s, i));
+  }
+  if (item.kind === "call") {
+    const declared = author.procedureInputs[item.attrs.procedure] || [];
+    for (const arg of item.args) {
+      fields.append(argField(arg, declared.find((d) => d.name === arg.name), s, i, () => {
+        item.args.splice(item.args.indexOf(arg), 1);
+        changed();
+      }));
+    }
+    fields.append(button("+ argument", "add an argument", () => { item.args.push({name: "", value: ""}); changed(); }));
   }
   if (info.text) {
     const text = document.createElement("textarea");
@@ -263,9 +300,25 @@ function attrField(item, name) {
     node.value = item.attrs[name] || "";
   }
   node.dataset.attr = name;
+  if (name === "procedure") {
+    node.setAttribute("list", "procedure-files");
+    node.addEventListener("change", () => declareArgs(item));  // before edits() redraws the card
+  }
   edits(node, () => { item.attrs[name] = node.value; });
   label.append(node);
   return label;
+}
+
+// A call names a known procedure: it gets a row for each input that procedure declares.
+function declareArgs(item) {
+  for (const input of author.procedureInputs[item.attrs.procedure] || []) {
+    if (!item.args.some((a) => a.name === input.name)) item.args.push({name: input.name, value: defaultValue(input)});
+  }
+}
+
+function defaultValue(spec) {
+  if (!spec || spec.type === "string") return "";
+  return spec.type === "boolean" ? "false" : "0";
 }
 
 function flagField(item, flag) {
@@ -283,11 +336,17 @@ function flagField(item, flag) {
   return label;
 }
 
-// One argument: a control typed by the SysRep, or a binding to something in scope.
-function argField(arg, spec, s, i) {
+// One argument: a control typed by the SysRep (or the called procedure's inputs), or a binding to
+// something in scope. An argument nothing declares gets its name typed; call arguments can go.
+function argField(arg, spec, s, i, remove) {
   const box = element("span", "arg");
   box.dataset.arg = arg.name;
-  box.append(element("span", "", `${arg.name}${spec ? ` (${spec.type})` : ""}`));
+  if (spec || !remove) {
+    box.append(element("span", "", `${arg.name}${spec ? ` (${spec.type})` : ""}`));
+  } else {
+    const name = input("argument name", arg.name, (v) => { arg.name = v; }, "arg-name");
+    box.append(name);
+  }
   const bound = /^\$\{[^}]+\}$/.test(arg.value);
   let control;
   if (bound || !spec) {
@@ -303,8 +362,8 @@ function argField(arg, spec, s, i) {
     if (spec.type === "integer" || spec.type === "real") {
       control.type = "number";
       control.step = spec.type === "integer" ? "1" : "any";
-      if (spec.min !== null) control.min = spec.min;
-      if (spec.max !== null) control.max = spec.max;
+      if (spec.min != null) control.min = spec.min;
+      if (spec.max != null) control.max = spec.max;
     }
     control.value = arg.value;
   }
@@ -322,10 +381,11 @@ function argField(arg, spec, s, i) {
   for (const name of scope(s, i)) bind.append(new Option(name, name));
   if (bound) bind.value = arg.value;
   bind.addEventListener("change", () => {
-    arg.value = bind.value || (spec && spec.type === "boolean" ? "false" : (spec && spec.type !== "string" ? "0" : ""));
+    arg.value = bind.value || defaultValue(spec);
     changed();
   });
   box.append(control, bind);
+  if (remove) box.append(button("✕", `remove argument ${arg.name}`, remove));
   return box;
 }
 
@@ -438,6 +498,8 @@ async function start() {
   $("save").disabled = !author.me.may_act;
   const palette = await api("GET", "/api/author/palette");
   author.sysreps = palette.sysreps;
+  author.procedureInputs = palette.procedure_inputs;
+  $("procedure-files").replaceChildren(...palette.procedures.map((name) => new Option(name, name)));
   $("open-name").replaceChildren(...palette.procedures.map((name) => new Option(name, name)));
   author.doc = blank();
   $("author-view").hidden = false;
