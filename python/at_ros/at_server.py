@@ -49,6 +49,7 @@ from affordance_template_msgs.srv import (
 from at_ros.api import LATCHED, PREFIX, SERVICES, STATUS_TOPIC
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
 from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
+from at_ros.instance_store import load_instances, save_instances
 from at_ros.library import LibraryError, Template, default_library_path, load_library
 from at_ros.messages import matrix_from_pose, pose_from_matrix
 from at_ros.robot_config import RobotConfig, load_robot_configs
@@ -102,9 +103,16 @@ class AffordanceTemplateServer(Node):
         robots: dict[str, RobotConfig],
         *,
         template_folder: Path | None = None,
+        state_file: Path | None = None,
     ) -> None:
         """``template_folder`` is re-read when a template is asked for by a name not yet loaded,
-        so adding a template is dropping a JSON file in the library: no restart, no code."""
+        so adding a template is dropping a JSON file in the library: no restart, no code.
+        ``state_file`` keeps the instances across a restart (:mod:`at_ros.instance_store`).
+
+        Raises:
+            LibraryError: the state file holds instances this library or robot cannot restore.
+        """
+        restored = load_instances(state_file, robot, templates) if state_file is not None else {}
         super().__init__("affordance_template_server")
         self.robot = robot
         self.templates = templates
@@ -113,6 +121,8 @@ class AffordanceTemplateServer(Node):
         self.robots = robots
         self.frames = FrameTable()
         self.state = ServerState()
+        self.state.instances = restored
+        self.state_file = state_file
         self._state_lock = threading.RLock()
         self._robot_lock = threading.Lock()
         self._command_locks: dict[str, threading.Lock] = {}
@@ -211,6 +221,20 @@ class AffordanceTemplateServer(Node):
         if force or changed:
             self.status_publisher.publish(msg)
 
+    def _save_instances(self, done: str) -> None:
+        """Write the instances to the state file after a change; ``done`` says what changed.
+
+        The change has happened either way; a failed write is refused loudly, because a restart
+        would lose it.
+        """
+        if self.state_file is None:
+            return
+        try:
+            with self._state_lock:
+                save_instances(self.state_file, self.robot, self.state.instances)
+        except OSError as exc:
+            raise CommandRefused(f"{done}, but the state file {self.state_file} could not be written ({exc}): a restart would lose it") from exc
+
     def _set_state(self, **fields: str) -> None:
         with self._state_lock:
             for name, value in fields.items():
@@ -295,6 +319,7 @@ class AffordanceTemplateServer(Node):
             self.state.instances[instance.key] = instance
         response.id = instance.id
         response.instance = instance.key
+        self._save_instances(f"added {instance.key}")
         return self._succeed(response, f"added {instance.key}")
 
     def delete_template_callback(self, request: DeleteAffordanceTemplate.Request, response: DeleteAffordanceTemplate.Response):
@@ -306,6 +331,7 @@ class AffordanceTemplateServer(Node):
             if self.state.active_template == instance.key:
                 self.state.active_template = ""
                 self.state.active_trajectory = ""
+        self._save_instances(f"deleted {instance.key}")
         return self._succeed(response, f"deleted {instance.key}")
 
     def get_running_callback(self, request, response):  # noqa: ANN001, ANN201
@@ -351,7 +377,9 @@ class AffordanceTemplateServer(Node):
         for instance, name, registration in updates:
             with self._command_lock(instance.key), self._state_lock:
                 instance.register(name, registration)
-        return self._succeed(response, "registered " + ", ".join(f"{n}:{i.id} to {r.frame}" for i, n, r in updates))
+        done = "registered " + ", ".join(f"{n}:{i.id} to {r.frame}" for i, n, r in updates)
+        self._save_instances(done)
+        return self._succeed(response, done)
 
     def set_waypoint_pose_callback(self, request: SetWaypointPose.Request, response: SetWaypointPose.Response):
         instance = self._instance(request.type, request.id)
@@ -368,7 +396,9 @@ class AffordanceTemplateServer(Node):
             else:
                 parent = instance.object_pose(group.waypoints[request.waypoint_id].display_object)
             instance.set_waypoint(trajectory, ee, request.waypoint_id, parent @ matrix_from_pose(request.pose.pose))
-        return self._succeed(response, f"moved waypoint {ee.id}.{request.waypoint_id}:{instance.key} of {trajectory.name!r}")
+        done = f"moved waypoint {ee.id}.{request.waypoint_id}:{instance.key} of {trajectory.name!r}"
+        self._save_instances(done)
+        return self._succeed(response, done)
 
     # --- plan ------------------------------------------------------------------------------
 
@@ -480,10 +510,13 @@ class AffordanceTemplateServer(Node):
             except Exception as exc:  # whatever stopped the robot, the status must not stay EXECUTING
                 self._set_state(execute_status=ServerStatus.EXECUTE_FAILED)
                 reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)
+                self._save_instances(f"{instance.key} reached waypoint {progress.current_index} of {trajectory!r}")
                 raise CommandRefused(f"executing {trajectory!r} of {instance.key} failed: {reason}") from exc
             progress.execution_valid = True
             self._set_state(execute_status=ServerStatus.EXECUTE_SUCCEEDED)
-            return f"executed {trajectory!r} of {instance.key}: waypoints {plan.indices}"
+            done = f"executed {trajectory!r} of {instance.key}: waypoints {plan.indices}"
+            self._save_instances(done)
+            return done
         finally:
             with self._state_lock:
                 self.state.executing = ""
@@ -562,6 +595,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker at-server", description=__doc__.splitlines()[0])
     parser.add_argument("--robot", required=True, help="robot_name of a robot config in the AT library")
     parser.add_argument("--library", default=str(default_library_path()), help="library folder with templates/ and robots/")
+    parser.add_argument("--state-file", type=Path,
+                        help="keep the instances here and restore them at start, so a restarted server carries on (default: not kept)")
     args, ros_args = parser.parse_known_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
@@ -577,8 +612,14 @@ def main(argv: list[str] | None = None) -> int:
     node = None
     executor = MultiThreadedExecutor(num_threads=6)
     try:
-        node = AffordanceTemplateServer(robots[args.robot], templates, robots,
-                                        template_folder=Path(args.library) / "templates")
+        try:
+            node = AffordanceTemplateServer(robots[args.robot], templates, robots,
+                                            template_folder=Path(args.library) / "templates", state_file=args.state_file)
+        except LibraryError as exc:
+            print(f"caretaker at-server: {exc}", file=sys.stderr)
+            return 2
+        if node.state.instances:
+            print(f"restored {', '.join(sorted(node.state.instances))} from {args.state_file}", flush=True)
         executor.add_node(node)
         # Serving means able to register templates: that needs the world's frames.
         while not node.frames_arrived.is_set():
