@@ -3,7 +3,9 @@
 Each test runs the IVA CDRA procedure on separate processes (simulation, planner, AT server,
 rosbridge, runner with its JVM), kills one of them at a known point, and checks that the
 procedure stops at that instruction with a reason, that the audit log holds every action up
-to the fault, and how the run goes on once the part is back.
+to the fault, and how the run goes on once the part is back: a pull-out that fails goes to the
+procedure's contingency step "removal_interrupted", which holds for the operator and then plans
+the removal again from where the arm is (the restarted AT server keeps its instances).
 """
 
 from __future__ import annotations
@@ -31,6 +33,9 @@ CLEAN_FILTER = "CDRA-F-0012"
 # The manual instruction just before the arm moves in to pull the dirty filter.
 CONFIRM_CLEAR = "2.6"
 EXECUTE_PULL = "2.7"
+# Step 8, removal_interrupted: the operator's check, then plan and execute the pull-out again.
+CHECK_AFTER_INTERRUPTION = "8.1"
+EXECUTE_PULL_AGAIN = "8.6"
 
 
 def _free_port() -> int:
@@ -42,15 +47,17 @@ def _free_port() -> int:
 class RobotSide:
     """The robot side and a rosbridge server on a fixed port (so a restart keeps the URL)."""
 
-    def __init__(self, env: dict[str, str]) -> None:
+    def __init__(self, env: dict[str, str], state_dir: Path) -> None:
         self.env = env
+        self.state_file = state_dir / "at_server.json"
         self.port = _free_port()
         self.url = f"ws://127.0.0.1:{self.port}"
         self.parts: dict[str, ManagedProcess] = {}
 
     def start(self, name: str) -> None:
         args = {"sim": ("sim", "--scene", "iva", "--time-scale", "0"), "planner": ("planner", "--robot", "ur10"),
-                "at-server": ("at-server", "--robot", "ur10"), "bridge": ("bridge", "--port", str(self.port))}[name]
+                "at-server": ("at-server", "--robot", "ur10", "--state-file", str(self.state_file)),
+                "bridge": ("bridge", "--port", str(self.port))}[name]
         self.parts[name] = caretaker(*args, env=self.env, name=name)
         self.parts[name].wait_ready(120)
 
@@ -60,8 +67,8 @@ class RobotSide:
 
 
 @pytest.fixture
-def robot(ros_env: dict[str, str]) -> Iterator[RobotSide]:
-    side = RobotSide(ros_env)
+def robot(ros_env: dict[str, str], tmp_path: Path) -> Iterator[RobotSide]:
+    side = RobotSide(ros_env, tmp_path)
     try:
         for name in ("sim", "planner", "at-server", "bridge"):
             side.start(name)
@@ -141,25 +148,21 @@ def test_rosbridge_killed_then_back(robot: RobotSide, tmp_path: Path) -> None:
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
         robot.parts["bridge"].kill()
         session.send("")  # the area is clear: PAX sends the pull-out with no bridge to carry it
-        failure = session.expect(rf"(?s){re.escape(EXECUTE_PULL)} failed: (.*?)\n.*?\[r\] retry[^\n]*> ")
-        assert "execute_plan" in failure.group(1)
+        assert _answer_until(session, stop_at=CHECK_AFTER_INTERRUPTION) is None
         events = _events(db, run_id)
         _assert_log_is_whole(events)
         assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
                        for e in events), "a command that could not reach the robot was logged as a success"
-        assert any(e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL for e in events)
+        failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL]
+        assert len(failed) == 1 and "not connected" in failed[0].data["reason"]
         robot.start("bridge")
         session.expect(r"reconnected to ws://")  # the plugins' rosbridge client logs its reconnection
-        session.send("r")  # the bridge is back: the operator retries
+        session.send("")  # the bridge is back: the operator continues the contingency step
         assert _answer_until(session) == "completed"
         assert session.close() == 0
     finally:
         session.close(5)
-    events = _events(db, run_id)
-    _assert_log_is_whole(events)
-    retries = [e for e in events if e.kind is EventKind.RETRY]
-    assert [(e.instruction, e.actor) for e in retries] == [(EXECUTE_PULL, "ops")]
-    assert events[-1].kind is EventKind.RUN_COMPLETED
+    _assert_pulled_again_and_completed(_events(db, run_id))
 
 
 def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> None:
@@ -171,20 +174,35 @@ def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> No
         session.send("")
         session.expect(rf"{re.escape(EXECUTE_PULL)}\s+PAX\s+sent affordance_templates\.execute_plan")
         robot.parts["at-server"].kill()
-        failure = session.expect(rf"(?s){re.escape(EXECUTE_PULL)} failed: (.*?)\n.*?\[r\] retry[^\n]*> ")
-        assert "execute_plan" in failure.group(1)
-        session.send("q")  # the AT instances died with the server: the operator stops the run
-        assert session.expect(r"RESULT (\w+) run").group(1) == "stopped"
-        assert session.close() == 1
+        assert _answer_until(session, stop_at=CHECK_AFTER_INTERRUPTION) is None
+        events = _events(db, run_id)
+        _assert_log_is_whole(events)
+        failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL]
+        assert len(failed) == 1 and "execute_plan" in failed[0].data["reason"]
+        robot.start("at-server")  # from its state file: cdra_filter and ready_pose with their ids
+        robot.parts["at-server"].wait_for_line(r"restored cdra_filter:\d+, ready_pose:\d+ from ", 5)
+        session.send("")  # the operator checked the arm: the removal is planned again
+        assert _answer_until(session) == "completed"
+        assert session.close() == 0
     finally:
         session.close(5)
     events = _events(db, run_id)
-    _assert_log_is_whole(events)
     sent = [e for e in events if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL]
     assert len(sent) == 1
     assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
                    for e in events), "an execute cut short by the AT server's death was logged as a success"
-    assert events[-1].kind is EventKind.RUN_STOPPED and events[-1].actor == "ops"
+    _assert_pulled_again_and_completed(events)
+
+
+def _assert_pulled_again_and_completed(events: list) -> None:
+    """The contingency step pulled the filter out after the operator's check, and the run went on to the end."""
+    _assert_log_is_whole(events)
+    numbers = [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED]
+    assert CHECK_AFTER_INTERRUPTION in numbers and "3.1" in numbers[numbers.index(CHECK_AFTER_INTERRUPTION):]
+    assert [e.actor for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == CHECK_AFTER_INTERRUPTION] == ["ops"]
+    assert any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL_AGAIN and e.data.get("success") for e in events)
+    assert not any(e.kind is EventKind.RETRY for e in events)
+    assert events[-1].kind is EventKind.RUN_COMPLETED
 
 
 def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: Path) -> None:
