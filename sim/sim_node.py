@@ -46,6 +46,8 @@ JOINT_STATE_PERIOD = 1.0 / 60.0  # s of sim time (>= 50 Hz)
 FRAMES_PERIOD = 0.1  # s of sim time
 STATUS_PERIOD = 1.0  # s of sim time; status topics are also published on every change
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+#: Requests a service keeps queued: ROS's default of 10 drops the rest of a burst silently.
+SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
 
 
 class SimNode(Node):
@@ -65,20 +67,20 @@ class SimNode(Node):
             execute_callback=self.execute_callback, goal_callback=self.goal_callback,
             cancel_callback=self.cancel_callback, callback_group=group,
         )
-        self.capture_srv = self.create_service(CaptureImage, "camera/capture", self.capture_callback, callback_group=group)
+        self.capture_srv = self.create_service(CaptureImage, "camera/capture", self.capture_callback, qos_profile=SERVICE_QOS, callback_group=group)
         self.image_pubs = {name: self.create_publisher(Image, f"camera/{name}/image", 2) for name in sim.scene.cameras}
         if camera_period > 0:
             self.camera_timer = self.create_timer(camera_period, self.camera_timer_callback, callback_group=group)
         if sim.gripper is not None:
             self.held_pub = self.create_publisher(String, "gripper/held_object", LATCHED)
-            self.gripper_srv = self.create_service(SetGripper, "gripper/set", self.gripper_callback, callback_group=group)
+            self.gripper_srv = self.create_service(SetGripper, "gripper/set", self.gripper_callback, qos_profile=SERVICE_QOS, callback_group=group)
         if sim.cabinet is not None:
             self.cdra_locked_pub = self.create_publisher(Bool, "cdra/filter_locked", LATCHED)
             self.cdra_present_pub = self.create_publisher(Bool, "cdra/filter_present", LATCHED)
             self.cdra_id_pub = self.create_publisher(String, "cdra/installed_filter_id", LATCHED)
             self.cdra_condition_pub = self.create_publisher(String, "cdra/installed_filter_condition", LATCHED)
-            self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, callback_group=group)
-            self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, callback_group=group)
+            self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, qos_profile=SERVICE_QOS, callback_group=group)
+            self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group)
         self._last_status: tuple | None = None
         self.failed = False
         self._stop = threading.Event()

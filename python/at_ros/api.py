@@ -22,7 +22,7 @@ from affordance_template_msgs.srv import (
     SetWaypointPose,
 )
 
-__all__ = ["LATCHED", "PREFIX", "SERVICES", "STATUS_TOPIC"]
+__all__ = ["LATCHED", "PREFIX", "SERVICES", "SERVICE_QOS", "STATUS_TOPIC"]
 
 PREFIX = "/affordance_template_server"
 STATUS_TOPIC = f"{PREFIX}/status"
@@ -43,3 +43,6 @@ SERVICES: dict[str, type] = {
 #: The simulation latches robot/moving, gripper/held_object and the CDRA telemetry: subscribe with
 #: this to get the last value at once.
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+#: Services and their clients keep this many requests (responses) queued. ROS's default of 10
+#: drops requests silently once more than 10 arrive together (several web views polling).
+SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)

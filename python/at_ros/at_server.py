@@ -46,7 +46,7 @@ from affordance_template_msgs.srv import (
     SetObjectPose,
     SetWaypointPose,
 )
-from at_ros.api import LATCHED, PREFIX, SERVICES, STATUS_TOPIC
+from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES, STATUS_TOPIC
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
 from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
 from at_ros.instance_store import load_instances, save_instances
@@ -147,13 +147,13 @@ class AffordanceTemplateServer(Node):
         self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, LATCHED, callback_group=inputs)
         self.heartbeat_subscription = self.create_subscription(Header, "/planner/heartbeat", self.heartbeat_callback, 10, callback_group=inputs)
 
-        self.planner_client = self.create_client(PlanWaypoints, "/planner/plan_waypoints", callback_group=clients)
-        self.gripper_client = self.create_client(SetGripper, robot.gripper_service, callback_group=clients) if robot.gripper_service else None
+        self.planner_client = self.create_client(PlanWaypoints, "/planner/plan_waypoints", qos_profile=SERVICE_QOS, callback_group=clients)
+        self.gripper_client = self.create_client(SetGripper, robot.gripper_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.gripper_service else None
         self.trajectory_client = ActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients)
 
         for name, srv_type in SERVICES.items():
             callback = getattr(self, f"{name}_callback")
-            self.create_service(srv_type, f"{PREFIX}/{name}", self._guarded(name, callback), callback_group=services)
+            self.create_service(srv_type, f"{PREFIX}/{name}", self._guarded(name, callback), qos_profile=SERVICE_QOS, callback_group=services)
 
     # --- inputs ----------------------------------------------------------------------------
 

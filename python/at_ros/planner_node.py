@@ -24,6 +24,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from affordance_template_msgs.msg import PlannedSegment
 from affordance_template_msgs.srv import PlanWaypoints
+from at_ros.api import SERVICE_QOS
 from at_ros.library import LibraryError
 from at_ros.messages import matrix_from_pose
 from at_ros.motion_planner import Goal, MotionPlanner, PlannedWaypoint, WaypointPlanningError
@@ -65,7 +66,7 @@ class PlannerNode(Node):
         self.frames_subscription = self.create_subscription(NamedPoses, "/sim/frames", self.frames_callback, 10)
         self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, LATCHED)
         self.moving_subscription = self.create_subscription(Bool, "/robot/moving", self.moving_callback, LATCHED)
-        self.plan_service = self.create_service(PlanWaypoints, "/planner/plan_waypoints", self.plan_callback)
+        self.plan_service = self.create_service(PlanWaypoints, "/planner/plan_waypoints", self.plan_callback, qos_profile=SERVICE_QOS)
         self.heartbeat_publisher = self.create_publisher(Header, "/planner/heartbeat", 10)
         self.heartbeat_timer = self.create_timer(0.5, self.heartbeat_callback)
 

@@ -13,7 +13,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from at_ros.api import LATCHED, PREFIX, SERVICES
+from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES
 from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
 from caretaker_sim_msgs.msg import NamedPoses
 from caretaker_sim_msgs.srv import CaptureImage
@@ -27,7 +27,7 @@ class AtClient:
         if not rclpy.ok():
             rclpy.init()
         self.node = Node("at_test_client")
-        self.clients = {name: self.node.create_client(t, f"{PREFIX}/{name}") for name, t in SERVICES.items()}
+        self.clients = {name: self.node.create_client(t, f"{PREFIX}/{name}", qos_profile=SERVICE_QOS) for name, t in SERVICES.items()}
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.status: ServerStatus | None = None

@@ -13,11 +13,13 @@ import threading
 import pytest
 
 from affordance_template_msgs.msg import ServerStatus
+from at_ros.api import SERVICES
 from conftest import start_stack
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 DIRTY = "CDRA-F-0007"
+BURST = 64
 EMPTY_SLOT = "rack/slot_3"
 
 
@@ -211,3 +213,15 @@ def test_second_robot_command_while_executing_is_refused(at) -> None:
     finally:
         for response in (ready, other):
             at.call("delete_template", class_type="ready_pose", id=response.id)
+
+
+def test_a_burst_of_requests_is_answered_in_full(at) -> None:
+    """Many clients polling at once (web views, tools): none of their requests may be dropped."""
+    client = at.clients["get_status"]
+    futures = [client.call_async(SERVICES["get_status"].Request()) for _ in range(BURST)]
+    answered = threading.Semaphore(0)
+    for future in futures:
+        future.add_done_callback(lambda _: answered.release())
+    for _ in futures:
+        assert answered.acquire(timeout=30), f"only {sum(f.done() for f in futures)} of {BURST} requests were answered"
+    assert all(f.result().success for f in futures)
