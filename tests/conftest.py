@@ -1,7 +1,7 @@
 """Test-session settings shared by every suite.
 
-ROS 2 traffic stays on loopback and in a domain of this session's own, so parallel test runs
-on one machine do not see each other.
+ROS 2 traffic stays on loopback and in a domain of this session's own (claimed with a lock, see
+support/ros_domain.py), so parallel test runs on one machine do not see each other.
 """
 
 from __future__ import annotations
@@ -13,9 +13,11 @@ from typing import Callable
 import pytest
 
 from support.processes import ManagedProcess, caretaker
+from support.ros_domain import claim_ros_domain
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ.setdefault("ROS_DOMAIN_ID", str(1 + os.getpid() % 100))
+if "ROS_DOMAIN_ID" not in os.environ:
+    os.environ["ROS_DOMAIN_ID"] = str(claim_ros_domain())
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 
 
