@@ -24,6 +24,7 @@ import java.util.concurrent.ThreadFactory;
 import java.util.concurrent.TimeUnit;
 import java.util.concurrent.TimeoutException;
 import java.util.concurrent.atomic.AtomicLong;
+import java.util.concurrent.atomic.AtomicReference;
 
 /**
  * A connection to a rosbridge v2 server. Create it, {@link #connect()}, then make
@@ -52,6 +53,8 @@ public final class Ros implements AutoCloseable {
     private final Map<String, FragmentBuffer> fragments = new ConcurrentHashMap<>();
     private final List<RosHandler> handlers = new CopyOnWriteArrayList<>();
     private final ExecutorService callbackThread;
+    /** The thread callbackThread runs user code on, once started. */
+    private final AtomicReference<Thread> callbackWorker = new AtomicReference<>();
     private final ScheduledExecutorService timerThread;
     /** Guards {@link #socket}, {@link #wanted} and {@link #closed}. */
     private final Object connectionLock = new Object();
@@ -93,7 +96,12 @@ public final class Ros implements AutoCloseable {
         // pool thread first: one thread switch less per reply. Safe because the listener never
         // blocks and never sends; user code runs on callbackThread.
         this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).executor(Runnable::run).build();
-        this.callbackThread = Executors.newSingleThreadExecutor(daemon("rosbridge-callbacks " + uri));
+        ThreadFactory callbacks = daemon("rosbridge-callbacks " + uri);
+        this.callbackThread = Executors.newSingleThreadExecutor(runnable -> {
+            Thread thread = callbacks.newThread(runnable);
+            callbackWorker.set(thread);
+            return thread;
+        });
         ScheduledThreadPoolExecutor timer = new ScheduledThreadPoolExecutor(1, daemon("rosbridge-timer " + uri));
         timer.setRemoveOnCancelPolicy(true); // answered calls leave the queue at once
         this.timerThread = timer;
@@ -227,7 +235,13 @@ public final class Ros implements AutoCloseable {
         }
     }
 
-    /** Disconnects and releases this connection's threads; it cannot be connected again. */
+    /**
+     * Disconnects and releases this connection's threads; it cannot be connected again.
+     *
+     * <p>Returns once callbacks already delivered have run (at most the options' timeout): the
+     * caller may tear down what they call next, e.g. a Python listener reached through JPype at
+     * interpreter exit. Called from a callback, it does not wait for itself.
+     */
     @Override
     public void close() {
         disconnect();
@@ -236,6 +250,17 @@ public final class Ros implements AutoCloseable {
         }
         callbackThread.shutdown();
         timerThread.shutdownNow();
+        if (Thread.currentThread() == callbackWorker.get()) {
+            return;
+        }
+        try {
+            if (!callbackThread.awaitTermination(options.timeout().toMillis(), TimeUnit.MILLISECONDS)) {
+                LOG.log(System.Logger.Level.WARNING, "a callback of " + uri + " still runs " + options.timeout()
+                        + " after close()");
+            }
+        } catch (InterruptedException e) {
+            Thread.currentThread().interrupt();
+        }
     }
 
     /** @return whether the connection is currently up */

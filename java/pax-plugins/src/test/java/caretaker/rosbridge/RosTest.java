@@ -14,12 +14,14 @@ import java.net.ServerSocket;
 import java.net.URI;
 import java.time.Duration;
 import java.util.ArrayList;
+import java.util.Collections;
 import java.util.List;
 import java.util.concurrent.BlockingQueue;
 import java.util.concurrent.CompletableFuture;
 import java.util.concurrent.CountDownLatch;
 import java.util.concurrent.LinkedBlockingQueue;
 import java.util.concurrent.TimeUnit;
+import java.util.concurrent.TimeoutException;
 import org.junit.jupiter.api.AfterEach;
 import org.junit.jupiter.api.BeforeEach;
 import org.junit.jupiter.api.Test;
@@ -99,6 +101,48 @@ class RosTest {
         assertEquals(json("{\"op\":\"unsubscribe\",\"id\":\"subscribe:/chatter:0\",\"topic\":\"/chatter\"}"),
                 server.next());
         assertFalse(topic.isSubscribed());
+    }
+
+    @Test
+    void closeReturnsOnlyAfterARunningCallbackFinished() throws Exception {
+        CountDownLatch entered = new CountDownLatch(1);
+        CountDownLatch release = new CountDownLatch(1);
+        List<String> order = Collections.synchronizedList(new ArrayList<>());
+        Topic topic = new Topic(ros, "/chatter", "std_msgs/msg/String");
+        topic.subscribe(message -> {
+            entered.countDown();
+            try {
+                release.await();
+            } catch (InterruptedException e) {
+                Thread.currentThread().interrupt();
+            }
+            order.add("callback returned");
+        });
+        server.next("subscribe");
+        server.send(json("{\"op\":\"publish\",\"topic\":\"/chatter\",\"msg\":{\"data\":\"hi\"}}"));
+        assertTrue(entered.await(5, TimeUnit.SECONDS));
+        CompletableFuture<Void> closing = CompletableFuture.runAsync(() -> {
+            ros.close();
+            order.add("close returned");
+        });
+        assertThrows(TimeoutException.class, () -> closing.get(200, TimeUnit.MILLISECONDS));
+        release.countDown();
+        closing.get(5, TimeUnit.SECONDS);
+        assertEquals(List.of("callback returned", "close returned"), order);
+    }
+
+    @Test
+    void closeFromACallbackDoesNotWaitForItself() throws Exception {
+        CompletableFuture<Void> closed = new CompletableFuture<>();
+        Topic topic = new Topic(ros, "/chatter", "std_msgs/msg/String");
+        topic.subscribe(message -> {
+            ros.close();
+            closed.complete(null);
+        });
+        server.next("subscribe");
+        server.send(json("{\"op\":\"publish\",\"topic\":\"/chatter\",\"msg\":{\"data\":\"hi\"}}"));
+        closed.get(2, TimeUnit.SECONDS);
+        assertFalse(ros.isConnected());
     }
 
     @Test
