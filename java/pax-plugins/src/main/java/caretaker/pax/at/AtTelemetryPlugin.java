@@ -3,6 +3,7 @@ package caretaker.pax.at;
 import caretaker.pax.BoardTelemetryPlugin;
 import caretaker.pax.PluginContext;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.JsonValues;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Time;
 import caretaker.rosbridge.Topic;
@@ -76,23 +77,10 @@ public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
         for (Telemetry item : sysRep.telemetry()) {
             JsonElement field = status.get(item.id());
             if (field != null && field.isJsonPrimitive()) {
-                Object value = item.type().check(item.id(), primitive(field));
+                Object value = item.type().check(item.id(), JsonValues.plain(field));
                 board.put(item.id(), new TelemetryValue(value, stamp, false));
             }
         }
-    }
-
-    private static Object primitive(JsonElement field) {
-        var primitive = field.getAsJsonPrimitive();
-        if (primitive.isBoolean()) {
-            return primitive.getAsBoolean();
-        }
-        if (primitive.isNumber()) {
-            double number = primitive.getAsDouble();
-            return number == Math.rint(number) && Math.abs(number) < 1e15 ? (Object) primitive.getAsLong()
-                    : (Object) number;
-        }
-        return primitive.getAsString();
     }
 
     private synchronized void checkStale() {

@@ -6,6 +6,7 @@ import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.JsonValues;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosHandler;
@@ -148,7 +149,7 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
         JsonElement data = message.toJsonObject().get("data");
         Object value;
         try {
-            value = item.type().check(item.id(), primitive(data));
+            value = item.type().check(item.id(), JsonValues.plain(data));
         } catch (IllegalArgumentException e) {
             throw new PluginException("topic of " + sysRep.id() + "." + item.id() + " carried a wrong value: "
                     + e.getMessage(), e);
@@ -164,22 +165,6 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
                 board.put(entry.getKey(), board.get(entry.getKey()).asStale());
             }
         }
-    }
-
-    private static Object primitive(JsonElement field) {
-        if (field == null || !field.isJsonPrimitive()) {
-            return field == null ? null : field.toString();
-        }
-        JsonPrimitive primitive = field.getAsJsonPrimitive();
-        if (primitive.isBoolean()) {
-            return primitive.getAsBoolean();
-        }
-        if (primitive.isNumber()) {
-            double number = primitive.getAsDouble();
-            return number == Math.rint(number) && Math.abs(number) < 1e15 ? (Object) primitive.getAsLong()
-                    : (Object) number;
-        }
-        return primitive.getAsString();
     }
 
     @Override
@@ -211,7 +196,7 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
         for (Map.Entry<String, JsonElement> field : reply.entrySet()) {
             if (!field.getKey().equals("success") && !field.getKey().equals("message")
                     && field.getValue().isJsonPrimitive()) {
-                values.put(field.getKey(), primitive(field.getValue()));
+                values.put(field.getKey(), JsonValues.plain(field.getValue()));
             }
         }
         return CommandResult.success(message, values);
