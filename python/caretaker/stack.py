@@ -2,8 +2,15 @@
 
 The robot side (simulation, planner, AT server) and the rosbridge server run as separate OS
 processes, as they would in a deployment where the robot and the ground are apart. The stack
-starts them in dependency order, waits for each one's ``READY`` line, and stops them all when
-one of them dies or the operator presses Ctrl-C: it never leaves a half-running robot behind.
+starts them in dependency order and waits for each one's ``READY`` line.
+
+When a part dies, ``caretaker up`` restarts it, as a robot's process supervisor would: the AT
+server comes back with its instances (``--state-file`` in the stack's own folder), the planner
+and rosbridge come back empty, and a procedure carries on through its contingency steps. The
+simulation is the world itself: if it dies, or a part keeps dying (more than
+:data:`RESPAWN_LIMIT` times in :data:`RESPAWN_WINDOW_S`), everything stops, so the stack never
+leaves a half-running robot behind. ``caretaker demo`` restarts nothing: a demo that needed a
+restart has failed.
 """
 
 from __future__ import annotations
@@ -11,10 +18,13 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -52,6 +62,13 @@ SCENARIOS: dict[str, Scenario] = {
 }
 
 
+#: A part that dies more often than this within RESPAWN_WINDOW_S is not restarted again.
+RESPAWN_LIMIT = 3
+RESPAWN_WINDOW_S = 60.0
+#: The part that is the world: a new simulation is a new world, so it is never restarted.
+WORLD = "sim"
+
+
 class StackFailed(RuntimeError):
     """A part of the stack did not start, or died while running."""
 
@@ -73,20 +90,31 @@ class Stack:
         env: dict[str, str] | None = None,
         ready_timeout: float = 120.0,
         echo: bool = False,
+        respawn: bool = False,
     ) -> None:
+        """``respawn``: :meth:`supervise` restarts parts that die (all but the simulation)."""
         self.scenario = scenario
         self.env = dict(os.environ if env is None else env)
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self.ready_timeout = ready_timeout
         self.echo = echo
-        self.parts: list[tuple[str, tuple[str, ...]]] = [
-            ("sim", ("sim", "--scene", scenario.scene, "--time-scale", str(time_scale))),
-            ("planner", ("planner", "--robot", scenario.robot)),
-            ("at-server", ("at-server", "--robot", scenario.robot)),
-            ("bridge", ("bridge", "--address", bridge_address, "--port", str(bridge_port))),
-        ]
+        self.respawn = respawn
+        at_server = ("at-server", "--robot", scenario.robot)
+        if respawn:
+            # The stack's own folder: a new stack is a new world and must not restore old instances.
+            self.state_dir: Path | None = Path(tempfile.mkdtemp(prefix="caretaker-up-"))
+            at_server += ("--state-file", str(self.state_dir / "at_server.json"))
+        else:
+            self.state_dir = None
+        self.parts: dict[str, tuple[str, ...]] = {
+            WORLD: ("sim", "--scene", scenario.scene, "--time-scale", str(time_scale)),
+            "planner": ("planner", "--robot", scenario.robot),
+            "at-server": at_server,
+            "bridge": ("bridge", "--address", bridge_address, "--port", str(bridge_port)),
+        }
         self.processes: dict[str, ManagedProcess] = {}
         self.ready_lines: dict[str, str] = {}
+        self.restarts: dict[str, deque[float]] = {name: deque() for name in self.parts}
         self._exited = threading.Event()
 
     def _print_line(self, name: str, line: str) -> None:
@@ -100,36 +128,78 @@ class Stack:
             StackFailed: a part exited or did not become ready; everything started is stopped.
         """
         try:
-            for name, args in self.parts:
-                started = time.monotonic()
-                proc = caretaker(*args, env=self.env, name=name, on_line=self._print_line)
-                self.processes[name] = proc
-                threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
-                self.ready_lines[name] = proc.wait_ready(self.ready_timeout)
-                log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, self.ready_lines[name])
+            for name in self.parts:
+                self._start_part(name)
         except ProcessFailed as exc:
             self.stop()
             raise StackFailed(str(exc)) from None
+
+    def _start_part(self, name: str) -> None:
+        started = time.monotonic()
+        proc = caretaker(*self.parts[name], env=self.env, name=name, on_line=self._print_line)
+        self.processes[name] = proc
+        threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
+        self.ready_lines[name] = proc.wait_ready(self.ready_timeout)
+        log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, self.ready_lines[name])
 
     def _await_exit(self, proc: ManagedProcess) -> None:
         proc.proc.wait()
         self._exited.set()
 
-    def wait(self, timeout: float | None = None) -> str | None:
-        """Block until a part exits (its name is returned) or ``timeout`` passes (None)."""
-        if not self._exited.wait(timeout):
-            return None
-        return next((name for name, proc in self.processes.items() if not proc.running), None)
-
     def dead_parts(self) -> list[str]:
         """Names of the parts that are no longer running."""
         return [name for name, proc in self.processes.items() if not proc.running]
 
+    def supervise(self, stop: threading.Event) -> list[str]:
+        """Run until ``stop`` is set (returns []) or a part dies that is not restarted (returns
+        the dead parts). Call from the thread that started the stack: restarted children are
+        tied to the thread that starts them (see caretaker.processes).
+
+        ``stop`` must also set :meth:`wake`, so that a signal handler ends the wait at once.
+        """
+        while not stop.is_set():
+            self._exited.wait()
+            self._exited.clear()
+            if stop.is_set():
+                break
+            for name in self.dead_parts():
+                if not self._may_restart(name):
+                    return self.dead_parts()
+                code = self.processes[name].stop()
+                print(f"{name} died (exit {code}); restarting it", flush=True)
+                try:
+                    self._start_part(name)
+                except ProcessFailed as exc:
+                    print(f"{name} did not come back: {exc}", file=sys.stderr, flush=True)
+                    return self.dead_parts()
+                print(f"restarted {name}: {self.ready_lines[name]}", flush=True)
+        return []
+
+    def wake(self) -> None:
+        """End a :meth:`supervise` wait (from a signal handler)."""
+        self._exited.set()
+
+    def _may_restart(self, name: str) -> bool:
+        if not self.respawn or name == WORLD:
+            return False
+        now = time.monotonic()
+        recent = self.restarts[name]
+        while recent and now - recent[0] > RESPAWN_WINDOW_S:
+            recent.popleft()
+        if len(recent) >= RESPAWN_LIMIT:
+            print(f"{name} died {RESPAWN_LIMIT + 1} times within {RESPAWN_WINDOW_S:.0f} s: not restarting it again", file=sys.stderr)
+            return False
+        recent.append(now)
+        return True
+
     def stop(self) -> None:
-        """Stop every part, last started first. Idempotent."""
-        for name, proc in reversed(list(self.processes.items())):
-            code = proc.stop()
-            log.info("%s stopped (exit %s)", name, code)
+        """Stop every part, last started first, and remove the stack's folder. Idempotent."""
+        for name in reversed(list(self.parts)):
+            proc = self.processes.get(name)
+            if proc is not None:
+                log.info("%s stopped (exit %s)", name, proc.stop())
+        if self.state_dir is not None:
+            shutil.rmtree(self.state_dir, ignore_errors=True)
 
 
 def _parser(prog: str) -> argparse.ArgumentParser:
@@ -142,18 +212,16 @@ def _parser(prog: str) -> argparse.ArgumentParser:
 
 
 def _run_until_signal(stack: Stack) -> int:
-    """Wait for Ctrl-C/SIGTERM (exit 0) or for a part to die (exit 1), then stop the stack."""
+    """Supervise until Ctrl-C/SIGTERM (exit 0) or a part dies for good (exit 1), then stop the stack."""
     stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
 
-    def watch() -> None:
-        stack.wait()
+    def on_signal(*_: object) -> None:
         stop.set()
+        stack.wake()
 
-    threading.Thread(target=watch, name="stack-watch", daemon=True).start()
-    stop.wait()
-    dead = stack.dead_parts()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)
+    dead = stack.supervise(stop)
     stack.stop()
     if dead:
         for name in dead:
@@ -174,6 +242,7 @@ def up_main(argv: list[str] | None = None) -> int:
         bridge_address=args.bridge_address,
         bridge_port=args.bridge_port,
         echo=args.verbose,
+        respawn=True,
     )
     try:
         stack.start()

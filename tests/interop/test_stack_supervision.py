@@ -1,0 +1,76 @@
+"""``caretaker up`` supervises its parts: a dead AT server comes back with its instances, a dead
+simulation (the world) ends the stack, and nothing outlives it."""
+
+from __future__ import annotations
+
+import signal
+import socket
+from collections.abc import Iterator
+
+import psutil
+import pytest
+import roslibpy
+
+from support.processes import ManagedProcess, caretaker
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@pytest.fixture
+def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
+    port = _free_port()
+    up = caretaker("up", "--scene", "iva", "--time-scale", "0", "--bridge-port", str(port), env=ros_env, name="up")
+    try:
+        up.wait_for_line(r"^READY stack iva$", 180)
+        yield up, port
+    finally:
+        up.stop()
+
+
+def _part(up: ManagedProcess, subcommand: str) -> psutil.Process:
+    """The stack's child process running ``caretaker SUBCOMMAND``."""
+    children = psutil.Process(up.proc.pid).children(recursive=True)
+    matches = [c for c in children if subcommand in c.cmdline()]
+    assert len(matches) == 1, [c.cmdline() for c in children]
+    return matches[0]
+
+
+def _call(port: int, service: str, service_type: str, args: dict) -> dict:
+    ros = roslibpy.Ros(host="127.0.0.1", port=port)
+    ros.run(30)
+    try:
+        return roslibpy.Service(ros, service, service_type).call(roslibpy.ServiceRequest(args), timeout=30)
+    finally:
+        ros.close()
+
+
+def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
+    up, port = stack
+    added = _call(port, "/affordance_template_server/add_template", "affordance_template_msgs/srv/AddAffordanceTemplate",
+                  {"class_type": "cdra_filter"})
+    assert added["success"], added
+    old = _part(up, "at-server")
+    old.send_signal(signal.SIGKILL)
+    up.wait_for_line(r"^at-server died \(exit -9\); restarting it$", 30)
+    up.wait_for_line(r"^restarted at-server: READY at-server ur10$", 120)
+    assert _part(up, "at-server").pid != old.pid
+    running = _call(port, "/affordance_template_server/get_running",
+                    "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    assert added["instance"] in running["templates"]
+    assert up.running
+
+
+def test_a_dead_simulation_ends_the_stack_and_every_part(stack) -> None:
+    up, _ = stack
+    parts = psutil.Process(up.proc.pid).children(recursive=True)
+    _part(up, "sim").send_signal(signal.SIGKILL)
+    assert up.proc.wait(timeout=60) == 1
+    assert "caretaker up: sim died" in up.tail()
+    _, alive = psutil.wait_procs(parts, timeout=30)
+    assert not alive, [p.cmdline() for p in alive]
