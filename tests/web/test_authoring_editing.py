@@ -57,6 +57,20 @@ def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, ser
     expect(alice.locator("#check-state")).to_have_text("lint: no problems")
 
 
+def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, server) -> None:
+    alice = tall_page(sign_in)
+    alice.goto(f"{server.url}/author")
+    open_procedure(alice, "eva_inspection.xml")
+    assert xml(alice).index('id="hull_a"') < xml(alice).index('id="hull_b"')
+    alice.drag_and_drop('#canvas .canvas-step[data-step="2"] .handle', '#canvas .step-drop[data-step-index="1"]')
+    expect(alice.locator('#canvas .canvas-step[data-step="1"] .step-id')).to_have_value("hull_b")
+    expect(alice.locator('#canvas .canvas-step[data-step="2"] .step-id')).to_have_value("hull_a")
+    expect(card(alice, "2.1").locator('.arg[data-arg="target"] .arg-value')).to_have_value("hull_b")
+    expect(alice.locator("#check-state")).to_have_text("lint: no problems")
+    after = xml(alice)
+    assert after.index('id="hull_b"') < after.index('id="hull_a"') < after.index('id="hull_c"')
+
+
 def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_be_edited(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")

@@ -52,20 +52,28 @@ function element(tag, className, text) {
 }
 
 // ---- palette ---------------------------------------------------------------------------------
-function paletteItem(text, spec, detail) {
-  const item = element("li", "palette-item", text);
-  item.draggable = true;
-  item.dataset.spec = JSON.stringify(spec);
-  if (detail) item.append(element("div", "args", detail));
-  item.addEventListener("dragstart", (event) => {
+// What can be dragged, and what each drop zone takes.
+const NEW_ITEM = "application/x-caretaker-item";  // a palette entry: the spec of a new item
+const MOVE_ITEM = "application/x-caretaker-move";  // a card dragged to another place: {step, index}
+const MOVE_STEP = "application/x-caretaker-step";  // a step dragged by its handle: its index
+
+function dragSource(node, type, data, effect) {
+  node.draggable = true;
+  node.addEventListener("dragstart", (event) => {
     author.dragging = true;  // the canvas must not be redrawn under a drag: its drop zones would go
-    event.dataTransfer.setData("application/x-caretaker-item", item.dataset.spec);
-    event.dataTransfer.effectAllowed = "copy";
+    event.dataTransfer.setData(type, JSON.stringify(data));
+    event.dataTransfer.effectAllowed = effect;
   });
-  item.addEventListener("dragend", () => {
+  node.addEventListener("dragend", () => {
     author.dragging = false;
     render();
   });
+}
+
+function paletteItem(text, spec, detail) {
+  const item = element("li", "palette-item", text);
+  if (detail) item.append(element("div", "args", detail));
+  dragSource(item, NEW_ITEM, spec, "copy");
   return item;
 }
 
@@ -123,29 +131,48 @@ function commandOf(system, name) {
 }
 
 // ---- canvas ----------------------------------------------------------------------------------
-const MOVE = "application/x-caretaker-move";  // a card dragged to another place: {step, index}
-
-function dropZone(stepIndex, itemIndex) {
-  const zone = element("div", "drop");
-  zone.dataset.step = stepIndex;
-  zone.dataset.index = itemIndex;
-  zone.addEventListener("dragover", (event) => { event.preventDefault(); zone.classList.add("over"); });
+// A place to drop on: ``handlers`` maps each accepted drag type to what the drop does with its data.
+function dropTarget(zone, handlers) {
+  const accepts = (event) => Object.keys(handlers).some((type) => event.dataTransfer.types.includes(type));
+  zone.addEventListener("dragover", (event) => {
+    if (!accepts(event)) return;
+    event.preventDefault();
+    zone.classList.add("over");
+  });
   zone.addEventListener("dragleave", () => zone.classList.remove("over"));
   zone.addEventListener("drop", (event) => {
     event.preventDefault();
     author.dragging = false;
     zone.classList.remove("over");
-    const from = JSON.parse(event.dataTransfer.getData(MOVE) || "null");
-    if (from) {
-      moveItem(from, stepIndex, itemIndex);
-      return;
+    for (const [type, handle] of Object.entries(handlers)) {
+      const data = event.dataTransfer.getData(type);
+      if (data) {
+        handle(JSON.parse(data));
+        return;
+      }
     }
-    const spec = JSON.parse(event.dataTransfer.getData("application/x-caretaker-item") || "null");
-    if (!spec) return;
-    author.doc.steps[stepIndex].items.splice(itemIndex, 0, newItem(spec));
-    changed();
   });
   return zone;
+}
+
+function dropZone(stepIndex, itemIndex) {
+  const zone = element("div", "drop");
+  zone.dataset.step = stepIndex;
+  zone.dataset.index = itemIndex;
+  const items = () => author.doc.steps[stepIndex].items;
+  return dropTarget(zone, {
+    [MOVE_ITEM]: (from) => relocate(author.doc.steps[from.step].items, from.index, items(), itemIndex),
+    [NEW_ITEM]: (spec) => {
+      items().splice(itemIndex, 0, newItem(spec));
+      changed();
+    },
+  });
+}
+
+function stepDropZone(stepIndex) {
+  const zone = element("li", "drop step-drop");
+  zone.dataset.stepIndex = stepIndex;
+  return dropTarget(zone, {[MOVE_STEP]: (from) => relocate(author.doc.steps, from, author.doc.steps, stepIndex)});
 }
 
 function numbers() {
@@ -172,11 +199,14 @@ function scope(stepIndex, itemIndex) {
 function renderCanvas() {
   const canvas = $("canvas");
   const numbering = numbers();
-  canvas.replaceChildren(...author.doc.steps.map((step, s) => {
+  canvas.replaceChildren(stepDropZone(0), ...author.doc.steps.flatMap((step, s) => {
     const box = element("li", "canvas-step");
     box.dataset.step = s;
     const header = element("header");
-    header.append(element("span", "number", `${s + 1}.`),
+    const handle = element("span", "handle", "⠿");
+    handle.title = "drag to move the step";
+    dragSource(handle, MOVE_STEP, s, "move");
+    header.append(handle, element("span", "number", `${s + 1}.`),
       input("step title", step.attrs.title || "", (v) => { step.attrs.title = v; }, "step-title"),
       input("step id", step.attrs.id || "", (v) => { step.attrs.id = v; }, "step-id"),
       button("↑", "move step up", () => move(author.doc.steps, s, -1)),
@@ -184,7 +214,7 @@ function renderCanvas() {
       button("✕", "delete step", () => { author.doc.steps.splice(s, 1); changed(); }));
     box.append(header, ...problemsAt(s, -1), dropZone(s, 0));
     step.items.forEach((item, i) => box.append(card(item, s, i, numbering[s][i]), dropZone(s, i + 1)));
-    return box;
+    return [box, stepDropZone(s + 1)];
   }));
 }
 
@@ -217,11 +247,11 @@ function button(text, title, onClick) {
   return node;
 }
 
-function moveItem(from, toStep, toIndex) {
-  const [item] = author.doc.steps[from.step].items.splice(from.index, 1);
-  // taking the card out shifts the places after it in its own step
-  const index = from.step === toStep && from.index < toIndex ? toIndex - 1 : toIndex;
-  author.doc.steps[toStep].items.splice(index, 0, item);
+// Move entry ``fromIndex`` of ``fromList`` to place ``toIndex`` of ``toList`` (places counted before the move).
+function relocate(fromList, fromIndex, toList, toIndex) {
+  const [entry] = fromList.splice(fromIndex, 1);
+  // taking the entry out shifts the places after it in its own list
+  toList.splice(fromList === toList && fromIndex < toIndex ? toIndex - 1 : toIndex, 0, entry);
   changed();
 }
 
@@ -244,17 +274,8 @@ function card(item, s, i, number) {
     button("↑", "move up", () => move(author.doc.steps[s].items, i, -1)),
     button("↓", "move down", () => move(author.doc.steps[s].items, i, 1)),
     button("✕", "delete", () => { author.doc.steps[s].items.splice(i, 1); changed(); }));
-  header.draggable = true;  // the header is the handle: the fields stay selectable
-  header.title = "drag to move";
-  header.addEventListener("dragstart", (event) => {
-    author.dragging = true;
-    event.dataTransfer.setData(MOVE, JSON.stringify({step: s, index: i}));
-    event.dataTransfer.effectAllowed = "move";
-  });
-  header.addEventListener("dragend", () => {
-    author.dragging = false;
-    render();
-  });
+  header.title = "drag to move";  // the header is the handle: the fields stay selectable
+  dragSource(header, MOVE_ITEM, {step: s, index: i}, "move");
   const fields = element("div", "fields");
   const info = KINDS[item.kind];
   for (const name of info.attrs) {
