@@ -510,8 +510,12 @@ class AffordanceTemplateServer(Node):
             except Exception as exc:  # whatever stopped the robot, the status must not stay EXECUTING
                 self._set_state(execute_status=ServerStatus.EXECUTE_FAILED)
                 reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)
-                self._save_instances(f"{instance.key} reached waypoint {progress.current_index} of {trajectory!r}")
-                raise CommandRefused(f"executing {trajectory!r} of {instance.key} failed: {reason}") from exc
+                failure = f"executing {trajectory!r} of {instance.key} failed: {reason}"
+                try:
+                    self._save_instances(f"{instance.key} reached waypoint {progress.current_index} of {trajectory!r}")
+                except CommandRefused as unsaved:
+                    failure += f"; {unsaved}"
+                raise CommandRefused(failure) from exc
             progress.execution_valid = True
             self._set_state(execute_status=ServerStatus.EXECUTE_SUCCEEDED)
             done = f"executed {trajectory!r} of {instance.key}: waypoints {plan.indices}"
