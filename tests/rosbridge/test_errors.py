@@ -89,6 +89,16 @@ def test_fragmented_request_is_reassembled(raw: RawClient) -> None:
     assert answer["id"] == "frag" and answer["values"]["success"] is True
 
 
+def test_websocket_fragmented_message_keeps_its_place_in_order(raw: RawClient) -> None:
+    # One message in three WebSocket frames, then one in a single frame (which the bridge can
+    # handle as soon as it is parsed): both are answered in the order they were sent.
+    text = json.dumps({"op": "teleport", "id": "first"})
+    raw.connection.send([text[:7], text[7:15], text[15:]])
+    raw.send({"op": "teleport", "id": "second"})
+    raw.send({"op": "teleport", "id": "third"})
+    assert [raw.receive_op("status")["id"] for _ in range(3)] == ["first", "second", "third"]
+
+
 def test_subscription_with_fragment_size_sends_fragments(raw: RawClient) -> None:
     raw.send({"op": "subscribe", "topic": "/peer/latched", "fragment_size": 16, "id": "s1"})
     fragments = [raw.receive_op("fragment")]

@@ -29,6 +29,15 @@ def test_latched_topic_delivers_last_value_without_a_type(connect) -> None:
     assert inbox.wait_for(1)[0] == {"data": "latched value"}
 
 
+def test_latched_value_reaches_a_client_subscribing_after_it_arrived(connect) -> None:
+    first, late = Inbox(), Inbox()
+    roslibpy.Topic(connect(), "/peer/latched", "std_msgs/String").subscribe(first)
+    assert first.wait_for(1)[0] == {"data": "latched value"}
+    # the bridge's ROS subscription exists and has taken the value: the late client still gets it
+    roslibpy.Topic(connect(), "/peer/latched", "std_msgs/String").subscribe(late)
+    assert late.wait_for(1)[0] == {"data": "latched value"}
+
+
 def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect) -> None:
     client = connect()
     inbox = Inbox()

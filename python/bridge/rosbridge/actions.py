@@ -55,7 +55,9 @@ class Actions:
         self.ros = ros
         self.allow = allow
         self._clients: dict[tuple[str, str], ActionClient] = {}
-        self._goals: dict[tuple[int, Any], Any] = {}  # (session, client goal id) -> goal handle
+        # (session, client goal id) -> goal handle, or None until the server accepted the goal
+        self._goals: dict[tuple[int, Any], Any] = {}
+        self._early_cancels: set[tuple[int, Any]] = set()  # cancelled before the server accepted
         self.provided: dict[str, ProvidedAction] = {}
 
     def operations(self) -> dict[str, Callable[[Session, dict[str, Any]], Any]]:
@@ -93,25 +95,34 @@ class Actions:
             def feedback_callback(feedback: Any) -> None:
                 values = message_to_dict(feedback.feedback)
                 self.ros.deliver(session.send, {"op": p.OP_ACTION_FEEDBACK, **reply, "values": values})
-        handle = await self.ros.wrap(client.send_goal_async(goal, feedback_callback=feedback_callback))
-        if not handle.accepted:
-            raise ActionFailed(f"the action server of {action} rejected the goal")
         key = (session.number, goal_id)
-        self._goals[key] = handle
+        self._goals[key] = None
         try:
+            # Feedback may reach the client before the acceptance reaches the bridge, so a cancel
+            # can arrive before the handle: it is kept and sent once the goal is accepted.
+            handle = await self.ros.wrap(client.send_goal_async(goal, feedback_callback=feedback_callback))
+            if not handle.accepted:
+                raise ActionFailed(f"the action server of {action} rejected the goal")
+            self._goals[key] = handle
+            if key in self._early_cancels:
+                handle.cancel_goal_async()
             outcome = await self.ros.wrap(handle.get_result_async())
         finally:
             self._goals.pop(key, None)
+            self._early_cancels.discard(key)
         session.send({"op": p.OP_ACTION_RESULT, **reply, "values": message_to_dict(outcome.result),
                       "status": outcome.status, "result": outcome.status == p.GOAL_STATUS_SUCCEEDED})
 
     def _cancel_goal(self, session: Session, message: dict[str, Any]) -> None:
         self._action(message)
         goal_id = require(message, "id", (str, int))
-        handle = self._goals.get((session.number, goal_id))
-        if handle is None:
+        key = (session.number, goal_id)
+        if key not in self._goals:
             raise InvalidField(f"no running goal with id {goal_id!r} from this client")
-        handle.cancel_goal_async()  # the goal's action_result then reports CANCELED
+        if self._goals[key] is None:
+            self._early_cancels.add(key)
+        else:
+            self._goals[key].cancel_goal_async()  # the goal's action_result then reports CANCELED
 
     # --- clients serving actions ---------------------------------------------------------------
     def _advertise(self, session: Session, message: dict[str, Any]) -> None:

@@ -85,6 +85,9 @@ class Bridge:
             self.handle(session, message)
         except BridgeError as exc:
             self.answer_failure(session, message, exc)
+        except Exception as exc:  # a bug must not cost the client its connection, nor go unanswered
+            log.exception("op %s failed", message.get("op") if isinstance(message, dict) else None)
+            self.answer_failure(session, message, BridgeError(f"internal error: {exc}"))
 
     def handle(self, session: Session, message: Any) -> None:
         """Handle one parsed message (raises BridgeError for the caller to answer)."""

@@ -11,16 +11,20 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import json
 import logging
 import os
 import signal
 import ssl
 import sys
+from collections.abc import Callable
 from typing import Any
 
+import uvloop
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
+from websockets.frames import DATA_OPCODES, Frame, Opcode
 
 from .actions import Actions
 from .operations import Bridge, Policy
@@ -62,6 +66,42 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
+class BridgeConnection(ServerConnection):
+    """A WebSocket connection that hands complete text messages to the bridge as they are parsed.
+
+    websockets passes each message to the handler task through a queue and a task wake-up,
+    which cost about 30 µs of CPU per message on this machine (10 % of the bridge's CPU in a
+    one-message round trip).  Once a session is
+    open (:attr:`on_text` set), a text message in one frame is handled right in
+    ``data_received``.  Anything else (binary or fragmented messages, and every message while
+    earlier ones still wait in the queue) takes the queue, so messages keep their order.
+    """
+
+    on_text: Callable[[str], None] | None = None
+    _queued = 0  # messages put in the queue and not yet read by the handler (see message_read)
+    _fragmented = False  # the queue holds the first frames of a fragmented message
+
+    def process_event(self, event: Any) -> None:
+        if (self.on_text is not None and isinstance(event, Frame) and event.opcode is Opcode.TEXT and event.fin
+                and not self._queued and not self._fragmented):
+            try:
+                text = event.data.decode()
+            except UnicodeDecodeError:
+                pass  # the queue's reader closes the connection with 1007, as websockets does
+            else:
+                self.on_text(text)
+                return
+        if isinstance(event, Frame) and event.opcode in DATA_OPCODES:
+            self._fragmented = not event.fin
+            if event.fin:
+                self._queued += 1
+        super().process_event(event)
+
+    def message_read(self) -> None:
+        """The handler took one message from the queue."""
+        self._queued -= 1
+
+
 class RosbridgeServer:
     """The WebSocket side: accepts connections and runs one :class:`Session` per client."""
 
@@ -70,20 +110,26 @@ class RosbridgeServer:
         self.auth_secret = auth_secret
         self.sessions: set[Session] = set()
 
-    async def connection(self, websocket: ServerConnection) -> None:
+    async def connection(self, websocket: BridgeConnection) -> None:
         session = Session(websocket, authenticated=self.auth_secret is None)
         self.sessions.add(session)
         log.info("client %d connected from %s (%d connected)", session.number, session.peer, len(self.sessions))
+        handle = functools.partial(self.bridge.handle_frame, session)
         try:
+            if session.state is SessionState.OPEN:
+                websocket.on_text = handle
             async for frame in websocket:
+                websocket.message_read()
                 if session.state is SessionState.AUTHENTICATING:
                     if not await self._authenticate(session, frame):
                         break
+                    websocket.on_text = handle
                     continue
-                self.bridge.handle_frame(session, frame)
+                handle(frame)
         except ConnectionClosed:
             pass
         finally:
+            websocket.on_text = None
             session.mark_closed()
             self.sessions.discard(session)
             self.bridge.drop_session(session)
@@ -123,7 +169,8 @@ async def run(args: argparse.Namespace) -> int:
         bridge = Bridge(topics, services, Actions(ros, policy.actions), policy)
         server = RosbridgeServer(bridge, secret)
         async with serve(server.connection, args.address, args.port, ssl=tls, max_size=args.max_message_size,
-                         compression=None, ping_interval=20, ping_timeout=30) as ws_server:
+                         compression=None, ping_interval=20, ping_timeout=30,
+                         create_connection=BridgeConnection) as ws_server:
             port = ws_server.sockets[0].getsockname()[1]
             # rosbridge's own launch tests read the bound port from this parameter
             ros.node.declare_parameter("actual_port", port)
@@ -152,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     try:
-        return asyncio.run(run(args))
+        with asyncio.Runner(loop_factory=uvloop.new_event_loop) as runner:
+            return runner.run(run(args))
     except KeyboardInterrupt:
         return 0
 

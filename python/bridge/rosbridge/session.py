@@ -14,6 +14,7 @@ import enum
 import itertools
 import json
 import logging
+import struct
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any, Union
@@ -35,6 +36,9 @@ DEFAULT_QUEUE_LENGTH = 1000
 """Backlog per subscription when the client gives no ``queue_length`` (or 0)."""
 
 _session_numbers = itertools.count(1)
+_FIN_TEXT = 0x81  # FIN bit and the text opcode
+_HEADER_16 = struct.Struct("!BBH")
+_HEADER_64 = struct.Struct("!BBQ")
 
 
 class SessionState(enum.Enum):
@@ -112,7 +116,8 @@ class Session:
 
     def _write_directly(self, frame: Frame) -> bool:
         """Write ``frame`` at once if nothing waits before it and the socket keeps up; this saves
-        the writer task's loop turn on every frame of a client that reads promptly."""
+        the writer task's loop turn on every frame of a client that reads promptly.  A text
+        frame is framed here (:func:`_text_frame`), not by websockets' per-frame Python."""
         if not self._writer_idle or self._wake.is_set():
             return False
         websocket = self.websocket
@@ -120,8 +125,13 @@ class Session:
         if (websocket.protocol.state is not State.OPEN or transport is None or transport.is_closing()
                 or transport.get_write_buffer_size() > DIRECT_WRITE_LIMIT):
             return False
-        _emit(websocket.protocol, frame)
-        websocket.send_data()
+        if isinstance(frame, str):
+            if websocket.protocol.writes:  # something websockets queued goes first (a pong)
+                websocket.send_data()
+            transport.write(_text_frame(frame))
+        else:
+            _emit(websocket.protocol, frame)
+            websocket.send_data()
         return True
 
     def forget_queue(self, key: object) -> None:
@@ -170,7 +180,7 @@ class Session:
                         return
                     for frame in batch:
                         _emit(protocol, frame)
-                    websocket.send_data()
+                    _send_pending(websocket)
                     await websocket.drain()
         except Exception as exc:  # the connection is gone; the reader side cleans up
             log.debug("session %d writer stopped: %s", self.number, exc)
@@ -205,12 +215,33 @@ class Session:
         self._wake.set()
 
 
+def _text_frame(text: str) -> bytes:
+    """``text`` as one unmasked, uncompressed WebSocket text frame (RFC 6455 5.2), what websockets'
+    ``send_text`` makes on this server (no extensions) in a tenth of the Python calls."""
+    payload = text.encode()
+    size = len(payload)
+    if size < 126:
+        return bytes((_FIN_TEXT, size)) + payload
+    if size < 1 << 16:
+        return _HEADER_16.pack(_FIN_TEXT, 126, size) + payload
+    return _HEADER_64.pack(_FIN_TEXT, 127, size) + payload
+
+
 def _emit(protocol: Any, frame: Frame) -> None:
     for part in frame if isinstance(frame, list) else (frame,):
         if isinstance(part, str):
             protocol.send_text(part.encode())
         else:
             protocol.send_binary(part)
+
+
+def _send_pending(websocket: Any) -> None:
+    """Write the frames the protocol holds (a writer batch) with one ``writelines``, a single
+    ``writev`` on uvloop: websockets' ``send_data`` writes each frame on its own."""
+    if websocket.protocol.state is State.OPEN:  # so no end-of-stream marker is among them
+        websocket.transport.writelines(websocket.protocol.data_to_send())
+    else:
+        websocket.send_data()
 
 
 def _extend(batch: list[str | bytes], frame: Frame) -> None:

@@ -1,7 +1,8 @@
 """Topics: advertise/unadvertise/publish and subscribe/unsubscribe, shared ROS entities.
 
-One ROS publisher and one ROS subscription exist per topic, shared by all clients using it.
-Each ROS message is converted and JSON-encoded once (on the ROS thread) and the same frame is
+One ROS publisher and one ROS subscription exist per topic, shared by all clients using it,
+on :attr:`RosThread.topic_node`.  Messages are taken on the event loop
+(:meth:`RosThread.take_on_loop`); each is converted and JSON-encoded once and the same frame is
 fanned out to every subscribed client's bounded queue (:mod:`.session`).  ROS subscriptions
 use a deep queue (:data:`SUBSCRIPTION_DEPTH`), because the usual depth 10 loses messages as
 soon as a few dozen are in flight.
@@ -10,18 +11,18 @@ soon as a few dozen are in flight.
 from __future__ import annotations
 
 import asyncio
-import json
 import logging
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import orjson
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from . import compression as codecs
 from .conversion import dict_to_message, load_type, message_to_dict, type_name
 from .protocol import COMPRESSION_NONE, InvalidField, OP_PUBLISH, TopicNotEstablished, TypeConflict
-from .ros_thread import RosThread
+from .ros_thread import LoopSubscription, RosThread
 from .session import Session
 
 log = logging.getLogger(__name__)
@@ -48,7 +49,9 @@ class EncodedMessage:
         frame = self._frames.get(compression)
         if frame is None:
             if compression == COMPRESSION_NONE:
-                frame = json.dumps({"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}, separators=(",", ":"))
+                # orjson: 10x faster than json for small messages, 25x for 64 KiB strings; the
+                # dict holds only JSON types with NaN/Inf already None (message_to_dict).
+                frame = orjson.dumps({"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}).decode()
             else:
                 frame = codecs.encode_publish(compression, self.topic, self.message, self.frame(COMPRESSION_NONE))
             self._frames[compression] = frame
@@ -75,7 +78,11 @@ class TopicFeed:
     topic: str
     msg_cls: Any
     subscription: Any = None
+    taker: LoopSubscription | None = None
     clients: dict[tuple[int, Any], ClientSubscription] = field(default_factory=dict)
+    latched: bool = False
+    """The publishers are transient-local: a client subscribing later gets the last message."""
+    last: EncodedMessage | None = None
 
 
 @dataclass
@@ -93,7 +100,7 @@ class Topics:
 
     def __init__(self, ros: RosThread) -> None:
         self.ros = ros
-        self.node = ros.node
+        self.node = ros.topic_node
         self.feeds: dict[str, TopicFeed] = {}
         self.publishers: dict[str, TopicPublisher] = {}
 
@@ -168,11 +175,15 @@ class Topics:
         cls = self.resolve_type(topic, type_name_)
         feed = self.feeds.get(topic)
         if feed is None:
-            feed = self.feeds[topic] = TopicFeed(topic, cls)
-            feed.subscription = self.node.create_subscription(
-                cls, topic, lambda message, feed=feed: self._ros_callback(feed, message), self._subscription_qos(topic))
-        feed.clients[(session.number, sub_id)] = ClientSubscription(
+            qos = self._subscription_qos(topic)
+            feed = self.feeds[topic] = TopicFeed(topic, cls, latched=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL)
+            # The callback is never called: no executor spins topic_node; the loop takes messages.
+            feed.subscription = self.node.create_subscription(cls, topic, _never_called, qos)
+            feed.taker = self.ros.take_on_loop(feed.subscription, lambda message, feed=feed: self._fan_out(feed, message))
+        client = feed.clients[(session.number, sub_id)] = ClientSubscription(
             session, sub_id, throttle_ms / 1000.0, queue_length, fragment_size, compression)
+        if feed.last is not None:  # what ROS would replay to a new transient-local subscription
+            self._send(feed, client, feed.last)
 
     def unsubscribe(self, session: Session, topic: str, sub_id: Any) -> None:
         feed = self.feeds.get(topic)
@@ -184,6 +195,8 @@ class Topics:
             session.forget_queue((topic, key[1]))
         if not feed.clients:
             del self.feeds[topic]
+            if feed.taker is not None:
+                feed.taker.close()
             self.node.destroy_subscription(feed.subscription)
 
     def _subscription_qos(self, topic: str) -> QoSProfile:
@@ -195,29 +208,28 @@ class Topics:
             qos.reliability = ReliabilityPolicy.BEST_EFFORT
         return qos
 
-    def _ros_callback(self, feed: TopicFeed, message: Any) -> None:
-        # ROS thread: convert and encode here, once, then hand the frame to the event loop.
+    def _fan_out(self, feed: TopicFeed, message: Any) -> None:
         try:
             encoded = EncodedMessage(feed.topic, message)
-            if any(c.compression == COMPRESSION_NONE for c in list(feed.clients.values())):
-                encoded.frame(COMPRESSION_NONE)
         except Exception:
-            log.exception("cannot encode a message on %s", feed.topic)
+            log.exception("cannot convert a message on %s", feed.topic)
             return
-        self.ros.deliver(self._fan_out, feed, encoded)
-
-    def _fan_out(self, feed: TopicFeed, encoded: EncodedMessage) -> None:
+        if feed.latched:
+            feed.last = encoded
         now = time.monotonic()
         for client in list(feed.clients.values()):
             if client.throttle_s and now - client.last_sent < client.throttle_s:
                 continue
             client.last_sent = now
-            try:
-                frame = encoded.frame(client.compression)
-            except Exception as exc:
-                client.session.status("error", f"cannot encode {feed.topic} as {client.compression}: {exc}", client.sub_id)
-                continue
-            client.session.send_topic_frame((feed.topic, client.sub_id), frame, client.queue_length, client.fragment_size)
+            self._send(feed, client, encoded)
+
+    def _send(self, feed: TopicFeed, client: ClientSubscription, encoded: EncodedMessage) -> None:
+        try:
+            frame = encoded.frame(client.compression)
+        except Exception as exc:
+            client.session.status("error", f"cannot encode {feed.topic} as {client.compression}: {exc}", client.sub_id)
+            return
+        client.session.send_topic_frame((feed.topic, client.sub_id), frame, client.queue_length, client.fragment_size)
 
     # --- connection end ------------------------------------------------------------------------
     def drop_session(self, session: Session) -> None:
@@ -230,6 +242,10 @@ class Topics:
             entry.users = {u for u in entry.users if u[0] != session.number}
             if len(entry.users) != before:
                 self._release_publisher_later(topic)
+
+
+def _never_called(message: Any) -> None:
+    raise AssertionError("topic_node has no executor")
 
 
 _IMPLICIT = "implicit publish"
