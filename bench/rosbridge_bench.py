@@ -39,6 +39,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 VENV = REPO / ".venv"
 IN_FLIGHT = 32
+WARM_UP = 200  # unrecorded round trips per server before measuring
 SIZES = {"64 B": 64, "1 KiB": 1024, "64 KiB": 65536}
 FANOUT_CLIENTS = (1, 10, 50)
 FANOUT_HZ = 100
@@ -345,7 +346,8 @@ async def fan_out(port: int, name: str, clients: int, count: int) -> dict[str, f
 
 
 async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Results]:
-    """Each measurement runs on every server in turn, so load from elsewhere hits both alike."""
+    """Each measurement runs on every server in turn, so load from elsewhere hits both alike;
+    which server goes first alternates from one measurement to the next."""
     import psutil
 
     results = {name: Results(name) for name in servers}
@@ -361,8 +363,13 @@ async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Resu
     for clients in FANOUT_CLIENTS:
         steps.append((f"fan-out {FANOUT_HZ} Hz to {clients}",
                       lambda name, port, clients=clients: fan_out(port, name, clients, fanout_count(quick))))
-    for label, step in steps:
-        for name, (port, _) in servers.items():
+    # Warm both paths through the echo node first (unrecorded): the first server measured
+    # would otherwise meet a cold echo node alone. Then each step alternates which server goes first.
+    for name in servers:
+        await round_trips(sockets[name], name, 64, WARM_UP, IN_FLIGHT)
+    for index, (label, step) in enumerate(steps):
+        order = list(servers.items())
+        for name, (port, _) in order[::-1] if index % 2 else order:
             print(f"  {label}: {name}", file=sys.stderr, flush=True)
             results[name].figures[label] = await step(name, port)
     for name, (_, pid) in servers.items():
