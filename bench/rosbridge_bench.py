@@ -40,6 +40,7 @@ REPO = Path(__file__).resolve().parents[1]
 VENV = REPO / ".venv"
 IN_FLIGHT = 32
 WARM_UP = 200  # unrecorded round trips per server before measuring
+ROUNDS = 5  # rounds of each echo measurement (alternating which server goes first)
 SIZES = {"64 B": 64, "1 KiB": 1024, "64 KiB": 65536}
 FANOUT_CLIENTS = (1, 10, 50)
 FANOUT_HZ = 100
@@ -346,32 +347,44 @@ async def fan_out(port: int, name: str, clients: int, count: int) -> dict[str, f
 
 
 async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Results]:
-    """Each measurement runs on every server in turn, so load from elsewhere hits both alike;
-    which server goes first alternates from one measurement to the next."""
+    """Each measurement runs on every server in turn, so load from elsewhere hits both alike.
+
+    The echo measurements, about a second each, run in ROUNDS rounds, and which server goes
+    first alternates from round to round (and from one measurement to the next): a figure is
+    the median over the rounds (the mean for losses), so one noisy second decides nothing.
+    """
     import psutil
 
     results = {name: Results(name) for name in servers}
     scale = 4 if quick else 1
+    rounds = 2 if quick else ROUNDS
     sockets = {name: await echo_setup(port, name) for name, (port, _) in servers.items()}
-    steps: list[tuple[str, Any]] = []
+    steps: list[tuple[str, int, Any]] = []
     for label, size in SIZES.items():
         count = (4000 if size <= 1024 else 1000) // scale
-        steps.append((f"echo {label}, {IN_FLIGHT} in flight",
+        steps.append((f"echo {label}, {IN_FLIGHT} in flight", rounds,
                       lambda name, port, size=size, count=count: round_trips(sockets[name], name, size, count, IN_FLIGHT)))
-    steps.append(("rtt 64 B, 1 in flight", lambda name, port: round_trips(sockets[name], name, 64, 1000 // scale, 1)))
-    steps.append((f"services, {IN_FLIGHT} in flight", lambda name, port: service_calls(port, name, 4000 // scale, IN_FLIGHT)))
+    steps.append(("rtt 64 B, 1 in flight", rounds, lambda name, port: round_trips(sockets[name], name, 64, 1000 // scale, 1)))
+    steps.append((f"services, {IN_FLIGHT} in flight", 1, lambda name, port: service_calls(port, name, 4000 // scale, IN_FLIGHT)))
     for clients in FANOUT_CLIENTS:
-        steps.append((f"fan-out {FANOUT_HZ} Hz to {clients}",
+        steps.append((f"fan-out {FANOUT_HZ} Hz to {clients}", 1,
                       lambda name, port, clients=clients: fan_out(port, name, clients, fanout_count(quick))))
     # Warm both paths through the echo node first (unrecorded): the first server measured
-    # would otherwise meet a cold echo node alone. Then each step alternates which server goes first.
+    # would otherwise meet a cold echo node alone.
     for name in servers:
         await round_trips(sockets[name], name, 64, WARM_UP, IN_FLIGHT)
-    for index, (label, step) in enumerate(steps):
-        order = list(servers.items())
-        for name, (port, _) in order[::-1] if index % 2 else order:
-            print(f"  {label}: {name}", file=sys.stderr, flush=True)
-            results[name].figures[label] = await step(name, port)
+    turn = 0
+    for label, step_rounds, step in steps:
+        runs: dict[str, list[dict[str, float]]] = {name: [] for name in servers}
+        for _ in range(step_rounds):
+            order = list(servers.items())
+            for name, (port, _) in order[::-1] if turn % 2 else order:
+                print(f"  {label}: {name}", file=sys.stderr, flush=True)
+                runs[name].append(await step(name, port))
+            turn += 1
+        for name, figures in runs.items():
+            results[name].figures[label] = {key: (statistics.mean if key.startswith("lost") else statistics.median)(
+                [f[key] for f in figures]) for key in figures[0]}
     for name, (_, pid) in servers.items():
         results[name].figures["rss_mib"] = psutil.Process(pid).memory_info().rss / 2**20
         await sockets[name].close()
