@@ -50,6 +50,23 @@ def _call(port: int, service: str, service_type: str, args: dict) -> dict:
         ros.close()
 
 
+def _call_until_answered(port: int, service: str, service_type: str, args: dict, attempts: int = 6) -> tuple[dict | None, list[str]]:
+    """Call until the service answers; the failures before that.
+
+    A request sent in the first moments after a server restarts can be lost in DDS: the dead
+    server's endpoints stay in the graph until their lease runs out, so the service looks
+    available before the new server has matched the bridge's request writer. The bridge answers
+    such a call with a timeout failure (after its default 10 s), never with silence or success.
+    """
+    failures: list[str] = []
+    for _ in range(attempts):
+        try:
+            return _call(port, service, service_type, args), failures
+        except roslibpy.core.ServiceException as exc:
+            failures.append(str(exc))
+    return None, failures
+
+
 def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
     up, port = stack
     added = _call(port, "/affordance_template_server/add_template", "affordance_template_msgs/srv/AddAffordanceTemplate",
@@ -60,8 +77,10 @@ def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
     up.wait_for_line(r"^at-server died \(exit -9\); restarting it$", 30)
     up.wait_for_line(r"^restarted at-server: READY at-server ur10$", 120)
     assert _part(up, "at-server").pid != old.pid
-    running = _call(port, "/affordance_template_server/get_running",
-                    "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    running, failures = _call_until_answered(port, "/affordance_template_server/get_running",
+                                             "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    assert running is not None, f"get_running never answered after the restart: {failures}\n{up.tail(80)}"
+    assert all("Timeout exceeded" in f for f in failures), failures  # answered as failures, never silence
     assert added["instance"] in running["templates"]
     assert up.running
 
