@@ -10,8 +10,9 @@ driven by bare WebSocket clients (no client library in the loop):
 * fan-out of a 100 Hz topic to 1, 10 and 50 subscribers: messages lost, p95 delivery latency;
 * server RSS (MiB) at the end.
 
-Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust] [--soak SECONDS]``
-(``--soak 600`` runs echo traffic and client churn for ten minutes and reports RSS instead).
+Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust] [--soak SECONDS]
+[--peer-dds-profile]`` (``--soak 600`` runs echo traffic and client churn for ten minutes and
+reports RSS instead; ``--peer-dds-profile`` gives the peer the bridge's Fast DDS profile too).
 The Rust peer runs as the notes' recipe says: a ``librmw_implementation.so`` symlink to the
 venv's ``librmw_fastrtps_cpp.so`` on ``LD_LIBRARY_PATH``, ``LD_PRELOAD`` of libpython,
 ``--no-rosapi``, bound to loopback; its wheel ships the binary without the execute bit, so it
@@ -152,8 +153,11 @@ def start_caretaker(env: dict[str, str]) -> tuple[subprocess.Popen, int]:
     return process, int(line.strip().rsplit(":", 1)[1])
 
 
-def start_rust(env: dict[str, str], workdir: Path) -> tuple[subprocess.Popen, int]:
+def start_rust(env: dict[str, str], workdir: Path, dds_profile: bool = False) -> tuple[subprocess.Popen, int]:
+    """The Rust peer as the notes' recipe runs it; with ``dds_profile``, under the Fast DDS
+    profile ``caretaker bridge`` loads for itself, to tell its DDS settings from the servers."""
     import rosbridge_server_rs
+    from bridge.rosbridge.server import DDS_PROFILE, DDS_PROFILE_ENV
 
     binary = Path(rosbridge_server_rs.__file__).with_name("rosbridge_server_rs_jazzy")
     link = workdir / "librmw_implementation.so"
@@ -162,6 +166,8 @@ def start_rust(env: dict[str, str], workdir: Path) -> tuple[subprocess.Popen, in
     libpython = Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("LDLIBRARY")
     env = dict(env, ROS_DISTRO="jazzy", LD_LIBRARY_PATH=f"{workdir}:{env.get('LD_LIBRARY_PATH', '')}",
                LD_PRELOAD=str(libpython))
+    if dds_profile:
+        env[DDS_PROFILE_ENV] = str(DDS_PROFILE)
     port = free_port()
     loader = "/lib64/ld-linux-x86-64.so.2"
     process = subprocess.Popen([loader, str(binary), "--no-rosapi", "--bind", f"127.0.0.1:{port}",
@@ -402,7 +408,7 @@ async def soak(servers: dict[str, tuple[int, int]], seconds: float) -> list[Resu
     deadline = time.monotonic() + seconds
     next_sample = time.monotonic()
     while time.monotonic() < deadline:
-        for name, (port, pid) in servers.items():
+        for name, (port, _pid) in servers.items():
             await round_trips(sockets[name], name, 64, 500, IN_FLIGHT)
             churn = await connect(port)
             await churn.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String"}))
@@ -450,6 +456,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", choices=("caretaker", "rust"), help="measure one server only")
     parser.add_argument("--soak", type=float, metavar="SECONDS",
                         help="instead of the measurements: echo traffic for SECONDS, sampling RSS")
+    parser.add_argument("--peer-dds-profile", action="store_true",
+                        help="run the Rust peer under the Fast DDS profile the bridge ships (docs/rosbridge.md)")
     parser.add_argument("--echo-node", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.echo_node:
@@ -466,7 +474,10 @@ def main(argv: list[str] | None = None) -> int:
             for name in SERVERS:
                 if args.only and args.only != name:
                     continue
-                process, port = start_caretaker(env) if name == "caretaker" else start_rust(env, Path(workdir))
+                if name == "caretaker":
+                    process, port = start_caretaker(env)
+                else:
+                    process, port = start_rust(env, Path(workdir), args.peer_dds_profile)
                 processes.append(process)
                 servers[name] = (port, process.pid)
             if args.soak:
