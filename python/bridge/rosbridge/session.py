@@ -36,7 +36,8 @@ DEFAULT_QUEUE_LENGTH = 1000
 """Backlog per subscription when the client gives no ``queue_length`` (or 0)."""
 
 _session_numbers = itertools.count(1)
-_FIN_TEXT = 0x81  # FIN bit and the text opcode
+FIN_TEXT = 0x81
+"""First byte of an unfragmented text frame: FIN, no RSV bits, opcode 1 (RFC 6455 5.2)."""
 _HEADER_16 = struct.Struct("!BBH")
 _HEADER_64 = struct.Struct("!BBQ")
 
@@ -221,10 +222,10 @@ def _text_frame(text: str) -> bytes:
     payload = text.encode()
     size = len(payload)
     if size < 126:
-        return bytes((_FIN_TEXT, size)) + payload
+        return bytes((FIN_TEXT, size)) + payload
     if size < 1 << 16:
-        return _HEADER_16.pack(_FIN_TEXT, 126, size) + payload
-    return _HEADER_64.pack(_FIN_TEXT, 127, size) + payload
+        return _HEADER_16.pack(FIN_TEXT, 126, size) + payload
+    return _HEADER_64.pack(FIN_TEXT, 127, size) + payload
 
 
 def _emit(protocol: Any, frame: Frame) -> None:
