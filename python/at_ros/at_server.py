@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import rclpy
-from rclpy.action import ActionClient
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
@@ -46,6 +45,7 @@ from affordance_template_msgs.srv import (
     SetObjectPose,
     SetWaypointPose,
 )
+from at_ros.action_client import RecordedActionClient
 from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES, STATUS_TOPIC
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
 from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
@@ -149,7 +149,7 @@ class AffordanceTemplateServer(Node):
 
         self.planner_client = self.create_client(PlanWaypoints, "/planner/plan_waypoints", qos_profile=SERVICE_QOS, callback_group=clients)
         self.gripper_client = self.create_client(SetGripper, robot.gripper_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.gripper_service else None
-        self.trajectory_client = ActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients)
+        self.trajectory_client = RecordedActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients)
 
         for name, srv_type in SERVICES.items():
             callback = getattr(self, f"{name}_callback")
