@@ -100,13 +100,14 @@ class Actions:
         try:
             # Feedback may reach the client before the acceptance reaches the bridge, so a cancel
             # can arrive before the handle: it is kept and sent once the goal is accepted.
-            handle = await self.ros.wrap(client.send_goal_async(goal, feedback_callback=feedback_callback))
+            sent = await self.ros.on_server_thread(client.send_goal_async, goal, feedback_callback=feedback_callback)
+            handle = await self.ros.wrap(sent)
             if not handle.accepted:
                 raise ActionFailed(f"the action server of {action} rejected the goal")
             self._goals[key] = handle
             if key in self._early_cancels:
-                handle.cancel_goal_async()
-            outcome = await self.ros.wrap(handle.get_result_async())
+                self.ros.on_server_thread(handle.cancel_goal_async)
+            outcome = await self.ros.wrap(await self.ros.on_server_thread(handle.get_result_async))
         finally:
             self._goals.pop(key, None)
             self._early_cancels.discard(key)
@@ -122,7 +123,7 @@ class Actions:
         if self._goals[key] is None:
             self._early_cancels.add(key)
         else:
-            self._goals[key].cancel_goal_async()  # the goal's action_result then reports CANCELED
+            self.ros.on_server_thread(self._goals[key].cancel_goal_async)  # its action_result then reports CANCELED
 
     # --- clients serving actions ---------------------------------------------------------------
     def _advertise(self, session: Session, message: dict[str, Any]) -> None:
@@ -213,7 +214,7 @@ class Actions:
         for provided in [a for a in self.provided.values() if a.session is session]:
             self._withdraw(provided, "lost its client")
         for key in [k for k in self._goals if k[0] == session.number]:
-            self._goals.pop(key).cancel_goal_async()
+            self.ros.on_server_thread(self._goals.pop(key).cancel_goal_async)
 
 
 def _type_name(action_cls: Any) -> str:

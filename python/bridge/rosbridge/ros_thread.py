@@ -107,6 +107,17 @@ class RosThread:
         ros_future.add_done_callback(lambda done: self.deliver(_settle, answer, done))
         return answer
 
+    def on_server_thread(self, function: Callable[..., Any], *args: Any, **kwargs: Any) -> asyncio.Future[Any]:
+        """``function(*args, **kwargs)`` run on the ``ros-servers`` thread; an event-loop future of
+        its result.
+
+        For requests of :attr:`server_node`'s action clients: rclpy 7.1's ``ActionClient`` sends
+        a goal, result or cancel request and only then records it, so the thread executing the
+        client could take the answer in between and drop it (the request would never be
+        answered).  Sent from that very thread, a request is on record before it can look.
+        """
+        return self.wrap(self.server_executor.create_task(function, *args, **kwargs))
+
     def take_on_loop(self, subscription: Any, on_message: Callable[[Any], None]) -> LoopSubscription:
         """Call ``on_message(message)`` on the event loop for each message of ``subscription``
         (created on :attr:`topic_node`); close the result before destroying the subscription."""
