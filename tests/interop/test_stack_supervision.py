@@ -11,6 +11,7 @@ import psutil
 import pytest
 import roslibpy
 
+from rosbridge.rosbridge_support import wait_until_discovered
 from support.processes import ManagedProcess, caretaker
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -28,6 +29,9 @@ def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
     up = caretaker("up", "--scene", "iva", "--time-scale", "0", "--bridge-port", str(port), env=ros_env, name="up")
     try:
         up.wait_for_line(r"^READY stack iva$", 180)
+        # READY means each part is up, not that DDS has shown the AT server to the bridge yet
+        wait_until_discovered("127.0.0.1", port, "/affordance_template_server/status",
+                              "/affordance_template_server/add_template", "/affordance_template_server", timeout=60)
         yield up, port
     finally:
         up.stop()
