@@ -100,14 +100,13 @@ class Actions:
         try:
             # Feedback may reach the client before the acceptance reaches the bridge, so a cancel
             # can arrive before the handle: it is kept and sent once the goal is accepted.
-            sent = await self.ros.on_server_thread(client.send_goal_async, goal, feedback_callback=feedback_callback)
-            handle = await self.ros.wrap(sent)
+            handle = await self.ros.ask(client.send_goal_async, goal, feedback_callback=feedback_callback)
             if not handle.accepted:
                 raise ActionFailed(f"the action server of {action} rejected the goal")
             self._goals[key] = handle
             if key in self._early_cancels:
                 self.ros.on_server_thread(handle.cancel_goal_async)
-            outcome = await self.ros.wrap(await self.ros.on_server_thread(handle.get_result_async))
+            outcome = await self.ros.ask(handle.get_result_async)
         finally:
             self._goals.pop(key, None)
             self._early_cancels.discard(key)

@@ -118,6 +118,11 @@ class RosThread:
         """
         return self.wrap(self.server_executor.create_task(function, *args, **kwargs))
 
+    async def ask(self, request: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """Send ``request(*args, **kwargs)`` (which returns an rclpy future, e.g. an action
+        client's ``send_goal_async``) from the ``ros-servers`` thread and await its answer."""
+        return await self.wrap(await self.on_server_thread(request, *args, **kwargs))
+
     def take_on_loop(self, subscription: Any, on_message: Callable[[Any], None]) -> LoopSubscription:
         """Call ``on_message(message)`` on the event loop for each message of ``subscription``
         (created on :attr:`topic_node`); close the result before destroying the subscription."""
