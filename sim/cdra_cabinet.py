@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import pybullet as p
 
 from sim.filter_slots import FilterSlots
-from sim.scene import CabinetSpec, World
+from sim.scene import CabinetSpec
+from sim.world import World
 
 __all__ = ["CdraCabinet", "CdraTelemetry"]
 

@@ -15,7 +15,8 @@ from typing import Callable
 
 import pybullet as p
 
-from sim.scene import Scene, World
+from sim.scene import Scene
+from sim.world import World
 
 __all__ = ["FilterSlots", "FilterState", "SlotBlocked"]
 

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 import pybullet as p
 
 from sim.filter_slots import FilterSlots
-from sim.scene import GripperSpec, World
+from sim.scene import GripperSpec
+from sim.world import World
 
 __all__ = ["Gripper", "GripperMotion"]
 

@@ -26,7 +26,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
 from caretaker_sim_msgs.srv import CaptureImage, SetGripper
 from geometry_msgs.msg import Pose
 from sensor_msgs.msg import Image, JointState
@@ -34,6 +34,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from sim.cameras import CameraImage, capture_file_name, render, write_png
+from sim.collision_world import collision_world
 from sim.scene import SceneError, load_scene
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
@@ -62,6 +63,8 @@ class SimNode(Node):
         self.joint_state_pub = self.create_publisher(JointState, "joint_states", 10)
         self.frames_pub = self.create_publisher(NamedPoses, "sim/frames", 10)
         self.moving_pub = self.create_publisher(Bool, "robot/moving", LATCHED)
+        self.collision_world_pub = self.create_publisher(CollisionWorld, "sim/collision_world", LATCHED)
+        self.collision_world_pub.publish(collision_world(sim.scene))
         self.trajectory_server = ActionServer(
             self, FollowJointTrajectory, "arm_controller/follow_joint_trajectory",
             execute_callback=self.execute_callback, goal_callback=self.goal_callback,

@@ -20,7 +20,8 @@ from sim.cameras import fixed_camera_pose
 from sim.cdra_cabinet import CdraCabinet
 from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
-from sim.scene import Scene, World, build_world
+from sim.scene import Scene
+from sim.world import World, build_world
 from sim.trajectory import ErrorCode, JointLimit, Trajectory
 
 __all__ = ["Simulation", "TrajectoryRun"]

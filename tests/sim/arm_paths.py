@@ -12,7 +12,8 @@ from collections.abc import Sequence
 
 import pybullet as p
 
-from sim.scene import Pose, build_world, filter_grasp_offset, load_scene
+from sim.scene import Pose, filter_grasp_offset, load_scene
+from sim.world import build_world
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]

@@ -74,16 +74,25 @@ def test_a_filter_released_inside_its_slot_is_seated(model: ArmModel) -> None:
     assert pos == pytest.approx(model.scene.slots["rack/slot_1"].pose.xyz, abs=1e-6)
 
 
-def test_scene_file_errors_name_the_file_and_key(tmp_path: Path) -> None:
+def test_scene_file_errors_name_the_file_line_and_key(tmp_path: Path) -> None:
+    shipped = Path(__file__).resolve().parents[2] / "sim" / "scenes" / "iva.yaml"
     bad = tmp_path / "bad.yaml"
-    text = (Path(__file__).resolve().parents[2] / "sim" / "scenes" / "iva.yaml").read_text()
+    # A scene's robot model is relative to the scene file: a copy elsewhere names it absolutely.
+    text = shipped.read_text().replace("urdf: ../robots/", f"urdf: {shipped.parent.parent}/robots/")
     bad.write_text(text.replace("slot: rack/slot_2}", "slot: rack/slot_9}"))
-    with pytest.raises(SceneError, match=r"bad\.yaml: filters\[1\]\.slot: unknown slot 'rack/slot_9'"):
+    line = 1 + next(i for i, row in enumerate(bad.read_text().splitlines()) if "rack/slot_9" in row)
+    with pytest.raises(SceneError, match=rf"bad\.yaml:{line}: filters\[1\]\.slot: unknown slot 'rack/slot_9'"):
         load_scene(bad)
     bad.write_text(text.replace("xyz: [0.0, 0.0, 0.75]", "xyz: [0.0, 0.75]"))
     with pytest.raises(SceneError, match=r"robot\.base\.xyz: expected a list of 3 numbers"):
         load_scene(bad)
-    with pytest.raises(SceneError, match="unknown scene 'moon'"):
+    bad.write_text(text.replace("physics_rate_hz: 240", "physics_rate_hz: 240\nphysics_rate: 100"))
+    with pytest.raises(SceneError, match=r"bad\.yaml:\d+: physics_rate: unknown key 'physics_rate'"):
+        load_scene(bad)
+    bad.write_text(shipped.read_text())
+    with pytest.raises(SceneError, match=r"bad\.yaml:\d+: robot\.urdf: no such file: .*'\.\./robots/ur10_gripper\.urdf' relative to"):
+        load_scene(bad)
+    with pytest.raises(SceneError, match="moon: unknown scene"):
         load_scene("moon")
 
 

@@ -1,0 +1,57 @@
+"""What in a scene collides, as the ``CollisionWorld`` message the simulation latches for planners.
+
+A planner on the robot side needs the world's geometry; reading the simulation's scene file
+would tie it to this simulation, so the simulation publishes it instead (``sim/collision_world``,
+transient local), as a world model on a real robot would. Inspection targets and the cabinet lamp
+are drawn only and have no collision shapes, so they are not in it.
+"""
+
+from __future__ import annotations
+
+from geometry_msgs.msg import Pose as PoseMsg
+
+from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
+from sim.scene import Pose, Scene, Shape, filter_shapes
+
+__all__ = ["collision_world"]
+
+
+def _pose(pose: Pose) -> PoseMsg:
+    msg = PoseMsg()
+    msg.position.x, msg.position.y, msg.position.z = (float(v) for v in pose.xyz)
+    msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = (float(v) for v in pose.quaternion)
+    return msg
+
+
+def _shape(shape: Shape) -> CollisionShape:
+    msg = CollisionShape()
+    msg.type = shape.type
+    msg.size = [float(v) for v in shape.size]
+    msg.radius = float(shape.radius)
+    msg.length = float(shape.length)
+    msg.pose = _pose(shape.pose)
+    return msg
+
+
+def collision_world(scene: Scene) -> CollisionWorld:
+    """The static bodies and the filters (graspable, in their starting slots) of ``scene``."""
+    msg = CollisionWorld()
+    msg.scene = scene.name
+    msg.robot_name = scene.robot.name
+    msg.robot_base = _pose(scene.robot.base)
+    for body in scene.bodies:
+        obj = CollisionObject()
+        obj.name = body.name
+        obj.pose = _pose(body.pose)
+        obj.shapes = [_shape(s) for s in body.shapes]
+        msg.objects.append(obj)
+    if scene.filter_model is not None:
+        shapes = [_shape(s) for s in filter_shapes(scene.filter_model)]
+        for spec in scene.filters:
+            obj = CollisionObject()
+            obj.name = f"filter/{spec.id}"
+            obj.pose = _pose(scene.slots[spec.slot].pose)
+            obj.shapes = shapes
+            obj.graspable = True
+            msg.objects.append(obj)
+    return msg

@@ -1,0 +1,161 @@
+"""Building a scene into a pybullet client: the simulation's world, one body per thing in the file.
+
+The simulation node builds its world here; the planner does not (it gets the collision world
+from the simulation over ROS, see ``sim.collision_world``), so a robot side with real hardware
+and a world model instead of this simulation plans the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import pybullet as p
+
+from sim.scene import FilterModel, Pose, Scene, SceneError, Shape, StaticBody, TargetModel, TargetSpec, filter_shapes
+
+__all__ = ["World", "build_world"]
+
+
+@dataclass
+class World:
+    """Body ids of a scene built into one pybullet client."""
+
+    client: int
+    robot: int
+    joint_index: dict[str, int]
+    link_index: dict[str, int]
+    bodies: dict[str, int] = field(default_factory=dict)
+    filters: dict[str, int] = field(default_factory=dict)
+    targets: dict[str, int] = field(default_factory=dict)
+    latch: int | None = None
+
+    def body_name(self, body_id: int) -> str:
+        """Name of a body for messages ("rack", "filter/CDRA-F-0012", "ur10")."""
+        if body_id == self.robot:
+            return "robot"
+        for prefix, table in (("", self.bodies), ("filter/", self.filters), ("target/", self.targets)):
+            for name, bid in table.items():
+                if bid == body_id:
+                    return prefix + name
+        return f"body {body_id}"
+
+
+def _shape_arrays(shapes: tuple[Shape, ...]) -> dict[str, list[Any]]:
+    kinds, extents, radii, lengths, positions, orientations = [], [], [], [], [], []
+    for s in shapes:
+        kinds.append(p.GEOM_BOX if s.type == "box" else p.GEOM_CYLINDER)
+        extents.append([v / 2 for v in s.size])
+        radii.append(s.radius)
+        lengths.append(s.length)
+        positions.append(list(s.pose.xyz))
+        orientations.append(list(s.pose.quaternion))
+    return {"shapeTypes": kinds, "halfExtents": extents, "radii": radii, "lengths": lengths, "positions": positions, "orientations": orientations}
+
+
+def _static_body(body: StaticBody, client: int) -> int:
+    a = _shape_arrays(body.shapes)
+    collision = p.createCollisionShapeArray(
+        shapeTypes=a["shapeTypes"], halfExtents=a["halfExtents"], radii=a["radii"], lengths=a["lengths"],
+        collisionFramePositions=a["positions"], collisionFrameOrientations=a["orientations"], physicsClientId=client,
+    )
+    visual = p.createVisualShapeArray(
+        shapeTypes=a["shapeTypes"], halfExtents=a["halfExtents"], radii=a["radii"], lengths=a["lengths"],
+        visualFramePositions=a["positions"], visualFrameOrientations=a["orientations"], physicsClientId=client,
+    )
+    body_id = p.createMultiBody(0.0, collision, visual, list(body.pose.xyz), list(body.pose.quaternion), physicsClientId=client)
+    p.changeVisualShape(body_id, -1, rgbaColor=list(body.color), physicsClientId=client)
+    return body_id
+
+
+def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
+    shapes = filter_shapes(model)
+    kinds = [p.GEOM_BOX, p.GEOM_BOX]
+    extents = [[v / 2 for v in s.size] for s in shapes]
+    positions = [list(s.pose.xyz) for s in shapes]
+    collision = p.createCollisionShapeArray(shapeTypes=kinds, halfExtents=extents, collisionFramePositions=positions, physicsClientId=client)
+    # Visual shapes one per link so the handle keeps its own colour.
+    body_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=extents[0], rgbaColor=list(model.colors[condition]), physicsClientId=client)
+    handle_visual = p.createVisualShape(
+        p.GEOM_BOX, halfExtents=extents[1], visualFramePosition=positions[1],
+        rgbaColor=list(model.colors.get("handle", model.colors[condition])), physicsClientId=client,
+    )
+    return p.createMultiBody(
+        model.mass, collision, body_visual, list(pose.xyz), list(pose.quaternion),
+        linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[handle_visual],
+        linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
+        linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED],
+        linkJointAxis=[[0, 0, 1]], physicsClientId=client,
+    )
+
+
+def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
+    """A visual-only inspection panel with its damage mark; raised slightly off curved hulls."""
+    raise_by = 0.015 + model.panel_size[2] / 2
+    panel = p.createVisualShape(
+        p.GEOM_BOX, halfExtents=[v / 2 for v in model.panel_size], visualFramePosition=[0, 0, raise_by],
+        rgbaColor=list(model.colors["panel"]), physicsClientId=client,
+    )
+    link_visuals = []
+    if spec.condition != "clean":
+        link_visuals.append(
+            p.createVisualShape(
+                p.GEOM_CYLINDER, radius=model.mark_radius[spec.condition], length=0.004,
+                visualFramePosition=[0, 0, raise_by + model.panel_size[2] / 2 + 0.002],
+                rgbaColor=list(model.colors[spec.condition]), physicsClientId=client,
+            )
+        )
+    n = len(link_visuals)
+    return p.createMultiBody(
+        0.0, -1, panel, list(spec.pose.xyz), list(spec.pose.quaternion),
+        linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=link_visuals,
+        linkPositions=[[0, 0, 0]] * n, linkOrientations=[[0, 0, 0, 1]] * n, linkInertialFramePositions=[[0, 0, 0]] * n,
+        linkInertialFrameOrientations=[[0, 0, 0, 1]] * n, linkParentIndices=[0] * n, linkJointTypes=[p.JOINT_FIXED] * n,
+        linkJointAxis=[[0, 0, 1]] * n, physicsClientId=client,
+    )
+
+
+def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_targets: bool = True) -> World:
+    """Build the scene's robot, static bodies, filters (in their slots) and targets into ``client``.
+
+    The planner may pass ``with_filters=False`` and place filters itself from ``/sim/frames``.
+    The robot is loaded with a fixed base and its initial joint positions from the scene file.
+    """
+    p.setGravity(*scene.gravity, physicsClientId=client)
+    robot = p.loadURDF(
+        str(scene.robot.urdf), list(scene.robot.base.xyz), list(scene.robot.base.quaternion),
+        useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client,
+    )
+    joint_index: dict[str, int] = {}
+    link_index: dict[str, int] = {scene.robot.base_link: -1}
+    for j in range(p.getNumJoints(robot, physicsClientId=client)):
+        info = p.getJointInfo(robot, j, physicsClientId=client)
+        joint_index[info[1].decode()] = j
+        link_index[info[12].decode()] = j
+    needed = list(scene.robot.arm_joints) + (list(scene.robot.gripper.joints) if scene.robot.gripper else [])
+    missing = [name for name in needed if name not in joint_index]
+    if missing:
+        raise SceneError(scene.path, 0, "robot.arm_joints", f"robot model {scene.robot.urdf} has no joints {missing}")
+    for name in [scene.robot.tool_link] + [c.link for c in scene.cameras.values() if c.link]:
+        if name not in link_index:
+            raise SceneError(scene.path, 0, "robot", f"robot model {scene.robot.urdf} has no link {name!r}")
+    for name, q in zip(scene.robot.arm_joints, scene.robot.initial_positions):
+        p.resetJointState(robot, joint_index[name], q, physicsClientId=client)
+    if scene.robot.gripper:
+        for name, q in zip(scene.robot.gripper.joints, scene.robot.gripper.poses[scene.robot.gripper.initial]):
+            p.resetJointState(robot, joint_index[name], q, physicsClientId=client)
+    world = World(client, robot, joint_index, link_index)
+    for body in scene.bodies:
+        world.bodies[body.name] = _static_body(body, client)
+    if with_filters and scene.filter_model:
+        for f in scene.filters:
+            world.filters[f.id] = _filter_body(scene.filter_model, f.condition, scene.slots[f.slot].pose, client)
+    if with_targets and scene.target_model:
+        for t in scene.targets:
+            world.targets[t.name] = _target_body(t, scene.target_model, client)
+    if scene.cabinet:
+        slot = scene.slots[scene.cabinet.slot].pose
+        pos, orn = p.multiplyTransforms(slot.xyz, slot.quaternion, scene.cabinet.latch_pose.xyz, [0, 0, 0, 1])
+        latch_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[v / 2 for v in scene.cabinet.latch_size], physicsClientId=client)
+        world.latch = p.createMultiBody(0.0, -1, latch_visual, pos, orn, physicsClientId=client)
+    return world
