@@ -32,8 +32,9 @@ from at_ros.instance import Registration, TemplateInstance
 from at_ros.library import default_library_path, load_library
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
 from at_ros.robot_config import load_robot_configs
-from at_ros.scene_file import build_planning_scene
+from at_ros.collision_scene import build_planning_scene
 from at_ros.transforms import from_xyz_quat, from_xyz_rpy, invert
+from sim.collision_world import collision_world
 from sim.scene import filter_grasp_offset, load_scene
 
 @dataclass
@@ -79,8 +80,8 @@ def _samples(slots: list[str], count: int, rng: np.random.Generator) -> tuple[li
     the table is not a pose any filter can have, so it is drawn again. Returns the samples and
     how many draws were rejected."""
     config = load_robot_configs()["ur10"]
-    scene_spec = load_scene(config.scene)
-    planning = build_planning_scene(config)
+    scene_spec = load_scene("iva")
+    planning = build_planning_scene(config, collision_world(scene_spec))
     slot_pose = {name: from_xyz_quat(s.pose.xyz, s.pose.quaternion) for name, s in scene_spec.slots.items()}
     homes = {name: planning.obstacle_pose(name) for name in ("rack", "cabinet")}
     def deepest(fixture: str) -> float:
@@ -111,9 +112,9 @@ def _samples(slots: list[str], count: int, rng: np.random.Generator) -> tuple[li
 
 def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
     config = load_robot_configs()["ur10"]
-    scene_spec = load_scene(config.scene)
+    scene_spec = load_scene("iva")
     template = load_library(default_library_path() / "templates")["cdra_filter"]
-    planning = build_planning_scene(config)
+    planning = build_planning_scene(config, collision_world(scene_spec))
     planner = MotionPlanner(planning, config.planner)
     planner.joint_planner.straight_line_first = shortcut
     reach = IkSolver(planning, seeds=64, rng=np.random.default_rng(0))
@@ -148,7 +149,8 @@ def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
                 planning.set_obstacle_pose(held, planning.tool_pose() @ invert(grasp))
                 holding = held
             trajectory = instance.trajectory(trajectory_name)
-            goals = [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose) for w in instance.resolve(trajectory, ee)]
+            goals = [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose, gripper_action=w.gripper_action,
+                          object_name=w.object_name, object_pose=w.object_pose) for w in instance.resolve(trajectory, ee)]
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 planner.plan(start, goals, held_object=holding)

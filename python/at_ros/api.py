@@ -1,7 +1,8 @@
 """The AT server's ROS API in one place: service names and types, topics, QoS.
 
 The server creates exactly these services; clients (tests, tools) look them up here instead of
-repeating the table, so a renamed service cannot drift between them.
+repeating the table, so a renamed service cannot drift between them. Names are relative to the
+node's namespace (none by default: ``/affordance_template_server/...``).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from affordance_template_msgs.srv import (
 
 __all__ = ["LATCHED", "PREFIX", "SERVICES", "SERVICE_QOS", "STATUS_TOPIC"]
 
-PREFIX = "/affordance_template_server"
+#: Relative, so a server started with ``--namespace /arm2`` serves ``/arm2/affordance_template_server``.
+PREFIX = "affordance_template_server"
 STATUS_TOPIC = f"{PREFIX}/status"
 #: service name (under PREFIX) -> service type
 SERVICES: dict[str, type] = {

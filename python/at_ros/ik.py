@@ -1,10 +1,17 @@
-"""Inverse kinematics per waypoint: pybullet's damped least squares from several seeds.
+"""Inverse kinematics per waypoint, inside the joint limits while solving.
 
-pybullet's solver ignores joint limits unless it switches to its null-space mode, which
-converges worse; so each solution is solved unconstrained, wrapped by multiples of 2*pi into
-the limits nearest to the seed, then checked for accuracy (forward kinematics), limits and
-collisions. Among valid solutions the one nearest to the previous joint state wins, so
-consecutive waypoints do not flip the arm's configuration.
+The solver is damped least squares (Gauss-Newton on the 6-D pose error with the tool Jacobian)
+projected onto the joint limits: a joint at a limit that the step would push further out is
+held there and the other joints make up the motion, so the search never leaves the robot's
+range. An arm whose "natural" solution lies outside a limit therefore finds the one inside it,
+instead of converging outside and being thrown away. Seeds are the previous state first (the
+natural continuation), then random states within the limits; pybullet's unconstrained solver
+is a fallback that finds distant basins, its answer wrapped by whole turns into the limits and
+finished by the projected solver.
+
+When nothing within the limits reaches the pose, the failure says why: a solution outside the
+limits reaches it (naming the joint, the value it would need and its range), every solution
+collides (naming the contact), or the pose is out of reach (the best error seen).
 """
 
 from __future__ import annotations
@@ -19,8 +26,15 @@ from at_ros.transforms import angle_between, to_xyz_quat
 
 __all__ = ["IkSolver", "IkFailure", "rotation_vector"]
 
+#: Iterations of the projected solver from a nearby seed (a Cartesian sample, the last waypoint).
 NEWTON_ITERATIONS = 8
+#: Iterations from a random seed: steps are capped, so distant poses take more of them.
+GLOBAL_ITERATIONS = 60
 NEWTON_DAMPING = 1e-6
+#: Largest joint change of one step from a random seed (rad); larger steps overshoot.
+GLOBAL_STEP = 0.4
+#: A joint this close to a limit counts as at it (rad).
+AT_LIMIT = 1e-9
 
 
 def rotation_vector(r: np.ndarray) -> np.ndarray:
@@ -37,16 +51,28 @@ def rotation_vector(r: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class IkFailure:
-    """Why no solution was accepted: the best pose error seen and the last collision."""
+    """Why no solution was accepted.
+
+    ``position_error``/``orientation_error``: the best pose error reached within the limits
+    (infinite when no attempt converged anywhere); ``collision``: the last contact of a solution
+    that reached the pose; ``limit``: a joint limit that a solution reaching the pose violates.
+    """
 
     position_error: float
     orientation_error: float
     collision: str | None
+    limit: str | None = None
+    seeds: int = 0
 
     def describe(self) -> str:
         if self.collision and self.position_error < 1e-3:
-            return f"every IK solution collides ({self.collision})"
-        return f"unreachable (best IK error {self.position_error * 1000:.1f} mm, {np.degrees(self.orientation_error):.1f} deg)"
+            return f"every IK solution within the joint limits collides ({self.collision})"
+        if self.limit:
+            return f"reachable only outside the joint limits: {self.limit}"
+        if np.isfinite(self.position_error):
+            return (f"unreachable within the joint limits (best IK error {self.position_error * 1000:.1f} mm, "
+                    f"{np.degrees(self.orientation_error):.1f} deg)")
+        return f"unreachable: no IK solution came near the pose from {self.seeds} seeds"
 
 
 class IkSolver:
@@ -64,6 +90,9 @@ class IkSolver:
         self.iterations = iterations
         self.residual = residual
         self.rng = rng or np.random.default_rng(1)
+        #: After a :meth:`track` that failed: the joints its last iterate held at a limit.
+        self.blocked_by: str | None = None
+        self._last_iterate: np.ndarray | None = None
 
     def solve(
         self,
@@ -75,27 +104,31 @@ class IkSolver:
         check_collisions: bool = True,
         enough: int = 3,
     ) -> np.ndarray | IkFailure:
-        """A joint vector putting the tool link at ``target`` (world 4x4), nearest to ``near``.
+        """A joint vector within the limits putting the tool link at ``target`` (world 4x4),
+        nearest to ``near``.
 
-        Tries ``near`` first, then random seeds; stops after ``enough`` valid solutions.
+        Tries ``near`` first, then random seeds within the limits; stops after ``enough`` valid
+        solutions.
         """
         scene = self.scene
         limits = scene.limits
+        near = np.clip(np.asarray(near, dtype=float), limits.lower, limits.upper)
         found: list[np.ndarray] = []
-        best_pos, best_rot, last_collision = np.inf, np.inf, None
-        seeds = [np.asarray(near, dtype=float)]
+        best_pos, best_rot = np.inf, np.inf
+        last_collision: str | None = None
+        violated: str | None = None
         for attempt in range(self.seeds):
-            seed = seeds[0] if attempt == 0 else self.rng.uniform(limits.lower, limits.upper)
-            q = self._solve_from(target, seed, near)
+            seed = near if attempt == 0 else self.rng.uniform(limits.lower, limits.upper)
+            q, outside = self._solve_from(target, seed, near, position_tolerance)
+            violated = violated or outside
             if q is None:
                 continue
             pose = scene.forward(q)
             pos_err = float(np.linalg.norm(pose[:3, 3] - target[:3, 3]))
             rot_err = angle_between(pose, target)
-            if pos_err > position_tolerance or rot_err > orientation_tolerance:
-                best_pos, best_rot = min(best_pos, pos_err), min(best_rot, rot_err)
-                continue
             best_pos, best_rot = min(best_pos, pos_err), min(best_rot, rot_err)
+            if pos_err > position_tolerance or rot_err > orientation_tolerance:
+                continue
             if check_collisions:
                 why = scene.collision(q)
                 if why is not None:
@@ -106,7 +139,7 @@ class IkSolver:
             if attempt == 0 or len(found) >= enough:
                 break
         if not found:
-            return IkFailure(best_pos, best_rot, last_collision)
+            return IkFailure(best_pos, best_rot, last_collision, violated, self.seeds)
         return min(found, key=lambda s: float(np.linalg.norm(s - near)))
 
     def track(self, target: np.ndarray, previous: np.ndarray, position_tolerance: float, orientation_tolerance: float) -> np.ndarray | None:
@@ -114,51 +147,96 @@ class IkSolver:
 
         Collisions are the caller's to check: a Cartesian line wants to know where it is blocked.
         """
-        q = self._newton(target, previous, position_tolerance)
-        if q is None:
-            return None
-        q = self.wrap_into_limits(q, previous)
-        if q is None:
-            return None
-        pose = self.scene.forward(q)
-        if np.linalg.norm(pose[:3, 3] - target[:3, 3]) > position_tolerance or angle_between(pose, target) > orientation_tolerance:
-            return None
-        return q
-
-    def _newton(self, target: np.ndarray, seed: np.ndarray, tolerance: float) -> np.ndarray | None:
-        """Gauss-Newton on the full 6-D pose error with the tool Jacobian.
-
-        From a nearby seed (consecutive Cartesian samples, a waypoint next to the last one) this
-        converges in 2-4 iterations, ten times cheaper than pybullet's damped solver needs.
-        """
-        scene = self.scene
-        q = np.array(seed, dtype=float)
-        movable = scene.movable_positions()
-        for _ in range(NEWTON_ITERATIONS):
-            pose = scene.forward(q)
-            dp = target[:3, 3] - pose[:3, 3]
-            dr = rotation_vector(target[:3, :3] @ pose[:3, :3].T)
-            if np.linalg.norm(dp) < tolerance * 0.1 and np.linalg.norm(dr) < 1e-4:
+        self.blocked_by = None
+        q = self._newton(target, previous, position_tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
+        if q is not None:
+            pose = self.scene.forward(q)
+            if np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= position_tolerance and angle_between(pose, target) <= orientation_tolerance:
                 return q
-            for slot, value in zip(scene.ik_slots, q):
-                movable[slot] = float(value)
-            linear, angular = p.calculateJacobian(
-                scene.robot, scene.tool_index, [0.0, 0.0, 0.0], movable, [0.0] * len(movable), [0.0] * len(movable),
-                physicsClientId=scene.client,
-            )
-            jac = np.vstack([np.array(linear)[:, scene.ik_slots], np.array(angular)[:, scene.ik_slots]])
-            # Damped least squares: well-defined near singularities, and a 6x6 solve is cheap.
-            step = jac.T @ np.linalg.solve(jac @ jac.T + NEWTON_DAMPING * np.eye(6), np.concatenate([dp, dr]))
-            if np.max(np.abs(step)) > 0.5:  # far from the seed's basin: leave it to the global solver
-                return None
-            q = q + step
+        if self._last_iterate is not None:
+            self.blocked_by = self.limit_blocking(self._last_iterate)
         return None
 
-    def _solve_from(self, target: np.ndarray, seed: np.ndarray, near: np.ndarray) -> np.ndarray | None:
+    def limit_blocking(self, q: np.ndarray) -> str | None:
+        """The joints of ``q`` that sit at a limit, for messages ("elbow_joint at its upper limit 2.50 rad")."""
+        lo, hi = self.scene.limits.lower, self.scene.limits.upper
+        at = [f"{name} at its {'lower' if v <= lo[i] + 1e-6 else 'upper'} limit {lo[i] if v <= lo[i] + 1e-6 else hi[i]:.2f} rad"
+              for i, (name, v) in enumerate(zip(self.scene.joint_names, q)) if v <= lo[i] + 1e-6 or v >= hi[i] - 1e-6]
+        return ", ".join(at) or None
+
+    def _jacobian(self, q: np.ndarray, movable: list[float]) -> np.ndarray:
         scene = self.scene
-        local = self._newton(target, seed, 1e-3)
-        if local is not None:
-            return self.wrap_into_limits(local, near)
+        for slot, value in zip(scene.ik_slots, q):
+            movable[slot] = float(value)
+        linear, angular = p.calculateJacobian(
+            scene.robot, scene.tool_index, [0.0, 0.0, 0.0], movable, [0.0] * len(movable), [0.0] * len(movable),
+            physicsClientId=scene.client,
+        )
+        return np.vstack([np.array(linear)[:, scene.ik_slots], np.array(angular)[:, scene.ik_slots]])
+
+    def _newton(self, target: np.ndarray, seed: np.ndarray, tolerance: float, *, iterations: int, max_step: float | None) -> np.ndarray | None:
+        """Damped least squares projected onto the joint limits; None if it does not converge.
+
+        ``max_step=None`` (tracking from a nearby state): a step larger than 0.5 rad means the
+        seed is in another basin, and the attempt ends. Otherwise steps are scaled down to
+        ``max_step`` and the search goes on, as it must from a random seed.
+        """
+        scene = self.scene
+        lo, hi = scene.limits.lower, scene.limits.upper
+        q = np.clip(np.array(seed, dtype=float), lo, hi)
+        self._last_iterate = q
+        movable = scene.movable_positions()
+        for _ in range(iterations):
+            pose = scene.forward(q)
+            error = np.concatenate([target[:3, 3] - pose[:3, 3], rotation_vector(target[:3, :3] @ pose[:3, :3].T)])
+            if np.linalg.norm(error[:3]) < tolerance * 0.1 and np.linalg.norm(error[3:]) < 1e-4:
+                return q
+            jac = self._jacobian(q, movable)
+            free = np.ones(len(q), dtype=bool)
+            step = np.zeros(len(q))
+            for _ in range(len(q)):
+                # Damped least squares on the joints not pinned at a limit: well-defined near
+                # singularities, and a 6x6 solve is cheap.
+                jf = jac[:, free]
+                step = np.zeros(len(q))
+                step[free] = jf.T @ np.linalg.solve(jf @ jf.T + NEWTON_DAMPING * np.eye(6), error)
+                pinned = free & (((q <= lo + AT_LIMIT) & (step < 0)) | ((q >= hi - AT_LIMIT) & (step > 0)))
+                if not pinned.any():
+                    break
+                free &= ~pinned
+                if not free.any():
+                    return None
+            largest = float(np.max(np.abs(step)))
+            if max_step is None:
+                if largest > 0.5:  # far from the seed's basin: leave it to the global search
+                    return None
+            elif largest > max_step:
+                step *= max_step / largest
+            q = np.clip(q + step, lo, hi)
+            self._last_iterate = q
+        return None
+
+    def _solve_from(self, target: np.ndarray, seed: np.ndarray, near: np.ndarray, tolerance: float) -> tuple[np.ndarray | None, str | None]:
+        """A solution within the limits from ``seed`` (or None), and a limit that an
+        unconstrained solution reaching the pose would violate (or None)."""
+        q = self._newton(target, seed, tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
+        if q is None:
+            q = self._newton(target, seed, tolerance, iterations=GLOBAL_ITERATIONS, max_step=GLOBAL_STEP)
+        if q is None:
+            raw = self._unconstrained(target, seed)
+            wrapped = self.wrap_into_limits(raw, near)
+            if wrapped is None:
+                return None, self._violation(raw, target, tolerance)
+            q = self._newton(target, wrapped, tolerance, iterations=GLOBAL_ITERATIONS, max_step=GLOBAL_STEP)
+        if q is not None:
+            # The same arm shape a whole turn nearer to where the arm is costs less motion.
+            nearer = self.wrap_into_limits(q, near)
+            q = q if nearer is None else nearer
+        return q, None
+
+    def _unconstrained(self, target: np.ndarray, seed: np.ndarray) -> np.ndarray:
+        """pybullet's damped solver, which ignores the limits (its null-space mode converges worse)."""
+        scene = self.scene
         scene.set_joints(seed)
         pos, quat = to_xyz_quat(target)
         raw = p.calculateInverseKinematics(
@@ -166,10 +244,21 @@ class IkSolver:
             maxNumIterations=self.iterations, residualThreshold=self.residual,
             physicsClientId=scene.client,
         )
-        q = np.array([raw[i] for i in scene.ik_slots])
-        # pybullet's damped solver stalls millimetres short; Newton finishes from there.
-        polished = self._newton(target, q, 1e-3)
-        return self.wrap_into_limits(q if polished is None else polished, near)
+        return np.array([raw[i] for i in scene.ik_slots])
+
+    def _violation(self, q: np.ndarray, target: np.ndarray, tolerance: float) -> str | None:
+        """If ``q`` (outside the limits) reaches ``target``, which joint limit it breaks."""
+        pose = self.scene.forward(q)
+        if np.linalg.norm(pose[:3, 3] - target[:3, 3]) > max(tolerance, 1e-3) * 5 or angle_between(pose, target) > 0.05:
+            return None
+        lo, hi = self.scene.limits.lower, self.scene.limits.upper
+        for i, name in enumerate(self.scene.joint_names):
+            # The value nearest to the range, over whole turns: what the joint would need.
+            candidates = [q[i] + 2 * np.pi * k for k in range(-3, 4)]
+            value = min(candidates, key=lambda c: max(lo[i] - c, c - hi[i], 0.0))
+            if value < lo[i] - 1e-6 or value > hi[i] + 1e-6:
+                return f"{name} would be {value:.2f} rad, outside its range [{lo[i]:.2f}, {hi[i]:.2f}]"
+        return None
 
     def wrap_into_limits(self, q: np.ndarray, near: np.ndarray) -> np.ndarray | None:
         """Add multiples of 2*pi per joint to land inside the limits, nearest to ``near``."""

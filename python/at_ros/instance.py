@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from at_ros.library import Template, Trajectory, Waypoint
+from at_ros.library import GRASP, RELEASE, Template, Trajectory, Waypoint
 from at_ros.robot_config import EndEffector, RobotConfig
 from at_ros.transforms import angle_between, invert
 
@@ -99,6 +99,9 @@ class ResolvedWaypoint:
     frame_pose: np.ndarray  # world pose of the waypoint frame
     tool_goal: np.ndarray  # world pose the robot's tool link must take
     end_effector_pose: str
+    gripper_action: str = ""  # "grasp", "release" or "" as the template states it
+    object_name: str = ""  # the display object grasped or released
+    object_pose: np.ndarray | None = None  # its world pose, to find it in the planner's scene
 
 
 @dataclass
@@ -225,7 +228,9 @@ class TemplateInstance:
                     f"waypoint {ee.id}.{i}:{self.key} uses ee_pose {wp.ee_pose}, which robot {self.robot.robot_name!r} "
                     f"does not map for end effector {ee.name!r}; add it to end_effector_pose_map"
                 )
-            out.append(ResolvedWaypoint(i, f"{ee.id}.{i}:{self.key}", wp, frame, goal, pose_name))
+            action, held = (GRASP, wp.grasp) if wp.grasp else (RELEASE, wp.release) if wp.release else ("", "")
+            out.append(ResolvedWaypoint(i, f"{ee.id}.{i}:{self.key}", wp, frame, goal, pose_name, action, held,
+                                        self.object_pose(held) if held else None))
         return out
 
     # --- plans -----------------------------------------------------------------------------

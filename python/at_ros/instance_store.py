@@ -25,9 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from at_ros.instance import Registration, TemplateInstance
+from at_ros.instance import InstanceError, Registration, TemplateInstance
 from at_ros.library import LibraryError, Template
 from at_ros.robot_config import RobotConfig
+from datafile import Field, load_file
 
 __all__ = ["FORMAT_VERSION", "load_instances", "save_instances"]
 
@@ -51,37 +52,29 @@ def load_instances(path: Path, robot: RobotConfig, templates: dict[str, Template
     """The instances saved in ``path`` (none if it does not exist yet), keyed ``Type:id``.
 
     Raises:
-        LibraryError: naming the file and the entry that cannot be restored (another robot's
-            state, a template no longer in the library, a malformed entry).
+        LibraryError: ``file:line: key: problem`` naming the entry that cannot be restored
+            (another robot's state, a template no longer in the library, a malformed entry).
     """
     if not path.exists():
         return {}
-    try:
-        document = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise LibraryError(path, "", f"cannot be read as AT server state: {exc}") from None
-    if not isinstance(document, dict) or document.get("format") != FORMAT_VERSION:
-        raise LibraryError(path, "format", f"expected AT server state format {FORMAT_VERSION}")
-    if document.get("robot") != robot.robot_name:
-        raise LibraryError(path, "robot", f"state of robot {document.get('robot')!r}, but this server serves {robot.robot_name!r}")
+    root = load_file(path, error=LibraryError, json=True).mapping(required=("format", "robot", "instances"))
+    if root["format"].integer() != FORMAT_VERSION:
+        raise root["format"].fail(f"expected AT server state format {FORMAT_VERSION}")
+    if root["robot"].text() != robot.robot_name:
+        raise root["robot"].fail(f"state of robot {root['robot'].text()!r}, but this server serves {robot.robot_name!r}")
     instances: dict[str, TemplateInstance] = {}
-    for n, entry in enumerate(document.get("instances", [])):
-        where = f"instances[{n}]"
+    for entry in root["instances"].sequence():
         try:
-            instance = _instance_from_json(entry, robot, templates, path, where)
-        except LibraryError:
-            raise
-        except (KeyError, TypeError, ValueError) as exc:  # InstanceError too: a display object the template lost
-            raise LibraryError(path, where, f"cannot be restored: {type(exc).__name__}: {exc}") from None
+            instance = _instance_from_json(entry, robot, templates)
+        except InstanceError as exc:  # a display object or trajectory the template lost
+            raise entry.fail(f"cannot be restored: {exc}") from None
         instances[instance.key] = instance
     return instances
 
 
-def _matrix(values: Any) -> np.ndarray:
-    matrix = np.asarray(values, dtype=float).reshape(4, 4)
-    if not np.all(np.isfinite(matrix)):
-        raise ValueError("pose has non-finite values")
-    return matrix
+def _matrix(f: Field) -> np.ndarray:
+    """A 4x4 pose written as four rows of four finite numbers."""
+    return np.array([row.numbers(4) for row in f.sequence(min_items=4, max_items=4)])
 
 
 def _instance_to_json(instance: TemplateInstance) -> dict[str, Any]:
@@ -103,18 +96,23 @@ def _instance_to_json(instance: TemplateInstance) -> dict[str, Any]:
     }
 
 
-def _instance_from_json(entry: dict[str, Any], robot: RobotConfig, templates: dict[str, Template], path: Path, where: str) -> TemplateInstance:
-    template = templates.get(entry["template"])
+def _instance_from_json(entry: Field, robot: RobotConfig, templates: dict[str, Template]) -> TemplateInstance:
+    entry.mapping(required=("template", "id", "root_pose", "hide_waypoints", "current_trajectory", "registrations",
+                            "waypoint_overrides", "current_index"))
+    name = entry["template"].text()
+    template = templates.get(name)
     if template is None:
-        raise LibraryError(path, f"{where}.template", f"template {entry['template']!r} is not in the library (known: {', '.join(sorted(templates))})")
-    instance = TemplateInstance(template, int(entry["id"]), robot, _matrix(entry["root_pose"]),
-                                hide_waypoints=bool(entry["hide_waypoints"]), current_trajectory=str(entry["current_trajectory"]))
-    for name, r in entry["registrations"].items():
-        instance.register(name, Registration(str(r["frame"]), _matrix(r["offset"]), _matrix(r["frame_pose"])))
-    for override in entry["waypoint_overrides"]:
-        key = (str(override["trajectory"]), int(override["end_effector_id"]), int(override["index"]))
+        raise entry["template"].fail(f"template {name!r} is not in the library (known: {', '.join(sorted(templates))})")
+    instance = TemplateInstance(template, entry["id"].integer(min=0, max=255), robot, _matrix(entry["root_pose"]),
+                                hide_waypoints=entry["hide_waypoints"].boolean(), current_trajectory=entry["current_trajectory"].text(empty=True))
+    for object_name, r in entry["registrations"].entries():
+        r.mapping(required=("frame", "offset", "frame_pose"))
+        instance.register(object_name, Registration(r["frame"].text(), _matrix(r["offset"]), _matrix(r["frame_pose"])))
+    for override in entry["waypoint_overrides"].sequence():
+        override.mapping(required=("trajectory", "end_effector_id", "index", "origin"))
+        key = (override["trajectory"].text(), override["end_effector_id"].integer(min=0, max=255), override["index"].integer(min=0, max=255))
         instance.waypoint_overrides[key] = _matrix(override["origin"])
-    for name, index in entry["current_index"].items():
-        if name in instance.progress:
-            instance.progress[name].current_index = int(index)
+    for trajectory, index in entry["current_index"].entries():
+        if trajectory in instance.progress:
+            instance.progress[trajectory].current_index = index.integer(min=-1, max=255)
     return instance

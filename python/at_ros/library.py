@@ -3,21 +3,27 @@
 Every ``*.json`` under a library folder is one template, keyed by its ``"name"`` (the template
 type, ``class_type`` in every service), as the original server's ``loadTemplates`` did. Unlike
 the original parser (which logged ROS_ERROR and carried on, or segfaulted later), a malformed
-file is rejected with :class:`LibraryError` naming the file and the key path that is wrong.
+file is rejected with :class:`LibraryError` naming the file, the line and the key path that is
+wrong (the shared :mod:`datafile` mechanism), and unknown keys are errors, not ignored typos.
+
+Two optional waypoint keys are ours: ``"grasp": "<display object>"`` says the gripper holds that
+object from this waypoint on, ``"release": "<display object>"`` that it lets go of it here. The
+planner carries exactly what the template says it grasps; without these keys it carries nothing
+new (a file in the original format plans as before, never grasping on a guess).
 """
 
 from __future__ import annotations
 
-import json
-import math
-from collections.abc import Callable, Sequence
+import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TypeVar
 
 import numpy as np
 
 from at_ros.transforms import from_xyz_rpy
+from datafile import DataFileError, Field, load_file
 
 Named = TypeVar("Named")
 
@@ -38,6 +44,8 @@ __all__ = [
     "default_library_path",
     "PLANNER_JOINT",
     "PLANNER_CARTESIAN",
+    "GRASP",
+    "RELEASE",
 ]
 
 PLANNER_JOINT = "JOINT"
@@ -45,15 +53,8 @@ PLANNER_CARTESIAN = "CARTESIAN"
 SHAPE_TYPES = ("mesh", "box", "sphere", "cylinder")
 
 
-class LibraryError(ValueError):
-    """A template or robot file that cannot be used; the message names the file and the key."""
-
-    def __init__(self, path: Path | str, key: str, problem: str) -> None:
-        self.path = str(path)
-        self.key = key
-        self.problem = problem
-        where = f"{self.path}: {key}: " if key else f"{self.path}: "
-        super().__init__(where + problem)
+class LibraryError(DataFileError):
+    """A template or robot file that cannot be used: ``file:line: key: problem``."""
 
 
 @dataclass(frozen=True)
@@ -114,6 +115,8 @@ class Waypoint:
     tolerances: Tolerances = Tolerances()
     task_compatibility: tuple[tuple[int, int, int], tuple[int, int, int]] = ((1, 1, 1), (1, 1, 1))
     tool_offset: Origin = Origin()
+    grasp: str = ""  # display object the gripper holds from this waypoint on ("" = none)
+    release: str = ""  # display object the gripper lets go of at this waypoint
 
 
 @dataclass(frozen=True)
@@ -154,112 +157,65 @@ class Template:
         return [t.name for t in self.trajectories]
 
 
-class _Reader:
-    """Walks parsed JSON and raises LibraryError naming the key path of anything wrong."""
+GRASP = "grasp"
+RELEASE = "release"
 
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def fail(self, key: str, problem: str) -> LibraryError:
-        return LibraryError(self.path, key, problem)
-
-    def obj(self, value: Any, key: str) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            raise self.fail(key, f"expected an object, got {type(value).__name__}")
-        return value
-
-    def required(self, parent: dict[str, Any], name: str, key: str) -> Any:
-        if name not in parent:
-            raise self.fail(_join(key, name), "missing required key")
-        return parent[name]
-
-    def string(self, value: Any, key: str, *, allow_empty: bool = False) -> str:
-        if not isinstance(value, str):
-            raise self.fail(key, f"expected a string, got {type(value).__name__}")
-        if not allow_empty and not value:
-            raise self.fail(key, "must not be empty")
-        return value
-
-    def integer(self, value: Any, key: str) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(key, f"expected an integer, got {value!r}")
-        return value
-
-    def number(self, value: Any, key: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self.fail(key, f"expected a finite number, got {value!r}")
-        return float(value)
-
-    def numbers(self, value: Any, key: str, count: int) -> tuple[float, ...]:
-        if not isinstance(value, list) or len(value) != count:
-            raise self.fail(key, f"expected a list of {count} numbers, got {value!r}")
-        return tuple(self.number(v, f"{key}[{i}]") for i, v in enumerate(value))
-
-    def flags(self, value: Any, key: str) -> tuple[bool, bool, bool]:
-        # The original accepted true/false and 0/1 alike.
-        if not isinstance(value, list) or len(value) != 3 or not all(v in (0, 1) for v in value):
-            raise self.fail(key, f"expected 3 booleans (true/false or 0/1), got {value!r}")
-        return (bool(value[0]), bool(value[1]), bool(value[2]))
-
-    def array(self, value: Any, key: str) -> list[Any]:
-        if not isinstance(value, list):
-            raise self.fail(key, f"expected a list, got {type(value).__name__}")
-        return value
-
-    def origin(self, value: Any, key: str) -> Origin:
-        o = self.obj(value, key)
-        xyz = self.numbers(self.required(o, "xyz", key), _join(key, "xyz"), 3)
-        rpy = self.numbers(self.required(o, "rpy", key), _join(key, "rpy"), 3)
-        return Origin(xyz=xyz, rpy=rpy)  # type: ignore[arg-type]
-
-    def controls(self, value: Any, key: str) -> Controls:
-        c = self.obj(value, key)
-        return Controls(
-            xyz=self.flags(self.required(c, "xyz", key), _join(key, "xyz")),
-            rpy=self.flags(self.required(c, "rpy", key), _join(key, "rpy")),
-            scale=self.number(self.required(c, "scale", key), _join(key, "scale")),
-        )
+_WAYPOINT_KEYS = ("controls", "planner_type", "conditioning_metric", "tolerances", "task_compatibility", "tool_offset", GRASP, RELEASE)
 
 
-def _join(key: str, name: str) -> str:
-    return f"{key}.{name}" if key else name
+def _origin(f: Field) -> Origin:
+    f.mapping(required=("xyz", "rpy"))
+    return Origin(xyz=f["xyz"].numbers(3), rpy=f["rpy"].numbers(3))  # type: ignore[arg-type]
 
 
-def _shape(r: _Reader, value: Any, key: str) -> Shape:
-    s = r.obj(value, key)
-    kind = r.string(r.required(s, "type", key), _join(key, "type"))
-    if kind not in SHAPE_TYPES:
-        raise r.fail(_join(key, "type"), f"unknown shape {kind!r}; expected one of {', '.join(SHAPE_TYPES)}")
-    size = r.numbers(r.required(s, "size", key), _join(key, "size"), 3)
+def _flags(f: Field) -> tuple[bool, bool, bool]:
+    # The original accepted true/false and 0/1 alike.
+    items = f.sequence()
+    if len(items) != 3 or not all(i.node.value in (0, 1) and i.node.kind == "scalar" for i in items):
+        raise f.fail(f"expected 3 booleans (true/false or 0/1), got {f.describe()}")
+    return (bool(items[0].node.value), bool(items[1].node.value), bool(items[2].node.value))
+
+
+def _controls(f: Field) -> Controls:
+    f.mapping(required=("xyz", "rpy", "scale"))
+    return Controls(xyz=_flags(f["xyz"]), rpy=_flags(f["rpy"]), scale=f["scale"].number(min=0.0))
+
+
+def _shape(f: Field) -> Shape:
+    kind = f.mapping(required=("type",), any_keys=True)["type"].choice(SHAPE_TYPES)
     if kind == "mesh":
-        return Shape(type=kind, size=size, data=r.string(r.required(s, "data", key), _join(key, "data")))  # type: ignore[arg-type]
-    material = r.obj(r.required(s, "material", key), _join(key, "material"))
-    mkey = _join(key, "material")
+        f.mapping(required=("type", "data", "size"), optional=("material",))
+        return Shape(type=kind, size=f["size"].numbers(3), data=f["data"].text())  # type: ignore[arg-type]
+    f.mapping(required=("type", "material", "size"))
+    material = f["material"].mapping(required=("rgba",), optional=("color",))
+    color = material.get("color")
     return Shape(
         type=kind,
-        size=size,  # type: ignore[arg-type]
-        color=r.string(material.get("color", ""), _join(mkey, "color"), allow_empty=True),
-        rgba=r.numbers(r.required(material, "rgba", mkey), _join(mkey, "rgba"), 4),  # type: ignore[arg-type]
+        size=f["size"].numbers(3),  # type: ignore[arg-type]
+        color=color.text(empty=True) if color else "",
+        rgba=material["rgba"].numbers(4, min=0.0, max=1.0),  # type: ignore[arg-type]
     )
 
 
-def _display_object(r: _Reader, value: Any, key: str) -> DisplayObject:
-    d = r.obj(value, key)
+def _display_object(f: Field) -> DisplayObject:
+    f.mapping(required=("name", "shape", "origin", "controls"), optional=("parent",))
+    parent = f.get("parent")
     return DisplayObject(
-        name=r.string(r.required(d, "name", key), _join(key, "name")),
-        parent=r.string(d.get("parent", ""), _join(key, "parent"), allow_empty=True),
-        shape=_shape(r, r.required(d, "shape", key), _join(key, "shape")),
-        origin=r.origin(r.required(d, "origin", key), _join(key, "origin")),
-        controls=r.controls(r.required(d, "controls", key), _join(key, "controls")),
+        name=f["name"].text(),
+        parent=parent.text(empty=True) if parent else "",
+        shape=_shape(f["shape"]),
+        origin=_origin(f["origin"]),
+        controls=_controls(f["controls"]),
     )
 
 
-def _tolerances(r: _Reader, value: Any, key: str) -> Tolerances:
-    t = r.obj(value, key)
+def _tolerances(f: Field) -> Tolerances:
+    f.mapping(optional=("x", "y", "z", "R", "P", "Y"))
     position, orientation = [], []
     for axis, bucket in (("x", position), ("y", position), ("z", position), ("R", orientation), ("P", orientation), ("Y", orientation)):
-        if axis in t:
-            pair = r.numbers(t[axis], _join(key, axis), 2)
+        value = f.get(axis)
+        if value is not None:
+            pair = value.numbers(2)
             bucket.append(max(abs(pair[0]), abs(pair[1])))
     defaults = Tolerances()
     return Tolerances(
@@ -268,139 +224,149 @@ def _tolerances(r: _Reader, value: Any, key: str) -> Tolerances:
     )
 
 
-def _waypoint(r: _Reader, value: Any, key: str) -> Waypoint:
-    w = r.obj(value, key)
-    planner_type = r.string(w.get("planner_type", PLANNER_CARTESIAN), _join(key, "planner_type"))
-    if planner_type not in (PLANNER_JOINT, PLANNER_CARTESIAN):
-        # The original silently turned any unknown string into JOINT; a typo should not change motion.
-        raise r.fail(_join(key, "planner_type"), f"expected {PLANNER_CARTESIAN!r} or {PLANNER_JOINT!r}, got {planner_type!r}")
-    compat = ((1, 1, 1), (1, 1, 1))
-    if "task_compatibility" in w:
-        tc = r.obj(w["task_compatibility"], _join(key, "task_compatibility"))
-        ckey = _join(key, "task_compatibility")
-        compat = (
-            tuple(int(v) for v in r.numbers(r.required(tc, "xyz", ckey), _join(ckey, "xyz"), 3)),
-            tuple(int(v) for v in r.numbers(r.required(tc, "rpy", ckey), _join(ckey, "rpy"), 3)),
-        )  # type: ignore[assignment]
+def _task_compatibility(f: Field) -> tuple[tuple[int, int, int], tuple[int, int, int]]:
+    f.mapping(required=("xyz", "rpy"))
+    xyz, rpy = (tuple(int(v) for v in f[k].numbers(3, min=-1, max=1)) for k in ("xyz", "rpy"))
+    return xyz, rpy  # type: ignore[return-value]
+
+
+def _waypoint(f: Field) -> Waypoint:
+    f.mapping(required=("ee_pose", "display_object", "origin"), optional=_WAYPOINT_KEYS)
+    planner = f.get("planner_type")
+    # The original silently turned any unknown string into JOINT; a typo should not change motion.
+    planner_type = planner.choice((PLANNER_CARTESIAN, PLANNER_JOINT)) if planner else PLANNER_CARTESIAN
+    grasp, release = f.get(GRASP), f.get(RELEASE)
+    if grasp is not None and release is not None:
+        raise release.fail("a waypoint either grasps or releases, not both")
+    metric, tolerances, compat, controls, tool = (f.get(k) for k in ("conditioning_metric", "tolerances", "task_compatibility", "controls", "tool_offset"))
     return Waypoint(
-        ee_pose=r.integer(r.required(w, "ee_pose", key), _join(key, "ee_pose")),
-        display_object=r.string(r.required(w, "display_object", key), _join(key, "display_object")),
-        origin=r.origin(r.required(w, "origin", key), _join(key, "origin")),
-        controls=r.controls(w["controls"], _join(key, "controls")) if "controls" in w else Controls(),
+        ee_pose=f["ee_pose"].integer(min=0, max=255),
+        display_object=f["display_object"].text(),
+        origin=_origin(f["origin"]),
+        controls=_controls(controls) if controls else Controls(),
         planner_type=planner_type,
-        conditioning_metric=r.string(w.get("conditioning_metric", "MIN_DISTANCE"), _join(key, "conditioning_metric")),
-        tolerances=_tolerances(r, w["tolerances"], _join(key, "tolerances")) if "tolerances" in w else Tolerances(),
-        task_compatibility=compat,
-        tool_offset=r.origin(w["tool_offset"], _join(key, "tool_offset")) if "tool_offset" in w else Origin(),
+        conditioning_metric=metric.text() if metric else "MIN_DISTANCE",
+        tolerances=_tolerances(tolerances) if tolerances else Tolerances(),
+        task_compatibility=_task_compatibility(compat) if compat else ((1, 1, 1), (1, 1, 1)),
+        tool_offset=_origin(tool) if tool else Origin(),
+        grasp=grasp.text() if grasp else "",
+        release=release.text() if release else "",
     )
 
 
-def _trajectory(r: _Reader, value: Any, key: str) -> Trajectory:
-    t = r.obj(value, key)
+def _trajectory(f: Field) -> Trajectory:
+    f.mapping(required=("name", "end_effector_group"))
     groups = []
-    gkey = _join(key, "end_effector_group")
-    raw_groups = r.array(r.required(t, "end_effector_group", key), gkey)
-    if not raw_groups:
-        raise r.fail(gkey, "a trajectory needs at least one end-effector group")
-    for gi, g in enumerate(raw_groups):
-        k = f"{gkey}[{gi}]"
-        gobj = r.obj(g, k)
-        wkey = _join(k, "end_effector_waypoint")
-        raw_wps = r.array(r.required(gobj, "end_effector_waypoint", k), wkey)
-        if not raw_wps:
-            raise r.fail(wkey, "a group needs at least one waypoint")
-        groups.append(
-            EndEffectorGroup(
-                id=r.integer(r.required(gobj, "id", k), _join(k, "id")),
-                waypoints=tuple(_waypoint(r, w, f"{wkey}[{wi}]") for wi, w in enumerate(raw_wps)),
-            )
-        )
-    ids = [g.id for g in groups]
-    if len(set(ids)) != len(ids):
-        raise r.fail(gkey, f"end-effector group ids repeat: {ids}")
-    return Trajectory(name=r.string(r.required(t, "name", key), _join(key, "name")), groups=tuple(groups))
+    group_fields = f["end_effector_group"].sequence(min_items=1)
+    for g in group_fields:
+        g.mapping(required=("id", "end_effector_waypoint"))
+        groups.append(EndEffectorGroup(
+            id=g["id"].integer(min=0, max=255),
+            waypoints=tuple(_waypoint(w) for w in g["end_effector_waypoint"].sequence(min_items=1)),
+        ))
+    for i, group in enumerate(groups):
+        if any(other.id == group.id for other in groups[:i]):
+            raise group_fields[i]["id"].fail(f"end-effector group id {group.id} repeats")
+    return Trajectory(name=f["name"].text(), groups=tuple(groups))
 
 
-def _check_references(r: _Reader, template: Template, raw_trajectories: Sequence[Any]) -> None:
+def _check_references(root: Field, template: Template) -> None:
+    objects = root["display_objects"].sequence()
     names = [o.name for o in template.display_objects]
-    if len(set(names)) != len(names):
-        raise r.fail("display_objects", f"display object names repeat: {names}")
     for i, obj in enumerate(template.display_objects):
+        if obj.name in names[:i]:
+            raise objects[i]["name"].fail(f"display object {obj.name!r} is defined twice")
         if obj.parent and obj.parent not in names:
-            raise r.fail(f"display_objects[{i}].parent", f"unknown display object {obj.parent!r}; known: {', '.join(names)}")
+            raise objects[i]["parent"].fail(f"unknown display object {obj.parent!r}; known: {', '.join(names)}")
         seen, parent = {obj.name}, obj.parent
         while parent:
             if parent in seen:
-                raise r.fail(f"display_objects[{i}].parent", f"parent chain of {obj.name!r} loops")
+                raise objects[i]["parent"].fail(f"parent chain of {obj.name!r} loops")
             seen.add(parent)
             parent = template.display_object(parent).parent  # type: ignore[union-attr]
-    traj_names = template.trajectory_names
-    if len(set(traj_names)) != len(traj_names):
-        raise r.fail("end_effector_trajectory", f"trajectory names repeat: {traj_names}")
+    trajectories = root["end_effector_trajectory"].sequence()
     for ti, traj in enumerate(template.trajectories):
+        if traj.name in template.trajectory_names[:ti]:
+            raise trajectories[ti]["name"].fail(f"trajectory {traj.name!r} is defined twice")
         for gi, group in enumerate(traj.groups):
+            waypoints = trajectories[ti]["end_effector_group"].sequence()[gi]["end_effector_waypoint"].sequence()
             for wi, wp in enumerate(group.waypoints):
-                if wp.display_object not in names:
-                    key = f"end_effector_trajectory[{ti}].end_effector_group[{gi}].end_effector_waypoint[{wi}].display_object"
-                    raise r.fail(key, f"unknown display object {wp.display_object!r}; known: {', '.join(names)}")
+                for key, name in (("display_object", wp.display_object), (GRASP, wp.grasp), (RELEASE, wp.release)):
+                    if name and name not in names:
+                        raise waypoints[wi][key].fail(f"unknown display object {name!r}; known: {', '.join(names)}")
 
 
 def load_template(path: Path | str) -> Template:
     """Parse and validate one AT JSON file.
 
     Raises:
-        LibraryError: unreadable file, JSON syntax error (with line and column), a missing or
-            mistyped key, or a reference to an unknown display object.
+        LibraryError: ``file:line: key: problem`` for an unreadable file, a JSON syntax error, a
+            missing, unknown or mistyped key, or a reference to an unknown display object.
     """
     path = Path(path)
-    r = _Reader(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise LibraryError(path, "", f"cannot read: {exc.strerror}") from exc
-    except json.JSONDecodeError as exc:
-        raise LibraryError(f"{path}:{exc.lineno}:{exc.colno}", "", f"invalid JSON: {exc.msg}") from exc
-    top = r.obj(data, "")
-    if "end_effector_trajectories" in top and "end_effector_trajectory" not in top:
-        raise r.fail("end_effector_trajectories", "unknown key; the AT format names it 'end_effector_trajectory' (singular)")
-    objects = r.array(r.required(top, "display_objects", ""), "display_objects")
-    if not objects:
-        raise r.fail("display_objects", "a template needs at least one display object")
-    trajectories = r.array(r.required(top, "end_effector_trajectory", ""), "end_effector_trajectory")
+    root = load_file(path, error=LibraryError, json=True)
+    if root.node.kind == "mapping" and root.has("end_effector_trajectories") and not root.has("end_effector_trajectory"):
+        raise root["end_effector_trajectories"].fail("unknown key; the AT format names it 'end_effector_trajectory' (singular)")
+    root.mapping(required=("name", "image", "display_objects", "end_effector_trajectory"))
     template = Template(
-        name=r.string(r.required(top, "name", ""), "name"),
-        image=r.string(r.required(top, "image", ""), "image", allow_empty=True),
-        display_objects=tuple(_display_object(r, o, f"display_objects[{i}]") for i, o in enumerate(objects)),
-        trajectories=tuple(_trajectory(r, t, f"end_effector_trajectory[{i}]") for i, t in enumerate(trajectories)),
+        name=root["name"].text(),
+        image=root["image"].text(empty=True),
+        display_objects=tuple(_display_object(o) for o in root["display_objects"].sequence(min_items=1)),
+        trajectories=tuple(_trajectory(t) for t in root["end_effector_trajectory"].sequence()),
         filename=str(path),
     )
-    _check_references(r, template, trajectories)
+    _check_references(root, template)
     return template
 
 
 def load_library(folder: Path | str) -> dict[str, Template]:
-    """Load every ``*.json`` under ``folder`` (recursively), keyed by template name.
+    """Load every ``*.json`` under ``folder`` (recursively, following linked folders), keyed by name.
 
     Raises:
-        LibraryError: the folder is missing, any file is malformed, or two files share a name.
+        LibraryError: the folder is missing, any file is malformed, two files share a name, or a
+            linked folder leads back into itself.
     """
-    return load_named_files(Path(folder), "**/*.json", load_template, "name", "template")
+    return load_named_files(Path(folder), ".json", load_template, "name", "template", recursive=True)
 
 
-def load_named_files(folder: Path, pattern: str, load: Callable[[Path], Named], key: str, kind: str) -> dict[str, Named]:
-    """Every file of ``folder`` matching ``pattern``, loaded, keyed by its ``key`` attribute.
+def _files(folder: Path, suffix: str, recursive: bool) -> list[Path]:
+    """The files ending in ``suffix`` in ``folder`` (and below it, following linked folders).
+
+    A user links a shared set of templates into their library, so linked folders are followed;
+    a link that leads back to a folder already on the way down would never end, so it is refused.
+    """
+    if not recursive:
+        return sorted(p for p in folder.iterdir() if p.name.endswith(suffix) and p.is_file())
+    found: list[Path] = []
+    for top, dirs, files in os.walk(folder, followlinks=True, onerror=_walk_error):
+        here = Path(top)
+        ancestors = {Path(os.path.realpath(parent)) for parent in [here, *here.parents] if folder in [parent, *parent.parents]}
+        for name in list(dirs):
+            if Path(os.path.realpath(here / name)) in ancestors:
+                raise LibraryError(here / name, 0, "", "linked folder leads back into the library above it; remove the link")
+        dirs.sort()
+        found += [here / name for name in sorted(files) if name.endswith(suffix) and (here / name).is_file()]
+    return found
+
+
+def _walk_error(exc: OSError) -> None:
+    raise LibraryError(exc.filename or "", 0, "", f"cannot read folder: {exc.strerror}")
+
+
+def load_named_files(folder: Path, suffix: str, load: Callable[[Path], Named], key: str, kind: str, *, recursive: bool = False) -> dict[str, Named]:
+    """Every file of ``folder`` ending in ``suffix``, loaded, keyed by its ``key`` attribute.
 
     Adding a template or a robot is adding a file, so a name two files claim is an error that
     names both: otherwise which one wins would depend on the order files are read in.
     """
     if not folder.is_dir():
-        raise LibraryError(folder, "", f"{kind} folder does not exist")
+        raise LibraryError(folder, 0, "", f"{kind} folder does not exist")
     loaded: dict[str, Named] = {}
-    for path in sorted(folder.glob(pattern)):
+    for path in _files(folder, suffix, recursive):
         item = load(path)
         name = getattr(item, key)
         if name in loaded:
-            raise LibraryError(path, key, f"{kind} {key} {name!r} is already used by {loaded[name].filename}")
+            raise LibraryError(path, 0, key, f"{kind} {key} {name!r} is already used by {getattr(loaded[name], 'filename', '?')}")
         loaded[name] = item
     return loaded
 

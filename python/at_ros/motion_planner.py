@@ -2,9 +2,11 @@
 
 Each goal is reached from the end of the previous one (chained seeding, as the original AT
 planner did): JOINT goals by IK + OMPL, CARTESIAN goals by a straight tool line whose samples
-are solved by IK seeded from the previous sample and rejected on a joint jump. Gripper poses
-change what the scene carries: closing on a graspable object attaches it to the tool for the
-rest of the plan, opening detaches it.
+are solved by IK seeded from the previous sample and rejected on a joint jump. What the scene
+carries changes only where the template says so: at a waypoint that grasps an object, the
+graspable object of the world found where the template's object is registered is attached to the
+tool for the rest of the plan; at a waypoint that releases it, it is detached. A gripper pose
+named "closed" near some object grasps nothing by itself.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from at_ros.ik import IkFailure, IkSolver
+from at_ros.library import GRASP, RELEASE
 from at_ros.ompl_planner import JointPlanner, PlanningFailed
 from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import PlannerSettings
@@ -26,8 +29,6 @@ __all__ = ["Goal", "PlannedWaypoint", "MotionPlanner", "WaypointPlanningError"]
 
 JOINT = "JOINT"
 CARTESIAN = "CARTESIAN"
-GRASP_POSES = ("closed", "close", "grasp")
-RELEASE_POSES = ("open", "release")
 #: Halvings of a Cartesian step tried before a line counts as broken.
 CARTESIAN_SUBDIVISIONS = 3
 #: Share of plan_time per attempt, one attempt per IK solution (arm configuration) tried as the
@@ -40,8 +41,6 @@ GOAL_ALTERNATIVES = len(ATTEMPT_BUDGET)
 DISTINCT_CONFIGURATION = 0.5
 #: Random-seed IK solves spent looking for a configuration not tried yet.
 DISTINCT_SEARCH = 8
-#: How far (m) from the tool point a graspable object's origin may be to count as grasped.
-GRASP_REACH = 0.25
 
 
 @dataclass(frozen=True)
@@ -52,6 +51,9 @@ class Goal:
     end_effector_pose: str = ""
     position_tolerance: float = 1e-3
     orientation_tolerance: float = 1e-2
+    gripper_action: str = ""  # GRASP, RELEASE or "": what the template says happens here
+    object_name: str = ""  # the template's display object grasped or released
+    object_pose: np.ndarray | None = None  # world pose of that display object (for a grasp)
 
 
 @dataclass(frozen=True)
@@ -165,12 +167,12 @@ class MotionPlanner:
                 else:
                     path = self._cartesian(q, first)
                 out = [self._timed(first, path, started)]
-                self._update_attachment(path[-1], first.end_effector_pose)
+                self._update_attachment(path[-1], first)
                 for goal in unit[1:]:
                     started = time.perf_counter()
                     path = self._cartesian(path[-1], goal)
                     out.append(self._timed(goal, path, started))
-                    self._update_attachment(path[-1], goal.end_effector_pose)
+                    self._update_attachment(path[-1], goal)
                 return out
             except WaypointPlanningError as exc:
                 # Report the nearest configuration's failure: the one an operator would expect.
@@ -236,7 +238,8 @@ class MotionPlanner:
                     break
                 dt /= 2
             else:
-                what = "no IK solution continues the line" if result is None else f"joint jump {jump:.2f} rad"
+                blocked = f": {self.ik.blocked_by}" if result is None and self.ik.blocked_by else ""
+                what = f"no IK solution continues the line{blocked}" if result is None else f"joint jump {jump:.2f} rad"
                 raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})")
             why = scene.collision(result)
             if why is not None:
@@ -245,12 +248,25 @@ class MotionPlanner:
             t += dt
         return path
 
-    def _update_attachment(self, q: np.ndarray, end_effector_pose: str) -> None:
+    def _update_attachment(self, q: np.ndarray, goal: Goal) -> None:
+        """Carry or let go of the object the template names at ``goal`` (arm at ``q``).
+
+        Raises:
+            WaypointPlanningError: a grasp where no graspable object of the world is within
+                ``grasp_match`` of where the template's object is registered.
+        """
         scene = self.scene
-        if end_effector_pose in RELEASE_POSES:
+        if goal.gripper_action == RELEASE:
             scene.detach()
-        elif end_effector_pose in GRASP_POSES and scene.attachment is None:
-            tool = scene.forward(q)
-            grasped = scene.nearest_graspable(tool[:3, 3], within=GRASP_REACH)
-            if grasped is not None:
-                scene.attach(grasped)
+        elif goal.gripper_action == GRASP:
+            assert goal.object_pose is not None
+            reach = self.settings.grasp_match
+            grasped = scene.nearest_graspable(goal.object_pose[:3, 3], within=reach)
+            if grasped is None:
+                raise WaypointPlanningError(
+                    f"waypoint {goal.label}: grasps {goal.object_name!r}, but no graspable object of the world is within "
+                    f"{reach * 100:.0f} cm of where {goal.object_name!r} is registered; register it on the object", final=True)
+            if scene.attachment is not None and scene.attachment.name != grasped:
+                raise WaypointPlanningError(f"waypoint {goal.label}: grasps {grasped!r} while holding {scene.attachment.name!r}", final=True)
+            scene.set_joints(q)
+            scene.attach(grasped)

@@ -1,9 +1,11 @@
 """The planner node: plans end-effector waypoint sequences on its own pybullet planning scene.
 
-``caretaker planner --robot NAME`` serves ``/planner/plan_waypoints`` (PlanWaypoints) and beats
-``/planner/heartbeat`` at 2 Hz. It runs as its own process because OMPL's solve() holds the
-GIL: inside the AT server it would starve status publishing and every other callback.
-Everything runs on one executor thread, so frame updates never race a plan on the scene.
+``caretaker planner --robot NAME|FILE`` serves ``planner/plan_waypoints`` (PlanWaypoints) and
+beats ``planner/heartbeat`` at 2 Hz, in its ``--namespace``. It runs as its own process because
+OMPL's solve() holds the GIL: inside the AT server it would starve status publishing and every
+other callback. Everything runs on one executor thread, so frame updates never race a plan on
+the scene. Its collision world comes from ``sim/collision_world`` (:mod:`at_ros.collision_scene`);
+it prints READY once that has arrived.
 """
 
 from __future__ import annotations
@@ -16,29 +18,30 @@ import time
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, Header, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from affordance_template_msgs.msg import PlannedSegment
 from affordance_template_msgs.srv import PlanWaypoints
-from at_ros.api import SERVICE_QOS
+from at_ros.api import LATCHED, SERVICE_QOS
+from at_ros.collision_scene import build_planning_scene
+from at_ros.command_line import add_robot_options, choose_robot, split_ros_args
 from at_ros.library import LibraryError
 from at_ros.messages import matrix_from_pose
 from at_ros.motion_planner import Goal, MotionPlanner, PlannedWaypoint, WaypointPlanningError
-from at_ros.robot_config import RobotConfig, load_robot_configs
-from at_ros.scene_file import build_planning_scene
+from at_ros.planning_scene import PlanningScene
+from at_ros.robot_config import RobotConfig
 from at_ros.time_parameterization import TimedPath
 from at_ros.transforms import invert
-from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
 
 __all__ = ["PlannerNode", "main", "trajectory_message"]
 
 WORLD_FRAME = "world"
-#: The simulation latches gripper/held_object and robot/moving.
-LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
+#: How long the planner waits at start for the world's geometry before giving up.
+WORLD_TIMEOUT = 60.0
 
 
 def trajectory_message(joint_names: tuple[str, ...], path: TimedPath) -> JointTrajectory:
@@ -55,20 +58,36 @@ def trajectory_message(joint_names: tuple[str, ...], path: TimedPath) -> JointTr
 
 
 class PlannerNode(Node):
-    def __init__(self, config: RobotConfig) -> None:
-        super().__init__("planner")
+    """Plans on a world it does not have until ``sim/collision_world`` arrives (:attr:`scene`)."""
+
+    def __init__(self, config: RobotConfig, *, namespace: str = "") -> None:
+        super().__init__("planner", namespace=namespace)
         self.config = config
-        self.scene = build_planning_scene(config)
-        self.motion_planner = MotionPlanner(self.scene, config.planner)
+        self.scene: PlanningScene | None = None
+        self.motion_planner: MotionPlanner | None = None
+        self.world_error = ""
         self.held_object = ""
         self.robot_moving = False
         self.grasp_transform: np.ndarray | None = None  # held object in the tool frame
-        self.frames_subscription = self.create_subscription(NamedPoses, "/sim/frames", self.frames_callback, 10)
-        self.held_subscription = self.create_subscription(String, "/gripper/held_object", self.held_object_callback, LATCHED)
-        self.moving_subscription = self.create_subscription(Bool, "/robot/moving", self.moving_callback, LATCHED)
-        self.plan_service = self.create_service(PlanWaypoints, "/planner/plan_waypoints", self.plan_callback, qos_profile=SERVICE_QOS)
-        self.heartbeat_publisher = self.create_publisher(Header, "/planner/heartbeat", 10)
+        self.world_subscription = self.create_subscription(CollisionWorld, "sim/collision_world", self.world_callback, LATCHED)
+        self.frames_subscription = self.create_subscription(NamedPoses, "sim/frames", self.frames_callback, 10)
+        self.held_subscription = self.create_subscription(String, "gripper/held_object", self.held_object_callback, LATCHED)
+        self.moving_subscription = self.create_subscription(Bool, "robot/moving", self.moving_callback, LATCHED)
+        self.plan_service = self.create_service(PlanWaypoints, "planner/plan_waypoints", self.plan_callback, qos_profile=SERVICE_QOS)
+        self.heartbeat_publisher = self.create_publisher(Header, "planner/heartbeat", 10)
         self.heartbeat_timer = self.create_timer(0.5, self.heartbeat_callback)
+
+    def world_callback(self, msg: CollisionWorld) -> None:
+        """Build the planning scene once from the first world that arrives (the world is static;
+        what moves follows on sim/frames)."""
+        if self.scene is not None:
+            return
+        try:
+            self.scene = build_planning_scene(self.config, msg)
+        except ValueError as exc:
+            self.world_error = f"the collision world of scene {msg.scene!r} cannot be used: {exc}"
+            return
+        self.motion_planner = MotionPlanner(self.scene, self.config.planner)
 
     def heartbeat_callback(self) -> None:
         msg = Header()
@@ -91,6 +110,8 @@ class PlannerNode(Node):
         whenever the arm carries it, never while the arm rests: a resting simulated gripper lets
         its part sag, and planning with the sagged pose would scrape it along every slot.
         """
+        if self.scene is None:
+            return
         poses = {name: matrix_from_pose(pose) for name, pose in zip(msg.names, msg.poses)}
         for name, pose in poses.items():
             if name in self.scene.graspable:
@@ -104,6 +125,8 @@ class PlannerNode(Node):
     def plan_callback(self, request: PlanWaypoints.Request, response: PlanWaypoints.Response) -> PlanWaypoints.Response:
         started = time.perf_counter()
         try:
+            if self.motion_planner is None:
+                raise WaypointPlanningError("the planner has no collision world yet (sim/collision_world)")
             start = self._start_state(request)
             goals = [self._goal(w) for w in request.waypoints]
             if not goals:
@@ -142,6 +165,9 @@ class PlannerNode(Node):
             end_effector_pose=waypoint.end_effector_pose,
             position_tolerance=waypoint.position_tolerance or 1e-3,
             orientation_tolerance=waypoint.orientation_tolerance or 1e-2,
+            gripper_action=waypoint.gripper_action,
+            object_name=waypoint.object_name,
+            object_pose=matrix_from_pose(waypoint.object_pose) if waypoint.gripper_action else None,
         )
 
     def _segment(self, planned: PlannedWaypoint) -> PlannedSegment:
@@ -154,27 +180,38 @@ class PlannerNode(Node):
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker planner", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", required=True, help="robot_name of a robot config in the AT library")
-    args, ros_args = parser.parse_known_args(argv)
+    add_robot_options(parser)
+    ours, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(ours)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
-        robots = load_robot_configs()
+        config = choose_robot(args).robot
     except LibraryError as exc:
         print(f"caretaker planner: {exc}", file=sys.stderr)
         return 2
-    if args.robot not in robots:
-        print(f"caretaker planner: unknown robot {args.robot!r}; known: {', '.join(sorted(robots))}", file=sys.stderr)
-        return 2
-    rclpy.init(args=ros_args)
+    rclpy.init(args=["caretaker-planner", *ros_args])
     node = None
+    executor = SingleThreadedExecutor()
     try:
-        node = PlannerNode(robots[args.robot])
-        print(f"READY planner {args.robot}", flush=True)
-        rclpy.spin(node)
+        node = PlannerNode(config, namespace=args.namespace)
+        executor.add_node(node)
+        deadline = time.monotonic() + WORLD_TIMEOUT
+        while node.scene is None and not node.world_error and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        if node.scene is None:
+            topic = node.world_subscription.topic_name
+            print(f"caretaker planner: {node.world_error or f'no collision world on {topic} within {WORLD_TIMEOUT:.0f} s; is the simulation (or world model) running in this ROS domain and namespace?'}",
+                  file=sys.stderr)
+            return 2
+        print(f"READY planner {config.robot_name}", flush=True)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        executor.shutdown()
         if node is not None:
+            if node.scene is not None:
+                node.scene.close()
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()

@@ -4,21 +4,22 @@ Original keys (``robot_interface.cpp::load``): ``robot_name``, ``planner_type``,
 ``root_offset`` [x y z r p y], ``end_effector_group_map`` (name, id, pose_offset, tool_offset),
 ``end_effector_pose_map`` (name, group, id). Additions, since there is no MoveIt/SRDF here:
 ``urdf``, ``scene``, ``base_frame``, ``tool_link``, ``joint_names``, ``trajectory_action``,
-``gripper_service`` and a ``planner`` block. Relative paths are relative to the repository root.
+``gripper_service`` and a ``planner`` block. Paths (``urdf``) are relative to the config file.
+ROS names (``trajectory_action``, ``gripper_service``) without a leading ``/`` are relative to
+the node's namespace, so one config serves a robot in any namespace. Unknown keys are errors.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from at_ros.library import LibraryError, default_library_path, load_named_files
 from at_ros.transforms import from_xyz_rpy
+from datafile import Field, load_file
 
 __all__ = [
     "EndEffector",
@@ -27,12 +28,10 @@ __all__ = [
     "RobotConfig",
     "load_robot_config",
     "load_robot_configs",
-    "repository_root",
 ]
 
-
-def repository_root() -> Path:
-    return Path(__file__).resolve().parents[2]
+_REQUIRED = ("robot_name", "frame_id", "root_offset", "end_effector_group_map", "urdf", "base_frame", "tool_link",
+             "joint_names", "trajectory_action")
 
 
 @dataclass(frozen=True)
@@ -75,6 +74,7 @@ class PlannerSettings:
     velocity_scaling: float = 0.5  # fraction of the URDF velocity limits
     max_acceleration: float = 2.0  # rad/s^2 per joint
     gripper_links: tuple[str, ...] = ()  # links allowed to touch the object being grasped
+    grasp_match: float = 0.05  # m: a grasped object must be this close to where the template says it is
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,6 @@ class RobotConfig:
     end_effectors: tuple[EndEffector, ...]
     end_effector_poses: tuple[EndEffectorPose, ...]
     urdf: Path
-    scene: Path
     base_frame: str
     tool_link: str
     joint_names: tuple[str, ...]
@@ -110,125 +109,87 @@ class RobotConfig:
         return next((p.name for p in self.end_effector_poses if p.group == group and p.id == pose_id), None)
 
 
-def _require(data: dict[str, Any], key: str, path: Path) -> Any:
-    if key not in data:
-        raise LibraryError(path, key, "missing required key")
-    return data[key]
+_ORIGINAL_KEYS = ("planner_type", "config_package", "config_file", "end_effector_pose_map", "gripper_action")
+_OUR_KEYS = ("gripper_service", "home_joints", "planner")
 
 
-def _six(value: Any, key: str, path: Path) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != 6 or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
-        raise LibraryError(path, key, f"expected [x, y, z, roll, pitch, yaw] (6 numbers), got {value!r}")
-    return tuple(float(v) for v in value)
+def _six(f: Field) -> tuple[float, ...]:
+    if f.node.kind != "sequence" or len(f.node.items) != 6:
+        raise f.fail(f"expected [x, y, z, roll, pitch, yaw] (6 numbers), got {f.describe()}")
+    return f.numbers(6)
 
 
-def _str(value: Any, key: str, path: Path, *, allow_empty: bool = False) -> str:
-    if not isinstance(value, str) or (not value and not allow_empty):
-        raise LibraryError(path, key, f"expected a non-empty string, got {value!r}")
-    return value
-
-
-def _int(value: Any, key: str, path: Path) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise LibraryError(path, key, f"expected an integer, got {value!r}")
-    return value
-
-
-def _planner(value: Any, path: Path) -> PlannerSettings:
-    if value is None:
+def _planner(f: Field | None) -> PlannerSettings:
+    if f is None:
         return PlannerSettings()
-    if not isinstance(value, dict):
-        raise LibraryError(path, "planner", f"expected a mapping, got {type(value).__name__}")
     defaults = PlannerSettings()
-    known = set(PlannerSettings.__dataclass_fields__)
-    unknown = set(value) - known
-    if unknown:
-        raise LibraryError(path, f"planner.{sorted(unknown)[0]}", f"unknown setting; known: {', '.join(sorted(known))}")
-    kwargs: dict[str, Any] = {}
-    for key, raw in value.items():
+    f.mapping(optional=PlannerSettings.__dataclass_fields__)
+    settings: dict[str, Any] = {}
+    for key, value in f.entries():
         default = getattr(defaults, key)
         if isinstance(default, tuple):
-            if not isinstance(raw, list) or not all(isinstance(v, str) for v in raw):
-                raise LibraryError(path, f"planner.{key}", f"expected a list of names, got {raw!r}")
-            kwargs[key] = tuple(raw)
+            settings[key] = value.names()
         elif isinstance(default, int):
-            kwargs[key] = _int(raw, f"planner.{key}", path)
+            settings[key] = value.integer(min=0, max=2**31 - 1)
         else:
-            if isinstance(raw, bool) or not isinstance(raw, (int, float)) or raw < 0:
-                raise LibraryError(path, f"planner.{key}", f"expected a non-negative number, got {raw!r}")
-            kwargs[key] = float(raw)
-    return PlannerSettings(**kwargs)
+            settings[key] = value.number(min=0.0)
+    return PlannerSettings(**settings)
+
+
+def _end_effectors(f: Field) -> tuple[EndEffector, ...]:
+    out: list[EndEffector] = []
+    for e in f.sequence(min_items=1):
+        e.mapping(required=("name", "id"), optional=("pose_offset", "tool_offset"))
+        pose, tool = e.get("pose_offset"), e.get("tool_offset")
+        ee = EndEffector(name=e["name"].text(), id=e["id"].integer(min=0, max=255),
+                         pose_offset=_six(pose) if pose else (0.0,) * 6, tool_offset=_six(tool) if tool else (0.0,) * 6)
+        if any(o.name == ee.name or o.id == ee.id for o in out):
+            raise e.fail(f"end effector {ee.name!r} (id {ee.id}) repeats a name or id")
+        out.append(ee)
+    return tuple(out)
+
+
+def _poses(f: Field | None, end_effectors: tuple[EndEffector, ...]) -> tuple[EndEffectorPose, ...]:
+    out: list[EndEffectorPose] = []
+    for p in f.sequence() if f is not None else []:
+        p.mapping(required=("name", "group", "id"))
+        group = p["group"].text()
+        if group not in {e.name for e in end_effectors}:
+            raise p["group"].fail(f"unknown end effector {group!r}; known: {', '.join(e.name for e in end_effectors)}")
+        pose = EndEffectorPose(name=p["name"].text(), group=group, id=p["id"].integer(min=0, max=255))
+        if any(o.group == pose.group and o.id == pose.id for o in out):
+            raise p["id"].fail(f"pose id {pose.id} of {group!r} is mapped twice")
+        out.append(pose)
+    return tuple(out)
 
 
 def load_robot_config(path: Path | str) -> RobotConfig:
-    """Parse and validate one robot YAML file.
+    """Parse and validate one robot YAML file; its paths are relative to the file.
 
     Raises:
-        LibraryError: naming the file and the key that is missing or wrong.
+        LibraryError: ``file:line: key: problem`` for whatever is missing, unknown or wrong.
     """
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise LibraryError(path, "", f"cannot read: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}" if mark else str(path)
-        raise LibraryError(where, "", f"invalid YAML: {exc}") from exc
-    if not isinstance(data, dict):
-        raise LibraryError(path, "", "expected a mapping at the top level")
-
-    ees = _require(data, "end_effector_group_map", path)
-    if not isinstance(ees, list) or not ees:
-        raise LibraryError(path, "end_effector_group_map", "expected a non-empty list")
-    end_effectors = []
-    for i, e in enumerate(ees):
-        key = f"end_effector_group_map[{i}]"
-        if not isinstance(e, dict):
-            raise LibraryError(path, key, "expected a mapping")
-        end_effectors.append(
-            EndEffector(
-                name=_str(_require(e, "name", path), f"{key}.name", path),
-                id=_int(_require(e, "id", path), f"{key}.id", path),
-                pose_offset=_six(e.get("pose_offset", [0] * 6), f"{key}.pose_offset", path),
-                tool_offset=_six(e.get("tool_offset", [0] * 6), f"{key}.tool_offset", path),
-            )
-        )
-    poses = []
-    for i, p in enumerate(data.get("end_effector_pose_map") or []):
-        key = f"end_effector_pose_map[{i}]"
-        if not isinstance(p, dict):
-            raise LibraryError(path, key, "expected a mapping")
-        group = _str(_require(p, "group", path), f"{key}.group", path)
-        if group not in {e.name for e in end_effectors}:
-            raise LibraryError(path, f"{key}.group", f"unknown end effector {group!r}; known: {', '.join(e.name for e in end_effectors)}")
-        poses.append(EndEffectorPose(name=_str(_require(p, "name", path), f"{key}.name", path), group=group, id=_int(_require(p, "id", path), f"{key}.id", path)))
-
-    joints = _require(data, "joint_names", path)
-    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) for j in joints):
-        raise LibraryError(path, "joint_names", "expected a non-empty list of joint names")
-    home = data.get("home_joints", [])
-    if home and (not isinstance(home, list) or len(home) != len(joints)):
-        raise LibraryError(path, "home_joints", f"expected {len(joints)} numbers, one per joint")
-    root = repository_root()
-    urdf = root / _str(_require(data, "urdf", path), "urdf", path)
-    scene = root / _str(_require(data, "scene", path), "scene", path)
+    root = load_file(path, error=LibraryError).mapping(required=_REQUIRED, optional=_ORIGINAL_KEYS + _OUR_KEYS)
+    end_effectors = _end_effectors(root["end_effector_group_map"])
+    joints = root["joint_names"].names(min_items=1)
+    home = root.get("home_joints")
+    planner_type, gripper = root.get("planner_type"), root.get("gripper_service")
     return RobotConfig(
-        robot_name=_str(_require(data, "robot_name", path), "robot_name", path),
-        planner_type=str(data.get("planner_type", "at_ros.planner_node")),
-        frame_id=_str(_require(data, "frame_id", path), "frame_id", path),
-        root_offset=_six(_require(data, "root_offset", path), "root_offset", path),
-        end_effectors=tuple(end_effectors),
-        end_effector_poses=tuple(poses),
-        urdf=urdf,
-        scene=scene,
-        base_frame=_str(_require(data, "base_frame", path), "base_frame", path),
-        tool_link=_str(_require(data, "tool_link", path), "tool_link", path),
-        joint_names=tuple(joints),
-        home_joints=tuple(float(v) for v in home),
-        trajectory_action=_str(_require(data, "trajectory_action", path), "trajectory_action", path),
-        gripper_service=_str(data.get("gripper_service", ""), "gripper_service", path, allow_empty=True),
-        planner=_planner(data.get("planner"), path),
+        robot_name=root["robot_name"].text(),
+        planner_type=planner_type.text() if planner_type else "at_ros.planner_node",
+        frame_id=root["frame_id"].text(),
+        root_offset=_six(root["root_offset"]),
+        end_effectors=end_effectors,
+        end_effector_poses=_poses(root.get("end_effector_pose_map"), end_effectors),
+        urdf=root["urdf"].file_path(),
+        base_frame=root["base_frame"].text(),
+        tool_link=root["tool_link"].text(),
+        joint_names=joints,
+        home_joints=home.numbers(len(joints)) if home else (),
+        trajectory_action=root["trajectory_action"].text(),
+        gripper_service=gripper.text(empty=True) if gripper else "",
+        planner=_planner(root.get("planner")),
         filename=str(path),
     )
 
@@ -236,4 +197,4 @@ def load_robot_config(path: Path | str) -> RobotConfig:
 def load_robot_configs(folder: Path | str | None = None) -> dict[str, RobotConfig]:
     """Every ``*.yaml`` robot config of a folder (default: the shipped library), keyed by robot_name."""
     folder = Path(folder) if folder else default_library_path() / "robots"
-    return load_named_files(folder, "*.yaml", load_robot_config, "robot_name", "robot")
+    return load_named_files(folder, ".yaml", load_robot_config, "robot_name", "robot")

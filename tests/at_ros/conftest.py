@@ -5,9 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from at_ros.collision_scene import build_planning_scene
 from at_ros.library import default_library_path, load_library
 from at_ros.robot_config import load_robot_configs
-from at_ros.scene_file import build_planning_scene
+from sim.collision_world import collision_world
+from sim.scene import load_scene
 
 #: The UR10's start pose in the IVA scene file (sim/scenes/iva.yaml).
 UR10_START = np.array([0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0])
@@ -25,8 +27,8 @@ def ur10_config():
 
 @pytest.fixture(scope="module")
 def iva_scene(ur10_config):
-    """The planner's pybullet world for the IVA scene, built from the simulation's scene file."""
-    scene = build_planning_scene(ur10_config)
+    """The planner's pybullet world for the IVA scene, from the collision world the simulation publishes."""
+    scene = build_planning_scene(ur10_config, collision_world(load_scene("iva")))
     yield scene
     scene.close()
 

@@ -56,9 +56,10 @@ def test_no_state_file_yet_is_no_instances(tmp_path: Path, library, ur10_config)
 @pytest.mark.parametrize(("edit", "problem"), [
     (lambda d: d.update(robot="eva_arm"), r"robot: state of robot 'eva_arm', but this server serves 'ur10'"),
     (lambda d: d["instances"][0].update(template="crate"), r"instances\[0\]\.template: template 'crate' is not in the library"),
-    (lambda d: d["instances"][0].update(root_pose=[1, 2, 3]), r"instances\[0\]: cannot be restored: ValueError"),
+    (lambda d: d["instances"][0].update(root_pose=[1, 2, 3]), r"instances\[0\]\.root_pose: expected at least 4 items, got 3"),
+    (lambda d: d["instances"][0]["root_pose"][0].__setitem__(0, "NaN"), r"instances\[0\]\.root_pose\[0\]\[0\]: expected a number, got str 'NaN'"),
     (lambda d: d["instances"][0]["registrations"].update(lid=d["instances"][0]["registrations"]["cdra_filter"]),
-     r"instances\[0\]: cannot be restored: InstanceError: template 'cdra_filter' has no display object 'lid'"),
+     r"instances\[0\]: cannot be restored: template 'cdra_filter' has no display object 'lid'"),
     (lambda d: d.update(format=7), r"format: expected AT server state format 1"),
 ])
 def test_a_state_file_that_cannot_be_restored_is_named_with_the_entry(tmp_path: Path, library, ur10_config, edit, problem: str) -> None:
@@ -68,7 +69,7 @@ def test_a_state_file_that_cannot_be_restored_is_named_with_the_entry(tmp_path: 
     document = json.loads(path.read_text())
     edit(document)
     path.write_text(json.dumps(document))
-    with pytest.raises(LibraryError, match=rf"at_server\.json: {problem}"):
+    with pytest.raises(LibraryError, match=rf"at_server\.json:1: {problem}"):
         load_instances(path, ur10_config, library)
 
 
@@ -78,4 +79,4 @@ def test_the_server_refuses_to_start_on_state_it_cannot_restore(tmp_path: Path, 
     server = subprocess.run([sys.executable, "-m", "caretaker.cli", "at-server", "--robot", "ur10", "--state-file", str(state)],
                             env=ros_env, capture_output=True, text=True, timeout=60)
     assert server.returncode == 2
-    assert f"{state}: robot: state of robot 'eva_arm', but this server serves 'ur10'" in server.stderr
+    assert f"{state}:1: robot: state of robot 'eva_arm', but this server serves 'ur10'" in server.stderr

@@ -80,10 +80,16 @@ WAYPOINT = "end_effector_trajectory[0].end_effector_group[0].end_effector_waypoi
         (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(display_object="cubee"), f"{WAYPOINT}.display_object", "unknown display object 'cubee'"),
         (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(ee_pose="open"), f"{WAYPOINT}.ee_pose", "expected an integer"),
         (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0]), "display_objects[0].origin.xyz", "3 numbers"),
-        (lambda d: d["display_objects"][0]["shape"].update(type="torus"), "display_objects[0].shape.type", "unknown shape"),
+        (lambda d: d["display_objects"][0]["shape"].update(type="torus"), "display_objects[0].shape.type", "unknown value 'torus'"),
         (lambda d: d["display_objects"][0].update(parent="table"), "display_objects[0].parent", "unknown display object 'table'"),
         (lambda d: d.update(end_effector_trajectories=d.pop("end_effector_trajectory")), "end_effector_trajectories", "singular"),
-        (lambda d: d["end_effector_trajectory"].append(d["end_effector_trajectory"][0]), "end_effector_trajectory", "repeat"),
+        (lambda d: d["end_effector_trajectory"].append(d["end_effector_trajectory"][0]), "end_effector_trajectory[1].name", "defined twice"),
+        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grap="cube"), f"{WAYPOINT}.grap", "unknown key 'grap'"),
+        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grasp="lid"), f"{WAYPOINT}.grasp", "unknown display object 'lid'"),
+        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grasp="cube", release="cube"), f"{WAYPOINT}.release", "not both"),
+        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, float("nan")]), "", "NaN and Infinity are not JSON numbers"),
+        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, 1e400]), "", "NaN and Infinity are not JSON numbers"),
+        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, "1"]), "display_objects[0].origin.xyz[2]", "expected a number, got str '1'"),
     ],
 )
 def test_malformed_template_names_file_and_key(tmp_path: Path, mutate, key: str, problem: str) -> None:
@@ -97,7 +103,7 @@ def test_malformed_template_names_file_and_key(tmp_path: Path, mutate, key: str,
 
 def test_json_syntax_error_names_line_and_column(tmp_path: Path) -> None:
     path = write(tmp_path, '{\n  "name": "x",\n  "image": ,\n}')
-    with pytest.raises(LibraryError, match=r"t\.json:3:\d+: invalid JSON"):
+    with pytest.raises(LibraryError, match=r"t\.json:3:\d+: not valid JSON"):
         load_template(path)
 
 
@@ -112,6 +118,35 @@ def test_library_keys_by_name_and_searches_subfolders(tmp_path: Path) -> None:
     (tmp_path / "sub").mkdir()
     write(tmp_path, CUBE, "sub/whatever.json")
     assert list(load_library(tmp_path)) == ["Cube"]
+
+
+def test_the_error_names_the_line_of_the_key(tmp_path: Path) -> None:
+    path = write(tmp_path, json.dumps(_broken(lambda d: d["display_objects"][0]["shape"].update(type="torus")), indent=2))
+    with pytest.raises(LibraryError) as err:
+        load_template(path)
+    line = path.read_text().splitlines()[err.value.line - 1]
+    assert '"torus"' in line and str(err.value).startswith(f"{path}:{err.value.line}: ")
+
+
+def test_a_linked_folder_in_the_library_is_followed_and_a_loop_refused(tmp_path: Path) -> None:
+    shared = tmp_path / "shared"
+    shared.mkdir()
+    write(shared, CUBE, "cube.json")
+    library = tmp_path / "library"
+    library.mkdir()
+    (library / "shared").symlink_to(shared, target_is_directory=True)
+    assert list(load_library(library)) == ["Cube"]
+    (shared / "back").symlink_to(library, target_is_directory=True)
+    with pytest.raises(LibraryError, match=r"back: linked folder leads back into the library"):
+        load_library(library)
+
+
+def test_grasp_and_release_are_read_with_defaults_for_the_original_format(tmp_path: Path) -> None:
+    assert all(not w.grasp and not w.release for w in load_template(write(tmp_path, CUBE)).trajectories[0].groups[0].waypoints)
+    cdra = load_library(default_library_path() / "templates")["cdra_filter"]
+    pull = cdra.trajectory("grasp_and_pull").group(0).waypoints
+    assert [w.grasp for w in pull] == ["", "", "cdra_filter", ""]
+    assert [w.release for w in cdra.trajectory("insert_and_release").group(0).waypoints] == ["", "", "cdra_filter", ""]
 
 
 def test_missing_library_folder_is_reported(tmp_path: Path) -> None:

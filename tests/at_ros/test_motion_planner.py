@@ -23,7 +23,8 @@ def _goals(library, ur10_config, trajectory: str, frame: np.ndarray) -> list[Goa
     instance = TemplateInstance(library["cdra_filter"], 0, ur10_config, root_pose=np.eye(4))
     instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), frame))
     t = instance.trajectory(trajectory)
-    return [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose) for w in instance.resolve(t, instance.end_effector(t, []))]
+    return [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose, gripper_action=w.gripper_action,
+                 object_name=w.object_name, object_pose=w.object_pose) for w in instance.resolve(t, instance.end_effector(t, []))]
 
 
 def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene, library, ur10_config) -> None:
@@ -47,6 +48,7 @@ def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur
     goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT)
     # Pull straight through the cabinet's back plate instead of out of the slot: the carried
     # filter (not the arm) runs into the cabinet and the wall behind it: the grasp attached it.
+    assert goals[2].gripper_action == "grasp"  # stated by the template, not guessed from "closed"
     pushed = goals[:3] + [Goal(goals[3].label, goals[2].pose @ from_xyz_rpy([0, 0, 0.15], [0, 0, 0]), "CARTESIAN", "closed")]
     with pytest.raises(WaypointPlanningError, match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)"):
         planner.plan(UR10_START, pushed)

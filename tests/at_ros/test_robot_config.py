@@ -15,7 +15,7 @@ def test_shipped_robots_load_with_files_that_exist() -> None:
     robots = load_robot_configs()
     assert set(robots) >= {"ur10", "eva_arm"}
     ur10 = robots["ur10"]
-    assert ur10.urdf.is_file() and ur10.scene.is_file()
+    assert ur10.urdf.is_file()
     assert len(ur10.joint_names) == 6 and len(robots["eva_arm"].joint_names) == 7
     assert ur10.pose_name("gripper", 0) == "open" and ur10.pose_name("gripper", 1) == "closed"
     assert ur10.end_effector_by_id(0).name == "gripper"
@@ -24,6 +24,7 @@ def test_shipped_robots_load_with_files_that_exist() -> None:
 
 def _config(tmp_path: Path, **changes) -> Path:
     data = yaml.safe_load((default_library_path() / "robots" / "ur10.yaml").read_text())
+    data["urdf"] = str(load_robot_configs()["ur10"].urdf)  # the copy lives elsewhere: its path must still lead there
     for key, value in changes.items():
         if value is None:
             data.pop(key)
@@ -40,9 +41,11 @@ def _config(tmp_path: Path, **changes) -> Path:
         ({"robot_name": None}, "robot_name", "missing required key"),
         ({"root_offset": [0, 0, 1]}, "root_offset", "6 numbers"),
         ({"end_effector_pose_map": [{"name": "open", "group": "hand", "id": 0}]}, "end_effector_pose_map[0].group", "unknown end effector 'hand'"),
-        ({"joint_names": []}, "joint_names", "non-empty list"),
-        ({"planner": {"plan_tme": 1.0}}, "planner.plan_tme", "unknown setting"),
-        ({"planner": {"plan_time": -1}}, "planner.plan_time", "non-negative"),
+        ({"joint_names": []}, "joint_names", "expected at least 1 item"),
+        ({"planner": {"plan_tme": 1.0}}, "planner.plan_tme", "unknown key 'plan_tme'"),
+        ({"planner": {"plan_time": -1}}, "planner.plan_time", "below the minimum"),
+        ({"scene": "sim/scenes/iva.yaml"}, "scene", "unknown key 'scene'"),
+        ({"urdf": "no/such.urdf"}, "urdf", "no such file"),
     ],
 )
 def test_malformed_robot_config_names_file_and_key(tmp_path: Path, changes: dict, key: str, problem: str) -> None:
@@ -55,7 +58,7 @@ def test_malformed_robot_config_names_file_and_key(tmp_path: Path, changes: dict
 def test_yaml_syntax_error_names_line(tmp_path: Path) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text("robot_name: x\nroot_offset: [0, 0\n")
-    with pytest.raises(LibraryError, match=r"bad\.yaml:\d+: invalid YAML"):
+    with pytest.raises(LibraryError, match=r"bad\.yaml:\d+: not valid YAML"):
         load_robot_config(path)
 
 
