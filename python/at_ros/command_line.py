@@ -3,7 +3,8 @@
 ``--robot`` names a robot config file, or a ``robot_name`` looked up in the robots folder.
 ``--library DIR`` is a user's library: templates from ``DIR/templates``, robot configs from
 ``DIR/robots`` when it has one (a library of templates only is fine; robots then come from
-``--robots`` or the shipped library). Anything argparse does not know is an error; arguments
+``--robots`` or the shipped library). ``--templates DIR`` and ``--robots DIR`` name either
+folder directly. Anything argparse does not know is an error; arguments
 for ROS itself go after ``--ros-args``, as for any ROS 2 node.
 """
 
@@ -39,6 +40,7 @@ def add_robot_options(parser: argparse.ArgumentParser) -> None:
                         help="a robot config file, or the robot_name of one in the robots folder")
     parser.add_argument("--library", type=Path, metavar="DIR",
                         help="a library folder: templates/ (and robots/, if it has one)")
+    parser.add_argument("--templates", type=Path, metavar="DIR", help="template folder (default: the library's templates/)")
     parser.add_argument("--robots", type=Path, metavar="DIR", help="robot configs folder (default: the library's, else the shipped one)")
     parser.add_argument("--namespace", default="", help="ROS namespace of the robot's topics and services (default: none)")
 
@@ -50,7 +52,7 @@ def choose_robot(args: argparse.Namespace) -> RobotChoice:
         LibraryError: a folder or file is missing or malformed, or the robot is unknown.
     """
     library: Path = args.library if args.library is not None else default_library_path()
-    templates = library / "templates"  # the AT server's to load; the planner needs none
+    templates: Path = args.templates or library / "templates"  # the AT server's to load; the planner needs none
     robots_dir: Path | None = args.robots
     if robots_dir is None and args.library is not None and (args.library / "robots").is_dir():
         robots_dir = args.library / "robots"

@@ -13,16 +13,17 @@ __all__ = ["SUBCOMMANDS", "main"]
 
 #: subcommand -> (module, function, one-line help). Each function takes argv and returns an exit code.
 SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
-    "sim": ("sim.sim_node", "main", "run the pybullet simulation node (--scene iva|eva)"),
-    "planner": ("at_ros.planner_node", "main", "run the OMPL planner node (--robot NAME)"),
-    "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME)"),
+    "sim": ("sim.sim_node", "main", "run the pybullet simulation node (--scene FILE|iva|eva)"),
+    "planner": ("at_ros.planner_node", "main", "run the OMPL planner node (--robot NAME|FILE)"),
+    "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME|FILE)"),
     "bridge": ("bridge.rosbridge.server", "main", "run the rosbridge v2 server"),
     "lint": ("pride.cli", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),
     "serve": ("pride.web.server", "main", "serve the operator web view"),
-    "up": ("caretaker.stack", "up_main", "start the robot side and the rosbridge server"),
-    "demo": ("caretaker.stack", "demo_main", "run the IVA or EVA demonstration end to end"),
+    "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
+    "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
+    "check": ("caretaker.check", "main", "check scene, robot, template, deployment, SysRep and binding files"),
 }
 
 

@@ -1,32 +1,33 @@
-"""The paper's demonstrations, end to end: stack up, procedure in autonomous mode, report.
+"""``caretaker demo DEPLOYMENT``: stack up, the deployment's procedure autonomously, world check, report.
 
 The procedure runs in its own process (``caretaker run``, with its own JVM), exactly as an
-operator would start it. The demo then checks the *world*, not the procedure's word for it:
-a run that says COMPLETED while the filter is still in the wrong place is a failed demo.
+operator would start it, with the answers the deployment's ``demo.inputs`` give. The demo then
+checks the *world*, not the procedure's word for it — the check the deployment names in
+``demo.check`` (:data:`WORLD_CHECKS`): a run that says COMPLETED while the filter is still in the
+wrong place is a failed demo.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
+import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import urlparse
 
-import yaml
-
+from caretaker.deployment import Deployment, DemoRun, load_deployment
 from caretaker.processes import REPO, ProcessFailed, caretaker
-from caretaker.stack import Scenario, Stack, StackFailed
+from caretaker.stack import Stack, StackFailed, stack_options
+from datafile import DataFileError
+from sim.scene import load_scene
 
-__all__ = ["EndStateError", "iva_end_state", "eva_end_state", "run_demo"]
+__all__ = ["EndStateError", "WORLD_CHECKS", "demo_main", "eva_end_state", "iva_end_state", "run_demo"]
 
 DEFAULT_DB = f"sqlite:///{REPO / 'var' / 'caretaker.db'}"
-#: Operator answers for the unattended demo runs (what the operator would type at the prompts).
-DEMO_INPUTS: dict[str, dict[str, str]] = {
-    "iva": {"clean_filter_id": "CDRA-F-0012"},
-    "eva": {"damage": "false"},
-}
 #: How far a filter may sit from its slot frame and still count as seated (m).
 SEATED_TOLERANCE = 0.03
 
@@ -65,10 +66,12 @@ def iva_end_state(bridge_url: str, scene_file: Path, clean_filter_id: str, timeo
     """
     import roslibpy
 
-    scene = yaml.safe_load(scene_file.read_text())
-    dirty = next(f for f in scene["filters"] if f["condition"] == "dirty")
-    occupied = {f["slot"] for f in scene["filters"]}
-    empty_slot = next(s["name"] for s in scene["slots"] if s["name"] not in occupied)
+    scene = load_scene(scene_file)
+    dirty = next((f for f in scene.filters if f.condition == "dirty"), None)
+    occupied = {f.slot for f in scene.filters}
+    empty_slot = next((name for name in scene.slots if name not in occupied), None)
+    if dirty is None or empty_slot is None:
+        raise EndStateError(f"scene {scene_file} has no dirty filter or no empty slot: this check does not apply to it")
     url = urlparse(bridge_url)
     ros = roslibpy.Ros(host=url.hostname, port=url.port)
     ros.run(timeout)
@@ -83,15 +86,15 @@ def iva_end_state(bridge_url: str, scene_file: Path, clean_filter_id: str, timeo
         raise EndStateError(f"cabinet holds {installed or 'nothing'!r}, expected the clean filter {clean_filter_id!r}")
     if not locked:
         raise EndStateError(f"{clean_filter_id} is in the cabinet but not locked")
-    dirty_pose, slot_pose = poses.get(f"filter/{dirty['id']}"), poses.get(empty_slot)
+    dirty_pose, slot_pose = poses.get(f"filter/{dirty.id}"), poses.get(empty_slot)
     if dirty_pose is None or slot_pose is None:
-        raise EndStateError(f"frames filter/{dirty['id']} or {empty_slot} are not published")
+        raise EndStateError(f"frames filter/{dirty.id} or {empty_slot} are not published")
     distance = math.dist(*(tuple(p["position"][k] for k in "xyz") for p in (dirty_pose, slot_pose)))
     if distance > SEATED_TOLERANCE:
-        raise EndStateError(f"dirty filter {dirty['id']} is {distance:.3f} m from {empty_slot}, not seated there")
+        raise EndStateError(f"dirty filter {dirty.id} is {distance:.3f} m from {empty_slot}, not seated there")
     return [
         f"cabinet holds {installed}, locked",
-        f"dirty filter {dirty['id']} seated in {empty_slot} ({distance * 1000:.0f} mm from the slot frame)",
+        f"dirty filter {dirty.id} seated in {empty_slot} ({distance * 1000:.0f} mm from the slot frame)",
     ]
 
 
@@ -104,7 +107,7 @@ def eva_end_state(db_url: str, run_id: str, scene_file: Path) -> list[str]:
     from pride.audit_log import AuditLog
     from pride.events import EventKind
 
-    targets = [t["name"] for t in yaml.safe_load(scene_file.read_text())["targets"]]
+    targets = [t.name for t in load_scene(scene_file).targets]
     audit = AuditLog(db_url)
     try:
         events = audit.events(run_id)
@@ -126,9 +129,17 @@ def eva_end_state(db_url: str, run_id: str, scene_file: Path) -> list[str]:
     return [f"{target}: {images[target]}" for target in targets]
 
 
-def _run_procedure(scenario: Scenario, db_url: str, env: dict[str, str], started: float) -> tuple[str | None, str]:
-    """Run the scenario's procedure autonomously in its own process; return (run id, final status)."""
-    answers = [f"--set={name}={value}" for name, value in DEMO_INPUTS[scenario.scene].items()]
+#: The world checks a deployment's ``demo.check`` may name: what each verifies after the run.
+WORLD_CHECKS: dict[str, Callable[[Deployment, str, str, str], list[str]]] = {
+    "cdra_filters_swapped": lambda d, bridge_url, db_url, run_id: iva_end_state(
+        bridge_url, d.scene, (d.demo.inputs if d.demo else {}).get("clean_filter_id", "")),
+    "every_target_imaged": lambda d, bridge_url, db_url, run_id: eva_end_state(db_url, run_id, d.scene),
+}
+
+
+def _run_procedure(demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, str], started: float) -> tuple[str | None, str]:
+    """Run the demo's procedure autonomously in its own process; return (run id, final status)."""
+    answers = [f"--set={name}={value}" for name, value in demo.inputs.items()]
     result: dict[str, str] = {}
 
     def show(_: str, line: str) -> None:
@@ -140,7 +151,7 @@ def _run_procedure(scenario: Scenario, db_url: str, env: dict[str, str], started
             result["status"], result["run"] = words[1], words[3]
 
     runner = caretaker(
-        "run", str(scenario.procedure), "--binding", str(scenario.binding), "--auto", "--user", "demo",
+        "run", str(demo.procedure), "--binding", str(demo.binding), "--rosbridge", bridge_url, "--auto", "--user", "demo",
         "--db", db_url, "--confirm-manual", *answers, env=env, name="run", on_line=show,
     )
     runner.proc.wait()
@@ -162,24 +173,26 @@ def _serve(db_url: str, env: dict[str, str]) -> None:
         web.stop()
 
 
-def run_demo(scenario: Scenario, args: argparse.Namespace) -> int:
+def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
     """Bring the stack up, run the procedure, check the world, write the report. Exit 0 only if all hold."""
-    binding = yaml.safe_load(scenario.binding.read_text())
-    bridge_url = binding["rosbridge"]
-    port = urlparse(bridge_url).port or 9090
+    demo = deployment.demo
+    if demo is None:
+        print(f"caretaker demo: {deployment.path} has no demo: section (procedure, binding) to run")
+        return 1
     db_url = args.db or DEFAULT_DB
+    reports = Path(args.reports) if args.reports else REPO / "var" / "reports"
     (REPO / "var").mkdir(exist_ok=True)
     started = time.monotonic()
-    stack = Stack(scenario, time_scale=args.time_scale, bridge_address=args.bridge_address, bridge_port=port, echo=args.verbose)
-    print(f"Starting the {scenario.scene.upper()} stack: simulation, planner, AT server, rosbridge ({bridge_url})", flush=True)
+    stack = Stack(deployment, time_scale=args.time_scale, bridge_address=args.bridge_address, bridge_port=args.bridge_port, echo=args.verbose)
+    print(f"Starting the {deployment.name} stack: {', '.join(p.name for p in stack.parts)}", flush=True)
     try:
         stack.start()
     except StackFailed as exc:
         print(f"caretaker demo: {exc}")
         return 1
     try:
-        print(f"[{time.monotonic() - started:7.1f} s] stack ready; running {scenario.procedure.name} autonomously", flush=True)
-        run_id, status = _run_procedure(scenario, db_url, stack.env, started)
+        print(f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); running {demo.procedure.name} autonomously", flush=True)
+        run_id, status = _run_procedure(demo, stack.bridge_url, db_url, stack.env, started)
         dead = stack.dead_parts()
         if dead:
             print(f"caretaker demo: {', '.join(dead)} died during the run")
@@ -187,24 +200,21 @@ def run_demo(scenario: Scenario, args: argparse.Namespace) -> int:
         if status != "completed" or run_id is None:
             print(f"caretaker demo: the procedure did not complete ({status})")
             return 1
-        scene_file = REPO / "sim" / "scenes" / f"{scenario.scene}.yaml"
-        try:
-            if scenario.scene == "iva":
-                verified = iva_end_state(bridge_url, scene_file, DEMO_INPUTS["iva"]["clean_filter_id"])
-            else:
-                verified = eva_end_state(db_url, run_id, scene_file)
-        except EndStateError as exc:
-            print(f"caretaker demo: the procedure completed but the world is wrong: {exc}")
-            return 1
-        for line in verified:
-            print(f"  verified: {line}")
-        report = caretaker("report", run_id, "--db", db_url, "--out", str(REPO / "var" / "reports"), env=stack.env, name="report")
+        if demo.check is not None:
+            try:
+                verified = WORLD_CHECKS[demo.check](deployment, stack.bridge_url, db_url, run_id)
+            except EndStateError as exc:
+                print(f"caretaker demo: the procedure completed but the world is wrong: {exc}")
+                return 1
+            for line in verified:
+                print(f"  verified: {line}")
+        report = caretaker("report", run_id, "--db", db_url, "--out", str(reports), env=stack.env, name="report")
         report.proc.wait()
         report.stop()
         if report.proc.returncode != 0:
             print(f"caretaker demo: the report failed:\n{report.tail()}")
             return 1
-        print(f"[{time.monotonic() - started:7.1f} s] {scenario.scene.upper()} demo complete; run {run_id}")
+        print(f"[{time.monotonic() - started:7.1f} s] {deployment.name} demo complete; run {run_id}")
         print(f"  audit log: {db_url}")
         for line in report.output:
             print(f"  report: {line}")
@@ -213,3 +223,20 @@ def run_demo(scenario: Scenario, args: argparse.Namespace) -> int:
         return 0
     finally:
         stack.stop()
+
+
+def demo_main(argv: list[str] | None = None) -> int:
+    """``caretaker demo DEPLOYMENT``: bring the stack up, run its procedure autonomously, report."""
+    parser = stack_options("caretaker demo")
+    parser.add_argument("--serve", action="store_true", help="leave the web view running after the procedure")
+    parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
+    parser.add_argument("--reports", default=None, metavar="DIR", help="where the report goes (default: var/reports)")
+    parser.set_defaults(time_scale=0.0)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    try:
+        deployment = load_deployment(args.deployment)
+    except DataFileError as exc:
+        print(f"caretaker demo: {exc}", file=sys.stderr)
+        return 1
+    return run_demo(deployment, args)

@@ -1,16 +1,18 @@
-"""``caretaker up`` and ``caretaker demo``: the whole system from one command.
+"""``caretaker up DEPLOYMENT``: a robot side and its rosbridge server from one deployment file.
 
 The robot side (simulation, planner, AT server) and the rosbridge server run as separate OS
 processes, as they would in a deployment where the robot and the ground are apart. The stack
-starts them in dependency order and waits for each one's ``READY`` line.
+starts them in the order of :data:`PARTS` and waits for each one's ``READY`` line. Which parts
+there are is data: a part is one :class:`Part` entry saying how its command line is made from
+the deployment, so adding a process (a command ledger, a link emulation) is adding an entry.
 
 When a part dies, ``caretaker up`` restarts it, as a robot's process supervisor would: the AT
-server comes back with its instances (``--state-file`` in the stack's own folder), the planner
-and rosbridge come back empty, and a procedure carries on through its contingency steps. The
-simulation is the world itself: if it dies, or a part keeps dying (more than
-:data:`RESPAWN_LIMIT` times in :data:`RESPAWN_WINDOW_S`), everything stops, so the stack never
-leaves a half-running robot behind. ``caretaker demo`` restarts nothing: a demo that needed a
-restart has failed.
+server comes back with its instances (``--state-file`` in the stack's state folder), the
+planner and rosbridge come back empty (rosbridge on the port it had, even if it was picked with
+port 0), and a procedure carries on through its contingency steps. The simulation is the world
+itself: if it dies, or a part keeps dying (more than :data:`RESPAWN_LIMIT` times in
+:data:`RESPAWN_WINDOW_S`), everything stops, so the stack never leaves a half-running robot
+behind. ``caretaker demo`` restarts nothing: a demo that needed a restart has failed.
 """
 
 from __future__ import annotations
@@ -25,48 +27,88 @@ import tempfile
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
-from caretaker.processes import REPO, ManagedProcess, ProcessFailed, caretaker
+from caretaker.deployment import Deployment, load_deployment
+from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
+from datafile import DataFileError
 
-__all__ = ["SCENARIOS", "Scenario", "Stack", "StackFailed", "demo_main", "up_main"]
+__all__ = ["PARTS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
 log = logging.getLogger("caretaker.stack")
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """What a scene needs: the robot config it runs, and the demo procedure that goes with it."""
-
-    scene: str
-    robot: str
-    procedure: Path
-    binding: Path
-    inputs: dict[str, str] = field(default_factory=dict)
-
-
-SCENARIOS: dict[str, Scenario] = {
-    "iva": Scenario(
-        scene="iva",
-        robot="ur10",
-        procedure=REPO / "procedures" / "iva_cdra_filter_replacement.xml",
-        binding=REPO / "sysrep" / "bindings" / "iva.yaml",
-    ),
-    "eva": Scenario(
-        scene="eva",
-        robot="eva_arm",
-        procedure=REPO / "procedures" / "eva_inspection.xml",
-        binding=REPO / "sysrep" / "bindings" / "eva.yaml",
-    ),
-}
-
 
 #: A part that dies more often than this within RESPAWN_WINDOW_S is not restarted again.
 RESPAWN_LIMIT = 3
 RESPAWN_WINDOW_S = 60.0
-#: The part that is the world: a new simulation is a new world, so it is never restarted.
-WORLD = "sim"
+
+
+@dataclass
+class StackRun:
+    """What one running stack adds to its deployment: overrides, its state folder, the bridge port."""
+
+    time_scale: float
+    bridge_address: str
+    bridge_port: int  # 0 until the bridge picked one, when the deployment says 0
+    state_dir: Path
+
+
+@dataclass(frozen=True)
+class Part:
+    """One process of a robot side: its name, and its ``caretaker`` command line for a deployment.
+
+    ``world``: the part *is* the world (the simulation); it is never restarted, and its death
+    ends the stack.
+    """
+
+    name: str
+    command: Callable[[Deployment, StackRun], list[str]]
+    world: bool = False
+
+
+def _robot_options(deployment: Deployment) -> list[str]:
+    options = ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
+    if deployment.robots is not None:
+        options += ["--robots", str(deployment.robots)]
+    if deployment.namespace:
+        options += ["--namespace", deployment.namespace]
+    return options
+
+
+def _sim(deployment: Deployment, run: StackRun) -> list[str]:
+    args = ["sim", "--scene", str(deployment.scene), "--time-scale", str(run.time_scale)]
+    if deployment.namespace:
+        args += ["--namespace", deployment.namespace]
+    if deployment.capture_dir is not None:
+        args += ["--capture-dir", str(deployment.capture_dir)]
+    return args
+
+
+def _planner(deployment: Deployment, run: StackRun) -> list[str]:
+    return ["planner", *_robot_options(deployment)]
+
+
+def _at_server(deployment: Deployment, run: StackRun) -> list[str]:
+    return ["at-server", *_robot_options(deployment), "--state-file", str(run.state_dir / "at_server.json")]
+
+
+def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
+    bridge = deployment.bridge
+    args = ["bridge", "--address", run.bridge_address, "--port", str(run.bridge_port)]
+    for option, path in (("--certfile", bridge.certfile), ("--keyfile", bridge.keyfile), ("--auth-secret-file", bridge.auth_secret_file)):
+        if path is not None:
+            args += [option, str(path)]
+    return args
+
+
+#: The parts of a robot side, in the order they start (each waits for the ones before).
+PARTS: tuple[Part, ...] = (
+    Part("sim", _sim, world=True),
+    Part("planner", _planner),
+    Part("at-server", _at_server),
+    Part("bridge", _bridge),
+)
 
 
 class StackFailed(RuntimeError):
@@ -74,7 +116,7 @@ class StackFailed(RuntimeError):
 
 
 class Stack:
-    """The robot side and the rosbridge server of one scenario, as child processes.
+    """The parts of one deployment as child processes.
 
     Start it from the main thread: children are tied to the thread that started them and are
     killed by the kernel if it goes away (see caretaker.processes).
@@ -82,40 +124,56 @@ class Stack:
 
     def __init__(
         self,
-        scenario: Scenario,
+        deployment: Deployment,
         *,
-        time_scale: float = 1.0,
-        bridge_address: str = "127.0.0.1",
-        bridge_port: int = 9090,
+        time_scale: float | None = None,
+        bridge_address: str | None = None,
+        bridge_port: int | None = None,
+        parts: Sequence[str] | None = None,
         env: dict[str, str] | None = None,
         ready_timeout: float = 120.0,
         echo: bool = False,
         respawn: bool = False,
     ) -> None:
-        """``respawn``: :meth:`supervise` restarts parts that die (all but the simulation)."""
-        self.scenario = scenario
+        """Overrides (``time_scale``, ``bridge_*``) replace the deployment's values; ``parts``
+        names a subset of :data:`PARTS` to run (tests); ``respawn``: :meth:`supervise` restarts
+        parts that die (all but the world).
+
+        Raises:
+            StackFailed: ``parts`` names a part that does not exist.
+        """
+        self.deployment = deployment
+        unknown = sorted(set(parts or ()) - {p.name for p in PARTS})
+        if unknown:
+            raise StackFailed(f"unknown parts {unknown}; parts are {', '.join(p.name for p in PARTS)}")
+        self.parts = [p for p in PARTS if parts is None or p.name in parts]
         self.env = dict(os.environ if env is None else env)
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        if deployment.domain_id is not None:
+            self.env["ROS_DOMAIN_ID"] = str(deployment.domain_id)
+        # A new stack is a new world: without a state folder of the deployment's, instances are
+        # kept in a folder of this stack's own and go with it.
+        self._own_state_dir = deployment.state_dir is None
+        state_dir = Path(tempfile.mkdtemp(prefix=f"caretaker-{deployment.name}-")) if deployment.state_dir is None else deployment.state_dir
+        state_dir.mkdir(parents=True, exist_ok=True)
+        self.run = StackRun(
+            time_scale=deployment.time_scale if time_scale is None else time_scale,
+            bridge_address=deployment.bridge.address if bridge_address is None else bridge_address,
+            bridge_port=deployment.bridge.port if bridge_port is None else bridge_port,
+            state_dir=state_dir,
+        )
         self.ready_timeout = ready_timeout
         self.echo = echo
         self.respawn = respawn
-        at_server = ("at-server", "--robot", scenario.robot)
-        if respawn:
-            # The stack's own folder: a new stack is a new world and must not restore old instances.
-            self.state_dir: Path | None = Path(tempfile.mkdtemp(prefix="caretaker-up-"))
-            at_server += ("--state-file", str(self.state_dir / "at_server.json"))
-        else:
-            self.state_dir = None
-        self.parts: dict[str, tuple[str, ...]] = {
-            WORLD: ("sim", "--scene", scenario.scene, "--time-scale", str(time_scale)),
-            "planner": ("planner", "--robot", scenario.robot),
-            "at-server": at_server,
-            "bridge": ("bridge", "--address", bridge_address, "--port", str(bridge_port)),
-        }
         self.processes: dict[str, ManagedProcess] = {}
         self.ready_lines: dict[str, str] = {}
-        self.restarts: dict[str, deque[float]] = {name: deque() for name in self.parts}
+        self.restarts: dict[str, deque[float]] = {p.name: deque() for p in self.parts}
         self._exited = threading.Event()
+
+    @property
+    def bridge_url(self) -> str:
+        """The rosbridge server's URL (its actual port once it started)."""
+        return f"{self.deployment.bridge.scheme}://{self.run.bridge_address}:{self.run.bridge_port}"
 
     def _print_line(self, name: str, line: str) -> None:
         if self.echo:
@@ -128,19 +186,32 @@ class Stack:
             StackFailed: a part exited or did not become ready; everything started is stopped.
         """
         try:
-            for name in self.parts:
-                self._start_part(name)
-        except ProcessFailed as exc:
+            for part in self.parts:
+                self.start_part(part.name)
+        except (ProcessFailed, DataFileError) as exc:
             self.stop()
             raise StackFailed(str(exc)) from None
 
-    def _start_part(self, name: str) -> None:
+    def part(self, name: str) -> Part:
+        return next(p for p in self.parts if p.name == name)
+
+    def start_part(self, name: str) -> ManagedProcess:
+        """Start one part (again) and wait for its READY line.
+
+        Raises:
+            ProcessFailed: it exited or did not become ready in time.
+        """
         started = time.monotonic()
-        proc = caretaker(*self.parts[name], env=self.env, name=name, on_line=self._print_line)
+        proc = caretaker(*self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line)
         self.processes[name] = proc
         threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
-        self.ready_lines[name] = proc.wait_ready(self.ready_timeout)
-        log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, self.ready_lines[name])
+        line = proc.wait_ready(self.ready_timeout)
+        self.ready_lines[name] = line
+        if name == "bridge" and self.run.bridge_port == 0:
+            # Keep the port the bridge picked, so a restart serves the same URL.
+            self.run.bridge_port = int(line.rsplit(":", 1)[-1])
+        log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, line)
+        return proc
 
     def _await_exit(self, proc: ManagedProcess) -> None:
         proc.proc.wait()
@@ -168,7 +239,7 @@ class Stack:
                 code = self.processes[name].stop()
                 print(f"{name} died (exit {code}); restarting it", flush=True)
                 try:
-                    self._start_part(name)
+                    self.start_part(name)
                 except ProcessFailed as exc:
                     print(f"{name} did not come back: {exc}", file=sys.stderr, flush=True)
                     return self.dead_parts()
@@ -180,7 +251,7 @@ class Stack:
         self._exited.set()
 
     def _may_restart(self, name: str) -> bool:
-        if not self.respawn or name == WORLD:
+        if not self.respawn or self.part(name).world:
             return False
         now = time.monotonic()
         recent = self.restarts[name]
@@ -193,20 +264,22 @@ class Stack:
         return True
 
     def stop(self) -> None:
-        """Stop every part, last started first, and remove the stack's folder. Idempotent."""
-        for name in reversed(list(self.parts)):
-            proc = self.processes.get(name)
+        """Stop every part, last started first, and remove the stack's own folder. Idempotent."""
+        for part in reversed(self.parts):
+            proc = self.processes.get(part.name)
             if proc is not None:
-                log.info("%s stopped (exit %s)", name, proc.stop())
-        if self.state_dir is not None:
-            shutil.rmtree(self.state_dir, ignore_errors=True)
+                log.info("%s stopped (exit %s)", part.name, proc.stop())
+        if self._own_state_dir:
+            shutil.rmtree(self.run.state_dir, ignore_errors=True)
 
 
-def _parser(prog: str) -> argparse.ArgumentParser:
+def stack_options(prog: str) -> argparse.ArgumentParser:
+    """The options ``up`` and ``demo`` share: the deployment and what a run may override."""
     parser = argparse.ArgumentParser(prog=prog)
-    parser.add_argument("--time-scale", type=float, default=1.0, help="simulation speed: 1 = real time, 0 = as fast as possible")
-    parser.add_argument("--bridge-address", default="127.0.0.1")
-    parser.add_argument("--bridge-port", type=int, default=9090)
+    parser.add_argument("deployment", metavar="DEPLOYMENT", help="a deployment file, or the name of a shipped one (iva, eva)")
+    parser.add_argument("--time-scale", type=float, help="simulation speed: 1 = real time, 0 = as fast as possible (default: the deployment's)")
+    parser.add_argument("--bridge-address", help="address the rosbridge server binds (default: the deployment's)")
+    parser.add_argument("--bridge-port", type=int, help="rosbridge port; 0 picks a free one (default: the deployment's)")
     parser.add_argument("--verbose", "-v", action="store_true", help="echo every part's output")
     return parser
 
@@ -231,39 +304,18 @@ def _run_until_signal(stack: Stack) -> int:
 
 
 def up_main(argv: list[str] | None = None) -> int:
-    """``caretaker up --scene iva|eva``: run the robot side and the bridge until Ctrl-C."""
-    parser = _parser("caretaker up")
-    parser.add_argument("--scene", choices=sorted(SCENARIOS), required=True)
-    args = parser.parse_args(argv)
+    """``caretaker up DEPLOYMENT``: run the robot side and the bridge until Ctrl-C."""
+    args = stack_options("caretaker up").parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    stack = Stack(
-        SCENARIOS[args.scene],
-        time_scale=args.time_scale,
-        bridge_address=args.bridge_address,
-        bridge_port=args.bridge_port,
-        echo=args.verbose,
-        respawn=True,
-    )
     try:
+        deployment = load_deployment(args.deployment)
+        stack = Stack(deployment, time_scale=args.time_scale, bridge_address=args.bridge_address, bridge_port=args.bridge_port,
+                      echo=args.verbose, respawn=True)
         stack.start()
-    except StackFailed as exc:
+    except (DataFileError, StackFailed) as exc:
         print(f"caretaker up: {exc}", file=sys.stderr)
         return 1
     for name, line in stack.ready_lines.items():
         print(f"{name:10} {line}")
-    print("READY stack", args.scene, flush=True)
+    print(f"READY stack {deployment.name} {stack.bridge_url}", flush=True)
     return _run_until_signal(stack)
-
-
-def demo_main(argv: list[str] | None = None) -> int:
-    """``caretaker demo iva|eva``: bring the stack up, run the procedure autonomously, report."""
-    from caretaker.demo import run_demo
-
-    parser = _parser("caretaker demo")
-    parser.add_argument("scenario", choices=sorted(SCENARIOS))
-    parser.add_argument("--serve", action="store_true", help="leave the web view running after the procedure")
-    parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
-    parser.set_defaults(time_scale=0.0)
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    return run_demo(SCENARIOS[args.scenario], args)

@@ -20,17 +20,21 @@ Optional extensions never change that form; they ride in a trailing mapping:
 
 Every error is one line, ``file:line: where: problem``, naming the entry and what to fix. The
 Java loader (java/pax-plugins) produces the same messages; both are checked against the shared
-fixtures in tests/fixtures/sysrep.
+fixtures in tests/fixtures/sysrep. The file is read by the shared :mod:`datafile` reader, so a
+hostile file (an alias bomb, a tag, bad bytes, deep nesting) is refused the same way as every
+other data file.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
+from datafile import DataFileError, Node, load_file
+from datafile.nodes import MAPPING, SCALAR, SEQUENCE
 
 __all__ = [
     "TYPES",
@@ -52,16 +56,13 @@ _VALUE_EXTENSIONS = {"units", "min", "max", "enum", "description"}
 _COMMAND_EXTENSIONS = {"hazardous", "description"}
 
 
-class SysRepError(ValueError):
+class SysRepError(DataFileError):
     """A SysRep file is malformed. ``str(err)`` is ``file:line: where: problem``."""
 
-    def __init__(self, path: str | Path, line: int, where: str, problem: str) -> None:
-        self.path = str(path)
-        self.line = line
-        self.where = where
-        self.problem = problem
-        location = f"{self.path}:{line}" if line else self.path
-        super().__init__(f"{location}: {where}: {problem}" if where else f"{location}: {problem}")
+    @property
+    def where(self) -> str:
+        """The entry the problem is in (``commands[0] 'go' argument 1``): the error's key."""
+        return self.key
 
 
 @dataclass(frozen=True)
@@ -184,44 +185,43 @@ def check_value(
 
 
 class _Reader:
-    """Walks the YAML node tree so every error can name its line."""
+    """Walks the file's node tree (:mod:`datafile`) so every error can name its line."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
 
-    def fail(self, node: yaml.Node | None, where: str, problem: str) -> SysRepError:
-        line = node.start_mark.line + 1 if node is not None else 0
-        return SysRepError(self.path, line, where, problem)
+    def fail(self, node: Node | None, where: str, problem: str) -> SysRepError:
+        return SysRepError(self.path, node.line if node is not None else 0, where, problem)
 
-    def scalar(self, node: yaml.Node, where: str, what: str) -> str:
-        if not isinstance(node, yaml.ScalarNode) or node.tag != "tag:yaml.org,2002:str":
-            raise self.fail(node, where, f"{what} must be a string, got {_describe(node)}")
-        return str(node.value)
+    def scalar(self, node: Node, where: str, what: str) -> str:
+        if node.kind != SCALAR or not isinstance(node.value, str):
+            raise self.fail(node, where, f"{what} must be a string, got {node.describe()}")
+        return node.value
 
-    def identifier(self, node: yaml.Node, where: str, what: str) -> str:
+    def identifier(self, node: Node, where: str, what: str) -> str:
         value = self.scalar(node, where, what)
         if not _IDENTIFIER.match(value):
             raise self.fail(node, where, f"{what} {value!r} is not an identifier (letters, digits, _)")
         return value
 
-    def type_name(self, node: yaml.Node, where: str) -> str:
+    def type_name(self, node: Node, where: str) -> str:
         value = self.scalar(node, where, "type")
         if value not in TYPES:
             raise self.fail(node, where, f"unknown type {value!r} (expected one of {', '.join(TYPES)})")
         return value
 
-    def extensions(self, node: yaml.Node, where: str, allowed: set[str]) -> dict[str, Any]:
-        if not isinstance(node, yaml.MappingNode):
-            raise self.fail(node, where, f"extension must be a mapping, got {_describe(node)}")
-        data = yaml.safe_load(yaml.serialize(node))
+    def extensions(self, node: Node, where: str, allowed: set[str]) -> dict[str, Any]:
+        if node.kind != MAPPING:
+            raise self.fail(node, where, f"extension must be a mapping, got {node.describe()}")
+        data: dict[str, Any] = node.plain()
         for key in data:
             if key not in allowed:
                 raise self.fail(
                     node, where, f"unknown extension {key!r} (allowed: {', '.join(sorted(allowed))})"
                 )
         for key in ("min", "max"):
-            if key in data and (isinstance(data[key], bool) or not isinstance(data[key], (int, float))):
-                raise self.fail(node, where, f"extension {key!r} must be a number, got {data[key]!r}")
+            if key in data and (isinstance(data[key], bool) or not isinstance(data[key], (int, float)) or not math.isfinite(data[key])):
+                raise self.fail(node, where, f"extension {key!r} must be a finite number, got {data[key]!r}")
         if "enum" in data and not isinstance(data["enum"], list):
             raise self.fail(node, where, f"extension 'enum' must be a list, got {data['enum']!r}")
         if "hazardous" in data and not isinstance(data["hazardous"], bool):
@@ -231,66 +231,63 @@ class _Reader:
                 raise self.fail(node, where, f"extension {key!r} must be a string, got {data[key]!r}")
         return data
 
-    def value_extensions(self, node: yaml.Node, where: str, type_name: str) -> dict[str, Any]:
+    def value_extensions(self, node: Node, where: str, type_name: str) -> dict[str, Any]:
         data = self.extensions(node, where, _VALUE_EXTENSIONS)
         if ("min" in data or "max" in data) and type_name not in ("integer", "real"):
             raise self.fail(node, where, f"min/max apply to integer or real, not {type_name}")
         if "enum" in data:
             try:
                 data["enum"] = tuple(check_value("enum", type_name, v) for v in data["enum"])
-            except ValueError as exc:
+            except (ValueError, OverflowError) as exc:
                 raise self.fail(node, where, f"enum value does not match type {type_name}: {exc}") from None
         return data
 
-    def argument(self, node: yaml.Node, where: str) -> Argument:
-        if not isinstance(node, yaml.SequenceNode) or len(node.value) not in (2, 3):
-            raise self.fail(node, where, f"argument must be [name, type] or [name, type, {{extensions}}], got {_describe(node)}")
-        name = self.identifier(node.value[0], where, "argument name")
+    def argument(self, node: Node, where: str) -> Argument:
+        if node.kind != SEQUENCE or len(node.items) not in (2, 3):
+            raise self.fail(node, where, f"argument must be [name, type] or [name, type, {{extensions}}], got {node.describe()}")
+        name = self.identifier(node.items[0], where, "argument name")
         where = f"{where} {name!r}"
-        type_name = self.type_name(node.value[1], where)
-        ext = self.value_extensions(node.value[2], where, type_name) if len(node.value) == 3 else {}
+        type_name = self.type_name(node.items[1], where)
+        ext = self.value_extensions(node.items[2], where, type_name) if len(node.items) == 3 else {}
         return Argument(name=name, type=type_name, **ext)
 
-    def command(self, node: yaml.Node, index: int) -> Command:
+    def command(self, node: Node, index: int) -> Command:
         where = f"commands[{index}]"
-        if not isinstance(node, yaml.SequenceNode) or len(node.value) not in (3, 4):
-            raise self.fail(node, where, f"command must be [id, label, [[arg, type], ...]] (3 or 4 items), got {_describe(node)}")
-        command_id = self.identifier(node.value[0], where, "command id")
+        if node.kind != SEQUENCE or len(node.items) not in (3, 4):
+            raise self.fail(node, where, f"command must be [id, label, [[arg, type], ...]] (3 or 4 items), got {node.describe()}")
+        command_id = self.identifier(node.items[0], where, "command id")
         where = f"{where} {command_id!r}"
-        label = self.scalar(node.value[1], where, "label")
-        args_node = node.value[2]
-        if not isinstance(args_node, yaml.SequenceNode):
-            raise self.fail(args_node, where, f"arguments must be a list of [name, type], got {_describe(args_node)}")
+        label = self.scalar(node.items[1], where, "label")
+        args_node = node.items[2]
+        if args_node.kind != SEQUENCE:
+            raise self.fail(args_node, where, f"arguments must be a list of [name, type], got {args_node.describe()}")
         args: list[Argument] = []
-        for i, arg_node in enumerate(args_node.value):
+        for i, arg_node in enumerate(args_node.items):
             arg = self.argument(arg_node, f"{where} argument {i + 1}")
             if any(a.name == arg.name for a in args):
                 raise self.fail(arg_node, where, f"duplicate argument {arg.name!r}")
             args.append(arg)
-        ext = self.extensions(node.value[3], where, _COMMAND_EXTENSIONS) if len(node.value) == 4 else {}
-        return Command(command_id, label, tuple(args), line=node.start_mark.line + 1, **ext)
+        ext = self.extensions(node.items[3], where, _COMMAND_EXTENSIONS) if len(node.items) == 4 else {}
+        return Command(command_id, label, tuple(args), line=node.line, **ext)
 
-    def telemetry(self, node: yaml.Node, index: int) -> Telemetry:
+    def telemetry(self, node: Node, index: int) -> Telemetry:
         where = f"telemetry[{index}]"
-        if not isinstance(node, yaml.SequenceNode) or len(node.value) not in (3, 4):
-            raise self.fail(node, where, f"telemetry must be [id, label, type] (3 or 4 items), got {_describe(node)}")
-        item_id = self.identifier(node.value[0], where, "telemetry id")
+        if node.kind != SEQUENCE or len(node.items) not in (3, 4):
+            raise self.fail(node, where, f"telemetry must be [id, label, type] (3 or 4 items), got {node.describe()}")
+        item_id = self.identifier(node.items[0], where, "telemetry id")
         where = f"{where} {item_id!r}"
-        label = self.scalar(node.value[1], where, "label")
-        type_name = self.type_name(node.value[2], where)
-        ext = self.value_extensions(node.value[3], where, type_name) if len(node.value) == 4 else {}
-        return Telemetry(item_id, label, type_name, line=node.start_mark.line + 1, **ext)
+        label = self.scalar(node.items[1], where, "label")
+        type_name = self.type_name(node.items[2], where)
+        ext = self.value_extensions(node.items[3], where, type_name) if len(node.items) == 4 else {}
+        return Telemetry(item_id, label, type_name, line=node.line, **ext)
 
-    def sysrep(self, root: yaml.Node | None) -> SysRep:
-        if not isinstance(root, yaml.MappingNode):
-            raise self.fail(root, "", f"a SysRep must be a mapping with id, name, commands, telemetry; got {_describe(root)}")
-        fields: dict[str, yaml.Node] = {}
-        for key_node, value_node in root.value:
-            key = self.scalar(key_node, "", "key")
+    def sysrep(self, root: Node) -> SysRep:
+        if root.kind != MAPPING:
+            raise self.fail(root, "", f"a SysRep must be a mapping with id, name, commands, telemetry; got {root.describe()}")
+        fields: dict[str, Node] = {}
+        for key, key_line, value_node in root.entries:
             if key not in _TOP_LEVEL_KEYS:
-                raise self.fail(key_node, "", f"unknown key {key!r} (allowed: {', '.join(sorted(_TOP_LEVEL_KEYS))})")
-            if key in fields:
-                raise self.fail(key_node, "", f"duplicate key {key!r}")
+                raise SysRepError(self.path, key_line, "", f"unknown key {key!r} (allowed: {', '.join(sorted(_TOP_LEVEL_KEYS))})")
             fields[key] = value_node
         for required in ("id", "name"):
             if required not in fields:
@@ -303,31 +300,18 @@ class _Reader:
         version = self.scalar(fields["version"], "version", "version") if "version" in fields else None
         return SysRep(sysrep_id, name, tuple(commands), tuple(telemetry), str(self.path), description, version)
 
-    def _entries(self, node: yaml.Node | None, section: str, read: Any) -> list[Any]:
-        if node is None or isinstance(node, yaml.ScalarNode) and node.tag == "tag:yaml.org,2002:null":
+    def _entries(self, node: Node | None, section: str, read: Any) -> list[Any]:
+        if node is None or node.kind == SCALAR and node.value is None:
             return []
-        if not isinstance(node, yaml.SequenceNode):
-            raise self.fail(node, section, f"{section} must be a list, got {_describe(node)}")
+        if node.kind != SEQUENCE:
+            raise self.fail(node, section, f"{section} must be a list, got {node.describe()}")
         entries: list[Any] = []
-        for index, entry_node in enumerate(node.value):
+        for index, entry_node in enumerate(node.items):
             entry = read(entry_node, index)
             if any(e.id == entry.id for e in entries):
                 raise self.fail(entry_node, f"{section}[{index}] {entry.id!r}", f"duplicate id {entry.id!r}")
             entries.append(entry)
         return entries
-
-
-def _describe(node: yaml.Node | None) -> str:
-    if node is None:
-        return "nothing"
-    if isinstance(node, yaml.SequenceNode):
-        return f"a list of {len(node.value)} items"
-    if isinstance(node, yaml.MappingNode):
-        return "a mapping"
-    if node.tag == "tag:yaml.org,2002:null":
-        return "nothing"
-    kind = node.tag.rsplit(":", 1)[-1]
-    return f"{kind} {node.value!r}"
 
 
 def load_sysrep(path: str | Path) -> SysRep:
@@ -338,18 +322,8 @@ def load_sysrep(path: str | Path) -> SysRep:
             the file, the line, the entry and what is wrong.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SysRepError(path, 0, "", f"cannot read: {exc.strerror or exc}") from None
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = mark.line + 1 if mark is not None else 0
-        problem = getattr(exc, "problem", None) or str(exc)
-        raise SysRepError(path, line, "", f"not valid YAML: {problem}") from None
-    return _Reader(path).sysrep(root)
+    root = load_file(path, error=SysRepError, json=False)
+    return _Reader(path).sysrep(root.node)
 
 
 def load_sysrep_dir(directory: str | Path) -> dict[str, SysRep]:

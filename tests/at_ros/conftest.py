@@ -33,23 +33,16 @@ def iva_scene(ur10_config):
     scene.close()
 
 
-def start_stack(ros_env: dict[str, str], scene: str, robot: str, time_scale: str):
-    """Simulation, planner and AT server as real processes, plus a test client; stops them all."""
-    from support.processes import caretaker
+def start_stack(ros_env: dict[str, str], deployment: str, time_scale: float):
+    """The deployment's simulation, planner and AT server as real processes, plus a test client; stops them all."""
+    from support.stack import robot_parts
 
     from at_client import AtClient
 
-    started = []
-    try:
-        for args in (("sim", "--scene", scene, "--time-scale", time_scale), ("planner", "--robot", robot), ("at-server", "--robot", robot)):
-            proc = caretaker(*args, env=ros_env)
-            started.append(proc)
-        for proc in started:
-            proc.wait_ready(90.0)
+    with robot_parts(deployment, ros_env, parts=("sim", "planner", "at-server"), time_scale=time_scale):
         client = AtClient()
-        client.wait_for(lambda: client.status is not None and client.status.planner_node_active and bool(client.frames), 60.0, "server status with an active planner")
-        yield client
-        client.close()
-    finally:
-        for proc in reversed(started):
-            proc.stop()
+        try:
+            client.wait_for(lambda: client.status is not None and client.status.planner_node_active and bool(client.frames), 60.0, "server status with an active planner")
+            yield client
+        finally:
+            client.close()

@@ -26,7 +26,7 @@ EMPTY_SLOT = "rack/slot_3"
 @pytest.fixture(scope="module")
 def at(ros_env):
     # Real time: executions last seconds, so "while executing" can be observed without races.
-    yield from start_stack(ros_env, "iva", "ur10", "1")
+    yield from start_stack(ros_env, "iva", 1.0)
 
 
 def _distance(a, b) -> float:  # noqa: ANN001 - geometry_msgs/Pose

@@ -13,7 +13,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 @pytest.fixture(scope="module")
 def at(ros_env):
-    yield from start_stack(ros_env, "eva", "eva_arm", "0")
+    yield from start_stack(ros_env, "eva", 0.0)
 
 
 def test_inspection_stand_off_reached_and_image_captured(at) -> None:

@@ -17,7 +17,8 @@ from urllib.parse import urlparse
 
 import pytest
 
-from caretaker.processes import REPO, ManagedProcess, caretaker
+from caretaker.processes import REPO
+from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -27,17 +28,8 @@ ZERO_POSE = {"x": 0.0, "y": 0.0, "z": 0.0, "roll": 0.0, "pitch": 0.0, "yaw": 0.0
 
 @pytest.fixture(scope="module")
 def bridge_url(ros_env: dict[str, str]) -> Iterator[str]:
-    started: list[ManagedProcess] = []
-    try:
-        for args in (("sim", "--scene", "iva", "--time-scale", "0"), ("planner", "--robot", "ur10"),
-                     ("at-server", "--robot", "ur10"), ("bridge", "--port", "0")):
-            proc = caretaker(*args, env=ros_env)
-            started.append(proc)
-            ready = proc.wait_ready(120)
-        yield ready.split()[-1]
-    finally:
-        for proc in reversed(started):
-            proc.stop()
+    with robot_parts("iva", ros_env) as stack:
+        yield stack.bridge_url
 
 
 def _roslibpy_call(ros: object, name: str, type_name: str, request: dict) -> dict:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from caretaker.processes import REPO
 from support.processes import caretaker
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -19,7 +20,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 def _demo(scenario: str, tmp_path: Path, env: dict[str, str]) -> list[str]:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
-    proc = caretaker("demo", scenario, "--db", db, env=env, name=f"demo-{scenario}")
+    # As the README tells it: the shipped deployment file (the port 0: tests run side by side).
+    proc = caretaker("demo", str(REPO / "deployments" / f"{scenario}.yaml"), "--db", db, "--reports", str(tmp_path / "reports"),
+                     "--bridge-port", "0", env=env, name=f"demo-{scenario}")
     try:
         proc.proc.wait(timeout=420)
     finally:

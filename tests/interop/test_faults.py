@@ -11,7 +11,6 @@ the removal again from where the arm is (the restarted AT server keeps its insta
 from __future__ import annotations
 
 import re
-import socket
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -19,9 +18,11 @@ from urllib.parse import urlparse
 
 import pytest
 
-from caretaker.processes import REPO, VENV_BIN, ManagedProcess, caretaker
+from caretaker.processes import REPO, VENV_BIN, caretaker
+from caretaker.stack import Stack
 from pride.audit_log import AuditLog
 from pride.events import EventKind
+from support.stack import robot_parts
 
 from interop.terminal_session import TerminalSession
 
@@ -38,43 +39,23 @@ CHECK_AFTER_INTERRUPTION = "8.1"
 EXECUTE_PULL_AGAIN = "8.6"
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 class RobotSide:
-    """The robot side and a rosbridge server on a fixed port (so a restart keeps the URL)."""
+    """The IVA deployment's parts, killed and started again by the test (caretaker.stack.Stack)."""
 
-    def __init__(self, env: dict[str, str], state_dir: Path) -> None:
-        self.env = env
-        self.state_file = state_dir / "at_server.json"
-        self.port = _free_port()
-        self.url = f"ws://127.0.0.1:{self.port}"
-        self.parts: dict[str, ManagedProcess] = {}
+    def __init__(self, stack: Stack) -> None:
+        self.stack = stack
+        self.env = stack.env
+        self.url = stack.bridge_url
+        self.parts = stack.processes
 
     def start(self, name: str) -> None:
-        args = {"sim": ("sim", "--scene", "iva", "--time-scale", "0"), "planner": ("planner", "--robot", "ur10"),
-                "at-server": ("at-server", "--robot", "ur10", "--state-file", str(self.state_file)),
-                "bridge": ("bridge", "--port", str(self.port))}[name]
-        self.parts[name] = caretaker(*args, env=self.env, name=name)
-        self.parts[name].wait_ready(120)
-
-    def stop(self) -> None:
-        for proc in reversed(list(self.parts.values())):
-            proc.stop()
+        self.stack.start_part(name)
 
 
 @pytest.fixture
-def robot(ros_env: dict[str, str], tmp_path: Path) -> Iterator[RobotSide]:
-    side = RobotSide(ros_env, tmp_path)
-    try:
-        for name in ("sim", "planner", "at-server", "bridge"):
-            side.start(name)
-        yield side
-    finally:
-        side.stop()
+def robot(ros_env: dict[str, str]) -> Iterator[RobotSide]:
+    with robot_parts("iva", ros_env) as stack:
+        yield RobotSide(stack)
 
 
 def _run_argv(robot: RobotSide, db: str, *extra: str) -> list[str]:

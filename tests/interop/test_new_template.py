@@ -14,7 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from caretaker.processes import REPO, ManagedProcess, caretaker
+from caretaker.processes import REPO, caretaker
+from support.stack import robot_parts, write_deployment
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -74,19 +75,12 @@ PROCEDURE = """<?xml version="1.0" encoding="UTF-8"?>
 
 @pytest.fixture
 def robot_side(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[Path, str]]:
+    """The IVA robot side serving a template library of the user's own (a copy of the shipped one)."""
     library = tmp_path / "library"
-    shutil.copytree(REPO / "python" / "at_ros" / "library", library)
-    started: list[ManagedProcess] = []
-    try:
-        for args in (("sim", "--scene", "iva", "--time-scale", "0"), ("planner", "--robot", "ur10"),
-                     ("at-server", "--robot", "ur10", "--library", str(library)), ("bridge", "--port", "0")):
-            proc = caretaker(*args, env=ros_env)
-            started.append(proc)
-            ready = proc.wait_ready(120)
-        yield library, ready.split()[-1]
-    finally:
-        for proc in reversed(started):
-            proc.stop()
+    shutil.copytree(REPO / "python" / "at_ros" / "library" / "templates", library / "templates")
+    deployment = write_deployment(tmp_path, "iva", templates=str(library / "templates"))
+    with robot_parts(deployment, ros_env) as stack:
+        yield library, stack.bridge_url
 
 
 def test_a_template_file_is_usable_from_a_procedure_at_once(robot_side: tuple[Path, str], tmp_path: Path,

@@ -1,40 +1,33 @@
-"""``caretaker up`` supervises its parts: a dead AT server comes back with its instances, a dead
-simulation (the world) ends the stack, and nothing outlives it."""
+"""``caretaker up DEPLOYMENT`` supervises its parts: a dead AT server comes back with its
+instances, a dead rosbridge on the port it had, a dead simulation (the world) ends the stack, and
+nothing outlives it."""
 
 from __future__ import annotations
 
 import signal
-import socket
 from collections.abc import Iterator
+from urllib.parse import urlparse
 
 import psutil
 import pytest
 import roslibpy
 
 from rosbridge.rosbridge_support import wait_until_discovered
-from support.processes import ManagedProcess, caretaker
+from support.processes import ManagedProcess
+from support.stack import stack_up
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture
 def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
-    port = _free_port()
-    up = caretaker("up", "--scene", "iva", "--time-scale", "0", "--bridge-port", str(port), env=ros_env, name="up")
-    try:
-        up.wait_for_line(r"^READY stack iva$", 180)
+    with stack_up("iva", ros_env) as up:
+        port = urlparse(up.url).port
+        assert port
         # READY means each part is up, not that DDS has shown the AT server to the bridge yet
         wait_until_discovered("127.0.0.1", port, "/affordance_template_server/status",
                               "/affordance_template_server/add_template", "/affordance_template_server", timeout=60)
-        yield up, port
-    finally:
-        up.stop()
+        yield up.process, port
 
 
 def _part(up: ManagedProcess, subcommand: str) -> psutil.Process:
@@ -87,6 +80,15 @@ def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
     assert all("Timeout exceeded" in f for f in failures), failures  # answered as failures, never silence
     assert added["instance"] in running["templates"]
     assert up.running
+
+
+def test_a_dead_bridge_comes_back_on_the_port_it_picked(stack) -> None:
+    up, port = stack
+    _part(up, "bridge").send_signal(signal.SIGKILL)
+    up.wait_for_line(rf"^restarted bridge: READY bridge ws://127\.0\.0\.1:{port}$", 120)
+    answer, failures = _call_until_answered(port, "/affordance_template_server/get_running",
+                                            "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    assert answer is not None and answer["success"], failures
 
 
 def test_a_dead_simulation_ends_the_stack_and_every_part(stack) -> None:

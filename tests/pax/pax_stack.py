@@ -13,38 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from support.processes import ManagedProcess, caretaker
+from caretaker.stack import Stack
+from support.stack import robot_parts
 
 REPO = Path(__file__).resolve().parents[2]
 BINDINGS = REPO / "sysrep" / "bindings"
-
-
-def bridge_url(bridge: ManagedProcess) -> str:
-    """The ws:// URL from the bridge's ``READY bridge ws://HOST:PORT`` line."""
-    line = next(line for line in bridge.output if line.startswith("READY bridge "))
-    return line.split()[-1]
-
-
-class Stack:
-    """The IVA robot's processes; ``restart_at_server`` replaces one, teardown stops all."""
-
-    def __init__(self, env: dict[str, str]) -> None:
-        self.env = env
-        self.processes: dict[str, ManagedProcess] = {}
-
-    def start(self, name: str, *args: str) -> ManagedProcess:
-        process = caretaker(*args, env=self.env, name=name)
-        self.processes[name] = process
-        return process
-
-    def start_at_server(self) -> ManagedProcess:
-        process = self.start("at-server", "at-server", "--robot", "ur10")
-        process.wait_ready(90.0)
-        return process
-
-    def stop(self) -> None:
-        for process in reversed(list(self.processes.values())):
-            process.stop()
 
 
 @pytest.fixture(scope="module")
@@ -54,16 +27,8 @@ def ros_env_module() -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def stack(ros_env_module: dict[str, str]) -> Iterator[Stack]:
-    """rosbridge (`caretaker bridge --port 0`), simulation, planner and AT server of the IVA robot."""
-    stack = Stack(ros_env_module)
-    try:
-        stack.start("bridge", "bridge", "--port", "0")
-        # Time scale 4: executions take a quarter of real time; nothing here observes "while moving".
-        stack.start("sim", "sim", "--scene", "iva", "--time-scale", "4")
-        stack.start("planner", "planner", "--robot", "ur10")
-        stack.start("at-server", "at-server", "--robot", "ur10")
-        for process in list(stack.processes.values()):
-            process.wait_ready(90.0)
+    """The IVA deployment's rosbridge (on a free port: ``stack.bridge_url``), simulation, planner
+    and AT server; ``stack.start_part("at-server")`` restarts the AT server after a test killed it."""
+    # Time scale 4: executions take a quarter of real time; nothing here observes "while moving".
+    with robot_parts("iva", ros_env_module, time_scale=4.0) as stack:
         yield stack
-    finally:
-        stack.stop()

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from bridge.pax_host import PaxHost, TelemetryValue
-from pax_stack import BINDINGS, REPO, Stack, bridge_url, ros_env_module, stack  # noqa: F401 (fixtures used by name)
+from pax_stack import BINDINGS, REPO, Stack, ros_env_module, stack  # noqa: F401 (fixtures used by name)
 from pax_probe import RobotProbe
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -43,7 +43,7 @@ def binding(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def host(stack: Stack, binding: Path) -> PaxHost:
-    pax = PaxHost(binding, rosbridge_url=bridge_url(stack.processes["bridge"]))
+    pax = PaxHost(binding, rosbridge_url=stack.bridge_url)
     yield pax
     pax.close()
 
@@ -239,7 +239,7 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
     refused = host.execute(AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False})
     assert not refused.success and refused.message  # the server is gone: a failure, never a fake success
 
-    stack.start_at_server()
+    stack.start_part("at-server")
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=60.0)
     changes.until(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
     # The new server may answer before it has heard /sim/frames; it then refuses with a reason.
@@ -252,15 +252,13 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
 
 def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, stack: Stack, changes: Changes) -> None:
     changes.forget()
-    url = bridge_url(stack.processes["bridge"])
-    port = url.rsplit(":", 1)[1]
     stack.processes["bridge"].kill()
     changes.wait(AT, "affordance_template_server_active", False, stale=False, timeout=STALE_AFTER + 10.0)
     changes.until(lambda: host.telemetry("cdra", "filter_locked").stale, "cdra values stale once the bridge is gone")
     down = host.execute("cdra", "lock_filter", {})
     assert not down.success and "not connected" in down.message, down.message
 
-    stack.start("bridge", "bridge", "--port", port).wait_ready(60.0)
+    stack.start_part("bridge")  # on the port it had
     # Same JVM, same PaxHost: the client reconnects and re-sends its subscriptions by itself.
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=30.0)
     # A new bridge may not have discovered the simulation's services yet: it says so; retry on that.

@@ -13,7 +13,8 @@ import pytest
 
 import bridge.jvm
 from bridge.pax_host import CommandResult, PaxError, PaxHost, TelemetryValue, to_java, to_python
-from pax_stack import REPO, Stack, bridge_url, ros_env_module  # noqa: F401 (fixtures used by name)
+from pax_stack import REPO, ros_env_module  # noqa: F401 (fixtures used by name)
+from support.stack import robot_parts
 from pride.sysrep import SysRepError, load_sysrep
 
 AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"
@@ -22,12 +23,8 @@ CDRA_SYSREP = REPO / "sysrep" / "cdra.yaml"
 
 @pytest.fixture(scope="module")
 def url(ros_env_module: dict[str, str]) -> str:
-    bridge = Stack(ros_env_module)
-    try:
-        bridge.start("bridge", "bridge", "--port", "0").wait_ready(60.0)
-        yield bridge_url(bridge.processes["bridge"])
-    finally:
-        bridge.stop()
+    with robot_parts("iva", ros_env_module, parts=("bridge",)) as bridge:
+        yield bridge.bridge_url
 
 
 def write_binding(directory: Path, body: str) -> Path:

@@ -9,7 +9,6 @@ after-action report.
 from __future__ import annotations
 
 import re
-import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -20,42 +19,30 @@ from conftest import REPO
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.parser import load_procedure
+from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SCENES = {
-    "iva": ("ur10", "iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),
-    "eva": ("eva_arm", "eva_inspection.xml", ["--set", "damage=false"]),
+    "iva": ("iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),
+    "eva": ("eva_inspection.xml", ["--set", "damage=false"]),
 }
-#: Executing a plan is one blocking service call through rosbridge; the Java client sends no
-#: per-call timeout yet, so the bridge's default (10 s) would cut off long motions on a loaded machine.
-BRIDGE_SERVICE_TIMEOUT_S = "180"
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_step(
-    scene: str, launch, ros_env, tmp_path: Path
+    scene: str, ros_env, tmp_path: Path
 ) -> None:
-    robot, procedure_file, answers = SCENES[scene]
-    port = _free_port()
-    # the robot side as separate processes, in the order `caretaker up` starts them
-    launch("sim", "--scene", scene, "--time-scale", "0", ready_timeout=180)
-    launch("planner", "--robot", robot, ready_timeout=180)
-    launch("at-server", "--robot", robot, ready_timeout=180)
-    launch("bridge", "--port", str(port), "--service-timeout", BRIDGE_SERVICE_TIMEOUT_S, ready_timeout=180)
+    procedure_file, answers = SCENES[scene]
     db = f"sqlite:///{tmp_path / 'audit.db'}"
-    proc = subprocess.run(
-        [sys.executable, "-m", "caretaker.cli", "run", str(REPO / "procedures" / procedure_file),
-         "--binding", str(REPO / "sysrep" / "bindings" / f"{scene}.yaml"), "--rosbridge", f"ws://127.0.0.1:{port}",
-         "--auto", "--user", "tester", "--db", db, *answers, "--confirm-manual"],
-        env=ros_env, capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
-    )
+    # the robot side of the shipped deployment, each part its own process as `caretaker up` starts them
+    with robot_parts(scene, ros_env) as stack:
+        proc = subprocess.run(
+            [sys.executable, "-m", "caretaker.cli", "run", str(REPO / "procedures" / procedure_file),
+             "--binding", str(REPO / "sysrep" / "bindings" / f"{scene}.yaml"), "--rosbridge", stack.bridge_url,
+             "--auto", "--user", "tester", "--db", db, *answers, "--confirm-manual"],
+            env=ros_env, capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+        )
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
 
     log = AuditLog(db)

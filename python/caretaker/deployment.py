@@ -1,0 +1,230 @@
+"""Deployment files: one YAML naming a robot side, so starting any robot is ``caretaker up FILE``.
+
+A deployment names the scene, the robot config, the template library, the ROS domain and
+namespace, the rosbridge server's address, port and TLS/auth files, the capture and state
+folders, and the bindings this robot side serves (and, for ``caretaker demo``, the procedure to
+run). Every path in it is relative to the deployment file; every key is checked (unknown keys
+are errors) with the shared :mod:`datafile` reader, and the files it names are checked too, so a
+deployment that passes ``caretaker check`` starts. ``link`` and ``ledger`` are sections reserved
+for the parts that read them (a link emulation, the command ledger); they must be mappings.
+
+Example (``deployments/iva.yaml``)::
+
+    name: iva
+    scene: ../sim/scenes/iva.yaml
+    robot: ../python/at_ros/library/robots/ur10.yaml
+    templates: ../python/at_ros/library/templates
+    bridge: {address: 127.0.0.1, port: 9090}
+    bindings: [../sysrep/bindings/iva.yaml]
+    demo:
+      procedure: ../procedures/iva_cdra_filter_replacement.xml
+      binding: ../sysrep/bindings/iva.yaml
+      inputs: {clean_filter_id: CDRA-F-0012}
+      check: cdra_filters_swapped
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlparse
+
+from at_ros.library import load_library
+from at_ros.robot_config import RobotConfig, load_robot_config, load_robot_configs
+from caretaker.binding_file import BindingSummary, check_binding
+from datafile import DataFileError, Field, load_file
+from sim.scene import Scene, load_scene
+
+__all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "SHIPPED", "WORLD_CHECK_NAMES", "load_deployment", "resolve_deployment"]
+
+#: The deployments that ship with Caretaker: ``caretaker up iva`` means this folder's iva.yaml.
+SHIPPED = Path(__file__).resolve().parents[2] / "deployments"
+#: The checks of the world that ``caretaker demo`` knows by name (caretaker.demo).
+WORLD_CHECK_NAMES = ("cdra_filters_swapped", "every_target_imaged")
+TOP_LEVEL_KEYS = ("name", "scene", "robot", "templates", "robots", "ros", "bridge", "capture_dir", "state_dir",
+                  "time_scale", "bindings", "demo", "link", "ledger", "description")
+
+
+class DeploymentError(DataFileError):
+    """A deployment file that cannot be started."""
+
+
+@dataclass(frozen=True)
+class BridgeSettings:
+    """The robot side's rosbridge server: what ``caretaker bridge`` is started with."""
+
+    address: str = "127.0.0.1"
+    port: int = 9090
+    certfile: Path | None = None
+    keyfile: Path | None = None
+    auth_secret_file: Path | None = None
+
+    @property
+    def scheme(self) -> str:
+        return "wss" if self.certfile else "ws"
+
+
+@dataclass(frozen=True)
+class DemoRun:
+    """What ``caretaker demo`` runs on this robot side, and how it checks the world afterwards."""
+
+    procedure: Path
+    binding: Path
+    inputs: dict[str, str]
+    check: str | None
+
+
+@dataclass(frozen=True)
+class Deployment:
+    path: Path
+    name: str
+    scene: Path
+    robot: Path  # the robot config file
+    robot_name: str
+    templates: Path
+    robots: Path | None  # folder of robot configs get_robots lists (None: the robot's own config)
+    domain_id: int | None  # None: the environment's ROS_DOMAIN_ID
+    namespace: str
+    bridge: BridgeSettings
+    capture_dir: Path | None  # None: the simulation's default ($TMPDIR/caretaker-captures)
+    state_dir: Path | None  # None: a new folder per stack (a new stack is a new world)
+    time_scale: float
+    bindings: tuple[Path, ...]
+    demo: DemoRun | None
+    link: dict[str, Any] = field(default_factory=dict)
+    ledger: dict[str, Any] = field(default_factory=dict)
+
+
+def resolve_deployment(name_or_path: str | Path) -> Path:
+    """A deployment file path, or a shipped deployment by name (``iva`` is deployments/iva.yaml).
+
+    Raises:
+        DeploymentError: a bare name that is not shipped.
+    """
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.parent != Path("."):
+        return path
+    shipped = SHIPPED / f"{name_or_path}.yaml"
+    if not shipped.is_file():
+        known = sorted(p.stem for p in SHIPPED.glob("*.yaml"))
+        raise DeploymentError(str(name_or_path), 0, "", f"no such deployment; give a deployment file or one of {', '.join(known)}")
+    return shipped
+
+
+def _bridge(f: Field | None) -> BridgeSettings:
+    if f is None:
+        return BridgeSettings()
+    f.mapping(optional=("address", "port", "certfile", "keyfile", "auth_secret_file"))
+    files = {key: f[key].file_path() if f.has(key) else None for key in ("certfile", "keyfile", "auth_secret_file")}
+    if (files["certfile"] is None) != (files["keyfile"] is None):
+        raise f.fail("certfile and keyfile go together (TLS needs both)")
+    return BridgeSettings(
+        address=f["address"].text() if f.has("address") else "127.0.0.1",
+        port=f["port"].integer(min=0, max=65535) if f.has("port") else 9090,
+        **files,  # type: ignore[arg-type]
+    )
+
+
+def _demo(f: Field | None) -> DemoRun | None:
+    if f is None:
+        return None
+    f.mapping(required=("procedure", "binding"), optional=("inputs", "check"))
+    inputs = {}
+    for key, value in f["inputs"].entries() if f.has("inputs") else []:
+        if value.node.kind != "scalar" or value.node.value is None:
+            raise value.fail(f"the answer to record {key!r} must be a single value, got {value.describe()}")
+        inputs[key] = str(value.node.value).lower() if isinstance(value.node.value, bool) else str(value.node.value)
+    return DemoRun(
+        procedure=f["procedure"].file_path(),
+        binding=f["binding"].file_path(),
+        inputs=inputs,
+        check=f["check"].choice(WORLD_CHECK_NAMES) if f.has("check") else None,
+    )
+
+
+def _reserved(f: Field | None) -> dict[str, Any]:
+    if f is None:
+        return {}
+    f.mapping(any_keys=True)
+    return f.plain()  # type: ignore[no-any-return]
+
+
+def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment:
+    """Read a deployment file; with ``check_files`` also every file it names, and that they agree.
+
+    Raises:
+        DeploymentError: ``file:line: key: problem`` for the deployment itself or a disagreement.
+        DataFileError: for a file it names (scene, robot config, template, binding, SysRep).
+    """
+    path = resolve_deployment(path)
+    root = load_file(path, error=DeploymentError).mapping(required=("name", "scene", "robot", "templates"), optional=TOP_LEVEL_KEYS)
+    ros = root.get("ros")
+    if ros is not None:
+        ros.mapping(optional=("domain_id", "namespace"))
+    namespace = ros["namespace"].text(empty=True) if ros is not None and ros.has("namespace") else ""
+    if namespace and not namespace.startswith("/"):
+        raise ros["namespace"].fail(f"a namespace starts with '/', e.g. /{namespace}")  # type: ignore[index]
+    robot_file = root["robot"].file_path()
+    robot = load_robot_config(robot_file)
+    deployment = Deployment(
+        path=path,
+        name=root["name"].text(),
+        scene=root["scene"].file_path(),
+        robot=robot_file,
+        robot_name=robot.robot_name,
+        templates=root["templates"].file_path(folder=True),
+        robots=root["robots"].file_path(folder=True) if root.has("robots") else None,
+        domain_id=ros["domain_id"].integer(min=0, max=232) if ros is not None and ros.has("domain_id") else None,
+        namespace=namespace,
+        bridge=_bridge(root.get("bridge")),
+        capture_dir=root["capture_dir"].file_path(folder=True, must_exist=False) if root.has("capture_dir") else None,
+        state_dir=root["state_dir"].file_path(folder=True, must_exist=False) if root.has("state_dir") else None,
+        time_scale=root["time_scale"].number(min=0.0, max=1000.0) if root.has("time_scale") else 1.0,
+        bindings=tuple(b.file_path() for b in root["bindings"].sequence()) if root.has("bindings") else (),
+        demo=_demo(root.get("demo")),
+        link=_reserved(root.get("link")),
+        ledger=_reserved(root.get("ledger")),
+    )
+    if check_files:
+        _check_files(root, deployment, robot)
+    return deployment
+
+
+def _check_files(root: Field, deployment: Deployment, robot: RobotConfig) -> None:
+    """Every file the deployment names loads, and they describe one robot side."""
+    scene = load_scene(deployment.scene)
+    _check_robot_matches_scene(root, robot, scene)
+    load_library(deployment.templates)
+    if deployment.robots is not None:
+        load_robot_configs(deployment.robots)
+    for index, binding_path in enumerate(deployment.bindings):
+        _check_binding_reaches_this_side(root["bindings"].sequence()[index], check_binding(binding_path), deployment)
+    if deployment.demo is not None:
+        demo = root["demo"]
+        if deployment.demo.binding not in deployment.bindings:
+            raise demo["binding"].fail("the demo's binding is not one of this deployment's bindings")
+
+
+def _check_robot_matches_scene(root: Field, robot: RobotConfig, scene: Scene) -> None:
+    if os.path.realpath(robot.urdf) != os.path.realpath(scene.robot.urdf):
+        raise root["robot"].fail(f"robot config {robot.filename} uses model {robot.urdf}, but scene {scene.path} has {scene.robot.urdf}")
+    missing = [j for j in robot.joint_names if j not in scene.robot.arm_joints]
+    if missing:
+        raise root["robot"].fail(f"robot config joints {missing} are not arm joints of scene {scene.path} ({', '.join(scene.robot.arm_joints)})")
+    if robot.gripper_service and scene.robot.gripper is None:
+        raise root["robot"].fail(f"robot config names gripper_service {robot.gripper_service!r}, but the robot of scene {scene.path} has no gripper")
+
+
+def _check_binding_reaches_this_side(f: Field, binding: BindingSummary, deployment: Deployment) -> None:
+    """A binding this side serves must connect to its rosbridge and name its namespace."""
+    for system in binding.systems:
+        url = urlparse(system.rosbridge)
+        if url.port != deployment.bridge.port and deployment.bridge.port != 0:
+            raise f.fail(f"binding {binding.path} connects {system.sysrep} to {system.rosbridge}, but this deployment's rosbridge port is {deployment.bridge.port}")
+        if url.scheme != deployment.bridge.scheme:
+            raise f.fail(f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://")
+        if deployment.namespace and not system.namespace.startswith(deployment.namespace + "/"):
+            raise f.fail(f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}")
+
