@@ -83,3 +83,32 @@ def test_unreachable_registration_names_the_waypoint(planner, library, ur10_conf
 def test_start_in_collision_is_refused(planner) -> None:
     with pytest.raises(WaypointPlanningError, match="start state is in collision"):
         planner.plan(np.array([0.0, -0.6, 2.4, -1.57, -1.57, 0.0]), [Goal("x", np.eye(4), "JOINT")])
+
+
+RACK_SLOT_2 = from_xyz_rpy([0.96, 0.0, 1.05], [0.0, 0.0, 0.0])  # occupied by CDRA-F-0013
+RACK_SLOT_3 = from_xyz_rpy([0.96, 0.25, 1.05], [0.0, 0.0, 0.0])  # empty
+
+
+def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_so(planner, iva_scene, library, ur10_config) -> None:
+    """A survey with the gripper closed, stopping in front of a seated filter and rising: nothing
+    is grasped (the template states no grasp), so rising is not a collision of the filter with its
+    rack (it was, when "closed within 25 cm" counted as a grasp: the filter rose with the tool)."""
+    view = from_xyz_rpy([0.0, 0.0, 0.0], [0.0, np.pi / 2, 0.0])
+    near = RACK_SLOT_2 @ from_xyz_rpy([-0.22, 0, 0], [0, 0, 0]) @ view
+    away = from_xyz_rpy([0, 0, 0.06], [0, 0, 0]) @ near
+    goals = [Goal("survey.0", RACK_SLOT_2 @ from_xyz_rpy([-0.35, 0, 0], [0, 0, 0]) @ view, "JOINT", "closed"),
+             Goal("survey.1", near, "CARTESIAN", "closed"), Goal("survey.2", away, "CARTESIAN", "closed")]
+    planned = planner.plan(UR10_START, goals)
+    assert [p.label for p in planned] == ["survey.0", "survey.1", "survey.2"]
+    np.testing.assert_allclose(iva_scene.obstacle_pose("filter/CDRA-F-0013")[:3, 3], RACK_SLOT_2[:3, 3], atol=1e-6)
+    # Had the template said the survey grasps the filter, it would have carried it into the rack.
+    grasping = [goals[0], Goal("survey.1", near, "CARTESIAN", "closed", gripper_action="grasp", object_name="filter",
+                               object_pose=RACK_SLOT_2), goals[2]]
+    with pytest.raises(WaypointPlanningError, match=r"survey\.2: Cartesian line blocked .*collision filter/CDRA-F-0013/rack"):
+        planner.plan(UR10_START, grasping)
+
+
+def test_a_stated_grasp_where_nothing_is_names_the_object(planner, library, ur10_config) -> None:
+    with pytest.raises(WaypointPlanningError, match=r"waypoint 0\.2:cdra_filter:0: grasps 'cdra_filter', but no graspable object "
+                                                    r"of the world is within 5 cm of where 'cdra_filter' is registered"):
+        planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", RACK_SLOT_3))
