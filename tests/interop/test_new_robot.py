@@ -3,7 +3,7 @@
 The files of tests/fixtures/bench_arm are copied to a folder outside the checkout, as a user
 would write them: a 6-DOF arm with a spherical wrist and other link lengths than the UR10
 (URDF), a workbench scene of its own, a robot config, an AT template, a procedure, a binding
-to the generic AT SysRep and a deployment. ``caretaker check`` accepts them all; ``caretaker up
+to the generic AT SysRep and a deployment (in ROS namespace /bench). ``caretaker check`` accepts them all; ``caretaker up
 DEPLOYMENT`` starts the robot side (real simulation, planner with OMPL, AT server, rosbridge);
 ``caretaker run`` completes the procedure through the Java PAX plugins; the part is then in the
 slot the procedure named, as the simulation itself reports it; and nothing in the checkout
@@ -32,6 +32,7 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 FIXTURE = REPO / "tests" / "fixtures" / "bench_arm"
 GENERIC_AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"
 SLOT_A, SLOT_B = "shelf/slot_a", "shelf/slot_b"
+NAMESPACE = "/bench"  # the deployment's: this robot's topics and services live under it
 
 
 def _git_status() -> str:
@@ -61,10 +62,10 @@ def _frames(url: str, timeout: float = 30.0) -> dict[str, tuple[float, float, fl
         received.update(message)
         arrived.set()
 
-    topic = roslibpy.Topic(ros, "/sim/frames", "caretaker_sim_msgs/NamedPoses")
+    topic = roslibpy.Topic(ros, f"{NAMESPACE}/sim/frames", "caretaker_sim_msgs/NamedPoses")
     topic.subscribe(take)
     try:
-        assert arrived.wait(timeout), "no /sim/frames through rosbridge"
+        assert arrived.wait(timeout), f"no {NAMESPACE}/sim/frames through rosbridge"
     finally:
         topic.unsubscribe()
         ros.close()
