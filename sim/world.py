@@ -65,7 +65,7 @@ def _static_body(body: StaticBody, client: int) -> int:
     )
     body_id = p.createMultiBody(0.0, collision, visual, list(body.pose.xyz), list(body.pose.quaternion), physicsClientId=client)
     p.changeVisualShape(body_id, -1, rgbaColor=list(body.color), physicsClientId=client)
-    return body_id
+    return int(body_id)
 
 
 def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
@@ -80,13 +80,13 @@ def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) ->
         p.GEOM_BOX, halfExtents=extents[1], visualFramePosition=positions[1],
         rgbaColor=list(model.colors.get("handle", model.colors[condition])), physicsClientId=client,
     )
-    return p.createMultiBody(
+    return int(p.createMultiBody(
         model.mass, collision, body_visual, list(pose.xyz), list(pose.quaternion),
         linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[handle_visual],
         linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
         linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED],
         linkJointAxis=[[0, 0, 1]], physicsClientId=client,
-    )
+    ))
 
 
 def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
@@ -106,13 +106,13 @@ def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
             )
         )
     n = len(link_visuals)
-    return p.createMultiBody(
+    return int(p.createMultiBody(
         0.0, -1, panel, list(spec.pose.xyz), list(spec.pose.quaternion),
         linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=link_visuals,
         linkPositions=[[0, 0, 0]] * n, linkOrientations=[[0, 0, 0, 1]] * n, linkInertialFramePositions=[[0, 0, 0]] * n,
         linkInertialFrameOrientations=[[0, 0, 0, 1]] * n, linkParentIndices=[0] * n, linkJointTypes=[p.JOINT_FIXED] * n,
         linkJointAxis=[[0, 0, 1]] * n, physicsClientId=client,
-    )
+    ))
 
 
 def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_targets: bool = True) -> World:

@@ -190,7 +190,7 @@ class IkSolver:
             pose = scene.forward(q)
             error = np.concatenate([target[:3, 3] - pose[:3, 3], rotation_vector(target[:3, :3] @ pose[:3, :3].T)])
             if np.linalg.norm(error[:3]) < tolerance * 0.1 and np.linalg.norm(error[3:]) < 1e-4:
-                return q
+                return np.asarray(q, dtype=float)
             jac = self._jacobian(q, movable)
             free = np.ones(len(q), dtype=bool)
             step = np.zeros(len(q))

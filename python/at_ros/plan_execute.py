@@ -196,7 +196,7 @@ class PlanExecutor:
         robot = self.core.robot
         points = segment.arm_trajectory.points
         if len(points) >= 2:
-            if not self.trajectory_client.wait_for_server(timeout_sec=5.0):
+            if not self.trajectory_client.wait_for_server(timeout_sec=5.0):  # type: ignore[no-untyped-call]
                 raise CommandRefused(f"the trajectory action {robot.trajectory_action} is not available")
             goal = FollowJointTrajectory.Goal()
             goal.trajectory = segment.arm_trajectory

@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlparse
 
 from caretaker.deployment import Deployment, DemoRun, load_deployment
@@ -36,14 +37,14 @@ class EndStateError(RuntimeError):
     """The world is not in the state the procedure was meant to leave it in."""
 
 
-def _topic_value(ros: object, name: str, msg_type: str, timeout: float) -> dict:
+def _topic_value(ros: object, name: str, msg_type: str, timeout: float) -> dict[str, Any]:
     """First message on ``name`` via rosbridge (latched topics answer at once)."""
     import roslibpy
 
-    received: dict = {}
+    received: dict[str, Any] = {}
     arrived = threading.Event()
 
-    def take(message: dict) -> None:
+    def take(message: dict[str, Any]) -> None:
         received.update(message)
         arrived.set()
 

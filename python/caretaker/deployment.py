@@ -123,7 +123,7 @@ def _bridge(f: Field | None) -> BridgeSettings:
     return BridgeSettings(
         address=f["address"].text() if f.has("address") else "127.0.0.1",
         port=f["port"].integer(min=0, max=65535) if f.has("port") else 9090,
-        **files,  # type: ignore[arg-type]
+        **files,
     )
 
 

@@ -36,12 +36,12 @@ class Node:
     @property
     def entries(self) -> tuple[tuple[str, int, Node], ...]:
         """The ``(key, key_line, value)`` entries of a mapping (empty for anything else)."""
-        return self.value if self.kind == MAPPING else ()  # type: ignore[no-any-return]
+        return self.value if self.kind == MAPPING else ()
 
     @property
     def items(self) -> tuple[Node, ...]:
         """The items of a sequence (empty for anything else)."""
-        return self.value if self.kind == SEQUENCE else ()  # type: ignore[no-any-return]
+        return self.value if self.kind == SEQUENCE else ()
 
     def plain(self) -> Any:
         """The value as plain Python data (dict, list, scalars), for code that needs no lines."""

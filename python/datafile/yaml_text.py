@@ -65,10 +65,15 @@ def _line(event: Any) -> int:
     return mark.line + 1 if mark is not None else 0
 
 
+def _column(event: Any) -> int:
+    mark = getattr(event, "start_mark", None)
+    return mark.column + 1 if mark is not None else 0
+
+
 def _scalar(event: Any, path: str) -> Scalar:
     tag = event.tag
     if tag in (None, "!"):
-        tag = _resolver.resolve(yaml.ScalarNode, event.value, event.implicit) if tag is None else _TAG + "str"
+        tag = _resolver.resolve(yaml.ScalarNode, event.value, event.implicit) if tag is None else _TAG + "str"  # type: ignore[no-untyped-call]
     if tag in _AS_TEXT:
         return str(event.value)
     construct = _CONSTRUCT.get(tag)
@@ -104,7 +109,7 @@ def parse_yaml(text: str, path: str) -> Node:
                 raise DataFileError(path, _line(event), "", f"YAML aliases (*{event.anchor}) are not allowed; write the value out")
             node: Node | None = None
             if isinstance(event, yaml.ScalarEvent):
-                node = Node(SCALAR, _scalar(event, path), _line(event), event.start_mark.column + 1)
+                node = Node(SCALAR, _scalar(event, path), _line(event), _column(event))
             elif isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
                 if event.tag not in (None, "!", _TAG + "map", _TAG + "seq"):
                     raise DataFileError(path, _line(event), "", f"the YAML tag {event.tag!r} is not allowed here")
@@ -113,7 +118,7 @@ def parse_yaml(text: str, path: str) -> Node:
                 kind = MAPPING if isinstance(event, yaml.MappingStartEvent) else SEQUENCE
                 if stack and stack[-1].kind == MAPPING and stack[-1].key is None:
                     raise DataFileError(path, _line(event), "", "a key must be plain text, not a list or mapping")
-                stack.append(_Open(kind, _line(event), event.start_mark.column + 1))
+                stack.append(_Open(kind, _line(event), _column(event)))
                 continue
             elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
                 done = stack.pop()
