@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from datafile import DataFileError, Field, load_file
+from datafile import DataFileError, Field, load_file, shipped_or_path
 
 __all__ = [
     "SCENES_DIR",
@@ -224,14 +224,7 @@ def resolve_scene(scene: str | Path) -> Path:
     Raises:
         SceneError: a bare name that is not a shipped scene.
     """
-    path = Path(scene)
-    if path.suffix in (".yaml", ".yml") or path.parent != Path("."):
-        return path
-    candidate = SCENES_DIR / f"{scene}.yaml"
-    if not candidate.exists():
-        known = sorted(f.stem for f in SCENES_DIR.glob("*.yaml"))
-        raise SceneError(str(scene), 0, "", f"unknown scene; expected one of {known} or the path of a scene file")
-    return candidate
+    return shipped_or_path(scene, SCENES_DIR, "scene", SceneError)
 
 
 def load_scene(scene: str | Path) -> Scene:

@@ -34,7 +34,7 @@ from urllib.parse import urlparse
 from at_ros.library import load_library
 from at_ros.robot_config import RobotConfig, load_robot_config, load_robot_configs
 from caretaker.binding_file import BindingSummary, check_binding
-from datafile import DataFileError, Field, load_file
+from datafile import DataFileError, Field, load_file, shipped_or_path
 from sim.scene import Scene, load_scene
 
 __all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "SHIPPED", "WORLD_CHECK_NAMES", "load_deployment", "resolve_deployment"]
@@ -103,14 +103,7 @@ def resolve_deployment(name_or_path: str | Path) -> Path:
     Raises:
         DeploymentError: a bare name that is not shipped.
     """
-    path = Path(name_or_path)
-    if path.suffix in (".yaml", ".yml") or path.parent != Path("."):
-        return path
-    shipped = SHIPPED / f"{name_or_path}.yaml"
-    if not shipped.is_file():
-        known = sorted(p.stem for p in SHIPPED.glob("*.yaml"))
-        raise DeploymentError(str(name_or_path), 0, "", f"no such deployment; give a deployment file or one of {', '.join(known)}")
-    return shipped
+    return shipped_or_path(name_or_path, SHIPPED, "deployment", DeploymentError)
 
 
 def _bridge(f: Field | None) -> BridgeSettings:

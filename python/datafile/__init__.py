@@ -11,9 +11,9 @@ A leaf package: it imports nothing of Caretaker, so the procedure side and the r
 both use it without importing each other.
 """
 
-from datafile.document import MAX_BYTES, load_file, parse_text, read_text
+from datafile.document import MAX_BYTES, load_file, parse_text, read_text, shipped_or_path
 from datafile.errors import DataFileError
 from datafile.field import Field
 from datafile.nodes import Node
 
-__all__ = ["MAX_BYTES", "DataFileError", "Field", "Node", "load_file", "parse_text", "read_text"]
+__all__ = ["MAX_BYTES", "DataFileError", "Field", "Node", "load_file", "parse_text", "read_text", "shipped_or_path"]

@@ -10,7 +10,7 @@ from datafile.json_text import parse_json
 from datafile.nodes import Node
 from datafile.yaml_text import parse_yaml
 
-__all__ = ["MAX_BYTES", "load_file", "parse_text", "read_text"]
+__all__ = ["MAX_BYTES", "load_file", "parse_text", "read_text", "shipped_or_path"]
 
 #: Larger files are refused before parsing: Caretaker's data files are a few kilobytes, and a
 #: huge one is a mistake (or an attack) that would otherwise hold a loader for minutes.
@@ -56,3 +56,20 @@ def load_file(path: str | Path, *, error: type[DataFileError] = DataFileError, j
     path = Path(path)
     is_json = path.suffix.lower() == ".json" if json is None else json
     return Field(parse_text(read_text(path, error), path, json=is_json, error=error), path, "", error)
+
+
+def shipped_or_path(name_or_path: str | Path, shipped: Path, what: str, error: type[DataFileError] = DataFileError) -> Path:
+    """``name_or_path`` as a file path, or, when it is a bare name (``iva``), the YAML file of
+    that name in the ``shipped`` folder.
+
+    Raises:
+        error: a bare name with no such file in ``shipped``; the message lists the names there.
+    """
+    path = Path(name_or_path)
+    if path.suffix in (".yaml", ".yml") or path.parent != Path("."):
+        return path
+    candidate = shipped / f"{name_or_path}.yaml"
+    if not candidate.is_file():
+        known = sorted(p.stem for p in shipped.glob("*.yaml"))
+        raise error(str(name_or_path), 0, "", f"no such {what}; give a {what} file or one of {', '.join(known)}")
+    return candidate

@@ -92,7 +92,7 @@ def test_scene_file_errors_name_the_file_line_and_key(tmp_path: Path) -> None:
     bad.write_text(shipped.read_text())
     with pytest.raises(SceneError, match=r"bad\.yaml:\d+: robot\.urdf: no such file: .*'\.\./robots/ur10_gripper\.urdf' relative to"):
         load_scene(bad)
-    with pytest.raises(SceneError, match="moon: unknown scene"):
+    with pytest.raises(SceneError, match="moon: no such scene; give a scene file or one of eva, iva"):
         load_scene("moon")
 
 
