@@ -17,7 +17,7 @@ test-python:
 	$(PYTEST) tests
 
 demo: setup
-	$(VENV)/bin/caretaker demo iva
+	$(VENV)/bin/caretaker demo deployments/iva.yaml
 
 bench: setup
 	@for b in bench/*.py; do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done
