@@ -29,9 +29,14 @@ class _Parser:
         self.text = text
         self.path = path
         self.pos = 0
+        # The line of the last position asked for: positions mostly grow, so lines are counted
+        # from there, not from the start (which would make a large file quadratic).
+        self._mark = (0, 1)
 
     def where(self, pos: int) -> tuple[int, int]:
-        line = self.text.count("\n", 0, pos) + 1
+        mark_pos, mark_line = self._mark if pos >= self._mark[0] else (0, 1)
+        line = mark_line + self.text.count("\n", mark_pos, pos)
+        self._mark = (pos, line)
         return line, pos - (self.text.rfind("\n", 0, pos) + 1) + 1
 
     def fail(self, pos: int, problem: str) -> DataFileError:
@@ -121,6 +126,7 @@ class _Parser:
     def mapping(self, depth: int, line: int, column: int) -> Node:
         self.pos += 1
         entries: list[tuple[str, int, Node]] = []
+        seen: set[str] = set()
         self.skip()
         if self.text.startswith("}", self.pos):
             self.pos += 1
@@ -131,8 +137,9 @@ class _Parser:
                 raise self.fail(self.pos, f"expected a key in double quotes, found {self.peek_text()}")
             key_pos = self.pos
             key = self.string()
-            if any(existing == key for existing, _, _ in entries):
+            if key in seen:
                 raise self.fail(key_pos, f"duplicate key {key!r}")
+            seen.add(key)
             self.skip()
             if not self.text.startswith(":", self.pos):
                 raise self.fail(self.pos, f"expected ':' after key {key!r}, found {self.peek_text()}")

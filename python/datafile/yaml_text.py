@@ -45,7 +45,7 @@ _AS_TEXT = {_TAG + "str", _TAG + "timestamp", _TAG + "merge", _TAG + "value"}
 class _Open:
     """A mapping or sequence being built: its start, its items so far, a key awaiting its value."""
 
-    __slots__ = ("kind", "line", "column", "items", "key", "key_line")
+    __slots__ = ("kind", "line", "column", "items", "key", "key_line", "keys")
 
     def __init__(self, kind: str, line: int, column: int) -> None:
         self.kind = kind
@@ -54,6 +54,7 @@ class _Open:
         self.items: list[Any] = []
         self.key: str | None = None
         self.key_line = 0
+        self.keys: set[str] = set()
 
 
 def _shorten(text: str) -> str:
@@ -134,8 +135,9 @@ def parse_yaml(text: str, path: str) -> Node:
             elif parent.key is None:
                 if not isinstance(node.value, str):
                     raise DataFileError(path, node.line, "", f"keys must be text, got {node.describe()} (quote it)")
-                if any(key == node.value for key, _, _ in parent.items):
+                if node.value in parent.keys:
                     raise DataFileError(path, node.line, "", f"duplicate key {node.value!r}")
+                parent.keys.add(node.value)
                 parent.key, parent.key_line = node.value, node.line
             else:
                 parent.items.append((parent.key, parent.key_line, node))
