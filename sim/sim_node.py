@@ -1,4 +1,4 @@
-"""``caretaker sim --scene iva|eva``: the simulated robot and world as a ROS 2 node.
+"""``caretaker sim --scene FILE|iva|eva``: the simulated robot and world as a ROS 2 node.
 
 Names and types follow docs/interfaces.md (Simulation). One thread steps the physics (paced to
 ``--time-scale`` × real time, or as fast as possible with 0 while anything moves) and publishes
