@@ -23,6 +23,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "serve": ("pride.web.server", "main", "serve the operator web view"),
     "up": ("caretaker.stack", "up_main", "start the robot side and the rosbridge server"),
     "demo": ("caretaker.stack", "demo_main", "run the IVA or EVA demonstration end to end"),
+    "link": ("caretaker.link.cli", "main", "emulate a long, lossy ground-habitat link (--delay 1.3 ...)"),
 }
 
 
