@@ -29,7 +29,7 @@ from .model import Outage, OutageKind
 from .relay import LinkEmulator
 from .stats import LinkStats
 
-__all__ = ["ControlServer", "ControlSocketError", "LinkControl", "LinkControlError"]
+__all__ = ["ControlServer", "ControlSocketError", "JsonLineClient", "LinkControl", "LinkControlError"]
 
 log = logging.getLogger("caretaker.link.control")
 
@@ -48,10 +48,10 @@ class ControlSocketError(OSError):
 
 
 class LinkControlError(RuntimeError):
-    """The link refused a control request; ``request`` is what was sent, ``error`` its answer."""
+    """A control request was refused; ``request`` is what was sent, ``error`` the answer's reason."""
 
     def __init__(self, request: dict[str, Any], error: str) -> None:
-        super().__init__(f"link control refused {json.dumps(request)}: {error}")
+        super().__init__(f"refused {json.dumps(request)}: {error}")
         self.request = request
         self.error = error
 
@@ -143,19 +143,19 @@ class ControlServer:
         return {"ok": True, "outage": kind, "seconds": seconds}
 
 
-class LinkControl:
-    """Client of a link's control socket, for tests and benches (blocking, one connection per request)."""
+class JsonLineClient:
+    """Blocking client of a JSON-line Unix socket: one connection, one request, one answer."""
 
     def __init__(self, path: Path | str, *, timeout: float = 10.0) -> None:
         self.path = Path(path)
         self.timeout = timeout
 
     def request(self, message: dict[str, Any]) -> dict[str, Any]:
-        """Send one request; return the link's answer.
+        """Send one request; return the answer.
 
         Raises:
-            LinkControlError: the link answered ``ok: false``.
-            OSError: the socket is missing or the link did not answer within the timeout.
+            LinkControlError: the server answered ``ok: false``.
+            OSError: the socket is missing or nothing answered within the timeout.
         """
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as sock:
             sock.settimeout(self.timeout)
@@ -164,11 +164,15 @@ class LinkControl:
             with sock.makefile("rb") as answers:
                 line = answers.readline()
         if not line:
-            raise ConnectionError(f"link control {self.path} closed without answering {json.dumps(message)}")
+            raise ConnectionError(f"{self.path} closed without answering {json.dumps(message)}")
         answer: dict[str, Any] = json.loads(line)
         if not answer.get("ok"):
             raise LinkControlError(message, str(answer.get("error")))
         return answer
+
+
+class LinkControl(JsonLineClient):
+    """Client of a link's control socket, for tests and benches."""
 
     def hold(self, seconds: float) -> None:
         """Hold all traffic for ``seconds`` from now."""
