@@ -159,14 +159,22 @@ class LinkEmulator:
         self._hold_until = max(self._hold_until, now + seconds)
         self._holds += 1
         log.warning("outage: holding all traffic for %g s", seconds)
+        asyncio.get_running_loop().call_at(self._hold_until, self._outage_over, "hold")
 
     def reset(self, seconds: float) -> None:
         """Reset every connection now and refuse new ones for ``seconds``."""
         self._refuse_until = max(self._refuse_until, self._now() + seconds)
         self._resets += 1
         log.warning("outage: resetting %d connection(s), refusing new ones for %g s", len(self._tasks), seconds)
+        asyncio.get_running_loop().call_at(self._refuse_until, self._outage_over, "reset")
         for task in self._tasks.values():
             task.cancel("reset by outage")
+
+    def _outage_over(self, kind: str) -> None:
+        """Log the end of an outage, unless a later one extended it."""
+        until = self._hold_until if kind == "hold" else self._refuse_until
+        if self._now() >= until:
+            log.warning("outage over: %s", "traffic flows again" if kind == "hold" else "connections accepted again")
 
     def stats(self) -> LinkStats:
         """Bytes, stalls and outages so far (a snapshot)."""
