@@ -24,6 +24,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
     "check": ("caretaker.check", "main", "check scene, robot, template, deployment, SysRep and binding files"),
+    "link": ("caretaker.link.cli", "main", "emulate a long, lossy ground-habitat link (--delay 1.3 ...)"),
 }
 
 
