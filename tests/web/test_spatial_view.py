@@ -18,7 +18,8 @@ import pytest
 from playwright.sync_api import Browser, Page, sync_playwright
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
-from spatial_data import Habitat, RunningTemplate, matrix
+from pride.web.spatial_scene import objects_update
+from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
 
 CHROMIUM = "/usr/bin/chromium"
@@ -197,6 +198,26 @@ def test_objects_and_templates_at_their_poses(open_view: Callable[..., Page], iv
 
     apply(page, {"kind": "templates", "templates": []})
     assert inspect(page)["templates"] == {}
+
+    # The habitat moves a filter (/sim/frames): only that object follows.
+    frames = iva.frames_json()
+    index = frames["names"].index("filter/CDRA-F-0007")
+    frames["poses"][index]["position"] = {"x": 0.5, "y": 0.4, "z": 1.2}
+    apply(page, objects_update(frames))
+    moved = inspect(page)["objects"]
+    assert moved["filter/CDRA-F-0007"]["pose"]["xyz"] == pytest.approx([0.5, 0.4, 1.2], abs=1e-6)
+    assert moved["rack"] == state["objects"]["rack"]
+
+
+def test_camera_image_beside_the_scene(open_view: Callable[..., Page], iva: Habitat, site: SpatialSite) -> None:
+    site.files["/camera.png"] = ((REPO / "docs" / "images" / "scene_iva.png").read_bytes(), "image/png")
+    page = open_view(iva.document())
+    assert inspect(page)["camera_url"] is None and page.locator(".ct-spatial-camera").is_hidden()
+    apply(page, {"kind": "camera", "url": "/camera.png?seq=1"})
+    assert inspect(page)["camera_url"] == "/camera.png?seq=1"
+    page.wait_for_function("document.querySelector('.ct-spatial-camera').complete && document.querySelector('.ct-spatial-camera').naturalWidth > 0")
+    apply(page, {"kind": "camera", "url": None})
+    assert page.locator(".ct-spatial-camera").is_hidden()
 
 
 # ------------------------------------------------------------------------------------- plan

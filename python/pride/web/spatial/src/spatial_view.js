@@ -110,7 +110,10 @@ export class SpatialView {
       const group = new THREE.Group();
       group.name = o.name;
       for (const s of o.shapes) group.add(shapeObject(s, { loadMesh: (uri, done) => robot.loadMesh(uri, done) }));
-      group.add(label(o.name, 'object'));
+      // The name at the middle of the shapes: a body's origin may lie far from them (a hull at 0).
+      const name = label(o.name, 'object');
+      name.position.copy(new THREE.Box3().setFromObject(group).getCenter(new THREE.Vector3()));
+      group.add(name);
       placeAt(group, o.pose);
       objects.add(group);
       this.objects.set(o.name, { object: group, pose: o.pose, kind: o.kind || 'object' });

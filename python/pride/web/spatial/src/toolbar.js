@@ -26,11 +26,11 @@ export class Toolbar {
     const plan = document.createElement('div');
     plan.className = 'ct-spatial-plan';
     plan.hidden = true;
-    this.prev = button('⏮', 'previous waypoint', () => view.stepWaypoint(-1));
+    this.prev = button('◀ Prev', 'previous waypoint', () => view.stepWaypoint(-1));
     this.prev.dataset.action = 'previous-waypoint';
-    this.play = button('▶', 'play the planned motion', () => (view.player.playing ? view.player.pause() : view.player.play()));
+    this.play = button('Play', 'play the planned motion', () => (view.player.playing ? view.player.pause() : view.player.play()));
     this.play.dataset.action = 'play';
-    this.next = button('⏭', 'next waypoint', () => view.stepWaypoint(1));
+    this.next = button('Next ▶', 'next waypoint', () => view.stepWaypoint(1));
     this.next.dataset.action = 'next-waypoint';
     this.slider = document.createElement('input');
     this.slider.type = 'range';
@@ -58,7 +58,7 @@ export class Toolbar {
     const p = v.player;
     this.plan.hidden = !p.plan;
     if (!p.plan) return;
-    this.play.textContent = p.playing ? '⏸' : '▶';
+    this.play.textContent = p.playing ? 'Pause' : 'Play';
     this.play.title = p.playing ? 'pause' : 'play the planned motion';
     if (p.duration > 0) this.slider.value = String(Math.round((p.time / p.duration) * 1000));
     const w = p.currentWaypoint();
