@@ -3,7 +3,7 @@
 import * as THREE from 'three';
 import { RobotModel } from './robot_model.js';
 
-const GHOST = new THREE.MeshPhongMaterial({ color: 0xffb347, transparent: true, opacity: 0.4, depthWrite: false });
+const GHOST = new THREE.MeshLambertMaterial({ color: 0xffb347, transparent: true, opacity: 0.4, depthWrite: false });
 
 export class PlanPlayer {
   constructor(robot, { onError, onChange }) {

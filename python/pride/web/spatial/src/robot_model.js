@@ -35,7 +35,12 @@ export class RobotModel {
     this.urdf = parsed;
     this.toolLink = robot.tool_link;
     if (!(this.toolLink in parsed.links)) throw new Error(`robot ${robot.name}: the URDF has no tool link ${this.toolLink}`);
-    if (material) parsed.traverse((c) => { if (c.isMesh) c.material = material; });
+    // Lambert rather than the loader's Phong: no specular term, cheaper per pixel without a GPU.
+    parsed.traverse((c) => {
+      if (!c.isMesh) return;
+      const m = c.material;
+      c.material = material || new THREE.MeshLambertMaterial({ color: m.color, opacity: m.opacity, transparent: m.transparent, depthWrite: m.depthWrite });
+    });
     this.object = new THREE.Group();
     this.object.name = robot.name;
     this.object.add(parsed);

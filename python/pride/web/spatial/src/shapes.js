@@ -14,7 +14,7 @@ function shared(key, make) {
 export function material(rgba, { opacity } = {}) {
   const [r, g, b, a] = rgba || [0.7, 0.7, 0.7, 1];
   const alpha = opacity ?? a;
-  return new THREE.MeshPhongMaterial({ color: new THREE.Color(r, g, b), transparent: alpha < 1, opacity: alpha, depthWrite: alpha >= 1 });
+  return new THREE.MeshLambertMaterial({ color: new THREE.Color(r, g, b), transparent: alpha < 1, opacity: alpha, depthWrite: alpha >= 1 });
 }
 
 function geometry(shape) {

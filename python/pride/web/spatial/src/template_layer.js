@@ -13,7 +13,7 @@ const OBJECT_OPACITY = 0.45;
 /** A gripper-like marker in a waypoint's frame: fingers along +z (approach) ending at the tool point. */
 function waypointMarker(compact) {
   const group = new THREE.Group();
-  const mat = new THREE.MeshPhongMaterial({ color: new THREE.Color(...WAYPOINT_COLOR.slice(0, 3)), transparent: true, opacity: 0.85 });
+  const mat = new THREE.MeshLambertMaterial({ color: new THREE.Color(...WAYPOINT_COLOR.slice(0, 3)), transparent: true, opacity: 0.85 });
   if (compact) {
     group.add(new THREE.Mesh(new THREE.SphereGeometry(0.012, 12, 8), mat));
     return group;
