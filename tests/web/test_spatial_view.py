@@ -164,7 +164,13 @@ def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: H
     error = page.evaluate("""() => { try { window.caretakerSpatial.load({contract: 1, kind: 'scene'}); return null; }
                                      catch (e) { return e.message; } }""")
     assert error == "scene.frame: expected a non-empty string, got undefined"
-    assert inspect(page)["robot"] == "ur10", "a refused document must leave the view as it was"
+    hollow = {**iva.document(), "robot": {**iva.document()["robot"], "urdf": "<robot name='hollow'/>"}}
+    error = page.evaluate("(d) => { try { window.caretakerSpatial.load(d); return null; } catch (e) { return e.message; } }", hollow)
+    assert error == "robot ur10: the URDF has no links"
+    assert page.evaluate("window.viewErrors")[-1] == "scene document refused: robot ur10: the URDF has no links"
+    assert inspect(page)["robot"] == "ur10" and inspect(page)["links"] == before, "a refused document must leave the view as it was"
+    assert page.evaluate("window.caretakerSpatial.dragBy('nothing:0', {translate: [0.05, 0, 0]})") == {"refused": "nothing named nothing:0"}
+    assert page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0')") == {"refused": "nothing named cdra_filter:0"}
 
 
 # -------------------------------------------------------------------------------- templates
@@ -351,6 +357,11 @@ def test_operator_drag_asks_and_waits_for_the_server(open_view: Callable[..., Pa
     page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0, 0.02, 0]})")
     page.evaluate("window.caretakerSpatial.resolvePending('cdra_filter:0', 'failed')")
     assert inspect(page)["registration"]["pending"] == {}
+
+    # Releasing without moving asks for nothing.
+    sent = len(page.evaluate("window.commands"))
+    assert page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {})") == {"command": None}
+    assert len(page.evaluate("window.commands")) == sent
 
 
 def _quat(m: np.ndarray) -> np.ndarray:

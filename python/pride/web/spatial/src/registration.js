@@ -6,7 +6,7 @@
 // reported success shows it elsewhere (snap back). Observers get no handles and no commands.
 import * as THREE from 'three';
 import { TransformControls } from 'three/examples/jsm/controls/TransformControls.js';
-import { matrixPose, placeAt, poseInFrame, poseMatrix, rpyOf, worldPose } from './poses.js';
+import { matrixPose, placeAt, poseDifference, poseInFrame, poseMatrix, rpyOf, worldPose } from './poses.js';
 
 const PENDING = new THREE.MeshBasicMaterial({ color: 0xffd23f, wireframe: true });
 
@@ -98,7 +98,10 @@ export class Registration {
   release() {
     const entry = this.layer.get(this.selected);
     if (!entry) { this.deselect(); return null; }
-    const command = poseCommand(entry, worldPose(this.proxy), this.documentFrame, this.layer);
+    const released = worldPose(this.proxy);
+    const moved = poseDifference(released, entry.pose);
+    if (moved.distance < 1e-4 && moved.angle < 1e-4) { this.deselect(); return null; } // a click on a handle asks for nothing
+    const command = poseCommand(entry, released, this.documentFrame, this.layer);
     this._setPending(entry, command);
     this.deselect();
     try {

@@ -91,13 +91,14 @@ export class SpatialView {
 
   /** Build the view from a scene document; a malformed one is refused whole (ContractError). */
   load(doc) {
+    let robot;
     try {
       checkScene(doc);
+      robot = new RobotModel(doc.robot, { onError: this.onError });
     } catch (error) {
       this.onError(`scene document refused: ${error.message}`);
       throw error;
     }
-    const robot = new RobotModel(doc.robot, { onError: this.onError });
     this._clear();
     this.document = doc;
     this.robot = robot;
