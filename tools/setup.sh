@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Brings a Debian 12 machine to a working Caretaker checkout: Debian packages, .venv with the
-# pinned Python dependencies, the ROS 2 interface packages (rosidl), the Java plugins and the
-# Node test clients. Idempotent: each step records a hash of its inputs in .venv/.stamps and is
-# skipped while they are unchanged, so a second run takes seconds.
+# pinned Python dependencies, the ROS 2 interface packages (rosidl), the Java plugins, the Node
+# test clients and the web view's 3D bundle. Idempotent: each step records a hash of its inputs
+# in .venv/.stamps and is skipped while they are unchanged, so a second run takes seconds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -104,6 +104,25 @@ if [ -f tests/js/package.json ]; then
     log "installing Node test clients (npm ci)"
     (cd tests/js && npm ci --silent --no-audit --no-fund)
     step_done npm "$h"
+  fi
+fi
+
+# 7. The web view's 3D view: three.js and urdf-loader from the npm registry, bundled by esbuild
+#    (its Linux binary is an npm package too) into python/pride/web/static/spatial.js.
+SPATIAL=python/pride/web/spatial
+SPATIAL_BUNDLE=python/pride/web/static/spatial.js
+if [ -f $SPATIAL/package.json ]; then
+  h=$(hash_of $SPATIAL/package.json $SPATIAL/package-lock.json)
+  if step_needed spatial-npm "$h" || [ ! -d $SPATIAL/node_modules ]; then
+    log "installing the 3D view's packages (npm ci)"
+    (cd $SPATIAL && npm ci --silent --no-audit --no-fund)
+    step_done spatial-npm "$h"
+  fi
+  h=$(hash_of $SPATIAL/package.json $SPATIAL/package-lock.json $SPATIAL/src)
+  if step_needed spatial-bundle "$h" || [ ! -f $SPATIAL_BUNDLE ]; then
+    log "bundling the 3D view ($SPATIAL_BUNDLE)"
+    (cd $SPATIAL && npm run --silent build)
+    step_done spatial-bundle "$h"
   fi
 fi
 

@@ -1,0 +1,368 @@
+// SpatialView: the robot, the scene's objects, the running Affordance Templates and the plan,
+// built from the data contract only (README.md). The page owns the data path and the commands:
+// it calls load() and apply() with what the ground server sends, and sends what
+// onPoseCommand hands it through PAX as the signed-in user.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { CSS2DRenderer } from 'three/examples/jsm/renderers/CSS2DRenderer.js';
+import { checkScene, checkUpdate, ContractError } from './contract.js';
+import { label } from './labels.js';
+import { Occluders } from './occluders.js';
+import { PlanPlayer } from './plan_player.js';
+import { placeAt, worldPose } from './poses.js';
+import { Registration } from './registration.js';
+import { RobotModel } from './robot_model.js';
+import { shapeObject } from './shapes.js';
+import { injectStyle } from './style.js';
+import { TemplateLayer } from './template_layer.js';
+import { Toolbar } from './toolbar.js';
+
+export class SpatialView {
+  /**
+   * @param {HTMLElement} container where the view draws (it fills it and follows its size)
+   * @param {object} options
+   *   canAct: whether this user may move things (an operator; observers only watch)
+   *   onPoseCommand(command): a drag was released; send command.command with command.args
+   *   onError(message): something in the data or a mesh could not be shown
+   *   pendingTimeoutMs: how long a requested pose waits for an update showing it (default 60 s)
+   */
+  constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000 } = {}) {
+    injectStyle();
+    this.container = container;
+    container.classList.add('ct-spatial');
+    this.onError = (message) => { this.lastError = message; this._status(message, true); onError(message); };
+    // No multisampling: with software WebGL (no GPU) it costs a fifth of the frame rate.
+    this.renderer = new THREE.WebGLRenderer({ antialias: false });
+    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    container.appendChild(this.renderer.domElement);
+    this.labels = new CSS2DRenderer();
+    this.labels.domElement.className = 'ct-spatial-labels';
+    container.appendChild(this.labels.domElement);
+
+    this.scene = new THREE.Scene();
+    this.scene.background = new THREE.Color(0x1d2127);
+    this.scene.add(new THREE.HemisphereLight(0xffffff, 0x404050, 1.6));
+    const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+    sun.position.set(3, -4, 6);
+    this.scene.add(sun);
+    this.camera = new THREE.PerspectiveCamera(50, 1, 0.02, 200);
+    this.camera.up.set(0, 0, 1);
+    this.camera.position.set(3, -3, 2.5);
+    this.orbit = new OrbitControls(this.camera, this.renderer.domElement);
+    this.orbit.enableDamping = false;
+    this.occluders = new Occluders();
+    this.orbit.addEventListener('change', () => this._unhide());
+
+    this.world = new THREE.Group(); // everything from a document; cleared by load()
+    this.scene.add(this.world);
+    this.layer = null;
+    this.player = null;
+    this.robot = null;
+    this.objects = new Map();
+    this.document = null;
+    this.namesVisible = true;
+    this._canAct = !!canAct;
+    this._onPoseCommand = onPoseCommand;
+    this._pendingTimeoutMs = pendingTimeoutMs;
+    this.registration = null;
+
+    this.statusEl = document.createElement('div');
+    this.statusEl.className = 'ct-spatial-status';
+    container.appendChild(this.statusEl);
+    this.cameraImg = document.createElement('img');
+    this.cameraImg.className = 'ct-spatial-camera';
+    this.cameraImg.alt = 'robot camera';
+    this.cameraImg.hidden = true;
+    container.appendChild(this.cameraImg);
+
+    this._frames = 0;
+    this._fpsWindow = [];
+    this._last = performance.now();
+    this._installPicking();
+    this._resize = new ResizeObserver(() => this._fitCanvas());
+    this._resize.observe(container);
+    this._fitCanvas();
+    this._loop = this._loop.bind(this);
+    this._raf = requestAnimationFrame(this._loop);
+    window.caretakerSpatial = this; // tests and the console read inspect() here
+  }
+
+  // ------------------------------------------------------------------------------ data in
+
+  /** Build the view from a scene document; a malformed one is refused whole (ContractError). */
+  load(doc) {
+    let robot;
+    try {
+      checkScene(doc);
+      robot = new RobotModel(doc.robot, { onError: this.onError });
+    } catch (error) {
+      this.onError(`scene document refused: ${error.message}`);
+      throw error;
+    }
+    this._clear();
+    this.document = doc;
+    this.robot = robot;
+    this.world.add(robot.object);
+    robot.setJoints(doc.joints.positions);
+    this.joints = { stamp: doc.joints.stamp ?? 0, positions: { ...doc.joints.positions } };
+    const objects = new THREE.Group();
+    objects.name = 'objects';
+    for (const o of doc.objects) {
+      const group = new THREE.Group();
+      group.name = o.name;
+      for (const s of o.shapes) group.add(shapeObject(s, { loadMesh: (uri, done) => robot.loadMesh(uri, done) }));
+      // The name at the middle of the shapes: a body's origin may lie far from them (a hull at 0).
+      const name = label(o.name, 'object');
+      name.position.copy(new THREE.Box3().setFromObject(group).getCenter(new THREE.Vector3()));
+      group.add(name);
+      placeAt(group, o.pose);
+      objects.add(group);
+      this.objects.set(o.name, { object: group, pose: o.pose, kind: o.kind || 'object' });
+    }
+    this.world.add(objects);
+    this.occluders.watch(objects);
+    this.layer = new TemplateLayer({ loadMesh: (uri, done) => robot.loadMesh(uri, done) });
+    this.world.add(this.layer.group);
+    this.player = new PlanPlayer(doc.robot, { onError: this.onError, onChange: () => this._changed() });
+    this.world.add(this.player.object);
+    this.registration = new Registration({
+      scene: this.world,
+      camera: this.camera,
+      domElement: this.renderer.domElement,
+      orbit: this.orbit,
+      layer: this.layer,
+      documentFrame: doc.frame,
+      onPoseCommand: this._onPoseCommand,
+      onError: this.onError,
+      onChange: () => this._changed(),
+      pendingTimeoutMs: this._pendingTimeoutMs,
+    });
+    this.registration.setCanAct(this._canAct);
+    if (!this.toolbar) this.toolbar = new Toolbar(this.container, this);
+    this.layer.update(doc.templates);
+    this.player.setPlan(doc.plan, this.joints.positions);
+    this._camera(doc.camera?.url ?? null);
+    this._status('');
+    this.viewpoint = doc.viewpoint || null;
+    this.home();
+    this._changed();
+    return this;
+  }
+
+  /** Apply one update; a malformed one is reported through onError and changes nothing. */
+  apply(update) {
+    if (!this.document) { this.onError('update before any scene document'); return false; }
+    try {
+      checkUpdate(update);
+    } catch (error) {
+      if (!(error instanceof ContractError)) throw error;
+      this.onError(`update refused: ${error.message}`);
+      return false;
+    }
+    switch (update.kind) {
+      case 'joints':
+        this.robot.setJoints(update.positions);
+        Object.assign(this.joints.positions, update.positions);
+        this.joints.stamp = update.stamp ?? this.joints.stamp;
+        this.jointUpdates = (this.jointUpdates || 0) + 1;
+        break;
+      case 'objects':
+        for (const [name, pose] of Object.entries(update.poses)) {
+          const o = this.objects.get(name);
+          if (o) { placeAt(o.object, pose); o.pose = pose; }
+        }
+        this._unhide();
+        break;
+      case 'templates':
+        this.layer.update(update.templates);
+        if (this.registration.selected && !this.layer.get(this.registration.selected)) this.registration.deselect();
+        this.registration.reconcile();
+        this._unhide();
+        break;
+      case 'plan':
+        this.player.setPlan(update.plan, this.joints.positions);
+        break;
+      case 'camera':
+        this._camera(update.url);
+        break;
+      default:
+        break;
+    }
+    this._changed();
+    return true;
+  }
+
+  // ---------------------------------------------------------------------------- controls
+
+  setCanAct(canAct) {
+    this._canAct = !!canAct;
+    this.registration?.setCanAct(this._canAct);
+    this._changed();
+  }
+
+  /** The page's word on a command onPoseCommand handed it (succeeded, failed, unknown, halted). */
+  resolvePending(id, outcome) { this.registration?.resolve(id, outcome); this._changed(); }
+
+  select(id) { return this.registration ? this.registration.select(id) : 'no scene loaded'; }
+
+  /** A drag without a pointer (tests, keyboard nudges): same path as releasing a handle. */
+  dragBy(id, motion) { return this.registration ? this.registration.dragBy(id, motion) : { refused: 'no scene loaded' }; }
+
+  stepWaypoint(direction) { this.player?.stepWaypoint(direction); }
+
+  setNamesVisible(visible) {
+    this.namesVisible = !!visible;
+    this.container.classList.toggle('ct-spatial-names-off', !this.namesVisible);
+    this._changed();
+  }
+
+  /** The document's viewpoint (the scene's own camera), or a framing of the work when it has none. */
+  home() {
+    const v = this.viewpoint;
+    if (!v) { this.fit(); return; }
+    this.camera.fov = v.fov_deg || 50;
+    this._look(new THREE.Vector3(...v.eye), new THREE.Vector3(...v.target));
+  }
+
+  /** Frame the work: the robot, the templates and the ghost, seen from the viewpoint's side. */
+  fit() {
+    const box = new THREE.Box3();
+    this.world.updateMatrixWorld(true);
+    for (const part of [this.robot?.object, this.layer?.group, this.player?.object]) if (part && part.visible) box.expandByObject(part);
+    if (box.isEmpty()) return;
+    const sphere = box.getBoundingSphere(new THREE.Sphere());
+    const distance = sphere.radius / Math.sin(THREE.MathUtils.degToRad(this.camera.fov / 2));
+    const v = this.viewpoint;
+    const direction = v ? new THREE.Vector3(...v.eye).sub(new THREE.Vector3(...v.target)).normalize() : new THREE.Vector3(-1, -1.2, 0.9).normalize();
+    this._look(sphere.center.clone().addScaledVector(direction, distance), sphere.center);
+  }
+
+  _look(eye, target) {
+    const distance = eye.distanceTo(target);
+    this.camera.position.copy(eye);
+    this.orbit.target.copy(target);
+    this.camera.near = Math.max(0.01, distance / 500);
+    this.camera.far = Math.max(50, distance * 20);
+    this.camera.updateProjectionMatrix();
+    this.orbit.update();
+    this._unhide();
+  }
+
+  _unhide() {
+    const targets = [this.orbit.target.clone()];
+    if (this.layer) for (const e of this.layer.entries.values()) targets.push(new THREE.Vector3(...e.pose.xyz));
+    this.occluders.update(this.camera.position, targets);
+  }
+
+  dispose() {
+    cancelAnimationFrame(this._raf);
+    this._resize.disconnect();
+    this.orbit.dispose();
+    this.registration?.controls.dispose();
+    this.renderer.dispose();
+    this.container.replaceChildren();
+  }
+
+  // ------------------------------------------------------------------------ introspection
+
+  /** What tests (and a curious page) may read: poses in the document frame, state, frame rate. */
+  inspect() {
+    if (!this.document) return { loaded: false, fps: this.fps ?? 0, frames: this._frames };
+    const objects = {};
+    for (const [name, o] of this.objects) objects[name] = { kind: o.kind, pose: worldPose(o.object) };
+    const templates = {};
+    for (const [id, e] of this.layer.entries) templates[id] = { kind: e.kind, template: e.template.key, pose: worldPose(e.object), visible: e.object.visible };
+    return {
+      loaded: true,
+      frame: this.document.frame,
+      robot: this.document.robot.name,
+      links: this.robot.linkPoses(),
+      joints: { ...this.robot.positions },
+      joint_updates: this.jointUpdates || 0,
+      tool_pose: this.robot.toolPose(),
+      objects,
+      templates,
+      ghost: this.player.describe(),
+      registration: this.registration.describe(),
+      names_visible: this.namesVisible,
+      camera: { eye: this.camera.position.toArray(), target: this.orbit.target.toArray(), faded: this.occluders.faded() },
+      camera_url: this.cameraImg.hidden ? null : this.cameraImg.getAttribute('src'),
+      fps: this.fps ?? 0,
+      frames: this._frames,
+      last_error: this.lastError ?? null,
+    };
+  }
+
+  /** Where entry or object ``name`` appears in the page (client px), to aim a pointer at it. */
+  screenPoint(name) {
+    const target = this.layer?.get(name)?.object || this.objects.get(name)?.object;
+    if (!target) return null;
+    const p = new THREE.Vector3().setFromMatrixPosition(target.matrixWorld).project(this.camera);
+    const rect = this.renderer.domElement.getBoundingClientRect();
+    return { x: rect.left + ((p.x + 1) / 2) * rect.width, y: rect.top + ((1 - p.y) / 2) * rect.height };
+  }
+
+  // ------------------------------------------------------------------------------ private
+
+  _clear() {
+    this.registration?.deselect();
+    if (this.registration) { this.registration.controls.dispose(); this.scene.remove(this.registration.helper); }
+    this.world.clear();
+    this.objects.clear();
+  }
+
+  _camera(url) {
+    this.cameraImg.hidden = !url;
+    if (url) this.cameraImg.src = url;
+    else this.cameraImg.removeAttribute('src');
+  }
+
+  _status(text, error = false) {
+    this.statusEl.textContent = text;
+    this.statusEl.classList.toggle('ct-spatial-error', error);
+  }
+
+  _changed() { this.toolbar?.refresh(); }
+
+  _fitCanvas() {
+    const w = Math.max(1, this.container.clientWidth);
+    const h = Math.max(1, this.container.clientHeight);
+    this.renderer.setSize(w, h);
+    this.labels.setSize(w, h);
+    this.camera.aspect = w / h;
+    this.camera.updateProjectionMatrix();
+  }
+
+  _installPicking() {
+    const el = this.renderer.domElement;
+    let down = null;
+    el.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
+    el.addEventListener('pointerup', (e) => {
+      if (!down || !this.layer || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return;
+      if (this.registration.controls.dragging || this.registration.controls.axis) return;
+      const rect = el.getBoundingClientRect();
+      const ndc = new THREE.Vector2(((e.clientX - rect.left) / rect.width) * 2 - 1, -((e.clientY - rect.top) / rect.height) * 2 + 1);
+      const ray = new THREE.Raycaster();
+      ray.setFromCamera(ndc, this.camera);
+      // Meshes only: the waypoints' axes are lines, which a ray 'hits' from far around them.
+      const hit = ray.intersectObject(this.layer.group, true).find((h) => h.object.isMesh && this.layer.entryOf(h.object));
+      if (!hit) { this.registration.deselect(); return; }
+      const refused = this.registration.select(this.layer.entryOf(hit.object).id);
+      if (refused) this._status(refused);
+    });
+  }
+
+  _loop(now) {
+    this._raf = requestAnimationFrame(this._loop);
+    const dt = Math.min(0.1, (now - this._last) / 1000);
+    this._last = now;
+    if (this.player) this.player.tick(dt);
+    if (this.registration) this.registration.expire(now);
+    this.renderer.render(this.scene, this.camera);
+    if (this.namesVisible) this.labels.render(this.scene, this.camera);
+    this._frames += 1;
+    this._fpsWindow.push(now);
+    while (this._fpsWindow.length && now - this._fpsWindow[0] > 1000) this._fpsWindow.shift();
+    this.fps = this._fpsWindow.length;
+  }
+}
