@@ -17,10 +17,10 @@ from pathlib import Path
 from pride.audit_log import DEFAULT_DB, AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
-from pride.lint import lint_file
-from pride.parser import load_procedure
+from pride.diagnostics import ProcedureError
+from pride.lint import check_procedure, lint_file
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
-from pride.systems import gateway_system_ids, open_gateway
+from pride.systems import open_gateway
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
 __all__ = ["lint_main", "report_main", "run_main"]
@@ -112,31 +112,32 @@ def run_main(argv: list[str] | None = None) -> int:
     except SysRepError as exc:
         print(exc, file=sys.stderr)
         return 2
-    problems = lint_file(path, sysreps)
-    if problems:
-        for problem in problems:
+    try:
+        checked = check_procedure(path, sysreps)
+    except ProcedureError as exc:
+        for problem in exc.problems:
             print(problem, file=sys.stderr)
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
-    procedure = load_procedure(path)
+    procedure = checked.procedure
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
         print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
         return 2
     try:
-        missing = {s for s, _ in procedure.uses} - gateway_system_ids(gateway)
+        missing = {s for s, _ in procedure.uses} - gateway.system_ids()
         if missing:
             print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
             return 2
         printer = ProgressPrinter(procedure)
         try:
             if args.resume:
-                executive = Executive.resume(procedure, gateway, audit, events, args.user, mode=args.mode, sysreps=sysreps)
+                executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode)
                 # the printer joins after the replay: the resumed run's own events follow
             else:
-                executive = Executive(procedure, gateway, audit, run_id=_new_run_id(procedure.id),
-                                      mode=args.mode or Mode.MANUAL, sysreps=sysreps)
+                executive = Executive(checked, gateway, audit, run_id=_new_run_id(procedure.id),
+                                      mode=args.mode or Mode.MANUAL)
         except OperatorActionError as exc:
             print(f"caretaker run: {exc}", file=sys.stderr)
             return 2

@@ -4,16 +4,23 @@ After the schema and structure (:mod:`pride.parser`), lint checks that every sys
 telemetry item and argument exists with the right type, that every ``${...}`` is bound on every
 path that reaches it, that go-tos land on a step, that every step can be reached, and that
 sub-procedure calls pass what the callee declares. A procedure with any problem does not start.
+
+A run checks its procedure once: :func:`check_procedure` parses and lints the procedure and every
+sub-procedure it calls (each file once, however often it is called) and returns a
+:class:`CheckedProcedure`, which is what the executive runs. Literal argument values are
+converted to their SysRep types here, so a run sends typed values without checking them again.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
-from pride.diagnostics import Problem
+from pride.diagnostics import Problem, ProcedureError
 from pride.model import (
     ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
     GoToInstruction, Instruction, Location, Procedure, RecordInstruction, Reference, Subject,
@@ -22,7 +29,10 @@ from pride.model import (
 from pride.parser import parse_procedure
 from pride.sysrep import SysRep, check_value
 
-__all__ = ["lint_file", "lint_procedure"]
+__all__ = ["CheckedProcedure", "check_procedure", "lint_file"]
+
+
+_UNTYPED = object()  # check_value's answer for a value known only at run time, or wrong
 
 
 @dataclass(frozen=True)
@@ -35,23 +45,76 @@ class _Variable:
     where: Location
 
 
-def lint_file(path: str | Path, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
+@dataclass(frozen=True)
+class CheckedProcedure:
+    """A procedure that passed lint against ``sysreps``, with every sub-procedure it calls.
+
+    Only :func:`check_procedure` makes one, so holding one means no problem was found. A run
+    executes exactly what was checked: a sub-procedure edited on disk after the check does not
+    change it.
+    """
+
+    procedure: Procedure
+    sysreps: Mapping[str, SysRep]
+    callees: Mapping[str, Procedure]  # resolved path → procedure
+    literals: Mapping[ArgumentBinding, Any]  # a command argument written as text → its typed value
+
+    def load(self, path: str) -> Procedure:
+        """A called sub-procedure, by its resolved path (as checked, not read again)."""
+        return self.callees[path]
+
+    def argument(self, binding: ArgumentBinding, env: dict[str, Any]) -> Any:
+        """The value of a command argument in a run: typed when written as text, else resolved."""
+        return self.literals[binding] if binding in self.literals else binding.value.resolve(env)
+
+
+def lint_file(path: str | Path, sysreps: Mapping[str, SysRep]) -> list[Problem]:
     """Every problem of one procedure file (and of the sub-procedures it calls)."""
-    procedure, problems = parse_procedure(path)
-    if procedure is None:
-        return problems
-    return lint_procedure(procedure, sysreps, _seen=_seen | {str(Path(path).resolve())})
+    return _Session(sysreps).lint(Path(path), frozenset())[1]
 
 
-def lint_procedure(procedure: Procedure, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
-    """Every meaning problem of a parsed procedure (a sub-procedure called several times reports once)."""
-    return list(dict.fromkeys(_Linter(procedure, sysreps, _seen).run()))
+def check_procedure(path: str | Path, sysreps: Mapping[str, SysRep]) -> CheckedProcedure:
+    """Parse and lint a procedure and its sub-procedures once, for a run.
+
+    Raises:
+        ProcedureError: listing every problem; a procedure with any problem does not run.
+    """
+    session = _Session(sysreps)
+    procedure, problems = session.lint(Path(path), frozenset())
+    if procedure is None or problems:
+        raise ProcedureError(problems)
+    callees = {p: c for p, (c, _) in session.done.items() if c is not None and c is not procedure}
+    return CheckedProcedure(procedure, MappingProxyType(dict(sysreps)), MappingProxyType(callees),
+                            MappingProxyType(session.literals))
+
+
+@dataclass
+class _Session:
+    """One lint of a procedure tree: each file is parsed and linted once, however often it is called."""
+
+    sysreps: Mapping[str, SysRep]
+    done: dict[str, tuple[Procedure | None, list[Problem]]] = field(default_factory=dict)
+    literals: dict[ArgumentBinding, Any] = field(default_factory=dict)
+
+    def lint(self, path: Path, seen: frozenset[str]) -> tuple[Procedure | None, list[Problem]]:
+        """The parsed procedure (None when it has structural errors) and every problem of it.
+
+        Problems name ``path`` as given; files are told apart by their resolved path.
+        """
+        key = str(path.resolve())
+        if key not in self.done:
+            procedure, problems = parse_procedure(path)
+            if procedure is not None:
+                problems = list(dict.fromkeys(_Linter(procedure, self, seen | {key}).run()))
+            self.done[key] = procedure, problems
+        return self.done[key]
 
 
 class _Linter:
-    def __init__(self, procedure: Procedure, sysreps: Mapping[str, SysRep], seen: frozenset[str]) -> None:
+    def __init__(self, procedure: Procedure, session: _Session, seen: frozenset[str]) -> None:
         self.proc = procedure
-        self.sysreps = sysreps
+        self.session = session
+        self.sysreps = session.sysreps
         self.seen = seen
         self.problems: list[Problem] = []
         self.flat = procedure.instructions
@@ -139,28 +202,31 @@ class _Linter:
             if argument is None:
                 self.fail(binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})")
                 continue
-            self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}",
-                             lambda v, a=argument: a.check(v))
+            typed = self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}", argument.check)
+            if typed is not _UNTYPED:
+                self.session.literals[binding] = typed
         missing = [name for name in expected if name not in {b.name for b in i.args}]
         if missing:
             self.fail(i.where, f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
                       f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})")
 
-    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> None:
+    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> Any:
+        """The typed value of an argument written as text; _UNTYPED when it has references or is wrong."""
         whole = binding.value.whole_reference
         if whole is not None:
             var = self.variables.get(whole.name)
             if var is not None and var.type is not None and var.type != type_name and type_name != "string":
                 self.fail(binding.where, f"{what}: expected {type_name}, but {whole} is a {var.type} {var.source}")
-            return
+            return _UNTYPED
         if binding.value.references:
             if type_name != "string":
                 self.fail(binding.where, f"{what}: expected {type_name}; text mixed with ${{...}} is a string")
-            return
+            return _UNTYPED
         try:
-            check(str(binding.value))
+            return check(str(binding.value))
         except ValueError as exc:
             self.fail(binding.where, f"{what}: {str(exc).split(': ', 1)[-1]}")
+            return _UNTYPED
 
     def check_condition(self, i: Instruction, subject: Subject, condition: Condition) -> None:
         type_name: str | None = None
@@ -208,10 +274,8 @@ class _Linter:
         if str(path) in self.seen:
             self.fail(i.at("procedure"), f"sub-procedure {i.procedure} calls itself (directly or through others)")
             return
-        callee, problems = parse_procedure(path)
-        if callee is not None:
-            problems = lint_procedure(callee, self.sysreps, _seen=self.seen | {str(path)})
-        if problems:
+        callee, problems = self.session.lint(path, self.seen)
+        if callee is None or problems:
             self.problems.extend(problems)
             self.fail(i.at("procedure"), f"sub-procedure {i.procedure} has {len(problems)} error(s)")
             return
@@ -223,7 +287,7 @@ class _Linter:
                 continue
             inp = declared[binding.name]
             self.check_value(binding, inp.type, f"{callee.id}: input {binding.name!r}",
-                             lambda v, t=inp.type, n=inp.name: check_value(n, t, v))
+                             functools.partial(check_value, inp.name, inp.type))
         missing = [name for name in declared if name not in {b.name for b in i.args}]
         if missing:
             self.fail(i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from bridge.pax_host import PaxHost, TelemetryValue
+from pride.pax_host import PaxHost
+from pride.systems import TelemetryValue
 from pax_stack import BINDINGS, REPO, Stack, bridge_url, ros_env_module, stack  # noqa: F401 (fixtures used by name)
 from pax_probe import RobotProbe
 
@@ -112,8 +113,7 @@ def _positions(status_response) -> list[float]:  # noqa: ANN001 - GetAffordanceT
 
 
 def test_sysreps_of_the_binding(host: PaxHost) -> None:
-    assert set(host.sysreps()) == {AT, "cdra", "camera"}
-    assert [c.id for c in host.sysreps()[AT].commands][:2] == ["add_affordance_template", "delete_affordance_template"]
+    assert host.system_ids() == {AT, "cdra", "camera"}
 
 
 def test_telemetry_follows_the_status_topic(host: PaxHost, probe: RobotProbe) -> None:

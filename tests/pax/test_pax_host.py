@@ -1,4 +1,4 @@
-"""bridge.pax_host without a robot: the JVM and classpath, value conversion both ways, Java
+"""pride.pax_host without a robot: the JVM and classpath, value conversion both ways, Java
 errors as PaxError, listeners. Tests that need a rosbridge server use the real one
 (`caretaker bridge --port 0`) with no ROS services behind it."""
 
@@ -11,10 +11,11 @@ from pathlib import Path
 import jpype
 import pytest
 
-import bridge.jvm
-from bridge.pax_host import CommandResult, PaxError, PaxHost, TelemetryValue, to_java, to_python
+import pride.jvm
 from pax_stack import REPO, Stack, bridge_url, ros_env_module  # noqa: F401 (fixtures used by name)
+from pride.pax_host import PaxError, PaxHost, to_java, to_python
 from pride.sysrep import SysRepError, load_sysrep
+from pride.systems import CommandResult, TelemetryValue
 
 AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"
 CDRA_SYSREP = REPO / "sysrep" / "cdra.yaml"
@@ -44,19 +45,19 @@ def binding_text(stale_after: float = 1.0) -> str:
 
 
 def test_missing_jar_says_how_to_build_it(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.setattr(bridge.jvm, "PLUGIN_JAR", tmp_path / "pax-plugins.jar")
-    with pytest.raises(bridge.jvm.JarNotBuiltError, match="make setup"):
-        bridge.jvm.classpath()
+    monkeypatch.setattr(pride.jvm, "PLUGIN_JAR", tmp_path / "pax-plugins.jar")
+    with pytest.raises(pride.jvm.JarNotBuiltError, match="make setup"):
+        pride.jvm.classpath()
 
 
 def test_classpath_is_the_jar_and_debian_jars() -> None:
-    path = bridge.jvm.classpath()
+    path = pride.jvm.classpath()
     assert path[0].endswith("java/pax-plugins/target/pax-plugins.jar")
     assert {Path(p).name for p in path[1:]} == {"gson.jar", "snakeyaml.jar"}
 
 
 def test_values_convert_to_sysrep_java_types_and_back() -> None:
-    bridge.jvm.start_jvm()
+    pride.jvm.start_jvm()
     assert to_java("flag", True).getClass().getName() == "java.lang.Boolean"
     assert to_java("n", 3).getClass().getName() == "java.lang.Long"
     assert to_java("x", 2.5).getClass().getName() == "java.lang.Double"
@@ -99,7 +100,7 @@ def test_unreachable_rosbridge_is_a_clear_error(tmp_path: Path) -> None:
 def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     host = PaxHost(write_binding(tmp_path, binding_text(stale_after=1.0)), rosbridge_url=url)
     try:
-        assert set(host.sysreps()) == {"affordance_templates", "cdra"}
+        assert host.system_ids() == {"affordance_templates", "cdra"}
         changes: queue.Queue[tuple[str, str, TelemetryValue]] = queue.Queue()
 
         def broken_listener(sysrep: str, item: str, value: TelemetryValue) -> None:
@@ -109,7 +110,7 @@ def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog
         host.add_listener(lambda sysrep, item, value: changes.put((sysrep, item, value)))
 
         # No AT server: after stale_after the server reads inactive (a fresh false), the rest stale.
-        with caplog.at_level(logging.ERROR, logger="bridge.pax_host"):
+        with caplog.at_level(logging.ERROR, logger="pride.pax_host"):
             sysrep, item, value = changes.get(timeout=15.0)
         assert (sysrep, item) == ("affordance_templates", "affordance_template_server_active")
         assert value.value is False and value.stale is False and isinstance(value.timestamp, float)
