@@ -222,6 +222,9 @@ class _Linter:
             if type_name != "string":
                 self.fail(binding.where, f"{what}: expected {type_name}; text mixed with ${{...}} is a string")
             return _UNTYPED
+        if not str(binding.value).strip():
+            self.fail(binding.where, f"{what} is empty: write its value (every argument is required)")
+            return _UNTYPED
         try:
             return check(str(binding.value))
         except ValueError as exc:

@@ -22,6 +22,7 @@ from pride.model import (
     GoToInstruction, Input, Instruction, Kind, Location, ManualInstruction, Notice, Procedure,
     RecordInstruction, Step, Subject, Template, VerifyInstruction, WaitInstruction,
 )
+from pride.xml_reader import Positions, read_xml
 
 __all__ = ["load_procedure", "parse_procedure"]
 
@@ -29,53 +30,10 @@ _NOTICES = ("note", "caution", "warning")
 _CONDITION_ATTRIBUTES = ("equals", "not-equals", "min", "max", "tolerance")
 
 
-class _Positions:
-    """Finds the column of each element's start tag and of its attributes in the source text."""
-
-    def __init__(self, path: str, lines: list[str]) -> None:
-        self.path = path
-        self.lines = lines
-        self._next_search: dict[int, int] = {}
-        self._element_col: dict[Any, int] = {}
-
-    def element(self, el: etree._Element) -> Location:
-        if el not in self._element_col:
-            line = el.sourceline or 1
-            text = self.lines[line - 1] if line <= len(self.lines) else ""
-            start = self._next_search.get(line, 0)
-            found = text.find(f"<{el.tag}", start)
-            col = found + 1 if found >= 0 else 1
-            self._next_search[line] = found + 1 if found >= 0 else start
-            self._element_col[el] = col
-        return Location(self.path, el.sourceline or 1, self._element_col[el])
-
-    def attribute(self, el: etree._Element, name: str) -> Location:
-        start = self.element(el)
-        pattern = re.compile(rf"(?<![\w-]){re.escape(name)}\s*=")
-        for offset in range(0, 12):
-            index = start.line - 1 + offset
-            if index >= len(self.lines):
-                break
-            text = self.lines[index]
-            match = pattern.search(text, start.col - 1 if offset == 0 else 0)
-            if match:
-                return Location(self.path, index + 1, match.start() + 1)
-            if ">" in text[(start.col - 1 if offset == 0 else 0):]:
-                break
-        return start
-
-    def text(self, el: etree._Element) -> Location:
-        """Where an element's text content starts (just after its start tag)."""
-        start = self.element(el)
-        text = self.lines[start.line - 1]
-        end = text.find(">", start.col - 1)
-        return Location(self.path, start.line, end + 2 if end >= 0 else start.col)
-
-
 class _Builder:
-    def __init__(self, path: Path, lines: list[str]) -> None:
+    def __init__(self, path: Path, positions: Positions) -> None:
         self.path = path
-        self.pos = _Positions(str(path), lines)
+        self.pos = positions
         self.problems: list[Problem] = []
 
     def fail(self, where: Location, message: str) -> None:
@@ -259,16 +217,16 @@ def _clean(text: str | None) -> str:
 
 
 def parse_procedure(path: str | Path) -> tuple[Procedure | None, list[Problem]]:
-    """Parse and check the structure of one procedure; the model is None when it has errors."""
+    """Read, parse and check the structure of one procedure; the model is None when it has errors."""
     path = Path(path)
-    tree, problems = schema.parse_xml(path)
+    tree, source, problems = read_xml(path)
     if tree is None:
         return None, problems
-    lines = path.read_text(encoding="utf-8").splitlines()
-    problems = schema.validate(path, tree, lines)
+    positions = Positions(source)
+    problems = schema.validate(tree, positions)
     if problems:
         return None, problems
-    builder = _Builder(path, lines)
+    builder = _Builder(path, positions)
     procedure = builder.procedure(tree.getroot())
     return (None if builder.problems else procedure), builder.problems
 
