@@ -20,7 +20,7 @@ from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.diagnostics import ProcedureError
 from pride.lint import check_procedure, lint_file
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
-from pride.systems import open_gateway
+from pride.gateways import open_gateway
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
 __all__ = ["lint_main", "report_main", "run_main"]

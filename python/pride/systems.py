@@ -2,29 +2,19 @@
 
 The executive never imports ROS or the JVM. It talks to a :class:`SystemGateway`; the real one
 is :class:`pride.pax_host.PaxHost` (the Java PAX plugins in this process), opened by
-:func:`open_gateway` for ``caretaker run --binding FILE``. Every gateway answers with the
-:class:`CommandResult` and :class:`TelemetryValue` defined here and calls its listeners with a
-:class:`TelemetryValue`, so no caller guesses at a result's shape.
-
-The environment variable ``PRIDE_GATEWAY=module:factory`` replaces the host with another
-gateway factory called with the binding path; it exists so a runner can be driven against a
-gateway a test controls in a separate, killable process (tests/pride/test_runner.py).
+:func:`pride.gateways.open_gateway`. Every gateway answers with the :class:`CommandResult` and
+:class:`TelemetryValue` defined here and calls its listeners with a :class:`TelemetryValue`, so no
+caller guesses at a result's shape. This module imports nothing of Caretaker: every gateway,
+the executive and the views depend on it, never the other way round.
 """
 
 from __future__ import annotations
 
-import importlib
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol, cast, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
-__all__ = [
-    "GATEWAY_ENV", "CommandResult", "GatewaySpecError", "SystemGateway", "TelemetryListener", "TelemetryValue",
-    "open_gateway",
-]
-
-GATEWAY_ENV = "PRIDE_GATEWAY"
+__all__ = ["CommandResult", "SystemGateway", "TelemetryListener", "TelemetryValue"]
 
 
 @dataclass(frozen=True)
@@ -75,28 +65,3 @@ class SystemGateway(Protocol):
 
     def close(self) -> None:
         """Release the connection to the systems."""
-
-
-class GatewaySpecError(ValueError):
-    """``PRIDE_GATEWAY`` does not name a ``module:factory``; ``spec`` is the value given."""
-
-    def __init__(self, spec: str) -> None:
-        super().__init__(f"{GATEWAY_ENV}={spec!r}: expected module:factory")
-        self.spec = spec
-
-
-def open_gateway(binding_path: str, *, rosbridge_url: str | None = None) -> SystemGateway:
-    """Open the gateway for a binding file: the PAX host, or the factory named by ``PRIDE_GATEWAY``.
-
-    ``rosbridge_url`` replaces the binding's rosbridge address (a robot served on another port).
-    """
-    spec = os.environ.get(GATEWAY_ENV)
-    if spec:
-        module_name, _, factory_name = spec.partition(":")
-        if not factory_name:
-            raise GatewaySpecError(spec)
-        factory = getattr(importlib.import_module(module_name), factory_name)
-        return cast(SystemGateway, factory(binding_path))
-    from pride.pax_host import PaxHost  # the JVM loads only when a real run needs it
-
-    return PaxHost(binding_path, rosbridge_url=rosbridge_url)

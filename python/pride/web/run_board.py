@@ -23,7 +23,7 @@ from pride.executive import Executive, Mode, RunStatus
 from pride.diagnostics import ProcedureError
 from pride.lint import check_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
-from pride.systems import open_gateway
+from pride.gateways import open_gateway
 from pride.web.actions import ActionRefused
 from pride.web.camera_feed import CameraFeed
 from pride.web.live_run import LiveRun
