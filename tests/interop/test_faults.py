@@ -11,7 +11,6 @@ the removal again from where the arm is (the restarted AT server keeps its insta
 from __future__ import annotations
 
 import re
-import socket
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -19,6 +18,7 @@ from urllib.parse import urlparse
 
 import pytest
 
+from support.ports import free_port
 from caretaker.processes import REPO, VENV_BIN, ManagedProcess, caretaker
 from pride.audit_log import AuditLog
 from pride.events import EventKind
@@ -38,19 +38,13 @@ CHECK_AFTER_INTERRUPTION = "8.1"
 EXECUTE_PULL_AGAIN = "8.6"
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 class RobotSide:
     """The robot side and a rosbridge server on a fixed port (so a restart keeps the URL)."""
 
     def __init__(self, env: dict[str, str], state_dir: Path) -> None:
         self.env = env
         self.state_file = state_dir / "at_server.json"
-        self.port = _free_port()
+        self.port = free_port()
         self.url = f"ws://127.0.0.1:{self.port}"
         self.parts: dict[str, ManagedProcess] = {}
 

@@ -4,7 +4,6 @@ simulation (the world) ends the stack, and nothing outlives it."""
 from __future__ import annotations
 
 import signal
-import socket
 from collections.abc import Iterator
 
 import psutil
@@ -13,19 +12,14 @@ import roslibpy
 
 from rosbridge.rosbridge_support import wait_until_discovered
 from support.processes import ManagedProcess, caretaker
+from support.ports import free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture
 def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
-    port = _free_port()
+    port = free_port()
     up = caretaker("up", "--scene", "iva", "--time-scale", "0", "--bridge-port", str(port), env=ros_env, name="up")
     try:
         up.wait_for_line(r"^READY stack iva$", 180)

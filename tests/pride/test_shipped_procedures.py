@@ -9,13 +9,13 @@ after-action report.
 from __future__ import annotations
 
 import re
-import socket
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from support.ports import free_port
 from conftest import REPO
 from pride.audit_log import AuditLog
 from pride.events import EventKind
@@ -27,15 +27,6 @@ SCENES = {
     "iva": ("ur10", "iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),
     "eva": ("eva_arm", "eva_inspection.xml", ["--set", "damage=false"]),
 }
-#: Executing a plan is one blocking service call through rosbridge; the Java client sends no
-#: per-call timeout yet, so the bridge's default (10 s) would cut off long motions on a loaded machine.
-BRIDGE_SERVICE_TIMEOUT_S = "180"
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
@@ -43,12 +34,13 @@ def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_ste
     scene: str, launch, ros_env, tmp_path: Path
 ) -> None:
     robot, procedure_file, answers = SCENES[scene]
-    port = _free_port()
+    port = free_port()
     # the robot side as separate processes, in the order `caretaker up` starts them
     launch("sim", "--scene", scene, "--time-scale", "0", ready_timeout=180)
     launch("planner", "--robot", robot, ready_timeout=180)
     launch("at-server", "--robot", robot, ready_timeout=180)
-    launch("bridge", "--port", str(port), "--service-timeout", BRIDGE_SERVICE_TIMEOUT_S, ready_timeout=180)
+    # no --service-timeout: the plugins send each call's own timeout (the binding's motion_timeout)
+    launch("bridge", "--port", str(port), ready_timeout=180)
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     proc = subprocess.run(
         [sys.executable, "-m", "caretaker.cli", "run", str(REPO / "procedures" / procedure_file),

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import os
-import socket
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from support.processes import ManagedProcess, caretaker
+from support.ports import free_port
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
@@ -22,12 +22,6 @@ class WebServer:
         self.url = url
         self.db = db
         self.procedures = procedures
-
-
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None) -> WebServer:
@@ -61,7 +55,7 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
 @contextmanager
 def server_on_real_stack(tmp: Path, procedures: Path, env: dict[str, str]) -> Iterator[WebServer]:
     """``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge) and a server on it."""
-    port = _free_port()
+    port = free_port()
     stack = caretaker("up", "--scene", "iva", "--bridge-port", str(port), "--time-scale", "0", env=env, name="up")
     try:
         stack.wait_ready(180)
