@@ -7,8 +7,7 @@ support/ros_domain.py), so parallel test runs on one machine do not see each oth
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
-from typing import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 

@@ -76,7 +76,9 @@ class Automation:
         command = sysrep.command(instruction.command) if sysrep is not None else None
         return instruction.hazardous or bool(command is not None and command.hazardous)
 
-    def carry_out(self, env: dict[str, Any], procedure: Procedure, instruction: Instruction, number: str, actor: str) -> Outcome:
+    def carry_out(
+        self, env: dict[str, Any], procedure: Procedure, instruction: Instruction, number: str, actor: str
+    ) -> Outcome:
         """Perform one instruction as ``actor``; only returns once it has finished or failed."""
         if isinstance(instruction, CommandInstruction):
             return self._send(env, instruction, number, actor)
@@ -99,23 +101,44 @@ class Automation:
         if isinstance(instruction, CallInstruction):
             callee = self._checked.load(instruction.resolved_path)
             declared = {i.name: i.type for i in callee.inputs}
-            inputs = {a.name: check_value(a.name, declared.get(a.name, "string"), a.value.resolve(env))
-                      for a in instruction.args}
+            inputs = {
+                a.name: check_value(a.name, declared.get(a.name, "string"), a.value.resolve(env))
+                for a in instruction.args
+            }
             return Outcome(True, enter=(callee, inputs))
         raise OperatorActionError(f"{number} is performed by an operator")
 
     def _send(self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str) -> Outcome:
         args = {binding.name: self._checked.argument(binding, env) for binding in instruction.args}
-        self._record(EventKind.COMMAND_SENT, actor, number, system=instruction.system, command=instruction.command,
-                     args=args, hazardous=self.is_hazardous(instruction))
+        self._record(
+            EventKind.COMMAND_SENT,
+            actor,
+            number,
+            system=instruction.system,
+            command=instruction.command,
+            args=args,
+            hazardous=self.is_hazardous(instruction),
+        )
         result = self._gateway.execute(instruction.system, instruction.command, args)
         success, message, values = result.success, result.message, dict(result.values)
-        self._record(EventKind.COMMAND_RESULT, actor, number, system=instruction.system, command=instruction.command,
-                     args=args, success=success, message=message, values=values, result=instruction.result)
+        self._record(
+            EventKind.COMMAND_RESULT,
+            actor,
+            number,
+            system=instruction.system,
+            command=instruction.command,
+            args=args,
+            success=success,
+            message=message,
+            values=values,
+            result=instruction.result,
+        )
         saved = (instruction.result, {"success": success, "message": message, **values}) if instruction.result else None
         if success:
             return Outcome(True, result=saved)
-        return Outcome(False, f"{instruction.system}.{instruction.command} failed: {message or 'no message'}", result=saved)
+        return Outcome(
+            False, f"{instruction.system}.{instruction.command} failed: {message or 'no message'}", result=saved
+        )
 
     def _watch(self, subject: Subject, condition: Condition, timeout: float, number: str, actor: str) -> Outcome:
         """Watch telemetry until the condition holds (fresh value) or the timeout passes."""
@@ -129,23 +152,43 @@ class Automation:
             ok = not stale and value is not None and condition.holds(value, type_name)
             remaining = deadline - time.monotonic()
             if ok or remaining <= 0 or self.abort.is_set():
-                self._record(EventKind.TELEMETRY_SEEN, actor, number, system=system, item=subject.name,
-                             value=value, stale=stale, timestamp=reading.timestamp,
-                             condition=condition.describe(), ok=ok)
+                self._record(
+                    EventKind.TELEMETRY_SEEN,
+                    actor,
+                    number,
+                    system=system,
+                    item=subject.name,
+                    value=value,
+                    stale=stale,
+                    timestamp=reading.timestamp,
+                    condition=condition.describe(),
+                    ok=ok,
+                )
                 if ok:
                     return Outcome(True)
                 if self.abort.is_set():
                     return Outcome(False, "the run was stopped while watching telemetry")
                 state = "stale " if stale else ""
-                return Outcome(False, f"{subject.describe()} was {state}{value!r}, expected {condition.describe()} "
-                                       f"(waited {timeout:g} s)")
+                return Outcome(
+                    False,
+                    f"{subject.describe()} was {state}{value!r}, expected {condition.describe()} "
+                    f"(waited {timeout:g} s)",
+                )
             self.telemetry_changed.wait(min(_TELEMETRY_POLL_S, remaining))
 
     def _read(self, env: dict[str, Any], subject: Subject, number: str, actor: str) -> Any:
         if subject.source == "telemetry":
             reading = self._gateway.telemetry(_system_of(subject), subject.name)
-            self._record(EventKind.TELEMETRY_SEEN, actor, number, system=subject.system, item=subject.name,
-                         value=reading.value, stale=reading.stale, timestamp=reading.timestamp)
+            self._record(
+                EventKind.TELEMETRY_SEEN,
+                actor,
+                number,
+                system=subject.system,
+                item=subject.name,
+                value=reading.value,
+                stale=reading.stale,
+                timestamp=reading.timestamp,
+            )
             if reading.stale:
                 raise KeyError(f"{subject.describe()} is stale; cannot decide the branch")
             return reading.value
@@ -161,7 +204,9 @@ class Automation:
             return self._telemetry_type(subject)
         if subject.source == "result":
             return "boolean" if subject.field == "success" else None
-        record = next((i for i in procedure.instructions if isinstance(i, RecordInstruction) and i.name == subject.name), None)
+        record = next(
+            (i for i in procedure.instructions if isinstance(i, RecordInstruction) and i.name == subject.name), None
+        )
         if record is not None:
             return record.type
         declared = next((i for i in procedure.inputs if i.name == subject.name), None)

@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from pride.automation import Automation, Outcome
-from pride.events import PAX, Event, EventKind, Journal
+from pride.events import Event, EventKind, Journal
 from pride.lint import CheckedProcedure
 from pride.model import Instruction, ManualInstruction, RecordInstruction
 from pride.replay import replay

@@ -22,9 +22,20 @@ from typing import Any
 
 from pride.diagnostics import Problem, ProcedureError
 from pride.model import (
-    ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
-    GoToInstruction, Instruction, Location, Procedure, RecordInstruction, Reference, Subject,
-    VerifyInstruction, WaitInstruction,
+    ArgumentBinding,
+    BranchInstruction,
+    CallInstruction,
+    CommandInstruction,
+    Condition,
+    GoToInstruction,
+    Instruction,
+    Location,
+    Procedure,
+    RecordInstruction,
+    Reference,
+    Subject,
+    VerifyInstruction,
+    WaitInstruction,
 )
 from pride.parser import parse_procedure
 from pride.sysrep import SysRep, check_value
@@ -128,7 +139,8 @@ class _Linter:
         declared = set()
         for system, where in self.proc.uses:
             if system not in self.sysreps:
-                self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+                known = ", ".join(sorted(self.sysreps)) or "none"
+                self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
             declared.add(system)
         self.declared = declared
         self.collect_variables()
@@ -152,8 +164,11 @@ class _Linter:
             if first is None:
                 self.variables[var.name] = var
             elif first.source != var.source or first.type != var.type:
-                self.fail(var.where, f"{var.name!r} is already a {first.source}"
-                          f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name")
+                self.fail(
+                    var.where,
+                    f"{var.name!r} is already a {first.source}"
+                    f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name",
+                )
 
     def system(self, instruction: Instruction, system: str | None) -> SysRep | None:
         where = instruction.at("system")
@@ -161,7 +176,7 @@ class _Linter:
             self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
             return None
         if system not in self.declared:
-            self.fail(where, f"system {system!r} is not declared; add <uses system=\"{system}\"/> to the procedure")
+            self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
         return self.sysreps[system]
 
     def step_target(self, instruction: Instruction, attribute: str, ref: str | None) -> None:
@@ -193,22 +208,29 @@ class _Linter:
             return
         command = sysrep.command(i.command)
         if command is None:
-            self.fail(i.at("name"), f"unknown command {i.command!r} in {i.system} "
-                      f"(commands: {', '.join(c.id for c in sysrep.commands)})")
+            self.fail(
+                i.at("name"),
+                f"unknown command {i.command!r} in {i.system} (commands: {', '.join(c.id for c in sysrep.commands)})",
+            )
             return
         expected = [a.name for a in command.args]
         for binding in i.args:
             argument = command.arg(binding.name)
             if argument is None:
-                self.fail(binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})")
+                self.fail(
+                    binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})"
+                )
                 continue
             typed = self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}", argument.check)
             if typed is not _UNTYPED:
                 self.session.literals[binding] = typed
         missing = [name for name in expected if name not in {b.name for b in i.args}]
         if missing:
-            self.fail(i.where, f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
-                      f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})")
+            self.fail(
+                i.where,
+                f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
+                f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})",
+            )
 
     def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> Any:
         """The typed value of an argument written as text; _UNTYPED when it has references or is wrong."""
@@ -239,24 +261,34 @@ class _Linter:
                 return
             item = sysrep.telemetry_item(subject.name)
             if item is None:
-                self.fail(i.at("telemetry"), f"unknown telemetry {subject.name!r} in {subject.system} "
-                          f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})")
+                self.fail(
+                    i.at("telemetry"),
+                    f"unknown telemetry {subject.name!r} in {subject.system} "
+                    f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})",
+                )
                 return
             type_name = item.type
         elif subject.source == "input":
             var = self.variables.get(subject.name)
             type_name = var.type if var is not None and var.source != "result" else None
             if var is not None and var.source == "result":
-                self.fail(i.at("input"), f"{subject.name!r} is a command result; write result=\"{subject.name}.success\"")
+                self.fail(i.at("input"), f'{subject.name!r} is a command result; write result="{subject.name}.success"')
         elif subject.source == "result":
             var = self.variables.get(subject.name)
             if var is not None and var.source != "result":
-                self.fail(i.at("result"), f"{subject.name!r} is a {var.source}, not a command result; write input=\"{subject.name}\"")
+                self.fail(
+                    i.at("result"),
+                    f'{subject.name!r} is a {var.source}, not a command result; write input="{subject.name}"',
+                )
             type_name = "boolean" if subject.field == "success" else None
         if type_name is None:
             return
-        for attribute, text in (("equals", condition.equals), ("not-equals", condition.not_equals),
-                                ("min", condition.minimum), ("max", condition.maximum)):
+        for attribute, text in (
+            ("equals", condition.equals),
+            ("not-equals", condition.not_equals),
+            ("min", condition.minimum),
+            ("max", condition.maximum),
+        ):
             if text is None:
                 continue
             if attribute in ("min", "max") and type_name not in ("integer", "real"):
@@ -285,15 +317,23 @@ class _Linter:
         declared = {inp.name: inp for inp in callee.inputs}
         for binding in i.args:
             if binding.name not in declared:
-                self.fail(binding.where, f"{callee.id}: unknown input {binding.name!r} "
-                          f"(declared inputs: {', '.join(declared) or 'none'})")
+                self.fail(
+                    binding.where,
+                    f"{callee.id}: unknown input {binding.name!r} (declared inputs: {', '.join(declared) or 'none'})",
+                )
                 continue
             inp = declared[binding.name]
-            self.check_value(binding, inp.type, f"{callee.id}: input {binding.name!r}",
-                             functools.partial(check_value, inp.name, inp.type))
+            self.check_value(
+                binding,
+                inp.type,
+                f"{callee.id}: input {binding.name!r}",
+                functools.partial(check_value, inp.name, inp.type),
+            )
         missing = [name for name in declared if name not in {b.name for b in i.args}]
         if missing:
-            self.fail(i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
+            self.fail(
+                i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}"
+            )
 
     # ---- control flow -----------------------------------------------------------------------
     def first_of(self, ref: str | None) -> int | None:
@@ -330,13 +370,18 @@ class _Linter:
         for step in self.proc.steps:
             numbers = [self.index[i.number] for i in step.instructions]
             if numbers and not any(n in reached for n in numbers):
-                self.fail(step.where, f"step {step.number} ({step.title!r}) is unreachable: "
-                          "no go-to or preceding step leads to it")
+                self.fail(
+                    step.where,
+                    f"step {step.number} ({step.title!r}) is unreachable: no go-to or preceding step leads to it",
+                )
                 continue
             for n in numbers:
                 if n not in reached:
-                    self.fail(self.flat[n].where, f"instruction {self.flat[n].number} is unreachable "
-                              "(the instruction before it always goes elsewhere)")
+                    self.fail(
+                        self.flat[n].where,
+                        f"instruction {self.flat[n].number} is unreachable "
+                        "(the instruction before it always goes elsewhere)",
+                    )
         return reached
 
     def check_variables(self, successors: list[list[int]], reachable: set[int]) -> None:
@@ -367,12 +412,19 @@ class _Linter:
                 if ref.name not in self.variables:
                     self.fail(where, f"unbound variable {ref.name!r}: no input, record or command result of that name")
                 elif ref.name not in defined_in[n]:
-                    self.fail(where, f"unbound variable {ref.name!r}: not recorded or returned before "
-                              f"{self.flat[n].number} on every path")
+                    self.fail(
+                        where,
+                        f"unbound variable {ref.name!r}: not recorded or returned before "
+                        f"{self.flat[n].number} on every path",
+                    )
                 elif ref.field is not None and self.variables[ref.name].source != "result":
-                    self.fail(where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}")
+                    self.fail(
+                        where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}"
+                    )
                 elif ref.field is None and self.variables[ref.name].source == "result":
-                    self.fail(where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}")
+                    self.fail(
+                        where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}"
+                    )
 
     def defined_out(self, n: int, defined: frozenset[str]) -> frozenset[str]:
         i = self.flat[n]

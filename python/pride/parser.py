@@ -16,12 +16,28 @@ from lxml import etree
 
 from pride import schema
 from pride.diagnostics import Problem, ProcedureError
-from pride.sysrep import check_value
 from pride.model import (
-    ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
-    GoToInstruction, Input, Instruction, Kind, Location, ManualInstruction, Notice, Procedure,
-    RecordInstruction, Step, Subject, Template, VerifyInstruction, WaitInstruction,
+    ArgumentBinding,
+    BranchInstruction,
+    CallInstruction,
+    CommandInstruction,
+    Condition,
+    GoToInstruction,
+    Input,
+    Instruction,
+    Kind,
+    Location,
+    ManualInstruction,
+    Notice,
+    Procedure,
+    RecordInstruction,
+    Step,
+    Subject,
+    Template,
+    VerifyInstruction,
+    WaitInstruction,
 )
+from pride.sysrep import check_value
 from pride.xml_reader import Positions, read_xml
 
 __all__ = ["load_procedure", "parse_procedure"]
@@ -52,13 +68,22 @@ class _Builder:
         for number, el in enumerate(root.findall("step"), start=1):
             step = self.step(el, number)
             if step.id in seen_ids and el.get("id"):
-                self.fail(self.pos.attribute(el, "id"), f"duplicate step id {step.id!r} (first at line {seen_ids[step.id].line})")
+                self.fail(
+                    self.pos.attribute(el, "id"),
+                    f"duplicate step id {step.id!r} (first at line {seen_ids[step.id].line})",
+                )
             seen_ids.setdefault(step.id, step.where)
             steps.append(step)
         description = root.findtext("description") or ""
         return Procedure(
-            id=root.get("id"), title=root.get("title"), version=root.get("version"), path=str(self.path),
-            uses=uses, inputs=inputs, steps=tuple(steps), where=self.pos.element(root),
+            id=root.get("id"),
+            title=root.get("title"),
+            version=root.get("version"),
+            path=str(self.path),
+            uses=uses,
+            inputs=inputs,
+            steps=tuple(steps),
+            where=self.pos.element(root),
             description=" ".join(description.split()),
         )
 
@@ -77,26 +102,46 @@ class _Builder:
         where = self.pos.element(el)
         if not instructions:
             self.fail(where, f"step {number} has no instruction (notes alone cannot be performed)")
-        return Step(number, el.get("id") or str(number), el.get("title"), tuple(instructions), where, tuple(pending),
-                    contingency=_bool(el.get("contingency", "false")))
+        return Step(
+            number,
+            el.get("id") or str(number),
+            el.get("title"),
+            tuple(instructions),
+            where,
+            tuple(pending),
+            contingency=_bool(el.get("contingency", "false")),
+        )
 
     def instruction(self, el: etree._Element, number: str, notices: tuple[Notice, ...]) -> Instruction:
         common: dict[str, Any] = dict(
-            number=number, text=_clean(el.get("text") or ""), automatable=_bool(el.get("automatable", "true")),
-            where=self.pos.element(el), notices=notices, attrs=self.attrs(el),
+            number=number,
+            text=_clean(el.get("text") or ""),
+            automatable=_bool(el.get("automatable", "true")),
+            where=self.pos.element(el),
+            notices=notices,
+            attrs=self.attrs(el),
         )
         tag = el.tag
         if tag == "command":
             return CommandInstruction(
-                kind=Kind.COMMAND, system=el.get("system"), command=el.get("name"), args=self.arguments(el),
-                result=el.get("result"), hazardous=_bool(el.get("hazardous", "false")),
-                on_failure=el.get("on-failure"), **common,
+                kind=Kind.COMMAND,
+                system=el.get("system"),
+                command=el.get("name"),
+                args=self.arguments(el),
+                result=el.get("result"),
+                hazardous=_bool(el.get("hazardous", "false")),
+                on_failure=el.get("on-failure"),
+                **common,
             )
         if tag == "verify":
             subject = Subject("telemetry", el.get("telemetry"), system=el.get("system"))
             return VerifyInstruction(
-                kind=Kind.VERIFY, subject=subject, condition=self.condition(el, required=True),
-                timeout=float(el.get("timeout", "10")), on_failure=el.get("on-failure"), **common,
+                kind=Kind.VERIFY,
+                subject=subject,
+                condition=self.condition(el, required=True),
+                timeout=float(el.get("timeout", "10")),
+                on_failure=el.get("on-failure"),
+                **common,
             )
         if tag == "wait":
             return self.wait(el, common)
@@ -109,15 +154,22 @@ class _Builder:
             return ManualInstruction(kind=Kind.MANUAL, **common)
         if tag == "if":
             return BranchInstruction(
-                kind=Kind.BRANCH, subject=self.subject(el), condition=self.condition(el, required=True),
-                goto=el.get("goto"), else_goto=el.get("else"), **common,
+                kind=Kind.BRANCH,
+                subject=self.subject(el),
+                condition=self.condition(el, required=True),
+                goto=el.get("goto"),
+                else_goto=el.get("else"),
+                **common,
             )
         if tag == "goto":
             return GoToInstruction(kind=Kind.GOTO, step=el.get("step"), **common)
         procedure = el.get("procedure")
         return CallInstruction(
-            kind=Kind.CALL, procedure=procedure, args=self.arguments(el),
-            resolved_path=str((self.path.parent / procedure).resolve()), **common,
+            kind=Kind.CALL,
+            procedure=procedure,
+            args=self.arguments(el),
+            resolved_path=str((self.path.parent / procedure).resolve()),
+            **common,
         )
 
     def arguments(self, el: etree._Element) -> tuple[ArgumentBinding, ...]:
@@ -135,10 +187,13 @@ class _Builder:
                 self.fail(self.pos.element(el), f"<{el.tag}> needs a condition: equals, not-equals, min or max")
             return None
         if el.get("tolerance") is not None and el.get("equals") is None:
-            self.fail(self.pos.attribute(el, "tolerance"), "tolerance applies to equals; add equals=\"...\"")
+            self.fail(self.pos.attribute(el, "tolerance"), 'tolerance applies to equals; add equals="..."')
         tolerance = el.get("tolerance")
         return Condition(
-            equals=el.get("equals"), not_equals=el.get("not-equals"), minimum=el.get("min"), maximum=el.get("max"),
+            equals=el.get("equals"),
+            not_equals=el.get("not-equals"),
+            minimum=el.get("min"),
+            maximum=el.get("max"),
             tolerance=float(tolerance) if tolerance is not None else None,
         )
 
@@ -146,13 +201,16 @@ class _Builder:
         given = [a for a in ("telemetry", "input", "result") if el.get(a) is not None]
         where = self.pos.element(el)
         if len(given) != 1:
-            self.fail(where, "<if> reads exactly one of telemetry (with system), input or result; "
-                      f"found {', '.join(given) or 'none'}")
+            self.fail(
+                where,
+                "<if> reads exactly one of telemetry (with system), input or result; "
+                f"found {', '.join(given) or 'none'}",
+            )
             return Subject("input", el.get("input") or "?")
         source = given[0]
         if source == "telemetry":
             if el.get("system") is None:
-                self.fail(where, "<if telemetry=...> needs system=\"...\"")
+                self.fail(where, '<if telemetry=...> needs system="..."')
             return Subject("telemetry", el.get("telemetry"), system=el.get("system"))
         if el.get("system") is not None:
             self.fail(self.pos.attribute(el, "system"), f"system applies to telemetry, not to {source}")
@@ -160,7 +218,10 @@ class _Builder:
             return Subject("input", el.get("input"))
         name, _, field = el.get("result").partition(".")
         if not re.fullmatch(r"[A-Za-z_]\w*", name) or not re.fullmatch(r"[A-Za-z_]\w*", field):
-            self.fail(self.pos.attribute(el, "result"), f"result must be NAME.FIELD (e.g. plan.success), got {el.get('result')!r}")
+            self.fail(
+                self.pos.attribute(el, "result"),
+                f"result must be NAME.FIELD (e.g. plan.success), got {el.get('result')!r}",
+            )
         return Subject("result", name, field=field or "success")
 
     def wait(self, el: etree._Element, common: dict[str, Any]) -> WaitInstruction:
@@ -171,11 +232,16 @@ class _Builder:
         if seconds is not None and (reads or condition is not None):
             self.fail(where, "<wait> takes either seconds or a telemetry condition, not both")
         if seconds is None and not (el.get("telemetry") and el.get("system") and condition is not None):
-            self.fail(where, "<wait> needs seconds=\"...\" or system, telemetry and a condition (equals, min, ...)")
+            self.fail(where, '<wait> needs seconds="..." or system, telemetry and a condition (equals, min, ...)')
         subject = Subject("telemetry", el.get("telemetry"), system=el.get("system")) if reads else None
         return WaitInstruction(
-            kind=Kind.WAIT, seconds=float(seconds) if seconds is not None else None, subject=subject,
-            condition=condition, timeout=float(el.get("timeout", "60")), on_failure=el.get("on-failure"), **common,
+            kind=Kind.WAIT,
+            seconds=float(seconds) if seconds is not None else None,
+            subject=subject,
+            condition=condition,
+            timeout=float(el.get("timeout", "60")),
+            on_failure=el.get("on-failure"),
+            **common,
         )
 
     def record(self, el: etree._Element, common: dict[str, Any]) -> RecordInstruction:
@@ -194,10 +260,14 @@ class _Builder:
                 self.fail(self.pos.attribute(el, "pattern"), f"pattern is not a valid regular expression: {exc}")
         choices = tuple(c.strip() for c in el.get("one-of").split(",")) if el.get("one-of") else None
         record = RecordInstruction(
-            kind=Kind.RECORD, name=el.get("name"), type=type_name,
+            kind=Kind.RECORD,
+            name=el.get("name"),
+            type=type_name,
             minimum=float(el.get("min")) if el.get("min") is not None else None,
             maximum=float(el.get("max")) if el.get("max") is not None else None,
-            pattern=pattern, choices=choices, **{**common, "automatable": False},
+            pattern=pattern,
+            choices=choices,
+            **{**common, "automatable": False},
         )
         for choice in choices or ():
             try:

@@ -153,7 +153,8 @@ class _Rewriter:
         if "is not allowed" in said:
             close = difflib.get_close_matches(attribute, spec.attributes, n=1)
             hint = f"did you mean {close[0]}? " if close else ""
-            return f"<{tag}> has no attribute {attribute!r} ({hint}its attributes: {', '.join(spec.attributes) or 'none'})"
+            known = ", ".join(spec.attributes) or "none"
+            return f"<{tag}> has no attribute {attribute!r} ({hint}its attributes: {known})"
         value = _VALUE.search(said)
         wanted = _TYPE_WORDS.get(spec.attributes.get(attribute, ""), "a valid value")
         given = f", not {next(v for v in value.groups() if v is not None)!r}" if value else ""
@@ -165,15 +166,18 @@ class _Rewriter:
         required = _REQUIRED.search(said)
         if required:
             name = required.group(1)
-            return f"<{tag}> needs {name}=\"...\" ({_TYPE_WORDS.get(spec.attributes.get(name, ''), 'a value')})"
+            return f'<{tag}> needs {name}="..." ({_TYPE_WORDS.get(spec.attributes.get(name, ""), "a value")})'
         if "This element is not expected" in said and parent_tag is not None:
             around = self.elements.get(parent_tag, _Element())
             if tag in around.children and around.ordered:
-                return f"<{tag}> is out of order in <{parent_tag}>: its elements come in the order {_tags(around.children)}"
+                order = _tags(around.children)
+                return f"<{tag}> is out of order in <{parent_tag}>: its elements come in the order {order}"
             allowed = _tags(around.children) if around.children else "no elements"
             return f"<{tag}> is not allowed in <{parent_tag}> (allowed there: {allowed})"
         if "Missing child element" in said:
-            missing = [c for c in spec.required_children if node is None or node.find(c) is None] or spec.required_children
+            missing = [
+                c for c in spec.required_children if node is None or node.find(c) is None
+            ] or spec.required_children
             one = "one of " if not spec.ordered and len(missing) > 1 else ""
             return f"<{tag}> needs {one}{_tags(missing)}"
         if "Character content other than whitespace" in said:
@@ -197,4 +201,3 @@ def validate(tree: etree._ElementTree, positions: Positions) -> list[Problem]:
         entries = list(schema.error_log)
     rewriter = _Rewriter(tree, positions)
     return sorted(dict.fromkeys(rewriter.problem(entry) for entry in entries))
-

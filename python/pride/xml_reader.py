@@ -106,13 +106,17 @@ def _decode(path: str, data: bytes) -> tuple[str | None, Problem | None]:
         text = body.decode("utf-8")
     except UnicodeDecodeError as exc:
         line, col = _position(body, exc.start)
-        bad = body[exc.start:exc.end].hex(" ")
-        return None, Problem(Location(path, line, col), f"not UTF-8: byte(s) {bad} cannot be read; save the file as UTF-8")
+        bad = body[exc.start : exc.end].hex(" ")
+        return None, Problem(
+            Location(path, line, col), f"not UTF-8: byte(s) {bad} cannot be read; save the file as UTF-8"
+        )
     declared = _DECLARED_ENCODING.match(text)
     if declared and declared.group(1).lower().replace("_", "-") not in ("utf-8", "utf8"):
-        return None, Problem(Location(path, 1, declared.start(1) + 1),
-                             f"the file declares encoding {declared.group(1)!r}; procedures are UTF-8: "
-                             'write encoding="UTF-8" or leave the declaration out')
+        return None, Problem(
+            Location(path, 1, declared.start(1) + 1),
+            f"the file declares encoding {declared.group(1)!r}; procedures are UTF-8: "
+            'write encoding="UTF-8" or leave the declaration out',
+        )
     if "\x00" in text:
         line, col = _position(body, body.index(b"\x00"))
         return None, Problem(Location(path, line, col), "a NUL character is not allowed in XML; remove it")
@@ -127,8 +131,11 @@ def _declarations(path: str, text: str) -> Problem | None:
         return None
     line = inert.count("\n", 0, found.start()) + 1
     col = found.start() - (inert.rfind("\n", 0, found.start()) + 1) + 1
-    return Problem(Location(path, line, col), f"<!{found.group(1)} ...> is not allowed in a procedure (no DTD, no "
-                                               "entities, nothing is read from elsewhere): remove it")
+    return Problem(
+        Location(path, line, col),
+        f"<!{found.group(1)} ...> is not allowed in a procedure (no DTD, no "
+        "entities, nothing is read from elsewhere): remove it",
+    )
 
 
 def _syntax_problem(source: Source, entry: etree._LogEntry) -> Problem:
@@ -137,16 +144,24 @@ def _syntax_problem(source: Source, entry: etree._LogEntry) -> Problem:
     unclosed = _MISMATCH.search(message) or _PREMATURE.search(message)
     if unclosed:
         tag, opened = unclosed.group(1), int(unclosed.group(2))
-        why = f"</{unclosed.group(3)}> at line {entry.line} comes first" if unclosed.re is _MISMATCH else "the file ends first"
-        return Problem(source.at(opened, source.start_tag(opened, tag)),
-                       f"<{tag}> opened here is never closed ({why}): add </{tag}> where it ends")
+        why = (
+            f"</{unclosed.group(3)}> at line {entry.line} comes first"
+            if unclosed.re is _MISMATCH
+            else "the file ends first"
+        )
+        return Problem(
+            source.at(opened, source.start_tag(opened, tag)),
+            f"<{tag}> opened here is never closed ({why}): add </{tag}> where it ends",
+        )
     entity = _ENTITY.search(message)
     if entity:
         line = source.lines[entry.line - 1] if 0 < entry.line <= len(source.lines) else ""
         written = line.rfind(f"&{entity.group(1)};", 0, max(entry.column, 1))  # libxml2 points after it
-        return Problem(source.at(entry.line, written + 1 if written >= 0 else entry.column),
-                       f"&{entity.group(1)}; is an entity; procedures use none but &lt; &gt; &amp; &quot; &apos; "
-                       "and character references (&#...;): remove it or write the text")
+        return Problem(
+            source.at(entry.line, written + 1 if written >= 0 else entry.column),
+            f"&{entity.group(1)}; is an entity; procedures use none but &lt; &gt; &amp; &quot; &apos; "
+            "and character references (&#...;): remove it or write the text",
+        )
     return Problem(source.at(entry.line, entry.column), f"not well-formed XML: {message}")
 
 
@@ -160,8 +175,11 @@ def read_xml(path: str | Path) -> tuple[etree._ElementTree | None, Source, list[
     except OSError as exc:
         return None, empty, [Problem(Location(name, 1, 1), f"cannot read: {exc.strerror or exc}")]
     if len(data) > MAX_BYTES:
-        return None, empty, [Problem(Location(name, 1, 1), f"larger than {MAX_BYTES // (1024 * 1024)} MiB: "
-                                                            "not a procedure file")]
+        return (
+            None,
+            empty,
+            [Problem(Location(name, 1, 1), f"larger than {MAX_BYTES // (1024 * 1024)} MiB: not a procedure file")],
+        )
     text, problem = _decode(name, data)
     if text is None:
         return None, empty, [problem] if problem else []
@@ -169,8 +187,14 @@ def read_xml(path: str | Path) -> tuple[etree._ElementTree | None, Source, list[
     problem = _declarations(name, text)
     if problem is not None:
         return None, source, [problem]
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
-                             huge_tree=False, remove_blank_text=False)
+    parser = etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_blank_text=False,
+    )
     try:
         root = etree.fromstring(text.encode("utf-8"), parser)
     except etree.XMLSyntaxError as exc:

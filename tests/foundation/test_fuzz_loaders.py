@@ -8,8 +8,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from loader_fuzz import Loader, fuzz_mutations, fuzz_random_bytes
+
 from pride.lint import lint_file
 from pride.sysrep import load_sysrep_dir
 

@@ -18,12 +18,11 @@ from urllib.parse import urlparse
 
 import pytest
 
-from support.ports import free_port
 from caretaker.processes import REPO, VENV_BIN, ManagedProcess, caretaker
+from interop.terminal_session import TerminalSession
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-
-from interop.terminal_session import TerminalSession
+from support.ports import free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

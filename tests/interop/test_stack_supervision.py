@@ -11,8 +11,8 @@ import pytest
 import roslibpy
 
 from rosbridge.rosbridge_support import wait_until_discovered
-from support.processes import ManagedProcess, caretaker
 from support.ports import free_port
+from support.processes import ManagedProcess, caretaker
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import jpype
 import pytest
+from pax_stack import REPO, Stack, bridge_url, ros_env_module  # noqa: F401 (fixtures used by name)
 
 import pride.jvm
-from pax_stack import REPO, Stack, bridge_url, ros_env_module  # noqa: F401 (fixtures used by name)
 from pride.pax_host import PaxError, PaxHost, to_java, to_python
 from pride.sysrep import SysRepError, load_sysrep
 from pride.systems import CommandResult, TelemetryValue
@@ -38,10 +38,12 @@ def write_binding(directory: Path, body: str) -> Path:
 
 
 def binding_text(stale_after: float = 1.0) -> str:
-    return (f"robot: test\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
-            f"- sysrep: {AT_SYSREP}\n  plugins: [at_commands, at_telemetry]\n"
-            f"  namespace: /affordance_template_server\n  options: {{stale_after: {stale_after}, call_timeout: 5}}\n"
-            f"- sysrep: {CDRA_SYSREP}\n  plugins: [ros_convention]\n  namespace: /cdra\n  options: {{call_timeout: 5}}\n")
+    return (
+        f"robot: test\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
+        f"- sysrep: {AT_SYSREP}\n  plugins: [at_commands, at_telemetry]\n"
+        f"  namespace: /affordance_template_server\n  options: {{stale_after: {stale_after}, call_timeout: 5}}\n"
+        f"- sysrep: {CDRA_SYSREP}\n  plugins: [ros_convention]\n  namespace: /cdra\n  options: {{call_timeout: 5}}\n"
+    )
 
 
 def test_missing_jar_says_how_to_build_it(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
@@ -72,8 +74,9 @@ def test_values_convert_to_sysrep_java_types_and_back() -> None:
 
 def test_a_bad_sysrep_in_a_binding_reads_like_the_python_loader(tmp_path: Path) -> None:
     invalid = REPO / "tests/fixtures/sysrep/invalid/unknown_type.yaml"
-    binding = write_binding(tmp_path, f"robot: t\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
-                                      f"- sysrep: {invalid}\n  plugins: [ros_convention]\n")
+    binding = write_binding(
+        tmp_path, f"robot: t\nrosbridge: ws://127.0.0.1:9\nsystems:\n- sysrep: {invalid}\n  plugins: [ros_convention]\n"
+    )
     with pytest.raises(PaxError) as java_error:
         PaxHost(binding)
     with pytest.raises(SysRepError) as python_error:
@@ -125,7 +128,9 @@ def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog
         with pytest.raises(PaxError, match="missing argument 'trajectory'"):
             host.execute("affordance_templates", "plan_trajectory", {"affordance_template": "cdra_filter"})
         with pytest.raises(PaxError, match="id: expected integer, got 'zero'"):
-            host.execute("affordance_templates", "delete_affordance_template", {"affordance_template": "x", "id": "zero"})
+            host.execute(
+                "affordance_templates", "delete_affordance_template", {"affordance_template": "x", "id": "zero"}
+            )
         with pytest.raises(PaxError, match="has no command 'open_hatch'"):
             host.execute("cdra", "open_hatch", {})
         with pytest.raises(PaxError, match="'eclss' is not bound"):

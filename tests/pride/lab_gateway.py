@@ -11,10 +11,10 @@ never answers, so a test can kill the runner while it is in flight) and ``LAB_GA
 from __future__ import annotations
 
 import os
+import struct
 import threading
 import time
 import zlib
-import struct
 from pathlib import Path
 from typing import Any
 

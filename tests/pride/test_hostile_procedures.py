@@ -50,7 +50,9 @@ def test_caretaker_lint_prints_one_line_per_problem_and_no_traceback() -> None:
     run = caretaker_lint(*paths)
     assert "Traceback" not in run.stdout + run.stderr
     assert run.returncode == 1
-    assert run.stdout.splitlines() == [f"{HOSTILE / name}:{line}" for name in sorted(EXPECTED) for line in EXPECTED[name]]
+    assert run.stdout.splitlines() == [
+        f"{HOSTILE / name}:{line}" for name in sorted(EXPECTED) for line in EXPECTED[name]
+    ]
     failing = sum(1 for name in EXPECTED if EXPECTED[name])
     assert run.stderr.strip() == f"{failing} of {len(paths)} procedure(s) have errors"
 
@@ -81,11 +83,13 @@ def test_an_external_entity_is_never_read_nor_fetched(tmp_path: Path, lab: dict[
     thread = threading.Thread(target=accept, daemon=True)
     thread.start()
     path = tmp_path / "leak.xml"
-    path.write_text(f'<?xml version="1.0"?>\n<!DOCTYPE procedure SYSTEM "http://127.0.0.1:{port}/p.dtd" [\n'
-                    f'  <!ENTITY leak SYSTEM "file://{secret}">\n'
-                    f'  <!ENTITY remote SYSTEM "http://127.0.0.1:{port}/e">\n]>\n'
-                    '<procedure id="p" title="&leak;&remote;" version="1">\n'
-                    '  <step title="One"><manual>&leak;</manual></step>\n</procedure>\n')
+    path.write_text(
+        f'<?xml version="1.0"?>\n<!DOCTYPE procedure SYSTEM "http://127.0.0.1:{port}/p.dtd" [\n'
+        f'  <!ENTITY leak SYSTEM "file://{secret}">\n'
+        f'  <!ENTITY remote SYSTEM "http://127.0.0.1:{port}/e">\n]>\n'
+        '<procedure id="p" title="&leak;&remote;" version="1">\n'
+        '  <step title="One"><manual>&leak;</manual></step>\n</procedure>\n'
+    )
     try:
         printed = [str(p) for p in lint_file(path, lab)]
         run = caretaker_lint(path)
@@ -93,8 +97,10 @@ def test_an_external_entity_is_never_read_nor_fetched(tmp_path: Path, lab: dict[
         stop.set()
         thread.join()
         listener.close()
-    assert printed == [f"{path}:2:1: <!DOCTYPE ...> is not allowed in a procedure (no DTD, no entities, nothing is "
-                       "read from elsewhere): remove it"]
+    assert printed == [
+        f"{path}:2:1: <!DOCTYPE ...> is not allowed in a procedure (no DTD, no entities, nothing is "
+        "read from elsewhere): remove it"
+    ]
     assert run.stdout.splitlines() == printed and "Traceback" not in run.stderr
     assert "TOP-SECRET-MARKER" not in run.stdout + run.stderr
     assert connections == []

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-from support.ports import free_port
 from conftest import REPO
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.parser import load_procedure
+from support.ports import free_port
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -6,14 +6,14 @@ import io
 import itertools
 
 import pytest
+from lab_gateway import LabGateway
+from test_executive import ListJournal
 
 from conftest import FIXTURES
-from lab_gateway import LabGateway
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.lint import check_procedure
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
-from test_executive import ListJournal
 
 
 def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, ListJournal, LabGateway]:

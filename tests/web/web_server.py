@@ -7,8 +7,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from support.processes import ManagedProcess, caretaker
 from support.ports import free_port
+from support.processes import ManagedProcess, caretaker
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]

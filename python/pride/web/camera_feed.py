@@ -14,7 +14,6 @@ import logging
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
 from pride.events import Event, EventKind
 from pride.systems import SystemGateway

@@ -18,12 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from pride.audit_log import AuditLog
+from pride.diagnostics import ProcedureError
 from pride.events import Event
 from pride.executive import Executive, Mode, RunStatus
-from pride.diagnostics import ProcedureError
+from pride.gateways import open_gateway
 from pride.lint import check_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
-from pride.gateways import open_gateway
 from pride.web.actions import ActionRefused
 from pride.web.camera_feed import CameraFeed
 from pride.web.live_run import LiveRun
