@@ -172,8 +172,9 @@ class _Linter:
 
     def system(self, instruction: Instruction, system: str | None) -> SysRep | None:
         where = instruction.at("system")
-        if system not in self.sysreps:
-            self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+        if system is None or system not in self.sysreps:
+            known = ", ".join(sorted(self.sysreps)) or "none"
+            self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
             return None
         if system not in self.declared:
             self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
@@ -303,7 +304,12 @@ class _Linter:
 
     def check_call(self, i: CallInstruction) -> None:
         path = Path(i.resolved_path)
-        if not path.is_file():
+        try:
+            found = path.is_file()
+        except OSError as exc:  # a name no file system accepts (too long, ...)
+            self.fail(i.at("procedure"), f"sub-procedure {i.procedure!r} cannot be a file: {exc.strerror}")
+            return
+        if not found:
             self.fail(i.at("procedure"), f"sub-procedure file not found: {i.procedure} (looked at {path})")
             return
         if str(path) in self.seen:

@@ -43,6 +43,8 @@ from pride.xml_reader import Positions, read_xml
 __all__ = ["load_procedure", "parse_procedure"]
 
 _NOTICES = ("note", "caution", "warning")
+#: The longest wait or timeout a procedure may state (a year): larger is a slip, and would overflow timers.
+MAX_SECONDS = 365 * 24 * 3600.0
 _CONDITION_ATTRIBUTES = ("equals", "not-equals", "min", "max", "tolerance")
 
 
@@ -56,12 +58,21 @@ class _Builder:
         self.problems.append(Problem(where, message))
 
     def attrs(self, el: etree._Element) -> dict[str, Location]:
-        return {name: self.pos.attribute(el, name) for name in el.attrib}
+        return {str(name): self.pos.attribute(el, str(name)) for name in el.attrib}
+
+    def required(self, el: etree._Element, name: str) -> str:
+        """An attribute the schema requires (validation ran first, so it is there)."""
+        value = el.get(name)
+        if value is None:  # the schema and this builder disagree: report it, never crash
+            self.fail(self.pos.element(el), f"<{el.tag}> needs {name}=\"...\"")
+            return ""
+        return value
 
     def procedure(self, root: etree._Element) -> Procedure:
-        uses = tuple((u.get("system"), self.pos.attribute(u, "system")) for u in root.findall("uses"))
+        uses = tuple((self.required(u, "system"), self.pos.attribute(u, "system")) for u in root.findall("uses"))
         inputs = tuple(
-            Input(i.get("name"), i.get("type", "string"), self.pos.attribute(i, "name")) for i in root.findall("input")
+            Input(self.required(i, "name"), i.get("type", "string"), self.pos.attribute(i, "name"))
+            for i in root.findall("input")
         )
         steps = []
         seen_ids: dict[str, Location] = {}
@@ -76,9 +87,9 @@ class _Builder:
             steps.append(step)
         description = root.findtext("description") or ""
         return Procedure(
-            id=root.get("id"),
-            title=root.get("title"),
-            version=root.get("version"),
+            id=self.required(root, "id"),
+            title=self.required(root, "title"),
+            version=self.required(root, "version"),
             path=str(self.path),
             uses=uses,
             inputs=inputs,
@@ -105,7 +116,7 @@ class _Builder:
         return Step(
             number,
             el.get("id") or str(number),
-            el.get("title"),
+            self.required(el, "title"),
             tuple(instructions),
             where,
             tuple(pending),
@@ -125,8 +136,8 @@ class _Builder:
         if tag == "command":
             return CommandInstruction(
                 kind=Kind.COMMAND,
-                system=el.get("system"),
-                command=el.get("name"),
+                system=self.required(el, "system"),
+                command=self.required(el, "name"),
                 args=self.arguments(el),
                 result=el.get("result"),
                 hazardous=_bool(el.get("hazardous", "false")),
@@ -134,12 +145,12 @@ class _Builder:
                 **common,
             )
         if tag == "verify":
-            subject = Subject("telemetry", el.get("telemetry"), system=el.get("system"))
+            subject = Subject("telemetry", self.required(el, "telemetry"), system=self.required(el, "system"))
             return VerifyInstruction(
                 kind=Kind.VERIFY,
                 subject=subject,
-                condition=self.condition(el, required=True),
-                timeout=float(el.get("timeout", "10")),
+                condition=self.condition(el, required=True) or Condition(),
+                timeout=self.seconds(el, "timeout", "10"),
                 on_failure=el.get("on-failure"),
                 **common,
             )
@@ -156,14 +167,14 @@ class _Builder:
             return BranchInstruction(
                 kind=Kind.BRANCH,
                 subject=self.subject(el),
-                condition=self.condition(el, required=True),
-                goto=el.get("goto"),
+                condition=self.condition(el, required=True) or Condition(),
+                goto=self.required(el, "goto"),
                 else_goto=el.get("else"),
                 **common,
             )
         if tag == "goto":
-            return GoToInstruction(kind=Kind.GOTO, step=el.get("step"), **common)
-        procedure = el.get("procedure")
+            return GoToInstruction(kind=Kind.GOTO, step=self.required(el, "step"), **common)
+        procedure = self.required(el, "procedure")
         return CallInstruction(
             kind=Kind.CALL,
             procedure=procedure,
@@ -173,13 +184,21 @@ class _Builder:
         )
 
     def arguments(self, el: etree._Element) -> tuple[ArgumentBinding, ...]:
-        args = []
+        args: list[ArgumentBinding] = []
         for arg in el.findall("arg"):
-            name = arg.get("name")
+            name = self.required(arg, "name")
             if any(a.name == name for a in args):
                 self.fail(self.pos.attribute(arg, "name"), f"argument {name!r} given twice")
             args.append(ArgumentBinding(name, Template.parse((arg.text or "").strip()), self.pos.text(arg)))
         return tuple(args)
+
+    def seconds(self, el: etree._Element, name: str, default: str = "0") -> float:
+        """A duration attribute (the schema made it a decimal ≥ 0); an absurd one is an error, not a hang."""
+        value = float(el.get(name, default))
+        if not value <= MAX_SECONDS:
+            self.fail(self.pos.attribute(el, name), f"{name} must be at most {MAX_SECONDS:g} s, got {el.get(name)}")
+            return MAX_SECONDS
+        return value
 
     def condition(self, el: etree._Element, *, required: bool) -> Condition | None:
         if not any(el.get(a) is not None for a in ("equals", "not-equals", "min", "max")):
@@ -211,12 +230,12 @@ class _Builder:
         if source == "telemetry":
             if el.get("system") is None:
                 self.fail(where, '<if telemetry=...> needs system="..."')
-            return Subject("telemetry", el.get("telemetry"), system=el.get("system"))
+            return Subject("telemetry", self.required(el, "telemetry"), system=el.get("system"))
         if el.get("system") is not None:
             self.fail(self.pos.attribute(el, "system"), f"system applies to telemetry, not to {source}")
         if source == "input":
-            return Subject("input", el.get("input"))
-        name, _, field = el.get("result").partition(".")
+            return Subject("input", self.required(el, "input"))
+        name, _, field = self.required(el, "result").partition(".")
         if not re.fullmatch(r"[A-Za-z_]\w*", name) or not re.fullmatch(r"[A-Za-z_]\w*", field):
             self.fail(
                 self.pos.attribute(el, "result"),
@@ -233,13 +252,13 @@ class _Builder:
             self.fail(where, "<wait> takes either seconds or a telemetry condition, not both")
         if seconds is None and not (el.get("telemetry") and el.get("system") and condition is not None):
             self.fail(where, '<wait> needs seconds="..." or system, telemetry and a condition (equals, min, ...)')
-        subject = Subject("telemetry", el.get("telemetry"), system=el.get("system")) if reads else None
+        subject = Subject("telemetry", el.get("telemetry") or "", system=el.get("system")) if reads else None
         return WaitInstruction(
             kind=Kind.WAIT,
-            seconds=float(seconds) if seconds is not None else None,
+            seconds=self.seconds(el, "seconds") if seconds is not None else None,
             subject=subject,
             condition=condition,
-            timeout=float(el.get("timeout", "60")),
+            timeout=self.seconds(el, "timeout", "60"),
             on_failure=el.get("on-failure"),
             **common,
         )
@@ -258,13 +277,15 @@ class _Builder:
                 re.compile(pattern)
             except re.error as exc:
                 self.fail(self.pos.attribute(el, "pattern"), f"pattern is not a valid regular expression: {exc}")
-        choices = tuple(c.strip() for c in el.get("one-of").split(",")) if el.get("one-of") else None
+        one_of = el.get("one-of")
+        choices = tuple(c.strip() for c in one_of.split(",")) if one_of else None
+        minimum, maximum = el.get("min"), el.get("max")
         record = RecordInstruction(
             kind=Kind.RECORD,
-            name=el.get("name"),
+            name=self.required(el, "name"),
             type=type_name,
-            minimum=float(el.get("min")) if el.get("min") is not None else None,
-            maximum=float(el.get("max")) if el.get("max") is not None else None,
+            minimum=float(minimum) if minimum is not None else None,
+            maximum=float(maximum) if maximum is not None else None,
             pattern=pattern,
             choices=choices,
             **{**common, "automatable": False},

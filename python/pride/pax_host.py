@@ -187,7 +187,7 @@ class PaxHost:
 
         @jpype.JImplements("caretaker.pax.TelemetryListener")
         class _Listener:
-            @jpype.JOverride
+            @jpype.JOverride  # type: ignore[untyped-decorator]  # JPype has no type information
             def telemetryChanged(self, sysrep_id: Any, item_id: Any, value: Any) -> None:  # noqa: N802 (Java name)
                 try:
                     callback(str(sysrep_id), str(item_id), _telemetry_value(value))

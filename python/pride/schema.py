@@ -11,9 +11,11 @@ from __future__ import annotations
 import difflib
 import re
 import threading
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
+from typing import cast
 
 from lxml import etree
 
@@ -198,6 +200,6 @@ def validate(tree: etree._ElementTree, positions: Positions) -> list[Problem]:
     with _validation_lock:
         if schema.validate(tree):
             return []
-        entries = list(schema.error_log)
+        entries = list(cast(Iterable[etree._LogEntry], schema.error_log))  # lxml-stubs: not iterable
     rewriter = _Rewriter(tree, positions)
     return sorted(dict.fromkeys(rewriter.problem(entry) for entry in entries))

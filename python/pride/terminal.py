@@ -9,6 +9,7 @@ the run and says which option would have answered.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
@@ -115,7 +116,7 @@ class OperatorConsole:
         *,
         interactive: bool,
         stream: TextIO = sys.stdout,
-        read: Any = input,
+        read: Callable[[str], str] = input,
     ) -> None:
         self.executive = executive
         self.user = user

@@ -10,8 +10,10 @@ column. Only the first error is reported: after it, a parser's messages are gues
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from lxml import etree
 
@@ -63,7 +65,7 @@ class Positions:
         return lines[number - 1] if 0 < number <= len(lines) else ""
 
     def element(self, el: etree._Element) -> Location:
-        line = el.sourceline or 1
+        line = cast(int | None, el.sourceline) or 1  # lxml-stubs mistype sourceline
         if el not in self._element_col:
             text = self._line(line)
             start = self._next_search.get(line, 0)
@@ -198,7 +200,7 @@ def read_xml(path: str | Path) -> tuple[etree._ElementTree | None, Source, list[
     try:
         root = etree.fromstring(text.encode("utf-8"), parser)
     except etree.XMLSyntaxError as exc:
-        entries = list(parser.error_log)
+        entries = list(cast(Iterable[etree._LogEntry], parser.error_log))
         if entries:
             return None, source, [_syntax_problem(source, entries[0])]
         line, col = exc.position
