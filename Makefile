@@ -3,12 +3,17 @@
 VENV := .venv
 PYTEST := $(VENV)/bin/pytest
 
-.PHONY: setup test test-java test-python demo bench clean
+.PHONY: setup lint test test-java test-python demo docs bench clean
 
 setup:
 	@./tools/setup.sh
 
-test: setup test-java test-python
+# ruff and mypy on the project's own code (configured in pyproject.toml); `make test` runs it first.
+lint: setup
+	$(VENV)/bin/ruff check
+	$(VENV)/bin/mypy
+
+test: setup lint test-java test-python
 
 test-java:
 	@if [ -f pom.xml ]; then mvn -q test; fi
@@ -18,6 +23,12 @@ test-python:
 
 demo: setup
 	$(VENV)/bin/caretaker demo deployments/iva.yaml
+
+# The README's screenshots: the browser tests that take them, writing into docs/images (a plain
+# test run writes them to a temporary folder and never touches tracked files).
+docs: setup
+	CARETAKER_SCREENSHOTS=$(CURDIR)/docs/images $(PYTEST) tests/web/test_operator_view.py \
+		tests/web/test_authoring.py tests/web/test_web_on_real_stack.py
 
 bench: setup
 	@for b in bench/*.py; do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done

@@ -111,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
         from rclpy.executors import SingleThreadedExecutor
         from std_srvs.srv import Trigger
 
-        from bridge.pax_host import PaxHost
+        from pride.pax_host import PaxHost
 
         with tempfile.TemporaryDirectory() as tmp:
             binding = Path(tmp) / "bench.yaml"

@@ -25,9 +25,9 @@ import pybullet as p
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from sim.scene import load_scene  # noqa: E402
-from sim.simulation import Simulation  # noqa: E402
-from sim.trajectory import validate_trajectory  # noqa: E402
+from sim.scene import load_scene
+from sim.simulation import Simulation
+from sim.trajectory import validate_trajectory
 
 
 def rtf(step, dt: float, seconds: float) -> float:

@@ -110,7 +110,7 @@ class AffordanceTemplateServer(Node):
             return self.get_status_callback
         for part in (self.instance_part, self.executor_part):
             if hasattr(part, name):
-                return getattr(part, name)  # type: ignore[no-any-return]
+                return getattr(part, name)
         raise AssertionError(f"no handler for service {name!r}")
 
     def _guarded(self, name: str, callback: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:

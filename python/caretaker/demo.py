@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlparse
 
-from caretaker.deployment import Deployment, DemoRun, load_deployment
+from caretaker.deployment import DemoRun, Deployment, load_deployment
 from caretaker.processes import REPO, ProcessFailed, caretaker
 from caretaker.stack import Stack, StackFailed, stack_options
 from datafile import DataFileError

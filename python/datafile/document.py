@@ -35,7 +35,9 @@ def read_text(path: Path, error: type[DataFileError] = DataFileError) -> str:
     except UnicodeDecodeError as exc:
         line = raw.count(b"\n", 0, exc.start) + 1
         column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise error(path, line, "", f"not UTF-8 text: byte 0x{raw[exc.start]:02x} cannot start a character", column=column) from None
+        raise error(
+            path, line, "", f"not UTF-8 text: byte 0x{raw[exc.start]:02x} cannot start a character", column=column
+        ) from None
 
 
 def parse_text(text: str, path: Path, *, json: bool, error: type[DataFileError] = DataFileError) -> Node:
@@ -58,7 +60,9 @@ def load_file(path: str | Path, *, error: type[DataFileError] = DataFileError, j
     return Field(parse_text(read_text(path, error), path, json=is_json, error=error), path, "", error)
 
 
-def shipped_or_path(name_or_path: str | Path, shipped: Path, what: str, error: type[DataFileError] = DataFileError) -> Path:
+def shipped_or_path(
+    name_or_path: str | Path, shipped: Path, what: str, error: type[DataFileError] = DataFileError
+) -> Path:
     """``name_or_path`` as a file path, or, when it is a bare name (``iva``), the YAML file of
     that name in the ``shipped`` folder.
 

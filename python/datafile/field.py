@@ -81,7 +81,11 @@ class Field:
         if not any_keys:
             for name, line, _ in self.node.entries:
                 if name not in allowed:
-                    raise self.fail(f"unknown key {name!r} (allowed: {', '.join(sorted(allowed)) or 'none'})", line=line, key=self._key_of(name))
+                    raise self.fail(
+                        f"unknown key {name!r} (allowed: {', '.join(sorted(allowed)) or 'none'})",
+                        line=line,
+                        key=self._key_of(name),
+                    )
         present = {name for name, _, _ in self.node.entries}
         for name in required:
             if name not in present:

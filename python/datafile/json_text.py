@@ -151,7 +151,8 @@ class _Parser:
             if char == "}":
                 return Node(MAPPING, tuple(entries), line, column)
             if char != ",":
-                raise self.fail(self.pos - 1, f"expected ',' or '}}' after the value of {key!r}, found {self.peek_text_at(self.pos - 1)}")
+                found = self.peek_text_at(self.pos - 1)
+                raise self.fail(self.pos - 1, f"expected ',' or '}}' after the value of {key!r}, found {found}")
 
     def sequence(self, depth: int, line: int, column: int) -> Node:
         self.pos += 1
@@ -168,7 +169,10 @@ class _Parser:
             if char == "]":
                 return Node(SEQUENCE, tuple(items), line, column)
             if char != ",":
-                raise self.fail(self.pos - 1, f"expected ',' or ']' after item {len(items) - 1}, found {self.peek_text_at(self.pos - 1)}")
+                raise self.fail(
+                    self.pos - 1,
+                    f"expected ',' or ']' after item {len(items) - 1}, found {self.peek_text_at(self.pos - 1)}",
+                )
 
     def peek_text_at(self, pos: int) -> str:
         self.pos = pos

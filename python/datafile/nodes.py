@@ -7,12 +7,12 @@ way and every error can name its line.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, Union
+from typing import Any, Literal
 
 __all__ = ["Node", "Scalar", "MAPPING", "SEQUENCE", "SCALAR"]
 
 #: A scalar's value: what YAML's safe schema and JSON can express.
-Scalar = Union[str, int, float, bool, None]
+Scalar = str | int | float | bool | None
 
 MAPPING: Literal["mapping"] = "mapping"
 SEQUENCE: Literal["sequence"] = "sequence"

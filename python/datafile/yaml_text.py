@@ -79,7 +79,12 @@ def _scalar(event: Any, path: str) -> Scalar:
         return str(event.value)
     construct = _CONSTRUCT.get(tag)
     if construct is None:
-        raise DataFileError(path, _line(event), "", f"the YAML tag {tag!r} is not allowed here (plain values only: text, numbers, true/false)")
+        raise DataFileError(
+            path,
+            _line(event),
+            "",
+            f"the YAML tag {tag!r} is not allowed here (plain values only: text, numbers, true/false)",
+        )
     try:
         value: Scalar = construct(yaml.ScalarNode(tag, event.value))
     except ValueError:  # an integer of thousands of digits, a malformed explicit !!int
@@ -104,10 +109,14 @@ def parse_yaml(text: str, path: str) -> Node:
             if isinstance(event, yaml.DocumentStartEvent):
                 documents += 1
                 if documents > 1:
-                    raise DataFileError(path, _line(event), "", "more than one YAML document (---); a data file holds one")
+                    raise DataFileError(
+                        path, _line(event), "", "more than one YAML document (---); a data file holds one"
+                    )
                 continue
             if isinstance(event, yaml.AliasEvent):
-                raise DataFileError(path, _line(event), "", f"YAML aliases (*{event.anchor}) are not allowed; write the value out")
+                raise DataFileError(
+                    path, _line(event), "", f"YAML aliases (*{event.anchor}) are not allowed; write the value out"
+                )
             node: Node | None = None
             if isinstance(event, yaml.ScalarEvent):
                 node = Node(SCALAR, _scalar(event, path), _line(event), _column(event))
@@ -149,7 +158,9 @@ def parse_yaml(text: str, path: str) -> Node:
     except yaml.reader.ReaderError as exc:
         line = text.count("\n", 0, max(0, exc.position)) + 1
         code = exc.character if isinstance(exc.character, int) else ord(str(exc.character)[:1] or "\0")
-        raise DataFileError(path, line, "", f"not valid YAML: character U+{code:04X} is not allowed ({exc.reason})") from None
+        raise DataFileError(
+            path, line, "", f"not valid YAML: character U+{code:04X} is not allowed ({exc.reason})"
+        ) from None
     except yaml.YAMLError as exc:
         raise DataFileError(path, 0, "", f"not valid YAML: {' '.join(str(exc).split())}") from None
     finally:

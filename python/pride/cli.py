@@ -11,16 +11,16 @@ import logging
 import sys
 import uuid
 from collections.abc import Sequence
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from pride.audit_log import DEFAULT_DB, AuditLog
+from pride.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
-from pride.lint import lint_file
-from pride.parser import load_procedure
+from pride.gateways import open_gateway
+from pride.lint import check_procedure, lint_file
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
-from pride.systems import gateway_system_ids, open_gateway
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
 __all__ = ["lint_main", "report_main", "run_main"]
@@ -36,19 +36,27 @@ def _load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
     for directory in directories or [str(DEFAULT_SYSREP_DIR)]:
         for sysrep_id, sysrep in load_sysrep_dir(directory).items():
             if sysrep_id in sysreps:
-                raise SysRepError(sysrep.path, 0, "id", f"duplicate SysRep id {sysrep_id!r} (also in {sysreps[sysrep_id].path})")
+                raise SysRepError(
+                    sysrep.path, 0, "id", f"duplicate SysRep id {sysrep_id!r} (also in {sysreps[sysrep_id].path})"
+                )
             sysreps[sysrep_id] = sysrep
     return sysreps
 
 
 def _sysrep_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sysrep-dir", action="append", metavar="DIR",
-                        help=f"directory of SysRep *.yaml files (repeatable; default {DEFAULT_SYSREP_DIR})")
+    parser.add_argument(
+        "--sysrep-dir",
+        action="append",
+        metavar="DIR",
+        help=f"directory of SysRep *.yaml files (repeatable; default {DEFAULT_SYSREP_DIR})",
+    )
 
 
 def lint_main(argv: list[str] | None = None) -> int:
     """``caretaker lint FILE...``: print every problem as file:line:col: message."""
-    parser = argparse.ArgumentParser(prog="caretaker lint", description="check procedures against their schema and SysReps")
+    parser = argparse.ArgumentParser(
+        prog="caretaker lint", description="check procedures against their schema and SysReps"
+    )
     parser.add_argument("files", nargs="+", metavar="FILE")
     _sysrep_option(parser)
     args = parser.parse_args(argv)
@@ -69,7 +77,7 @@ def lint_main(argv: list[str] | None = None) -> int:
 
 
 def _new_run_id(procedure_id: str) -> str:
-    return f"{procedure_id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:4]}"
+    return f"{procedure_id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:4]}"
 
 
 def run_main(argv: list[str] | None = None) -> int:
@@ -77,18 +85,34 @@ def run_main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker run", description="run a procedure with PAX")
     parser.add_argument("procedure", nargs="?", metavar="PROC", help="procedure XML (not needed with --resume)")
     parser.add_argument("--binding", required=True, metavar="FILE", help="which plugins serve which SysRep")
-    parser.add_argument("--rosbridge", metavar="URL", help="override the binding's rosbridge URL (e.g. ws://127.0.0.1:9091)")
+    parser.add_argument(
+        "--rosbridge", metavar="URL", help="override the binding's rosbridge URL (e.g. ws://127.0.0.1:9091)"
+    )
     mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--auto", action="store_const", const=Mode.AUTONOMOUS, dest="mode", help="PAX runs automatable instructions")
-    mode.add_argument("--manual", action="store_const", const=Mode.MANUAL, dest="mode", help="the operator performs every instruction")
-    parser.add_argument("--user", required=True, metavar="NAME", help="who runs it (recorded with every operator action)")
-    parser.add_argument("--db", default=DEFAULT_DB, metavar="URL", help=f"audit log SQLAlchemy URL (default {DEFAULT_DB})")
+    mode.add_argument(
+        "--auto", action="store_const", const=Mode.AUTONOMOUS, dest="mode", help="PAX runs automatable instructions"
+    )
+    mode.add_argument(
+        "--manual", action="store_const", const=Mode.MANUAL, dest="mode", help="the operator performs every instruction"
+    )
+    parser.add_argument(
+        "--user", required=True, metavar="NAME", help="who runs it (recorded with every operator action)"
+    )
+    parser.add_argument(
+        "--db", default=DEFAULT_DB, metavar="URL", help=f"audit log SQLAlchemy URL (default {DEFAULT_DB})"
+    )
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="answer the record NAME")
     parser.add_argument("--confirm-manual", action="store_true", help="mark manual instructions done unattended")
     parser.add_argument("--confirm-hazardous", action="store_true", help="confirm hazardous commands unattended")
-    parser.add_argument("--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N")
+    parser.add_argument(
+        "--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N"
+    )
     parser.add_argument("--resume", metavar="RUN", help="continue an interrupted run from the audit log")
-    parser.add_argument("--in-flight", choices=("resend", "skip"), help="on --resume: what to do with an instruction in flight at the crash")
+    parser.add_argument(
+        "--in-flight",
+        choices=("resend", "skip"),
+        help="on --resume: what to do with an instruction in flight at the crash",
+    )
     _sysrep_option(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
@@ -112,31 +136,33 @@ def run_main(argv: list[str] | None = None) -> int:
     except SysRepError as exc:
         print(exc, file=sys.stderr)
         return 2
-    problems = lint_file(path, sysreps)
-    if problems:
-        for problem in problems:
+    try:
+        checked = check_procedure(path, sysreps)
+    except ProcedureError as exc:
+        for problem in exc.problems:
             print(problem, file=sys.stderr)
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
-    procedure = load_procedure(path)
+    procedure = checked.procedure
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
         print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
         return 2
     try:
-        missing = {s for s, _ in procedure.uses} - gateway_system_ids(gateway)
+        missing = {s for s, _ in procedure.uses} - gateway.system_ids()
         if missing:
             print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
             return 2
         printer = ProgressPrinter(procedure)
         try:
             if args.resume:
-                executive = Executive.resume(procedure, gateway, audit, events, args.user, mode=args.mode, sysreps=sysreps)
+                executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode)
                 # the printer joins after the replay: the resumed run's own events follow
             else:
-                executive = Executive(procedure, gateway, audit, run_id=_new_run_id(procedure.id),
-                                      mode=args.mode or Mode.MANUAL, sysreps=sysreps)
+                executive = Executive(
+                    checked, gateway, audit, run_id=_new_run_id(procedure.id), mode=args.mode or Mode.MANUAL
+                )
         except OperatorActionError as exc:
             print(f"caretaker run: {exc}", file=sys.stderr)
             return 2
@@ -156,8 +182,11 @@ def run_main(argv: list[str] | None = None) -> int:
         executive.join(30)
         if final.error:
             print(f"caretaker run: recording failed, run stopped: {final.error}", file=sys.stderr)
-        print(f"RESULT {final.status.value} run {executive.run_id} (report: caretaker report {executive.run_id}"
-              f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})", flush=True)
+        print(
+            f"RESULT {final.status.value} run {executive.run_id} (report: caretaker report {executive.run_id}"
+            f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})",
+            flush=True,
+        )
         return 0 if final.status is RunStatus.COMPLETED else 1
     finally:
         gateway.close()

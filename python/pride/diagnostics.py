@@ -11,13 +11,13 @@ __all__ = ["Problem", "ProcedureError"]
 
 @dataclass(frozen=True, order=True)
 class Problem:
-    """One error: ``file:line:col: message``."""
+    """One error: ``file:line:col: message``, always one line (a message may quote text from the file)."""
 
     where: Location
     message: str
 
     def __str__(self) -> str:
-        return f"{self.where}: {self.message}"
+        return f"{self.where}: {' '.join(self.message.split())}"
 
 
 class ProcedureError(ValueError):

@@ -4,25 +4,46 @@ After the schema and structure (:mod:`pride.parser`), lint checks that every sys
 telemetry item and argument exists with the right type, that every ``${...}`` is bound on every
 path that reaches it, that go-tos land on a step, that every step can be reached, and that
 sub-procedure calls pass what the callee declares. A procedure with any problem does not start.
+
+A run checks its procedure once: :func:`check_procedure` parses and lints the procedure and every
+sub-procedure it calls (each file once, however often it is called) and returns a
+:class:`CheckedProcedure`, which is what the executive runs. Literal argument values are
+converted to their SysRep types here, so a run sends typed values without checking them again.
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
-from pride.diagnostics import Problem
+from pride.diagnostics import Problem, ProcedureError
 from pride.model import (
-    ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
-    GoToInstruction, Instruction, Location, Procedure, RecordInstruction, Reference, Subject,
-    VerifyInstruction, WaitInstruction,
+    ArgumentBinding,
+    BranchInstruction,
+    CallInstruction,
+    CommandInstruction,
+    Condition,
+    GoToInstruction,
+    Instruction,
+    Location,
+    Procedure,
+    RecordInstruction,
+    Reference,
+    Subject,
+    VerifyInstruction,
+    WaitInstruction,
 )
 from pride.parser import parse_procedure
 from pride.sysrep import SysRep, check_value
 
-__all__ = ["lint_file", "lint_procedure"]
+__all__ = ["CheckedProcedure", "check_procedure", "lint_file"]
+
+
+_UNTYPED = object()  # check_value's answer for a value known only at run time, or wrong
 
 
 @dataclass(frozen=True)
@@ -35,23 +56,76 @@ class _Variable:
     where: Location
 
 
-def lint_file(path: str | Path, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
+@dataclass(frozen=True)
+class CheckedProcedure:
+    """A procedure that passed lint against ``sysreps``, with every sub-procedure it calls.
+
+    Only :func:`check_procedure` makes one, so holding one means no problem was found. A run
+    executes exactly what was checked: a sub-procedure edited on disk after the check does not
+    change it.
+    """
+
+    procedure: Procedure
+    sysreps: Mapping[str, SysRep]
+    callees: Mapping[str, Procedure]  # resolved path → procedure
+    literals: Mapping[ArgumentBinding, Any]  # a command argument written as text → its typed value
+
+    def load(self, path: str) -> Procedure:
+        """A called sub-procedure, by its resolved path (as checked, not read again)."""
+        return self.callees[path]
+
+    def argument(self, binding: ArgumentBinding, env: dict[str, Any]) -> Any:
+        """The value of a command argument in a run: typed when written as text, else resolved."""
+        return self.literals[binding] if binding in self.literals else binding.value.resolve(env)
+
+
+def lint_file(path: str | Path, sysreps: Mapping[str, SysRep]) -> list[Problem]:
     """Every problem of one procedure file (and of the sub-procedures it calls)."""
-    procedure, problems = parse_procedure(path)
-    if procedure is None:
-        return problems
-    return lint_procedure(procedure, sysreps, _seen=_seen | {str(Path(path).resolve())})
+    return _Session(sysreps).lint(Path(path), frozenset())[1]
 
 
-def lint_procedure(procedure: Procedure, sysreps: Mapping[str, SysRep], *, _seen: frozenset[str] = frozenset()) -> list[Problem]:
-    """Every meaning problem of a parsed procedure (a sub-procedure called several times reports once)."""
-    return list(dict.fromkeys(_Linter(procedure, sysreps, _seen).run()))
+def check_procedure(path: str | Path, sysreps: Mapping[str, SysRep]) -> CheckedProcedure:
+    """Parse and lint a procedure and its sub-procedures once, for a run.
+
+    Raises:
+        ProcedureError: listing every problem; a procedure with any problem does not run.
+    """
+    session = _Session(sysreps)
+    procedure, problems = session.lint(Path(path), frozenset())
+    if procedure is None or problems:
+        raise ProcedureError(problems)
+    callees = {p: c for p, (c, _) in session.done.items() if c is not None and c is not procedure}
+    return CheckedProcedure(procedure, MappingProxyType(dict(sysreps)), MappingProxyType(callees),
+                            MappingProxyType(session.literals))
+
+
+@dataclass
+class _Session:
+    """One lint of a procedure tree: each file is parsed and linted once, however often it is called."""
+
+    sysreps: Mapping[str, SysRep]
+    done: dict[str, tuple[Procedure | None, list[Problem]]] = field(default_factory=dict)
+    literals: dict[ArgumentBinding, Any] = field(default_factory=dict)
+
+    def lint(self, path: Path, seen: frozenset[str]) -> tuple[Procedure | None, list[Problem]]:
+        """The parsed procedure (None when it has structural errors) and every problem of it.
+
+        Problems name ``path`` as given; files are told apart by their resolved path.
+        """
+        key = str(path.resolve())
+        if key not in self.done:
+            procedure, problems = parse_procedure(path)
+            if procedure is not None:
+                problems = list(dict.fromkeys(_Linter(procedure, self, seen | {key}).run()))
+            self.done[key] = procedure, problems
+        return self.done[key]
 
 
 class _Linter:
-    def __init__(self, procedure: Procedure, sysreps: Mapping[str, SysRep], seen: frozenset[str]) -> None:
+    def __init__(self, procedure: Procedure, session: _Session, seen: frozenset[str]) -> None:
         self.proc = procedure
-        self.sysreps = sysreps
+        self.session = session
+        self.sysreps = session.sysreps
         self.seen = seen
         self.problems: list[Problem] = []
         self.flat = procedure.instructions
@@ -65,7 +139,8 @@ class _Linter:
         declared = set()
         for system, where in self.proc.uses:
             if system not in self.sysreps:
-                self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+                known = ", ".join(sorted(self.sysreps)) or "none"
+                self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
             declared.add(system)
         self.declared = declared
         self.collect_variables()
@@ -89,16 +164,20 @@ class _Linter:
             if first is None:
                 self.variables[var.name] = var
             elif first.source != var.source or first.type != var.type:
-                self.fail(var.where, f"{var.name!r} is already a {first.source}"
-                          f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name")
+                self.fail(
+                    var.where,
+                    f"{var.name!r} is already a {first.source}"
+                    f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name",
+                )
 
     def system(self, instruction: Instruction, system: str | None) -> SysRep | None:
         where = instruction.at("system")
-        if system not in self.sysreps:
-            self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+        if system is None or system not in self.sysreps:
+            known = ", ".join(sorted(self.sysreps)) or "none"
+            self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
             return None
         if system not in self.declared:
-            self.fail(where, f"system {system!r} is not declared; add <uses system=\"{system}\"/> to the procedure")
+            self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
         return self.sysreps[system]
 
     def step_target(self, instruction: Instruction, attribute: str, ref: str | None) -> None:
@@ -130,37 +209,50 @@ class _Linter:
             return
         command = sysrep.command(i.command)
         if command is None:
-            self.fail(i.at("name"), f"unknown command {i.command!r} in {i.system} "
-                      f"(commands: {', '.join(c.id for c in sysrep.commands)})")
+            self.fail(
+                i.at("name"),
+                f"unknown command {i.command!r} in {i.system} (commands: {', '.join(c.id for c in sysrep.commands)})",
+            )
             return
         expected = [a.name for a in command.args]
         for binding in i.args:
             argument = command.arg(binding.name)
             if argument is None:
-                self.fail(binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})")
+                self.fail(
+                    binding.where, f"{i.command}: unknown argument {binding.name!r} (expected: {', '.join(expected)})"
+                )
                 continue
-            self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}",
-                             lambda v, a=argument: a.check(v))
+            typed = self.check_value(binding, argument.type, f"{i.command}: argument {binding.name!r}", argument.check)
+            if typed is not _UNTYPED:
+                self.session.literals[binding] = typed
         missing = [name for name in expected if name not in {b.name for b in i.args}]
         if missing:
-            self.fail(i.where, f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
-                      f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})")
+            self.fail(
+                i.where,
+                f"{i.command}: missing argument{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))} "
+                f"({len(i.args)} given, {len(expected)} expected: {', '.join(expected)})",
+            )
 
-    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> None:
+    def check_value(self, binding: ArgumentBinding, type_name: str, what: str, check: Callable[[str], Any]) -> Any:
+        """The typed value of an argument written as text; _UNTYPED when it has references or is wrong."""
         whole = binding.value.whole_reference
         if whole is not None:
             var = self.variables.get(whole.name)
             if var is not None and var.type is not None and var.type != type_name and type_name != "string":
                 self.fail(binding.where, f"{what}: expected {type_name}, but {whole} is a {var.type} {var.source}")
-            return
+            return _UNTYPED
         if binding.value.references:
             if type_name != "string":
                 self.fail(binding.where, f"{what}: expected {type_name}; text mixed with ${{...}} is a string")
-            return
+            return _UNTYPED
+        if not str(binding.value).strip():
+            self.fail(binding.where, f"{what} is empty: write its value (every argument is required)")
+            return _UNTYPED
         try:
-            check(str(binding.value))
+            return check(str(binding.value))
         except ValueError as exc:
             self.fail(binding.where, f"{what}: {str(exc).split(': ', 1)[-1]}")
+            return _UNTYPED
 
     def check_condition(self, i: Instruction, subject: Subject, condition: Condition) -> None:
         type_name: str | None = None
@@ -170,24 +262,34 @@ class _Linter:
                 return
             item = sysrep.telemetry_item(subject.name)
             if item is None:
-                self.fail(i.at("telemetry"), f"unknown telemetry {subject.name!r} in {subject.system} "
-                          f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})")
+                self.fail(
+                    i.at("telemetry"),
+                    f"unknown telemetry {subject.name!r} in {subject.system} "
+                    f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})",
+                )
                 return
             type_name = item.type
         elif subject.source == "input":
             var = self.variables.get(subject.name)
             type_name = var.type if var is not None and var.source != "result" else None
             if var is not None and var.source == "result":
-                self.fail(i.at("input"), f"{subject.name!r} is a command result; write result=\"{subject.name}.success\"")
+                self.fail(i.at("input"), f'{subject.name!r} is a command result; write result="{subject.name}.success"')
         elif subject.source == "result":
             var = self.variables.get(subject.name)
             if var is not None and var.source != "result":
-                self.fail(i.at("result"), f"{subject.name!r} is a {var.source}, not a command result; write input=\"{subject.name}\"")
+                self.fail(
+                    i.at("result"),
+                    f'{subject.name!r} is a {var.source}, not a command result; write input="{subject.name}"',
+                )
             type_name = "boolean" if subject.field == "success" else None
         if type_name is None:
             return
-        for attribute, text in (("equals", condition.equals), ("not-equals", condition.not_equals),
-                                ("min", condition.minimum), ("max", condition.maximum)):
+        for attribute, text in (
+            ("equals", condition.equals),
+            ("not-equals", condition.not_equals),
+            ("min", condition.minimum),
+            ("max", condition.maximum),
+        ):
             if text is None:
                 continue
             if attribute in ("min", "max") and type_name not in ("integer", "real"):
@@ -202,31 +304,42 @@ class _Linter:
 
     def check_call(self, i: CallInstruction) -> None:
         path = Path(i.resolved_path)
-        if not path.is_file():
+        try:
+            found = path.is_file()
+        except OSError as exc:  # a name no file system accepts (too long, ...)
+            self.fail(i.at("procedure"), f"sub-procedure {i.procedure!r} cannot be a file: {exc.strerror}")
+            return
+        if not found:
             self.fail(i.at("procedure"), f"sub-procedure file not found: {i.procedure} (looked at {path})")
             return
         if str(path) in self.seen:
             self.fail(i.at("procedure"), f"sub-procedure {i.procedure} calls itself (directly or through others)")
             return
-        callee, problems = parse_procedure(path)
-        if callee is not None:
-            problems = lint_procedure(callee, self.sysreps, _seen=self.seen | {str(path)})
-        if problems:
+        callee, problems = self.session.lint(path, self.seen)
+        if callee is None or problems:
             self.problems.extend(problems)
             self.fail(i.at("procedure"), f"sub-procedure {i.procedure} has {len(problems)} error(s)")
             return
         declared = {inp.name: inp for inp in callee.inputs}
         for binding in i.args:
             if binding.name not in declared:
-                self.fail(binding.where, f"{callee.id}: unknown input {binding.name!r} "
-                          f"(declared inputs: {', '.join(declared) or 'none'})")
+                self.fail(
+                    binding.where,
+                    f"{callee.id}: unknown input {binding.name!r} (declared inputs: {', '.join(declared) or 'none'})",
+                )
                 continue
             inp = declared[binding.name]
-            self.check_value(binding, inp.type, f"{callee.id}: input {binding.name!r}",
-                             lambda v, t=inp.type, n=inp.name: check_value(n, t, v))
+            self.check_value(
+                binding,
+                inp.type,
+                f"{callee.id}: input {binding.name!r}",
+                functools.partial(check_value, inp.name, inp.type),
+            )
         missing = [name for name in declared if name not in {b.name for b in i.args}]
         if missing:
-            self.fail(i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
+            self.fail(
+                i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}"
+            )
 
     # ---- control flow -----------------------------------------------------------------------
     def first_of(self, ref: str | None) -> int | None:
@@ -263,13 +376,18 @@ class _Linter:
         for step in self.proc.steps:
             numbers = [self.index[i.number] for i in step.instructions]
             if numbers and not any(n in reached for n in numbers):
-                self.fail(step.where, f"step {step.number} ({step.title!r}) is unreachable: "
-                          "no go-to or preceding step leads to it")
+                self.fail(
+                    step.where,
+                    f"step {step.number} ({step.title!r}) is unreachable: no go-to or preceding step leads to it",
+                )
                 continue
             for n in numbers:
                 if n not in reached:
-                    self.fail(self.flat[n].where, f"instruction {self.flat[n].number} is unreachable "
-                              "(the instruction before it always goes elsewhere)")
+                    self.fail(
+                        self.flat[n].where,
+                        f"instruction {self.flat[n].number} is unreachable "
+                        "(the instruction before it always goes elsewhere)",
+                    )
         return reached
 
     def check_variables(self, successors: list[list[int]], reachable: set[int]) -> None:
@@ -300,12 +418,19 @@ class _Linter:
                 if ref.name not in self.variables:
                     self.fail(where, f"unbound variable {ref.name!r}: no input, record or command result of that name")
                 elif ref.name not in defined_in[n]:
-                    self.fail(where, f"unbound variable {ref.name!r}: not recorded or returned before "
-                              f"{self.flat[n].number} on every path")
+                    self.fail(
+                        where,
+                        f"unbound variable {ref.name!r}: not recorded or returned before "
+                        f"{self.flat[n].number} on every path",
+                    )
                 elif ref.field is not None and self.variables[ref.name].source != "result":
-                    self.fail(where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}")
+                    self.fail(
+                        where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}"
+                    )
                 elif ref.field is None and self.variables[ref.name].source == "result":
-                    self.fail(where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}")
+                    self.fail(
+                        where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}"
+                    )
 
     def defined_out(self, n: int, defined: frozenset[str]) -> frozenset[str]:
         i = self.flat[n]

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import enum
 import re
-from functools import cached_property
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 from pride.sysrep import check_value
@@ -25,7 +25,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, order=True)
 class Location:
     """A position in a procedure file, printed as ``file:line:col``."""
 
@@ -167,9 +167,7 @@ class Condition:
             return False
         if self.minimum is not None and actual < check_value("min", kind, self.minimum):
             return False
-        if self.maximum is not None and actual > check_value("max", kind, self.maximum):
-            return False
-        return True
+        return self.maximum is None or actual <= check_value("max", kind, self.maximum)
 
 
 def _guess_type(value: Any) -> str:
@@ -315,7 +313,8 @@ class BranchInstruction(Instruction):
 
     def describe(self) -> str:
         otherwise = f", else go to step {self.else_goto}" if self.else_goto else ""
-        return self.text or f"If {self.subject.describe()} {self.condition.describe()}, go to step {self.goto}{otherwise}"
+        test = f"{self.subject.describe()} {self.condition.describe()}"
+        return self.text or f"If {test}, go to step {self.goto}{otherwise}"
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -16,91 +16,85 @@ from lxml import etree
 
 from pride import schema
 from pride.diagnostics import Problem, ProcedureError
-from pride.sysrep import check_value
 from pride.model import (
-    ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
-    GoToInstruction, Input, Instruction, Kind, Location, ManualInstruction, Notice, Procedure,
-    RecordInstruction, Step, Subject, Template, VerifyInstruction, WaitInstruction,
+    ArgumentBinding,
+    BranchInstruction,
+    CallInstruction,
+    CommandInstruction,
+    Condition,
+    GoToInstruction,
+    Input,
+    Instruction,
+    Kind,
+    Location,
+    ManualInstruction,
+    Notice,
+    Procedure,
+    RecordInstruction,
+    Step,
+    Subject,
+    Template,
+    VerifyInstruction,
+    WaitInstruction,
 )
+from pride.sysrep import check_value
+from pride.xml_reader import Positions, read_xml
 
 __all__ = ["load_procedure", "parse_procedure"]
 
 _NOTICES = ("note", "caution", "warning")
+#: The longest wait or timeout a procedure may state (a year): larger is a slip, and would overflow timers.
+MAX_SECONDS = 365 * 24 * 3600.0
 _CONDITION_ATTRIBUTES = ("equals", "not-equals", "min", "max", "tolerance")
 
 
-class _Positions:
-    """Finds the column of each element's start tag and of its attributes in the source text."""
-
-    def __init__(self, path: str, lines: list[str]) -> None:
-        self.path = path
-        self.lines = lines
-        self._next_search: dict[int, int] = {}
-        self._element_col: dict[Any, int] = {}
-
-    def element(self, el: etree._Element) -> Location:
-        if el not in self._element_col:
-            line = el.sourceline or 1
-            text = self.lines[line - 1] if line <= len(self.lines) else ""
-            start = self._next_search.get(line, 0)
-            found = text.find(f"<{el.tag}", start)
-            col = found + 1 if found >= 0 else 1
-            self._next_search[line] = found + 1 if found >= 0 else start
-            self._element_col[el] = col
-        return Location(self.path, el.sourceline or 1, self._element_col[el])
-
-    def attribute(self, el: etree._Element, name: str) -> Location:
-        start = self.element(el)
-        pattern = re.compile(rf"(?<![\w-]){re.escape(name)}\s*=")
-        for offset in range(0, 12):
-            index = start.line - 1 + offset
-            if index >= len(self.lines):
-                break
-            text = self.lines[index]
-            match = pattern.search(text, start.col - 1 if offset == 0 else 0)
-            if match:
-                return Location(self.path, index + 1, match.start() + 1)
-            if ">" in text[(start.col - 1 if offset == 0 else 0):]:
-                break
-        return start
-
-    def text(self, el: etree._Element) -> Location:
-        """Where an element's text content starts (just after its start tag)."""
-        start = self.element(el)
-        text = self.lines[start.line - 1]
-        end = text.find(">", start.col - 1)
-        return Location(self.path, start.line, end + 2 if end >= 0 else start.col)
-
-
 class _Builder:
-    def __init__(self, path: Path, lines: list[str]) -> None:
+    def __init__(self, path: Path, positions: Positions) -> None:
         self.path = path
-        self.pos = _Positions(str(path), lines)
+        self.pos = positions
         self.problems: list[Problem] = []
 
     def fail(self, where: Location, message: str) -> None:
         self.problems.append(Problem(where, message))
 
     def attrs(self, el: etree._Element) -> dict[str, Location]:
-        return {name: self.pos.attribute(el, name) for name in el.attrib}
+        return {str(name): self.pos.attribute(el, str(name)) for name in el.attrib}
+
+    def required(self, el: etree._Element, name: str) -> str:
+        """An attribute the schema requires (validation ran first, so it is there)."""
+        value = el.get(name)
+        if value is None:  # the schema and this builder disagree: report it, never crash
+            self.fail(self.pos.element(el), f"<{el.tag}> needs {name}=\"...\"")
+            return ""
+        return value
 
     def procedure(self, root: etree._Element) -> Procedure:
-        uses = tuple((u.get("system"), self.pos.attribute(u, "system")) for u in root.findall("uses"))
+        uses = tuple((self.required(u, "system"), self.pos.attribute(u, "system")) for u in root.findall("uses"))
         inputs = tuple(
-            Input(i.get("name"), i.get("type", "string"), self.pos.attribute(i, "name")) for i in root.findall("input")
+            Input(self.required(i, "name"), i.get("type", "string"), self.pos.attribute(i, "name"))
+            for i in root.findall("input")
         )
         steps = []
         seen_ids: dict[str, Location] = {}
         for number, el in enumerate(root.findall("step"), start=1):
             step = self.step(el, number)
             if step.id in seen_ids and el.get("id"):
-                self.fail(self.pos.attribute(el, "id"), f"duplicate step id {step.id!r} (first at line {seen_ids[step.id].line})")
+                self.fail(
+                    self.pos.attribute(el, "id"),
+                    f"duplicate step id {step.id!r} (first at line {seen_ids[step.id].line})",
+                )
             seen_ids.setdefault(step.id, step.where)
             steps.append(step)
         description = root.findtext("description") or ""
         return Procedure(
-            id=root.get("id"), title=root.get("title"), version=root.get("version"), path=str(self.path),
-            uses=uses, inputs=inputs, steps=tuple(steps), where=self.pos.element(root),
+            id=self.required(root, "id"),
+            title=self.required(root, "title"),
+            version=self.required(root, "version"),
+            path=str(self.path),
+            uses=uses,
+            inputs=inputs,
+            steps=tuple(steps),
+            where=self.pos.element(root),
             description=" ".join(description.split()),
         )
 
@@ -119,26 +113,46 @@ class _Builder:
         where = self.pos.element(el)
         if not instructions:
             self.fail(where, f"step {number} has no instruction (notes alone cannot be performed)")
-        return Step(number, el.get("id") or str(number), el.get("title"), tuple(instructions), where, tuple(pending),
-                    contingency=_bool(el.get("contingency", "false")))
+        return Step(
+            number,
+            el.get("id") or str(number),
+            self.required(el, "title"),
+            tuple(instructions),
+            where,
+            tuple(pending),
+            contingency=_bool(el.get("contingency", "false")),
+        )
 
     def instruction(self, el: etree._Element, number: str, notices: tuple[Notice, ...]) -> Instruction:
         common: dict[str, Any] = dict(
-            number=number, text=_clean(el.get("text") or ""), automatable=_bool(el.get("automatable", "true")),
-            where=self.pos.element(el), notices=notices, attrs=self.attrs(el),
+            number=number,
+            text=_clean(el.get("text") or ""),
+            automatable=_bool(el.get("automatable", "true")),
+            where=self.pos.element(el),
+            notices=notices,
+            attrs=self.attrs(el),
         )
         tag = el.tag
         if tag == "command":
             return CommandInstruction(
-                kind=Kind.COMMAND, system=el.get("system"), command=el.get("name"), args=self.arguments(el),
-                result=el.get("result"), hazardous=_bool(el.get("hazardous", "false")),
-                on_failure=el.get("on-failure"), **common,
+                kind=Kind.COMMAND,
+                system=self.required(el, "system"),
+                command=self.required(el, "name"),
+                args=self.arguments(el),
+                result=el.get("result"),
+                hazardous=_bool(el.get("hazardous", "false")),
+                on_failure=el.get("on-failure"),
+                **common,
             )
         if tag == "verify":
-            subject = Subject("telemetry", el.get("telemetry"), system=el.get("system"))
+            subject = Subject("telemetry", self.required(el, "telemetry"), system=self.required(el, "system"))
             return VerifyInstruction(
-                kind=Kind.VERIFY, subject=subject, condition=self.condition(el, required=True),
-                timeout=float(el.get("timeout", "10")), on_failure=el.get("on-failure"), **common,
+                kind=Kind.VERIFY,
+                subject=subject,
+                condition=self.condition(el, required=True) or Condition(),
+                timeout=self.seconds(el, "timeout", "10"),
+                on_failure=el.get("on-failure"),
+                **common,
             )
         if tag == "wait":
             return self.wait(el, common)
@@ -151,25 +165,40 @@ class _Builder:
             return ManualInstruction(kind=Kind.MANUAL, **common)
         if tag == "if":
             return BranchInstruction(
-                kind=Kind.BRANCH, subject=self.subject(el), condition=self.condition(el, required=True),
-                goto=el.get("goto"), else_goto=el.get("else"), **common,
+                kind=Kind.BRANCH,
+                subject=self.subject(el),
+                condition=self.condition(el, required=True) or Condition(),
+                goto=self.required(el, "goto"),
+                else_goto=el.get("else"),
+                **common,
             )
         if tag == "goto":
-            return GoToInstruction(kind=Kind.GOTO, step=el.get("step"), **common)
-        procedure = el.get("procedure")
+            return GoToInstruction(kind=Kind.GOTO, step=self.required(el, "step"), **common)
+        procedure = self.required(el, "procedure")
         return CallInstruction(
-            kind=Kind.CALL, procedure=procedure, args=self.arguments(el),
-            resolved_path=str((self.path.parent / procedure).resolve()), **common,
+            kind=Kind.CALL,
+            procedure=procedure,
+            args=self.arguments(el),
+            resolved_path=str((self.path.parent / procedure).resolve()),
+            **common,
         )
 
     def arguments(self, el: etree._Element) -> tuple[ArgumentBinding, ...]:
-        args = []
+        args: list[ArgumentBinding] = []
         for arg in el.findall("arg"):
-            name = arg.get("name")
+            name = self.required(arg, "name")
             if any(a.name == name for a in args):
                 self.fail(self.pos.attribute(arg, "name"), f"argument {name!r} given twice")
             args.append(ArgumentBinding(name, Template.parse((arg.text or "").strip()), self.pos.text(arg)))
         return tuple(args)
+
+    def seconds(self, el: etree._Element, name: str, default: str = "0") -> float:
+        """A duration attribute (the schema made it a decimal ≥ 0); an absurd one is an error, not a hang."""
+        value = float(el.get(name, default))
+        if not value <= MAX_SECONDS:
+            self.fail(self.pos.attribute(el, name), f"{name} must be at most {MAX_SECONDS:g} s, got {el.get(name)}")
+            return MAX_SECONDS
+        return value
 
     def condition(self, el: etree._Element, *, required: bool) -> Condition | None:
         if not any(el.get(a) is not None for a in ("equals", "not-equals", "min", "max")):
@@ -177,10 +206,13 @@ class _Builder:
                 self.fail(self.pos.element(el), f"<{el.tag}> needs a condition: equals, not-equals, min or max")
             return None
         if el.get("tolerance") is not None and el.get("equals") is None:
-            self.fail(self.pos.attribute(el, "tolerance"), "tolerance applies to equals; add equals=\"...\"")
+            self.fail(self.pos.attribute(el, "tolerance"), 'tolerance applies to equals; add equals="..."')
         tolerance = el.get("tolerance")
         return Condition(
-            equals=el.get("equals"), not_equals=el.get("not-equals"), minimum=el.get("min"), maximum=el.get("max"),
+            equals=el.get("equals"),
+            not_equals=el.get("not-equals"),
+            minimum=el.get("min"),
+            maximum=el.get("max"),
             tolerance=float(tolerance) if tolerance is not None else None,
         )
 
@@ -188,21 +220,27 @@ class _Builder:
         given = [a for a in ("telemetry", "input", "result") if el.get(a) is not None]
         where = self.pos.element(el)
         if len(given) != 1:
-            self.fail(where, "<if> reads exactly one of telemetry (with system), input or result; "
-                      f"found {', '.join(given) or 'none'}")
+            self.fail(
+                where,
+                "<if> reads exactly one of telemetry (with system), input or result; "
+                f"found {', '.join(given) or 'none'}",
+            )
             return Subject("input", el.get("input") or "?")
         source = given[0]
         if source == "telemetry":
             if el.get("system") is None:
-                self.fail(where, "<if telemetry=...> needs system=\"...\"")
-            return Subject("telemetry", el.get("telemetry"), system=el.get("system"))
+                self.fail(where, '<if telemetry=...> needs system="..."')
+            return Subject("telemetry", self.required(el, "telemetry"), system=el.get("system"))
         if el.get("system") is not None:
             self.fail(self.pos.attribute(el, "system"), f"system applies to telemetry, not to {source}")
         if source == "input":
-            return Subject("input", el.get("input"))
-        name, _, field = el.get("result").partition(".")
+            return Subject("input", self.required(el, "input"))
+        name, _, field = self.required(el, "result").partition(".")
         if not re.fullmatch(r"[A-Za-z_]\w*", name) or not re.fullmatch(r"[A-Za-z_]\w*", field):
-            self.fail(self.pos.attribute(el, "result"), f"result must be NAME.FIELD (e.g. plan.success), got {el.get('result')!r}")
+            self.fail(
+                self.pos.attribute(el, "result"),
+                f"result must be NAME.FIELD (e.g. plan.success), got {el.get('result')!r}",
+            )
         return Subject("result", name, field=field or "success")
 
     def wait(self, el: etree._Element, common: dict[str, Any]) -> WaitInstruction:
@@ -213,11 +251,16 @@ class _Builder:
         if seconds is not None and (reads or condition is not None):
             self.fail(where, "<wait> takes either seconds or a telemetry condition, not both")
         if seconds is None and not (el.get("telemetry") and el.get("system") and condition is not None):
-            self.fail(where, "<wait> needs seconds=\"...\" or system, telemetry and a condition (equals, min, ...)")
-        subject = Subject("telemetry", el.get("telemetry"), system=el.get("system")) if reads else None
+            self.fail(where, '<wait> needs seconds="..." or system, telemetry and a condition (equals, min, ...)')
+        subject = Subject("telemetry", el.get("telemetry") or "", system=el.get("system")) if reads else None
         return WaitInstruction(
-            kind=Kind.WAIT, seconds=float(seconds) if seconds is not None else None, subject=subject,
-            condition=condition, timeout=float(el.get("timeout", "60")), on_failure=el.get("on-failure"), **common,
+            kind=Kind.WAIT,
+            seconds=self.seconds(el, "seconds") if seconds is not None else None,
+            subject=subject,
+            condition=condition,
+            timeout=self.seconds(el, "timeout", "60"),
+            on_failure=el.get("on-failure"),
+            **common,
         )
 
     def record(self, el: etree._Element, common: dict[str, Any]) -> RecordInstruction:
@@ -234,12 +277,18 @@ class _Builder:
                 re.compile(pattern)
             except re.error as exc:
                 self.fail(self.pos.attribute(el, "pattern"), f"pattern is not a valid regular expression: {exc}")
-        choices = tuple(c.strip() for c in el.get("one-of").split(",")) if el.get("one-of") else None
+        one_of = el.get("one-of")
+        choices = tuple(c.strip() for c in one_of.split(",")) if one_of else None
+        minimum, maximum = el.get("min"), el.get("max")
         record = RecordInstruction(
-            kind=Kind.RECORD, name=el.get("name"), type=type_name,
-            minimum=float(el.get("min")) if el.get("min") is not None else None,
-            maximum=float(el.get("max")) if el.get("max") is not None else None,
-            pattern=pattern, choices=choices, **{**common, "automatable": False},
+            kind=Kind.RECORD,
+            name=self.required(el, "name"),
+            type=type_name,
+            minimum=float(minimum) if minimum is not None else None,
+            maximum=float(maximum) if maximum is not None else None,
+            pattern=pattern,
+            choices=choices,
+            **{**common, "automatable": False},
         )
         for choice in choices or ():
             try:
@@ -259,16 +308,16 @@ def _clean(text: str | None) -> str:
 
 
 def parse_procedure(path: str | Path) -> tuple[Procedure | None, list[Problem]]:
-    """Parse and check the structure of one procedure; the model is None when it has errors."""
+    """Read, parse and check the structure of one procedure; the model is None when it has errors."""
     path = Path(path)
-    tree, problems = schema.parse_xml(path)
+    tree, source, problems = read_xml(path)
     if tree is None:
         return None, problems
-    lines = path.read_text(encoding="utf-8").splitlines()
-    problems = schema.validate(path, tree, lines)
+    positions = Positions(source)
+    problems = schema.validate(tree, positions)
     if problems:
         return None, problems
-    builder = _Builder(path, lines)
+    builder = _Builder(path, positions)
     procedure = builder.procedure(tree.getroot())
     return (None if builder.problems else procedure), builder.problems
 

@@ -1,30 +1,25 @@
-"""The shape of the systems a procedure commands and reads: the PAX host, seen from PAX.
+"""The systems a procedure commands and reads, seen from PAX: one result type, one telemetry type.
 
-The executive never imports ROS or the JVM. It talks to a :class:`SystemGateway`: anything with
-the methods of ``bridge.pax_host.PaxHost`` (docs/interfaces.md). ``caretaker run --binding FILE``
-opens the real host with :func:`open_gateway`.
-
-The environment variable ``PRIDE_GATEWAY=module:factory`` replaces the host with another
-gateway factory called with the binding path; it exists so a runner can be driven against a
-gateway a test controls in a separate, killable process (tests/pride/test_resume.py).
+The executive never imports ROS or the JVM. It talks to a :class:`SystemGateway`; the real one
+is :class:`pride.pax_host.PaxHost` (the Java PAX plugins in this process), opened by
+:func:`pride.gateways.open_gateway`. Every gateway answers with the :class:`CommandResult` and
+:class:`TelemetryValue` defined here and calls its listeners with a :class:`TelemetryValue`, so no
+caller guesses at a result's shape. This module imports nothing of Caretaker: every gateway,
+the executive and the views depend on it, never the other way round.
 """
 
 from __future__ import annotations
 
-import importlib
-import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["CommandResult", "SystemGateway", "TelemetryListener", "TelemetryValue", "gateway_system_ids", "open_gateway"]
-
-GATEWAY_ENV = "PRIDE_GATEWAY"
+__all__ = ["CommandResult", "SystemGateway", "TelemetryListener", "TelemetryValue"]
 
 
 @dataclass(frozen=True)
 class CommandResult:
-    """What a system answered to a command: success, a message, and named values."""
+    """What a system answered to a command: it never claims a success the system did not report."""
 
     success: bool
     message: str = ""
@@ -33,55 +28,40 @@ class CommandResult:
 
 @dataclass(frozen=True)
 class TelemetryValue:
-    """The current value of a telemetry item; ``stale`` when it stopped updating."""
+    """A telemetry item's value, when it was valid (epoch seconds), and whether it is stale.
+
+    ``value`` and ``timestamp`` are None until the item is first received (then ``stale`` is True).
+    """
 
     value: Any
-    timestamp: float
+    timestamp: float | None
     stale: bool = False
 
 
-TelemetryListener = Callable[[str, str, Any], None]
+#: ``callback(sysrep_id, item_id, value)``, called on the gateway's thread on every change.
+TelemetryListener = Callable[[str, str, TelemetryValue], None]
 
 
 @runtime_checkable
 class SystemGateway(Protocol):
-    """The PAX host shape: commands out, telemetry in. Results may be any object with the same fields."""
+    """The PAX host shape: commands out, telemetry in."""
 
-    def sysreps(self) -> Any:
-        """The SysReps this gateway serves (ids, SysRep objects, or a mapping keyed by id)."""
+    def system_ids(self) -> frozenset[str]:
+        """The ids of the SysReps this gateway serves."""
 
-    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any]) -> Any:
-        """Send a command and block until the system answers with a CommandResult."""
+    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any]) -> CommandResult:
+        """Send a command and block until the system answers.
 
-    def telemetry(self, sysrep_id: str, item_id: str) -> Any:
-        """The current TelemetryValue of an item."""
+        The gateway checks every argument against the SysRep and converts it to its type: values
+        arrive as the procedure gives them (text written in the procedure, typed values of records,
+        inputs and results). It raises an exception, and sends nothing, for a value that does not fit.
+        """
+
+    def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
+        """The current value of an item."""
 
     def add_listener(self, callback: TelemetryListener) -> None:
         """Call ``callback(sysrep_id, item_id, value)`` whenever a telemetry item changes."""
 
     def close(self) -> None:
         """Release the connection to the systems."""
-
-
-def gateway_system_ids(gateway: SystemGateway) -> set[str]:
-    """The SysRep ids a gateway serves, whatever collection form its ``sysreps()`` returns."""
-    served = gateway.sysreps()
-    items: Iterable[Any] = served.keys() if isinstance(served, dict) else served
-    return {item if isinstance(item, str) else str(getattr(item, "id")) for item in items}
-
-
-def open_gateway(binding_path: str, *, rosbridge_url: str | None = None) -> SystemGateway:
-    """Open the gateway for a binding file: the PAX host, or the factory named by ``PRIDE_GATEWAY``.
-
-    ``rosbridge_url`` replaces the binding's rosbridge address (a robot served on another port).
-    """
-    spec = os.environ.get(GATEWAY_ENV)
-    if spec:
-        module_name, _, factory_name = spec.partition(":")
-        if not factory_name:
-            raise ValueError(f"{GATEWAY_ENV}={spec!r}: expected module:factory")
-        factory = getattr(importlib.import_module(module_name), factory_name)
-        return factory(binding_path)
-    from bridge.pax_host import PaxHost  # the JVM loads only when a real run needs it
-
-    return PaxHost(binding_path, rosbridge_url=rosbridge_url) if rosbridge_url else PaxHost(binding_path)

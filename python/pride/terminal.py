@@ -9,6 +9,7 @@ the run and says which option would have answered.
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
@@ -44,11 +45,17 @@ class ProgressPrinter:
             line = f"  {number:<8} {event.actor:<10} sent {data['system']}.{data['command']}({args})"
         elif kind is EventKind.COMMAND_RESULT:
             mark = "ok" if data["success"] else "FAILED"
-            line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (f" {data['values']}" if data["values"] else "")
+            line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (
+                f" {data['values']}" if data["values"] else ""
+            )
         elif kind is EventKind.TELEMETRY_SEEN:
-            line = f"  {number:<8} {'':<10} {data['system']}.{data['item']} = {data['value']!r}" + (" (stale)" if data["stale"] else "")
+            line = f"  {number:<8} {'':<10} {data['system']}.{data['item']} = {data['value']!r}" + (
+                " (stale)" if data["stale"] else ""
+            )
         elif kind is EventKind.INSTRUCTION_COMPLETED:
-            line = f"  {number:<8} {event.actor:<10} done" + (f", go to step {data['went_to']}" if data.get("went_to") else "")
+            line = f"  {number:<8} {event.actor:<10} done" + (
+                f", go to step {data['went_to']}" if data.get("went_to") else ""
+            )
         elif kind is EventKind.INSTRUCTION_FAILED:
             branch = f"; branching to step {data['branch']}" if data.get("branch") else ""
             line = f"  {number:<8} {event.actor:<10} FAILED: {data['reason']}{branch}"
@@ -60,14 +67,23 @@ class ProgressPrinter:
         elif kind is EventKind.AWAITING_OPERATOR:
             self._header(number)
             line = f"  {number:<8} {'PAX':<10} waiting for an operator: {data['reason']}"
-        elif kind in (EventKind.CONFIRMATION, EventKind.PAUSED, EventKind.CONTINUED, EventKind.BREAKPOINT_HIT,
-                      EventKind.RETRY, EventKind.MODE_CHANGED, EventKind.BREAKPOINT_SET):
+        elif kind in (
+            EventKind.CONFIRMATION,
+            EventKind.PAUSED,
+            EventKind.CONTINUED,
+            EventKind.BREAKPOINT_HIT,
+            EventKind.RETRY,
+            EventKind.MODE_CHANGED,
+            EventKind.BREAKPOINT_SET,
+        ):
             extra = data.get("mode", "")
             line = f"  {number:<8} {event.actor:<10} {kind.value.replace('_', ' ')} {extra}".rstrip()
         elif kind is EventKind.RUN_COMPLETED:
             line = f"Run {event.run_id} completed"
         elif kind is EventKind.RUN_STOPPED:
-            line = f"Run {event.run_id} stopped by {event.actor}" + (f": {data['reason']}" if data.get("reason") else "")
+            line = f"Run {event.run_id} stopped by {event.actor}" + (
+                f": {data['reason']}" if data.get("reason") else ""
+            )
         if line is not None:
             print(line, file=self.stream, flush=True)
 
@@ -92,8 +108,16 @@ class Unattended:
 class OperatorConsole:
     """Answers the executive's holds as ``user``, until the run ends."""
 
-    def __init__(self, executive: Executive, user: str, answers: Unattended, *, interactive: bool,
-                 stream: TextIO = sys.stdout, read: Any = input) -> None:
+    def __init__(
+        self,
+        executive: Executive,
+        user: str,
+        answers: Unattended,
+        *,
+        interactive: bool,
+        stream: TextIO = sys.stdout,
+        read: Callable[[str], str] = input,
+    ) -> None:
         self.executive = executive
         self.user = user
         self.answers = answers
@@ -170,14 +194,20 @@ class OperatorConsole:
         elif hold in (Hold.MANUAL_MODE, Hold.NOT_AUTOMATABLE):
             if self.interactive:
                 self._notices(instruction)
-                self._choose(snap, {"": ("perform", lambda: ex.perform(user)),
-                                    "a": ("switch to autonomous", lambda: ex.set_mode(user, Mode.AUTONOMOUS))})
+                self._choose(
+                    snap,
+                    {
+                        "": ("perform", lambda: ex.perform(user)),
+                        "a": ("switch to autonomous", lambda: ex.set_mode(user, Mode.AUTONOMOUS)),
+                    },
+                )
             else:
                 self._unattended_stop(snap, "run with --auto, or at a terminal")
         elif hold in (Hold.BREAKPOINT, Hold.PAUSED):
             if self.interactive:
-                self._choose(snap, {"c": ("continue", lambda: ex.resume_automation(user)),
-                                    "n": ("step", lambda: ex.step(user))})
+                self._choose(
+                    snap, {"c": ("continue", lambda: ex.resume_automation(user)), "n": ("step", lambda: ex.step(user))}
+                )
             else:
                 ex.resume_automation(user)
 

@@ -91,7 +91,7 @@ class AtClient:
             setattr(request, key, value)
         return self._call(self.clients[service], request, call_timeout, service)
 
-    def _call(self, client, request, timeout: float, name: str) -> Any:  # noqa: ANN001
+    def _call(self, client, request, timeout: float, name: str) -> Any:
         if not client.wait_for_service(timeout_sec=30.0):
             raise TimeoutError(f"service {name} not available")
         future = client.call_async(request)
@@ -109,7 +109,7 @@ class AtClient:
         request.camera, request.label = camera, label
         return self._call(self.capture_client, request, 60.0, "capture")
 
-    def register(self, type_name: str, instance_id: int, obj: str, frame: str, pose=None) -> Any:  # noqa: ANN001
+    def register(self, type_name: str, instance_id: int, obj: str, frame: str, pose=None) -> Any:
         info = DisplayObjectInfo()
         info.type, info.id, info.name = type_name, instance_id, obj
         info.stamped_pose.header.frame_id = frame

@@ -29,7 +29,7 @@ def at(ros_env):
     yield from start_stack(ros_env, "iva", 1.0)
 
 
-def _distance(a, b) -> float:  # noqa: ANN001 - geometry_msgs/Pose
+def _distance(a, b) -> float:
     return math.dist((a.position.x, a.position.y, a.position.z), (b.position.x, b.position.y, b.position.z))
 
 

@@ -5,18 +5,21 @@ from __future__ import annotations
 import sys
 
 import rclpy
+from affordance_template_msgs.srv import AddAffordanceTemplate
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-
-from affordance_template_msgs.srv import AddAffordanceTemplate
 
 
 class EchoServer(Node):
     def __init__(self) -> None:
         super().__init__("interface_echo_server")
-        self.srv = self.create_service(AddAffordanceTemplate, "/affordance_template_server/add_template", self.add_callback)
+        self.srv = self.create_service(
+            AddAffordanceTemplate, "/affordance_template_server/add_template", self.add_callback
+        )
 
-    def add_callback(self, request: AddAffordanceTemplate.Request, response: AddAffordanceTemplate.Response) -> AddAffordanceTemplate.Response:
+    def add_callback(
+        self, request: AddAffordanceTemplate.Request, response: AddAffordanceTemplate.Response
+    ) -> AddAffordanceTemplate.Response:
         response.success = request.class_type == "cdra_filter"
         response.id = 7
         response.instance = f"{request.class_type}:7"

@@ -28,8 +28,13 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _caretaker(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=timeout,
-                          stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def test_the_shipped_deployments_load_with_every_file_they_name() -> None:
@@ -47,22 +52,36 @@ def test_world_checks_named_in_deployments_are_the_ones_demo_knows() -> None:
     assert set(WORLD_CHECKS) == set(WORLD_CHECK_NAMES)
 
 
-@pytest.mark.parametrize(("changes", "key", "problem"), [
-    ({"scen": "x.yaml"}, "scen", "unknown key 'scen'"),
-    ({"scene": "nowhere.yaml"}, "scene", "no such file"),
-    ({"templates": None}, "templates", "missing required key"),
-    ({"bridge": {"port": 70000}}, "bridge.port", "above the maximum 65535"),
-    ({"bridge": {"port": 9090, "certfile": "/etc/hostname"}}, "bridge", "certfile and keyfile go together"),
-    ({"bridge": {"port": 9091}}, "bindings[0]", "this deployment's rosbridge port is 9091"),
-    ({"ros": {"namespace": "/arm2"}}, "bindings[0]", "outside this deployment's namespace /arm2"),
-    ({"ros": {"namespace": "arm2"}}, "ros.namespace", "starts with '/'"),
-    ({"ros": {"domain_id": "seven"}}, "ros.domain_id", "expected an integer"),
-    ({"demo": {"procedure": str(REPO / "procedures" / "iva_cdra_filter_replacement.xml"),
-               "binding": str(REPO / "sysrep" / "bindings" / "iva.yaml"), "check": "looks_fine"}}, "demo.check", "unknown value 'looks_fine'"),
-    ({"scene": str(REPO / "sim" / "scenes" / "eva.yaml")}, "robot", "but scene"),
-    ({"link": ["delay"]}, "link", "expected a mapping"),
-])
-def test_a_wrong_deployment_is_one_line_naming_file_line_and_key(tmp_path: Path, changes: dict, key: str, problem: str) -> None:
+@pytest.mark.parametrize(
+    ("changes", "key", "problem"),
+    [
+        ({"scen": "x.yaml"}, "scen", "unknown key 'scen'"),
+        ({"scene": "nowhere.yaml"}, "scene", "no such file"),
+        ({"templates": None}, "templates", "missing required key"),
+        ({"bridge": {"port": 70000}}, "bridge.port", "above the maximum 65535"),
+        ({"bridge": {"port": 9090, "certfile": "/etc/hostname"}}, "bridge", "certfile and keyfile go together"),
+        ({"bridge": {"port": 9091}}, "bindings[0]", "this deployment's rosbridge port is 9091"),
+        ({"ros": {"namespace": "/arm2"}}, "bindings[0]", "outside this deployment's namespace /arm2"),
+        ({"ros": {"namespace": "arm2"}}, "ros.namespace", "starts with '/'"),
+        ({"ros": {"domain_id": "seven"}}, "ros.domain_id", "expected an integer"),
+        (
+            {
+                "demo": {
+                    "procedure": str(REPO / "procedures" / "iva_cdra_filter_replacement.xml"),
+                    "binding": str(REPO / "sysrep" / "bindings" / "iva.yaml"),
+                    "check": "looks_fine",
+                }
+            },
+            "demo.check",
+            "unknown value 'looks_fine'",
+        ),
+        ({"scene": str(REPO / "sim" / "scenes" / "eva.yaml")}, "robot", "but scene"),
+        ({"link": ["delay"]}, "link", "expected a mapping"),
+    ],
+)
+def test_a_wrong_deployment_is_one_line_naming_file_line_and_key(
+    tmp_path: Path, changes: dict, key: str, problem: str
+) -> None:
     path = write_deployment(tmp_path, "iva", **changes)
     with pytest.raises(DataFileError) as info:
         load_deployment(path)
@@ -75,7 +94,9 @@ def test_paths_are_relative_to_the_deployment_file(tmp_path: Path) -> None:
     folder = tmp_path / "site"
     folder.mkdir()
     (folder / "templates").mkdir()
-    (folder / "templates" / "ready.json").write_text((default_library_path() / "templates" / "ready_pose.json").read_text())
+    (folder / "templates" / "ready.json").write_text(
+        (default_library_path() / "templates" / "ready_pose.json").read_text()
+    )
     path = write_deployment(folder, "iva", templates="templates", capture_dir="captures", state_dir="state")
     deployment = load_deployment(path)
     assert deployment.templates == folder / "templates"
@@ -90,10 +111,21 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
     binding["rosbridge"] = "wss://127.0.0.1:9443"
     binding["systems"] = [dict(s, sysrep=str(REPO / "sysrep" / Path(s["sysrep"]).name)) for s in binding["systems"]]
     (tmp_path / "binding.yaml").write_text(yaml.safe_dump(binding))
-    path = write_deployment(tmp_path, "iva", bridge={"address": "127.0.0.1", "port": 9443, "certfile": str(cert), "keyfile": str(key),
-                                                     "auth_secret_file": str(secret)},
-                            bindings=[str(tmp_path / "binding.yaml")], demo=None, ros={"namespace": "/iva", "domain_id": 42},
-                            capture_dir=str(tmp_path / "captures"))
+    path = write_deployment(
+        tmp_path,
+        "iva",
+        bridge={
+            "address": "127.0.0.1",
+            "port": 9443,
+            "certfile": str(cert),
+            "keyfile": str(key),
+            "auth_secret_file": str(secret),
+        },
+        bindings=[str(tmp_path / "binding.yaml")],
+        demo=None,
+        ros={"namespace": "/iva", "domain_id": 42},
+        capture_dir=str(tmp_path / "captures"),
+    )
     deployment = load_deployment(path, check_files=False)
     stack = Stack(deployment, time_scale=0.0, env={})
     try:
@@ -101,13 +133,24 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
     finally:
         stack.stop()
     assert [p.name for p in PARTS] == list(lines) == ["sim", "planner", "at-server", "bridge"]
-    assert lines["bridge"] == ["bridge", "--address", "127.0.0.1", "--port", "9443", "--certfile", str(cert),
-                               "--keyfile", str(key), "--auth-secret-file", str(secret)]
+    assert lines["bridge"] == [
+        "bridge",
+        "--address",
+        "127.0.0.1",
+        "--port",
+        "9443",
+        "--certfile",
+        str(cert),
+        "--keyfile",
+        str(key),
+        "--auth-secret-file",
+        str(secret),
+    ]
     assert lines["sim"][:4] == ["sim", "--scene", str(deployment.scene), "--time-scale"] and "/iva" in lines["sim"]
     assert ["--capture-dir", str(tmp_path / "captures")] == lines["sim"][-2:]
     for part in ("planner", "at-server"):
         assert lines[part][1:5] == ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
-        assert ["--namespace", "/iva"] == lines[part][lines[part].index("--namespace"):][:2]
+        assert lines[part][lines[part].index("--namespace") :][:2] == ["--namespace", "/iva"]
     assert lines["at-server"][-2] == "--state-file"
     assert stack.env["ROS_DOMAIN_ID"] == "42"
     assert stack.bridge_url == "wss://127.0.0.1:9443"
@@ -115,14 +158,17 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         Stack(deployment, parts=["sim", "ledgr"], env={})
 
 
-@pytest.mark.parametrize("argv", [
-    ["planner", "--robot", "ur10", "--bogus"],
-    ["at-server", "--robot", "ur10", "--bogus"],
-    ["sim", "--scene", "iva", "--bogus"],
-    ["up", "iva", "--bogus"],
-    ["demo", "iva", "--bogus"],
-    ["check", "--bogus", "x.yaml"],
-])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["planner", "--robot", "ur10", "--bogus"],
+        ["at-server", "--robot", "ur10", "--bogus"],
+        ["sim", "--scene", "iva", "--bogus"],
+        ["up", "iva", "--bogus"],
+        ["demo", "iva", "--bogus"],
+        ["check", "--bogus", "x.yaml"],
+    ],
+)
 def test_an_unknown_option_is_an_error_for_every_part(argv: list[str]) -> None:
     proc = _caretaker(*argv)
     assert proc.returncode == 2 and "unrecognized arguments: --bogus" in proc.stderr, proc.stderr
@@ -132,8 +178,14 @@ def test_caretaker_up_refuses_a_broken_deployment_before_starting_anything(tmp_p
     path = write_deployment(tmp_path, "iva", scene="nowhere.yaml")
     proc = _caretaker("up", str(path))
     assert proc.returncode == 1
-    assert proc.stderr.strip() == f"caretaker up: {path}:2: scene: no such file: {tmp_path / 'nowhere.yaml'} ('nowhere.yaml' relative to {tmp_path})"
-    assert _caretaker("up", "moon").stderr.startswith("caretaker up: moon: no such deployment; give a deployment file or one of eva, iva")
+    assert (
+        proc.stderr.strip()
+        == f"caretaker up: {path}:2: scene: no such file: {tmp_path / 'nowhere.yaml'} "
+        f"('nowhere.yaml' relative to {tmp_path})"
+    )
+    assert _caretaker("up", "moon").stderr.startswith(
+        "caretaker up: moon: no such deployment; give a deployment file or one of eva, iva"
+    )
 
 
 def _robot_args(*argv: str) -> argparse.Namespace:

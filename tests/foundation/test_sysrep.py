@@ -15,17 +15,52 @@ EXPECTED = yaml.safe_load((FIXTURES / "invalid" / "expected_errors.yaml").read_t
 
 # Fig. 1 of the paper, transcribed independently of the YAML file.
 FIG1_COMMANDS = [
-    ("add_affordance_template", "Add Affordance Template", [("affordance_template", "string"), ("hide_waypoints", "boolean")]),
-    ("delete_affordance_template", "Delete Affordance Template", [("affordance_template", "string"), ("id", "integer")]),
+    (
+        "add_affordance_template",
+        "Add Affordance Template",
+        [("affordance_template", "string"), ("hide_waypoints", "boolean")],
+    ),
+    (
+        "delete_affordance_template",
+        "Delete Affordance Template",
+        [("affordance_template", "string"), ("id", "integer")],
+    ),
     ("plan_trajectory", "Plan Trajectory", [("affordance_template", "string"), ("trajectory", "string")]),
     ("execute_plan", "Execute Plan", [("affordance_template", "string"), ("trajectory", "string")]),
-    ("set_waypoint_pose", "Set Waypoint Pose", [
-        ("affordance_template", "string"), ("id", "integer"), ("trajectory", "string"), ("waypoint_id", "integer"),
-        ("ee_name", "string"), ("x", "real"), ("y", "real"), ("z", "real"),
-        ("roll", "real"), ("pitch", "real"), ("yaw", "real"), ("frame_id", "string")]),
-    ("set_display_object_pose", "Set Display Object Pose", [
-        ("affordance_template", "string"), ("id", "integer"), ("display_object", "string"), ("frame", "string"),
-        ("x", "real"), ("y", "real"), ("z", "real"), ("roll", "real"), ("pitch", "real"), ("yaw", "real")]),
+    (
+        "set_waypoint_pose",
+        "Set Waypoint Pose",
+        [
+            ("affordance_template", "string"),
+            ("id", "integer"),
+            ("trajectory", "string"),
+            ("waypoint_id", "integer"),
+            ("ee_name", "string"),
+            ("x", "real"),
+            ("y", "real"),
+            ("z", "real"),
+            ("roll", "real"),
+            ("pitch", "real"),
+            ("yaw", "real"),
+            ("frame_id", "string"),
+        ],
+    ),
+    (
+        "set_display_object_pose",
+        "Set Display Object Pose",
+        [
+            ("affordance_template", "string"),
+            ("id", "integer"),
+            ("display_object", "string"),
+            ("frame", "string"),
+            ("x", "real"),
+            ("y", "real"),
+            ("z", "real"),
+            ("roll", "real"),
+            ("pitch", "real"),
+            ("yaw", "real"),
+        ],
+    ),
 ]
 FIG1_TELEMETRY = [
     ("robot_active", "Robot Active", "boolean"),
@@ -92,8 +127,15 @@ def test_duplicate_sysrep_ids_in_a_folder(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("type_name", "value", "expected"),
-    [("integer", "3", 3), ("integer", 4.0, 4), ("real", "2.5", 2.5), ("real", 1, 1.0),
-     ("boolean", "TRUE", True), ("boolean", False, False), ("string", "x", "x")],
+    [
+        ("integer", "3", 3),
+        ("integer", 4.0, 4),
+        ("real", "2.5", 2.5),
+        ("real", 1, 1.0),
+        ("boolean", "TRUE", True),
+        ("boolean", False, False),
+        ("string", "x", "x"),
+    ],
 )
 def test_check_value_converts(type_name: str, value: object, expected: object) -> None:
     assert check_value("v", type_name, value) == expected
@@ -101,9 +143,16 @@ def test_check_value_converts(type_name: str, value: object, expected: object) -
 
 @pytest.mark.parametrize(
     ("type_name", "value", "problem"),
-    [("integer", True, "expected integer"), ("integer", 2.5, "expected integer"), ("integer", "x", "expected integer"),
-     ("real", True, "expected real"), ("real", "abc", "expected real"), ("boolean", "yes", "expected boolean"),
-     ("string", 3, "expected string"), ("vector", 1, "unknown type")],
+    [
+        ("integer", True, "expected integer"),
+        ("integer", 2.5, "expected integer"),
+        ("integer", "x", "expected integer"),
+        ("real", True, "expected real"),
+        ("real", "abc", "expected real"),
+        ("boolean", "yes", "expected boolean"),
+        ("string", 3, "expected string"),
+        ("vector", 1, "unknown type"),
+    ],
 )
 def test_check_value_rejects(type_name: str, value: object, problem: str) -> None:
     with pytest.raises(ValueError, match=problem):

@@ -73,7 +73,7 @@ def via_roslibjs(url: str) -> dict:
 
 
 def via_pax_plugins(url: str) -> dict:
-    from bridge.pax_host import PaxHost
+    from pride.pax_host import PaxHost
 
     with PaxHost(REPO / "sysrep" / "bindings" / "iva.yaml", rosbridge_url=url) as host:
         added = host.execute("affordance_templates", "add_affordance_template",

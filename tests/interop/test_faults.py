@@ -20,11 +20,10 @@ import pytest
 
 from caretaker.processes import REPO, VENV_BIN, caretaker
 from caretaker.stack import Stack
+from interop.terminal_session import TerminalSession
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from support.stack import robot_parts
-
-from interop.terminal_session import TerminalSession
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -69,7 +69,7 @@ def _frames(url: str, timeout: float = 30.0) -> dict[str, tuple[float, float, fl
     finally:
         topic.unsubscribe()
         ros.close()
-    return {name: tuple(pose["position"][k] for k in "xyz") for name, pose in zip(received["names"], received["poses"])}
+    return {name: tuple(pose["position"][k] for k in "xyz") for name, pose in zip(received["names"], received["poses"], strict=True)}
 
 
 def test_the_wrist_range_excludes_the_ik_solution_nearest_the_start(robot_folder: Path) -> None:

@@ -126,8 +126,11 @@ def test_loss_stalls_follow_the_seed() -> None:
         assert up + down > 0
         # in lockstep each message waits out its longest stall each way, one message after another
         starts = _segment_starts(message, count)
-        waits = sum(max(fate.stall for start, fate in zip(starts, fates[direction]) if start // message == index)
-                    for direction in Direction for index in range(count))
+        waits = sum(
+            max(fate.stall for start, fate in zip(starts, fates[direction], strict=False) if start // message == index)
+            for direction in Direction
+            for index in range(count)
+        )
         assert elapsed >= waits
 
 

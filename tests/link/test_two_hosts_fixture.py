@@ -16,16 +16,15 @@ def _namespaces() -> set[str]:
 
 
 def test_teardown_removes_namespaces_and_processes_even_when_the_test_fails(ros_env: dict[str, str]) -> None:
-    with pytest.raises(RuntimeError, match="the test failed"):
-        with TwoHosts.create(ros_env) as hosts:
-            names = {hosts.ground.namespace, hosts.link.namespace, hosts.habitat.namespace}
-            assert names <= _namespaces()
-            sleeper = hosts.start(hosts.habitat, ["sleep", "600"], ready=None)
-            veths = {host.role: hosts.run(host, ["ip", "-o", "link", "show", "type", "veth"]).stdout.count("\n")
-                     for host in (hosts.ground, hosts.link, hosts.habitat)}
-            assert veths == {"ground": 1, "link": 2, "habitat": 1}
-            assert hosts.run(hosts.ground, ["ip", "route"]).stdout.split()[0] == "10.77.1.0/24"  # no default route
-            raise RuntimeError("the test failed")
+    with pytest.raises(RuntimeError, match="the test failed"), TwoHosts.create(ros_env) as hosts:
+        names = {hosts.ground.namespace, hosts.link.namespace, hosts.habitat.namespace}
+        assert names <= _namespaces()
+        sleeper = hosts.start(hosts.habitat, ["sleep", "600"], ready=None)
+        veths = {host.role: hosts.run(host, ["ip", "-o", "link", "show", "type", "veth"]).stdout.count("\n")
+                 for host in (hosts.ground, hosts.link, hosts.habitat)}
+        assert veths == {"ground": 1, "link": 2, "habitat": 1}
+        assert hosts.run(hosts.ground, ["ip", "route"]).stdout.split()[0] == "10.77.1.0/24"  # no default route
+        raise RuntimeError("the test failed")
     assert not names & _namespaces()
     assert not sleeper.running
     assert not hosts.folder.exists()

@@ -6,16 +6,16 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import rclpy
+from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Bool, String
 
 from at_ros.api import LATCHED, PREFIX, SERVICES
-from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
-
 
 
 class RobotProbe:

@@ -15,10 +15,11 @@ import time
 from pathlib import Path
 
 import pytest
-
-from bridge.pax_host import PaxHost, TelemetryValue
-from pax_stack import BINDINGS, REPO, Stack, ros_env_module, stack  # noqa: F401 (fixtures used by name)
 from pax_probe import RobotProbe
+from pax_stack import BINDINGS, REPO, Stack, ros_env_module, stack  # noqa: F401 (fixtures used by name)
+
+from pride.pax_host import PaxHost
+from pride.systems import TelemetryValue
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -51,7 +52,9 @@ def host(stack: Stack, binding: Path) -> PaxHost:
 @pytest.fixture(scope="module")
 def probe(stack: Stack) -> RobotProbe:
     robot = RobotProbe()
-    robot.wait_for(lambda: robot.status is not None and robot.status.planner_node_active, 60.0, "AT status with planner")
+    robot.wait_for(
+        lambda: robot.status is not None and robot.status.planner_node_active, 60.0, "AT status with planner"
+    )
     yield robot
     robot.close()
 
@@ -87,7 +90,7 @@ class Changes:
                 return time.monotonic()
         raise TimeoutError(f"{sysrep}.{item} did not become {value!r} (stale={stale}) within {timeout} s")
 
-    def until(self, predicate, what: str, timeout: float = 10.0) -> None:  # noqa: ANN001
+    def until(self, predicate, what: str, timeout: float = 10.0) -> None:
         """Block until ``predicate()`` (a read of PaxHost telemetry) holds, re-checking on each change."""
         deadline = time.monotonic() + timeout
         with self.condition:
@@ -103,7 +106,7 @@ def changes(host: PaxHost) -> Changes:
     return Changes(host)
 
 
-def _positions(status_response) -> list[float]:  # noqa: ANN001 - GetAffordanceTemplateStatus
+def _positions(status_response) -> list[float]:
     """Every object and waypoint position of a template status, in the robot frame, as x, y, z, x, ..."""
     status = status_response.affordance_template_status[0]
     points = [o.object_pose.pose.position for o in status.object_info]
@@ -112,21 +115,27 @@ def _positions(status_response) -> list[float]:  # noqa: ANN001 - GetAffordanceT
 
 
 def test_sysreps_of_the_binding(host: PaxHost) -> None:
-    assert set(host.sysreps()) == {AT, "cdra", "camera"}
-    assert [c.id for c in host.sysreps()[AT].commands][:2] == ["add_affordance_template", "delete_affordance_template"]
+    assert host.system_ids() == {AT, "cdra", "camera"}
 
 
 def test_telemetry_follows_the_status_topic(host: PaxHost, probe: RobotProbe) -> None:
     probe.wait_for(lambda: probe.status is not None, 30.0, "a status")
     deadline = time.monotonic() + 30.0
-    items = ("robot_active", "planner_node_active", "affordance_template_server_active", "execute_status", "plan_status", "plan_valid")
+    items = (
+        "robot_active",
+        "planner_node_active",
+        "affordance_template_server_active",
+        "execute_status",
+        "plan_status",
+        "plan_valid",
+    )
     while True:
         status = probe.status
         seen = {item: host.telemetry(AT, item) for item in items}
         expected = {item: getattr(status, item) for item in items}
         if {k: v.value for k, v in seen.items()} == expected or time.monotonic() > deadline:
             break
-        probe.wait_for(lambda: probe.status is not status, 5.0, "the next status")
+        probe.wait_for(lambda status=status: probe.status is not status, 5.0, "the next status")
     assert {k: v.value for k, v in seen.items()} == expected
     assert not any(v.stale for v in seen.values())
     assert all(abs(v.timestamp - time.time()) < 60 for v in seen.values())
@@ -143,44 +152,80 @@ def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe
         pax = f"cdra_filter:{pax_id}"
 
         # set_display_object_pose: register both on the dirty filter in the cabinet.
-        registered = host.execute(AT, "set_display_object_pose", {
-            "affordance_template": pax, "id": -1, "display_object": "cdra_filter", "frame": f"filter/{DIRTY}", **ZERO_POSE})
+        registered = host.execute(
+            AT,
+            "set_display_object_pose",
+            {
+                "affordance_template": pax,
+                "id": -1,
+                "display_object": "cdra_filter",
+                "frame": f"filter/{DIRTY}",
+                **ZERO_POSE,
+            },
+        )
         assert registered.success, registered.message
         assert probe.register("cdra_filter", twin.id, "cdra_filter", f"filter/{DIRTY}").success
 
         # set_waypoint_pose: move waypoint 0 of both by the same offset in its display object's frame.
         offset = dict(x=-0.3, y=0.0, z=0.05, roll=0.0, pitch=0.0, yaw=math.pi / 2)
-        moved = host.execute(AT, "set_waypoint_pose", {
-            "affordance_template": "cdra_filter", "id": pax_id, "trajectory": "grasp_and_pull", "waypoint_id": 0,
-            "ee_name": "", "frame_id": "", **offset})
+        moved = host.execute(
+            AT,
+            "set_waypoint_pose",
+            {
+                "affordance_template": "cdra_filter",
+                "id": pax_id,
+                "trajectory": "grasp_and_pull",
+                "waypoint_id": 0,
+                "ee_name": "",
+                "frame_id": "",
+                **offset,
+            },
+        )
         assert moved.success, moved.message
         from geometry_msgs.msg import PoseStamped
 
         pose = PoseStamped()
         pose.pose.position.x, pose.pose.position.z = -0.3, 0.05
         pose.pose.orientation.z, pose.pose.orientation.w = math.sin(math.pi / 4), math.cos(math.pi / 4)
-        direct = probe.call("set_waypoint_pose", type="cdra_filter", id=twin.id, trajectory_name="grasp_and_pull",
-                            waypoint_id=0, end_effector="", pose=pose)
+        direct = probe.call(
+            "set_waypoint_pose",
+            type="cdra_filter",
+            id=twin.id,
+            trajectory_name="grasp_and_pull",
+            waypoint_id=0,
+            end_effector="",
+            pose=pose,
+        )
         assert direct.success, direct.message
         ours = probe.call("get_template_status", name=pax, trajectory_name="grasp_and_pull")
         theirs = probe.call("get_template_status", name=twin.instance, trajectory_name="grasp_and_pull")
         assert _positions(ours) == pytest.approx(_positions(theirs), abs=1e-6)
 
         # Ambiguity is a failure with a message, never a guess.
-        ambiguous = host.execute(AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "grasp_and_pull"})
+        ambiguous = host.execute(
+            AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "grasp_and_pull"}
+        )
         assert not ambiguous.success and "ambiguous" in ambiguous.message and twin.instance in ambiguous.message
         unknown = host.execute(AT, "plan_trajectory", {"affordance_template": "hatch", "trajectory": "open"})
         assert not unknown.success and "no running instance of template 'hatch'" in unknown.message
         assert probe.call("delete_template", class_type="cdra_filter", id=twin.id).success
 
         # plan_trajectory by type (now the only instance); the server's own failure comes back verbatim.
-        bad = host.execute(AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "no_such_trajectory"})
+        bad = host.execute(
+            AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "no_such_trajectory"}
+        )
         assert not bad.success and "no_such_trajectory" in bad.message
-        planned = host.execute(AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "grasp_and_pull"})
+        planned = host.execute(
+            AT, "plan_trajectory", {"affordance_template": "cdra_filter", "trajectory": "grasp_and_pull"}
+        )
         assert planned.success, planned.message
         end_pose = planned.values.pop("end_pose")
-        assert planned.values == {"plan_status": "PLANNED", "plan_valid": True, "instance": pax,
-                                  "end_pose_frame": "robot_base"}
+        assert planned.values == {
+            "plan_status": "PLANNED",
+            "plan_valid": True,
+            "instance": pax,
+            "end_pose_frame": "robot_base",
+        }
         assert len(end_pose) == 6 and all(isinstance(v, float) for v in end_pose)
         probe.wait_for(lambda: probe.status.plan_valid, 10.0, "plan_valid in the status")
 
@@ -188,13 +233,17 @@ def test_every_at_command_has_the_effect_of_the_direct_call(host: PaxHost, probe
         unlocked = host.execute("cdra", "unlock_filter", {})
         assert unlocked.success, unlocked.message
         probe.wait_for(lambda: probe.filter_locked is False, 10.0, "/cdra/filter_locked false")
-        changes.until(lambda: host.telemetry("cdra", "filter_locked").value is False, "cdra.filter_locked false via PAX")
+        changes.until(
+            lambda: host.telemetry("cdra", "filter_locked").value is False, "cdra.filter_locked false via PAX"
+        )
 
         executed = host.execute(AT, "execute_plan", {"affordance_template": pax, "trajectory": "grasp_and_pull"})
         assert executed.success, executed.message
         assert executed.values["execute_status"] == "SUCCEEDED"
         probe.wait_for(lambda: probe.held_object == DIRTY, 10.0, "the dirty filter in the gripper")
-        changes.until(lambda: host.telemetry(AT, "execute_status").value == "SUCCEEDED", "execute_status SUCCEEDED via PAX")
+        changes.until(
+            lambda: host.telemetry(AT, "execute_status").value == "SUCCEEDED", "execute_status SUCCEEDED via PAX"
+        )
         again = host.execute(AT, "execute_plan", {"affordance_template": pax, "trajectory": "grasp_and_pull"})
         assert not again.success and again.message  # a plan runs once: the server says so, PAX repeats it
     finally:
@@ -216,7 +265,7 @@ def test_camera_capture_by_convention(host: PaxHost, tmp_path: Path) -> None:
     assert not wrong.success and "no_such_camera" in wrong.message
 
 
-def _retry_while(reason: str, command, timeout: float = 30.0):  # noqa: ANN001, ANN202
+def _retry_while(reason: str, command, timeout: float = 30.0):
     """Repeat a command while it fails for a transient ``reason`` (a process still starting up)."""
     deadline = time.monotonic() + timeout
     while True:
@@ -226,7 +275,9 @@ def _retry_while(reason: str, command, timeout: float = 30.0):  # noqa: ANN001, 
         threading.Event().wait(0.2)
 
 
-def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: PaxHost, stack: Stack, changes: Changes) -> None:
+def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(
+    host: PaxHost, stack: Stack, changes: Changes
+) -> None:
     changes.until(lambda: host.telemetry(AT, "affordance_template_server_active").value is True, "server active")
     changes.forget()
     killed_at = time.monotonic()
@@ -236,18 +287,28 @@ def test_killing_the_at_server_marks_values_stale_and_a_restart_recovers(host: P
     for item in ("robot_active", "planner_node_active", "execute_status", "plan_status", "plan_valid"):
         assert host.telemetry(AT, item).stale, item
     assert host.telemetry(AT, "affordance_template_server_active").value is False
-    refused = host.execute(AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False})
+    refused = host.execute(
+        AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False}
+    )
     assert not refused.success and refused.message  # the server is gone: a failure, never a fake success
 
     stack.start_part("at-server")
     changes.wait(AT, "affordance_template_server_active", True, stale=False, timeout=60.0)
-    changes.until(lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again")
+    changes.until(
+        lambda: not any(host.telemetry(AT, i).stale for i in ("plan_status", "robot_active")), "fresh values again"
+    )
     # The new server may answer before it has heard /sim/frames; it then refuses with a reason.
     # Retry on that answer until it accepts (same JVM, same connection throughout).
-    added = _retry_while("no frames received", lambda: host.execute(
-        AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False}))
+    added = _retry_while(
+        "no frames received",
+        lambda: host.execute(
+            AT, "add_affordance_template", {"affordance_template": "ready_pose", "hide_waypoints": False}
+        ),
+    )
     assert added.success, added.message
-    assert host.execute(AT, "delete_affordance_template", {"affordance_template": added.values["instance"], "id": -1}).success
+    assert host.execute(
+        AT, "delete_affordance_template", {"affordance_template": added.values["instance"], "id": -1}
+    ).success
 
 
 def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, stack: Stack, changes: Changes) -> None:
@@ -265,5 +326,9 @@ def test_a_restarted_rosbridge_is_reconnected_and_resubscribed(host: PaxHost, st
     locked = _retry_while("does not exist", lambda: host.execute("cdra", "lock_filter", {}))
     assert locked.success, locked.message
     # The /cdra subscriptions were re-sent: the latch's new state arrives fresh.
-    changes.until(lambda: host.telemetry("cdra", "filter_locked").value is True
-                  and not host.telemetry("cdra", "filter_locked").stale, "cdra.filter_locked true and fresh")
+    changes.until(
+        lambda: (
+            host.telemetry("cdra", "filter_locked").value is True and not host.telemetry("cdra", "filter_locked").stale
+        ),
+        "cdra.filter_locked true and fresh",
+    )

@@ -1,4 +1,4 @@
-"""bridge.pax_host without a robot: the JVM and classpath, value conversion both ways, Java
+"""pride.pax_host without a robot: the JVM and classpath, value conversion both ways, Java
 errors as PaxError, listeners. Tests that need a rosbridge server use the real one
 (`caretaker bridge --port 0`) with no ROS services behind it."""
 
@@ -10,12 +10,13 @@ from pathlib import Path
 
 import jpype
 import pytest
-
-import bridge.jvm
-from bridge.pax_host import CommandResult, PaxError, PaxHost, TelemetryValue, to_java, to_python
 from pax_stack import REPO, ros_env_module  # noqa: F401 (fixtures used by name)
-from support.stack import robot_parts
+
+import pride.jvm
+from pride.pax_host import PaxError, PaxHost, to_java, to_python
 from pride.sysrep import SysRepError, load_sysrep
+from pride.systems import CommandResult, TelemetryValue
+from support.stack import robot_parts
 
 AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"
 CDRA_SYSREP = REPO / "sysrep" / "cdra.yaml"
@@ -34,26 +35,28 @@ def write_binding(directory: Path, body: str) -> Path:
 
 
 def binding_text(stale_after: float = 1.0) -> str:
-    return (f"robot: test\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
-            f"- sysrep: {AT_SYSREP}\n  plugins: [at_commands, at_telemetry]\n"
-            f"  namespace: /affordance_template_server\n  options: {{stale_after: {stale_after}, call_timeout: 5}}\n"
-            f"- sysrep: {CDRA_SYSREP}\n  plugins: [ros_convention]\n  namespace: /cdra\n  options: {{call_timeout: 5}}\n")
+    return (
+        f"robot: test\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
+        f"- sysrep: {AT_SYSREP}\n  plugins: [at_commands, at_telemetry]\n"
+        f"  namespace: /affordance_template_server\n  options: {{stale_after: {stale_after}, call_timeout: 5}}\n"
+        f"- sysrep: {CDRA_SYSREP}\n  plugins: [ros_convention]\n  namespace: /cdra\n  options: {{call_timeout: 5}}\n"
+    )
 
 
 def test_missing_jar_says_how_to_build_it(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.setattr(bridge.jvm, "PLUGIN_JAR", tmp_path / "pax-plugins.jar")
-    with pytest.raises(bridge.jvm.JarNotBuiltError, match="make setup"):
-        bridge.jvm.classpath()
+    monkeypatch.setattr(pride.jvm, "PLUGIN_JAR", tmp_path / "pax-plugins.jar")
+    with pytest.raises(pride.jvm.JarNotBuiltError, match="make setup"):
+        pride.jvm.classpath()
 
 
 def test_classpath_is_the_jar_and_debian_jars() -> None:
-    path = bridge.jvm.classpath()
+    path = pride.jvm.classpath()
     assert path[0].endswith("java/pax-plugins/target/pax-plugins.jar")
     assert {Path(p).name for p in path[1:]} == {"gson.jar", "snakeyaml.jar"}
 
 
 def test_values_convert_to_sysrep_java_types_and_back() -> None:
-    bridge.jvm.start_jvm()
+    pride.jvm.start_jvm()
     assert to_java("flag", True).getClass().getName() == "java.lang.Boolean"
     assert to_java("n", 3).getClass().getName() == "java.lang.Long"
     assert to_java("x", 2.5).getClass().getName() == "java.lang.Double"
@@ -68,8 +71,9 @@ def test_values_convert_to_sysrep_java_types_and_back() -> None:
 
 def test_a_bad_sysrep_in_a_binding_reads_like_the_python_loader(tmp_path: Path) -> None:
     invalid = REPO / "tests/fixtures/sysrep/invalid/unknown_type.yaml"
-    binding = write_binding(tmp_path, f"robot: t\nrosbridge: ws://127.0.0.1:9\nsystems:\n"
-                                      f"- sysrep: {invalid}\n  plugins: [ros_convention]\n")
+    binding = write_binding(
+        tmp_path, f"robot: t\nrosbridge: ws://127.0.0.1:9\nsystems:\n- sysrep: {invalid}\n  plugins: [ros_convention]\n"
+    )
     with pytest.raises(PaxError) as java_error:
         PaxHost(binding)
     with pytest.raises(SysRepError) as python_error:
@@ -96,7 +100,7 @@ def test_unreachable_rosbridge_is_a_clear_error(tmp_path: Path) -> None:
 def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
     host = PaxHost(write_binding(tmp_path, binding_text(stale_after=1.0)), rosbridge_url=url)
     try:
-        assert set(host.sysreps()) == {"affordance_templates", "cdra"}
+        assert host.system_ids() == {"affordance_templates", "cdra"}
         changes: queue.Queue[tuple[str, str, TelemetryValue]] = queue.Queue()
 
         def broken_listener(sysrep: str, item: str, value: TelemetryValue) -> None:
@@ -106,7 +110,7 @@ def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog
         host.add_listener(lambda sysrep, item, value: changes.put((sysrep, item, value)))
 
         # No AT server: after stale_after the server reads inactive (a fresh false), the rest stale.
-        with caplog.at_level(logging.ERROR, logger="bridge.pax_host"):
+        with caplog.at_level(logging.ERROR, logger="pride.pax_host"):
             sysrep, item, value = changes.get(timeout=15.0)
         assert (sysrep, item) == ("affordance_templates", "affordance_template_server_active")
         assert value.value is False and value.stale is False and isinstance(value.timestamp, float)
@@ -121,7 +125,9 @@ def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog
         with pytest.raises(PaxError, match="missing argument 'trajectory'"):
             host.execute("affordance_templates", "plan_trajectory", {"affordance_template": "cdra_filter"})
         with pytest.raises(PaxError, match="id: expected integer, got 'zero'"):
-            host.execute("affordance_templates", "delete_affordance_template", {"affordance_template": "x", "id": "zero"})
+            host.execute(
+                "affordance_templates", "delete_affordance_template", {"affordance_template": "x", "id": "zero"}
+            )
         with pytest.raises(PaxError, match="has no command 'open_hatch'"):
             host.execute("cdra", "open_hatch", {})
         with pytest.raises(PaxError, match="'eclss' is not bound"):

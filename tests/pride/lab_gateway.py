@@ -11,14 +11,14 @@ never answers, so a test can kill the runner while it is in flight) and ``LAB_GA
 from __future__ import annotations
 
 import os
+import struct
 import threading
 import time
 import zlib
-import struct
 from pathlib import Path
 from typing import Any
 
-from pride.systems import CommandResult, TelemetryValue
+from pride.systems import CommandResult, TelemetryListener, TelemetryValue
 
 
 class LabGateway:
@@ -30,13 +30,13 @@ class LabGateway:
         self.block: set[str] = set()
         self.release = threading.Event()  # unblocks in-process blocked commands
         self.image_dir = Path(image_dir or os.environ.get("LAB_GATEWAY_IMAGES", "."))
-        self._listeners: list[Any] = []
+        self._listeners: list[TelemetryListener] = []
         self._lock = threading.Lock()
         self.closed = False
         self.announce = False  # print a line per command, for a runner subprocess's output
 
-    def sysreps(self) -> list[str]:
-        return ["lab"]
+    def system_ids(self) -> frozenset[str]:
+        return frozenset({"lab"})
 
     def set(self, item: str, value: Any) -> None:
         with self._lock:
@@ -71,7 +71,7 @@ class LabGateway:
         with self._lock:
             return TelemetryValue(self.values[item_id], time.time(), item_id in self.stale)
 
-    def add_listener(self, callback: Any) -> None:
+    def add_listener(self, callback: TelemetryListener) -> None:
         self._listeners.append(callback)
 
     def close(self) -> None:

@@ -9,13 +9,13 @@ from __future__ import annotations
 import threading
 
 import pytest
+from lab_gateway import LabGateway
 
 from conftest import FIXTURES
-from lab_gateway import LabGateway
 from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
-from pride.parser import load_procedure
+from pride.lint import check_procedure
 
 TIMEOUT = 20.0
 
@@ -40,7 +40,7 @@ def bench(tmp_path, sysreps):
     def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None):
         gateway = gateway or LabGateway(str(tmp_path / "images"))
         journal = ListJournal()
-        executive = Executive(load_procedure(FIXTURES / name), gateway, journal, run_id="run-1", mode=mode, sysreps=sysreps)
+        executive = Executive(check_procedure(FIXTURES / name, sysreps), gateway, journal, run_id="run-1", mode=mode)
         made.append(executive)
         return executive, gateway, journal
 
@@ -158,7 +158,8 @@ def test_breakpoint_holds_then_step_and_continue(bench) -> None:
     executive.resume_automation("erin")
     held(executive, Hold.CONFIRMATION, "2.1")
     kinds = journal.kinds()
-    assert kinds.index(EventKind.BREAKPOINT_SET) < kinds.index(EventKind.BREAKPOINT_HIT) < kinds.index(EventKind.CONTINUED)
+    order = [kinds.index(kind) for kind in (EventKind.BREAKPOINT_SET, EventKind.BREAKPOINT_HIT, EventKind.CONTINUED)]
+    assert order == sorted(order)
     with pytest.raises(OperatorActionError, match="no instruction '9.9'"):
         executive.set_breakpoint("erin", "9.9")
 
@@ -266,9 +267,8 @@ def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run
 
 
 def test_a_procedure_with_errors_does_not_start(sysreps) -> None:
-    procedure = load_procedure(FIXTURES / "broken" / "unknown_command.xml")
     with pytest.raises(ProcedureError, match="unknown command 'mvoe'"):
-        Executive(procedure, LabGateway(), ListJournal(), run_id="r", sysreps=sysreps)
+        check_procedure(FIXTURES / "broken" / "unknown_command.xml", sysreps)
 
 
 def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path) -> None:
@@ -285,8 +285,9 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
 
     second_gateway = LabGateway(str(tmp_path / "images"))
     second_journal = ListJournal()
-    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), second_gateway, second_journal, log,
-                               "mia", sysreps=sysreps)
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), second_gateway, second_journal, log, "mia"
+    )
     try:
         snap = held(resumed, Hold.IN_FLIGHT, "2.1")
         assert "no result was recorded" in snap.reason
@@ -316,19 +317,32 @@ def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
     held(executive, Hold.OPERATOR_ACTION, "2.4")
     executive.mark_done("nina")
     finished(executive)
-    cut = next(i for i, e in enumerate(journal.events)
-               if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "4.1/1.1")
+    cut = next(
+        i
+        for i, e in enumerate(journal.events)
+        if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "4.1/1.1"
+    )
     log = journal.events[: cut + 1]
 
     gateway2 = LabGateway()
     journal2 = ListJournal()
-    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway2, journal2, log, "nina",
-                               sysreps=sysreps)
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway2, journal2, log, "nina"
+    )
     snap = finished(resumed)
     assert snap.status is RunStatus.COMPLETED
     assert [c for _, c, _ in gateway2.sent] == ["move"]  # only 5.1: nothing before the cut is repeated
-    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_STARTED] == ["4.1/1.2", "4.2", "5.1", "5.2", "6.1"]
-    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_COMPLETED][:2] == ["4.1/1.2", "4.1"]
+    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_STARTED] == [
+        "4.1/1.2",
+        "4.2",
+        "5.1",
+        "5.2",
+        "6.1",
+    ]
+    assert [e.instruction for e in journal2.events if e.kind is EventKind.INSTRUCTION_COMPLETED][:2] == [
+        "4.1/1.2",
+        "4.1",
+    ]
 
 
 def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
@@ -370,8 +384,9 @@ def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operat
     assert [(e.instruction, e.data["next"]) for e in failed] == [("2.2", "2.2")]  # not the on-failure branch
 
     gateway.stale.clear()
-    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, ListJournal(),
-                               list(journal.events), "tess", sysreps=sysreps)
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, ListJournal(), list(journal.events), "tess"
+    )
     snap = held(resumed, Hold.FAILURE, "2.2")  # the operator sees why it ended and decides
     assert "stopped while watching telemetry" in snap.reason
     resumed.retry("tess")

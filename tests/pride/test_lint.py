@@ -26,7 +26,7 @@ def test_broken_procedure_reports_each_error_where_it_is(name: str, sysreps) -> 
     path = BROKEN / name
     printed = [str(p) for p in lint_file(path, sysreps)]
     assert len(printed) == len(EXPECTED[name]), printed
-    for line, expected in zip(printed, EXPECTED[name]):
+    for line, expected in zip(printed, EXPECTED[name], strict=True):
         position, _, text = expected.partition(": ")
         assert line.startswith(f"{path}:{position}: "), (line, expected)
         assert text in line, (line, expected)

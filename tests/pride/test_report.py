@@ -12,14 +12,14 @@ from conftest import FIXTURES
 from lab_gateway import LabGateway
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Hold, Mode, RunStatus
-from pride.parser import load_procedure
+from pride.lint import check_procedure
 
 
 def _complete_run(tmp_path: Path, sysreps) -> tuple[str, str]:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     log = AuditLog(db)
-    executive = Executive(load_procedure(FIXTURES / "lab_all_kinds.xml"), LabGateway(str(tmp_path / "images")), log,
-                          run_id="report-run", mode=Mode.AUTONOMOUS, sysreps=sysreps)
+    executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), LabGateway(str(tmp_path / "images")),
+                          log, run_id="report-run", mode=Mode.AUTONOMOUS)
     executive.start("alice")
     answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
                Hold.CONFIRMATION: lambda: executive.confirm("bob"),

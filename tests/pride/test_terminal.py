@@ -6,20 +6,20 @@ import io
 import itertools
 
 import pytest
+from lab_gateway import LabGateway
+from test_executive import ListJournal
 
 from conftest import FIXTURES
-from lab_gateway import LabGateway
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
-from pride.parser import load_procedure
+from pride.lint import check_procedure
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
-from test_executive import ListJournal
 
 
 def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, ListJournal, LabGateway]:
     journal, gateway = ListJournal(), LabGateway(str(tmp_path))
-    executive = Executive(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, journal, run_id="t",
-                          mode=mode, sysreps=sysreps)
+    executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t",
+                          mode=mode)
     return executive, journal, gateway
 
 

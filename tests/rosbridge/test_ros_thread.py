@@ -11,7 +11,7 @@ import pytest
 from bridge.rosbridge.ros_thread import RosThread
 
 
-def run_with_ros(work) -> object:  # noqa: ANN001 - a coroutine function taking the RosThread
+def run_with_ros(work) -> object:
     async def main() -> object:
         ros = RosThread(asyncio.get_running_loop(), node_name="ros_thread_test")
         try:

@@ -39,7 +39,9 @@ class UpStack:
 
 
 @contextmanager
-def stack_up(deployment: str | Path, env: dict[str, str], *, time_scale: str = "0", timeout: float = 180.0) -> Iterator[UpStack]:
+def stack_up(
+    deployment: str | Path, env: dict[str, str], *, time_scale: str = "0", timeout: float = 180.0
+) -> Iterator[UpStack]:
     """``caretaker up DEPLOYMENT --bridge-port 0``, up until the ``READY stack`` line, stopped after."""
     up = caretaker("up", str(deployment), "--time-scale", time_scale, "--bridge-port", "0", env=env, name="up")
     try:
@@ -61,7 +63,14 @@ def robot_parts(
     """The deployment's ``parts`` (default: all) started in order; the rosbridge server on a free
     port (``stack.bridge_url``). Kill one with ``stack.processes[name].kill()``, start it again
     with ``stack.start_part(name)``."""
-    stack = Stack(load_deployment(deployment), time_scale=time_scale, bridge_port=0, parts=parts, env=env, ready_timeout=ready_timeout)
+    stack = Stack(
+        load_deployment(deployment),
+        time_scale=time_scale,
+        bridge_port=0,
+        parts=parts,
+        env=env,
+        ready_timeout=ready_timeout,
+    )
     try:
         stack.start()
         yield stack

@@ -192,24 +192,47 @@ class TwoHosts:
             process.wait_for_line(ready, timeout)
         return process
 
-    def caretaker(self, host: Host, *args: str, ready: str | None = r"^READY\b", timeout: float = 90.0) -> ManagedProcess:
+    def caretaker(
+        self, host: Host, *args: str, ready: str | None = r"^READY\b", timeout: float = 90.0
+    ) -> ManagedProcess:
         """Start ``caretaker ARGS...`` in ``host``."""
-        return self.start(host, [str(VENV_BIN / "caretaker"), *args], name=args[0] if args else "caretaker",
-                          ready=ready, timeout=timeout)
+        return self.start(
+            host,
+            [str(VENV_BIN / "caretaker"), *args],
+            name=args[0] if args else "caretaker",
+            ready=ready,
+            timeout=timeout,
+        )
 
     def python(self, host: Host, *args: str, ready: str | None = r"^READY\b", timeout: float = 90.0) -> ManagedProcess:
         """Start the venv's ``python ARGS...`` in ``host``."""
-        return self.start(host, [str(VENV_BIN / "python"), *args], name=Path(args[0]).stem if args else "python",
-                          ready=ready, timeout=timeout)
+        return self.start(
+            host,
+            [str(VENV_BIN / "python"), *args],
+            name=Path(args[0]).stem if args else "python",
+            ready=ready,
+            timeout=timeout,
+        )
 
-    def start_link(self, *, target_port: int, port: int = 9090, delay: float = 0.2,
-                   options: Sequence[str] = ()) -> LinkProcess:
+    def start_link(
+        self, *, target_port: int, port: int = 9090, delay: float = 0.2, options: Sequence[str] = ()
+    ) -> LinkProcess:
         """Start ``caretaker link`` from the link's ground side ``port`` to the habitat's ``target_port``.
 
         ``options`` are more ``caretaker link`` options (``--loss 0.05``, ``--outage hold:30@40``...).
         """
         control = self.folder / f"link-{port}.sock"
-        process = self.caretaker(self.link, "link", "--listen", f"{self.link.address}:{port}",
-                                 "--to", f"{self.habitat.address}:{target_port}", "--delay", str(delay),
-                                 "--control", str(control), *options)
+        process = self.caretaker(
+            self.link,
+            "link",
+            "--listen",
+            f"{self.link.address}:{port}",
+            "--to",
+            f"{self.habitat.address}:{target_port}",
+            "--delay",
+            str(delay),
+            "--control",
+            str(control),
+            *options,
+        )
         return LinkProcess(process, LinkControl(control), (self.link.address, port))

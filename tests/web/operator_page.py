@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+import atexit
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
 from playwright.sync_api import Locator, Page, expect
 
 REPO = Path(__file__).resolve().parents[2]
-IMAGES = REPO / "docs" / "images"
+#: Where the browser tests save their screenshots. ``make docs`` sets CARETAKER_SCREENSHOTS to
+#: docs/images to refresh the pictures of the README; otherwise they go to a temporary folder,
+#: so a test run never writes a tracked file.
+SCREENSHOTS_ENV = "CARETAKER_SCREENSHOTS"
+if os.environ.get(SCREENSHOTS_ENV):
+    IMAGES = Path(os.environ[SCREENSHOTS_ENV])
+else:
+    IMAGES = Path(tempfile.mkdtemp(prefix="caretaker-screenshots-"))
+    atexit.register(shutil.rmtree, IMAGES, True)
 IVA = "iva_cdra_filter_replacement.xml"
 
 

@@ -74,15 +74,15 @@ class SimulatedSystems:
         self._instances: dict[str, int] = {}
         self._frames: dict[str, str] = {}
 
-    def sysreps(self) -> dict[str, SysRep]:
-        return dict(self._sysreps)
+    def system_ids(self) -> frozenset[str]:
+        return frozenset(self._sysreps)
 
     def _set(self, system: str, item: str, value: Any) -> None:
         with self._lock:
             self._values[(system, item)] = value
             listeners = list(self._listeners)
         for listener in listeners:
-            listener(system, item, value)
+            listener(system, item, TelemetryValue(value, time.time()))
 
     def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any]) -> CommandResult:
         sysrep = self._sysreps.get(sysrep_id)

@@ -79,7 +79,7 @@ class Habitat:
         names, poses = [], []
         for name, (xyz, quat) in self.sim.frames():
             names.append(name)
-            poses.append({"position": dict(zip("xyz", map(float, xyz))), "orientation": dict(zip("xyzw", map(float, quat)))})
+            poses.append({"position": dict(zip("xyz", map(float, xyz), strict=True)), "orientation": dict(zip("xyzw", map(float, quat), strict=True))})
         return {"header": {"frame_id": "world", "stamp": {"sec": 1, "nanosec": 0}}, "names": names, "poses": poses}
 
     def frame(self, name: str) -> np.ndarray:
@@ -108,14 +108,14 @@ class Habitat:
 
     def ik(self, tool_link: str, goal: np.ndarray, seed: Sequence[float]) -> list[float]:
         """Arm joints that bring ``tool_link`` near ``goal`` (pybullet's solver; the plan only needs to be a path)."""
-        for name, q in zip(self.arm_joints, seed):
+        for name, q in zip(self.arm_joints, seed, strict=True):
             p.resetJointState(self.fk_robot, self.fk_joints[name], q, physicsClientId=self.fk_client)
         xyz, quat = to_xyz_quat(goal)
         solution = p.calculateInverseKinematics(
             self.fk_robot, self.fk_links[tool_link], list(xyz), list(quat), maxNumIterations=200, residualThreshold=1e-5, physicsClientId=self.fk_client,
         )
         movable = [name for name, j in sorted(self.fk_joints.items(), key=lambda kv: kv[1]) if p.getJointInfo(self.fk_robot, j, physicsClientId=self.fk_client)[2] != p.JOINT_FIXED]
-        by_name = dict(zip(movable, solution))
+        by_name = dict(zip(movable, solution, strict=True))
         return [float(by_name[n]) for n in self.arm_joints]
 
 
@@ -171,17 +171,17 @@ class RunningTemplate:
                     f = k / steps_per_segment
                     t = k * seconds_per_step
                     points.append({
-                        "positions": [a + f * (b - a) for a, b in zip(previous, goal)],
+                        "positions": [a + f * (b - a) for a, b in zip(previous, goal, strict=True)],
                         "time_from_start": {"sec": int(t), "nanosec": int(round((t - int(t)) * 1e9))},
                     })
             segments.append(PlanSegment(wp.label, {"joint_names": self.habitat.arm_joints, "points": points}, wp.end_effector_pose))
             previous = goal
-        end = self.habitat.link_poses(dict(zip(self.habitat.arm_joints, previous)))[self.robot.tool_link]
+        end = self.habitat.link_poses(dict(zip(self.habitat.arm_joints, previous, strict=True)))[self.robot.tool_link]
         xyz, quat = to_xyz_quat(end)
         return plan_update(
             instance=self.instance.key, trajectory=trajectory, joint_names=self.habitat.arm_joints, start_positions=start,
             segments=segments, tool_link=self.robot.tool_link,
-            end_pose={"position": dict(zip("xyz", map(float, xyz))), "orientation": dict(zip("xyzw", map(float, quat)))},
+            end_pose={"position": dict(zip("xyz", map(float, xyz), strict=True)), "orientation": dict(zip("xyzw", map(float, quat), strict=True))},
         )
 
 

@@ -42,7 +42,7 @@ def serve_site() -> Iterator[SpatialSite]:
     site = SpatialSite()
 
     class Handler(BaseHTTPRequestHandler):
-        def do_GET(self) -> None:  # noqa: N802 - http.server's name
+        def do_GET(self) -> None:
             body, kind = site.files.get(self.path.split("?")[0], (b"not found", "text/plain"))
             self.send_response(200 if kind != "text/plain" else 404)
             self.send_header("Content-Type", kind)
@@ -50,7 +50,7 @@ def serve_site() -> Iterator[SpatialSite]:
             self.end_headers()
             self.wfile.write(body)
 
-        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - quiet
+        def log_message(self, format: str, *args: Any) -> None:
             pass
 
     server = ThreadingHTTPServer(("127.0.0.1", 0), Handler)

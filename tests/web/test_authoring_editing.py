@@ -13,7 +13,7 @@ from playwright.sync_api import Page, expect
 from author_page import bind_arg, card, drop, drop_zone, set_arg, set_attr
 
 
-def tall_page(sign_in) -> Page:  # noqa: ANN001 - the conftest fixture
+def tall_page(sign_in) -> Page:
     """Alice's page, tall enough that drag and drop stay in view: a synthetic drag does not scroll."""
     page = sign_in("alice")
     page.set_viewport_size({"width": 1500, "height": 1600})

@@ -94,7 +94,7 @@ def test_bad_feed_input_names_the_value() -> None:
 
 
 def _segment(label: str, times: list[float], positions: list[list[float]], pose: str = "") -> PlanSegment:
-    points = [{"positions": p, "time_from_start": {"sec": int(t), "nanosec": round((t - int(t)) * 1e9)}} for t, p in zip(times, positions)]
+    points = [{"positions": p, "time_from_start": {"sec": int(t), "nanosec": round((t - int(t)) * 1e9)}} for t, p in zip(times, positions, strict=True)]
     return PlanSegment(label, {"joint_names": ["b", "a"], "points": points}, pose)
 
 

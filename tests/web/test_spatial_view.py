@@ -148,7 +148,7 @@ def test_robot_links_follow_joint_updates(open_view: Callable[..., Page], iva: H
 
     # Every joint at once, gripper closed.
     rng = np.random.default_rng(3)
-    arm = {n: float(v) for n, v in zip(iva.arm_joints, rng.uniform(-2.5, 2.5, len(iva.arm_joints)))}
+    arm = {n: float(v) for n, v in zip(iva.arm_joints, rng.uniform(-2.5, 2.5, len(iva.arm_joints)), strict=True)}
     update = {**arm, "gripper_left_finger_joint": 0.01, "gripper_right_finger_joint": 0.02}
     apply(page, {"kind": "joints", "stamp": 2.0, "positions": update})
     assert_links(inspect(page)["links"], iva.link_poses(update), "random joints")
@@ -243,7 +243,7 @@ def test_plan_ghost_plays_scrubs_and_steps(open_view: Callable[..., Page], iva: 
         ghost = inspect(page)["ghost"]
         assert ghost["time"] == pytest.approx(plan["points"][k]["time_from_start"], abs=1e-9), what
         assert [ghost["joints"][n] for n in names] == pytest.approx(plan["points"][k]["positions"], abs=1e-9), what
-        fk = iva.link_poses({**document["joints"]["positions"], **dict(zip(names, plan["points"][k]["positions"]))})
+        fk = iva.link_poses({**document["joints"]["positions"], **dict(zip(names, plan["points"][k]["positions"], strict=True))})
         assert_pose(ghost["tool_pose"], fk["tool0"], f"{what}: ghost tool")
 
     ghost = inspect(page)["ghost"]

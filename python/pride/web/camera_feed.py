@@ -14,10 +14,9 @@ import logging
 import threading
 import time
 from pathlib import Path
-from typing import Any
 
 from pride.events import Event, EventKind
-from pride.systems import SystemGateway, gateway_system_ids
+from pride.systems import SystemGateway
 
 __all__ = ["CameraFeed", "LiveImage", "MOTION_COMMAND"]
 
@@ -57,7 +56,7 @@ class CameraFeed:
     @staticmethod
     def available(gateway: SystemGateway) -> bool:
         """Whether the gateway serves a camera SysRep to capture with."""
-        return CAMERA_SYSREP in gateway_system_ids(gateway)
+        return CAMERA_SYSREP in gateway.system_ids()
 
     def event_callback(self, event: Event) -> None:
         """Start capturing when a motion command is sent, stop when its result arrives."""
@@ -87,13 +86,13 @@ class CameraFeed:
     def _capture(self) -> None:
         started = time.time()  # an image shows the moment it was asked for, not when it arrived
         try:
-            result: Any = self._gateway.execute(CAMERA_SYSREP, CAPTURE_COMMAND, {"camera": self._camera, "label": self._label})
+            result = self._gateway.execute(CAMERA_SYSREP, CAPTURE_COMMAND, {"camera": self._camera, "label": self._label})
         except Exception:
             log.exception("camera capture failed")
             return
-        path = (getattr(result, "values", None) or {}).get("path")
-        if not getattr(result, "success", False) or not path:
-            log.warning("camera capture gave no image: %s", getattr(result, "message", result))
+        path = result.values.get("path")
+        if not result.success or not path:
+            log.warning("camera capture gave no image: %s", result.message)
             return
         with self._lock:
             self._captures += 1

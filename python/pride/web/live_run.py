@@ -148,11 +148,11 @@ class LiveRun:
             except Exception as exc:  # shown as unavailable, never as a value
                 readings.append({"system": system, "item": item, "error": f"{type(exc).__name__}: {exc}", "stale": True})
                 continue
-            timestamp = getattr(reading, "timestamp", None)
+            timestamp = reading.timestamp
             readings.append({
-                "system": system, "item": item, "value": getattr(reading, "value", None),
+                "system": system, "item": item, "value": reading.value,
                 "timestamp": timestamp, "age": (now - timestamp) if timestamp else None,
-                "stale": bool(getattr(reading, "stale", False)),
+                "stale": reading.stale,
             })
         return readings
 

@@ -18,12 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from pride.audit_log import AuditLog
+from pride.diagnostics import ProcedureError
 from pride.events import Event
 from pride.executive import Executive, Mode, RunStatus
-from pride.lint import lint_file
-from pride.parser import load_procedure
+from pride.gateways import open_gateway
+from pride.lint import check_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
-from pride.systems import gateway_system_ids, open_gateway
 from pride.web.actions import ActionRefused
 from pride.web.camera_feed import CameraFeed
 from pride.web.live_run import LiveRun
@@ -92,22 +92,22 @@ class RunBoard:
             raise ActionRefused(400, f"mode must be manual or autonomous (got {mode_name!r})") from None
         path = self.catalog.procedure_path(procedure_name)
         binding = self.catalog.binding_path(binding_name)
-        sysreps = self.sysreps()
-        problems = lint_file(path, sysreps)
-        if problems:
-            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + "\n".join(map(str, problems)))
-        procedure = load_procedure(path)
+        try:
+            checked = check_procedure(path, self.sysreps())
+        except ProcedureError as exc:
+            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
+        procedure = checked.procedure
         try:
             gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url)
         except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) refuse the start
             log.exception("opening %s", binding)
             raise ActionRefused(502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}") from None
-        missing = {system for system, _ in procedure.uses} - gateway_system_ids(gateway)
+        missing = {system for system, _ in procedure.uses} - gateway.system_ids()
         if missing:
             gateway.close()
             raise ActionRefused(422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses")
         run_id = f"{procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
-        executive = Executive(procedure, gateway, self.audit_log, run_id=run_id, mode=mode, sysreps=sysreps)
+        executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode)
         feed = None
         if self.camera.camera is not None and CameraFeed.available(gateway):
             feed = CameraFeed(gateway, self.camera.camera, period=self.camera.period)

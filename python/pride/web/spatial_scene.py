@@ -185,7 +185,7 @@ def _robot(scene: Mapping[str, Any], urdf: str, mesh_urls: Mapping[str, str]) ->
     r = _mapping(_required(scene, "robot", "scene"), "scene.robot")
     arm_joints = _names(_required(r, "arm_joints", "scene.robot"), "scene.robot.arm_joints")
     initial = _numbers(_required(r, "initial_positions", "scene.robot"), len(arm_joints), "scene.robot.initial_positions")
-    positions = dict(zip(arm_joints, initial))
+    positions = dict(zip(arm_joints, initial, strict=True))
     robot: Json = {
         "name": _str(_required(r, "name", "scene.robot"), "scene.robot.name"),
         "urdf": urdf,
@@ -202,7 +202,7 @@ def _robot(scene: Mapping[str, Any], urdf: str, mesh_urls: Mapping[str, str]) ->
         joints = _names(_required(g, "joints", "scene.robot.gripper"), "scene.robot.gripper.joints")
         named = _mapping(_required(g, "poses", "scene.robot.gripper"), "scene.robot.gripper.poses")
         robot["end_effector_poses"] = {
-            str(name): dict(zip(joints, _numbers(values, len(joints), f"scene.robot.gripper.poses.{name}"))) for name, values in named.items()
+            str(name): dict(zip(joints, _numbers(values, len(joints), f"scene.robot.gripper.poses.{name}"), strict=True)) for name, values in named.items()
         }
         initial_pose = g.get("initial")
         if initial_pose is not None:
@@ -380,7 +380,7 @@ def joints_update(joint_state: Mapping[str, Any]) -> Json:
     msg = _mapping(joint_state, "joint_states")
     names = _names(_required(msg, "name", "joint_states"), "joint_states.name")
     values = _numbers(_required(msg, "position", "joint_states"), len(names), "joint_states.position")
-    return {"kind": "joints", "stamp": _stamp(msg.get("header"), "joint_states.header"), "positions": dict(zip(names, values))}
+    return {"kind": "joints", "stamp": _stamp(msg.get("header"), "joint_states.header"), "positions": dict(zip(names, values, strict=True))}
 
 
 def objects_update(named_poses: Mapping[str, Any]) -> Json:
@@ -400,7 +400,7 @@ def objects_update(named_poses: Mapping[str, Any]) -> Json:
     return {
         "kind": "objects",
         "stamp": _stamp(msg.get("header"), "frames.header"),
-        "poses": {n: _ros_pose(p, f"frames.poses[{i}]") for i, (n, p) in enumerate(zip(names, poses))},
+        "poses": {n: _ros_pose(p, f"frames.poses[{i}]") for i, (n, p) in enumerate(zip(names, poses, strict=True))},
     }
 
 
@@ -582,7 +582,7 @@ def plan_update(
             w = f"{where}.trajectory.points[{k}]"
             p = _mapping(value, w)
             positions = list(points[-1]["positions"])
-            for j, v in zip(order, _numbers(_required(p, "positions", w), len(seg_names), f"{w}.positions")):
+            for j, v in zip(order, _numbers(_required(p, "positions", w), len(seg_names), f"{w}.positions"), strict=True):
                 positions[j] = v
             t = offset + _duration(_required(p, "time_from_start", w), f"{w}.time_from_start")
             if t < points[-1]["time_from_start"] or (t == points[-1]["time_from_start"] and positions != points[-1]["positions"]):

@@ -2,6 +2,6 @@
  * Bindings (ARCHITECTURE.md, interface 3): which plugin serves which SysRep on which robot, over
  * which rosbridge, in which ROS namespace; and {@link caretaker.binding.PaxHost}, which loads a
  * binding and offers its SysReps' commands and telemetry — to Java directly, and to Python through
- * {@code bridge.pax_host}.
+ * {@code pride.pax_host}.
  */
 package caretaker.binding;

@@ -1,7 +1,7 @@
-"""The Java PAX plugins, hosted in this Python process through JPype.
+"""The Java PAX plugins, hosted in this Python process through JPype: the procedure side's gateway.
 
-A procedure executive (``pride``) talks to systems through :class:`PaxHost` only
-(docs/interfaces.md)::
+The executive talks to systems through :class:`PaxHost`, a :class:`pride.systems.SystemGateway`
+(docs/interfaces.md). It runs in the procedure runner on the ground, never on the habitat side::
 
     host = PaxHost("sysrep/bindings/iva.yaml")
     result = host.execute("cdra", "unlock_filter", {})
@@ -20,43 +20,18 @@ from __future__ import annotations
 import atexit
 import logging
 import threading
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jpype
 
-from bridge.jvm import JarNotBuiltError, start_jvm
-from pride.sysrep import SysRep, load_sysrep
+from pride.jvm import JarNotBuiltError, start_jvm
+from pride.systems import CommandResult, TelemetryListener, TelemetryValue
 
-__all__ = ["CommandResult", "JarNotBuiltError", "PaxError", "PaxHost", "TelemetryListener", "TelemetryValue"]
+__all__ = ["JarNotBuiltError", "PaxError", "PaxHost", "to_java", "to_python"]
 
 _LOG = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class CommandResult:
-    """What a system answered to a command: it never claims success the system did not report."""
-
-    success: bool
-    message: str = ""
-    values: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class TelemetryValue:
-    """A telemetry item's value, when it was valid (epoch seconds), and whether it is stale.
-
-    ``value`` and ``timestamp`` are None until the item is first received (then ``stale`` is True).
-    """
-
-    value: Any
-    timestamp: float | None
-    stale: bool
-
-
-TelemetryListener = Callable[[str, str, TelemetryValue], None]
 
 
 class PaxError(RuntimeError):
@@ -148,7 +123,9 @@ class PaxHost:
             self._host = java_host.open(path, uri)
         except jpype.JException as exc:
             raise _java_error(exc) from None
-        self._sysreps = {str(s.id()): load_sysrep(str(s.path())) for s in self._host.sysReps()}
+        # The ids only: the Java host loaded and checks the SysReps; the runner's own copy (the one
+        # its lint used) is loaded once by the runner, not again here.
+        self._system_ids = frozenset(str(s.id()) for s in self._host.sysReps())
         self._listeners: list[Any] = []  # the Java proxies, kept alive while Java holds them
         self._closed = False
         self._close_lock = threading.Lock()
@@ -156,12 +133,18 @@ class PaxHost:
         # crashes then): a host still open at exit is closed first (atexit runs before that).
         atexit.register(self.close)
 
-    def sysreps(self) -> dict[str, SysRep]:
-        """The bound SysReps, keyed by id, as ``pride.sysrep`` loads them."""
-        return dict(self._sysreps)
+    def system_ids(self) -> frozenset[str]:
+        """The ids of the bound SysReps."""
+        return self._system_ids
 
     def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any]) -> CommandResult:
         """Execute a SysRep command and wait for the system's real outcome.
+
+        The Java host checks the arguments against its SysRep and converts them; it is the one
+        place arguments are checked at run time. It must be: Java integrators call
+        ``caretaker.binding.PaxHost.execute`` without Python, so the check cannot move out of it,
+        and a second check here would be a second copy of the same rules that could drift from it.
+        The procedure side checks what it can know before a run instead (``caretaker lint``).
 
         Args:
             sysrep_id: a bound SysRep.
@@ -196,7 +179,7 @@ class PaxHost:
             raise _java_error(exc) from None
 
     def add_listener(self, callback: TelemetryListener) -> None:
-        """Call ``callback(sysrep_id, item_id, TelemetryValue)`` on every change of value or staleness.
+        """Call ``callback(sysrep_id, item_id, value)`` on every change of value or staleness.
 
         The callback runs on a Java thread and must return quickly. An exception it raises is
         logged here: Java would otherwise swallow it.
@@ -204,7 +187,7 @@ class PaxHost:
 
         @jpype.JImplements("caretaker.pax.TelemetryListener")
         class _Listener:
-            @jpype.JOverride
+            @jpype.JOverride  # type: ignore[untyped-decorator]  # JPype has no type information
             def telemetryChanged(self, sysrep_id: Any, item_id: Any, value: Any) -> None:  # noqa: N802 (Java name)
                 try:
                     callback(str(sysrep_id), str(item_id), _telemetry_value(value))

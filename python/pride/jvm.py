@@ -67,5 +67,5 @@ def start_jvm() -> None:
         except TypeError as exc:  # JPype raises TypeError for a class it cannot find
             raise JarNotBuiltError(
                 f"a JVM is already running in this process without the PAX plugins on its classpath "
-                f"({exc}); start it through bridge.jvm.start_jvm() before any other Java use"
+                f"({exc}); start it through pride.jvm.start_jvm() before any other Java use"
             ) from None

@@ -1,0 +1,189 @@
+"""The package graph: no import cycles, the procedure side never reaches ROS, the robot side never knows procedures.
+
+Imports are read statically (ast) from every module of every top-level package that pyproject.toml
+declares, including imports inside functions: a lazy import is still a dependency. A failure
+names the cycle or the chain of imports.
+"""
+
+from __future__ import annotations
+
+import ast
+import tomllib
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: package → packages (or external modules) it must never import, directly or through others. The
+#: procedure side (ground) never reaches ROS or habitat code; the habitat side never knows
+#: procedures; the robot's planner and AT server run on a real robot too, so they never need the simulator.
+FORBIDDEN = {
+    "pride": ("rclpy", "bridge", "at_ros", "sim"),
+    "bridge": ("pride",),
+    "at_ros": ("pride", "sim"),
+    "sim": ("pride",),
+}
+
+
+def declared_packages() -> dict[str, Path]:
+    """Top-level package name → folder, as pyproject.toml declares them."""
+    setup = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    folders = setup.get("package-dir", {})
+    return {name: REPO / folders.get(name, name) for name in setup["packages"] if "." not in name}
+
+
+def modules(packages: dict[str, Path]) -> dict[str, Path]:
+    """Every module of the packages: dotted name → file."""
+    found: dict[str, Path] = {}
+    for package, folder in packages.items():
+        for path in sorted(folder.rglob("*.py")):
+            parts = [package, *path.relative_to(folder).with_suffix("").parts]
+            if parts[-1] == "__init__":
+                parts.pop()
+            found[".".join(parts)] = path
+    return found
+
+
+def imported(name: str, path: Path) -> Iterator[str]:
+    """The dotted names a module imports (relative imports resolved)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")
+                anchor = anchor[: len(anchor) - node.level + 1]
+                base = ".".join([*anchor, base] if base else anchor)
+            yield base
+            yield from (f"{base}.{alias.name}" for alias in node.names)
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Module → the project modules and external top-level modules it imports."""
+    known = modules(declared_packages())
+    graph: dict[str, set[str]] = {}
+    for name, path in known.items():
+        targets = set()
+        for target in imported(name, path):
+            if target in known:
+                targets.add(target)
+            elif target.rpartition(".")[0] not in known:  # "from pkg.mod import function" names pkg.mod
+                targets.add(target.split(".")[0])
+        targets.discard(name)
+        graph[name] = targets
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """One cycle through each strongly connected component of more than one node (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    components: list[set[str]] = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        for target in sorted(graph.get(node, ())):
+            if target not in graph:
+                continue
+            if target not in index:
+                visit(target)
+                low[node] = min(low[node], low[target])
+            elif target in on_stack:
+                low[node] = min(low[node], index[target])
+        if low[node] == index[node]:
+            component = set()
+            while True:
+                member = stack.pop()
+                on_stack.discard(member)
+                component.add(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                components.append(component)
+
+    for node in sorted(graph):
+        if node not in index:
+            visit(node)
+    return [_cycle_in(graph, component) for component in components]
+
+
+def _cycle_in(graph: dict[str, set[str]], component: set[str]) -> list[str]:
+    """A shortest cycle through the component's first member, as a path that ends where it starts."""
+    start = min(component)
+    paths = {start: [start]}
+    frontier = [start]
+    while frontier:
+        following = []
+        for node in frontier:
+            for target in sorted(graph[node] & component):
+                if target == start:
+                    return [*paths[node], start]
+                if target not in paths:
+                    paths[target] = [*paths[node], target]
+                    following.append(target)
+        frontier = following
+    raise AssertionError(f"no cycle in {component}")
+
+
+def package_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    packages = set(declared_packages())
+    collapsed: dict[str, set[str]] = {package: set() for package in packages}
+    for name, targets in graph.items():
+        top = name.split(".")[0]
+        collapsed[top] |= {t.split(".")[0] for t in targets if t.split(".")[0] in packages} - {top}
+    return collapsed
+
+
+def chain(graph: dict[str, set[str]], package: str, forbidden: str) -> list[str] | None:
+    """A chain of imports from a module of ``package`` to ``forbidden`` (a package or external module)."""
+    starts = sorted(m for m in graph if m.split(".")[0] == package)
+    paths = {m: [m] for m in starts}
+    frontier = list(starts)
+    while frontier:
+        following = []
+        for node in frontier:
+            for target in sorted(graph.get(node, ())):
+                if target.split(".")[0] == forbidden:
+                    return [*paths[node], target]
+                if target in graph and target not in paths:
+                    paths[target] = [*paths[node], target]
+                    following.append(target)
+        frontier = following
+    return None
+
+
+def test_packages_are_discovered_from_pyproject() -> None:
+    packages = declared_packages()
+    assert {"caretaker", "pride", "bridge", "at_ros", "sim"} <= set(packages)
+    assert all((folder / "__init__.py").is_file() for folder in packages.values())
+
+
+def test_no_import_cycle_between_packages() -> None:
+    found = cycles(package_graph(module_graph()))
+    assert not found, "package import cycles: " + "; ".join(" → ".join(c) for c in found)
+
+
+def test_no_import_cycle_between_modules() -> None:
+    found = cycles(module_graph())
+    assert not found, "module import cycles: " + "; ".join(" → ".join(c) for c in found)
+
+
+@pytest.mark.parametrize(("package", "forbidden"), [(p, f) for p, fs in FORBIDDEN.items() for f in fs])
+def test_forbidden_imports(package: str, forbidden: str) -> None:
+    found = chain(module_graph(), package, forbidden)
+    assert found is None, f"{package} must not import {forbidden}: " + " → ".join(found or [])
+
+
+def test_the_checker_finds_a_cycle_and_a_chain() -> None:
+    graph = {"a.x": {"b.y"}, "b.y": {"a.z"}, "a.z": {"a.x", "rclpy"}}
+    assert cycles(graph) == [["a.x", "b.y", "a.z", "a.x"]]
+    assert chain(graph, "a", "rclpy") == ["a.z", "rclpy"]
