@@ -20,6 +20,7 @@ from __future__ import annotations
 import atexit
 import logging
 import threading
+import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,6 +43,7 @@ class CommandResult:
     success: bool
     message: str = ""
     values: dict[str, Any] = field(default_factory=dict)
+    outcome: str = ""  # succeeded, failed, unknown or halted (unknown is never success nor failure)
 
 
 @dataclass(frozen=True)
@@ -160,13 +162,16 @@ class PaxHost:
         """The bound SysReps, keyed by id, as ``pride.sysrep`` loads them."""
         return dict(self._sysreps)
 
-    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any]) -> CommandResult:
+    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
+                ) -> CommandResult:
         """Execute a SysRep command and wait for the system's real outcome.
 
         Args:
             sysrep_id: a bound SysRep.
             command_id: one of its commands.
             args: every argument of the command; strings are accepted for every type.
+            key: the command key ``run/instruction/attempt``: the habitat executes a key at most
+                once. Without one, a key of its own is made (the command cannot be re-sent later).
 
         Returns:
             The system's outcome; ``success`` False carries its message.
@@ -177,12 +182,14 @@ class PaxHost:
         java_args = jpype.JClass("java.util.LinkedHashMap")()
         for name, value in args.items():
             java_args.put(jpype.JString(name), to_java(name, value))
+        command_key = key if key is not None else f"unkeyed-{uuid.uuid4().hex}/{command_id}/1"
         try:
-            result = self._host.execute(jpype.JString(sysrep_id), jpype.JString(command_id), java_args)
+            java_key = jpype.JClass("caretaker.pax.CommandKey").parse(jpype.JString(command_key))
+            result = self._host.execute(java_key, jpype.JString(sysrep_id), jpype.JString(command_id), java_args)
         except jpype.JException as exc:
             raise _java_error(exc) from None
         values = {str(k): to_python(v) for k, v in result.values().items()}
-        return CommandResult(bool(result.success()), str(result.message()), values)
+        return CommandResult(bool(result.success()), str(result.message()), values, str(result.outcome()).lower())
 
     def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
         """The current value, timestamp and staleness of a telemetry item.
