@@ -258,9 +258,14 @@ public final class CommandLedger implements AutoCloseable {
             if (ros.isConnected()) {
                 return;
             }
-            began(new NotConnectedException("not connected to rosbridge at " + ros.getUri()));
+            NotConnectedException down = new NotConnectedException("not connected to rosbridge at " + ros.getUri());
+            began(down);
             Duration left = link.outageBudget().minus(Duration.between(since, Instant.now()));
-            ros.awaitConnected(left.isNegative() || left.isZero() ? Duration.ofMillis(1) : left);
+            try {
+                ros.awaitConnected(left.isNegative() || left.isZero() ? Duration.ofMillis(1) : left);
+            } catch (RosTimeoutException e) {
+                throw down;
+            }
         }
 
         /** @return "link lost since T (what failed last)" */
