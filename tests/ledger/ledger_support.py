@@ -1,19 +1,25 @@
-"""Test-side access to the ledger and its peer over real ROS 2: an rclpy client in its own context."""
+"""Test-side access to the ledger and its peer over real ROS 2 (an rclpy client in its own context),
+the processes' fixtures (imported by name in the test modules), and a test CA for wss://."""
 
 from __future__ import annotations
 
 import json
+import subprocess
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import pytest
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import Trigger
 
 from caretaker_ledger_msgs.srv import CommandOutcome, ExecuteOnce
+
+from support.processes import ManagedProcess, python
 
 PEER = Path(__file__).with_name("ledger_peer.py")
 EXECUTE = "/command_ledger/execute"
@@ -79,3 +85,37 @@ class LedgerClient:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture(scope="module")
+def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
+    """The counting service process (tests/ledger/ledger_peer.py)."""
+    process = python(str(PEER), env=ros_env, name="ledger-peer")
+    try:
+        process.wait_ready(60)
+        yield process
+    finally:
+        process.stop()
+
+
+@pytest.fixture(scope="module")
+def client(peer: ManagedProcess) -> Iterator[LedgerClient]:
+    ledger_client = LedgerClient()
+    yield ledger_client
+    ledger_client.close()
+
+
+def make_certificates(directory: Path) -> tuple[Path, Path, Path]:
+    """A test CA and a bridge certificate it signed for 127.0.0.1 (a SAN): (ca.pem, cert.pem, key.pem)."""
+
+    def openssl(*args: str) -> None:
+        subprocess.run(["openssl", *args], cwd=directory, check=True, capture_output=True)
+
+    openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "ca.key", "-out", "ca.pem", "-days", "2",
+            "-subj", "/CN=Caretaker test CA", "-addext", "basicConstraints=critical,CA:TRUE",
+            "-addext", "keyUsage=critical,keyCertSign")
+    (directory / "san.ext").write_text("subjectAltName=IP:127.0.0.1\n")
+    openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", "key.pem", "-out", "bridge.csr", "-subj", "/CN=127.0.0.1")
+    openssl("x509", "-req", "-in", "bridge.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-days", "2",
+            "-out", "cert.pem", "-extfile", "san.ext")
+    return directory / "ca.pem", directory / "cert.pem", directory / "key.pem"

@@ -6,34 +6,17 @@ from __future__ import annotations
 
 import json
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from .ledger_support import PEER, LedgerClient
-from support.processes import ManagedProcess, python
+from .ledger_support import LedgerClient, client, peer  # noqa: F401 (fixtures)
+from support.processes import ManagedProcess
 
 pytestmark = pytest.mark.ros
 
 COUNT, REFUSE, HOLD, SET = "/ledger_test/count", "/ledger_test/refuse", "/ledger_test/hold", "/ledger_test/set"
-
-
-@pytest.fixture(scope="module")
-def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
-    process = python(str(PEER), env=ros_env, name="ledger-peer")
-    try:
-        process.wait_ready(60)
-        yield process
-    finally:
-        process.stop()
-
-
-@pytest.fixture(scope="module")
-def client(peer: ManagedProcess) -> Iterator[LedgerClient]:
-    ledger_client = LedgerClient()
-    yield ledger_client
-    ledger_client.close()
 
 
 StartLedger = Callable[[Path], tuple[ManagedProcess, str]]

@@ -12,6 +12,7 @@ import caretaker.rosbridge.CommandLedger;
 import caretaker.rosbridge.LinkListener;
 import caretaker.rosbridge.LinkState;
 import caretaker.rosbridge.Ros;
+import caretaker.rosbridge.RosAuthException;
 import caretaker.rosbridge.RosException;
 import caretaker.sysrep.Command;
 import caretaker.sysrep.SysRep;
@@ -85,12 +86,7 @@ public final class PaxHost implements AutoCloseable {
                 CommandLedger ledger = new CommandLedger(ros, binding.link());
                 ledgers.add(ledger);
                 ledgerOf.put(ros, ledger);
-                try {
-                    ros.connect();
-                } catch (RosException e) {
-                    throw new RosException(system.where() + ": " + e.getMessage()
-                            + " (is the robot's rosbridge server running? `caretaker bridge`)", e);
-                }
+                connect(system, ros, ledger);
             }
             SysRep sysRep = system.sysRep();
             sysReps.put(sysRep.id(), sysRep);
@@ -109,6 +105,30 @@ public final class PaxHost implements AutoCloseable {
                     telemetryPlugin.items().forEach(i -> items.put(i, telemetryPlugin));
                 }
             }
+        }
+    }
+
+    /**
+     * Connects and asks for the habitat's command ledger at once, so that a refused authentication
+     * fails the open rather than the first command; a slow answer is only logged (the first
+     * command asks again).
+     */
+    private static void connect(SystemBinding system, Ros ros, CommandLedger ledger) {
+        try {
+            ros.connect();
+        } catch (RosAuthException e) {
+            throw new RosAuthException(system.where() + ": " + e.getMessage());
+        } catch (RosException e) {
+            throw new RosException(system.where() + ": " + e.getMessage()
+                    + " (is the robot's rosbridge server running? `caretaker bridge`)", e);
+        }
+        try {
+            ledger.probe(ros.getOptions().timeout());
+        } catch (RosAuthException e) {
+            throw new RosAuthException(system.where() + ": " + e.getMessage());
+        } catch (RosException e) {
+            System.getLogger(PaxHost.class.getName()).log(System.Logger.Level.WARNING, system.where()
+                    + ": the command ledger did not answer yet: " + e.getMessage());
         }
     }
 

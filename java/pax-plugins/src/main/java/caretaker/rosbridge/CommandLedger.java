@@ -153,6 +153,30 @@ public final class CommandLedger implements AutoCloseable {
         return answer(reply);
     }
 
+    /**
+     * Learns whether the habitat has a command ledger, and its epoch.
+     *
+     * @param timeout how long to wait for the answer
+     * @return true if a ledger answered; false if the habitat has none (commands then go directly)
+     * @throws RosAuthException the bridge refused this client's authentication
+     * @throws RosException no answer
+     */
+    public boolean probe(Duration timeout) {
+        try {
+            outcome("", timeout);
+            return true;
+        } catch (ServiceFailedException e) {
+            if (!notReached(e)) {
+                throw e;
+            }
+            LOG.log(System.Logger.Level.WARNING, "no command ledger at " + ros.getUri() + " (" + e.getReason()
+                    + "): commands go directly; a lost reply leaves the outcome UNKNOWN (start `caretaker"
+                    + " ledger` on the habitat)");
+            present = Boolean.FALSE;
+            return false;
+        }
+    }
+
     /** @return the link's state now */
     public LinkState linkState() {
         boolean connected = ros.isConnected();
@@ -318,21 +342,9 @@ public final class CommandLedger implements AutoCloseable {
             }
         }
 
-        /** Learns whether the habitat has a ledger, and its epoch. */
         private void probe() {
-            try {
-                outcome("", timeout.compareTo(ros.getOptions().timeout()) < 0 ? timeout : ros.getOptions().timeout());
-                outage.ended();
-            } catch (ServiceFailedException e) {
-                if (!notReached(e)) {
-                    throw e;
-                }
-                LOG.log(System.Logger.Level.WARNING, "no command ledger at " + ros.getUri() + " (" + e.getReason()
-                        + "): commands go directly; a lost reply leaves the outcome UNKNOWN (start `caretaker"
-                        + " ledger` on the habitat)");
-                present = Boolean.FALSE;
-                outage.ended();
-            }
+            CommandLedger.this.probe(ros.getOptions().timeout());
+            outage.ended();
         }
 
         /** One send through the ledger; null when it must be sent again. */
