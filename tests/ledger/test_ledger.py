@@ -86,6 +86,7 @@ def test_bad_requests_get_clear_answers_and_execute_nothing(start_ledger: StartL
         (dict(key="run-d/4/1", service=SET, type_="std_srvs/srv/Nope"), "unknown srv type 'std_srvs/srv/Nope'"),
         (dict(key="run-d/5/1", service=SET, type_="std_srvs/srv/Trigger"), "has type std_srvs/srv/SetBool"),
         (dict(key="run-d/6/1", service="/ledger_test/absent"), "service /ledger_test/absent does not exist"),
+        (dict(key="run-d/9/1", service="not a name", type_="std_srvs/srv/Trigger"), "Invalid service name"),
         (dict(key="no-slashes", service=COUNT), "command_key must be '<run_id>/<instruction>/<attempt>'"),
         (dict(key="run-d/7/1", service=COUNT, timeout=-1.0), "timeout must be 0"),
     ]

@@ -111,7 +111,12 @@ class LedgerNode(Node):
 
     def _perform(self, key: str, mine: RunningCall, request: Any, timeout: float) -> CallOutcome:
         log.info("%s: calling %s", key, request.service)
-        outcome = self.caller.call(request.service, request.type, request.request_json, timeout)
+        try:
+            outcome = self.caller.call(request.service, request.type, request.request_json, timeout)
+        except Exception as exc:  # the key is claimed: it must end with an answer, whatever failed
+            log.exception("%s: the ledger failed during the call", key)
+            outcome = CallOutcome(State.UNKNOWN, "", f"the ledger failed during the call ({exc!r}); it may have"
+                                  " executed")
         self.store.finish(key, outcome.state, outcome.response_json, outcome.message)
         if outcome.late_answer is not None:
             outcome.late_answer.add_done_callback(lambda future: self._late_answer(key, request.service, future))

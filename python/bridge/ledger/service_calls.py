@@ -19,8 +19,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.exceptions import InvalidServiceNameException
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from bridge.rosbridge.conversion import dict_to_message, load_type, message_to_dict, type_name
 from bridge.rosbridge.protocol import BridgeError
@@ -112,6 +114,10 @@ class ServiceCaller:
         return answer_outcome(service, future)
 
     def _client(self, service: str, type_text: str) -> tuple[Any, Any]:
+        try:
+            validate_full_topic_name(service, is_service=True)
+        except InvalidServiceNameException as exc:
+            raise Refusal(" ".join(str(exc).split())) from None
         graph_type = self._graph_type(service, wait=DISCOVERY_WAIT_S)
         if type_text:
             try:
