@@ -43,6 +43,11 @@ public final class CommandLedger implements AutoCloseable {
     private static final Duration REPLY_MARGIN = Duration.ofSeconds(2);
     /** Texts of rosbridge failures that mean the called service was never reached. */
     private static final List<String> NOT_REACHED = List.of("does not exist", "has no server", "is not allowed");
+    /** Texts of rosbridge failures that pass: the service is not discovered yet, restarting, or slow. */
+    private static final List<String> PASSING = List.of("does not exist", "has no server", "Timeout exceeded",
+            "lost its server");
+    /** How long "no ledger on this habitat" is believed before asking again. */
+    private static final Duration ABSENCE_RECHECK = Duration.ofSeconds(30);
 
     private final Ros ros;
     private final LinkOptions link;
@@ -55,6 +60,8 @@ public final class CommandLedger implements AutoCloseable {
     private volatile String epoch;
     /** Whether a ledger answered on this connection: null not asked yet, FALSE none found yet. */
     private volatile Boolean present;
+    /** When FALSE {@link #present} is to be asked again (System.nanoTime). */
+    private volatile long recheckNanos;
 
     /**
      * @param ros the connection to the habitat's rosbridge
@@ -173,6 +180,7 @@ public final class CommandLedger implements AutoCloseable {
                     + "): commands go directly; a lost reply leaves the outcome UNKNOWN (start `caretaker"
                     + " ledger` on the habitat)");
             present = Boolean.FALSE;
+            recheckNanos = System.nanoTime() + ABSENCE_RECHECK.toNanos();
             return false;
         }
     }
@@ -246,6 +254,16 @@ public final class CommandLedger implements AutoCloseable {
 
     private static boolean notReached(ServiceFailedException e) {
         return NOT_REACHED.stream().anyMatch(e.getReason()::contains);
+    }
+
+    private static boolean passing(ServiceFailedException e) {
+        return PASSING.stream().anyMatch(e.getReason()::contains);
+    }
+
+    /** Whether to ask (again) whether the habitat has a ledger and what its epoch is. */
+    private boolean mustProbe() {
+        Boolean known = present;
+        return known == null || (known && epoch == null) || (!known && System.nanoTime() - recheckNanos > 0);
     }
 
     /** How long one command has been cut off from the habitat, against the outage budget. */
@@ -323,7 +341,7 @@ public final class CommandLedger implements AutoCloseable {
             while (true) {
                 try {
                     outage.awaitLink();
-                    if (present == null || (Boolean.TRUE.equals(present) && epoch == null)) {
+                    if (mustProbe()) {
                         probe();
                     }
                     LedgerAnswer answer = Boolean.TRUE.equals(present) ? send() : direct();
@@ -368,7 +386,11 @@ public final class CommandLedger implements AutoCloseable {
             } catch (NotConnectedException e) {
                 throw e; // nothing left: a first send stays a first send
             } catch (ServiceFailedException e) {
-                // The bridge answered for the ledger: not discovered yet, restarting, or too slow.
+                if (!passing(e)) { // refused by the bridge for good: sending again cannot help
+                    return maybeSent || !notReached(e) ? new LedgerAnswer(LedgerState.UNKNOWN, null, e.getMessage())
+                            : new LedgerAnswer(LedgerState.REFUSED, null, e.getMessage());
+                }
+                // The ledger is not discovered yet, restarting, or too slow: the same key goes again.
                 maybeSent |= !notReached(e);
                 outage.began(e);
                 return null;

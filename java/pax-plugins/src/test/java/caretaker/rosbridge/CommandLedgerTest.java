@@ -166,6 +166,34 @@ class CommandLedgerTest {
     }
 
     @Test
+    void aBridgeThatRefusesTheLedgerCallForGoodIsNotAskedAgain() throws Exception {
+        server.respond(call -> {
+            if (!"call_service".equals(call.get("op").getAsString())) {
+                return List.of();
+            }
+            JsonObject reply = new JsonObject();
+            reply.addProperty("op", "service_response");
+            reply.add("id", call.get("id"));
+            reply.add("service", call.get("service"));
+            if (call.get("service").getAsString().equals(CommandLedger.OUTCOME_SERVICE)) {
+                reply.add("values", values("NOT_FOUND", ""));
+                reply.addProperty("result", true);
+            } else {
+                executes.add(call);
+                reply.addProperty("values", "service /command_ledger/execute is not allowed by this bridge");
+                reply.addProperty("result", false);
+            }
+            return List.of(reply);
+        });
+        try (CommandLedger ledger = ledger(Duration.ofSeconds(20))) {
+            LedgerAnswer refused = ledger.execute("run-1/7.1/1", "/peer/set", null, REQUEST, Duration.ofSeconds(5));
+            assertEquals(LedgerState.REFUSED, refused.state());
+            assertTrue(refused.message().contains("is not allowed"), refused.message());
+            assertEquals(1, executes.size());
+        }
+    }
+
+    @Test
     void withoutALedgerTheCallIsDirectAndALostReplyIsUnknown() throws Exception {
         List<JsonObject> direct = new java.util.concurrent.CopyOnWriteArrayList<>();
         server.respond(call -> {
