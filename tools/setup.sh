@@ -55,7 +55,7 @@ fi
 
 # 3. ROS 2 interface packages, generated with rosidl into the venv. The wheels' exported CMake
 #    targets hard-code the manylinux build paths of Python and numpy: point them at ours.
-INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs)
+INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs python/bridge/caretaker_ledger_msgs)
 h=$(hash_of "${INTERFACE_PACKAGES[@]}" requirements.txt)
 if step_needed interfaces "$h"; then
   py_include=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')

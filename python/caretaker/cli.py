@@ -17,6 +17,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "planner": ("at_ros.planner_node", "main", "run the OMPL planner node (--robot NAME|FILE)"),
     "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME|FILE)"),
     "bridge": ("bridge.rosbridge.server", "main", "run the rosbridge v2 server"),
+    "ledger": ("bridge.ledger.main", "main", "run the habitat's command ledger (--state-dir DIR)"),
     "lint": ("pride.cli", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),

@@ -20,6 +20,7 @@ from __future__ import annotations
 import atexit
 import logging
 import threading
+import uuid
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -137,7 +138,8 @@ class PaxHost:
         """The ids of the bound SysReps."""
         return self._system_ids
 
-    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any]) -> CommandResult:
+    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
+                ) -> CommandResult:
         """Execute a SysRep command and wait for the system's real outcome.
 
         The Java host checks the arguments against its SysRep and converts them; it is the one
@@ -150,6 +152,8 @@ class PaxHost:
             sysrep_id: a bound SysRep.
             command_id: one of its commands.
             args: every argument of the command; strings are accepted for every type.
+            key: the command key ``run/instruction/attempt``: the habitat executes a key at most
+                once. Without one, a key of its own is made (the command cannot be re-sent later).
 
         Returns:
             The system's outcome; ``success`` False carries its message.
@@ -160,12 +164,14 @@ class PaxHost:
         java_args = jpype.JClass("java.util.LinkedHashMap")()
         for name, value in args.items():
             java_args.put(jpype.JString(name), to_java(name, value))
+        command_key = key if key is not None else f"unkeyed-{uuid.uuid4().hex}/{command_id}/1"
         try:
-            result = self._host.execute(jpype.JString(sysrep_id), jpype.JString(command_id), java_args)
+            java_key = jpype.JClass("caretaker.pax.CommandKey").parse(jpype.JString(command_key))
+            result = self._host.execute(java_key, jpype.JString(sysrep_id), jpype.JString(command_id), java_args)
         except jpype.JException as exc:
             raise _java_error(exc) from None
         values = {str(k): to_python(v) for k, v in result.values().items()}
-        return CommandResult(bool(result.success()), str(result.message()), values)
+        return CommandResult(bool(result.success()), str(result.message()), values, str(result.outcome()).lower())
 
     def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
         """The current value, timestamp and staleness of a telemetry item.

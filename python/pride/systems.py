@@ -24,6 +24,7 @@ class CommandResult:
     success: bool
     message: str = ""
     values: dict[str, Any] = field(default_factory=dict)
+    outcome: str = ""  # succeeded, failed, unknown or halted (unknown is never success nor failure)
 
 
 @dataclass(frozen=True)

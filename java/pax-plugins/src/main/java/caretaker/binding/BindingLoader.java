@@ -1,6 +1,9 @@
 package caretaker.binding;
 
 import caretaker.pax.PluginOptions;
+import caretaker.rosbridge.CaTrust;
+import caretaker.rosbridge.LinkOptions;
+import caretaker.rosbridge.RosAuth;
 import caretaker.sysrep.SysRep;
 import caretaker.sysrep.SysRepException;
 import caretaker.sysrep.SysRepLoader;
@@ -10,12 +13,14 @@ import java.net.URISyntaxException;
 import java.nio.charset.StandardCharsets;
 import java.nio.file.Files;
 import java.nio.file.Path;
+import java.time.Duration;
 import java.util.ArrayList;
 import java.util.HashSet;
 import java.util.List;
 import java.util.Map;
 import java.util.Set;
 import java.util.TreeSet;
+import javax.net.ssl.SSLContext;
 import org.yaml.snakeyaml.LoaderOptions;
 import org.yaml.snakeyaml.Yaml;
 import org.yaml.snakeyaml.constructor.SafeConstructor;
@@ -26,7 +31,13 @@ import org.yaml.snakeyaml.error.YAMLException;
  *
  * <pre>
  * robot: iva
- * rosbridge: ws://127.0.0.1:9090        # the robot's rosbridge server
+ * rosbridge: wss://habitat:9090         # the robot's rosbridge server
+ * link:                                 # optional; defaults fit loopback
+ *   one_way_delay: 1.3                  # s
+ *   outage_budget: 120                  # s a command in flight waits for a lost link
+ * security:                             # optional
+ *   ca_file: certs/ca.pem               # CA (PEM) that wss:// trusts
+ *   secret_file: secrets/bridge.secret  # HMAC auth with the bridge's secret (or token_file)
  * systems:
  * - sysrep: ../affordance_templates.yaml   # relative to this file
  *   plugins: [at_commands, at_telemetry]
@@ -37,10 +48,15 @@ import org.yaml.snakeyaml.error.YAMLException;
  *   namespace: /cdra
  * </pre>
  *
- * An entry may override {@code rosbridge}. SysRep paths are relative to the binding file.
+ * An entry may override {@code rosbridge}. SysRep and security paths are relative to the binding
+ * file. Errors in {@code link} and {@code security} name the file, line and key
+ * ({@code iva.yaml:4: link.outage_budget: ...}).
  */
 public final class BindingLoader {
-    private static final Set<String> TOP_LEVEL_KEYS = Set.of("robot", "rosbridge", "systems", "description");
+    private static final Set<String> TOP_LEVEL_KEYS = Set.of("robot", "rosbridge", "systems", "description", "link",
+            "security");
+    private static final Set<String> LINK_KEYS = Set.of("one_way_delay", "outage_budget");
+    private static final Set<String> SECURITY_KEYS = Set.of("ca_file", "secret_file", "token_file");
     private static final Set<String> ENTRY_KEYS = Set.of("sysrep", "plugins", "namespace", "options", "rosbridge");
 
     private BindingLoader() {
@@ -56,9 +72,10 @@ public final class BindingLoader {
     public static Binding load(Path file, URI rosbridgeOverride) {
         String path = file.toString();
         Object root;
+        String text;
         try {
-            root = new Yaml(new SafeConstructor(new LoaderOptions())).load(Files.readString(file,
-                    StandardCharsets.UTF_8));
+            text = Files.readString(file, StandardCharsets.UTF_8);
+            root = new Yaml(new SafeConstructor(new LoaderOptions())).load(text);
         } catch (IOException e) {
             throw new BindingException(path + ": cannot read: " + e.getMessage(), e);
         } catch (YAMLException e) {
@@ -85,7 +102,99 @@ public final class BindingLoader {
             }
             systems.add(system);
         }
-        return new Binding(robot, systems, path);
+        KeyLines lines = new KeyLines(text);
+        LinkOptions link = link(path, lines, top.get("link"));
+        Map<?, ?> security = section(path, lines, "security", top.get("security"), SECURITY_KEYS);
+        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security));
+    }
+
+    private static Map<?, ?> section(String path, KeyLines lines, String name, Object raw, Set<String> keys) {
+        if (raw == null) {
+            return Map.of();
+        }
+        if (!(raw instanceof Map<?, ?> map)) {
+            throw new BindingException(lines.where(path, name) + ": must be a mapping of "
+                    + String.join(", ", new TreeSet<>(keys)));
+        }
+        for (Object key : map.keySet()) {
+            if (!keys.contains(String.valueOf(key))) {
+                throw new BindingException(lines.where(path, name + "." + key) + ": unknown key (allowed: "
+                        + String.join(", ", new TreeSet<>(keys)) + ")");
+            }
+        }
+        return map;
+    }
+
+    private static LinkOptions link(String path, KeyLines lines, Object raw) {
+        Map<?, ?> link = section(path, lines, "link", raw, LINK_KEYS);
+        LinkOptions loopback = LinkOptions.loopback();
+        Duration delay = seconds(path, lines, "link.one_way_delay", link.get("one_way_delay"), loopback.oneWayDelay(),
+                true);
+        Duration budget = seconds(path, lines, "link.outage_budget", link.get("outage_budget"),
+                loopback.outageBudget(), false);
+        return new LinkOptions(delay, budget);
+    }
+
+    private static Duration seconds(String path, KeyLines lines, String key, Object value, Duration fallback,
+            boolean zeroAllowed) {
+        if (value == null) {
+            return fallback;
+        }
+        if (!(value instanceof Number number) || !Double.isFinite(number.doubleValue()) || number.doubleValue() < 0
+                || (!zeroAllowed && number.doubleValue() == 0)) {
+            throw new BindingException(lines.where(path, key) + ": must be a " + (zeroAllowed ? "" : "positive ")
+                    + "number of seconds" + (zeroAllowed ? " (0 or more)" : "") + ", got " + value);
+        }
+        return Duration.ofNanos(Math.round(number.doubleValue() * 1e9));
+    }
+
+    private static RosAuth auth(Path file, KeyLines lines, Map<?, ?> security) {
+        if (security.containsKey("secret_file") && security.containsKey("token_file")) {
+            throw new BindingException(lines.where(file.toString(), "security.token_file")
+                    + ": give secret_file (HMAC) or token_file (bearer token), not both");
+        }
+        if (security.containsKey("secret_file")) {
+            return RosAuth.hmac(secret(file, lines, "security.secret_file", security.get("secret_file")));
+        }
+        if (security.containsKey("token_file")) {
+            return RosAuth.token(secret(file, lines, "security.token_file", security.get("token_file")));
+        }
+        return null;
+    }
+
+    private static String secret(Path file, KeyLines lines, String key, Object value) {
+        Path secretFile = relative(file, lines, key, value);
+        String secret;
+        try {
+            secret = Files.readString(secretFile, StandardCharsets.UTF_8).strip();
+        } catch (IOException e) {
+            throw new BindingException(lines.where(file.toString(), key) + ": cannot read " + secretFile + " ("
+                    + e.getClass().getSimpleName() + ")", e);
+        }
+        if (secret.isEmpty()) {
+            throw new BindingException(lines.where(file.toString(), key) + ": " + secretFile
+                    + " is empty; put the bridge's shared secret in it");
+        }
+        return secret;
+    }
+
+    private static SSLContext tls(Path file, KeyLines lines, Map<?, ?> security) {
+        if (!security.containsKey("ca_file")) {
+            return null;
+        }
+        try {
+            return CaTrust.trusting(relative(file, lines, "security.ca_file", security.get("ca_file")));
+        } catch (IllegalArgumentException e) {
+            throw new BindingException(lines.where(file.toString(), "security.ca_file") + ": " + e.getMessage(), e);
+        }
+    }
+
+    private static Path relative(Path file, KeyLines lines, String key, Object value) {
+        if (!(value instanceof String text) || text.isEmpty()) {
+            throw new BindingException(lines.where(file.toString(), key) + ": must be a file path (relative to the"
+                    + " binding), got " + value);
+        }
+        return file.toAbsolutePath().getParent().resolve(text).normalize();
     }
 
     private static SystemBinding entry(Path file, String where, Object raw, URI defaultBridge, URI override) {

@@ -1,5 +1,6 @@
 package caretaker.binding;
 
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
@@ -7,9 +8,12 @@ import caretaker.pax.PluginException;
 import caretaker.pax.TelemetryListener;
 import caretaker.pax.TelemetryPlugin;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LinkListener;
+import caretaker.rosbridge.LinkState;
 import caretaker.rosbridge.Ros;
+import caretaker.rosbridge.RosAuthException;
 import caretaker.rosbridge.RosException;
-import caretaker.rosbridge.RosOptions;
 import caretaker.sysrep.Command;
 import caretaker.sysrep.SysRep;
 import java.net.URI;
@@ -21,12 +25,13 @@ import java.util.Map;
 
 /**
  * The plugins of one binding, ready to use: what a procedure executive talks to. Opens one
- * rosbridge connection per server named in the binding (kept up across drops), makes the plugins,
- * checks and converts command arguments against the SysRep before a plugin sees them.
+ * rosbridge connection per server named in the binding (kept up across drops, with the binding's
+ * link and security settings) and a {@link CommandLedger} on each, makes the plugins, checks and
+ * converts command arguments against the SysRep before a plugin sees them.
  *
  * <pre>
  * try (PaxHost host = PaxHost.open(Path.of("sysrep/bindings/iva.yaml"), null)) {
- *     CommandResult r = host.execute("cdra", "unlock_filter", Map.of());
+ *     CommandResult r = host.execute(CommandKey.parse("run-1/1.1/1"), "cdra", "unlock_filter", Map.of());
  *     TelemetryValue locked = host.telemetry("cdra", "filter_locked");
  * }
  * </pre>
@@ -34,6 +39,7 @@ import java.util.Map;
 public final class PaxHost implements AutoCloseable {
     private final Binding binding;
     private final List<Ros> connections = new ArrayList<>();
+    private final List<CommandLedger> ledgers = new ArrayList<>();
     private final List<AutoCloseable> plugins = new ArrayList<>();
     private final Map<String, SysRep> sysReps = new LinkedHashMap<>();
     /** sysrep id → command id → plugin. */
@@ -54,7 +60,7 @@ public final class PaxHost implements AutoCloseable {
      * @throws BindingException the binding is wrong
      * @throws caretaker.sysrep.SysRepException a SysRep is invalid
      * @throws PluginException a plugin cannot be made (bad option, SysRep does not fit)
-     * @throws RosException a rosbridge server cannot be reached
+     * @throws RosException a rosbridge server cannot be reached or refuses the authentication
      */
     public static PaxHost open(Path bindingFile, URI rosbridgeOverride) {
         Binding binding = BindingLoader.load(bindingFile, rosbridgeOverride);
@@ -70,18 +76,17 @@ public final class PaxHost implements AutoCloseable {
 
     private void start() {
         Map<URI, Ros> byUri = new LinkedHashMap<>();
+        Map<Ros, CommandLedger> ledgerOf = new LinkedHashMap<>();
         for (SystemBinding system : binding.systems()) {
             Ros ros = byUri.get(system.rosbridge());
             if (ros == null) {
-                ros = new Ros(system.rosbridge(), RosOptions.defaults());
+                ros = new Ros(system.rosbridge(), binding.rosOptions());
                 connections.add(ros);
                 byUri.put(system.rosbridge(), ros);
-                try {
-                    ros.connect();
-                } catch (RosException e) {
-                    throw new RosException(system.where() + ": " + e.getMessage()
-                            + " (is the robot's rosbridge server running? `caretaker bridge`)", e);
-                }
+                CommandLedger ledger = new CommandLedger(ros, binding.link());
+                ledgers.add(ledger);
+                ledgerOf.put(ros, ledger);
+                connect(system, ros, ledger);
             }
             SysRep sysRep = system.sysRep();
             sysReps.put(sysRep.id(), sysRep);
@@ -90,8 +95,8 @@ public final class PaxHost implements AutoCloseable {
             Map<String, TelemetryPlugin> items = telemetryPlugins.computeIfAbsent(sysRep.id(),
                     k -> new LinkedHashMap<>());
             for (String name : system.plugins()) {
-                AutoCloseable plugin = PluginKind.create(name, new PluginContext(sysRep, ros, system.namespace(),
-                        system.options()));
+                AutoCloseable plugin = PluginKind.create(name, new PluginContext(sysRep, ros, ledgerOf.get(ros),
+                        system.namespace(), system.options()));
                 plugins.add(plugin);
                 if (plugin instanceof CommandPlugin commandPlugin) {
                     commandPlugin.commands().forEach(c -> commands.put(c, commandPlugin));
@@ -100,6 +105,30 @@ public final class PaxHost implements AutoCloseable {
                     telemetryPlugin.items().forEach(i -> items.put(i, telemetryPlugin));
                 }
             }
+        }
+    }
+
+    /**
+     * Connects and asks for the habitat's command ledger at once, so that a refused authentication
+     * fails the open rather than the first command; a slow answer is only logged (the first
+     * command asks again).
+     */
+    private static void connect(SystemBinding system, Ros ros, CommandLedger ledger) {
+        try {
+            ros.connect();
+        } catch (RosAuthException e) {
+            throw new RosAuthException(system.where() + ": " + e.getMessage());
+        } catch (RosException e) {
+            throw new RosException(system.where() + ": " + e.getMessage()
+                    + " (is the robot's rosbridge server running? `caretaker bridge`)", e);
+        }
+        try {
+            ledger.probe(ros.getOptions().timeout());
+        } catch (RosAuthException e) {
+            throw new RosAuthException(system.where() + ": " + e.getMessage());
+        } catch (RosException e) {
+            System.getLogger(PaxHost.class.getName()).log(System.Logger.Level.WARNING, system.where()
+                    + ": the command ledger did not answer yet: " + e.getMessage());
         }
     }
 
@@ -115,15 +144,17 @@ public final class PaxHost implements AutoCloseable {
 
     /**
      * Checks and converts the arguments against the SysRep, then executes the command and waits
-     * for its real outcome.
+     * for its real outcome. Never reports success or failure the system did not report: an
+     * outcome that cannot be learnt is {@link caretaker.pax.Outcome#UNKNOWN}.
      *
+     * @param key the command's key; the same key is the same command, executed at most once
      * @param sysrepId a bound SysRep
      * @param commandId one of its commands
      * @param args argument name → value (strings are accepted for every type)
      * @return the system's outcome
      * @throws PluginException unknown SysRep or command, no plugin serves it, or bad arguments
      */
-    public CommandResult execute(String sysrepId, String commandId, Map<String, ?> args) {
+    public CommandResult execute(CommandKey key, String sysrepId, String commandId, Map<String, ?> args) {
         SysRep sysRep = sysRep(sysrepId);
         Command command = sysRep.command(commandId);
         if (command == null) {
@@ -141,7 +172,7 @@ public final class PaxHost implements AutoCloseable {
         } catch (IllegalArgumentException e) {
             throw new PluginException(sysrepId + "." + e.getMessage(), e);
         }
-        return plugin.execute(commandId, typed);
+        return plugin.execute(key, commandId, typed);
     }
 
     /**
@@ -182,6 +213,24 @@ public final class PaxHost implements AutoCloseable {
         }
     }
 
+    /**
+     * @param listener told when a robot link goes down or up, and while down when the number of
+     *     commands in flight changes (on a connection's callback thread; return quickly)
+     */
+    public void addLinkListener(LinkListener listener) {
+        ledgers.forEach(ledger -> ledger.addLinkListener(listener));
+    }
+
+    /** @param listener a listener added before */
+    public void removeLinkListener(LinkListener listener) {
+        ledgers.forEach(ledger -> ledger.removeLinkListener(listener));
+    }
+
+    /** @return the state of each robot link, in binding order */
+    public List<LinkState> linkStates() {
+        return ledgers.stream().map(CommandLedger::linkState).toList();
+    }
+
     private SysRep sysRep(String sysrepId) {
         SysRep sysRep = sysReps.get(sysrepId);
         if (sysRep == null) {
@@ -202,6 +251,7 @@ public final class PaxHost implements AutoCloseable {
                         e);
             }
         }
+        ledgers.forEach(CommandLedger::close);
         connections.forEach(Ros::close);
     }
 }

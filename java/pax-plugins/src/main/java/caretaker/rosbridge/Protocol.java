@@ -42,6 +42,25 @@ public final class Protocol {
     /** Fragment count. */
     public static final String FIELD_TOTAL = "total";
 
+    /** Authentication: HMAC over the fields below. */
+    public static final String FIELD_MAC = "mac";
+    /** Authentication: who connects. */
+    public static final String FIELD_CLIENT = "client";
+    /** Authentication: the server connected to. */
+    public static final String FIELD_DEST = "dest";
+    /** Authentication: a random string, new per connection. */
+    public static final String FIELD_RAND = "rand";
+    /** Authentication: the client's Unix time in seconds. */
+    public static final String FIELD_T = "t";
+    /** Authentication: the access level asked for. */
+    public static final String FIELD_LEVEL = "level";
+    /** Authentication: the end of validity, Unix seconds. */
+    public static final String FIELD_END = "end";
+    /** Authentication: a bearer token instead of a MAC. */
+    public static final String FIELD_TOKEN = "token";
+
+    /** Authenticate; the first message on a bridge that requires it. */
+    public static final String OP_AUTH = "auth";
     /** Publish a message (both directions). */
     public static final String OP_PUBLISH = "publish";
     /** Subscribe to a topic. */
@@ -60,4 +79,7 @@ public final class Protocol {
     public static final String OP_FRAGMENT = "fragment";
     /** Server status report (only after set_level on servers that implement it). */
     public static final String OP_STATUS = "status";
+
+    /** WebSocket close code the bridge uses to refuse a client (RFC 6455 policy violation). */
+    public static final int CLOSE_POLICY_VIOLATION = 1008;
 }

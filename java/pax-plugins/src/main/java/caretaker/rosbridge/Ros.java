@@ -4,17 +4,13 @@ import com.google.gson.JsonElement;
 import com.google.gson.JsonObject;
 import com.google.gson.JsonParser;
 import java.net.URI;
-import java.net.http.HttpClient;
-import java.net.http.WebSocket;
-import java.nio.ByteBuffer;
 import java.time.Duration;
+import java.time.Instant;
 import java.util.List;
 import java.util.Map;
 import java.util.concurrent.CompletableFuture;
-import java.util.concurrent.CompletionStage;
 import java.util.concurrent.ConcurrentHashMap;
 import java.util.concurrent.CopyOnWriteArrayList;
-import java.util.concurrent.ExecutionException;
 import java.util.concurrent.ExecutorService;
 import java.util.concurrent.Executors;
 import java.util.concurrent.ScheduledExecutorService;
@@ -22,7 +18,6 @@ import java.util.concurrent.ScheduledFuture;
 import java.util.concurrent.ScheduledThreadPoolExecutor;
 import java.util.concurrent.ThreadFactory;
 import java.util.concurrent.TimeUnit;
-import java.util.concurrent.TimeoutException;
 import java.util.concurrent.atomic.AtomicLong;
 import java.util.concurrent.atomic.AtomicReference;
 
@@ -33,7 +28,15 @@ import java.util.concurrent.atomic.AtomicReference;
  * <p>After a successful {@link #connect()} the connection is kept up: when it drops, every pending
  * service call fails at once with a {@link RosException} (the server will never answer it), and
  * reconnect attempts follow with exponential back-off; once reconnected, every subscription and
- * advertisement is sent again, so {@link Topic} users see a gap, not a dead topic.
+ * advertisement is sent again, so {@link Topic} users see a gap, not a dead topic. Keepalive
+ * pings ({@link RosOptions#pingInterval()}) take a server silent for longer than
+ * {@link RosOptions#pingTimeout()} for gone.
+ *
+ * <p>With {@link RosOptions#auth()} set, the {@code auth} message is the first message of every
+ * (re)connect (a fresh {@code rand} each time). A bridge that refuses it closes with 1008: the
+ * connection then stops reconnecting, and every call and {@link #awaitConnected} fails with a
+ * {@link RosAuthException} until {@link #connect()} is called again. A {@code wss://} URI is
+ * verified against {@link RosOptions#tls()} (host name included).
  *
  * <p>Thread-safe. Construction does not connect.
  */
@@ -45,7 +48,7 @@ public final class Ros implements AutoCloseable {
 
     private final URI uri;
     private final RosOptions options;
-    private final HttpClient http;
+    private final Connection connection;
     private final AtomicLong idCounter = new AtomicLong();
     private final Map<String, PendingCall> pendingCalls = new ConcurrentHashMap<>();
     private final Map<String, Subscription> subscriptions = new ConcurrentHashMap<>();
@@ -56,13 +59,6 @@ public final class Ros implements AutoCloseable {
     /** The thread callbackThread runs user code on, once started. */
     private final AtomicReference<Thread> callbackWorker = new AtomicReference<>();
     private final ScheduledExecutorService timerThread;
-    /** Guards {@link #socket}, {@link #wanted} and {@link #closed}. */
-    private final Object connectionLock = new Object();
-    /** Serialises sends: java.net.http allows one outstanding send per WebSocket. */
-    private final Object sendLock = new Object();
-    private WebSocket socket;
-    private boolean wanted;
-    private boolean closed;
 
     /** A connection to {@code ws://localhost:9090}. */
     public Ros() {
@@ -92,10 +88,6 @@ public final class Ros implements AutoCloseable {
         }
         this.uri = uri;
         this.options = options;
-        // Frames are handled on the client's own selector thread instead of being handed to a
-        // pool thread first: one thread switch less per reply. Safe because the listener never
-        // blocks and never sends; user code runs on callbackThread.
-        this.http = HttpClient.newBuilder().connectTimeout(options.timeout()).executor(Runnable::run).build();
         ThreadFactory callbacks = daemon("rosbridge-callbacks " + uri);
         this.callbackThread = Executors.newSingleThreadExecutor(runnable -> {
             Thread thread = callbacks.newThread(runnable);
@@ -105,6 +97,27 @@ public final class Ros implements AutoCloseable {
         ScheduledThreadPoolExecutor timer = new ScheduledThreadPoolExecutor(1, daemon("rosbridge-timer " + uri));
         timer.setRemoveOnCancelPolicy(true); // answered calls leave the queue at once
         this.timerThread = timer;
+        this.connection = new Connection(uri, options, new Connection.Events() {
+            @Override
+            public void opened() {
+                connected();
+            }
+
+            @Override
+            public void lost(RosException failure) {
+                Ros.this.lost(failure);
+            }
+
+            @Override
+            public void error(RosException failure) {
+                Ros.this.error(failure);
+            }
+
+            @Override
+            public void received(String text) {
+                receive(text);
+            }
+        }, timerThread);
     }
 
     private static ThreadFactory daemon(String name) {
@@ -139,55 +152,35 @@ public final class Ros implements AutoCloseable {
      * Connects and waits for the connection, at most {@link RosOptions#timeout()}. Does nothing if
      * already connected. From now on the connection is kept up until {@link #disconnect()}.
      *
+     * <p>With authentication configured, it also waits for one answer from the server after the
+     * {@code auth} message (to {@code /rosapi/get_ros_version}; a failed answer counts too), so a
+     * refusal is reported here rather than by the first call.
+     *
+     * @throws RosAuthException the server refused the authentication
      * @throws RosException the server refused or is not there
      * @throws RosTimeoutException no connection within the timeout
      */
     public void connect() {
-        synchronized (connectionLock) {
-            if (closed) {
-                throw new RosException("connection to " + uri + " is closed; make a new Ros");
-            }
-            if (socket != null) {
-                return;
-            }
+        connection.connect();
+        if (options.auth() != null) {
+            confirmAuthentication();
         }
-        WebSocket opened = open();
-        synchronized (connectionLock) {
-            wanted = true;
-            socket = opened;
-            connectionLock.notifyAll();
-        }
-        connected();
     }
 
-    private WebSocket open() {
-        CompletableFuture<WebSocket> future = http.newWebSocketBuilder()
-                .connectTimeout(options.timeout())
-                .buildAsync(uri, new Listener());
+    private void confirmAuthentication() {
         try {
-            return future.get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
-        } catch (TimeoutException e) {
-            future.cancel(true);
-            throw new RosTimeoutException("connect to " + uri, options.timeout());
-        } catch (InterruptedException e) {
-            Thread.currentThread().interrupt();
-            throw new RosException("interrupted while connecting to " + uri, e);
-        } catch (ExecutionException e) {
-            Throwable cause = e.getCause() == null ? e : e.getCause();
-            throw new RosException("cannot connect to rosbridge at " + uri + ": " + describe(cause), cause);
-        }
-    }
-
-    private static String describe(Throwable error) {
-        Throwable root = error;
-        while (root.getCause() != null && root.getCause() != root) {
-            if (root instanceof java.net.ConnectException) {
-                return "connection refused";
+            new Service(this, "/rosapi/get_ros_version", null).callServiceAndWait(new ServiceRequest(),
+                    options.timeout());
+        } catch (ServiceFailedException e) {
+            LOG.log(System.Logger.Level.DEBUG, "authenticated; the check's answer was a failure: " + e.getMessage());
+        } catch (RosException e) {
+            connection.disconnect();
+            String refusal = connection.refusal();
+            if (refusal != null) {
+                throw new RosAuthException(refusal);
             }
-            root = root.getCause();
+            throw new RosException("no answer from rosbridge at " + uri + " after authenticating: " + e.getMessage(), e);
         }
-        String text = root.getMessage();
-        return text == null || text.isEmpty() ? root.getClass().getSimpleName() : text;
     }
 
     /** Sends every registration again and tells the handlers; runs after each (re)connect. */
@@ -216,23 +209,7 @@ public final class Ros implements AutoCloseable {
      * advertisements are kept and re-sent by the next {@link #connect()}.
      */
     public void disconnect() {
-        WebSocket old;
-        synchronized (connectionLock) {
-            wanted = false;
-            old = socket;
-            socket = null;
-        }
-        if (old != null) {
-            try {
-                old.sendClose(WebSocket.NORMAL_CLOSURE, "").get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
-            } catch (InterruptedException e) {
-                Thread.currentThread().interrupt();
-            } catch (ExecutionException | TimeoutException e) {
-                LOG.log(System.Logger.Level.DEBUG, "close handshake with " + uri + " failed: " + e);
-            }
-            old.abort();
-            lost("disconnected by this client");
-        }
+        connection.disconnect();
     }
 
     /**
@@ -244,10 +221,7 @@ public final class Ros implements AutoCloseable {
      */
     @Override
     public void close() {
-        disconnect();
-        synchronized (connectionLock) {
-            closed = true;
-        }
+        connection.close();
         callbackThread.shutdown();
         timerThread.shutdownNow();
         if (Thread.currentThread() == callbackWorker.get()) {
@@ -265,9 +239,15 @@ public final class Ros implements AutoCloseable {
 
     /** @return whether the connection is currently up */
     public boolean isConnected() {
-        synchronized (connectionLock) {
-            return socket != null;
-        }
+        return connection.isConnected();
+    }
+
+    /**
+     * @return when the connection was lost (for a silent server: when it was last heard); null
+     *     while connected or before the first connect
+     */
+    public Instant lostSince() {
+        return connection.lostSince();
     }
 
     /**
@@ -275,23 +255,10 @@ public final class Ros implements AutoCloseable {
      *
      * @param timeout how long to wait
      * @throws RosTimeoutException still not connected after {@code timeout}
+     * @throws RosAuthException the server refused this client's authentication
      */
     public void awaitConnected(Duration timeout) {
-        long deadline = System.nanoTime() + timeout.toNanos();
-        synchronized (connectionLock) {
-            while (socket == null) {
-                long left = deadline - System.nanoTime();
-                if (left <= 0) {
-                    throw new RosTimeoutException("reconnect to " + uri, timeout);
-                }
-                try {
-                    TimeUnit.NANOSECONDS.timedWait(connectionLock, left);
-                } catch (InterruptedException e) {
-                    Thread.currentThread().interrupt();
-                    throw new RosException("interrupted while waiting for " + uri, e);
-                }
-            }
-        }
+        connection.awaitConnected(timeout);
     }
 
     /** @param handler told about connects, disconnects and errors */
@@ -313,29 +280,11 @@ public final class Ros implements AutoCloseable {
      * Sends one message, waiting at most {@link RosOptions#timeout()} for the socket to take it.
      *
      * @param message a complete rosbridge message with an {@code op}
-     * @throws RosException not connected, or the send failed
+     * @throws NotConnectedException not connected: the server cannot have received it
+     * @throws RosException the send failed
      */
     public void send(JsonObject message) {
-        WebSocket current;
-        synchronized (connectionLock) {
-            current = socket;
-        }
-        if (current == null) {
-            throw new RosException("not connected to rosbridge at " + uri);
-        }
-        String text = message.toString();
-        synchronized (sendLock) {
-            try {
-                current.sendText(text, true).get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
-            } catch (InterruptedException e) {
-                Thread.currentThread().interrupt();
-                throw new RosException("interrupted while sending to " + uri, e);
-            } catch (ExecutionException e) {
-                throw new RosException("sending to " + uri + " failed: " + describe(e), e.getCause());
-            } catch (TimeoutException e) {
-                throw new RosTimeoutException("send to " + uri, options.timeout());
-            }
-        }
+        connection.send(message);
     }
 
     // ---- registrations used by Topic and Service --------------------------------------------
@@ -532,26 +481,8 @@ public final class Ros implements AutoCloseable {
         return text.length() <= 200 ? text : text.substring(0, 200) + "...";
     }
 
-    // ---- losing and regaining the connection -------------------------------------------------
-
-    private void lost(WebSocket which, String reason) {
-        boolean reconnect;
-        synchronized (connectionLock) {
-            if (which != socket) {
-                return;
-            }
-            socket = null;
-            reconnect = wanted && !closed;
-        }
-        lost(reason);
-        if (reconnect) {
-            scheduleReconnect(options.reconnectMin());
-        }
-    }
-
-    private void lost(String reason) {
-        RosException failure = new RosException("connection to rosbridge at " + uri + " lost (" + reason
-                + ") before the reply came");
+    /** The connection went down: pending calls fail with {@code failure}; handlers hear of it. */
+    private void lost(RosException failure) {
         for (String id : List.copyOf(pendingCalls.keySet())) {
             PendingCall call = pendingCalls.remove(id);
             if (call != null) {
@@ -561,83 +492,6 @@ public final class Ros implements AutoCloseable {
         fragments.clear();
         for (RosHandler handler : handlers) {
             dispatch(handler::handleDisconnection);
-        }
-    }
-
-    private void scheduleReconnect(Duration delay) {
-        try {
-            timerThread.schedule(() -> reconnect(delay), delay.toNanos(), TimeUnit.NANOSECONDS);
-        } catch (java.util.concurrent.RejectedExecutionException e) {
-            LOG.log(System.Logger.Level.DEBUG, "no reconnect: connection closed");
-        }
-    }
-
-    private void reconnect(Duration lastDelay) {
-        synchronized (connectionLock) {
-            if (!wanted || closed || socket != null) {
-                return;
-            }
-        }
-        WebSocket opened;
-        try {
-            opened = open();
-        } catch (RosException e) {
-            Duration next = lastDelay.multipliedBy(2);
-            scheduleReconnect(next.compareTo(options.reconnectMax()) > 0 ? options.reconnectMax() : next);
-            return;
-        }
-        synchronized (connectionLock) {
-            if (!wanted || closed) {
-                opened.abort();
-                return;
-            }
-            socket = opened;
-            connectionLock.notifyAll();
-        }
-        LOG.log(System.Logger.Level.INFO, "reconnected to " + uri);
-        connected();
-    }
-
-    /** Reads one WebSocket; frames of a stale socket are ignored by {@link #lost(WebSocket, String)}. */
-    private final class Listener implements WebSocket.Listener {
-        private final StringBuilder partial = new StringBuilder();
-
-        @Override
-        public void onOpen(WebSocket webSocket) {
-            webSocket.request(1);
-        }
-
-        @Override
-        public CompletionStage<?> onText(WebSocket webSocket, CharSequence data, boolean last) {
-            partial.append(data);
-            if (last) {
-                String text = partial.toString();
-                partial.setLength(0);
-                receive(text);
-            }
-            webSocket.request(1);
-            return null;
-        }
-
-        @Override
-        public CompletionStage<?> onBinary(WebSocket webSocket, ByteBuffer data, boolean last) {
-            if (last) {
-                error(new RosException("binary frame from " + uri + " ignored: this client speaks JSON only"
-                        + " (do not request cbor compression)"));
-            }
-            webSocket.request(1);
-            return null;
-        }
-
-        @Override
-        public CompletionStage<?> onClose(WebSocket webSocket, int statusCode, String reason) {
-            lost(webSocket, "closed by the server, code " + statusCode + (reason.isEmpty() ? "" : ": " + reason));
-            return null;
-        }
-
-        @Override
-        public void onError(WebSocket webSocket, Throwable error) {
-            lost(webSocket, describe(error));
         }
     }
 

@@ -116,9 +116,26 @@ public final class Service {
      * @throws RosException the connection dropped or is down
      */
     public ServiceResponse callServiceAndWait(ServiceRequest request, Duration timeout) {
+        return callServiceAndWait(request, timeout, timeout);
+    }
+
+    /**
+     * Calls and waits at most {@code timeout}, asking the server to wait {@code serverTimeout} for
+     * the ROS service: shorter than {@code timeout} on a delayed link, so the server's answer
+     * (even a timeout) still reaches this client.
+     *
+     * @param request the request
+     * @param timeout how long to wait for the reply
+     * @param serverTimeout how long the server waits for the ROS service
+     * @return the reply
+     * @throws ServiceFailedException rosbridge reported a failure
+     * @throws RosTimeoutException no reply in time
+     * @throws RosException the connection dropped or is down
+     */
+    public ServiceResponse callServiceAndWait(ServiceRequest request, Duration timeout, Duration serverTimeout) {
         String id = Protocol.OP_CALL_SERVICE + ":" + name + ":" + ros.nextId();
         // No timer task: this thread waits with the timeout itself and forgets the call on expiry.
-        CompletableFuture<ServiceResponse> reply = call(id, request, null, timeout);
+        CompletableFuture<ServiceResponse> reply = call(id, request, null, serverTimeout);
         try {
             return reply.get(timeout.toNanos(), TimeUnit.NANOSECONDS);
         } catch (TimeoutException e) {

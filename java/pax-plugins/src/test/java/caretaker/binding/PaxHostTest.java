@@ -5,8 +5,10 @@ import static org.junit.jupiter.api.Assertions.assertFalse;
 import static org.junit.jupiter.api.Assertions.assertThrows;
 import static org.junit.jupiter.api.Assertions.assertTrue;
 
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginException;
+import caretaker.rosbridge.LedgerResponder;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.TestServer;
 import caretaker.sysrep.SysRep;
@@ -77,7 +79,7 @@ class PaxHostTest {
     @Test
     void conventionCommandsAndArgumentChecksThroughTheHost() throws Exception {
         try (TestServer server = new TestServer()) {
-            server.respond(call -> {
+            LedgerResponder habitat = new LedgerResponder(call -> {
                 if (!"call_service".equals(call.get("op").getAsString())) {
                     return List.of();
                 }
@@ -87,20 +89,22 @@ class PaxHostTest {
                 reply.add("service", call.get("service"));
                 return List.of(reply);
             });
+            server.respond(habitat);
             try (PaxHost host = PaxHost.open(BINDINGS.resolve("iva.yaml"), server.uri())) {
                 assertEquals(List.of("affordance_templates", "cdra"), host.sysReps().stream().map(SysRep::id).toList());
-                CommandResult result = host.execute("cdra", "unlock_filter", Map.of());
+                CommandResult result = host.execute(CommandKey.parse("run/1.1/1"), "cdra", "unlock_filter", Map.of());
                 assertTrue(result.success());
                 assertEquals("unlocked", result.message());
-                JsonObject call = server.next("call_service");
+                JsonObject call = habitat.next();
                 assertEquals("/cdra/unlock_filter", call.get("service").getAsString());
                 assertEquals("std_srvs/srv/Trigger", call.get("type").getAsString());
                 PluginException badArg = assertThrows(PluginException.class, () -> host.execute(
-                        "affordance_templates", "plan_trajectory", Map.of("affordance_template", "x")));
+                        CommandKey.parse("run/1.2/1"), "affordance_templates", "plan_trajectory", Map.of("affordance_template", "x")));
                 assertTrue(badArg.getMessage().contains("missing argument 'trajectory'"), badArg.getMessage());
                 assertTrue(assertThrows(PluginException.class, () -> host.telemetry("cdra", "nope")).getMessage()
                         .contains("no telemetry item 'nope'"));
-                assertTrue(assertThrows(PluginException.class, () -> host.execute("ghost", "x", Map.of()))
+                assertTrue(assertThrows(PluginException.class, () -> host.execute(CommandKey.parse("run/1.3/1"),
+                        "ghost", "x", Map.of()))
                         .getMessage().contains("not bound"));
                 assertTrue(host.telemetry("cdra", "filter_locked").stale());
             }

@@ -21,13 +21,16 @@ import java.util.concurrent.BlockingQueue;
 import java.util.concurrent.CountDownLatch;
 import java.util.concurrent.LinkedBlockingQueue;
 import java.util.concurrent.TimeUnit;
+import java.util.concurrent.atomic.AtomicInteger;
 import java.util.function.Function;
+import javax.net.ssl.SSLContext;
 
 /**
  * A minimal in-process WebSocket server (RFC 6455: handshake, masked client frames, text,
- * continuation, ping, close) on 127.0.0.1, so the client's JSON can be pinned without a ROS
- * graph. Debian's Maven repository has no WebSocket server library. One client at a time; every
- * received message is queued, and an optional responder answers messages as they arrive.
+ * continuation, ping answered with pong, close) on 127.0.0.1, optionally over TLS, so the client's
+ * JSON can be pinned without a ROS graph. Debian's Maven repository has no WebSocket server
+ * library. One client at a time; every received message is queued, and an optional responder
+ * answers messages as they arrive.
  */
 public final class TestServer implements AutoCloseable {
     private static final String GUID = "258EAFA5-E914-47DA-95CA-C5AB0DC85B11";
@@ -40,18 +43,53 @@ public final class TestServer implements AutoCloseable {
     private volatile Socket client;
     private volatile OutputStream clientOut;
     private volatile CountDownLatch connected = new CountDownLatch(1);
+    private final AtomicInteger handshakes = new AtomicInteger();
+    private final AtomicInteger pings = new AtomicInteger();
+    private volatile boolean answerPings = true;
+    private final String scheme;
 
     /** Starts listening on an ephemeral loopback port. */
     public TestServer() throws IOException {
-        listener = new ServerSocket(0, 50, InetAddress.getLoopbackAddress());
+        this(null);
+    }
+
+    /**
+     * Starts listening on an ephemeral loopback port, over TLS when {@code tls} is given.
+     *
+     * @param tls the server's TLS context (its certificate), or null for plain ws://
+     */
+    public TestServer(SSLContext tls) throws IOException {
+        listener = tls == null ? new ServerSocket(0, 50, InetAddress.getLoopbackAddress())
+                : tls.getServerSocketFactory().createServerSocket(0, 50, InetAddress.getLoopbackAddress());
+        scheme = tls == null ? "ws" : "wss";
         acceptThread = new Thread(this::acceptLoop, "test-websocket-server");
         acceptThread.setDaemon(true);
         acceptThread.start();
     }
 
-    /** @return ws://127.0.0.1:PORT */
+    /** @return ws://127.0.0.1:PORT (wss:// over TLS) */
     public URI uri() {
-        return URI.create("ws://127.0.0.1:" + listener.getLocalPort());
+        return URI.create(scheme + "://127.0.0.1:" + listener.getLocalPort());
+    }
+
+    /** @return the port listened on */
+    public int port() {
+        return listener.getLocalPort();
+    }
+
+    /** @return how many WebSocket handshakes completed so far */
+    public int handshakes() {
+        return handshakes.get();
+    }
+
+    /** @return how many pings the clients sent so far */
+    public int pings() {
+        return pings.get();
+    }
+
+    /** @param answer whether to answer pings with pongs (false: the server seems silent) */
+    public void answerPings(boolean answer) {
+        answerPings = answer;
     }
 
     /** @param responder returns the replies to each received message (runs on the reader thread) */
@@ -120,6 +158,25 @@ public final class TestServer implements AutoCloseable {
         send(message.toString());
     }
 
+    /**
+     * Sends a close frame to the current client, then closes its connection.
+     *
+     * @param code the close code, e.g. 1008
+     * @param reason the close reason
+     */
+    public synchronized void closeClient(int code, String reason) throws IOException {
+        connected = new CountDownLatch(1);
+        byte[] text = reason.getBytes(StandardCharsets.UTF_8);
+        OutputStream out = clientOut;
+        out.write(0x88);
+        out.write(2 + text.length);
+        out.write(code >> 8);
+        out.write(code & 0xff);
+        out.write(text);
+        out.flush();
+        client.close();
+    }
+
     /** Closes the current client's TCP connection abruptly, as a crashing server would. */
     public void dropClient() throws IOException {
         connected = new CountDownLatch(1);
@@ -157,6 +214,7 @@ public final class TestServer implements AutoCloseable {
                 client = socket;
                 clientOut = out;
             }
+            handshakes.incrementAndGet();
             connected.countDown();
             readFrames(new DataInputStream(in));
         } catch (IOException | NoSuchAlgorithmException e) {
@@ -209,7 +267,14 @@ public final class TestServer implements AutoCloseable {
             if (opcode == 0x8) {
                 return;
             }
-            if (opcode == 0x9 || opcode == 0xA) {
+            if (opcode == 0x9) {
+                pings.incrementAndGet();
+                if (answerPings) {
+                    pong(payload);
+                }
+                continue;
+            }
+            if (opcode == 0xA) {
                 continue;
             }
             message.write(payload);
@@ -222,6 +287,14 @@ public final class TestServer implements AutoCloseable {
                 }
             }
         }
+    }
+
+    private synchronized void pong(byte[] payload) throws IOException {
+        OutputStream out = clientOut;
+        out.write(0x8A);
+        out.write(payload.length);
+        out.write(payload);
+        out.flush();
     }
 
     @Override

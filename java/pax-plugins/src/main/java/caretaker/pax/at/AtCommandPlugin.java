@@ -1,15 +1,16 @@
 package caretaker.pax.at;
 
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
+import caretaker.rosbridge.CommandLedger;
 import caretaker.rosbridge.Header;
+import caretaker.rosbridge.LedgerAnswer;
 import caretaker.rosbridge.Pose;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.Service;
-import caretaker.rosbridge.ServiceRequest;
-import caretaker.rosbridge.ServiceResponse;
 import caretaker.sysrep.SysRep;
 import com.google.gson.JsonArray;
 import com.google.gson.JsonElement;
@@ -32,8 +33,10 @@ import java.util.Set;
  * negative id means "resolve from affordance_template"); an id that contradicts an instance name
  * is a failure.
  *
- * <p>Every result is the server's: {@code success: false} from the server, a missing server, or no
- * answer in time all give a failed {@link CommandResult} with the reason.
+ * <p>Every result is the server's: {@code success: false} from the server or a missing server give a
+ * failed {@link CommandResult} with the reason. Every command but the lookup of running instances
+ * ({@code get_running}) goes through the command ledger with its key: executed at most once, and
+ * UNKNOWN when its outcome cannot be learnt (no answer in time, link lost past its budget).
  *
  * <p>Options: {@code call_timeout} (s, default 10) for quick services, {@code motion_timeout} (s,
  * default 120) for plan and execute.
@@ -47,6 +50,7 @@ public final class AtCommandPlugin implements CommandPlugin {
     private static final Set<String> COMMANDS = Set.copyOf(COMMAND_ORDER);
 
     private final SysRep sysRep;
+    private final CommandLedger ledger;
     private final Duration callTimeout;
     private final Duration motionTimeout;
     private final Service addTemplate;
@@ -70,6 +74,7 @@ public final class AtCommandPlugin implements CommandPlugin {
                         + " (sysrep/affordance_templates.yaml)");
             }
         }
+        this.ledger = context.ledger();
         this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
         this.motionTimeout = context.options().seconds("motion_timeout", Duration.ofSeconds(120));
         String msgs = "affordance_template_msgs/srv/";
@@ -97,20 +102,23 @@ public final class AtCommandPlugin implements CommandPlugin {
     }
 
     @Override
-    public CommandResult execute(String commandId, Map<String, Object> args) {
+    public CommandResult execute(CommandKey key, String commandId, Map<String, Object> args) {
+        Sender sender = new Sender(key, commandId);
         try {
             return switch (commandId) {
-                case "add_affordance_template" -> add(args);
-                case "delete_affordance_template" -> delete(args);
-                case "plan_trajectory" -> plan(args);
-                case "execute_plan" -> executePlan(args);
-                case "set_waypoint_pose" -> waypointPose(args);
-                case "set_display_object_pose" -> displayObjectPose(args);
+                case "add_affordance_template" -> add(sender, args);
+                case "delete_affordance_template" -> delete(sender, args);
+                case "plan_trajectory" -> plan(sender, args);
+                case "execute_plan" -> executePlan(sender, args);
+                case "set_waypoint_pose" -> waypointPose(sender, args);
+                case "set_display_object_pose" -> displayObjectPose(sender, args);
                 default -> throw new PluginException("at_commands does not serve command '" + commandId
                         + "' (commands: " + String.join(", ", new java.util.TreeSet<>(COMMANDS)) + ")");
             };
         } catch (Unresolved e) {
             return CommandResult.failure(e.getMessage());
+        } catch (NoReply e) {
+            return e.result;
         } catch (RosException e) {
             return CommandResult.failure(commandId + ": " + e.getMessage());
         }
@@ -121,7 +129,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         // Services hold no subscriptions; the connection belongs to the caller.
     }
 
-    private CommandResult add(Map<String, Object> args) {
+    private CommandResult add(Sender sender, Map<String, Object> args) {
         String template = (String) args.get("affordance_template");
         if (template.contains(":")) {
             throw new Unresolved("add_affordance_template takes a template type such as 'cdra_filter', not an"
@@ -131,7 +139,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         request.addProperty("class_type", template);
         request.add("pose", Pose.identity().toStampedJson(new Header(caretaker.rosbridge.Time.now(), "")));
         request.addProperty("hide_waypoints", (Boolean) args.get("hide_waypoints"));
-        JsonObject reply = call(addTemplate, request, callTimeout);
+        JsonObject reply = sender.send(addTemplate, request, callTimeout);
         if (!reply.get("success").getAsBoolean()) {
             return failed(reply);
         }
@@ -141,12 +149,12 @@ public final class AtCommandPlugin implements CommandPlugin {
         return CommandResult.success(message(reply), values);
     }
 
-    private CommandResult delete(Map<String, Object> args) {
+    private CommandResult delete(Sender sender, Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
         JsonObject request = new JsonObject();
         request.addProperty("class_type", instance.type());
         request.addProperty("id", instance.id());
-        return result(call(deleteTemplate, request, callTimeout), instance, Map.of());
+        return result(sender.send(deleteTemplate, request, callTimeout), instance, Map.of());
     }
 
     /** The part of plan_command and execute_command requests that names instance and trajectory. */
@@ -159,14 +167,14 @@ public final class AtCommandPlugin implements CommandPlugin {
         return request;
     }
 
-    private CommandResult plan(Map<String, Object> args) {
+    private CommandResult plan(Sender sender, Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
         JsonObject request = trajectoryRequest(instance, args);
         request.add("steps", new JsonArray());
         request.addProperty("direct", false);
         request.addProperty("backwards", false);
         request.addProperty("execute", false);
-        JsonObject reply = call(planCommand, request, motionTimeout);
+        JsonObject reply = sender.send(planCommand, request, motionTimeout);
         JsonObject status = reply.getAsJsonObject("affordance_template_status");
         Map<String, Object> values = new LinkedHashMap<>();
         if (status != null) {
@@ -195,9 +203,9 @@ public final class AtCommandPlugin implements CommandPlugin {
         values.put("end_pose_frame", last.getAsJsonObject("header").get("frame_id").getAsString());
     }
 
-    private CommandResult executePlan(Map<String, Object> args) {
+    private CommandResult executePlan(Sender sender, Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
-        JsonObject reply = call(executeCommand, trajectoryRequest(instance, args), motionTimeout);
+        JsonObject reply = sender.send(executeCommand, trajectoryRequest(instance, args), motionTimeout);
         JsonObject status = reply.getAsJsonObject("affordance_template_status");
         Map<String, Object> values = new LinkedHashMap<>();
         if (status != null) {
@@ -206,7 +214,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         return result(reply, instance, values);
     }
 
-    private CommandResult waypointPose(Map<String, Object> args) {
+    private CommandResult waypointPose(Sender sender, Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
         JsonObject request = new JsonObject();
         request.addProperty("type", instance.type());
@@ -219,10 +227,10 @@ public final class AtCommandPlugin implements CommandPlugin {
         request.addProperty("waypoint_id", waypoint);
         request.addProperty("end_effector", (String) args.get("ee_name"));
         request.add("pose", pose(args).toStampedJson(Header.now((String) args.get("frame_id"))));
-        return result(call(setWaypointPose, request, callTimeout), instance, Map.of());
+        return result(sender.send(setWaypointPose, request, callTimeout), instance, Map.of());
     }
 
-    private CommandResult displayObjectPose(Map<String, Object> args) {
+    private CommandResult displayObjectPose(Sender sender, Map<String, Object> args) {
         TemplateInstance instance = resolve(args);
         JsonObject object = new JsonObject();
         object.addProperty("type", instance.type());
@@ -233,7 +241,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         objects.add(object);
         JsonObject request = new JsonObject();
         request.add("objects", objects);
-        return result(call(setObjectPose, request, callTimeout), instance, Map.of());
+        return result(sender.send(setObjectPose, request, callTimeout), instance, Map.of());
     }
 
     private static Pose pose(Map<String, Object> args) {
@@ -280,7 +288,10 @@ public final class AtCommandPlugin implements CommandPlugin {
     }
 
     private List<TemplateInstance> running() {
-        JsonObject reply = call(getRunning, new JsonObject(), callTimeout);
+        JsonObject reply = ledger.query(getRunning, new JsonObject(), callTimeout).toJsonObject();
+        if (!reply.has("success")) {
+            throw new RosException("reply of " + getRunning.getName() + " has no 'success' field: " + reply);
+        }
         if (!reply.get("success").getAsBoolean()) {
             throw new Unresolved("cannot list running templates: " + message(reply));
         }
@@ -294,13 +305,33 @@ public final class AtCommandPlugin implements CommandPlugin {
         return instances;
     }
 
-    private static JsonObject call(Service service, JsonObject request, Duration timeout) {
-        ServiceResponse response = service.callServiceAndWait(new ServiceRequest(request), timeout);
-        JsonObject reply = response.toJsonObject();
-        if (!reply.has("success")) {
-            throw new RosException("reply of " + service.getName() + " has no 'success' field: " + reply);
+    /** Sends one command's state-changing call through the ledger under the command's key. */
+    private final class Sender {
+        private final CommandKey key;
+        private final String commandId;
+
+        Sender(CommandKey key, String commandId) {
+            this.key = key;
+            this.commandId = commandId;
         }
-        return reply;
+
+        /**
+         * @return the server's reply, which has a {@code success} field
+         * @throws NoReply the outcome is unknown, or the call was never executed
+         */
+        JsonObject send(Service service, JsonObject request, Duration timeout) {
+            LedgerAnswer answer = ledger.execute(key.toString(), service.getName(), service.getType(), request,
+                    timeout);
+            JsonObject reply = answer.response();
+            if (reply == null) {
+                throw new NoReply(CommandResult.withoutReply(commandId, answer));
+            }
+            if (!reply.has("success")) {
+                throw new NoReply(CommandResult.unknown(commandId + ": the reply of " + service.getName()
+                        + " has no 'success' field, so whether it worked is unknown: " + reply));
+            }
+            return reply;
+        }
     }
 
     private static CommandResult result(JsonObject reply, TemplateInstance instance, Map<String, Object> extra) {
@@ -321,6 +352,17 @@ public final class AtCommandPlugin implements CommandPlugin {
     private static String message(JsonObject reply) {
         JsonElement message = reply.get("message");
         return message == null || message.isJsonNull() ? "" : message.getAsString();
+    }
+
+    /** The system's reply did not come or cannot be read: the result says why. */
+    private static final class NoReply extends RuntimeException {
+        private static final long serialVersionUID = 1L;
+        private final transient CommandResult result;
+
+        NoReply(CommandResult result) {
+            super(result.message(), null, false, false);
+            this.result = result;
+        }
     }
 
     /** The command cannot name one instance; becomes a failed result, not an exception. */

@@ -1,18 +1,19 @@
 package caretaker.pax.convention;
 
 import caretaker.pax.BoardTelemetryPlugin;
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.CommandLedger;
 import caretaker.rosbridge.JsonValues;
+import caretaker.rosbridge.LedgerAnswer;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosHandler;
-import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.Service;
-import caretaker.rosbridge.ServiceRequest;
 import caretaker.rosbridge.Topic;
 import caretaker.sysrep.Command;
 import caretaker.sysrep.SysRep;
@@ -42,7 +43,8 @@ import java.util.concurrent.TimeUnit;
  *       the same name (its type comes from the ROS graph, or from option
  *       {@code service_types: {c: pkg/srv/Type}}). The reply's {@code success} and
  *       {@code message} become the result's; every other string, boolean or number field of the
- *       reply becomes a result value (e.g. {@code path} of {@code /camera/capture}).</li>
+ *       reply becomes a result value (e.g. {@code path} of {@code /camera/capture}). Every
+ *       command goes through the command ledger with its key: executed at most once.</li>
  *   <li>Telemetry item {@code t} subscribes to topic {@code <ns>/t}: boolean → {@code std_msgs/msg/Bool},
  *       string → {@code std_msgs/msg/String}, integer → {@code std_msgs/msg/Int64},
  *       real → {@code std_msgs/msg/Float64}; the value is the message's {@code data}.</li>
@@ -60,6 +62,7 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
     private static final String TRIGGER = "std_srvs/srv/Trigger";
 
     private final Duration callTimeout;
+    private final CommandLedger ledger;
     private final Map<String, Service> services = new LinkedHashMap<>();
     private final List<Topic> topics = new ArrayList<>();
     private final Map<String, Long> lastReceivedNanos = new java.util.concurrent.ConcurrentHashMap<>();
@@ -74,6 +77,7 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
     public RosConventionPlugin(PluginContext context) {
         super(context.sysRep());
         this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
+        this.ledger = context.ledger();
         Map<String, String> serviceNames = context.options().stringMap("services");
         Map<String, String> serviceTypes = context.options().stringMap("service_types");
         Map<String, String> topicNames = context.options().stringMap("topics");
@@ -173,18 +177,18 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
     }
 
     @Override
-    public CommandResult execute(String commandId, Map<String, Object> args) {
+    public CommandResult execute(CommandKey key, String commandId, Map<String, Object> args) {
         Service service = services.get(commandId);
         if (service == null) {
             throw new PluginException("SysRep '" + sysRep.id() + "' has no command '" + commandId + "'");
         }
         JsonObject request = new JsonObject();
         args.forEach((name, value) -> request.add(name, json(value)));
-        JsonObject reply;
-        try {
-            reply = service.callServiceAndWait(new ServiceRequest(request), callTimeout).toJsonObject();
-        } catch (RosException e) {
-            return CommandResult.failure(commandId + ": " + e.getMessage());
+        LedgerAnswer answer = ledger.execute(key.toString(), service.getName(), service.getType(), request,
+                callTimeout);
+        JsonObject reply = answer.response();
+        if (reply == null) {
+            return CommandResult.withoutReply(commandId, answer);
         }
         boolean success = !reply.has("success") || reply.get("success").getAsBoolean();
         String message = reply.has("message") ? reply.get("message").getAsString() : "";

@@ -5,10 +5,15 @@ import static org.junit.jupiter.api.Assertions.assertFalse;
 import static org.junit.jupiter.api.Assertions.assertThrows;
 import static org.junit.jupiter.api.Assertions.assertTrue;
 
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandResult;
+import caretaker.pax.Outcome;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.pax.PluginOptions;
+import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LedgerResponder;
+import caretaker.rosbridge.LinkOptions;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosOptions;
 import caretaker.rosbridge.TestServer;
@@ -30,13 +35,17 @@ import org.junit.jupiter.api.Test;
 /**
  * The AT command plugin's mapping of SysRep commands onto AT service requests, its instance
  * resolution and its reporting of the server's outcome. The AT server is played by a responder
- * on {@link TestServer}; the real AT server is exercised by tests/pax.
+ * on {@link TestServer}, behind a {@link LedgerResponder}; the real AT server is exercised by
+ * tests/pax.
  */
 class AtCommandPluginTest {
     private static final String NS = "/affordance_template_server";
 
     private TestServer server;
     private Ros ros;
+    private CommandLedger ledger;
+    private LedgerResponder habitat;
+    private int commands;
     private SysRep sysRep;
     private AtCommandPlugin plugin;
     private final List<String> running = new ArrayList<>();
@@ -46,7 +55,7 @@ class AtCommandPluginTest {
     @BeforeEach
     void start() throws Exception {
         server = new TestServer();
-        server.respond(call -> {
+        habitat = new LedgerResponder(call -> {
             if (!"call_service".equals(call.get("op").getAsString())) {
                 return List.of();
             }
@@ -69,27 +78,32 @@ class AtCommandPluginTest {
             reply.addProperty("result", true);
             return List.of(reply);
         });
+        server.respond(habitat);
         ros = new Ros(server.uri(), RosOptions.defaults().withTimeout(Duration.ofSeconds(5)));
         ros.connect();
+        ledger = new CommandLedger(ros, LinkOptions.loopback());
         sysRep = SysRepLoader.load(caretaker.Repo.path("sysrep/affordance_templates.yaml"));
-        plugin = new AtCommandPlugin(new PluginContext(sysRep, ros, NS, new PluginOptions(Map.of(), "test")));
+        plugin = new AtCommandPlugin(new PluginContext(sysRep, ros, ledger, NS, new PluginOptions(Map.of(), "test")));
     }
 
     @AfterEach
     void stop() throws Exception {
         plugin.close();
+        ledger.close();
         ros.close();
         server.close();
     }
 
     private CommandResult run(String command, Map<String, ?> args) {
         Command declared = sysRep.command(command);
-        return plugin.execute(command, declared.checkArguments(args));
+        return plugin.execute(new CommandKey("test-run", "1." + ++commands, 1), command,
+                declared.checkArguments(args));
     }
 
+    /** The next call of {@code service} the ledger made for the plugin. */
     private JsonObject call(String service) throws InterruptedException {
         while (true) {
-            JsonObject message = server.next("call_service");
+            JsonObject message = habitat.next();
             if (message.get("service").getAsString().equals(NS + "/" + service)) {
                 return message.getAsJsonObject("args");
             }
@@ -177,7 +191,7 @@ class AtCommandPluginTest {
 
     @Test
     void missingServerIsAFailureNotAHang() throws Exception {
-        server.respond(call -> {
+        server.respond(new LedgerResponder(call -> {
             JsonObject reply = new JsonObject();
             reply.addProperty("op", "service_response");
             reply.add("id", call.get("id"));
@@ -185,11 +199,51 @@ class AtCommandPluginTest {
             reply.addProperty("values", "Service " + call.get("service").getAsString() + " does not exist");
             reply.addProperty("result", false);
             return List.of(reply);
-        });
+        }));
         CommandResult result = run("execute_plan", Map.of("affordance_template", "cdra_filter:0",
                 "trajectory", "remove"));
+        assertEquals(Outcome.FAILED, result.outcome());
+        assertTrue(result.message().contains("not executed") && result.message().contains("does not exist"),
+                result.message());
+    }
+
+    @Test
+    void commandsCarryTheirKeyAndAnUnknownOutcomeStaysUnknown() throws Exception {
+        List<JsonObject> executes = new java.util.concurrent.CopyOnWriteArrayList<>();
+        server.respond(call -> {
+            JsonObject values = new JsonObject();
+            values.addProperty("epoch", "e1");
+            if (call.get("service").getAsString().equals(CommandLedger.EXECUTE_SERVICE)) {
+                executes.add(call.getAsJsonObject("args"));
+                values.addProperty("state", "UNKNOWN");
+                values.addProperty("message", "the server of execute_command went away before answering");
+            } else {
+                values.addProperty("state", "NOT_FOUND");
+            }
+            JsonObject reply = new JsonObject();
+            reply.addProperty("op", "service_response");
+            reply.add("id", call.get("id"));
+            reply.add("service", call.get("service"));
+            reply.add("values", values);
+            reply.addProperty("result", true);
+            return List.of(reply);
+        });
+        CommandResult result = plugin.execute(CommandKey.parse("run-7/4.2/3"), "execute_plan",
+                sysRep.command("execute_plan").checkArguments(Map.of("affordance_template", "cdra_filter:0",
+                        "trajectory", "remove")));
+        assertEquals(Outcome.UNKNOWN, result.outcome());
         assertFalse(result.success());
-        assertTrue(result.message().contains("does not exist"), result.message());
+        assertTrue(result.message().contains("outcome unknown") && result.message().contains("went away"),
+                result.message());
+        assertEquals(1, executes.size());
+        JsonObject sent = executes.get(0);
+        assertEquals("run-7/4.2/3", sent.get("command_key").getAsString());
+        assertEquals("", sent.get("epoch").getAsString());
+        assertEquals(NS + "/execute_command", sent.get("service").getAsString());
+        assertEquals("affordance_template_msgs/srv/AffordanceTemplateExecuteCommand", sent.get("type").getAsString());
+        assertEquals(180.0, sent.get("timeout").getAsDouble() + 60.0, 1e-9); // motion_timeout, default 120 s
+        assertEquals("remove", JsonParser.parseString(sent.get("request_json").getAsString()).getAsJsonObject()
+                .get("trajectory_name").getAsString());
     }
 
     @Test
@@ -244,7 +298,7 @@ class AtCommandPluginTest {
     void wrongSysRepOrOptionIsRefused() {
         SysRep cdra = SysRepLoader.load(caretaker.Repo.path("sysrep/cdra.yaml"));
         PluginException wrongSysRep = assertThrows(PluginException.class, () -> new AtCommandPlugin(
-                new PluginContext(cdra, ros, NS, new PluginOptions(Map.of(), "iva.yaml: systems[1]"))));
+                new PluginContext(cdra, ros, ledger, NS, new PluginOptions(Map.of(), "iva.yaml: systems[1]"))));
         assertTrue(wrongSysRep.getMessage().contains("has no command 'add_affordance_template'"));
         PluginException typo = assertThrows(PluginException.class, () -> caretaker.binding.PluginKind.checkOptions(
                 List.of("at_commands", "at_telemetry"), new PluginOptions(Map.of("call_timout", 1), "iva.yaml")));

@@ -8,6 +8,8 @@ import static org.junit.jupiter.api.Assertions.assertTrue;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginOptions;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LinkOptions;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosOptions;
 import caretaker.rosbridge.TestServer;
@@ -38,7 +40,8 @@ class AtTelemetryPluginTest {
         ros = new Ros(server.uri(), RosOptions.defaults());
         ros.connect();
         SysRep sysRep = SysRepLoader.load(caretaker.Repo.path("sysrep/affordance_templates.yaml"));
-        plugin = new AtTelemetryPlugin(new PluginContext(sysRep, ros, "/affordance_template_server",
+        plugin = new AtTelemetryPlugin(new PluginContext(sysRep, ros, new CommandLedger(ros, LinkOptions.loopback()),
+                "/affordance_template_server",
                 new PluginOptions(Map.of("stale_after", 0.3), "test")));
         plugin.addListener((sysrep, item, value) -> changes.add(item + "=" + value.value() + (value.stale() ? " stale"
                 : "")));

@@ -6,11 +6,15 @@ import static org.junit.jupiter.api.Assertions.assertThrows;
 import static org.junit.jupiter.api.Assertions.assertTrue;
 
 import caretaker.Repo;
+import caretaker.pax.CommandKey;
 import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.pax.PluginOptions;
 import caretaker.pax.TelemetryValue;
+import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LedgerResponder;
+import caretaker.rosbridge.LinkOptions;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosOptions;
 import caretaker.rosbridge.TestServer;
@@ -32,23 +36,28 @@ import org.junit.jupiter.api.Test;
 class RosConventionPluginTest {
     private TestServer server;
     private Ros ros;
+    private CommandLedger ledger;
+    private LedgerResponder habitat;
 
     @BeforeEach
     void start() throws Exception {
         server = new TestServer();
         ros = new Ros(server.uri(), RosOptions.defaults());
         ros.connect();
+        ledger = new CommandLedger(ros, LinkOptions.loopback());
     }
 
     @AfterEach
     void stop() throws Exception {
+        ledger.close();
         ros.close();
         server.close();
     }
 
     private RosConventionPlugin plugin(String sysrep, String namespace, Map<String, Object> options) {
         SysRep sysRep = SysRepLoader.load(Repo.path("sysrep/" + sysrep));
-        return new RosConventionPlugin(new PluginContext(sysRep, ros, namespace, new PluginOptions(options, "test")));
+        return new RosConventionPlugin(new PluginContext(sysRep, ros, ledger, namespace,
+                new PluginOptions(options, "test")));
     }
 
     @Test
@@ -93,29 +102,32 @@ class RosConventionPluginTest {
 
     @Test
     void argumentlessCommandIsATriggerAndRepliesBecomeResults() throws Exception {
-        server.respond(call -> call.get("op").getAsString().equals("call_service") ? List.of(reply(call,
+        habitat = new LedgerResponder(call -> call.get("op").getAsString().equals("call_service") ? List.of(reply(call,
                 "{\"success\":false,\"message\":\"latch jammed\"}")) : List.of());
+        server.respond(habitat);
         try (RosConventionPlugin cdra = plugin("cdra.yaml", "/cdra", Map.of())) {
-            CommandResult result = cdra.execute("lock_filter", Map.of());
+            CommandResult result = cdra.execute(CommandKey.parse("r/1/1"), "lock_filter", Map.of());
             assertFalse(result.success());
             assertEquals("latch jammed", result.message());
-            JsonObject call = server.next("call_service");
+            JsonObject call = habitat.next();
             assertEquals("/cdra/lock_filter", call.get("service").getAsString());
             assertEquals("std_srvs/srv/Trigger", call.get("type").getAsString());
-            assertThrows(PluginException.class, () -> cdra.execute("open_hatch", Map.of()));
+            assertThrows(PluginException.class, () -> cdra.execute(CommandKey.parse("r/2/1"), "open_hatch", Map.of()));
         }
     }
 
     @Test
     void commandArgumentsAreRequestFieldsAndScalarReplyFieldsAreValues() throws Exception {
-        server.respond(call -> call.get("op").getAsString().equals("call_service") ? List.of(reply(call,
+        habitat = new LedgerResponder(call -> call.get("op").getAsString().equals("call_service") ? List.of(reply(call,
                 "{\"success\":true,\"message\":\"saved\",\"path\":\"/tmp/x.png\",\"image\":{\"height\":2}}"))
                 : List.of());
+        server.respond(habitat);
         try (RosConventionPlugin camera = plugin("camera.yaml", "/camera", Map.of())) {
-            CommandResult result = camera.execute("capture", Map.of("camera", "scene", "label", "bay"));
+            CommandResult result = camera.execute(CommandKey.parse("r/3/1"), "capture",
+                    Map.of("camera", "scene", "label", "bay"));
             assertTrue(result.success());
             assertEquals(Map.of("path", "/tmp/x.png"), result.values());
-            JsonObject call = server.next("call_service");
+            JsonObject call = habitat.next();
             assertEquals("/camera/capture", call.get("service").getAsString());
             assertFalse(call.has("type"), "the type comes from the ROS graph unless service_types names it");
             assertEquals(JsonParser.parseString("{\"camera\":\"scene\",\"label\":\"bay\"}"), call.get("args"));
