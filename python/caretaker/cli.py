@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "lint": ("pride.cli", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),
+    "db": ("pride.cli", "db_main", "create or upgrade the audit log's schema (status: its revision)"),
     "serve": ("pride.web.server", "main", "serve the operator web view"),
     "up": ("caretaker.stack", "up_main", "start the robot side and the rosbridge server"),
     "demo": ("caretaker.stack", "demo_main", "run the IVA or EVA demonstration end to end"),

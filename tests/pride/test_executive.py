@@ -20,26 +20,13 @@ from pride.parser import load_procedure
 TIMEOUT = 20.0
 
 
-class ListJournal:
-    """Keeps events in memory, in order (the audit log's contract without the database)."""
-
-    def __init__(self) -> None:
-        self.events: list[Event] = []
-
-    def append(self, event: Event) -> None:
-        self.events.append(event)
-
-    def kinds(self, number: str | None = None) -> list[EventKind]:
-        return [e.kind for e in self.events if number is None or e.instruction == number]
-
-
 @pytest.fixture
-def bench(tmp_path, sysreps):
+def bench(tmp_path, sysreps, new_journal):
     made: list[Executive] = []
 
     def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None):
         gateway = gateway or LabGateway(str(tmp_path / "images"))
-        journal = ListJournal()
+        journal = new_journal()  # the audit log, on SQLite and on PostgreSQL (conftest.py)
         executive = Executive(load_procedure(FIXTURES / name), gateway, journal, run_id="run-1", mode=mode, sysreps=sysreps)
         made.append(executive)
         return executive, gateway, journal
@@ -265,13 +252,13 @@ def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run
     assert [s for s, _ in seen] == [e.seq for e in journal.events]
 
 
-def test_a_procedure_with_errors_does_not_start(sysreps) -> None:
+def test_a_procedure_with_errors_does_not_start(sysreps, new_journal) -> None:
     procedure = load_procedure(FIXTURES / "broken" / "unknown_command.xml")
     with pytest.raises(ProcedureError, match="unknown command 'mvoe'"):
-        Executive(procedure, LabGateway(), ListJournal(), run_id="r", sysreps=sysreps)
+        Executive(procedure, LabGateway(), new_journal(), run_id="r", sysreps=sysreps)
 
 
-def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path) -> None:
+def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path, new_journal) -> None:
     first, gateway, journal = bench()
     gateway.block.add("vent")
     first.start("lena")
@@ -284,7 +271,7 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
     log = list(journal.events)
 
     second_gateway = LabGateway(str(tmp_path / "images"))
-    second_journal = ListJournal()
+    second_journal = new_journal(log)  # the log as the crashed runner left it
     resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), second_gateway, second_journal, log,
                                "mia", sysreps=sysreps)
     try:
@@ -306,7 +293,7 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
         gateway.release.set()
 
 
-def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
+def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps, new_journal) -> None:
     executive, gateway, journal = bench()
     executive.start("nina")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -321,7 +308,7 @@ def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
     log = journal.events[: cut + 1]
 
     gateway2 = LabGateway()
-    journal2 = ListJournal()
+    journal2 = new_journal(log)
     resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway2, journal2, log, "nina",
                                sysreps=sysreps)
     snap = finished(resumed)
@@ -355,7 +342,7 @@ def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
     assert journal.kinds().count(EventKind.OPERATOR_INPUT) == 1
 
 
-def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operator_redo_it(bench, sysreps) -> None:
+def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operator_redo_it(bench, sysreps, new_journal) -> None:
     executive, gateway, journal = bench()
     gateway.stale.add("door_open")
     executive.start("sam")
@@ -370,7 +357,7 @@ def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operat
     assert [(e.instruction, e.data["next"]) for e in failed] == [("2.2", "2.2")]  # not the on-failure branch
 
     gateway.stale.clear()
-    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, ListJournal(),
+    resumed = Executive.resume(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, new_journal(journal.events),
                                list(journal.events), "tess", sysreps=sysreps)
     snap = held(resumed, Hold.FAILURE, "2.2")  # the operator sees why it ended and decides
     assert "stopped while watching telemetry" in snap.reason

@@ -7,17 +7,17 @@ import itertools
 
 import pytest
 
-from conftest import FIXTURES
+from conftest import FIXTURES, RecordedJournal
 from lab_gateway import LabGateway
+from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.parser import load_procedure
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
-from test_executive import ListJournal
 
 
-def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, ListJournal, LabGateway]:
-    journal, gateway = ListJournal(), LabGateway(str(tmp_path))
+def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
+    journal, gateway = RecordedJournal(AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")), LabGateway(str(tmp_path))
     executive = Executive(load_procedure(FIXTURES / "lab_all_kinds.xml"), gateway, journal, run_id="t",
                           mode=mode, sysreps=sysreps)
     return executive, journal, gateway
