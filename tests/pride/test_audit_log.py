@@ -4,6 +4,7 @@ upgraded in place."""
 
 from __future__ import annotations
 
+import sqlite3
 import subprocess
 import sys
 from dataclasses import replace
@@ -38,6 +39,17 @@ def test_records_come_back_in_order_with_their_data_and_utc_times(database: Audi
     assert events[1].time == datetime(2030, 1, 2, 1, 4, 5, 678901, tzinfo=timezone.utc)
     assert all(e.time.utcoffset() == timedelta(0) for e in events)
     assert [(run, proc) for run, _, proc in log.runs()] == [("run-a", "p"), ("run-b", "q")]
+    log.close()
+
+
+def test_an_appended_event_is_committed_when_append_returns(database: AuditDatabase) -> None:
+    log = AuditLog(database.url)
+    for seq in (1, 2, 3):
+        log.append(Event("run-a", seq, EventKind.RUN_STARTED if seq == 1 else EventKind.PAUSED, "alice"))
+        seen = (database.server.sql("SELECT count(*) FROM audit_records", database=database.name)
+                if database.server is not None else
+                sqlite3.connect(database.url.removeprefix("sqlite:///")).execute("SELECT count(*) FROM audit_records").fetchall())
+        assert seen == [(seq,)]  # another connection, another process could read it: it is durable
     log.close()
 
 
@@ -97,8 +109,6 @@ def test_nobody_updates_or_deletes_events_and_the_runner_is_refused_by_its_grant
     log.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice"))
     log.close()
     if database.server is None:  # SQLite has no roles: triggers refuse whoever opens the file
-        import sqlite3
-
         with sqlite3.connect(database.url.removeprefix("sqlite:///")) as connection:
             for statement in ("UPDATE audit_records SET actor = 'mallory'", "DELETE FROM audit_records"):
                 with pytest.raises(sqlite3.IntegrityError, match="audit records are append-only"):

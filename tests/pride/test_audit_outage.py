@@ -52,11 +52,13 @@ def capturing(snap: Snapshot) -> bool:
     return snap.executing and snap.current == "2.3"
 
 
-def start_run(url: str, tmp_path, sysreps, *, budget: float) -> tuple[Executive, LabGateway, AuditLog, queue.Queue[Availability]]:
+def start_run(url: str, tmp_path, sysreps, *,
+              budget: float) -> tuple[Executive, LabGateway, AuditLog, queue.Queue[tuple[Availability, int]]]:
+    """A run held with ``capture`` in flight; the queue gets each availability change with the commands sent by then."""
     log = AuditLog(url, outage_budget=budget)
-    states: queue.Queue[Availability] = queue.Queue()
-    log.add_availability_listener(states.put)
     gateway = LabGateway(str(tmp_path / "images"))
+    states: queue.Queue[tuple[Availability, int]] = queue.Queue()
+    log.add_availability_listener(lambda state: states.put((state, len(gateway.sent))))
     gateway.block.add("capture")
     executive = Executive(load_procedure(PROCEDURE), gateway, log, run_id="outage-run", mode=Mode.AUTONOMOUS,
                           sysreps=sysreps)
@@ -69,17 +71,17 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
         outage: PostgresServer, audit_template: str, tmp_path, sysreps, caplog) -> None:
     url = outage.url(outage.new_database(template=audit_template), RUNNER)
     executive, gateway, log, states = start_run(url, tmp_path, sysreps, budget=120)
-    sent_before = len(gateway.sent)
 
     outage.stop()
     gateway.release.set()  # capture answers now; its result cannot be stored
-    down = states.get(timeout=TIMEOUT)
+    down, sent_when_down = states.get(timeout=TIMEOUT)
     assert not down.available and down.since is not None and down.error
     assert log.availability == down
     assert any("unavailable since" in r.getMessage() and r.levelno == logging.WARNING for r in caplog.records)
     outage.start()
-    up = states.get(timeout=TIMEOUT)
+    up, sent_when_up = states.get(timeout=TIMEOUT)
     assert up.available and log.availability.available
+    assert sent_when_up == sent_when_down and gateway.sent[sent_when_down - 1][1] == "capture"  # PAX waited
     assert any("available again" in r.getMessage() for r in caplog.records)
 
     final = drive(executive, lambda s: False)
@@ -91,7 +93,6 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
     assert len(results) == 1 and results[0].data["success"] is True
     after = [e.kind for e in events[events.index(results[0]) - 1:]]
     assert after[:2] == [EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT]  # the waiting event kept its place
-    assert gateway.sent[sent_before - 1][1] == "capture"
     assert Counter(c for _, c, _ in gateway.sent)["capture"] == 1
     check = log.verify("outage-run")
     assert check.ok and check.events == len(events), check.describe()
@@ -105,7 +106,7 @@ def test_an_outage_longer_than_the_budget_stops_the_run_with_the_reason_and_resu
 
     outage.stop()
     gateway.release.set()
-    assert not states.get(timeout=TIMEOUT).available
+    assert not states.get(timeout=TIMEOUT)[0].available
     stopped = executive.wait_for(lambda s: s.status is not RunStatus.ACTIVE, TIMEOUT)
     assert stopped is not None and stopped.status is RunStatus.STOPPED
     assert stopped.error and "unavailable since" in stopped.error and "gave up after" in stopped.error
