@@ -9,6 +9,8 @@ Modules, by concept:
 - :mod:`pride.executive` — PAX: manual and autonomous runs, operator actions, observers;
   :mod:`pride.states` its observable states, :mod:`pride.automation` the part that acts on systems.
 - :mod:`pride.systems` — the PAX host shape the executive talks to (no ROS, no JVM here).
-- :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action.
+- :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action;
+  :mod:`pride.audit_chain` its hash chain, :mod:`pride.audit_schema` and :mod:`pride.migrations`
+  its tables and their Alembic migrations.
 - :mod:`pride.report` — after-action reports; :mod:`pride.terminal`, :mod:`pride.cli` — the CLI.
 """

@@ -149,7 +149,7 @@ def describe(event: Event) -> str:
         return f"retry after: {d.get('after', '')}"
     if kind is EventKind.CALL_ENTERED:
         return f"entered {d.get('procedure')} with {d.get('inputs')}"
-    return kind.value.replace("_", " ")
+    return str(kind.value).replace("_", " ")
 
 
 def _clock(moment: datetime) -> str:

@@ -266,8 +266,9 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
     first.enter("lena", "dock")
     held(first, Hold.CONFIRMATION, "2.1")
     first.confirm("lena")
-    assert first.wait_for(lambda s: s.executing and s.current == "2.1", TIMEOUT)
-    assert journal.events[-1].kind is EventKind.COMMAND_SENT  # sent, no answer yet: the "crash" point
+    # sent, no answer yet: the "crash" point (the command is recorded after the instruction starts executing)
+    assert first.wait_for(lambda s: s.executing and s.current == "2.1" and journal.events[-1].kind is EventKind.COMMAND_SENT,
+                          TIMEOUT)
     log = list(journal.events)
 
     second_gateway = LabGateway(str(tmp_path / "images"))
