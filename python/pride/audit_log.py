@@ -117,9 +117,12 @@ class AuditLog:
                 ensure_schema(self._engine, self.location)
             else:
                 self.schema_revision()  # reach the database now, as an upgrading open would
-        except (OperationalError, InterfaceError) as exc:
+        except BaseException as exc:
             self._engine.dispose()
-            raise AuditLogUnavailable(self.location, _error_text(exc)) from exc
+            self._writers.close()
+            if isinstance(exc, (OperationalError, InterfaceError)):
+                raise AuditLogUnavailable(self.location, _error_text(exc)) from exc
+            raise
         self._heads: dict[str, tuple[int, str]] = {}  # run -> (seq, hash) of its last stored event
         self._run_locks: dict[str, threading.Lock] = {}
         self._lock = threading.Lock()

@@ -12,7 +12,8 @@ from datetime import datetime, timedelta, timezone
 
 import pytest
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, UniqueConstraint, create_engine
-from sqlalchemy.exc import DBAPIError, IntegrityError
+from sqlalchemy import event
+from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
 
 from conftest import AuditDatabase
 from pride.audit_chain import GENESIS
@@ -50,6 +51,27 @@ def test_an_appended_event_is_committed_when_append_returns(database: AuditDatab
                 if database.server is not None else
                 sqlite3.connect(database.url.removeprefix("sqlite:///")).execute("SELECT count(*) FROM audit_records").fetchall())
         assert seen == [(seq,)]  # another connection, another process could read it: it is durable
+    log.close()
+
+
+def test_an_append_whose_answer_was_lost_is_stored_once(database: AuditDatabase) -> None:
+    """The connection drops right after the INSERT ran: on PostgreSQL (autocommit) the row is then stored,
+    and the retry must find it rather than fail on it; on SQLite the transaction is undone and retried."""
+    log = AuditLog(database.url)
+    states: list[bool] = []
+    log.add_availability_listener(lambda state: states.append(state.available))
+    log.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice"))
+    lost = []
+
+    def lose_the_answer(connection, cursor, statement, parameters, context, executemany) -> None:
+        if statement.startswith("INSERT") and not lost:
+            lost.append(statement)
+            raise OperationalError(statement, parameters, Exception("server closed the connection unexpectedly"))
+
+    event.listen(log._engine, "after_cursor_execute", lose_the_answer)
+    log.append(Event("run-a", 2, EventKind.PAUSED, "alice"))
+    assert lost and states == [False, True]
+    assert [e.seq for e in log.events("run-a")] == [1, 2] and log.verify("run-a").ok
     log.close()
 
 
