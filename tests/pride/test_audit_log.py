@@ -54,14 +54,20 @@ def test_an_appended_event_is_committed_when_append_returns(database: AuditDatab
     log.close()
 
 
-def test_an_append_whose_answer_was_lost_is_stored_once(database: AuditDatabase) -> None:
-    """The connection drops right after the INSERT ran: on PostgreSQL (autocommit) the row is then stored,
-    and the retry must find it rather than fail on it; on SQLite the transaction is undone and retried."""
-    log = AuditLog(database.url)
+def _append_through_one_failure(log: AuditLog) -> list[bool]:
+    """Append events 1 and 2 to run-a; the fault the caller installed strikes during event 2."""
     states: list[bool] = []
     log.add_availability_listener(lambda state: states.append(state.available))
     log.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice"))
-    lost = []
+    return states
+
+
+def test_an_append_whose_answer_was_lost_is_stored_once(postgres: PostgresServer, audit_template: str) -> None:
+    """The connection drops right after the INSERT ran and committed (autocommit): the retry must find
+    its row rather than fail on it, and never store it twice."""
+    log = AuditLog(postgres.url(postgres.new_database(template=audit_template), RUNNER))
+    states = _append_through_one_failure(log)
+    lost: list[str] = []
 
     def lose_the_answer(connection, cursor, statement, parameters, context, executemany) -> None:
         if statement.startswith("INSERT") and not lost:
@@ -71,6 +77,28 @@ def test_an_append_whose_answer_was_lost_is_stored_once(database: AuditDatabase)
     event.listen(log._engine, "after_cursor_execute", lose_the_answer)
     log.append(Event("run-a", 2, EventKind.PAUSED, "alice"))
     assert lost and states == [False, True]
+    assert [e.seq for e in log.events("run-a")] == [1, 2] and log.verify("run-a").ok
+    log.close()
+
+
+def test_an_interrupted_sqlite_append_is_retried(tmp_path) -> None:
+    log = AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")
+    states = _append_through_one_failure(log)
+    interrupted: list[bool] = []
+
+    def first_statement_only() -> bool:  # a true answer makes sqlite3 raise OperationalError('interrupted')
+        if interrupted:
+            return False
+        interrupted.append(True)
+        return True
+
+    def interrupt_once(dbapi_connection, _record) -> None:
+        dbapi_connection.set_progress_handler(first_statement_only, 1)
+
+    log._engine.dispose()
+    event.listen(log._engine, "connect", interrupt_once)
+    log.append(Event("run-a", 2, EventKind.PAUSED, "alice"))
+    assert interrupted and states == [False, True]
     assert [e.seq for e in log.events("run-a")] == [1, 2] and log.verify("run-a").ok
     log.close()
 
