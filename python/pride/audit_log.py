@@ -29,7 +29,6 @@ import fcntl
 import json
 import logging
 import os
-import sqlite3
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -112,8 +111,7 @@ class AuditLog:
         self.location = make_url(database_url(url)).render_as_string(hide_password=True)  # for messages
         self._engine = _engine(database_url(url))
         self._writers = _WriterQueue(_sqlite_file(database_url(url)))
-        self._insert: Callable[[StoredEvent], None] = (
-            _SqliteInsert(self._engine, self._writers) if self._engine.dialect.name == "sqlite" else self._insert_autocommit)
+        self._insert = _DriverInsert(self._engine, self._writers)
         try:
             if upgrade:
                 ensure_schema(self._engine, self.location)
@@ -216,11 +214,6 @@ class AuditLog:
             raise
         return row
 
-    def _insert_autocommit(self, row: StoredEvent) -> None:
-        """PostgreSQL: the INSERT is its own transaction, one round trip (no BEGIN, no COMMIT)."""
-        with self._engine.connect().execution_options(isolation_level="AUTOCOMMIT") as connection:
-            connection.execute(_INSERT, {name: getattr(row, name) for name in _COLUMNS})
-
     def _stored_hash(self, run_id: str, seq: int) -> str | None:
         with self._engine.connect() as connection:
             return connection.scalar(select(_RECORDS.hash).where(_RECORDS.run_id == run_id, _RECORDS.seq == seq))
@@ -261,35 +254,58 @@ class AuditLog:
         self._writers.close()
 
 
-class _SqliteInsert:
-    """SQLite: the append's INSERT and COMMIT straight through sqlite3, during the writer's turn.
+class _DriverInsert:
+    """The append's INSERT, committed, straight through the driver (sqlite3, psycopg) of a pooled connection.
 
-    Not through SQLAlchemy's statement machinery: its 0.13 ms of CPU per append falls inside the
-    turn, and on a loaded machine a writer descheduled there holds up every other runner (with
-    four runners the p95 append was 16 ms where a bare commit took 4 ms; docs/benchmarks.md).
+    Not through SQLAlchemy's statement machinery, whose CPU (about 0.15 ms an append) doubled
+    what a runner spends per event: on a loaded machine that is time in which it gets descheduled,
+    on SQLite inside its writer's turn, holding up every other runner (docs/benchmarks.md).
+    PostgreSQL: the INSERT in autocommit is its own transaction, one round trip. SQLite: BEGIN,
+    INSERT, COMMIT during the writer's turn (see :class:`_WriterQueue`).
     """
 
     def __init__(self, engine: Engine, writers: _WriterQueue) -> None:
         self._engine = engine
         self._writers = writers
+        self._sqlite = engine.dialect.name == "sqlite"
+        self._dbapi = engine.dialect.loaded_dbapi
         self._sql = str(_INSERT.compile(dialect=engine.dialect, column_keys=list(_COLUMNS)))
+        self._positional = engine.dialect.positional
         self._time = audit_records.c.time.type.dialect_impl(engine.dialect).bind_processor(engine.dialect)
 
     def __call__(self, row: StoredEvent) -> None:
-        values = tuple(self._time(row.time) if name == "time" and self._time else getattr(row, name) for name in _COLUMNS)
-        connection = self._engine.raw_connection()  # pooled; audit_schema.sqlite_transactions set it to manual BEGIN
+        values = {name: getattr(row, name) for name in _COLUMNS}
+        if self._time is not None:
+            values["time"] = self._time(row.time)
+        parameters: Any = tuple(values[name] for name in _COLUMNS) if self._positional else values
+        try:
+            connection = self._engine.raw_connection()  # sqlite3 connections BEGIN by hand (audit_schema.sqlite_transactions)
+        except self._dbapi.Error as exc:  # the pool hands the driver's error on as it is
+            raise DBAPIError.instance(None, None, exc, self._dbapi.Error) from exc
         try:
             with self._writers.turn():
                 cursor = connection.cursor()
                 try:
-                    cursor.execute("BEGIN")
-                    cursor.execute(self._sql, values)
-                    connection.commit()
-                except sqlite3.Error as exc:
-                    connection.rollback()
-                    raise DBAPIError.instance(self._sql, values, exc, sqlite3.Error) from exc
+                    if self._sqlite:
+                        cursor.execute("BEGIN")
+                        cursor.execute(self._sql, parameters)
+                        connection.commit()
+                    else:
+                        driver: Any = connection.driver_connection
+                        driver.autocommit = True
+                        try:
+                            cursor.execute(self._sql, parameters)
+                        finally:  # the pool's other users expect transactions; a broken connection is dropped below
+                            with contextlib.suppress(self._dbapi.Error):
+                                driver.autocommit = False
                 finally:
                     cursor.close()
+        except self._dbapi.Error as exc:
+            if isinstance(exc, (self._dbapi.OperationalError, self._dbapi.InterfaceError)):
+                connection.invalidate(exc)  # a broken or doubtful connection is not given out again
+            else:
+                connection.rollback()
+            raise DBAPIError.instance(self._sql, parameters, exc, self._dbapi.Error) from exc
         finally:
             connection.close()
 

@@ -10,10 +10,11 @@ import sys
 from dataclasses import replace
 from datetime import datetime, timedelta, timezone
 
+import psycopg
 import pytest
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, UniqueConstraint, create_engine
 from sqlalchemy import event
-from sqlalchemy.exc import DBAPIError, IntegrityError, OperationalError
+from sqlalchemy.exc import DBAPIError, IntegrityError
 
 from conftest import AuditDatabase
 from pride.audit_chain import GENESIS
@@ -69,12 +70,16 @@ def test_an_append_whose_answer_was_lost_is_stored_once(postgres: PostgresServer
     states = _append_through_one_failure(log)
     lost: list[str] = []
 
-    def lose_the_answer(connection, cursor, statement, parameters, context, executemany) -> None:
-        if statement.startswith("INSERT") and not lost:
-            lost.append(statement)
-            raise OperationalError(statement, parameters, Exception("server closed the connection unexpectedly"))
+    class AnswerLost(psycopg.Cursor):  # type: ignore[type-arg]
+        def execute(self, query, params=None, **kwargs):  # type: ignore[no-untyped-def]
+            done = super().execute(query, params, **kwargs)
+            if str(query).startswith("INSERT") and not lost:
+                lost.append(str(query))
+                raise psycopg.OperationalError("server closed the connection unexpectedly")
+            return done
 
-    event.listen(log._engine, "after_cursor_execute", lose_the_answer)
+    log._engine.dispose()
+    event.listen(log._engine, "connect", lambda dbapi_connection, _record: setattr(dbapi_connection, "cursor_factory", AnswerLost))
     log.append(Event("run-a", 2, EventKind.PAUSED, "alice"))
     assert lost and states == [False, True]
     assert [e.seq for e in log.events("run-a")] == [1, 2] and log.verify("run-a").ok
