@@ -23,12 +23,13 @@ step_needed() { [ "$(cat "$STAMPS/$1" 2>/dev/null)" != "$2" ]; }
 step_done() { mkdir -p "$STAMPS"; echo "$2" > "$STAMPS/$1"; }
 
 # 1. Debian packages: Maven and the Java libraries it builds against offline, Chromium for
-#    browser tests, the compilers rosidl needs.
+#    browser tests, the compilers rosidl needs, PostgreSQL (the tests start their own server
+#    with its initdb/pg_ctl; the package's own cluster is not used).
 APT_PACKAGES=(
   maven junit5 libsurefire-java libmaven-compiler-plugin-java libmaven-jar-plugin-java
   libmaven-resources-plugin-java libmaven-clean-plugin-java libmaven-install-plugin-java
   libgoogle-gson-java libyaml-snake-java
-  cmake g++ make chromium
+  cmake g++ make chromium postgresql
 )
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do

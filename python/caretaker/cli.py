@@ -21,6 +21,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "lint": ("pride.cli", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),
+    "db": ("pride.cli", "db_main", "create or upgrade the audit log's schema (status: its revision)"),
     "serve": ("pride.web.server", "main", "serve the operator web view"),
     "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),

@@ -16,6 +16,8 @@ Modules, by concept:
   observable states, :mod:`pride.automation` the part that acts on systems.
 - :mod:`pride.systems` — the gateway shape and its result types; :mod:`pride.gateways` opens one;
   :mod:`pride.pax_host` and :mod:`pride.jvm` — the Java PAX plugins hosted through JPype.
-- :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action.
+- :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action;
+  :mod:`pride.audit_chain` its hash chain, :mod:`pride.audit_schema` and :mod:`pride.migrations`
+  its tables and their Alembic migrations.
 - :mod:`pride.report` — after-action reports; :mod:`pride.terminal`, :mod:`pride.cli` — the CLI.
 """

@@ -1,97 +1,388 @@
-"""The audit log: every action of every run, append-only, one committed row per action.
+"""The audit log: every action of every run, append-only, tamper-evident, one commit per action.
 
-SQLAlchemy over any URL; a SQLite file (``var/caretaker.db``) by default, PostgreSQL for shared
-deployments. Rows are only ever inserted; ``(run_id, seq)`` is unique, so a runner that somehow
-tried to write an action twice fails loudly instead of duplicating history. Each append commits
-before the run proceeds, so killing the runner loses nothing that was reported as done.
+SQLAlchemy over a SQLite file (``var/caretaker.db``, the default for one machine) or PostgreSQL
+(``postgresql://role@host/db``, a shared ground segment; docs/ground-segment.md). The schema is
+migrated at open (:mod:`pride.audit_schema`). Rows are only ever inserted: triggers refuse
+UPDATE and DELETE, and on PostgreSQL the runner's role holds no such grant.
+
+Durability: :meth:`AuditLog.append` returns only after its transaction committed with the
+database's full durability (SQLite in WAL mode with ``synchronous=FULL``: the WAL is fsynced at
+every commit; PostgreSQL with its default ``synchronous_commit=on``). So killing the runner,
+or the machine losing power, loses no event that was reported as done.
+
+Tamper evidence: each event carries the hash of its run's previous event (:mod:`pride.audit_chain`).
+The last hash of every run this process writes stays in memory, so an append costs one INSERT
+and no read; :meth:`AuditLog.verify` checks a run's chain.
+
+When the database is unreachable (a PostgreSQL restart, a lost connection, a locked SQLite
+file), :meth:`AuditLog.append` does not fail at once: it retries with back-off, in order, and
+the run waits, for up to ``outage_budget`` seconds (:data:`DEFAULT_OUTAGE_BUDGET`). Availability
+listeners hear "unavailable since T" and "available again" and the log says it. Past the budget
+the append raises :class:`AuditLogUnavailable` and the executive stops the run with that reason;
+``caretaker run --resume`` continues it once the database is back.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import json
+import logging
+import os
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import DateTime, Integer, String, Text, UniqueConstraint, create_engine, event, select
-from sqlalchemy.engine import Engine
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
+from sqlalchemy import create_engine, event, insert, make_url, select
+from sqlalchemy.engine import Connection, Engine
+from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError
+from sqlalchemy.pool import StaticPool
 
+from pride.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
+from pride.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
 from pride.events import Event, EventKind
 
-__all__ = ["DEFAULT_DB", "AuditLog"]
+__all__ = ["DEFAULT_DB", "DEFAULT_OUTAGE_BUDGET", "AuditLog", "AuditLogUnavailable", "AuditSequenceError",
+           "Availability", "database_url"]
+
+log = logging.getLogger(__name__)
 
 DEFAULT_DB = "sqlite:///var/caretaker.db"
+#: Seconds a run waits for an unreachable database before it stops (it can be resumed).
+DEFAULT_OUTAGE_BUDGET = 120.0
+_FIRST_RETRY = 0.05
+_LONGEST_RETRY = 2.0
+_RECORDS = audit_records.c
+_COLUMNS = ("run_id", "seq", "time", "actor", "kind", "instruction", "data", "prev_hash", "hash")
+_INSERT = insert(audit_records)
 
 
-class _Base(DeclarativeBase):
-    pass
+class AuditLogUnavailable(RuntimeError):
+    """The database cannot be reached: at open, or for longer than the outage budget (the event was not stored)."""
+
+    def __init__(self, url: str, error: str, *, since: datetime | None = None, waited: float | None = None) -> None:
+        outage = f" since {since:%H:%M:%S}Z, gave up after {waited:g} s" if since and waited is not None else ""
+        super().__init__(f"audit log {url} unavailable{outage}: {error}")
+        self.url = url
+        self.since = since
 
 
-class _Record(_Base):
-    __tablename__ = "audit_records"
-    __table_args__ = (UniqueConstraint("run_id", "seq", name="one_record_per_seq"),)
+class AuditSequenceError(ValueError):
+    """An event's sequence number is not the next of its run (a second writer, or a caller's bug)."""
 
-    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
-    run_id: Mapped[str] = mapped_column(String(120), index=True)
-    seq: Mapped[int] = mapped_column(Integer)
-    time: Mapped[datetime] = mapped_column(DateTime(timezone=True))
-    actor: Mapped[str] = mapped_column(String(120))
-    kind: Mapped[str] = mapped_column(String(40))
-    instruction: Mapped[str | None] = mapped_column(String(80), nullable=True)
-    data: Mapped[str] = mapped_column(Text)
+    def __init__(self, run_id: str, seq: int, expected: int) -> None:
+        super().__init__(f"run {run_id}: event {seq} is not the next event (expected {expected})")
+        self.run_id = run_id
+        self.seq = seq
+        self.expected = expected
+
+
+@dataclass(frozen=True)
+class Availability:
+    """Whether appends reach the database; ``since`` is when the current outage began (UTC)."""
+
+    available: bool
+    since: datetime | None = None
+    error: str = ""
+
+
+AvailabilityListener = Callable[[Availability], None]
+
+
+def database_url(url: str) -> str:
+    """``url`` as SQLAlchemy needs it: ``postgresql://`` and ``postgres://`` use psycopg 3."""
+    for prefix in ("postgresql://", "postgres://"):
+        if url.startswith(prefix):
+            return "postgresql+psycopg://" + url.removeprefix(prefix)
+    return url
 
 
 class AuditLog:
-    """Append and read audit records. Safe to share between threads (one session per call)."""
+    """Append and read audit records. Safe to share between threads; one writer per run."""
 
-    def __init__(self, url: str = DEFAULT_DB) -> None:
-        if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
-            Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
+    def __init__(self, url: str = DEFAULT_DB, *, outage_budget: float = DEFAULT_OUTAGE_BUDGET, upgrade: bool = True) -> None:
+        """Open the log at ``url``; ``upgrade=False`` leaves the schema as it is (to inspect it only)."""
         self.url = url
-        self._engine: Engine = create_engine(url)
-        if url.startswith("sqlite"):
-            event.listen(self._engine, "connect", _sqlite_durability)
-        _Base.metadata.create_all(self._engine)
+        self.outage_budget = outage_budget
+        self.location = make_url(database_url(url)).render_as_string(hide_password=True)  # for messages
+        self._engine = _engine(database_url(url))
+        self._writers = _WriterQueue(_sqlite_file(database_url(url)))
+        self._insert = _DriverInsert(self._engine, self._writers)
+        try:
+            if upgrade:
+                ensure_schema(self._engine, self.location)
+            else:
+                self.schema_revision()  # reach the database now, as an upgrading open would
+        except BaseException as exc:
+            self._engine.dispose()
+            self._writers.close()
+            if isinstance(exc, (OperationalError, InterfaceError)):
+                raise AuditLogUnavailable(self.location, _error_text(exc)) from exc
+            raise
+        self._heads: dict[str, tuple[int, str]] = {}  # run -> (seq, hash) of its last stored event
+        self._run_locks: dict[str, threading.Lock] = {}
+        self._lock = threading.Lock()
+        self._availability = Availability(True)
+        self._listeners: list[AvailabilityListener] = []
+        self._closed = threading.Event()
 
+    # ---- availability -----------------------------------------------------------------------
+    @property
+    def availability(self) -> Availability:
+        return self._availability
+
+    def add_availability_listener(self, listener: AvailabilityListener) -> None:
+        """Call ``listener(Availability)`` when appends stop or start reaching the database.
+
+        Called on the appending thread, which may hold the executive's lock: be quick, do not block.
+        """
+        with self._lock:
+            self._listeners.append(listener)
+
+    def _set_availability(self, state: Availability) -> None:
+        with self._lock:
+            if state.available == self._availability.available:
+                return
+            previous, self._availability = self._availability, state
+            listeners = list(self._listeners)
+        if state.available:
+            assert previous.since is not None
+            log.warning("audit log %s available again after %.1f s", self.location,
+                        (datetime.now(timezone.utc) - previous.since).total_seconds())
+        else:
+            log.warning("audit log %s unavailable since %s: %s; runs wait for it (at most %g s)", self.location,
+                        f"{state.since:%H:%M:%S}Z", state.error, self.outage_budget)
+        for listener in listeners:
+            try:
+                listener(state)
+            except Exception:  # an observer's bug must not stop the run's recording
+                log.exception("audit availability listener %r failed", listener)
+
+    # ---- writing ----------------------------------------------------------------------------
     def append(self, record: Event) -> None:
-        """Store one event and commit; raises if it cannot be stored."""
-        with Session(self._engine) as session, session.begin():
-            session.add(_Record(
-                run_id=record.run_id, seq=record.seq, time=record.time, actor=record.actor, kind=record.kind.value,
-                instruction=record.instruction, data=json.dumps(record.data, default=_json_default, sort_keys=True),
-            ))
+        """Store one event and commit; wait while the database is unreachable (see the module doc).
 
+        Raises :class:`AuditSequenceError` if the event is not its run's next, IntegrityError if
+        another writer stored that number first, :class:`AuditLogUnavailable` past the outage budget.
+        """
+        with self._lock:
+            run_lock = self._run_locks.setdefault(record.run_id, threading.Lock())
+        with run_lock:
+            data = json.dumps(record.data, default=_json_default, sort_keys=True)
+            moment = utc(record.time)
+            first_failure: float | None = None
+            delay = _FIRST_RETRY
+            while True:
+                try:
+                    row = self._store(record, moment, data, retrying=first_failure is not None)
+                    break
+                except (OperationalError, InterfaceError) as exc:  # the database, not the event: wait and retry
+                    now = time.monotonic()
+                    if first_failure is None:
+                        first_failure = now
+                        since = self._availability.since or datetime.now(timezone.utc)
+                        self._set_availability(Availability(False, since, _error_text(exc)))
+                    if now - first_failure >= self.outage_budget or self._closed.is_set():
+                        self._heads.pop(record.run_id, None)  # the last commit's fate is unknown: re-read it
+                        raise AuditLogUnavailable(self.location, _error_text(exc), since=self._availability.since,
+                                                  waited=now - first_failure) from exc
+                    self._closed.wait(min(delay, self.outage_budget - (now - first_failure)))
+                    delay = min(delay * 2, _LONGEST_RETRY)
+            self._heads[record.run_id] = (row.seq, row.hash)
+        if not self._availability.available:
+            self._set_availability(Availability(True))
+
+    def _store(self, record: Event, moment: datetime, data: str, *, retrying: bool) -> StoredEvent:
+        head = self._heads.get(record.run_id)
+        if head is None:
+            with self._engine.connect() as connection:
+                head = _head(connection, record.run_id)
+        if record.seq != head[0] + 1:
+            raise AuditSequenceError(record.run_id, record.seq, head[0] + 1)
+        unlinked = StoredEvent(record.run_id, record.seq, moment, record.actor, record.kind.value, record.instruction,
+                               data, prev_hash=head[1])
+        row = replace(unlinked, hash=unlinked.expected_hash())
+        try:
+            self._insert(row)
+        except IntegrityError:
+            if retrying and self._stored_hash(record.run_id, record.seq) == row.hash:
+                return row  # the attempt whose answer the outage swallowed did commit
+            raise
+        return row
+
+    def _stored_hash(self, run_id: str, seq: int) -> str | None:
+        with self._engine.connect() as connection:
+            return connection.scalar(select(_RECORDS.hash).where(_RECORDS.run_id == run_id, _RECORDS.seq == seq))
+
+    # ---- reading ----------------------------------------------------------------------------
     def events(self, run_id: str) -> list[Event]:
         """Every event of a run, in order."""
-        with Session(self._engine) as session:
-            rows = session.scalars(select(_Record).where(_Record.run_id == run_id).order_by(_Record.seq)).all()
-            return [_event(row) for row in rows]
+        return [_event(row) for row in self.stored_events(run_id)]
+
+    def verify(self, run_id: str) -> ChainCheck:
+        """Check the run's hash chain as stored (see :mod:`pride.audit_chain`)."""
+        return verify_chain(run_id, self.stored_events(run_id))
+
+    def stored_events(self, run_id: str) -> list[StoredEvent]:
+        """A run's records as stored, with their hashes, in order."""
+        with self._engine.connect() as connection:
+            rows = connection.execute(
+                select(_RECORDS.run_id, _RECORDS.seq, _RECORDS.time, _RECORDS.actor, _RECORDS.kind, _RECORDS.instruction,
+                       _RECORDS.data, _RECORDS.prev_hash, _RECORDS.hash)
+                .where(_RECORDS.run_id == run_id).order_by(_RECORDS.seq))
+            return [StoredEvent(*row) for row in rows]
+
+    def schema_revision(self) -> str | None:
+        with self._engine.connect() as connection:
+            return schema_revision(connection)
 
     def runs(self) -> list[tuple[str, datetime, str]]:
         """(run id, start time, procedure id) of every run, oldest first."""
-        with Session(self._engine) as session:
-            rows = session.scalars(
-                select(_Record).where(_Record.kind == EventKind.RUN_STARTED.value).order_by(_Record.time)
-            ).all()
-            return [(row.run_id, _utc(row.time), json.loads(row.data).get("procedure", "")) for row in rows]
+        with self._engine.connect() as connection:
+            rows = connection.execute(select(_RECORDS.run_id, _RECORDS.time, _RECORDS.data)
+                                      .where(_RECORDS.kind == EventKind.RUN_STARTED.value).order_by(_RECORDS.time))
+            return [(row.run_id, utc(row.time), json.loads(row.data).get("procedure", "")) for row in rows]
 
     def close(self) -> None:
+        """Release the connections; an append still waiting for the database gives up."""
+        self._closed.set()
         self._engine.dispose()
+        self._writers.close()
+
+
+class _DriverInsert:
+    """The append's INSERT, committed, straight through the driver (sqlite3, psycopg) of a pooled connection.
+
+    Not through SQLAlchemy's statement machinery, whose CPU (about 0.15 ms an append) doubled
+    what a runner spends per event: on a loaded machine that is time in which it gets descheduled,
+    on SQLite inside its writer's turn, holding up every other runner (docs/benchmarks.md).
+    PostgreSQL: the INSERT in autocommit is its own transaction, one round trip. SQLite: BEGIN,
+    INSERT, COMMIT during the writer's turn (see :class:`_WriterQueue`).
+    """
+
+    def __init__(self, engine: Engine, writers: _WriterQueue) -> None:
+        self._engine = engine
+        self._writers = writers
+        self._sqlite = engine.dialect.name == "sqlite"
+        self._dbapi = engine.dialect.loaded_dbapi
+        self._sql = str(_INSERT.compile(dialect=engine.dialect, column_keys=list(_COLUMNS)))
+        self._positional = engine.dialect.positional
+        self._time = audit_records.c.time.type.dialect_impl(engine.dialect).bind_processor(engine.dialect)
+
+    def __call__(self, row: StoredEvent) -> None:
+        values = {name: getattr(row, name) for name in _COLUMNS}
+        if self._time is not None:
+            values["time"] = self._time(row.time)
+        parameters: Any = tuple(values[name] for name in _COLUMNS) if self._positional else values
+        try:
+            connection = self._engine.raw_connection()  # sqlite3 connections BEGIN by hand (audit_schema.sqlite_transactions)
+        except self._dbapi.Error as exc:  # the pool hands the driver's error on as it is
+            raise DBAPIError.instance(None, None, exc, self._dbapi.Error) from exc
+        try:
+            with self._writers.turn():
+                cursor = connection.cursor()
+                try:
+                    if self._sqlite:
+                        cursor.execute("BEGIN")
+                        cursor.execute(self._sql, parameters)
+                        connection.commit()
+                    else:
+                        driver: Any = connection.driver_connection
+                        driver.autocommit = True
+                        try:
+                            cursor.execute(self._sql, parameters)
+                        finally:  # the pool's other users expect transactions; a broken connection is dropped below
+                            with contextlib.suppress(self._dbapi.Error):
+                                driver.autocommit = False
+                finally:
+                    cursor.close()
+        except self._dbapi.Error as exc:
+            if isinstance(exc, (self._dbapi.OperationalError, self._dbapi.InterfaceError)):
+                connection.invalidate(exc)  # a broken or doubtful connection is not given out again
+            else:
+                connection.rollback()
+            raise DBAPIError.instance(self._sql, parameters, exc, self._dbapi.Error) from exc
+        finally:
+            connection.close()
+
+
+class _WriterQueue:
+    """Writers of one SQLite file take turns in the kernel (``flock`` on ``<file>.append-lock``).
+
+    SQLite's own busy handler polls with sleeps of 1, 2, 5, 10, ... ms: with four runners on one
+    file that put the p99 append at 34 ms (docs/benchmarks.md). Waiting on a file lock wakes the
+    next writer as soon as the commit ends. PostgreSQL needs no queue (inserts do not block each other).
+    """
+
+    def __init__(self, database: Path | None) -> None:
+        self._threads = threading.Lock()  # flock does not order threads sharing one descriptor
+        self._fd = os.open(f"{database}.append-lock", os.O_CREAT | os.O_RDWR, 0o644) if database else None
+
+    @contextlib.contextmanager
+    def turn(self) -> Iterator[None]:
+        if self._fd is None:
+            yield
+            return
+        with self._threads:
+            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(self._fd, fcntl.LOCK_UN)
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _sqlite_file(url: str) -> Path | None:
+    """The file of a SQLite URL (None for PostgreSQL and in-memory databases)."""
+    if not url.startswith("sqlite") or url in ("sqlite://", "sqlite:///:memory:"):
+        return None
+    return Path(url.removeprefix("sqlite:///"))
+
+
+def _engine(url: str) -> Engine:
+    if not url.startswith("sqlite"):
+        return create_engine(url, connect_args={"connect_timeout": 5, "application_name": "caretaker"})
+    database = _sqlite_file(url)
+    if database is not None:
+        database.parent.mkdir(parents=True, exist_ok=True)
+    connect_args = {"timeout": 10, "check_same_thread": False}
+    engine = (create_engine(url, poolclass=StaticPool, connect_args=connect_args) if database is None
+              else create_engine(url, connect_args=connect_args))
+    event.listen(engine, "connect", sqlite_transactions)
+    event.listen(engine, "connect", _sqlite_durability)
+    event.listen(engine, "begin", sqlite_begin)
+    return engine
 
 
 def _sqlite_durability(connection: Any, _record: Any) -> None:
     cursor = connection.cursor()
-    cursor.execute("PRAGMA synchronous=FULL")  # a commit survives a crash of the process (and the OS)
+    cursor.execute("PRAGMA journal_mode=WAL")  # readers (reports, the web view) never block the writer
+    cursor.execute("PRAGMA synchronous=FULL")  # WAL fsynced at each commit: survives a crash and a power loss
     cursor.close()
 
 
-def _utc(moment: datetime) -> datetime:
-    return moment if moment.tzinfo else moment.replace(tzinfo=timezone.utc)  # SQLite drops the zone
+def _head(connection: Connection, run_id: str) -> tuple[int, str]:
+    last = connection.execute(select(_RECORDS.seq, _RECORDS.hash).where(_RECORDS.run_id == run_id)
+                              .order_by(_RECORDS.seq.desc()).limit(1)).first()
+    return (0, GENESIS) if last is None else (last.seq, last.hash)
 
 
-def _event(row: _Record) -> Event:
-    return Event(row.run_id, row.seq, EventKind(row.kind), row.actor, row.instruction, json.loads(row.data), _utc(row.time))
+def _event(row: StoredEvent) -> Event:
+    return Event(row.run_id, row.seq, EventKind(row.kind), row.actor, row.instruction, json.loads(row.data), utc(row.time))
+
+
+def _error_text(exc: Exception) -> str:
+    """The driver's first line of the error (SQLAlchemy appends the statement and a link)."""
+    text = str(getattr(exc, "orig", None) or exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
 
 
 def _json_default(value: Any) -> Any:

@@ -1,4 +1,4 @@
-"""``caretaker lint``, ``caretaker run`` and ``caretaker report`` (docs/interfaces.md).
+"""``caretaker lint``, ``run``, ``report`` and ``db`` (docs/interfaces.md).
 
 Exit codes: 0 success; 1 the procedure has errors, the run stopped, or the run failed;
 2 bad command line or environment (missing file, unknown run, gateway cannot serve a system).
@@ -14,7 +14,8 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
-from pride.audit_log import DEFAULT_DB, AuditLog
+from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from pride.audit_schema import AuditSchemaError, head_revision
 from pride.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
@@ -23,7 +24,7 @@ from pride.lint import check_procedure, lint_file
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
-__all__ = ["lint_main", "report_main", "run_main"]
+__all__ = ["db_main", "lint_main", "report_main", "run_main"]
 
 log = logging.getLogger(__name__)
 
@@ -123,7 +124,11 @@ def run_main(argv: list[str] | None = None) -> int:
         if not sep or not name:
             parser.error(f"--set expects NAME=VALUE, got {item!r}")
         values[name] = value
-    audit = AuditLog(args.db)
+    try:
+        audit = AuditLog(args.db)
+    except (AuditSchemaError, AuditLogUnavailable) as exc:
+        print(f"caretaker run: {exc}", file=sys.stderr)
+        return 2
     events = audit.events(args.resume) if args.resume else []
     if args.resume and not events:
         print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
@@ -194,7 +199,10 @@ def run_main(argv: list[str] | None = None) -> int:
 
 
 def report_main(argv: list[str] | None = None) -> int:
-    """``caretaker report RUN``: write the after-action report (HTML and Markdown)."""
+    """``caretaker report RUN``: write the after-action report (HTML and Markdown); ``--verify`` checks the chain.
+
+    Exit codes: 0 written (or verified intact); 1 the run's hash chain is broken; 2 no such run.
+    """
     from pride.report import write_report
 
     parser = argparse.ArgumentParser(prog="caretaker report", description="write the after-action report of a run")
@@ -202,8 +210,16 @@ def report_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--db", default=DEFAULT_DB, metavar="URL")
     parser.add_argument("--out", default="var/reports", metavar="DIR", help="where to write RUN.html and RUN.md")
     parser.add_argument("--list", action="store_true", help="list the runs in the audit log")
+    parser.add_argument("--verify", action="store_true",
+                        help="only check the run's hash chain and name the first event that breaks it")
     args = parser.parse_args(argv)
-    audit = AuditLog(args.db)
+    if args.verify and not args.run:
+        parser.error("--verify needs RUN")
+    try:
+        audit = AuditLog(args.db)
+    except (AuditSchemaError, AuditLogUnavailable) as exc:
+        print(f"caretaker report: {exc}", file=sys.stderr)
+        return 2
     try:
         if args.list or not args.run:
             for run_id, started, procedure_id in audit.runs():
@@ -213,9 +229,35 @@ def report_main(argv: list[str] | None = None) -> int:
         if not events or events[0].kind is not EventKind.RUN_STARTED:
             print(f"caretaker report: no run {args.run!r} in {args.db}", file=sys.stderr)
             return 2
-        html_path, md_path = write_report(events, Path(args.out))
+        check = audit.verify(args.run)
+        if args.verify:
+            print(check.describe(), file=sys.stdout if check.ok else sys.stderr)
+            return 0 if check.ok else 1
+        if not check.ok:
+            print(f"caretaker report: WARNING {check.describe()}", file=sys.stderr)
+        html_path, md_path = write_report(events, Path(args.out), integrity=check.describe())
         print(html_path)
         print(md_path)
+        return 0 if check.ok else 1
+    finally:
+        audit.close()
+
+
+def db_main(argv: list[str] | None = None) -> int:
+    """``caretaker db upgrade|status --db URL``: the audit log's schema revision (docs/ground-segment.md)."""
+    parser = argparse.ArgumentParser(prog="caretaker db", description="create or upgrade the audit log's schema")
+    parser.add_argument("action", choices=("upgrade", "status"),
+                        help="upgrade: bring the schema to this Caretaker's revision (as the database owner); "
+                             "status: print the revision")
+    parser.add_argument("--db", default=DEFAULT_DB, metavar="URL", help=f"audit log URL (default {DEFAULT_DB})")
+    args = parser.parse_args(argv)
+    try:
+        audit = AuditLog(args.db, upgrade=args.action == "upgrade")  # upgrades a schema behind, if this role may
+    except (AuditSchemaError, AuditLogUnavailable) as exc:
+        print(f"caretaker db: {exc}", file=sys.stderr)
+        return 1
+    try:
+        print(f"{audit.location}: schema at revision {audit.schema_revision()} (this Caretaker: {head_revision()})")
         return 0
     finally:
         audit.close()

@@ -90,4 +90,8 @@ class Journal(Protocol):
     """Where a run's events go first, durably, before the run proceeds."""
 
     def append(self, event: Event) -> None:
-        """Store the event; raise if it could not be stored (the run must not go on unrecorded)."""
+        """Store the event durably; raise if it could not be stored (the run must not go on unrecorded).
+
+        May block while the store is unreachable (the audit log waits out an outage, up to its
+        budget), so the caller's next action waits for the record, as it must.
+        """

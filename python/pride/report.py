@@ -61,6 +61,8 @@ class RunSummary:
     events: list[Event]
     telemetry: list[Event]
     images: list[Image]
+    integrity: str = ""
+    """What checking the run's hash chain found (empty: not checked)."""
 
     @property
     def seconds(self) -> float:
@@ -147,7 +149,7 @@ def describe(event: Event) -> str:
         return f"retry after: {d.get('after', '')}"
     if kind is EventKind.CALL_ENTERED:
         return f"entered {d.get('procedure')} with {d.get('inputs')}"
-    return kind.value.replace("_", " ")
+    return str(kind.value).replace("_", " ")
 
 
 def _clock(moment: datetime) -> str:
@@ -222,7 +224,8 @@ def to_markdown(summary: RunSummary) -> str:
         f"# After-action report: {summary.title}", "",
         f"- Run: `{summary.run_id}`", f"- Procedure: `{summary.procedure}` version {summary.version}",
         f"- Started: {summary.started:%Y-%m-%d %H:%M:%S} UTC by {summary.started_by}",
-        f"- Duration: {_duration(summary.seconds)}", f"- Outcome: **{summary.outcome}**", "",
+        f"- Duration: {_duration(summary.seconds)}", f"- Outcome: **{summary.outcome}**",
+        *([f"- Audit chain: {summary.integrity}"] if summary.integrity else []), "",
         "## Steps", "", "| step | title | time | completed | failed | skipped | by |", "|---|---|---|---|---|---|---|",
     ]
     for s in summary.steps:
@@ -284,6 +287,7 @@ figure{{display:inline-block;margin:0 1em 1em 0}}
 <p>Run <code>{esc(summary.run_id)}</code> · procedure <code>{esc(summary.procedure)}</code> v{esc(summary.version)} ·
 started {summary.started:%Y-%m-%d %H:%M:%S} UTC by {esc(summary.started_by)} · {_duration(summary.seconds)} ·
 outcome <b>{esc(summary.outcome)}</b></p>
+{f"<p>Audit chain: {esc(summary.integrity)}</p>" if summary.integrity else ""}
 <h2>Steps</h2>
 <table><tr><th>step</th><th>title</th><th>time</th><th>completed</th><th>failed</th><th>skipped</th><th>by</th></tr>{rows}</table>
 <h2>Timeline</h2>
@@ -298,9 +302,13 @@ outcome <b>{esc(summary.outcome)}</b></p>
 """
 
 
-def write_report(events: list[Event], out_dir: Path) -> tuple[Path, Path]:
-    """Write ``RUN.html``, ``RUN.md`` and ``RUN-timeline.svg`` (and copied images) into ``out_dir``."""
+def write_report(events: list[Event], out_dir: Path, *, integrity: str = "") -> tuple[Path, Path]:
+    """Write ``RUN.html``, ``RUN.md`` and ``RUN-timeline.svg`` (and copied images) into ``out_dir``.
+
+    ``integrity`` is what checking the run's hash chain found; the report states it.
+    """
     summary = summarize(events)
+    summary.integrity = integrity
     out_dir.mkdir(parents=True, exist_ok=True)
     _copy_images(summary, out_dir)
     html_path = out_dir / f"{summary.run_id}.html"

@@ -1,8 +1,14 @@
-"""Shared pieces of the procedure-side tests: SysReps, the lab procedures, the lab gateway."""
+"""Shared pieces of the procedure-side tests: SysReps, lab procedures, lab gateway, audit log databases."""
 
 from __future__ import annotations
 
+import itertools
+import json
+import sqlite3
 import sys
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import closing
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -12,10 +18,125 @@ REPO = HERE.parents[1]
 FIXTURES = HERE / "fixtures"
 sys.path.insert(0, str(HERE))  # lab_gateway is importable here and in runner subprocesses
 
+from pride.audit_log import AuditLog  # noqa: E402
+from pride.events import Event, EventKind  # noqa: E402
 from pride.sysrep import SysRep, load_sysrep_dir  # noqa: E402
+from support.postgres import OWNER, RUNNER, PostgresServer, postgres_server  # noqa: E402
 
 
 @pytest.fixture(scope="session")
 def sysreps() -> dict[str, SysRep]:
     """The repository's SysReps plus the lab bench's."""
     return {**load_sysrep_dir(REPO / "sysrep"), **load_sysrep_dir(FIXTURES / "sysrep")}
+
+
+# ---- the audit log's database: every suite that records runs runs on SQLite and on PostgreSQL ----
+
+
+@dataclass
+class AuditDatabase:
+    """One empty-of-events audit-log database: ``url`` is the runner's, ``owner_url`` the schema owner's."""
+
+    kind: str
+    url: str
+    owner_url: str
+    server: PostgresServer | None = None
+    name: str = ""
+
+    def tamper(self, *statements: str) -> None:
+        """Run SQL with every protection bypassed, as a database superuser (or the SQLite file's owner) could."""
+        if self.server is not None:
+            self.server.sql("SET session_replication_role = replica", *statements, database=self.name)
+            return
+        with closing(sqlite3.connect(self.url.removeprefix("sqlite:///"), isolation_level=None)) as connection:
+            connection.execute("DROP TRIGGER audit_records_no_update")
+            connection.execute("DROP TRIGGER audit_records_no_delete")
+            for statement in statements:
+                connection.execute(statement)
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[PostgresServer]:
+    """This session's PostgreSQL server (started on first use, removed at the end)."""
+    with postgres_server() as server:
+        yield server
+
+
+@pytest.fixture(scope="session")
+def audit_template(postgres: PostgresServer) -> str:
+    """A database at the newest schema revision, copied for each test (cheaper than migrating each)."""
+    name = postgres.new_database()
+    AuditLog(postgres.url(name, OWNER)).close()
+    return name
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def new_database(request: pytest.FixtureRequest, tmp_path: Path) -> Callable[..., AuditDatabase]:
+    """Make audit-log databases of the parametrized kind: migrated, or ``empty=True`` (no schema at all)."""
+    names = itertools.count(1)
+
+    def make(*, empty: bool = False) -> AuditDatabase:
+        if request.param == "sqlite":
+            url = f"sqlite:///{tmp_path / f'audit-{next(names)}.db'}"
+            if not empty:
+                AuditLog(url).close()
+            return AuditDatabase("sqlite", url, url)
+        server: PostgresServer = request.getfixturevalue("postgres")
+        name = server.new_database(template=None if empty else request.getfixturevalue("audit_template"))
+        return AuditDatabase("postgresql", server.url(name, RUNNER), server.url(name, OWNER), server, name)
+
+    return make
+
+
+@pytest.fixture
+def database(new_database: Callable[..., AuditDatabase]) -> AuditDatabase:
+    """One migrated audit-log database per test, SQLite and PostgreSQL in turn."""
+    return new_database()
+
+
+class RecordedJournal:
+    """The audit log as the executive's journal, remembering what went through it for assertions."""
+
+    def __init__(self, log: AuditLog) -> None:
+        self.log = log
+        self.events: list[Event] = []
+        self.stored_before: list[Event] = []
+
+    def append(self, event: Event) -> None:
+        self.log.append(event)
+        self.events.append(event)
+
+    def kinds(self, number: str | None = None) -> list[EventKind]:
+        return [e.kind for e in self.events if number is None or e.instruction == number]
+
+
+@pytest.fixture
+def new_journal(new_database: Callable[..., AuditDatabase]) -> Iterator[Callable[..., RecordedJournal]]:
+    """Journals on fresh databases; ``new_journal(log)`` starts from a crashed runner's ``log`` of a run.
+
+    At teardown each database must hold exactly what was appended, in a chain that verifies.
+    """
+    made: list[RecordedJournal] = []
+
+    def make(log: Sequence[Event] = ()) -> RecordedJournal:
+        journal = RecordedJournal(AuditLog(new_database().url))
+        for event in log:
+            journal.log.append(event)
+        journal.stored_before = list(log)
+        made.append(journal)
+        return journal
+
+    yield make
+    for journal in made:
+        expected = journal.stored_before + journal.events
+        for run_id in sorted({e.run_id for e in expected}):
+            stored = [_comparable(e) for e in journal.log.events(run_id)]
+            assert stored == [_comparable(e) for e in expected if e.run_id == run_id]
+            check = journal.log.verify(run_id)
+            assert check.ok, check.describe()
+        journal.log.close()
+
+
+def _comparable(event: Event) -> dict[str, object]:
+    """An event as it reads back from the database (data through JSON)."""
+    return json.loads(json.dumps(event.to_dict(), default=str))

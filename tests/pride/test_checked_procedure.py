@@ -13,7 +13,6 @@ from pathlib import Path
 
 import pytest
 from lab_gateway import LabGateway
-from test_executive import ListJournal
 
 import pride.lint
 from conftest import FIXTURES
@@ -40,14 +39,14 @@ def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.M
     assert checked.load(str((tmp_path / "lab_sub.xml").resolve())).id == "lab_sub"
 
 
-def test_a_run_runs_what_was_checked(tmp_path: Path, sysreps) -> None:
+def test_a_run_runs_what_was_checked(tmp_path: Path, sysreps, new_journal) -> None:
     shutil.copy(FIXTURES / "lab_all_kinds.xml", tmp_path / "main.xml")
     shutil.copy(FIXTURES / "lab_sub.xml", tmp_path / "lab_sub.xml")
     checked = check_procedure(tmp_path / "main.xml", sysreps)
     (tmp_path / "lab_sub.xml").write_text("not a procedure any more")  # edited after the check
 
     gateway = LabGateway(str(tmp_path / "images"))
-    executive = Executive(checked, gateway, ListJournal(), run_id="r", mode=Mode.AUTONOMOUS)
+    executive = Executive(checked, gateway, new_journal(), run_id="r", mode=Mode.AUTONOMOUS)
     executive.start("ada")
     answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("ada", "dock"),
                Hold.CONFIRMATION: lambda: executive.confirm("ada"),

@@ -20,26 +20,13 @@ from pride.lint import check_procedure
 TIMEOUT = 20.0
 
 
-class ListJournal:
-    """Keeps events in memory, in order (the audit log's contract without the database)."""
-
-    def __init__(self) -> None:
-        self.events: list[Event] = []
-
-    def append(self, event: Event) -> None:
-        self.events.append(event)
-
-    def kinds(self, number: str | None = None) -> list[EventKind]:
-        return [e.kind for e in self.events if number is None or e.instruction == number]
-
-
 @pytest.fixture
-def bench(tmp_path, sysreps):
+def bench(tmp_path, sysreps, new_journal):
     made: list[Executive] = []
 
     def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None):
         gateway = gateway or LabGateway(str(tmp_path / "images"))
-        journal = ListJournal()
+        journal = new_journal()  # the audit log, on SQLite and on PostgreSQL (conftest.py)
         executive = Executive(check_procedure(FIXTURES / name, sysreps), gateway, journal, run_id="run-1", mode=mode)
         made.append(executive)
         return executive, gateway, journal
@@ -271,7 +258,7 @@ def test_a_procedure_with_errors_does_not_start(sysreps) -> None:
         check_procedure(FIXTURES / "broken" / "unknown_command.xml", sysreps)
 
 
-def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path) -> None:
+def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sysreps, tmp_path, new_journal) -> None:
     first, gateway, journal = bench()
     gateway.block.add("vent")
     first.start("lena")
@@ -279,12 +266,14 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
     first.enter("lena", "dock")
     held(first, Hold.CONFIRMATION, "2.1")
     first.confirm("lena")
-    assert first.wait_for(lambda s: s.executing and s.current == "2.1", TIMEOUT)
-    assert journal.events[-1].kind is EventKind.COMMAND_SENT  # sent, no answer yet: the "crash" point
+    # sent, no answer yet: the "crash" point (the command is recorded after the instruction starts executing)
+    assert first.wait_for(
+        lambda s: s.executing and s.current == "2.1" and journal.events[-1].kind is EventKind.COMMAND_SENT, TIMEOUT
+    )
     log = list(journal.events)
 
     second_gateway = LabGateway(str(tmp_path / "images"))
-    second_journal = ListJournal()
+    second_journal = new_journal(log)  # the log as the crashed runner left it
     resumed = Executive.resume(
         check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), second_gateway, second_journal, log, "mia"
     )
@@ -307,7 +296,7 @@ def test_resume_holds_an_in_flight_command_until_the_operator_decides(bench, sys
         gateway.release.set()
 
 
-def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
+def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps, new_journal) -> None:
     executive, gateway, journal = bench()
     executive.start("nina")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -325,7 +314,7 @@ def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps) -> None:
     log = journal.events[: cut + 1]
 
     gateway2 = LabGateway()
-    journal2 = ListJournal()
+    journal2 = new_journal(log)
     resumed = Executive.resume(
         check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway2, journal2, log, "nina"
     )
@@ -369,7 +358,9 @@ def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
     assert journal.kinds().count(EventKind.OPERATOR_INPUT) == 1
 
 
-def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operator_redo_it(bench, sysreps) -> None:
+def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operator_redo_it(
+    bench, sysreps, new_journal
+) -> None:
     executive, gateway, journal = bench()
     gateway.stale.add("door_open")
     executive.start("sam")
@@ -385,7 +376,11 @@ def test_stop_while_watching_telemetry_never_branches_and_resume_lets_the_operat
 
     gateway.stale.clear()
     resumed = Executive.resume(
-        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, ListJournal(), list(journal.events), "tess"
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps),
+        gateway,
+        new_journal(journal.events),
+        list(journal.events),
+        "tess",
     )
     snap = held(resumed, Hold.FAILURE, "2.2")  # the operator sees why it ended and decides
     assert "stopped while watching telemetry" in snap.reason

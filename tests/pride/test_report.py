@@ -15,8 +15,7 @@ from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
 
 
-def _complete_run(tmp_path: Path, sysreps) -> tuple[str, str]:
-    db = f"sqlite:///{tmp_path / 'audit.db'}"
+def _complete_run(tmp_path: Path, sysreps, db: str) -> tuple[str, str]:
     log = AuditLog(db)
     executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), LabGateway(str(tmp_path / "images")),
                           log, run_id="report-run", mode=Mode.AUTONOMOUS)
@@ -31,15 +30,20 @@ def _complete_run(tmp_path: Path, sysreps) -> tuple[str, str]:
             break
         answers[snap.hold]()
     executive.join(20)
+    log.close()
     assert snap.status is RunStatus.COMPLETED
     return db, "report-run"
 
 
-def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, sysreps) -> None:
-    db, run_id = _complete_run(tmp_path, sysreps)
-    out = tmp_path / "reports"
-    proc = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, "--out", str(out)],
+def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *options],
                           capture_output=True, text=True, timeout=60)
+
+
+def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, sysreps, database) -> None:
+    db, run_id = _complete_run(tmp_path, sysreps, database.url)
+    out = tmp_path / "reports"
+    proc = report(run_id, db, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     html_path, md_path = (Path(p) for p in proc.stdout.split())
     html_text, markdown = html_path.read_text(), md_path.read_text()
@@ -52,6 +56,7 @@ def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, 
     assert "recorded target = &#x27;dock&#x27;" in html_text or "recorded target = 'dock'" in html_text
     assert "| lab.door_open | `True` | = true | ok |" in markdown
     assert "**completed**" in markdown
+    assert f"- Audit chain: run {run_id}: chain of " in markdown and " events intact; head " in markdown
 
     document = etree.HTML(html_text)
     svg = document.find(".//svg")
@@ -69,3 +74,20 @@ def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert "no run 'nope'" in proc.stderr
+
+
+def test_report_of_an_edited_run_says_so_and_verify_names_the_event(tmp_path: Path, sysreps, database) -> None:
+    db, run_id = _complete_run(tmp_path, sysreps, database.url)
+    assert report(run_id, db, "--verify").returncode == 0
+    database.tamper("UPDATE audit_records SET data = replace(data, 'dock', 'bay') "
+                    "WHERE kind = 'operator_input'")  # someone "corrects" the recorded value
+    seq = next(e.seq for e in AuditLog(db).events(run_id) if e.data.get("value") == "bay")
+
+    verify = report(run_id, db, "--verify")
+    assert verify.returncode == 1
+    assert f"event {seq} (operator_input at 1.2) was changed after it was written" in verify.stderr
+
+    written = report(run_id, db, "--out", str(tmp_path / "reports"))
+    assert written.returncode == 1 and "WARNING" in written.stderr
+    markdown = Path(written.stdout.split()[1]).read_text()
+    assert f"- Audit chain: run {run_id}: event {seq} (operator_input at 1.2) was changed" in markdown

@@ -27,14 +27,14 @@ ANSWERS = ["--set", "target=dock", "--confirm-manual", "--confirm-hazardous"]
 
 
 @pytest.fixture
-def setup(tmp_path: Path):
+def setup(tmp_path: Path, database):
     binding = tmp_path / "lab_binding.yaml"
     binding.write_text("# the lab bench gateway needs no configuration\nrobot: lab\n")
     env = dict(os.environ)
     env["PRIDE_GATEWAY"] = "lab_gateway:open_lab"
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH")]))
     env["LAB_GATEWAY_IMAGES"] = str(tmp_path / "images")
-    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    db = database.url  # SQLite and PostgreSQL in turn (conftest.py)
     common = ["--binding", str(binding), "--db", db, "--sysrep-dir", str(REPO / "sysrep"),
               "--sysrep-dir", str(FIXTURES / "sysrep")]
     return env, db, common
@@ -58,6 +58,7 @@ def test_unattended_run_completes_with_answers_logged_as_the_user(setup) -> None
     assert [e.actor for e in events if e.kind is EventKind.OPERATOR_INPUT] == ["alice"]
     assert [e.actor for e in events if e.kind is EventKind.CONFIRMATION] == ["alice"]
     assert events[-1].kind is EventKind.RUN_COMPLETED
+    assert log.verify(run_id).ok, log.verify(run_id).describe()
 
 
 def test_unattended_run_stops_and_says_which_option_answers_the_record(setup) -> None:
@@ -121,3 +122,5 @@ def test_killed_runner_resumes_without_losing_or_repeating_actions(setup) -> Non
     completed = Counter(e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED)
     assert all(count == 1 for count in completed.values()), completed
     assert events[-1].kind is EventKind.RUN_COMPLETED
+    check = log.verify(run_id)  # the crash and the resumed runner left one unbroken chain
+    assert check.ok and check.events == len(events), check.describe()

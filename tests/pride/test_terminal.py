@@ -7,17 +7,17 @@ import itertools
 
 import pytest
 from lab_gateway import LabGateway
-from test_executive import ListJournal
 
-from conftest import FIXTURES
+from conftest import FIXTURES, RecordedJournal
+from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.lint import check_procedure
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
 
-def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, ListJournal, LabGateway]:
-    journal, gateway = ListJournal(), LabGateway(str(tmp_path))
+def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
+    journal, gateway = RecordedJournal(AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")), LabGateway(str(tmp_path))
     executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t",
                           mode=mode)
     return executive, journal, gateway

@@ -1,0 +1,14 @@
+"""Alembic environment: migrate the connection :func:`pride.audit_schema.ensure_schema` hands over."""
+
+from __future__ import annotations
+
+from alembic import context
+
+from pride.audit_schema import VERSION_TABLE
+
+connection = context.config.attributes["connection"]
+context.configure(
+    connection=connection, version_table=VERSION_TABLE, render_as_batch=connection.dialect.name == "sqlite"
+)
+with context.begin_transaction():  # joins the caller's transaction: the whole upgrade commits or none of it
+    context.run_migrations()
