@@ -21,6 +21,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "run": ("pride.cli", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),
     "serve": ("pride.web.server", "main", "serve the operator web view"),
+    "accounts": ("pride.web.accounts_command", "main", "add, change, remove and list the web view's accounts"),
     "up": ("caretaker.stack", "up_main", "start the robot side and the rosbridge server"),
     "demo": ("caretaker.stack", "demo_main", "run the IVA or EVA demonstration end to end"),
 }

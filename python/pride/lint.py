@@ -17,7 +17,7 @@ from pride.diagnostics import Problem
 from pride.model import (
     ArgumentBinding, BranchInstruction, CallInstruction, CommandInstruction, Condition,
     GoToInstruction, Instruction, Location, Procedure, RecordInstruction, Reference, Subject,
-    VerifyInstruction, WaitInstruction,
+    Template, VerifyInstruction, WaitInstruction,
 )
 from pride.parser import parse_procedure
 from pride.sysrep import SysRep, check_value
@@ -323,4 +323,5 @@ class _Linter:
         if isinstance(i, BranchInstruction) and i.subject.source in ("input", "result"):
             ref = Reference(i.subject.name, i.subject.field if i.subject.source == "result" else None)
             found.append((ref, i.at(i.subject.source)))
+        found += [(ref, i.at("text")) for ref in Template.parse(i.text).references]  # the sentence shows them
         return found

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
+from operator_page import sign_in_on
 from web_server import WebServer, procedure_shelf, start_server
 
 CHROMIUM = "/usr/bin/chromium"
@@ -41,7 +42,7 @@ def browser() -> Iterator[Browser]:
 
 @pytest.fixture
 def sign_in(browser: Browser, server: WebServer) -> Iterator:
-    """``sign_in("alice")`` opens a fresh browser context signed in as that user."""
+    """``sign_in("alice")`` opens a fresh browser context signed in as that user, with their password."""
     contexts = []
     script_errors: list[str] = []
 
@@ -52,9 +53,7 @@ def sign_in(browser: Browser, server: WebServer) -> Iterator:
         page.on("pageerror", lambda error: script_errors.append(f"{user}: {error}"))
         page.set_default_timeout(TIMEOUT_MS)
         page.goto(server.url)
-        page.fill("#user-id", user)
-        page.click("#sign-in-form button[type=submit]")
-        page.wait_for_selector("#main-view:not([hidden])")
+        sign_in_on(page, user)
         return page
 
     yield open_as

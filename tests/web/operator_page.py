@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 from playwright.sync_api import Locator, Page, expect
 
-REPO = Path(__file__).resolve().parents[2]
-IMAGES = REPO / "docs" / "images"
+from web_server import PEOPLE
+
 IVA = "iva_cdra_filter_replacement.xml"
+#: Where screenshots of the console go: $CARETAKER_SCREENSHOTS when set (e.g. docs/images, for the
+#: documentation), else a temporary directory: a test run never rewrites tracked files.
+IMAGES = Path(os.environ.get("CARETAKER_SCREENSHOTS") or tempfile.mkdtemp(prefix="caretaker-screenshots-"))
 
 
 def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml") -> str:
@@ -29,5 +34,27 @@ def instruction(page: Page, number: str) -> Locator:
 
 
 def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
-    """Rows of the page's audit log for one kind of record, instruction and actor."""
-    return page.locator(f'#audit tbody tr[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
+    """Entries of the page's audit log for one kind of record, instruction and actor."""
+    return page.locator(f'#audit li[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
+
+
+def screenshot(page: Page, name: str) -> None:
+    """A picture of the console for the documentation (see IMAGES)."""
+    IMAGES.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(IMAGES / name))
+
+
+def stop_run(page: Page, reason: str) -> None:
+    """Stop the open run with a reason, through the Stop dialog."""
+    page.click("#stop")
+    page.fill("#stop-reason", reason)
+    page.click("#stop-yes")
+
+
+def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
+    """Fill the page's sign-in form as ``user`` (with their password unless another is given)."""
+    page.fill("#user-id", user)
+    page.fill("#password", PEOPLE[user][2] if password is None else password)
+    page.click("#sign-in-form button[type=submit]")
+    if password is None:
+        page.wait_for_selector("#main-view:not([hidden])")

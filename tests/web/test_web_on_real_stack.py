@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IMAGES, IVA, audit_row, instruction, start_run
+from operator_page import IVA, audit_row, instruction, screenshot, start_run
 from pride.audit_log import AuditLog
 from web_server import REPO, WebServer, server_on_real_stack
 
@@ -85,9 +85,9 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(audit_row(alice, "awaiting_operator", "2.6", "PAX")).to_have_count(1)
     expect(instruction(carol, "2.6").locator("button.done")).to_be_disabled()
     instruction(alice, "2.6").scroll_into_view_if_needed()
-    alice.screenshot(path=str(IMAGES / "web_autonomous_hold.png"))
+    screenshot(alice, "web_autonomous_hold.png")
     instruction(carol, "2.6").scroll_into_view_if_needed()
-    carol.screenshot(path=str(IMAGES / "web_observer.png"))
+    screenshot(carol, "web_observer.png")
 
     # Done lets PAX carry on: the arm pulls the dirty filter and places it on the rack, then PAX
     # holds at the record of the clean filter's id; the id typed in goes into the next command

@@ -8,10 +8,18 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from pride.web.accounts import AccountStore
 from support.processes import ManagedProcess, caretaker
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
+
+#: The people of the browser tests: user id -> (role, name, password).
+PEOPLE = {
+    "alice": ("operator", "Alice (ground operator)", "alice-correct-horse"),
+    "bob": ("operator", "Bob (flight controller)", "bob-battery-staple"),
+    "carol": ("observer", "Carol (observer)", "carol-watches-only"),
+}
 
 
 class WebServer:
@@ -45,7 +53,9 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
     else:
         env.pop("PRIDE_GATEWAY", None)
         options += ["--rosbridge", rosbridge]
-    db = db or tmp / "audit.db"
+    if db is None:
+        db = tmp / "audit.db"
+        add_people(f"sqlite:///{db}")
     process = caretaker(
         "serve", "--port", "0", "--db", f"sqlite:///{db}", "--procedures", str(procedures),
         "--reports", str(tmp / "reports"), *options, env=env, name="serve",
@@ -56,6 +66,16 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
         process.stop()
         raise
     return WebServer(process, ready.split()[-1], db, procedures)
+
+
+def add_people(db_url: str) -> None:
+    """The test people's accounts in a new ground database (what `caretaker accounts add` writes)."""
+    store = AccountStore(db_url)
+    try:
+        for user, (role, name, password) in PEOPLE.items():
+            store.add(user, role, password, name=name)
+    finally:
+        store.close()
 
 
 @contextmanager

@@ -2,34 +2,40 @@
 //
 // The server is the authority: this page draws what /api/runs/ID and the run's WebSocket say
 // and sends every action to /api/runs/ID/actions, where the executive accepts or refuses it
-// (observers are refused there too; disabled buttons are only a courtesy).
+// (observers are refused there too; disabled buttons are only a courtesy). Every request that
+// changes something carries the session's CSRF token.
 "use strict";
 
 const $ = (id) => document.getElementById(id);
+const RUNS_REFRESH_MS = 5000;
 
 const view = {
-  me: null,            // {user, name, role, may_act}
+  me: null,            // {user, name, role, may_act, csrf}
   runId: null,
-  procedure: null,     // procedure JSON (steps, instructions)
+  procedure: null,     // procedure JSON (steps, instructions as sentences)
   state: null,         // run state JSON (executive snapshot + per-instruction details)
   events: [],          // audit events seen so far
-  telemetry: new Map(),// "system.item" -> {value, age, stale, receivedAt}
+  telemetry: new Map(),// "system.item" -> {value, age, stale, out, receivedAt}
+  checks: {},          // check key -> whether the instruction's test of that telemetry holds now
+  clockOffset: 0,      // server clock minus this browser's, in ms (countdowns use the server's times)
   socket: null,
   reconnectTimer: null,
   lastImageSeq: null,
+  followed: null,      // the instruction last scrolled to
+  envsSeen: "",
+  runsTimer: null,
 };
 
 // ---- server calls ----------------------------------------------------------------------------
 async function api(method, path, body) {
-  const response = await fetch(path, {
-    method,
-    headers: body === undefined ? {} : {"Content-Type": "application/json"},
-    body: body === undefined ? undefined : JSON.stringify(body),
-  });
+  const headers = body === undefined ? {} : {"Content-Type": "application/json"};
+  if (method !== "GET" && view.me) headers["X-CSRF-Token"] = view.me.csrf;
+  const response = await fetch(path, {method, headers, body: body === undefined ? undefined : JSON.stringify(body)});
   const data = await response.json().catch(() => ({}));
   if (!response.ok) {
     const error = new Error(data.error || `${response.status} ${response.statusText}`);
     error.status = response.status;
+    if (response.status === 401 && view.me && path !== "/api/session") signedOut(error.message);
     throw error;
   }
   return data;
@@ -56,18 +62,32 @@ async function loadSession() {
   $("sign-out").hidden = view.me === null;
   $("who").textContent = view.me ? `${view.me.user} (${view.me.role})` : "";
   document.body.dataset.role = view.me ? view.me.role : "";
+  clearInterval(view.runsTimer);
   if (view.me) {
     $("start-panel").hidden = !view.me.may_act;
     await Promise.all([loadCatalog(), loadRuns()]);
+    view.runsTimer = setInterval(() => loadRuns().catch(() => {}), RUNS_REFRESH_MS);
     openRunFromHash();
   }
+}
+
+function signedOut(message) {
+  view.me = null;
+  closeSocket();
+  clearInterval(view.runsTimer);
+  $("main-view").hidden = true;
+  $("sign-out").hidden = true;
+  $("who").textContent = "";
+  $("sign-in-view").hidden = false;
+  $("sign-in-error").textContent = message || "";
 }
 
 $("sign-in-form").addEventListener("submit", async (event) => {
   event.preventDefault();
   $("sign-in-error").textContent = "";
   try {
-    await api("POST", "/api/session", {user: $("user-id").value.trim()});
+    view.me = await api("POST", "/api/session", {user: $("user-id").value.trim(), password: $("password").value});
+    $("password").value = "";
     await loadSession();
   } catch (error) {
     $("sign-in-error").textContent = error.message;
@@ -75,7 +95,7 @@ $("sign-in-form").addEventListener("submit", async (event) => {
 });
 
 $("sign-out").addEventListener("click", async () => {
-  await api("DELETE", "/api/session");
+  await api("DELETE", "/api/session").catch(() => {});
   closeSocket();
   location.hash = "";
   await loadSession();
@@ -90,32 +110,33 @@ async function loadCatalog() {
   const catalog = await api("GET", "/api/catalog");
   fillSelect($("start-procedure"), catalog.procedures);
   fillSelect($("start-binding"), catalog.bindings);
+  fillSelect($("resume-binding"), catalog.bindings);
 }
+
+const STATUS_WORDS = {active: "running", completed: "completed", stopped: "stopped", interrupted: "interrupted (no end recorded)"};
 
 async function loadRuns() {
   const {runs} = await api("GET", "/api/runs");
   $("run-list").replaceChildren(...runs.map((run) => {
-    const item = document.createElement("li");
+    const item = element("li");
     item.dataset.runId = run.run_id;
-    const open = document.createElement("a");
+    item.dataset.status = run.status;
+    item.classList.toggle("live", Boolean(run.live));
+    item.classList.toggle("open", run.run_id === view.runId);
+    const open = element("a", "", run.run_id);
     open.href = `#run=${encodeURIComponent(run.run_id)}`;
-    open.textContent = run.run_id;
-    const meta = document.createElement("span");
-    meta.className = "meta";
-    meta.textContent = `${run.procedure} · ${new Date(run.started).toLocaleString()}` +
-      (run.live ? ` · live, ${run.status}, ${run.mode}` : "");
-    const report = document.createElement("a");
+    const status = element("span", "run-status", STATUS_WORDS[run.status] || run.status);
+    const meta = element("span", "meta", `${run.procedure} · ${new Date(run.started).toLocaleString()}` +
+      (run.live ? ` · ${run.mode}, started by ${run.started_by}` : ""));
+    const report = element("a", "report-link", "report");
     report.href = `/runs/${encodeURIComponent(run.run_id)}/report`;
-    report.textContent = "report";
-    report.className = "report-link";
     report.target = "_blank";
-    item.append(open, meta, report);
-    if (run.live) item.classList.add("live");
+    item.append(open, status, meta, report);
     return item;
   }));
 }
 
-$("refresh-runs").addEventListener("click", loadRuns);
+$("refresh-runs").addEventListener("click", () => loadRuns().catch(() => {}));
 
 $("start-form").addEventListener("submit", async (event) => {
   event.preventDefault();
@@ -147,7 +168,10 @@ async function openRun(runId) {
   view.runId = runId;
   view.events = [];
   view.telemetry.clear();
+  view.checks = {};
   view.lastImageSeq = null;
+  view.followed = null;
+  view.envsSeen = "";
   $("action-error").textContent = "";
   let data;
   try {
@@ -160,7 +184,8 @@ async function openRun(runId) {
   buildProcedure();
   $("no-run").hidden = true;
   $("run-view").hidden = false;
-  $("audit").tBodies[0].replaceChildren();
+  $("audit").replaceChildren();
+  for (const item of document.querySelectorAll("#run-list li")) item.classList.toggle("open", item.dataset.runId === runId);
   applyUpdate(data);
   if (data.state.live) connect();
   else setConnection("closed", "past run (from the audit log)");
@@ -189,6 +214,7 @@ function connect() {
     view.socket = null;
     if (event.code === 1008) {
       setConnection("closed", `closed: ${event.reason || "refused"}`);
+      if (/sign in|session/.test(event.reason)) signedOut(event.reason);
       return;
     }
     setConnection("reconnecting", "connection lost; reconnecting…");
@@ -206,61 +232,102 @@ function closeSocket() {
 
 // ---- applying updates ------------------------------------------------------------------------
 function applyUpdate(data) {
+  const before = view.state ? view.state.status : null;
   view.state = data.state;
+  if (data.server_time) view.clockOffset = data.server_time * 1000 - Date.now();
   const seen = new Set(view.events.map((e) => e.seq));
   const fresh = (data.events || []).filter((e) => !seen.has(e.seq));
   view.events.push(...fresh);
-  for (const reading of data.telemetry || []) {
+  const telemetry = data.telemetry || {readings: [], checks: {}};
+  for (const reading of telemetry.readings || []) {
     view.telemetry.set(`${reading.system}.${reading.item}`, {...reading, receivedAt: performance.now()});
   }
+  view.checks = telemetry.checks || {};
   appendAudit(fresh);
   renderRun();
+  if (before !== null && before !== data.state.status) loadRuns().catch(() => {});
 }
 
 function appendAudit(events) {
-  const body = $("audit").tBodies[0];
+  const list = $("audit");
   for (const event of events) {
-    const row = body.insertRow(0);
-    row.dataset.kind = event.kind;
-    row.dataset.actor = event.actor;
-    row.dataset.instruction = event.instruction || "";
-    const cells = [event.seq, new Date(event.time).toLocaleTimeString(), event.actor, event.kind.replaceAll("_", " "),
-      event.instruction || "", summarize(event)];
-    for (const text of cells) row.insertCell().textContent = text;
+    const item = element("li");
+    item.dataset.kind = event.kind;
+    item.dataset.actor = event.actor;
+    item.dataset.instruction = event.instruction || "";
+    const head = element("div", "audit-head");
+    head.append(element("span", "seq", `#${event.seq}`), element("time", "", new Date(event.time).toLocaleTimeString()),
+      element("b", "actor", event.actor), element("span", "kind", event.kind.replaceAll("_", " ")),
+      element("span", "at", event.instruction || ""));
+    item.append(head, element("div", "audit-detail", event.summary || ""));
+    list.prepend(item);
   }
 }
 
-function summarize(event) {
-  const data = event.data || {};
-  switch (event.kind) {
-    case "command_sent": return `${data.system}.${data.command} ${JSON.stringify(data.args)}`;
-    case "command_result": return `${data.success ? "success" : "FAILED"}${data.message ? ": " + data.message : ""}` +
-      (data.values && Object.keys(data.values).length ? ` ${JSON.stringify(data.values)}` : "");
-    case "operator_input": return `${data.name} = ${JSON.stringify(data.value)}`;
-    case "telemetry_seen": return `${data.system}.${data.item} = ${JSON.stringify(data.value)}${data.stale ? " (stale)" : ""}`;
-    case "run_started": return `${data.procedure} (${data.mode})`;
-    case "mode_changed": return data.mode;
-    default: return data.reason || "";
-  }
+// ---- values and sentences --------------------------------------------------------------------
+function formatValue(value) {
+  if (typeof value === "boolean") return value ? "true" : "false";
+  if (typeof value === "number") return Number.isInteger(value) ? String(value) : String(Number(value.toFixed(3)));
+  if (Array.isArray(value)) return `(${value.map(formatValue).join(", ")})`;
+  if (value === null || value === undefined) return "—";
+  if (typeof value === "object") return Object.entries(value).map(([k, v]) => `${k.replaceAll("_", " ")} ${formatValue(v)}`).join(", ");
+  return String(value);
+}
+
+function frameOf(number) {
+  const cut = number.lastIndexOf("/");
+  return cut < 0 ? "" : number.slice(0, cut + 1);
+}
+
+function lookup(env, ref) {
+  const [name, field] = ref.split(".");
+  if (!env || !(name in env)) return undefined;
+  const value = env[name];
+  if (field === undefined) return value;
+  return value && typeof value === "object" && field in value ? value[field] : undefined;
+}
+
+// A sentence with its ${...} filled in where the run knows them, marked as still unknown where not.
+function fillSentence(node, parts, env) {
+  node.replaceChildren(...parts.map((part) => {
+    if (part.ref === undefined) return document.createTextNode(part.text);
+    const value = lookup(env, part.ref);
+    if (value === undefined) {
+      const unknown = element("var", "unknown", `‹${part.ref}›`);
+      unknown.title = `${part.ref}: known once the run has it`;
+      return unknown;
+    }
+    const known = element("span", "value", formatValue(value));
+    known.title = part.ref;
+    return known;
+  }));
+}
+
+function sentenceOf(number) {
+  const item = instructionItem(number);
+  const text = item && item.querySelector(":scope > .line > .text");
+  return text ? text.textContent : "";
+}
+
+function instructionItem(number) {
+  return number ? document.querySelector(`#procedure li.instruction[data-number="${CSS.escape(number)}"]`) : null;
 }
 
 // ---- drawing the procedure -------------------------------------------------------------------
 const KIND_LABEL = {command: "Send", verify: "Check", wait: "Start wait", if: "Evaluate", goto: "Go", call: "Run"};
+const SVG = "http://www.w3.org/2000/svg";
 
 function buildProcedure() {
   const list = $("procedure");
   list.replaceChildren();
+  view.sentences = new Map();
   const procedure = view.procedure;
   $("proc-title").textContent = procedure ? `${procedure.title} (v${procedure.version})` : "procedure file not available";
   if (!procedure) return;
   for (const step of procedure.steps) {
-    const item = document.createElement("li");
-    item.className = "step";
-    const title = document.createElement("h3");
-    title.textContent = `${step.number}. ${step.title}`;
-    item.append(title, ...step.notices.map(noticeBox));
-    const instructions = document.createElement("ol");
-    instructions.className = "instructions";
+    const item = element("li", "step");
+    item.append(element("h3", "", `${step.number}. ${step.title}`), ...step.notices.map(noticeBox));
+    const instructions = element("ol", "instructions");
     for (const instruction of step.instructions) instructions.append(buildInstruction(instruction));
     item.append(instructions);
     list.append(item);
@@ -268,11 +335,8 @@ function buildProcedure() {
 }
 
 function noticeBox(notice) {
-  const box = document.createElement("div");
-  box.className = `notice ${notice.level}`;
-  const label = document.createElement("strong");
-  label.textContent = notice.level.toUpperCase();
-  box.append(label, " ", notice.text);
+  const box = element("div", `notice ${notice.level}`);
+  box.append(element("strong", "", notice.level.toUpperCase()), " ", notice.text);
   return box;
 }
 
@@ -283,10 +347,24 @@ function element(tag, className, text) {
   return node;
 }
 
+// PRIDE's mark for an instruction automation can perform: two circular arrows.
+function automatableIcon() {
+  const svg = document.createElementNS(SVG, "svg");
+  svg.setAttribute("viewBox", "0 0 16 16");
+  svg.setAttribute("aria-hidden", "true");
+  svg.innerHTML = '<path d="M13.5 6.5A5.6 5.6 0 0 0 3 5" fill="none" stroke="currentColor" stroke-width="1.6"/>' +
+    '<path d="M1.8 2.2 3 5.6 6.3 4.4" fill="none" stroke="currentColor" stroke-width="1.6"/>' +
+    '<path d="M2.5 9.5A5.6 5.6 0 0 0 13 11" fill="none" stroke="currentColor" stroke-width="1.6"/>' +
+    '<path d="M14.2 13.8 13 10.4 9.7 11.6" fill="none" stroke="currentColor" stroke-width="1.6"/>';
+  return svg;
+}
+
 function buildInstruction(instruction, prefix = "") {
   const number = prefix + instruction.number;  // as the executive numbers it, e.g. 2.1/1.3
   const item = element("li", `instruction kind-${instruction.kind}`);
   item.dataset.number = number;
+  if (instruction.timeout !== undefined) item.dataset.timeout = instruction.timeout;
+  view.sentences.set(number, instruction.sentence);
   item.append(...instruction.notices.map(noticeBox));
   const line = element("div", "line");
   const breakpoint = element("button", "breakpoint", number);
@@ -298,10 +376,15 @@ function buildInstruction(instruction, prefix = "") {
   });
   line.append(breakpoint);
   const paxCan = instruction.automatable && !instruction.needs_operator;
-  const icon = element("span", paxCan ? "auto-icon" : "auto-icon operator", paxCan ? "⚙" : "OP");
-  icon.title = paxCan ? "automatable: PAX can run this" : "an operator must perform this";
-  if (paxCan) item.classList.add("automatable");
-  line.append(icon, element("span", "text", instruction.text));
+  const icon = element("span", paxCan ? "auto-icon" : "auto-icon operator");
+  icon.title = paxCan ? "automatable: PAX can run this" : "an operator performs this";
+  if (paxCan) {
+    icon.append(automatableIcon());
+    item.classList.add("automatable");
+  }
+  const text = element("span", "text");
+  fillSentence(text, instruction.sentence, {});
+  line.append(icon, text);
   if (instruction.hazardous) {
     const hazard = element("span", "hazard", "⚠ hazardous");
     hazard.title = "needs confirmation before it is sent, even in autonomous mode";
@@ -310,9 +393,14 @@ function buildInstruction(instruction, prefix = "") {
   if (instruction.telemetry) {
     const chip = element("span", "telemetry");
     chip.dataset.key = `${instruction.telemetry.system}.${instruction.telemetry.item}`;
+    chip.dataset.check = instruction.telemetry.check;
+    chip.dataset.label = instruction.telemetry.label;
+    chip.dataset.units = instruction.telemetry.units || "";
+    chip.dataset.expected = instruction.telemetry.expected || "";
+    chip.title = `${chip.dataset.key}` + (instruction.telemetry.limits ? ` · SysRep limits ${limitsText(instruction.telemetry.limits)}` : "");
     line.append(chip);
   }
-  item.append(line);
+  item.append(line, element("div", "raw", instruction.raw));
   const controls = element("div", "instruction-controls");
   if (instruction.kind === "record") controls.append(...recordInput(instruction, number));
   else if (instruction.kind === "manual") controls.append(button("Done", "done", () => act("done", {instruction: number})));
@@ -322,17 +410,24 @@ function buildInstruction(instruction, prefix = "") {
     button("Retry", "retry", () => act("retry", {instruction: number})),
     button("Skip…", "skip", () => skip(number)),
   );
-  item.append(controls, element("div", "mark"), element("div", "detail"));
+  item.append(controls, element("div", "countdown"), element("div", "mark"), element("div", "detail"), element("div", "raw raw-detail"));
   if (instruction.callee) item.append(buildCallee(instruction.callee, `${number}/`));
   return item;
+}
+
+function limitsText(limits) {
+  const parts = [];
+  if (limits.min !== null) parts.push(`min ${limits.min}`);
+  if (limits.max !== null) parts.push(`max ${limits.max}`);
+  if (limits.enum) parts.push(`one of ${limits.enum.join(", ")}`);
+  return parts.join(", ") || "none";
 }
 
 // A called sub-procedure, drawn inside its call with the executive's numbers (call/number).
 function buildCallee(callee, prefix) {
   const box = element("ol", "callee");
   for (const step of callee.steps) {
-    const heading = element("li", "callee-step", `${prefix}${step.number}. ${step.title} (${callee.title})`);
-    box.append(heading, ...step.notices.map(noticeBox));
+    box.append(element("li", "callee-step", `${prefix}${step.number}. ${step.title} (${callee.title})`), ...step.notices.map(noticeBox));
     for (const instruction of step.instructions) box.append(buildInstruction(instruction, prefix));
   }
   return box;
@@ -374,7 +469,7 @@ function recordInput(instruction, number) {
     if (input.reportValidity && !input.reportValidity()) return;
     act("enter", {instruction: number, value: typedValue(record.type, input.value)});
   });
-  return [element("span", "record-name", `${record.name} (${record.type})`), input, submit];
+  return [element("span", "record-name", `${record.name.replaceAll("_", " ")} (${record.type})`), input, submit];
 }
 
 function typedValue(type, text) {
@@ -394,7 +489,7 @@ async function perform(instruction, number) {
 
 function confirmHazard(instruction, number, thenSend) {
   const dialog = $("confirm-dialog");
-  $("confirm-text").textContent = `${number}: ${instruction.text}. Confirm that it is safe to send.`;
+  $("confirm-text").textContent = `${number}: ${sentenceOf(number)}. Confirm that it is safe to send.`;
   dialog.returnValue = "";
   dialog.onclose = async () => {
     if (dialog.returnValue !== "confirm") return;
@@ -421,10 +516,11 @@ function renderRun() {
   const state = view.state;
   if (!state) return;
   $("run-id").textContent = state.run_id;
-  $("run-status").textContent = state.status;
-  $("run-status").dataset.status = state.status;
+  const shownStatus = state.live ? state.status : pastStatus(state);
+  $("run-status").textContent = shownStatus;
+  $("run-status").dataset.status = shownStatus;
   $("run-mode").textContent = state.mode || "";
-  $("hold").textContent = state.error ? `Recording failed: ${state.error}` : (state.reason || "");
+  renderWatchers(state);
   const live = Boolean(state.live) && state.status === "active";
   const mayAct = Boolean(view.me && view.me.may_act) && live;
   for (const id of ["mode-manual", "mode-autonomous"]) {
@@ -432,19 +528,36 @@ function renderRun() {
     node.setAttribute("aria-pressed", String(node.dataset.mode === state.mode));
     node.disabled = !mayAct || node.dataset.mode === state.mode;
   }
-  // pausing in manual mode keeps automation held when someone switches to autonomous
+  // a pause in manual mode holds automation for when someone switches to autonomous; only then can it continue
+  const autonomous = state.mode === "autonomous";
   $("pause").disabled = !mayAct || state.paused;
-  $("continue").disabled = !mayAct || !(state.paused || state.hold === "breakpoint");
+  $("continue").disabled = !mayAct || !autonomous || !(state.paused || state.hold === "breakpoint");
   $("step").disabled = !mayAct || state.executing || !state.current;
   $("stop").disabled = !mayAct;
   $("controls").hidden = !state.live;
-  for (const item of document.querySelectorAll("#procedure li.instruction")) renderInstruction(item, state, mayAct);
+  $("past-controls").hidden = Boolean(state.live) || !(view.me && view.me.may_act) || shownStatus === "completed";
+  const envs = JSON.stringify(state.envs || {});
+  const envsChanged = envs !== view.envsSeen;
+  view.envsSeen = envs;
+  for (const item of document.querySelectorAll("#procedure li.instruction")) renderInstruction(item, state, mayAct, envsChanged);
+  renderHold(state);
   renderTelemetry();
+  renderCountdowns();
   renderCamera();
   renderTrajectory();
+  follow(state);
 }
 
-function renderInstruction(item, state, mayAct) {
+function pastStatus(state) {
+  return state.status === "completed" || state.status === "stopped" ? state.status : "interrupted";
+}
+
+function renderWatchers(state) {
+  const watchers = state.watchers || [];
+  $("watchers").textContent = watchers.length ? `watching: ${watchers.map((w) => `${w.user} (${w.role})`).join(", ")}` : "";
+}
+
+function renderInstruction(item, state, mayAct, envsChanged) {
   const number = item.dataset.number;
   const running = Boolean(state.live) && state.status === "active";  // controls only on a running run
   const status = (state.statuses && state.statuses[number]) ||
@@ -453,12 +566,14 @@ function renderInstruction(item, state, mayAct) {
   const current = state.current === number;
   item.dataset.status = status;
   item.classList.toggle("current", current);
+  item.classList.toggle("held", current && Boolean(state.hold) && !["failure", "in_flight", "manual_mode"].includes(state.hold));
   item.classList.toggle("has-breakpoint", state.breakpoints.includes(number));
+  const own = (selector) => item.querySelector(`:scope > ${selector}`);  // not those of a called sub-procedure
+  if (envsChanged) fillSentence(own(".line > .text"), view.sentences.get(number), (state.envs || {})[frameOf(number)]);
   const idle = mayAct && current && !state.executing;
   const failed = state.hold === "failure" || state.hold === "in_flight";
   const held = state.mode === "manual" || ["not_automatable", "confirmation", "breakpoint", "paused"].includes(state.hold);
   const kind = [...item.classList].find((c) => c.startsWith("kind-")).slice(5);
-  const own = (selector) => item.querySelector(`:scope > ${selector}`);  // not those of a called sub-procedure
   own(".line > .breakpoint").disabled = !mayAct;
   const show = (selector, visible, enabled) => {
     const node = own(`.instruction-controls > ${selector}`);
@@ -475,49 +590,178 @@ function renderInstruction(item, state, mayAct) {
   if (input) input.disabled = !idle;
   show(".retry", running && current && failed, idle);
   show(".skip", running && current, idle);
-  const mark = own(".mark");
+  own(".mark").textContent = markText(number, status, details, current, state);
+  const parts = [];
+  if (details.result) {
+    const lines = (details.result_lines || []).map(([label, text]) => `${label}: ${text}`);
+    parts.push(`Result: ${details.result.success ? "succeeded" : "FAILED"}${details.result.message ? " — " + details.result.message : ""}` +
+      (lines.length ? ` · ${lines.join(" · ")}` : ""));
+  }
+  if (details.value !== undefined) parts.push(`recorded ${formatValue(details.value)}`);
+  if (details.telemetry) {
+    const seen = details.telemetry;
+    parts.push(`saw ${item.querySelector(":scope > .line > .telemetry")?.dataset.label || seen.item} = ${formatValue(seen.value)}` +
+      (seen.stale ? " (stale)" : ""));
+  }
+  own(".detail").textContent = parts.join(" · ");
+  own(".raw-detail").textContent = details.sent ? `sent ${details.sent.system}.${details.sent.command}(${formatArgs(details.sent.args)})` : "";
+}
+
+function markText(number, status, details, current, state) {
   const who = details.actor ? ` by ${details.actor}` : "";
   const when = details.time ? ` at ${new Date(details.time).toLocaleTimeString()}` : "";
   const reason = details.reason ? ` — ${details.reason}` : "";
-  mark.textContent = {
-    completed: `✓ completed${who}${when}`, failed: `✗ failed${who}${when}${reason}`,
-    skipped: `⤼ skipped${who}${when}${reason}`, executing: `… in progress${who}`,
-    active: current && state.reason ? `▶ ${state.reason}` : "",
-  }[status] || "";
-  const detail = own(".detail");
-  const parts = [];
-  if (details.sent) parts.push(`sent ${details.sent.system}.${details.sent.command}(${formatArgs(details.sent.args)})`);
-  if (details.result) {
-    const values = details.result.values && Object.keys(details.result.values).length ? ` ${JSON.stringify(details.result.values)}` : "";
-    parts.push(`result: ${details.result.success ? "success" : "FAILED"}${details.result.message ? " — " + details.result.message : ""}${values}`);
-  }
-  if (details.value !== undefined) parts.push(`recorded ${JSON.stringify(details.value)}`);
-  if (details.telemetry) parts.push(`saw ${details.telemetry.system}.${details.telemetry.item} = ${JSON.stringify(details.telemetry.value)}${details.telemetry.stale ? " (stale)" : ""}`);
-  detail.textContent = parts.join(" · ");
+  if (status === "completed") return `✓ completed${who}${when}`;
+  if (status === "failed") return current && state.hold === "in_flight" ? `? outcome unknown${reason}` : `✗ failed${who}${when}${reason}`;
+  if (status === "skipped") return `⤼ skipped${who}${when}${reason}`;
+  if (status === "executing") return `⟳ in progress${who}`;
+  if (current && state.hold === "in_flight") return "? outcome unknown: it was in flight when the runner stopped";
+  if (current && HOLDS[state.hold] && state.hold !== "manual_mode") return `${HOLDS[state.hold][1]} ${HOLDS[state.hold][2](number)}`;
+  return "";
 }
 
 function formatArgs(args) {
-  return Object.entries(args || {}).map(([name, value]) => `${name}=${JSON.stringify(value)}`).join(", ");
+  return Object.entries(args || {}).map(([name, value]) => `${name}=${formatValue(value)}`).join(", ");
 }
+
+// ---- the hold banner: what is needed, by whom, since when -------------------------------------
+const HOLDS = {
+  failure: ["failure", "✗", () => "Failed", () => "an operator must retry or skip it"],
+  in_flight: ["unknown", "?", () => "Outcome unknown", () => "an operator must check the system, then retry (resend) or skip it"],
+  confirmation: ["hold", "⚠", (n) => `${n} is hazardous`, () => "an operator must confirm it"],
+  operator_input: ["hold", "✎", () => "Needs a value", () => "an operator must enter it"],
+  operator_action: ["hold", "✋", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
+  not_automatable: ["hold", "✋", () => "Needs an operator", () => "an operator must perform it"],
+  breakpoint: ["info", "●", (n) => `Breakpoint at ${n}`, () => "an operator may Continue or Step"],
+  paused: ["info", "⏸", (n) => `Automation paused at ${n}`, () => "an operator may Continue"],
+  manual_mode: ["info", "▶", () => "Manual mode", () => "an operator performs each instruction"],
+};
+
+function renderHold(state) {
+  const box = $("hold");
+  let tone = "none", icon = "", what = "", text = "", who = "";
+  const number = state.current;
+  const sentence = number ? `${number}: ${sentenceOf(number)}` : "";
+  if (state.error) {
+    [tone, icon, what, text] = ["failure", "✗", "Recording failed", state.error];
+  } else if (state.status === "completed") {
+    [tone, icon, what] = ["done", "✓", "Run completed"];
+  } else if (state.status === "stopped" || (!state.live && state.status !== "completed")) {
+    const stopped = state.stopped;
+    [tone, icon] = ["stopped", "■"];
+    what = stopped ? "Run stopped" : "Run interrupted";
+    text = stopped ? `by ${stopped.by}${stopped.reason ? ": " + stopped.reason : ""}` : "its log ends without an end: the runner stopped";
+    who = view.me && view.me.may_act ? "an operator may resume it" : "";
+  } else if (state.hold && HOLDS[state.hold]) {
+    const [holdTone, holdIcon, title, needed] = HOLDS[state.hold];
+    [tone, icon, what, who] = [holdTone, holdIcon, title(number), needed()];
+    text = ["failure", "in_flight"].includes(state.hold) ? state.reason : sentence;
+    if (state.hold === "manual_mode" && state.paused) who = "automation is paused for when the run goes autonomous";
+  } else if (number) {
+    [tone, icon, what, text] = ["run", "⟳", state.executing ? "PAX is performing" : "Running", sentence];
+  }
+  box.dataset.tone = tone;
+  box.querySelector(".hold-icon").textContent = icon;
+  box.querySelector(".hold-what").textContent = what;
+  box.querySelector(".hold-text").textContent = text;
+  box.dataset.since = state.arrived || "";
+  box.dataset.who = who;
+  renderHoldMeta();
+}
+
+function renderHoldMeta() {
+  const box = $("hold");
+  const state = view.state;
+  if (!state) return;
+  const parts = [];
+  if (box.dataset.who) {
+    const operators = (state.watchers || []).filter((w) => w.role === "operator").map((w) => w.user);
+    parts.push(box.dataset.who + (state.live && box.dataset.tone !== "done" ?
+      (operators.length ? ` (operators watching: ${operators.join(", ")})` : " (no operator is watching this run)") : ""));
+  }
+  if (box.dataset.since && box.dataset.tone !== "none") {
+    const since = new Date(box.dataset.since);
+    const end = state.live && !["done", "stopped"].includes(box.dataset.tone) ? Date.now() + view.clockOffset : since.getTime();
+    parts.push(`since ${since.toLocaleTimeString()}` + (end > since.getTime() ? ` (${duration((end - since.getTime()) / 1000)})` : ""));
+  }
+  box.querySelector(".hold-meta").textContent = parts.join(" · ");
+}
+
+function duration(seconds) {
+  const s = Math.max(0, Math.floor(seconds));
+  return s < 60 ? `${s} s` : s < 3600 ? `${Math.floor(s / 60)} min ${s % 60} s` : `${Math.floor(s / 3600)} h ${Math.floor(s % 3600 / 60)} min`;
+}
+
+// ---- following the run -----------------------------------------------------------------------
+function follow(state) {
+  const target = state.current || null;
+  if (!$("follow").checked || !target || target === view.followed) return;
+  const item = instructionItem(target);
+  if (!item) return;
+  view.followed = target;
+  item.scrollIntoView({block: "center"});
+}
+
+$("follow").addEventListener("change", () => {
+  view.followed = null;
+  if (view.state) follow(view.state);
+});
+$("show-raw").addEventListener("change", () => document.body.classList.toggle("show-raw", $("show-raw").checked));
+
+// ---- telemetry, countdowns -------------------------------------------------------------------
+const CHIP_ICON = {ok: "✓", unexpected: "≠", out: "⚠", stale: "⌛", none: ""};
 
 function renderTelemetry() {
   const now = performance.now();
   for (const chip of document.querySelectorAll("#procedure .telemetry")) {
     const reading = view.telemetry.get(chip.dataset.key);
+    const label = chip.dataset.label;
     if (!reading) {
-      chip.textContent = view.state && view.state.live ? `${chip.dataset.key}: no value` : "";
-      chip.dataset.stale = "true";
+      chip.textContent = view.state && view.state.live ? `${label}: no value` : "";
+      chip.dataset.state = view.state && view.state.live ? "stale" : "none";
       continue;
     }
+    if (reading.error) {
+      chip.textContent = `${CHIP_ICON.stale} ${label}: ${reading.error}`;
+      chip.dataset.state = "stale";
+      continue;
+    }
+    const check = view.checks[chip.dataset.check];
+    const state = reading.stale ? "stale" : reading.out ? "out" : check === false ? "unexpected" : "ok";
     const age = reading.age === null || reading.age === undefined ? null : reading.age + (now - reading.receivedAt) / 1000;
-    const value = reading.error ? reading.error : JSON.stringify(reading.value);
-    chip.textContent = `${chip.dataset.key} = ${value}` + (age === null ? "" : ` · ${age.toFixed(1)} s ago`) +
-      (reading.stale ? " · STALE" : "");
+    const units = chip.dataset.units ? ` ${chip.dataset.units}` : "";
+    const verdict = state === "out" ? ` (outside its limits: ${reading.out})` :
+      state === "unexpected" ? ` (expected ${chip.dataset.expected.replace(/^= /, "")})` : "";
+    chip.textContent = `${CHIP_ICON[state]} ${label} = ${formatValue(reading.value)}${units}${verdict}` +
+      (age === null ? "" : ` · ${age.toFixed(1)} s ago`) + (reading.stale ? " · STALE" : "");
+    chip.dataset.state = state;
     chip.dataset.stale = String(Boolean(reading.stale));
   }
 }
 
-setInterval(renderTelemetry, 500);
+// A verify or wait in progress counts down its timeout from when it started (server's clock).
+function renderCountdowns() {
+  const state = view.state;
+  for (const item of document.querySelectorAll("#procedure li.instruction[data-timeout]")) {
+    const box = item.querySelector(":scope > .countdown");
+    const details = state && state.instructions[item.dataset.number];
+    if (!state || !state.live || item.dataset.status !== "executing" || !details || !details.started) {
+      box.textContent = "";
+      continue;
+    }
+    const timeout = Number(item.dataset.timeout);
+    const elapsed = (Date.now() + view.clockOffset - new Date(details.started).getTime()) / 1000;
+    const left = timeout - elapsed;
+    box.textContent = left > 0 ? `⏱ ${Math.ceil(left)} s left of ${timeout} s` : `⏱ ${timeout} s are up`;
+    box.dataset.late = String(left <= 0);
+  }
+}
+
+setInterval(() => {
+  renderTelemetry();
+  renderCountdowns();
+  renderHoldMeta();
+}, 500);
 
 function renderCamera() {
   const camera = view.state.camera;
@@ -534,7 +778,7 @@ function renderTrajectory() {
   const box = $("trajectory");
   const plans = view.events.filter((e) => e.kind === "command_result" && e.data.values && e.data.values.end_pose);
   const planTelemetry = [...view.telemetry.values()].filter((r) => r.item === "plan_valid" || r.item === "plan_status");
-  const lines = planTelemetry.map((r) => `${r.system}.${r.item} = ${JSON.stringify(r.value)}${r.stale ? " (stale)" : ""}`);
+  const lines = planTelemetry.map((r) => `${r.item.replaceAll("_", " ")} = ${formatValue(r.value)}${r.stale ? " (stale)" : ""}`);
   if (!plans.length) {
     box.textContent = (lines.length ? lines.join(" · ") + ". " : "") +
       "No end pose yet: it is drawn when a plan result carries one (values.end_pose).";
@@ -543,7 +787,7 @@ function renderTrajectory() {
   const latest = plans[plans.length - 1];
   const pose = normalizePose(latest.data.values.end_pose);
   if (!pose) {
-    box.textContent = `end pose not understood: ${JSON.stringify(latest.data.values.end_pose)}`;
+    box.textContent = `end pose not understood: ${formatValue(latest.data.values.end_pose)}`;
     return;
   }
   const scale = 60, cx = 100, cy = 100;
@@ -554,11 +798,10 @@ function renderTrajectory() {
     <circle cx="${cx}" cy="${cy}" r="4" class="base"/>
     <line x1="${x}" y1="${y}" x2="${x + dx}" y2="${y + dy}" class="heading"/>
     <circle cx="${x}" cy="${y}" r="6" class="end"/></svg>`;
-  const caption = element("p", "pose-text",
-    `${latest.instruction}: end pose x=${pose.x.toFixed(3)} y=${pose.y.toFixed(3)} z=${pose.z.toFixed(3)} m, ` +
-    `yaw=${(pose.yaw * 180 / Math.PI).toFixed(1)}° (top view, robot base at the centre, ±${(100 / scale).toFixed(2)} m shown)` +
-    (lines.length ? ` · ${lines.join(" · ")}` : ""));
-  box.append(caption);
+  box.append(element("p", "pose-text",
+    `${latest.instruction}: end pose x ${pose.x.toFixed(3)}, y ${pose.y.toFixed(3)}, z ${pose.z.toFixed(3)} m, ` +
+    `yaw ${(pose.yaw * 180 / Math.PI).toFixed(1)}° (top view, robot base at the centre, ±${(100 / scale).toFixed(2)} m shown)` +
+    (lines.length ? ` · ${lines.join(" · ")}` : "")));
 }
 
 function normalizePose(pose) {
@@ -575,7 +818,34 @@ $("pause").addEventListener("click", () => act("pause"));
 $("continue").addEventListener("click", () => act("continue"));
 $("step").addEventListener("click", () => act("step"));
 $("stop").addEventListener("click", () => {
-  if (confirm("Stop this run? It can be resumed later from the audit log.")) act("stop", {reason: "stopped from the web view"});
+  const dialog = $("stop-dialog");
+  $("stop-reason").value = "";
+  dialog.returnValue = "";
+  dialog.onclose = () => {
+    const reason = $("stop-reason").value.trim();
+    if (dialog.returnValue === "stop" && reason) act("stop", {reason});
+  };
+  dialog.showModal();
+});
+$("resume").addEventListener("click", () => {
+  const dialog = $("resume-dialog");
+  const runId = view.runId;
+  $("resume-run").textContent = runId;
+  $("resume-warning").textContent = view.state && view.state.stopped ? "" :
+    "No stop is recorded: the runner died, or another console or terminal is still running this run. Resume only if none is.";
+  dialog.returnValue = "";
+  dialog.onclose = async () => {
+    if (dialog.returnValue !== "resume") return;
+    const mode = document.querySelector('input[name="resume-mode"]:checked').value;
+    try {
+      await api("POST", `/api/runs/${encodeURIComponent(runId)}/resume`, {binding: $("resume-binding").value, mode});
+      await openRun(runId);
+      await loadRuns();
+    } catch (error) {
+      $("action-error").textContent = error.message;
+    }
+  };
+  dialog.showModal();
 });
 
 loadSession();
