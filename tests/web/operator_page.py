@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -21,11 +22,12 @@ def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml") 
     page.select_option("#start-procedure", procedure)
     page.select_option("#start-binding", binding)
     page.check(f"#start-form input[name=mode][value={mode}]")
+    before = page.locator("#run-id").inner_text() if page.locator("#run-id").count() else ""
     page.click("#start-button")
+    expect(page.locator("#run-id")).not_to_have_text(before or "-")
+    expect(page.locator("#run-id")).to_have_text(re.compile("^" + re.escape(procedure.removesuffix(".xml")) + "-"))
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
-    run_id = page.locator("#run-id").inner_text()
-    assert run_id.startswith(procedure.removesuffix(".xml"))
-    return run_id
+    return page.locator("#run-id").inner_text()
 
 
 def instruction(page: Page, number: str) -> Locator:
@@ -49,6 +51,7 @@ def stop_run(page: Page, reason: str) -> None:
     page.click("#stop")
     page.fill("#stop-reason", reason)
     page.click("#stop-yes")
+    expect_ended(page, "stopped")
 
 
 def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
@@ -58,3 +61,9 @@ def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
     page.click("#sign-in-form button[type=submit]")
     if password is None:
         page.wait_for_selector("#main-view:not([hidden])")
+
+
+def expect_ended(page: Page, status: str) -> None:
+    """The open run ended as ``status`` and the page shows it as a past run, drawn from the audit log."""
+    expect(page.locator("#run-status")).to_have_text(status)
+    expect(page.locator("#connection")).to_have_text("past run (from the audit log)")

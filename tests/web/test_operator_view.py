@@ -13,7 +13,7 @@ import re
 
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, instruction, screenshot, sign_in_on, start_run, stop_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, sign_in_on, start_run, stop_run
 from pride.audit_log import AuditLog
 from web_server import procedure_shelf, start_server
 
@@ -66,7 +66,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
     stop_run(alice, "end of the walk-through")
-    expect(alice.locator("#run-status")).to_have_text("stopped")
+    expect_ended(alice, "stopped")
     expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_contain_text("end of the walk-through")
 
     log = AuditLog(f"sqlite:///{server.db}")
@@ -120,7 +120,7 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     # the hazardous command waits for a confirmation, given in a dialog, even in autonomous mode
     hazardous = instruction(alice, "3.2")
     expect(hazardous.locator(".hazard")).to_be_visible()
-    expect(alice.locator("#hold")).to_contain_text("3.2 is hazardous")
+    expect(alice.locator("#hold")).to_contain_text("Hazardous command 3.2: Unlock Filter")
     expect(alice.locator("#hold")).to_have_attribute("data-tone", "hold")
     hazardous.locator("button.confirm").click()
     expect(alice.locator("#confirm-dialog")).to_be_visible()
@@ -134,7 +134,7 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     expect(alice.locator("#hold")).to_contain_text("Breakpoint at 3.3")
     expect(instruction(alice, "3.3").locator(".telemetry")).to_contain_text("Filter Locked = false")
     alice.click("#continue")
-    expect(alice.locator("#run-status")).to_have_text("completed")
+    expect_ended(alice, "completed")
     expect(instruction(alice, "3.3").locator(".mark")).to_contain_text("completed by PAX")
     instruction(alice, "3.2").scroll_into_view_if_needed()
     screenshot(alice, "web_completed_run.png")

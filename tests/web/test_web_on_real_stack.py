@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, instruction, screenshot, start_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run
 from pride.audit_log import AuditLog
 from web_server import REPO, WebServer, server_on_real_stack
 
@@ -104,7 +104,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     alice.once("dialog", lambda dialog: dialog.accept())
     alice.click("#stop")
     for page in (alice, carol):
-        expect(page.locator("#run-status")).to_have_text("stopped")
+        expect_ended(page, "stopped")
     expect(alice.locator('#audit tbody tr[data-kind="run_stopped"][data-actor="alice"]')).to_have_count(1)
 
     # the audit log holds every action with its user, and nothing from the observer

@@ -38,14 +38,17 @@ def _free_port() -> int:
         return sock.getsockname()[1]
 
 
-def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None) -> WebServer:
-    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp`` by default).
+def start_server(
+    tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None, sysreps: Path | None = None
+) -> WebServer:
+    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp``, with
+    the test people's accounts, by default) and reading SysReps from ``sysreps`` (the shipped ones by default).
 
     With ``rosbridge`` the server opens the real PAX host (JVM plugins) on that rosbridge;
     without, the simulated systems of simulated_systems.py.
     """
     env = dict(os.environ)
-    options = ["--camera", "ee_camera", "--camera-period", "0.1"]
+    options = ["--camera", "ee_camera", "--camera-period", "0.1", *(["--sysreps", str(sysreps)] if sysreps else [])]
     if rosbridge is None:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"

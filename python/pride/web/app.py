@@ -51,6 +51,8 @@ STATIC = Path(__file__).with_name("static")
 _TELEMETRY_REFRESH_S = 1.0
 #: WebSocket close code for "not signed in" (RFC 6455 policy violation).
 _CLOSE_POLICY = 1008
+#: WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure).
+_CLOSE_ENDED = 1000
 _SAFE_METHODS = ("GET", "HEAD")
 
 
@@ -290,6 +292,9 @@ async def run_socket(websocket: WebSocket) -> None:
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(watcher.changed.wait(), _TELEMETRY_REFRESH_S)
             watcher.changed.clear()
+            if live.retired:  # the page reloads it as a past run (its last state is in the log)
+                await websocket.close(code=_CLOSE_ENDED, reason="the run ended")
+                return
             try:
                 await run_in_threadpool(sign_ins.session, websocket)  # an open console is in use; an ended session closes it
             except SignInRefused as exc:

@@ -73,6 +73,7 @@ class LiveRun:
         self._events: list[Event] = list(history or [])
         self._state = fold_events(executive.run_id, self._events, self.sysreps)
         self._watchers: set[Watcher] = set()
+        self.retired = False  # ended and released: watchers should look at it as a past run
         executive.add_listener(self._event_callback)
         if camera_feed is not None:
             executive.add_listener(camera_feed.event_callback)
@@ -89,6 +90,11 @@ class LiveRun:
                 return  # already in the history read back from the log
             self._events.append(event)
             self._state.apply(event)
+        self._wake()
+
+    def retire(self) -> None:
+        """The run ended and its gateway is closed: wake the watchers, who then let go of it."""
+        self.retired = True
         self._wake()
 
     def catch_up(self, logged: list[Event]) -> None:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from pride.audit_log import AuditLog
-from pride.events import Event
+from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.lint import lint_file
 from pride.model import Procedure
@@ -114,8 +114,8 @@ class RunBoard:
     def resume(self, user: str, run_id: str, binding_name: str, mode_name: str) -> LiveRun:
         """Continue a stopped or interrupted run from its log on ``binding_name``; ActionRefused says why not."""
         mode = _mode(mode_name)
-        if self.live(run_id) is not None:
-            raise ActionRefused(409, f"run {run_id} is already live on this server")
+        if self.live(run_id) is not None:  # (a run that has just ended is released in a moment)
+            raise ActionRefused(409, f"run {run_id} is live on this server (or ending): resume it once it shows as stopped")
         events = self.past_events(run_id)
         status = fold_events(run_id, events).status
         if status == "completed":
@@ -164,7 +164,23 @@ class RunBoard:
                        camera_feed=feed, history=history)
         with self._lock:
             self._live[executive.run_id] = live
+        executive.add_listener(lambda event: self._on_end(executive.run_id, event))
         return live
+
+    def _on_end(self, run_id: str, event: Event) -> None:
+        """An executive listener: once a run has ended it becomes a past run (resumable when stopped).
+
+        Called with the executive's lock held, so the retiring happens on a thread of its own.
+        """
+        if event.kind in (EventKind.RUN_COMPLETED, EventKind.RUN_STOPPED):
+            threading.Thread(target=self._retire, args=(run_id,), name=f"retire-{run_id}", daemon=True).start()
+
+    def _retire(self, run_id: str) -> None:
+        with self._lock:
+            live = self._live.pop(run_id, None)
+            self._statuses.pop(run_id, None)  # read its end from the log next time
+        if live is not None:  # whoever took it out of the board closes it (this, or close())
+            _release(live)
 
     def live(self, run_id: str) -> LiveRun | None:
         with self._lock:
@@ -222,11 +238,16 @@ class RunBoard:
                     live.executive.stop("web-server", "the web server shut down")
                 except Exception:
                     log.exception("stopping run %s", live.run_id)
-            # a command in flight finishes and is recorded before its gateway closes
-            live.executive.wait_for(lambda snapshot: not snapshot.executing, timeout=10)
-            if live.camera_feed is not None:
-                live.camera_feed.close()
-            try:
-                live.gateway.close()
-            except Exception:
-                log.exception("closing the gateway of run %s", live.run_id)
+            _release(live)
+
+
+def _release(live: LiveRun) -> None:
+    """Close an ended run's camera feed and gateway, once a command in flight has finished and been recorded."""
+    live.executive.wait_for(lambda snapshot: not snapshot.executing, timeout=10)
+    if live.camera_feed is not None:
+        live.camera_feed.close()
+    try:
+        live.gateway.close()
+    except Exception:
+        log.exception("closing the gateway of run %s", live.run_id)
+    live.retire()

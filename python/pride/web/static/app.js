@@ -177,9 +177,10 @@ async function openRun(runId) {
   try {
     data = await api("GET", `/api/runs/${encodeURIComponent(runId)}`);
   } catch (error) {
-    $("action-error").textContent = error.message;
+    if (view.runId === runId) $("action-error").textContent = error.message;
     return;
   }
+  if (view.runId !== runId) return;  // another run was opened meanwhile
   view.procedure = data.procedure;
   buildProcedure();
   $("no-run").hidden = true;
@@ -212,6 +213,10 @@ function connect() {
   socket.addEventListener("close", (event) => {
     if (view.socket !== socket) return;  // replaced on purpose
     view.socket = null;
+    if (event.code === 1000 && event.reason === "the run ended") {
+      if (view.runId === runId) openRun(runId);  // now a past run: drawn from the audit log, resumable when stopped
+      return;
+    }
     if (event.code === 1008) {
       setConnection("closed", `closed: ${event.reason || "refused"}`);
       if (/sign in|session/.test(event.reason)) signedOut(event.reason);
@@ -628,7 +633,7 @@ function formatArgs(args) {
 const HOLDS = {
   failure: ["failure", "✗", () => "Failed", () => "an operator must retry or skip it"],
   in_flight: ["unknown", "?", () => "Outcome unknown", () => "an operator must check the system, then retry (resend) or skip it"],
-  confirmation: ["hold", "⚠", (n) => `${n} is hazardous`, () => "an operator must confirm it"],
+  confirmation: ["hold", "⚠", () => "Hazardous command", () => "an operator must confirm it is safe to send"],
   operator_input: ["hold", "✎", () => "Needs a value", () => "an operator must enter it"],
   operator_action: ["hold", "✋", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
   not_automatable: ["hold", "✋", () => "Needs an operator", () => "an operator must perform it"],
