@@ -13,7 +13,7 @@ import re
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, expect_ended, instruction, start_run, stop_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run, stop_run
 
 
 def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
@@ -124,6 +124,7 @@ def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> No
     assert overflowing == [], overflowing
     widths = alice.locator("#audit li .audit-detail").evaluate_all("nodes => nodes.map((node) => node.getBoundingClientRect().width)")
     assert min(widths) > 250, widths
+    screenshot(alice, f"web_narrow_{width}.png")
     stop_run(alice, f"checked at {width} px")
 
 

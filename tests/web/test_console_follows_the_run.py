@@ -151,10 +151,10 @@ def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts
     # PAX checks the first two and waits for the latch: the verify counts down its 60 s
     alice.click("#mode-autonomous")
     countdown = instruction(alice, "1.3").locator(".countdown")
-    expect(countdown).to_have_text(re.compile(r"^⏱ \d+ s left of 60 s$"))
+    expect(countdown).to_have_text(re.compile(r"^◷ \d+ s left of 60 s$"))
     first = int(countdown.inner_text().split()[1])
     assert 0 < first <= 60
-    expect(countdown).not_to_have_text(f"⏱ {first} s left of 60 s")
+    expect(countdown).not_to_have_text(f"◷ {first} s left of 60 s")
     assert int(countdown.inner_text().split()[1]) < first
     stop_run(alice, "countdown seen")
     expect(countdown).to_have_text("")

@@ -379,10 +379,10 @@ const HOLDS = {
   in_flight: ["unknown", "?", () => "Outcome unknown", () => "an operator must check the system, then retry (resend) or skip it"],
   confirmation: ["hold", "⚠", () => "Hazardous command", () => "an operator must confirm it is safe to send"],
   operator_input: ["hold", "✎", () => "Needs a value", () => "an operator must enter it"],
-  operator_action: ["hold", "✋", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
-  not_automatable: ["hold", "✋", () => "Needs an operator", () => "an operator must perform it"],
+  operator_action: ["hold", "☞", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
+  not_automatable: ["hold", "☞", () => "Needs an operator", () => "an operator must perform it"],
   breakpoint: ["info", "●", (n) => `Breakpoint at ${n}`, () => "an operator may Continue or Step"],
-  paused: ["info", "⏸", (n) => `Automation paused at ${n}`, () => "an operator may Continue"],
+  paused: ["info", "‖", (n) => `Automation paused at ${n}`, () => "an operator may Continue"],
   manual_mode: ["info", "▶", () => "Manual mode", () => "an operator performs each instruction"],
 };
 
@@ -458,7 +458,7 @@ $("follow").addEventListener("change", () => {
 $("show-raw").addEventListener("change", () => document.body.classList.toggle("show-raw", $("show-raw").checked));
 
 // ---- telemetry, countdowns -------------------------------------------------------------------
-const CHIP_ICON = {ok: "✓", unexpected: "≠", out: "⚠", stale: "⌛", none: ""};
+const CHIP_ICON = {ok: "✓", unexpected: "≠", out: "⚠", stale: "◌", none: ""};
 
 function renderTelemetry() {
   const now = performance.now();
@@ -501,7 +501,7 @@ function renderCountdowns() {
     const timeout = Number(item.dataset.timeout);
     const elapsed = (Date.now() + view.clockOffset - new Date(details.started).getTime()) / 1000;
     const left = timeout - elapsed;
-    box.textContent = left > 0 ? `⏱ ${Math.ceil(left)} s left of ${timeout} s` : `⏱ ${timeout} s are up`;
+    box.textContent = left > 0 ? `◷ ${Math.ceil(left)} s left of ${timeout} s` : `◷ ${timeout} s are up`;
     box.dataset.late = String(left <= 0);
   }
 }
