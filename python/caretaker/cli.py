@@ -23,6 +23,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "report": ("pride.cli", "report_main", "write the after-action report of a run"),
     "db": ("pride.cli", "db_main", "create or upgrade the audit log's schema (status: its revision)"),
     "serve": ("pride.web.server", "main", "serve the operator web view"),
+    "accounts": ("pride.web.accounts_command", "main", "add, change, remove and list the web view's accounts"),
     "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
     "check": ("caretaker.check", "main", "check scene, robot, template, deployment, SysRep and binding files"),

@@ -34,6 +34,7 @@ from pride.model import (
     RecordInstruction,
     Reference,
     Subject,
+    Template,
     VerifyInstruction,
     WaitInstruction,
 )
@@ -448,4 +449,5 @@ class _Linter:
         if isinstance(i, BranchInstruction) and i.subject.source in ("input", "result"):
             ref = Reference(i.subject.name, i.subject.field if i.subject.source == "result" else None)
             found.append((ref, i.at(i.subject.source)))
+        found += [(ref, i.at("text")) for ref in Template.parse(i.text).references]  # the sentence shows them
         return found

@@ -132,6 +132,13 @@ class _Builder:
             notices=notices,
             attrs=self.attrs(el),
         )
+        sentence = el.find("text")  # the sentence the instruction reads as, written as an element
+        if sentence is not None:
+            if el.get("text") is not None:
+                self.fail(
+                    self.pos.element(sentence), "the text is given twice: keep the text attribute or the <text> element"
+                )
+            common["text"], common["attrs"]["text"] = _clean(sentence.text), self.pos.text(sentence)
         tag = el.tag
         if tag == "command":
             return CommandInstruction(

@@ -15,6 +15,7 @@ from datetime import datetime
 from pathlib import Path
 
 from pride.events import PAX, Event, EventKind
+from pride.phrasing import describe_event, format_value
 
 __all__ = ["RunSummary", "StepSummary", "summarize", "to_html", "to_markdown", "write_report"]
 
@@ -114,44 +115,6 @@ def summarize(events: list[Event]) -> RunSummary:
     )
 
 
-def describe(event: Event) -> str:
-    """One line saying what an event was."""
-    d = event.data
-    kind = event.kind
-    if kind is EventKind.RUN_STARTED:
-        return f"started {d.get('procedure')} v{d.get('version')} in {d.get('mode')} mode"
-    if kind is EventKind.COMMAND_SENT:
-        args = ", ".join(f"{k}={v!r}" for k, v in d.get("args", {}).items())
-        return f"sent {d['system']}.{d['command']}({args})" + (" [hazardous]" if d.get("hazardous") else "")
-    if kind is EventKind.COMMAND_RESULT:
-        values = f" {d['values']}" if d.get("values") else ""
-        return f"{'succeeded' if d['success'] else 'FAILED'}: {d.get('message', '')}{values}"
-    if kind is EventKind.TELEMETRY_SEEN:
-        verdict = "" if "ok" not in d else (" ✓" if d["ok"] else " ✗")
-        return f"saw {d['system']}.{d['item']} = {d['value']!r}{' (stale)' if d.get('stale') else ''}{verdict}"
-    if kind is EventKind.OPERATOR_INPUT:
-        return f"recorded {d['name']} = {d['value']!r}"
-    if kind is EventKind.INSTRUCTION_FAILED:
-        return f"failed: {d.get('reason', '')}" + (f" → step {d['branch']}" if d.get("branch") else "")
-    if kind is EventKind.INSTRUCTION_SKIPPED:
-        return f"skipped: {d.get('reason', '')}"
-    if kind is EventKind.INSTRUCTION_COMPLETED:
-        return "completed" + (f" → step {d['went_to']}" if d.get("went_to") else "")
-    if kind is EventKind.INSTRUCTION_STARTED:
-        return f"started: {d.get('text', '')}"
-    if kind is EventKind.AWAITING_OPERATOR:
-        return f"waiting for an operator: {d.get('reason', '')}"
-    if kind is EventKind.MODE_CHANGED:
-        return f"mode → {d['mode']}"
-    if kind is EventKind.RUN_STOPPED:
-        return f"stopped: {d.get('reason', '')}"
-    if kind is EventKind.RETRY:
-        return f"retry after: {d.get('after', '')}"
-    if kind is EventKind.CALL_ENTERED:
-        return f"entered {d.get('procedure')} with {d.get('inputs')}"
-    return str(kind.value).replace("_", " ")
-
-
 def _clock(moment: datetime) -> str:
     return moment.strftime("%H:%M:%S.") + f"{moment.microsecond // 1000:03d}"
 
@@ -163,7 +126,10 @@ def _duration(seconds: float) -> str:
 
 def timeline_svg(summary: RunSummary, width: int = 860) -> str:
     """Steps as rows, visits as bars on a shared time axis; operator actions and failures marked."""
-    left, row, top = 210, 26, 28
+    labels = [f"{step.number}. {step.title}" for step in summary.steps]
+    # the label column fits the longest step title (about 7 px a character at 12 px): never clipped
+    left, row, top = max(210, 16 + 7 * max(map(len, labels), default=0)), 26, 28
+    width = max(width, left + 320)
     total = max(summary.seconds, 1e-3)
     scale = (width - left - 20) / total
     height = top + row * len(summary.steps) + 34
@@ -182,8 +148,7 @@ def timeline_svg(summary: RunSummary, width: int = 860) -> str:
     rows = {s.number: i for i, s in enumerate(summary.steps)}
     for i, step in enumerate(summary.steps):
         y = top + i * row
-        label = html.escape(f"{step.number}. {step.title}"[:30])
-        parts.append(f'<text x="{left - 8}" y="{y + 15}" text-anchor="end">{label}</text>')
+        parts.append(f'<text x="{left - 8}" y="{y + 15}" text-anchor="end" class="step-label">{html.escape(labels[i])}</text>')
         color = "#c0392b" if step.failed and not step.completed else "#2e86c1" if step.visits else "#bbb"
         for start, end in step.visits:
             w = max((end - start).total_seconds() * scale, 2)
@@ -202,7 +167,7 @@ def timeline_svg(summary: RunSummary, width: int = 860) -> str:
                                                    EventKind.COMMAND_SENT, EventKind.RETRY):
             px, py = x(event.time), y + 2
             parts.append(f'<path d="M{px - 4:.1f},{py:.1f} L{px + 4:.1f},{py:.1f} L{px:.1f},{py + 7:.1f} Z" fill="#f39c12">'
-                         f'<title>{html.escape(event.actor)}: {html.escape(describe(event))}</title></path>')
+                         f'<title>{html.escape(event.actor)}: {html.escape(describe_event(event))}</title></path>')
     parts.append(f'<text x="{left}" y="14" fill="#555">bars: time in step · ▼ operator action · ● failure</text>')
     parts.append("</svg>")
     return "\n".join(parts)
@@ -237,7 +202,7 @@ def to_markdown(summary: RunSummary) -> str:
     for e in summary.telemetry:
         d = e.data
         verdict = "ok" if d.get("ok", True) and not d.get("stale") else "not met"
-        lines.append(f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{d['value']!r}` | "
+        lines.append(f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{format_value(d['value'])}` | "
                      f"{d.get('condition', '(branch)')} | {verdict} |")
     lines += ["", "## Images", ""]
     for image in summary.images:
@@ -248,7 +213,7 @@ def to_markdown(summary: RunSummary) -> str:
         lines.append("None captured.")
     lines += ["", "## Actions", "", "| # | time (UTC) | actor | instruction | action |", "|---|---|---|---|---|"]
     for e in summary.events:
-        lines.append(f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe(e).replace('|', '/')} |")
+        lines.append(f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe_event(e).replace('|', '/')} |")
     return "\n".join(lines) + "\n"
 
 
@@ -261,7 +226,7 @@ def to_html(summary: RunSummary) -> str:
     )
     telemetry = "".join(
         f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td><td>{esc(e.data['system'])}.{esc(e.data['item'])}</td>"
-        f"<td><code>{esc(repr(e.data['value']))}</code></td><td>{esc(e.data.get('condition', '(branch)'))}</td>"
+        f"<td><code>{esc(format_value(e.data['value']))}</code></td><td>{esc(e.data.get('condition', '(branch)'))}</td>"
         f"<td>{'ok' if e.data.get('ok', True) and not e.data.get('stale') else '<b>not met</b>'}</td></tr>"
         for e in summary.telemetry
     )
@@ -273,7 +238,7 @@ def to_html(summary: RunSummary) -> str:
     ) or "<p>None captured.</p>"
     actions = "".join(
         f"<tr class=\"{'operator' if e.actor != PAX else ''}\"><td>{e.seq}</td><td>{_clock(e.time)}</td><td>{esc(e.actor)}</td>"
-        f"<td>{esc(e.instruction or '')}</td><td>{esc(describe(e))}</td></tr>"
+        f"<td>{esc(e.instruction or '')}</td><td>{esc(describe_event(e))}</td></tr>"
         for e in summary.events
     )
     return f"""<!doctype html>

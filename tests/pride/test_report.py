@@ -53,8 +53,8 @@ def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, 
     rows = {line.split(" | ")[1]: line for line in markdown.splitlines() if line.startswith("| ") and " | " in line}
     assert rows["Prepare the bench"].endswith("| 4 | 0 | 0 | PAX, alice |")
     assert rows["Inspect"].endswith("| 6 | 0 | 0 | PAX, bob |")
-    assert "recorded target = &#x27;dock&#x27;" in html_text or "recorded target = 'dock'" in html_text
-    assert "| lab.door_open | `True` | = true | ok |" in markdown
+    assert "recorded target = dock" in html_text and "'dock'" not in html_text
+    assert "| lab.door_open | `true` | = true | ok |" in markdown
     assert "**completed**" in markdown
     assert f"- Audit chain: run {run_id}: chain of " in markdown and " events intact; head " in markdown
 

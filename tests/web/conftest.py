@@ -10,8 +10,9 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
 
+from operator_page import sign_in_on
 from web_server import WebServer, procedure_shelf, start_server
 
 CHROMIUM = "/usr/bin/chromium"
@@ -32,16 +33,22 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebServer]:
 
 
 @pytest.fixture(scope="session")
-def browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        yield launched
-        launched.close()
+def playwright() -> Iterator[Playwright]:
+    """One Playwright driver per session: its sync API cannot run twice at once in a thread."""
+    with sync_playwright() as driver:
+        yield driver
+
+
+@pytest.fixture(scope="session")
+def browser(playwright: Playwright) -> Iterator[Browser]:
+    launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+    yield launched
+    launched.close()
 
 
 @pytest.fixture
 def sign_in(browser: Browser, server: WebServer) -> Iterator:
-    """``sign_in("alice")`` opens a fresh browser context signed in as that user."""
+    """``sign_in("alice")`` opens a fresh browser context signed in as that user, with their password."""
     contexts = []
     script_errors: list[str] = []
 
@@ -52,9 +59,7 @@ def sign_in(browser: Browser, server: WebServer) -> Iterator:
         page.on("pageerror", lambda error: script_errors.append(f"{user}: {error}"))
         page.set_default_timeout(TIMEOUT_MS)
         page.goto(server.url)
-        page.fill("#user-id", user)
-        page.click("#sign-in-form button[type=submit]")
-        page.wait_for_selector("#main-view:not([hidden])")
+        sign_in_on(page, user)
         return page
 
     yield open_as

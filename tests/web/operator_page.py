@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import atexit
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
 
 from playwright.sync_api import Locator, Page, expect
+
+from web_server import PEOPLE
 
 REPO = Path(__file__).resolve().parents[2]
 #: Where the browser tests save their screenshots. ``make docs`` sets CARETAKER_SCREENSHOTS to
@@ -28,11 +31,12 @@ def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml") 
     page.select_option("#start-procedure", procedure)
     page.select_option("#start-binding", binding)
     page.check(f"#start-form input[name=mode][value={mode}]")
+    before = page.locator("#run-id").inner_text() if page.locator("#run-id").count() else ""
     page.click("#start-button")
+    expect(page.locator("#run-id")).not_to_have_text(before or "-")
+    expect(page.locator("#run-id")).to_have_text(re.compile("^" + re.escape(procedure.removesuffix(".xml")) + "-"))
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
-    run_id = page.locator("#run-id").inner_text()
-    assert run_id.startswith(procedure.removesuffix(".xml"))
-    return run_id
+    return page.locator("#run-id").inner_text()
 
 
 def instruction(page: Page, number: str) -> Locator:
@@ -41,5 +45,34 @@ def instruction(page: Page, number: str) -> Locator:
 
 
 def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
-    """Rows of the page's audit log for one kind of record, instruction and actor."""
-    return page.locator(f'#audit tbody tr[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
+    """Entries of the page's audit log for one kind of record, instruction and actor."""
+    return page.locator(f'#audit li[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
+
+
+def screenshot(page: Page, name: str) -> None:
+    """A picture of the console for the documentation (see IMAGES)."""
+    IMAGES.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=str(IMAGES / name))
+
+
+def stop_run(page: Page, reason: str) -> None:
+    """Stop the open run with a reason, through the Stop dialog."""
+    page.click("#stop")
+    page.fill("#stop-reason", reason)
+    page.click("#stop-yes")
+    expect_ended(page, "stopped")
+
+
+def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
+    """Fill the page's sign-in form as ``user`` (with their password unless another is given)."""
+    page.fill("#user-id", user)
+    page.fill("#password", PEOPLE[user][2] if password is None else password)
+    page.click("#sign-in-form button[type=submit]")
+    if password is None:
+        page.wait_for_selector("#main-view:not([hidden])")
+
+
+def expect_ended(page: Page, status: str) -> None:
+    """The open run ended as ``status`` and the page shows it as a past run, drawn from the audit log."""
+    expect(page.locator("#run-status")).to_have_text(status)
+    expect(page.locator("#connection")).to_have_text("past run (from the audit log)")

@@ -17,7 +17,7 @@ import pytest
 from playwright.sync_api import expect
 
 from author_page import bind_arg, card, drop, set_arg, set_attr
-from operator_page import IMAGES, instruction
+from operator_page import instruction, screenshot
 from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
 from pride.web.authoring import check_document, read_document
@@ -89,7 +89,7 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
 
     expect(alice.locator("#check-state")).to_have_text("lint: no problems")
     expect(alice.locator("#canvas .card.has-problem")).to_have_count(0)
-    alice.screenshot(path=str(IMAGES / "web_author.png"))
+    screenshot(alice, "web_author.png")
     alice.fill("#save-name", "authored_pick.xml")
     alice.click("#save")
     expect(alice.locator("#check-state")).to_have_text("saved authored_pick.xml")
@@ -110,5 +110,5 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
     record.locator("input.record-value").fill("filter/CDRA-F-0012")
     record.locator("button.record").click()
     expect(alice.locator("#run-status")).to_have_text("completed", timeout=120_000)
-    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text('frame="filter/CDRA-F-0012"')
+    expect(instruction(alice, "1.3").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012")
     expect(instruction(alice, "1.6").locator(".detail")).to_contain_text("SUCCEEDED")

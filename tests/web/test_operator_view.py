@@ -13,7 +13,7 @@ import re
 
 from playwright.sync_api import expect
 
-from operator_page import IMAGES, IVA, audit_row, instruction, start_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, sign_in_on, start_run, stop_run
 from pride.audit_log import AuditLog
 from web_server import procedure_shelf, start_server
 
@@ -40,14 +40,21 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     expect(alice.locator("#action-error")).to_contain_text("does not match the pattern")
     record.locator("input.record-value").fill("CDRA-F-0012")
     record.locator("button.record").click()
-    expect(record.locator(".detail")).to_contain_text('recorded "CDRA-F-0012"')
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text('clean_filter_id = "CDRA-F-0012"')
+    expect(record.locator(".detail")).to_contain_text("recorded CDRA-F-0012")
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("recorded clean_filter_id = CDRA-F-0012")
 
-    # Send on the next command: the recorded id is in its arguments, on the page and in the log
+    # the next instructions read with the recorded id in their sentences; Send puts it into the command
+    expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
+        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
     instruction(alice, "4.2").locator("button.perform").click()
-    expect(instruction(alice, "4.2").locator(".detail")).to_contain_text('frame="filter/CDRA-F-0012"')
-    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text('"frame":"filter/CDRA-F-0012"')
-    alice.screenshot(path=str(IMAGES / "web_manual_record.png"))
+    expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012")
+    expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_hidden()  # the raw command only on demand
+    alice.check("#show-raw")
+    expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_visible()
+    expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(re.compile(r"^affordance_templates\.set_display_object_pose\("))
+    alice.uncheck("#show-raw")
+    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame=filter/CDRA-F-0012")
+    screenshot(alice, "web_manual_record.png")
 
     # step, pause, continue and stop, each recorded as alice's
     alice.click("#step")
@@ -55,13 +62,12 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     alice.click("#pause")
     expect(audit_row(alice, "paused", "4.4", "alice")).to_have_count(1)
     alice.click("#mode-autonomous")
-    expect(alice.locator("#hold")).to_have_text("automation paused at 4.4")
+    expect(alice.locator("#hold")).to_contain_text("Automation paused at 4.4")
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
-    alice.once("dialog", lambda dialog: dialog.accept())
-    alice.click("#stop")
-    expect(alice.locator("#run-status")).to_have_text("stopped")
-    expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_have_count(1)
+    stop_run(alice, "end of the walk-through")
+    expect_ended(alice, "stopped")
+    expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_contain_text("end of the walk-through")
 
     log = AuditLog(f"sqlite:///{server.db}")
     try:
@@ -86,6 +92,8 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     expect(failed.locator(".mark")).to_contain_text("failed by PAX")
     expect(failed.locator(".mark")).to_contain_text("no instance of 'ready_pose'")
     expect(alice.locator("#hold")).to_contain_text("2.1 failed")
+    expect(alice.locator("#hold")).to_have_attribute("data-tone", "failure")  # red and ✗, never a hold's amber
+    expect(alice.locator("#hold .hold-icon")).to_have_text("✗")
     failed.locator("button.retry").click()
     expect(audit_row(alice, "retry", "2.1", "alice")).to_have_count(1)
     expect(audit_row(alice, "instruction_failed", "2.1", "alice")).to_have_count(1)  # the retry, as alice
@@ -97,8 +105,8 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
 
     # a verify on a stale value fails, and the value is marked stale where it is shown
     stale = instruction(alice, "2.2")
-    expect(stale.locator(".telemetry")).to_have_attribute("data-stale", "true")
-    expect(stale.locator(".telemetry")).to_contain_text(re.compile(r'cdra\.installed_filter_condition = "dirty" · \d+\.\d s ago · STALE'))
+    expect(stale.locator(".telemetry")).to_have_attribute("data-state", "stale")
+    expect(stale.locator(".telemetry")).to_contain_text(re.compile(r"Installed Filter Condition = dirty · \d+\.\d s ago · STALE"))
     expect(stale.locator(".mark")).to_contain_text('cdra.installed_filter_condition was stale \'dirty\'')
     stale.locator("button.skip").click()
     alice.fill("#skip-reason", "condition sensor offline; checked by eye")
@@ -112,23 +120,24 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     # the hazardous command waits for a confirmation, given in a dialog, even in autonomous mode
     hazardous = instruction(alice, "3.2")
     expect(hazardous.locator(".hazard")).to_be_visible()
-    expect(alice.locator("#hold")).to_contain_text("3.2 is hazardous")
+    expect(alice.locator("#hold")).to_contain_text("Hazardous command 3.2: Unlock Filter")
+    expect(alice.locator("#hold")).to_have_attribute("data-tone", "hold")
     hazardous.locator("button.confirm").click()
     expect(alice.locator("#confirm-dialog")).to_be_visible()
-    expect(alice.locator("#confirm-text")).to_contain_text("3.2: Send cdra.unlock_filter()")
-    alice.screenshot(path=str(IMAGES / "web_hazard_confirmation.png"))
+    expect(alice.locator("#confirm-text")).to_contain_text("3.2: Unlock Filter.")
+    screenshot(alice, "web_hazard_confirmation.png")
     alice.click("#confirm-yes")
     expect(audit_row(alice, "confirmation", "3.2", "alice")).to_have_count(1)
     expect(audit_row(alice, "command_sent", "3.2", "PAX")).to_have_count(1)
 
     # PAX stops at the breakpoint; Continue finishes the run
-    expect(alice.locator("#hold")).to_contain_text("breakpoint at 3.3")
-    expect(instruction(alice, "3.3").locator(".telemetry")).to_contain_text("cdra.filter_locked = false")
+    expect(alice.locator("#hold")).to_contain_text("Breakpoint at 3.3")
+    expect(instruction(alice, "3.3").locator(".telemetry")).to_contain_text("Filter Locked = false")
     alice.click("#continue")
-    expect(alice.locator("#run-status")).to_have_text("completed")
+    expect_ended(alice, "completed")
     expect(instruction(alice, "3.3").locator(".mark")).to_contain_text("completed by PAX")
     instruction(alice, "3.2").scroll_into_view_if_needed()
-    alice.screenshot(path=str(IMAGES / "web_completed_run.png"))
+    screenshot(alice, "web_completed_run.png")
 
     # the run is in the list of runs, with its after-action report
     alice.click("#refresh-runs")
@@ -150,7 +159,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     instruction(alice, "2.1/1.5").locator("button.breakpoint").click()
     expect(instruction(alice, "2.1/1.5")).to_have_class(re.compile(r"\bhas-breakpoint\b"))
     alice.click("#mode-autonomous")
-    expect(alice.locator("#hold")).to_contain_text("breakpoint at 2.1/1.5")
+    expect(alice.locator("#hold")).to_contain_text("Breakpoint at 2.1/1.5")
 
     # the camera view followed the arm while it moved (live captures, not audit records)
     camera = alice.locator("#camera")
@@ -158,7 +167,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     assert camera.evaluate("image => image.decode().then(() => image.naturalWidth)") == 160
     live_image = camera.get_attribute("src")
     expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("execute_plan")
-    expect(alice.locator('#audit tbody tr[data-kind="command_sent"]', has_text="camera.capture")).to_have_count(0)
+    expect(alice.locator('#audit li[data-kind="command_sent"]', has_text="camera.capture")).to_have_count(0)
     alice.click("#continue")
 
     # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
@@ -168,7 +177,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"^2\.1/2\.1 · .*hull_a\.png"))
     first_image = camera.get_attribute("src")
     assert first_image != live_image
-    alice.screenshot(path=str(IMAGES / "web_camera.png"))
+    screenshot(alice, "web_camera.png")
 
     # the operator answers; PAX retreats, moves to target B and shows its new image
     assessment.locator("select.record-value").select_option("false")
@@ -192,12 +201,11 @@ def test_a_past_run_is_drawn_from_the_audit_log_alone(sign_in, server, browser, 
         try:
             page = context.new_page()
             page.goto(other.url)
-            page.fill("#user-id", "carol")
-            page.click("#sign-in-form button[type=submit]")
+            sign_in_on(page, "carol")
             page.click(f'#run-list li[data-run-id="{run_id}"] a[href^="#run="]')
             expect(page.locator("#connection")).to_have_text("past run (from the audit log)")
             expect(instruction(page, "1.1").locator(".mark")).to_contain_text("completed by alice")
-            expect(instruction(page, "1.1").locator(".detail")).to_contain_text("result: success — added cdra_filter")
+            expect(instruction(page, "1.1").locator(".detail")).to_contain_text("Result: succeeded — added cdra_filter")
             expect(page.locator("#controls")).to_be_hidden()
             expect(audit_row(page, "command_result", "1.1", "alice")).to_have_count(1)
         finally:

@@ -1,68 +1,121 @@
-"""``caretaker serve`` itself: loopback by default, clear errors, nothing served without sign-in."""
+"""``caretaker serve`` and ``caretaker accounts``: passwords, sessions, CSRF, slowed guessing, TLS.
+
+The server is a real process (conftest.py); requests go over real sockets with urllib, the way a
+script or an attacker's tool would, not through a browser.
+"""
 
 from __future__ import annotations
 
+import http.client
 import http.cookiejar
 import json
+import os
+import ssl
+import subprocess
+import sys
 import urllib.error
 import urllib.request
 from pathlib import Path
+from typing import Any
 
 import pytest
 import websockets
 from websockets.sync.client import connect
 
-from pride.web.accounts import AccountsError, Role, load_accounts
+from pride.web.accounts import AccountStore, Role
 from pride.web.server import main
+from support.processes import caretaker
+from web_server import PEOPLE, REPO
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "python" / "pride" / "web" / "accounts.example.yaml"
+Reply = tuple[int, dict[str, Any], dict[str, str]]
 
 
-def _request(url: str, body: dict | None = None) -> tuple[int, dict]:
-    data = json.dumps(body).encode() if body is not None else None
-    request = urllib.request.Request(url, data=data, headers={"Content-Type": "application/json"})
+class Client:
+    """A cookie-keeping HTTP client of one server, as a script would use it."""
+
+    def __init__(self, url: str, *, context: ssl.SSLContext | None = None) -> None:
+        self.url = url
+        self.jar = http.cookiejar.CookieJar()
+        handlers: list[Any] = [urllib.request.HTTPCookieProcessor(self.jar)]
+        if context is not None:
+            handlers.append(urllib.request.HTTPSHandler(context=context))
+        self.opener = urllib.request.build_opener(*handlers)
+        self.csrf: str | None = None
+
+    def call(self, method: str, path: str, body: dict | None = None, headers: dict[str, str] | None = None) -> Reply:
+        data = json.dumps(body).encode() if body is not None else None
+        request = urllib.request.Request(self.url + path, data=data, method=method,
+                                         headers={"Content-Type": "application/json", **(headers or {})})
+        try:
+            with self.opener.open(request, timeout=30) as response:
+                return response.status, json.loads(response.read()), dict(response.headers)
+        except urllib.error.HTTPError as error:
+            text = error.read()
+            return error.code, json.loads(text) if text.startswith(b"{") else {"error": text.decode()}, dict(error.headers)
+
+    def sign_in(self, user: str, password: str | None = None) -> Reply:
+        reply = self.call("POST", "/api/session", {"user": user, "password": PEOPLE[user][2] if password is None else password})
+        if reply[0] == 200:
+            self.csrf = reply[1]["csrf"]
+        return reply
+
+    def act(self, path: str, body: dict) -> Reply:
+        return self.call("POST", path, body, {"X-CSRF-Token": self.csrf or ""})
+
+
+def accounts(db: str, *args: str, password: str | None = None) -> subprocess.CompletedProcess[str]:
+    """``caretaker accounts --db DB ARGS``, the password (if any) on stdin as a script gives it."""
+    return subprocess.run([sys.executable, "-m", "caretaker.cli", "accounts", "--db", db, *args], input=password,
+                          capture_output=True, text=True, timeout=60)
+
+
+def test_accounts_are_managed_with_passwords_from_stdin_never_arguments(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'ground.db'}"
+    added = accounts(db, "add", "dave", "--role", "operator", "--name", "Dave", password="dave-secret-1\n")
+    assert added.returncode == 0, added.stderr
+    assert accounts(db, "add", "erin", "--role", "observer", password="erin-secret-1\n").returncode == 0
+    listed = accounts(db, "list")
+    assert listed.stdout.splitlines() == ["dave\toperator\tDave", "erin\tobserver\t"]
+
+    refused = {
+        "a password on the command line": accounts(db, "add", "frank", "--role", "operator", "--password", "x"),
+        "a short password": accounts(db, "add", "frank", "--role", "operator", password="short\n"),
+        "no password": accounts(db, "add", "frank", "--role", "operator", password=""),
+        "a taken user id": accounts(db, "add", "dave", "--role", "observer", password="another-secret\n"),
+        "an unknown user": accounts(db, "set-password", "mallory", password="whatever-long\n"),
+        "a bad user id": accounts(db, "add", "a b", "--role", "operator", password="whatever-long\n"),
+    }
+    for what, result in refused.items():
+        assert result.returncode == 2, what
+    assert "at least 8 characters" in refused["a short password"].stderr
+    assert "no password on stdin" in refused["no password"].stderr
+    assert "already has an account" in refused["a taken user id"].stderr
+    assert "no account 'mallory'" in refused["an unknown user"].stderr
+
+    store = AccountStore(db)
     try:
-        with urllib.request.urlopen(request, timeout=30) as response:
-            return response.status, json.loads(response.read())
-    except urllib.error.HTTPError as error:
-        return error.code, json.loads(error.read())
-
-
-def test_the_example_accounts_have_both_roles() -> None:
-    accounts = load_accounts(EXAMPLE)
-    assert accounts["alice"].role is Role.OPERATOR and accounts["alice"].may_act
-    assert accounts["carol"].role is Role.OBSERVER and not accounts["carol"].may_act
-
-
-@pytest.mark.parametrize(("text", "message"), [
-    ("users: []\n", "expected a top-level 'accounts:' list"),
-    ("accounts:\n- {user: dave, role: admin}\n", "accounts entry 1 (dave): 'role' must be one of operator, observer (got 'admin')"),
-    ("accounts:\n- {user: 'a b', role: operator}\n", "'user' must be 1-64 letters"),
-    ("accounts:\n- {user: x, role: operator}\n- {user: x, role: observer}\n", "accounts entry 2: user 'x' is listed twice"),
-    ("accounts:\n- {user: x, role: operator, password: p}\n", "unknown key(s) password"),
-    ("accounts: [\n", "not valid YAML"),
-])
-def test_malformed_accounts_files_say_what_to_fix(tmp_path: Path, text: str, message: str) -> None:
-    path = tmp_path / "accounts.yaml"
-    path.write_text(text)
-    with pytest.raises(AccountsError) as caught:
-        load_accounts(path)
-    assert str(caught.value).startswith(str(path)) and message in str(caught.value)
-
-
-def test_serve_refuses_to_start_with_a_bad_accounts_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    path = tmp_path / "accounts.yaml"
-    path.write_text("accounts:\n- {user: dave, role: admin}\n")
-    assert main(["--accounts", str(path), "--port", "0"]) == 2
-    assert "'role' must be one of operator, observer" in capsys.readouterr().err
+        assert store.verify("dave", "dave-secret-1") is not None and store.verify("dave", "dave-secret-2") is None
+        assert accounts(db, "set-password", "dave", password="dave-secret-2\n").returncode == 0
+        assert store.verify("dave", "dave-secret-1") is None and store.verify("dave", "dave-secret-2") is not None
+        assert accounts(db, "set-role", "erin", "operator").returncode == 0
+        assert store.get("erin").role is Role.OPERATOR
+        assert accounts(db, "remove", "erin").returncode == 0
+        assert store.get("erin") is None
+    finally:
+        store.close()
+    assert "dave-secret" not in (tmp_path / "ground.db").read_bytes().decode("latin-1")  # only hashes are stored
 
 
 def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server) -> None:
     assert server.url.startswith("http://127.0.0.1:")
-    status, body = _request(f"{server.url}/api/runs")
+    client = Client(server.url)
+    assert client.call("GET", "/api/runs")[:2] == (401, {"error": "sign in first"})
+    status, body, _ = client.call("POST", "/api/runs/any-run/actions", {"action": "perform", "instruction": "1.1"})
     assert (status, body["error"]) == (401, "sign in first")
-    status, body = _request(f"{server.url}/api/session", {"user": "mallory"})
-    assert status == 403 and "no account 'mallory'" in body["error"]
+    for user, password in (("alice", "not-alices-password"), ("mallory", "any-password-at-all")):
+        status, body, _ = client.call("POST", "/api/session", {"user": user, "password": password})
+        assert (status, body["error"]) == (401, "wrong user id or password")  # never says which was wrong
+    assert client.call("POST", "/api/session", {"user": "alice"})[0] == 400
 
     ws_url = server.url.replace("http://", "ws://") + "/ws/runs/anything"
     with pytest.raises(websockets.InvalidStatus) as refused:  # closed before the handshake completes
@@ -70,26 +123,100 @@ def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server) -> None:
     assert refused.value.response.status_code == 403
 
 
+def test_state_changing_requests_need_the_sessions_csrf_token_and_this_sites_origin(server) -> None:
+    client = Client(server.url)
+    status, body, headers = client.sign_in("bob")
+    assert status == 200 and body["user"] == "bob" and len(body["csrf"]) >= 32
+    cookie = headers["set-cookie"].lower()
+    assert "httponly" in cookie and "samesite=strict" in cookie
+    assert client.call("GET", "/api/session")[1]["csrf"] == body["csrf"]  # the page reads it after a reload
+
+    action = {"action": "pause"}
+    status, body, _ = client.call("POST", "/api/runs/no-such-run/actions", action)
+    assert status == 403 and "X-CSRF-Token" in body["error"]
+    status, body, _ = client.call("POST", "/api/runs/no-such-run/actions", action, {"X-CSRF-Token": "guessed"})
+    assert status == 403 and "X-CSRF-Token" in body["error"]
+    status, body, _ = client.call("POST", "/api/runs/no-such-run/actions", action,
+                                  {"X-CSRF-Token": client.csrf, "Origin": "http://evil.example"})
+    assert status == 403 and "another site" in body["error"]
+    status, body, _ = client.act("/api/runs/no-such-run/actions", action)
+    assert status == 404 and "not running in this server" in body["error"]  # past the checks: no such run
+
+    other = Client(server.url)  # a second session has a token of its own; bob's does not work there
+    other.sign_in("alice")
+    status, _, _ = other.call("POST", "/api/runs/no-such-run/actions", action, {"X-CSRF-Token": client.csrf})
+    assert status == 403
+
+    assert client.call("DELETE", "/api/session", None, {"X-CSRF-Token": client.csrf})[0] == 200
+    assert client.call("GET", "/api/runs")[0] == 401
+
+
+def _from_address(url: str, address: str, body: dict) -> tuple[int, dict[str, str]]:
+    """POST a sign-in from a given loopback source address (another console on the network)."""
+    host, port = url.removeprefix("http://").split(":")
+    connection = http.client.HTTPConnection(host, int(port), timeout=30, source_address=(address, 0))
+    try:
+        connection.request("POST", "/api/session", json.dumps(body), {"Content-Type": "application/json"})
+        response = connection.getresponse()
+        response.read()
+        return response.status, dict(response.getheaders())
+    finally:
+        connection.close()
+
+
+def test_repeated_failures_slow_that_user_from_that_address_not_the_real_user_elsewhere(server) -> None:
+    guess = {"user": "bob", "password": "guess-number-n"}
+    for _ in range(5):
+        assert _from_address(server.url, "127.0.0.3", guess)[0] == 401
+    status, headers = _from_address(server.url, "127.0.0.3", {"user": "bob", "password": PEOPLE["bob"][2]})
+    assert status == 429 and int(headers["retry-after"]) >= 1  # even the right password waits from there
+    status, _ = _from_address(server.url, "127.0.0.4", {"user": "bob", "password": PEOPLE["bob"][2]})
+    assert status == 200  # bob at his own console is not locked out
+
+
 def test_an_observer_may_read_procedures_but_not_save_them(server) -> None:
-    jar = http.cookiejar.CookieJar()
-    opener = urllib.request.build_opener(urllib.request.HTTPCookieProcessor(jar))
-
-    def call(path: str, body: dict | None = None) -> tuple[int, dict]:
-        data = json.dumps(body).encode() if body is not None else None
-        request = urllib.request.Request(server.url + path, data=data, headers={"Content-Type": "application/json"})
-        try:
-            with opener.open(request, timeout=30) as response:
-                return response.status, json.loads(response.read())
-        except urllib.error.HTTPError as error:
-            text = error.read()
-            return error.code, json.loads(text) if text.startswith(b"{") else {"error": text.decode()}
-
-    assert call("/api/session", {"user": "carol"})[0] == 200
-    status, document = call("/api/author/procedures/web_walkthrough.xml")
+    client = Client(server.url)
+    assert client.sign_in("carol")[0] == 200
+    status, document, _ = client.call("GET", "/api/author/procedures/web_walkthrough.xml")
     assert status == 200 and document["attrs"]["id"] == "web_walkthrough"
-    status, body = call("/api/author/save", {"name": "carol_was_here.xml", "document": document})
+    status, body, _ = client.act("/api/author/save", {"name": "carol_was_here.xml", "document": document})
     assert status == 403 and "observer" in body["error"]
     assert not (server.procedures / "carol_was_here.xml").exists()
     for name in ("..%2Fsecret.xml", "secret.xml"):  # only files the procedures directory lists
-        status, body = call(f"/api/author/procedures/{name}")
+        status, body, _ = client.call("GET", f"/api/author/procedures/{name}")
         assert status in (400, 404), body
+
+
+def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["--address", "0.0.0.0", "--port", "0", "--db", f"sqlite:///{tmp_path / 'a.db'}"]) == 2
+    assert "give --certfile and --keyfile (TLS), or --insecure" in capsys.readouterr().err
+    assert main(["--certfile", str(tmp_path / "missing.pem"), "--port", "0"]) == 2
+    assert "--certfile and --keyfile go together" in capsys.readouterr().err
+    junk = tmp_path / "junk.pem"
+    junk.write_text("not a certificate\n")
+    assert main(["--certfile", str(junk), "--keyfile", str(junk), "--port", "0"]) == 2
+    assert "not a usable PEM certificate and key" in capsys.readouterr().err
+
+
+def test_with_a_certificate_the_view_is_served_over_tls_with_secure_cookies(tmp_path: Path) -> None:
+    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
+                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
+                   check=True, capture_output=True, timeout=60)
+    db = tmp_path / "ground.db"
+    store = AccountStore(f"sqlite:///{db}")
+    store.add("alice", "operator", PEOPLE["alice"][2])
+    store.close()
+    served = caretaker("serve", "--port", "0", "--db", f"sqlite:///{db}", "--certfile", str(cert), "--keyfile", str(key),
+                       "--procedures", str(REPO / "procedures"), "--reports", str(tmp_path / "reports"), env=dict(os.environ),
+                       name="serve-tls")
+    try:
+        url = served.wait_ready(90).split()[-1]
+        assert url.startswith("https://127.0.0.1:")
+        client = Client(url, context=ssl.create_default_context(cafile=str(cert)))
+        status, _, headers = client.sign_in("alice")
+        assert status == 200 and "secure" in headers["set-cookie"].lower()
+        with pytest.raises((urllib.error.URLError, ConnectionError, http.client.HTTPException)):  # no plain http there
+            urllib.request.urlopen(url.replace("https://", "http://") + "/api/session", timeout=30)
+    finally:
+        served.stop()

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page, sync_playwright
+from playwright.sync_api import Browser, Page, Playwright
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
 from pride.web.spatial_scene import objects_update
@@ -39,11 +39,10 @@ def site() -> Iterator[SpatialSite]:
 
 
 @pytest.fixture(scope="module")
-def webgl_browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
-        yield browser
-        browser.close()
+def webgl_browser(playwright: Playwright) -> Iterator[Browser]:
+    browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
+    yield browser
+    browser.close()
 
 
 @pytest.fixture(scope="module")

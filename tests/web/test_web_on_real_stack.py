@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IMAGES, IVA, audit_row, instruction, start_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run, stop_run
 from pride.audit_log import AuditLog
 from web_server import REPO, WebServer, server_on_real_stack
 
@@ -44,7 +44,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(alice.locator("#procedure .notice.caution").first).to_contain_text("within reach of the CDRA cabinet")
     expect(instruction(alice, "1.3").locator(".auto-icon")).to_have_attribute("title", re.compile("PAX can run this"))
     expect(instruction(alice, "1.1").locator(".telemetry")).to_contain_text(
-        re.compile(r"affordance_templates\.affordance_template_server_active = true · \d+\.\d s ago"))
+        re.compile(r"✓ Affordance Template Server Active = true · \d+\.\d s ago"))
+    expect(instruction(alice, "1.1").locator(".telemetry")).to_have_attribute("data-state", "ok")
     expect(instruction(alice, "1.1")).to_have_class(re.compile(r"\bcurrent\b"))
 
     # manual mode: the operator checks the two verifies, then Sends the first command
@@ -55,10 +56,11 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     send = instruction(alice, "1.3").locator("button.perform")
     expect(send).to_have_text("Send")
     send.click()
-    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text("result: success — added cdra_filter:0")
+    expect(instruction(alice, "1.3").locator(".detail")).to_contain_text("Result: succeeded — added cdra_filter:0")
+    expect(instruction(alice, "2.2").locator(".line > .text")).to_have_text("Plan the grasp-and-pull trajectory for cdra_filter:0")
     expect(instruction(alice, "1.3").locator(".mark")).to_contain_text("completed by alice")
     expect(audit_row(alice, "command_sent", "1.3", "alice")).to_contain_text("add_affordance_template")
-    expect(audit_row(alice, "command_result", "1.3", "alice")).to_contain_text("success")
+    expect(audit_row(alice, "command_result", "1.3", "alice")).to_contain_text("succeeded: added cdra_filter:0")
 
     # an observer opens the same run in another browser and sees it live, without controls
     carol = sign_in("carol")
@@ -68,11 +70,12 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(instruction(carol, "1.3").locator(".mark")).to_contain_text("completed by alice")
     expect(instruction(carol, "1.4").locator("button.perform")).to_be_disabled()
     expect(carol.locator("#mode-autonomous")).to_be_disabled()
+    token = {"X-CSRF-Token": carol.evaluate("view.me.csrf")}  # her session's own token: only her role refuses it
     forced = carol.request.post(f"{server.url}/api/runs/{run_id}/actions",
-                                data={"action": "perform", "instruction": "1.4"})
+                                data={"action": "perform", "instruction": "1.4"}, headers=token)
     assert forced.status == 403, forced.text()
     assert "observer" in forced.json()["error"]
-    assert carol.request.post(f"{server.url}/api/runs", data={"procedure": IVA, "binding": "iva.yaml"}).status == 403
+    assert carol.request.post(f"{server.url}/api/runs", data={"procedure": IVA, "binding": "iva.yaml"}, headers=token).status == 403
 
     # autonomous: PAX runs on and holds at the manual instruction 2.6; both browsers see it
     alice.click("#mode-autonomous")
@@ -81,13 +84,13 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
         expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
         expect(page.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
     expect(instruction(alice, "2.5").locator(".mark")).to_contain_text("completed by PAX")
-    expect(instruction(alice, "2.1").locator(".detail")).to_contain_text('frame="cabinet/slot"')
+    expect(instruction(alice, "2.1").locator(".raw-detail")).to_contain_text("frame=cabinet/slot")
     expect(audit_row(alice, "awaiting_operator", "2.6", "PAX")).to_have_count(1)
     expect(instruction(carol, "2.6").locator("button.done")).to_be_disabled()
     instruction(alice, "2.6").scroll_into_view_if_needed()
-    alice.screenshot(path=str(IMAGES / "web_autonomous_hold.png"))
+    screenshot(alice, "web_autonomous_hold.png")
     instruction(carol, "2.6").scroll_into_view_if_needed()
-    carol.screenshot(path=str(IMAGES / "web_observer.png"))
+    screenshot(carol, "web_observer.png")
 
     # Done lets PAX carry on: the arm pulls the dirty filter and places it on the rack, then PAX
     # holds at the record of the clean filter's id; the id typed in goes into the next command
@@ -98,14 +101,13 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
     record.locator("input.record-value").fill("CDRA-F-0012")
     record.locator("button.record").click()
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text('clean_filter_id = "CDRA-F-0012"')
-    expect(instruction(alice, "4.2").locator(".detail")).to_contain_text('frame="filter/CDRA-F-0012"', timeout=60_000)
-    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text('"frame":"filter/CDRA-F-0012"')
-    alice.once("dialog", lambda dialog: dialog.accept())
-    alice.click("#stop")
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0012")
+    expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012", timeout=60_000)
+    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
+    stop_run(alice, "acceptance run checked")
     for page in (alice, carol):
-        expect(page.locator("#run-status")).to_have_text("stopped")
-    expect(alice.locator('#audit tbody tr[data-kind="run_stopped"][data-actor="alice"]')).to_have_count(1)
+        expect_ended(page, "stopped")
+    expect(alice.locator('#audit li[data-kind="run_stopped"][data-actor="alice"]')).to_contain_text("acceptance run checked")
 
     # the audit log holds every action with its user, and nothing from the observer
     log = AuditLog(f"sqlite:///{server.db}")

@@ -7,11 +7,19 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from pride.web.accounts import AccountStore
 from support.processes import ManagedProcess, caretaker
 from support.stack import stack_up
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
+
+#: The people of the browser tests: user id -> (role, name, password).
+PEOPLE = {
+    "alice": ("operator", "Alice (ground operator)", "alice-correct-horse"),
+    "bob": ("operator", "Bob (flight controller)", "bob-battery-staple"),
+    "carol": ("observer", "Carol (observer)", "carol-watches-only"),
+}
 
 
 class WebServer:
@@ -24,14 +32,17 @@ class WebServer:
         self.procedures = procedures
 
 
-def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None) -> WebServer:
-    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp`` by default).
+def start_server(
+    tmp: Path, procedures: Path, *, db: Path | None = None, rosbridge: str | None = None, sysreps: Path | None = None
+) -> WebServer:
+    """Start a server listing ``procedures``, writing the audit log ``db`` (a new one in ``tmp``, with
+    the test people's accounts, by default) and reading SysReps from ``sysreps`` (the shipped ones by default).
 
     With ``rosbridge`` the server opens the real PAX host (JVM plugins) on that rosbridge;
     without, the simulated systems of simulated_systems.py.
     """
     env = dict(os.environ)
-    options = ["--camera", "ee_camera", "--camera-period", "0.1"]
+    options = ["--camera", "ee_camera", "--camera-period", "0.1", *(["--sysreps", str(sysreps)] if sysreps else [])]
     if rosbridge is None:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
@@ -39,7 +50,9 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
     else:
         env.pop("PRIDE_GATEWAY", None)
         options += ["--rosbridge", rosbridge]
-    db = db or tmp / "audit.db"
+    if db is None:
+        db = tmp / "audit.db"
+        add_people(f"sqlite:///{db}")
     process = caretaker(
         "serve", "--port", "0", "--db", f"sqlite:///{db}", "--procedures", str(procedures),
         "--reports", str(tmp / "reports"), *options, env=env, name="serve",
@@ -50,6 +63,16 @@ def start_server(tmp: Path, procedures: Path, *, db: Path | None = None, rosbrid
         process.stop()
         raise
     return WebServer(process, ready.split()[-1], db, procedures)
+
+
+def add_people(db_url: str) -> None:
+    """The test people's accounts in a new ground database (what `caretaker accounts add` writes)."""
+    store = AccountStore(db_url)
+    try:
+        for user, (role, name, password) in PEOPLE.items():
+            store.add(user, role, password, name=name)
+    finally:
+        store.close()
 
 
 @contextmanager

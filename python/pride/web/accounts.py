@@ -1,9 +1,15 @@
-"""Who may use the web view, and what they may do: accounts from a YAML file.
+"""Who may use the web view: accounts in the ground database, passwords hashed with argon2id.
 
-The file is a deployment's config (``caretaker serve --accounts FILE``); the example shipped
-next to this module is ``accounts.example.yaml``. An *operator* may act on runs (start, send,
-record, skip, ...); an *observer* may only watch. The server checks the role on every action,
-so hiding buttons in the page is a convenience, never the protection.
+Accounts live in the same database as the audit log (``--db``), so every console of a ground
+segment signs people in against one list, and ``caretaker accounts`` (:mod:`pride.web.accounts_command`)
+manages it. An *operator* may act on runs (start, send, record, skip, ...); an *observer* may
+only watch. The server checks the role on every action, so hiding buttons in the page is a
+convenience, never the protection.
+
+Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
+next sign-in when those defaults grow). The table is defined here on its own metadata so it can
+be created by itself; its shape is ``console_accounts(user_id PK, name, role, password_hash,
+created, password_changed)``.
 """
 
 from __future__ import annotations
@@ -11,16 +17,23 @@ from __future__ import annotations
 import enum
 import re
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 
-import yaml
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
+from sqlalchemy import DateTime, String, create_engine, select
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
-__all__ = ["Account", "AccountsError", "Role", "load_accounts"]
+__all__ = ["Account", "AccountStore", "AccountsError", "Role", "TABLE"]
 
 _USER_ID = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
-
-#: The accounts file used when ``--accounts`` is not given.
-EXAMPLE_ACCOUNTS = Path(__file__).with_name("accounts.example.yaml")
+#: NIST SP 800-63B's floor for a chosen secret; the ceiling keeps hashing bounded.
+MIN_PASSWORD = 8
+MAX_PASSWORD = 1024
+#: The table's name in the ground database.
+TABLE = "console_accounts"
 
 
 class Role(str, enum.Enum):
@@ -33,51 +46,144 @@ class Role(str, enum.Enum):
 
 
 class AccountsError(ValueError):
-    """The accounts file is malformed; the message names the file, entry and what to fix."""
+    """An account operation cannot be done; the message names the user and what to fix."""
 
 
 @dataclass(frozen=True)
 class Account:
-    """One person who may sign in."""
+    """One person who may sign in. ``password_changed`` lets sessions end when the password changes."""
 
     user: str
     role: Role
     name: str = ""
+    password_changed: datetime | None = None
 
     @property
     def may_act(self) -> bool:
         return self.role is Role.OPERATOR
 
 
-def load_accounts(path: str | Path) -> dict[str, Account]:
-    """The accounts of a file, keyed by user id; AccountsError says what is wrong and where."""
-    path = Path(path)
+class _Base(DeclarativeBase):
+    pass
+
+
+class _AccountRow(_Base):
+    __tablename__ = TABLE
+
+    user_id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), default="")
+    role: Mapped[str] = mapped_column(String(16))
+    password_hash: Mapped[str] = mapped_column(String(255))
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+    password_changed: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+
+    def account(self) -> Account:
+        changed = self.password_changed if self.password_changed.tzinfo else self.password_changed.replace(tzinfo=timezone.utc)
+        return Account(self.user_id, Role(self.role), self.name, changed)
+
+
+def check_user_id(user: str) -> str:
+    """``user`` if it is a valid user id; AccountsError says what one looks like."""
+    if not _USER_ID.match(user):
+        raise AccountsError(f"user id {user!r}: use 1-64 letters, digits or _.@-")
+    return user
+
+
+def check_role(role: str) -> Role:
     try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise AccountsError(f"{path}: cannot read the accounts file: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise AccountsError(f"{path}: not valid YAML: {exc}") from exc
-    entries = document.get("accounts") if isinstance(document, dict) else None
-    if not isinstance(entries, list) or not entries:
-        raise AccountsError(f"{path}: expected a top-level 'accounts:' list with at least one entry")
-    accounts: dict[str, Account] = {}
-    for index, entry in enumerate(entries, start=1):
-        where = f"{path}: accounts entry {index}"
-        if not isinstance(entry, dict):
-            raise AccountsError(f"{where}: expected a mapping with 'user' and 'role'")
-        unknown = set(entry) - {"user", "role", "name"}
-        if unknown:
-            raise AccountsError(f"{where}: unknown key(s) {', '.join(sorted(unknown))} (allowed: user, role, name)")
-        user = str(entry.get("user", ""))
-        if not _USER_ID.match(user):
-            raise AccountsError(f"{where}: 'user' must be 1-64 letters, digits or _.@- (got {user!r})")
-        try:
-            role = Role(str(entry.get("role", "")))
-        except ValueError:
-            roles = ", ".join(r.value for r in Role)
-            raise AccountsError(f"{where} ({user}): 'role' must be one of {roles} (got {entry.get('role')!r})") from None
-        if user in accounts:
-            raise AccountsError(f"{where}: user {user!r} is listed twice")
-        accounts[user] = Account(user, role, str(entry.get("name", "")))
-    return accounts
+        return Role(role)
+    except ValueError:
+        raise AccountsError(f"role {role!r}: must be one of {', '.join(r.value for r in Role)}") from None
+
+
+def check_password(password: str) -> str:
+    if len(password) < MIN_PASSWORD:
+        raise AccountsError(f"the password is too short: use at least {MIN_PASSWORD} characters")
+    if len(password) > MAX_PASSWORD:
+        raise AccountsError(f"the password is too long: at most {MAX_PASSWORD} characters")
+    return password
+
+
+class AccountStore:
+    """The accounts table of one database. Thread-safe: one session per call."""
+
+    def __init__(self, url: str) -> None:
+        if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
+            Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
+        self.url = url
+        self._engine: Engine = create_engine(url)
+        _Base.metadata.create_all(self._engine)
+        self._hasher = PasswordHasher()
+        # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
+        self._decoy = self._hasher.hash("not a password of anyone")
+
+    def add(self, user: str, role: str, password: str, *, name: str = "") -> Account:
+        """Create an account; AccountsError when the user id is taken or a value is invalid."""
+        row = _AccountRow(user_id=check_user_id(user), name=name, role=check_role(role).value,
+                          password_hash=self._hasher.hash(check_password(password)), created=_now(), password_changed=_now())
+        account = row.account()
+        with Session(self._engine) as session, session.begin():
+            if session.get(_AccountRow, user) is not None:
+                raise AccountsError(f"user {user!r} already has an account: use set-password, set-role or remove")
+            session.add(row)
+        return account
+
+    def set_password(self, user: str, password: str) -> None:
+        """Replace a password; the user's sessions end (their stamp changes)."""
+        digest = self._hasher.hash(check_password(password))
+        with Session(self._engine) as session, session.begin():
+            row = self._row(session, user)
+            row.password_hash, row.password_changed = digest, _now()
+
+    def set_role(self, user: str, role: str) -> None:
+        with Session(self._engine) as session, session.begin():
+            self._row(session, user).role = check_role(role).value
+
+    def remove(self, user: str) -> None:
+        with Session(self._engine) as session, session.begin():
+            session.delete(self._row(session, user))
+
+    def get(self, user: str) -> Account | None:
+        with Session(self._engine) as session:
+            row = session.get(_AccountRow, user)
+            return row.account() if row is not None else None
+
+    def accounts(self) -> list[Account]:
+        """Every account, by user id."""
+        with Session(self._engine) as session:
+            return [row.account() for row in session.scalars(select(_AccountRow).order_by(_AccountRow.user_id))]
+
+    def verify(self, user: str, password: str) -> Account | None:
+        """The account when ``password`` is its password, else None (same cost for unknown users)."""
+        password = password[:MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
+        with Session(self._engine) as session, session.begin():
+            row = session.get(_AccountRow, user) if _USER_ID.match(user) else None
+            if row is None:
+                _matches(self._hasher, self._decoy, password)
+                return None
+            if not _matches(self._hasher, row.password_hash, password):
+                return None
+            account = row.account()
+            if self._hasher.check_needs_rehash(row.password_hash):
+                row.password_hash = self._hasher.hash(password)  # same password: the stamp (sessions) stays
+            return account
+
+    def _row(self, session: Session, user: str) -> _AccountRow:
+        row = session.get(_AccountRow, user)
+        if row is None:
+            raise AccountsError(f"no account {user!r} (see `caretaker accounts list`)")
+        return row
+
+    def close(self) -> None:
+        self._engine.dispose()
+
+
+def _matches(hasher: PasswordHasher, digest: str, password: str) -> bool:
+    try:
+        return hasher.verify(digest, password)
+    except (VerifyMismatchError, VerificationError, InvalidHashError):
+        return False
+
+
+def _now() -> datetime:
+    return datetime.now(timezone.utc)

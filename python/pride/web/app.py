@@ -1,9 +1,13 @@
 """The web view's routes: the page, its JSON API, the live WebSocket, camera images, reports.
 
-Reading is open to every signed-in person; changing anything (starting a run, any operator
-action) needs the operator role and goes through :mod:`pride.web.actions` to the executive.
-Blocking work (executive calls that take its lock, gateway reads, opening a gateway, the audit
-log) runs in the thread pool so one slow robot never stalls the other browsers.
+Reading is open to every signed-in person; changing anything (starting or resuming a run, any
+operator action, saving a procedure) needs the operator role and goes through
+:mod:`pride.web.actions` to the executive. Every request that changes state carries the
+session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends one, an ``Origin`` of
+this server; the WebSocket only reports (actions go over HTTP) and checks the session and the
+Origin when it opens. Blocking work (password hashing, executive calls that take its lock,
+gateway reads, opening a gateway, the audit log) runs in the thread pool so one slow robot
+never stalls the other browsers.
 """
 
 from __future__ import annotations
@@ -12,13 +16,15 @@ import asyncio
 import contextlib
 import json
 import logging
+import time
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
-from starlette.requests import Request
+from starlette.requests import HTTPConnection, Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
@@ -26,13 +32,15 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from pride.model import Procedure
 from pride.parser import load_procedure
+from pride.phrasing import describe_event
+from pride.events import Event
 from pride.web.accounts import Account
 from pride.web.actions import ActionRefused, ActionRequest, perform_action
 from pride.web.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
 from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
 from pride.web.run_state import fold_events
-from pride.web.sign_in import COOKIE, SignIns
+from pride.web.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 
 __all__ = ["build_app"]
 
@@ -43,26 +51,47 @@ STATIC = Path(__file__).with_name("static")
 _TELEMETRY_REFRESH_S = 1.0
 #: WebSocket close code for "not signed in" (RFC 6455 policy violation).
 _CLOSE_POLICY = 1008
+#: WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure).
+_CLOSE_ENDED = 1000
+_SAFE_METHODS = ("GET", "HEAD")
+
+
+def _same_origin(connection: HTTPConnection) -> bool:
+    """Whether the browser's Origin (when it sends one) is this server: a page elsewhere must not act here."""
+    origin = connection.headers.get("origin")
+    if origin is None:
+        return True  # not a browser's cross-site request (browsers send Origin on POST and WebSocket)
+    return urlsplit(origin).netloc == connection.headers.get("host", "")
+
+
+def _session(request: Request) -> WebSession:
+    """The request's session; state-changing requests must also carry its CSRF token."""
+    sign_ins: SignIns = request.app.state.sign_ins
+    session = sign_ins.session(request)
+    if request.method not in _SAFE_METHODS:
+        if not _same_origin(request):
+            raise ActionRefused(403, "this request came from another site's page: refused")
+        if not session.csrf_matches(request.headers.get(CSRF_HEADER)):
+            raise ActionRefused(403, f"missing or wrong {CSRF_HEADER}: reload the page")
+    return session
 
 
 def _account(request: Request) -> Account:
-    account = request.app.state.sign_ins.account_of(request)
-    if account is None:
-        raise ActionRefused(401, "sign in first")
-    return account
+    return _session(request).account
 
 
-def _refusal(exc: ActionRefused) -> JSONResponse:
-    return JSONResponse({"error": exc.message}, status_code=exc.status)
+def _refusal(exc: ActionRefused | SignInRefused) -> JSONResponse:
+    headers = {"Retry-After": str(exc.retry_after)} if isinstance(exc, SignInRefused) and exc.retry_after else None
+    return JSONResponse({"error": exc.message}, status_code=exc.status, headers=headers)
 
 
 def _api(handler: Callable[[Request], Any]) -> Callable[[Request], Any]:
-    """Turn ActionRefused into a JSON error with its status; the page shows the message."""
+    """Turn refusals into a JSON error with its status; the page shows the message."""
 
     async def wrapped(request: Request) -> Response:
         try:
             return await handler(request)
-        except ActionRefused as exc:
+        except (ActionRefused, SignInRefused) as exc:
             return _refusal(exc)
 
     return wrapped
@@ -80,32 +109,45 @@ async def index(request: Request) -> Response:
     return FileResponse(STATIC / "index.html")
 
 
+def _session_json(session: WebSession) -> dict[str, Any]:
+    account = session.account
+    return {"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act,
+            "csrf": session.csrf}
+
+
 @_api
 async def session_get(request: Request) -> Response:
-    account = _account(request)
-    return JSONResponse({"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act})
+    return JSONResponse(_session_json(_session(request)))
 
 
 @_api
 async def session_post(request: Request) -> Response:
+    """Sign in with a user id and password (JSON); the reply carries the CSRF token for later requests."""
+    if not _same_origin(request):
+        raise ActionRefused(403, "this request came from another site's page: refused")
     body = await _json_body(request)
-    user = str(body.get("user", "")).strip() if isinstance(body, dict) else ""
-    signed = request.app.state.sign_ins.sign_in(user)
-    if signed is None:
-        raise ActionRefused(403, f"no account {user!r} in the accounts file")
-    token, account = signed
-    response = JSONResponse({"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act})
-    response.set_cookie(COOKIE, token, httponly=True, samesite="strict")
-    log.info("%s signed in as %s", account.user, account.role.value)
+    if not isinstance(body, dict) or not isinstance(body.get("user"), str) or not isinstance(body.get("password"), str):
+        raise ActionRefused(400, "expected a JSON object with 'user' and 'password' strings")
+    address = request.client.host if request.client else "unknown"
+    sign_ins: SignIns = request.app.state.sign_ins
+    try:
+        session = await run_in_threadpool(sign_ins.sign_in, body["user"].strip(), body["password"], address)
+    except SignInRefused as exc:
+        log.warning("sign-in refused for %r from %s: %s", body["user"][:64], address, exc.message)
+        raise
+    response = JSONResponse(_session_json(session))
+    response.set_cookie(COOKIE, session.token, max_age=int(sign_ins.limits.absolute), httponly=True, samesite="strict",
+                        secure=request.app.state.secure)
+    log.info("%s signed in as %s from %s", session.account.user, session.account.role.value, address)
     return response
 
 
+@_api
 async def session_delete(request: Request) -> Response:
-    token = request.cookies.get(COOKIE)
-    if token:
-        request.app.state.sign_ins.sign_out(token)
+    session = _session(request)
+    request.app.state.sign_ins.sign_out(session.token)
     response = JSONResponse({"signed_out": True})
-    response.delete_cookie(COOKIE)
+    response.delete_cookie(COOKIE, httponly=True, samesite="strict", secure=request.app.state.secure)
     return response
 
 
@@ -127,18 +169,23 @@ async def runs_list(request: Request) -> Response:
     return JSONResponse({"runs": await run_in_threadpool(board.listing)})
 
 
-@_api
-async def runs_start(request: Request) -> Response:
+async def _operator_request(request: Request, what: str, fields: str) -> tuple[Account, dict[str, str]]:
+    """The operator making a request about a run, and its fields as strings (mode defaults to manual)."""
     account = _account(request)
     if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an observer: observers may watch, not start runs")
+        raise ActionRefused(403, f"{account.user} is an observer: observers may watch, not {what}")
     body = await _json_body(request)
     if not isinstance(body, dict):
-        raise ActionRefused(400, "expected a JSON object with procedure, binding and mode")
+        raise ActionRefused(400, f"expected a JSON object with {fields}")
+    return account, {"procedure": str(body.get("procedure", "")), "binding": str(body.get("binding", "")),
+                     "mode": str(body.get("mode", "manual"))}
+
+
+@_api
+async def runs_start(request: Request) -> Response:
+    account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
     board: RunBoard = request.app.state.board
-    live = await run_in_threadpool(
-        board.start, account.user, str(body.get("procedure", "")), str(body.get("binding", "")), str(body.get("mode", "manual"))
-    )
+    live = await run_in_threadpool(board.start, account.user, body["procedure"], body["binding"], body["mode"])
     return JSONResponse({"run_id": live.run_id}, status_code=201)
 
 
@@ -153,19 +200,24 @@ def _past_procedure(events: list[Any]) -> Procedure | None:
         return None
 
 
+def _event_json(event: Event) -> dict[str, Any]:
+    return {**event.to_dict(), "summary": describe_event(event)}
+
+
 def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
     live = board.live(run_id)
     if live is not None:
         return {
-            "procedure": live.procedure_view, "state": live.state_json(),
-            "events": [e.to_dict() for e in live.events_since(0)], "telemetry": live.telemetry_json(),
+            "procedure": live.procedure_view, "state": live.state_json(), "server_time": time.time(),
+            "events": [_event_json(e) for e in live.events_since(0)], "telemetry": live.telemetry_json(),
         }
     events = board.past_events(run_id)
     procedure = _past_procedure(events)
+    sysreps = board.sysreps()
     return {
-        "procedure": procedure_json(procedure) if procedure else None,
-        "state": {**fold_events(run_id, events).to_dict(), "live": False},
-        "events": [e.to_dict() for e in events], "telemetry": [],
+        "procedure": procedure_json(procedure, sysreps=sysreps) if procedure else None,
+        "state": {**fold_events(run_id, events, sysreps).to_dict(), "live": False}, "server_time": time.time(),
+        "events": [_event_json(e) for e in events], "telemetry": {"readings": [], "checks": {}},
     }
 
 
@@ -185,6 +237,15 @@ async def run_action(request: Request) -> Response:
     action = ActionRequest.from_json(await _json_body(request))
     result = await run_in_threadpool(perform_action, live.executive, account, action)
     return JSONResponse({"ok": True, "action": action.action, "result": result})
+
+
+@_api
+async def run_resume(request: Request) -> Response:
+    """Continue a stopped or interrupted run (what ``caretaker run --resume`` does) on a binding."""
+    account, body = await _operator_request(request, "resume runs", "binding and mode")
+    board: RunBoard = request.app.state.board
+    live = await run_in_threadpool(board.resume, account.user, request.path_params["run_id"], body["binding"], body["mode"])
+    return JSONResponse({"run_id": live.run_id})
 
 
 @_api
@@ -209,10 +270,14 @@ def _past_image(board: RunBoard, run_id: str) -> Path | None:
 
 # ---- live updates ---------------------------------------------------------------------------
 async def run_socket(websocket: WebSocket) -> None:
-    """Push the run's state, new audit events and telemetry to one browser until it leaves."""
-    account = websocket.app.state.sign_ins.account_of(websocket)
-    if account is None:
-        await websocket.close(code=_CLOSE_POLICY, reason="sign in first")
+    """Push the run's state, new audit events and telemetry to one browser until it leaves or its session ends."""
+    sign_ins: SignIns = websocket.app.state.sign_ins
+    try:
+        if not _same_origin(websocket):
+            raise SignInRefused(403, "this connection came from another site's page")
+        account = sign_ins.session(websocket).account
+    except SignInRefused as exc:
+        await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
         return
     board: RunBoard = websocket.app.state.board
     live = board.live(websocket.path_params["run_id"])
@@ -220,19 +285,28 @@ async def run_socket(websocket: WebSocket) -> None:
         await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on this server")
         return
     await websocket.accept()
-    watcher = live.watch()
+    watcher = live.watch(account)
     receiver = asyncio.create_task(_drain(websocket))
     try:
         while not receiver.done():
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(watcher.changed.wait(), _TELEMETRY_REFRESH_S)
             watcher.changed.clear()
+            if live.retired:  # the page reloads it as a past run (its last state is in the log)
+                await websocket.close(code=_CLOSE_ENDED, reason="the run ended")
+                return
+            try:
+                await run_in_threadpool(sign_ins.session, websocket)  # an open console is in use; an ended session closes it
+            except SignInRefused as exc:
+                await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+                return
             state, telemetry = await run_in_threadpool(lambda: (live.state_json(), live.telemetry_json()))
             events = live.events_since(watcher.sent_seq)
             if events:
                 watcher.sent_seq = events[-1].seq
             await websocket.send_json({
-                "type": "update", "state": state, "events": [e.to_dict() for e in events], "telemetry": telemetry,
+                "type": "update", "state": state, "events": [_event_json(e) for e in events], "telemetry": telemetry,
+                "server_time": time.time(),
             })
     except (WebSocketDisconnect, RuntimeError):
         pass  # the browser left (RuntimeError: send after the client closed)
@@ -310,13 +384,19 @@ async def author_save(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     body = await _json_body(request)
     document = _document(body)
-    saved = await run_in_threadpool(save_document, document, str(body.get("name", "")), board.catalog.procedures, board.sysreps())
+    saved = await run_in_threadpool(lambda: save_document(document, str(body.get("name", "")), board.catalog.procedures,
+                                                          board.sysreps(), replace=body.get("replace") is True))
     log.info("%s saved procedure %s", account.user, saved["saved"])
     return JSONResponse(saved)
 
 
-def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None) -> Starlette:
-    """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways."""
+def build_app(
+    board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None, secure: bool = False
+) -> Starlette:
+    """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways.
+
+    ``secure``: served over TLS, so the session cookie is marked Secure (never sent in clear text).
+    """
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette) -> AsyncIterator[None]:
@@ -342,6 +422,7 @@ def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[st
             Route("/api/runs", runs_start, methods=["POST"]),
             Route("/api/runs/{run_id}", run_get),
             Route("/api/runs/{run_id}/actions", run_action, methods=["POST"]),
+            Route("/api/runs/{run_id}/resume", run_resume, methods=["POST"]),
             Route("/api/runs/{run_id}/camera", run_camera),
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
@@ -351,4 +432,5 @@ def build_app(board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[st
     app.state.board = board
     app.state.sign_ins = sign_ins
     app.state.report_writer = report_writer
+    app.state.secure = secure
     return app

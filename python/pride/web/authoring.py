@@ -1,7 +1,7 @@
 """Procedure authoring for the web view's Author page: XML ↔ an editable document, checked by lint.
 
 The page edits a *document*: the procedure's elements as plain JSON (tag, attributes in order,
-arguments, text), so what it opens it can save unchanged, and every meaning check stays in one
+arguments, text: a record's question, a note's words, or the ``<text>`` sentence of any other instruction), so what it opens it can save unchanged, and every meaning check stays in one
 place, :func:`pride.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back
 with the position (step, item) of the element they concern, found from the line of that element
 in the XML this module writes.
@@ -9,6 +9,7 @@ in the XML this module writes.
 
 from __future__ import annotations
 
+import os
 import re
 import secrets
 from pathlib import Path
@@ -67,6 +68,8 @@ def _item(element: etree._Element) -> dict[str, Any]:
         item["args"] = [{"name": arg.get("name", ""), "value": arg.text or ""} for arg in element if arg.tag == "arg"]
     if element.tag in _WITH_TEXT:
         item["text"] = " ".join((element.text or "").split())
+    elif element.find("text") is not None:  # the sentence the instruction reads as
+        item["text"] = " ".join((element.findtext("text") or "").split())
     return item
 
 
@@ -120,6 +123,8 @@ def _tree(document: dict[str, Any]) -> tuple[etree._Element, list[tuple[etree._E
             positions.append((step_element, (s, -1)))
             for i, item in enumerate(step.get("items", [])):
                 element = _element(step_element, str(item["kind"]), item.get("attrs", {}))
+                if item["kind"] not in _WITH_TEXT and item.get("text"):
+                    etree.SubElement(element, "text").text = _text(item["text"])
                 for arg in item.get("args", []) if item["kind"] in _WITH_ARGS else []:
                     _element(element, "arg", {"name": arg.get("name")}).text = _text(arg.get("value"))
                 if item["kind"] in _WITH_TEXT:
@@ -169,13 +174,27 @@ def check_document(document: dict[str, Any], directory: Path, sysreps: dict[str,
     return {"xml": xml, "problems": placed}
 
 
-def save_document(document: dict[str, Any], name: str, directory: Path, sysreps: dict[str, SysRep]) -> dict[str, Any]:
-    """Write the document as ``directory/name`` if lint finds nothing; ActionRefused otherwise."""
+def save_document(
+    document: dict[str, Any], name: str, directory: Path, sysreps: dict[str, SysRep], *, replace: bool = False
+) -> dict[str, Any]:
+    """Write the document as ``directory/name`` if lint finds nothing; ActionRefused otherwise.
+
+    An existing file is replaced only when ``replace`` says the author confirmed it (409 otherwise).
+    """
     if not _FILE_NAME.match(name):
         raise ActionRefused(400, f"file name {name!r}: use letters, digits, _ . - and end with .xml")
     checked = check_document(document, directory, sysreps)
     if checked["problems"]:
         raise ActionRefused(422, f"{name} not saved: lint found {len(checked['problems'])} problem(s); fix them first")
     target = directory / name
-    target.write_text(checked["xml"], encoding="utf-8")
+    if replace:  # a whole new file put in place: a reader never sees half of it, a link is replaced, not written through
+        scratch = directory / f".author-{secrets.token_hex(4)}.xml"
+        scratch.write_text(checked["xml"], encoding="utf-8")
+        os.replace(scratch, target)
+        return {"saved": name, "xml": checked["xml"]}
+    try:
+        with target.open("x", encoding="utf-8") as out:  # "x": never over a file, even one written meanwhile
+            out.write(checked["xml"])
+    except FileExistsError:
+        raise ActionRefused(409, f"{name} already exists: confirm to replace it, or save under another name") from None
     return {"saved": name, "xml": checked["xml"]}

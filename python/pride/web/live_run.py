@@ -1,4 +1,4 @@
-"""A run in progress as the web view holds it: its executive, its gateway, and who watches.
+"""A run in progress as the web view holds it: its executive, its gateway, and who watches it.
 
 The executive does the work; this class only observes it. Its listener (called on the
 executive's thread with the executive's lock held) appends the event and wakes the watchers'
@@ -14,31 +14,38 @@ from __future__ import annotations
 import asyncio
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from pride.events import Event
 from pride.executive import Executive, Snapshot
 from pride.model import Procedure
+from pride.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
+from pride.web.accounts import Account
 from pride.web.camera_feed import CameraFeed
-from pride.web.procedure_view import procedure_json, telemetry_references
-from pride.web.run_state import RunState
+from pride.web.procedure_view import procedure_json, telemetry_checks
+from pride.web.run_state import fold_events
 
 __all__ = ["LiveRun", "Watcher", "snapshot_json"]
 
 
 class Watcher:
-    """One browser connection's wake-up flag: set when the run or its telemetry changed."""
+    """One browser connection: who it is, and its wake-up flag, set when the run or its telemetry changed."""
 
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop, account: Account) -> None:
         self.loop = loop
+        self.account = account
         self.changed = asyncio.Event()
         self.sent_seq = 0
 
 
 class LiveRun:
-    """One run started from the web view; lives until the server stops."""
+    """One run started (or resumed) from the web view; lives until the server stops.
+
+    ``history`` is what the audit log held of a resumed run before it was resumed here.
+    """
 
     def __init__(
         self,
@@ -48,7 +55,9 @@ class LiveRun:
         *,
         binding: str,
         started_by: str,
+        sysreps: Mapping[str, SysRep],
         camera_feed: CameraFeed | None = None,
+        history: list[Event] | None = None,
     ) -> None:
         self.executive = executive
         self.gateway = gateway
@@ -56,13 +65,15 @@ class LiveRun:
         self.binding = binding
         self.started_by = started_by
         self.camera_feed = camera_feed
-        self.procedure_view = procedure_json(procedure)
-        self._references = sorted(telemetry_references(procedure))
-        self._lock = threading.Lock()  # guards _events, _state, _telemetry, _watchers
-        self._events: list[Event] = []
-        self._state = RunState(executive.run_id)
-        self._telemetry: dict[str, dict[str, Any]] = {}
+        self.sysreps = dict(sysreps)
+        self.procedure_view = procedure_json(procedure, sysreps=sysreps)
+        self._checks = telemetry_checks(procedure)
+        self._references = sorted({(system, item) for system, item, _ in self._checks.values()})
+        self._lock = threading.Lock()  # guards _events, _state, _watchers
+        self._events: list[Event] = list(history or [])
+        self._state = fold_events(executive.run_id, self._events, self.sysreps)
         self._watchers: set[Watcher] = set()
+        self.retired = False  # ended and released: watchers should look at it as a past run
         executive.add_listener(self._event_callback)
         if camera_feed is not None:
             executive.add_listener(camera_feed.event_callback)
@@ -75,8 +86,26 @@ class LiveRun:
     # ---- observation callbacks (other threads) ----------------------------------------------
     def _event_callback(self, event: Event) -> None:
         with self._lock:
+            if self._events and event.seq <= self._events[-1].seq:
+                return  # already in the history read back from the log
             self._events.append(event)
             self._state.apply(event)
+        self._wake()
+
+    def retire(self) -> None:
+        """The run ended and its gateway is closed: wake the watchers, who then let go of it."""
+        self.retired = True
+        self._wake()
+
+    def catch_up(self, logged: list[Event]) -> None:
+        """Fold in what the log holds that the listener missed (events of a resume before it was attached)."""
+        with self._lock:
+            seen = {e.seq for e in self._events}
+            missed = [e for e in logged if e.seq not in seen]
+            if not missed:
+                return
+            self._events = sorted([*self._events, *missed], key=lambda e: e.seq)
+            self._state = fold_events(self.run_id, self._events, self.sysreps)
         self._wake()
 
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: Any) -> None:
@@ -93,8 +122,8 @@ class LiveRun:
                 pass
 
     # ---- watchers -----------------------------------------------------------------------------
-    def watch(self) -> Watcher:
-        watcher = Watcher(asyncio.get_running_loop())
+    def watch(self, account: Account) -> Watcher:
+        watcher = Watcher(asyncio.get_running_loop(), account)
         watcher.changed.set()  # the first message is the whole state
         with self._lock:
             self._watchers.add(watcher)
@@ -103,11 +132,13 @@ class LiveRun:
     def unwatch(self, watcher: Watcher) -> None:
         with self._lock:
             self._watchers.discard(watcher)
+        self._wake()  # the others' lists of who watches change
 
-    @property
-    def watcher_count(self) -> int:
+    def watchers(self) -> list[dict[str, str]]:
+        """Who has the run open now (each person once), by user id."""
         with self._lock:
-            return len(self._watchers)
+            accounts = {w.account.user: w.account for w in self._watchers}
+        return [{"user": a.user, "name": a.name, "role": a.role.value} for _, a in sorted(accounts.items())]
 
     # ---- views --------------------------------------------------------------------------------
     def events_since(self, seq: int) -> list[Event]:
@@ -135,13 +166,15 @@ class LiveRun:
         camera = self.camera()
         return {
             **details, **snapshot_json(snapshot), "camera": camera[1] if camera else None,
-            "binding": self.binding, "started_by": self.started_by, "live": True,
+            "binding": self.binding, "started_by": self.started_by, "live": True, "watchers": self.watchers(),
         }
 
-    def telemetry_json(self) -> list[dict[str, Any]]:
-        """The current value, age and staleness of every telemetry item the procedure reads."""
+    def telemetry_json(self) -> dict[str, Any]:
+        """The value, age and staleness of every telemetry item the procedure reads, whether it is
+        within its SysRep limits (``out``: why not), and whether each instruction's test of it holds now."""
         now = time.time()
         readings = []
+        values: dict[tuple[str, str], Any] = {}
         for system, item in self._references:
             try:
                 reading = self.gateway.telemetry(system, item)
@@ -149,12 +182,35 @@ class LiveRun:
                 readings.append({"system": system, "item": item, "error": f"{type(exc).__name__}: {exc}", "stale": True})
                 continue
             timestamp = reading.timestamp
+            value, stale = reading.value, reading.stale
+            if not stale and value is not None:
+                values[(system, item)] = value
             readings.append({
-                "system": system, "item": item, "value": reading.value,
-                "timestamp": timestamp, "age": (now - timestamp) if timestamp else None,
-                "stale": reading.stale,
+                "system": system, "item": item, "value": value, "timestamp": timestamp,
+                "age": (now - timestamp) if timestamp else None, "stale": stale,
+                "out": _out_of_limits(self._item(system, item), value),
             })
-        return readings
+        checks = {}
+        for key, (system, item, condition) in self._checks.items():
+            definition = self._item(system, item)
+            if condition is not None and (system, item) in values:
+                checks[key] = condition.holds(values[(system, item)], definition.type if definition else None)
+        return {"readings": readings, "checks": checks}
+
+    def _item(self, system: str, item: str) -> Telemetry | None:
+        sysrep = self.sysreps.get(system)
+        return sysrep.telemetry_item(item) if sysrep is not None else None
+
+
+def _out_of_limits(item: Telemetry | None, value: Any) -> str | None:
+    """Why a value is outside its SysRep limits (min, max, enum, type), or None when it is within them."""
+    if item is None or value is None:
+        return None
+    try:
+        check_value(item.label, item.type, value, item.min, item.max, item.enum)
+    except ValueError as exc:
+        return str(exc).split(": ", 1)[-1]
+    return None
 
 
 def snapshot_json(snapshot: Snapshot) -> dict[str, Any]:

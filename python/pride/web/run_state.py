@@ -7,14 +7,24 @@ from the log). Folding never touches the executive, so watching cannot change a 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from pride.events import Event, EventKind
+from pride.phrasing import labelled_values
+from pride.sysrep import SysRep
 
 __all__ = ["InstructionState", "RunState", "fold_events"]
 
 _IMAGE_KEYS = ("image_path", "image", "path")
+#: Events after which the run is somewhere new or holds for a new reason: a hold is "since" then.
+_ARRIVALS = {
+    EventKind.RUN_STARTED, EventKind.RUN_RESUMED, EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED,
+    EventKind.INSTRUCTION_SKIPPED, EventKind.AWAITING_OPERATOR, EventKind.BREAKPOINT_HIT, EventKind.PAUSED,
+    EventKind.CONTINUED, EventKind.MODE_CHANGED, EventKind.CALL_ENTERED, EventKind.CONFIRMATION, EventKind.RUN_STOPPED,
+    EventKind.RUN_COMPLETED,
+}
 
 
 @dataclass
@@ -24,9 +34,11 @@ class InstructionState:
     status: str = "pending"  # pending | active | awaiting | completed | failed | skipped
     actor: str | None = None
     time: str | None = None
+    started: str | None = None  # when it was last begun (a verify's countdown runs from here)
     reason: str | None = None
     sent: dict[str, Any] | None = None
     result: dict[str, Any] | None = None
+    result_lines: list[tuple[str, str]] | None = None  # the result's values as (label, text)
     value: Any = None
     telemetry: dict[str, Any] | None = None
 
@@ -36,9 +48,10 @@ class InstructionState:
 
 @dataclass
 class RunState:
-    """The run as of its last event."""
+    """The run as of its last event. ``sysreps`` label result values (they may be missing: then keys show)."""
 
     run_id: str
+    sysreps: Mapping[str, SysRep] = field(default_factory=dict, repr=False)
     procedure: str | None = None
     mode: str | None = None
     status: str = "not started"  # running | paused | awaiting | completed | stopped
@@ -51,6 +64,10 @@ class RunState:
     latest_image: str | None = None
     latest_image_event: Event | None = None
     last_seq: int = 0
+    arrived: str | None = None  # since when the run is where it is, as it is
+    stopped: dict[str, str] | None = None  # who stopped the run, when and why
+    #: the values ``${...}`` take, per procedure frame: "" for the main one, "2.1/" in the one 2.1 called
+    envs: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -58,7 +75,8 @@ class RunState:
             "status": self.status, "started_by": self.started_by, "current": self.current,
             "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints), "paused": self.paused,
             "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
-            "camera": self.camera_json(), "last_seq": self.last_seq,
+            "camera": self.camera_json(), "last_seq": self.last_seq, "arrived": self.arrived, "stopped": self.stopped,
+            "envs": self.envs,
         }
 
     def camera_json(self) -> dict[str, Any] | None:
@@ -76,6 +94,9 @@ class RunState:
         when = event.time.isoformat()
         number = event.instruction
         entry = self.instructions.setdefault(number, InstructionState()) if number else None
+        frame = number.rsplit("/", 1)[0] + "/" if number and "/" in number else ""
+        if kind in _ARRIVALS:
+            self.arrived = when
         if kind in (EventKind.RUN_STARTED, EventKind.RUN_RESUMED):
             self.procedure = data.get("procedure", self.procedure)
             self.mode = data.get("mode", self.mode)
@@ -87,6 +108,7 @@ class RunState:
             self.status, self.current, self.awaiting = "completed", None, None
         elif kind is EventKind.RUN_STOPPED:
             self.status, self.awaiting = "stopped", None
+            self.stopped = {"by": event.actor, "time": when, "reason": str(data.get("reason") or "")}
         elif kind is EventKind.PAUSED:
             self.status, self.paused = "paused", True
         elif kind is EventKind.CONTINUED:
@@ -97,10 +119,12 @@ class RunState:
             self.breakpoints.add(number)
         elif kind is EventKind.BREAKPOINT_CLEARED and number:
             self.breakpoints.discard(number)
+        elif kind is EventKind.CALL_ENTERED and number:
+            self.envs[number + "/"] = dict(data.get("inputs") or {})
         if entry is None:
             return
         if kind is EventKind.INSTRUCTION_STARTED:
-            entry.status, entry.actor, entry.time, entry.reason = "active", event.actor, when, None
+            entry.status, entry.actor, entry.time, entry.started, entry.reason = "active", event.actor, when, when, None
             self.current, self.awaiting = number, None
             if self.status == "awaiting":
                 self.status = "running"
@@ -120,11 +144,16 @@ class RunState:
             entry.sent = dict(data)
         elif kind is EventKind.COMMAND_RESULT:
             entry.result = dict(data)
+            values: dict[str, Any] = data["values"] if isinstance(data.get("values"), dict) else {}
+            entry.result_lines = labelled_values(values, self.sysreps.get(str(data.get("system"))))
+            if data.get("result"):
+                self.envs.setdefault(frame, {})[data["result"]] = {"success": data.get("success"), "message": data.get("message", ""), **values}
             image = _image_path(data)
             if image:
                 self.latest_image, self.latest_image_event = image, event
         elif kind is EventKind.OPERATOR_INPUT:
             entry.value = data.get("value")
+            self.envs.setdefault(frame, {})[str(data.get("name"))] = data.get("value")
         elif kind is EventKind.TELEMETRY_SEEN:
             entry.telemetry = dict(data)
 
@@ -139,9 +168,9 @@ def _image_path(data: dict[str, Any]) -> str | None:
     return None
 
 
-def fold_events(run_id: str, events: list[Event]) -> RunState:
+def fold_events(run_id: str, events: list[Event], sysreps: Mapping[str, SysRep] | None = None) -> RunState:
     """The state of a run after ``events``."""
-    state = RunState(run_id)
+    state = RunState(run_id, sysreps or {})
     for event in events:
         state.apply(event)
     return state

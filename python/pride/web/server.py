@@ -1,25 +1,30 @@
 """``caretaker serve``: the operator web view on uvicorn, bound to loopback unless told otherwise.
 
-Prints ``READY serve http://HOST:PORT`` once it accepts connections (``--port 0`` picks a free
-port and the line names it), so launchers and tests wait on that line, not on a sleep.
+Prints ``READY serve http://HOST:PORT`` (``https://`` under TLS) once it accepts connections
+(``--port 0`` picks a free port and the line names it), so launchers and tests wait on that
+line, not on a sleep. Beyond loopback it serves only over TLS (``--certfile``/``--keyfile``):
+passwords and session cookies must not cross a network in clear text; ``--insecure`` is for a
+network that is encrypted otherwise (a VPN, a TLS-terminating proxy on the same host).
 """
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import socket
+import ssl
 import sys
 from pathlib import Path
 
 import uvicorn
 
 from pride.audit_log import DEFAULT_DB, AuditLog
-from pride.web.accounts import EXAMPLE_ACCOUNTS, AccountsError, load_accounts
+from pride.web.accounts import AccountStore
 from pride.web.app import build_app
 from pride.web.reports import report_writer
 from pride.web.run_board import CameraSettings, Catalog, RunBoard
-from pride.web.sign_in import SignIns
+from pride.web.sign_in import SessionLimits, SignIns
 
 __all__ = ["main"]
 
@@ -45,9 +50,16 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="caretaker serve", description="Serve the operator web view.")
     parser.add_argument("--address", default="127.0.0.1", help="address to bind (default: loopback only)")
     parser.add_argument("--port", type=int, default=8080, help="TCP port (0 = any free port; default 8080)")
-    parser.add_argument("--accounts", type=Path, default=EXAMPLE_ACCOUNTS,
-                        help=f"accounts YAML with user ids and roles (default: {EXAMPLE_ACCOUNTS.name})")
-    parser.add_argument("--db", default=DEFAULT_DB, help=f"audit log SQLAlchemy URL (default: {DEFAULT_DB})")
+    parser.add_argument("--db", default=DEFAULT_DB,
+                        help=f"the ground database: audit log and accounts, a SQLAlchemy URL (default: {DEFAULT_DB})")
+    parser.add_argument("--certfile", type=Path, help="TLS certificate chain (PEM); with --keyfile the view is served over https")
+    parser.add_argument("--keyfile", type=Path, help="TLS private key (PEM)")
+    parser.add_argument("--insecure", action="store_true",
+                        help="allow plain http beyond loopback (only where the network is encrypted otherwise)")
+    parser.add_argument("--session-idle", type=float, default=30.0, metavar="MIN",
+                        help="sign a browser out after this many minutes without use (default 30; an open page is in use)")
+    parser.add_argument("--session-max", type=float, default=12.0, metavar="H",
+                        help="sign everyone out this many hours after they signed in (default 12: a shift)")
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
     parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
@@ -59,25 +71,61 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _loopback(address: str) -> bool:
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        return False  # a host name: it may resolve to anything
+
+
+def _tls_problem(args: argparse.Namespace) -> str | None:
+    """Why the TLS options cannot be used as given (None: they can, or none were given)."""
+    if (args.certfile is None) != (args.keyfile is None):
+        return "--certfile and --keyfile go together"
+    if args.certfile is None:
+        if _loopback(args.address) or args.insecure:
+            return None
+        return (f"--address {args.address} reaches beyond this machine, and passwords and session cookies must not "
+                "cross a network in clear text: give --certfile and --keyfile (TLS), or --insecure if the network "
+                "is encrypted otherwise (VPN, a TLS proxy on this host)")
+    try:
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
+    except ssl.SSLError as exc:  # before OSError, of which it is a kind
+        return f"--certfile {args.certfile} and --keyfile {args.keyfile} are not a usable PEM certificate and key: {exc.reason or exc}"
+    except OSError as exc:
+        return f"cannot read the TLS files: {exc.strerror or exc} ({exc.filename or args.certfile})"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Serve until interrupted; returns the exit code."""
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    try:
-        accounts = load_accounts(args.accounts)
-    except AccountsError as exc:
-        print(f"caretaker serve: {exc}", file=sys.stderr)
-        return 2
     for directory in (args.procedures, args.sysreps):
         if not directory.is_dir():
             print(f"caretaker serve: {directory} is not a directory", file=sys.stderr)
             return 2
-    if args.address not in ("127.0.0.1", "localhost", "::1"):
-        log.warning("serving on %s: the web view is reachable beyond this machine", args.address)
+    problem = _tls_problem(args)
+    if problem is not None:
+        print(f"caretaker serve: {problem}", file=sys.stderr)
+        return 2
+    if args.session_idle <= 0 or args.session_max <= 0:
+        print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
+        return 2
+    tls = args.certfile is not None
+    if not _loopback(args.address):
+        log.warning("serving on %s%s: the web view is reachable beyond this machine", args.address, "" if tls else " WITHOUT TLS")
+    accounts = AccountStore(args.db)
+    if not accounts.accounts():
+        log.warning("no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
+                    args.db, args.db)
     audit_log = AuditLog(args.db)
     catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
     board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period), rosbridge_url=args.rosbridge)
-    app = build_app(board, SignIns(accounts), report_writer=report_writer(audit_log, args.reports))
+    sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
+    app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -87,12 +135,16 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker serve: cannot bind {args.address}:{args.port}: {exc.strerror}", file=sys.stderr)
         return 2
     host, port = sock.getsockname()[:2]
-    url = f"http://[{host}]:{port}" if family == socket.AF_INET6 else f"http://{host}:{port}"
-    server = _Server(uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio"), url)
+    scheme = "https" if tls else "http"
+    url = f"{scheme}://[{host}]:{port}" if family == socket.AF_INET6 else f"{scheme}://{host}:{port}"
+    config = uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio",
+                            ssl_certfile=args.certfile, ssl_keyfile=args.keyfile)
+    server = _Server(config, url)
     try:
         server.run(sockets=[sock])
     except KeyboardInterrupt:
         pass
     finally:
         audit_log.close()
+        accounts.close()
     return 0

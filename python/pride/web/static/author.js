@@ -33,14 +33,19 @@ const KINDS = {
 };
 const NOTICES = new Set(["note", "caution", "warning"]);
 const DEFAULTS = {verify: {timeout: "10"}, wait: {seconds: "1"}, record: {name: "", type: "string"}};
+// kinds whose sentence may be written as a <text> element (records, manual steps and notices are text already)
+const SENTENCE = new Set(["command", "verify", "wait", "if", "goto", "call"]);
 
 async function api(method, path, body) {
-  const response = await fetch(path, {
-    method, headers: body === undefined ? {} : {"Content-Type": "application/json"},
-    body: body === undefined ? undefined : JSON.stringify(body),
-  });
+  const headers = body === undefined ? {} : {"Content-Type": "application/json"};
+  if (method !== "GET" && author.me) headers["X-CSRF-Token"] = author.me.csrf;
+  const response = await fetch(path, {method, headers, body: body === undefined ? undefined : JSON.stringify(body)});
   const data = await response.json().catch(() => ({}));
-  if (!response.ok) throw new Error(data.error || `${response.status} ${response.statusText}`);
+  if (!response.ok) {
+    const error = new Error(data.error || `${response.status} ${response.statusText}`);
+    error.status = response.status;
+    throw error;
+  }
   return data;
 }
 
@@ -297,6 +302,15 @@ function card(item, s, i, number) {
     }
     fields.append(button("+ argument", "add an argument", () => { item.args.push({name: "", value: ""}); changed(); }));
   }
+  if (SENTENCE.has(item.kind)) {
+    const sentence = document.createElement("input");
+    sentence.value = item.text || "";
+    sentence.placeholder = "how it reads (optional: made from the SysRep's labels when empty)";
+    sentence.setAttribute("aria-label", `${item.kind} sentence`);
+    sentence.className = "item-sentence";
+    edits(sentence, () => { item.text = sentence.value; });
+    fields.append(sentence);
+  }
   if (info.text) {
     const text = document.createElement("textarea");
     text.value = item.text || "";
@@ -497,14 +511,38 @@ $("open").addEventListener("click", async () => {
     $("author-error").textContent = error.message;
   }
 });
+async function save(replace) {
+  const name = $("save-name").value.trim();
+  const result = await api("POST", "/api/author/save", {name, document: author.doc, replace});
+  $("check-state").textContent = `saved ${result.saved}`;
+  $("check-state").dataset.ok = "true";
+}
+
 $("save").addEventListener("click", async () => {
   $("author-error").textContent = "";
   try {
-    const result = await api("POST", "/api/author/save", {name: $("save-name").value.trim(), document: author.doc});
-    $("check-state").textContent = `saved ${result.saved}`;
-    $("check-state").dataset.ok = "true";
+    await save(false);
   } catch (error) {
-    $("author-error").textContent = error.message;
+    if (error.status !== 409) {
+      $("author-error").textContent = error.message;
+      return;
+    }
+    // the file exists: replace it only when the author says so
+    const dialog = $("replace-dialog");
+    $("replace-name").textContent = $("save-name").value.trim();
+    dialog.returnValue = "";
+    dialog.onclose = async () => {
+      if (dialog.returnValue !== "replace") {
+        $("author-error").textContent = "not saved: the file exists and was kept";
+        return;
+      }
+      try {
+        await save(true);
+      } catch (again) {
+        $("author-error").textContent = again.message;
+      }
+    };
+    dialog.showModal();
   }
 });
 

@@ -1,0 +1,160 @@
+"""The console a flight controller reads: sentences, a page that follows the run, telemetry against its limits.
+
+On the simulated systems (simulated_systems.py), through a server of this module's own whose
+SysReps give ``cdra.installed_filter_id`` an enum (the shipped SysReps carry no limits), so a value
+outside its limits can be shown.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import Page, expect
+
+from operator_page import IVA, instruction, screenshot, start_run, stop_run
+from web_server import REPO, WebServer, procedure_shelf, start_server
+
+RAW_COMMAND = re.compile(r"\b[a-z_]+\.[a-z_]+\(")
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebServer]:
+    tmp = tmp_path_factory.mktemp("console")
+    sysreps = tmp / "sysrep"
+    shutil.copytree(REPO / "sysrep", sysreps)
+    cdra = sysreps / "cdra.yaml"
+    text = cdra.read_text()
+    known = "{description: empty when no filter is installed}"
+    assert known in text
+    cdra.write_text(text.replace(known, "{description: the filter's label, enum: [CDRA-F-0012, CDRA-F-0013]}"))
+    served = start_server(tmp, procedure_shelf(tmp), sysreps=sysreps)
+    yield served
+    served.process.stop()
+
+
+def sentences(page: Page) -> dict[str, str]:
+    """Every instruction's main text as the page shows it, by number."""
+    return page.evaluate("""() => Object.fromEntries([...document.querySelectorAll('#procedure li.instruction')]
+        .map((item) => [item.dataset.number, item.querySelector(':scope > .line > .text').textContent]))""")
+
+
+def assert_readable(texts: dict[str, str]) -> None:
+    for number, text in texts.items():
+        assert text.strip() and "${" not in text and not RAW_COMMAND.search(text), f"{number} reads as code: {text!r}"
+
+
+def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in) -> None:
+    alice = sign_in("alice")
+    start_run(alice, IVA, "manual")
+    texts = sentences(alice)
+    assert len(texts) == 55
+    assert_readable(texts)
+    assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:‹cdra_at.id›"  # not known yet
+
+    # once PAX has added the template, its instance id is in every sentence that names it
+    alice.click("#mode-autonomous")
+    expect(alice.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
+    texts = sentences(alice)
+    assert_readable(texts)
+    assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:0"
+    assert texts["6.5"] == "Remove the CDRA filter AT (cdra_filter:0)"
+    assert texts["4.2"] == "Align the CDRA filter AT with clean filter ‹clean_filter_id› on the rack"
+    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text("Result: succeeded — planned · Plan Status: PLANNED")
+    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text("end pose: (0.62, -0.18, 0.95, 0, 1.57, 0.35)")
+    stop_run(alice, "sentences checked")
+
+    # the EVA inspection, with the sub-procedure each target calls: its input is known once it is called
+    start_run(alice, "eva_inspection.xml", "manual", binding="eva.yaml")
+    instruction(alice, "2.1/1.2").locator("button.breakpoint").click()
+    expect(instruction(alice, "2.1/1.2")).to_have_class(re.compile(r"\bhas-breakpoint\b"))
+    alice.click("#mode-autonomous")
+    expect(alice.locator("#hold")).to_contain_text("Breakpoint at 2.1/1.2")
+    texts = sentences(alice)
+    assert len(texts) == 17 + 4 * 14  # the four calls draw the sub-procedure each
+    assert_readable(texts)
+    assert texts["2.1/1.1"] == "Align the inspection AT with hull target hull_a"
+    assert texts["3.1/1.1"] == "Align the inspection AT with hull target ‹target›"
+    stop_run(alice, "sentences checked")
+
+    # a procedure without <text>: its sentences come from the SysReps' labels
+    start_run(alice, "web_walkthrough.xml", "manual")
+    texts = sentences(alice)
+    assert_readable(texts)
+    assert texts == {
+        "1.1": 'Add Affordance Template "cdra_filter" (hide waypoints: false)',
+        "2.1": 'Plan Trajectory "ready" for ready_pose',
+        "2.2": "Verify Installed Filter Condition is dirty",
+        "3.1": "Confirm the area near the cabinet is clear",
+        "3.2": "Unlock Filter",
+        "3.3": "Verify Filter Locked is false",
+    }
+    stop_run(alice, "sentences checked")
+
+
+def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_in, server) -> None:
+    alice = sign_in("alice")
+    run_id = start_run(alice, IVA, "autonomous")
+    expect(instruction(alice, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect(instruction(alice, "2.6")).to_be_in_viewport()
+    instruction(alice, "2.6").locator("button.done").click()
+
+    # PAX carries the arm through step 3 and holds at the record 4.1, far below: the page goes there
+    record = instruction(alice, "4.1")
+    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    expect(record).to_be_in_viewport()
+    expect(instruction(alice, "1.1")).not_to_be_in_viewport()
+    hold = alice.locator("#hold")
+    expect(hold).to_be_in_viewport()  # the banner stays at the top
+    expect(hold).to_have_attribute("data-tone", "hold")
+    expect(hold).to_contain_text("Needs a value")
+    expect(hold).to_contain_text("4.1: Enter the id of a clean filter on the rack")
+    expect(hold.locator(".hold-meta")).to_contain_text(re.compile(r"an operator must enter it \(operators watching: alice\) · since \d"))
+    screenshot(alice, "web_hold_followed.png")
+
+    # someone opening the run now lands on the hold as well, and both see who watches
+    carol = sign_in("carol")
+    carol.goto(f"{server.url}/#run={run_id}")
+    expect(instruction(carol, "4.1")).to_be_in_viewport()
+    for page in (alice, carol):
+        expect(page.locator("#watchers")).to_have_text("watching: alice (operator), carol (observer)")
+    carol.context.close()
+    expect(alice.locator("#watchers")).to_have_text("watching: alice (operator)")
+
+    # following can be switched off: then the page stays where the operator reads
+    alice.uncheck("#follow")
+    alice.evaluate("window.scrollTo(0, 0)")
+    alice.evaluate("act('enter', {instruction: '4.1', value: 'CDRA-F-0012'})")  # the Record button, without scrolling to it
+    expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text("Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
+    expect(instruction(alice, "5.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect(instruction(alice, "5.1")).not_to_be_in_viewport()
+    assert alice.evaluate("window.scrollY") == 0
+    stop_run(alice, "followed")
+
+
+def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts_down(sign_in) -> None:
+    alice = sign_in("alice")
+    start_run(alice, "web_console.xml", "manual")
+    out, ok, unexpected = (instruction(alice, n).locator(".telemetry") for n in ("1.1", "1.2", "1.3"))
+    expect(out).to_have_attribute("data-state", "out")  # red: F-DIRTY-07 is not a filter id the SysRep knows
+    expect(out).to_contain_text("⚠ Installed Filter ID = F-DIRTY-07 (outside its limits: 'F-DIRTY-07' is not one of")
+    expect(ok).to_have_attribute("data-state", "ok")
+    expect(ok).to_contain_text("✓ Affordance Template Server Active = true")
+    expect(unexpected).to_have_attribute("data-state", "unexpected")  # locked, where the verify wants it unlocked
+    expect(unexpected).to_contain_text("≠ Filter Locked = true (expected false)")
+    colours = {n: instruction(alice, n).locator(".telemetry").evaluate("chip => getComputedStyle(chip).backgroundColor")
+               for n in ("1.1", "1.2", "1.3")}
+    assert len(set(colours.values())) == 3, colours
+
+    # PAX checks the first two and waits for the latch: the verify counts down its 60 s
+    alice.click("#mode-autonomous")
+    countdown = instruction(alice, "1.3").locator(".countdown")
+    expect(countdown).to_have_text(re.compile(r"^◷ \d+ s left of 60 s$"))
+    first = int(countdown.inner_text().split()[1])
+    assert 0 < first <= 60
+    expect(countdown).not_to_have_text(f"◷ {first} s left of 60 s")
+    assert int(countdown.inner_text().split()[1]) < first
+    stop_run(alice, "countdown seen")
+    expect(countdown).to_have_text("")
