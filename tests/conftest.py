@@ -1,15 +1,18 @@
 """Test-session settings shared by every suite.
 
 ROS 2 traffic stays on loopback and in a domain of this session's own (claimed with a lock, see
-support/ros_domain.py), so parallel test runs on one machine do not see each other.
+support/ros_domain.py), so parallel test runs on one machine do not see each other. One
+PostgreSQL server serves every suite of the session that needs one (support/postgres.py).
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import pytest
 
+from support.postgres import PostgresServer, postgres_server
 from support.ros_domain import claim_ros_domain
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -22,3 +25,10 @@ os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 def ros_env() -> dict[str, str]:
     """Environment for child processes: this session's ROS domain, loopback only."""
     return dict(os.environ)
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[PostgresServer]:
+    """This session's PostgreSQL server, shared by every suite (started on first use, removed at the end)."""
+    with postgres_server() as server:
+        yield server

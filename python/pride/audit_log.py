@@ -47,7 +47,7 @@ from pride.audit_schema import audit_records, ensure_schema, schema_revision, sq
 from pride.events import Event, EventKind
 
 __all__ = ["DEFAULT_DB", "DEFAULT_OUTAGE_BUDGET", "AuditLog", "AuditLogUnavailable", "AuditSequenceError",
-           "Availability", "database_url"]
+           "Availability", "database_url", "open_engine"]
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +109,7 @@ class AuditLog:
         self.url = url
         self.outage_budget = outage_budget
         self.location = make_url(database_url(url)).render_as_string(hide_password=True)  # for messages
-        self._engine = _engine(database_url(url))
+        self._engine = open_engine(url)
         self._writers = _WriterQueue(_sqlite_file(database_url(url)))
         self._insert = _DriverInsert(self._engine, self._writers)
         try:
@@ -129,6 +129,11 @@ class AuditLog:
         self._availability = Availability(True)
         self._listeners: list[AvailabilityListener] = []
         self._closed = threading.Event()
+
+    @property
+    def engine(self) -> Engine:
+        """The engine the log reads with: the other tables of the ground database use it too."""
+        return self._engine
 
     # ---- availability -----------------------------------------------------------------------
     @property
@@ -219,21 +224,21 @@ class AuditLog:
             return connection.scalar(select(_RECORDS.hash).where(_RECORDS.run_id == run_id, _RECORDS.seq == seq))
 
     # ---- reading ----------------------------------------------------------------------------
-    def events(self, run_id: str) -> list[Event]:
-        """Every event of a run, in order."""
-        return [_event(row) for row in self.stored_events(run_id)]
+    def events(self, run_id: str, *, after: int = 0) -> list[Event]:
+        """Every event of a run, in order; ``after``: only those with a greater sequence number."""
+        return [_event(row) for row in self.stored_events(run_id, after=after)]
 
     def verify(self, run_id: str) -> ChainCheck:
         """Check the run's hash chain as stored (see :mod:`pride.audit_chain`)."""
         return verify_chain(run_id, self.stored_events(run_id))
 
-    def stored_events(self, run_id: str) -> list[StoredEvent]:
-        """A run's records as stored, with their hashes, in order."""
+    def stored_events(self, run_id: str, *, after: int = 0) -> list[StoredEvent]:
+        """A run's records as stored, with their hashes, in order (those numbered above ``after``)."""
         with self._engine.connect() as connection:
             rows = connection.execute(
                 select(_RECORDS.run_id, _RECORDS.seq, _RECORDS.time, _RECORDS.actor, _RECORDS.kind, _RECORDS.instruction,
                        _RECORDS.data, _RECORDS.prev_hash, _RECORDS.hash)
-                .where(_RECORDS.run_id == run_id).order_by(_RECORDS.seq))
+                .where(_RECORDS.run_id == run_id, _RECORDS.seq > after).order_by(_RECORDS.seq))
             return [StoredEvent(*row) for row in rows]
 
     def schema_revision(self) -> str | None:
@@ -347,7 +352,11 @@ def _sqlite_file(url: str) -> Path | None:
     return Path(url.removeprefix("sqlite:///"))
 
 
-def _engine(url: str) -> Engine:
+def open_engine(url: str) -> Engine:
+    """An engine on the ground database at ``url`` (any form :func:`database_url` takes), set up as the
+    audit log needs it: a connect timeout on PostgreSQL; on SQLite WAL, full durability, and
+    transactions begun by SQLAlchemy (see :mod:`pride.audit_schema`)."""
+    url = database_url(url)
     if not url.startswith("sqlite"):
         return create_engine(url, connect_args={"connect_timeout": 5, "application_name": "caretaker"})
     database = _sqlite_file(url)

@@ -21,7 +21,7 @@ sys.path.insert(0, str(HERE))  # lab_gateway is importable here and in runner su
 from pride.audit_log import AuditLog  # noqa: E402
 from pride.events import Event, EventKind  # noqa: E402
 from pride.sysrep import SysRep, load_sysrep_dir  # noqa: E402
-from support.postgres import OWNER, RUNNER, PostgresServer, postgres_server  # noqa: E402
+from support.postgres import OWNER, RUNNER, PostgresServer  # noqa: E402
 
 
 @pytest.fixture(scope="session")
@@ -53,13 +53,6 @@ class AuditDatabase:
             connection.execute("DROP TRIGGER audit_records_no_delete")
             for statement in statements:
                 connection.execute(statement)
-
-
-@pytest.fixture(scope="session")
-def postgres() -> Iterator[PostgresServer]:
-    """This session's PostgreSQL server (started on first use, removed at the end)."""
-    with postgres_server() as server:
-        yield server
 
 
 @pytest.fixture(scope="session")

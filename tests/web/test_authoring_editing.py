@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 
+import pytest
 from playwright.sync_api import Page, expect
 
 from author_page import bind_arg, card, drop, drop_zone, set_arg, set_attr
@@ -36,6 +37,7 @@ def header(number: str) -> str:
     return f'#canvas .card[data-number="{number}"] > header'
 
 
+@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
 def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
@@ -57,6 +59,7 @@ def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, ser
     expect(alice.locator("#check-state")).to_have_text("lint: no problems")
 
 
+@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
 def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
@@ -71,6 +74,7 @@ def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, se
     assert after.index('id="hull_b"') < after.index('id="hull_a"') < after.index('id="hull_c"')
 
 
+@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
 def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_be_edited(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")

@@ -101,6 +101,7 @@ def test_a_stopped_run_is_resumed_from_the_web_view(sign_in, server) -> None:
     stop_run(bob, "resume checked")
 
 
+@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
 @pytest.mark.parametrize("width", [1024, 800])
 def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> None:
     alice = sign_in("alice")
@@ -145,6 +146,7 @@ def test_the_report_shows_values_as_read_and_whole_step_titles(sign_in, server) 
     assert min(lefts) >= 0, lefts  # no label starts left of the picture
 
 
+@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
 def test_author_save_asks_before_replacing_a_procedure(sign_in, server) -> None:
     alice = sign_in("alice")
     alice.goto(f"{server.url}/author")

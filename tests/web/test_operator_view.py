@@ -69,7 +69,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     expect_ended(alice, "stopped")
     expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_contain_text("end of the walk-through")
 
-    log = AuditLog(f"sqlite:///{server.db}")
+    log = AuditLog(server.database.url)
     try:
         sent = [e for e in log.events(run_id) if e.kind.value == "command_sent" and e.instruction == "4.2"]
     finally:
@@ -194,8 +194,10 @@ def test_a_past_run_is_drawn_from_the_audit_log_alone(sign_in, server, browser, 
     instruction(alice, "1.1").locator("button.perform").click()
     expect(instruction(alice, "1.1").locator(".mark")).to_contain_text("completed by alice")
 
-    # another server on the same audit log: the run is not live there, only recorded
-    other = start_server(tmp_path, procedure_shelf(tmp_path), db=server.db)
+    stop_run(alice, "seen from another console next")
+
+    # another server on the same ground database, which never ran it: the run is only recorded
+    other = start_server(tmp_path, procedure_shelf(tmp_path), database=server.database)
     try:
         context = browser.new_context(viewport={"width": 1500, "height": 1000})
         try:

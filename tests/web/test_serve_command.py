@@ -140,7 +140,7 @@ def test_state_changing_requests_need_the_sessions_csrf_token_and_this_sites_ori
                                   {"X-CSRF-Token": client.csrf, "Origin": "http://evil.example"})
     assert status == 403 and "another site" in body["error"]
     status, body, _ = client.act("/api/runs/no-such-run/actions", action)
-    assert status == 404 and "not running in this server" in body["error"]  # past the checks: no such run
+    assert status == 404 and "not live on any console" in body["error"]  # past the checks: no such run
 
     other = Client(server.url)  # a second session has a token of its own; bob's does not work there
     other.sign_in("alice")

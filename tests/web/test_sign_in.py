@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from starlette.requests import Request
 
+from pride.ground.change_feed import Notice
 from pride.web.accounts import AccountStore
 from pride.web.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
 from pride.web.sign_in_throttle import Allowance, SignInThrottle
@@ -98,6 +99,20 @@ def test_sessions_end_when_idle_at_their_limit_and_when_the_password_changes(sto
         sign_ins.session(request_with(changed.token))
     with pytest.raises(SignInRefused, match="sign in first"):  # and it stays ended
         sign_ins.session(request_with(changed.token))
+
+
+def test_an_announced_account_change_is_checked_at_the_next_use_not_after_the_recheck_period(store: AccountStore) -> None:
+    clock = Clock()
+    sign_ins = SignIns(store, limits=SessionLimits(recheck=5), clock=clock)
+    alice = sign_ins.sign_in("alice", "alice-secret-1", "10.0.0.1")
+    store.add("bob", "operator", "bob-secret-12")
+    bob = sign_ins.sign_in("bob", "bob-secret-12", "10.0.0.1")
+    store.remove("alice")  # another console's change: this one learns of it from the change feed
+    assert sign_ins.session(request_with(alice.token)).account.user == "alice"  # not rechecked yet (no time passed)
+    sign_ins.notice(Notice("accounts", "alice"))
+    with pytest.raises(SignInRefused, match="account or password changed"):
+        sign_ins.session(request_with(alice.token))
+    assert sign_ins.session(request_with(bob.token)).account.user == "bob"  # another user's sessions stay
 
 
 def test_failed_sign_ins_are_refused_with_a_wait_before_the_password_is_even_checked(store: AccountStore) -> None:

@@ -110,7 +110,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(alice.locator('#audit li[data-kind="run_stopped"][data-actor="alice"]')).to_contain_text("acceptance run checked")
 
     # the audit log holds every action with its user, and nothing from the observer
-    log = AuditLog(f"sqlite:///{server.db}")
+    log = AuditLog(server.database.url)
     try:
         events = log.events(run_id)
     finally:

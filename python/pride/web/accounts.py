@@ -7,26 +7,34 @@ only watch. The server checks the role on every action, so hiding buttons in the
 convenience, never the protection.
 
 Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
-next sign-in when those defaults grow). The table is defined here on its own metadata so it can
-be created by itself; its shape is ``console_accounts(user_id PK, name, role, password_hash,
-created, password_changed)``.
+next sign-in when those defaults grow, where the console's role may write the table). The table
+``console_accounts(user_id PK, name, role, password_hash, created, password_changed)`` belongs to
+the ground database's schema (revision 0004 of :mod:`pride.migrations`): on PostgreSQL the
+consoles' role only reads it and ``caretaker accounts``, run as the database owner, changes it. A
+change NOTIFYs every console (:mod:`pride.ground.change_feed`), which ends that user's sessions.
 """
 
 from __future__ import annotations
 
 import enum
+import logging
 import re
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from pathlib import Path
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
-from sqlalchemy import DateTime, String, create_engine, select
-from sqlalchemy.engine import Engine
+from sqlalchemy import DateTime, String, select, update
+from sqlalchemy.engine import Engine, make_url
+from sqlalchemy.exc import DBAPIError
 from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
 
+from pride.audit_log import database_url, open_engine
+from pride.audit_schema import ensure_schema
+
 __all__ = ["Account", "AccountStore", "AccountsError", "Role", "TABLE"]
+
+log = logging.getLogger(__name__)
 
 _USER_ID = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
 #: NIST SP 800-63B's floor for a chosen secret; the ceiling keeps hashing bounded.
@@ -108,11 +116,15 @@ class AccountStore:
     """The accounts table of one database. Thread-safe: one session per call."""
 
     def __init__(self, url: str) -> None:
-        if url.startswith("sqlite:///") and url != "sqlite:///:memory:":
-            Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
+        """Open the accounts of the ground database at ``url``, bringing its schema up to date where
+        this role may (AuditSchemaError says what to do where it may not)."""
         self.url = url
-        self._engine: Engine = create_engine(url)
-        _Base.metadata.create_all(self._engine)
+        self._engine: Engine = open_engine(url)
+        try:
+            ensure_schema(self._engine, make_url(database_url(url)).render_as_string(hide_password=True))
+        except BaseException:
+            self._engine.dispose()
+            raise
         self._hasher = PasswordHasher()
         # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
         self._decoy = self._hasher.hash("not a password of anyone")
@@ -156,17 +168,29 @@ class AccountStore:
     def verify(self, user: str, password: str) -> Account | None:
         """The account when ``password`` is its password, else None (same cost for unknown users)."""
         password = password[:MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
-        with Session(self._engine) as session, session.begin():
+        with Session(self._engine) as session:
             row = session.get(_AccountRow, user) if _USER_ID.match(user) else None
             if row is None:
                 _matches(self._hasher, self._decoy, password)
                 return None
             if not _matches(self._hasher, row.password_hash, password):
                 return None
-            account = row.account()
-            if self._hasher.check_needs_rehash(row.password_hash):
-                row.password_hash = self._hasher.hash(password)  # same password: the stamp (sessions) stays
-            return account
+            account, digest = row.account(), row.password_hash
+        if self._hasher.check_needs_rehash(digest):
+            self._rehash(user, digest, password)
+        return account
+
+    def _rehash(self, user: str, digest: str, password: str) -> None:
+        """Store the password's hash with today's parameters (same password: the stamp, and so the
+        sessions, stay). A console whose role may only read accounts leaves that to the owner."""
+        try:
+            with self._engine.begin() as connection:
+                connection.execute(update(_AccountRow).where(_AccountRow.user_id == user, _AccountRow.password_hash == digest)
+                                   .values(password_hash=self._hasher.hash(password)))
+        except DBAPIError as exc:
+            if getattr(exc.orig, "sqlstate", None) != "42501":  # insufficient_privilege: a read-only console
+                raise
+            log.info("the hash of %s's password uses old parameters; this console may not update it", user)
 
     def _row(self, session: Session, user: str) -> _AccountRow:
         row = session.get(_AccountRow, user)

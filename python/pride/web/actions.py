@@ -51,6 +51,10 @@ class ActionRequest:
             mode=str(mode) if mode is not None else None,
         )
 
+    def to_json(self) -> dict[str, Any]:
+        """The request as :meth:`from_json` reads it (to forward it to the run's host)."""
+        return {name: value for name, value in self.__dict__.items() if value is not None}
+
 
 def _mode(request: ActionRequest) -> Mode:
     try:

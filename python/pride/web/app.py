@@ -35,7 +35,7 @@ from pride.parser import load_procedure
 from pride.phrasing import describe_event
 from pride.events import Event
 from pride.web.accounts import Account
-from pride.web.actions import ActionRefused, ActionRequest, perform_action
+from pride.web.actions import ActionRefused, ActionRequest
 from pride.web.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
 from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
@@ -49,6 +49,8 @@ log = logging.getLogger(__name__)
 STATIC = Path(__file__).with_name("static")
 #: How often a watcher gets fresh telemetry ages and staleness when nothing else changed.
 _TELEMETRY_REFRESH_S = 1.0
+#: How often the runs list is recomputed when nothing announced a change (a host's lease running out).
+_LIST_REFRESH_S = 2.0
 #: WebSocket close code for "not signed in" (RFC 6455 policy violation).
 _CLOSE_POLICY = 1008
 #: WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure).
@@ -205,18 +207,22 @@ def _event_json(event: Event) -> dict[str, Any]:
 
 
 def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
-    live = board.live(run_id)
-    if live is not None:
+    run = board.view(run_id)
+    if run is not None:
         return {
-            "procedure": live.procedure_view, "state": live.state_json(), "server_time": time.time(),
-            "events": [_event_json(e) for e in live.events_since(0)], "telemetry": live.telemetry_json(),
+            "procedure": run.procedure_view, "state": run.state_json(), "server_time": time.time(),
+            "events": [_event_json(e) for e in run.events_since(0)], "telemetry": run.telemetry_json(),
         }
     events = board.past_events(run_id)
     procedure = _past_procedure(events)
     sysreps = board.sysreps()
+    state = {**fold_events(run_id, events, sysreps).to_dict(), "live": False}
+    record = board.host_record(run_id)
+    if record is not None and state["status"] not in ("completed", "stopped"):  # its host died or lost the database
+        state["host_lost"] = {"host": record.host, "since": record.lease_until.isoformat()}
     return {
         "procedure": procedure_json(procedure, sysreps=sysreps) if procedure else None,
-        "state": {**fold_events(run_id, events, sysreps).to_dict(), "live": False}, "server_time": time.time(),
+        "state": state, "server_time": time.time(),
         "events": [_event_json(e) for e in events], "telemetry": {"readings": [], "checks": {}},
     }
 
@@ -233,9 +239,8 @@ async def run_action(request: Request) -> Response:
     if not account.may_act:  # refused before the body is even read
         raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
     board: RunBoard = request.app.state.board
-    live = board.require_live(request.path_params["run_id"])
     action = ActionRequest.from_json(await _json_body(request))
-    result = await run_in_threadpool(perform_action, live.executive, account, action)
+    result = await run_in_threadpool(board.act, request.path_params["run_id"], account, action)
     return JSONResponse({"ok": True, "action": action.action, "result": result})
 
 
@@ -253,11 +258,12 @@ async def run_camera(request: Request) -> Response:
     _account(request)
     board: RunBoard = request.app.state.board
     run_id = request.path_params["run_id"]
-    live = board.live(run_id)
-    camera = live.camera() if live else None
-    image = camera[0] if camera else (None if live else _past_image(board, run_id))
+    run = await run_in_threadpool(board.view, run_id)
+    image = await run_in_threadpool(run.camera_image) if run else _past_image(board, run_id)
     if image is None:
         raise ActionRefused(404, "no camera image yet: no command result named a PNG and the live feed captured none")
+    if isinstance(image, bytes):  # copied into the database by the console that hosts the run
+        return Response(image, media_type="image/png", headers={"Cache-Control": "no-store"})
     if not image.is_file():
         raise ActionRefused(404, f"the camera image {image} does not exist on this server")
     return FileResponse(image, media_type="image/png", headers={"Cache-Control": "no-store"})
@@ -269,39 +275,57 @@ def _past_image(board: RunBoard, run_id: str) -> Path | None:
 
 
 # ---- live updates ---------------------------------------------------------------------------
-async def run_socket(websocket: WebSocket) -> None:
-    """Push the run's state, new audit events and telemetry to one browser until it leaves or its session ends."""
-    sign_ins: SignIns = websocket.app.state.sign_ins
+async def _socket_account(websocket: WebSocket) -> Account | None:
+    """The signed-in account opening a WebSocket from this site's page; None after closing it (refused)."""
     try:
         if not _same_origin(websocket):
             raise SignInRefused(403, "this connection came from another site's page")
-        account = sign_ins.session(websocket).account
+        return websocket.app.state.sign_ins.session(websocket).account
     except SignInRefused as exc:
         await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+        return None
+
+
+async def _still_signed_in(websocket: WebSocket) -> bool:
+    """An open console is in use; a session that ended closes its connection."""
+    try:
+        await run_in_threadpool(websocket.app.state.sign_ins.session, websocket)
+    except SignInRefused as exc:
+        await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+        return False
+    return True
+
+
+async def run_socket(websocket: WebSocket) -> None:
+    """Push the run's state, new audit events and telemetry to one browser until it leaves or its session ends.
+
+    The run may be hosted here or by another console: then each wake-up first reads what the
+    database has new (:meth:`RemoteRun.refresh`).
+    """
+    account = await _socket_account(websocket)
+    if account is None:
         return
     board: RunBoard = websocket.app.state.board
-    live = board.live(websocket.path_params["run_id"])
-    if live is None:
-        await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on this server")
+    run = await run_in_threadpool(board.view, websocket.path_params["run_id"])
+    if run is None:
+        await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on any console")
         return
     await websocket.accept()
-    watcher = live.watch(account)
+    watcher = run.watch(account)
     receiver = asyncio.create_task(_drain(websocket))
     try:
         while not receiver.done():
             with contextlib.suppress(asyncio.TimeoutError):
                 await asyncio.wait_for(watcher.changed.wait(), _TELEMETRY_REFRESH_S)
             watcher.changed.clear()
-            if live.retired:  # the page reloads it as a past run (its last state is in the log)
+            await run_in_threadpool(run.refresh)
+            if run.retired:  # the page reloads it as a past run (its last state is in the log)
                 await websocket.close(code=_CLOSE_ENDED, reason="the run ended")
                 return
-            try:
-                await run_in_threadpool(sign_ins.session, websocket)  # an open console is in use; an ended session closes it
-            except SignInRefused as exc:
-                await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+            if not await _still_signed_in(websocket):
                 return
-            state, telemetry = await run_in_threadpool(lambda: (live.state_json(), live.telemetry_json()))
-            events = live.events_since(watcher.sent_seq)
+            state, telemetry = await run_in_threadpool(lambda: (run.state_json(), run.telemetry_json()))
+            events = run.events_since(watcher.sent_seq)
             if events:
                 watcher.sent_seq = events[-1].seq
             await websocket.send_json({
@@ -311,7 +335,36 @@ async def run_socket(websocket: WebSocket) -> None:
     except (WebSocketDisconnect, RuntimeError):
         pass  # the browser left (RuntimeError: send after the client closed)
     finally:
-        live.unwatch(watcher)
+        run.unwatch(watcher)
+        board.let_go(run)
+        receiver.cancel()
+
+
+async def runs_socket(websocket: WebSocket) -> None:
+    """Push the runs list whenever it changes (a run started, ended, moved host, or its host went silent)."""
+    account = await _socket_account(websocket)
+    if account is None:
+        return
+    board: RunBoard = websocket.app.state.board
+    await websocket.accept()
+    watcher = board.list_watchers.add(account)
+    receiver = asyncio.create_task(_drain(websocket))
+    sent: list[dict[str, Any]] | None = None
+    try:
+        while not receiver.done():
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(watcher.changed.wait(), _LIST_REFRESH_S)  # leases run out unannounced
+            watcher.changed.clear()
+            if not await _still_signed_in(websocket):
+                return
+            runs = await run_in_threadpool(board.listing)
+            if runs != sent:
+                await websocket.send_json({"type": "runs", "runs": runs})
+                sent = runs
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        board.list_watchers.remove(watcher)
         receiver.cancel()
 
 
@@ -424,6 +477,7 @@ def build_app(
             Route("/api/runs/{run_id}/actions", run_action, methods=["POST"]),
             Route("/api/runs/{run_id}/resume", run_resume, methods=["POST"]),
             Route("/api/runs/{run_id}/camera", run_camera),
+            WebSocketRoute("/ws/runs", runs_socket),
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

@@ -2,24 +2,25 @@
 
 The executive does the work; this class only observes it. Its listener (called on the
 executive's thread with the executive's lock held) appends the event and wakes the watchers'
-send loops on the asyncio side; the watchers then read :meth:`Executive.snapshot`, which takes
-the lock, so what they draw is a consistent state and never a half-applied transition. The
-one thread boundary is :meth:`_wake` (``loop.call_soon_threadsafe``).
+send loops on the asyncio side (:mod:`pride.web.watchers`) and the publisher that shows the run
+to other consoles (:meth:`published_view`, :mod:`pride.ground.run_hosts`); they then read
+:meth:`Executive.snapshot`, which takes the lock, so what they draw is a consistent state and
+never a half-applied transition.
 
 Operator actions are not here: :mod:`pride.web.actions` sends them to the executive.
 """
 
 from __future__ import annotations
 
-import asyncio
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 from pride.events import Event
 from pride.executive import Executive, Snapshot
+from pride.ground.run_hosts import PublishedView
 from pride.model import Procedure
 from pride.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
@@ -27,18 +28,9 @@ from pride.web.accounts import Account
 from pride.web.camera_feed import CameraFeed
 from pride.web.procedure_view import procedure_json, telemetry_checks
 from pride.web.run_state import fold_events
+from pride.web.watchers import Watcher, Watchers
 
-__all__ = ["LiveRun", "Watcher", "snapshot_json"]
-
-
-class Watcher:
-    """One browser connection: who it is, and its wake-up flag, set when the run or its telemetry changed."""
-
-    def __init__(self, loop: asyncio.AbstractEventLoop, account: Account) -> None:
-        self.loop = loop
-        self.account = account
-        self.changed = asyncio.Event()
-        self.sent_seq = 0
+__all__ = ["LiveRun", "snapshot_json"]
 
 
 class LiveRun:
@@ -58,7 +50,10 @@ class LiveRun:
         sysreps: Mapping[str, SysRep],
         camera_feed: CameraFeed | None = None,
         history: list[Event] | None = None,
+        host: str = "",
+        on_change: Callable[[], None] | None = None,
     ) -> None:
+        """``host`` names this process for the page; ``on_change`` is called (any thread, quickly) at each event."""
         self.executive = executive
         self.gateway = gateway
         self.procedure = procedure
@@ -69,10 +64,12 @@ class LiveRun:
         self.procedure_view = procedure_json(procedure, sysreps=sysreps)
         self._checks = telemetry_checks(procedure)
         self._references = sorted({(system, item) for system, item, _ in self._checks.values()})
-        self._lock = threading.Lock()  # guards _events, _state, _watchers
+        self.host = host
+        self._on_change = on_change
+        self._lock = threading.Lock()  # guards _events, _state
         self._events: list[Event] = list(history or [])
         self._state = fold_events(executive.run_id, self._events, self.sysreps)
-        self._watchers: set[Watcher] = set()
+        self._watchers = Watchers()
         self.retired = False  # ended and released: watchers should look at it as a past run
         executive.add_listener(self._event_callback)
         if camera_feed is not None:
@@ -91,6 +88,8 @@ class LiveRun:
             self._events.append(event)
             self._state.apply(event)
         self._wake()
+        if self._on_change is not None:
+            self._on_change()
 
     def retire(self) -> None:
         """The run ended and its gateway is closed: wake the watchers, who then let go of it."""
@@ -113,32 +112,22 @@ class LiveRun:
             self._wake()
 
     def _wake(self) -> None:
-        with self._lock:
-            watchers = list(self._watchers)
-        for watcher in watchers:
-            try:
-                watcher.loop.call_soon_threadsafe(watcher.changed.set)
-            except RuntimeError:  # that connection's loop is closed: it is going away
-                pass
+        self._watchers.wake()
 
     # ---- watchers -----------------------------------------------------------------------------
     def watch(self, account: Account) -> Watcher:
-        watcher = Watcher(asyncio.get_running_loop(), account)
-        watcher.changed.set()  # the first message is the whole state
-        with self._lock:
-            self._watchers.add(watcher)
-        return watcher
+        return self._watchers.add(account)
 
     def unwatch(self, watcher: Watcher) -> None:
-        with self._lock:
-            self._watchers.discard(watcher)
+        self._watchers.remove(watcher)
         self._wake()  # the others' lists of who watches change
 
     def watchers(self) -> list[dict[str, str]]:
-        """Who has the run open now (each person once), by user id."""
-        with self._lock:
-            accounts = {w.account.user: w.account for w in self._watchers}
-        return [{"user": a.user, "name": a.name, "role": a.role.value} for _, a in sorted(accounts.items())]
+        """Who has the run open in this console now (each person once), by user id."""
+        return self._watchers.people()
+
+    def refresh(self) -> None:
+        """Nothing to fetch: the executive runs here (a :class:`~pride.web.remote_run.RemoteRun` reads the database)."""
 
     # ---- views --------------------------------------------------------------------------------
     def events_since(self, seq: int) -> list[Event]:
@@ -158,6 +147,17 @@ class LiveRun:
             return None
         return Path(image), from_result
 
+    def camera_image(self) -> Path | None:
+        camera = self.camera()
+        return camera[0] if camera else None
+
+    def published_view(self) -> PublishedView:
+        """The run as other consoles show it (:mod:`pride.ground.run_hosts` publishes it)."""
+        state = self.state_json()
+        camera = self.camera()
+        return PublishedView({"state": state, "telemetry": self.telemetry_json()}, str(state["status"]), str(state["mode"]),
+                             (camera[1], camera[0]) if camera else None)
+
     def state_json(self) -> dict[str, Any]:
         """The run as the page draws it: the executive's snapshot plus who did what, when."""
         snapshot = self.executive.snapshot()
@@ -167,6 +167,7 @@ class LiveRun:
         return {
             **details, **snapshot_json(snapshot), "camera": camera[1] if camera else None,
             "binding": self.binding, "started_by": self.started_by, "live": True, "watchers": self.watchers(),
+            "host": self.host, "hosted_here": True,
         }
 
     def telemetry_json(self) -> dict[str, Any]:

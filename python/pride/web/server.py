@@ -19,7 +19,11 @@ from pathlib import Path
 
 import uvicorn
 
-from pride.audit_log import DEFAULT_DB, AuditLog
+from sqlalchemy.exc import OperationalError
+
+from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from pride.audit_schema import AuditSchemaError
+from pride.ground.run_hosts import DEFAULT_LEASE_S
 from pride.web.accounts import AccountStore
 from pride.web.app import build_app
 from pride.web.reports import report_writer
@@ -63,7 +67,14 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
     parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
-    parser.add_argument("--rosbridge", metavar="URL", help="override the bindings' rosbridge URL (e.g. ws://127.0.0.1:9091)")
+    parser.add_argument("--rosbridge", metavar="[BINDING=]URL", action="append", default=[],
+                        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
+                             "or of every binding without BINDING=; repeat for several robots")
+    parser.add_argument("--console", metavar="NAME",
+                        help="how other consoles name this one when it hosts a run (default: console HOST:PORT)")
+    parser.add_argument("--lease", type=float, default=DEFAULT_LEASE_S, metavar="S",
+                        help="seconds after which other consoles take a run hosted here for interrupted if this console "
+                             f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}")
     parser.add_argument("--camera", metavar="NAME",
                         help="camera to show while the robot moves (e.g. ee_camera, scene), when the binding serves the camera SysRep")
     parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
@@ -99,6 +110,19 @@ def _tls_problem(args: argparse.Namespace) -> str | None:
     return None
 
 
+def _rosbridge_urls(options: list[str]) -> dict[str, str]:
+    """``[BINDING=]URL`` options as binding file name -> URL ("" for every binding); ValueError says what is wrong."""
+    urls: dict[str, str] = {}
+    for option in options:
+        binding, _, url = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
+        if not url.startswith(("ws://", "wss://")):
+            raise ValueError(f"--rosbridge {option}: expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT")
+        if binding in urls:
+            raise ValueError(f"--rosbridge {option}: {'binding ' + binding if binding else 'every binding'} was given a URL already")
+        urls[binding] = url
+    return urls
+
+
 def main(argv: list[str] | None = None) -> int:
     """Serve until interrupted; returns the exit code."""
     args = _parser().parse_args(argv)
@@ -114,18 +138,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.session_idle <= 0 or args.session_max <= 0:
         print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
         return 2
+    try:
+        rosbridge_urls = _rosbridge_urls(args.rosbridge)
+    except ValueError as exc:
+        print(f"caretaker serve: {exc}", file=sys.stderr)
+        return 2
+    if args.lease < 3:
+        print("caretaker serve: --lease must be at least 3 s (claims are renewed every second)", file=sys.stderr)
+        return 2
     tls = args.certfile is not None
     if not _loopback(args.address):
         log.warning("serving on %s%s: the web view is reachable beyond this machine", args.address, "" if tls else " WITHOUT TLS")
-    accounts = AccountStore(args.db)
-    if not accounts.accounts():
-        log.warning("no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
-                    args.db, args.db)
-    audit_log = AuditLog(args.db)
-    catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
-    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period), rosbridge_url=args.rosbridge)
-    sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
-    app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -137,6 +160,22 @@ def main(argv: list[str] | None = None) -> int:
     host, port = sock.getsockname()[:2]
     scheme = "https" if tls else "http"
     url = f"{scheme}://[{host}]:{port}" if family == socket.AF_INET6 else f"{scheme}://{host}:{port}"
+    try:
+        accounts = AccountStore(args.db)
+    except (AuditLogUnavailable, AuditSchemaError, OperationalError) as exc:
+        print(f"caretaker serve: {exc}", file=sys.stderr)
+        return 2
+    if not accounts.accounts():
+        log.warning("no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
+                    args.db, args.db)
+    audit_log = AuditLog(args.db)
+    catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
+    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period), accounts=accounts,
+                     console=args.console or f"console {socket.gethostname()}:{port}", lease=args.lease,
+                     rosbridge_urls=rosbridge_urls)
+    sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
+    board.feed.subscribe(sign_ins.notice)
+    app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
     config = uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio",
                             ssl_certfile=args.certfile, ssl_keyfile=args.keyfile)
     server = _Server(config, url)

@@ -6,10 +6,14 @@ header with every state-changing request: another site can make the browser send
 (SameSite aside), never read the token. Sessions end when idle for ``idle`` seconds (no request
 and no live connection: an open console stays signed in), ``absolute`` seconds after sign-in
 whatever happens, on sign-out, and as soon as the account's password changes or the account is
-removed (checked against the database every ``recheck`` seconds).
+removed: the ground database announces every change of an account to every console
+(:mod:`pride.ground.change_feed`, :meth:`SignIns.notice`), whose next check of that user's
+sessions (each request, and each second on an open connection) reads the account again; without
+an announcement, sessions are checked against the database every ``recheck`` seconds anyway.
 
-Sessions live in this server's memory: restarting the server signs everyone out, which is what a
-restarted ground station should do.
+Sessions live in this server's memory, per console: restarting the server signs everyone out,
+which is what a restarted ground station should do, and signing in at one console signs in there
+only. Accounts, and so the end of sessions, are shared through the database.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 
 from starlette.requests import HTTPConnection
 
+from pride.ground.change_feed import Notice
 from pride.web.accounts import Account, AccountStore
 from pride.web.sign_in_throttle import SignInThrottle
 
@@ -131,6 +136,15 @@ class SignIns:
                 session.account, session.checked = current, now  # a role change takes effect here
         session.last_used = now
         return session
+
+    def notice(self, notice: Notice) -> None:
+        """Change-feed subscriber: an account changed (or notices were missed): recheck its sessions at their next use."""
+        if notice.channel not in ("accounts", "resync"):
+            return
+        with self._lock:
+            for session in self._sessions.values():
+                if notice.channel == "resync" or session.account.user == notice.payload:
+                    session.checked = -math.inf
 
     def _end(self, token: str, message: str) -> None:
         self.sign_out(token)

@@ -15,7 +15,7 @@ function element(tag, className, text) {
   if (text !== undefined) node.textContent = text;
   return node;
 }
-const RUNS_REFRESH_MS = 5000;
+const RECONNECT_MS = 2000;
 
 const view = {
   me: null,            // {user, name, role, may_act, csrf}
@@ -31,7 +31,8 @@ const view = {
   lastImageSeq: null,
   followed: null,      // the instruction last scrolled to
   envsSeen: "",
-  runsTimer: null,
+  runsSocket: null,    // pushes the runs list whenever it changes (on any console)
+  runsTimer: null,     // reconnects it
 };
 
 // ---- server calls ----------------------------------------------------------------------------
@@ -70,11 +71,11 @@ async function loadSession() {
   $("sign-out").hidden = view.me === null;
   $("who").textContent = view.me ? `${view.me.user} (${view.me.role})` : "";
   document.body.dataset.role = view.me ? view.me.role : "";
-  clearInterval(view.runsTimer);
+  closeRunsSocket();
   if (view.me) {
     $("start-panel").hidden = !view.me.may_act;
     await Promise.all([loadCatalog(), loadRuns()]);
-    view.runsTimer = setInterval(() => loadRuns().catch(() => {}), RUNS_REFRESH_MS);
+    connectRuns();
     openRunFromHash();
   }
 }
@@ -82,7 +83,7 @@ async function loadSession() {
 function signedOut(message) {
   view.me = null;
   closeSocket();
-  clearInterval(view.runsTimer);
+  closeRunsSocket();
   $("main-view").hidden = true;
   $("sign-out").hidden = true;
   $("who").textContent = "";
@@ -123,19 +124,57 @@ async function loadCatalog() {
 
 const STATUS_WORDS = {active: "running", completed: "completed", stopped: "stopped", interrupted: "interrupted (no end recorded)"};
 
+function hostWords(run) {
+  if (run.host_lost) return ` · ${run.host_lost.host} went silent at ${new Date(run.host_lost.since).toLocaleTimeString()}`;
+  if (!run.host) return "";
+  return run.hosted_here ? " · on this console" : ` · on ${run.host}`;
+}
+
 async function loadRuns() {
   const {runs} = await api("GET", "/api/runs");
+  showRuns(runs);
+}
+
+// the runs list, pushed by the server whenever it changes on any console
+function connectRuns() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const socket = new WebSocket(`${scheme}://${location.host}/ws/runs`);
+  view.runsSocket = socket;
+  socket.addEventListener("message", (message) => {
+    const data = JSON.parse(message.data);
+    if (data.type === "runs") showRuns(data.runs);
+  });
+  socket.addEventListener("close", (event) => {
+    if (view.runsSocket !== socket) return;  // replaced on purpose
+    view.runsSocket = null;
+    if (event.code === 1008) {
+      if (view.me && /sign in|session/.test(event.reason)) signedOut(event.reason);
+      return;
+    }
+    view.runsTimer = setTimeout(() => { if (view.me) { loadRuns().catch(() => {}); connectRuns(); } }, RECONNECT_MS);
+  });
+}
+
+function closeRunsSocket() {
+  clearTimeout(view.runsTimer);
+  const socket = view.runsSocket;
+  view.runsSocket = null;
+  if (socket) socket.close();
+}
+
+function showRuns(runs) {
   $("run-list").replaceChildren(...runs.map((run) => {
     const item = element("li");
     item.dataset.runId = run.run_id;
     item.dataset.status = run.status;
+    item.dataset.host = run.host || "";
     item.classList.toggle("live", Boolean(run.live));
     item.classList.toggle("open", run.run_id === view.runId);
     const open = element("a", "", run.run_id);
     open.href = `#run=${encodeURIComponent(run.run_id)}`;
     const status = element("span", "run-status", STATUS_WORDS[run.status] || run.status);
     const meta = element("span", "meta", `${run.procedure} · ${new Date(run.started).toLocaleString()}` +
-      (run.live ? ` · ${run.mode}, started by ${run.started_by}` : ""));
+      (run.live ? ` · ${run.mode}, started by ${run.started_by}` : "") + hostWords(run));
     const report = element("a", "report-link", "report");
     report.href = `/runs/${encodeURIComponent(run.run_id)}/report`;
     report.target = "_blank";
@@ -227,11 +266,11 @@ function connect() {
     }
     if (event.code === 1008) {
       setConnection("closed", `closed: ${event.reason || "refused"}`);
-      if (/sign in|session/.test(event.reason)) signedOut(event.reason);
+      if (view.me && /sign in|session/.test(event.reason)) signedOut(event.reason);  // the first to learn it says why
       return;
     }
     setConnection("reconnecting", "connection lost; reconnecting…");
-    view.reconnectTimer = setTimeout(() => { if (view.runId === runId) openRun(runId); }, 2000);
+    view.reconnectTimer = setTimeout(() => { if (view.runId === runId) openRun(runId); }, RECONNECT_MS);
   });
 }
 
@@ -282,8 +321,12 @@ $("resume").addEventListener("click", () => {
   const dialog = $("resume-dialog");
   const runId = view.runId;
   $("resume-run").textContent = runId;
-  $("resume-warning").textContent = view.state && view.state.stopped ? "" :
-    "No stop is recorded: the runner died, or another console or terminal is still running this run. Resume only if none is.";
+  const lost = view.state && view.state.host_lost;
+  $("resume-warning").textContent = view.state && view.state.stopped ? "" : lost ?
+    `No stop is recorded: ${lost.host}, which ran it, stopped renewing its claim at ${new Date(lost.since).toLocaleTimeString()} ` +
+    "(it died or lost the database). Resuming here continues the run from its log." :
+    "No stop is recorded and no console hosts it: the runner died, or a terminal (caretaker run) is still running it. " +
+    "Resume only if none is.";
   dialog.returnValue = "";
   dialog.onclose = async () => {
     if (dialog.returnValue !== "resume") return;

@@ -270,6 +270,7 @@ function renderRun() {
   $("run-status").dataset.status = shownStatus;
   $("run-mode").textContent = state.mode || "";
   renderWatchers(state);
+  $("run-host").textContent = !state.live ? "" : state.hosted_here ? "hosted by this console" : `hosted by ${state.host}`;
   const live = Boolean(state.live) && state.status === "active";
   const mayAct = Boolean(view.me && view.me.may_act) && live;
   for (const id of ["mode-manual", "mode-autonomous"]) {
@@ -399,7 +400,10 @@ function renderHold(state) {
     const stopped = state.stopped;
     [tone, icon] = ["stopped", "■"];
     what = stopped ? "Run stopped" : "Run interrupted";
-    text = stopped ? `by ${stopped.by}${stopped.reason ? ": " + stopped.reason : ""}` : "its log ends without an end: the runner stopped";
+    const lost = state.host_lost;
+    text = stopped ? `by ${stopped.by}${stopped.reason ? ": " + stopped.reason : ""}` :
+      lost ? `${lost.host}, which ran it, went silent at ${new Date(lost.since).toLocaleTimeString()}` :
+      "its log ends without an end: the runner stopped";
     who = view.me && view.me.may_act ? "an operator may resume it" : "";
   } else if (state.hold && HOLDS[state.hold]) {
     const [holdTone, holdIcon, title, needed] = HOLDS[state.hold];
