@@ -32,3 +32,22 @@ def postgres() -> Iterator[PostgresServer]:
     """This session's PostgreSQL server, shared by every suite (started on first use, removed at the end)."""
     with postgres_server() as server:
         yield server
+
+
+@pytest.fixture(scope="session")
+def playwright() -> Iterator:
+    """One Playwright driver per session, for every suite (its sync API cannot run twice at once in a thread)."""
+    from playwright.sync_api import sync_playwright  # only sessions with browser tests load it
+
+    with sync_playwright() as driver:
+        yield driver
+
+
+@pytest.fixture(scope="session")
+def browser(playwright) -> Iterator:
+    """Debian's Chromium, headless."""
+    from support.browser import CHROMIUM, CHROMIUM_ARGS
+
+    launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
+    yield launched
+    launched.close()

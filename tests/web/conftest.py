@@ -11,16 +11,12 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from playwright.sync_api import Browser, Page, Playwright, expect, sync_playwright
+from playwright.sync_api import Browser, expect
 
 from operator_page import sign_in_on
+from support.browser import TIMEOUT_MS, signed_in_pages
 from web_server import WebServer, new_ground_database, procedure_shelf, start_server
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
-#: Generous: other suites share the two cores while these run.
-TIMEOUT_MS = 30_000
 expect.set_options(timeout=TIMEOUT_MS)
 
 
@@ -35,41 +31,12 @@ def server(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
     served.process.stop()
 
 
-@pytest.fixture(scope="session")
-def playwright() -> Iterator[Playwright]:
-    """One Playwright driver per session: its sync API cannot run twice at once in a thread."""
-    with sync_playwright() as driver:
-        yield driver
-
-
-@pytest.fixture(scope="session")
-def browser(playwright: Playwright) -> Iterator[Browser]:
-    launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-    yield launched
-    launched.close()
-
-
 @pytest.fixture
 def open_page(browser: Browser) -> Iterator:
     """``open_page(server, "alice")`` opens a fresh browser context on that server signed in as that
     user, with their password; script errors on any page fail the test."""
-    contexts = []
-    script_errors: list[str] = []
-
-    def open_as(on: WebServer, user: str) -> Page:
-        context = browser.new_context(viewport={"width": 1500, "height": 1000})
-        contexts.append(context)
-        page = context.new_page()
-        page.on("pageerror", lambda error: script_errors.append(f"{user}: {error}"))
-        page.set_default_timeout(TIMEOUT_MS)
-        page.goto(on.url)
-        sign_in_on(page, user)
-        return page
-
-    yield open_as
-    for context in contexts:
-        context.close()
-    assert not script_errors, "the page raised script errors:\n" + "\n".join(script_errors)
+    with signed_in_pages(browser, sign_in_on) as open_as:
+        yield lambda on, user: open_as(on.url, user)
 
 
 @pytest.fixture

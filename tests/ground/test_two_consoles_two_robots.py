@@ -1,0 +1,170 @@
+"""Issue 19's ground segment: two consoles, two robots, one PostgreSQL database, real browsers.
+
+Two ``caretaker up`` stacks side by side — the IVA robot in this session's ROS domain, the EVA
+arm in another, each with its own rosbridge port — and two ``caretaker serve`` processes on one
+PostgreSQL database (as the locked-down runner role), each given the rosbridge URL of each
+robot's binding and nothing about the other console. Console A runs the CDRA filter replacement
+and the EVA inspection at once, autonomously; operators on both consoles answer the holds
+through the page: an action taken in one console shows in the other (forwarded to the run's
+host, console A, through the database). Both runs complete; each run's log, telemetry and
+camera stay its own; a second run on a robot already controlled is refused.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack
+from dataclasses import dataclass
+
+import pytest
+from operator_page import IVA, audit_row, expect_ended, instruction, sign_in_on, start_run, stop_run
+from playwright.sync_api import Browser, Locator, Page, expect
+from web_server import REPO, WebServer, new_ground_database, start_server
+
+from pride.audit_log import AuditLog
+from support.browser import signed_in_pages
+from support.postgres import PostgresServer
+from support.processes import caretaker
+from support.ros_domain import claim_ros_domain
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+EVA = "eva_inspection.xml"
+#: An arm's motions at full simulation speed still take minutes on two loaded cores.
+MOTION_MS = 240_000
+
+
+@dataclass
+class Ground:
+    first: WebServer  # console A: hosts both runs
+    second: WebServer  # console B: follows them through the database
+
+
+@pytest.fixture(scope="module")
+def ground(
+    tmp_path_factory: pytest.TempPathFactory, postgres: PostgresServer, ros_env: dict[str, str]
+) -> Iterator[Ground]:
+    tmp = tmp_path_factory.mktemp("ground")
+    database = new_ground_database("postgresql", tmp, postgres)
+    robots = {"iva": ros_env, "eva": {**ros_env, "ROS_DOMAIN_ID": str(claim_ros_domain())}}  # one domain per robot
+    with ExitStack() as stack:
+        ups = {}
+        for name, env in robots.items():  # both come up at once
+            ups[name] = caretaker("up", name, "--time-scale", "0", "--bridge-port", "0", env=env, name=f"up-{name}")
+            stack.callback(ups[name].stop)
+        urls = [f"{name}.yaml={up.wait_for_line(r'^READY stack ', 240).split()[-1]}" for name, up in ups.items()]
+        consoles = []
+        for name in ("console A", "console B"):
+            console = start_server(tmp, REPO / "procedures", database=database, rosbridge=urls,
+                                   options=["--console", name])
+            stack.callback(console.process.stop)
+            consoles.append(console)
+        yield Ground(*consoles)
+
+
+@pytest.fixture
+def open_page(browser: Browser) -> Iterator[Callable[[WebServer, str], Page]]:
+    with signed_in_pages(browser, sign_in_on) as open_as:
+        yield lambda on, user: open_as(on.url, user)
+
+
+def follow(page: Page, console: WebServer, run_id: str) -> Page:
+    page.goto(f"{console.url}/#run={run_id}")
+    expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    return page
+
+
+def current(page: Page, number: str) -> Locator:
+    """The instruction, once it is the one the run holds at (PAX may take minutes of motion to get there)."""
+    found = instruction(page, number)
+    expect(found).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+    return found
+
+
+def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground: Ground, open_page) -> None:
+    first, second = ground.first, ground.second
+    alice_iva, alice_eva = open_page(first, "alice"), open_page(first, "alice")
+    iva_run = start_run(alice_iva, IVA, "autonomous", binding="iva.yaml")
+    eva_run = start_run(alice_eva, EVA, "autonomous", binding="eva.yaml")
+    bob_iva = follow(open_page(second, "bob"), second, iva_run)
+    bob_eva = follow(open_page(second, "bob"), second, eva_run)
+
+    # each console lists both runs live; console B shows them hosted by A
+    for page, here in ((alice_iva, "on this console"), (bob_iva, "on console A")):
+        for run_id in (iva_run, eva_run):
+            line = page.locator(f'#run-list li[data-run-id="{run_id}"]')
+            expect(line).to_have_attribute("data-status", "active")
+            expect(line.locator(".meta")).to_contain_text(here)
+    expect(bob_eva.locator("#run-host")).to_have_text("hosted by console A")
+    # telemetry read by console A's gateway of each robot, shown on B as A publishes it
+    expect(instruction(bob_iva, "1.1").locator(".telemetry")).to_contain_text("Affordance Template Server Active = true")
+    expect(instruction(bob_eva, "1.1").locator(".telemetry")).to_contain_text("Affordance Template Server Active = true")
+
+    # an operator on B pauses the EVA run, one on A continues it: each sees the other's action
+    bob_eva.click("#pause")
+    expect(alice_eva.locator('#audit li[data-kind="paused"][data-actor="bob"]')).to_have_count(1)
+    expect(alice_eva.locator("#continue")).to_be_enabled()
+    alice_eva.click("#continue")
+    expect(bob_eva.locator('#audit li[data-kind="continued"][data-actor="alice"]')).to_have_count(1)
+
+    # IVA: bob confirms the manual instruction from B; the run on A goes on
+    current(bob_iva, "2.6").locator("button.done").click()
+    expect(instruction(alice_iva, "2.6").locator(".mark")).to_contain_text("completed by bob")
+
+    # EVA: the four targets' assessments, answered alternately from A and from B
+    for target, page in zip(("2", "3", "4", "5"), (alice_eva, bob_eva, alice_eva, bob_eva), strict=True):
+        assessment = current(page, f"{target}.1/2.2")
+        assessment.locator("select.record-value").select_option("false")
+        assessment.locator("button.record").click()
+        actor = "alice" if page is alice_eva else "bob"
+        other = bob_eva if page is alice_eva else alice_eva
+        expect(audit_row(other, "operator_input", f"{target}.1/2.2", actor)).to_contain_text("damage = false")
+        if target == "2":  # the image the EVA arm took, from console A's disk, shown on B out of the database
+            expect(bob_eva.locator("#camera-caption")).to_contain_text(".png")
+            assert bob_eva.locator("#camera").evaluate("image => image.decode().then(() => image.naturalWidth)") > 0
+
+    # IVA: the clean filter's id recorded on A; meanwhile a second run on the IVA robot is refused
+    current(alice_iva, "4.1").locator("input.record-value").fill("CDRA-F-0012")
+    instruction(alice_iva, "4.1").locator("button.record").click()
+    expect(audit_row(bob_iva, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0012")
+    second_controller = second_run_on_the_same_robot(open_page(second, "bob"))
+    current(bob_iva, "5.1").locator("button.done").click()
+
+    for page in (alice_iva, bob_iva):
+        expect_ended_in(page, "completed")
+    for page in (alice_eva, bob_eva):
+        expect_ended_in(page, "completed")
+
+    # each run's record is its own: its robot's systems only, whole chains
+    log = AuditLog(first.database.url)
+    try:
+        for run_id, own, foreign in ((iva_run, "cdra", "camera"), (eva_run, "camera", "cdra")):
+            systems = {e.data.get("system") for e in log.events(run_id) if e.kind.value == "command_sent"}
+            assert own in systems and foreign not in systems, (run_id, systems)
+            assert log.verify(run_id).ok, log.verify(run_id).describe()
+    finally:
+        log.close()
+    # the IVA page never showed the EVA camera (the IVA binding has none)
+    expect(alice_iva.locator("#camera")).to_be_hidden()
+    assert "controlled by" in second_controller, f"a second run on the IVA robot was not refused: {second_controller!r}"
+
+
+def second_run_on_the_same_robot(page: Page) -> str:
+    """Try to start another IVA run (manual: it sends nothing by itself); the refusal, or what happened."""
+    page.select_option("#start-procedure", IVA)
+    page.select_option("#start-binding", "iva.yaml")
+    page.check("#start-form input[name=mode][value=manual]")
+    page.click("#start-button")
+    page.wait_for_function("() => document.getElementById('start-error').textContent || location.hash.includes('run=')")
+    refusal = page.locator("#start-error").inner_text()
+    if "run=" in page.evaluate("location.hash"):  # it started: stop it before it could do anything
+        expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+        stop_run(page, "a second controller of the IVA robot must not exist")
+        return "started as a second controller"
+    return refusal
+
+
+def expect_ended_in(page: Page, status: str) -> None:
+    expect(page.locator("#run-status")).to_have_text(status, timeout=MOTION_MS)
+    expect_ended(page, status)
