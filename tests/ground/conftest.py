@@ -7,8 +7,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "web"))  # operator_page, web_server
 
-from playwright.sync_api import expect  # noqa: E402
+from playwright.sync_api import expect
 
-from support.browser import TIMEOUT_MS  # noqa: E402
+from support.browser import TIMEOUT_MS
 
 expect.set_options(timeout=TIMEOUT_MS)

@@ -98,8 +98,9 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground:
             expect(line.locator(".meta")).to_contain_text(here)
     expect(bob_eva.locator("#run-host")).to_have_text("hosted by console A")
     # telemetry read by console A's gateway of each robot, shown on B as A publishes it
-    expect(instruction(bob_iva, "1.1").locator(".telemetry")).to_contain_text("Affordance Template Server Active = true")
-    expect(instruction(bob_eva, "1.1").locator(".telemetry")).to_contain_text("Affordance Template Server Active = true")
+    for page in (bob_iva, bob_eva):
+        telemetry = instruction(page, "1.1").locator(".telemetry")
+        expect(telemetry).to_contain_text("Affordance Template Server Active = true")
 
     # an operator on B pauses the EVA run, one on A continues it: each sees the other's action
     bob_eva.click("#pause")
