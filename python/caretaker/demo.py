@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import secrets
 import sys
 import threading
 import time
@@ -24,11 +25,15 @@ from caretaker.deployment import DemoRun, Deployment, load_deployment
 from caretaker.processes import REPO, ProcessFailed, caretaker
 from caretaker.stack import Stack, StackFailed, stack_options
 from datafile import DataFileError
+from pride.web.accounts import AccountStore
 from sim.scene import load_scene
 
-__all__ = ["EndStateError", "WORLD_CHECKS", "demo_main", "eva_end_state", "iva_end_state", "run_demo"]
+__all__ = ["DEMO_USER", "EndStateError", "WORLD_CHECKS", "demo_main", "demo_operator", "eva_end_state", "iva_end_state",
+           "run_demo"]
 
 DEFAULT_DB = f"sqlite:///{REPO / 'var' / 'caretaker.db'}"
+#: The operator account ``--serve`` signs in with (an account of the demo's database like any other).
+DEMO_USER = "demo"
 #: How far a filter may sit from its slot frame and still count as seated (m).
 SEATED_TOLERANCE = 0.03
 
@@ -160,11 +165,29 @@ def _run_procedure(demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, s
     return result.get("run"), result.get("status", f"runner exited with {runner.proc.returncode}")
 
 
+def demo_operator(db_url: str) -> str:
+    """Give the demo operator account (:data:`DEMO_USER`) a new random password, creating the account
+    if needed; returns the password, which is shown once and stored only as its hash."""
+    password = secrets.token_urlsafe(12)
+    store = AccountStore(db_url)
+    try:
+        if store.get(DEMO_USER) is None:
+            store.add(DEMO_USER, "operator", password, name="Demo operator")
+        else:
+            store.set_password(DEMO_USER, password)
+    finally:
+        store.close()
+    return password
+
+
 def _serve(db_url: str, env: dict[str, str]) -> None:
-    """Leave the web view running on the demo's audit log until Ctrl-C."""
+    """Leave the web view running on the demo's audit log until Ctrl-C, with an operator who can sign in."""
+    password = demo_operator(db_url)
     web = caretaker("serve", "--db", db_url, env=env, name="serve")
     try:
         print(web.wait_ready(60), "— Ctrl-C to stop", flush=True)
+        print(f"  sign in as {DEMO_USER} with the password {password}  (shown once: each demo --serve sets a new one)",
+              flush=True)
         web.proc.wait()
     except KeyboardInterrupt:
         pass
@@ -229,7 +252,9 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
 def demo_main(argv: list[str] | None = None) -> int:
     """``caretaker demo DEPLOYMENT``: bring the stack up, run its procedure autonomously, report."""
     parser = stack_options("caretaker demo")
-    parser.add_argument("--serve", action="store_true", help="leave the web view running after the procedure")
+    parser.add_argument("--serve", action="store_true",
+                        help=f"leave the web view running after the procedure; sign in as {DEMO_USER} with the password "
+                             "it prints (a new one each time)")
     parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
     parser.add_argument("--reports", default=None, metavar="DIR", help="where the report goes (default: var/reports)")
     parser.set_defaults(time_scale=0.0)

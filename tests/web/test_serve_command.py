@@ -23,6 +23,7 @@ import websockets
 from websockets.sync.client import connect
 
 from pride.web.accounts import AccountStore, Role
+from caretaker.demo import DEMO_USER, demo_operator
 from pride.web.server import main
 from support.processes import caretaker
 from web_server import PEOPLE, REPO
@@ -220,3 +221,17 @@ def test_with_a_certificate_the_view_is_served_over_tls_with_secure_cookies(tmp_
             urllib.request.urlopen(url.replace("https://", "http://") + "/api/session", timeout=30)
     finally:
         served.stop()
+
+
+def test_demo_serve_gives_its_operator_a_new_password_each_time(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'demo.db'}"  # a fresh database: nobody could sign in to the web view
+    first = demo_operator(db)
+    second = demo_operator(db)  # the next demo --serve on the same database
+    store = AccountStore(db)
+    try:
+        account = store.verify(DEMO_USER, second)
+        assert account is not None and account.may_act
+        assert first != second and store.verify(DEMO_USER, first) is None
+        assert [a.user for a in store.accounts()] == [DEMO_USER]
+    finally:
+        store.close()
