@@ -21,7 +21,13 @@ import pytest
 from playwright.sync_api import Locator, Page, expect
 
 from operator_page import audit_row, expect_ended, instruction, start_run
-from web_server import PEOPLE, WebServer, new_ground_database, procedure_shelf, start_server
+from pride.audit_log import AuditLog
+from pride.executive import Executive, Mode
+from pride.lint import check_procedure
+from pride.sysrep import load_sysrep_dir
+from pride.web.terminal_host import HostedElsewhere, TerminalHost
+from simulated_systems import open_simulated_systems
+from web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 
 WALKTHROUGH = "web_walkthrough.xml"
 #: Short, so that a dead console's runs show interrupted soon (the default is 10 s).
@@ -119,3 +125,35 @@ def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_r
     bob.click("#stop-yes")
     expect_ended(bob, "stopped")
     expect(bob.locator('#audit li[data-kind="run_resumed"][data-actor="bob"]')).to_have_count(1)
+
+
+def test_a_run_driven_outside_a_console_is_live_on_the_consoles_and_acted_on_from_them(consoles, open_page) -> None:
+    """What `caretaker run` does with a TerminalHost: this test process is the runner."""
+    first, _ = consoles
+    audit = AuditLog(first.database.url)
+    gateway = open_simulated_systems(str(REPO / "sysrep" / "bindings" / "iva.yaml"))
+    host = TerminalHost(audit, binding="iva.yaml", name="runner at the bench")
+    try:
+        checked = check_procedure(first.procedures / WALKTHROUGH, load_sysrep_dir(REPO / "sysrep"))
+        executive = Executive(checked, gateway, audit, run_id="walkthrough-at-the-terminal", mode=Mode.MANUAL)
+        host.host(executive, gateway, checked, started_by="dave")
+        executive.start("dave")
+
+        bob = open_page(first, "bob")
+        bob.goto(f"{first.url}/#run={executive.run_id}")
+        expect(bob.locator("#run-host")).to_have_text("hosted by runner at the bench")
+        instruction(bob, "1.1").locator("button.perform").click()  # forwarded to this process's executive
+        expect(instruction(bob, "1.1").locator(".mark")).to_contain_text("completed by bob")
+        assert executive.snapshot().statuses["1.1"].value == "completed"
+        other = TerminalHost(audit, binding="iva.yaml")
+        try:
+            with pytest.raises(HostedElsewhere, match="runner at the bench"):  # nobody else may resume it meanwhile
+                other.check_free(executive.run_id)
+        finally:
+            other.close()
+        executive.stop("dave", "done at the bench")
+        expect_ended(bob, "stopped")
+    finally:
+        host.close()
+        gateway.close()
+        audit.close()

@@ -1,6 +1,7 @@
 """Operator actions from the page, sent to the executive under the signed-in user's id.
 
-This is the only place the web view changes a run. Each action is one executive method; the
+This is the only place the web view changes a run, whether the action comes from this console's
+page or is forwarded from another console to the run's host (:func:`perform_forwarded`). Each action is one executive method; the
 executive records it in the audit log with the user id and refuses what does not apply now
 (:class:`~pride.executive.OperatorActionError`). The role check happens here, on the server,
 before anything reaches the executive: an observer's request is refused whatever the page shows.
@@ -13,9 +14,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from pride.executive import Executive, Mode, OperatorActionError
-from pride.web.accounts import Account
+from pride.ground.action_requests import Answer, ForwardedAction
+from pride.web.accounts import Account, AccountStore
 
-__all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action"]
+__all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perform_forwarded"]
 
 
 class ActionRefused(Exception):
@@ -109,3 +111,19 @@ def perform_action(executive: Executive, account: Account, request: ActionReques
         return action(executive, account.user, request)
     except OperatorActionError as exc:
         raise ActionRefused(409, str(exc)) from None
+
+
+def perform_forwarded(executive: Executive | None, accounts: AccountStore, request: ForwardedAction, host: str) -> Answer:
+    """An action another console forwarded to the run's host (``host``, this process): performed as its
+    operator, whose account and role are checked here against the database, whatever the other console did."""
+    if executive is None:
+        return Answer(404, {"error": f"run {request.run_id} is no longer live on {host}"})
+    account = accounts.get(request.user)
+    if account is None:
+        return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
+    try:
+        action = ActionRequest.from_json(request.action)
+        result = perform_action(executive, account, action)
+    except ActionRefused as exc:
+        return Answer(exc.status, {"error": exc.message})
+    return Answer(200, {"ok": True, "action": action.action, "result": result})

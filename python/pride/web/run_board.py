@@ -41,7 +41,7 @@ from pride.lint import CheckedProcedure, check_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
 from pride.web.accounts import Account, AccountStore
-from pride.web.actions import ActionRefused, ActionRequest, perform_action
+from pride.web.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
 from pride.web.camera_feed import CameraFeed
 from pride.web.live_run import LiveRun
 from pride.web.remote_run import RemoteRun
@@ -320,19 +320,8 @@ class RunBoard:
         return answer.body.get("result")
 
     def _perform_forwarded(self, request: ForwardedAction) -> Answer:
-        """An action forwarded from another console: performed here as its operator, whose role is checked here too."""
         live = self.live(request.run_id)
-        if live is None:
-            return Answer(404, {"error": f"run {request.run_id} is no longer live on {self.hosting.host}"})
-        account = self.accounts.get(request.user)
-        if account is None:
-            return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
-        try:
-            action = ActionRequest.from_json(request.action)
-            result = perform_action(live.executive, account, action)
-        except ActionRefused as exc:
-            return Answer(exc.status, {"error": exc.message})
-        return Answer(200, {"ok": True, "action": action.action, "result": result})
+        return perform_forwarded(live.executive if live else None, self.accounts, request, self.hosting.host)
 
     def _notice(self, notice: Notice) -> None:
         """Change-feed subscriber (its thread): mark what changed and wake who shows it."""
