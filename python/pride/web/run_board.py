@@ -146,13 +146,15 @@ class RunBoard:
         run_id = f"{checked.procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         try:
             executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode)
-        except BaseException:
+        except BaseException as exc:
             gateway.close()
+            if isinstance(exc, OperatorActionError):  # e.g. the robot is controlled by another run
+                raise ActionRefused(409, f"{procedure_name} not started: {exc}") from None
             raise
         live = self._hold(executive, gateway, checked, binding_name, user)
         try:
             executive.start(user)
-        except OperatorActionError as exc:  # e.g. the robot is controlled by another run
+        except OperatorActionError as exc:
             self._drop(live)
             raise ActionRefused(409, f"{procedure_name} not started: {exc}") from None
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
