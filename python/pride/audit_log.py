@@ -29,6 +29,7 @@ import fcntl
 import json
 import logging
 import os
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -37,9 +38,9 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import create_engine, event, insert, make_url, select
+from sqlalchemy import create_engine, event, insert, make_url, select, text
 from sqlalchemy.engine import Connection, Engine
-from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError
+from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError, SQLAlchemyError
 from sqlalchemy.pool import StaticPool
 
 from pride.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
@@ -129,6 +130,7 @@ class AuditLog:
         self._availability = Availability(True)
         self._listeners: list[AvailabilityListener] = []
         self._closed = threading.Event()
+        self._announcer = _Announcer(self._engine) if self._engine.dialect.name == "postgresql" else None
 
     @property
     def engine(self) -> Engine:
@@ -198,6 +200,8 @@ class AuditLog:
                     self._closed.wait(min(delay, self.outage_budget - (now - first_failure)))
                     delay = min(delay * 2, _LONGEST_RETRY)
             self._heads[record.run_id] = (row.seq, row.hash)
+        if self._announcer is not None:
+            self._announcer.announce(f"{record.seq} {record.kind.value} {record.run_id}")
         if not self._availability.available:
             self._set_availability(Availability(True))
 
@@ -255,6 +259,8 @@ class AuditLog:
     def close(self) -> None:
         """Release the connections; an append still waiting for the database gives up."""
         self._closed.set()
+        if self._announcer is not None:
+            self._announcer.close()
         self._engine.dispose()
         self._writers.close()
 
@@ -313,6 +319,52 @@ class _DriverInsert:
             raise DBAPIError.instance(self._sql, parameters, exc, self._dbapi.Error) from exc
         finally:
             connection.close()
+
+
+class _Announcer:
+    """NOTIFY ``caretaker_events`` of committed appends, for the consoles (:mod:`pride.ground.change_feed`).
+
+    Not in the append's own transaction (a trigger): PostgreSQL holds a database-wide lock from a
+    notifying transaction's commit to its end, fsync included, so with four runners appending flat
+    out their commits went one at a time (p95 15 ms against 4 ms; docs/benchmarks.md). Here the
+    notices of a burst go out together, from a thread of their own, once the events are durable.
+    A notice lost (the database went away, the process died) costs a console at most its periodic
+    re-read of the run.
+    """
+
+    _SQL = text("SELECT pg_notify('caretaker_events', :payload)")
+
+    def __init__(self, engine: Engine) -> None:
+        self._engine = engine
+        self._queue: queue.SimpleQueue[str | None] = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._run, name="audit-announcer", daemon=True)
+        self._thread.start()
+
+    def announce(self, payload: str) -> None:
+        self._queue.put(payload)
+
+    def close(self) -> None:
+        self._queue.put(None)
+        self._thread.join(5)
+
+    def _run(self) -> None:
+        failing = False
+        while True:
+            batch = [self._queue.get()]
+            while not self._queue.empty() and batch[-1] is not None:
+                batch.append(self._queue.get())
+            payloads = [{"payload": payload} for payload in batch if payload is not None]
+            if payloads:
+                try:
+                    with self._engine.begin() as connection:
+                        connection.execute(self._SQL, payloads)
+                    failing = False
+                except SQLAlchemyError as exc:
+                    if not failing:
+                        log.warning("cannot announce new events to the consoles: %s", _error_text(exc))
+                    failing = True
+            if batch[-1] is None:
+                return
 
 
 class _WriterQueue:

@@ -3,12 +3,13 @@
 A console must learn within a second that another process appended to a run, started, ended or
 took over hosting a run, asked it to act, or changed an account. Notices name what changed; the
 subscriber reads the rest from the tables (a notice is a wake-up, never the data). Channels and
-payloads (the triggers of revision 0004 of :mod:`pride.migrations` write them):
+payloads (the appending :class:`~pride.audit_log.AuditLog` announces events after its commit;
+the triggers of revision 0004 of :mod:`pride.migrations` announce the rest):
 
 =========== ================================= =================================================
 channel     payload                           when
 =========== ================================= =================================================
-events      ``<seq> <kind> <run id>``         an audit record was inserted
+events      ``<seq> <kind> <run id>``         an audit record was appended
 hosts       ``<run id>``                      a run's host row was created, removed, taken over
                                               or its published view changed
 actions     ``<state> <request id> <host>``   an action request was made or changed state

@@ -8,9 +8,10 @@
   ``run_camera_frames``: the newest camera image of each hosted run.
 - ``run_action_requests`` (:mod:`pride.ground.action_requests`): an operator action on a run
   hosted elsewhere, and its answer.
-- PostgreSQL: triggers NOTIFY the consoles (:mod:`pride.ground.change_feed`) of new events,
-  changed hosts, requests and answers, and changed accounts; the runner role may read accounts
-  and read and write the three tables.
+- PostgreSQL: triggers NOTIFY the consoles (:mod:`pride.ground.change_feed`) of changed hosts,
+  requests and answers, and changed accounts (new events are announced by the appending process,
+  after its commit: :class:`pride.audit_log.AuditLog`); the runner role may read accounts and read
+  and write the three tables.
 
 Revision ID: 0004
 Revises: 0002
@@ -40,13 +41,6 @@ _GRANTS = {
 
 #: (trigger, table, timing and condition, channel, payload expression): what each NOTIFY says
 _NOTICES = [
-    (
-        "audit_records_notify",
-        "audit_records",
-        "AFTER INSERT",
-        "caretaker_events",
-        "NEW.seq || ' ' || NEW.kind || ' ' || NEW.run_id",
-    ),
     (
         "run_hosts_notify_change",
         "run_hosts",
