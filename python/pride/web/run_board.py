@@ -38,6 +38,7 @@ from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from pride.ground.change_feed import Notice, open_change_feed
 from pride.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
+from pride.robot_control import RobotControl
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
 from pride.web.accounts import Account, AccountStore
@@ -119,6 +120,7 @@ class RunBoard:
     ) -> None:
         self.catalog = catalog
         self.audit_log = audit_log
+        self.control = RobotControl(audit_log.url)  # one controlling run per robot, across consoles
         self.camera = camera
         self.accounts = accounts
         self.rosbridge_urls = dict(rosbridge_urls or {})
@@ -145,7 +147,7 @@ class RunBoard:
         checked, gateway = self._open(procedure_name, binding_name)
         run_id = f"{checked.procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         try:
-            executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode)
+            executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode, control=self.control)
         except BaseException as exc:
             gateway.close()
             if isinstance(exc, OperatorActionError):  # e.g. the robot is controlled by another run
@@ -175,7 +177,7 @@ class RunBoard:
         procedure_name = Path(str(events[0].data.get("path", ""))).name
         checked, gateway = self._open(procedure_name, binding_name)
         try:
-            executive = Executive.resume(checked, gateway, self.audit_log, events, user, mode=mode)
+            executive = Executive.resume(checked, gateway, self.audit_log, events, user, mode=mode, control=self.control)
         except (OperatorActionError, ValueError) as exc:
             gateway.close()
             raise ActionRefused(409, f"run {run_id} cannot be resumed: {exc}") from None
@@ -419,6 +421,7 @@ class RunBoard:
         self.feed.close()
         self.forwarding.close()
         self.hosting.close()
+        self.control.close()
 
 
 def _release(live: LiveRun) -> None:

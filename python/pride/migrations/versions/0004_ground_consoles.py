@@ -25,7 +25,7 @@ from alembic import op
 from pride.audit_schema import RUNNER_ROLE
 
 revision = "0004"
-down_revision = "0002"
+down_revision = "0003"
 branch_labels = None
 depends_on = None
 
