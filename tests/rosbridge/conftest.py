@@ -28,7 +28,8 @@ def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
 @pytest.fixture(scope="package")
 def bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[str, int]]:
     """A bridge on a free port, shared by all rosbridge tests (each uses its own names): (host, port)."""
-    process = caretaker("bridge", "--port", "0", "--service-timeout", "5", env=ros_env)
+    process = caretaker("bridge", "--port", "0", "--service-timeout", "5", "--set-params-glob", "/bridge_test_peer:*",
+                        env=ros_env)
     try:
         process.wait_ready(60)
         url = bridge_url(process)
