@@ -9,6 +9,7 @@ from typing import Callable
 import pytest
 import roslibpy
 
+from .hostile import BridgeLog, Watch
 from .rosbridge_support import bridge_url, wait_until_discovered
 from support.processes import ManagedProcess, caretaker, python
 
@@ -54,3 +55,39 @@ def connect(bridge: tuple[str, int]) -> Iterator[Callable[[], roslibpy.Ros]]:
     yield open_client
     for client in clients:
         client.close()
+
+
+HOSTILE_LIMITS = ("--max-connections", "16", "--max-subscriptions", "20", "--max-total-subscriptions", "60",
+                  "--max-advertisements", "10", "--max-total-advertisements", "40", "--max-calls", "8",
+                  "--max-total-calls", "32", "--max-goals", "4", "--max-total-goals", "8",
+                  "--max-message-size", "1000000", "--max-pending-fragments", "4",
+                  "--max-total-fragment-bytes", "4000000", "--max-queued-bytes", str(4 * 2**20),
+                  "--max-total-queued-bytes", str(16 * 2**20), "--read-pause-bytes", str(256 * 1024))
+
+
+@pytest.fixture(scope="package")
+def hostile_bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[ManagedProcess, BridgeLog, tuple[str, int]]]:
+    """A bridge with small quotas for the fuzz tests, its log counted: (process, log, address)."""
+    bridge_log = BridgeLog()
+    process = caretaker("bridge", "--port", "0", "--service-timeout", "1", *HOSTILE_LIMITS, env=ros_env,
+                        on_line=bridge_log)
+    try:
+        process.wait_ready(60)
+        host, port = bridge_url(process).split("//")[1].rsplit(":", 1)
+        wait_until_discovered(host, int(port), "/peer/echo_in", "/peer/set_bool", "/bridge_test_peer")
+        yield process, bridge_log, (host, int(port))
+    finally:
+        process.stop()
+
+
+@pytest.fixture
+def watch(hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]]) -> Iterator[Watch]:
+    """A well-formed client calling the hostile bridge while the test attacks it; afterwards the
+    call's worst latency, the RSS growth and the tracebacks logged are checked."""
+    process, bridge_log, address = hostile_bridge
+    tracebacks_before = bridge_log.snapshot()[1]
+    with Watch(process.proc.pid, address) as watching:
+        yield watching
+    watching.check()
+    assert bridge_log.snapshot()[1] == tracebacks_before, f"the bridge logged a traceback:\n{process.tail()}"
+    assert process.running

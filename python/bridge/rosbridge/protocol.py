@@ -156,8 +156,9 @@ def encodable(text: str) -> str:
 def client_text(text: str, limit: int = MAX_TEXT) -> str:
     """A reason or log text safe to send or log: encodable, at most ``limit`` characters, and
     without source paths (rcl's errors name C files and lines, Python's module files)."""
-    text = _SOURCE_PATH.sub("<source>", encodable(text))
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+    if len(text) > limit:  # first: the path pattern is quadratic in the length it scans
+        text = text[:limit - 3] + "..."
+    return _SOURCE_PATH.sub("<source>", encodable(text))
 
 
 def describe(value: Any) -> str:

@@ -85,7 +85,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error("--certfile and --keyfile go together")
     if not _loopback(args.address) and not args.insecure:
         missing = [what for what, given in (("TLS (--certfile/--keyfile)", args.certfile),
-                                            (f"a secret (--auth-secret-file or {AUTH_SECRET_ENV})",
+                                            (f"secret (--auth-secret-file or {AUTH_SECRET_ENV})",
                                              args.auth_secret_file or os.environ.get(AUTH_SECRET_ENV)))
                    if not given]
         if missing:

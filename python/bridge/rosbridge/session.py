@@ -141,7 +141,8 @@ class Session:
                  budget: OutputBudget | None = None) -> None:
         self.number = next(_session_numbers)
         self.websocket = websocket
-        self.peer = str(getattr(websocket, "remote_address", "?"))
+        address = getattr(websocket, "remote_address", None)
+        self.peer = f"{address[0]}:{address[1]}" if isinstance(address, tuple) else "?"
         self.state = SessionState.OPEN if authenticated else SessionState.AUTHENTICATING
         self.limits = limits or Limits()
         self.budget = budget or OutputBudget(self.limits.max_total_queued_bytes)
@@ -149,7 +150,7 @@ class Session:
         self.status_level: str | None = None
         """What ``set_level`` asked for; None until it was sent (then only refusals are reported)."""
         self.fragment_size: int | None = None
-        self.traffic = Traffic()
+        self.traffic: Traffic = getattr(websocket, "traffic", None) or Traffic()  # the connection counts bytes
         self.log = ClientLog(f"client {self.number}")
         self.queued = 0
         """Bytes in this session's queues (not yet handed to the socket)."""
