@@ -9,7 +9,7 @@ from typing import Callable
 import pytest
 import roslibpy
 
-from .hostile import BridgeLog, Watch
+from .hostile import HOSTILE_LIMITS, BridgeLog, Watch
 from .rosbridge_support import bridge_url, wait_until_discovered
 from support.processes import ManagedProcess, caretaker, python
 
@@ -55,14 +55,6 @@ def connect(bridge: tuple[str, int]) -> Iterator[Callable[[], roslibpy.Ros]]:
     yield open_client
     for client in clients:
         client.close()
-
-
-HOSTILE_LIMITS = ("--max-connections", "16", "--max-subscriptions", "20", "--max-total-subscriptions", "60",
-                  "--max-advertisements", "10", "--max-total-advertisements", "40", "--max-calls", "8",
-                  "--max-total-calls", "32", "--max-goals", "4", "--max-total-goals", "8",
-                  "--max-message-size", "1000000", "--max-pending-fragments", "4",
-                  "--max-total-fragment-bytes", "4000000", "--max-queued-bytes", str(4 * 2**20),
-                  "--max-total-queued-bytes", str(16 * 2**20), "--read-pause-bytes", str(256 * 1024))
 
 
 @pytest.fixture(scope="package")

@@ -27,6 +27,13 @@ import psutil
 from .rosbridge_support import BINARY, CLOSE, CONTINUATION, PING, PONG, TEXT, RawClient, frame
 
 MiB = 2**20
+HOSTILE_LIMITS = ("--max-connections", "16", "--max-subscriptions", "20", "--max-total-subscriptions", "60",
+                  "--max-advertisements", "10", "--max-total-advertisements", "40", "--max-calls", "8",
+                  "--max-total-calls", "32", "--max-goals", "4", "--max-total-goals", "8",
+                  "--max-message-size", "1000000", "--max-pending-fragments", "4",
+                  "--max-total-fragment-bytes", "4000000", "--max-queued-bytes", str(4 * MiB),
+                  "--max-total-queued-bytes", str(16 * MiB), "--read-pause-bytes", str(256 * 1024))
+"""Small quotas, so the attacks reach them quickly (the bridge under fuzzing runs with these)."""
 LATENCY_BOUND_S = 2.0
 """A generous sanity bound for a well-formed call during an attack (not a performance claim)."""
 RSS_GROWTH_BOUND = 200 * MiB
@@ -42,6 +49,9 @@ class BridgeLog:
     lines: int = 0
     tracebacks: int = 0
     forbidden: list[str] = field(default_factory=list)
+    first_traceback: list[str] = field(default_factory=list)
+    """The lines around the first traceback (the line before it and up to 40 after)."""
+    _previous: str = ""
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
     def __call__(self, name: str, line: str) -> None:
@@ -49,8 +59,13 @@ class BridgeLog:
             self.lines += 1
             if "Traceback (most recent call last)" in line:
                 self.tracebacks += 1
+                if not self.first_traceback:
+                    self.first_traceback.append(self._previous)
+            if self.first_traceback and len(self.first_traceback) < 42:
+                self.first_traceback.append(line)
             if ZEN in line:
                 self.forbidden.append(line)
+            self._previous = line
 
     def snapshot(self) -> tuple[int, int]:
         with self._lock:

@@ -351,3 +351,23 @@ def test_bytes_each_way_are_counted_per_connection(watch, client: RawClient) -> 
     assert values["bytes_sent"] > 0 and values["connected_s"] >= 0
     second = client.request({"op": "call_service", "service": "/rosbridge/connection_stats"}, "service_response")
     assert second["values"]["bytes_sent"] >= values["bytes_sent"] + len(json.dumps(first, separators=(",", ":"))) - 10
+
+
+def test_a_request_its_serving_client_fails_or_abandons_logs_no_traceback(watch, address) -> None:
+    server, caller = RawClient(*address), RawClient(*address)
+    try:
+        server.send({"op": "advertise_service", "service": "/hostile/served", "type": "std_srvs/Trigger"})
+        for attempt in range(100):  # the service appears on the graph asynchronously
+            caller.send({"op": "call_service", "service": "/hostile/served", "id": f"try {attempt}", "timeout": 1})
+            try:
+                request = server.receive_op("call_service", timeout=0.3)
+                break
+            except TimeoutError:
+                assert caller.receive_op("service_response")["result"] is False
+        server.send({"op": "service_response", "service": "/hostile/served", "id": request["id"], "result": False})
+        assert caller.receive_op("service_response")["values"] == "Timeout exceeded while waiting for service response"
+        caller.send({"op": "call_service", "service": "/hostile/served", "id": "abandoned", "timeout": 1})
+        server.receive_op("call_service")
+    finally:
+        server.close()  # leaves the second request pending: withdrawn with the service
+        caller.close()

@@ -79,6 +79,12 @@ class CountedTransport:
         self._traffic.bytes_sent += sum(map(len, listed))
         self._transport.writelines(listed)
 
+    def is_closing(self) -> bool:  # the hot path's calls, spelled out to skip __getattr__
+        return self._transport.is_closing()
+
+    def get_write_buffer_size(self) -> int:
+        return self._transport.get_write_buffer_size()
+
     def pause_reading(self) -> None:
         self.hold(HOLD_WEBSOCKETS, True)
 

@@ -105,6 +105,11 @@ class ServiceTimeout(BridgeError):
     """The service server did not answer within the call's timeout."""
 
 
+class ServiceUnanswered(BridgeError):
+    """A request to a client-served service ends without an answer: the ROS caller gets none
+    (a ROS service cannot report failure) and its own timeout tells it."""
+
+
 class ActionFailed(BridgeError):
     """An action goal was rejected, or its server went away."""
 
@@ -146,6 +151,8 @@ def echo(value: Any) -> str | int | None:
 
 def encodable(text: str) -> str:
     """``text`` with anything UTF-8 cannot carry (lone surrogates) replaced by its escape."""
+    if text.isascii():
+        return text
     try:
         text.encode("utf-8")
         return text

@@ -275,6 +275,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # websockets logs every connection opened, closed or rejected; the bridge's own lines say the
+    # same, rate-limited per client address
+    logging.getLogger("websockets").setLevel(max(logging.WARNING, logging.getLogger().level))
     use_dds_profile()
     try:
         with asyncio.Runner(loop_factory=uvloop.new_event_loop) as runner:

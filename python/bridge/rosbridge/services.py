@@ -32,7 +32,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
 from .limits import Quotas
-from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, echo, ServiceTimeout, ServiceUnavailable,
+from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, echo, ServiceTimeout, ServiceUnanswered,
+                       ServiceUnavailable,
                        TypeConflict)
 from .ros_thread import RosThread
 from .security import Policy
@@ -268,8 +269,9 @@ class Services:
         try:
             return await future
         except Exception:
-            log.error("request %s of %s not answered: %s", request_id, provided.name, future.exception())
-            raise
+            text = f"request {request_id} of {provided.name} not answered: {future.exception()}"
+            self.ros.deliver(provided.session.log, logging.WARNING, text)
+            raise ServiceUnanswered(text) from None
 
     def _withdraw(self, provided: ProvidedService, reason: str) -> None:
         if self.provided.get(provided.name) is provided:
