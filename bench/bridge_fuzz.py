@@ -26,7 +26,6 @@ Usage: ``.venv/bin/python bench/bridge_fuzz.py [--inputs 100000] [--seed 20] [--
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import random
 import socket
@@ -40,13 +39,12 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
 from caretaker.processes import ManagedProcess, caretaker, python  # noqa: E402
-from rosbridge.hostile import (CLOSING, HOSTILE_LIMITS, PROTOCOL_ERROR, BridgeLog, Watch,  # noqa: E402
-                               hostile_frame, hostile_message)
+from rosbridge.hostile import (HOSTILE_LIMITS, BridgeLog, Watch, await_answers, hostile_frame,  # noqa: E402
+                               hostile_message, parses, serve_raw_frames)
 from rosbridge.rosbridge_support import PING, FrameSocket, RawClient, bridge_url, frame, text  # noqa: E402
 from support.ros_domain import claim_ros_domain  # noqa: E402
 
 MiB = 2**20
-PROTOCOL_CODES = {1002, 1007, 1009}
 
 
 @dataclass
@@ -68,14 +66,6 @@ class Tally:
                 setattr(self, name, getattr(self, name) + value)
 
 
-def parses(message: str) -> bool:
-    try:
-        json.loads(message)
-        return True
-    except (ValueError, RecursionError):
-        return False
-
-
 def messages(rng: random.Random, address: tuple[str, int], tally: Tally, count: int) -> None:
     """Mutated messages on one connection, batch by batch, each tracked request awaited."""
     client = RawClient(*address, max_size=None)
@@ -95,33 +85,10 @@ def messages(rng: random.Random, address: tuple[str, int], tally: Tally, count: 
                     message = hostile_message(rng)
                 client.send(message)
                 sent += 1
-            tally.add(tracked=len(wanted))
-            answered = await_answers(client, wanted)
-            tally.add(answered=answered)
+            tally.add(tracked=len(wanted), answered=len(wanted) - len(await_answers(client, wanted)))
         tally.add(inputs=sent)
     finally:
         client.close()
-
-
-def await_answers(client: RawClient, wanted: set[str]) -> int:
-    """How many of ``wanted`` get their answer (fragmented answers reassembled)."""
-    parts: dict[str, dict[int, str]] = {}
-    answered = 0
-    while wanted:
-        try:
-            message = client.receive(timeout=20)
-        except TimeoutError:
-            return answered
-        if message.get("op") == "fragment":
-            received = parts.setdefault(message["id"], {})
-            received[message["num"]] = message["data"]
-            if len(received) < message["total"]:
-                continue
-            message = json.loads("".join(received[i] for i in range(message["total"])))
-        if message.get("op") in ("service_response", "action_result") and message.get("id") in wanted:
-            wanted.discard(message["id"])
-            answered += 1
-    return answered
 
 
 def raw_frames(rng: random.Random, address: tuple[str, int], tally: Tally, count: int) -> None:
@@ -131,26 +98,12 @@ def raw_frames(rng: random.Random, address: tuple[str, int], tally: Tally, count
         frames = [hostile_frame(rng) for _ in range(rng.randint(1, 8))]
         sent += len(frames)
         tally.add(connections=1, tracked=1)
-        sock = FrameSocket(*address)
         try:
-            sock.sock.sendall(b"".join(data for data, _ in frames)
-                              + text({"op": "call_service", "service": "/rosapi/get_time", "id": "last"}))
-            while True:
-                opcode, payload = sock.read_frame()
-                if opcode == 0x8:
-                    code = int.from_bytes(payload[:2], "big")
-                    effects = {effect for _, effect in frames}
-                    expected = CLOSING in effects or (code in PROTOCOL_CODES and PROTOCOL_ERROR in effects)
-                    # a refused connection answers for its request with its close code
-                    tally.add(answered=int(expected), unexpected_closes=int(not expected))
-                    break
-                if opcode == 0x1 and json.loads(payload).get("id") == "last":
-                    tally.add(answered=1)
-                    break
+            served = serve_raw_frames(address, frames)
         except (ConnectionError, socket.timeout):
-            tally.add(unexpected_closes=1)
-        finally:
-            sock.close()
+            served = False
+        # a connection refused as a frame called for answers for its request with its close code
+        tally.add(answered=int(served), unexpected_closes=int(not served))
     tally.add(inputs=sent)
 
 
@@ -170,7 +123,7 @@ def fragments(rng: random.Random, address: tuple[str, int], tally: Tally, count:
                 sent += 1
             request_id = f"f{sent}"
             client.send({"op": "call_service", "service": "/rosapi/get_ros_version", "id": request_id})
-            tally.add(tracked=1, answered=await_answers(client, {request_id}))
+            tally.add(tracked=1, answered=1 - len(await_answers(client, {request_id})))
         tally.add(inputs=sent)
     finally:
         client.close()

@@ -24,7 +24,7 @@ from typing import Any
 
 import psutil
 
-from .rosbridge_support import BINARY, CLOSE, CONTINUATION, PING, PONG, TEXT, RawClient, frame
+from .rosbridge_support import BINARY, CLOSE, CONTINUATION, PING, PONG, TEXT, FrameSocket, RawClient, frame, text
 
 MiB = 2**20
 HOSTILE_LIMITS = ("--max-connections", "16", "--max-subscriptions", "20", "--max-total-subscriptions", "60",
@@ -40,6 +40,8 @@ RSS_GROWTH_BOUND = 200 * MiB
 """What an attack may add to the bridge's RSS, far below the 480 MiB the unbounded bridge took."""
 SOURCE_PATH = re.compile(r"[\w.-]+\.(?:py|c|cpp|h|so)(?::\d+)?\b|/(?:usr|opt|work|home)/")
 ZEN = "Beautiful is better than ugly"
+PROTOCOL_CLOSE_CODES = {1002, 1007, 1009}
+ANSWERS = ("service_response", "action_result")
 
 
 @dataclass
@@ -224,3 +226,56 @@ def hostile_frame(rng: random.Random) -> tuple[bytes, str]:
     if roll < 0.98:
         return frame(PING, rng.randbytes(126)), PROTOCOL_ERROR  # a control frame over 125 bytes
     return frame(CLOSE, struct.pack("!H", rng.choice([1000, 1005, 999, 4999, 65535])) + b"bye"), CLOSING
+
+
+def parses(message: str) -> bool:
+    """Whether ``message`` is JSON to Python's parser, which the bridge uses too (a message that
+    does not parse cannot be answered by its id: only a status says what was wrong)."""
+    try:
+        json.loads(message)
+        return True
+    except (ValueError, RecursionError):
+        return False
+
+
+def await_answers(client: RawClient, wanted: set[str], timeout: float = 20.0) -> set[str]:
+    """Read until every id in ``wanted`` was answered (``service_response``/``action_result``;
+    other frames skipped, fragmented answers reassembled), or nothing came for ``timeout``;
+    returns the ids still unanswered.  No failure text may name a server file."""
+    wanted = set(wanted)
+    parts: dict[str, dict[int, str]] = {}
+    while wanted:
+        try:
+            message = client.receive(timeout=timeout)
+        except TimeoutError:
+            break
+        if message.get("op") == "fragment":  # a fuzzed fragment_size may have split answers
+            received = parts.setdefault(message["id"], {})
+            received[message["num"]] = message["data"]
+            if len(received) < message["total"]:
+                continue
+            message = json.loads("".join(received[i] for i in range(message["total"])))
+        reason = message.get("values") if message.get("result") is False else message.get("msg")
+        assert not (isinstance(reason, str) and SOURCE_PATH.search(reason)), message
+        if message.get("op") in ANSWERS:
+            wanted.discard(message.get("id"))
+    return wanted
+
+
+def serve_raw_frames(address: tuple[str, int], frames: list[tuple[bytes, str]]) -> bool:
+    """Send ``frames`` (from :func:`hostile_frame`) and a call on a new connection; True if the
+    call is answered, or the connection is closed as one of the frames called for."""
+    sock = FrameSocket(*address)
+    try:
+        sock.sock.sendall(b"".join(data for data, _ in frames)
+                          + text({"op": "call_service", "service": "/rosapi/get_time", "id": "last"}))
+        while True:
+            opcode, payload = sock.read_frame()
+            if opcode == CLOSE:
+                code = int.from_bytes(payload[:2], "big")
+                effects = {effect for _, effect in frames}
+                return CLOSING in effects or (code in PROTOCOL_CLOSE_CODES and PROTOCOL_ERROR in effects)
+            if opcode == TEXT and json.loads(payload).get("id") == "last":
+                return True
+    finally:
+        sock.close()

@@ -10,7 +10,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from .rosbridge_support import CLOSE, CONTINUATION, PING, PONG, TEXT, FrameSocket, RawClient, frame, text
+from .rosbridge_support import CONTINUATION, PING, PONG, TEXT, FrameSocket, RawClient, frame, text
 
 
 @pytest.fixture

@@ -136,12 +136,12 @@ class Actions:
         shared = None
         try:
             shared = await self._client_for(action, type_name, action_cls)
-            feedback_callback = None
-            if wants_feedback:
-                def feedback_callback(feedback: Any) -> None:
-                    values = message_to_dict(feedback.feedback)
-                    self.ros.deliver(session.send, {"op": p.OP_ACTION_FEEDBACK, **reply, "values": values})
-            handle = await self.ros.ask(shared.client.send_goal_async, goal, feedback_callback=feedback_callback)
+            def forward_feedback(feedback: Any) -> None:
+                values = message_to_dict(feedback.feedback)
+                self.ros.deliver(session.send, {"op": p.OP_ACTION_FEEDBACK, **reply, "values": values})
+
+            handle = await self.ros.ask(shared.client.send_goal_async, goal,
+                                        feedback_callback=forward_feedback if wants_feedback else None)
             if not handle.accepted:
                 raise ActionFailed(f"the action server of {action} rejected the goal")
             record.handle = handle
