@@ -210,7 +210,7 @@ def _typedefs(cls: Any) -> list[dict[str, Any]]:
         if name in seen:
             continue
         fields = field_types(current)
-        typedef = {"type": name, "fieldnames": [], "fieldtypes": [], "fieldarraylen": [], "examples": [],
+        typedef: dict[str, Any] = {"type": name, "fieldnames": [], "fieldtypes": [], "fieldarraylen": [], "examples": [],
                    "constnames": [], "constvalues": []}
         for field, spec in fields.items():
             base, array_len = _base_and_len(spec)
