@@ -151,7 +151,7 @@ class Actions:
                 outcome = await asyncio.wait_for(self.ros.ask(handle.get_result_async), ORPHAN_WAIT_S)
             else:
                 outcome = await self.ros.ask(handle.get_result_async)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             log.warning("a cancelled goal of a disconnected client on %s did not end within %.0f s", action,
                         ORPHAN_WAIT_S)
             return

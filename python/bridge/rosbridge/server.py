@@ -145,9 +145,8 @@ class RosbridgeServer:
         handle = functools.partial(self.bridge.handle_frame, session)
         websocket.on_backlog = session.backlog_changed
         try:
-            if session.state is SessionState.AUTHENTICATING:
-                if not await self._authenticate(session):
-                    return
+            if session.state is SessionState.AUTHENTICATING and not await self._authenticate(session):
+                return
             websocket.on_text = handle
             async for frame in websocket:
                 websocket.message_read()
