@@ -149,3 +149,33 @@ def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at) -> None
         assert since > after.planned_at.sec + after.planned_at.nanosec * 1e-9
     finally:
         at.call("delete_template", class_type="cdra_filter", id=added.id)
+
+
+def test_stepping_waypoint_by_waypoint_previews_and_runs_each_step(at) -> None:
+    """The original AT's stepping (plan_command steps=[1]): each step's plan is the motion to the
+    next waypoint only, from where the arm is; a view previews it with get_plan, then it runs.
+    Runs after the pull-out above: the dirty filter is in the gripper and goes into rack slot 3."""
+    at.wait_for(lambda: at.held_object == DIRTY, 10, "the dirty filter in the gripper")
+    added = at.call("add_template", class_type="cdra_filter")
+    name = added.instance
+    try:
+        assert at.register("cdra_filter", added.id, "cdra_filter", "rack/slot_3").success
+        for k in range(4):
+            step = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="insert_and_release", steps=[1])
+            assert step.success and f"waypoints [{k}]" in step.message, step.message
+            preview = at.call("get_plan", name=name, trajectory_name="insert_and_release")
+            assert list(preview.waypoint_names) == [f"0.{k}:{name}"] and preview.valid
+            assert len(preview.waypoint_point_index) == 1 and preview.waypoint_point_index[0] == len(preview.trajectory.points) - 1
+            here = [at.joint(j) for j in ARM]
+            assert max(abs(a - b) for a, b in zip(preview.trajectory.points[0].positions, here)) < 0.02
+            done = at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="insert_and_release")
+            assert done.success, done.message
+            status = at.call("get_template_status", name=name, trajectory_name="insert_and_release").affordance_template_status[0]
+            assert status.waypoint_info[0].waypoint_index == k
+            assert at.call("get_plan", name=name, trajectory_name="insert_and_release").state == GetPlan.Response.EXECUTED
+        at.wait_for(lambda: at.held_object == "", 10, "gripper empty")
+        frames = at.fresh_frames()
+        seated = matrix_from_pose(frames[f"filter/{DIRTY}"])[:3, 3] - matrix_from_pose(frames["rack/slot_3"])[:3, 3]
+        assert np.linalg.norm(seated) < 0.01
+    finally:
+        at.call("delete_template", class_type="cdra_filter", id=added.id)
