@@ -145,6 +145,7 @@ class AffordanceTemplateServer(Node):
     def joint_states_callback(self, msg: JointState) -> None:
         with self.core.state_lock:
             self.core.inputs.joints.update(zip(msg.name, msg.position))
+            self.core.inputs.joints_stamp = msg.header.stamp
 
     def moving_callback(self, msg: Bool) -> None:
         with self.core.state_lock:

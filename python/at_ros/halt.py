@@ -94,6 +94,8 @@ class HaltSwitch:
             goal = self._goal
         with core.state_lock:
             executing = core.state.executing
+            if core.inputs.joints_stamp is not None:
+                response.robot_time = core.inputs.joints_stamp
         LOG.warning("halt (%s): %s", reason, f"executing {executing}" if executing else "no execution in flight")
         if goal is not None:
             goal.cancel_goal_async()  # its result tells the execution; nothing to wait for here

@@ -54,6 +54,7 @@ class RobotInputs:
     """What the server last heard from the robot side; guarded by ``ServerCore.state_lock``."""
 
     joints: dict[str, float] = field(default_factory=dict)
+    joints_stamp: Any = None  # builtin_interfaces/Time of the latest joint_states: the robot's clock
     moving: bool = False
     held_object: str = ""
     last_heartbeat: float = 0.0  # time.monotonic() of the planner's last heartbeat
