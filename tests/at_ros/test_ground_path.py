@@ -44,7 +44,7 @@ class Ground:
         finally:
             timer.cancel()
 
-    def first(self, topic: str, message_type: str, predicate=lambda message: True, timeout: float = TIMEOUT) -> dict:  # noqa: ANN001
+    def first(self, topic: str, message_type: str, predicate=lambda message: True, timeout: float = TIMEOUT) -> dict:
         """The first message on ``topic`` for which ``predicate`` holds."""
         got: list[dict] = []
         arrived = threading.Event()
