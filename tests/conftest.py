@@ -8,11 +8,12 @@ PostgreSQL server serves every suite of the session that needs one (support/post
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
 from support.postgres import PostgresServer, postgres_server
+from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -51,3 +52,24 @@ def browser(playwright) -> Iterator:
     launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
     yield launched
     launched.close()
+
+
+@pytest.fixture
+def launch(ros_env: dict[str, str]) -> Iterator[Callable[..., ManagedProcess]]:
+    """Start single ``caretaker`` parts (a whole robot side starts through support/stack.py).
+
+    ``launch("ledger", "--state-dir", DIR)`` returns the process once it printed READY; every one
+    started is stopped at teardown.
+    """
+    started: list[ManagedProcess] = []
+
+    def start(*args: str, ready_timeout: float = 90.0, wait: bool = True) -> ManagedProcess:
+        proc = caretaker(*args, env=ros_env)
+        started.append(proc)
+        if wait:
+            proc.wait_ready(ready_timeout)
+        return proc
+
+    yield start
+    for proc in reversed(started):
+        proc.stop()
