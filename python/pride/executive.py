@@ -53,7 +53,7 @@ from pride.model import Instruction, ManualInstruction, RecordInstruction
 from pride.replay import replay
 from pride.run_state import Request, RunState
 from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
-from pride.systems import SystemGateway, TelemetryValue
+from pride.systems import CommandResult, SystemGateway, TelemetryValue
 
 __all__ = ["Executive", "Hold", "InstructionStatus", "Mode", "OperatorActionError", "RunStatus", "Snapshot"]
 
@@ -78,6 +78,7 @@ class Executive:
         self.procedure = checked.procedure
         self.run_id = run_id
         self._checked = checked
+        self._gateway = gateway
         self._journal = journal
         self._lock = threading.RLock()  # guards every field below and the run state
         self._changed = threading.Condition(self._lock)
@@ -320,6 +321,27 @@ class Executive:
             if not reason.strip():
                 raise OperatorActionError("say why the instruction is skipped")
             self._state.skip(user, reason)
+
+    def operator_command(self, user: str, system: str, command: str, args: dict[str, Any]) -> CommandResult:
+        """Send a command an operator gave outside the procedure's instructions (a registration
+        dragged in the 3D view), as ``user``, through the run's gateway like any command.
+
+        Journaled COMMAND_SENT/COMMAND_RESULT without an instruction number, with the user, the
+        arguments and its own key (``<run>/operator/<n>``), so the audit log attributes it; the
+        run's position does not change. Refused when the run is not active.
+        """
+        with self._lock:
+            self._require_active()
+            key = f"{self.run_id}/operator/{self._seq + 1}"
+            about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
+            self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
+        try:
+            result: CommandResult = self._gateway.execute(system, command, args)
+        except Exception as exc:  # refused before sending (bad argument, unknown command)
+            result = CommandResult(False, f"not sent: {type(exc).__name__}: {exc}")
+        self._record(EventKind.COMMAND_RESULT, user, None, **about, success=result.success,
+                     message=result.message, values=dict(result.values))
+        return result
 
     # ---- guards -----------------------------------------------------------------------------
     def _require_active(self) -> None:
