@@ -302,11 +302,13 @@ def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
             for name in hull:
                 assert_pose(view["objects"][name]["pose"], matrix(habitat.frame(name)), name, position=5 * MM)
             shoot(page, "spatial-eva.png")
-            # at 1024 px the view goes full width under the procedure: nothing overflows sideways
-            page.set_viewport_size({"width": 1024, "height": 900})
+            # at 1024 px the view stays beside the procedure, in view, and nothing overflows sideways
+            page.set_viewport_size({"width": 1024, "height": 768})
             wait_view(page, "v.frames > 2")
             box = page.locator("#spatial-view").bounding_box()
-            assert box is not None and box["width"] > 600, box
+            procedure = page.locator("#procedure").bounding_box()
+            assert box is not None and procedure is not None and box["width"] > 300, box
+            assert box["x"] >= procedure["x"] + procedure["width"] and box["y"] + box["height"] <= 768, (box, procedure)
             assert page.evaluate("document.documentElement.scrollWidth") <= 1024
             if SHOTS is not None:
                 page.screenshot(path=str(SHOTS / "spatial-eva-console-1024.png"), full_page=True)
