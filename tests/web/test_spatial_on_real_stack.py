@@ -283,6 +283,18 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     forced = carol.request.post(f"{server.url}/api/runs/{run_id}/spatial/pose", headers=token,
                                 data={"command": "set_display_object_pose", "args": args})
     assert forced.status == 403 and "observer" in forced.json()["error"], forced.text()
+
+    # moving a waypoint sends set_waypoint_pose, and the habitat's waypoint follows
+    waypoint = "0.0:cdra_filter:0"
+    before = matrix(inspect(alice)["templates"][waypoint]["pose"])
+    target = before.copy()
+    target[2, 3] += 0.01
+    alice.evaluate(f"window.caretakerSpatial.dragBy('{waypoint}', {{translate: [0, 0, 0.01]}})")
+    expect(alice.locator("#spatial-status")).to_contain_text("set_waypoint_pose succeeded", timeout=TIMEOUT_MS)
+    deadline = time.monotonic() + 30
+    while distance(inspect(alice)["templates"][waypoint]["pose"], target)[0] > MM and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert_pose(inspect(alice)["templates"][waypoint]["pose"], target, "the waypoint where it was dropped")
     stop_run(alice, "3D view test done")
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -40,6 +41,7 @@ POSE_COMMANDS = ("set_display_object_pose", "set_waypoint_pose")
 
 _CLOSE_POLICY = 1008
 _CLOSE_ENDED = 1000
+_SESSION_CHECK_S = 5.0
 
 
 class SpatialFeeds:
@@ -128,6 +130,7 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
         watcher = feed.watch()
         receiver = asyncio.create_task(_drain(websocket))
         camera_version = None
+        checked = time.monotonic()
         try:
             while not receiver.done():
                 with contextlib.suppress(asyncio.TimeoutError):
@@ -135,6 +138,13 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
                 if live.retired:
                     await websocket.close(code=_CLOSE_ENDED, reason="the run ended")
                     return
+                if time.monotonic() - checked > _SESSION_CHECK_S:  # an ended session closes the view too
+                    checked = time.monotonic()
+                    try:
+                        await run_in_threadpool(sign_ins.session, websocket)
+                    except SignInRefused as exc:
+                        await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+                        return
                 document, updates = watcher.take()
                 camera = live.camera()
                 if camera is not None and camera[1].get("version") != camera_version:

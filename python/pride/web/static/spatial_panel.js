@@ -55,6 +55,7 @@ const spatialPanel = (() => {
       const data = JSON.parse(message.data);
       if (data.type === "none") { $("spatial-panel").hidden = true; return; }
       if (data.type === "scene") {
+        $("spatial-panel").hidden = false;  // shown once the robot's link gave a scene: no empty panel beside a run without one
         try { ensureView().load(data.document); status(""); } catch (error) { status(error.message, "error"); }
       } else if (data.type === "update") {
         const update = data.update;
@@ -87,7 +88,6 @@ const spatialPanel = (() => {
     close();
     if (!live || typeof CaretakerSpatial === "undefined") return;
     state.runId = runId;
-    $("spatial-panel").hidden = false;
     connect();
   }
 
