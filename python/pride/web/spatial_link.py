@@ -40,6 +40,7 @@ log = logging.getLogger(__name__)
 
 AT_NAMESPACE_SUFFIX = "/affordance_template_server"
 RECONNECT_S = (1.0, 2.0, 5.0, 10.0)
+_HELLO = "view-hello"
 
 
 class LinkError(RuntimeError):
@@ -217,14 +218,16 @@ class RosbridgeLink:
                     if auth is not None:
                         await socket.send(json.dumps(auth))
                     self._socket = socket
-                    attempt = 0
                     for subscription in self._subscriptions:
                         await self._send(self._subscribe_message(subscription))
-                    self._on_state("connected")
-                    if self._on_connected is not None:
-                        asyncio.get_running_loop().create_task(self._on_connected())
+                    # connected once the bridge answers (with auth, a refusal closes the socket instead)
+                    await self._send({"op": "call_service", "id": _HELLO, "service": "/rosapi/get_ros_version", "args": {}})
                     async for frame in socket:
-                        self._receive(frame)
+                        if self._receive(frame):
+                            attempt = 0
+                            self._on_state("connected")
+                            if self._on_connected is not None:
+                                asyncio.get_running_loop().create_task(self._on_connected())
             except asyncio.CancelledError:
                 raise
             except Exception as exc:  # refused, reset, TLS or auth failure: say so and try again
@@ -238,15 +241,18 @@ class RosbridgeLink:
             await asyncio.sleep(RECONNECT_S[min(attempt, len(RECONNECT_S) - 1)])
             attempt += 1
 
-    def _receive(self, frame: str | bytes) -> None:
+    def _receive(self, frame: str | bytes) -> bool:
+        """Deliver one frame; True when it is the bridge's answer to the greeting."""
         try:
             message = json.loads(frame)
         except ValueError:
             log.warning("view link: a frame that is not JSON was dropped")
-            return
+            return False
         if not isinstance(message, dict):
-            return
+            return False
         op = message.get("op")
+        if op == "service_response" and message.get("id") == _HELLO:
+            return True
         if op == "publish":
             for subscription in self._subscriptions:
                 if subscription.topic == message.get("topic") and isinstance(message.get("msg"), dict):
@@ -260,3 +266,4 @@ class RosbridgeLink:
                 future.set_result(message)
         elif op == "status" and message.get("level") in ("error", "warning"):
             log.warning("view link: rosbridge says %s", message.get("msg"))
+        return False
