@@ -124,6 +124,12 @@ def act(page: Page, action: str, **extra: Any) -> None:
                   [action, extra])
 
 
+def expect_camera_image(page: Page) -> None:
+    """The robot camera's image, inset in the view, loaded from the ground server."""
+    page.wait_for_function("(() => { const i = document.querySelector('#spatial-view img.ct-spatial-camera');"
+                           " return i && !i.hidden && i.complete && i.naturalWidth > 0; })()", timeout=TIMEOUT_MS)
+
+
 def shoot(page: Page, name: str) -> None:
     if SHOTS is not None:
         SHOTS.mkdir(parents=True, exist_ok=True)
@@ -219,6 +225,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     assert plan["state"] == "PLANNED", plan["message"]
     wait_view(alice, "v.ghost.visible")
     assert_pose(inspect(alice)["ghost"]["tool_pose"], habitat.plan_end_in_world(plan), "the ghost's last pose is the plan's end pose")
+    expect_camera_image(alice)
     shoot(alice, "spatial-iva.png")
     if SHOTS is not None:
         alice.screenshot(path=str(SHOTS / "spatial-iva-console.png"))
@@ -319,6 +326,7 @@ def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
             assert hull and targets == hull, f"hull targets: habitat {sorted(hull)}, view {sorted(targets)}"
             for name in hull:
                 assert_pose(view["objects"][name]["pose"], matrix(habitat.frame(name)), name, position=5 * MM)
+            expect_camera_image(page)
             shoot(page, "spatial-eva.png")
             # at 1024 px the view stays beside the procedure, in view, and nothing overflows sideways
             page.set_viewport_size({"width": 1024, "height": 768})

@@ -79,3 +79,25 @@ def test_compose_is_the_frame_product() -> None:
     pose = compose(BASE, {"xyz": [0, 1, 0], "quat": [0, 0, math.sqrt(0.5), math.sqrt(0.5)]})
     assert pose["xyz"] == pytest.approx([0.0, 2.0, 0.5])
     assert pose["quat"] == pytest.approx([0, 0, 1, 0], abs=1e-12)
+
+
+def test_the_camera_image_becomes_a_png_and_bad_images_are_refused() -> None:
+    import base64
+    import struct
+    import zlib
+
+    from pride.web.spatial_camera import CameraImageError, choose_camera, png_from_image
+
+    pixels = bytes([255, 0, 0, 0, 255, 0, 0, 0, 255, 9, 9, 9])  # 2x2 rgb8
+    png = png_from_image({"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(pixels).decode()})
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", png[16:24]) == (2, 2)
+    idat = png.index(b"IDAT")
+    length = struct.unpack(">I", png[idat - 4:idat])[0]
+    assert zlib.decompress(png[idat + 4:idat + 4 + length]) == b"\x00" + pixels[:6] + b"\x00" + pixels[6:]
+    with pytest.raises(CameraImageError, match="image.encoding: 'bgr16'"):
+        png_from_image({"encoding": "bgr16", "width": 2, "height": 2, "step": 6, "data": ""})
+    with pytest.raises(CameraImageError, match="image.data: 3 bytes for 2 rows of 6"):
+        png_from_image({"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(b"abc").decode()})
+    assert choose_camera(["tool0", "camera/scene", "camera/ee_camera"], "ee_camera") == "ee_camera"
+    assert choose_camera(["tool0", "camera/scene"], "ee_camera") == "scene"
+    assert choose_camera(["tool0"], "ee_camera") is None

@@ -1,8 +1,8 @@
 """The 3D view's routes: its own WebSocket (scene document, then updates) and the drag.
 
 ``/ws/runs/{run_id}/spatial`` pushes what :class:`pride.web.spatial_feed.SpatialFeed` keeps of
-the habitat (one feed per live run, shared by its browsers, closed with its last one) and the
-run's camera image. ``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators
+the habitat (one feed per live run, shared by its browsers, closed with its last one);
+``/api/runs/{run_id}/spatial/camera`` is the robot camera's newest image from that feed. ``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators
 only (403 for an observer, checked before the body is read), CSRF like every change, sent as
 that operator through the run's executive (:meth:`pride.executive.Executive.operator_command`)
 so the audit log records who moved what where.
@@ -60,7 +60,7 @@ class SpatialFeeds:
             if link is None:
                 return None
             if run_id not in self._feeds:  # (another browser may have made it meanwhile)
-                feed = SpatialFeed(link)
+                feed = SpatialFeed(link, camera_url=f"/api/runs/{run_id}/spatial/camera", camera=board.camera.camera)
                 feed.start()
                 loop = asyncio.get_running_loop()
 
@@ -72,6 +72,10 @@ class SpatialFeeds:
                 self._feeds[run_id] = (feed, live, on_event)
         self._users[run_id] = self._users.get(run_id, 0) + 1
         return self._feeds[run_id][0]
+
+    def feed(self, run_id: str) -> SpatialFeed | None:
+        entry = self._feeds.get(run_id)
+        return entry[0] if entry else None
 
     async def release(self, run_id: str) -> None:
         self._users[run_id] = self._users.get(run_id, 1) - 1
@@ -129,7 +133,6 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             return
         watcher = feed.watch()
         receiver = asyncio.create_task(_drain(websocket))
-        camera_version = None
         checked = time.monotonic()
         try:
             while not receiver.done():
@@ -146,10 +149,6 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
                         await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
                         return
                 document, updates = watcher.take()
-                camera = live.camera()
-                if camera is not None and camera[1].get("version") != camera_version:
-                    camera_version = camera[1].get("version")
-                    updates.append({"kind": "camera", "url": f"/api/runs/{run_id}/camera?v={camera_version}"})
                 if document is not None:
                     await websocket.send_json({"type": "scene", "document": document})
                 for update in updates:
@@ -162,8 +161,16 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             receiver.cancel()
             await feeds.release(run_id)
 
+    async def camera(request: Request) -> Response:
+        account(request)
+        feed = feeds.feed(request.path_params["run_id"])
+        if feed is None or feed.camera_png is None:
+            raise ActionRefused(404, "no robot camera image yet (it comes with the 3D view's feed of a live run)")
+        return Response(feed.camera_png, media_type="image/png", headers={"Cache-Control": "no-store"})
+
     return [
         Route("/api/runs/{run_id}/spatial/pose", api(pose), methods=["POST"]),
+        Route("/api/runs/{run_id}/spatial/camera", api(camera)),
         WebSocketRoute("/ws/runs/{run_id}/spatial", socket),
     ]
 

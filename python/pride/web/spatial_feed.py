@@ -11,6 +11,7 @@ What it asks the habitat for (names under the robot's namespace), sized for a 1.
 | ``affordance_template_server/status`` | subscribe, ``throttle_rate`` 500 ms, ``queue_length`` 1 | <= 2/s |
 | ``get_template_status`` per template | when ``running_templates``, ``plan_id`` or the execute status change, after an AT command of the run, after a reconnect | on change |
 | ``get_plan`` | when ``plan_id`` or the execute status change | on change |
+| ``camera/<name>/image`` (the camera of :func:`~pride.web.spatial_camera.choose_camera`) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
 
 Each browser gets the scene document once it exists, then the latest update of each kind,
 never more often than :data:`PUSH_INTERVAL_S` (an update not yet sent is replaced by a newer
@@ -25,6 +26,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pride.web.spatial_camera import CameraImageError, choose_camera, png_from_image
 from pride.web.spatial_link import BindingLink, LinkError, RosbridgeLink, Subscription
 from pride.web.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
 from pride.web.spatial_world import plan_from_get_plan, world_document
@@ -37,6 +39,7 @@ PUSH_INTERVAL_S = 0.1
 JOINTS_THROTTLE_MS = 100
 FRAMES_THROTTLE_MS = 200
 STATUS_THROTTLE_MS = 500
+CAMERA_THROTTLE_MS = 2000
 
 AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset({
     "add_template", "delete_template", "set_display_object_pose", "set_waypoint_pose", "plan_trajectory",
@@ -64,9 +67,15 @@ class ViewWatcher:
 class SpatialFeed:
     """The habitat's state for one run's 3D views, kept current over one rosbridge link."""
 
-    def __init__(self, link: BindingLink, *, camera_url: str | None = None) -> None:
+    def __init__(self, link: BindingLink, *, camera_url: str, camera: str | None = None) -> None:
+        """``camera_url``: where the page fetches :attr:`camera_png` (``?seq=N`` is added);
+        ``camera``: the camera to show when the scene has it."""
         self.link = link
         self.camera_url = camera_url
+        self.preferred_camera = camera
+        self.camera: str | None = None
+        self.camera_png: bytes | None = None
+        self.camera_seq = 0
         self.rosbridge = RosbridgeLink(link, on_connected=self._refresh_all, on_state=self._link_state)
         self.watchers: set[ViewWatcher] = set()
         self.urdf: str | None = None
@@ -118,7 +127,7 @@ class SpatialFeed:
         if self.urdf is None or self.visual_world is None:
             return None
         try:
-            doc = world_document(self.visual_world, self.urdf, frames=self.frames, joints=self.joints, camera_url=self.camera_url)
+            doc = world_document(self.visual_world, self.urdf, frames=self.frames, joints=self.joints, camera_url=self._camera_url())
         except SpatialDataError as exc:
             self._report(f"the habitat's scene cannot be shown: {exc}")
             return None
@@ -175,6 +184,23 @@ class SpatialFeed:
             return
         self.frames, self.frame_poses = msg, update["poses"]
         self._push(update)
+        if self.camera is None:
+            self.camera = choose_camera(self.frame_poses, self.preferred_camera)
+            if self.camera is not None:
+                self.rosbridge.subscribe(Subscription(self.link.name(f"camera/{self.camera}/image"), "sensor_msgs/msg/Image",
+                                                      self._on_image, throttle_ms=CAMERA_THROTTLE_MS))
+
+    def _on_image(self, msg: Mapping[str, Any]) -> None:
+        try:
+            self.camera_png = png_from_image(msg)
+        except CameraImageError as exc:
+            self._report(f"camera {self.camera}: {exc}")
+            return
+        self.camera_seq += 1
+        self._push({"kind": "camera", "url": self._camera_url()})
+
+    def _camera_url(self) -> str | None:
+        return f"{self.camera_url}?seq={self.camera_seq}" if self.camera_png is not None else None
 
     def _on_status(self, msg: Mapping[str, Any]) -> None:
         running = tuple(str(t) for t in msg.get("running_templates", []) or [])
