@@ -328,10 +328,13 @@ class Executive:
 
         Journaled COMMAND_SENT/COMMAND_RESULT without an instruction number, with the user, the
         arguments and its own key (``<run>/operator/<n>``), so the audit log attributes it; the
-        run's position does not change. Refused when the run is not active.
+        run's position does not change. Refused when the run is not active or an instruction is
+        being performed (OperatorActionError).
         """
         with self._lock:
             self._require_active()
+            if self._state.executing:  # one command at a time on the robot, as the procedure sends them
+                raise OperatorActionError(f"{self._state.current_number()} is being performed; move it when that is done")
             key = f"{self.run_id}/operator/{self._seq + 1}"
             about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
             self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)

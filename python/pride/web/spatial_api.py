@@ -23,6 +23,7 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import BaseRoute, Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from pride.states import OperatorActionError
 from pride.sysrep import SysRep
 from pride.web.accounts import Account
 from pride.web.actions import ActionRefused
@@ -105,7 +106,10 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             raise ActionRefused(400, "the request body must be JSON") from None
         system, sysrep = _at_system(live)
         command, args = _pose_command(body, sysrep)
-        result = await run_in_threadpool(live.executive.operator_command, user.user, system, command, args)
+        try:
+            result = await run_in_threadpool(live.executive.operator_command, user.user, system, command, args)
+        except OperatorActionError as exc:
+            raise ActionRefused(409, str(exc)) from None
         outcome = result.outcome or ("succeeded" if result.success else "failed")
         return JSONResponse({"ok": True, "command": command, "outcome": outcome, "success": result.success,
                              "message": result.message})
