@@ -334,7 +334,7 @@ class Executive:
         with self._lock:
             self._require_active()
             if self._state.executing:  # one command at a time on the robot, as the procedure sends them
-                raise OperatorActionError(f"{self._state.current_number()} is being performed; move it when that is done")
+                raise OperatorActionError(f"{self._state.current_number()} is being performed; try when it is done")
             key = f"{self.run_id}/operator/{self._seq + 1}"
             about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
             self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
