@@ -130,7 +130,13 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on this server")
             return
         await websocket.accept()
-        feed = await feeds.open(board, live)
+        try:
+            feed = await feeds.open(board, live)
+        except Exception as exc:  # a binding that cannot be read: said to the page, never a traceback
+            log.exception("3D view of run %s", run_id)
+            await websocket.send_json({"type": "none", "message": f"no 3D view: {type(exc).__name__}: {exc}"})
+            await websocket.close()
+            return
         if feed is None:
             await websocket.send_json({"type": "none", "message": f"binding {live.binding} has no Affordance Template system to show"})
             await websocket.close()
