@@ -6,6 +6,13 @@ system's answer, a verify or wait watches telemetry until its condition holds or
 passes. Everything it sends and every telemetry value it decides on is recorded through the
 ``record`` callback before it acts on it.
 
+Every command carries its key (``run/instruction/attempt``, :func:`command_key`), given by the
+executive: a new attempt gets a new key, asking again about an unknown outcome re-sends the same
+key. The command's outcome decides the instruction's: SUCCEEDED completes it, FAILED fails it,
+UNKNOWN leaves it waiting for an operator (:attr:`InstructionResult.unknown_key`), HALTED (or
+any failure while a halt is under way) ends it halted. A halt (:meth:`Automation.request_halt`)
+also ends a verify or wait at once.
+
 Command arguments are not checked here: lint typed the values written in the procedure and
 checked the types of bound ones, and the gateway checks every value it is sent (the Java host is
 authoritative; see :meth:`pride.pax_host.PaxHost.execute`).
@@ -36,17 +43,26 @@ from pride.model import (
     WaitInstruction,
     lookup,
 )
-from pride.states import OperatorActionError
+from pride.states import Controller, OperatorActionError
 from pride.sysrep import check_value
-from pride.systems import SystemGateway
+from pride.systems import CommandResult, Outcome, SystemGateway
 
-__all__ = ["Automation", "Outcome"]
+__all__ = ["Automation", "ControlLost", "Halt", "InstructionResult", "Send", "command_key"]
 
 _TELEMETRY_POLL_S = 0.25
 
 
+def command_key(run_id: str, number: str, attempt: int) -> str:
+    """The key of one attempt at a command: ``run/instruction/attempt``.
+
+    The instruction part may not contain ``/`` (the key's separator), so the ``/`` of a
+    sub-procedure's number (``3.2/1.1``) is written ``:`` (``run-1/3.2:1.1/2``).
+    """
+    return f"{run_id}/{number.replace('/', ':')}/{attempt}"
+
+
 @dataclass
-class Outcome:
+class InstructionResult:
     """How an instruction ended: ok or not (with the reason), and where the run goes next."""
 
     ok: bool
@@ -54,19 +70,78 @@ class Outcome:
     goto: str | None = None  # a step reference to continue at
     result: tuple[str, dict[str, Any]] | None = None  # a saved command result: (name, values)
     enter: tuple[Procedure, dict[str, Any]] | None = None  # a sub-procedure to run, with its inputs
+    unknown_key: str | None = None  # its command's outcome is unknown: neither done nor failed
+    halted: bool = False  # a halt ended it before it finished
+
+
+@dataclass(frozen=True)
+class Halt:
+    """Who halted the run (or stopped it: a stop halts first), and why."""
+
+    user: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class Send:
+    """How to send the current command: its key, whether that key was sent before, who confirmed it."""
+
+    key: str
+    resend: bool = False
+    confirmed_by: str | None = None
+
+
+class ControlLost(Exception):
+    """The run does not control its robot any more: nothing may be sent (the message says who does)."""
+
+    def __init__(self, message: str, holder: Controller | None) -> None:
+        super().__init__(message)
+        self.holder = holder
 
 
 class Automation:
     """Carries out automatable instructions against a gateway for one run."""
 
-    def __init__(self, gateway: SystemGateway, checked: CheckedProcedure, record: Callable[..., None]) -> None:
-        """``record(kind, actor, number, **data)`` stores an event (the executive's, taking its lock)."""
+    def __init__(self, gateway: SystemGateway, checked: CheckedProcedure, record: Callable[..., None], *,
+                 may_send: Callable[[], None]) -> None:
+        """``record(kind, actor, number, **data)`` stores an event (the executive's, taking its lock);
+        ``may_send()`` raises :class:`ControlLost` when the run must not command its robot."""
         self._gateway = gateway
         self._checked = checked
         self._sysreps = checked.sysreps
         self._record = record
-        self.abort = threading.Event()  # set when the run stops: waits and watches end early
+        self._may_send = may_send
         self.telemetry_changed = threading.Event()  # set by the gateway's listener
+        self.interrupt = threading.Event()  # set by a halt (or stop): waits and watches end at once
+        self._signal_lock = threading.Lock()  # guards _halt and _in_flight: read by halts from any thread
+        self._halt: Halt | None = None
+        self._in_flight: str | None = None  # the key of the command being sent now
+
+    # ---- halts: called from any thread, never waiting for PAX's thread --------------------------
+    def request_halt(self, halt: Halt) -> str | None:
+        """Stop what is being performed (no new command leaves); return the key of the command in flight."""
+        with self._signal_lock:
+            if self._halt is None:
+                self._halt = halt
+            self.interrupt.set()
+            self.telemetry_changed.set()  # a watch wakes now, not at its next poll
+            return self._in_flight
+
+    def clear_halt(self) -> None:
+        """An operator carries on after a halt."""
+        with self._signal_lock:
+            self._halt = None
+            self.interrupt.clear()
+
+    @property
+    def halt(self) -> Halt | None:
+        """The halt under way, if any."""
+        with self._signal_lock:
+            return self._halt
+
+    def light_time(self) -> float:
+        """How old telemetry is when it reaches the ground: the link's one-way delay (s)."""
+        return self._gateway.one_way_delay()
 
     def is_hazardous(self, instruction: Instruction) -> bool:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
@@ -76,28 +151,55 @@ class Automation:
         command = sysrep.command(instruction.command) if sysrep is not None else None
         return instruction.hazardous or bool(command is not None and command.hazardous)
 
+    def check_record(self, instruction: RecordInstruction, value: Any) -> tuple[Any, dict[str, Any]]:
+        """A record's value converted and checked (including against the telemetry it names), and what
+        to add to its event; OperatorActionError says why a value is refused."""
+        try:
+            converted = instruction.check(value)
+        except ValueError as exc:
+            raise OperatorActionError(str(exc)) from None
+        if instruction.one_of_telemetry is None:
+            return converted, {}
+        system, item = instruction.one_of_telemetry
+        where = f"{system}.{item}"
+        try:
+            reading = self._gateway.telemetry(system, item)
+        except Exception as exc:
+            raise OperatorActionError(f"{instruction.name}: cannot read {where} to check the value: {exc}") from None
+        if reading.stale or reading.value is None:
+            raise OperatorActionError(f"{instruction.name}: cannot check {converted!r}: {where} is "
+                                      f"{'stale' if reading.value is not None else 'not received yet'}")
+        allowed = [v.strip() for v in str(reading.value).split(",") if v.strip()]
+        if str(converted) not in allowed:
+            raise OperatorActionError(f"{instruction.name}: {converted!r} is not one of the values {where} reports "
+                                      f"now ({', '.join(allowed) or 'none'})")
+        return converted, {"checked_against": where, "allowed": allowed}
+
     def carry_out(
-        self, env: dict[str, Any], procedure: Procedure, instruction: Instruction, number: str, actor: str
-    ) -> Outcome:
-        """Perform one instruction as ``actor``; only returns once it has finished or failed."""
+        self, env: dict[str, Any], procedure: Procedure, instruction: Instruction, number: str, actor: str,
+        send: Send | None = None,
+    ) -> InstructionResult:
+        """Perform one instruction as ``actor`` (a command as ``send`` says); returns once it has ended."""
         if isinstance(instruction, CommandInstruction):
-            return self._send(env, instruction, number, actor)
+            if send is None:
+                raise OperatorActionError(f"{number}: a command needs its key")  # the executive always gives one
+            return self._send(env, instruction, number, actor, send)
         if isinstance(instruction, VerifyInstruction):
             return self._watch(instruction.subject, instruction.condition, instruction.timeout, number, actor)
         if isinstance(instruction, WaitInstruction):
             if instruction.seconds is not None:
-                if self.abort.wait(instruction.seconds):
-                    return Outcome(False, "the run was stopped during the wait")
-                return Outcome(True)
+                if self.interrupt.wait(instruction.seconds):
+                    return self._halted("during the wait")
+                return InstructionResult(True)
             if instruction.subject is None or instruction.condition is None:  # the parser refuses this
                 raise OperatorActionError(f"{number}: a wait needs seconds or a telemetry condition")
             return self._watch(instruction.subject, instruction.condition, instruction.timeout, number, actor)
         if isinstance(instruction, BranchInstruction):
             value = self._read(env, instruction.subject, number, actor)
             holds = instruction.condition.holds(value, self._type_of(procedure, instruction.subject))
-            return Outcome(True, goto=instruction.goto if holds else instruction.else_goto)
+            return InstructionResult(True, goto=instruction.goto if holds else instruction.else_goto)
         if isinstance(instruction, GoToInstruction):
-            return Outcome(True, goto=instruction.step)
+            return InstructionResult(True, goto=instruction.step)
         if isinstance(instruction, CallInstruction):
             callee = self._checked.load(instruction.resolved_path)
             declared = {i.name: i.type for i in callee.inputs}
@@ -105,53 +207,74 @@ class Automation:
                 a.name: check_value(a.name, declared.get(a.name, "string"), a.value.resolve(env))
                 for a in instruction.args
             }
-            return Outcome(True, enter=(callee, inputs))
+            return InstructionResult(True, enter=(callee, inputs))
         raise OperatorActionError(f"{number} is performed by an operator")
 
-    def _send(self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str) -> Outcome:
+    def _send(self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str,
+              send: Send) -> InstructionResult:
         args = {binding.name: self._checked.argument(binding, env) for binding in instruction.args}
-        self._record(
-            EventKind.COMMAND_SENT,
-            actor,
-            number,
-            system=instruction.system,
-            command=instruction.command,
-            args=args,
-            hazardous=self.is_hazardous(instruction),
-        )
-        result = self._gateway.execute(instruction.system, instruction.command, args)
-        success, message, values = result.success, result.message, dict(result.values)
-        self._record(
-            EventKind.COMMAND_RESULT,
-            actor,
-            number,
-            system=instruction.system,
-            command=instruction.command,
-            args=args,
-            success=success,
-            message=message,
-            values=values,
-            result=instruction.result,
-        )
-        saved = (instruction.result, {"success": success, "message": message, **values}) if instruction.result else None
-        if success:
-            return Outcome(True, result=saved)
-        return Outcome(
-            False, f"{instruction.system}.{instruction.command} failed: {message or 'no message'}", result=saved
-        )
+        self._may_send()
+        hazardous = self.is_hazardous(instruction)
+        about = {"system": instruction.system, "command": instruction.command, "args": args, "key": send.key}
+        extra: dict[str, Any] = {"resend": True} if send.resend else {}
+        if hazardous and send.confirmed_by:
+            extra["confirmed_by"] = send.confirmed_by
+        self._record(EventKind.COMMAND_SENT, actor, number, **about, hazardous=hazardous, **extra)
+        with self._signal_lock:
+            halted_first = self._halt is not None
+            if not halted_first:
+                self._in_flight = send.key
+        if halted_first:
+            result = CommandResult(Outcome.HALTED, "not sent: the run was halted before it left")
+        else:
+            try:
+                result = self._gateway.execute(instruction.system, instruction.command, args, key=send.key)
+            except Exception as exc:  # the gateway refuses before sending (bad argument, unknown command)
+                result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
+            finally:
+                with self._signal_lock:
+                    self._in_flight = None
+        outcome = result.outcome
+        success = None if outcome is Outcome.UNKNOWN else result.success  # unknown: neither success nor failure
+        self._record(EventKind.COMMAND_RESULT, actor, number, **about, outcome=outcome.value, success=success,
+                     message=result.message, values=dict(result.values), result=instruction.result)
+        saved = None
+        if instruction.result and outcome is not Outcome.UNKNOWN:
+            saved = (instruction.result, {"success": result.success, "message": result.message, **result.values})
+        name = f"{instruction.system}.{instruction.command}"
+        if outcome is Outcome.SUCCEEDED:
+            return InstructionResult(True, result=saved)
+        if outcome is Outcome.UNKNOWN:
+            return InstructionResult(False, f"outcome of {send.key} unknown: {result.message}", unknown_key=send.key)
+        if outcome is Outcome.HALTED or self.halt is not None:
+            return InstructionResult(False, f"{name} halted: {result.message or 'no message'}", result=saved,
+                                     halted=True)
+        return InstructionResult(False, f"{name} failed: {result.message or 'no message'}", result=saved)
 
-    def _watch(self, subject: Subject, condition: Condition, timeout: float, number: str, actor: str) -> Outcome:
-        """Watch telemetry until the condition holds (fresh value) or the timeout passes."""
+    def _halted(self, during: str) -> InstructionResult:
+        halt = self.halt
+        why = f" by {halt.user}" + (f": {halt.reason}" if halt.reason else "") if halt else ""
+        return InstructionResult(False, f"halted {during}{why}", halted=True)
+
+    def _watch(self, subject: Subject, condition: Condition, timeout: float, number: str,
+               actor: str) -> InstructionResult:
+        """Watch telemetry until the condition holds (fresh value) or the timeout passes.
+
+        The timeout counts the light time too: the procedure's timeout is how long the system may
+        take, and what it does reaches the ground one one-way delay later (a value 1.3 s old on a
+        1.3 s link is the newest there is). A halt ends the watch at once.
+        """
         system = _system_of(subject)
         type_name = self._telemetry_type(subject)
-        deadline = time.monotonic() + timeout
+        light = self.light_time()
+        deadline = time.monotonic() + timeout + light
         while True:
             self.telemetry_changed.clear()
             reading = self._gateway.telemetry(system, subject.name)
             value, stale = reading.value, reading.stale
             ok = not stale and value is not None and condition.holds(value, type_name)
             remaining = deadline - time.monotonic()
-            if ok or remaining <= 0 or self.abort.is_set():
+            if ok or remaining <= 0 or self.interrupt.is_set():
                 self._record(
                     EventKind.TELEMETRY_SEEN,
                     actor,
@@ -165,15 +288,13 @@ class Automation:
                     ok=ok,
                 )
                 if ok:
-                    return Outcome(True)
-                if self.abort.is_set():
-                    return Outcome(False, "the run was stopped while watching telemetry")
+                    return InstructionResult(True)
+                if self.interrupt.is_set():
+                    return self._halted("while watching telemetry")
                 state = "stale " if stale else ""
-                return Outcome(
-                    False,
-                    f"{subject.describe()} was {state}{value!r}, expected {condition.describe()} "
-                    f"(waited {timeout:g} s)",
-                )
+                waited = f"{timeout:g} s" + (f" + {light:g} s light time" if light else "")
+                expected = f"expected {condition.describe()} (waited {waited})"
+                return InstructionResult(False, f"{subject.describe()} was {state}{value!r}, {expected}")
             self.telemetry_changed.wait(min(_TELEMETRY_POLL_S, remaining))
 
     def _read(self, env: dict[str, Any], subject: Subject, number: str, actor: str) -> Any:

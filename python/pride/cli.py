@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 import uuid
 from collections.abc import Sequence
@@ -21,6 +22,7 @@ from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import check_procedure, lint_file
+from pride.robot_control import RobotControl, RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 
@@ -112,8 +114,11 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--in-flight",
         choices=("resend", "skip"),
-        help="on --resume: what to do with an instruction in flight at the crash",
+        help="on --resume of a log from before command keys: what to do with a command in flight at the crash "
+             "(a keyed command is sent again with its key by itself: the habitat answers its outcome)",
     )
+    parser.add_argument("--take-over", metavar="REASON",
+                        help="take control of the robot from the run that holds it (logged in both runs)")
     _sysrep_option(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
@@ -129,6 +134,13 @@ def run_main(argv: list[str] | None = None) -> int:
     except (AuditSchemaError, AuditLogUnavailable) as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)
         return 2
+    try:
+        return _run(args, parser, audit, values)
+    finally:
+        audit.close()
+
+
+def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: AuditLog, values: dict[str, str]) -> int:
     events = audit.events(args.resume) if args.resume else []
     if args.resume and not events:
         print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
@@ -154,6 +166,7 @@ def run_main(argv: list[str] | None = None) -> int:
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
         print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
         return 2
+    control = RobotControl(args.db)
     try:
         missing = {s for s, _ in procedure.uses} - gateway.system_ids()
         if missing:
@@ -162,28 +175,34 @@ def run_main(argv: list[str] | None = None) -> int:
         printer = ProgressPrinter(procedure)
         try:
             if args.resume:
-                executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode)
+                executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode,
+                                             control=control, take_over=args.take_over)
                 # the printer joins after the replay: the resumed run's own events follow
             else:
-                executive = Executive(
-                    checked, gateway, audit, run_id=_new_run_id(procedure.id), mode=args.mode or Mode.MANUAL
-                )
+                executive = Executive(checked, gateway, audit, run_id=_new_run_id(procedure.id),
+                                      mode=args.mode or Mode.MANUAL, control=control)
+                executive.add_listener(printer)
+                for number in args.breakpoints:  # before the start: automation must not pass them first
+                    executive.set_breakpoint(args.user, number)
+                executive.start(args.user, take_over=args.take_over)
+        except RobotControlled as exc:
+            print(f"caretaker run: {exc} (--take-over REASON)", file=sys.stderr)
+            return 2
         except OperatorActionError as exc:
             print(f"caretaker run: {exc}", file=sys.stderr)
             return 2
-        executive.add_listener(printer)
-        for number in args.breakpoints:
-            executive.set_breakpoint(args.user, number)
-        if not args.resume:
-            executive.start(args.user)
+        if args.resume:
+            executive.add_listener(printer)
+            for number in args.breakpoints:
+                executive.set_breakpoint(args.user, number)
         print(f"READY run {executive.run_id}", flush=True)
         answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight)
         console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty())
+        previous = signal.signal(signal.SIGINT, lambda _signum, _frame: console.interrupt())
         try:
             final = console.run()
-        except KeyboardInterrupt:
-            executive.stop(args.user, "interrupted at the terminal (Ctrl-C)")
-            final = executive.snapshot()
+        finally:
+            signal.signal(signal.SIGINT, previous)
         executive.join(30)
         if final.error:
             print(f"caretaker run: recording failed, run stopped: {final.error}", file=sys.stderr)
@@ -195,7 +214,7 @@ def run_main(argv: list[str] | None = None) -> int:
         return 0 if final.status is RunStatus.COMPLETED else 1
     finally:
         gateway.close()
-        audit.close()
+        control.close()
 
 
 def report_main(argv: list[str] | None = None) -> int:

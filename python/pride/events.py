@@ -10,7 +10,10 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from pride.audit_log import Availability
 
 __all__ = ["PAX", "Event", "EventKind", "Journal"]
 
@@ -26,9 +29,10 @@ class EventKind(str, enum.Enum):
     RUN_RESUMED = "run_resumed"
     """A runner took over an interrupted run from its log."""
     RUN_COMPLETED = "run_completed"
-    """The last instruction finished."""
+    """The last instruction finished; the actor is whoever finished it (PAX, or the operator)."""
     RUN_STOPPED = "run_stopped"
-    """An operator stopped the run (it can be resumed)."""
+    """An operator stopped the run (it can be resumed): a command in flight was cancelled first
+    (data.cancel: what the system answered), data.reason the operator's words."""
     MODE_CHANGED = "mode_changed"
     """Manual ↔ autonomous."""
     INSTRUCTION_STARTED = "instruction_started"
@@ -39,10 +43,37 @@ class EventKind(str, enum.Enum):
     """An instruction failed; data.reason says why, data.next where the procedure branches (if it does)."""
     INSTRUCTION_SKIPPED = "instruction_skipped"
     """An operator skipped an instruction with a reason."""
+    INSTRUCTION_HALTED = "instruction_halted"
+    """A halt (or stop) ended an instruction before it finished: never completed. The actor is who
+    halted it; data.reason their words, data.next the instruction (it is performed again on retry)."""
     COMMAND_SENT = "command_sent"
-    """A command went to a system, with its arguments."""
+    """A command went to a system: data.key (``run/instruction/attempt``), args, hazardous,
+    confirmed_by (who confirmed a hazardous one), resend (the same key sent again)."""
     COMMAND_RESULT = "command_result"
-    """A system answered a command."""
+    """A system answered a command: data.key, data.outcome (succeeded, failed, unknown, halted),
+    success (True, False, or None while the outcome is unknown), message, values."""
+    OUTCOME_RESOLVED = "outcome_resolved"
+    """An operator recorded what became of a command of unknown outcome after checking the system:
+    data.key, data.outcome (succeeded or failed), data.reason."""
+    HALT = "halt"
+    """An operator halted the run: the command in flight was cancelled (data.key; data.cancel what
+    the system answered) and automation holds; data.reason their words."""
+    LINK_LOST = "link_lost"
+    """The link to the robot dropped (actor PAX): data.link, data.since, data.in_flight. The run
+    waits (commands in flight are re-sent when it is back, within the outage budget)."""
+    LINK_RESTORED = "link_restored"
+    """The link is back (actor PAX): data.link, data.since (when it was lost), data.seconds."""
+    CONTROL_TAKEN = "control_taken"
+    """This run took control of its robot from another run: data.robot, data.from_run,
+    data.from_user, data.reason."""
+    CONTROL_LOST = "control_lost"
+    """Another run took control of this run's robot (actor PAX): data.robot, data.by_run,
+    data.by_user, data.reason. The run holds and sends nothing more."""
+    RECORD_CORRECTED = "record_corrected"
+    """An operator re-entered an earlier record: data.name, data.old, data.value, data.reason."""
+    STEPPED_BACK = "stepped_back"
+    """An operator went back to an earlier instruction of the step: data.from, data.next (where the
+    run continues), data.reset (instructions to be performed again), data.reason."""
     TELEMETRY_SEEN = "telemetry_seen"
     """The telemetry value a verify, wait or branch decided on."""
     OPERATOR_INPUT = "operator_input"
@@ -62,7 +93,9 @@ class EventKind(str, enum.Enum):
     BREAKPOINT_HIT = "breakpoint_hit"
     """Automation reached a breakpoint."""
     RETRY = "retry"
-    """An operator asked to perform a failed or interrupted instruction again."""
+    """An operator asked to perform a failed, halted or interrupted instruction again (a new
+    attempt, a new key), or with data.same_key to ask again about a command of unknown outcome
+    (data.key re-sent: the habitat answers its outcome or joins it, never runs it twice)."""
     CALL_ENTERED = "call_entered"
     """A sub-procedure started with its inputs."""
 
@@ -95,3 +128,7 @@ class Journal(Protocol):
         May block while the store is unreachable (the audit log waits out an outage, up to its
         budget), so the caller's next action waits for the record, as it must.
         """
+
+    @property
+    def availability(self) -> Availability:
+        """Whether appends reach the store now (read without waiting, during an outage too)."""

@@ -11,12 +11,39 @@ Modes (:class:`Mode`)
     :meth:`mark_done` completes a manual instruction.
     AUTONOMOUS: PAX (actor ``"PAX"``) performs every automatable instruction in turn and monitors
     its completion. It holds (:class:`Hold`) at records, manual and non-automatable instructions,
-    unconfirmed hazardous commands, breakpoints, failures and operator pauses, and carries on by
-    itself as soon as the operator has completed, confirmed, retried, skipped or continued.
+    unconfirmed hazardous commands, breakpoints, failures, halts, unknown outcomes, lost control
+    and operator pauses, and carries on by itself once an operator has acted.
 
 Operator actions (raise :class:`OperatorActionError` saying why when not applicable now)
-    start, set_mode, pause, resume_automation, stop, set_breakpoint, clear_breakpoint,
-    perform, step, confirm, enter, mark_done, retry, skip.
+    start, set_mode, pause, resume_automation ("continue"), halt, stop, set_breakpoint,
+    clear_breakpoint, perform, step, confirm, enter, correct_record, mark_done, retry, ask_again,
+    resolve, skip, go_back, take_control.
+
+Commands and their outcomes
+    Every command carries a key ``run/instruction/attempt`` (:func:`pride.automation.command_key`);
+    the habitat executes a key at most once. A retry after a failure or a halt is a new attempt.
+    An UNKNOWN outcome holds the run (Hold.OUTCOME_UNKNOWN) and is never shown as success or
+    failure: :meth:`ask_again` re-sends the same key (the habitat answers or joins it),
+    :meth:`resolve` records what the operator found on the robot, :meth:`skip` passes over it.
+
+Halt and stop
+    :meth:`halt` cancels the command in flight through the gateway *before* it takes the lock
+    (so it works while the lock is held by an append waiting out a database outage), then holds
+    the run (Hold.HALTED); the instruction is recorded as halted by that user, never completed.
+    :meth:`stop` halts the same way, then ends the run (resumable).
+
+Control of the robot
+    With a :class:`pride.robot_control.RobotControl`, a run takes control of its robot (the
+    binding's ``robot:``) when it starts or resumes, is refused (:class:`RobotControlled`, naming
+    the holder) when another run holds it unless it takes over with a reason, checks it still
+    holds control before every command, and holds (Hold.CONTROL_LOST) when another run took over.
+    It releases the robot when it completes or stops.
+
+Links
+    The gateway reports its links; a lost link is recorded (LINK_LOST, LINK_RESTORED) and shown
+    in the snapshot ("link lost since T, N commands in flight"). Commands in flight wait for the
+    link (the gateway re-sends their keys within the binding's outage budget); past it they come
+    back UNKNOWN. Verifies and waits count the link's one-way delay into their timeout.
 
 Failure
     A failed command, verify or wait (or an unbound variable) never counts as done: the run goes
@@ -28,13 +55,17 @@ Observation
     called after the event is durably in the journal, on the thread that caused it, while the
     executive's lock is held: listeners must be quick, must not block, and must not call operator
     actions (hand events to a queue instead). :meth:`snapshot` returns an immutable
-    :class:`Snapshot`; :meth:`wait_for` blocks until a snapshot meets a predicate.
+    :class:`Snapshot`, at once even while an append waits for the database (then the state from
+    before that append, with the journal's and the links' state now); :meth:`wait_for` blocks
+    until a snapshot meets a predicate.
 
 Durability
-    Every event goes to the journal (the audit log) before the run proceeds. :meth:`resume`
-    rebuilds a run from its events (:mod:`pride.replay`): it continues after the last completed instruction, and an
-    instruction that was in flight (a command sent, no result recorded) holds with Hold.IN_FLIGHT
-    until an operator decides to retry (resend) or skip it.
+    Every event goes to the journal (the audit log) before the run proceeds; if the journal fails,
+    the run stops at once with its reason (:class:`JournalFailure`) and nothing more happens.
+    :meth:`resume` rebuilds a run from its events (:mod:`pride.replay`): it continues after the
+    last completed instruction, and a command whose outcome was not known (in flight at the
+    crash, or UNKNOWN) is sent again with its same key by itself; only if that answer is UNKNOWN
+    does the run hold.
 """
 
 from __future__ import annotations
@@ -43,28 +74,46 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pride.automation import Automation, Outcome
-from pride.events import Event, EventKind, Journal
+from pride.automation import Automation, ControlLost, Halt, InstructionResult
+from pride.events import PAX, Event, EventKind, Journal
+from pride.link_watch import LinkWatch
 from pride.lint import CheckedProcedure
 from pride.model import Instruction, ManualInstruction, RecordInstruction
 from pride.replay import replay
+from pride.robot_control import RobotControl, RobotControlled, RunControl
 from pride.run_state import Request, RunState
-from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
-from pride.systems import CommandResult, SystemGateway, TelemetryValue
+from pride.states import (
+    Controller,
+    Hold,
+    InstructionStatus,
+    JournalFailure,
+    Mode,
+    OperatorActionError,
+    RunStatus,
+    Snapshot,
+)
+from pride.systems import CancelResult, CommandResult, LinkState, Outcome, SystemGateway, TelemetryValue
 
-__all__ = ["Executive", "Hold", "InstructionStatus", "Mode", "OperatorActionError", "RunStatus", "Snapshot"]
+__all__ = ["Executive", "Hold", "InstructionStatus", "JournalFailure", "Mode", "OperatorActionError",
+           "RobotControlled", "RunStatus", "Snapshot"]
 
 log = logging.getLogger(__name__)
+
+#: How long :meth:`Executive.snapshot` waits for the lock before it answers from its last state.
+_SNAPSHOT_WAIT_S = 0.05
+#: How often the supervisor looks at the links and at who controls the robot.
+_SUPERVISE_S = 0.5
 
 
 class Executive:
     """Runs one procedure; see the module docstring for the API contract."""
 
     def __init__(self, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, *, run_id: str,
-                 mode: Mode = Mode.MANUAL) -> None:
+                 mode: Mode = Mode.MANUAL, control: RobotControl | None = None) -> None:
         """Prepare a run (nothing happens until :meth:`start`).
 
         Args:
@@ -74,21 +123,30 @@ class Executive:
             journal: where every event goes first (the audit log).
             run_id: the run's id in the journal.
             mode: the initial mode.
+            control: who controls which robot (the ground database); None runs without taking
+                control (a bench with one run).
         """
         self.procedure = checked.procedure
         self.run_id = run_id
+        self.robot = gateway.robot()
         self._checked = checked
         self._gateway = gateway
         self._journal = journal
+        self._control = RunControl(control, self.robot, run_id)
         self._lock = threading.RLock()  # guards every field below and the run state
         self._changed = threading.Condition(self._lock)
         self._seq = 0
         self._listeners: list[Callable[[Event], None]] = []
-        self._automation = Automation(gateway, checked, self._record)
-        self._state = RunState(self.procedure, mode, emit=self._emit, notify=self._changed.notify_all,
+        self._automation = Automation(gateway, checked, self._record, may_send=self._may_send)
+        self._state = RunState(self.procedure, mode, run_id=run_id, emit=self._emit, notify=self._changed.notify_all,
                                hazardous=self._automation.is_hazardous)
         self._worker: threading.Thread | None = None
+        self._supervisor: threading.Thread | None = None
+        self._links = LinkWatch()
+        self._wake = threading.Event()  # the supervisor has something to look at
+        self._last = self._build_snapshot()
         gateway.add_listener(self._telemetry_callback)
+        gateway.add_link_listener(self._link_callback)
 
     # ---- observation ------------------------------------------------------------------------
     def add_listener(self, callback: Callable[[Event], None]) -> None:
@@ -101,17 +159,35 @@ class Executive:
             self._listeners.remove(callback)
 
     def snapshot(self) -> Snapshot:
-        """The run's state now."""
-        with self._lock:
-            state = self._state
-            hold, reason = state.hold()
-            current = state.current_number() if state.status is RunStatus.ACTIVE else None
-            return Snapshot(
-                run_id=self.run_id, procedure_id=self.procedure.id, status=state.status, mode=state.mode,
-                current=current, hold=hold, reason=reason, executing=state.executing,
-                statuses=dict(state.statuses), breakpoints=frozenset(state.breakpoints),
-                variables=state.variables(), last_seq=self._seq, error=state.error,
-            )
+        """The run's state now (see the module docstring: never waits for the database)."""
+        if self._lock.acquire(timeout=_SNAPSHOT_WAIT_S):
+            try:
+                self._last = self._build_snapshot()
+            finally:
+                self._lock.release()
+        return self._live(self._last)
+
+    def _build_snapshot(self) -> Snapshot:
+        state = self._state
+        hold, reason = state.hold()
+        current = state.current_number() if state.status is RunStatus.ACTIVE else None
+        pending = state.unknown[0] if state.unknown else None
+        return Snapshot(
+            run_id=self.run_id, procedure_id=self.procedure.id, status=state.status, mode=state.mode,
+            current=current, hold=hold, reason=reason, executing=state.executing,
+            statuses=dict(state.statuses), breakpoints=frozenset(state.breakpoints),
+            variables=state.variables(), last_seq=self._seq, error=state.error, robot=self.robot,
+            has_control=self._control.held and state.control_lost is None, unknown_key=pending,
+            halted_by=state.halt.user if state.halt else None, halt_reason=state.halt.reason if state.halt else "",
+        )
+
+    def _live(self, snap: Snapshot) -> Snapshot:
+        """``snap`` with the links and the journal as they are now (no executive lock needed)."""
+        links = self._links.now()
+        availability = self._journal.availability
+        return replace(snap, link_lost_since=links.lost_since, commands_in_flight=links.in_flight,
+                       journal_available=availability.available, journal_unavailable_since=availability.since,
+                       journal_error=availability.error)
 
     def current_instruction(self) -> Instruction | None:
         """The instruction the run is at (in the innermost sub-procedure), or None when finished."""
@@ -129,31 +205,42 @@ class Executive:
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if remaining is not None and remaining <= 0:
                     return None
-                self._changed.wait(remaining)
+                self._changed.wait(remaining if remaining is not None else _SUPERVISE_S)
 
     def join(self, timeout: float | None = None) -> None:
         """Wait for PAX's thread to end (after the run completed or stopped)."""
         if self._worker is not None:
             self._worker.join(timeout)
+        if self._supervisor is not None:
+            self._supervisor.join(timeout)
 
     # ---- lifecycle --------------------------------------------------------------------------
-    def start(self, user: str) -> None:
-        """Begin the run (called once, by whoever launches it)."""
+    def start(self, user: str, *, take_over: str | None = None) -> None:
+        """Begin the run (called once, by whoever launches it); take control of the robot first.
+
+        Raises:
+            RobotControlled: another run controls the robot (and ``take_over`` gives no reason to
+                take it from that run); nothing is recorded then.
+        """
         with self._changed:
             state = self._state
             if state.status is not RunStatus.READY:
                 raise OperatorActionError(f"run {self.run_id} was already started")
+            previous = self._control.take(user, take_over)
             state.status = RunStatus.ACTIVE
             procedure = self.procedure
             self._emit(EventKind.RUN_STARTED, user, None, procedure=procedure.id, title=procedure.title,
                        version=procedure.version, path=str(Path(procedure.path).resolve()), mode=state.mode.value,
+                       robot=self.robot,
                        steps=[{"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps])
+            self._record_takeover(user, previous, take_over)
             state.arrive()
             self._launch()
 
     @classmethod
     def resume(cls, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, events: list[Event], user: str,
-               *, mode: Mode | None = None) -> Executive:
+               *, mode: Mode | None = None, control: RobotControl | None = None,
+               take_over: str | None = None) -> Executive:
         """Continue an interrupted run from its recorded events (see Durability above)."""
         procedure = checked.procedure
         if not events or events[0].kind is not EventKind.RUN_STARTED:
@@ -164,21 +251,26 @@ class Executive:
         if started.data.get("procedure") != procedure.id:
             raise OperatorActionError(f"run {started.run_id} ran procedure {started.data.get('procedure')!r}, "
                                       f"not {procedure.id!r}")
-        executive = cls(checked, gateway, journal, run_id=started.run_id, mode=Mode(started.data.get("mode", "manual")))
+        executive = cls(checked, gateway, journal, run_id=started.run_id,
+                        mode=Mode(started.data.get("mode", "manual")), control=control)
         with executive._changed:
             state = executive._state
             replayed = replay(procedure, events, checked.load, mode=state.mode, statuses=state.statuses)
+            previous = executive._control.take(user, take_over)
             state.restore(replayed)
             executive._seq = replayed.seq
             if mode is not None:
                 state.mode = mode
             state.status = RunStatus.ACTIVE
             executive._emit(EventKind.RUN_RESUMED, user, state.frame.number(), mode=state.mode.value,
-                            in_flight=state.in_flight)
+                            in_flight=state.in_flight, resend=state.resend)
+            executive._record_takeover(user, previous, take_over)
             if state.frame.instruction is None:
                 state.advance(state.frame.position)
             else:
-                state.statuses[state.frame.number()] = InstructionStatus.ACTIVE
+                number = state.frame.number()
+                if state.statuses.get(number) not in (InstructionStatus.HALTED, InstructionStatus.OUTCOME_UNKNOWN):
+                    state.statuses[number] = InstructionStatus.ACTIVE
             state.announce()
             executive._launch()
         return executive
@@ -186,6 +278,44 @@ class Executive:
     def _launch(self) -> None:
         self._worker = threading.Thread(target=self._pax_loop, name=f"pax-{self.run_id}", daemon=True)
         self._worker.start()
+        self._supervisor = threading.Thread(target=self._supervise, name=f"pax-watch-{self.run_id}", daemon=True)
+        self._supervisor.start()
+
+    # ---- control of the robot -----------------------------------------------------------------
+    def take_control(self, user: str, reason: str) -> None:
+        """Take control of the robot back from the run that took it over (``reason`` required)."""
+        with self._changed:
+            self._require_active()
+            if self._control.control is None:
+                raise OperatorActionError("this run is not under robot control")
+            if self._state.control_lost is None:
+                raise OperatorActionError(f"run {self.run_id} already controls robot {self.robot}")
+            _require_reason(reason, "you take control of the robot")
+            self._record_takeover(user, self._control.take(user, reason), reason)
+            self._state.control_lost = None
+            self._state.announce()
+
+    def _record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
+        if previous is not None:
+            self._emit(EventKind.CONTROL_TAKEN, user, self._state.current_number(), robot=self.robot,
+                       from_run=previous.run_id, from_user=previous.user, reason=reason or "")
+
+    def _may_send(self) -> None:
+        """Raise ControlLost unless this run controls its robot (asked in the database, not remembered)."""
+        lost, holder = self._control.lost()
+        if lost:
+            raise ControlLost(self._control.lost_text(holder), holder)
+
+    def _lose_control(self, holder: Controller | None) -> None:
+        """Another run took the robot: hold and say who (the lock is held)."""
+        state = self._state
+        if state.control_lost is not None or state.status is not RunStatus.ACTIVE:
+            return
+        state.control_lost = self._control.lost_text(holder)
+        self._emit(EventKind.CONTROL_LOST, PAX, state.current_number(), robot=self.robot,
+                   by_run=holder.run_id if holder else None, by_user=holder.user if holder else None,
+                   reason=holder.reason if holder else "")
+        state.announce()
 
     # ---- operator actions -------------------------------------------------------------------
     def set_mode(self, user: str, mode: Mode) -> None:
@@ -208,23 +338,46 @@ class Executive:
             self._emit(EventKind.PAUSED, user, self._state.current_number())
 
     def resume_automation(self, user: str) -> None:
-        """Let automation carry on after a pause or a breakpoint."""
+        """Carry on after a pause, a breakpoint or a halt ("continue")."""
         with self._changed:
             self._require_active()
             state = self._state
-            if not (state.paused or state.at_breakpoint):
-                raise OperatorActionError("automation is neither paused nor at a breakpoint")
+            if not (state.paused or state.at_breakpoint or state.halt):
+                raise OperatorActionError("automation is neither paused, halted nor at a breakpoint")
+            if state.halt and state.executing:
+                raise OperatorActionError(f"{state.current_number()} is still ending after the halt; wait for it")
             state.paused = state.at_breakpoint = False
+            self._clear_halt()
             self._emit(EventKind.CONTINUED, user, state.current_number())
             state.announce()
 
+    def halt(self, user: str, reason: str = "") -> None:
+        """Stop the robot now: cancel the command in flight, then hold (never refused while the run is live).
+
+        The cancel goes to the gateway before the executive's lock is taken, so it reaches the
+        robot even while the lock is held by an append that waits for the database.
+        """
+        key = self._automation.request_halt(Halt(user, reason)) or self._pending_key()
+        answer = self._cancel(key)
+        with self._changed:
+            state = self._state
+            if state.status is not RunStatus.ACTIVE:
+                return
+            if state.halt is None:
+                state.halt = Halt(user, reason)
+            self._emit(EventKind.HALT, user, state.current_number(), reason=reason, key=key,
+                       cancel=_cancel_data(answer), executing=state.executing)
+            state.announce()
+
     def stop(self, user: str, reason: str = "") -> None:
-        """End the run now; a command in progress finishes and is recorded. The run can be resumed."""
+        """Halt as :meth:`halt` does, then end the run (it can be resumed)."""
+        key = self._automation.request_halt(Halt(user, reason)) or self._pending_key()
+        answer = self._cancel(key)
         with self._changed:
             self._require_active()
             self._state.status = RunStatus.STOPPED
-            self._automation.abort.set()
-            self._emit(EventKind.RUN_STOPPED, user, self._state.current_number(), reason=reason)
+            self._emit(EventKind.RUN_STOPPED, user, self._state.current_number(), reason=reason, key=key,
+                       cancel=_cancel_data(answer))
 
     def set_breakpoint(self, user: str, number: str) -> None:
         """Make automation hold when it reaches instruction ``number``."""
@@ -256,8 +409,14 @@ class Executive:
             if isinstance(instruction, (RecordInstruction, ManualInstruction)):
                 todo = "enter a value" if isinstance(instruction, RecordInstruction) else "mark it done"
                 raise OperatorActionError(f"{number} is a {instruction.kind.value}: {todo}")
+            if state.unknown or state.resend:
+                raise OperatorActionError(self._unknown_text())
             if state.failure or state.in_flight:
                 raise OperatorActionError(f"{number} failed or was interrupted: retry or skip it")
+            if state.halt:
+                raise OperatorActionError(f"the run is {state.halt_text()}: continue, retry or skip first")
+            if state.control_lost:
+                raise OperatorActionError(f"{state.control_lost}: take control first")
             if state.unconfirmed(instruction):
                 raise OperatorActionError(f"{number} is a hazardous command: confirm it first")
             state.request = Request(user, then_pause)
@@ -270,7 +429,7 @@ class Executive:
             instruction = self._require_idle()
             if not self.is_hazardous(instruction):
                 raise OperatorActionError(f"{self._state.current_number()} is not a hazardous command")
-            self._state.confirmed = True
+            self._state.confirmed_by = user
             self._emit(EventKind.CONFIRMATION, user, self._state.current_number(), command=instruction.describe())
             self._state.announce()
 
@@ -280,14 +439,36 @@ class Executive:
             instruction = self._require_idle()
             if not isinstance(instruction, RecordInstruction):
                 raise OperatorActionError(f"{self._state.current_number()} is a {instruction.kind.value}, not a record")
-            try:
-                converted = instruction.check(value)
-            except ValueError as exc:
-                raise OperatorActionError(str(exc)) from None
+            converted, checked = self._automation.check_record(instruction, value)
             frame = self._state.frame
             frame.env[instruction.name] = converted
-            self._emit(EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted)
+            self._emit(EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted,
+                       **checked)
             self._state.complete(user, frame.procedure.following(frame.position))
+            return converted
+
+    def correct_record(self, user: str, number: str, value: Any, reason: str) -> Any:
+        """Re-enter the earlier record ``number`` of the current procedure; both values are logged.
+
+        The run stays where it is; later instructions use the new value (go back with
+        :meth:`go_back` to perform them again). Returns the value as recorded.
+        """
+        with self._changed:
+            self._require_idle()
+            _require_reason(reason, "the record is corrected")
+            frame = self._state.frame
+            local = number.removeprefix(frame.prefix) if number.startswith(frame.prefix) else None
+            instruction = frame.procedure.instruction(local) if local is not None and "/" not in local else None
+            if not isinstance(instruction, RecordInstruction):
+                raise OperatorActionError(f"{number} is not a record of {frame.procedure.id}")
+            if instruction.name not in frame.env or number == frame.number():
+                raise OperatorActionError(f"{number} has not been entered yet: enter it when the run gets there")
+            converted, checked = self._automation.check_record(instruction, value)
+            old = frame.env[instruction.name]
+            frame.env[instruction.name] = converted
+            self._emit(EventKind.RECORD_CORRECTED, user, number, name=instruction.name, old=old, value=converted,
+                       reason=reason, **checked)
+            self._state.announce()
             return converted
 
     def mark_done(self, user: str) -> None:
@@ -301,52 +482,124 @@ class Executive:
             self._state.complete(user, frame.procedure.following(frame.position))
 
     def retry(self, user: str) -> None:
-        """Perform a failed (or interrupted) instruction again, as ``user``."""
+        """Perform a failed, halted (or interrupted) instruction again, as ``user``: a new attempt."""
         with self._changed:
             instruction = self._require_idle()
             state = self._state
-            if not (state.failure or state.in_flight):
-                raise OperatorActionError(f"{state.current_number()} has not failed")
+            number = state.current_number()
+            if state.unknown or state.resend:
+                raise OperatorActionError(self._unknown_text())
+            halted_here = state.statuses.get(state.frame.number()) is InstructionStatus.HALTED
+            if not (state.failure or state.in_flight or halted_here):
+                raise OperatorActionError(f"{number} has not failed or been halted")
             if state.unconfirmed(instruction):
-                raise OperatorActionError(f"{state.current_number()} is a hazardous command: confirm it first")
-            self._emit(EventKind.RETRY, user, state.current_number(), after=state.failure or state.in_flight)
-            state.failure = state.in_flight = None
+                raise OperatorActionError(f"{number} is a hazardous command: confirm it first")
+            self._emit(EventKind.RETRY, user, number, after=state.failure or state.in_flight or state.halt_text())
+            state.clear_holds()
+            self._clear_halt()
             state.request = Request(user)
             self._changed.notify_all()
+
+    def ask_again(self, user: str) -> None:
+        """Send the command of unknown outcome again with its same key: the habitat answers its
+        recorded outcome or joins it, and never runs it twice."""
+        with self._changed:
+            self._require_idle()
+            state = self._state
+            key = self._pending_key()
+            if key is None:
+                raise OperatorActionError(f"{state.current_number()} has no command of unknown outcome")
+            self._emit(EventKind.RETRY, user, state.current_number(),
+                       after=state.unknown[1] if state.unknown else f"{key} in flight", same_key=True, key=key)
+            state.clear_holds()
+            self._clear_halt()
+            state.resend = key
+            state.request = Request(user)
+            self._changed.notify_all()
+
+    def resolve(self, user: str, outcome: Outcome | str, reason: str) -> None:
+        """Record what became of the command of unknown outcome, as ``user`` found it on the robot.
+
+        ``outcome`` is succeeded (the instruction completes) or failed (it fails: its on-failure
+        step, or a failure hold); ``reason`` says what was checked.
+        """
+        try:
+            found = Outcome(outcome)
+        except ValueError:
+            found = None
+        if found not in (Outcome.SUCCEEDED, Outcome.FAILED):
+            raise OperatorActionError(f"record succeeded or failed, not {outcome!r}")
+        with self._changed:
+            self._require_idle()
+            _require_reason(reason, "you record this outcome (what did you check?)")
+            key = self._pending_key()
+            if key is None:
+                raise OperatorActionError(f"{self._state.current_number()} has no command of unknown outcome")
+            self._clear_halt()
+            self._state.resolve(user, key, found is Outcome.SUCCEEDED, reason)
 
     def skip(self, user: str, reason: str) -> None:
         """Pass over the current instruction without performing it; ``reason`` is required."""
         with self._changed:
             self._require_idle()
-            if not reason.strip():
-                raise OperatorActionError("say why the instruction is skipped")
+            _require_reason(reason, "the instruction is skipped")
+            self._clear_halt()
             self._state.skip(user, reason)
+
+    def go_back(self, user: str, number: str, reason: str) -> None:
+        """Go back to the earlier instruction ``number`` of the current step; PAX continues from there."""
+        with self._changed:
+            self._require_idle()
+            _require_reason(reason, "the run goes back")
+            state = self._state
+            if state.unknown or state.resend:
+                raise OperatorActionError(self._unknown_text())
+            frame = state.frame
+            current = frame.number()
+            local = number.removeprefix(frame.prefix) if number.startswith(frame.prefix) else ""
+            items = frame.procedure.instructions
+            position = next((n for n, i in enumerate(items) if i.number == local), None)
+            here = items[frame.position].number
+            if position is None or local.split(".")[0] != here.split(".")[0]:
+                raise OperatorActionError(f"{number} is not an instruction of the current step (at {current})")
+            if position >= frame.position:
+                raise OperatorActionError(f"{number} is not before {current}")
+            self._clear_halt()
+            state.go_back(user, position, reason)
 
     def operator_command(self, user: str, system: str, command: str, args: dict[str, Any]) -> CommandResult:
         """Send a command an operator gave outside the procedure's instructions (a registration
         dragged in the 3D view), as ``user``, through the run's gateway like any command.
 
         Journaled COMMAND_SENT/COMMAND_RESULT without an instruction number, with the user, the
-        arguments and its own key (``<run>/operator/<n>``), so the audit log attributes it; the
-        run's position does not change. Refused when the run is not active or an instruction is
-        being performed (OperatorActionError).
+        arguments and its own key (``<run>/operator/<seq>``, executed at most once by the
+        habitat), so the audit log attributes it; the run's position does not change. Its
+        outcome is the gateway's (unknown stays unknown). Refused (OperatorActionError) when the
+        run is not active, an instruction is being performed, or the run does not control its
+        robot.
         """
         with self._lock:
             self._require_active()
             if self._state.executing:  # one command at a time on the robot, as the procedure sends them
                 raise OperatorActionError(f"{self._state.current_number()} is being performed; try when it is done")
+            try:
+                self._may_send()
+            except ControlLost as exc:
+                raise OperatorActionError(str(exc)) from None
             key = f"{self.run_id}/operator/{self._seq + 1}"
             about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
             self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
         try:
-            result: CommandResult = self._gateway.execute(system, command, args)
+            result = self._gateway.execute(system, command, args, key=key)
         except Exception as exc:  # refused before sending (bad argument, unknown command)
-            result = CommandResult(False, f"not sent: {type(exc).__name__}: {exc}")
-        self._record(EventKind.COMMAND_RESULT, user, None, **about, success=result.success,
+            result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
+        outcome = result.outcome
+        self._record(EventKind.COMMAND_RESULT, user, None, **about, outcome=outcome.value,
+                     success=None if outcome is Outcome.UNKNOWN else result.success,
                      message=result.message, values=dict(result.values))
         return result
 
-    # ---- guards -----------------------------------------------------------------------------
+    # ---- guards and helpers -----------------------------------------------------------------
     def _require_active(self) -> None:
         if self._state.status is not RunStatus.ACTIVE:
             raise OperatorActionError(f"run {self.run_id} is {self._state.status.value}")
@@ -365,16 +618,52 @@ class Executive:
         if self.procedure.instruction(head) is None:
             raise OperatorActionError(f"no instruction {number!r} in {self.procedure.id}")
 
+    def _pending_key(self) -> str | None:
+        """The key of the command whose outcome is not known (read without the lock: one attribute each)."""
+        unknown = self._state.unknown
+        return unknown[0] if unknown else self._state.resend
+
+    def _unknown_text(self) -> str:
+        return (f"the outcome of {self._pending_key()} is unknown: ask again (same key), record what you found "
+                "on the robot, or skip it")
+
+    def _clear_halt(self) -> None:
+        self._state.halt = None
+        self._automation.clear_halt()
+
+    def _cancel(self, key: str | None) -> CancelResult | None:
+        if key is None:
+            return None
+        try:
+            return self._gateway.cancel(key)
+        except Exception as exc:  # the halt is still recorded, with why the cancel failed
+            log.exception("cancel of %s failed", key)
+            return CancelResult(False, f"cancel failed: {type(exc).__name__}: {exc}")
+
     def is_hazardous(self, instruction: Instruction) -> bool:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
         return self._automation.is_hazardous(instruction)
 
     # ---- events -----------------------------------------------------------------------------
     def _emit(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> Event:
-        """Record an event (the lock is held): durably first, then wake waiters and tell listeners."""
-        self._seq += 1
-        event = Event(self.run_id, self._seq, kind, actor, instruction, data)
-        self._journal.append(event)  # durable first: if this raises, the action does not happen
+        """Record an event (the lock is held): durably first, then wake waiters and tell listeners.
+
+        A journal that cannot store it stops the run at once (:class:`JournalFailure`); its
+        sequence number stays free for the event a resume records next.
+        """
+        event = Event(self.run_id, self._seq + 1, kind, actor, instruction, data)
+        try:
+            self._journal.append(event)  # durable first: if this raises, the action does not happen
+        except Exception as exc:
+            state = self._state
+            state.error = f"{type(exc).__name__}: {exc}"
+            state.status = RunStatus.STOPPED
+            self._automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
+            self._changed.notify_all()
+            log.error("run %s stopped: the journal could not store %s: %s", self.run_id, kind.value, exc)
+            raise JournalFailure(f"run {self.run_id} stopped: the audit log could not store {kind.value}: "
+                                 f"{state.error}") from exc
+        self._seq = event.seq
         self._changed.notify_all()  # every event is a change someone may be waiting for
         for listener in list(self._listeners):
             try:
@@ -386,50 +675,104 @@ class Executive:
     def _record(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> None:
         """Emit from PAX's thread while it does not hold the lock (automation's callback)."""
         with self._lock:
+            if self._state.error is not None:
+                raise JournalFailure(f"run {self.run_id} stopped: {self._state.error}")
             self._emit(kind, actor, instruction, **data)
 
     # ---- PAX's thread -----------------------------------------------------------------------
+    def _next_job(self) -> Any:
+        return None if self._automation.interrupt.is_set() else self._state.next_job()
+
     def _pax_loop(self) -> None:
         state = self._state
         try:
             while True:
                 with self._changed:
-                    job = state.next_job()
+                    job = self._next_job()
                     while job is None and state.status is RunStatus.ACTIVE:
                         self._changed.wait()
-                        job = state.next_job()
+                        job = self._next_job()
                     if job is None:
                         return
-                    number = job.frame.number()
-                    state.executing = True
-                    state.request = None
-                    state.statuses[number] = InstructionStatus.EXECUTING
+                    number = state.begin(job)
                     self._emit(EventKind.INSTRUCTION_STARTED, job.actor, number,
                                instruction_kind=job.instruction.kind.value, text=job.instruction.describe())
                 try:
                     outcome = self._automation.carry_out(job.frame.env, job.frame.procedure, job.instruction, number,
-                                                         job.actor)
+                                                         job.actor, job.send)
+                except (JournalFailure, ControlLost):
+                    raise
                 except KeyError as exc:
-                    outcome = Outcome(False, str(exc.args[0]) if exc.args else str(exc))
+                    outcome = InstructionResult(False, str(exc.args[0]) if exc.args else str(exc))
                 except Exception as exc:  # a gateway error is a failed instruction, never a success
                     log.exception("%s failed", number)
-                    outcome = Outcome(False, f"{type(exc).__name__}: {exc}")
+                    outcome = InstructionResult(False, f"{type(exc).__name__}: {exc}")
                 with self._changed:
                     state.executing = False
+                    if state.halt is None:
+                        state.halt = self._automation.halt
                     state.finish(job, number, outcome)
                     if job.then_pause and state.status is RunStatus.ACTIVE and not state.paused:
                         state.paused = True
                         self._emit(EventKind.PAUSED, job.actor, state.current_number(), after_step=number)
                     self._changed.notify_all()
-        except Exception as exc:  # the journal failed: nothing may run unrecorded
+        except ControlLost as lost:
+            with self._changed:
+                state.executing = False
+                state.statuses[state.frame.number()] = InstructionStatus.ACTIVE
+                self._lose_control(lost.holder)
+            self._pax_loop()  # nothing was sent: carry on waiting (the hold keeps automation back)
+        except JournalFailure:
+            pass  # the run stopped in _emit, with the journal's reason
+        except Exception as exc:  # a bug must not leave a run looking alive
             log.exception("run %s stopped: %s", self.run_id, exc)
             with self._changed:
                 state.error = f"{type(exc).__name__}: {exc}"
                 state.status = RunStatus.STOPPED
                 state.executing = False
-                self._automation.abort.set()
+                self._automation.interrupt.set()
                 self._changed.notify_all()
+        finally:
+            self._wake.set()
+
+    # ---- the supervisor: links and control, on its own thread -----------------------------------
+    def _supervise(self) -> None:
+        """Record link changes and notice a takeover of the robot until the run ends; then release it."""
+        try:
+            while self._state.status is RunStatus.ACTIVE:
+                self._wake.wait(_SUPERVISE_S)
+                self._wake.clear()
+                change = self._links.change()
+                lost, holder = self._control.lost() if self._state.control_lost is None else (False, None)
+                if change is None and not lost:
+                    continue
+                with self._changed:
+                    if change is not None and self._state.status is RunStatus.ACTIVE:
+                        self._emit(change[0], PAX, self._state.current_number(), **change[1])
+                    if lost:
+                        self._lose_control(holder)
+        except JournalFailure:
+            pass  # the run stopped in _emit, with the journal's reason
+        except Exception:
+            log.exception("run %s: watching links and control failed", self.run_id)
+        finally:
+            if self._state.status is not RunStatus.ACTIVE:
+                self._control.release()
+
+    def _link_callback(self, state: LinkState) -> None:
+        """Called by the gateway on its own thread: note the link, let the supervisor record it."""
+        self._links.update(state)
+        self._wake.set()
 
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
         """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
         self._automation.telemetry_changed.set()
+
+
+def _cancel_data(answer: CancelResult | None) -> dict[str, Any] | None:
+    return None if answer is None else {"stopped": answer.stopped, "message": answer.message}
+
+
+def _require_reason(reason: str, what: str) -> None:
+    if not reason.strip():
+        raise OperatorActionError(f"say why {what}")

@@ -203,6 +203,25 @@ class _Linter:
             self.step_target(i, "step", i.step)
         elif isinstance(i, CallInstruction):
             self.check_call(i)
+        elif isinstance(i, RecordInstruction) and i.one_of_telemetry is not None:
+            self.check_listed_values(i, *i.one_of_telemetry)
+
+    def check_listed_values(self, i: RecordInstruction, system: str, item_id: str) -> None:
+        """``one-of-telemetry``: a string item of a used system that lists the acceptable values."""
+        where = i.at("one-of-telemetry")
+        sysrep = self.sysreps.get(system)
+        if sysrep is None:
+            self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
+            return
+        if system not in self.declared:
+            self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
+        item = sysrep.telemetry_item(item_id)
+        if item is None:
+            self.fail(where, f"unknown telemetry {item_id!r} in {system} "
+                             f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})")
+        elif item.type != "string":
+            self.fail(where, f"one-of-telemetry needs a string item listing the values (comma-separated); "
+                             f"{system}.{item_id} is {item.type}")
 
     def check_command(self, i: CommandInstruction) -> None:
         sysrep = self.system(i, i.system)

@@ -289,6 +289,9 @@ class RecordInstruction(Instruction):
     maximum: float | None = None
     pattern: str | None = None
     choices: tuple[str, ...] | None = None
+    #: (system, item): a telemetry item listing the acceptable values, comma-separated; checked
+    #: when the value is entered, against the value the system reports then (the executive does it)
+    one_of_telemetry: tuple[str, str] | None = None
 
     def check(self, value: Any) -> Any:
         """The entered value converted to this record's type, or ValueError saying what is wrong."""

@@ -286,6 +286,14 @@ class _Builder:
                 self.fail(self.pos.attribute(el, "pattern"), f"pattern is not a valid regular expression: {exc}")
         one_of = el.get("one-of")
         choices = tuple(c.strip() for c in one_of.split(",")) if one_of else None
+        listed = el.get("one-of-telemetry")
+        one_of_telemetry = None
+        if listed is not None:
+            system, dot, item = listed.partition(".")
+            if not (system and dot and item) or "." in item:
+                self.fail(self.pos.attribute(el, "one-of-telemetry"),
+                          f"one-of-telemetry names a telemetry item as system.item, got {listed!r}")
+            one_of_telemetry = (system, item)
         minimum, maximum = el.get("min"), el.get("max")
         record = RecordInstruction(
             kind=Kind.RECORD,
@@ -295,6 +303,7 @@ class _Builder:
             maximum=float(maximum) if maximum is not None else None,
             pattern=pattern,
             choices=choices,
+            one_of_telemetry=one_of_telemetry,
             **{**common, "automatable": False},
         )
         for choice in choices or ():

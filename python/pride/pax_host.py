@@ -4,9 +4,11 @@ The executive talks to systems through :class:`PaxHost`, a :class:`pride.systems
 (docs/interfaces.md). It runs in the procedure runner on the ground, never on the habitat side::
 
     host = PaxHost("sysrep/bindings/iva.yaml")
-    result = host.execute("cdra", "unlock_filter", {})
+    result = host.execute("cdra", "unlock_filter", {}, key="run-1/2.4/1")  # CommandResult(Outcome, ...)
+    host.cancel("run-1/2.7/1")                             # a halt of a command in flight
     locked = host.telemetry("cdra", "filter_locked")     # TelemetryValue(value, timestamp, stale)
     host.add_listener(lambda sysrep, item, value: ...)
+    host.add_link_listener(lambda state: ...)            # LinkState(link, connected, lost_since, in_flight)
     host.close()
 
 Everything real happens in Java (``caretaker.binding.PaxHost`` in java/pax-plugins): loading the
@@ -28,7 +30,15 @@ from typing import Any
 import jpype
 
 from pride.jvm import JarNotBuiltError, start_jvm
-from pride.systems import CommandResult, TelemetryListener, TelemetryValue
+from pride.systems import (
+    CancelResult,
+    CommandResult,
+    LinkListener,
+    LinkState,
+    Outcome,
+    TelemetryListener,
+    TelemetryValue,
+)
 
 __all__ = ["JarNotBuiltError", "PaxError", "PaxHost", "to_java", "to_python"]
 
@@ -127,7 +137,11 @@ class PaxHost:
         # The ids only: the Java host loaded and checks the SysReps; the runner's own copy (the one
         # its lint used) is loaded once by the runner, not again here.
         self._system_ids = frozenset(str(s.id()) for s in self._host.sysReps())
+        binding = self._host.binding()
+        self._robot = str(binding.robot())
+        self._one_way_delay = int(binding.link().oneWayDelay().toMillis()) / 1000.0
         self._listeners: list[Any] = []  # the Java proxies, kept alive while Java holds them
+        self._link_listeners: list[Any] = []
         self._closed = False
         self._close_lock = threading.Lock()
         # Java threads must not call Python listeners while the interpreter shuts down (JPype
@@ -137,6 +151,14 @@ class PaxHost:
     def system_ids(self) -> frozenset[str]:
         """The ids of the bound SysReps."""
         return self._system_ids
+
+    def robot(self) -> str:
+        """The binding's ``robot:``."""
+        return self._robot
+
+    def one_way_delay(self) -> float:
+        """The binding's expected one-way delay (``link: {one_way_delay}``), in seconds."""
+        return self._one_way_delay
 
     def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
                 ) -> CommandResult:
@@ -156,7 +178,8 @@ class PaxHost:
                 once. Without one, a key of its own is made (the command cannot be re-sent later).
 
         Returns:
-            The system's outcome; ``success`` False carries its message.
+            The system's outcome (:class:`pride.systems.Outcome`); every outcome but SUCCEEDED
+            carries its message.
 
         Raises:
             PaxError: unknown SysRep or command, missing, unknown or ill-typed argument.
@@ -171,7 +194,23 @@ class PaxHost:
         except jpype.JException as exc:
             raise _java_error(exc) from None
         values = {str(k): to_python(v) for k, v in result.values().items()}
-        return CommandResult(bool(result.success()), str(result.message()), values, str(result.outcome()).lower())
+        return CommandResult(Outcome(str(result.outcome().name()).lower()), str(result.message()), values)
+
+    def cancel(self, key: str) -> CancelResult:
+        """Stop the command ``key`` if it still runs (``caretaker.binding.PaxHost.cancel``).
+
+        The plugin that sent it cancels it on the system directly; its :meth:`execute` then
+        returns HALTED (or its real outcome if it finished first). Never raises for a command that
+        cannot be cancelled: the answer says so.
+
+        Raises:
+            PaxError: ``key`` is not ``run/instruction/attempt``.
+        """
+        try:
+            answer = self._host.cancel(jpype.JClass("caretaker.pax.CommandKey").parse(jpype.JString(key)))
+        except jpype.JException as exc:
+            raise _java_error(exc) from None
+        return CancelResult(bool(answer.stopped()), str(answer.message()))
 
     def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
         """The current value, timestamp and staleness of a telemetry item.
@@ -204,6 +243,26 @@ class PaxHost:
         self._listeners.append(listener)
         self._host.addListener(listener)
 
+    def add_link_listener(self, callback: LinkListener) -> None:
+        """Call ``callback(LinkState)`` when a link goes down or up (and while down, when the number
+        of commands in flight changes); on a Java thread, so it must return quickly."""
+
+        @jpype.JImplements("caretaker.rosbridge.LinkListener")
+        class _LinkListener:
+            @jpype.JOverride  # type: ignore[untyped-decorator]  # JPype has no type information
+            def linkChanged(self, state: Any) -> None:  # noqa: N802 (Java name)
+                try:
+                    lost = state.lostSince()
+                    since = None if lost is None else int(lost.getEpochSecond()) + int(lost.getNano()) / 1e9
+                    callback(LinkState(str(state.rosbridge().toString()), bool(state.connected()), since,
+                                       int(state.commandsInFlight())))
+                except Exception:
+                    _LOG.exception("link listener %r failed", callback)
+
+        listener = _LinkListener()
+        self._link_listeners.append(listener)
+        self._host.addLinkListener(listener)
+
     def close(self) -> None:
         """Stop the plugins and close the rosbridge connections; safe to call twice."""
         with self._close_lock:
@@ -213,6 +272,8 @@ class PaxHost:
         atexit.unregister(self.close)
         for listener in self._listeners:
             self._host.removeListener(listener)
+        for link_listener in self._link_listeners:
+            self._host.removeLinkListener(link_listener)
         self._host.close()
 
     def __enter__(self) -> PaxHost:

@@ -2,8 +2,11 @@
 
 The audit log is the run's only memory: :func:`replay` reads it back into where the run is
 (its frames and their variables), what each instruction's status is, the mode and breakpoints,
-and whether an instruction was in flight (a command sent with no result recorded). It decides
-nothing; :meth:`pride.executive.Executive.resume` continues from what it returns.
+how many attempts each command had, whether the run was halted, and whether a command's outcome
+is not known: sent with no result recorded (in flight when the runner died) or answered UNKNOWN.
+Such a command's key is to be sent again as it is (``resend``): the habitat answers its outcome
+or joins it, never runs it twice. It decides nothing; :meth:`pride.executive.Executive.resume`
+continues from what it returns.
 """
 
 from __future__ import annotations
@@ -23,7 +26,11 @@ _ENDED = {
     EventKind.INSTRUCTION_COMPLETED: InstructionStatus.COMPLETED,
     EventKind.INSTRUCTION_FAILED: InstructionStatus.FAILED,
     EventKind.INSTRUCTION_SKIPPED: InstructionStatus.SKIPPED,
+    EventKind.INSTRUCTION_HALTED: InstructionStatus.HALTED,
 }
+#: Operator decisions after which a halt no longer holds the run.
+_HALT_ENDS = (EventKind.RETRY, EventKind.CONTINUED, EventKind.STEPPED_BACK, EventKind.INSTRUCTION_SKIPPED,
+              EventKind.OUTCOME_RESOLVED)
 
 
 @dataclass
@@ -35,13 +42,22 @@ class Replayed:
     statuses: dict[str, InstructionStatus]
     breakpoints: set[str] = field(default_factory=set)
     failure: str | None = None  # the reason the current instruction failed, when it did
-    in_flight: str | None = None  # why the current instruction holds: its command's outcome is unknown
+    in_flight: str | None = None  # a command sent without a key (an old log) and no result: why it holds
+    resend: str | None = None  # the key of a command whose outcome is not known: send it again as it is
+    unknown: tuple[str, str] | None = None  # (key, why) when the run was halted with an outcome unknown
+    halt: tuple[str, str] | None = None  # (who, why) when the run was halted
+    attempts: dict[str, int] = field(default_factory=dict)
     seq: int = 0
 
 
 def result_values(data: dict[str, Any]) -> dict[str, Any]:
     """The variables a saved command result provides, from its COMMAND_RESULT event's data."""
     return {"success": data.get("success"), "message": data.get("message", ""), **(data.get("values") or {})}
+
+
+def _attempt(key: str) -> int:
+    tail = key.rsplit("/", 1)[-1]
+    return int(tail) if tail.isdigit() else 0
 
 
 def replay(procedure: Procedure, events: Sequence[Event], load: Callable[[str], Procedure], *,
@@ -52,38 +68,66 @@ def replay(procedure: Procedure, events: Sequence[Event], load: Callable[[str], 
     envs: dict[str, dict[str, Any]] = {}
     started: str | None = None
     sent: str | None = None
+    pending: str | None = None  # the key whose outcome is not known (in flight, unknown, asked again)
+    unknown_why = ""
     for event in events:
         number = event.instruction or ""
         prefix = number.rsplit("/", 1)[0] + "/" if "/" in number else ""
-        kind = event.kind
+        kind, data = event.kind, event.data
         if kind in (EventKind.MODE_CHANGED, EventKind.RUN_RESUMED):
-            state.mode = Mode(event.data["mode"])
+            state.mode = Mode(data["mode"])
         elif kind is EventKind.BREAKPOINT_SET:
             state.breakpoints.add(number)
         elif kind is EventKind.BREAKPOINT_CLEARED:
             state.breakpoints.discard(number)
-        elif kind is EventKind.OPERATOR_INPUT:
-            envs.setdefault(prefix, {})[event.data["name"]] = event.data["value"]
+        elif kind in (EventKind.OPERATOR_INPUT, EventKind.RECORD_CORRECTED):
+            envs.setdefault(prefix, {})[data["name"]] = data["value"]
+        elif kind is EventKind.HALT:
+            state.halt = (event.actor, data.get("reason", ""))
         elif kind is EventKind.COMMAND_SENT:
             sent = number
+            key = data.get("key")
+            if key:
+                pending, unknown_why = key, ""
+                state.attempts[number] = max(state.attempts.get(number, 0), _attempt(key))
         elif kind is EventKind.COMMAND_RESULT:
             sent = None
-            if event.data.get("result"):
-                envs.setdefault(prefix, {})[event.data["result"]] = result_values(event.data)
+            if data.get("outcome") == "unknown":
+                unknown_why = f"outcome of {data.get('key')} unknown: {data.get('message', '')}"
+                state.statuses[number] = InstructionStatus.OUTCOME_UNKNOWN
+            else:
+                pending = None
+                if data.get("result"):
+                    envs.setdefault(prefix, {})[data["result"]] = result_values(data)
+        elif kind is EventKind.OUTCOME_RESOLVED:
+            pending = None
         elif kind is EventKind.CALL_ENTERED:
-            envs[number + "/"] = dict(event.data.get("inputs", {}))
+            envs[number + "/"] = dict(data.get("inputs", {}))
         elif kind is EventKind.INSTRUCTION_STARTED:
             started = number
             state.statuses[number] = InstructionStatus.EXECUTING
+        elif kind is EventKind.STEPPED_BACK:
+            for again in data.get("reset", []):
+                state.statuses[again] = InstructionStatus.PENDING
+            cursor, started, sent, pending, state.failure = data["next"], None, None, None, None
         elif kind in _ENDED:
             state.statuses[number] = _ENDED[kind]
-            cursor = event.data["next"]
-            started = sent = None
+            cursor = data["next"]
+            started = sent = pending = None
             failed_here = kind is EventKind.INSTRUCTION_FAILED and cursor == number
-            state.failure = event.data.get("reason") if failed_here else None
+            state.failure = data.get("reason") if failed_here else None
+            if kind is EventKind.INSTRUCTION_HALTED:
+                state.halt = (event.actor, data.get("reason", ""))
+        if kind in _HALT_ENDS:
+            state.halt = None
         state.seq = event.seq
     state.frames = frames_at(procedure, cursor, envs, load)
-    if started is not None and started == cursor and sent is not None:
-        state.in_flight = (f"{cursor} was in flight when the runner stopped: the command was sent and no "
-                           "result was recorded. Check the system, then retry (resend) or skip it.")
+    if pending is not None and started == cursor:
+        state.resend = pending
+        if state.halt is not None:  # halted: nothing is sent again until an operator decides
+            state.unknown = (pending, unknown_why or f"outcome of {pending} unknown: in flight when the runner "
+                                                     "stopped, after a halt")
+    elif started is not None and started == cursor and sent is not None:
+        state.in_flight = (f"{cursor} was in flight when the runner stopped: the command was sent without a key "
+                           "and no result was recorded. Check the system, then retry (resend) or skip it.")
     return state

@@ -3,8 +3,14 @@
 The executive (:mod:`pride.executive`) owns one :class:`RunState` and touches it only with its
 lock held; it decides *who* may act and *when* (operators, PAX's thread). This module holds the
 state and the moves: arriving at an instruction, completing it, following an outcome to the next
-one, entering and leaving sub-procedures, and which hold applies now. Every move records its
-event through the executive's ``emit`` (the journal first) as it makes it.
+one (or holding: failed, halted, outcome unknown), entering and leaving sub-procedures, going
+back within a step, and which hold applies now. Every move records its event through the
+executive's ``emit`` (the journal first) as it makes it.
+
+Command keys: each send of a command is an attempt with its own key
+(:func:`pride.automation.command_key`); ``attempts`` counts them per instruction, so a retry, a
+loop back or a step back sends a new key. Only two sends reuse a key: asking again about an
+unknown outcome, and re-sending a command that was in flight when the runner died (``resend``).
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from pride.automation import Outcome
+from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.events import PAX, Event, EventKind
 from pride.frames import Frame, position_of
 from pride.model import (
@@ -47,12 +53,13 @@ class Request:
 
 @dataclass(frozen=True)
 class Job:
-    """An instruction PAX's thread is to perform now, and for whom."""
+    """An instruction PAX's thread is to perform now, and for whom (a command: with its key)."""
 
     frame: Frame
     instruction: Instruction
     actor: str
     then_pause: bool
+    send: Send | None = None
 
 
 def _on_failure(instruction: Instruction) -> str | None:
@@ -61,7 +68,7 @@ def _on_failure(instruction: Instruction) -> str | None:
     return None
 
 
-def _onward(frame: Frame, outcome: Outcome) -> int:
+def _onward(frame: Frame, outcome: InstructionResult) -> int:
     """Where a successful outcome leads: the step it went to, or the instruction that follows."""
     return position_of(frame.procedure, outcome.goto) if outcome.goto else frame.procedure.following(frame.position)
 
@@ -69,8 +76,9 @@ def _onward(frame: Frame, outcome: Outcome) -> int:
 class RunState:
     """The state of one run; see the module docstring. Fields are read and set by the executive."""
 
-    def __init__(self, procedure: Procedure, mode: Mode, *, emit: Emit, notify: Callable[[], None],
+    def __init__(self, procedure: Procedure, mode: Mode, *, run_id: str, emit: Emit, notify: Callable[[], None],
                  hazardous: Callable[[Instruction], bool]) -> None:
+        self.run_id = run_id
         self.status = RunStatus.READY
         self.mode = mode
         self.frames: list[Frame] = [Frame(procedure, "", 0)]
@@ -78,9 +86,14 @@ class RunState:
         self.breakpoints: set[str] = set()
         self.paused = False
         self.at_breakpoint = False
-        self.confirmed = False
+        self.confirmed_by: str | None = None  # who confirmed the current hazardous command
         self.failure: str | None = None
-        self.in_flight: str | None = None
+        self.in_flight: str | None = None  # a log from before command keys: sent, no result, no key
+        self.unknown: tuple[str, str] | None = None  # (key, why) of the command whose outcome is unknown
+        self.resend: str | None = None  # a key to send again as it is (in flight when the runner died)
+        self.halt: Halt | None = None
+        self.control_lost: str | None = None  # why this run may not command its robot
+        self.attempts: dict[str, int] = {}  # instruction number -> attempts at its command so far
         self.request: Request | None = None
         self.executing = False
         self.error: str | None = None
@@ -93,6 +106,8 @@ class RunState:
         """Take the state a replay of the run's events found."""
         self.frames, self.mode, self.statuses = replayed.frames, replayed.mode, replayed.statuses
         self.breakpoints, self.failure, self.in_flight = replayed.breakpoints, replayed.failure, replayed.in_flight
+        self.unknown, self.resend, self.attempts = replayed.unknown, replayed.resend, replayed.attempts
+        self.halt = Halt(*replayed.halt) if replayed.halt else None
 
     # ---- queries ----------------------------------------------------------------------------
     @property
@@ -107,7 +122,13 @@ class RunState:
         return {k: v for f in self.frames for k, v in f.env.items()}
 
     def unconfirmed(self, instruction: Instruction) -> bool:
-        return self._hazardous(instruction) and not self.confirmed
+        return self._hazardous(instruction) and self.confirmed_by is None
+
+    def halt_text(self) -> str:
+        """"halted by USER: reason" (empty without a halt)."""
+        if self.halt is None:
+            return ""
+        return f"halted by {self.halt.user}" + (f": {self.halt.reason}" if self.halt.reason else "")
 
     def hold(self) -> tuple[Hold | None, str]:
         """Why automation does not perform the current instruction now (None when it may)."""
@@ -115,10 +136,20 @@ class RunState:
         if self.status is not RunStatus.ACTIVE or instruction is None or self.executing or self.request:
             return None, ""
         number = self.current_number()
+        if self.control_lost:
+            return Hold.CONTROL_LOST, self.control_lost
+        if self.unknown:
+            return Hold.OUTCOME_UNKNOWN, f"{number}: {self.unknown[1]}"
         if self.in_flight:
             return Hold.IN_FLIGHT, self.in_flight
+        if self.halt:
+            halted_here = self.statuses.get(self.frame.number()) is InstructionStatus.HALTED
+            where = f"{number} was halted before it finished" if halted_here else f"at {number}"
+            return Hold.HALTED, f"{self.halt_text()} ({where})"
         if self.failure:
             return Hold.FAILURE, f"{number} failed: {self.failure}"
+        if self.resend:
+            return None, ""  # PAX sends the same key again by itself: the habitat answers its outcome
         if isinstance(instruction, RecordInstruction):
             return Hold.OPERATOR_INPUT, f"{number}: {instruction.text}"
         if isinstance(instruction, ManualInstruction):
@@ -147,12 +178,30 @@ class RunState:
         if instruction is None:
             return None
         if self.request is not None:
-            return Job(frame, instruction, self.request.actor, self.request.then_pause)
-        if self.hold()[0] is None:
-            return Job(frame, instruction, PAX, False)
-        return None
+            actor, then_pause = self.request.actor, self.request.then_pause
+        elif self.hold()[0] is None:
+            actor, then_pause = PAX, False
+        else:
+            return None
+        send = None
+        if isinstance(instruction, CommandInstruction):
+            number = frame.number()
+            key = self.resend or command_key(self.run_id, number, self.attempts.get(number, 0) + 1)
+            send = Send(key, resend=self.resend is not None, confirmed_by=self.confirmed_by)
+        return Job(frame, instruction, actor, then_pause, send)
 
-    def target(self, frame: Frame, instruction: Instruction, outcome: Outcome) -> int | None:
+    def begin(self, job: Job) -> str:
+        """PAX's thread takes ``job``: the instruction is executing (a command's attempt is counted)."""
+        number = job.frame.number()
+        self.executing = True
+        self.request = None
+        self.resend = None
+        self.statuses[number] = InstructionStatus.EXECUTING
+        if job.send is not None and not job.send.resend:
+            self.attempts[number] = self.attempts.get(number, 0) + 1
+        return number
+
+    def target(self, frame: Frame, instruction: Instruction, outcome: InstructionResult) -> int | None:
         """Where the run goes after the outcome; None means hold at a failure."""
         if outcome.ok:
             return _onward(frame, outcome)
@@ -164,7 +213,9 @@ class RunState:
         """Record once per instruction and reason that automation waits for an operator."""
         self._notify()
         hold, reason = self.hold()
-        if self.mode is not Mode.AUTONOMOUS or hold in (None, Hold.PAUSED, Hold.BREAKPOINT, Hold.MANUAL_MODE):
+        if hold in (None, Hold.PAUSED, Hold.BREAKPOINT, Hold.MANUAL_MODE):
+            return
+        if self.mode is not Mode.AUTONOMOUS and hold not in (Hold.OUTCOME_UNKNOWN, Hold.HALTED, Hold.CONTROL_LOST):
             return
         key = (self.current_number() or "", hold)
         if key != self._announced:
@@ -173,7 +224,7 @@ class RunState:
 
     def arrive(self) -> None:
         """Make the frame's position the current instruction."""
-        self.confirmed = False
+        self.confirmed_by = None
         self.failure = None
         number = self.current_number()
         if number is None:
@@ -189,26 +240,47 @@ class RunState:
         number = self.frame.number()
         self.statuses[number] = InstructionStatus.COMPLETED
         self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=self.frame.number(position), **data)
-        self.advance(position)
+        self.advance(position, actor)
+
+    def clear_holds(self) -> None:
+        """An operator decided what to do about the current instruction: no failure, halt or unknown stays."""
+        self.failure = self.in_flight = self.unknown = self.resend = None
+        self.halt = None
 
     def skip(self, actor: str, reason: str) -> None:
         """Pass over the current instruction without performing it."""
         frame = self.frame
         number = frame.number()
-        self.failure = self.in_flight = None
+        self.clear_holds()
         self.statuses[number] = InstructionStatus.SKIPPED
         following = frame.procedure.following(frame.position)
         self._emit(EventKind.INSTRUCTION_SKIPPED, actor, number, reason=reason, next=frame.number(following))
-        self.advance(following)
+        self.advance(following, actor)
 
-    def advance(self, position: int) -> None:
-        """Move to ``position`` in the innermost frame; finish sub-procedures and the run at their end."""
+    def go_back(self, actor: str, position: int, reason: str) -> None:
+        """Return to an earlier instruction of the frame: it and those after it are performed again."""
+        frame = self.frame
+        number = frame.number()
+        reset = [frame.number(p) for p in range(position, frame.position + 1)]
+        self.clear_holds()
+        for again in reset:
+            self.statuses[again] = InstructionStatus.PENDING
+        self._emit(EventKind.STEPPED_BACK, actor, number, reason=reason, next=frame.number(position), reset=reset,
+                   **{"from": number})
+        frame.position = position
+        self.arrive()
+
+    def advance(self, position: int, actor: str = PAX) -> None:
+        """Move to ``position`` in the innermost frame; finish sub-procedures and the run at their end.
+
+        ``actor`` is whoever's action got the run here: the end of the run is credited to them.
+        """
         frame = self.frame
         frame.position = position
         while frame.instruction is None:
             if len(self.frames) == 1:
                 self.status = RunStatus.COMPLETED
-                self._emit(EventKind.RUN_COMPLETED, PAX, None)
+                self._emit(EventKind.RUN_COMPLETED, actor, None)
                 self._notify()
                 return
             self.frames.pop()
@@ -216,19 +288,53 @@ class RunState:
             number = frame.number()
             self.statuses[number] = InstructionStatus.COMPLETED
             frame.position = frame.procedure.following(frame.position)
-            self._emit(EventKind.INSTRUCTION_COMPLETED, PAX, number, next=frame.number())
+            self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=frame.number())
         self.arrive()
 
-    def finish(self, job: Job, number: str, outcome: Outcome) -> None:
+    def halted(self, number: str, actor: str, detail: str) -> None:
+        """A halt ended the instruction: recorded as halted by whoever halted, never completed."""
+        halt = self.halt or Halt(actor, "")
+        self.statuses[number] = InstructionStatus.HALTED
+        self._emit(EventKind.INSTRUCTION_HALTED, halt.user, number, reason=halt.reason, detail=detail, next=number)
+
+    def resolve(self, actor: str, key: str, succeeded: bool, reason: str) -> None:
+        """An operator recorded what became of command ``key`` (outcome unknown); follow it."""
+        frame = self.frame
+        instruction = frame.instruction
+        assert instruction is not None
+        number = frame.number()
+        self.clear_holds()
+        self._emit(EventKind.OUTCOME_RESOLVED, actor, number, key=key, reason=reason,
+                   outcome="succeeded" if succeeded else "failed")
+        finding = f"recorded by {actor}: {reason}"
+        if isinstance(instruction, CommandInstruction) and instruction.result:
+            frame.env[instruction.result] = {"success": succeeded, "message": finding}
+        if succeeded:
+            self.complete(actor, frame.procedure.following(frame.position))
+        else:
+            self._fail(frame, instruction, number, actor, InstructionResult(False, f"{key} failed ({finding})"))
+
+    def finish(self, job: Job, number: str, outcome: InstructionResult) -> None:
         """Follow the outcome of a job PAX's thread performed."""
         frame, instruction, actor = job.frame, job.instruction, job.actor
         if outcome.result is not None:
             name, values = outcome.result
             frame.env[name] = values
+        if not outcome.ok:
+            self.confirmed_by = None  # a hazardous command is confirmed again before a new attempt
+        if outcome.unknown_key is not None:
+            # neither done nor failed: it waits here (a resume asks again) until an operator decides
+            self.statuses[number] = InstructionStatus.OUTCOME_UNKNOWN
+            self.unknown = (outcome.unknown_key, outcome.reason)
+            self.announce()
+            return
+        if outcome.halted:
+            self.halted(number, actor, outcome.reason)
+            self.announce()
+            return
         if self.status is not RunStatus.ACTIVE:
-            # stopped meanwhile: record how it ended so a resume knows, but go nowhere. A failure
-            # (often the stop itself ending a wait) is redone on resume, never branched from; a
-            # sub-procedure that was about to start simply starts again.
+            # stopped meanwhile: record how it ended so a resume knows, but go nowhere. A failure is
+            # redone on resume, never branched from; a sub-procedure about to start starts again.
             if outcome.enter is not None:
                 return
             self.statuses[number] = InstructionStatus.COMPLETED if outcome.ok else InstructionStatus.FAILED
@@ -243,17 +349,22 @@ class RunState:
                 callee, inputs = outcome.enter
                 self.frames.append(Frame(callee, f"{number}/", 0, dict(inputs)))
                 self._emit(EventKind.CALL_ENTERED, actor, number, procedure=callee.id, inputs=dict(inputs))
-                self.advance(0)
+                self.advance(0, actor)
                 return
             went = {"went_to": outcome.goto} if outcome.goto else {}
             self.complete(actor, _onward(frame, outcome), **went)
             return
+        self._fail(frame, instruction, number, actor, outcome)
+
+    def _fail(self, frame: Frame, instruction: Instruction, number: str, actor: str,
+              outcome: InstructionResult) -> None:
+        """The instruction failed: to its on-failure step if it has one, else hold for an operator."""
         self.statuses[number] = InstructionStatus.FAILED
         target = self.target(frame, instruction, outcome)
         if target is not None:
             self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=frame.number(target),
                        branch=_on_failure(instruction))
-            self.advance(target)
+            self.advance(target, actor)
             return
         self.failure = outcome.reason
         self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from datetime import datetime
 from typing import Any
 
-__all__ = ["Hold", "InstructionStatus", "Mode", "OperatorActionError", "RunStatus", "Snapshot"]
+__all__ = ["Controller", "Hold", "InstructionStatus", "JournalFailure", "Mode", "OperatorActionError", "RunStatus",
+           "Snapshot"]
 
 
 class Mode(enum.Enum):
@@ -49,6 +51,10 @@ class InstructionStatus(enum.Enum):
     """Performed and failed."""
     SKIPPED = "skipped"
     """An operator skipped it with a reason."""
+    HALTED = "halted"
+    """A halt ended it before it finished (never completed); retry performs it again."""
+    OUTCOME_UNKNOWN = "outcome_unknown"
+    """Its command may or may not have been executed: an operator asks again, records, or skips."""
 
 
 class Hold(enum.Enum):
@@ -69,18 +75,48 @@ class Hold(enum.Enum):
     FAILURE = "failure"
     """It failed and the procedure has no branch for that: retry or skip."""
     IN_FLIGHT = "in_flight"
-    """It was in flight when the runner died: retry (resend) or skip."""
+    """A log written before command keys: it was in flight when the runner died, retry (resend) or skip.
+    (A keyed command in flight at a crash is re-sent with its key by itself on resume.)"""
     MANUAL_MODE = "manual_mode"
     """Manual mode: the operator performs every instruction."""
+    OUTCOME_UNKNOWN = "outcome_unknown"
+    """Its command's outcome could not be learnt: ask again (same key), record what the system
+    shows (succeeded or failed, with a reason), or skip it with a reason."""
+    HALTED = "halted"
+    """An operator halted the run: retry (a new attempt), continue, skip, or stop."""
+    CONTROL_LOST = "control_lost"
+    """Another run took control of the robot: this run sends nothing until control is taken back."""
 
 
 class OperatorActionError(RuntimeError):
     """An operator action does not apply to the run's current state; the message says why."""
 
 
+class JournalFailure(OperatorActionError):
+    """The audit log could not store an event: the run stopped at once (resume it once the log is back)."""
+
+
+@dataclass(frozen=True)
+class Controller:
+    """The run that controls a robot: only it may send the robot commands."""
+
+    robot: str
+    run_id: str
+    user: str
+    since: datetime
+    reason: str = ""  # why it took control from another run (empty when it simply took it)
+
+    def describe(self) -> str:
+        return f"run {self.run_id} (user {self.user}, since {self.since:%Y-%m-%d %H:%M:%S}Z)"
+
+
 @dataclass(frozen=True)
 class Snapshot:
-    """The observable state of a run at one moment."""
+    """The observable state of a run at one moment.
+
+    Link and journal fields are read live, even while the run waits for the audit log (then the
+    rest is the state from before that wait).
+    """
 
     run_id: str
     procedure_id: str
@@ -95,3 +131,27 @@ class Snapshot:
     variables: dict[str, Any]
     last_seq: int
     error: str | None = None
+    robot: str = ""
+    has_control: bool = False  # this run controls its robot (False when taken over, or without control)
+    unknown_key: str | None = None  # the command whose outcome is unknown (Hold.OUTCOME_UNKNOWN)
+    halted_by: str | None = None  # who halted the run (Hold.HALTED), and why
+    halt_reason: str = ""
+    link_lost_since: datetime | None = None  # a robot link is down since then (UTC)
+    commands_in_flight: int = 0  # while it is down: commands waiting for their outcome
+    journal_available: bool = True  # the audit log takes appends now
+    journal_unavailable_since: datetime | None = None
+    journal_error: str = ""
+
+    def link_summary(self) -> str:
+        """"link lost since T, N commands in flight", or "" while the links are up."""
+        if self.link_lost_since is None:
+            return ""
+        n = self.commands_in_flight
+        return (f"link lost since {self.link_lost_since:%H:%M:%S}Z, {n} command{'' if n == 1 else 's'} in flight")
+
+    def journal_summary(self) -> str:
+        """"audit log unavailable since T: error", or "" while it takes appends."""
+        if self.journal_available:
+            return ""
+        since = f" since {self.journal_unavailable_since:%H:%M:%S}Z" if self.journal_unavailable_since else ""
+        return f"audit log unavailable{since}: {self.journal_error} (the run waits for it)"

@@ -9,15 +9,18 @@ the run and says which option would have answered.
 from __future__ import annotations
 
 import sys
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
 
 from pride.events import Event, EventKind
-from pride.executive import Executive, Hold, Mode, OperatorActionError, Snapshot
+from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
 from pride.model import Procedure, RecordInstruction
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "Unattended"]
+
+_MARKS = {"succeeded": "ok", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
 
 
 class ProgressPrinter:
@@ -42,12 +45,39 @@ class ProgressPrinter:
             line = f"  {number:<8} {event.actor:<10} {data.get('text', '')}"
         elif kind is EventKind.COMMAND_SENT:
             args = ", ".join(f"{k}={v!r}" for k, v in data["args"].items())
-            line = f"  {number:<8} {event.actor:<10} sent {data['system']}.{data['command']}({args})"
+            again = " again" if data.get("resend") else ""
+            line = f"  {number:<8} {event.actor:<10} sent{again} {data['system']}.{data['command']}({args})" + (
+                f" [{data['key']}]" if data.get("key") else "")
         elif kind is EventKind.COMMAND_RESULT:
-            mark = "ok" if data["success"] else "FAILED"
+            mark = _MARKS.get(data.get("outcome", ""), "ok" if data.get("success") else "FAILED")
             line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (
                 f" {data['values']}" if data["values"] else ""
             )
+        elif kind is EventKind.HALT:
+            cancel = data.get("cancel") or {}
+            told = f"; the system: {cancel['message']}" if cancel.get("message") else ""
+            line = f"  {number:<8} {event.actor:<10} HALT{_why(data)}{told}"
+        elif kind is EventKind.INSTRUCTION_HALTED:
+            line = f"  {number:<8} {event.actor:<10} halted before it finished{_why(data)}"
+        elif kind is EventKind.LINK_LOST:
+            n = data.get("in_flight", 0)
+            line = (f"  {number:<8} {'PAX':<10} link lost since {data['since'][11:19]}Z, {n} command"
+                    f"{'' if n == 1 else 's'} in flight: waiting for it")
+        elif kind is EventKind.LINK_RESTORED:
+            line = f"  {number:<8} {'PAX':<10} link restored after {data['seconds']:g} s"
+        elif kind is EventKind.CONTROL_TAKEN:
+            line = (f"  {number:<8} {event.actor:<10} took control of {data['robot']} from run {data['from_run']} "
+                    f"({data['from_user']}){_why(data)}")
+        elif kind is EventKind.CONTROL_LOST:
+            line = (f"  {number:<8} {'PAX':<10} control of {data['robot']} taken over by {data['by_user']} "
+                    f"(run {data['by_run']}){_why(data)}")
+        elif kind is EventKind.RECORD_CORRECTED:
+            line = (f"  {number:<8} {event.actor:<10} corrected {data['name']}: {data['old']!r} -> {data['value']!r}"
+                    f"{_why(data)}")
+        elif kind is EventKind.STEPPED_BACK:
+            line = f"  {number:<8} {event.actor:<10} back to {data['next']}{_why(data)}"
+        elif kind is EventKind.OUTCOME_RESOLVED:
+            line = f"  {number:<8} {event.actor:<10} recorded {data['key']} as {data['outcome']}{_why(data)}"
         elif kind is EventKind.TELEMETRY_SEEN:
             line = f"  {number:<8} {'':<10} {data['system']}.{data['item']} = {data['value']!r}" + (
                 " (stale)" if data["stale"] else ""
@@ -67,6 +97,8 @@ class ProgressPrinter:
         elif kind is EventKind.AWAITING_OPERATOR:
             self._header(number)
             line = f"  {number:<8} {'PAX':<10} waiting for an operator: {data['reason']}"
+        elif kind is EventKind.RETRY and data.get("same_key"):
+            line = f"  {number:<8} {event.actor:<10} asked again about {data['key']} (same key)"
         elif kind in (
             EventKind.CONFIRMATION,
             EventKind.PAUSED,
@@ -79,7 +111,7 @@ class ProgressPrinter:
             extra = data.get("mode", "")
             line = f"  {number:<8} {event.actor:<10} {kind.value.replace('_', ' ')} {extra}".rstrip()
         elif kind is EventKind.RUN_COMPLETED:
-            line = f"Run {event.run_id} completed"
+            line = f"Run {event.run_id} completed" + ("" if event.actor == "PAX" else f" by {event.actor}")
         elif kind is EventKind.RUN_STOPPED:
             line = f"Run {event.run_id} stopped by {event.actor}" + (
                 f": {data['reason']}" if data.get("reason") else ""
@@ -93,6 +125,14 @@ class ProgressPrinter:
             self._step = top
             step = self.procedure.steps[int(top) - 1]
             print(f"Step {step.number}  {step.title}", file=self.stream, flush=True)
+
+
+def _why(data: dict[str, Any]) -> str:
+    return f": {data['reason']}" if data.get("reason") else ""
+
+
+class _Superseded(Exception):
+    """The run changed while the operator was typing (a halt, another console): the answer is not applied."""
 
 
 @dataclass
@@ -124,6 +164,8 @@ class OperatorConsole:
         self.interactive = interactive
         self.stream = stream
         self._read = read
+        self._answering: Snapshot | None = None
+        self._interrupts = 0
 
     def run(self) -> Snapshot:
         """Block until the run completes or stops; return its last snapshot."""
@@ -132,12 +174,39 @@ class OperatorConsole:
             assert snap is not None
             if snap.status.value != "active":
                 return snap
+            self._answering = snap
             try:
                 self._answer(snap)
+            except _Superseded:
+                continue
             except OperatorActionError as exc:
                 self._say(f"  not accepted: {exc}")
                 if not self.interactive:
                     self.executive.stop(self.user, str(exc))
+
+    def interrupt(self) -> None:
+        """Ctrl-C: the first halts the robot and holds the run, the next stops the run.
+
+        Called from the signal handler: the halt runs on its own thread, so the handler returns at
+        once and never re-enters the executive from inside an action the main thread is taking.
+        """
+        self._interrupts += 1
+        first = self._interrupts == 1
+
+        def act() -> None:  # prints here, not in the handler: it may have interrupted a print
+            if first:
+                self._say("\n  HALT (Ctrl-C): stopping the robot and holding the run; Ctrl-C again stops the run")
+            else:
+                self._say("\n  STOP (Ctrl-C twice): the run stops (resume it with --resume)")
+            try:
+                if first:
+                    self.executive.halt(self.user, "Ctrl-C at the terminal")
+                else:
+                    self.executive.stop(self.user, "Ctrl-C twice at the terminal")
+            except OperatorActionError as exc:
+                self._say(f"  not accepted: {exc}")
+
+        threading.Thread(target=act, name="terminal-interrupt", daemon=True).start()
 
     def _say(self, text: str) -> None:
         print(text, file=self.stream, flush=True)
@@ -177,6 +246,29 @@ class OperatorConsole:
                 self._choose(snap, {"y": ("confirm and send", lambda: ex.confirm(user))})
             else:
                 self._unattended_stop(snap, "pass --confirm-hazardous to confirm hazardous commands")
+        elif hold is Hold.OUTCOME_UNKNOWN:
+            if self.interactive:
+                check = "what did you check on the robot? > "
+                self._choose(snap, {
+                    "a": ("ask again (same key)", lambda: ex.ask_again(user)),
+                    "y": ("record: it succeeded", lambda: ex.resolve(user, "succeeded", self._ask(check))),
+                    "n": ("record: it failed", lambda: ex.resolve(user, "failed", self._ask(check))),
+                })
+            else:
+                self._unattended_stop(snap, "resume the run (it asks the habitat again), or at a terminal decide")
+        elif hold is Hold.HALTED:
+            if self.interactive:
+                halted_here = snap.statuses.get(snap.current or "") is InstructionStatus.HALTED
+                carry_on = ("r", ("retry", lambda: ex.retry(user))) if halted_here else (
+                    "c", ("continue", lambda: ex.resume_automation(user)))
+                self._choose(snap, dict([carry_on]))
+            else:
+                self._unattended_stop(snap, "resume the run at a terminal to retry, continue or skip")
+        elif hold is Hold.CONTROL_LOST:
+            if self.interactive:
+                self._choose(snap, {"t": ("take control back", lambda: ex.take_control(user, self._ask("reason > ")))})
+            else:
+                self._unattended_stop(snap, "another run controls the robot now")
         elif hold is Hold.IN_FLIGHT:
             if self.answers.in_flight == "resend":
                 self._resend(snap, instruction)
@@ -231,13 +323,18 @@ class OperatorConsole:
         elif answer == "s":
             self.executive.skip(self.user, self._ask("reason > ") or "skipped at the terminal")
         elif answer == "q":
-            self.executive.stop(self.user, "stopped at the terminal")
+            self.executive.stop(self.user, self._ask("reason > ") or "stopped at the terminal")
         else:
             self._say(f"  unknown answer {answer!r}")
 
     def _ask(self, prompt: str) -> str:
         try:
-            return self._read(prompt)
+            answer = self._read(prompt)
         except EOFError:
             self.executive.stop(self.user, "terminal closed")
             return ""
+        now, was = self.executive.snapshot(), self._answering
+        if was is not None and (now.status, now.current, now.hold) != (was.status, was.current, was.hold):
+            self._say(f"  the run changed meanwhile ({now.reason or now.status.value}): that answer is not applied")
+            raise _Superseded
+        return answer

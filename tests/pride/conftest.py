@@ -18,7 +18,7 @@ REPO = HERE.parents[1]
 FIXTURES = HERE / "fixtures"
 sys.path.insert(0, str(HERE))  # lab_gateway is importable here and in runner subprocesses
 
-from pride.audit_log import AuditLog  # noqa: E402
+from pride.audit_log import AuditLog, Availability  # noqa: E402
 from pride.events import Event, EventKind  # noqa: E402
 from pride.sysrep import SysRep, load_sysrep_dir  # noqa: E402
 from support.postgres import OWNER, RUNNER, PostgresServer, postgres_server  # noqa: E402
@@ -101,10 +101,17 @@ class RecordedJournal:
         self.log = log
         self.events: list[Event] = []
         self.stored_before: list[Event] = []
+        self.fail_with: Exception | None = None  # set to make every append fail (a runner's last moments)
 
     def append(self, event: Event) -> None:
+        if self.fail_with is not None:
+            raise self.fail_with
         self.log.append(event)
         self.events.append(event)
+
+    @property
+    def availability(self) -> Availability:
+        return self.log.availability
 
     def kinds(self, number: str | None = None) -> list[EventKind]:
         return [e.kind for e in self.events if number is None or e.instruction == number]

@@ -313,9 +313,10 @@ def test_a_runner_cannot_upgrade_the_schema_and_is_told_who_can(postgres: Postgr
     with pytest.raises(AuditSchemaError, match="the database owner runs: caretaker db upgrade --db OWNER_URL"):
         AuditLog(runner_url)
     status = caretaker("db", "status", "--db", runner_url)
-    assert status.returncode == 0 and "schema at revision 0001 (this Caretaker: 0002)" in status.stdout, status.stderr
+    assert status.returncode == 0, status.stderr
+    assert f"schema at revision 0001 (this Caretaker: {head_revision()})" in status.stdout
     upgraded = caretaker("db", "upgrade", "--db", owner_url)
-    assert upgraded.returncode == 0 and "schema at revision 0002" in upgraded.stdout, upgraded.stderr
+    assert upgraded.returncode == 0 and f"schema at revision {head_revision()}" in upgraded.stdout, upgraded.stderr
     log = AuditLog(runner_url)
     assert log.verify("old-2").ok
     log.append(Event("old-2", 4, EventKind.RUN_RESUMED, "pax"))

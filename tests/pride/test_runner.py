@@ -8,7 +8,9 @@ so the kill lands while it is in flight.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -20,7 +22,7 @@ import pytest
 from conftest import FIXTURES, HERE, REPO
 from pride.audit_log import AuditLog
 from pride.events import PAX, EventKind
-from support.processes import caretaker
+from support.processes import ManagedProcess, caretaker
 
 PROCEDURE = str(FIXTURES / "lab_all_kinds.xml")
 ANSWERS = ["--set", "target=dock", "--confirm-manual", "--confirm-hazardous"]
@@ -43,6 +45,20 @@ def setup(tmp_path: Path, database):
 def run(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "caretaker.cli", "run", *args], env=env, capture_output=True,
                           text=True, timeout=120, stdin=subprocess.DEVNULL)
+
+
+def runner_at(env: dict[str, str], common: list[str], line: str) -> ManagedProcess:
+    """An unattended ``caretaker run`` of the lab procedure, once it printed ``line``."""
+    printed = threading.Event()
+    runner = caretaker("run", PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS, env=env,
+                       on_line=lambda _name, text: printed.set() if text == line else None)
+    try:
+        runner.wait_ready(60)
+        assert printed.wait(60), runner.tail()
+    except BaseException:
+        runner.stop()
+        raise
+    return runner
 
 
 def test_unattended_run_completes_with_answers_logged_as_the_user(setup) -> None:
@@ -78,49 +94,71 @@ def test_a_procedure_with_lint_errors_does_not_start(setup) -> None:
     assert AuditLog(db).runs() == []
 
 
-def test_killed_runner_resumes_without_losing_or_repeating_actions(setup) -> None:
+def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_without_running_it_again(
+        setup, tmp_path) -> None:
     env, db, common = setup
-    in_flight = threading.Event()
-
-    def watch(_name: str, line: str) -> None:
-        if line == "LAB executing capture":
-            in_flight.set()
-
-    runner = caretaker("run", PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS,
-                       env={**env, "LAB_GATEWAY_BLOCK": "capture"}, on_line=watch)
+    env = {**env, "LAB_GATEWAY_LEDGER": str(tmp_path / "ledger.json")}  # the habitat's memory of keys
+    runner = runner_at({**env, "LAB_GATEWAY_HOLD_REPLY": "capture"}, common,
+                       "LAB executed capture, holding its reply")
     try:
-        runner.wait_ready(60)
-        assert in_flight.wait(60), runner.tail()
-        runner.kill()  # SIGKILL while the capture command is in flight
+        runner.kill()  # SIGKILL while the capture's reply is on its way
     finally:
         runner.stop()
     log = AuditLog(db)
     (run_id, _, _), = log.runs()
     before = log.events(run_id)
     assert before[-1].kind is EventKind.COMMAND_SENT and before[-1].instruction == "2.3"
+    key = before[-1].data["key"]
 
-    # resuming unattended without a decision must not resend the in-flight command
-    undecided = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS)
-    assert undecided.returncode == 1, undecided.stdout + undecided.stderr
-    assert "pass --in-flight resend or --in-flight skip" in undecided.stdout
-    assert "LAB executing" not in undecided.stdout
-
-    resumed = run(env, "--resume", run_id, "--user", "bob", "--in-flight", "resend", *common, *ANSWERS)
+    # resumed unattended: the capture's key goes again by itself; the habitat answers what it did
+    resumed = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "RESULT completed" in resumed.stdout
+    assert "LAB executing capture" not in resumed.stdout and f"sent again lab.capture(label='dock_view') [{key}]" \
+        in resumed.stdout
 
     events = log.events(run_id)
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # nothing lost, nothing twice
     assert [(e.seq, e.kind, e.data) for e in events[: len(before)]] == [(e.seq, e.kind, e.data) for e in before]
-    sent = Counter((e.instruction, e.data["command"]) for e in events if e.kind is EventKind.COMMAND_SENT)
-    assert sent == {("1.3", "move"): 1, ("2.1", "vent"): 1, ("2.3", "capture"): 2, ("4.1/1.1", "count"): 1,
-                    ("5.1", "move"): 1}
-    resend = [e for e in events if e.instruction == "2.3" and e.kind in (EventKind.RETRY, EventKind.COMMAND_SENT)]
-    assert [(e.kind, e.actor) for e in resend] == [(EventKind.COMMAND_SENT, PAX), (EventKind.RETRY, "bob"),
-                                                  (EventKind.COMMAND_SENT, "bob")]
-    assert [e.actor for e in events if e.kind is EventKind.RUN_RESUMED] == ["bob", "bob"]
+    sent = Counter((e.instruction, e.data["command"], e.data["key"]) for e in events
+                   if e.kind is EventKind.COMMAND_SENT)
+    assert sent[("2.3", "capture", key)] == 2 and len({k for (n, _, k) in sent if n == "2.3"}) == 1
+    again = [(e.kind, e.actor, e.data.get("resend", False)) for e in events
+             if e.instruction == "2.3" and e.kind in (EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT)]
+    assert again == [(EventKind.COMMAND_SENT, PAX, False), (EventKind.COMMAND_SENT, PAX, True),
+                     (EventKind.COMMAND_RESULT, PAX, False)]
+    result = next(e for e in events if e.instruction == "2.3" and e.kind is EventKind.COMMAND_RESULT)
+    assert result.data["outcome"] == "succeeded" and result.data["values"]["label"] == "dock_view"
+    assert [e.actor for e in events if e.kind is EventKind.RUN_RESUMED] == ["bob"]
     completed = Counter(e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED)
     assert all(count == 1 for count in completed.values()), completed
     assert events[-1].kind is EventKind.RUN_COMPLETED
     check = log.verify(run_id)  # the crash and the resumed runner left one unbroken chain
     assert check.ok and check.events == len(events), check.describe()
+
+
+def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(setup) -> None:
+    env, db, common = setup
+    runner = runner_at({**env, "LAB_GATEWAY_BLOCK": "vent"}, common, "LAB executing vent")
+    try:
+        runner.proc.send_signal(signal.SIGINT)  # Ctrl-C once
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            runner.proc.wait(60)
+        assert runner.proc.returncode == 1, runner.tail()
+    finally:
+        runner.stop()
+    assert "HALT (Ctrl-C)" in runner.tail()
+    log = AuditLog(db)
+    (run_id, _, _), = log.runs()
+    events = log.events(run_id)
+    halt = next(e for e in events if e.kind is EventKind.HALT)
+    assert (halt.actor, halt.instruction, halt.data["reason"], halt.data["key"]) == (
+        "alice", "2.1", "Ctrl-C at the terminal", f"{run_id}/2.1/1")
+    assert halt.data["cancel"] == {"stopped": True, "message": "stopped where it was"}
+    result = next(e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.1")
+    assert (result.data["outcome"], result.data["success"]) == ("halted", False)
+    halted = next(e for e in events if e.kind is EventKind.INSTRUCTION_HALTED)
+    assert (halted.actor, halted.instruction, halted.data["next"]) == ("alice", "2.1", "2.1")
+    assert not any(e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "2.1" for e in events)
+    assert events[-1].kind is EventKind.RUN_STOPPED and "halted by alice" in events[-1].data["reason"]
+    assert log.verify(run_id).ok

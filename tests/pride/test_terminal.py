@@ -63,11 +63,12 @@ def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sys
     assert stopped.kind is EventKind.RUN_STOPPED and stopped.actor == "quinn" and "2.1" in stopped.data["reason"]
 
 
-@pytest.mark.parametrize("answer, outcome", [("q", RunStatus.STOPPED)])
-def test_operator_can_stop_from_the_prompt(sysreps, tmp_path, answer, outcome) -> None:
+@pytest.mark.parametrize("reason, recorded", [("end of shift", "end of shift"), ("", "stopped at the terminal")])
+def test_operator_can_stop_from_the_prompt_saying_why(sysreps, tmp_path, reason, recorded) -> None:
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     executive.start("rita")
+    answers = iter(["q", reason])
     final = OperatorConsole(executive, "rita", Unattended(), interactive=True, stream=io.StringIO(),
-                            read=lambda prompt: answer).run()
-    assert final.status is outcome
-    assert journal.events[-1].data["reason"] == "stopped at the terminal"
+                            read=lambda prompt: next(answers)).run()
+    assert final.status is RunStatus.STOPPED
+    assert (journal.events[-1].actor, journal.events[-1].data["reason"]) == ("rita", recorded)

@@ -21,7 +21,7 @@ from typing import Any
 import yaml
 
 from pride.sysrep import SysRep, load_sysrep
-from pride.systems import CommandResult, TelemetryListener, TelemetryValue
+from pride.systems import CancelResult, CommandResult, LinkListener, Outcome, TelemetryListener, TelemetryValue
 
 __all__ = ["SimulatedSystems", "open_simulated_systems"]
 
@@ -45,6 +45,7 @@ class SimulatedSystems:
     def __init__(self, binding_path: str) -> None:
         binding = Path(binding_path)
         document = yaml.safe_load(binding.read_text(encoding="utf-8"))
+        self._robot = str(document.get("robot", binding.stem))
         self._sysreps: dict[str, SysRep] = {}
         for system in document["systems"]:
             sysrep = load_sysrep(binding.parent / system["sysrep"])
@@ -62,6 +63,7 @@ class SimulatedSystems:
             ("cdra", "filter_present"): True,
             ("cdra", "installed_filter_id"): "F-DIRTY-07",
             ("cdra", "installed_filter_condition"): "dirty",
+            ("cdra", "rack_filter_ids"): "CDRA-F-0012, CDRA-F-0013",
         }
         #: a sensor that stopped reporting: its last value is served, marked stale
         self._stale = {("cdra", "installed_filter_condition")}
@@ -77,6 +79,18 @@ class SimulatedSystems:
     def system_ids(self) -> frozenset[str]:
         return frozenset(self._sysreps)
 
+    def robot(self) -> str:
+        return self._robot
+
+    def one_way_delay(self) -> float:
+        return 0.0
+
+    def cancel(self, key: str) -> CancelResult:
+        return CancelResult(True, "nothing was moving")
+
+    def add_link_listener(self, callback: LinkListener) -> None:
+        pass  # the simulated link never drops
+
     def _set(self, system: str, item: str, value: Any) -> None:
         with self._lock:
             self._values[(system, item)] = value
@@ -84,10 +98,10 @@ class SimulatedSystems:
         for listener in listeners:
             listener(system, item, TelemetryValue(value, time.time()))
 
-    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any]) -> CommandResult:
+    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None) -> CommandResult:
         sysrep = self._sysreps.get(sysrep_id)
         if sysrep is None or sysrep.command(command_id) is None:
-            return CommandResult(False, f"{sysrep_id}.{command_id} is not served here")
+            return CommandResult(Outcome.FAILED, f"{sysrep_id}.{command_id} is not served here")
         if sysrep_id == "affordance_templates":
             return self._at(command_id, args)
         if sysrep_id == "cdra":
@@ -95,28 +109,28 @@ class SimulatedSystems:
                 self._set("cdra", "filter_locked", False)
             elif command_id == "lock_filter":
                 self._set("cdra", "filter_locked", True)
-            return CommandResult(True, f"{command_id} done")
+            return CommandResult(Outcome.SUCCEEDED, f"{command_id} done")
         if sysrep_id == "camera":
             self._captures += 1
             path = self._images / f"{self._captures:03d}_{args.get('label') or 'capture'}.png"
             path.write_bytes(_png(160, 120, (self._captures * 70) % 256))
-            return CommandResult(True, "captured", {"path": str(path)})
-        return CommandResult(True, "ok")
+            return CommandResult(Outcome.SUCCEEDED, "captured", {"path": str(path)})
+        return CommandResult(Outcome.SUCCEEDED, "ok")
 
     def _at(self, command_id: str, args: dict[str, Any]) -> CommandResult:
         template = str(args.get("affordance_template", "")).split(":")[0]
         if command_id == "add_affordance_template":
             self._instances[template] = len(self._instances)
-            return CommandResult(True, f"added {template}", {"id": self._instances[template], "instance": f"{template}:{self._instances[template]}"})
+            return CommandResult(Outcome.SUCCEEDED, f"added {template}", {"id": self._instances[template], "instance": f"{template}:{self._instances[template]}"})
         if template not in self._instances:
-            return CommandResult(False, f"no instance of {template!r}: add the template first")
+            return CommandResult(Outcome.FAILED, f"no instance of {template!r}: add the template first")
         if command_id == "set_display_object_pose":
             self._frames[template] = str(args.get("frame", ""))
-            return CommandResult(True, f"{template} moved to {self._frames[template]}")
+            return CommandResult(Outcome.SUCCEEDED, f"{template} moved to {self._frames[template]}")
         if command_id == "plan_trajectory":
             self._set("affordance_templates", "plan_status", "PLANNED")
             self._set("affordance_templates", "plan_valid", True)
-            return CommandResult(True, "planned", {"plan_status": "PLANNED", "plan_valid": True,
+            return CommandResult(Outcome.SUCCEEDED, "planned", {"plan_status": "PLANNED", "plan_valid": True,
                                                    "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
         if command_id == "execute_plan":
             self._set("affordance_templates", "execute_status", "EXECUTING")
@@ -128,10 +142,10 @@ class SimulatedSystems:
                 self._set("cdra", "filter_present", True)
             self._set("affordance_templates", "execute_status", "SUCCEEDED")
             self._set("affordance_templates", "plan_valid", False)
-            return CommandResult(True, "executed", {"execute_status": "SUCCEEDED"})
+            return CommandResult(Outcome.SUCCEEDED, "executed", {"execute_status": "SUCCEEDED"})
         if command_id == "delete_affordance_template":
             del self._instances[template]
-        return CommandResult(True, f"{command_id} done")
+        return CommandResult(Outcome.SUCCEEDED, f"{command_id} done")
 
     def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
         with self._lock:

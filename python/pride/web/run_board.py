@@ -25,6 +25,7 @@ from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure
+from pride.robot_control import RobotControl
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
 from pride.web.actions import ActionRefused
@@ -91,6 +92,7 @@ class RunBoard:
     ) -> None:
         self.catalog = catalog
         self.audit_log = audit_log
+        self.control = RobotControl(audit_log.url)  # one controlling run per robot, across consoles
         self.camera = camera
         self.rosbridge_url = rosbridge_url
         self._lock = threading.Lock()  # guards _live, _statuses
@@ -105,9 +107,13 @@ class RunBoard:
         mode = _mode(mode_name)
         checked, gateway = self._open(procedure_name, binding_name)
         run_id = f"{checked.procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
-        executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode)
+        executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode, control=self.control)
         live = self._hold(executive, gateway, checked, binding_name, user)
-        executive.start(user)
+        try:
+            executive.start(user)
+        except OperatorActionError as exc:  # e.g. another run controls the robot: it names that run
+            self._retire(run_id)
+            raise ActionRefused(409, str(exc)) from None
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
 
@@ -123,7 +129,7 @@ class RunBoard:
         procedure_name = Path(str(events[0].data.get("path", ""))).name
         checked, gateway = self._open(procedure_name, binding_name)
         try:
-            executive = Executive.resume(checked, gateway, self.audit_log, events, user, mode=mode)
+            executive = Executive.resume(checked, gateway, self.audit_log, events, user, mode=mode, control=self.control)
         except (OperatorActionError, ValueError) as exc:
             gateway.close()
             raise ActionRefused(409, f"run {run_id} cannot be resumed: {exc}") from None
@@ -239,6 +245,7 @@ class RunBoard:
                 except Exception:
                     log.exception("stopping run %s", live.run_id)
             _release(live)
+        self.control.close()
 
 
 def _release(live: LiveRun) -> None:

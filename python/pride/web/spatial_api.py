@@ -110,7 +110,7 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             result = await run_in_threadpool(live.executive.operator_command, user.user, system, command, args)
         except OperatorActionError as exc:
             raise ActionRefused(409, str(exc)) from None
-        outcome = result.outcome or ("succeeded" if result.success else "failed")
+        outcome = result.outcome.value
         return JSONResponse({"ok": True, "command": command, "outcome": outcome, "success": result.success,
                              "message": result.message})
 

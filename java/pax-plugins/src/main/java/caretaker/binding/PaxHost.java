@@ -1,8 +1,10 @@
 package caretaker.binding;
 
+import caretaker.pax.CancelResult;
 import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
+import caretaker.pax.Outcome;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.pax.TelemetryListener;
@@ -22,6 +24,8 @@ import java.util.ArrayList;
 import java.util.LinkedHashMap;
 import java.util.List;
 import java.util.Map;
+import java.util.Set;
+import java.util.concurrent.ConcurrentHashMap;
 
 /**
  * The plugins of one binding, ready to use: what a procedure executive talks to. Opens one
@@ -46,6 +50,10 @@ public final class PaxHost implements AutoCloseable {
     private final Map<String, Map<String, CommandPlugin>> commandPlugins = new LinkedHashMap<>();
     /** sysrep id → item id → plugin. */
     private final Map<String, Map<String, TelemetryPlugin>> telemetryPlugins = new LinkedHashMap<>();
+    /** Commands whose outcome is not known yet (running, or UNKNOWN) → the plugin that sent them. */
+    private final Map<CommandKey, CommandPlugin> sentBy = new ConcurrentHashMap<>();
+    /** Keys a cancel was sent for while they ran. */
+    private final Set<CommandKey> cancelled = ConcurrentHashMap.newKeySet();
 
     private PaxHost(Binding binding) {
         this.binding = binding;
@@ -145,7 +153,9 @@ public final class PaxHost implements AutoCloseable {
     /**
      * Checks and converts the arguments against the SysRep, then executes the command and waits
      * for its real outcome. Never reports success or failure the system did not report: an
-     * outcome that cannot be learnt is {@link caretaker.pax.Outcome#UNKNOWN}.
+     * outcome that cannot be learnt is {@link caretaker.pax.Outcome#UNKNOWN}. A command that
+     * {@link #cancel} stopped and that did not succeed is {@link Outcome#HALTED}, with the
+     * system's message; one that succeeded before the cancel reached it stays SUCCEEDED.
      *
      * @param key the command's key; the same key is the same command, executed at most once
      * @param sysrepId a bound SysRep
@@ -172,7 +182,36 @@ public final class PaxHost implements AutoCloseable {
         } catch (IllegalArgumentException e) {
             throw new PluginException(sysrepId + "." + e.getMessage(), e);
         }
-        return plugin.execute(key, commandId, typed);
+        sentBy.put(key, plugin);
+        CommandResult result;
+        try {
+            result = plugin.execute(key, commandId, typed);
+        } catch (RuntimeException e) {
+            sentBy.remove(key);
+            cancelled.remove(key);
+            throw e;
+        }
+        boolean halted = cancelled.remove(key) && result.outcome() == Outcome.FAILED;
+        if (result.outcome() != Outcome.UNKNOWN) {
+            sentBy.remove(key); // an UNKNOWN one may still run on the robot: it stays cancellable
+        }
+        return halted ? new CommandResult(Outcome.HALTED, result.message(), result.values()) : result;
+    }
+
+    /**
+     * Stops command {@code key} if it still runs: the plugin that sent it cancels it on the system
+     * directly (not through the command ledger). Safe to call twice and for a key that ended.
+     *
+     * @param key a command sent through this host
+     * @return what the system said, or that no command of that key is running here
+     */
+    public CancelResult cancel(CommandKey key) {
+        CommandPlugin plugin = sentBy.get(key);
+        if (plugin == null) {
+            return new CancelResult(false, "no command " + key + " is running here: nothing to cancel");
+        }
+        cancelled.add(key);
+        return plugin.cancel(key);
     }
 
     /**

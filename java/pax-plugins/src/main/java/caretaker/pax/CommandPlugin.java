@@ -33,6 +33,20 @@ public interface CommandPlugin extends AutoCloseable {
      */
     CommandResult execute(CommandKey key, String commandId, Map<String, Object> args);
 
+    /**
+     * Stops the command {@code key} now if it still runs (an operator's halt). Called from another
+     * thread while {@link #execute} waits; that {@code execute} then returns its real outcome: a
+     * failure or {@link Outcome#HALTED} when the cancel stopped it, success when it had finished
+     * first. Goes to the system directly, not through the command ledger; safe to call twice, and
+     * for a key that already ended. Blocks at most the plugin's call timeout (plus the time the
+     * link takes to come back within its outage budget).
+     *
+     * @param key the command to stop
+     * @return what the system said; {@code stopped == false} when this plugin's commands cannot
+     *     be cancelled or the cancel did not reach the system
+     */
+    CancelResult cancel(CommandKey key);
+
     /** Releases subscriptions and threads; the connection itself belongs to the caller. */
     @Override
     void close();

@@ -5,9 +5,12 @@ import static org.junit.jupiter.api.Assertions.assertFalse;
 import static org.junit.jupiter.api.Assertions.assertThrows;
 import static org.junit.jupiter.api.Assertions.assertTrue;
 
+import caretaker.pax.CancelResult;
 import caretaker.pax.CommandKey;
 import caretaker.pax.CommandResult;
+import caretaker.pax.Outcome;
 import caretaker.pax.PluginException;
+import caretaker.rosbridge.CommandLedger;
 import caretaker.rosbridge.LedgerResponder;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.TestServer;
@@ -22,6 +25,10 @@ import java.nio.file.Files;
 import java.nio.file.Path;
 import java.util.List;
 import java.util.Map;
+import java.util.concurrent.BlockingQueue;
+import java.util.concurrent.CompletableFuture;
+import java.util.concurrent.LinkedBlockingQueue;
+import java.util.concurrent.TimeUnit;
 import org.junit.jupiter.api.Test;
 import org.junit.jupiter.api.io.TempDir;
 
@@ -109,5 +116,79 @@ class PaxHostTest {
                 assertTrue(host.telemetry("cdra", "filter_locked").stale());
             }
         }
+    }
+
+    @Test
+    void aCancelStopsTheCommandInFlightAndItsResultSaysHalted() throws Exception {
+        try (TestServer server = new TestServer()) {
+            BlockingQueue<JsonObject> executes = new LinkedBlockingQueue<>();
+            BlockingQueue<JsonObject> halts = new LinkedBlockingQueue<>();
+            LedgerResponder habitat = new LedgerResponder(call -> {
+                if (!call.has("service")) {
+                    return List.of(); // subscriptions of the telemetry plugins
+                }
+                if (call.get("service").getAsString().endsWith("/halt")) {
+                    halts.add(call);
+                    return List.of(serviceReply(call, "{\"success\":true,\"message\":\"halted: arm stopped\"}"));
+                }
+                return List.of(); // execute_command and unlock_filter: the test answers them below
+            });
+            server.respond(message -> {
+                if ("call_service".equals(message.get("op").getAsString())
+                        && CommandLedger.EXECUTE_SERVICE.equals(message.get("service").getAsString())) {
+                    executes.add(message);
+                }
+                return habitat.apply(message);
+            });
+            try (PaxHost host = PaxHost.open(BINDINGS.resolve("iva.yaml"), server.uri())) {
+                CommandKey pull = CommandKey.parse("run/2.7/1");
+                CompletableFuture<CommandResult> moving = CompletableFuture.supplyAsync(() -> host.execute(pull,
+                        "affordance_templates", "execute_plan", Map.of("affordance_template", "cdra_filter:0",
+                                "trajectory", "grasp_and_pull")));
+                JsonObject sent = executes.poll(5, TimeUnit.SECONDS);
+                assertTrue(sent != null, "execute_plan never reached the ledger");
+                CancelResult cancel = host.cancel(pull);
+                assertEquals(new CancelResult(true, "halted: arm stopped"), cancel);
+                JsonObject halt = halts.poll(5, TimeUnit.SECONDS);
+                assertEquals("/affordance_template_server/halt", halt.get("service").getAsString());
+                assertFalse(halt.has("type"), "the halt's type comes from the ROS graph");
+                assertEquals("halt of run/2.7/1", halt.getAsJsonObject("args").get("reason").getAsString());
+                server.send(ledgerAnswer(sent, "FAILED", "{\"success\":false,\"message\":\"halted by the operator\"}"));
+                CommandResult halted = moving.get(10, TimeUnit.SECONDS);
+                assertEquals(Outcome.HALTED, halted.outcome());
+                assertEquals("halted by the operator", halted.message());
+                assertFalse(host.cancel(pull).stopped(), "nothing runs under that key any more");
+
+                CommandKey unlock = CommandKey.parse("run/2.4/1");
+                CompletableFuture<CommandResult> unlocking = CompletableFuture.supplyAsync(() -> host.execute(unlock,
+                        "cdra", "unlock_filter", Map.of()));
+                JsonObject unlockSent = executes.poll(5, TimeUnit.SECONDS);
+                CancelResult refused = host.cancel(unlock);
+                assertFalse(refused.stopped());
+                assertTrue(refused.message().contains("cannot be cancelled"), refused.message());
+                server.send(ledgerAnswer(unlockSent, "SUCCEEDED", "{\"success\":true,\"message\":\"unlocked\"}"));
+                assertEquals(Outcome.SUCCEEDED, unlocking.get(10, TimeUnit.SECONDS).outcome(),
+                        "a command that finished before the cancel stays succeeded");
+            }
+        }
+    }
+
+    private static JsonObject serviceReply(JsonObject call, String values) {
+        JsonObject reply = new JsonObject();
+        reply.addProperty("op", "service_response");
+        reply.add("id", call.get("id"));
+        reply.add("service", call.get("service"));
+        reply.add("values", JsonParser.parseString(values));
+        reply.addProperty("result", true);
+        return reply;
+    }
+
+    private static JsonObject ledgerAnswer(JsonObject execute, String state, String response) {
+        JsonObject values = new JsonObject();
+        values.addProperty("state", state);
+        values.addProperty("epoch", LedgerResponder.EPOCH);
+        values.addProperty("response_json", response);
+        values.addProperty("message", "");
+        return serviceReply(execute, values.toString());
     }
 }

@@ -1,5 +1,6 @@
 package caretaker.pax.at;
 
+import caretaker.pax.CancelResult;
 import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
@@ -60,6 +61,7 @@ public final class AtCommandPlugin implements CommandPlugin {
     private final Service executeCommand;
     private final Service setObjectPose;
     private final Service setWaypointPose;
+    private final Service halt;
 
     /**
      * @param context the SysRep (must declare the six commands), connection, namespace, options
@@ -89,6 +91,7 @@ public final class AtCommandPlugin implements CommandPlugin {
                 msgs + "AffordanceTemplateExecuteCommand");
         setObjectPose = new Service(context.ros(), context.resolve("set_object_pose"), msgs + "SetObjectPose");
         setWaypointPose = new Service(context.ros(), context.resolve("set_waypoint_pose"), msgs + "SetWaypointPose");
+        halt = new Service(context.ros(), context.resolve("halt"), null); // its type comes from the ROS graph
     }
 
     @Override
@@ -121,6 +124,27 @@ public final class AtCommandPlugin implements CommandPlugin {
             return e.result;
         } catch (RosException e) {
             return CommandResult.failure(commandId + ": " + e.getMessage());
+        }
+    }
+
+    /**
+     * Calls the AT server's halt service, which stops any execution at once (the {@code
+     * execute_command} in flight then answers that it was halted). Direct, not through the
+     * ledger: a halt is idempotent, so it is called again after a drop, within the link's outage
+     * budget ({@link CommandLedger#query}).
+     */
+    @Override
+    public CancelResult cancel(CommandKey key) {
+        JsonObject request = new JsonObject();
+        request.addProperty("reason", "halt of " + key);
+        try {
+            JsonObject reply = ledger.query(halt, request, callTimeout).toJsonObject();
+            JsonElement success = reply.get("success");
+            boolean stopped = success != null && success.isJsonPrimitive() && success.getAsBoolean();
+            String said = message(reply);
+            return new CancelResult(stopped, said.isEmpty() ? (stopped ? "halted" : "the halt failed") : said);
+        } catch (RosException e) {
+            return new CancelResult(false, "cannot halt the AT server: " + e.getMessage());
         }
     }
 

@@ -1,6 +1,7 @@
 package caretaker.pax.convention;
 
 import caretaker.pax.BoardTelemetryPlugin;
+import caretaker.pax.CancelResult;
 import caretaker.pax.CommandKey;
 import caretaker.pax.CommandPlugin;
 import caretaker.pax.CommandResult;
@@ -214,6 +215,13 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
             return new JsonPrimitive(number);
         }
         return new JsonPrimitive(String.valueOf(value));
+    }
+
+    /** A ROS service call runs to its end: this plugin cannot stop one, and says so. */
+    @Override
+    public CancelResult cancel(CommandKey key) {
+        return new CancelResult(false, sysRep.id() + " commands (ros_convention: ROS service calls) cannot be"
+                + " cancelled; " + key + " runs to its end");
     }
 
     @Override
