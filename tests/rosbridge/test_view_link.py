@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import subprocess
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -85,9 +86,15 @@ async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[st
     return states, latched, answer
 
 
+def run(url: str, binding_path: Path, *, timeout: float) -> tuple[list[str], list[Any], Any]:
+    """``read`` on its own event loop in a thread (a Playwright session may own this thread's loop)."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, read(url, binding_path, timeout=timeout)).result()
+
+
 def test_the_view_link_authenticates_over_tls_as_the_binding_says(secure_bridge: tuple[str, Path]) -> None:
     url, folder = secure_bridge
-    states, latched, answer = asyncio.run(read(url, binding(folder, url, SECRET), timeout=30))
+    states, latched, answer = run(url, binding(folder, url, SECRET), timeout=30)
     assert states[0] == "connected"
     assert latched == [{"data": "latched value"}]
     assert answer is not None and answer["version"]
@@ -95,6 +102,6 @@ def test_the_view_link_authenticates_over_tls_as_the_binding_says(secure_bridge:
 
 def test_a_wrong_secret_never_connects(secure_bridge: tuple[str, Path]) -> None:
     url, folder = secure_bridge
-    states, latched, answer = asyncio.run(read(url, binding(folder, url, "not-the-secret"), timeout=4))
+    states, latched, answer = run(url, binding(folder, url, "not-the-secret"), timeout=4)
     assert "connected" not in states and latched == [] and answer is None
     assert "reconnecting" in states  # refused, and it keeps trying (the next auth is a fresh one)
