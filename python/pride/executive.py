@@ -96,7 +96,7 @@ from pride.states import (
     RunStatus,
     Snapshot,
 )
-from pride.systems import CancelResult, LinkState, Outcome, SystemGateway, TelemetryValue
+from pride.systems import CancelResult, CommandResult, LinkState, Outcome, SystemGateway, TelemetryValue
 
 __all__ = ["Executive", "Hold", "InstructionStatus", "JournalFailure", "Mode", "OperatorActionError",
            "RobotControlled", "RunStatus", "Snapshot"]
@@ -566,6 +566,38 @@ class Executive:
                 raise OperatorActionError(f"{number} is not before {current}")
             self._clear_halt()
             state.go_back(user, position, reason)
+
+    def operator_command(self, user: str, system: str, command: str, args: dict[str, Any]) -> CommandResult:
+        """Send a command an operator gave outside the procedure's instructions (a registration
+        dragged in the 3D view), as ``user``, through the run's gateway like any command.
+
+        Journaled COMMAND_SENT/COMMAND_RESULT without an instruction number, with the user, the
+        arguments and its own key (``<run>/operator/<seq>``, executed at most once by the
+        habitat), so the audit log attributes it; the run's position does not change. Its
+        outcome is the gateway's (unknown stays unknown). Refused (OperatorActionError) when the
+        run is not active, an instruction is being performed, or the run does not control its
+        robot.
+        """
+        with self._lock:
+            self._require_active()
+            if self._state.executing:  # one command at a time on the robot, as the procedure sends them
+                raise OperatorActionError(f"{self._state.current_number()} is being performed; try when it is done")
+            try:
+                self._may_send()
+            except ControlLost as exc:
+                raise OperatorActionError(str(exc)) from None
+            key = f"{self.run_id}/operator/{self._seq + 1}"
+            about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
+            self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
+        try:
+            result = self._gateway.execute(system, command, args, key=key)
+        except Exception as exc:  # refused before sending (bad argument, unknown command)
+            result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
+        outcome = result.outcome
+        self._record(EventKind.COMMAND_RESULT, user, None, **about, outcome=outcome.value,
+                     success=None if outcome is Outcome.UNKNOWN else result.success,
+                     message=result.message, values=dict(result.values))
+        return result
 
     # ---- guards and helpers -----------------------------------------------------------------
     def _require_active(self) -> None:

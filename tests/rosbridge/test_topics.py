@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import base64
+from pathlib import Path
 
 import roslibpy
 
 from .rosbridge_support import Inbox, publish_until_received
+from support.processes import python
+
+LATE_PUBLISHER = Path(__file__).with_name("late_latched_publisher.py")
 
 
 def test_publish_reaches_ros_and_echo_comes_back_in_order(connect) -> None:
@@ -77,3 +81,20 @@ def test_throttled_subscriber_gets_one_message_while_another_gets_all(connect) -
         talker.publish(roslibpy.Message({"data": index}))
     assert [m["data"] for m in every.wait_for(start + 30)][-1] == 29
     assert len(throttled.items) == 1
+
+
+def test_latched_publisher_appearing_after_the_subscription_still_delivers(connect, ros_env) -> None:
+    # The bridge picks a subscription's QoS from the publishers it sees; with none yet it
+    # subscribes volatile and must re-subscribe transient-local once the latched one appears.
+    topic = "/bridge_test/late_latched"
+    early, late = Inbox(), Inbox()
+    roslibpy.Topic(connect(), topic, "std_msgs/String").subscribe(early)
+    publisher = python(str(LATE_PUBLISHER), topic, env=ros_env, name="late-latched")
+    try:
+        publisher.wait_ready(60)
+        assert early.wait_for(1)[0] == {"data": "late latched value"}
+        # kept as the feed's last value, as for a topic latched from the start
+        roslibpy.Topic(connect(), topic, "std_msgs/String").subscribe(late)
+        assert late.wait_for(1)[0] == {"data": "late latched value"}
+    finally:
+        publisher.stop()

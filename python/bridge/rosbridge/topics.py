@@ -34,6 +34,8 @@ from .session import Frame, Session, fragmented
 log = logging.getLogger(__name__)
 
 SUBSCRIPTION_DEPTH = 1000
+LATCH_RECHECK_S = 0.5
+"""How often a feed opened before any publisher existed looks for one, to pick its QoS then."""
 DEFAULT_PUBLISHER_DEPTH = 1000
 UNREGISTER_DELAY_S = 1.0
 """A publisher outlives its last user briefly, so a message published just before
@@ -223,17 +225,48 @@ class Topics:
     def _open_feed(self, topic: str, cls: Any) -> TopicFeed:
         """The ROS subscription of ``topic`` and its taker, registered only once both exist."""
         qos = self._subscription_qos(topic)
-        feed = TopicFeed(topic, cls, latched=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL)
-        # The callback is never called: no executor spins topic_node; the loop takes messages.
-        feed.subscription = _ros_call(f"subscribe {topic}", self.node.create_subscription, cls, topic,
-                                      _never_called, qos)
-        try:
-            feed.taker = self.ros.take_on_loop(feed.subscription, lambda message: self._fan_out(feed, message))
-        except OSError as exc:  # no file descriptor left for its eventfd
-            self.node.destroy_subscription(feed.subscription)
-            raise BridgeError(f"cannot subscribe to {topic} now: {client_text(exc.strerror or str(exc))}") from None
+        feed = TopicFeed(topic, cls)
+        self._attach(feed, qos)
         self.feeds[topic] = feed
+        if not self.node.get_publishers_info_by_topic(topic):
+            # Volatile for now: a latched publisher appearing later would never deliver its value.
+            asyncio.get_running_loop().call_later(LATCH_RECHECK_S, self._recheck_latching, feed)
         return feed
+
+    def _attach(self, feed: TopicFeed, qos: QoSProfile) -> None:
+        """Give ``feed`` a ROS subscription with ``qos`` and its taker (both, or neither)."""
+        # The callback is never called: no executor spins topic_node; the loop takes messages.
+        subscription = _ros_call(f"subscribe {feed.topic}", self.node.create_subscription, feed.msg_cls, feed.topic,
+                                 _never_called, qos)
+        try:
+            taker = self.ros.take_on_loop(subscription, lambda message: self._fan_out(feed, message))
+        except OSError as exc:  # no file descriptor left for its eventfd
+            self.node.destroy_subscription(subscription)
+            raise BridgeError(f"cannot subscribe to {feed.topic} now: {client_text(exc.strerror or str(exc))}") from None
+        feed.subscription, feed.taker = subscription, taker
+        feed.latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+
+    def _recheck_latching(self, feed: TopicFeed) -> None:
+        """Once the first publishers of a feed opened without any are known, re-subscribe it
+        transient-local if they all are (the QoS the feed would have had if they came first)."""
+        if self.feeds.get(feed.topic) is not feed:
+            return  # unsubscribed meanwhile
+        if not self.node.get_publishers_info_by_topic(feed.topic):
+            asyncio.get_running_loop().call_later(LATCH_RECHECK_S, self._recheck_latching, feed)
+            return
+        qos = self._subscription_qos(feed.topic)
+        if qos.durability != DurabilityPolicy.TRANSIENT_LOCAL:
+            return
+        old_subscription, old_taker = feed.subscription, feed.taker
+        try:
+            self._attach(feed, qos)
+        except BridgeError as exc:
+            log.warning("%s stays volatile: %s", feed.topic, exc)
+            return
+        if old_taker is not None:
+            old_taker.close()
+        self.node.destroy_subscription(old_subscription)
+        log.info("%s re-subscribed transient-local: its publishers latch", feed.topic)
 
     def unsubscribe(self, session: Session, topic: str, sub_id: Any) -> None:
         feed = self.feeds.get(topic)

@@ -43,6 +43,7 @@ from pride.web.procedure_view import procedure_json
 from pride.web.run_board import RunBoard
 from pride.web.run_state import fold_events
 from pride.web.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
+from pride.web.spatial_api import spatial_routes
 
 __all__ = ["build_app"]
 
@@ -481,6 +482,7 @@ def build_app(
             Route("/api/runs/{run_id}/camera", run_camera),
             WebSocketRoute("/ws/runs", runs_socket),
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
+            *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
         lifespan=lifespan,

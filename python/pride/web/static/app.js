@@ -235,6 +235,7 @@ async function openRun(runId) {
   $("audit").replaceChildren();
   for (const item of document.querySelectorAll("#run-list li")) item.classList.toggle("open", item.dataset.runId === runId);
   applyUpdate(data);
+  spatialPanel.open(runId, Boolean(data.state.live));  // the 3D view (spatial_panel.js)
   if (data.state.live) connect();
   else setConnection("closed", "past run (from the audit log)");
 }

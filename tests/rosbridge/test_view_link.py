@@ -1,0 +1,107 @@
+"""The web view's own rosbridge link (pride/web/spatial_link.py) to a bridge with TLS and a
+shared secret, set up from a binding file as PAX's is: it authenticates with HMAC over wss,
+gets a latched value, calls a service; with the wrong secret it never counts as connected."""
+
+from __future__ import annotations
+
+import asyncio
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from .rosbridge_support import bridge_url
+from pride.web.spatial_link import RosbridgeLink, Subscription, read_binding_link
+from support.processes import ManagedProcess, caretaker
+
+SECRET = "view-link-secret"
+
+
+@pytest.fixture(scope="module")
+def secure_bridge(ros_env: dict[str, str], peer: ManagedProcess, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+    """wss:// with a self-signed certificate and HMAC auth: (URL, folder with ca.pem)."""
+    folder = tmp_path_factory.mktemp("view-link")
+    cert, key = folder / "ca.pem", folder / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
+                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
+                   check=True, capture_output=True)
+    (folder / "bridge.secret").write_text(SECRET + "\n")
+    process = caretaker("bridge", "--port", "0", "--certfile", str(cert), "--keyfile", str(key),
+                        "--auth-secret-file", str(folder / "bridge.secret"), env=ros_env)
+    try:
+        process.wait_ready(60)
+        yield bridge_url(process).replace("ws://", "wss://"), folder
+    finally:
+        process.stop()
+
+
+def binding(folder: Path, url: str, secret: str) -> Path:
+    (folder / "view.secret").write_text(secret + "\n")
+    path = folder / f"binding-{len(secret)}.yaml"
+    path.write_text(f"""robot: test
+rosbridge: {url}
+link:
+  one_way_delay: 0.2
+security:
+  ca_file: ca.pem
+  secret_file: view.secret
+systems:
+- sysrep: ../affordance_templates.yaml
+  plugins: [at_commands]
+  namespace: /arm7/affordance_template_server
+""")
+    return path
+
+
+async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[str], list[Any], Any]:
+    link = read_binding_link(binding_path)
+    assert link is not None and link.namespace == "/arm7" and link.name("joint_states") == "/arm7/joint_states"
+    states: list[str] = []
+    latched: list[Any] = []
+    connected = asyncio.Event()
+
+    def on_state(state: str) -> None:
+        states.append(state)
+        if state == "connected":
+            connected.set()
+
+    rosbridge = RosbridgeLink(link, on_state=on_state)
+    rosbridge.subscribe(Subscription("/peer/latched", "std_msgs/msg/String", latched.append))
+    rosbridge.start()
+    answer = None
+    try:
+        await asyncio.wait_for(connected.wait(), timeout)
+        answer = await rosbridge.call("/rosapi/get_ros_version", {})
+        for _ in range(200):
+            if latched:
+                break
+            await asyncio.sleep(0.05)
+    except TimeoutError:
+        pass
+    finally:
+        await rosbridge.close()
+    return states, latched, answer
+
+
+def run(url: str, binding_path: Path, *, timeout: float) -> tuple[list[str], list[Any], Any]:
+    """``read`` on its own event loop in a thread (a Playwright session may own this thread's loop)."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, read(url, binding_path, timeout=timeout)).result()
+
+
+def test_the_view_link_authenticates_over_tls_as_the_binding_says(secure_bridge: tuple[str, Path]) -> None:
+    url, folder = secure_bridge
+    states, latched, answer = run(url, binding(folder, url, SECRET), timeout=30)
+    assert states[0] == "connected"
+    assert latched == [{"data": "latched value"}]
+    assert answer is not None and answer["version"]
+
+
+def test_a_wrong_secret_never_connects(secure_bridge: tuple[str, Path]) -> None:
+    url, folder = secure_bridge
+    states, latched, answer = run(url, binding(folder, url, "not-the-secret"), timeout=4)
+    assert "connected" not in states and latched == [] and answer is None
+    assert "reconnecting" in states  # refused, and it keeps trying (the next auth is a fresh one)
