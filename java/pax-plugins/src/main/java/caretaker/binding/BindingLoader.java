@@ -32,8 +32,8 @@ import org.yaml.snakeyaml.error.YAMLException;
  * <pre>
  * robot: iva
  * rosbridge: wss://habitat:9090         # the robot's rosbridge server
- * link:                                 # optional; defaults fit loopback
- *   one_way_delay: 1.3                  # s
+ * link:                                 # optional; defaults fit loopback; stating it makes the
+ *   one_way_delay: 1.3                  # s   habitat's command ledger mandatory
  *   outage_budget: 120                  # s a command in flight waits for a lost link
  * security:                             # optional
  *   ca_file: certs/ca.pem               # CA (PEM) that wss:// trusts
@@ -105,7 +105,8 @@ public final class BindingLoader {
         KeyLines lines = new KeyLines(text);
         LinkOptions link = link(path, lines, top.get("link"));
         Map<?, ?> security = section(path, lines, "security", top.get("security"), SECURITY_KEYS);
-        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security));
+        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security),
+                top.get("link") != null);
     }
 
     private static Map<?, ?> section(String path, KeyLines lines, String name, Object raw, Set<String> keys) {

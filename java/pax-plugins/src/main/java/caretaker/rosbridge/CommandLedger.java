@@ -22,9 +22,13 @@ import java.util.concurrent.atomic.AtomicInteger;
  * {@link LedgerState#REFUSED} if it certainly never did. An answer of the system is never
  * changed: FAILED stays FAILED, UNKNOWN stays UNKNOWN.
  *
- * <p>A habitat without a ledger (none ever answered on this connection) gets the call directly,
- * logged as a warning: at most once still holds (nothing is re-sent), but a lost reply makes the
- * outcome UNKNOWN instead of being learnt.
+ * <p>A ledger may be <em>required</em> (a binding that states a link requires one): then a
+ * habitat without one gets nothing — {@link #probe} throws {@link LedgerMissingException}, and a
+ * command waits for a ledger within the outage budget (one may be restarting) and is then refused
+ * as never sent. When it is not required (a loopback binding), a habitat without a ledger (none
+ * ever answered on this connection) gets the call directly, logged as a warning: at most once
+ * still holds (nothing is re-sent), but a lost reply makes the outcome UNKNOWN instead of being
+ * learnt.
  *
  * <p>Listeners hear the link's state: connected, or lost since T with N commands in flight.
  * Thread-safe; one per {@link Ros}.
@@ -48,9 +52,12 @@ public final class CommandLedger implements AutoCloseable {
             "lost its server");
     /** How long "no ledger on this habitat" is believed before asking again. */
     private static final Duration ABSENCE_RECHECK = Duration.ofSeconds(30);
+    /** Pause before asking again when the habitat answered but not yet usefully (a restarting ledger). */
+    private static final Duration RETRY_PAUSE = Duration.ofMillis(500);
 
     private final Ros ros;
     private final LinkOptions link;
+    private final boolean required;
     private final Service executeService;
     private final Service outcomeService;
     private final List<LinkListener> listeners = new CopyOnWriteArrayList<>();
@@ -64,12 +71,24 @@ public final class CommandLedger implements AutoCloseable {
     private volatile long recheckNanos;
 
     /**
+     * A ledger client that falls back to direct calls on a habitat without a ledger.
+     *
      * @param ros the connection to the habitat's rosbridge
      * @param link the link's delay and outage budget
      */
     public CommandLedger(Ros ros, LinkOptions link) {
+        this(ros, link, false);
+    }
+
+    /**
+     * @param ros the connection to the habitat's rosbridge
+     * @param link the link's delay and outage budget
+     * @param required no direct calls: a habitat without a ledger gets no command
+     */
+    public CommandLedger(Ros ros, LinkOptions link, boolean required) {
         this.ros = ros;
         this.link = link;
+        this.required = required;
         this.executeService = new Service(ros, EXECUTE_SERVICE, EXECUTE_TYPE);
         this.outcomeService = new Service(ros, OUTCOME_SERVICE, OUTCOME_TYPE);
         this.linkWatcher = new RosHandler() {
@@ -165,6 +184,7 @@ public final class CommandLedger implements AutoCloseable {
      *
      * @param timeout how long to wait for the answer
      * @return true if a ledger answered; false if the habitat has none (commands then go directly)
+     * @throws LedgerMissingException the habitat has none, and one is required
      * @throws RosAuthException the bridge refused this client's authentication
      * @throws RosException no answer
      */
@@ -175,6 +195,11 @@ public final class CommandLedger implements AutoCloseable {
         } catch (ServiceFailedException e) {
             if (!notReached(e)) {
                 throw e;
+            }
+            if (required) {
+                throw new LedgerMissingException("no command ledger at " + ros.getUri() + " (" + e.getReason()
+                        + "); commands over a stated link go only through it, to be executed at most once: start"
+                        + " it on the habitat (`caretaker up` does, or `caretaker ledger --state-dir DIR`)");
             }
             LOG.log(System.Logger.Level.WARNING, "no command ledger at " + ros.getUri() + " (" + e.getReason()
                     + "): commands go directly; a lost reply leaves the outcome UNKNOWN (start `caretaker"
@@ -357,6 +382,20 @@ public final class CommandLedger implements AutoCloseable {
                     return givenUp(outage.describe() + ", outage budget of "
                             + Durations.seconds(link.outageBudget()) + " s spent");
                 }
+                if (ros.isConnected() && !pause()) { // the habitat answered, not yet usefully: no busy loop
+                    return givenUp("interrupted while waiting to send again");
+                }
+            }
+        }
+
+        /** @return false if interrupted (the flag is set again) */
+        private boolean pause() {
+            try {
+                Thread.sleep(RETRY_PAUSE.toMillis());
+                return true;
+            } catch (InterruptedException e) {
+                Thread.currentThread().interrupt();
+                return false;
             }
         }
 
