@@ -132,7 +132,9 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         lines = {part.name: part.command(deployment, stack.run) for part in stack.parts}
     finally:
         stack.stop()
-    assert [p.name for p in PARTS] == list(lines) == ["sim", "planner", "at-server", "bridge"]
+    assert [p.name for p in PARTS if p.name != "link"] == list(lines) == ["sim", "planner", "at-server", "ledger",
+                                                                          "bridge"]
+    assert lines["ledger"][:3] == ["ledger", "--state-dir", str(stack.run.state_dir / "ledger")]
     assert lines["bridge"] == [
         "bridge",
         "--address",
@@ -156,6 +158,32 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
     assert stack.bridge_url == "wss://127.0.0.1:9443"
     with pytest.raises(StackFailed, match="unknown parts"):
         Stack(deployment, parts=["sim", "ledgr"], env={})
+
+
+def test_a_link_section_puts_an_emulated_link_in_front_of_the_bridge(tmp_path: Path) -> None:
+    path = write_deployment(tmp_path, "iva", link={"listen": "127.0.0.1:0", "delay": 1.3, "loss": 0.05,
+                                                   "down_kbps": 64, "up_kbps": 16, "seed": 7},
+                            ledger={"retain_hours": 24}, bridge={"address": "127.0.0.1", "port": 9090})
+    deployment = load_deployment(path, check_files=False)
+    stack = Stack(deployment, time_scale=0.0, env={})
+    try:
+        lines = {part.name: part.command(deployment, stack.run) for part in stack.parts}
+        assert list(lines)[-2:] == ["bridge", "link"]
+        link = lines["link"]
+        assert link[:7] == ["link", "--listen", "127.0.0.1:0", "--to", "127.0.0.1:9090", "--control",
+                            str(stack.run.state_dir / "link.sock")]
+        options = dict(zip(link[7::2], link[8::2], strict=True))
+        assert options == {"--delay": "1.3", "--jitter": "0.0", "--loss": "0.05", "--seed": "7", "--up-kbps": "16.0",
+                           "--down-kbps": "64.0"}
+        assert lines["ledger"][3:] == ["--retain-hours", "24.0", "--default-timeout", "10.0"]
+        stack.run.link_port = 40000
+        assert stack.url == "ws://127.0.0.1:40000" and stack.bridge_url == "ws://127.0.0.1:9090"
+    finally:
+        stack.stop()
+    for bad, problem in (({"listen": "nowhere"}, "is not HOST:PORT"), ({"listen": "h:1", "loss": 1.5}, "fraction"),
+                         ({"listen": "h:1", "dealy": 1}, "unknown key 'dealy'")):
+        with pytest.raises(DeploymentError, match=problem):
+            load_deployment(write_deployment(tmp_path, "iva", link=bad), check_files=False)
 
 
 @pytest.mark.parametrize(
