@@ -6,20 +6,16 @@ import caretaker.pax.CommandResult;
 import caretaker.pax.PluginContext;
 import caretaker.pax.PluginException;
 import caretaker.rosbridge.CommandLedger;
-import caretaker.rosbridge.HabitatClock;
 import caretaker.rosbridge.Header;
 import caretaker.rosbridge.LedgerAnswer;
-import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Pose;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.Service;
-import caretaker.rosbridge.Topic;
 import caretaker.sysrep.SysRep;
 import com.google.gson.JsonArray;
 import com.google.gson.JsonElement;
 import com.google.gson.JsonObject;
 import java.time.Duration;
-import java.time.Instant;
 import java.util.ArrayList;
 import java.util.LinkedHashMap;
 import java.util.List;
@@ -31,13 +27,8 @@ import java.util.Set;
  * {@code /affordance_template_server} by default).
  *
  * <p>{@code affordance_template} names a type ({@code cdra_filter}) or an instance
- * ({@code cdra_filter:0}). A type is resolved to exactly one running instance; none or several is
- * a failure that lists what runs, never a guess. The running instances come from the server's
- * status topic ({@code running_templates}) when the latest status is fresh (at most 2 s older
- * than the link's one-way delay), with the instances this plugin added or deleted since laid over
- * it until a status stamped after their reply arrived shows them; otherwise, and whenever the
- * status does not name exactly one, from {@code get_running} — a round trip over the link that a
- * fresh status saves.
+ * ({@code cdra_filter:0}). A type is resolved with {@code get_running}: exactly one running
+ * instance of it is used; none or several is a failure that lists what runs, never a guess.
  * Commands with an {@code id} argument take it as the instance number when it is 0 or more (a
  * negative id means "resolve from affordance_template"); an id that contradicts an instance name
  * is a failure.
@@ -57,8 +48,6 @@ public final class AtCommandPlugin implements CommandPlugin {
             "delete_affordance_template", "plan_trajectory", "execute_plan", "set_waypoint_pose",
             "set_display_object_pose");
     private static final Set<String> COMMANDS = Set.copyOf(COMMAND_ORDER);
-    /** How much older than the link's one-way delay a status may be to resolve instances from. */
-    private static final Duration STATUS_FRESH_BEYOND_DELAY = Duration.ofSeconds(2);
 
     private final SysRep sysRep;
     private final CommandLedger ledger;
@@ -71,13 +60,6 @@ public final class AtCommandPlugin implements CommandPlugin {
     private final Service executeCommand;
     private final Service setObjectPose;
     private final Service setWaypointPose;
-    private final Topic status;
-    private final HabitatClock clock;
-    private final Duration freshFor;
-    /** The running instances of the latest status; null before the first. Guarded by this. */
-    private Seen seen;
-    /** Adds and deletes of this plugin no status has shown yet. Guarded by this. */
-    private final List<Change> unseen = new ArrayList<>();
 
     /**
      * @param context the SysRep (must declare the six commands), connection, namespace, options
@@ -107,56 +89,6 @@ public final class AtCommandPlugin implements CommandPlugin {
                 msgs + "AffordanceTemplateExecuteCommand");
         setObjectPose = new Service(context.ros(), context.resolve("set_object_pose"), msgs + "SetObjectPose");
         setWaypointPose = new Service(context.ros(), context.resolve("set_waypoint_pose"), msgs + "SetWaypointPose");
-        Duration oneWay = ledger.link().oneWayDelay();
-        this.clock = new HabitatClock(oneWay);
-        this.freshFor = oneWay.plus(STATUS_FRESH_BEYOND_DELAY);
-        this.status = AtStatus.topic(context.ros(), context.resolve("status"), AtStatus.DEFAULT_THROTTLE);
-        status.subscribe(this::statusCallback);
-    }
-
-    /** Keeps the running instances of each stamped status. */
-    private void statusCallback(Message message) {
-        JsonObject reply = message.toJsonObject();
-        Instant stamp = AtStatus.stamp(reply);
-        JsonElement names = reply.get("running_templates");
-        if (stamp == null || names == null || !names.isJsonArray()) {
-            return; // without a stamp it cannot be ordered against replies
-        }
-        Instant now = Instant.now();
-        clock.observe(stamp, now, System.nanoTime());
-        Instant valid = clock.toGround(stamp);
-        List<TemplateInstance> instances = new ArrayList<>();
-        for (JsonElement name : names.getAsJsonArray()) {
-            TemplateInstance instance = name.isJsonPrimitive() ? TemplateInstance.parseOrNull(name.getAsString()) : null;
-            if (instance != null) {
-                instances.add(instance);
-            }
-        }
-        synchronized (this) {
-            seen = new Seen(List.copyOf(instances), valid);
-            // A status stamped after a reply arrived was published after the server sent it.
-            unseen.removeIf(change -> valid.isAfter(change.replyReceived()));
-        }
-    }
-
-    /** A change of the running instances made by this plugin, for the status to catch up with. */
-    private synchronized void changed(TemplateInstance instance, boolean added) {
-        unseen.add(new Change(instance, added, Instant.now()));
-    }
-
-    /** @return the running instances a fresh status and this plugin's changes show, or null if stale */
-    private synchronized List<TemplateInstance> runningFromStatus() {
-        if (seen == null || Duration.between(seen.valid(), Instant.now()).compareTo(freshFor) > 0) {
-            return null;
-        }
-        List<TemplateInstance> running = new ArrayList<>(seen.instances());
-        for (Change change : unseen) {
-            running.remove(change.instance());
-            if (change.added()) {
-                running.add(change.instance());
-            }
-        }
-        return running;
     }
 
     @Override
@@ -194,7 +126,7 @@ public final class AtCommandPlugin implements CommandPlugin {
 
     @Override
     public void close() {
-        status.unsubscribe(); // the connection belongs to the caller
+        // Services hold no subscriptions; the connection belongs to the caller.
     }
 
     private CommandResult add(Sender sender, Map<String, Object> args) {
@@ -214,10 +146,6 @@ public final class AtCommandPlugin implements CommandPlugin {
         Map<String, Object> values = new LinkedHashMap<>();
         values.put("id", reply.get("id").getAsLong());
         values.put("instance", reply.get("instance").getAsString());
-        TemplateInstance added = TemplateInstance.parseOrNull(reply.get("instance").getAsString());
-        if (added != null) {
-            changed(added, true);
-        }
         return CommandResult.success(message(reply), values);
     }
 
@@ -226,11 +154,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         JsonObject request = new JsonObject();
         request.addProperty("class_type", instance.type());
         request.addProperty("id", instance.id());
-        JsonObject reply = sender.send(deleteTemplate, request, callTimeout);
-        if (reply.get("success").getAsBoolean()) {
-            changed(instance, false);
-        }
-        return result(reply, instance, Map.of());
+        return result(sender.send(deleteTemplate, request, callTimeout), instance, Map.of());
     }
 
     /** The part of plan_command and execute_command requests that names instance and trajectory. */
@@ -348,13 +272,6 @@ public final class AtCommandPlugin implements CommandPlugin {
             }
             return new TemplateInstance(template, id.intValue());
         }
-        List<TemplateInstance> fromStatus = runningFromStatus();
-        if (fromStatus != null) {
-            List<TemplateInstance> matching = fromStatus.stream().filter(i -> i.type().equals(template)).toList();
-            if (matching.size() == 1) {
-                return matching.get(0);
-            }
-        }
         List<TemplateInstance> running = running();
         List<TemplateInstance> matching = running.stream().filter(i -> i.type().equals(template)).toList();
         if (matching.size() == 1) {
@@ -435,14 +352,6 @@ public final class AtCommandPlugin implements CommandPlugin {
     private static String message(JsonObject reply) {
         JsonElement message = reply.get("message");
         return message == null || message.isJsonNull() ? "" : message.getAsString();
-    }
-
-    /** The running instances of a status, and when it was valid on this host's clock. */
-    private record Seen(List<TemplateInstance> instances, Instant valid) {
-    }
-
-    /** An add ({@code added}) or delete this plugin made, and when its reply arrived. */
-    private record Change(TemplateInstance instance, boolean added, Instant replyReceived) {
     }
 
     /** The system's reply did not come or cannot be read: the result says why. */

@@ -8,6 +8,7 @@ import caretaker.rosbridge.JsonValues;
 import caretaker.rosbridge.Message;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosHandler;
+import caretaker.rosbridge.Time;
 import caretaker.rosbridge.Topic;
 import caretaker.sysrep.Telemetry;
 import com.google.gson.JsonElement;
@@ -36,14 +37,22 @@ import java.util.concurrent.TimeUnit;
  * (an outage) or down, nothing is known about the server, so it only goes stale. The next status
  * makes everything fresh again; nothing needs restarting.
  *
+ * <p>The server publishes at 5 Hz and on every change; the plugin needs the latest state, not every
+ * message. So it asks the bridge for at most one status per {@code status_throttle} and to queue
+ * one: after an outage the ground gets the newest status, not a backlog that grows with the outage
+ * and the link's delay. Compression stays off: a status is ~0.4 KB of JSON, which PNG or CBOR
+ * would not shrink enough to pay for their overhead (and the client reads JSON only).
+ *
  * <p>Options: {@code stale_after}, {@code status_topic} (default {@code <namespace>/status}),
- * {@code status_throttle} (s, default 0.5: see {@link AtStatus}).
+ * {@code status_throttle} (s, default 0.5).
  */
 public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
     /** The binding options this plugin reads. */
     public static final Set<String> OPTIONS = Set.of("stale_after", "status_topic", "status_throttle");
     /** The item that reports whether the server is there at all. */
     public static final String SERVER_ACTIVE = "affordance_template_server_active";
+    private static final String STATUS_TYPE = "affordance_template_msgs/msg/ServerStatus";
+    private static final Duration DEFAULT_THROTTLE = Duration.ofMillis(500);
 
     private final Ros ros;
     private final Topic status;
@@ -77,8 +86,9 @@ public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
         this.lastStatusNanos = now;
         this.lastValidNanos = now;
         this.connectedNanos = now;
-        this.status = AtStatus.topic(ros, context.options().string("status_topic", context.resolve("status")),
-                context.options().seconds("status_throttle", AtStatus.DEFAULT_THROTTLE));
+        long throttle = context.options().seconds("status_throttle", DEFAULT_THROTTLE).toMillis();
+        this.status = new Topic(ros, context.options().string("status_topic", context.resolve("status")), STATUS_TYPE,
+                (int) Math.min(Integer.MAX_VALUE, throttle), 1);
         this.watchdog = Executors.newSingleThreadScheduledExecutor(runnable -> {
             Thread thread = new Thread(runnable, "at-telemetry-watchdog " + status.getName());
             thread.setDaemon(true);
@@ -100,7 +110,7 @@ public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
         JsonObject status = message.toJsonObject();
         long nanos = System.nanoTime();
         Instant now = Instant.now();
-        Instant stamp = AtStatus.stamp(status);
+        Instant stamp = stamp(status);
         Instant valid;
         if (stamp != null) {
             clock.observe(stamp, now, nanos);
@@ -119,6 +129,15 @@ public final class AtTelemetryPlugin extends BoardTelemetryPlugin {
                 board.put(item.id(), new TelemetryValue(value, valid, stale));
             }
         }
+    }
+
+    /** @return the status's habitat timestamp, or null when it has none (or a zero one) */
+    private static Instant stamp(JsonObject status) {
+        if (!status.has("stamp")) {
+            return null;
+        }
+        Time time = Time.fromJson(status.get("stamp"));
+        return time.isZero() ? null : time.toInstant();
     }
 
     /** Whether a value this old is stale: older than stale_after beyond the light time. */

@@ -49,7 +49,6 @@ class AtCommandPluginTest {
     private SysRep sysRep;
     private AtCommandPlugin plugin;
     private final List<String> running = new ArrayList<>();
-    private final java.util.concurrent.atomic.AtomicInteger getRunningCalls = new java.util.concurrent.atomic.AtomicInteger();
     private volatile JsonObject nextReply = JsonParser.parseString("{\"success\":true,\"message\":\"ok\"}")
             .getAsJsonObject();
 
@@ -62,7 +61,6 @@ class AtCommandPluginTest {
             }
             JsonObject values;
             if (call.get("service").getAsString().equals(NS + "/get_running")) {
-                getRunningCalls.incrementAndGet();
                 values = new JsonObject();
                 values.addProperty("success", true);
                 values.addProperty("message", "");
@@ -163,82 +161,6 @@ class AtCommandPluginTest {
         assertFalse(args.get("execute").getAsBoolean());
     }
 
-    /**
-     * Publishes a status stamped {@code age} ago naming {@code instances}, and returns once the
-     * plugin has taken it: a probe subscription on the same topic hears it, then a second copy
-     * (callbacks run in order on one thread, so the plugin's turn for the first has passed).
-     */
-    private void status(Duration age, String... instances) throws Exception {
-        java.time.Instant stamp = java.time.Instant.now().minus(age);
-        JsonObject status = new JsonObject();
-        status.add("stamp", caretaker.rosbridge.Time.of(stamp).toJson());
-        JsonArray names = new JsonArray();
-        for (String instance : instances) {
-            names.add(instance);
-        }
-        status.add("running_templates", names);
-        JsonObject message = new JsonObject();
-        message.addProperty("op", "publish");
-        message.addProperty("topic", NS + "/status");
-        message.add("msg", status);
-        java.util.concurrent.BlockingQueue<Object> heard = new java.util.concurrent.LinkedBlockingQueue<>();
-        caretaker.rosbridge.Topic probe = new caretaker.rosbridge.Topic(ros, NS + "/status",
-                "affordance_template_msgs/msg/ServerStatus", 500, 1);
-        probe.subscribe(heard::add);
-        try {
-            for (int copy = 0; copy < 2; copy++) {
-                server.send(message);
-                assertTrue(heard.poll(5, java.util.concurrent.TimeUnit.SECONDS) != null, "status not delivered");
-            }
-        } finally {
-            probe.unsubscribe();
-        }
-    }
-
-    @Test
-    void aFreshStatusResolvesATypeWithoutAskingTheServer() throws Exception {
-        running.addAll(List.of("cdra_filter:3", "hatch:0"));
-        status(Duration.ZERO, "cdra_filter:5", "hatch:0");
-        CommandResult planned = run("plan_trajectory", Map.of("affordance_template", "cdra_filter", "trajectory",
-                "remove"));
-        assertTrue(planned.success(), planned.message());
-        assertEquals("cdra_filter:5", planned.values().get("instance"), "the status's view, not get_running's");
-        assertEquals(0, getRunningCalls.get());
-        // an instance added here is used at once, before any status shows it
-        nextReply = JsonParser.parseString("{\"success\":true,\"message\":\"added\",\"id\":0,"
-                + "\"instance\":\"valve:0\"}").getAsJsonObject();
-        assertTrue(run("add_affordance_template", Map.of("affordance_template", "valve", "hide_waypoints", true))
-                .success());
-        nextReply = JsonParser.parseString("{\"success\":true,\"message\":\"ok\"}").getAsJsonObject();
-        assertEquals("valve:0", run("execute_plan", Map.of("affordance_template", "valve", "trajectory", "turn"))
-                .values().get("instance"));
-        // a status stamped before the add's reply does not undo it
-        status(Duration.ofMillis(500), "cdra_filter:5", "hatch:0");
-        assertEquals("valve:0", run("execute_plan", Map.of("affordance_template", "valve", "trajectory", "turn"))
-                .values().get("instance"));
-        // deleted here: gone at once
-        assertTrue(run("delete_affordance_template", Map.of("affordance_template", "valve", "id", -1)).success());
-        assertEquals(0, getRunningCalls.get());
-        running.clear();
-        CommandResult gone = run("execute_plan", Map.of("affordance_template", "valve", "trajectory", "turn"));
-        assertFalse(gone.success());
-        assertTrue(gone.message().contains("no running instance of template 'valve'"), gone.message());
-        assertEquals(1, getRunningCalls.get(), "none in the status: the server is asked before failing");
-    }
-
-    @Test
-    void anOldOrAmbiguousStatusFallsBackToTheServer() throws Exception {
-        running.add("cdra_filter:3");
-        status(Duration.ZERO, "cdra_filter:0", "cdra_filter:1");
-        assertEquals("cdra_filter:3", run("plan_trajectory", Map.of("affordance_template", "cdra_filter",
-                "trajectory", "remove")).values().get("instance"));
-        assertEquals(1, getRunningCalls.get());
-        status(Duration.ofSeconds(10), "cdra_filter:7"); // stamped long before the last: late, not fresh
-        assertEquals("cdra_filter:3", run("plan_trajectory", Map.of("affordance_template", "cdra_filter",
-                "trajectory", "remove")).values().get("instance"));
-        assertEquals(2, getRunningCalls.get());
-    }
-
     @Test
     void ambiguousOrMissingTemplateIsAFailureNeverAGuess() {
         running.addAll(List.of("cdra_filter:0", "cdra_filter:1"));
@@ -289,9 +211,6 @@ class AtCommandPluginTest {
     void commandsCarryTheirKeyAndAnUnknownOutcomeStaysUnknown() throws Exception {
         List<JsonObject> executes = new java.util.concurrent.CopyOnWriteArrayList<>();
         server.respond(call -> {
-            if (!"call_service".equals(call.get("op").getAsString())) {
-                return List.of(); // e.g. the status subscription, read after this responder took over
-            }
             JsonObject values = new JsonObject();
             values.addProperty("epoch", "e1");
             if (call.get("service").getAsString().equals(CommandLedger.EXECUTE_SERVICE)) {
