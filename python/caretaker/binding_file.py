@@ -14,6 +14,7 @@ habitat's command ledger (a habitat without one is refused when the run opens it
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
@@ -26,9 +27,11 @@ __all__ = ["BUILT_IN_PLUGINS", "BindingError", "BindingLink", "BindingSecurity",
 
 #: The plugins the Java loader knows by name (caretaker.binding.PluginKind); others are class names.
 BUILT_IN_PLUGINS = ("at_commands", "at_telemetry", "ros_convention")
-TOP_LEVEL_KEYS = ("robot", "rosbridge", "systems", "description", "link", "security")
+TOP_LEVEL_KEYS = ("robot", "rosbridge", "systems", "description", "link", "security", "ledger_namespace")
 LINK_KEYS = ("one_way_delay", "outage_budget")
 SECURITY_KEYS = ("ca_file", "secret_file", "token_file")
+#: A ROS namespace as the Java loader accepts it for ledger_namespace.
+NAMESPACE = re.compile(r"(/[A-Za-z_][A-Za-z0-9_]*)+|/")
 #: The Java loader's defaults (caretaker.rosbridge.LinkOptions.loopback()).
 LOOPBACK_DELAY_S = 0.0
 LOOPBACK_OUTAGE_BUDGET_S = 20.0
@@ -71,6 +74,7 @@ class BindingSummary:
     systems: tuple[BoundSystem, ...]
     link: BindingLink = BindingLink(LOOPBACK_DELAY_S, LOOPBACK_OUTAGE_BUDGET_S, stated=False)
     security: BindingSecurity = BindingSecurity()
+    ledger_namespace: str = ""  # where the habitat's command ledger is ("" = the root namespace)
 
 
 def _rosbridge(f: Field) -> str:
@@ -162,4 +166,10 @@ def check_binding(path: str | Path) -> BindingSummary:
             raise entry["sysrep"].fail(f"SysRep {sysrep.id!r} is bound twice; bind each SysRep once (list several plugins instead)")
         systems.append(BoundSystem(sysrep.id, namespace, bridge))
     link = _link(root.get("link"))
-    return BindingSummary(path, robot, tuple(systems), link, _security(root.get("security")))
+    ledger_namespace = ""
+    if root.has("ledger_namespace"):
+        ledger_namespace = root["ledger_namespace"].text()
+        if not NAMESPACE.fullmatch(ledger_namespace):
+            raise root["ledger_namespace"].fail(f"must be a ROS namespace like /iva, got {ledger_namespace!r}")
+    return BindingSummary(path, robot, tuple(systems), link, _security(root.get("security")),
+                          "" if ledger_namespace == "/" else ledger_namespace)

@@ -285,4 +285,10 @@ def _check_binding_reaches_this_side(f: Field, binding: BindingSummary, deployme
             raise f.fail(f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://")
         if deployment.namespace and not system.namespace.startswith(deployment.namespace + "/"):
             raise f.fail(f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}")
+    if binding.ledger_namespace != deployment.namespace:
+        # The stack puts the command ledger in the deployment's namespace, so that robots sharing a
+        # ROS graph never share a ledger (two ledgers on one name would both execute a command).
+        raise f.fail(f"binding {binding.path} looks for the command ledger in {binding.ledger_namespace or '/'}, but this "
+                     f"deployment's ledger is in {deployment.namespace or '/'} (set ledger_namespace: "
+                     f"{deployment.namespace or '/'} in the binding)")
 

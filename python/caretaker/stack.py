@@ -101,8 +101,14 @@ def _at_server(deployment: Deployment, run: StackRun) -> list[str]:
 
 def _ledger(deployment: Deployment, run: StackRun) -> list[str]:
     ledger = deployment.ledger
-    return ["ledger", "--state-dir", str(run.state_dir / "ledger"), "--retain-hours", str(ledger.retain_hours),
+    args = ["ledger", "--state-dir", str(run.state_dir / "ledger"), "--retain-hours", str(ledger.retain_hours),
             "--default-timeout", str(ledger.default_timeout)]
+    namespace = deployment.namespace
+    if namespace:  # robots sharing a ROS graph each have their own ledger (bindings: ledger_namespace)
+        args += ["--ros-args", "-r", f"__ns:={namespace}"]
+        for service in ("execute", "outcome"):
+            args += ["-r", f"/command_ledger/{service}:={namespace}/command_ledger/{service}"]
+    return args
 
 
 def _link(deployment: Deployment, run: StackRun) -> list[str]:

@@ -154,6 +154,9 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         assert lines[part][1:5] == ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
         assert lines[part][lines[part].index("--namespace") :][:2] == ["--namespace", "/iva"]
     assert lines["at-server"][-2] == "--state-file"
+    assert lines["ledger"][7:] == ["--ros-args", "-r", "__ns:=/iva",
+                                   "-r", "/command_ledger/execute:=/iva/command_ledger/execute",
+                                   "-r", "/command_ledger/outcome:=/iva/command_ledger/outcome"]
     assert stack.env["ROS_DOMAIN_ID"] == "42"
     assert stack.bridge_url == "wss://127.0.0.1:9443"
     with pytest.raises(StackFailed, match="unknown parts"):
@@ -184,6 +187,21 @@ def test_a_link_section_puts_an_emulated_link_in_front_of_the_bridge(tmp_path: P
                          ({"listen": "h:1", "dealy": 1}, "unknown key 'dealy'")):
         with pytest.raises(DeploymentError, match=problem):
             load_deployment(write_deployment(tmp_path, "iva", link=bad), check_files=False)
+
+
+def test_robots_sharing_a_ros_graph_never_share_a_command_ledger(tmp_path: Path) -> None:
+    binding = yaml.safe_load((REPO / "sysrep" / "bindings" / "iva.yaml").read_text())
+    binding["systems"] = [dict(s, sysrep=str(REPO / "sysrep" / Path(s["sysrep"]).name),
+                               namespace="/arm2" + s["namespace"]) for s in binding["systems"]]
+    (tmp_path / "binding.yaml").write_text(yaml.safe_dump(binding))
+    path = write_deployment(tmp_path, "iva", ros={"namespace": "/arm2"}, bindings=[str(tmp_path / "binding.yaml")],
+                            demo=None)
+    with pytest.raises(DeploymentError, match=r"looks for the command ledger in /, but this deployment's ledger is in "
+                                              r"/arm2 \(set ledger_namespace: /arm2 in the binding\)"):
+        load_deployment(path)
+    binding["ledger_namespace"] = "/arm2"
+    (tmp_path / "binding.yaml").write_text(yaml.safe_dump(binding))
+    assert load_deployment(path).namespace == "/arm2"
 
 
 @pytest.mark.parametrize(

@@ -86,7 +86,8 @@ public final class PaxHost implements AutoCloseable {
                 ros = new Ros(system.rosbridge(), binding.rosOptions());
                 connections.add(ros);
                 byUri.put(system.rosbridge(), ros);
-                CommandLedger ledger = new CommandLedger(ros, binding.link(), binding.linkStated());
+                CommandLedger ledger = new CommandLedger(ros, binding.link(), binding.linkStated(),
+                        binding.ledgerNamespace());
                 ledgers.add(ledger);
                 ledgerOf.put(ros, ledger);
                 connect(system, ros, ledger);

@@ -35,9 +35,9 @@ import java.util.concurrent.atomic.AtomicInteger;
  */
 public final class CommandLedger implements AutoCloseable {
     private static final System.Logger LOG = System.getLogger(CommandLedger.class.getName());
-    /** The ledger's execute service. */
+    /** The ledger's execute service (in the ledger's namespace, if it has one). */
     public static final String EXECUTE_SERVICE = "/command_ledger/execute";
-    /** The ledger's outcome query service. */
+    /** The ledger's outcome query service (in the ledger's namespace, if it has one). */
     public static final String OUTCOME_SERVICE = "/command_ledger/outcome";
     private static final String EXECUTE_TYPE = "caretaker_ledger_msgs/srv/ExecuteOnce";
     private static final String OUTCOME_TYPE = "caretaker_ledger_msgs/srv/CommandOutcome";
@@ -77,20 +77,22 @@ public final class CommandLedger implements AutoCloseable {
      * @param link the link's delay and outage budget
      */
     public CommandLedger(Ros ros, LinkOptions link) {
-        this(ros, link, false);
+        this(ros, link, false, "");
     }
 
     /**
      * @param ros the connection to the habitat's rosbridge
      * @param link the link's delay and outage budget
      * @param required no direct calls: a habitat without a ledger gets no command
+     * @param namespace the ROS namespace of the habitat's ledger ("" = root; a robot that shares
+     *     its ROS graph with others has its ledger in its own namespace, e.g. {@code /bench})
      */
-    public CommandLedger(Ros ros, LinkOptions link, boolean required) {
+    public CommandLedger(Ros ros, LinkOptions link, boolean required, String namespace) {
         this.ros = ros;
         this.link = link;
         this.required = required;
-        this.executeService = new Service(ros, EXECUTE_SERVICE, EXECUTE_TYPE);
-        this.outcomeService = new Service(ros, OUTCOME_SERVICE, OUTCOME_TYPE);
+        this.executeService = new Service(ros, namespace + EXECUTE_SERVICE, EXECUTE_TYPE);
+        this.outcomeService = new Service(ros, namespace + OUTCOME_SERVICE, OUTCOME_TYPE);
         this.linkWatcher = new RosHandler() {
             @Override
             public void handleConnection() {

@@ -84,6 +84,13 @@ class PaxHostTest {
                 + "systems:\n- sysrep: " + Repo.path("sysrep/cdra.yaml") + "\n  plugins: [ros_convention]\n"
                 + "  namespace: /cdra\n");
         assertTrue(BindingLoader.load(file, null).linkStated());
+        assertEquals("", BindingLoader.load(file, null).ledgerNamespace());
+        Path namespaced = dir.resolve("namespaced.yaml");
+        Files.writeString(namespaced, Files.readString(file) + "ledger_namespace: /bench\n");
+        assertEquals("/bench", BindingLoader.load(namespaced, null).ledgerNamespace());
+        Files.writeString(namespaced, Files.readString(file) + "ledger_namespace: bench/\n");
+        assertTrue(assertThrows(BindingException.class, () -> BindingLoader.load(namespaced, null)).getMessage()
+                .contains("namespaced.yaml:8: ledger_namespace: must be a ROS namespace like /iva"));
         assertFalse(BindingLoader.load(BINDINGS.resolve("iva.yaml"), null).linkStated());
         try (TestServer server = new TestServer()) {
             server.respond(call -> {

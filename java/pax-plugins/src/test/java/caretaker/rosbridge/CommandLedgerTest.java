@@ -242,7 +242,7 @@ class CommandLedgerTest {
                 return List.of();
             }
             String service = call.get("service").getAsString();
-            if (!service.startsWith("/command_ledger/")) {
+            if (!service.startsWith("/bench/command_ledger/")) {
                 direct.add(call);
             }
             JsonObject reply = new JsonObject();
@@ -254,10 +254,11 @@ class CommandLedgerTest {
             return List.of(reply);
         });
         try (CommandLedger ledger = new CommandLedger(ros, new LinkOptions(Duration.ZERO, Duration.ofSeconds(2)),
-                true)) {
+                true, "/bench")) {
             LedgerMissingException missing = org.junit.jupiter.api.Assertions.assertThrows(
                     LedgerMissingException.class, () -> ledger.probe(Duration.ofSeconds(5)));
             assertTrue(missing.getMessage().contains("no command ledger at " + server.uri())
+                    && missing.getMessage().contains("/bench/command_ledger/outcome does not exist")
                     && missing.getMessage().contains("caretaker up"), missing.getMessage());
             LedgerAnswer refused = ledger.execute("run-1/7.1/1", "/peer/set", null, REQUEST, Duration.ofSeconds(5));
             assertEquals(LedgerState.REFUSED, refused.state());
