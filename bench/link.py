@@ -61,8 +61,10 @@ CASES = {
 }
 
 
-def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path]) -> Path:
+def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path], status_throttle: float | None) -> Path:
     data = yaml.safe_load(GROUND_BINDING.read_text())
+    if status_throttle is not None:
+        data["systems"][0]["options"]["status_throttle"] = status_throttle
     data["link"] = {"one_way_delay": case.delay, "outage_budget": 120}
     data["security"] = {"secret_file": str(credentials["rosbridge.secret"])}
     if case.tls:
@@ -94,7 +96,8 @@ def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding:
     return path
 
 
-def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str]) -> dict[str, Any]:
+def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_throttle: float | None = None
+        ) -> dict[str, Any]:
     """One run of the procedure across ``case``'s link; its figures."""
     from caretaker.certs import make_link_credentials
     from caretaker.link import LinkControl
@@ -105,7 +108,7 @@ def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str]) -> dict[
     with tempfile.TemporaryDirectory(prefix="caretaker-bench-link-") as tmp:
         folder = Path(tmp)
         credentials = make_link_credentials(folder / "link", ["127.0.0.1"], days=1)
-        binding = _ground_binding(folder, case, credentials)
+        binding = _ground_binding(folder, case, credentials, status_throttle)
         deployment = _deployment(folder, case, credentials, binding, seed)
         up = caretaker("up", str(deployment), "--time-scale", time_scale, env=env, name="up")
         run = None
@@ -150,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
     parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
     parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
+    parser.add_argument("--status-throttle", type=float, help="at_telemetry's status_throttle (s; default the plugin's)")
     args = parser.parse_args(argv)
     unknown = [name for name in args.cases.split(",") if name not in CASES]
     if unknown:
@@ -160,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| link | run | wall | habitat (motion) | N | bound | ratio | bytes up | bytes down | stalls |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.cases.split(","):
-        r = fly(CASES[name], time_scale=args.time_scale, seed=args.seed, env=env)
+        r = fly(CASES[name], time_scale=args.time_scale, seed=args.seed, env=env, status_throttle=args.status_throttle)
         print(f"| {r['case']} | {r['run']:.1f} s | {r['wall']:.1f} s | {r['habitat']:.1f} s ({r['motion']:.1f} s) "
               f"| {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× | {r['up'] / 1024:.1f} KiB "
               f"| {r['down'] / 1024:.1f} KiB | {r['stalls']} |", flush=True)
