@@ -11,8 +11,11 @@ driven by bare WebSocket clients (no client library in the loop):
 * server RSS (MiB) at the end.
 
 Usage: ``.venv/bin/python bench/rosbridge_bench.py [--quick] [--only caretaker|rust] [--soak SECONDS]
-[--peer-dds-profile]`` (``--soak 600`` runs echo traffic and client churn for ten minutes and
-reports RSS instead; ``--peer-dds-profile`` gives the peer the bridge's Fast DDS profile too).
+[--peer-dds-profile] [--baseline DIR]`` (``--soak 600`` runs echo traffic and client churn for ten
+minutes and reports RSS instead; ``--peer-dds-profile`` gives the peer the bridge's Fast DDS
+profile too; ``--baseline DIR`` adds a third server, the bridge of another version whose
+``python/`` folder is in DIR, e.g. ``git archive main python | tar -x -C DIR``, interleaved with
+the others in the same run, to compare a change with the code before it).
 The Rust peer runs as the notes' recipe says: a ``librmw_implementation.so`` symlink to the
 venv's ``librmw_fastrtps_cpp.so`` on ``LD_LIBRARY_PATH``, ``LD_PRELOAD`` of libpython,
 ``--no-rosapi``, bound to loopback; its wheel ships the binary without the execute bit, so it
@@ -99,7 +102,7 @@ def echo_node() -> int:
                     burst[0] += 1
 
     rclpy.init()
-    node = EchoNode(SERVERS)
+    node = EchoNode(os.environ.get("BENCH_SERVERS", ",".join(SERVERS)).split(","))
     executor = EventsExecutor()
     executor.add_node(node)
     print("READY echo", flush=True)
@@ -146,8 +149,13 @@ def wait_for_port(port: int, timeout: float = 30.0) -> None:
     raise RuntimeError(f"nothing listens on {port} after {timeout} s")
 
 
-def start_caretaker(env: dict[str, str]) -> tuple[subprocess.Popen, int]:
-    process = subprocess.Popen([str(VENV / "bin" / "caretaker"), "bridge", "--port", "0", "--log-level", "WARNING"],
+def start_caretaker(env: dict[str, str], baseline: Path | None = None) -> tuple[subprocess.Popen, int]:
+    """``caretaker bridge`` of this checkout, or the one under ``baseline/python``."""
+    argv = [str(VENV / "bin" / "caretaker"), "bridge"]
+    if baseline is not None:
+        env = dict(env, PYTHONPATH=str(baseline / "python"))  # found before this checkout's editable install
+        argv = [sys.executable, "-m", "bridge.rosbridge.server"]
+    process = subprocess.Popen([*argv, "--port", "0", "--log-level", "WARNING"],
                                env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     line = wait_for_line(process, r"^READY bridge", 60)
     return process, int(line.strip().rsplit(":", 1)[1])
@@ -430,23 +438,24 @@ def fanout_count(quick: bool) -> int:
 
 
 def report(all_results: list[Results]) -> str:
-    lines = []
+    """A table of every figure; ratios of each Caretaker bridge to the Rust peer (the last
+    column server), and of this checkout's bridge to the baseline when there is one."""
     names = [r.server for r in all_results]
-    keys = list(all_results[0].figures)
-    lines.append("| measurement | " + " | ".join(names) + (" | ratio |" if len(names) == 2 else " |"))
-    lines.append("|---" * (len(names) + 1 + (len(names) == 2)) + "|")
-    for key in keys:
-        values = [r.figures[key] for r in all_results]
-        if isinstance(values[0], dict):
-            for metric in values[0]:
-                cells = [f"{v[metric]:.2f}" if isinstance(v[metric], float) else str(v[metric]) for v in values]
-                ratio = ""
-                if len(values) == 2 and values[1][metric]:
-                    ratio = f" | {values[0][metric] / values[1][metric]:.2f}"
-                lines.append(f"| {key}: {metric} | " + " | ".join(cells) + ratio + " |")
-        else:
-            ratio = f" | {values[0] / values[1]:.2f}" if len(values) == 2 and values[1] else ""
-            lines.append(f"| {key} | " + " | ".join(f"{v:.1f}" for v in values) + ratio + " |")
+    pairs = [(name, names[-1]) for name in names[:-1]] if len(names) > 1 else []
+    if "baseline" in names and ("caretaker", "baseline") not in pairs:
+        pairs.append(("caretaker", "baseline"))
+    lines = ["| measurement | " + " | ".join(names) + "".join(f" | {a} ÷ {b}" for a, b in pairs) + " |",
+             "|---" * (len(names) + 1 + len(pairs)) + "|"]
+    by_name = {r.server: r.figures for r in all_results}
+    for key in all_results[0].figures:
+        values = {name: by_name[name][key] for name in names}
+        metrics = list(values[names[0]]) if isinstance(values[names[0]], dict) else [None]
+        for metric in metrics:
+            cell = {name: (v[metric] if metric is not None else v) for name, v in values.items()}
+            ratios = "".join(f" | {cell[a] / cell[b]:.2f}" if cell[b] else " | " for a, b in pairs)
+            label = f"{key}: {metric}" if metric is not None else key
+            lines.append(f"| {label} | " + " | ".join(f"{cell[n]:.2f}" if isinstance(cell[n], float) else str(cell[n])
+                                                     for n in names) + ratios + " |")
     return "\n".join(lines)
 
 
@@ -458,11 +467,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="instead of the measurements: echo traffic for SECONDS, sampling RSS")
     parser.add_argument("--peer-dds-profile", action="store_true",
                         help="run the Rust peer under the Fast DDS profile the bridge ships (docs/rosbridge.md)")
+    parser.add_argument("--baseline", type=Path, metavar="DIR",
+                        help="also run the bridge whose python/ folder is in DIR (the code before a change)")
     parser.add_argument("--echo-node", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.echo_node:
         return echo_node()
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", BENCH_FANOUT_COUNT=str(fanout_count(args.quick)))
+    names = [n for n in SERVERS if not args.only or args.only == n]
+    if args.baseline:
+        names.insert(1 if "caretaker" in names else 0, "baseline")
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", BENCH_FANOUT_COUNT=str(fanout_count(args.quick)),
+               BENCH_SERVERS=",".join(names))
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
     os.environ.update(env)
     echo = subprocess.Popen([sys.executable, __file__, "--echo-node"], env=env, stdout=subprocess.PIPE, text=True)
@@ -471,11 +486,11 @@ def main(argv: list[str] | None = None) -> int:
         wait_for_line(echo, r"^READY echo", 60)
         with tempfile.TemporaryDirectory() as workdir:
             servers: dict[str, tuple[int, int]] = {}
-            for name in SERVERS:
-                if args.only and args.only != name:
-                    continue
+            for name in names:
                 if name == "caretaker":
                     process, port = start_caretaker(env)
+                elif name == "baseline":
+                    process, port = start_caretaker(env, args.baseline)
                 else:
                     process, port = start_rust(env, Path(workdir), args.peer_dds_profile)
                 processes.append(process)

@@ -11,25 +11,26 @@ from __future__ import annotations
 from geometry_msgs.msg import Pose as PoseMsg
 
 from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
-from sim.scene import Pose, Scene, Shape, filter_shapes
+from sim.scene import Pose, Scene, Shape, filter_parts
 
-__all__ = ["collision_world"]
+__all__ = ["collision_world", "pose_message", "shape_message"]
 
 
-def _pose(pose: Pose) -> PoseMsg:
+def pose_message(pose: Pose) -> PoseMsg:
     msg = PoseMsg()
     msg.position.x, msg.position.y, msg.position.z = (float(v) for v in pose.xyz)
     msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = (float(v) for v in pose.quaternion)
     return msg
 
 
-def _shape(shape: Shape) -> CollisionShape:
+def shape_message(shape: Shape, rgba: tuple[float, float, float, float]) -> CollisionShape:
     msg = CollisionShape()
     msg.type = shape.type
     msg.size = [float(v) for v in shape.size]
     msg.radius = float(shape.radius)
     msg.length = float(shape.length)
-    msg.pose = _pose(shape.pose)
+    msg.pose = pose_message(shape.pose)
+    msg.rgba = [float(v) for v in rgba]
     return msg
 
 
@@ -38,20 +39,19 @@ def collision_world(scene: Scene) -> CollisionWorld:
     msg = CollisionWorld()
     msg.scene = scene.name
     msg.robot_name = scene.robot.name
-    msg.robot_base = _pose(scene.robot.base)
+    msg.robot_base = pose_message(scene.robot.base)
     for body in scene.bodies:
         obj = CollisionObject()
         obj.name = body.name
-        obj.pose = _pose(body.pose)
-        obj.shapes = [_shape(s) for s in body.shapes]
+        obj.pose = pose_message(body.pose)
+        obj.shapes = [shape_message(s, body.color) for s in body.shapes]
         msg.objects.append(obj)
     if scene.filter_model is not None:
-        shapes = [_shape(s) for s in filter_shapes(scene.filter_model)]
         for spec in scene.filters:
             obj = CollisionObject()
             obj.name = f"filter/{spec.id}"
-            obj.pose = _pose(scene.slots[spec.slot].pose)
-            obj.shapes = shapes
+            obj.pose = pose_message(scene.slots[spec.slot].pose)
+            obj.shapes = [shape_message(s, c) for s, c in filter_parts(scene.filter_model, spec.condition)]
             obj.graspable = True
             msg.objects.append(obj)
     return msg

@@ -75,6 +75,13 @@ class Gripper:
             self.motion.message = self._filters.release() + "; "
         return self.motion
 
+    def halt(self, reason: str) -> str:
+        """Stop the fingers where they are; the motion ends unsuccessful. Returns what stopped."""
+        motion = self.motion
+        assert motion is not None
+        self._finish(False, f"halted: {reason}")
+        return f"the gripper on its way to {motion.pose!r}"
+
     def step(self, dt: float) -> None:
         """Advance the fingers one physics step and finish the motion when they stop."""
         motion = self.motion

@@ -32,13 +32,16 @@ __all__ = [
     "TargetModel",
     "TargetSpec",
     "filter_grasp_offset",
+    "filter_parts",
     "filter_shapes",
     "load_scene",
     "resolve_scene",
+    "target_parts",
 ]
 
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 SHAPE_TYPES = ("box", "cylinder")
+RGBA = tuple[float, float, float, float]
 
 
 class SceneError(DataFileError):
@@ -192,6 +195,25 @@ def filter_shapes(model: FilterModel) -> tuple[Shape, Shape]:
     """A filter cartridge's body (at its frame) and, in front of it (-x), its handle."""
     handle_x = -(model.body_size[0] / 2 + model.handle_size[0] / 2)
     return (Shape("box", Pose(), size=model.body_size), Shape("box", Pose((handle_x, 0.0, 0.0)), size=model.handle_size))
+
+
+def filter_parts(model: FilterModel, condition: str) -> tuple[tuple[Shape, RGBA], tuple[Shape, RGBA]]:
+    """A filter's shapes with the colours it is drawn in: body by condition, handle its own."""
+    body, handle = filter_shapes(model)
+    color = model.colors[condition]
+    return (body, color), (handle, model.colors.get("handle", color))
+
+
+def target_parts(model: TargetModel, condition: str) -> tuple[tuple[Shape, RGBA], ...]:
+    """An inspection panel (raised slightly off curved hulls) and its damage mark, if any,
+    in the target's frame (z = surface normal), with their colours. Drawn only: no collision."""
+    raise_by = 0.015 + model.panel_size[2] / 2
+    panel = (Shape("box", Pose((0.0, 0.0, raise_by)), size=model.panel_size), model.colors["panel"])
+    if condition == "clean":
+        return (panel,)
+    mark_z = raise_by + model.panel_size[2] / 2 + 0.002
+    mark = Shape("cylinder", Pose((0.0, 0.0, mark_z)), radius=model.mark_radius[condition], length=0.004)
+    return panel, (mark, model.colors[condition])
 
 
 # --------------------------------------------------------------------------------------- loading

@@ -26,8 +26,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
-from caretaker_sim_msgs.srv import CaptureImage, SetGripper
+from builtin_interfaces.msg import Time
+from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses, VisualWorld
+from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
 from geometry_msgs.msg import Pose
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Bool, String
@@ -35,9 +36,11 @@ from std_srvs.srv import Trigger
 
 from sim.cameras import CameraImage, capture_file_name, render, write_png
 from sim.collision_world import collision_world
+from sim.robot_description import robot_description
 from sim.scene import SceneError, load_scene
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
+from sim.visual_world import visual_world
 
 __all__ = ["SimNode", "main"]
 
@@ -45,6 +48,9 @@ LOG = logging.getLogger("sim")
 
 JOINT_STATE_PERIOD = 1.0 / 60.0  # s of sim time (>= 50 Hz)
 FRAMES_PERIOD = 0.1  # s of sim time
+#: s of wall time between sim/frames at least: a view across the link asks for them at a
+#: bounded rate, and at --time-scale 0 sim time can run many times faster than the wall clock.
+FRAMES_MIN_WALL_PERIOD = 0.05
 STATUS_PERIOD = 1.0  # s of sim time; status topics are also published on every change
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 #: Requests a service keeps queued: ROS's default of 10 drops the rest of a burst silently.
@@ -65,6 +71,14 @@ class SimNode(Node):
         self.moving_pub = self.create_publisher(Bool, "robot/moving", LATCHED)
         self.collision_world_pub = self.create_publisher(CollisionWorld, "sim/collision_world", LATCHED)
         self.collision_world_pub.publish(collision_world(sim.scene))
+        self.visual_world_pub = self.create_publisher(VisualWorld, "sim/visual_world", LATCHED)
+        self.visual_world_pub.publish(visual_world(sim.scene))
+        self.description_pub = self.create_publisher(String, "robot_description", LATCHED)
+        self.description_pub.publish(String(data=robot_description(sim.scene.robot.urdf)))
+        # Stamps are sim time on a timeline that starts at the wall clock's now: at time scale 1
+        # they track the wall clock (ages stay meaningful), and stamp differences are sim time.
+        self._epoch_ns = self.get_clock().now().nanoseconds - int(sim.time * 1e9)
+        self.halt_srv = self.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS, callback_group=group)
         self.trajectory_server = ActionServer(
             self, FollowJointTrajectory, "arm_controller/follow_joint_trajectory",
             execute_callback=self.execute_callback, goal_callback=self.goal_callback,
@@ -103,6 +117,7 @@ class SimNode(Node):
         """Step, publish by sim time, and pace: real time × scale, or flat out while busy."""
         sim = self.sim
         next_joint_states = next_frames = next_status = 0.0
+        frames_wall = 0.0
         wall_origin, sim_origin = time.monotonic(), sim.time
         steps = 0
         try:
@@ -114,8 +129,9 @@ class SimNode(Node):
                     if now >= next_joint_states:
                         next_joint_states = now + JOINT_STATE_PERIOD
                         self._publish_joint_states()
-                    if now >= next_frames:
+                    if now >= next_frames and time.monotonic() - frames_wall >= FRAMES_MIN_WALL_PERIOD:
                         next_frames = now + FRAMES_PERIOD
+                        frames_wall = time.monotonic()
                         self._publish_frames()
                     status = self._status()
                     if status != self._last_status or now >= next_status:
@@ -143,16 +159,21 @@ class SimNode(Node):
             self.failed = True
             rclpy.try_shutdown()
 
+    def sim_stamp(self, sim_time: float | None = None) -> Time:
+        """``sim_time`` (default: now; then the caller holds ``world_lock``) as header stamps carry it."""
+        ns = self._epoch_ns + int(round((self.sim.time if sim_time is None else sim_time) * 1e9))
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
     def _publish_joint_states(self) -> None:
         names, positions, velocities = self.sim.joint_state()
         msg = JointState()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = self.sim_stamp()
         msg.name, msg.position, msg.velocity = names, positions, velocities
         self.joint_state_pub.publish(msg)
 
     def _publish_frames(self) -> None:
         msg = NamedPoses()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = self.sim_stamp()
         msg.header.frame_id = "world"
         for name, (pos, orn) in self.sim.frames():
             pose = Pose()
@@ -201,6 +222,8 @@ class SimNode(Node):
             (pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9, list(pt.positions), list(pt.velocities))
             for pt in goal.trajectory.points
         ]
+        with sim.world_lock:
+            halts = sim.halts
         try:
             if not math.isfinite(goal.goal_tolerance) or goal.goal_tolerance < 0:
                 raise TrajectoryError(ErrorCode.INVALID_GOAL, f"goal_tolerance {goal.goal_tolerance} must be a finite number >= 0")
@@ -216,6 +239,10 @@ class SimNode(Node):
             result.error_code, result.error_string = exc.code, str(exc)
             return result
         with sim.world_lock:
+            if sim.halts != halts:  # halted between its arrival and its start: it must not move
+                goal_handle.abort()
+                result.error_code, result.error_string = ErrorCode.HALTED, "halted before it started"
+                return result
             run = sim.start_trajectory(trajectory, goal.goal_tolerance)
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)
@@ -243,6 +270,17 @@ class SimNode(Node):
                 result.error_code, result.error_string = ErrorCode.PATH_TOLERANCE_VIOLATED, "trajectory did not finish in time"
             goal_handle.abort()
         return result
+
+    # ------------------------------------------------------------------ halt
+
+    def halt_callback(self, request: Halt.Request, response: Halt.Response) -> Halt.Response:
+        reason = request.reason or "no reason given"
+        with self.sim.world_lock:
+            stopped = self.sim.halt(reason)
+        self.get_logger().warning(f"halt ({reason}): stopped {', '.join(stopped)}" if stopped else f"halt ({reason}): nothing was moving")
+        response.success, response.stopped = True, bool(stopped)
+        response.message = f"halted {' and '.join(stopped)}" if stopped else "nothing was moving"
+        return response
 
     # ------------------------------------------------------------------ gripper
 
@@ -283,9 +321,9 @@ class SimNode(Node):
             link_pose = sim.link_pose(sim.world.link_index[spec.link]) if spec.link else None
             return render(spec, sim.client, link_pose), sim.time
 
-    def _image_msg(self, image: CameraImage) -> Image:
+    def _image_msg(self, image: CameraImage, sim_time: float) -> Image:
         msg = Image()
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = self.sim_stamp(sim_time)
         msg.header.frame_id = f"camera/{image.camera}"
         msg.height, msg.width, msg.encoding, msg.step = image.height, image.width, "rgb8", image.width * 3
         msg.data = image.rgb
@@ -294,8 +332,7 @@ class SimNode(Node):
     def camera_timer_callback(self) -> None:
         for name, pub in self.image_pubs.items():
             if pub.get_subscription_count() > 0:  # rendering costs CPU: only for someone watching
-                image, _ = self._render(name)
-                pub.publish(self._image_msg(image))
+                pub.publish(self._image_msg(*self._render(name)))
 
     def capture_callback(self, request: CaptureImage.Request, response: CaptureImage.Response) -> CaptureImage.Response:
         cameras = self.sim.scene.cameras
@@ -303,7 +340,7 @@ class SimNode(Node):
             response.success, response.message = False, f"unknown camera {request.camera!r}; cameras are {sorted(cameras)}"
             return response
         image, sim_time = self._render(request.camera)
-        response.image = self._image_msg(image)
+        response.image = self._image_msg(image, sim_time)
         response.success = True
         if request.label:
             path = self.capture_dir / capture_file_name(self.sim.scene.name, request.camera, request.label, sim_time)

@@ -84,6 +84,7 @@ class Simulation:
         self.gripper = Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
         self.gripper_joints = tuple(scene.robot.gripper.joints) if scene.robot.gripper else ()
         self.run: TrajectoryRun | None = None
+        self.halts = 0  # robot/halt calls so far: a goal accepted before one must not start after it
         self._link_names = {j: name for name, j in self.world.link_index.items()}
         self._self_pairs = self._self_collision_pairs()
         self._self_links = sorted({link for pair in self._self_pairs for link in pair})
@@ -103,6 +104,23 @@ class Simulation:
             return run
         self.run = run
         return run
+
+    def halt(self, reason: str) -> list[str]:
+        """Stop every motion now: the arm holds where it is, the fingers stop where they are.
+
+        Takes effect before the next physics step (the caller holds ``world_lock``), so nothing
+        moves after this returns. Returns what was stopped (empty: nothing was moving).
+        """
+        self.halts += 1
+        stopped = []
+        run = self.run
+        if run is not None:
+            self._set_arm(self.arm_positions, [0.0] * len(self.arm_positions))
+            self._finish(run, ErrorCode.HALTED, f"halted: {reason}")
+            stopped.append(f"the arm at {run.elapsed:.2f} s of its {run.trajectory.duration:.2f} s trajectory")
+        if self.gripper is not None and self.gripper.moving:
+            stopped.append(self.gripper.halt(reason))
+        return stopped
 
     # ------------------------------------------------------------------ state
 
@@ -130,8 +148,11 @@ class Simulation:
 
     def frames(self) -> list[tuple[str, Pose]]:
         """Ground-truth poses of every named frame (docs/interfaces.md, /sim/frames)."""
+        # The base link's frame as the URDF has it (pybullet's base pose is its inertial frame),
+        # so a view drawing robot_description at robot_base puts every link where it is.
+        base = self.scene.robot.base
         out: list[tuple[str, Pose]] = [
-            ("robot_base", self.link_pose(-1)),
+            ("robot_base", (base.xyz, base.quaternion)),
             (self.scene.robot.tool_link, self.link_pose(self.tool_link)),
         ]
         if "flange" in self.world.link_index:

@@ -28,6 +28,7 @@ class ErrorCode:
     PATH_TOLERANCE_VIOLATED = -4
     GOAL_TOLERANCE_VIOLATED = -5
     COLLISION = -6
+    HALTED = -7
 
 
 class TrajectoryError(ValueError):

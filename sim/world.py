@@ -12,7 +12,7 @@ from typing import Any
 
 import pybullet as p
 
-from sim.scene import FilterModel, Pose, Scene, SceneError, Shape, StaticBody, TargetModel, TargetSpec, filter_shapes
+from sim.scene import RGBA, FilterModel, Pose, Scene, SceneError, Shape, StaticBody, TargetModel, TargetSpec, filter_parts, filter_shapes, target_parts
 
 __all__ = ["World", "build_world"]
 
@@ -68,51 +68,43 @@ def _static_body(body: StaticBody, client: int) -> int:
     return int(body_id)
 
 
-def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
-    shapes = filter_shapes(model)
-    kinds = [p.GEOM_BOX, p.GEOM_BOX]
-    extents = [[v / 2 for v in s.size] for s in shapes]
-    positions = [list(s.pose.xyz) for s in shapes]
-    collision = p.createCollisionShapeArray(shapeTypes=kinds, halfExtents=extents, collisionFramePositions=positions, physicsClientId=client)
-    # Visual shapes one per link so the handle keeps its own colour.
-    body_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=extents[0], rgbaColor=list(model.colors[condition]), physicsClientId=client)
-    handle_visual = p.createVisualShape(
-        p.GEOM_BOX, halfExtents=extents[1], visualFramePosition=positions[1],
-        rgbaColor=list(model.colors.get("handle", model.colors[condition])), physicsClientId=client,
-    )
-    return int(p.createMultiBody(
-        model.mass, collision, body_visual, list(pose.xyz), list(pose.quaternion),
-        linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[handle_visual],
-        linkPositions=[[0, 0, 0]], linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
-        linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED],
-        linkJointAxis=[[0, 0, 1]], physicsClientId=client,
-    ))
+def _part_arrays(parts: tuple[tuple[Shape, RGBA], ...], client: int) -> tuple[int, list[int]]:
+    """One visual shape per part (so each keeps its colour): the first for the base, the rest for links."""
+    visuals = []
+    for shape, color in parts:
+        kind = p.GEOM_BOX if shape.type == "box" else p.GEOM_CYLINDER
+        visuals.append(p.createVisualShape(
+            kind, halfExtents=[v / 2 for v in shape.size], radius=shape.radius, length=shape.length,
+            visualFramePosition=list(shape.pose.xyz), visualFrameOrientation=list(shape.pose.quaternion),
+            rgbaColor=list(color), physicsClientId=client,
+        ))
+    return visuals[0], visuals[1:]
 
 
-def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
-    """A visual-only inspection panel with its damage mark; raised slightly off curved hulls."""
-    raise_by = 0.015 + model.panel_size[2] / 2
-    panel = p.createVisualShape(
-        p.GEOM_BOX, halfExtents=[v / 2 for v in model.panel_size], visualFramePosition=[0, 0, raise_by],
-        rgbaColor=list(model.colors["panel"]), physicsClientId=client,
-    )
-    link_visuals = []
-    if spec.condition != "clean":
-        link_visuals.append(
-            p.createVisualShape(
-                p.GEOM_CYLINDER, radius=model.mark_radius[spec.condition], length=0.004,
-                visualFramePosition=[0, 0, raise_by + model.panel_size[2] / 2 + 0.002],
-                rgbaColor=list(model.colors[spec.condition]), physicsClientId=client,
-            )
-        )
+def _multi_body(mass: float, collision: int, parts: tuple[tuple[Shape, RGBA], ...], pose: Pose, client: int) -> int:
+    """A body drawn as ``parts``; the parts after the first ride on fixed massless links."""
+    base_visual, link_visuals = _part_arrays(parts, client)
     n = len(link_visuals)
     return int(p.createMultiBody(
-        0.0, -1, panel, list(spec.pose.xyz), list(spec.pose.quaternion),
+        mass, collision, base_visual, list(pose.xyz), list(pose.quaternion),
         linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=link_visuals,
         linkPositions=[[0, 0, 0]] * n, linkOrientations=[[0, 0, 0, 1]] * n, linkInertialFramePositions=[[0, 0, 0]] * n,
         linkInertialFrameOrientations=[[0, 0, 0, 1]] * n, linkParentIndices=[0] * n, linkJointTypes=[p.JOINT_FIXED] * n,
         linkJointAxis=[[0, 0, 1]] * n, physicsClientId=client,
     ))
+
+
+def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
+    shapes = filter_shapes(model)
+    extents = [[v / 2 for v in s.size] for s in shapes]
+    positions = [list(s.pose.xyz) for s in shapes]
+    collision = p.createCollisionShapeArray(shapeTypes=[p.GEOM_BOX, p.GEOM_BOX], halfExtents=extents, collisionFramePositions=positions, physicsClientId=client)
+    return _multi_body(model.mass, collision, filter_parts(model, condition), pose, client)
+
+
+def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
+    """A visual-only inspection panel with its damage mark."""
+    return _multi_body(0.0, -1, target_parts(model, spec.condition), spec.pose, client)
 
 
 def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_targets: bool = True) -> World:

@@ -18,7 +18,9 @@ from affordance_template_msgs.srv import (
     GetAffordanceTemplateServerStatus,
     GetAffordanceTemplateStatus,
     GetRobotConfigInfo,
+    GetPlan,
     GetRunningAffordanceTemplates,
+    Halt,
     SetObjectPose,
     SetWaypointPose,
 )
@@ -41,6 +43,8 @@ SERVICES: dict[str, type] = {
     "set_waypoint_pose": SetWaypointPose,
     "get_template_status": GetAffordanceTemplateStatus,
     "get_status": GetAffordanceTemplateServerStatus,
+    "get_plan": GetPlan,
+    "halt": Halt,
 }
 #: The simulation latches robot/moving, gripper/held_object and the CDRA telemetry: subscribe with
 #: this to get the last value at once.

@@ -4,9 +4,9 @@
 under ``affordance_template_server/`` (in its ``--namespace``) and publishes ``ServerStatus`` on
 ``affordance_template_server/status`` at 5 Hz and on every change (the original had no status
 topic; clients polled). The services are implemented by concept: instances and registration in
-:mod:`at_ros.instance_services`, plan and execute in :mod:`at_ros.plan_execute`, both on the
-shared state of :mod:`at_ros.server_core`. Every refusal answers ``success: false`` and what to
-fix.
+:mod:`at_ros.instance_services`, plan and execute in :mod:`at_ros.plan_execute`, the plan for
+views in :mod:`at_ros.plan_view`, halt in :mod:`at_ros.halt`, all on the shared state of
+:mod:`at_ros.server_core`. Every refusal answers ``success: false`` and what to fix.
 
 Threading: a MultiThreadedExecutor runs services, subscriptions and the status timer in
 separate callback groups, so a long execute never blocks status or other services.
@@ -35,17 +35,19 @@ from at_ros.action_client import RecordedActionClient
 from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES, STATUS_TOPIC
 from at_ros.command_line import add_robot_options, choose_robot, split_ros_args
 from at_ros.frames import UnknownFrame
+from at_ros.halt import HaltSwitch
 from at_ros.instance import InstanceError
 from at_ros.instance_services import InstanceServices
 from at_ros.instance_store import load_instances
 from at_ros.library import LibraryError, Template, load_library
 from at_ros.messages import matrix_from_pose
 from at_ros.plan_execute import PlanExecutor
+from at_ros.plan_view import PlanQueries
 from at_ros.robot_config import RobotConfig
 from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import NamedPoses
-from caretaker_sim_msgs.srv import SetGripper
+from caretaker_sim_msgs.srv import Halt as RobotHalt, SetGripper
 
 __all__ = ["AffordanceTemplateServer", "main"]
 
@@ -89,13 +91,19 @@ class AffordanceTemplateServer(Node):
         self.held_subscription = self.create_subscription(String, "gripper/held_object", self.held_object_callback, LATCHED, callback_group=inputs)
         self.heartbeat_subscription = self.create_subscription(Header, "planner/heartbeat", self.heartbeat_callback, 10, callback_group=inputs)
 
+        self.halt_part = HaltSwitch(
+            self.core,
+            halt_client=self.create_client(RobotHalt, robot.halt_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.halt_service else None,
+        )
         self.executor_part = PlanExecutor(
             self.core,
             planner_client=self.create_client(PlanWaypoints, "planner/plan_waypoints", qos_profile=SERVICE_QOS, callback_group=clients),
             trajectory_client=RecordedActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients),
             gripper_client=self.create_client(SetGripper, robot.gripper_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.gripper_service else None,
+            halts=self.halt_part,
         )
         self.instance_part = InstanceServices(self.core)
+        self.plan_part = PlanQueries(self.core)
         for name, srv_type in SERVICES.items():
             callback = self._handler(name)
             self.create_service(srv_type, f"{PREFIX}/{name}", self._guarded(name, callback), qos_profile=SERVICE_QOS, callback_group=services)
@@ -108,7 +116,7 @@ class AffordanceTemplateServer(Node):
         """The callback of service ``name``: the part that owns the concept, or the status query."""
         if name == "get_status":
             return self.get_status_callback
-        for part in (self.instance_part, self.executor_part):
+        for part in (self.instance_part, self.executor_part, self.plan_part, self.halt_part):
             if hasattr(part, name):
                 return getattr(part, name)
         raise AssertionError(f"no handler for service {name!r}")
@@ -137,6 +145,7 @@ class AffordanceTemplateServer(Node):
     def joint_states_callback(self, msg: JointState) -> None:
         with self.core.state_lock:
             self.core.inputs.joints.update(zip(msg.name, msg.position))
+            self.core.inputs.joints_stamp = msg.header.stamp
 
     def moving_callback(self, msg: Bool) -> None:
         with self.core.state_lock:
@@ -161,7 +170,7 @@ class AffordanceTemplateServer(Node):
     def publish_status(self, *, force: bool = False) -> None:
         msg = self.core.status_message(self.get_clock().now().to_msg())
         key = (msg.robot_active, msg.planner_node_active, msg.execute_status, msg.plan_status, msg.plan_valid,
-               msg.active_template, msg.active_trajectory, tuple(msg.running_templates), msg.last_error)
+               msg.active_template, msg.active_trajectory, tuple(msg.running_templates), msg.last_error, msg.plan_id, msg.halt_reason)
         with self.core.state_lock:
             changed = key != self._last_published
             self._last_published = key

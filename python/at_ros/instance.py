@@ -9,6 +9,7 @@ that frame has moved since planning.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +19,8 @@ from at_ros.robot_config import EndEffector, RobotConfig
 from at_ros.transforms import angle_between, invert
 
 __all__ = [
+    "ExecutionOutcome",
+    "PlanState",
     "Registration",
     "StoredPlan",
     "TemplateInstance",
@@ -47,15 +50,20 @@ def next_free_id(used: set[int]) -> int:
     raise InstanceError(f"all {MAX_ID + 1} ids of this template type are in use; delete an instance first")
 
 
-def path_sequence(n: int, current: int, steps: int | None, *, direct: bool, backwards: bool) -> list[int]:
+def path_sequence(n: int, current: int, steps: int | None, *, direct: bool, backwards: bool, resume: bool = False) -> list[int]:
     """Waypoint indices to plan, as the original's computePathSequence, plus ``steps=None``.
 
-    ``steps=None`` (our default) is the whole trajectory, first to last. ``direct`` plans only
+    ``steps=None`` (our default) is the whole trajectory, first to last; with ``resume`` (the
+    last execution stopped part-way: halted, failed, or the server died) it is the rest of it,
+    from the waypoint after ``current``, so a halted pull-out is not begun again from its
+    approach with the filter in the gripper. ``direct`` plans only
     waypoint ``steps-1``; ``steps==0`` replans to the current waypoint; otherwise step +-1
     ``steps`` times from the current waypoint, wrapping around (a not-started trajectory uses
     its first step to reach waypoint 0, or the last one when going backwards).
     """
     if steps is None:
+        if resume and not backwards and 0 <= current < n - 1:
+            return list(range(current + 1, n))
         return list(range(n - 1, -1, -1)) if backwards else list(range(n))
     if direct:
         if not 1 <= steps <= n:
@@ -104,9 +112,32 @@ class ResolvedWaypoint:
     object_pose: np.ndarray | None = None  # its world pose, to find it in the planner's scene
 
 
+class PlanState:
+    """What became of a plan: the closed set of affordance_template_msgs/srv/GetPlan."""
+
+    PLANNED = "PLANNED"
+    EXECUTING = "EXECUTING"
+    EXECUTED = "EXECUTED"
+    HALTED = "HALTED"
+    FAILED = "FAILED"
+    INVALIDATED = "INVALIDATED"
+
+
+class ExecutionOutcome:
+    """How a trajectory's last execution ended (kept in the state file)."""
+
+    NONE = ""
+    EXECUTING = "EXECUTING"  # read back from a state file: the server stopped during the execution
+    SUCCEEDED = "SUCCEEDED"
+    FAILED = "FAILED"
+    HALTED = "HALTED"
+    INTERRUPTED = (EXECUTING, FAILED, HALTED)
+
+
 @dataclass
 class StoredPlan:
-    """A plan, and what the world looked like when it was made (to refuse it once stale)."""
+    """A plan, what the world looked like when it was made (to refuse it once stale), and what
+    became of it (``state``, for get_plan; the plan is kept after it ran or was dropped)."""
 
     trajectory: str
     end_effector: str
@@ -115,6 +146,14 @@ class StoredPlan:
     start_joints: dict[str, float]
     registrations: dict[str, Registration]
     held_object: str
+    plan_id: str = ""
+    planned_at: float = field(default_factory=time.time)
+    state: str = PlanState.PLANNED
+    state_reason: str = "planned"
+    state_since: float = field(default_factory=time.time)
+
+    def set_state(self, state: str, reason: str) -> None:
+        self.state, self.state_reason, self.state_since = state, reason, time.time()
 
 
 @dataclass
@@ -122,6 +161,13 @@ class TrajectoryProgress:
     current_index: int = -1  # last executed waypoint
     plan_index: int = -1  # last planned waypoint
     execution_valid: bool = False
+    outcome: str = ExecutionOutcome.NONE  # of the last execution
+    outcome_message: str = ""
+
+    @property
+    def interrupted(self) -> bool:
+        """The last execution stopped part-way: a plan without steps resumes after ``current_index``."""
+        return self.outcome in ExecutionOutcome.INTERRUPTED
 
 
 @dataclass
@@ -134,7 +180,8 @@ class TemplateInstance:
     registrations: dict[str, Registration] = field(default_factory=dict)
     waypoint_overrides: dict[tuple[str, int, int], np.ndarray] = field(default_factory=dict)
     progress: dict[str, TrajectoryProgress] = field(default_factory=dict)
-    plan: StoredPlan | None = None
+    plan: StoredPlan | None = None  # the plan execute_command would run
+    plans: dict[str, StoredPlan] = field(default_factory=dict)  # the last plan of each trajectory, whatever became of it
     current_trajectory: str = ""
 
     def __post_init__(self) -> None:
@@ -193,8 +240,13 @@ class TemplateInstance:
     def register(self, name: str, registration: Registration) -> None:
         if self.template.display_object(name) is None:
             raise InstanceError(f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}")
+        previous = self.registrations.get(name)
+        if previous is None or previous.frame != registration.frame:
+            # Another object: an interrupted execution is not resumed on it, it starts over.
+            for progress in self.progress.values():
+                progress.outcome, progress.outcome_message = ExecutionOutcome.NONE, ""
         self.registrations[name] = registration
-        self.invalidate_plan()
+        self.invalidate_plan(f"{name}:{self.id} registered to {registration.frame!r}")
 
     def waypoint_origin(self, trajectory: str, ee_id: int, index: int, waypoint: Waypoint) -> np.ndarray:
         return self.waypoint_overrides.get((trajectory, ee_id, index), waypoint.origin.matrix)
@@ -206,7 +258,7 @@ class TemplateInstance:
             raise InstanceError(f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {index}")
         parent = self.object_pose(group.waypoints[index].display_object)
         self.waypoint_overrides[(trajectory.name, ee.id, index)] = invert(parent) @ world_pose
-        self.invalidate_plan()
+        self.invalidate_plan(f"waypoint {ee.id}.{index}:{self.key} of {trajectory.name!r} moved")
 
     def resolve(self, trajectory: Trajectory, ee: EndEffector) -> list[ResolvedWaypoint]:
         """Every waypoint of ``trajectory`` for ``ee`` with its world frame and tool-link goal.
@@ -235,8 +287,17 @@ class TemplateInstance:
 
     # --- plans -----------------------------------------------------------------------------
 
-    def invalidate_plan(self) -> None:
+    def invalidate_plan(self, reason: str) -> None:
+        """Drop the executable plan; a plan not yet run is recorded INVALIDATED with ``reason``."""
+        if self.plan is not None and self.plan.state == PlanState.PLANNED:
+            self.plan.set_state(PlanState.INVALIDATED, reason)
         self.plan = None
+
+    def last_plan(self, trajectory: str = "") -> StoredPlan | None:
+        """The last plan of ``trajectory`` ("" = of any trajectory), whatever became of it."""
+        if trajectory:
+            return self.plans.get(trajectory)
+        return max(self.plans.values(), key=lambda plan: plan.planned_at, default=None)
 
     def stale_reason(self, plan: StoredPlan, frames: dict[str, np.ndarray], joints: dict[str, float], held_object: str, joint_tolerance: float) -> str | None:
         """Why ``plan`` no longer fits the world, or None when it can be executed."""

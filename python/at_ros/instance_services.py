@@ -139,10 +139,7 @@ class InstanceServices:
 
     def get_template_status(self, request: GetAffordanceTemplateStatus.Request, response: GetAffordanceTemplateStatus.Response) -> Any:
         core = self.core
-        type_name, _, id_text = request.name.partition(":")
-        if not id_text.isdigit():
-            raise InstanceError(f"name must be 'Type:id' (e.g. 'cdra_filter:0'), got {request.name!r}")
-        instance = core.instance(type_name, int(id_text))
+        instance = core.instance_named(request.name)
         names = [instance.trajectory(request.trajectory_name).name] if request.trajectory_name else instance.template.trajectory_names
         response.affordance_template_status = [core.instance_status(instance, n, request.frame_id) for n in names]
         response.current_trajectory = instance.current_trajectory

@@ -7,7 +7,10 @@ server (``caretaker at-server --state-file PATH``) writes them after every chang
 them back when it starts.
 
 Kept per instance: template, id, root pose, ``hide_waypoints``, registrations (frame, offset,
-and the frame's pose when registered), waypoint overrides, and how far each trajectory got.
+and the frame's pose when registered), waypoint overrides, how far each trajectory got (written
+after every waypoint executed) and how its last execution ended (``executions``: SUCCEEDED,
+FAILED, HALTED with the message, or EXECUTING when the server stopped during it, read back as an
+interrupted execution, so the next plan resumes after the last waypoint reached).
 Not kept: plans. A plan belongs to the robot state and the world of its moment, and a restart
 usually follows something that moved the robot; after a restart a trajectory is planned again
 (execute without a plan is refused, saying so).
@@ -25,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from at_ros.instance import InstanceError, Registration, TemplateInstance
+from at_ros.instance import ExecutionOutcome, InstanceError, Registration, TemplateInstance
 from at_ros.library import LibraryError, Template
 from at_ros.robot_config import RobotConfig
 from datafile import Field, load_file
@@ -33,6 +36,7 @@ from datafile import Field, load_file
 __all__ = ["FORMAT_VERSION", "load_instances", "save_instances"]
 
 FORMAT_VERSION = 1
+OUTCOMES = (ExecutionOutcome.EXECUTING, ExecutionOutcome.SUCCEEDED, ExecutionOutcome.FAILED, ExecutionOutcome.HALTED)
 
 
 def save_instances(path: Path, robot: RobotConfig, instances: dict[str, TemplateInstance]) -> None:
@@ -93,12 +97,13 @@ def _instance_to_json(instance: TemplateInstance) -> dict[str, Any]:
             for (trajectory, ee_id, index), origin in instance.waypoint_overrides.items()
         ],
         "current_index": {name: p.current_index for name, p in instance.progress.items()},
+        "executions": {name: {"outcome": p.outcome, "message": p.outcome_message} for name, p in instance.progress.items() if p.outcome},
     }
 
 
 def _instance_from_json(entry: Field, robot: RobotConfig, templates: dict[str, Template]) -> TemplateInstance:
     entry.mapping(required=("template", "id", "root_pose", "hide_waypoints", "current_trajectory", "registrations",
-                            "waypoint_overrides", "current_index"))
+                            "waypoint_overrides", "current_index"), optional=("executions",))
     name = entry["template"].text()
     template = templates.get(name)
     if template is None:
@@ -115,4 +120,13 @@ def _instance_from_json(entry: Field, robot: RobotConfig, templates: dict[str, T
     for trajectory, index in entry["current_index"].entries():
         if trajectory in instance.progress:
             instance.progress[trajectory].current_index = index.integer(min=-1, max=255)
+    executions = entry.get("executions")
+    for trajectory, execution in executions.entries() if executions else []:
+        execution.mapping(required=("outcome", "message"))
+        outcome = execution["outcome"].text()
+        if outcome not in OUTCOMES:
+            raise execution["outcome"].fail(f"unknown outcome {outcome!r}; expected one of {', '.join(OUTCOMES)}")
+        if trajectory in instance.progress:
+            progress = instance.progress[trajectory]
+            progress.outcome, progress.outcome_message = outcome, execution["message"].text(empty=True)
     return instance

@@ -9,25 +9,33 @@ it had:
 - a plan is executed only while it still fits the world (robot and registered objects where
   they were at planning time, same object in the gripper), and only once;
 - a second robot command while one executes is refused, not queued;
-- every wait has a timeout.
+- every wait has a timeout;
+- a halt (:mod:`at_ros.halt`) ends an execution at once, HALTED, with the waypoint it reached
+  recorded; a plan without ``steps`` after an interrupted execution resumes after that waypoint;
+- every plan gets a ``plan_id`` and is kept with what became of it, for ``get_plan``.
 """
 
 from __future__ import annotations
 
+import logging
 import threading
+import uuid
 from typing import Any
 
 from affordance_template_msgs.msg import ServerStatus, WaypointGoal
 from affordance_template_msgs.srv import AffordanceTemplateExecuteCommand, AffordanceTemplatePlanCommand, PlanWaypoints
 from at_ros.action_client import RecordedActionClient
 from at_ros.frames import WORLD_FRAME
-from at_ros.instance import ResolvedWaypoint, StoredPlan, TemplateInstance, path_sequence
+from at_ros.halt import Halted, HaltSwitch
+from at_ros.instance import ExecutionOutcome, PlanState, ResolvedWaypoint, StoredPlan, TemplateInstance, path_sequence
 from at_ros.messages import pose_from_matrix
 from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.srv import SetGripper
 
 __all__ = ["PLAN_TIMEOUT", "PlanExecutor", "wait_for_future"]
+
+LOG = logging.getLogger(__name__)
 
 PLAN_TIMEOUT = 60.0
 
@@ -47,14 +55,16 @@ def wait_for_future(future: Any, timeout: float, what: str) -> Any:
 class PlanExecutor:
     """plan_command and execute_command on one :class:`ServerCore`, with the node's ROS clients.
 
-    ``gripper_client`` is None for a robot without a gripper service.
+    ``gripper_client`` is None for a robot without a gripper service; ``halts`` stops them.
     """
 
-    def __init__(self, core: ServerCore, *, planner_client: Any, trajectory_client: RecordedActionClient, gripper_client: Any | None) -> None:
+    def __init__(self, core: ServerCore, *, planner_client: Any, trajectory_client: RecordedActionClient, gripper_client: Any | None,
+                 halts: HaltSwitch) -> None:
         self.core = core
         self.planner_client = planner_client
         self.trajectory_client = trajectory_client
         self.gripper_client = gripper_client
+        self.halts = halts
         self._gripper_pose: str | None = None
 
     # --- plan ------------------------------------------------------------------------------
@@ -66,6 +76,7 @@ class PlanExecutor:
         ee = instance.end_effector(trajectory, list(request.end_effectors))
         group = trajectory.group(ee.id)
         assert group is not None
+        mark = self.halts.mark()  # a halt from now on prevents the execution asked for
         lock = core.command_lock(instance.key)
         if not lock.acquire(timeout=PLAN_TIMEOUT):
             raise CommandRefused(f"{instance.key} is busy with another command")
@@ -75,13 +86,14 @@ class PlanExecutor:
                     raise CommandRefused(f"the robot is executing {core.state.executing}; plan after it finishes")
                 progress = instance.progress[trajectory.name]
                 steps = int(request.steps[0]) if len(request.steps) else None
-                indices = path_sequence(len(group.waypoints), progress.current_index, steps, direct=request.direct, backwards=request.backwards)
+                indices = path_sequence(len(group.waypoints), progress.current_index, steps, direct=request.direct, backwards=request.backwards,
+                                        resume=progress.interrupted)
                 resolved = instance.resolve(trajectory, ee)
                 joints = dict(core.inputs.joints)
                 held = core.inputs.held_object
                 registrations = dict(instance.registrations)
                 instance.current_trajectory = trajectory.name
-                instance.invalidate_plan()
+                instance.invalidate_plan(f"dropped: {trajectory.name!r} is planned again")
             core.set_state(plan_status=ServerStatus.PLAN_PLANNING, active_template=instance.key, active_trajectory=trajectory.name)
             try:
                 segments = self._request_plan([resolved[i] for i in indices], joints, held)
@@ -92,14 +104,16 @@ class PlanExecutor:
                 instance.plan = StoredPlan(
                     trajectory=trajectory.name, end_effector=ee.name, indices=indices, segments=segments,
                     start_joints={j: joints[j] for j in core.robot.joint_names}, registrations=registrations, held_object=held,
+                    plan_id=uuid.uuid4().hex,
                 )
+                instance.plans[trajectory.name] = instance.plan
                 progress.plan_index = indices[-1]
             core.set_state(plan_status=ServerStatus.PLAN_PLANNED)
         finally:
             lock.release()
         message = f"planned {trajectory.name!r} of {instance.key}: waypoints {indices}"
         if request.execute:
-            message += "; " + self._execute(instance, trajectory.name)
+            message += "; " + self._execute(instance, trajectory.name, mark)
         response.affordance_template_status = core.instance_status(instance, trajectory.name)
         return core.succeed(response, message)
 
@@ -143,11 +157,12 @@ class PlanExecutor:
         trajectory = instance.trajectory(request.trajectory_name)
         if request.end_effectors:
             instance.end_effector(trajectory, list(request.end_effectors))
-        message = self._execute(instance, trajectory.name)
+        message = self._execute(instance, trajectory.name, self.halts.mark())
         response.affordance_template_status = core.instance_status(instance, trajectory.name)
         return core.succeed(response, message)
 
-    def _execute(self, instance: TemplateInstance, trajectory: str) -> str:
+    def _execute(self, instance: TemplateInstance, trajectory: str, mark: int) -> str:
+        """Run the stored plan of ``trajectory``; a halt after ``mark`` stops it (or prevents it)."""
         core = self.core
         if not core.robot_lock.acquire(blocking=False):
             with core.state_lock:
@@ -161,41 +176,87 @@ class PlanExecutor:
                 reason = core.stale_reason(instance, plan)
                 if reason is not None:
                     raise CommandRefused(f"the plan for {trajectory!r} of {instance.key} is no longer valid: {reason}")
-                core.state.executing = instance.key
-                instance.invalidate_plan()  # a plan runs once; the robot is about to leave its start
+                halted = self.halts.halted_since(mark)
+                if halted is not None:
+                    instance.invalidate_plan(f"halted before it ran ({halted})")
+                    core.state.halt_reason = halted
+                else:
+                    core.state.executing = instance.key
+                    plan.set_state(PlanState.EXECUTING, "executing")
+                    instance.plan = None  # a plan runs once; the robot is about to leave its start
+            if halted is not None:
+                core.set_state(execute_status=ServerStatus.EXECUTE_HALTED, active_template=instance.key, active_trajectory=trajectory)
+                raise Halted(halted, f"halted ({halted}) before executing {trajectory!r} of {instance.key}: nothing moved; plan again")
             core.set_state(execute_status=ServerStatus.EXECUTE_EXECUTING, active_template=instance.key, active_trajectory=trajectory)
             progress = instance.progress[trajectory]
             progress.execution_valid = False
+            # Recorded before anything moves: a server that dies now is seen, after its restart,
+            # as having been interrupted here.
+            self._record(instance, trajectory, ExecutionOutcome.EXECUTING, f"executing {trajectory!r} of {instance.key}")
             # Command the first gripper pose even if it seems unchanged: something else may have moved it.
             self._gripper_pose = None
             try:
                 for index, segment in zip(plan.indices, plan.segments):
-                    self._run_segment(segment)
+                    self._run_segment(segment, mark)
                     progress.current_index = index
+                    self._record(instance, trajectory, ExecutionOutcome.EXECUTING, f"{instance.key} reached waypoint {index} of {trajectory!r}")
             except Exception as exc:  # whatever stopped the robot, the status must not stay EXECUTING
-                core.set_state(execute_status=ServerStatus.EXECUTE_FAILED)
-                reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)
-                failure = f"executing {trajectory!r} of {instance.key} failed: {reason}"
-                try:
-                    core.save_instances(f"{instance.key} reached waypoint {progress.current_index} of {trajectory!r}")
-                except CommandRefused as unsaved:
-                    failure += f"; {unsaved}"
-                raise CommandRefused(failure) from exc
+                raise self._interrupted(instance, plan, exc, mark) from exc
             progress.execution_valid = True
-            core.set_state(execute_status=ServerStatus.EXECUTE_SUCCEEDED)
             done = f"executed {trajectory!r} of {instance.key}: waypoints {plan.indices}"
-            core.save_instances(done)
+            plan.set_state(PlanState.EXECUTED, done)
+            core.set_state(execute_status=ServerStatus.EXECUTE_SUCCEEDED)
+            self._record(instance, trajectory, ExecutionOutcome.SUCCEEDED, done, strict=True)
             return done
         finally:
             with core.state_lock:
                 core.state.executing = ""
             core.robot_lock.release()
 
-    def _run_segment(self, segment: Any) -> None:
-        """One planned waypoint (affordance_template_msgs/PlannedSegment): arm, then gripper."""
+    def _interrupted(self, instance: TemplateInstance, plan: StoredPlan, exc: Exception, mark: int) -> CommandRefused:
+        """Record an execution that stopped part-way (halted or failed); the error to answer with."""
+        core = self.core
+        trajectory = plan.trajectory
+        reached = instance.progress[trajectory].current_index
+        where = f"after waypoint {reached}" if reached >= 0 else "before its first waypoint"
+        halted = self.halts.halted_since(mark)
+        if halted is not None:
+            outcome, state, status = ExecutionOutcome.HALTED, PlanState.HALTED, ServerStatus.EXECUTE_HALTED
+            message = f"halted ({halted}): {instance.key} stopped {where} of {trajectory!r}; plan again to go on from where the arm is"
+        else:
+            outcome, state, status = ExecutionOutcome.FAILED, PlanState.FAILED, ServerStatus.EXECUTE_FAILED
+            reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)
+            message = f"executing {trajectory!r} of {instance.key} failed {where}: {reason}"
+        plan.set_state(state, message)
+        with core.state_lock:
+            core.state.halt_reason = halted or ""
+        core.set_state(execute_status=status)
+        try:
+            self._record(instance, trajectory, outcome, message, strict=True)
+        except CommandRefused as unsaved:
+            message += f"; {unsaved}"
+        return Halted(halted, message) if halted is not None else CommandRefused(message)
+
+    def _record(self, instance: TemplateInstance, trajectory: str, outcome: str, message: str, *, strict: bool = False) -> None:
+        """Note how the execution stands and write it to the state file. Mid-motion (not
+        ``strict``) a failed write is logged, not raised: stopping the arm would not help it."""
+        with self.core.state_lock:
+            progress = instance.progress[trajectory]
+            progress.outcome, progress.outcome_message = outcome, message
+        try:
+            self.core.save_instances(message)
+        except CommandRefused as exc:
+            if strict:
+                raise
+            LOG.error("%s", exc)
+
+    def _run_segment(self, segment: Any, mark: int) -> None:
+        """One planned waypoint (affordance_template_msgs/PlannedSegment): arm, then gripper.
+        A halt after ``mark`` stops it before each motion, or during one (the robot stops)."""
         robot = self.core.robot
         points = segment.arm_trajectory.points
         if len(points) >= 2:
+            self.halts.check(mark, f"before the motion to waypoint {segment.label}")
             if not self.trajectory_client.wait_for_server(timeout_sec=5.0):  # type: ignore[no-untyped-call]
                 raise CommandRefused(f"the trajectory action {robot.trajectory_action} is not available")
             goal = FollowJointTrajectory.Goal()
@@ -203,13 +264,18 @@ class PlanExecutor:
             handle = wait_for_future(self.trajectory_client.send_goal_async(goal), 10.0, "the trajectory action")
             if not handle.accepted:
                 raise CommandRefused(f"waypoint {segment.label}: the controller rejected the trajectory")
+            self.halts.goal_started(handle, mark)
             last = points[-1].time_from_start
             timeout = 30.0 + 3.0 * (last.sec + last.nanosec * 1e-9)
-            outcome = wait_for_future(handle.get_result_async(), timeout, "the trajectory action")
+            try:
+                outcome = wait_for_future(handle.get_result_async(), timeout, "the trajectory action")
+            finally:
+                self.halts.goal_ended()
             if outcome.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:  # the .action puts the codes on Goal
                 raise CommandRefused(f"waypoint {segment.label}: {outcome.result.error_string or f'error code {outcome.result.error_code}'}")
         pose = segment.end_effector_pose
         if pose and self.gripper_client is not None and pose != self._gripper_pose:
+            self.halts.check(mark, f"before the gripper motion of waypoint {segment.label}")
             if not self.gripper_client.wait_for_service(timeout_sec=5.0):
                 raise CommandRefused(f"the gripper service {robot.gripper_service} is not available")
             request = SetGripper.Request()

@@ -29,7 +29,7 @@ from at_ros.api import LATCHED, SERVICE_QOS
 from at_ros.collision_scene import build_planning_scene
 from at_ros.command_line import add_robot_options, choose_robot, split_ros_args
 from at_ros.library import LibraryError
-from at_ros.messages import matrix_from_pose
+from at_ros.messages import matrix_from_pose, pose_from_matrix
 from at_ros.motion_planner import Goal, MotionPlanner, PlannedWaypoint, WaypointPlanningError
 from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import RobotConfig
@@ -138,7 +138,14 @@ class PlannerNode(Node):
             response.message = str(exc)
             self.get_logger().warning(f"plan failed: {exc}")
             return response
-        response.segments = [self._segment(p) for p in planned]
+        # The tool's pose at each waypoint as planned (FK of its last point): a view's ghost arm
+        # and the AT server's get_plan report it; the world is left as it was.
+        saved = self.motion_planner.scene.snapshot()
+        try:
+            tool_poses = [self.motion_planner.scene.forward(p.path.positions[-1]) for p in planned]
+        finally:
+            self.motion_planner.scene.restore(saved)
+        response.segments = [self._segment(p, pose) for p, pose in zip(planned, tool_poses)]
         response.success = True
         elapsed = time.perf_counter() - started
         response.message = f"planned {len(planned)} waypoints in {elapsed * 1000:.0f} ms"
@@ -170,11 +177,12 @@ class PlannerNode(Node):
             object_pose=matrix_from_pose(waypoint.object_pose) if waypoint.gripper_action else None,
         )
 
-    def _segment(self, planned: PlannedWaypoint) -> PlannedSegment:
+    def _segment(self, planned: PlannedWaypoint, tool_pose: np.ndarray) -> PlannedSegment:
         segment = PlannedSegment()
         segment.label = planned.label
         segment.arm_trajectory = trajectory_message(self.config.joint_names, planned.path)
         segment.end_effector_pose = planned.end_effector_pose
+        segment.tool_pose = pose_from_matrix(tool_pose)
         return segment
 
 

@@ -123,7 +123,9 @@ class PlanningScene:
         p.disconnect(self.client)
 
     def set_base_pose(self, pose: np.ndarray) -> None:
-        pos, quat = to_xyz_quat(pose)
+        """Place the robot's root link frame (URDF) at ``pose``; pybullet places its inertial frame."""
+        local_pos, local_quat = p.getDynamicsInfo(self.robot, -1, physicsClientId=self.client)[3:5]
+        pos, quat = to_xyz_quat(pose @ from_xyz_quat(local_pos, local_quat))
         p.resetBasePositionAndOrientation(self.robot, pos.tolist(), quat.tolist(), physicsClientId=self.client)
 
     def add_obstacle(self, name: str, body: int, *, graspable: bool = False) -> None:

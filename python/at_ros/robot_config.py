@@ -4,8 +4,8 @@ Original keys (``robot_interface.cpp::load``): ``robot_name``, ``planner_type``,
 ``root_offset`` [x y z r p y], ``end_effector_group_map`` (name, id, pose_offset, tool_offset),
 ``end_effector_pose_map`` (name, group, id). Additions, since there is no MoveIt/SRDF here:
 ``urdf``, ``scene``, ``base_frame``, ``tool_link``, ``joint_names``, ``trajectory_action``,
-``gripper_service`` and a ``planner`` block. Paths (``urdf``) are relative to the config file.
-ROS names (``trajectory_action``, ``gripper_service``) without a leading ``/`` are relative to
+``gripper_service``, ``halt_service`` and a ``planner`` block. Paths (``urdf``) are relative to
+the config file. ROS names (``trajectory_action``, ``gripper_service``, ``halt_service``) without a leading ``/`` are relative to
 the node's namespace, so one config serves a robot in any namespace. Unknown keys are errors.
 """
 
@@ -90,6 +90,7 @@ class RobotConfig:
     joint_names: tuple[str, ...]
     trajectory_action: str
     gripper_service: str
+    halt_service: str = ""  # the robot's stop of every motion (caretaker_sim_msgs/srv/Halt); "" = none
     planner_type: str = "at_ros.planner_node"
     home_joints: tuple[float, ...] = ()
     planner: PlannerSettings = field(default_factory=PlannerSettings)
@@ -110,7 +111,7 @@ class RobotConfig:
 
 
 _ORIGINAL_KEYS = ("planner_type", "config_package", "config_file", "end_effector_pose_map", "gripper_action")
-_OUR_KEYS = ("gripper_service", "home_joints", "planner")
+_OUR_KEYS = ("gripper_service", "halt_service", "home_joints", "planner")
 
 
 def _six(f: Field) -> tuple[float, ...]:
@@ -174,7 +175,7 @@ def load_robot_config(path: Path | str) -> RobotConfig:
     end_effectors = _end_effectors(root["end_effector_group_map"])
     joints = root["joint_names"].names(min_items=1)
     home = root.get("home_joints")
-    planner_type, gripper = root.get("planner_type"), root.get("gripper_service")
+    planner_type, gripper, halt = root.get("planner_type"), root.get("gripper_service"), root.get("halt_service")
     return RobotConfig(
         robot_name=root["robot_name"].text(),
         planner_type=planner_type.text() if planner_type else "at_ros.planner_node",
@@ -189,6 +190,7 @@ def load_robot_config(path: Path | str) -> RobotConfig:
         home_joints=home.numbers(len(joints)) if home else (),
         trajectory_action=root["trajectory_action"].text(),
         gripper_service=gripper.text(empty=True) if gripper else "",
+        halt_service=halt.text(empty=True) if halt else "",
         planner=_planner(root.get("planner")),
         filename=str(path),
     )

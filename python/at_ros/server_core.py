@@ -44,6 +44,7 @@ class ServerState:
     active_template: str = ""
     active_trajectory: str = ""
     last_error: str = ""
+    halt_reason: str = ""  # of the halt that ended the last execution, while execute_status is HALTED
     executing: str = ""  # "Type:id" while the robot executes
     instances: dict[str, TemplateInstance] = field(default_factory=dict)
 
@@ -53,6 +54,7 @@ class RobotInputs:
     """What the server last heard from the robot side; guarded by ``ServerCore.state_lock``."""
 
     joints: dict[str, float] = field(default_factory=dict)
+    joints_stamp: Any = None  # builtin_interfaces/Time of the latest joint_states: the robot's clock
     moving: bool = False
     held_object: str = ""
     last_heartbeat: float = 0.0  # time.monotonic() of the planner's last heartbeat
@@ -107,6 +109,13 @@ class ServerCore:
             raise InstanceError(f"unknown template {name!r}; the library has: {', '.join(sorted(self.templates))}")
         return template
 
+    def instance_named(self, name: str) -> TemplateInstance:
+        """The instance called ``name`` ("Type:id"), as status queries name it."""
+        type_name, _, id_text = name.partition(":")
+        if not id_text.isdigit():
+            raise InstanceError(f"name must be 'Type:id' (e.g. 'cdra_filter:0'), got {name!r}")
+        return self.instance(type_name, int(id_text))
+
     def instance(self, type_name: str, instance_id: int) -> TemplateInstance:
         key = f"{type_name}:{instance_id}"
         with self.state_lock:
@@ -141,6 +150,8 @@ class ServerCore:
         with self.state_lock:
             for name, value in fields.items():
                 setattr(self.state, name, value)
+            if self.state.execute_status != ServerStatus.EXECUTE_HALTED:
+                self.state.halt_reason = ""
         self.publish_status()
 
     def succeed(self, response: Any, message: str) -> Any:
@@ -188,6 +199,10 @@ class ServerCore:
             msg.active_trajectory = self.state.active_trajectory
             msg.running_templates = sorted(self.state.instances)
             msg.last_error = self.state.last_error
+            msg.halt_reason = self.state.halt_reason
+            active = self.state.instances.get(self.state.active_template)
+            plan = active.plans.get(self.state.active_trajectory) if active else None
+            msg.plan_id = plan.plan_id if plan else ""
         return msg
 
     def instance_status(self, instance: TemplateInstance, trajectory: str, frame: str = "") -> AffordanceTemplateStatus:

@@ -117,9 +117,10 @@ def instance_status(
             try:
                 for wp in instance.resolve(trajectory, ee):
                     info.waypoint_poses.append(_stamped(frame, to_frame @ wp.frame_pose))
+                    info.waypoint_names.append(wp.label)
                     info.end_effector_pose_names.append(wp.end_effector_pose)
             except InstanceError:
-                info.end_effector_pose_names = []
+                info.waypoint_poses, info.waypoint_names, info.end_effector_pose_names = [], [], []
         msg.waypoint_info.append(info)
     for obj in instance.template.display_objects:
         o = ObjectInfo()
@@ -128,6 +129,10 @@ def instance_status(
         o.type = obj.shape.type
         o.mesh_resource = obj.shape.data
         o.size.x, o.size.y, o.size.z = (float(v) for v in obj.shape.size)
+        o.rgba = [float(v) for v in obj.shape.rgba]
+        o.parent = obj.parent
+        o.controls = [bool(v) for v in (*obj.controls.xyz, *obj.controls.rpy)]
+        o.control_scale = float(obj.controls.scale)
         msg.object_info.append(o)
     return msg
 

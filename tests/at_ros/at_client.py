@@ -10,6 +10,7 @@ from typing import Any
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
@@ -36,11 +37,13 @@ class AtClient:
         self.frames_count = 0
         self.held_object = ""
         self.cdra_present: bool | None = None
+        self.joints: dict[str, float] = {}
         self._changed = threading.Condition()
         self.node.create_subscription(ServerStatus, f"{PREFIX}/status", self._status_callback, 10)
         self.node.create_subscription(NamedPoses, "/sim/frames", self._frames_callback, 10)
         self.node.create_subscription(String, "/gripper/held_object", self._held_callback, LATCHED)
         self.node.create_subscription(Bool, "/cdra/filter_present", self._present_callback, LATCHED)
+        self.node.create_subscription(JointState, "/joint_states", self._joints_callback, 10)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self.executor.spin, daemon=True)
@@ -66,6 +69,15 @@ class AtClient:
         count = self.frames_count
         self.wait_for(lambda: self.frames_count >= count + 2, timeout, "fresh /sim/frames")
         return self.frames
+
+    def _joints_callback(self, msg: JointState) -> None:
+        self.joints = dict(zip(msg.name, msg.position))
+        self._notify()
+
+    def joint(self, name: str) -> float:
+        """The joint's latest position (waiting for joint_states if none came yet)."""
+        self.wait_for(lambda: name in self.joints, 30, f"joint_states with {name}")
+        return self.joints[name]
 
     def _held_callback(self, msg: String) -> None:
         self.held_object = msg.data

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
+from at_ros.instance import ExecutionOutcome, InstanceError, PlanState, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
 from at_ros.library import default_library_path, load_library
 from at_ros.robot_config import load_robot_configs
 from at_ros.transforms import from_xyz_rpy
@@ -45,6 +45,43 @@ def test_next_free_id_is_the_lowest_unused() -> None:
 )
 def test_path_sequence_matches_the_original(n, current, steps, direct, backwards, expected) -> None:
     assert path_sequence(n, current, steps, direct=direct, backwards=backwards) == expected
+
+
+@pytest.mark.parametrize(
+    ("current", "backwards", "expected"),
+    [
+        (1, False, [2, 3]),  # halted after waypoint 1: the rest
+        (-1, False, [0, 1, 2, 3]),  # halted before the first waypoint: all of it
+        (3, False, [0, 1, 2, 3]),  # at its end: all of it again
+        (1, True, [3, 2, 1, 0]),  # backwards is always whole
+    ],
+)
+def test_an_interrupted_trajectory_resumes_after_the_last_waypoint_reached(current, backwards, expected) -> None:
+    assert path_sequence(4, current, None, direct=False, backwards=backwards, resume=True) == expected
+    assert path_sequence(4, current, 2, direct=False, backwards=False, resume=True) == path_sequence(4, current, 2, direct=False, backwards=False)
+
+
+def test_registering_to_another_frame_starts_over_and_records_why_the_plan_went(library, ur10) -> None:
+    instance = TemplateInstance(library["cdra_filter"], 0, ur10, root_pose=np.eye(4))
+    slot = from_xyz_rpy([0.15, 0.9, 1.05], [0, 0, np.pi / 2])
+    instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), slot))
+    progress = instance.progress["grasp_and_pull"]
+    progress.current_index, progress.outcome = 1, ExecutionOutcome.HALTED
+    plan = StoredPlan("grasp_and_pull", "gripper", [2, 3], [], {}, {}, "", plan_id="p1")
+    instance.plan = instance.plans["grasp_and_pull"] = plan
+    instance.register("cdra_filter", Registration("cabinet/slot", from_xyz_rpy([0.005, 0, 0], [0, 0, 0]), slot))  # nudged
+    assert progress.interrupted and instance.plan is None
+    assert plan.state == PlanState.INVALIDATED and plan.state_reason == "cdra_filter:0 registered to 'cabinet/slot'"
+    assert instance.last_plan() is plan and instance.last_plan("insert_and_release") is None
+    instance.register("cdra_filter", Registration("rack/slot_3", np.eye(4), slot))  # another object
+    assert not progress.interrupted and progress.current_index == 1
+
+
+def test_plan_states_are_the_get_plan_service_constants() -> None:
+    from affordance_template_msgs.srv import GetPlan
+
+    states = {k: v for k, v in vars(PlanState).items() if not k.startswith("_")}
+    assert states == {k: getattr(GetPlan.Response, k) for k in states}
 
 
 @pytest.mark.parametrize(("current", "steps", "direct", "message"), [(-1, 0, False, "not started"), (0, 5, True, "between 1 and 4"), (0, -2, False, ">= 0")])

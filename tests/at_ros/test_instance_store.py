@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from at_ros.instance import Registration, StoredPlan, TemplateInstance
+from at_ros.instance import ExecutionOutcome, Registration, StoredPlan, TemplateInstance
 from at_ros.instance_store import load_instances, save_instances
 from at_ros.library import LibraryError
 from at_ros.transforms import from_xyz_rpy
@@ -25,6 +25,8 @@ def _worked_instance(library, ur10_config) -> TemplateInstance:
     instance.set_waypoint(trajectory, instance.end_effector(trajectory, []), 1, from_xyz_rpy([0.2, 0.7, 1.0], [0, 0.2, 0]))
     instance.current_trajectory = "insert_and_release"
     instance.progress["grasp_and_pull"].current_index = 2
+    instance.progress["grasp_and_pull"].outcome = ExecutionOutcome.HALTED
+    instance.progress["grasp_and_pull"].outcome_message = "halted (operator): stopped after waypoint 2"
     instance.plan = StoredPlan("insert_and_release", "gripper", [0, 1], [], {}, {}, "")
     return instance
 
@@ -38,6 +40,9 @@ def test_instances_come_back_as_they_were_without_their_plan(tmp_path: Path, lib
     after = restored["cdra_filter:3"]
     assert (after.hide_waypoints, after.current_trajectory) == (True, "insert_and_release")
     assert after.progress["grasp_and_pull"].current_index == 2 and after.progress["insert_and_release"].current_index == -1
+    # How the last execution ended comes back too: the next plan of grasp_and_pull resumes after waypoint 2.
+    assert after.progress["grasp_and_pull"].interrupted and "stopped after waypoint 2" in after.progress["grasp_and_pull"].outcome_message
+    assert not after.progress["insert_and_release"].interrupted
     assert after.plan is None  # a plan belongs to its moment: planned again after a restart
     np.testing.assert_allclose(after.root_pose, before.root_pose)
     assert after.registrations["cdra_filter"].frame == "cabinet/slot"
@@ -61,6 +66,8 @@ def test_no_state_file_yet_is_no_instances(tmp_path: Path, library, ur10_config)
     (lambda d: d["instances"][0]["registrations"].update(lid=d["instances"][0]["registrations"]["cdra_filter"]),
      r"instances\[0\]: cannot be restored: template 'cdra_filter' has no display object 'lid'"),
     (lambda d: d.update(format=7), r"format: expected AT server state format 1"),
+    (lambda d: d["instances"][0]["executions"]["grasp_and_pull"].update(outcome="PAUSED"),
+     r"instances\[0\]\.executions\.grasp_and_pull\.outcome: unknown outcome 'PAUSED'; expected one of EXECUTING, SUCCEEDED, FAILED, HALTED"),
 ])
 def test_a_state_file_that_cannot_be_restored_is_named_with_the_entry(tmp_path: Path, library, ur10_config, edit, problem: str) -> None:
     instance = _worked_instance(library, ur10_config)

@@ -20,6 +20,7 @@ def test_shipped_robots_load_with_files_that_exist() -> None:
     assert ur10.pose_name("gripper", 0) == "open" and ur10.pose_name("gripper", 1) == "closed"
     assert ur10.end_effector_by_id(0).name == "gripper"
     assert ur10.root_offset_matrix[0, 3] == pytest.approx(ur10.root_offset[0])
+    assert ur10.halt_service == robots["eva_arm"].halt_service == "robot/halt"
 
 
 def _config(tmp_path: Path, **changes) -> Path:

@@ -19,7 +19,7 @@ def test_status_strings_are_a_closed_set() -> None:
     plan = {v for k, v in vars(ServerStatus).items() if k.startswith("PLAN_") and isinstance(v, str)}
     execute = {v for k, v in vars(ServerStatus).items() if k.startswith("EXECUTE_") and isinstance(v, str)}
     assert plan == {"IDLE", "PLANNING", "PLANNED", "PLAN_FAILED"}
-    assert execute == {"IDLE", "EXECUTING", "SUCCEEDED", "FAILED", "ABORTED"}
+    assert execute == {"IDLE", "EXECUTING", "SUCCEEDED", "FAILED", "ABORTED", "HALTED"}
 
 
 def test_every_service_answers_with_success_and_message() -> None:

@@ -71,7 +71,7 @@ def habitat(
 
 @pytest.fixture(scope="module")
 def host(habitat: Habitat) -> Iterator[object]:
-    from bridge.pax_host import PaxHost
+    from pride.pax_host import PaxHost
 
     with PaxHost(habitat.binding()) as pax:
         yield pax
@@ -89,7 +89,7 @@ def test_commands_cross_the_authenticated_wss_link_once_per_key(host: object, cl
 
 
 def test_a_client_without_the_secret_is_refused(habitat: Habitat) -> None:
-    from bridge.pax_host import PaxError, PaxHost
+    from pride.pax_host import PaxError, PaxHost
 
     with pytest.raises(PaxError, match=r"refused authentication \(close 1008: authentication required"):
         PaxHost(habitat.binding(secret=False))

@@ -1,10 +1,15 @@
-"""Helpers of the rosbridge tests: awaitable inboxes and graph-matching publish."""
+"""Helpers of the rosbridge tests: awaitable inboxes, graph-matching publish, raw clients
+(JSON frames, and hand-built WebSocket frames on a bare socket)."""
 
 from __future__ import annotations
 
+import base64
 import contextlib
 import json
+import os
 import re
+import socket
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -113,3 +118,91 @@ def bridge_url(process: Any) -> str:
         if match:
             return match.group(1)
     raise AssertionError(f"no READY line with a URL:\n{process.tail()}")
+
+
+TEXT, BINARY, CONTINUATION, CLOSE, PING, PONG = 0x1, 0x2, 0x0, 0x8, 0x9, 0xA
+
+
+def frame(opcode: int, payload: bytes, *, fin: bool = True, masked: bool = True, rsv: int = 0) -> bytes:
+    """One client frame (RFC 6455 5.2), masked unless told otherwise."""
+    head = bytes([(0x80 if fin else 0) | rsv << 4 | opcode])
+    size = len(payload)
+    bit = 0x80 if masked else 0
+    if size < 126:
+        head += bytes([bit | size])
+    elif size < 1 << 16:
+        head += bytes([bit | 126]) + struct.pack("!H", size)
+    else:
+        head += bytes([bit | 127]) + struct.pack("!Q", size)
+    if not masked:
+        return head + payload
+    mask = os.urandom(4)
+    return head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+
+
+def text(message: dict) -> bytes:
+    return frame(TEXT, json.dumps(message).encode())
+
+
+def handshake(host: str, port: int, headers: str = "") -> bytes:
+    """An HTTP upgrade request; ``headers`` are extra header lines, each ending in CRLF."""
+    key = base64.b64encode(os.urandom(16)).decode()
+    return (f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n{headers}\r\n").encode()
+
+
+class FrameSocket:
+    """A WebSocket client on a plain socket: sends whatever bytes a test builds, reads frames."""
+
+    def __init__(self, host: str, port: int, first: bytes = b"") -> None:
+        self.sock = socket.create_connection((host, port), timeout=10)
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock.sendall(handshake(host, port) + first)
+        self.pending = b""
+        head = self._read_until(b"\r\n\r\n")
+        assert head.startswith(b"HTTP/1.1 101"), head
+
+    def _read_until(self, marker: bytes) -> bytes:
+        while marker not in self.pending:
+            self._fill()
+        head, self.pending = self.pending.split(marker, 1)
+        return head
+
+    def _fill(self) -> None:
+        chunk = self.sock.recv(65536)
+        if not chunk:
+            raise ConnectionError("the bridge closed the connection")
+        self.pending += chunk
+
+    def _take(self, count: int) -> bytes:
+        while len(self.pending) < count:
+            self._fill()
+        data, self.pending = self.pending[:count], self.pending[count:]
+        return data
+
+    def read_frame(self) -> tuple[int, bytes]:
+        first, second = self._take(2)
+        size = second & 0x7F
+        if size == 126:
+            size = struct.unpack("!H", self._take(2))[0]
+        elif size == 127:
+            size = struct.unpack("!Q", self._take(8))[0]
+        return first & 0x0F, self._take(size)
+
+    def read_message(self) -> dict:
+        """The next text message (pongs and others skipped)."""
+        while True:
+            opcode, payload = self.read_frame()
+            if opcode == TEXT:
+                return json.loads(payload)
+            assert opcode != CLOSE, f"closed: {payload!r}"
+
+    def close_code(self) -> int:
+        """Read up to the server's close frame and return its code."""
+        while True:
+            opcode, payload = self.read_frame()
+            if opcode == CLOSE:
+                return struct.unpack("!H", payload[:2])[0]
+
+    def close(self) -> None:
+        self.sock.close()

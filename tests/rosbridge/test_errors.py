@@ -100,10 +100,18 @@ def test_websocket_fragmented_message_keeps_its_place_in_order(raw: RawClient) -
 
 
 def test_subscription_with_fragment_size_sends_fragments(raw: RawClient) -> None:
-    raw.send({"op": "subscribe", "topic": "/peer/latched", "fragment_size": 16, "id": "s1"})
-    fragments = [raw.receive_op("fragment")]
+    topic, text = "/bridge_test/fragmented", "x" * 3000
+    raw.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String", "fragment_size": 1024, "id": "s1"})
+    for _ in range(100):  # ROS matches the bridge's new publisher to its subscription asynchronously
+        raw.send({"op": "publish", "topic": topic, "type": "std_msgs/String", "msg": {"data": text}})
+        try:
+            fragments = [raw.receive_op("fragment", timeout=0.2)]
+            break
+        except TimeoutError:
+            continue
     while len(fragments) < fragments[0]["total"]:
         fragments.append(raw.receive_op("fragment"))
-    assert [f["num"] for f in fragments] == list(range(fragments[0]["total"]))
+    assert [f["num"] for f in fragments] == list(range(fragments[0]["total"])) and len(fragments) == 3
+    assert all(len(f["data"]) <= 1024 for f in fragments)
     whole = json.loads("".join(f["data"] for f in fragments))
-    assert whole == {"op": "publish", "topic": "/peer/latched", "msg": {"data": "latched value"}}
+    assert whole == {"op": "publish", "topic": topic, "msg": {"data": text}}

@@ -1,11 +1,16 @@
-"""Safe by default: allow-lists answered, size limit (1009), shared-secret/HMAC auth, TLS."""
+"""Safe by default: allow-lists answered (rosapi and parameters included), size limit (1009),
+shared-secret/HMAC auth without replays, Origin allow-list, TLS, and no open listening address
+without TLS and a secret."""
 
 from __future__ import annotations
 
 import hashlib
 import hmac
+import json
+import re
 import ssl
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,16 +22,19 @@ from .rosbridge_support import RawClient, bridge_url
 from support.processes import ManagedProcess, caretaker
 
 SECRET = "s3cret-for-tests"
+ALLOWED_ORIGIN = "https://console.example:8443"
 
 
 @pytest.fixture(scope="module")
-def guarded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int]]:
+def guarded(ros_env: dict[str, str], peer: ManagedProcess,
+            tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int]]:
     """A bridge with allow-lists, a 4 KiB frame limit and a shared secret."""
     secret_file = tmp_path_factory.mktemp("secret") / "secret"
     secret_file.write_text(SECRET + "\n")
     process = caretaker("bridge", "--port", "0", "--topics-glob", "/allowed/*", "--services-glob", "/peer/set_*",
-                        "--actions-glob", "/allowed/*", "--max-message-size", "4096",
-                        "--auth-secret-file", str(secret_file), env=ros_env)
+                        "--services-glob", "/rosbridge_websocket/*", "--actions-glob", "/allowed/*",
+                        "--max-message-size", "4096", "--auth-secret-file", str(secret_file), "--auth-timeout", "2",
+                        "--allow-origin", ALLOWED_ORIGIN, env=ros_env)
     yield from _serve(process)
 
 
@@ -82,25 +90,133 @@ def test_oversized_frame_closes_with_1009(guarded: tuple[str, int]) -> None:
     {"op": "auth", "mac": "00", "client": "c", "dest": "d", "rand": "r", "t": 0, "level": "user", "end": 0},
 ])
 def test_unauthenticated_clients_are_closed_with_1008(guarded: tuple[str, int], first_message: dict) -> None:
-    client = RawClient(*guarded)
-    client.send(first_message)
-    with pytest.raises(ConnectionClosed) as closed:
-        client.receive(timeout=20)
-    assert closed.value.rcvd.code == 1008
+    assert closed_with(guarded, first_message) == 1008
 
 
-def test_hmac_authentication_is_accepted(guarded: tuple[str, int]) -> None:
+@pytest.mark.parametrize("auth", [
+    '{"op":"auth","mac":"\u00e9","client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
+    '{"op":"auth","mac":"%(nan_mac)s","client":"c","dest":"d","rand":"r","t":NaN,"level":"user","end":NaN}',
+    '{"op":"auth","mac":5,"client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
+    '{"op":"auth","token":["%(secret)s"]}',
+], ids=["non-hex mac", "NaN times", "number mac", "token list"])
+def test_malformed_auth_is_refused_with_1008(guarded: tuple[str, int], auth: str) -> None:
     now = int(time.time())
-    fields = {"client": "127.0.0.1", "dest": "127.0.0.1", "rand": "abc123", "t": now, "level": "user", "end": now + 60}
+    nan_mac = hmac.new(SECRET.encode(), b"cdrnanusernan", hashlib.sha256).hexdigest()
+    assert closed_with(guarded, auth % {"now": now, "end": now + 60, "nan_mac": nan_mac, "secret": SECRET}) == 1008
+
+
+def test_a_client_that_never_authenticates_is_closed(guarded: tuple[str, int]) -> None:
+    client = RawClient(*guarded)
+    with pytest.raises(ConnectionClosed) as closed:
+        client.receive(timeout=20)  # --auth-timeout 2
+    assert closed.value.rcvd.code == 1008 and "no auth message within 2 s" in closed.value.rcvd.reason
+
+
+def mac_auth(now: int) -> dict:
+    fields = {"client": "127.0.0.1", "dest": "127.0.0.1", "rand": f"abc{now}", "t": now, "level": "user",
+              "end": now + 60}
     text = "".join(str(fields[k]) for k in ("client", "dest", "rand", "t", "level", "end"))
-    mac = hmac.new(SECRET.encode(), text.encode(), hashlib.sha256).hexdigest()
+    return {"op": "auth", "mac": hmac.new(SECRET.encode(), text.encode(), hashlib.sha256).hexdigest(), **fields}
+
+
+def test_hmac_authentication_is_accepted_once(guarded: tuple[str, int]) -> None:
+    auth = mac_auth(int(time.time()))
     client = RawClient(*guarded)
     try:
-        client.send({"op": "auth", "mac": mac, **fields})
+        client.send(auth)
         answer = client.request({"op": "call_service", "service": "/rosapi/get_ros_version"}, "service_response")
         assert answer["result"] is True
     finally:
         client.close()
+    assert closed_with(guarded, auth) == 1008  # the same message again: a replay
+
+
+def closed_with(address: tuple[str, int], first_message: dict | str) -> int:
+    client = RawClient(*address)
+    client.send(first_message)
+    with pytest.raises(ConnectionClosed) as closed:
+        client.receive(timeout=20)
+    return closed.value.rcvd.code
+
+
+def test_rosapi_shows_and_touches_only_what_the_globs_allow(guarded: tuple[str, int]) -> None:
+    client = authenticated(guarded)
+    try:
+        def call(service: str, args: dict | None = None) -> dict:
+            return client.request({"op": "call_service", "service": service, "args": args or {}}, "service_response")
+
+        client.send({"op": "advertise", "topic": "/allowed/listed", "type": "std_msgs/String"})
+        deadline = time.monotonic() + 30
+        while "/peer/set_bool" not in call("/rosapi/services")["values"]["services"]:  # DDS discovery
+            assert time.monotonic() < deadline, "the bridge never saw /peer/set_bool"
+        topics = call("/rosapi/topics")["values"]["topics"]
+        assert "/allowed/listed" in topics and all(t.startswith("/allowed/") for t in topics)
+        services = call("/rosapi/services")["values"]["services"]
+        assert "/peer/set_bool" in services and "/rosbridge/connection_stats" in services
+        assert not [s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/",
+                                                            "/rosbridge_websocket/"))]
+        assert "topic /peer/echo_out is not allowed" in call("/rosapi/topic_type", {"topic": "/peer/echo_out"})["values"]
+        refused = call("/rosapi/set_param", {"name": "/rosbridge_websocket:actual_port", "value": "1"})
+        assert refused["result"] is False and "parameter change /rosbridge_websocket:actual_port is not allowed" \
+            in refused["values"]
+        direct = call("/rosbridge_websocket/set_parameters",
+                      {"parameters": [{"name": "actual_port", "value": {"type": 2, "integer_value": 1}}]})
+        assert direct["result"] is False and "parameter change /rosbridge_websocket:actual_port is not allowed" \
+            in direct["values"]
+        port = call("/rosapi/get_param", {"name": "/rosbridge_websocket:actual_port"})["values"]["value"]
+        assert port == str(guarded[1])
+    finally:
+        client.close()
+
+
+def test_topic_refusals_are_answered_without_set_level(guarded: tuple[str, int]) -> None:
+    client = RawClient(*guarded)
+    try:
+        client.send({"op": "auth", "token": SECRET})
+        status = client.request({"op": "subscribe", "id": "s", "topic": "/secret/topic", "type": "std_msgs/String"},
+                                "status")
+        assert "topic /secret/topic is not allowed" in status["msg"] and status["id"] == "s"
+    finally:
+        client.close()
+
+
+def test_browser_origins_are_refused_unless_allowed(guarded: tuple[str, int]) -> None:
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    host, port = guarded
+    with pytest.raises(InvalidStatus) as refused:
+        connect(f"ws://{host}:{port}", origin="http://evil.example", open_timeout=20)
+    assert refused.value.response.status_code == 403
+    with connect(f"ws://{host}:{port}", origin=ALLOWED_ORIGIN, open_timeout=20) as allowed:
+        allowed.send(json.dumps({"op": "auth", "token": SECRET}))
+        allowed.send('{"op":"call_service","service":"/rosapi/get_ros_version","id":"o"}')
+        assert '"result":true' in allowed.recv(timeout=20)
+
+
+def test_a_disconnect_logs_the_bytes_each_way(ros_env: dict[str, str]) -> None:
+    process = caretaker("bridge", "--port", "0", env=ros_env)
+    for host, port in _serve(process):
+        client = RawClient(host, port)
+        client.request({"op": "call_service", "service": "/rosapi/get_ros_version"}, "service_response")
+        client.close()
+        line = process.wait_for_line(r"client \d+ disconnected after [\d.]+ s: \d+ bytes in, \d+ out")
+        assert re.search(r"1 messages in, 1 out", line), line
+
+
+@pytest.mark.parametrize("address", ["0.0.0.0", "192.0.2.1", "::", "bridge.example"])
+def test_an_open_address_needs_tls_and_a_secret(ros_env: dict[str, str], address: str) -> None:
+    run = subprocess.run([str(Path(sys.executable).with_name("caretaker")), "bridge", "--address", address],
+                         capture_output=True, text=True, timeout=60, env=ros_env)
+    assert run.returncode == 2
+    assert (f"--address {address} is reachable from other hosts, but the bridge has no TLS (--certfile/--keyfile) "
+            f"and no secret") in run.stderr and "--insecure" in run.stderr
+
+
+def test_insecure_says_an_open_address_is_meant(ros_env: dict[str, str]) -> None:
+    process = caretaker("bridge", "--address", "0.0.0.0", "--port", "0", "--insecure", env=ros_env)
+    for host, port in _serve(process):
+        assert host == "0.0.0.0" and port > 0
 
 
 @pytest.fixture(scope="module")

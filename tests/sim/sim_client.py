@@ -19,8 +19,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import NamedPoses
-from caretaker_sim_msgs.srv import CaptureImage, SetGripper
+from caretaker_sim_msgs.msg import NamedPoses, VisualWorld
+from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
@@ -51,6 +51,8 @@ class SimClient:
             ("/cdra/filter_present", Bool, LATCHED),
             ("/cdra/installed_filter_id", String, LATCHED),
             ("/cdra/installed_filter_condition", String, LATCHED),
+            ("/robot_description", String, LATCHED),
+            ("/sim/visual_world", VisualWorld, LATCHED),
         ]:
             self.node.create_subscription(kind, topic, self._store(topic), qos)
         self.trajectory_client = ActionClient(self.node, FollowJointTrajectory, "/arm_controller/follow_joint_trajectory")
@@ -58,6 +60,7 @@ class SimClient:
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
         self.lock_client = self.node.create_client(Trigger, "/cdra/lock_filter")
+        self.halt_client = self.node.create_client(Halt, "/robot/halt")
         self.spin_error: BaseException | None = None
         self._thread = threading.Thread(target=self._spin, name="sim-client", daemon=True)
         self._thread.start()
@@ -98,14 +101,12 @@ class SimClient:
         return self.latest[topic]
 
     def fresh(self, topic: str, timeout: float = TIMEOUT) -> Any:
-        """The first message on ``topic`` stamped after this call (not one still in flight)."""
-        now = self.node.get_clock().now().nanoseconds
-
-        def stamped_after() -> bool:
-            msg = self.latest.get(topic)
-            return msg is not None and msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec > now
-
-        self.wait_for(stamped_after, f"a new message on {topic}", timeout)
+        """A message on ``topic`` published after this call: the second one to arrive from now
+        (the first may have been in flight). Stamps are sim time, which can run ahead of the
+        wall clock, so they cannot tell what is new."""
+        with self._changed:
+            seen = self.counts.get(topic, 0)
+        self.wait_for(lambda: self.counts.get(topic, 0) >= seen + 2, f"a new message on {topic}", timeout)
         return self.latest[topic]
 
     def wait_value(self, topic: str, expected: Any, timeout: float = TIMEOUT) -> None:
@@ -139,6 +140,16 @@ class SimClient:
         assert handle.accepted, "goal not accepted"
         self.wait_for(lambda: bool(self.feedback), "trajectory feedback")
         self._wait_future(self._in_executor(handle.cancel_goal_async), "cancel")
+        response = self._wait_future(self._in_executor(handle.get_result_async), "trajectory result")
+        return response.status, response.result
+
+    def start(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]]) -> Any:
+        """Send a trajectory and return its goal handle once accepted (see :meth:`result`)."""
+        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, None, 0.0))), "send goal")
+        assert handle.accepted, "goal not accepted"
+        return handle
+
+    def result(self, handle: Any) -> tuple[int, FollowJointTrajectory.Result]:
         response = self._wait_future(self._in_executor(handle.get_result_async), "trajectory result")
         return response.status, response.result
 
@@ -186,6 +197,9 @@ class SimClient:
 
     def gripper(self, pose: str) -> SetGripper.Response:
         return self._call(self.gripper_client, SetGripper.Request(pose=pose), f"gripper {pose}")
+
+    def halt(self, reason: str) -> Halt.Response:
+        return self._call(self.halt_client, Halt.Request(reason=reason), "halt")
 
     def unlock(self) -> Trigger.Response:
         return self._call(self.unlock_client, Trigger.Request(), "unlock")

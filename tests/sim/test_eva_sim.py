@@ -26,6 +26,19 @@ def test_frames_name_every_target_and_the_camera(client: SimClient) -> None:
         assert name in msg.names
 
 
+def test_visual_world_has_the_hull_targets_and_the_arm_without_gripper(client: SimClient) -> None:
+    import xml.etree.ElementTree as ET
+
+    world = client.value("/sim/visual_world")
+    assert list(world.arm_joints) == ARM and list(world.gripper_joints) == []
+    assert set(ARM) <= {j.get("name") for j in ET.fromstring(client.value("/robot_description").data).iter("joint")}
+    objects = {o.name: o for o in world.objects}
+    assert {"halo", "esprit", "ppe", "solar_arrays", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"} <= set(objects)
+    assert len(objects["target/hull_a"].shapes) == 1  # clean: the panel only
+    assert [sh.type for sh in objects["target/hull_b"].shapes] == ["box", "cylinder"]  # impact: panel and mark
+    assert objects["target/hull_b"].shapes[1].radius == pytest.approx(0.05)
+
+
 def test_arm_looks_at_a_damaged_target_and_captures_evidence(client: SimClient, model: ArmModel, capture_dir) -> None:
     start = client.joint_positions(ARM)
     target = next(t for t in model.scene.targets if t.name == "hull_b")

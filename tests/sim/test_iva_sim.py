@@ -82,6 +82,63 @@ def test_cancel_stops_the_arm_part_way(client: SimClient) -> None:
     assert_ok(client.follow(ARM, [(2.0, start)]))
 
 
+def test_halt_service_stops_the_arm_at_once_and_says_so(client: SimClient) -> None:
+    start = client.joint_positions(ARM)
+    goal = [start[0] + 1.0] + start[1:]
+    handle = client.start(ARM, [(60.0, goal)])
+    client.wait_for(lambda: client.latest["/joint_states"].position[0] > start[0] + 0.01, "the arm moving")
+    halted = client.halt("test halt")
+    assert halted.success and halted.stopped and halted.message.startswith("halted the arm"), halted.message
+    status, result = client.result(handle)
+    assert status == GoalStatus.STATUS_ABORTED and result.error_code == ErrorCode.HALTED
+    assert result.error_string == "halted: test halt"
+    held = client.joint_positions(ARM)
+    assert start[0] < held[0] < goal[0] - 0.1, f"pan at {held[0]:.3f}: not stopped part way"
+    client.wait_value("/robot/moving", False)
+    for _ in range(3):  # later joint states: still there
+        assert client.joint_positions(ARM) == held
+    again = client.halt("twice")
+    assert again.success and not again.stopped and again.message == "nothing was moving"
+    assert_ok(client.follow(ARM, [(2.0, start)]))
+
+
+def test_stamps_are_sim_time(client: SimClient) -> None:
+    """joint_states come every 1/60 s of sim time (4 physics steps of 1/240 s, 5 when rounding
+    falls short): their stamps step by exactly that, whatever the wall clock does meanwhile."""
+    from sensor_msgs.msg import JointState
+
+    stamps: list[int] = []
+    sub = client.node.create_subscription(JointState, "/joint_states", lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec), 100)
+    try:
+        client.wait_for(lambda: len(stamps) >= 30, "30 joint states", 30)
+    finally:
+        client.node.destroy_subscription(sub)
+    steps = [(b - a) * 240 / 1e9 for a, b in zip(stamps, stamps[1:])]
+    assert all(round(s) in (4, 5) and abs(s - round(s)) < 1e-3 for s in steps), steps
+
+
+def test_robot_description_and_visual_world_describe_what_a_view_draws(client: SimClient) -> None:
+    import xml.etree.ElementTree as ET
+
+    urdf = ET.fromstring(client.value("/robot_description").data)
+    joints = {j.get("name") for j in urdf.iter("joint")}
+    world = client.value("/sim/visual_world")
+    assert world.scene == "iva" and world.robot_name == "ur10" and list(world.arm_joints) == ARM
+    assert set(ARM) | set(world.gripper_joints) <= joints
+    assert world.tool_link in {link.get("name") for link in urdf.iter("link")}
+    names = {o.name for o in world.objects}
+    assert {"rack", "cabinet", "table", "filter/CDRA-F-0007", "filter/CDRA-F-0012", "cabinet/lamp"} <= names, names
+    lamp = next(o for o in world.objects if o.name == "cabinet/lamp")
+    assert list(lamp.shapes[0].rgba) == pytest.approx([0.85, 0.1, 0.1, 1.0])  # locked: red
+    assert all(len(o.shapes) > 0 and all(sh.rgba[3] > 0 for sh in o.shapes) for o in world.objects)
+    # Everything that moves has its pose on sim/frames under the same name; the base too.
+    frames = client.fresh("/sim/frames")
+    movable = {n for n in names if n.startswith(("filter/", "target/"))}
+    assert movable <= set(frames.names)
+    base = frames.poses[list(frames.names).index("robot_base")]
+    assert (base.position.x, base.position.y, base.position.z) == pytest.approx((world.robot_base.position.x, world.robot_base.position.y, world.robot_base.position.z))
+
+
 INVALID = [
     ("unknown joint", lambda h: (["shoulder_pan_joint", "elbow"], [(1.0, [0.0, 0.0])], None), ErrorCode.INVALID_JOINTS, "unknown joint 'elbow'"),
     ("gripper joint", lambda h: (["gripper_left_finger_joint"], [(1.0, [0.01])], None), ErrorCode.INVALID_JOINTS, "not an arm joint"),

@@ -111,3 +111,55 @@ def test_held_filter_does_not_sink_while_the_arm_rests(model: ArmModel) -> None:
         assert max(abs(a - b) for a, b in zip(held_at, rested_at)) < 1e-4, (held_at, rested_at)
     finally:
         sim.close()
+
+
+def test_halt_stops_the_arm_and_the_fingers_where_they_are(model: ArmModel) -> None:
+    """The hardware stop (robot/halt): nothing moves from the next step on, and a new goal runs."""
+    from sim.trajectory import ErrorCode
+
+    sim = Simulation(load_scene("iva"), seed=3)
+    try:
+        current = tuple(sim.arm_positions)
+        goal = [current[0] + 1.0, *current[1:]]
+        run = sim.start_trajectory(validate_trajectory(list(sim.arm_joints), [(10.0, goal, [])], limits=sim.limits, controller_joints=sim.arm_joints, current=current), 0.0)
+        assert sim.gripper is not None
+        fingers = sim.gripper.start("closed")
+        for _ in range(20):
+            sim.step()
+        stopped = sim.halt("operator pressed Halt")
+        assert [s.split(" ")[1] for s in stopped] == ["arm", "gripper"], stopped
+        assert run.done.is_set() and run.error_code == ErrorCode.HALTED and run.error_string == "halted: operator pressed Halt"
+        assert fingers.done.is_set() and not fingers.success and "halted: operator pressed Halt" in fingers.message
+        arm, gripper = list(sim.arm_positions), list(sim.gripper.positions)
+        assert current[0] < arm[0] < goal[0] - 0.5, "halted part way"
+        for _ in range(240):  # a second later: no drift, no "finishing the segment"
+            sim.step()
+        assert sim.arm_positions == arm and sim.gripper.positions == gripper and not sim.moving
+        assert sim.halt("again") == []  # idempotent: nothing was moving
+        run_to(sim, [list(current)], model)  # the arm takes new goals after a halt
+    finally:
+        sim.close()
+
+
+def test_robot_base_frame_is_the_urdf_root_link() -> None:
+    """A view draws robot_description at robot_base: that must be the URDF's root link frame,
+    not pybullet's base inertial frame (2 cm above it on the UR10, 15 cm on the EVA arm)."""
+    import xml.etree.ElementTree as ET
+
+    import pybullet as p
+
+    for scene_name in ("iva", "eva"):
+        scene = load_scene(scene_name)
+        sim = Simulation(scene)
+        try:
+            base_pos, base_orn = dict(sim.frames())["robot_base"]
+            # The first joint's origin, as the URDF states it in the root link's frame ...
+            joint = next(j for j in ET.parse(scene.robot.urdf).getroot().iter("joint") if j.find("parent").get("link") == scene.robot.base_link)
+            origin = [float(v) for v in joint.find("origin").get("xyz").split()]
+            expected, _ = p.multiplyTransforms(base_pos, base_orn, origin, [0, 0, 0, 1])
+            # ... is where the simulation has the child link's frame.
+            child = sim.world.link_index[joint.find("child").get("link")]
+            actual = p.getLinkState(sim.robot, child, computeForwardKinematics=True, physicsClientId=sim.client)[4]
+            assert max(abs(a - b) for a, b in zip(expected, actual)) < 1e-6, (scene_name, expected, actual)
+        finally:
+            sim.close()

@@ -1,16 +1,27 @@
 """ROS 2 actions both ways: clients sending goals, and clients serving actions.
 
-Sending (``send_action_goal``): one cached ``ActionClient`` per action on the server node;
-feedback is forwarded as ``action_feedback`` when the goal asked for it, and the outcome as
+Sending (``send_action_goal``): one ``ActionClient`` per (action, type) on the server node,
+shared by every goal to it and destroyed :data:`CLIENT_LINGER_S` after its last goal ended (at
+most :data:`MAX_CLIENTS` exist: a client sending goals to ever new action names cannot make the
+bridge hold ever more of them).  No client is made for an action no server offers.  Feedback
+is forwarded as ``action_feedback`` when the goal asked for it, and the outcome as
 ``action_result`` with the goal's final status (``result`` true only for SUCCEEDED).  A
 rejected goal or a missing server is answered with ``result: false`` too.
 ``cancel_action_goal`` names the goal by the id the client gave it.
+
+**Disconnect policy: the goals of a client that disconnects are cancelled**, also those not
+yet accepted (cancelled as soon as they are).  A goal nobody can follow any more must not keep
+moving a robot; commands that must survive a link drop go through the habitat's command ledger
+(``caretaker ledger``), not through a goal left running.  Each goal is followed by its own
+task until the action server reports its end (or :data:`ORPHAN_WAIT_S` after the cancel), so
+its client stays alive and counted (``--max-goals``) as long as the goal is.
 
 Serving (``advertise_action``): an ``ActionServer`` whose execute coroutine forwards each goal
 to the client as ``send_action_goal`` (id ``action_goal:<action>:<n>``, ``feedback: true``),
 publishes the client's ``action_feedback``, forwards ROS cancel requests as
 ``cancel_action_goal``, and ends the goal as the client's ``action_result`` says (status 4
-succeeded, 5 canceled, anything else or ``result: false`` aborted).
+succeeded, 5 canceled, anything else or ``result: false`` aborted).  A serving client that
+disconnects aborts its goals.
 """
 
 from __future__ import annotations
@@ -26,14 +37,22 @@ from rclpy.action import ActionClient, ActionServer, CancelResponse
 
 from . import protocol as p
 from .conversion import dict_to_message, load_type, message_to_dict
-from .protocol import ActionFailed, InvalidField, optional, require
+from .limits import Quotas
+from .names import ros_name
+from .protocol import ActionFailed, InvalidField, OverQuota, echo, optional, require
 from .ros_thread import RosThread
 from .security import AllowList
-from .session import Session
+from .session import Session, SessionState
 
 log = logging.getLogger(__name__)
 
 SERVER_WAIT_S = 1.0
+CLIENT_LINGER_S = 30.0
+"""An action client outlives its last goal this long: the next goal to the same action then
+needs no new discovery."""
+MAX_CLIENTS = 64
+ORPHAN_WAIT_S = 60.0
+"""How long the bridge follows a cancelled goal of a disconnected client before it lets go."""
 
 
 @dataclass
@@ -48,16 +67,37 @@ class ProvidedAction:
     counter: itertools.count = field(default_factory=lambda: itertools.count(1))
 
 
+@dataclass
+class SharedClient:
+    """An action client and the number of goals using it."""
+
+    client: ActionClient
+    users: int = 0
+    expiry: asyncio.TimerHandle | None = None
+
+
+@dataclass
+class SentGoal:
+    """A goal a client sent, from its request until its end; touched only on the event loop."""
+
+    session: Session
+    handle: Any = None
+    """The goal handle once the action server accepted the goal."""
+    cancel_wanted: bool = False
+    """Cancel as soon as accepted (asked before acceptance, or the client disconnected)."""
+
+
 class Actions:
     """Action goals sent by clients and actions served by clients."""
 
-    def __init__(self, ros: RosThread, allow: AllowList) -> None:
+    def __init__(self, ros: RosThread, allow: AllowList, quotas: Quotas,
+                 services_graph: Callable[[], dict[str, str]]) -> None:
         self.ros = ros
         self.allow = allow
-        self._clients: dict[tuple[str, str], ActionClient] = {}
-        # (session, client goal id) -> goal handle, or None until the server accepted the goal
-        self._goals: dict[tuple[int, Any], Any] = {}
-        self._early_cancels: set[tuple[int, Any]] = set()  # cancelled before the server accepted
+        self.quotas = quotas
+        self._graph = services_graph
+        self._clients: dict[tuple[str, str], SharedClient] = {}  # least recently used first
+        self._goals: dict[tuple[int, Any], SentGoal] = {}
         self.provided: dict[str, ProvidedAction] = {}
 
     def operations(self) -> dict[str, Callable[[Session, dict[str, Any]], Any]]:
@@ -67,67 +107,130 @@ class Actions:
                 p.OP_ACTION_FEEDBACK: self._feedback, p.OP_ACTION_RESULT: self._result}
 
     def _action(self, message: dict[str, Any]) -> str:
-        action = require(message, "action", str)
-        action = action if action.startswith("/") else "/" + action
+        action = ros_name("action", require(message, "action", str))
         self.allow.check(action)
         return action
 
     # --- clients sending goals -----------------------------------------------------------------
-    async def _send_goal(self, session: Session, message: dict[str, Any]) -> None:
+    def _send_goal(self, session: Session, message: dict[str, Any]) -> Any:
         action = self._action(message)
         type_name = require(message, "action_type", str)
         action_cls = load_type(type_name, "action")
         goal = dict_to_message(action_cls.Goal, optional(message, "args", dict, {}), "args")
-        client = self._clients.get((action, type_name))
-        if client is None:
-            client = self._clients[(action, type_name)] = ActionClient(self.ros.server_node, action_cls, action)
-        deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
-        while not client.server_is_ready():
-            if asyncio.get_running_loop().time() > deadline:
-                raise ActionFailed(f"Action server {action} is not available")
-            await asyncio.sleep(0.01)
-        goal_id = message.get("id")
-        reply: dict[str, Any] = {"action": message["action"]}
-        if goal_id is not None:
-            reply["id"] = goal_id
-        feedback_callback = None
-        if optional(message, "feedback", bool, False):
-            def feedback_callback(feedback: Any) -> None:
+        wants_feedback = optional(message, "feedback", bool, False)
+        goal_id = echo(message.get("id"))
+        key = (session.number, goal_id if goal_id is not None else object())
+        if key in self._goals:
+            raise InvalidField(f"a goal with id {goal_id!r} of this client is still running")
+        self.quotas.goals.take(session.number)
+        record = self._goals[key] = SentGoal(session)
+        return self._follow_goal(record, key, action, type_name, action_cls, goal, wants_feedback, message)
+
+    async def _follow_goal(self, record: SentGoal, key: tuple[int, Any], action: str, type_name: str,
+                           action_cls: Any, goal: Any, wants_feedback: bool, message: dict[str, Any]) -> None:
+        # Not cancelled when the client disconnects (see the module doc): it cancels the goal.
+        session = record.session
+        reply: dict[str, Any] = {"action": echo(message["action"])}
+        if echo(message.get("id")) is not None:
+            reply["id"] = echo(message.get("id"))
+        shared = None
+        try:
+            shared = await self._client_for(action, type_name, action_cls)
+            def forward_feedback(feedback: Any) -> None:
                 values = message_to_dict(feedback.feedback)
                 self.ros.deliver(session.send, {"op": p.OP_ACTION_FEEDBACK, **reply, "values": values})
-        key = (session.number, goal_id)
-        self._goals[key] = None
-        try:
-            # Feedback may reach the client before the acceptance reaches the bridge, so a cancel
-            # can arrive before the handle: it is kept and sent once the goal is accepted.
-            handle = await self.ros.ask(client.send_goal_async, goal, feedback_callback=feedback_callback)
+
+            handle = await self.ros.ask(shared.client.send_goal_async, goal,
+                                        feedback_callback=forward_feedback if wants_feedback else None)
             if not handle.accepted:
                 raise ActionFailed(f"the action server of {action} rejected the goal")
-            self._goals[key] = handle
-            if key in self._early_cancels:
-                self.ros.on_server_thread(handle.cancel_goal_async)
-            outcome = await self.ros.ask(handle.get_result_async)
+            record.handle = handle
+            if record.cancel_wanted or session.state is SessionState.CLOSED:
+                self._cancel(record)
+            if session.state is SessionState.CLOSED:
+                outcome = await asyncio.wait_for(self.ros.ask(handle.get_result_async), ORPHAN_WAIT_S)
+            else:
+                outcome = await self.ros.ask(handle.get_result_async)
+        except TimeoutError:
+            log.warning("a cancelled goal of a disconnected client on %s did not end within %.0f s", action,
+                        ORPHAN_WAIT_S)
+            return
         finally:
-            self._goals.pop(key, None)
-            self._early_cancels.discard(key)
+            del self._goals[key]
+            self.quotas.goals.give(session.number)
+            if shared is not None:
+                self._release(action, type_name, shared)
         session.send({"op": p.OP_ACTION_RESULT, **reply, "values": message_to_dict(outcome.result),
                       "status": outcome.status, "result": outcome.status == p.GOAL_STATUS_SUCCEEDED})
+
+    async def _client_for(self, action: str, type_name: str, action_cls: Any) -> SharedClient:
+        """The shared client of (``action``, ``type_name``) once its server is ready, counted as used."""
+        key = (action, type_name)
+        shared = self._clients.pop(key, None)
+        if shared is None:
+            deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
+            while f"{action}/_action/send_goal" not in self._graph():
+                if asyncio.get_running_loop().time() > deadline:
+                    raise ActionFailed(f"Action server {action} is not available")
+                await asyncio.sleep(0.02)  # rclpy offers no graph-change event to await here
+            shared = self._clients.pop(key, None) or SharedClient(self._new_client(action_cls, action))
+        self._clients[key] = shared  # now the most recently used
+        shared.users += 1
+        if shared.expiry is not None:
+            shared.expiry.cancel()
+            shared.expiry = None
+        try:
+            deadline = asyncio.get_running_loop().time() + SERVER_WAIT_S
+            while not shared.client.server_is_ready():
+                if asyncio.get_running_loop().time() > deadline:
+                    raise ActionFailed(f"Action server {action} is not available")
+                await asyncio.sleep(0.01)
+        except BaseException:
+            self._release(action, type_name, shared)
+            raise
+        return shared
+
+    def _new_client(self, action_cls: Any, action: str) -> ActionClient:
+        idle = [key for key, shared in self._clients.items() if not shared.users]
+        for key in idle[:max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
+            self._destroy_client(key, self._clients[key])
+        if len(self._clients) >= MAX_CLIENTS:
+            raise OverQuota(f"too many actions with goals in flight on this bridge (limit {MAX_CLIENTS})")
+        return ActionClient(self.ros.server_node, action_cls, action)
+
+    def _release(self, action: str, type_name: str, shared: SharedClient) -> None:
+        shared.users -= 1
+        if shared.users == 0 and self._clients.get((action, type_name)) is shared:
+            shared.expiry = asyncio.get_running_loop().call_later(
+                CLIENT_LINGER_S, self._destroy_client, (action, type_name), shared)
+
+    def _destroy_client(self, key: tuple[str, str], shared: SharedClient) -> None:
+        if shared.users or self._clients.get(key) is not shared:
+            return
+        del self._clients[key]
+        if shared.expiry is not None:
+            shared.expiry.cancel()
+        self.ros.on_server_thread(shared.client.destroy)  # where its executor uses it
+
+    def _cancel(self, record: SentGoal) -> None:
+        if record.handle is None:
+            record.cancel_wanted = True
+        else:
+            self.ros.on_server_thread(record.handle.cancel_goal_async)  # its action_result then reports CANCELED
 
     def _cancel_goal(self, session: Session, message: dict[str, Any]) -> None:
         self._action(message)
         goal_id = require(message, "id", (str, int))
-        key = (session.number, goal_id)
-        if key not in self._goals:
-            raise InvalidField(f"no running goal with id {goal_id!r} from this client")
-        if self._goals[key] is None:
-            self._early_cancels.add(key)
-        else:
-            self.ros.on_server_thread(self._goals[key].cancel_goal_async)  # its action_result then reports CANCELED
+        record = self._goals.get((session.number, goal_id))
+        if record is None:
+            raise InvalidField(f"no running goal with id {echo(goal_id)!r} from this client")
+        self._cancel(record)
 
     # --- clients serving actions ---------------------------------------------------------------
     def _advertise(self, session: Session, message: dict[str, Any]) -> None:
         action = self._action(message)
         action_cls = load_type(require(message, "type", str), "action")
+        self.quotas.advertisements.take(session.number)
         if action in self.provided:
             self._withdraw(self.provided[action], "replaced by a newer advertise_action")
         provided = ProvidedAction(action, action_cls, session)
@@ -141,14 +244,18 @@ class Actions:
                     self.ros.deliver(session.send, {"op": p.OP_CANCEL_ACTION_GOAL, "id": goal_id, "action": action})
             return CancelResponse.ACCEPT
 
-        provided.server = ActionServer(self.ros.server_node, action_cls, action, execute_callback,
-                                       cancel_callback=cancel_callback)
+        try:
+            provided.server = ActionServer(self.ros.server_node, action_cls, action, execute_callback,
+                                           cancel_callback=cancel_callback)
+        except Exception as exc:
+            self.quotas.advertisements.give(session.number)
+            raise InvalidField(f"cannot advertise action {action}: {type(exc).__name__}") from None
         self.provided[action] = provided
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         provided = self.provided.get(self._action(message))
         if provided is None or provided.session is not session:
-            raise InvalidField(f"action {message['action']} is not advertised by this client")
+            raise InvalidField(f"action {echo(message['action'])} is not advertised by this client")
         self._withdraw(provided, "unadvertised by its client")
 
     async def _execute(self, provided: ProvidedAction, goal_handle: Any) -> Any:
@@ -180,7 +287,7 @@ class Actions:
         provided = self.provided.get(self._action(message))
         goal_id = require(message, "id", str)
         if provided is None or provided.session is not session or goal_id not in provided.goals:
-            raise InvalidField(f"no goal {goal_id!r} of action {message['action']} is running for this client")
+            raise InvalidField(f"no goal {echo(goal_id)!r} of action {echo(message['action'])} is running for this client")
         return provided, goal_id
 
     def _feedback(self, session: Session, message: dict[str, Any]) -> None:
@@ -191,7 +298,8 @@ class Actions:
     def _result(self, session: Session, message: dict[str, Any]) -> None:
         provided, goal_id = self._goal_of(session, message)
         succeeded = optional(message, "result", bool, True)
-        status = optional(message, "status", int, p.GOAL_STATUS_SUCCEEDED if succeeded else p.GOAL_STATUS_ABORTED)
+        status = optional(message, "status", int, p.GOAL_STATUS_SUCCEEDED if succeeded else p.GOAL_STATUS_ABORTED,
+                          bounds=(0, 6))
         if not succeeded:
             status = p.GOAL_STATUS_ABORTED if status == p.GOAL_STATUS_SUCCEEDED else status
         values = optional(message, "values", dict, {})
@@ -202,6 +310,7 @@ class Actions:
     def _withdraw(self, provided: ProvidedAction, reason: str) -> None:
         if self.provided.get(provided.name) is provided:
             del self.provided[provided.name]
+        self.quotas.advertisements.give(provided.session.number)
         for _, outcome in provided.goals.values():
             if not outcome.done():
                 outcome.set_exception(ActionFailed(f"action {provided.name} {reason}"))
@@ -209,11 +318,13 @@ class Actions:
         provided.server.destroy()
 
     def drop_session(self, session: Session) -> None:
-        """Withdraw the actions a closed session served and cancel the goals it sent."""
+        """Withdraw the actions a closed session served and cancel the goals it sent (their
+        tasks go on until the goals end: see the module doc)."""
         for provided in [a for a in self.provided.values() if a.session is session]:
             self._withdraw(provided, "lost its client")
-        for key in [k for k in self._goals if k[0] == session.number]:
-            self.ros.on_server_thread(self._goals.pop(key).cancel_goal_async)
+        for key, record in self._goals.items():
+            if key[0] == session.number:
+                self._cancel(record)
 
 
 def _type_name(action_cls: Any) -> str:

@@ -1,11 +1,16 @@
 """The op dispatch of rosbridge v2 and the one boundary where failures become answers.
 
-:meth:`Bridge.handle` parses a frame, checks fields and allow-lists, and runs the op's
-handler.  Any :class:`BridgeError` (or unexpected exception) raised on the way is answered in
-the form the op's client waits for: ``service_response`` with ``result: false`` and the reason
-as ``values`` for ``call_service``, ``action_result`` with ``result: false`` for
-``send_action_goal``, and for every op a ``status`` message (if the client asked for one
-with ``set_level``) naming op, id and reason.  The connection stays up.
+:meth:`Bridge.handle` parses a frame, checks fields, names, allow-lists and quotas, and runs
+the op's handler.  Any :class:`BridgeError` raised on the way is answered in the form the op's
+client waits for: ``service_response`` with ``result: false`` and the reason as ``values`` for
+``call_service``, ``action_result`` with ``result: false`` for ``send_action_goal``, and for
+every op a ``status`` message naming op, id and reason (if the client asked for one with
+``set_level``; refusals and quota errors even if it did not).  The connection stays up.
+
+The answer to a failure is built only from values that always encode (:func:`.protocol.echo`,
+:func:`.protocol.client_text`), so answering cannot fail in turn, and a client's input never
+puts a traceback in the log: an unexpected exception (a bug) is logged, rate-limited per client,
+and answered as an internal error without its text, which might name server files.
 """
 
 from __future__ import annotations
@@ -13,54 +18,40 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-import time
-from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from . import protocol as p
-from .protocol import BridgeError, InvalidField, MalformedMessage, UnknownOperation, optional, require
+from .fragments import Reassembly
+from .limits import Limits, Quotas
+from .names import ros_name
+from .protocol import (CONNECTION_STATS, BridgeError, InvalidField, MalformedMessage, OverQuota, Refused, UnknownOperation, client_text,
+                       echo, optional, require)
 from .rosapi import Rosapi
-from .security import AllowList
+from .security import Policy
 from .services import Services
-from .session import Session
+from .session import Session, SessionState, encode
 from .topics import Topics
 
 log = logging.getLogger(__name__)
 
-FRAGMENT_TIMEOUT_S = 600.0
-
-
-@dataclass
-class Policy:
-    """Server-wide limits and allow-lists."""
-
-    topics: AllowList = field(default_factory=lambda: AllowList("topic"))
-    services: AllowList = field(default_factory=lambda: AllowList("service"))
-    actions: AllowList = field(default_factory=lambda: AllowList("action"))
-    max_message_size: int = 10_000_000
-
-
-@dataclass
-class PendingFragments:
-    """Parts of one fragmented incoming message."""
-
-    total: int
-    started: float
-    parts: dict[int, str] = field(default_factory=dict)
-    size: int = 0
+MAX_SIZE_FIELD = 2**31 - 1
 
 
 class Bridge:
     """Routes each client op to topics, services, actions or rosapi."""
 
-    def __init__(self, topics: Topics, services: Services, actions: Any, policy: Policy) -> None:
+    def __init__(self, topics: Topics, services: Services, actions: Any, policy: Policy, limits: Limits,
+                 quotas: Quotas) -> None:
         self.topics = topics
         self.services = services
         self.actions = actions
-        self.rosapi = Rosapi(topics, services)
         self.policy = policy
-        self._fragments: dict[int, dict[Any, PendingFragments]] = {}
+        self.limits = limits
+        self.quotas = quotas
+        self.rosapi = Rosapi(topics, services, policy)
+        self.fragments = Reassembly(limits)
         self._tasks: dict[int, set[asyncio.Task[Any]]] = {}
+        self._kept: set[asyncio.Task[Any]] = set()
         self._ops: dict[str, Callable[[Session, dict[str, Any]], Any]] = {
             p.OP_ADVERTISE: self._advertise, p.OP_UNADVERTISE: self._unadvertise, p.OP_PUBLISH: self._publish,
             p.OP_SUBSCRIBE: self._subscribe, p.OP_UNSUBSCRIBE: self._unsubscribe,
@@ -74,20 +65,19 @@ class Bridge:
     # --- the boundary --------------------------------------------------------------------------
     def handle_frame(self, session: Session, frame: str | bytes) -> None:
         """Parse one incoming frame and handle it; every failure is answered."""
+        if session.state is SessionState.CLOSED:
+            return
+        session.traffic.messages_received += 1
         message: Any = None
         try:
             if isinstance(frame, bytes):
                 raise MalformedMessage("binary frames are not accepted: send JSON text frames")
-            try:
-                message = json.loads(frame)
-            except (json.JSONDecodeError, RecursionError) as exc:
-                raise MalformedMessage(f"invalid JSON: {exc}") from None
+            message = _parse(frame)
             self.handle(session, message)
         except BridgeError as exc:
             self.answer_failure(session, message, exc)
         except Exception as exc:  # a bug must not cost the client its connection, nor go unanswered
-            log.exception("op %s failed", message.get("op") if isinstance(message, dict) else None)
-            self.answer_failure(session, message, BridgeError(f"internal error: {exc}"))
+            self.answer_failure(session, message, exc)
 
     def handle(self, session: Session, message: Any) -> None:
         """Handle one parsed message (raises BridgeError for the caller to answer)."""
@@ -98,123 +88,142 @@ class Bridge:
             raise MalformedMessage("a message needs a string field 'op'")
         handler = self._ops.get(op)
         if handler is None:
-            raise UnknownOperation(f"unknown op '{op[:60]}'")
-        if message.get("id") is not None and not isinstance(message["id"], (str, int)):
-            raise InvalidField("field 'id' must be a string or an integer")
-        fragment_size = optional(message, "fragment_size", int)
+            raise UnknownOperation(f"unknown op {client_text(op, 60)!r}")
+        request_id = message.get("id")
+        if request_id is not None and echo(request_id) is None:
+            raise InvalidField("field 'id' must be a string or an integer of at most 64 bits")
+        fragment_size = optional(message, "fragment_size", int, bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD))
         if fragment_size is not None and op != p.OP_SUBSCRIBE:
-            session.fragment_size = fragment_size if fragment_size > 0 else None
+            session.fragment_size = fragment_size
         result = handler(session, message)
         if asyncio.iscoroutine(result):
-            self._spawn(session, message, result)
+            self._spawn(session, message, result, keep=op == p.OP_SEND_ACTION_GOAL)
 
-    def _spawn(self, session: Session, message: dict[str, Any], work: Any) -> None:
-        # Slow work (service calls, goals) runs as a task, so it never blocks reading.
+    def _spawn(self, session: Session, message: dict[str, Any], work: Any, *, keep: bool) -> None:
+        """Run slow work (service calls, goals) as a task, so it never blocks reading; unless
+        ``keep``, the task is cancelled when the client disconnects (a goal's task is not: it
+        cancels its goal and follows it to its end, see actions.py)."""
         async def guarded() -> None:
             try:
                 await work
-            except BridgeError as exc:
-                self.answer_failure(session, message, exc)
             except asyncio.CancelledError:
                 raise
             except Exception as exc:
-                log.exception("op %s failed", message.get("op"))
-                self.answer_failure(session, message, BridgeError(f"internal error: {exc}"))
+                self.answer_failure(session, message, exc)
 
-        tasks = self._tasks.setdefault(session.number, set())
+        tasks = self._kept if keep else self._tasks.setdefault(session.number, set())
         task = asyncio.get_running_loop().create_task(guarded())
         tasks.add(task)
         task.add_done_callback(tasks.discard)
 
     def answer_failure(self, session: Session, message: Any, error: BaseException) -> None:
         """Tell the client why its request failed, in the form its op expects."""
-        op = message.get("op") if isinstance(message, dict) else None
-        request_id = message.get("id") if isinstance(message, dict) else None
-        reason = str(error) or type(error).__name__
-        log.warning("session %d: %s (op %s, id %r) failed: %s", session.number, type(error).__name__, op, request_id, reason)
+        fields = message if isinstance(message, dict) else {}
+        op = echo(fields.get("op"))
+        request_id = echo(fields.get("id"))
+        if isinstance(error, BridgeError):
+            reason = client_text(str(error) or type(error).__name__)
+            session.log(logging.INFO, f"{type(error).__name__} (op {op}, id {request_id!r}): {reason}")
+        else:
+            reason = "internal error of the bridge (logged there)"
+            session.log(logging.ERROR, f"op {op} id {request_id!r} failed: {type(error).__name__}: {error}",
+                        exc_info=error)
+        answer: dict[str, Any] | None = None
         if op == p.OP_CALL_SERVICE:
-            answer: dict[str, Any] = {"op": p.OP_SERVICE_RESPONSE, "service": message.get("service"),
-                                      "values": reason, "result": False}
-            if request_id is not None:
-                answer["id"] = request_id
-            session.send(answer)
+            answer = {"op": p.OP_SERVICE_RESPONSE, "service": echo(fields.get("service")), "values": reason,
+                      "result": False}
         elif op == p.OP_SEND_ACTION_GOAL:
-            answer = {"op": p.OP_ACTION_RESULT, "action": message.get("action"), "values": reason,
+            answer = {"op": p.OP_ACTION_RESULT, "action": echo(fields.get("action")), "values": reason,
                       "status": p.GOAL_STATUS_UNKNOWN, "result": False}
+        if answer is not None:
             if request_id is not None:
                 answer["id"] = request_id
             session.send(answer)
-        session.status("error", f"{op or 'message'}{'' if request_id is None else f' {request_id}'}: {reason}", request_id)
+        label = f"{op if isinstance(op, str) else 'message'}{'' if request_id is None else f' {request_id}'}"
+        session.status("error", f"{client_text(label, 120)}: {reason}", request_id,
+                       always=isinstance(error, (Refused, OverQuota)))
 
     def drop_session(self, session: Session) -> None:
-        """Release everything a closed session held: tasks, registrations, fragments."""
+        """Release everything a closed session held: tasks, registrations, fragments, quotas."""
         for task in self._tasks.pop(session.number, set()):
             task.cancel()
-        self._fragments.pop(session.number, None)
+        self.fragments.forget(session.number)
         self.topics.drop_session(session)
         self.services.drop_session(session)
         if self.actions is not None:
             self.actions.drop_session(session)
+        self.quotas.forget(session.number)
 
     # --- topics --------------------------------------------------------------------------------
     def _topic(self, message: dict[str, Any]) -> str:
-        topic = require(message, "topic", str)
-        topic = topic if topic.startswith("/") else "/" + topic
+        topic = ros_name("topic", require(message, "topic", str))
         self.policy.topics.check(topic)
         return topic
 
     def _advertise(self, session: Session, message: dict[str, Any]) -> None:
-        self.topics.advertise(session, self._topic(message), require(message, "type", str), message.get("id"),
+        self.topics.advertise(session, self._topic(message), require(message, "type", str), echo(message.get("id")),
                               latch=optional(message, "latch", bool, False),
-                              queue_size=optional(message, "queue_size", int))
+                              queue_size=optional(message, "queue_size", int, bounds=(0, 100_000)))
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
-        self.topics.unadvertise(session, self._topic(message), message.get("id"))
+        self.topics.unadvertise(session, self._topic(message), echo(message.get("id")))
 
     def _publish(self, session: Session, message: dict[str, Any]) -> None:
         topic = self._topic(message)
-        if topic not in self.topics.publishers and message.get("type") is not None:
-            self.topics.advertise(session, topic, optional(message, "type", str), None)
-        self.topics.publish(session, topic, optional(message, "msg", dict, {}), optional(message, "latch", bool, False))
+        type_name = optional(message, "type", str)
+        latch = optional(message, "latch", bool, False)
+        if topic not in self.topics.publishers and type_name is not None:
+            self.topics.advertise(session, topic, type_name, None)
+        self.topics.publish(session, topic, optional(message, "msg", dict, {}), latch)
 
     def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
         compression = optional(message, "compression", str, p.COMPRESSION_NONE)
         if compression not in p.COMPRESSIONS:
-            raise InvalidField(f"compression must be one of {', '.join(p.COMPRESSIONS)}, got {compression!r}")
-        throttle = optional(message, "throttle_rate", int, 0)
-        queue_length = optional(message, "queue_length", int, 0)
-        fragment_size = optional(message, "fragment_size", int)
-        if throttle < 0 or queue_length < 0 or (fragment_size is not None and fragment_size <= 0):
-            raise InvalidField("throttle_rate and queue_length must be >= 0, fragment_size > 0")
-        self.topics.subscribe(session, self._topic(message), optional(message, "type", str), message.get("id"),
+            raise InvalidField(f"compression must be one of {', '.join(p.COMPRESSIONS)}, got {client_text(compression, 40)!r}")
+        throttle = optional(message, "throttle_rate", int, 0, bounds=(0, 86_400_000))
+        queue_length = optional(message, "queue_length", int, 0, bounds=(0, 100_000))
+        fragment_size = optional(message, "fragment_size", int, bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD))
+        self.topics.subscribe(session, self._topic(message), optional(message, "type", str), echo(message.get("id")),
                               throttle_ms=throttle, queue_length=queue_length, fragment_size=fragment_size,
                               compression=compression)
 
     def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
-        self.topics.unsubscribe(session, self._topic(message), message.get("id"))
+        self.topics.unsubscribe(session, self._topic(message), echo(message.get("id")))
 
     # --- services ------------------------------------------------------------------------------
     def _service(self, message: dict[str, Any]) -> str:
-        service = require(message, "service", str)
-        service = service if service.startswith("/") else "/" + service
+        service = ros_name("service", require(message, "service", str))
         self.policy.services.check(service)
         return service
 
-    async def _call_service(self, session: Session, message: dict[str, Any]) -> None:
+    def _call_service(self, session: Session, message: dict[str, Any]) -> Any:
         service = self._service(message)
         args = message.get("args")
         if args is not None and not isinstance(args, (dict, list)):
             raise InvalidField(f"field 'args' must be an object or a list, got {type(args).__name__}")
-        timeout = optional(message, "timeout", float)
-        if self.rosapi.serves(service):
-            values = await self.rosapi.call(service, args)
-        else:
-            values = await self.services.call(service, args, timeout)
-        answer: dict[str, Any] = {"op": p.OP_SERVICE_RESPONSE, "service": message["service"], "values": values,
+        timeout = optional(message, "timeout", float, bounds=(0.0, 86_400.0))
+        answer_fragment_size = optional(message, "fragment_size", int,
+                                        bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD))
+        self.quotas.calls.take(session.number)
+        return self._answer_call(session, message, service, args, timeout, answer_fragment_size)
+
+    async def _answer_call(self, session: Session, message: dict[str, Any], service: str, args: Any,
+                           timeout: float | None, fragment_size: int | None) -> None:
+        try:
+            if service == CONNECTION_STATS:
+                values = {"connection": session.number, "peer": session.peer, **session.traffic.as_dict()}
+            elif self.rosapi.serves(service):
+                values = await self.rosapi.call(service, args)
+            else:
+                values = await self.services.call(service, args, timeout)
+        finally:
+            self.quotas.calls.give(session.number)
+        answer: dict[str, Any] = {"op": p.OP_SERVICE_RESPONSE, "service": echo(message["service"]), "values": values,
                                   "result": True}
-        if message.get("id") is not None:
-            answer["id"] = message["id"]
-        session.send_frame(json.dumps(answer, separators=(",", ":")), optional(message, "fragment_size", int))
+        request_id = echo(message.get("id"))
+        if request_id is not None:
+            answer["id"] = request_id
+        session.send_frame(encode(answer), fragment_size)
 
     def _service_response(self, session: Session, message: dict[str, Any]) -> None:
         self.services.respond(session, self._service(message), require(message, "id", str),
@@ -230,33 +239,34 @@ class Bridge:
     def _set_level(self, session: Session, message: dict[str, Any]) -> None:
         level = require(message, "level", str)
         if level not in p.LEVELS:
-            raise InvalidField(f"level must be one of {', '.join(p.LEVELS)}, got {level!r}")
+            raise InvalidField(f"level must be one of {', '.join(p.LEVELS)}, got {client_text(level, 40)!r}")
         session.status_level = level
 
     def _auth_again(self, session: Session, message: dict[str, Any]) -> None:
         # Authentication happens before the first op is dispatched (server.py); a later or
         # unneeded auth message is harmless and acknowledged only via status.
-        session.status("info", "already authenticated (or no authentication configured)", message.get("id"))
+        session.status("info", "already authenticated (or no authentication configured)", echo(message.get("id")))
 
     def _fragment(self, session: Session, message: dict[str, Any]) -> None:
         fragment_id = require(message, "id", (str, int))
-        data, num, total = require(message, "data", str), require(message, "num", int), require(message, "total", int)
-        if total < 1 or not 0 <= num < total:
-            raise InvalidField(f"fragment num {num} of total {total} is out of range")
-        pending_all = self._fragments.setdefault(session.number, {})
-        now = time.monotonic()
-        for stale in [k for k, v in pending_all.items() if now - v.started > FRAGMENT_TIMEOUT_S]:
-            del pending_all[stale]
-        pending = pending_all.setdefault(fragment_id, PendingFragments(total, now))
-        if pending.total != total:
-            del pending_all[fragment_id]
-            raise InvalidField(f"fragment {fragment_id!r}: total changed from {pending.total} to {total}")
-        if num not in pending.parts:
-            pending.size += len(data)
-        pending.parts[num] = data
-        if pending.size > self.policy.max_message_size:
-            del pending_all[fragment_id]
-            raise InvalidField(f"fragmented message {fragment_id!r} exceeds {self.policy.max_message_size} bytes")
-        if len(pending.parts) == total:
-            del pending_all[fragment_id]
-            self.handle_frame(session, "".join(pending.parts[i] for i in range(total)))
+        data = require(message, "data", str)
+        num = require(message, "num", int, bounds=(0, MAX_SIZE_FIELD))
+        total = require(message, "total", int, bounds=(1, MAX_SIZE_FIELD))
+        whole = self.fragments.add(session.number, fragment_id, data, num, total)
+        if whole is not None:
+            inner = _parse(whole)
+            if isinstance(inner, dict) and inner.get("op") == p.OP_FRAGMENT:
+                raise InvalidField("a reassembled message must not be a fragment itself")
+            self.handle(session, inner)
+
+
+def _parse(text: str) -> Any:
+    """The JSON value of a frame; :class:`MalformedMessage` for anything else."""
+    try:
+        return json.loads(text)
+    except RecursionError:
+        raise MalformedMessage("invalid JSON: nested too deeply") from None
+    except ValueError as exc:  # JSONDecodeError, and integers beyond Python's 4300-digit limit
+        detail = str(exc) if isinstance(exc, json.JSONDecodeError) else "a number has too many digits"
+        raise MalformedMessage(f"invalid JSON: {client_text(detail, 120)}") from None
+

@@ -46,6 +46,8 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
+from .protocol import ServiceUnanswered
+
 log = logging.getLogger(__name__)
 
 NODE_NAME = "rosbridge_websocket"
@@ -145,6 +147,8 @@ class RosThread:
         while self._running and self.context.ok():
             try:
                 executor.spin_once(timeout_sec=0.2)
+            except ServiceUnanswered:
+                pass  # left without a ROS response on purpose, and logged where it ended (services.py)
             except Exception:
                 if self._running:
                     log.exception("a ROS callback failed")

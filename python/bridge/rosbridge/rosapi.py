@@ -4,6 +4,10 @@ No rosapi node and no rosapi_msgs are needed: ``call_service`` to ``/rosapi/<nam
 served here from the bridge node's graph view, with the response shapes of rosapi_msgs
 (rosbridge 2.x), e.g. ``topics`` -> ``{topics: [...], types: [...]}``.  Parameters
 (``/node:param`` names) go through each node's standard rcl_interfaces parameter services.
+
+rosapi shows only what the allow-lists let a client use: topic and service lists are filtered
+by ``--topics-glob``/``--services-glob``, a query about a refused name is refused, parameters
+are read under ``--params-glob`` and set only under ``--set-params-glob`` (none by default).
 """
 
 from __future__ import annotations
@@ -14,7 +18,9 @@ from typing import Any, Awaitable, Callable
 from rcl_interfaces.msg import ParameterType
 
 from .conversion import field_types, load_type
-from .protocol import InvalidField, require
+from .names import ros_name
+from .protocol import CONNECTION_STATS, InvalidField, client_text, require
+from .security import AllowList, Policy
 from .services import Services
 from .topics import Topics
 
@@ -33,9 +39,10 @@ _PARAM_FIELDS = {ParameterType.PARAMETER_BOOL: "bool_value", ParameterType.PARAM
 class Rosapi:
     """Graph, type, time and parameter queries in rosapi's request/response shapes."""
 
-    def __init__(self, topics: Topics, services: Services) -> None:
+    def __init__(self, topics: Topics, services: Services, policy: Policy) -> None:
         self.topics = topics
         self.services = services
+        self.policy = policy
         self.node = topics.node
         self._handlers: dict[str, Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]] = {
             "topics": self._topics, "topics_for_type": self._topics_for_type, "topic_type": self._topic_type,
@@ -51,8 +58,8 @@ class Rosapi:
         return service.startswith(PREFIX)
 
     def names(self) -> list[str]:
-        """The rosapi service names served (listed among the graph's services)."""
-        return [PREFIX + name for name in self._handlers]
+        """The services the bridge answers itself (listed among the graph's services)."""
+        return [PREFIX + name for name in self._handlers] + [CONNECTION_STATS]
 
     async def call(self, service: str, args: Any) -> dict[str, Any]:
         handler = self._handlers.get(service[len(PREFIX):])
@@ -63,31 +70,41 @@ class Rosapi:
         return await handler(args or {})
 
     # --- graph ---------------------------------------------------------------------------------
+    def _allowed_topics(self) -> list[tuple[str, list[str]]]:
+        return sorted((name, types) for name, types in self.node.get_topic_names_and_types()
+                      if types and self.policy.topics.allows(name))
+
+    def _topic(self, args: dict[str, Any]) -> str:
+        topic = ros_name("topic", require(args, "topic", str))
+        self.policy.topics.check(topic)
+        return topic
+
     async def _topics(self, args: dict[str, Any]) -> dict[str, Any]:
-        pairs = sorted((name, types[0]) for name, types in self.node.get_topic_names_and_types() if types)
-        return {"topics": [p[0] for p in pairs], "types": [p[1] for p in pairs]}
+        pairs = self._allowed_topics()
+        return {"topics": [p[0] for p in pairs], "types": [p[1][0] for p in pairs]}
 
     async def _topics_for_type(self, args: dict[str, Any]) -> dict[str, Any]:
         wanted = _canonical(require(args, "type", str), "msg")
-        return {"topics": sorted(n for n, types in self.node.get_topic_names_and_types() if wanted in types)}
+        return {"topics": [name for name, types in self._allowed_topics() if wanted in types]}
 
     async def _topic_type(self, args: dict[str, Any]) -> dict[str, Any]:
-        return {"type": self.topics.graph_type(require(args, "topic", str)) or ""}
+        return {"type": self.topics.graph_type(self._topic(args)) or ""}
 
     async def _publishers(self, args: dict[str, Any]) -> dict[str, Any]:
-        infos = self.node.get_publishers_info_by_topic(require(args, "topic", str))
+        infos = self.node.get_publishers_info_by_topic(self._topic(args))
         return {"publishers": sorted(f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos)}
 
     async def _subscribers(self, args: dict[str, Any]) -> dict[str, Any]:
-        infos = self.node.get_subscriptions_info_by_topic(require(args, "topic", str))
+        infos = self.node.get_subscriptions_info_by_topic(self._topic(args))
         return {"subscribers": sorted(f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos)}
 
     async def _services(self, args: dict[str, Any]) -> dict[str, Any]:
-        names = {name for name, _ in self.node.get_service_names_and_types()} | set(self.names())
-        return {"services": sorted(names)}
+        names = set(self.services.graph()) | set(self.names())
+        return {"services": sorted(n for n in names if self.policy.services.allows(n))}
 
     async def _service_type(self, args: dict[str, Any]) -> dict[str, Any]:
-        service = require(args, "service", str)
+        service = ros_name("service", require(args, "service", str))
+        self.policy.services.check(service)
         return {"type": self.services.graph_type(service) or ""}
 
     async def _nodes(self, args: dict[str, Any]) -> dict[str, Any]:
@@ -114,7 +131,7 @@ class Rosapi:
 
     # --- parameters ----------------------------------------------------------------------------
     async def _get_param(self, args: dict[str, Any]) -> dict[str, Any]:
-        node, param = _split_param(require(args, "name", str))
+        node, param = self._param(args, self.policy.params)
         reply = await self.services.call(f"{node}/get_parameters", {"names": [param]}, None)
         values = reply.get("values") or []
         if not values or values[0]["type"] == ParameterType.PARAMETER_NOT_SET:
@@ -122,13 +139,13 @@ class Rosapi:
         return {"value": json.dumps(values[0][_PARAM_FIELDS[values[0]["type"]]])}
 
     async def _has_param(self, args: dict[str, Any]) -> dict[str, Any]:
-        node, param = _split_param(require(args, "name", str))
+        node, param = self._param(args, self.policy.params)
         reply = await self.services.call(f"{node}/get_parameters", {"names": [param]}, None)
         values = reply.get("values") or []
         return {"exists": bool(values) and values[0]["type"] != ParameterType.PARAMETER_NOT_SET}
 
     async def _set_param(self, args: dict[str, Any]) -> dict[str, Any]:
-        node, param = _split_param(require(args, "name", str))
+        node, param = self._param(args, self.policy.set_params)
         try:
             value = json.loads(require(args, "value", str))
         except json.JSONDecodeError as exc:
@@ -143,11 +160,18 @@ class Rosapi:
         names: list[str] = []
         for name, ns in self.node.get_node_names_and_namespaces():
             node = f"{ns.rstrip('/')}/{name}"
-            if f"{node}/list_parameters" not in {n for n, _ in self.node.get_service_names_and_types()}:
+            if f"{node}/list_parameters" not in self.services.graph():
                 continue
             reply = await self.services.call(f"{node}/list_parameters", {}, 2.0)
             names += [f"{node}:{p}" for p in reply["result"]["names"]]
-        return {"names": sorted(names)}
+        return {"names": sorted(n for n in names if self.policy.params.allows(n))}
+
+    @staticmethod
+    def _param(args: dict[str, Any], allowed: AllowList) -> tuple[str, str]:
+        name = require(args, "name", str)
+        node, param = _split_param(name)
+        allowed.check(name)
+        return node, param
 
 
 def _canonical(name: str, kind: str) -> str:
@@ -157,9 +181,9 @@ def _canonical(name: str, kind: str) -> str:
 
 def _split_param(name: str) -> tuple[str, str]:
     node, sep, param = name.partition(":")
-    if not sep or not node.startswith("/") or not param:
-        raise InvalidField(f"parameter name {name!r} must look like /node:param")
-    return node, param
+    if not sep or not param or len(name) > 255:
+        raise InvalidField(f"parameter name {client_text(name, 80)!r} must look like /node:param")
+    return ros_name("node", node), param
 
 
 def _parameter(name: str, value: Any) -> dict[str, Any]:
@@ -186,7 +210,7 @@ def _typedefs(cls: Any) -> list[dict[str, Any]]:
         if name in seen:
             continue
         fields = field_types(current)
-        typedef = {"type": name, "fieldnames": [], "fieldtypes": [], "fieldarraylen": [], "examples": [],
+        typedef: dict[str, Any] = {"type": name, "fieldnames": [], "fieldtypes": [], "fieldarraylen": [], "examples": [],
                    "constnames": [], "constvalues": []}
         for field, spec in fields.items():
             base, array_len = _base_and_len(spec)

@@ -1,9 +1,15 @@
 """Who may connect and what they may touch: allow-lists and client authentication.
 
-Allow-lists are fnmatch globs per kind (topics, services, actions).  An empty list allows
-everything; otherwise a name must match one glob, and a refusal is *answered* (failed
-``service_response``/``action_result``, or ``status`` after ``set_level``), not only logged.
-``/rosapi/*`` is always allowed when a services list is set, as in rosbridge.
+Allow-lists are fnmatch globs per kind (topics, services, actions, parameters read and
+parameters set).  An empty list allows everything (except setting parameters: none unless
+listed); otherwise a name must match one glob, and a refusal is *answered* (failed
+``service_response``/``action_result``, or a ``status`` message, sent even without
+``set_level``), not only logged.  ``/rosapi/*`` and the bridge's own ``/rosbridge/*`` stay
+allowed when a services list is set, as in rosbridge; rosapi lists only what the lists allow.
+
+Browsers send an ``Origin`` header, other clients (roslibpy, roslibjs under Node, Java) none.
+Only connections without one are accepted unless ``--allow-origin`` names the web pages that
+may connect, so a page an operator happens to open cannot drive the bridge.
 
 Authentication is optional.  With a shared secret configured the first message of every
 connection must be an ``auth`` message, either
@@ -14,6 +20,10 @@ connection must be an ``auth`` message, either
   the client's Unix time in seconds within :data:`MAX_CLOCK_SKEW_S` of the server's, and E the
   end of validity (Unix seconds, not yet passed).
 
+A MAC is accepted once: the bridge remembers each one until it could no longer be accepted
+anyway (``t`` + :data:`MAX_CLOCK_SKEW_S`, or ``end`` if earlier), so a recorded auth message
+cannot be replayed.  ``t`` and ``end`` must be finite numbers, the other fields strings.
+
 Anything else first, or a wrong token or MAC, closes the connection with 1008 (policy violation).
 """
 
@@ -22,13 +32,15 @@ from __future__ import annotations
 import fnmatch
 import hashlib
 import hmac
+import math
 import time
 from dataclasses import dataclass
 from typing import Any
 
-from .protocol import Refused
+from .protocol import Refused, client_text
 
 MAX_CLOCK_SKEW_S = 60.0
+_MAC_FIELDS = ("client", "dest", "rand", "t", "level", "end")
 
 
 @dataclass(frozen=True)
@@ -37,34 +49,76 @@ class AllowList:
 
     kind: str
     globs: tuple[str, ...] = ()
+    always: tuple[str, ...] = ()
+    """Globs allowed whatever ``globs`` says (the bridge's own services)."""
+
+    def allows(self, name: str) -> bool:
+        return (not self.globs or any(fnmatch.fnmatchcase(name, glob) for glob in self.globs)
+                or any(fnmatch.fnmatchcase(name, glob) for glob in self.always))
 
     def check(self, name: str) -> None:
         """Raise :class:`Refused` unless ``name`` is allowed."""
-        if not self.globs or any(fnmatch.fnmatchcase(name, glob) for glob in self.globs):
-            return
-        if self.kind == "service" and name.startswith("/rosapi/"):
-            return
-        raise Refused(f"{self.kind} {name} is not allowed by this bridge (allowed: {', '.join(self.globs)})")
+        if not self.allows(name):
+            allowed = ", ".join(g for g in self.globs if g) or "none"
+            raise Refused(f"{self.kind} {client_text(name, 120)} is not allowed by this bridge (allowed: {allowed})")
 
 
-def authenticate(message: Any, secret: str) -> None:
-    """Raise :class:`Refused` unless ``message`` is a valid ``auth`` message for ``secret``."""
-    if not isinstance(message, dict) or message.get("op") != "auth":
-        raise Refused("authentication required: the first message must be an auth message")
-    if "token" in message:
-        if isinstance(message["token"], str) and hmac.compare_digest(message["token"].encode(), secret.encode()):
-            return
-        raise Refused("authentication failed: wrong token")
-    fields = ("mac", "client", "dest", "rand", "t", "level", "end")
-    if any(field not in message for field in fields):
-        raise Refused(f"authentication failed: an auth message needs a token, or {', '.join(fields)}")
-    t, end = message["t"], message["end"]
-    if not isinstance(t, (int, float)) or not isinstance(end, (int, float)) or not isinstance(message["mac"], str):
-        raise Refused("authentication failed: t and end must be numbers, mac a hex string")
-    now = time.time()
-    if abs(now - t) > MAX_CLOCK_SKEW_S or end < now:
-        raise Refused("authentication failed: the auth message is expired or its clock is off")
-    text = "".join(str(message[f]) for f in ("client", "dest", "rand", "t", "level", "end"))
-    expected = hmac.new(secret.encode(), text.encode(), hashlib.sha256).hexdigest()
-    if not hmac.compare_digest(expected, message["mac"].lower()):
-        raise Refused("authentication failed: wrong mac")
+BRIDGE_SERVICES = ("/rosapi/*", "/rosbridge/*")
+"""Services the bridge answers itself; allowed whatever ``--services-glob`` says."""
+
+
+@dataclass(frozen=True)
+class Policy:
+    """The allow-lists of one bridge (``--*-glob`` options)."""
+
+    topics: AllowList = AllowList("topic")
+    services: AllowList = AllowList("service", always=BRIDGE_SERVICES)
+    actions: AllowList = AllowList("action")
+    params: AllowList = AllowList("parameter")
+    """Parameters clients may read (``/node:name``)."""
+    set_params: AllowList = AllowList("parameter change", ("",))
+    """Parameters clients may set; the default glob matches no name, so none may be set."""
+
+
+class Authenticator:
+    """Checks ``auth`` messages against the shared secret and remembers the MACs used."""
+
+    def __init__(self, secret: str) -> None:
+        self._secret = secret.encode()
+        self._used: dict[str, float] = {}  # MAC -> when it stops being acceptable anyway
+
+    def check(self, message: Any) -> None:
+        """Raise :class:`Refused` unless ``message`` is a valid, unused ``auth`` message."""
+        if not isinstance(message, dict) or message.get("op") != "auth":
+            raise Refused("authentication required: the first message must be an auth message")
+        if "token" in message:
+            token = message["token"]
+            if isinstance(token, str) and hmac.compare_digest(token.encode("utf-8", "replace"), self._secret):
+                return
+            raise Refused("authentication failed: wrong token")
+        if any(name not in message for name in ("mac", *_MAC_FIELDS)):
+            raise Refused(f"authentication failed: an auth message needs a token, or mac, {', '.join(_MAC_FIELDS)}")
+        t, end, mac = message["t"], message["end"], message["mac"]
+        if not all(_finite_number(value) for value in (t, end)):
+            raise Refused("authentication failed: t and end must be finite numbers (Unix seconds)")
+        if not isinstance(mac, str) or not all(isinstance(message[name], str) for name in ("client", "dest", "rand", "level")):
+            raise Refused("authentication failed: mac, client, dest, rand and level must be strings")
+        now = time.time()
+        if abs(now - t) > MAX_CLOCK_SKEW_S or end < now:
+            raise Refused("authentication failed: the auth message is expired or its clock is off")
+        text = "".join(str(message[name]) for name in _MAC_FIELDS)
+        expected = hmac.new(self._secret, text.encode("utf-8", "replace"), hashlib.sha256).hexdigest()
+        if not hmac.compare_digest(expected.encode(), mac.lower().encode("utf-8", "replace")):
+            raise Refused("authentication failed: wrong mac")
+        self._forget_expired(now)
+        if expected in self._used:
+            raise Refused("authentication failed: this mac was already used (replay)")
+        self._used[expected] = min(t + MAX_CLOCK_SKEW_S, end)
+
+    def _forget_expired(self, now: float) -> None:
+        for used in [m for m, until in self._used.items() if until < now]:
+            del self._used[used]
+
+
+def _finite_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)

@@ -10,6 +10,12 @@ forwards each request as ``call_service`` (id ``service_request:<service>:<n>``)
 the client's ``service_response``.  A ROS service cannot report failure, so a request the
 client fails (``result: false``, bad values, disconnect, unadvertise) gets no response and the
 caller's own timeout reports it; the failure is logged, never turned into a fake success.
+
+Parameters are guarded whichever way a client reaches them: a call of any node's
+``set_parameters``/``set_parameters_atomically`` (directly, or through rosapi's ``set_param``)
+is refused unless every parameter is allowed by ``--set-params-glob``, and ``get_parameters``
+reads only what ``--params-glob`` allows.  At most :data:`MAX_CLIENTS` service clients are
+kept; the least recently used one without a call in flight goes first.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
+import time
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,9 +31,12 @@ import rclpy.task
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
-from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, ServiceTimeout, ServiceUnavailable,
+from .limits import Quotas
+from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, echo, ServiceTimeout, ServiceUnanswered,
+                       ServiceUnavailable,
                        TypeConflict)
 from .ros_thread import RosThread
+from .security import Policy
 from .session import Session
 
 log = logging.getLogger(__name__)
@@ -43,6 +53,10 @@ reconnected to it must not be told they do not exist."""
 SERVER_WATCH_S = 0.25
 """How often a pending call checks that its server is still there: a server that dies
 mid-call fails the call at once instead of at its (possibly minutes-long) timeout."""
+MAX_CLIENTS = 256
+GRAPH_AGE_S = 0.05
+_PARAMETER_WRITES = {"rcl_interfaces/srv/SetParameters", "rcl_interfaces/srv/SetParametersAtomically"}
+_PARAMETER_READS = {"rcl_interfaces/srv/GetParameters"}
 
 
 @dataclass
@@ -60,20 +74,30 @@ class ProvidedService:
 class Services:
     """Service calls from clients, and services provided by clients."""
 
-    def __init__(self, ros: RosThread, default_timeout: float) -> None:
+    def __init__(self, ros: RosThread, default_timeout: float, quotas: Quotas, policy: Policy) -> None:
         self.ros = ros
         self.default_timeout = default_timeout
-        self._clients: dict[str, tuple[Any, Any]] = {}
+        self.quotas = quotas
+        self.policy = policy
+        self._clients: dict[str, tuple[Any, Any]] = {}  # least recently used first
+        self._in_flight: dict[str, int] = {}
+        self._graph: tuple[float, dict[str, str]] = (-1.0, {})
         self._matched: set[str] = set()  # services whose server matched their cached client
         self.provided: dict[str, ProvidedService] = {}
 
     # --- calling ROS services ----------------------------------------------------------------
     def graph_type(self, service: str) -> str | None:
         """The type of ``service`` on the ROS graph, or None if no server offers it."""
-        for name, types in self.ros.node.get_service_names_and_types():
-            if name == service and types:
-                return types[0]
-        return None
+        return self.graph().get(service)
+
+    def graph(self) -> dict[str, str]:
+        """Service name -> type on the ROS graph, read at most every :data:`GRAPH_AGE_S`: calls
+        waiting for a service to appear all poll it, and a graph query costs a millisecond."""
+        now = time.monotonic()
+        if now - self._graph[0] > GRAPH_AGE_S:
+            names = {name: types[0] for name, types in self.ros.node.get_service_names_and_types() if types}
+            self._graph = (now, names)
+        return self._graph[1]
 
     async def _discovered_client(self, service: str, timeout: float) -> tuple[Any, Any]:
         """The cached client of ``service``, waiting up to ``timeout`` for DDS to discover it."""
@@ -85,16 +109,32 @@ class Services:
         return self._client(service)
 
     def _client(self, service: str) -> tuple[Any, Any]:
-        cached = self._clients.get(service)
+        cached = self._clients.pop(service, None)
         if cached is not None:
+            self._clients[service] = cached  # now the most recently used
             return cached
         graph_type = self.graph_type(service)
         if graph_type is None:
             raise ServiceUnavailable(f"Service {service} does not exist")
         srv_cls = load_type(graph_type, "srv")
+        idle = [name for name in self._clients if not self._in_flight.get(name)]
+        for name in idle[:max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
+            self._forget_client(name)
         client = self.ros.node.create_client(srv_cls, service, qos_profile=CLIENT_QOS)
         cached = self._clients[service] = (client, srv_cls)
         return cached
+
+    def _check_parameters(self, service: str, srv_cls: Any, request: Any) -> None:
+        """Refuse parameter reads and writes the allow-lists do not allow (see module doc)."""
+        kind = type_name(srv_cls)
+        if kind in _PARAMETER_WRITES:
+            node = service.rsplit("/", 1)[0]
+            for parameter in request.parameters:
+                self.policy.set_params.check(f"{node}:{parameter.name}")
+        elif kind in _PARAMETER_READS:
+            node = service.rsplit("/", 1)[0]
+            for name in request.names:
+                self.policy.params.check(f"{node}:{name}")
 
     def _forget_client(self, service: str) -> None:
         # After a failure the server may be gone or replaced with another type: look again next time.
@@ -115,6 +155,16 @@ class Services:
             request = list_to_request(srv_cls.Request, args)
         else:
             request = dict_to_message(srv_cls.Request, args or {}, "args")
+        self._check_parameters(service, srv_cls, request)
+        self._in_flight[service] = self._in_flight.get(service, 0) + 1
+        try:
+            return await self._call(service, client, request, limit)
+        finally:
+            left = self._in_flight.pop(service) - 1
+            if left:
+                self._in_flight[service] = left
+
+    async def _call(self, service: str, client: Any, request: Any, limit: float) -> dict[str, Any]:
         if service not in self._matched:
             if not await self._server_matched(client):
                 self._forget_client(service)
@@ -169,6 +219,7 @@ class Services:
         previous = self.provided.get(service)
         if previous is None and self.graph_type(service) not in (None, type_name(srv_cls)):
             raise TypeConflict(f"service {service} already exists with type {self.graph_type(service)}")
+        self.quotas.advertisements.take(session.number)
         if previous is not None:  # rosbridge semantics: the newest advertiser replaces the old one
             self._withdraw(previous, "replaced by a newer advertise_service")
         provided = ProvidedService(service, srv_cls, session)
@@ -176,7 +227,11 @@ class Services:
         async def callback(request: Any, response: Any) -> Any:
             return await self._forward_request(provided, request)
 
-        provided.service = self.ros.server_node.create_service(srv_cls, service, callback)
+        try:
+            provided.service = self.ros.server_node.create_service(srv_cls, service, callback)
+        except Exception as exc:
+            self.quotas.advertisements.give(session.number)
+            raise InvalidField(f"cannot advertise service {service}: {type(exc).__name__}") from None
         self.provided[service] = provided
 
     def unadvertise(self, session: Session, service: str) -> None:
@@ -189,8 +244,8 @@ class Services:
         """A client's ``service_response`` to a forwarded request."""
         provided = self.provided.get(service)
         future = provided.pending.pop(request_id, None) if provided and provided.session is session else None
-        if future is None:
-            raise InvalidField(f"no pending request {request_id!r} for service {service} of this client")
+        if provided is None or future is None:
+            raise InvalidField(f"no pending request {echo(request_id)!r} for service {service} of this client")
         try:
             response = dict_to_message(provided.srv_cls.Response, values or {}, "values") if result else None
         except InvalidField as exc:
@@ -214,12 +269,14 @@ class Services:
         try:
             return await future
         except Exception:
-            log.error("request %s of %s not answered: %s", request_id, provided.name, future.exception())
-            raise
+            text = f"request {request_id} of {provided.name} not answered: {future.exception()}"
+            self.ros.deliver(provided.session.log, logging.WARNING, text)
+            raise ServiceUnanswered(text) from None
 
     def _withdraw(self, provided: ProvidedService, reason: str) -> None:
         if self.provided.get(provided.name) is provided:
             del self.provided[provided.name]
+        self.quotas.advertisements.give(provided.session.number)
         for future in provided.pending.values():
             future.set_exception(RuntimeError(f"service {provided.name} {reason}"))
         provided.pending.clear()

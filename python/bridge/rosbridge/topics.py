@@ -6,6 +6,11 @@ on :attr:`RosThread.topic_node`.  Messages are taken on the event loop
 fanned out to every subscribed client's bounded queue (:mod:`.session`).  ROS subscriptions
 use a deep queue (:data:`SUBSCRIPTION_DEPTH`), because the usual depth 10 loses messages as
 soon as a few dozen are in flight.
+
+Entities are made atomically and released with their last user: a subscription or publisher
+is registered only once everything it needs exists (a failure halfway destroys what was made,
+so a topic never stays half-subscribed), and every client registration counts against the
+subscription or advertisement quota (:class:`.limits.Quotas`) until it ends.
 """
 
 from __future__ import annotations
@@ -14,16 +19,17 @@ import asyncio
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import orjson
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from . import compression as codecs
 from .conversion import dict_to_message, load_type, message_to_dict, type_name
-from .protocol import COMPRESSION_NONE, InvalidField, OP_PUBLISH, TopicNotEstablished, TypeConflict
+from .limits import Quotas
+from .protocol import COMPRESSION_NONE, BridgeError, InvalidField, OP_PUBLISH, TopicNotEstablished, TypeConflict, client_text
 from .ros_thread import LoopSubscription, RosThread
-from .session import Session
+from .session import Frame, Session, fragmented
 
 log = logging.getLogger(__name__)
 
@@ -37,25 +43,38 @@ UNREGISTER_DELAY_S = 1.0
 class EncodedMessage:
     """One ROS message and its encodings, each computed at most once for all subscribers."""
 
-    __slots__ = ("topic", "message", "data", "_frames")
+    __slots__ = ("topic", "message", "data", "_frames", "_fragments")
 
     def __init__(self, topic: str, message: Any) -> None:
         self.topic = topic
         self.message = message
         self.data = message_to_dict(message)
         self._frames: dict[str, str | bytes] = {}
+        self._fragments: dict[tuple[str, int], Frame] = {}
 
-    def frame(self, compression: str) -> str | bytes:
+    def frame(self, compression: str, fragment_size: int | None = None) -> Frame:
+        """The frame for ``compression``, split into fragments of ``fragment_size`` if asked
+        (made once, however many subscribers ask for the same)."""
         frame = self._frames.get(compression)
         if frame is None:
-            if compression == COMPRESSION_NONE:
-                # orjson: 10x faster than json for small messages, 25x for 64 KiB strings; the
-                # dict holds only JSON types with NaN/Inf already None (message_to_dict).
-                frame = orjson.dumps({"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}).decode()
-            else:
-                frame = codecs.encode_publish(compression, self.topic, self.message, self.frame(COMPRESSION_NONE))
-            self._frames[compression] = frame
-        return frame
+            frame = self._frames[compression] = self._encode(compression)
+        if fragment_size is None or isinstance(frame, bytes) or len(frame) <= fragment_size:
+            return frame
+        parts = self._fragments.get((compression, fragment_size))
+        if parts is None:
+            parts = self._fragments[(compression, fragment_size)] = fragmented(frame, fragment_size)
+        return parts
+
+    def _encode(self, compression: str) -> str | bytes:
+        # orjson: 10x faster than json for small messages, 25x for 64 KiB strings; the dict holds
+        # only JSON types with NaN/Inf already None (message_to_dict).
+        text = self._frames.get(COMPRESSION_NONE)
+        if not isinstance(text, str):
+            text = self._frames[COMPRESSION_NONE] = orjson.dumps(
+                {"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}).decode()
+        if compression == COMPRESSION_NONE:
+            return text
+        return codecs.encode_publish(compression, self.topic, self.message, text)
 
 
 @dataclass
@@ -98,8 +117,9 @@ class TopicPublisher:
 class Topics:
     """Every topic the bridge publishes or subscribes on behalf of its clients."""
 
-    def __init__(self, ros: RosThread) -> None:
+    def __init__(self, ros: RosThread, quotas: Quotas) -> None:
         self.ros = ros
+        self.quotas = quotas
         self.node = ros.topic_node
         self.feeds: dict[str, TopicFeed] = {}
         self.publishers: dict[str, TopicPublisher] = {}
@@ -130,32 +150,45 @@ class Topics:
     # --- publishing ----------------------------------------------------------------------------
     def advertise(self, session: Session, topic: str, type_name_: str | None, pub_id: Any,
                   latch: bool = False, queue_size: int | None = None) -> None:
-        _check_topic_name(topic)
         cls = self.resolve_type(topic, type_name_)
         entry = self.publishers.get(topic)
-        if entry is None:
-            if latch:
-                qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                                 reliability=ReliabilityPolicy.RELIABLE)
-            else:
-                qos = QoSProfile(depth=queue_size or DEFAULT_PUBLISHER_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-            entry = self.publishers[topic] = TopicPublisher(topic, cls, self.node.create_publisher(cls, topic, qos))
-        entry.users.add((session.number, pub_id))
+        user = (session.number, pub_id)
+        if entry is not None and user in entry.users:
+            return
+        self.quotas.advertisements.take(session.number)
+        try:
+            if entry is None:
+                if latch:
+                    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                     reliability=ReliabilityPolicy.RELIABLE)
+                else:
+                    qos = QoSProfile(depth=queue_size or DEFAULT_PUBLISHER_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+                publisher = _ros_call(f"advertise {topic}", self.node.create_publisher, cls, topic, qos)
+                entry = self.publishers[topic] = TopicPublisher(topic, cls, publisher)
+        except BaseException:
+            self.quotas.advertisements.give(session.number)
+            raise
+        entry.users.add(user)
 
     def unadvertise(self, session: Session, topic: str, pub_id: Any) -> None:
         entry = self.publishers.get(topic)
         mine = {u for u in entry.users if u[0] == session.number} if entry else set()
-        if not mine:
+        if entry is None or not mine:
             raise InvalidField(f"topic {topic} is not advertised by this client")
-        entry.users -= mine if pub_id is None or (session.number, pub_id) not in mine else {(session.number, pub_id)}
+        ending = mine if pub_id is None or (session.number, pub_id) not in mine else {(session.number, pub_id)}
+        entry.users -= ending
+        self.quotas.advertisements.give(session.number, len(ending))
         self._release_publisher_later(topic)
 
     def publish(self, session: Session, topic: str, data: Any, latch: bool = False) -> None:
         entry = self.publishers.get(topic)
         if entry is None or not any(u[0] == session.number for u in entry.users):
+            message = dict_to_message(self.resolve_type(topic, None), data if data is not None else {})
             self.advertise(session, topic, None, _IMPLICIT, latch=latch)
             entry = self.publishers[topic]
-        entry.publisher.publish(dict_to_message(entry.msg_cls, data if data is not None else {}))
+        else:
+            message = dict_to_message(entry.msg_cls, data if data is not None else {})
+        _ros_call(f"publish on {topic}", entry.publisher.publish, message)
 
     def _release_publisher_later(self, topic: str) -> None:
         entry = self.publishers.get(topic)
@@ -171,28 +204,46 @@ class Topics:
     def subscribe(self, session: Session, topic: str, type_name_: str | None, sub_id: Any, *,
                   throttle_ms: int = 0, queue_length: int = 0, fragment_size: int | None = None,
                   compression: str = COMPRESSION_NONE) -> None:
-        _check_topic_name(topic)
         cls = self.resolve_type(topic, type_name_)
+        key = (session.number, sub_id)
         feed = self.feeds.get(topic)
-        if feed is None:
-            qos = self._subscription_qos(topic)
-            feed = self.feeds[topic] = TopicFeed(topic, cls, latched=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL)
-            # The callback is never called: no executor spins topic_node; the loop takes messages.
-            feed.subscription = self.node.create_subscription(cls, topic, _never_called, qos)
-            feed.taker = self.ros.take_on_loop(feed.subscription, lambda message, feed=feed: self._fan_out(feed, message))
-        client = feed.clients[(session.number, sub_id)] = ClientSubscription(
+        if feed is None or key not in feed.clients:
+            self.quotas.subscriptions.take(session.number)
+        try:
+            if feed is None:
+                feed = self._open_feed(topic, cls)
+        except BaseException:
+            self.quotas.subscriptions.give(session.number)
+            raise
+        client = feed.clients[key] = ClientSubscription(
             session, sub_id, throttle_ms / 1000.0, queue_length, fragment_size, compression)
         if feed.last is not None:  # what ROS would replay to a new transient-local subscription
             self._send(feed, client, feed.last)
 
+    def _open_feed(self, topic: str, cls: Any) -> TopicFeed:
+        """The ROS subscription of ``topic`` and its taker, registered only once both exist."""
+        qos = self._subscription_qos(topic)
+        feed = TopicFeed(topic, cls, latched=qos.durability == DurabilityPolicy.TRANSIENT_LOCAL)
+        # The callback is never called: no executor spins topic_node; the loop takes messages.
+        feed.subscription = _ros_call(f"subscribe {topic}", self.node.create_subscription, cls, topic,
+                                      _never_called, qos)
+        try:
+            feed.taker = self.ros.take_on_loop(feed.subscription, lambda message: self._fan_out(feed, message))
+        except OSError as exc:  # no file descriptor left for its eventfd
+            self.node.destroy_subscription(feed.subscription)
+            raise BridgeError(f"cannot subscribe to {topic} now: {client_text(exc.strerror or str(exc))}") from None
+        self.feeds[topic] = feed
+        return feed
+
     def unsubscribe(self, session: Session, topic: str, sub_id: Any) -> None:
         feed = self.feeds.get(topic)
         keys = [k for k in (feed.clients if feed else {}) if k[0] == session.number and (sub_id is None or k[1] == sub_id)]
-        if not keys:
+        if feed is None or not keys:
             raise InvalidField(f"this client has no subscription to {topic}" + (f" with id {sub_id!r}" if sub_id is not None else ""))
         for key in keys:
             del feed.clients[key]
             session.forget_queue((topic, key[1]))
+        self.quotas.subscriptions.give(session.number, len(keys))
         if not feed.clients:
             del self.feeds[topic]
             if feed.taker is not None:
@@ -225,11 +276,12 @@ class Topics:
 
     def _send(self, feed: TopicFeed, client: ClientSubscription, encoded: EncodedMessage) -> None:
         try:
-            frame = encoded.frame(client.compression)
+            frame = encoded.frame(client.compression, client.fragment_size)
         except Exception as exc:
-            client.session.status("error", f"cannot encode {feed.topic} as {client.compression}: {exc}", client.sub_id)
+            client.session.status("error", client_text(f"cannot encode {feed.topic} as {client.compression}: {exc}"),
+                                  client.sub_id)
             return
-        client.session.send_topic_frame((feed.topic, client.sub_id), frame, client.queue_length, client.fragment_size)
+        client.session.send_topic_frame((feed.topic, client.sub_id), frame, client.queue_length)
 
     # --- connection end ------------------------------------------------------------------------
     def drop_session(self, session: Session) -> None:
@@ -242,6 +294,7 @@ class Topics:
             entry.users = {u for u in entry.users if u[0] != session.number}
             if len(entry.users) != before:
                 self._release_publisher_later(topic)
+        # the quotas of this session are forgotten as a whole by the caller (Quotas.forget)
 
 
 def _never_called(message: Any) -> None:
@@ -252,6 +305,11 @@ _IMPLICIT = "implicit publish"
 """Registration id of a publisher created by a ``publish`` without a prior ``advertise``."""
 
 
-def _check_topic_name(topic: str) -> None:
-    if not topic.startswith("/") or not topic[1:] or any(c in topic for c in " #?"):
-        raise InvalidField(f"'{topic}' is not a valid topic name (expected an absolute name like /chatter)")
+def _ros_call(what: str, function: Callable[..., Any], *args: Any) -> Any:
+    """``function(*args)``, with an rclpy/rcl failure turned into an answer without its source paths."""
+    try:
+        return function(*args)
+    except BridgeError:
+        raise
+    except Exception as exc:  # rclpy raises RCLError, ValueError, TypeError... with rcl's file:line
+        raise BridgeError(f"{what} failed: {client_text(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)}") from None

@@ -1,0 +1,137 @@
+"""Halt: stop the robot's motion at once, whatever it is doing (issue 16).
+
+``affordance_template_server/halt`` (affordance_template_msgs/srv/Halt) is one path to the
+stop: it calls the robot's own halt service (``halt_service`` of the robot config; the
+simulation's ``robot/halt``), which stops the arm and the gripper before its next physics step,
+and it cancels the trajectory goal in flight. The robot-level service is the same stop a
+ground that cannot reach the AT server calls directly, so both paths end in one mechanism, and
+it stops what a goal cancel cannot (a gripper motion, a goal someone else sent). The goal
+cancel is kept as the stop for a robot without a halt service.
+
+The execution in flight learns of a halt through a count: every command notes the count when
+it starts (:meth:`HaltSwitch.mark`) and checks it before each motion it commands, so a halt
+while it plans, between waypoints or during a gripper motion ends it too, and a goal sent just
+as the halt arrived is cancelled as soon as it is accepted. The halt itself never waits for
+planning or for the execution to wind down: it answers once the robot confirms it holds still.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import Any
+
+from affordance_template_msgs.srv import Halt
+from at_ros.server_core import CommandRefused, ServerCore
+from caretaker_sim_msgs.srv import Halt as RobotHalt
+
+__all__ = ["HALT_TIMEOUT", "HaltSwitch", "Halted"]
+
+LOG = logging.getLogger(__name__)
+
+#: s to wait for the robot to confirm a halt; it answers within a physics step when it can.
+HALT_TIMEOUT = 2.0
+
+
+class Halted(CommandRefused):
+    """A command ended by a halt; ``reason`` is the halt's."""
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
+
+
+class HaltSwitch:
+    """The halts so far, and the trajectory goal in flight a halt must cancel.
+
+    ``halt_client`` calls the robot's halt service (caretaker_sim_msgs/srv/Halt), or is None
+    for a robot without one.
+    """
+
+    def __init__(self, core: ServerCore, *, halt_client: Any | None) -> None:
+        self.core = core
+        self.halt_client = halt_client
+        self._lock = threading.Lock()
+        self._count = 0
+        self._reason = ""
+        self._goal: Any = None  # ClientGoalHandle of the trajectory goal in flight
+
+    def mark(self) -> int:
+        """The number of halts so far: a command notes it when it starts."""
+        with self._lock:
+            return self._count
+
+    def halted_since(self, mark: int) -> str | None:
+        """The reason of the last halt if one came after ``mark``, else None."""
+        with self._lock:
+            return self._reason if self._count != mark else None
+
+    def check(self, mark: int, what: str) -> None:
+        """Raise :class:`Halted` if a halt came after ``mark``; ``what`` is what it stopped."""
+        reason = self.halted_since(mark)
+        if reason is not None:
+            raise Halted(reason, f"halted ({reason}) {what}")
+
+    def goal_started(self, handle: Any, mark: int) -> None:
+        """Note the goal in flight; one accepted just after a halt is cancelled now."""
+        with self._lock:
+            self._goal = handle
+            late = self._count != mark
+        if late:
+            handle.cancel_goal_async()
+
+    def goal_ended(self) -> None:
+        with self._lock:
+            self._goal = None
+
+    def halt(self, request: Halt.Request, response: Halt.Response) -> Any:
+        """The halt service: stop everything now, then say what was stopped."""
+        core = self.core
+        reason = request.reason.strip() or "no reason given"
+        with self._lock:
+            self._count += 1
+            self._reason = reason
+            goal = self._goal
+        with core.state_lock:
+            executing = core.state.executing
+            if core.inputs.joints_stamp is not None:
+                response.robot_time = core.inputs.joints_stamp
+        LOG.warning("halt (%s): %s", reason, f"executing {executing}" if executing else "no execution in flight")
+        if goal is not None:
+            goal.cancel_goal_async()  # its result tells the execution; nothing to wait for here
+        if self.halt_client is not None:
+            confirmed, stopped, said = self._halt_robot(self.halt_client, reason)
+        elif goal is not None:
+            confirmed, stopped, said = True, True, "cancelled the trajectory goal (no halt service: a gripper motion goes on)"
+        else:
+            with core.state_lock:
+                moving = core.inputs.moving
+            confirmed, stopped = not moving, False
+            said = "the robot moves, not by this server's command, and has no halt service (halt_service in its config)" if moving else ""
+        response.halted = executing
+        response.success = confirmed
+        if executing or stopped:
+            response.message = f"halted {executing or 'the robot'} ({reason}): {said}"
+        else:
+            response.message = "nothing was moving" if confirmed else f"not confirmed: {said}"
+        if not confirmed:
+            LOG.error("halt not confirmed: %s", said)
+        return response
+
+    @staticmethod
+    def _halt_robot(client: Any, reason: str) -> tuple[bool, bool, str]:
+        """(confirmed, something stopped, what the robot said) of the robot's halt service."""
+        if not client.wait_for_service(timeout_sec=0.5):
+            return False, False, f"the robot's halt service {client.srv_name} is not available"
+        request = RobotHalt.Request()
+        request.reason = reason
+        done = threading.Event()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(HALT_TIMEOUT):
+            future.cancel()
+            return False, False, f"the robot's halt service {client.srv_name} did not answer within {HALT_TIMEOUT:.0f} s"
+        if future.exception() is not None:
+            return False, False, f"the robot's halt service failed: {future.exception()}"
+        result = future.result()
+        return bool(result.success), bool(result.stopped), result.message
