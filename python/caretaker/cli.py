@@ -28,6 +28,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
     "check": ("caretaker.check", "main", "check scene, robot, template, deployment, SysRep and binding files"),
     "link": ("caretaker.link.cli", "main", "emulate a long, lossy ground-habitat link (--delay 1.3 ...)"),
+    "certs": ("caretaker.certs", "main", "make the CA, bridge certificate and secret of a link (DIR --host ADDR)"),
 }
 
 

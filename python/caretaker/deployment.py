@@ -5,8 +5,9 @@ namespace, the rosbridge server's address, port and TLS/auth files, the capture 
 folders, and the bindings this robot side serves (and, for ``caretaker demo``, the procedure to
 run). Every path in it is relative to the deployment file; every key is checked (unknown keys
 are errors) with the shared :mod:`datafile` reader, and the files it names are checked too, so a
-deployment that passes ``caretaker check`` starts. ``link`` and ``ledger`` are sections reserved
-for the parts that read them (a link emulation, the command ledger); they must be mappings.
+deployment that passes ``caretaker check`` starts. ``ledger`` sets the habitat's command ledger
+(always started; its memory lives in the state folder), ``link`` puts an emulated link in front
+of the bridge (a rehearsal on one host: ground clients connect to ``link.listen``).
 
 Example (``deployments/iva.yaml``)::
 
@@ -28,7 +29,6 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 from urllib.parse import urlparse
 
 from at_ros.library import load_library
@@ -37,7 +37,8 @@ from caretaker.binding_file import BindingSummary, check_binding
 from datafile import DataFileError, Field, load_file, shipped_or_path
 from sim.scene import Scene, load_scene
 
-__all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "SHIPPED", "WORLD_CHECK_NAMES", "load_deployment", "resolve_deployment"]
+__all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "LedgerSettings", "LinkEmulation", "SHIPPED",
+           "WORLD_CHECK_NAMES", "load_deployment", "resolve_deployment"]
 
 #: The deployments that ship with Caretaker: ``caretaker up iva`` means this folder's iva.yaml.
 SHIPPED = Path(__file__).resolve().parents[2] / "deployments"
@@ -67,6 +68,36 @@ class BridgeSettings:
 
 
 @dataclass(frozen=True)
+class LedgerSettings:
+    """The habitat's command ledger (``caretaker ledger``): every command key executed at most once."""
+
+    retain_hours: float = 168.0  # finished records kept this long (a week)
+    default_timeout: float = 10.0  # s a call may take when its request names no timeout
+
+
+@dataclass(frozen=True)
+class LinkEmulation:
+    """``caretaker link`` in front of the bridge: what the ground meets on one host (a rehearsal)."""
+
+    listen: tuple[str, int]  # where ground clients connect (port 0: a free one)
+    delay: float = 0.0  # s one way
+    jitter: float = 0.0
+    loss: float = 0.0
+    up_kbps: float | None = None
+    down_kbps: float | None = None
+    seed: int = 0
+
+    def options(self) -> list[str]:
+        """The ``caretaker link`` options of this emulation (but --listen, --to and --control)."""
+        options = ["--delay", str(self.delay), "--jitter", str(self.jitter), "--loss", str(self.loss),
+                   "--seed", str(self.seed)]
+        for option, value in (("--up-kbps", self.up_kbps), ("--down-kbps", self.down_kbps)):
+            if value is not None:
+                options += [option, str(value)]
+        return options
+
+
+@dataclass(frozen=True)
 class DemoRun:
     """What ``caretaker demo`` runs on this robot side, and how it checks the world afterwards."""
 
@@ -93,8 +124,8 @@ class Deployment:
     time_scale: float
     bindings: tuple[Path, ...]
     demo: DemoRun | None
-    link: dict[str, Any] = field(default_factory=dict)
-    ledger: dict[str, Any] = field(default_factory=dict)
+    link: LinkEmulation | None = None  # None: ground clients reach the bridge itself
+    ledger: LedgerSettings = field(default_factory=LedgerSettings)
 
 
 def resolve_deployment(name_or_path: str | Path) -> Path:
@@ -137,11 +168,45 @@ def _demo(f: Field | None) -> DemoRun | None:
     )
 
 
-def _reserved(f: Field | None) -> dict[str, Any]:
+def _ledger(f: Field | None) -> LedgerSettings:
     if f is None:
-        return {}
-    f.mapping(any_keys=True)
-    return f.plain()  # type: ignore[no-any-return]
+        return LedgerSettings()
+    f.mapping(optional=("retain_hours", "default_timeout"))
+    defaults = LedgerSettings()
+    return LedgerSettings(
+        retain_hours=f["retain_hours"].number(min=0.01) if f.has("retain_hours") else defaults.retain_hours,
+        default_timeout=f["default_timeout"].number(min=0.01) if f.has("default_timeout") else defaults.default_timeout,
+    )
+
+
+def _address(f: Field) -> tuple[str, int]:
+    text = f.text()
+    host, colon, port = text.rpartition(":")
+    if not colon or not host or not port.isdigit() or int(port) > 65535:
+        raise f.fail(f"{text!r} is not HOST:PORT, e.g. 127.0.0.1:9091")
+    return host.strip("[]"), int(port)
+
+
+def _link(f: Field | None) -> LinkEmulation | None:
+    if f is None:
+        return None
+    f.mapping(required=("listen",), optional=("delay", "jitter", "loss", "up_kbps", "down_kbps", "seed"))
+    return LinkEmulation(
+        listen=_address(f["listen"]),
+        delay=f["delay"].number(min=0.0, max=3600.0) if f.has("delay") else 0.0,
+        jitter=f["jitter"].number(min=0.0, max=3600.0) if f.has("jitter") else 0.0,
+        loss=_loss(f["loss"]) if f.has("loss") else 0.0,
+        up_kbps=f["up_kbps"].number(min=0.001) if f.has("up_kbps") else None,
+        down_kbps=f["down_kbps"].number(min=0.001) if f.has("down_kbps") else None,
+        seed=f["seed"].integer(min=0) if f.has("seed") else 0,
+    )
+
+
+def _loss(f: Field) -> float:
+    loss = f.number(min=0.0)
+    if loss >= 1:
+        raise f.fail(f"expected a fraction >= 0 and < 1 (0.05 is 5 %), got {loss:g}")
+    return loss
 
 
 def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment:
@@ -177,8 +242,8 @@ def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment
         time_scale=root["time_scale"].number(min=0.0, max=1000.0) if root.has("time_scale") else 1.0,
         bindings=tuple(b.file_path() for b in root["bindings"].sequence()) if root.has("bindings") else (),
         demo=_demo(root.get("demo")),
-        link=_reserved(root.get("link")),
-        ledger=_reserved(root.get("ledger")),
+        link=_link(root.get("link")),
+        ledger=_ledger(root.get("ledger")),
     )
     if check_files:
         _check_files(root, deployment, robot)
@@ -220,4 +285,10 @@ def _check_binding_reaches_this_side(f: Field, binding: BindingSummary, deployme
             raise f.fail(f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://")
         if deployment.namespace and not system.namespace.startswith(deployment.namespace + "/"):
             raise f.fail(f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}")
+    if binding.ledger_namespace != deployment.namespace:
+        # The stack puts the command ledger in the deployment's namespace, so that robots sharing a
+        # ROS graph never share a ledger (two ledgers on one name would both execute a command).
+        raise f.fail(f"binding {binding.path} looks for the command ledger in {binding.ledger_namespace or '/'}, but this "
+                     f"deployment's ledger is in {deployment.namespace or '/'} (set ledger_namespace: "
+                     f"{deployment.namespace or '/'} in the binding)")
 

@@ -1,18 +1,22 @@
-"""``caretaker up DEPLOYMENT``: a robot side and its rosbridge server from one deployment file.
+"""``caretaker up DEPLOYMENT``: a robot side, its command ledger and its rosbridge server from one file.
 
-The robot side (simulation, planner, AT server) and the rosbridge server run as separate OS
-processes, as they would in a deployment where the robot and the ground are apart. The stack
-starts them in the order of :data:`PARTS` and waits for each one's ``READY`` line. Which parts
-there are is data: a part is one :class:`Part` entry saying how its command line is made from
-the deployment, so adding a process (a command ledger, a link emulation) is adding an entry.
+The robot side (simulation, planner, AT server), the command ledger and the rosbridge server run
+as separate OS processes, as they would on a habitat host that the ground reaches over a link.
+The stack starts them in the order of :data:`PARTS` and waits for each one's ``READY`` line.
+Which parts there are is data: a part is one :class:`Part` entry saying how its command line is
+made from the deployment (and whether the deployment wants it), so adding a process is adding
+an entry. A deployment with a ``link:`` section also gets ``caretaker link`` in front of the
+bridge, so a ground team can rehearse over the link they will fly with on one host.
 
 When a part dies, ``caretaker up`` restarts it, as a robot's process supervisor would: the AT
-server comes back with its instances (``--state-file`` in the stack's state folder), the
-planner and rosbridge come back empty (rosbridge on the port it had, even if it was picked with
-port 0), and a procedure carries on through its contingency steps. The simulation is the world
-itself: if it dies, or a part keeps dying (more than :data:`RESPAWN_LIMIT` times in
-:data:`RESPAWN_WINDOW_S`), everything stops, so the stack never leaves a half-running robot
-behind. ``caretaker demo`` restarts nothing: a demo that needed a restart has failed.
+server comes back with its instances (``--state-file`` in the stack's state folder), the ledger
+with its memory (``--state-dir`` there too: a command sent before the restart is still executed
+at most once, and its outcome is still known), the planner and rosbridge come back empty
+(rosbridge and the link on the ports they had, even if picked with port 0), and a procedure
+carries on. The simulation is the world itself: if it dies, or a part keeps dying (more than
+:data:`RESPAWN_LIMIT` times in :data:`RESPAWN_WINDOW_S`), everything stops, so the stack never
+leaves a half-running robot behind. ``caretaker demo`` restarts nothing: a demo that needed a
+restart has failed.
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ class StackRun:
     bridge_address: str
     bridge_port: int  # 0 until the bridge picked one, when the deployment says 0
     state_dir: Path
+    link_port: int = 0  # the emulated link's listening port (0 until it picked one, if asked to)
 
 
 @dataclass(frozen=True)
@@ -59,12 +64,13 @@ class Part:
     """One process of a robot side: its name, and its ``caretaker`` command line for a deployment.
 
     ``world``: the part *is* the world (the simulation); it is never restarted, and its death
-    ends the stack.
+    ends the stack. ``wanted``: whether a deployment has this part (default: every one does).
     """
 
     name: str
     command: Callable[[Deployment, StackRun], list[str]]
     world: bool = False
+    wanted: Callable[[Deployment], bool] = lambda deployment: True
 
 
 def _robot_options(deployment: Deployment) -> list[str]:
@@ -93,6 +99,32 @@ def _at_server(deployment: Deployment, run: StackRun) -> list[str]:
     return ["at-server", *_robot_options(deployment), "--state-file", str(run.state_dir / "at_server.json")]
 
 
+def _ledger(deployment: Deployment, run: StackRun) -> list[str]:
+    ledger = deployment.ledger
+    args = ["ledger", "--state-dir", str(run.state_dir / "ledger"), "--retain-hours", str(ledger.retain_hours),
+            "--default-timeout", str(ledger.default_timeout)]
+    namespace = deployment.namespace
+    if namespace:  # robots sharing a ROS graph each have their own ledger (bindings: ledger_namespace)
+        args += ["--ros-args", "-r", f"__ns:={namespace}"]
+        for service in ("execute", "outcome"):
+            args += ["-r", f"/command_ledger/{service}:={namespace}/command_ledger/{service}"]
+    return args
+
+
+def _link(deployment: Deployment, run: StackRun) -> list[str]:
+    link = deployment.link
+    assert link is not None  # wanted only then
+    host, port = link.listen
+    return ["link", "--listen", f"{_host(host)}:{run.link_port or port}",
+            "--to", f"{_host(run.bridge_address)}:{run.bridge_port}", "--control", str(run.state_dir / "link.sock"),
+            *link.options()]
+
+
+def _host(address: str) -> str:
+    """An address as the host part of HOST:PORT (IPv6 in brackets)."""
+    return f"[{address}]" if ":" in address else address
+
+
 def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     bridge = deployment.bridge
     args = ["bridge", "--address", run.bridge_address, "--port", str(run.bridge_port)]
@@ -107,7 +139,9 @@ PARTS: tuple[Part, ...] = (
     Part("sim", _sim, world=True),
     Part("planner", _planner),
     Part("at-server", _at_server),
+    Part("ledger", _ledger),
     Part("bridge", _bridge),
+    Part("link", _link, wanted=lambda deployment: deployment.link is not None),
 )
 
 
@@ -146,7 +180,7 @@ class Stack:
         unknown = sorted(set(parts or ()) - {p.name for p in PARTS})
         if unknown:
             raise StackFailed(f"unknown parts {unknown}; parts are {', '.join(p.name for p in PARTS)}")
-        self.parts = [p for p in PARTS if parts is None or p.name in parts]
+        self.parts = [p for p in PARTS if (parts is None or p.name in parts) and p.wanted(deployment)]
         self.env = dict(os.environ if env is None else env)
         self.env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         if deployment.domain_id is not None:
@@ -173,7 +207,15 @@ class Stack:
     @property
     def bridge_url(self) -> str:
         """The rosbridge server's URL (its actual port once it started)."""
-        return f"{self.deployment.bridge.scheme}://{self.run.bridge_address}:{self.run.bridge_port}"
+        return f"{self.deployment.bridge.scheme}://{_host(self.run.bridge_address)}:{self.run.bridge_port}"
+
+    @property
+    def url(self) -> str:
+        """Where ground clients connect: the emulated link when the stack has one, else the bridge."""
+        link = self.deployment.link
+        if link is None or not any(p.name == "link" for p in self.parts):
+            return self.bridge_url
+        return f"{self.deployment.bridge.scheme}://{_host(link.listen[0])}:{self.run.link_port or link.listen[1]}"
 
     def _print_line(self, name: str, line: str) -> None:
         if self.echo:
@@ -210,6 +252,8 @@ class Stack:
         if name == "bridge" and self.run.bridge_port == 0:
             # Keep the port the bridge picked, so a restart serves the same URL.
             self.run.bridge_port = int(line.rsplit(":", 1)[-1])
+        if name == "link" and self.run.link_port == 0:  # READY link HOST:PORT -> HOST:PORT (...)
+            self.run.link_port = int(line.split()[2].rsplit(":", 1)[-1])
         log.info("%s ready in %.1f s: %s", name, time.monotonic() - started, line)
         return proc
 
@@ -317,5 +361,5 @@ def up_main(argv: list[str] | None = None) -> int:
         return 1
     for name, line in stack.ready_lines.items():
         print(f"{name:10} {line}")
-    print(f"READY stack {deployment.name} {stack.bridge_url}", flush=True)
+    print(f"READY stack {deployment.name} {stack.url}", flush=True)
     return _run_until_signal(stack)

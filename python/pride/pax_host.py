@@ -263,6 +263,18 @@ class PaxHost:
         self._link_listeners.append(listener)
         self._host.addLinkListener(listener)
 
+    def traffic(self) -> dict[str, dict[str, int]]:
+        """What each rosbridge connection carried so far: ``{url: {bytes_up, bytes_down,
+        messages_up, messages_down}}`` (WebSocket frames; "up" is ground → habitat), for a run's
+        summary of what it cost the link."""
+        return {
+            str(t.rosbridge().toString()): {
+                "bytes_up": int(t.bytesUp()), "bytes_down": int(t.bytesDown()),
+                "messages_up": int(t.messagesUp()), "messages_down": int(t.messagesDown()),
+            }
+            for t in self._host.traffic()
+        }
+
     def close(self) -> None:
         """Stop the plugins and close the rosbridge connections; safe to call twice."""
         with self._close_lock:

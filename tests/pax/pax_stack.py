@@ -28,7 +28,11 @@ def ros_env_module() -> dict[str, str]:
 @pytest.fixture(scope="module")
 def stack(ros_env_module: dict[str, str]) -> Iterator[Stack]:
     """The IVA deployment's rosbridge (on a free port: ``stack.bridge_url``), simulation, planner
-    and AT server; ``stack.start_part("at-server")`` restarts the AT server after a test killed it."""
+    and AT server (no command ledger); ``stack.start_part("at-server")`` restarts the AT server
+    after a test killed it."""
     # Time scale 4: executions take a quarter of real time; nothing here observes "while moving".
-    with robot_parts("iva", ros_env_module, time_scale=4.0) as stack:
+    # No command ledger: these tests drive the plugins' direct path (a loopback binding on a habitat
+    # without a ledger); the ledger path is tested in tests/ledger and tests/flight.
+    with robot_parts("iva", ros_env_module, time_scale=4.0,
+                     parts=["sim", "planner", "at-server", "bridge"]) as stack:
         yield stack

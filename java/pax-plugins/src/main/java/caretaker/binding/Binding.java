@@ -15,9 +15,12 @@ import javax.net.ssl.SSLContext;
  * @param link the link to the robot's rosbridge (delay, outage budget)
  * @param auth how the rosbridge connections authenticate, or null
  * @param tls whom {@code wss://} connections trust, or null for the JDK's default
+ * @param linkStated the file states a {@code link:}: the robot is across a real link, so commands
+ *     go only through the habitat's command ledger (exactly once, outcome learnt), never directly
+ * @param ledgerNamespace the ROS namespace of the habitat's command ledger ("" = root)
  */
 public record Binding(String robot, List<SystemBinding> systems, String path, LinkOptions link, RosAuth auth,
-        SSLContext tls) {
+        SSLContext tls, boolean linkStated, String ledgerNamespace) {
     /** Copies the list so the record stays immutable. */
     public Binding {
         systems = List.copyOf(systems);

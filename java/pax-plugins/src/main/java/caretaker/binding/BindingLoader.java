@@ -32,9 +32,10 @@ import org.yaml.snakeyaml.error.YAMLException;
  * <pre>
  * robot: iva
  * rosbridge: wss://habitat:9090         # the robot's rosbridge server
- * link:                                 # optional; defaults fit loopback
- *   one_way_delay: 1.3                  # s
+ * link:                                 # optional; defaults fit loopback; stating it makes the
+ *   one_way_delay: 1.3                  # s   habitat's command ledger mandatory
  *   outage_budget: 120                  # s a command in flight waits for a lost link
+ * ledger_namespace: /iva                # optional: where the habitat's command ledger is (default /)
  * security:                             # optional
  *   ca_file: certs/ca.pem               # CA (PEM) that wss:// trusts
  *   secret_file: secrets/bridge.secret  # HMAC auth with the bridge's secret (or token_file)
@@ -54,7 +55,7 @@ import org.yaml.snakeyaml.error.YAMLException;
  */
 public final class BindingLoader {
     private static final Set<String> TOP_LEVEL_KEYS = Set.of("robot", "rosbridge", "systems", "description", "link",
-            "security");
+            "security", "ledger_namespace");
     private static final Set<String> LINK_KEYS = Set.of("one_way_delay", "outage_budget");
     private static final Set<String> SECURITY_KEYS = Set.of("ca_file", "secret_file", "token_file");
     private static final Set<String> ENTRY_KEYS = Set.of("sysrep", "plugins", "namespace", "options", "rosbridge");
@@ -105,7 +106,8 @@ public final class BindingLoader {
         KeyLines lines = new KeyLines(text);
         LinkOptions link = link(path, lines, top.get("link"));
         Map<?, ?> security = section(path, lines, "security", top.get("security"), SECURITY_KEYS);
-        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security));
+        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security),
+                top.get("link") != null, ledgerNamespace(path, lines, top.get("ledger_namespace")));
     }
 
     private static Map<?, ?> section(String path, KeyLines lines, String name, Object raw, Set<String> keys) {
@@ -123,6 +125,17 @@ public final class BindingLoader {
             }
         }
         return map;
+    }
+
+    private static String ledgerNamespace(String path, KeyLines lines, Object raw) {
+        if (raw == null) {
+            return "";
+        }
+        if (!(raw instanceof String text) || !text.matches("(/[A-Za-z_][A-Za-z0-9_]*)+|/")) {
+            throw new BindingException(lines.where(path, "ledger_namespace") + ": must be a ROS namespace like /iva,"
+                    + " got " + raw);
+        }
+        return text.equals("/") ? "" : text;
     }
 
     private static LinkOptions link(String path, KeyLines lines, Object raw) {

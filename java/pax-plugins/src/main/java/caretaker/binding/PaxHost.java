@@ -11,11 +11,13 @@ import caretaker.pax.TelemetryListener;
 import caretaker.pax.TelemetryPlugin;
 import caretaker.pax.TelemetryValue;
 import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LedgerMissingException;
 import caretaker.rosbridge.LinkListener;
 import caretaker.rosbridge.LinkState;
 import caretaker.rosbridge.Ros;
 import caretaker.rosbridge.RosAuthException;
 import caretaker.rosbridge.RosException;
+import caretaker.rosbridge.Traffic;
 import caretaker.sysrep.Command;
 import caretaker.sysrep.SysRep;
 import java.net.URI;
@@ -69,6 +71,7 @@ public final class PaxHost implements AutoCloseable {
      * @throws caretaker.sysrep.SysRepException a SysRep is invalid
      * @throws PluginException a plugin cannot be made (bad option, SysRep does not fit)
      * @throws RosException a rosbridge server cannot be reached or refuses the authentication
+     * @throws LedgerMissingException the binding states a link and the habitat has no command ledger
      */
     public static PaxHost open(Path bindingFile, URI rosbridgeOverride) {
         Binding binding = BindingLoader.load(bindingFile, rosbridgeOverride);
@@ -91,7 +94,8 @@ public final class PaxHost implements AutoCloseable {
                 ros = new Ros(system.rosbridge(), binding.rosOptions());
                 connections.add(ros);
                 byUri.put(system.rosbridge(), ros);
-                CommandLedger ledger = new CommandLedger(ros, binding.link());
+                CommandLedger ledger = new CommandLedger(ros, binding.link(), binding.linkStated(),
+                        binding.ledgerNamespace());
                 ledgers.add(ledger);
                 ledgerOf.put(ros, ledger);
                 connect(system, ros, ledger);
@@ -134,6 +138,8 @@ public final class PaxHost implements AutoCloseable {
             ledger.probe(ros.getOptions().timeout());
         } catch (RosAuthException e) {
             throw new RosAuthException(system.where() + ": " + e.getMessage());
+        } catch (LedgerMissingException e) {
+            throw new LedgerMissingException(system.where() + ": this binding states a link: " + e.getMessage());
         } catch (RosException e) {
             System.getLogger(PaxHost.class.getName()).log(System.Logger.Level.WARNING, system.where()
                     + ": the command ledger did not answer yet: " + e.getMessage());
@@ -263,6 +269,11 @@ public final class PaxHost implements AutoCloseable {
     /** @param listener a listener added before */
     public void removeLinkListener(LinkListener listener) {
         ledgers.forEach(ledger -> ledger.removeLinkListener(listener));
+    }
+
+    /** @return what each rosbridge connection carried so far, in binding order */
+    public List<Traffic> traffic() {
+        return connections.stream().map(Ros::traffic).toList();
     }
 
     /** @return the state of each robot link, in binding order */

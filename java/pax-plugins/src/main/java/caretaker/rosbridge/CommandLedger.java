@@ -22,18 +22,22 @@ import java.util.concurrent.atomic.AtomicInteger;
  * {@link LedgerState#REFUSED} if it certainly never did. An answer of the system is never
  * changed: FAILED stays FAILED, UNKNOWN stays UNKNOWN.
  *
- * <p>A habitat without a ledger (none ever answered on this connection) gets the call directly,
- * logged as a warning: at most once still holds (nothing is re-sent), but a lost reply makes the
- * outcome UNKNOWN instead of being learnt.
+ * <p>A ledger may be <em>required</em> (a binding that states a link requires one): then a
+ * habitat without one gets nothing — {@link #probe} throws {@link LedgerMissingException}, and a
+ * command waits for a ledger within the outage budget (one may be restarting) and is then refused
+ * as never sent. When it is not required (a loopback binding), a habitat without a ledger (none
+ * ever answered on this connection) gets the call directly, logged as a warning: at most once
+ * still holds (nothing is re-sent), but a lost reply makes the outcome UNKNOWN instead of being
+ * learnt.
  *
  * <p>Listeners hear the link's state: connected, or lost since T with N commands in flight.
  * Thread-safe; one per {@link Ros}.
  */
 public final class CommandLedger implements AutoCloseable {
     private static final System.Logger LOG = System.getLogger(CommandLedger.class.getName());
-    /** The ledger's execute service. */
+    /** The ledger's execute service (in the ledger's namespace, if it has one). */
     public static final String EXECUTE_SERVICE = "/command_ledger/execute";
-    /** The ledger's outcome query service. */
+    /** The ledger's outcome query service (in the ledger's namespace, if it has one). */
     public static final String OUTCOME_SERVICE = "/command_ledger/outcome";
     private static final String EXECUTE_TYPE = "caretaker_ledger_msgs/srv/ExecuteOnce";
     private static final String OUTCOME_TYPE = "caretaker_ledger_msgs/srv/CommandOutcome";
@@ -48,9 +52,12 @@ public final class CommandLedger implements AutoCloseable {
             "lost its server");
     /** How long "no ledger on this habitat" is believed before asking again. */
     private static final Duration ABSENCE_RECHECK = Duration.ofSeconds(30);
+    /** Pause before asking again when the habitat answered but not yet usefully (a restarting ledger). */
+    private static final Duration RETRY_PAUSE = Duration.ofMillis(500);
 
     private final Ros ros;
     private final LinkOptions link;
+    private final boolean required;
     private final Service executeService;
     private final Service outcomeService;
     private final List<LinkListener> listeners = new CopyOnWriteArrayList<>();
@@ -64,14 +71,28 @@ public final class CommandLedger implements AutoCloseable {
     private volatile long recheckNanos;
 
     /**
+     * A ledger client that falls back to direct calls on a habitat without a ledger.
+     *
      * @param ros the connection to the habitat's rosbridge
      * @param link the link's delay and outage budget
      */
     public CommandLedger(Ros ros, LinkOptions link) {
+        this(ros, link, false, "");
+    }
+
+    /**
+     * @param ros the connection to the habitat's rosbridge
+     * @param link the link's delay and outage budget
+     * @param required no direct calls: a habitat without a ledger gets no command
+     * @param namespace the ROS namespace of the habitat's ledger ("" = root; a robot that shares
+     *     its ROS graph with others has its ledger in its own namespace, e.g. {@code /bench})
+     */
+    public CommandLedger(Ros ros, LinkOptions link, boolean required, String namespace) {
         this.ros = ros;
         this.link = link;
-        this.executeService = new Service(ros, EXECUTE_SERVICE, EXECUTE_TYPE);
-        this.outcomeService = new Service(ros, OUTCOME_SERVICE, OUTCOME_TYPE);
+        this.required = required;
+        this.executeService = new Service(ros, namespace + EXECUTE_SERVICE, EXECUTE_TYPE);
+        this.outcomeService = new Service(ros, namespace + OUTCOME_SERVICE, OUTCOME_TYPE);
         this.linkWatcher = new RosHandler() {
             @Override
             public void handleConnection() {
@@ -165,6 +186,7 @@ public final class CommandLedger implements AutoCloseable {
      *
      * @param timeout how long to wait for the answer
      * @return true if a ledger answered; false if the habitat has none (commands then go directly)
+     * @throws LedgerMissingException the habitat has none, and one is required
      * @throws RosAuthException the bridge refused this client's authentication
      * @throws RosException no answer
      */
@@ -175,6 +197,11 @@ public final class CommandLedger implements AutoCloseable {
         } catch (ServiceFailedException e) {
             if (!notReached(e)) {
                 throw e;
+            }
+            if (required) {
+                throw new LedgerMissingException("no command ledger at " + ros.getUri() + " (" + e.getReason()
+                        + "); commands over a stated link go only through it, to be executed at most once: start"
+                        + " it on the habitat (`caretaker up` does, or `caretaker ledger --state-dir DIR`)");
             }
             LOG.log(System.Logger.Level.WARNING, "no command ledger at " + ros.getUri() + " (" + e.getReason()
                     + "): commands go directly; a lost reply leaves the outcome UNKNOWN (start `caretaker"
@@ -357,6 +384,20 @@ public final class CommandLedger implements AutoCloseable {
                     return givenUp(outage.describe() + ", outage budget of "
                             + Durations.seconds(link.outageBudget()) + " s spent");
                 }
+                if (ros.isConnected() && !pause()) { // the habitat answered, not yet usefully: no busy loop
+                    return givenUp("interrupted while waiting to send again");
+                }
+            }
+        }
+
+        /** @return false if interrupted (the flag is set again) */
+        private boolean pause() {
+            try {
+                Thread.sleep(RETRY_PAUSE.toMillis());
+                return true;
+            } catch (InterruptedException e) {
+                Thread.currentThread().interrupt();
+                return false;
             }
         }
 

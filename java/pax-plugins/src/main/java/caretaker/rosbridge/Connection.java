@@ -16,6 +16,7 @@ import java.util.concurrent.RejectedExecutionException;
 import java.util.concurrent.ScheduledExecutorService;
 import java.util.concurrent.TimeUnit;
 import java.util.concurrent.TimeoutException;
+import java.util.concurrent.atomic.AtomicLong;
 
 /**
  * The WebSocket under a {@link Ros}: opening it (with the {@code auth} message first), sending on
@@ -71,6 +72,10 @@ final class Connection implements AutoCloseable {
     private String refusal;
     /** When the connection was lost; null while connected and before the first connect. */
     private volatile Instant lostSince;
+    private final AtomicLong bytesUp = new AtomicLong();
+    private final AtomicLong bytesDown = new AtomicLong();
+    private final AtomicLong messagesUp = new AtomicLong();
+    private final AtomicLong messagesDown = new AtomicLong();
 
     Connection(URI uri, RosOptions options, Events events, ScheduledExecutorService timerThread) {
         this.uri = uri;
@@ -151,6 +156,7 @@ final class Connection implements AutoCloseable {
                 String auth = options.auth().message(uri.getHost(), Instant.now(), random).toString();
                 try {
                     opened.sendText(auth, true).get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+                    sent(Traffic.utf8Length(auth));
                 } catch (ExecutionException | TimeoutException | InterruptedException e) {
                     opened.abort();
                     throw e;
@@ -192,6 +198,7 @@ final class Connection implements AutoCloseable {
         if (old != null) {
             try {
                 old.sendClose(WebSocket.NORMAL_CLOSURE, "").get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+                sent(2);
             } catch (InterruptedException e) {
                 Thread.currentThread().interrupt();
             } catch (ExecutionException | TimeoutException e) {
@@ -212,6 +219,28 @@ final class Connection implements AutoCloseable {
             closed = true;
         }
         keepalive.close();
+    }
+
+    /** @see Ros#lastHeardNanos() */
+    long lastHeardNanos() {
+        return keepalive.lastHeardNanos();
+    }
+
+    /** @see Ros#traffic() */
+    Traffic traffic() {
+        return new Traffic(uri, bytesUp.get(), bytesDown.get(), messagesUp.get(), messagesDown.get());
+    }
+
+    /** Counts one message sent with {@code payload} bytes. */
+    private void sent(long payload) {
+        bytesUp.addAndGet(Traffic.frameSize(payload, true));
+        messagesUp.incrementAndGet();
+    }
+
+    /** Counts one message received with {@code payload} bytes. */
+    private void received(long payload) {
+        bytesDown.addAndGet(Traffic.frameSize(payload, false));
+        messagesDown.incrementAndGet();
     }
 
     /** @see Ros#isConnected() */
@@ -261,6 +290,7 @@ final class Connection implements AutoCloseable {
         synchronized (sendLock) {
             try {
                 current.sendText(text, true).get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+                sent(Traffic.utf8Length(text));
             } catch (InterruptedException e) {
                 Thread.currentThread().interrupt();
                 throw new RosException("interrupted while sending to " + uri, e);
@@ -326,6 +356,7 @@ final class Connection implements AutoCloseable {
         synchronized (sendLock) {
             try {
                 current.sendPing(ByteBuffer.allocate(0)).get(options.timeout().toMillis(), TimeUnit.MILLISECONDS);
+                sent(0);
             } catch (InterruptedException e) {
                 Thread.currentThread().interrupt();
             } catch (ExecutionException | TimeoutException e) {
@@ -402,6 +433,8 @@ final class Connection implements AutoCloseable {
      */
     private final class Listener implements WebSocket.Listener {
         private final StringBuilder partial = new StringBuilder();
+        /** UTF-8 bytes of the text message being received. */
+        private long partialBytes;
         /** Why this socket ended, once it has; guarded by {@link #connectionLock}. */
         private String endedBecause;
 
@@ -413,6 +446,8 @@ final class Connection implements AutoCloseable {
         @Override
         public CompletionStage<?> onPing(WebSocket webSocket, ByteBuffer message) {
             keepalive.heard();
+            received(message.remaining());
+            sent(message.remaining()); // the pong
             webSocket.request(1);
             return null; // the JDK answers the ping with a pong itself
         }
@@ -420,6 +455,7 @@ final class Connection implements AutoCloseable {
         @Override
         public CompletionStage<?> onPong(WebSocket webSocket, ByteBuffer message) {
             keepalive.heard();
+            received(message.remaining());
             webSocket.request(1);
             return null;
         }
@@ -428,9 +464,12 @@ final class Connection implements AutoCloseable {
         public CompletionStage<?> onText(WebSocket webSocket, CharSequence data, boolean last) {
             keepalive.heard();
             partial.append(data);
+            partialBytes += Traffic.utf8Length(data);
             if (last) {
                 String text = partial.toString();
                 partial.setLength(0);
+                received(partialBytes);
+                partialBytes = 0;
                 events.received(text);
             }
             webSocket.request(1);
@@ -441,6 +480,7 @@ final class Connection implements AutoCloseable {
         public CompletionStage<?> onBinary(WebSocket webSocket, ByteBuffer data, boolean last) {
             keepalive.heard();
             if (last) {
+                received(data.remaining());
                 events.error(new RosException("binary frame from " + uri + " ignored: this client speaks JSON only"
                         + " (do not request cbor compression)"));
             }
@@ -450,6 +490,7 @@ final class Connection implements AutoCloseable {
 
         @Override
         public CompletionStage<?> onClose(WebSocket webSocket, int statusCode, String reason) {
+            received(2 + Traffic.utf8Length(reason));
             String why = "closed by the server, code " + statusCode + (reason.isEmpty() ? "" : ": " + reason);
             synchronized (connectionLock) {
                 endedBecause = why;

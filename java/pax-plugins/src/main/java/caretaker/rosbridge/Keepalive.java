@@ -45,6 +45,11 @@ final class Keepalive implements AutoCloseable {
         heardAt = Instant.now();
     }
 
+    /** @return {@link System#nanoTime()} when the server was last heard */
+    long lastHeardNanos() {
+        return heardNanos;
+    }
+
     /** @return when the server was last heard */
     Instant lastHeard() {
         return heardAt;

@@ -51,7 +51,12 @@ public final class Ros implements AutoCloseable {
     private final Connection connection;
     private final AtomicLong idCounter = new AtomicLong();
     private final Map<String, PendingCall> pendingCalls = new ConcurrentHashMap<>();
+    /** Subscription handle id → subscription; several may share a topic. */
     private final Map<String, Subscription> subscriptions = new ConcurrentHashMap<>();
+    /** Topic → the one subscribe request the server has for it (shared by every handle). */
+    private final Map<String, JsonObject> feeds = new ConcurrentHashMap<>();
+    /** Guards changes of {@link #subscriptions} and {@link #feeds} together. */
+    private final Object feedLock = new Object();
     private final Map<String, JsonObject> advertisements = new ConcurrentHashMap<>();
     private final Map<String, FragmentBuffer> fragments = new ConcurrentHashMap<>();
     private final List<RosHandler> handlers = new CopyOnWriteArrayList<>();
@@ -188,8 +193,8 @@ public final class Ros implements AutoCloseable {
         for (JsonObject advertise : advertisements.values()) {
             trySend(advertise);
         }
-        for (Subscription subscription : subscriptions.values()) {
-            trySend(subscription.request());
+        for (JsonObject feed : feeds.values()) {
+            trySend(feed);
         }
         for (RosHandler handler : handlers) {
             callbackThread.execute(() -> runHandler(handler::handleConnection));
@@ -235,6 +240,22 @@ public final class Ros implements AutoCloseable {
         } catch (InterruptedException e) {
             Thread.currentThread().interrupt();
         }
+    }
+
+    /**
+     * @return what this connection carried so far, across reconnects: WebSocket frames each way
+     *     (payload and frame headers; TLS and TCP/IP overhead not included)
+     */
+    public Traffic traffic() {
+        return connection.traffic();
+    }
+
+    /**
+     * @return {@link System#nanoTime()} when anything (a message, a pong) last came from the
+     *     server, or when the connection last opened
+     */
+    public long lastHeardNanos() {
+        return connection.lastHeardNanos();
     }
 
     /** @return whether the connection is currently up */
@@ -289,14 +310,61 @@ public final class Ros implements AutoCloseable {
 
     // ---- registrations used by Topic and Service --------------------------------------------
 
-    void subscribe(String id, String topic, JsonObject request, TopicCallback callback) {
-        subscriptions.put(id, new Subscription(topic, request, callback));
-        sendIfConnected(request);
+    /**
+     * Adds a subscription. The server gets one subscription per topic whatever the number of
+     * handles (rosbridge sends every message once per subscription id, and publish messages do not
+     * say which id they are for): its throttle is the smallest asked for, its queue the longest
+     * (0 = the server's default), and it is sent again whenever those change.
+     */
+    void subscribe(String id, String topic, String type, int throttleRate, int queueLength, TopicCallback callback) {
+        synchronized (feedLock) {
+            subscriptions.put(id, new Subscription(id, topic, type, throttleRate, queueLength, callback));
+            updateFeed(topic);
+        }
     }
 
-    void unsubscribe(String id, JsonObject request) {
-        if (subscriptions.remove(id) != null) {
-            sendIfConnected(request);
+    void unsubscribe(String id) {
+        synchronized (feedLock) {
+            Subscription gone = subscriptions.remove(id);
+            if (gone != null) {
+                updateFeed(gone.topic());
+            }
+        }
+    }
+
+    /** Makes the server's subscription to {@code topic} match the handles; caller holds feedLock. */
+    private void updateFeed(String topic) {
+        List<Subscription> handles = subscriptions.values().stream().filter(s -> s.topic().equals(topic)).toList();
+        JsonObject current = feeds.get(topic);
+        if (handles.isEmpty()) {
+            if (current != null) {
+                feeds.remove(topic);
+                JsonObject request = new JsonObject();
+                request.addProperty(Protocol.FIELD_OP, Protocol.OP_UNSUBSCRIBE);
+                request.add(Protocol.FIELD_ID, current.get(Protocol.FIELD_ID));
+                request.addProperty(Protocol.FIELD_TOPIC, topic);
+                sendIfConnected(request);
+            }
+            return;
+        }
+        String type = handles.stream().map(Subscription::type).filter(t -> t != null).findFirst().orElse(null);
+        int throttle = handles.stream().mapToInt(Subscription::throttleRate).min().orElse(0);
+        int queue = handles.stream().anyMatch(s -> s.queueLength() == 0) ? 0
+                : handles.stream().mapToInt(Subscription::queueLength).max().orElse(0);
+        JsonObject request = new JsonObject();
+        request.addProperty(Protocol.FIELD_OP, Protocol.OP_SUBSCRIBE);
+        request.addProperty(Protocol.FIELD_ID, current != null ? current.get(Protocol.FIELD_ID).getAsString()
+                : handles.get(0).id());
+        request.addProperty(Protocol.FIELD_TOPIC, topic);
+        if (type != null) {
+            request.addProperty(Protocol.FIELD_TYPE, type);
+        }
+        request.addProperty(Protocol.FIELD_COMPRESSION, "none");
+        request.addProperty(Protocol.FIELD_THROTTLE_RATE, throttle);
+        request.addProperty(Protocol.FIELD_QUEUE_LENGTH, queue);
+        if (!request.equals(current)) {
+            feeds.put(topic, request);
+            sendIfConnected(request); // the same id again: the server replaces its settings
         }
     }
 
@@ -498,6 +566,7 @@ public final class Ros implements AutoCloseable {
     private record PendingCall(String service, CompletableFuture<ServiceResponse> future) {
     }
 
-    private record Subscription(String topic, JsonObject request, TopicCallback callback) {
+    private record Subscription(String id, String topic, String type, int throttleRate, int queueLength,
+            TopicCallback callback) {
     }
 }

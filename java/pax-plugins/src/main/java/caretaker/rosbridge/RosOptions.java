@@ -67,12 +67,12 @@ public record RosOptions(Duration timeout, Duration reconnectMin, Duration recon
     /**
      * @param link the link the connection crosses
      * @return these options with keepalive that rides out the link's delay and outage budget, and
-     *     a timeout that covers a round trip on it
+     *     a timeout that covers four round trips on it: opening a {@code wss://} connection takes
+     *     three (TCP, TLS, the WebSocket upgrade) and the authentication check one more
      */
     public RosOptions withLink(LinkOptions link) {
-        Duration roundTrip = link.oneWayDelay().multipliedBy(2);
-        return new RosOptions(timeout.plus(roundTrip), reconnectMin, reconnectMax, link.pingInterval(),
-                link.pingTimeout(), auth, tls);
+        return new RosOptions(timeout.plus(link.roundTrip().multipliedBy(4)), reconnectMin, reconnectMax,
+                link.pingInterval(), link.pingTimeout(), auth, tls);
     }
 
     /**

@@ -77,15 +77,10 @@ public final class Topic {
     public void subscribe(TopicCallback callback) {
         synchronized (lock) {
             if (subscribeId != null) {
-                ros.unsubscribe(subscribeId, request(Protocol.OP_UNSUBSCRIBE, subscribeId));
+                ros.unsubscribe(subscribeId);
             }
             subscribeId = Protocol.OP_SUBSCRIBE + ":" + name + ":" + ros.nextId();
-            JsonObject request = request(Protocol.OP_SUBSCRIBE, subscribeId);
-            request.addProperty(Protocol.FIELD_TYPE, type);
-            request.addProperty(Protocol.FIELD_COMPRESSION, "none");
-            request.addProperty(Protocol.FIELD_THROTTLE_RATE, throttleRate);
-            request.addProperty(Protocol.FIELD_QUEUE_LENGTH, queueLength);
-            ros.subscribe(subscribeId, name, request, callback);
+            ros.subscribe(subscribeId, name, type, throttleRate, queueLength, callback);
         }
     }
 
@@ -93,7 +88,7 @@ public final class Topic {
     public void unsubscribe() {
         synchronized (lock) {
             if (subscribeId != null) {
-                ros.unsubscribe(subscribeId, request(Protocol.OP_UNSUBSCRIBE, subscribeId));
+                ros.unsubscribe(subscribeId);
                 subscribeId = null;
             }
         }

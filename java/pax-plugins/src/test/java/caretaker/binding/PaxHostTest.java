@@ -11,6 +11,7 @@ import caretaker.pax.CommandResult;
 import caretaker.pax.Outcome;
 import caretaker.pax.PluginException;
 import caretaker.rosbridge.CommandLedger;
+import caretaker.rosbridge.LedgerMissingException;
 import caretaker.rosbridge.LedgerResponder;
 import caretaker.rosbridge.RosException;
 import caretaker.rosbridge.TestServer;
@@ -81,6 +82,53 @@ class PaxHostTest {
                 URI.create("ws://127.0.0.1:" + port)));
         assertTrue(error.getMessage().contains("caretaker bridge"), error.getMessage());
         assertTrue(error.getMessage().contains("iva.yaml"), error.getMessage());
+    }
+
+    @Test
+    void aBindingThatStatesALinkRefusesAHabitatWithoutALedger(@TempDir Path dir) throws Exception {
+        Path file = dir.resolve("ground.yaml");
+        Files.writeString(file, "robot: iva\nrosbridge: ws://127.0.0.1:1\nlink: {one_way_delay: 0.1, outage_budget: 5}\n"
+                + "systems:\n- sysrep: " + Repo.path("sysrep/cdra.yaml") + "\n  plugins: [ros_convention]\n"
+                + "  namespace: /cdra\n");
+        assertTrue(BindingLoader.load(file, null).linkStated());
+        assertEquals("", BindingLoader.load(file, null).ledgerNamespace());
+        Path namespaced = dir.resolve("namespaced.yaml");
+        Files.writeString(namespaced, Files.readString(file) + "ledger_namespace: /bench\n");
+        assertEquals("/bench", BindingLoader.load(namespaced, null).ledgerNamespace());
+        Files.writeString(namespaced, Files.readString(file) + "ledger_namespace: bench/\n");
+        assertTrue(assertThrows(BindingException.class, () -> BindingLoader.load(namespaced, null)).getMessage()
+                .contains("namespaced.yaml:8: ledger_namespace: must be a ROS namespace like /iva"));
+        assertFalse(BindingLoader.load(BINDINGS.resolve("iva.yaml"), null).linkStated());
+        try (TestServer server = new TestServer()) {
+            server.respond(call -> {
+                if (!"call_service".equals(call.get("op").getAsString())) {
+                    return List.of();
+                }
+                JsonObject reply = JsonParser.parseString("{\"op\":\"service_response\",\"result\":false}")
+                        .getAsJsonObject();
+                reply.add("id", call.get("id"));
+                reply.add("service", call.get("service"));
+                reply.addProperty("values", "Service " + call.get("service").getAsString() + " does not exist");
+                return List.of(reply);
+            });
+            LedgerMissingException error = assertThrows(LedgerMissingException.class, () -> PaxHost.open(file,
+                    server.uri()));
+            assertTrue(error.getMessage().startsWith(file + ": systems[0]: this binding states a link: no command"
+                    + " ledger at " + server.uri()), error.getMessage());
+        }
+    }
+
+    @Test
+    void trafficIsCountedPerConnection() throws Exception {
+        try (TestServer server = new TestServer()) {
+            server.respond(new LedgerResponder(call -> List.of()));
+            try (PaxHost host = PaxHost.open(BINDINGS.resolve("iva.yaml"), server.uri())) {
+                List<caretaker.rosbridge.Traffic> traffic = host.traffic();
+                assertEquals(1, traffic.size(), "both systems share one connection");
+                assertEquals(server.uri(), traffic.get(0).rosbridge());
+                assertTrue(traffic.get(0).bytesUp() > 0 && traffic.get(0).bytesDown() > 0, traffic.toString());
+            }
+        }
     }
 
     @Test

@@ -235,6 +235,40 @@ class CommandLedgerTest {
     }
 
     @Test
+    void aRequiredLedgerIsNeverBypassed() throws Exception {
+        List<JsonObject> direct = new java.util.concurrent.CopyOnWriteArrayList<>();
+        server.respond(call -> {
+            if (!"call_service".equals(call.get("op").getAsString())) {
+                return List.of();
+            }
+            String service = call.get("service").getAsString();
+            if (!service.startsWith("/bench/command_ledger/")) {
+                direct.add(call);
+            }
+            JsonObject reply = new JsonObject();
+            reply.addProperty("op", "service_response");
+            reply.add("id", call.get("id"));
+            reply.add("service", call.get("service"));
+            reply.addProperty("values", "Service " + service + " does not exist");
+            reply.addProperty("result", false);
+            return List.of(reply);
+        });
+        try (CommandLedger ledger = new CommandLedger(ros, new LinkOptions(Duration.ZERO, Duration.ofSeconds(2)),
+                true, "/bench")) {
+            LedgerMissingException missing = org.junit.jupiter.api.Assertions.assertThrows(
+                    LedgerMissingException.class, () -> ledger.probe(Duration.ofSeconds(5)));
+            assertTrue(missing.getMessage().contains("no command ledger at " + server.uri())
+                    && missing.getMessage().contains("/bench/command_ledger/outcome does not exist")
+                    && missing.getMessage().contains("caretaker up"), missing.getMessage());
+            LedgerAnswer refused = ledger.execute("run-1/7.1/1", "/peer/set", null, REQUEST, Duration.ofSeconds(5));
+            assertEquals(LedgerState.REFUSED, refused.state());
+            assertTrue(refused.message().contains("was never sent") && refused.message().contains("no command ledger"),
+                    refused.message());
+            assertTrue(direct.isEmpty(), "no direct call where a ledger is required: " + direct);
+        }
+    }
+
+    @Test
     void aReadOnlyQueryIsAskedAgainAfterADrop() throws Exception {
         BlockingQueue<JsonObject> asked = new LinkedBlockingQueue<>();
         server.respond(call -> {

@@ -104,6 +104,53 @@ class RosTest {
     }
 
     @Test
+    void handlesOfOneTopicShareOneServerSubscriptionAndEachHearsAMessageOnce() throws Exception {
+        BlockingQueue<String> heard = new LinkedBlockingQueue<>();
+        Topic slow = new Topic(ros, "/status", "pkg/msg/S", 500, 1);
+        Topic fast = new Topic(ros, "/status", "pkg/msg/S", 100, 1);
+        slow.subscribe(m -> heard.add("slow " + m.toJsonObject().get("n")));
+        JsonObject first = server.next();
+        assertEquals(500, first.get("throttle_rate").getAsInt());
+        fast.subscribe(m -> heard.add("fast " + m.toJsonObject().get("n")));
+        JsonObject second = server.next();
+        assertEquals(first.get("id"), second.get("id"), "the same subscription, its settings replaced");
+        assertEquals(100, second.get("throttle_rate").getAsInt(), "the least throttle asked for");
+        server.send(json("{\"op\":\"publish\",\"topic\":\"/status\",\"msg\":{\"n\":1}}"));
+        List<String> once = new ArrayList<>(List.of(heard.poll(5, TimeUnit.SECONDS), heard.poll(5, TimeUnit.SECONDS)));
+        Collections.sort(once);
+        assertEquals(List.of("fast 1", "slow 1"), once);
+        fast.unsubscribe();
+        assertEquals(500, server.next().get("throttle_rate").getAsInt(), "back to what the remaining handle asks");
+        slow.unsubscribe();
+        JsonObject unsubscribe = server.next();
+        assertEquals("unsubscribe", unsubscribe.get("op").getAsString());
+        assertEquals(first.get("id"), unsubscribe.get("id"));
+        assertNull(heard.poll(200, TimeUnit.MILLISECONDS));
+    }
+
+    @Test
+    void trafficCountsWebSocketBytesEachWay() throws Exception {
+        Traffic before = ros.traffic();
+        Topic topic = new Topic(ros, "/chatter", "std_msgs/msg/String");
+        BlockingQueue<Message> messages = new LinkedBlockingQueue<>();
+        topic.subscribe(messages::add);
+        String sent = server.next().toString();
+        String text = "{\"op\":\"publish\",\"topic\":\"/chatter\",\"msg\":{\"data\":\"h\u00e9llo\"}}";
+        server.send(text);
+        messages.poll(5, TimeUnit.SECONDS);
+        Traffic after = ros.traffic();
+        assertEquals(server.uri(), after.rosbridge());
+        assertTrue(sent.length() >= 126);
+        assertEquals(sent.length() + 8, after.bytesUp() - before.bytesUp(), "payload, 4-byte header, 4-byte mask");
+        assertEquals(text.getBytes(java.nio.charset.StandardCharsets.UTF_8).length + 2,
+                after.bytesDown() - before.bytesDown(), "payload (\u00e9 is 2 bytes) and a 2-byte header");
+        assertEquals(1, after.messagesUp() - before.messagesUp());
+        assertEquals(1, after.messagesDown() - before.messagesDown());
+        assertEquals(200 + 4 + 4, Traffic.frameSize(200, true));
+        assertEquals(70000 + 10, Traffic.frameSize(70000, false));
+    }
+
+    @Test
     void closeReturnsOnlyAfterARunningCallbackFinished() throws Exception {
         CountDownLatch entered = new CountDownLatch(1);
         CountDownLatch release = new CountDownLatch(1);

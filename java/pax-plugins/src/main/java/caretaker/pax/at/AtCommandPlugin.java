@@ -321,7 +321,7 @@ public final class AtCommandPlugin implements CommandPlugin {
         }
         List<TemplateInstance> instances = new ArrayList<>();
         for (JsonElement name : reply.getAsJsonArray("templates")) {
-            TemplateInstance instance = TemplateInstance.parse(name.getAsString());
+            TemplateInstance instance = TemplateInstance.parseOrNull(name.getAsString());
             if (instance != null) {
                 instances.add(instance);
             }

@@ -33,6 +33,18 @@ public record TemplateInstance(String type, int id) {
         }
     }
 
+    /**
+     * @param text what a server reported as an instance
+     * @return the instance, or null if {@code text} is not a valid {@code type:id}
+     */
+    public static TemplateInstance parseOrNull(String text) {
+        try {
+            return parse(text);
+        } catch (IllegalArgumentException e) {
+            return null;
+        }
+    }
+
     /** @return {@code type:id} */
     @Override
     public String toString() {

@@ -48,7 +48,10 @@ import java.util.concurrent.TimeUnit;
  *       command goes through the command ledger with its key: executed at most once.</li>
  *   <li>Telemetry item {@code t} subscribes to topic {@code <ns>/t}: boolean → {@code std_msgs/msg/Bool},
  *       string → {@code std_msgs/msg/String}, integer → {@code std_msgs/msg/Int64},
- *       real → {@code std_msgs/msg/Float64}; the value is the message's {@code data}.</li>
+ *       real → {@code std_msgs/msg/Float64}; the value is the message's {@code data}. These
+ *       messages carry no stamp: a value's timestamp is its arrival less the link's one-way delay
+ *       (when it left the habitat), and the bridge queues one message per topic for this client,
+ *       so an outage leaves the newest value to send, not a backlog.</li>
  * </ul>
  *
  * <p>Options: {@code services} / {@code topics} (name → ROS name) for the odd name that breaks
@@ -63,6 +66,8 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
     private static final String TRIGGER = "std_srvs/srv/Trigger";
 
     private final Duration callTimeout;
+    /** The link's expected one-way delay: how old a value at least is when it arrives. */
+    private final Duration oneWay;
     private final CommandLedger ledger;
     private final Map<String, Service> services = new LinkedHashMap<>();
     private final List<Topic> topics = new ArrayList<>();
@@ -79,6 +84,7 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
         super(context.sysRep());
         this.callTimeout = context.options().seconds("call_timeout", Duration.ofSeconds(10));
         this.ledger = context.ledger();
+        this.oneWay = ledger.link().oneWayDelay();
         Map<String, String> serviceNames = context.options().stringMap("services");
         Map<String, String> serviceTypes = context.options().stringMap("service_types");
         Map<String, String> topicNames = context.options().stringMap("topics");
@@ -93,8 +99,9 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
             services.put(command.id(), new Service(context.ros(), name, type));
         }
         for (Telemetry item : sysRep.telemetry()) {
+            // Queue one: the topics carry state, and after an outage the newest value is what counts.
             Topic topic = new Topic(context.ros(), topicNames.getOrDefault(item.id(), context.resolve(item.id())),
-                    messageType(item.type()));
+                    messageType(item.type()), 0, 1);
             topic.subscribe(message -> received(item, message));
             topics.add(topic);
         }
@@ -160,7 +167,8 @@ public final class RosConventionPlugin extends BoardTelemetryPlugin implements C
                     + e.getMessage(), e);
         }
         lastReceivedNanos.put(item.id(), System.nanoTime());
-        board.put(item.id(), new TelemetryValue(value, Instant.now(), false));
+        // std_msgs carry no stamp: the value was current when it left the habitat, a delay ago.
+        board.put(item.id(), new TelemetryValue(value, Instant.now().minus(oneWay), false));
     }
 
     private synchronized void markStale(long staleAfterNanos) {

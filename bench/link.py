@@ -1,0 +1,175 @@
+"""The IVA procedure flown autonomously across an emulated ground–habitat link: time against its bound.
+
+For each link (none, Gateway's 1.3 s, 1.3 s with 5 % of segments lost, 2.6 s at 64 kbit/s down
+and 16 kbit/s up) this brings up the IVA habitat deployment with its link emulated in front of
+the bridge (``caretaker up`` with a ``link:`` section: wss:// with a secret, the command ledger),
+runs the procedure with ``caretaker run --auto`` through that link with a ground binding stating
+the delay, and reports from the run's audit log, the ledger's records and the link's counters:
+
+- ``run``: RUN_STARTED to RUN_COMPLETED in the audit log (the JVM's start and the connection's
+  opening are not in it; ``wall`` is the whole ``caretaker run`` process);
+- ``habitat``: time the habitat spent on the run's commands (each ledger record's end − start:
+  motion, planning, every service), ``motion`` the executions' share of it;
+- ``N``: ground decisions that wait for an answer: the commands sent (verifies and waits read
+  pushed telemetry and need no round trip);
+- ``bound`` = habitat + N × round trip: what the run would take if the ground cost nothing and
+  each answer came one round trip after its question; ``ratio`` = run / bound;
+- bytes up (ground → habitat) and down that crossed the link, TLS included.
+
+    .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16] [--time-scale 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import random
+import sqlite3
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
+GROUND_BINDING = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    delay: float
+    loss: float = 0.0
+    down_kbps: float | None = None
+    up_kbps: float | None = None
+    tls: bool = True
+
+
+CASES = {
+    "0": Case("no delay", 0.0),
+    "1.3": Case("1.3 s one way", 1.3),
+    "1.3+loss": Case("1.3 s + 5 % loss", 1.3, loss=0.05),
+    # ws:// (still with the secret): the bridge gives a client 10 s (websockets' open_timeout) from
+    # accepting it to the WebSocket upgrade, and TLS + upgrade take four one-way delays after the
+    # accept here (10.4 s): the bridge resets the connection.
+    "2.6@64/16": Case("2.6 s, 64/16 kbit/s, ws://", 2.6, down_kbps=64, up_kbps=16, tls=False),
+}
+
+
+def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path], status_throttle: float | None) -> Path:
+    data = yaml.safe_load(GROUND_BINDING.read_text())
+    if status_throttle is not None:
+        data["systems"][0]["options"]["status_throttle"] = status_throttle
+    data["link"] = {"one_way_delay": case.delay, "outage_budget": 120}
+    data["security"] = {"secret_file": str(credentials["rosbridge.secret"])}
+    if case.tls:
+        data["security"]["ca_file"] = str(credentials["ca.pem"])
+    data["rosbridge"] = f"{'wss' if case.tls else 'ws'}://127.0.0.1:9090"
+    for system in data["systems"]:
+        system["sysrep"] = str((GROUND_BINDING.parent / system["sysrep"]).resolve())
+    path = folder / "ground.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding: Path, seed: int) -> Path:
+    source = REPO / "deployments" / "iva-habitat.yaml"
+    data = yaml.safe_load(source.read_text())
+    for key in ("scene", "robot", "templates", "robots"):
+        data[key] = str((source.parent / data[key]).resolve())
+    data["bridge"] = {"address": "127.0.0.1", "port": 0, "auth_secret_file": str(credentials["rosbridge.secret"])}
+    if case.tls:
+        data["bridge"].update(certfile=str(credentials["bridge.pem"]), keyfile=str(credentials["bridge.key"]))
+    data["state_dir"] = str(folder / "state")
+    data["bindings"] = [str(binding)]
+    link: dict[str, Any] = {"listen": "127.0.0.1:0", "delay": case.delay, "loss": case.loss, "seed": seed}
+    if case.down_kbps:
+        link.update(down_kbps=case.down_kbps, up_kbps=case.up_kbps)
+    data["link"] = link
+    path = folder / "habitat.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_throttle: float | None = None
+        ) -> dict[str, Any]:
+    """One run of the procedure across ``case``'s link; its figures."""
+    from caretaker.certs import make_link_credentials
+    from caretaker.link import LinkControl
+    from caretaker.processes import caretaker
+    from pride.audit_log import AuditLog
+    from pride.events import EventKind
+
+    with tempfile.TemporaryDirectory(prefix="caretaker-bench-link-") as tmp:
+        folder = Path(tmp)
+        credentials = make_link_credentials(folder / "link", ["127.0.0.1"], days=1)
+        binding = _ground_binding(folder, case, credentials, status_throttle)
+        deployment = _deployment(folder, case, credentials, binding, seed)
+        up = caretaker("up", str(deployment), "--time-scale", time_scale, env=env, name="up")
+        run = None
+        try:
+            url = up.wait_for_line(r"^READY stack ", 300).split()[-1]
+            db = f"sqlite:///{folder / 'audit.db'}"
+            started = time.monotonic()
+            run = caretaker("run", str(PROCEDURE), "--binding", str(binding), "--rosbridge", url, "--auto",
+                            "--user", "bench", "--db", db, "--confirm-manual", "--set=clean_filter_id=CDRA-F-0012",
+                            env=env, name="run")
+            words = run.wait_for_line(r"^RESULT ", 1800).split()
+            wall = time.monotonic() - started
+            if words[1] != "completed":
+                raise RuntimeError(f"{case.name}: the run ended {words[1]}:\n{run.tail(40)}")
+            audit = AuditLog(db)
+            try:
+                events = audit.events(words[3])
+            finally:
+                audit.close()
+            stats = LinkControl(folder / "state" / "link.sock").stats()
+            with contextlib.closing(sqlite3.connect(folder / "state" / "ledger" / "command_ledger.sqlite")) as ledger:
+                records = ledger.execute("SELECT service, finished - started FROM commands").fetchall()
+        finally:
+            if run is not None:
+                run.stop()
+            up.stop()
+    first = next(e.time for e in events if e.kind is EventKind.RUN_STARTED)
+    last = next(e.time for e in events if e.kind is EventKind.RUN_COMPLETED)
+    answers = sum(e.kind is EventKind.COMMAND_SENT for e in events)
+    habitat = sum(seconds for _, seconds in records)
+    motion = sum(seconds for service, seconds in records if service.endswith("/execute_command"))
+    run_s = (last - first).total_seconds()
+    bound = habitat + answers * 2 * case.delay
+    return {"case": case.name, "wall": wall, "run": run_s, "habitat": habitat, "motion": motion, "N": answers,
+            "verifies": sum(e.kind is EventKind.TELEMETRY_SEEN for e in events), "bound": bound,
+            "ratio": run_s / bound, "up": stats.up_bytes, "down": stats.down_bytes,
+            "stalls": stats.up_stalls + stats.down_stalls}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
+    parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
+    parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
+    parser.add_argument("--status-throttle", type=float, help="at_telemetry's status_throttle (s; default the plugin's)")
+    args = parser.parse_args(argv)
+    unknown = [name for name in args.cases.split(",") if name not in CASES]
+    if unknown:
+        parser.error(f"unknown cases {unknown}; cases are {', '.join(CASES)}")
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(101, 200)))
+    env = dict(os.environ)
+    print("| link | run | wall | habitat (motion) | N | bound | ratio | bytes up | bytes down | stalls |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for name in args.cases.split(","):
+        r = fly(CASES[name], time_scale=args.time_scale, seed=args.seed, env=env, status_throttle=args.status_throttle)
+        print(f"| {r['case']} | {r['run']:.1f} s | {r['wall']:.1f} s | {r['habitat']:.1f} s ({r['motion']:.1f} s) "
+              f"| {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× | {r['up'] / 1024:.1f} KiB "
+              f"| {r['down'] / 1024:.1f} KiB | {r['stalls']} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

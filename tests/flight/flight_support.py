@@ -1,0 +1,177 @@
+"""The IVA procedure flown across the emulated link: a habitat host, a ground host, and what each saw.
+
+Habitat namespace: ``caretaker up`` of the IVA habitat deployment (wss:// with a secret, the
+command ledger's memory in a folder the test reads) and :mod:`habitat_probe` (what the arm really
+did). Link namespace: ``caretaker link``. Ground namespace: ``caretaker run`` of the IVA
+procedure, autonomous, with a ground binding that states the link (so every command goes
+through the ledger), and its audit log in a SQLite file the test reads.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sqlite3
+import subprocess
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from caretaker.certs import make_link_credentials
+from caretaker.processes import REPO, ManagedProcess
+from pride.audit_log import AuditLog
+from pride.events import Event, EventKind
+from support.stack import write_deployment
+from support.two_hosts import LinkProcess, TwoHosts
+
+PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
+GROUND_BINDING = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
+PROBE = Path(__file__).with_name("habitat_probe.py")
+BRIDGE_PORT = 9090
+CLEAN_FILTER = "CDRA-F-0012"
+#: The pull-out of the dirty filter: the execute the outages aim at.
+PULL_OUT = "grasp_and_pull"
+RUN_TIMEOUT_S = 900.0
+
+
+@dataclass
+class Habitat:
+    """``caretaker up`` in the habitat namespace, and the folder its ledger keeps its memory in."""
+
+    up: ManagedProcess
+    state_dir: Path
+
+    def ledger_records(self) -> list[dict[str, Any]]:
+        """Every command the ledger executed (or refused), in the order it got them."""
+        path = self.state_dir / "ledger" / "command_ledger.sqlite"
+        with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as db:
+            db.row_factory = sqlite3.Row
+            return [dict(row) for row in db.execute("SELECT * FROM commands ORDER BY started")]
+
+
+@dataclass
+class Flight:
+    hosts: TwoHosts
+    habitat: Habitat
+    probe: ManagedProcess
+    link: LinkProcess
+    binding: Path
+    db_url: str
+    credentials: dict[str, Path]
+    time_scale: str
+
+    @property
+    def url(self) -> str:
+        """The habitat's bridge as the ground reaches it: wss:// through the link."""
+        return f"wss://{self.link.address[0]}:{self.link.address[1]}"
+
+    def run(self, *extra: str) -> ManagedProcess:
+        """``caretaker run`` of the IVA procedure in the ground namespace, autonomous and unattended."""
+        return self.hosts.caretaker(
+            self.hosts.ground, "run", str(PROCEDURE), "--binding", str(self.binding), "--auto", "--user", "flight",
+            "--db", self.db_url, "--confirm-manual", f"--set=clean_filter_id={CLEAN_FILTER}", *extra,
+            ready=r"^READY run ", timeout=180)
+
+    def events(self, run_id: str) -> list[Event]:
+        audit = AuditLog(self.db_url)
+        try:
+            return audit.events(run_id)
+        finally:
+            audit.close()
+
+    def goals(self) -> list[tuple[str, int]]:
+        """Every arm trajectory goal that ended on the habitat: (id, status)."""
+        return [(words[1], int(words[2])) for words in (line.split() for line in self.probe.output)
+                if words[:1] == ["GOAL"]]
+
+    def await_execution(self, trajectory: str, timeout: float = RUN_TIMEOUT_S) -> str:
+        """Block until the habitat's AT server executes ``trajectory``; return the probe's line."""
+        return self.probe.wait_for_line(rf"^EXECUTING \S+ {trajectory}$", timeout)
+
+    def kill_bridge(self) -> int:
+        """SIGKILL the habitat's rosbridge server (a crash); ``caretaker up`` restarts it. Returns its pid."""
+        for pid in self._habitat_pids():
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+            if len(argv) > 2 and argv[1].endswith(b"caretaker") and argv[2] == b"bridge":
+                os.kill(pid, signal.SIGKILL)
+                return pid
+        raise AssertionError(f"no caretaker bridge runs in {self.hosts.habitat.namespace}")
+
+    def restart_habitat_without_memory(self) -> Habitat:
+        """A new habitat side after the old one died, its memory lost: a new state folder (a new
+        ledger epoch, no AT instances), the simulation's world from the start."""
+        state = self.hosts.folder / f"habitat-state-{len(self.hosts.processes)}"
+        self.habitat = start_habitat(self.hosts, self.credentials, self.binding, state, time_scale=self.time_scale)
+        return self.habitat
+
+    def _habitat_pids(self) -> list[int]:
+        listed = subprocess.run(["ip", "netns", "pids", self.hosts.habitat.namespace], capture_output=True,
+                                text=True, check=True, timeout=30).stdout.split()
+        return [int(pid) for pid in listed]
+
+
+def write_ground_binding(folder: Path, url: str, credentials: dict[str, Path], *, one_way_delay: float,
+                         outage_budget: float) -> Path:
+    """The shipped ground binding with this flight's URL, link and credentials (paths made absolute)."""
+    data = yaml.safe_load(GROUND_BINDING.read_text())
+    data["rosbridge"] = url
+    data["link"] = {"one_way_delay": one_way_delay, "outage_budget": outage_budget}
+    data["security"] = {"ca_file": str(credentials["ca.pem"]), "secret_file": str(credentials["rosbridge.secret"])}
+    for system in data["systems"]:
+        system["sysrep"] = str((GROUND_BINDING.parent / system["sysrep"]).resolve())
+    path = folder / "iva-ground.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def start_habitat(hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *,
+                  time_scale: str) -> Habitat:
+    """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret."""
+    deployment = write_deployment(
+        hosts.folder, "iva-habitat",
+        bridge={"address": "0.0.0.0", "port": BRIDGE_PORT, "certfile": str(credentials["bridge.pem"]),
+                "keyfile": str(credentials["bridge.key"]), "auth_secret_file": str(credentials["rosbridge.secret"])},
+        state_dir=str(state_dir), bindings=[str(binding)])
+    up = hosts.caretaker(hosts.habitat, "up", str(deployment), "--bridge-address", hosts.habitat.address,
+                         "--time-scale", time_scale, ready=r"^READY stack ", timeout=240)
+    return Habitat(up, state_dir)
+
+
+@contextlib.contextmanager
+def flight(ros_env: dict[str, str], *, delay: float, link_options: Sequence[str] = (), time_scale: str = "1",
+           outage_budget: float = 120.0) -> Iterator[Flight]:
+    """Both hosts up, the link between them, nothing run yet; everything stopped and removed after."""
+    with TwoHosts.create(ros_env) as hosts:
+        credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address],
+                                            days=2)
+        link_url = f"wss://{hosts.link.address}:{BRIDGE_PORT}"
+        binding = write_ground_binding(hosts.folder, link_url, credentials, one_way_delay=delay,
+                                       outage_budget=outage_budget)
+        probe = hosts.python(hosts.habitat, str(PROBE), ready=r"^READY probe")
+        habitat = start_habitat(hosts, credentials, binding, hosts.folder / "habitat-state", time_scale=time_scale)
+        link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
+        yield Flight(hosts, habitat, probe, link, binding, f"sqlite:///{hosts.folder / 'audit.db'}", credentials,
+                     time_scale)
+
+
+def result_of(run: ManagedProcess, timeout: float = RUN_TIMEOUT_S) -> tuple[str, str]:
+    """(run id, final status) from the runner's ``RESULT <status> run <id>`` line."""
+    words = run.wait_for_line(r"^RESULT ", timeout).split()
+    return words[3], words[1]
+
+
+def commands(events: list[Event]) -> list[tuple[Event, Event | None]]:
+    """Each COMMAND_SENT with the COMMAND_RESULT that answered it (None if none did)."""
+    pairs: list[tuple[Event, Event | None]] = []
+    for event in events:
+        if event.kind is EventKind.COMMAND_SENT:
+            pairs.append((event, None))
+        elif event.kind is EventKind.COMMAND_RESULT:
+            sent = next(i for i in range(len(pairs) - 1, -1, -1) if pairs[i][1] is None
+                        and pairs[i][0].instruction == event.instruction)
+            pairs[sent] = (pairs[sent][0], event)
+    return pairs

@@ -1,0 +1,70 @@
+"""Watch the habitat from inside it: what the arm really did, whatever the ground believes.
+
+Runs in the habitat's network namespace next to ``caretaker up`` and prints one line per fact:
+
+- ``EXECUTING <template> <trajectory>`` when the AT server starts executing (its status topic),
+  ``EXECUTED <template> <trajectory> <status>`` when it stops;
+- ``GOAL <id> <status>`` when a trajectory goal of the arm's controller ends (4 succeeded,
+  5 canceled, 6 aborted), once per goal: every arm motion the simulation carried out.
+
+Prints ``READY probe`` once both subscriptions exist.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import rclpy
+from action_msgs.msg import GoalStatusArray
+from affordance_template_msgs.msg import ServerStatus
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+TERMINAL = {4, 5, 6}
+
+
+class HabitatProbe(Node):
+    def __init__(self, status_topic: str, action: str) -> None:
+        super().__init__("flight_habitat_probe")
+        self.executing: tuple[str, str] | None = None
+        self.ended: set[str] = set()
+        self.create_subscription(ServerStatus, status_topic, self.on_status, 10)
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(GoalStatusArray, f"{action}/_action/status", self.on_goals, latched)
+
+    def on_status(self, status: ServerStatus) -> None:
+        if status.execute_status == ServerStatus.EXECUTE_EXECUTING and self.executing is None:
+            self.executing = (status.active_template, status.active_trajectory)
+            print(f"EXECUTING {self.executing[0]} {self.executing[1]}", flush=True)
+        elif status.execute_status != ServerStatus.EXECUTE_EXECUTING and self.executing is not None:
+            print(f"EXECUTED {self.executing[0]} {self.executing[1]} {status.execute_status}", flush=True)
+            self.executing = None
+
+    def on_goals(self, message: GoalStatusArray) -> None:
+        for goal in message.status_list:
+            goal_id = bytes(goal.goal_info.goal_id.uuid).hex()
+            if goal.status in TERMINAL and goal_id not in self.ended:
+                self.ended.add(goal_id)
+                print(f"GOAL {goal_id} {goal.status}", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--status-topic", default="/affordance_template_server/status")
+    parser.add_argument("--action", default="/arm_controller/follow_joint_trajectory")
+    args = parser.parse_args()
+    rclpy.init()
+    node = HabitatProbe(args.status_topic, args.action)
+    print("READY probe", flush=True)
+    try:
+        rclpy.spin(node)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.destroy_node()  # type: ignore[no-untyped-call]  # rclpy leaves it unannotated
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

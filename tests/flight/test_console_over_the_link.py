@@ -1,0 +1,109 @@
+"""The operator's console on the ground host, flying the IVA procedure across the link, in a browser.
+
+``caretaker serve`` runs in the ground namespace with the ground binding (wss://, secret, 1.3 s
+link); Chromium runs in the ground namespace too (Playwright drives it through a pipe), as an
+operator's browser on the ground network would. The connection to the habitat is reset for 10 s
+while the pull-out executes: the page must show the link lost (since when, commands in flight)
+and then back, and the pull-out's real outcome once the ledger has told it.
+
+The page shows the link state once the executive records LINK_LOST / LINK_RESTORED (helper exec)
+and the console draws it (``#robot-link``, ``data-state`` ``lost``/``connected``); until both
+are there this test is skipped.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from caretaker.processes import REPO, ManagedProcess
+from pride.events import EventKind
+from pride.web.accounts import AccountStore
+
+from .flight_support import PULL_OUT, Flight, flight
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+STATIC = REPO / "python" / "pride" / "web" / "static"
+PAGE_SHOWS_LINK = any("robot-link" in (STATIC / name).read_text() for name in ("index.html", "app.js", "run_view.js"))
+OPERATOR, PASSWORD = "flight", "flight-over-the-link"
+
+
+def _serve(f: Flight) -> tuple[ManagedProcess, str]:
+    """``caretaker serve`` in the ground namespace, offering the ground binding; (process, URL)."""
+    bindings = f.hosts.folder / "bindings"
+    bindings.mkdir()
+    (bindings / f.binding.name).symlink_to(f.binding)
+    db = f"sqlite:///{f.hosts.folder / 'console.db'}"
+    accounts = AccountStore(db)
+    try:
+        accounts.add(OPERATOR, "operator", PASSWORD, name="Flight operator")
+    finally:
+        accounts.close()
+    serve = f.hosts.caretaker(f.hosts.ground, "serve", "--port", "0", "--db", db, "--procedures",
+                              str(REPO / "procedures"), "--bindings", str(bindings), "--rosbridge", f.url,
+                              "--reports", str(f.hosts.folder / "reports"), timeout=120)
+    return serve, serve.wait_ready().split()[-1]
+
+
+def _chromium_in(f: Flight) -> Path:
+    """A launcher that starts Debian's Chromium inside the ground namespace (pipes pass through)."""
+    wrapper = f.hosts.folder / "chromium-on-the-ground"
+    wrapper.write_text(f'#!/bin/sh\nexec ip netns exec {f.hosts.ground.namespace} /usr/bin/chromium "$@"\n')
+    wrapper.chmod(0o755)
+    return wrapper
+
+
+@pytest.fixture
+def ground(ros_env: dict[str, str]) -> Iterator[tuple[Flight, str, Path]]:
+    with flight(ros_env, delay=1.3, time_scale="1") as f:
+        serve, url = _serve(f)
+        yield f, url, _chromium_in(f)
+        serve.stop()
+
+
+@pytest.mark.skipif(not (hasattr(EventKind, "LINK_LOST") and PAGE_SHOWS_LINK),
+                    reason="needs the executive's LINK_LOST/RESTORED events (exec) and the console's #robot-link "
+                           "display: not merged yet")
+def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tuple[Flight, str, Path]) -> None:
+    from playwright.sync_api import expect, sync_playwright
+
+    f, url, chromium = ground
+    with sync_playwright() as driver:
+        browser = driver.chromium.launch(executable_path=str(chromium), headless=True,
+                                         args=["--no-sandbox", "--disable-gpu", "--no-first-run"])
+        try:
+            page = browser.new_page(viewport={"width": 1500, "height": 1000})
+            page.set_default_timeout(60_000)
+            page.goto(url)
+            page.fill("#user-id", OPERATOR)
+            page.fill("#password", PASSWORD)
+            page.click("#sign-in-form button[type=submit]")
+            page.select_option("#start-procedure", "iva_cdra_filter_replacement.xml")
+            page.select_option("#start-binding", f.binding.name)
+            page.check("#start-form input[name=mode][value=autonomous]")
+            page.click("#start-button")
+            expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+            expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected")
+            confirm = page.locator('#procedure li.instruction[data-number="2.6"]')
+            expect(confirm).to_have_class(re.compile(r"\bcurrent\b"), timeout=240_000)
+            confirm.locator("button.done").click()
+            f.await_execution(PULL_OUT)
+            f.link.control.reset(10)
+            link = page.locator("#robot-link")
+            expect(link).to_have_attribute("data-state", "lost")
+            expect(link).to_contain_text(re.compile(r"lost since .*1 command in flight"))
+            expect(page.locator('#audit li[data-kind="link_lost"]')).to_have_count(1)
+            expect(link).to_have_attribute("data-state", "connected", timeout=120_000)
+            expect(page.locator('#audit li[data-kind="link_restored"]')).to_have_count(1)
+            pull = page.locator('#procedure li.instruction[data-number="2.7"]')
+            expect(pull.locator(".detail")).to_contain_text("Result: succeeded", timeout=120_000)
+            page.click("#stop")
+            page.fill("#stop-reason", "link check done")
+            page.click("#stop-yes")
+            expect(page.locator("#run-status")).to_have_text("stopped")
+        finally:
+            browser.close()
