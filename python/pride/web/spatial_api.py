@@ -57,7 +57,7 @@ class SpatialFeeds:
         run_id = live.run_id
         if run_id not in self._feeds:
             path = board.catalog.binding_path(live.binding)
-            link = await run_in_threadpool(read_binding_link, path, rosbridge_url=board.rosbridge_url)
+            link = await run_in_threadpool(read_binding_link, path, rosbridge_url=board.rosbridge_urls.get(live.binding, board.rosbridge_urls.get("")))
             if link is None:
                 return None
             if run_id not in self._feeds:  # (another browser may have made it meanwhile)
@@ -99,7 +99,9 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
         if not user.may_act:  # refused before the body is even read
             raise ActionRefused(403, f"{user.user} is an {user.role.value}: observers may watch the 3D view, not move things")
         board: RunBoard = request.app.state.board
-        live = board.require_live(request.path_params["run_id"])
+        live = board.live(request.path_params["run_id"])
+        if live is None:  # a run hosted by another console is moved from that console
+            raise ActionRefused(404, f"run {request.path_params['run_id']!r} is not live on this console")
         try:
             body = await request.json()
         except ValueError:
