@@ -35,16 +35,20 @@ def postgres() -> Iterator[PostgresServer]:
         yield server
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def playwright() -> Iterator:
-    """One Playwright driver per session, for every suite (its sync API cannot run twice at once in a thread)."""
+    """One Playwright driver per test module.
+
+    Its sync API keeps an asyncio loop marked running on the main thread while it lives, so a
+    session-wide driver would break every later test that calls ``asyncio.run``.
+    """
     from playwright.sync_api import sync_playwright  # only sessions with browser tests load it
 
     with sync_playwright() as driver:
         yield driver
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="module")
 def browser(playwright) -> Iterator:
     """Debian's Chromium, headless."""
     from support.browser import CHROMIUM, CHROMIUM_ARGS

@@ -33,7 +33,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -45,7 +45,7 @@ from sqlalchemy.pool import StaticPool
 
 from pride.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
 from pride.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
-from pride.events import Event, EventKind
+from pride.events import Availability, Event, EventKind
 
 __all__ = ["DEFAULT_DB", "DEFAULT_OUTAGE_BUDGET", "AuditLog", "AuditLogUnavailable", "AuditSequenceError",
            "Availability", "database_url", "open_engine"]
@@ -80,15 +80,6 @@ class AuditSequenceError(ValueError):
         self.run_id = run_id
         self.seq = seq
         self.expected = expected
-
-
-@dataclass(frozen=True)
-class Availability:
-    """Whether appends reach the database; ``since`` is when the current outage began (UTC)."""
-
-    available: bool
-    since: datetime | None = None
-    error: str = ""
 
 
 AvailabilityListener = Callable[[Availability], None]

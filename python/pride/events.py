@@ -10,12 +10,9 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
-if TYPE_CHECKING:
-    from pride.audit_log import Availability
-
-__all__ = ["PAX", "Event", "EventKind", "Journal"]
+__all__ = ["PAX", "Availability", "Event", "EventKind", "Journal"]
 
 #: The actor name of everything the automation does by itself.
 PAX = "PAX"
@@ -117,6 +114,15 @@ class Event:
             "run_id": self.run_id, "seq": self.seq, "kind": self.kind.value, "actor": self.actor,
             "instruction": self.instruction, "data": self.data, "time": self.time.isoformat(),
         }
+
+
+@dataclass(frozen=True)
+class Availability:
+    """Whether appends reach the journal's store; ``since`` is when the current outage began (UTC)."""
+
+    available: bool
+    since: datetime | None = None
+    error: str = ""
 
 
 class Journal(Protocol):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+import threading
 from collections.abc import Iterator
 from urllib.parse import urlparse
 
@@ -83,9 +84,13 @@ def via_pax_plugins(url: str) -> dict:
         registered = host.execute("affordance_templates", "set_display_object_pose", {
             "affordance_template": instance, "id": added.values["id"], "display_object": "cdra_filter",
             "frame": "cabinet/slot", **ZERO_POSE})
+        # The status topic reports the plan a moment after the command's reply: await that message.
+        plan_reported = threading.Event()
+        host.add_listener(lambda sysrep, item, value: item == "plan_valid" and value.value is True
+                          and plan_reported.set())
         planned = host.execute("affordance_templates", "plan_trajectory",
                                {"affordance_template": instance, "trajectory": "grasp_and_pull"})
-        plan_valid = host.telemetry("affordance_templates", "plan_valid").value
+        plan_valid = plan_reported.wait(10) and host.telemetry("affordance_templates", "plan_valid").value
         wrong = host.execute("affordance_templates", "plan_trajectory",
                              {"affordance_template": instance, "trajectory": "no_such_trajectory"})
         import roslibpy

@@ -5,7 +5,9 @@ rosbridge, runner with its JVM), kills one of them at a known point, and checks 
 procedure stops at that instruction with a reason, that the audit log holds every action up
 to the fault, and how the run goes on once the part is back: a pull-out that fails goes to the
 procedure's contingency step "removal_interrupted", which holds for the operator and then plans
-the removal again from where the arm is (the restarted AT server keeps its instances).
+the removal again from where the arm is (the restarted AT server keeps its instances). A pull-out
+whose outcome is not known holds as unknown, and asking again with the same key gets the
+habitat ledger's answer; it never moves the arm a second time.
 """
 
 from __future__ import annotations
@@ -151,8 +153,17 @@ def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> No
         session.send("")
         session.expect(rf"{re.escape(EXECUTE_PULL)}\s+PAX\s+sent affordance_templates\.execute_plan")
         robot.parts["at-server"].kill()
+        # the call was on its way: whether the arm moved is not known, and the run says so
+        session.expect(rf"{re.escape(EXECUTE_PULL)}\s+OUTCOME UNKNOWN: execute_plan")
+        session.expect(r"\[n\] record: it failed[^\n]*> ")
+        events = _events(db, run_id)
+        assert not any(e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED)
+                       and e.instruction == EXECUTE_PULL for e in events), "an unknown outcome was decided"
+        session.send("n")  # the operator sees the arm stopped with the filter in: record it as failed
+        session.expect(r"what did you check on the robot\? > ")
+        session.send("camera: the filter is still in its slot")
         assert _answer_until(session, stop_at=CHECK_AFTER_INTERRUPTION) is None
-        _assert_pull_failed(_events(db, run_id), r"execute_plan")
+        _assert_pull_failed(_events(db, run_id), r"recorded by ops: camera: the filter is still in its slot")
         robot.start("at-server")  # from its state file: cdra_filter and ready_pose with their ids
         robot.parts["at-server"].wait_for_line(r"restored cdra_filter:\d+, ready_pose:\d+ from ", 5)
         session.send("")  # the operator checked the arm: the removal is planned again
@@ -205,8 +216,8 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
     _assert_log_is_whole(before)
     assert any(e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL for e in before)
     assert not any(e.kind is EventKind.RUN_COMPLETED for e in before)
-    # the operator saw the pull-out finish: the in-flight command is not sent again
-    resumed = caretaker("run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual", "--in-flight", "skip")[2:],
+    # the command in flight is asked again with its key: the ledger answers its recorded outcome
+    resumed = caretaker("run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual")[2:],
                         env=robot.env, name="resumed")
     try:
         resumed.proc.wait(timeout=300)
@@ -216,5 +227,10 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
     after = _events(db, run_id)
     _assert_log_is_whole(after)
     assert after[: len(before)] == before, "the resumed run changed what was already logged"
-    assert sum(1 for e in after if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL) == 1
+    sent = [e for e in after if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL]
+    assert len(sent) == 2 and sent[0].data["key"] == sent[1].data["key"], "asked again under a new key"
+    answers = [e for e in after if e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL]
+    assert len(answers) == 1 and answers[0].data["success"], answers
+    # the habitat's ledger answered the key from its record: the arm did not pull a second time
+    robot.parts["ledger"].wait_for_line(rf"{re.escape(sent[1].data['key'])}: re-sent: answered from the record", 5)
     assert after[-1].kind is EventKind.RUN_COMPLETED

@@ -31,12 +31,10 @@ ZERO_POSE = dict(x=0.0, y=0.0, z=0.0, roll=0.0, pitch=0.0, yaw=0.0)
 
 @pytest.fixture(scope="module")
 def binding(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The shipped IVA binding plus the camera SysRep, with a short stale_after for the kill test."""
+    """The shipped IVA binding, moved out of the checkout, with a short stale_after for the kill test."""
     text = (BINDINGS / "iva.yaml").read_text()
     text = text.replace("stale_after: 2.0", f"stale_after: {STALE_AFTER}")
-    text = text.replace("../affordance_templates.yaml", str(REPO / "sysrep/affordance_templates.yaml"))
-    text = text.replace("../cdra.yaml", str(REPO / "sysrep/cdra.yaml"))
-    text += f"- sysrep: {REPO / 'sysrep/camera.yaml'}\n  plugins: [ros_convention]\n  namespace: /camera\n"
+    text = text.replace("sysrep: ../", f"sysrep: {REPO / 'sysrep'}/")
     path = tmp_path_factory.mktemp("binding") / "iva_test.yaml"
     path.write_text(text)
     return path

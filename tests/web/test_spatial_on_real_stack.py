@@ -167,7 +167,7 @@ def open_as(webgl_browser: Browser) -> Iterator[Callable[[WebServer, str], Page]
 def test_iva_view_follows_the_robot_registers_by_drag_and_refuses_observers(
         open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]) -> None:
     with stack_up("iva", ros_env, time_scale="1") as stack:
-        server = start_server(tmp_path, REPO / "procedures", rosbridge=stack.url)
+        server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
         habitat = Habitat(stack.url)
         try:
             run_iva(open_as, server, habitat)
@@ -313,7 +313,7 @@ def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
 def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
         open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]) -> None:
     with stack_up("eva", ros_env) as stack:
-        server = start_server(tmp_path, REPO / "procedures", rosbridge=stack.url)
+        server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
         habitat = Habitat(stack.url)
         try:
             page = open_as(server, "alice")
