@@ -109,6 +109,12 @@ def assert_pose(actual: dict[str, Any], expected: np.ndarray, what: str, *, posi
     assert d <= position and a <= angle, f"{what}: {d * 1000:.2f} mm, {np.degrees(a):.2f} deg away"
 
 
+def wait_for_pose(page: Page, name: str, expected: np.ndarray) -> None:
+    """Wait until the view shows the template part ``name`` within a millimetre of ``expected``."""
+    wait_until(lambda: distance(inspect(page)["templates"][name]["pose"], expected)[0] <= MM,
+               f"{name} in the view at its pose", timeout=30)
+
+
 def inspect(page: Page) -> dict[str, Any]:
     return page.evaluate("window.caretakerSpatial.inspect()")
 
@@ -209,9 +215,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
 
     slot = matrix(habitat.frame("cabinet/slot"))
     wait_view(alice, "v.templates['cdra_filter:0'] !== undefined")
-    deadline = time.monotonic() + 30
-    while distance(inspect(alice)["templates"]["cdra_filter:0"]["pose"], slot)[0] > MM and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_pose(alice, "cdra_filter:0", slot)
     templates = inspect(alice)["templates"]
     assert_pose(templates["cdra_filter:0"]["pose"], slot, "the filter display object at its registration (cabinet/slot)")
     status = habitat.call(f"{AT}/get_template_status", {"name": "cdra_filter:0", "trajectory_name": "grasp_and_pull",
@@ -235,12 +239,10 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     moved[1, 3] -= 0.05
     alice.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0, -0.05, 0]})")
     expect(alice.locator("#spatial-status")).to_contain_text("set_display_object_pose succeeded", timeout=TIMEOUT_MS)
-    deadline = time.monotonic() + 30
-    while distance(inspect(alice)["templates"]["cdra_filter:0"]["pose"], moved)[0] > MM and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_pose(alice, "cdra_filter:0", moved)
     assert_pose(inspect(alice)["templates"]["cdra_filter:0"]["pose"], moved, "the display object where it was dropped")
     wait_view(alice, "!v.ghost.visible")  # the registration invalidated the plan: no ghost of it
-    log = AuditLog(f"sqlite:///{server.db}")
+    log = AuditLog(server.database.url)
     try:
         sent = [e for e in log.events(run_id) if e.kind is EventKind.COMMAND_SENT and e.data.get("command") == "set_display_object_pose"
                 and e.actor == "alice" and e.instruction is None]
@@ -266,9 +268,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     near = slot.copy()
     near[1, 3] -= 0.01
     alice.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0, 0.04, 0]})")
-    deadline = time.monotonic() + 30
-    while distance(inspect(alice)["templates"]["cdra_filter:0"]["pose"], near)[0] > MM and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_pose(alice, "cdra_filter:0", near)
     assert_pose(inspect(alice)["templates"]["cdra_filter:0"]["pose"], near, "dragged back to 1 cm off the filter")
     old_end = habitat.plan_end_in_world(plan)
     replanned = replan()
@@ -298,9 +298,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     target[2, 3] += 0.01
     alice.evaluate(f"window.caretakerSpatial.dragBy('{waypoint}', {{translate: [0, 0, 0.01]}})")
     expect(alice.locator("#spatial-status")).to_contain_text("set_waypoint_pose succeeded", timeout=TIMEOUT_MS)
-    deadline = time.monotonic() + 30
-    while distance(inspect(alice)["templates"][waypoint]["pose"], target)[0] > MM and time.monotonic() < deadline:
-        time.sleep(0.2)
+    wait_for_pose(alice, waypoint, target)
     assert_pose(inspect(alice)["templates"][waypoint]["pose"], target, "the waypoint where it was dropped")
     stop_run(alice, "3D view test done")
 
