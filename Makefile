@@ -18,8 +18,11 @@ test: setup lint test-java test-python
 test-java:
 	@if [ -f pom.xml ]; then mvn -q test; fi
 
+# Two workers (the CI machine has 2 cores; most tests wait on processes, links and browsers), a
+# test file per worker so module fixtures (a robot stack, a browser) are built once.
+PYTEST_WORKERS ?= 2
 test-python:
-	$(PYTEST) tests
+	$(PYTEST) -n $(PYTEST_WORKERS) --dist loadfile --durations=15 tests
 
 demo: setup
 	$(VENV)/bin/caretaker demo deployments/iva.yaml

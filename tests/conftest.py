@@ -1,7 +1,8 @@
 """Test-session settings shared by every suite.
 
 ROS 2 traffic stays on loopback and in a domain of this session's own (claimed with a lock, see
-support/ros_domain.py), so parallel test runs on one machine do not see each other. One
+support/ros_domain.py; each pytest-xdist worker claims its own), so parallel test runs on one
+machine do not see each other. One
 PostgreSQL server serves every suite of the session that needs one (support/postgres.py).
 """
 
@@ -17,7 +18,8 @@ from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-if "ROS_DOMAIN_ID" not in os.environ:
+# pytest-xdist workers inherit the controller's environment: each claims a domain of its own.
+if "ROS_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
     os.environ["ROS_DOMAIN_ID"] = str(claim_ros_domain())
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 
