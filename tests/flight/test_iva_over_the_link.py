@@ -105,8 +105,6 @@ def test_a_30_s_hold_on_a_lossy_link_mid_motion_is_ridden_out(ros_env: dict[str,
         assert not [c for c in stats.connections if c.ended_by == "reset by outage"]
 
 
-@pytest.mark.skipif(not hasattr(EventKind, "OUTCOME_RESOLVED"),
-                    reason="needs the executive's UNKNOWN hold (helper exec, issue 15): not merged yet")
 def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str, str]) -> None:
     """The whole habitat side dies during the pull-out and comes back with its memory lost (a new
     ledger epoch): what became of the pull-out cannot be learnt. The run says so and holds for an
