@@ -64,8 +64,7 @@ def test_yaml_syntax_error_names_line(tmp_path: Path) -> None:
 
 
 def test_two_files_claiming_one_robot_name_are_refused_naming_both(tmp_path: Path) -> None:
-    shipped = default_library_path() / "robots" / "ur10.yaml"
     for name in ("a_ur10.yaml", "b_ur10.yaml"):
-        (tmp_path / name).write_text(shipped.read_text().replace("sim/", str(shipped.parents[4] / "sim") + "/"))
+        _config(tmp_path).rename(tmp_path / name)
     with pytest.raises(LibraryError, match=r"b_ur10\.yaml: robot_name: robot robot_name 'ur10' is already used by .*a_ur10\.yaml"):
         load_robot_configs(tmp_path)
