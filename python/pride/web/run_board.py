@@ -218,14 +218,16 @@ class RunBoard:
         live = LiveRun(executive, gateway, checked.procedure, binding=binding_name, started_by=started_by,
                        sysreps=dict(checked.sysreps), camera_feed=feed, history=history, host=self.hosting.host,
                        on_change=lambda: self.hosting.changed(run_id))
+        with self._lock:  # live here before its host row exists: the listing never sees a row without it
+            self._live[run_id] = live
         try:
             self.hosting.claim(run_id, binding=binding_name, started_by=started_by, procedure_view=live.procedure_view,
                                source=live.published_view)
         except HostedElsewhere as exc:  # another console resumed it a moment ago
+            with self._lock:
+                self._live.pop(run_id, None)
             _release(live)
             raise ActionRefused(409, str(exc)) from None
-        with self._lock:
-            self._live[run_id] = live
         executive.add_listener(lambda event: self._on_end(run_id, event))
         self.list_watchers.wake()
         return live
@@ -383,7 +385,9 @@ class RunBoard:
                 snapshot = live[run_id].executive.snapshot()
                 entry.update(status=snapshot.status.value, mode=snapshot.mode.value, started_by=live[run_id].started_by,
                              live=snapshot.status is RunStatus.ACTIVE, host=self.hosting.host, hosted_here=True)
-            elif record is not None and record.alive:
+            elif record is not None and record.alive and record.host != self.hosting.host:
+                # hosted by another console; a row of this console's without its live run is one
+                # whose release has not reached the database yet: the log says how it ended
                 entry.update(status=record.status, mode=record.mode, started_by=record.started_by,
                              live=record.status == RunStatus.ACTIVE.value, host=record.host, hosted_here=False)
             else:
