@@ -213,6 +213,7 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
         runner.stop()
         status.close()
     before = _events(db, run_id)
+    assert before, f"nothing logged for {run_id} in {db}; the runner printed:\n{runner.tail()}"
     _assert_log_is_whole(before)
     assert any(e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL for e in before)
     assert not any(e.kind is EventKind.RUN_COMPLETED for e in before)
