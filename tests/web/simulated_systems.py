@@ -67,7 +67,8 @@ class SimulatedSystems:
         }
         #: a sensor that stopped reporting: its last value is served, marked stale
         self._stale = {("cdra", "installed_filter_condition")}
-        self._images = Path(tempfile.mkdtemp(prefix="caretaker-web-camera-"))
+        # under the test's folder (SIMULATED_CAMERA_DIR): past runs' reports may still show them
+        self._images = Path(tempfile.mkdtemp(prefix="camera-", dir=os.environ.get("SIMULATED_CAMERA_DIR")))
         self._captures = 0
         self._started = time.time()
         #: how long an execute_plan "moves the robot" (the web view's live camera captures meanwhile)

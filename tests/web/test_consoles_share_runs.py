@@ -127,9 +127,11 @@ def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_r
     expect(bob.locator('#audit li[data-kind="run_resumed"][data-actor="bob"]')).to_have_count(1)
 
 
-def test_a_run_driven_outside_a_console_is_live_on_the_consoles_and_acted_on_from_them(consoles, open_page) -> None:
+def test_a_run_driven_outside_a_console_is_live_on_the_consoles_and_acted_on_from_them(
+        consoles, open_page, tmp_path, monkeypatch) -> None:
     """What `caretaker run` does with a TerminalHost: this test process is the runner."""
     first, _ = consoles
+    monkeypatch.setenv("SIMULATED_CAMERA_DIR", str(tmp_path))
     audit = AuditLog(first.database.url)
     gateway = open_simulated_systems(str(REPO / "sysrep" / "bindings" / "iva.yaml"))
     host = TerminalHost(audit, binding="iva.yaml", name="runner at the bench")

@@ -78,6 +78,7 @@ def start_server(
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
         env["SIMULATED_MOTION_S"] = "0.6"
+        env["SIMULATED_CAMERA_DIR"] = str(tmp)
     else:
         env.pop("PRIDE_GATEWAY", None)
         arguments += [f"--rosbridge={url}" for url in rosbridge]
