@@ -276,6 +276,14 @@ def _values(values: Any) -> str:
     return " · " + ", ".join(f"{label} {text}" for label, text in labelled_values(values))
 
 
+#: How a command's outcome reads; an unknown one is neither a success nor a failure.
+_OUTCOME_WORDS = {"succeeded": "succeeded", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
+
+
+def _reason(data: dict[str, Any]) -> str:
+    return f": {data['reason']}" if data.get("reason") else ""
+
+
 def describe_event(event: Event) -> str:
     """One line saying what an audit record was, in words (the web view's log and the report)."""
     d = event.data
@@ -289,7 +297,8 @@ def describe_event(event: Event) -> str:
         return f"sent {d.get('system')}.{d.get('command')}({args})" + (" [hazardous]" if d.get("hazardous") else "")
     if kind is EventKind.COMMAND_RESULT:
         message = f": {d['message']}" if d.get("message") else ""
-        return f"{'succeeded' if d.get('success') else 'FAILED'}{message}{_values(d.get('values'))}"
+        outcome = _OUTCOME_WORDS.get(str(d.get("outcome")), "succeeded" if d.get("success") else "FAILED")
+        return f"{outcome}{message}{_values(d.get('values'))}"
     if kind is EventKind.TELEMETRY_SEEN:
         verdict = "" if "ok" not in d else (" ✓" if d["ok"] else " ✗")
         stale = " (stale)" if d.get("stale") else ""
@@ -317,4 +326,24 @@ def describe_event(event: Event) -> str:
         return f"entered {d.get('procedure')} with {inputs or 'no inputs'}"
     if kind is EventKind.CONFIRMATION:
         return f"confirmed the hazardous command: {d.get('command', '')}"
+    if kind is EventKind.HALT:
+        told = (d.get("cancel") or {}).get("message")
+        return f"HALT{_reason(d)}" + (f"; the system: {told}" if told else "")
+    if kind is EventKind.INSTRUCTION_HALTED:
+        return f"halted before it finished{_reason(d)}"
+    if kind is EventKind.OUTCOME_RESOLVED:
+        return f"recorded the unknown outcome as {d.get('outcome')}{_reason(d)}"
+    if kind is EventKind.RECORD_CORRECTED:
+        return f"corrected {d.get('name')}: {format_value(d.get('old'))} → {format_value(d.get('value'))}{_reason(d)}"
+    if kind is EventKind.STEPPED_BACK:
+        return f"went back to {d.get('next')}{_reason(d)}"
+    if kind is EventKind.LINK_LOST:
+        n = d.get("in_flight", 0)
+        return f"link lost since {str(d.get('since', ''))[11:19]} UTC, {n} command{'' if n == 1 else 's'} in flight"
+    if kind is EventKind.LINK_RESTORED:
+        return f"link restored after {d.get('seconds')} s"
+    if kind is EventKind.CONTROL_TAKEN:
+        return f"took control of {d.get('robot')} from run {d.get('from_run')} ({d.get('from_user')}){_reason(d)}"
+    if kind is EventKind.CONTROL_LOST:
+        return f"control of {d.get('robot')} taken over by {d.get('by_user')} (run {d.get('by_run')}){_reason(d)}"
     return str(kind.value).replace("_", " ")

@@ -73,7 +73,9 @@ class SimulatedSystems:
         self._started = time.time()
         #: how long an execute_plan "moves the robot" (the web view's live camera captures meanwhile)
         self._motion_s = float(os.environ.get("SIMULATED_MOTION_S", "0"))
-        self._motion = threading.Event()  # never set: waiting on it is the motion's duration
+        self._halt = threading.Event()  # set by a cancel: the motion in progress ends halted
+        self._moving: str | None = None  # the key of the execute_plan in progress
+        self._unanswered: set[str] = set()  # keys of captures whose first answer was lost
         self._instances: dict[str, int] = {}
         self._frames: dict[str, str] = {}
 
@@ -87,7 +89,12 @@ class SimulatedSystems:
         return 0.0
 
     def cancel(self, key: str) -> CancelResult:
-        return CancelResult(True, "nothing was moving")
+        with self._lock:
+            moving = self._moving
+        if moving is None:
+            return CancelResult(True, "nothing was moving")
+        self._halt.set()
+        return CancelResult(True, f"motion {moving} stopped")
 
     def add_link_listener(self, callback: LinkListener) -> None:
         pass  # the simulated link never drops
@@ -104,7 +111,7 @@ class SimulatedSystems:
         if sysrep is None or sysrep.command(command_id) is None:
             return CommandResult(Outcome.FAILED, f"{sysrep_id}.{command_id} is not served here")
         if sysrep_id == "affordance_templates":
-            return self._at(command_id, args)
+            return self._at(command_id, args, key or "")
         if sysrep_id == "cdra":
             if command_id == "unlock_filter":
                 self._set("cdra", "filter_locked", False)
@@ -112,13 +119,16 @@ class SimulatedSystems:
                 self._set("cdra", "filter_locked", True)
             return CommandResult(Outcome.SUCCEEDED, f"{command_id} done")
         if sysrep_id == "camera":
+            if args.get("label") == "unanswered" and key not in self._unanswered:  # the reply is lost once
+                self._unanswered.add(str(key))
+                return CommandResult(Outcome.UNKNOWN, "the reply never came: the image may have been taken")
             self._captures += 1
             path = self._images / f"{self._captures:03d}_{args.get('label') or 'capture'}.png"
             path.write_bytes(_png(160, 120, (self._captures * 70) % 256))
             return CommandResult(Outcome.SUCCEEDED, "captured", {"path": str(path)})
         return CommandResult(Outcome.SUCCEEDED, "ok")
 
-    def _at(self, command_id: str, args: dict[str, Any]) -> CommandResult:
+    def _at(self, command_id: str, args: dict[str, Any], key: str) -> CommandResult:
         template = str(args.get("affordance_template", "")).split(":")[0]
         if command_id == "add_affordance_template":
             self._instances[template] = len(self._instances)
@@ -135,7 +145,16 @@ class SimulatedSystems:
                                                    "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
         if command_id == "execute_plan":
             self._set("affordance_templates", "execute_status", "EXECUTING")
-            self._motion.wait(self._motion_s)
+            with self._lock:
+                self._moving = key
+                self._halt.clear()
+            # a long reach moves until halted (for the halt tests); others take SIMULATED_MOTION_S
+            halted = self._halt.wait(600.0 if args.get("trajectory") == "long_reach" else self._motion_s)
+            with self._lock:
+                self._moving = None
+            if halted:
+                self._set("affordance_templates", "execute_status", "HALTED")
+                return CommandResult(Outcome.HALTED, "the motion stopped on a cancel")
             at_cabinet = self._frames.get(template) == "cabinet/slot"
             if at_cabinet and args.get("trajectory") == "grasp_and_pull":
                 self._set("cdra", "filter_present", False)

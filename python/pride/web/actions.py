@@ -21,12 +21,14 @@ __all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perfo
 
 
 class ActionRefused(Exception):
-    """The request cannot be carried out; ``status`` is the HTTP status that says why."""
+    """The request cannot be carried out; ``status`` is the HTTP status that says why, ``details``
+    what the page needs to offer a way on (e.g. who controls the robot, to take it over)."""
 
-    def __init__(self, status: int, message: str) -> None:
+    def __init__(self, status: int, message: str, details: dict[str, Any] | None = None) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
+        self.details = details or {}
 
 
 @dataclass(frozen=True)
@@ -71,6 +73,12 @@ def _numbered(request: ActionRequest) -> str:
     return request.instruction
 
 
+def _outcome(request: ActionRequest) -> str:
+    if request.value not in ("succeeded", "failed"):
+        raise ActionRefused(400, f"resolve needs value 'succeeded' or 'failed': what the system shows (got {request.value!r})")
+    return str(request.value)
+
+
 #: action name -> (needs the clicked instruction to be the current one, what it does)
 ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] = {
     "perform": (True, lambda ex, user, r: ex.perform(user)),
@@ -84,6 +92,12 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
     "pause": (False, lambda ex, user, r: ex.pause(user)),
     "continue": (False, lambda ex, user, r: ex.resume_automation(user)),
     "stop": (False, lambda ex, user, r: ex.stop(user, r.reason)),
+    "halt": (False, lambda ex, user, r: ex.halt(user, r.reason)),
+    "take_control": (False, lambda ex, user, r: ex.take_control(user, r.reason)),
+    "ask_again": (True, lambda ex, user, r: ex.ask_again(user)),
+    "resolve": (True, lambda ex, user, r: ex.resolve(user, _outcome(r), r.reason)),
+    "correct_record": (False, lambda ex, user, r: ex.correct_record(user, _numbered(r), r.value, r.reason)),
+    "go_back": (False, lambda ex, user, r: ex.go_back(user, _numbered(r), r.reason)),
     "set_breakpoint": (False, lambda ex, user, r: ex.set_breakpoint(user, _numbered(r))),
     "clear_breakpoint": (False, lambda ex, user, r: ex.clear_breakpoint(user, _numbered(r))),
 }

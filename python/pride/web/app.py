@@ -87,7 +87,8 @@ def _account(request: Request) -> Account:
 
 def _refusal(exc: ActionRefused | SignInRefused) -> JSONResponse:
     headers = {"Retry-After": str(exc.retry_after)} if isinstance(exc, SignInRefused) and exc.retry_after else None
-    return JSONResponse({"error": exc.message}, status_code=exc.status, headers=headers)
+    details = exc.details if isinstance(exc, ActionRefused) else {}
+    return JSONResponse({"error": exc.message, **details}, status_code=exc.status, headers=headers)
 
 
 def _api(handler: Callable[[Request], Any]) -> Callable[[Request], Any]:
@@ -183,14 +184,15 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
     if not isinstance(body, dict):
         raise ActionRefused(400, f"expected a JSON object with {fields}")
     return account, {"procedure": str(body.get("procedure", "")), "binding": str(body.get("binding", "")),
-                     "mode": str(body.get("mode", "manual"))}
+                     "mode": str(body.get("mode", "manual")), "take_over": str(body.get("take_over") or "")}
 
 
 @_api
 async def runs_start(request: Request) -> Response:
     account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
     board: RunBoard = request.app.state.board
-    live = await run_in_threadpool(board.start, account.user, body["procedure"], body["binding"], body["mode"])
+    live = await run_in_threadpool(board.start, account.user, body["procedure"], body["binding"], body["mode"],
+                                   take_over=body["take_over"] or None)
     return JSONResponse({"run_id": live.run_id}, status_code=201)
 
 

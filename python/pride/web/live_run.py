@@ -230,4 +230,13 @@ def snapshot_json(snapshot: Snapshot) -> dict[str, Any]:
         "variables": snapshot.variables,
         "error": snapshot.error,
         "last_seq": snapshot.last_seq,
+        "robot": snapshot.robot,
+        "has_control": snapshot.has_control,
+        "unknown_key": snapshot.unknown_key,
+        "halted_by": snapshot.halted_by,
+        "halt_reason": snapshot.halt_reason,
+        "link": {"state": "lost", "since": snapshot.link_lost_since.isoformat(), "in_flight": snapshot.commands_in_flight}
+        if snapshot.link_lost_since else {"state": "connected"},
+        "journal": {"available": snapshot.journal_available, "error": snapshot.journal_error,
+                    "since": snapshot.journal_unavailable_since.isoformat() if snapshot.journal_unavailable_since else None},
     }

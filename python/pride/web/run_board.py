@@ -38,7 +38,7 @@ from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from pride.ground.change_feed import Notice, open_change_feed
 from pride.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
-from pride.robot_control import RobotControl
+from pride.robot_control import RobotControl, RobotControlled
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
 from pride.web.accounts import Account, AccountStore
@@ -141,8 +141,13 @@ class RunBoard:
     def sysreps(self) -> dict[str, SysRep]:
         return load_sysrep_dir(self.catalog.sysreps)
 
-    def start(self, user: str, procedure_name: str, binding_name: str, mode_name: str) -> LiveRun:
-        """Lint, open the gateway, start the executive; ActionRefused says what to fix."""
+    def start(self, user: str, procedure_name: str, binding_name: str, mode_name: str, *,
+              take_over: str | None = None) -> LiveRun:
+        """Lint, open the gateway, start the executive; ActionRefused says what to fix.
+
+        A robot controlled by another run refuses the start (409, naming the controller) unless
+        ``take_over`` gives the reason to take it over: the other run then holds.
+        """
         mode = _mode(mode_name)
         checked, gateway = self._open(procedure_name, binding_name)
         run_id = f"{checked.procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
@@ -151,14 +156,14 @@ class RunBoard:
         except BaseException as exc:
             gateway.close()
             if isinstance(exc, OperatorActionError):  # e.g. the robot is controlled by another run
-                raise ActionRefused(409, f"{procedure_name} not started: {exc}") from None
+                raise _not_started(procedure_name, exc) from None
             raise
         live = self._hold(executive, gateway, checked, binding_name, user)
         try:
-            executive.start(user)
+            executive.start(user, take_over=take_over)
         except OperatorActionError as exc:
             self._drop(live)
-            raise ActionRefused(409, f"{procedure_name} not started: {exc}") from None
+            raise _not_started(procedure_name, exc) from None
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
 
@@ -426,6 +431,14 @@ class RunBoard:
         self.forwarding.close()
         self.hosting.close()
         self.control.close()
+
+
+def _not_started(procedure_name: str, exc: OperatorActionError) -> ActionRefused:
+    """A 409 for a start the executive refused; with who controls the robot, so the page can offer a takeover."""
+    holder = exc.holder if isinstance(exc, RobotControlled) else None
+    details = {"controlled_by": {"robot": holder.robot, "run_id": holder.run_id, "user": holder.user,
+                                 "since": holder.since.isoformat()}} if holder else None
+    return ActionRefused(409, f"{procedure_name} not started: {exc}", details)
 
 
 def _release(live: LiveRun) -> None:

@@ -31,8 +31,13 @@ _ARRIVALS = {
 class InstructionState:
     """One instruction as far as the run got with it."""
 
-    status: str = "pending"  # pending | active | awaiting | completed | failed | skipped
+    status: str = "pending"  # pending | active | awaiting | completed | failed | skipped | halted
     actor: str | None = None
+    outcome: str | None = None  # its command's last outcome: succeeded | failed | unknown | halted
+    sent_by: str | None = None  # who sent its command (PAX, or the operator who performed it)
+    confirmed_by: str | None = None  # who confirmed its hazardous command
+    resolved: dict[str, Any] | None = None  # an unknown outcome as an operator recorded it: by, outcome, reason
+    corrected: dict[str, Any] | None = None  # its record re-entered: by, old, value, reason
     time: str | None = None
     started: str | None = None  # when it was last begun (a verify's countdown runs from here)
     reason: str | None = None
@@ -66,6 +71,8 @@ class RunState:
     last_seq: int = 0
     arrived: str | None = None  # since when the run is where it is, as it is
     stopped: dict[str, str] | None = None  # who stopped the run, when and why
+    halted: dict[str, str] | None = None  # who halted the run last, when and why
+    link: dict[str, Any] | None = None  # the robot link as last recorded: state lost|connected, since, in_flight
     #: the values ``${...}`` take, per procedure frame: "" for the main one, "2.1/" in the one 2.1 called
     envs: dict[str, dict[str, Any]] = field(default_factory=dict)
 
@@ -76,7 +83,7 @@ class RunState:
             "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints), "paused": self.paused,
             "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
             "camera": self.camera_json(), "last_seq": self.last_seq, "arrived": self.arrived, "stopped": self.stopped,
-            "envs": self.envs,
+            "envs": self.envs, "halted": self.halted, "link": self.link,
         }
 
     def camera_json(self) -> dict[str, Any] | None:
@@ -121,6 +128,12 @@ class RunState:
             self.breakpoints.discard(number)
         elif kind is EventKind.CALL_ENTERED and number:
             self.envs[number + "/"] = dict(data.get("inputs") or {})
+        elif kind is EventKind.HALT:
+            self.halted = {"by": event.actor, "time": when, "reason": str(data.get("reason") or "")}
+        elif kind is EventKind.LINK_LOST:
+            self.link = {"state": "lost", "since": data.get("since"), "in_flight": data.get("in_flight", 0)}
+        elif kind is EventKind.LINK_RESTORED:
+            self.link = {"state": "connected", "since": when}
         if entry is None:
             return
         if kind is EventKind.INSTRUCTION_STARTED:
@@ -140,10 +153,22 @@ class RunState:
         elif kind is EventKind.INSTRUCTION_SKIPPED:
             entry.status, entry.actor, entry.time = "skipped", event.actor, when
             entry.reason = data.get("reason")
+        elif kind is EventKind.INSTRUCTION_HALTED:
+            entry.status, entry.actor, entry.time = "halted", event.actor, when
+            entry.reason = data.get("reason")
+        elif kind is EventKind.CONFIRMATION:
+            entry.confirmed_by = event.actor
+        elif kind is EventKind.OUTCOME_RESOLVED:
+            entry.resolved = {"by": event.actor, "outcome": data.get("outcome"), "reason": data.get("reason", "")}
+        elif kind is EventKind.RECORD_CORRECTED:
+            entry.value = data.get("value")
+            entry.corrected = {"by": event.actor, "old": data.get("old"), "value": data.get("value"),
+                               "reason": data.get("reason", "")}
+            self.envs.setdefault(frame, {})[str(data.get("name"))] = data.get("value")
         elif kind is EventKind.COMMAND_SENT:
-            entry.sent = dict(data)
+            entry.sent, entry.sent_by = dict(data), event.actor
         elif kind is EventKind.COMMAND_RESULT:
-            entry.result = dict(data)
+            entry.result, entry.outcome = dict(data), data.get("outcome")
             values: dict[str, Any] = data["values"] if isinstance(data.get("values"), dict) else {}
             entry.result_lines = labelled_values(values, self.sysreps.get(str(data.get("system"))))
             if data.get("result"):

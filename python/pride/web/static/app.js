@@ -44,6 +44,7 @@ async function api(method, path, body) {
   if (!response.ok) {
     const error = new Error(data.error || `${response.status} ${response.statusText}`);
     error.status = response.status;
+    error.data = data;
     if (response.status === 401 && view.me && path !== "/api/session") signedOut(error.message);
     throw error;
   }
@@ -185,23 +186,59 @@ function showRuns(runs) {
 
 $("refresh-runs").addEventListener("click", () => loadRuns().catch(() => {}));
 
-$("start-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
+// A start refused because another run controls the robot offers a takeover (with a reason, logged in both runs).
+async function startRun(takeOver) {
   $("start-error").textContent = "";
+  $("take-over").hidden = true;
   const form = new FormData($("start-form"));
   $("start-button").disabled = true;
   try {
     const {run_id} = await api("POST", "/api/runs", {
-      procedure: form.get("procedure"), binding: form.get("binding"), mode: form.get("mode"),
+      procedure: form.get("procedure"), binding: form.get("binding"), mode: form.get("mode"), take_over: takeOver,
     });
     location.hash = `run=${encodeURIComponent(run_id)}`;
     await loadRuns();
   } catch (error) {
     $("start-error").textContent = error.message;
+    const holder = error.data && error.data.controlled_by;
+    if (holder) {
+      $("take-over").hidden = false;
+      $("take-over").textContent = `Take over ${holder.robot} from ${holder.user}…`;
+      $("take-over").dataset.from = `run ${holder.run_id} of ${holder.user}, in control since ${new Date(holder.since).toLocaleTimeString()}`;
+    }
   } finally {
     $("start-button").disabled = false;
   }
+}
+
+$("start-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  startRun(null);
 });
+$("take-over").addEventListener("click", async () => {
+  const answer = await askReason("Take over the robot", `${$("take-over").dataset.from} holds and sends nothing more.`, "Take over");
+  if (answer) await startRun(answer.reason);
+});
+
+// A dialog asking why (and, with `value`, a new value): resolves to {reason, value}, or null when cancelled.
+function askReason(title, text, okLabel, value) {
+  const dialog = $("reason-dialog");
+  $("reason-title").textContent = title;
+  $("reason-text").textContent = text;
+  $("reason-yes").textContent = okLabel;
+  $("reason-input").value = "";
+  $("reason-value-label").hidden = value === undefined;
+  $("reason-value").required = value !== undefined;
+  $("reason-value").value = value === undefined ? "" : value;
+  dialog.returnValue = "";
+  return new Promise((resolve) => {
+    dialog.onclose = () => {
+      const reason = $("reason-input").value.trim();
+      resolve(dialog.returnValue === "ok" && reason ? {reason, value: $("reason-value").value} : null);
+    };
+    dialog.showModal();
+  });
+}
 
 window.addEventListener("hashchange", openRunFromHash);
 
@@ -308,6 +345,25 @@ for (const id of ["mode-manual", "mode-autonomous"]) {
 $("pause").addEventListener("click", () => act("pause"));
 $("continue").addEventListener("click", () => act("continue"));
 $("step").addEventListener("click", () => act("step"));
+// HALT acts at once: no dialog between the operator and the arm stopping (the reason is optional).
+$("halt").addEventListener("click", () => {
+  const reason = $("halt-reason").value.trim();
+  $("halt-reason").value = "";
+  act("halt", {reason});
+});
+$("ask-again").addEventListener("click", () => act("ask_again", {instruction: view.state.current}));
+for (const outcome of ["succeeded", "failed"]) {
+  $(`resolve-${outcome}`).addEventListener("click", async () => {
+    const number = view.state.current;
+    const answer = await askReason(`Record that ${number} ${outcome}`,
+      "Record what the system shows (camera, telemetry, a crew report). The log keeps it with your name.", `Record: ${outcome}`);
+    if (answer) await act("resolve", {instruction: number, value: outcome, reason: `${answer.reason}`});
+  });
+}
+$("take-control").addEventListener("click", async () => {
+  const answer = await askReason("Take control back", `${view.state.reason}. The other run then holds.`, "Take control");
+  if (answer) await act("take_control", {reason: answer.reason});
+});
 $("stop").addEventListener("click", () => {
   const dialog = $("stop-dialog");
   $("stop-reason").value = "";

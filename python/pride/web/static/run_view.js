@@ -11,6 +11,7 @@ function appendAudit(events) {
     item.dataset.kind = event.kind;
     item.dataset.actor = event.actor;
     item.dataset.instruction = event.instruction || "";
+    if (event.data && event.data.key) item.dataset.key = event.data.key;  // a command's key: the same when asked again
     const head = element("div", "audit-head");
     head.append(element("span", "seq", `#${event.seq}`), element("time", "", new Date(event.time).toLocaleTimeString()),
       element("b", "actor", event.actor), element("span", "kind", event.kind.replaceAll("_", " ")),
@@ -158,7 +159,9 @@ function buildInstruction(instruction, prefix = "") {
     button("Confirm", "confirm", () => confirmHazard(instruction, number, false)),
     button("Retry", "retry", () => act("retry", {instruction: number})),
     button("Skip…", "skip", () => skip(number)),
+    button("Go back here…", "go-back", () => goBack(number)),
   );
+  if (instruction.kind === "record") controls.append(button("Re-enter…", "correct", () => correctRecord(instruction, number)));
   item.append(controls, element("div", "countdown"), element("div", "mark"), element("div", "detail"), element("div", "raw raw-detail"));
   if (instruction.callee) item.append(buildCallee(instruction.callee, `${number}/`));
   return item;
@@ -248,6 +251,18 @@ function confirmHazard(instruction, number, thenSend) {
   dialog.showModal();
 }
 
+async function goBack(number) {
+  const answer = await askReason(`Go back to ${number}`, `${number}: ${sentenceOf(number)}. PAX continues from there.`, "Go back");
+  if (answer) await act("go_back", {instruction: number, reason: answer.reason});
+}
+
+async function correctRecord(instruction, number) {
+  const old = (view.state.instructions[number] || {}).value;
+  const answer = await askReason(`Re-enter ${instruction.record.name.replaceAll("_", " ")}`,
+    `Recorded: ${formatValue(old)}. Both values stay in the audit log.`, "Re-enter", old === undefined ? "" : String(old));
+  if (answer) await act("correct_record", {instruction: number, value: typedValue(instruction.record.type, answer.value), reason: answer.reason});
+}
+
 function skip(number) {
   const dialog = $("skip-dialog");
   $("skip-number").textContent = number;
@@ -281,10 +296,18 @@ function renderRun() {
   // a pause in manual mode holds automation for when someone switches to autonomous; only then can it continue
   const autonomous = state.mode === "autonomous";
   $("pause").disabled = !mayAct || state.paused;
-  $("continue").disabled = !mayAct || !autonomous || !(state.paused || state.hold === "breakpoint");
+  $("continue").disabled = !mayAct || !autonomous || !(state.paused || ["breakpoint", "halted"].includes(state.hold));
   $("step").disabled = !mayAct || state.executing || !state.current;
   $("stop").disabled = !mayAct;
+  $("halt").disabled = !mayAct;
+  $("halt-reason").disabled = !mayAct;
   $("controls").hidden = !state.live;
+  renderLink(state);
+  const unknown = mayAct && state.hold === "outcome_unknown" && !state.executing;
+  const lost = mayAct && state.hold === "control_lost";
+  for (const id of ["ask-again", "resolve-succeeded", "resolve-failed"]) $(id).hidden = !unknown;
+  $("take-control").hidden = !lost;
+  $("hold-actions").hidden = !(unknown || lost);
   $("past-controls").hidden = Boolean(state.live) || !(view.me && view.me.may_act) || shownStatus === "completed";
   const envs = JSON.stringify(state.envs || {});
   const envsChanged = envs !== view.envsSeen;
@@ -300,6 +323,23 @@ function renderRun() {
 
 function pastStatus(state) {
   return state.status === "completed" || state.status === "stopped" ? state.status : "interrupted";
+}
+
+// The robot link and the audit log: lost since when, with how many commands waiting for their outcome.
+function renderLink(state) {
+  const link = state.link || {state: "connected"};
+  const box = $("robot-link");
+  box.dataset.state = link.state;
+  if (link.state === "lost") {
+    const n = link.in_flight || 0;
+    box.textContent = `⚠ link lost since ${new Date(link.since).toISOString().slice(11, 19)} UTC, ${n} command${n === 1 ? "" : "s"} in flight`;
+  } else {
+    box.textContent = state.live ? "link connected" : "";
+  }
+  const journal = state.journal || {available: true};
+  $("journal").dataset.state = journal.available ? "available" : "unavailable";
+  $("journal").textContent = journal.available ? "" :
+    `⚠ audit log unavailable${journal.since ? " since " + new Date(journal.since).toISOString().slice(11, 19) + " UTC" : ""}: ${journal.error} (the run waits)`;
 }
 
 function renderWatchers(state) {
@@ -321,7 +361,7 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   const own = (selector) => item.querySelector(`:scope > ${selector}`);  // not those of a called sub-procedure
   if (envsChanged) fillSentence(own(".line > .text"), view.sentences.get(number), (state.envs || {})[frameOf(number)]);
   const idle = mayAct && current && !state.executing;
-  const failed = state.hold === "failure" || state.hold === "in_flight";
+  const failed = ["failure", "in_flight", "halted"].includes(state.hold);
   const held = state.mode === "manual" || ["not_automatable", "confirmation", "breakpoint", "paused"].includes(state.hold);
   const kind = [...item.classList].find((c) => c.startsWith("kind-")).slice(5);
   own(".line > .breakpoint").disabled = !mayAct;
@@ -340,6 +380,11 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   if (input) input.disabled = !idle;
   show(".retry", running && current && failed, idle);
   show(".skip", running && current, idle);
+  // back within the current step, to an instruction already done; a record done may be re-entered
+  const sameStep = state.current && number !== state.current && stepOf(number) === stepOf(state.current);
+  const done = ["completed", "skipped", "failed", "halted"].includes(status);
+  show(".go-back", running && sameStep && done, mayAct && !state.executing);
+  show(".correct", running && status === "completed", mayAct && !state.executing);
   own(".mark").textContent = markText(number, status, details, current, state);
   const parts = [];
   if (details.result) {
@@ -357,12 +402,33 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   own(".raw-detail").textContent = details.sent ? `sent ${details.sent.system}.${details.sent.command}(${formatArgs(details.sent.args)})` : "";
 }
 
+function stepOf(number) {
+  const local = number.slice(frameOf(number).length);
+  return frameOf(number) + local.split(".")[0];
+}
+
+// Who did what to an instruction: sent, confirmed, recorded an unknown outcome, re-entered its record.
+function attribution(details) {
+  const parts = [];
+  if (details.sent_by) parts.push(`sent by ${details.sent_by}`);
+  if (details.confirmed_by) parts.push(`confirmed by ${details.confirmed_by}`);
+  if (details.resolved) parts.push(`outcome recorded as ${details.resolved.outcome} by ${details.resolved.by}: ${details.resolved.reason}`);
+  if (details.corrected) {
+    const c = details.corrected;
+    parts.push(`re-entered by ${c.by}: ${formatValue(c.old)} → ${formatValue(c.value)} (${c.reason})`);
+  }
+  return parts.length ? ` · ${parts.join(" · ")}` : "";
+}
+
 function markText(number, status, details, current, state) {
   const who = details.actor ? ` by ${details.actor}` : "";
   const when = details.time ? ` at ${new Date(details.time).toLocaleTimeString()}` : "";
   const reason = details.reason ? ` — ${details.reason}` : "";
-  if (status === "completed") return `✓ completed${who}${when}`;
-  if (status === "failed") return current && state.hold === "in_flight" ? `? outcome unknown${reason}` : `✗ failed${who}${when}${reason}`;
+  const by = attribution(details);
+  if (current && state.hold === "outcome_unknown") return `? outcome unknown: neither done nor failed${by}`;
+  if (status === "completed") return `✓ completed${who}${when}${by}`;
+  if (status === "halted") return `■ halted${who}${when}${reason}${by}`;
+  if (status === "failed") return current && state.hold === "in_flight" ? `? outcome unknown${reason}` : `✗ failed${who}${when}${reason}${by}`;
   if (status === "skipped") return `⤼ skipped${who}${when}${reason}`;
   if (status === "executing") return `⟳ in progress${who}`;
   if (current && state.hold === "in_flight") return "? outcome unknown: it was in flight when the runner stopped";
@@ -378,6 +444,10 @@ function formatArgs(args) {
 const HOLDS = {
   failure: ["failure", "✗", () => "Failed", () => "an operator must retry or skip it"],
   in_flight: ["unknown", "?", () => "Outcome unknown", () => "an operator must check the system, then retry (resend) or skip it"],
+  outcome_unknown: ["unknown", "?", () => "Outcome unknown",
+    () => "an operator must ask the habitat again, record what the system shows, or skip it"],
+  halted: ["halted", "■", () => "Halted", () => "an operator may retry, continue, skip or stop"],
+  control_lost: ["failure", "⚑", () => "Robot taken over", () => "this run sends nothing until an operator takes control back"],
   confirmation: ["hold", "⚠", () => "Hazardous command", () => "an operator must confirm it is safe to send"],
   operator_input: ["hold", "✎", () => "Needs a value", () => "an operator must enter it"],
   operator_action: ["hold", "☞", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
@@ -408,7 +478,8 @@ function renderHold(state) {
   } else if (state.hold && HOLDS[state.hold]) {
     const [holdTone, holdIcon, title, needed] = HOLDS[state.hold];
     [tone, icon, what, who] = [holdTone, holdIcon, title(number), needed()];
-    text = ["failure", "in_flight"].includes(state.hold) ? state.reason : sentence;
+    text = ["failure", "in_flight", "outcome_unknown", "control_lost"].includes(state.hold) ? state.reason :
+      state.hold === "halted" ? `by ${state.halted_by}${state.halt_reason ? ": " + state.halt_reason : ""} · ${sentence}` : sentence;
     if (state.hold === "manual_mode" && state.paused) who = "automation is paused for when the run goes autonomous";
   } else if (number) {
     [tone, icon, what, text] = ["run", "⟳", state.executing ? "PAX is performing" : "Running", sentence];
