@@ -1,0 +1,131 @@
+"""HALT from the console stops the real arm (issue 16), measured on the robot side.
+
+``caretaker up iva`` at real time (simulation, planner, AT server, ledger, rosbridge) and
+``caretaker serve`` with the JVM PAX plugins. PAX runs the IVA procedure autonomously; the
+operator confirms the area is clear (2.6) and, while the arm pulls the dirty filter out (2.7),
+presses HALT. The arm's ``/joint_states``, read over the stack's rosbridge with their sim-time
+stamps, stop changing within 0.5 s of sim time after the press; the instruction is recorded as
+halted by the operator, never as completed.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import roslibpy
+from playwright.sync_api import expect
+
+from operator_page import IVA, audit_row, instruction, start_run, stop_run
+from pride.audit_log import AuditLog
+from pride.events import EventKind
+from support.stack import stack_up
+from web_server import REPO, WebServer, start_server
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+PULL_OUT = "2.7"
+HALT_WITHIN_S = 0.5  # of sim time, from the press to the arm's last change
+
+
+class RobotSide:
+    """The habitat's own account, over its rosbridge: joint states and the AT server's status."""
+
+    def __init__(self, url: str) -> None:
+        host, port = url.split("//")[1].rsplit(":", 1)
+        self.ros = roslibpy.Ros(host, int(port))
+        self.ros.run(timeout=30)
+        self.changed = threading.Condition()
+        self.samples: list[tuple[float, tuple[float, ...]]] = []
+        self.executing = False
+        roslibpy.Topic(self.ros, "/joint_states", "sensor_msgs/msg/JointState").subscribe(self._on_joints)
+        roslibpy.Topic(self.ros, "/affordance_template_server/status",
+                       "affordance_template_msgs/msg/ServerStatus").subscribe(self._on_status)
+
+    def _on_joints(self, msg: dict[str, Any]) -> None:
+        stamp = msg["header"]["stamp"]
+        with self.changed:
+            self.samples.append((stamp["sec"] + stamp["nanosec"] * 1e-9, tuple(msg["position"])))
+            self.changed.notify_all()
+
+    def _on_status(self, msg: dict[str, Any]) -> None:
+        with self.changed:
+            self.executing = msg["execute_status"] == "EXECUTING" and msg["active_trajectory"] == "grasp_and_pull"
+            self.changed.notify_all()
+
+    def wait(self, condition: Any, what: str, timeout: float = 120.0) -> None:
+        with self.changed:
+            if not self.changed.wait_for(condition, timeout):
+                raise AssertionError(f"the robot side never showed {what}")
+
+    def latest_stamp(self) -> float:
+        with self.changed:
+            return self.samples[-1][0]
+
+    def moving(self) -> bool:
+        """The arm changed between the last two samples."""
+        return len(self.samples) >= 2 and self.samples[-1][1] != self.samples[-2][1]
+
+    def still_since(self, after: float) -> float:
+        """The stamp from which the joints never changed again (samples stamped after ``after``)."""
+        with self.changed:
+            later = [s for s in self.samples if s[0] >= after]
+        rest, still = later[-1][1], later[-1][0]
+        for stamp, positions in reversed(later):
+            if positions != rest:
+                break
+            still = stamp
+        return still
+
+    def close(self) -> None:
+        self.ros.close()
+
+
+@pytest.fixture
+def real_time_stack(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[WebServer, RobotSide]]:
+    with stack_up("iva", ros_env, time_scale="1") as stack:
+        server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
+        robot = RobotSide(stack.url)
+        try:
+            yield server, robot
+        finally:
+            robot.close()
+            server.process.stop()
+
+
+def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, real_time_stack) -> None:
+    server, robot = real_time_stack
+    alice = open_page(server, "alice")
+    run_id = start_run(alice, IVA, "autonomous")
+    confirm = instruction(alice, "2.6")
+    expect(confirm).to_have_class(re.compile(r"\bcurrent\b"), timeout=240_000)
+    confirm.locator("button.done").click()
+    robot.wait(lambda: robot.executing and robot.moving(), "the pull-out moving the arm")
+
+    alice.fill("#halt-reason", "crew member at the cabinet")
+    alice.click("#halt")
+    pressed = robot.latest_stamp()
+    robot.wait(lambda: robot.samples[-1][0] >= pressed + 3.0, "3 s of sim time after the halt", timeout=60)
+    stopped_after = robot.still_since(pressed) - pressed
+    assert stopped_after <= HALT_WITHIN_S, f"the arm moved for {stopped_after:.2f} s of sim time after HALT"
+
+    pull = instruction(alice, PULL_OUT)
+    expect(pull).to_have_attribute("data-status", "halted")
+    expect(pull.locator(".mark")).to_contain_text("halted by alice")
+    expect(audit_row(alice, "halt", PULL_OUT, "alice")).to_contain_text("HALT: crew member at the cabinet")
+    stop_run(alice, "halt checked")
+
+    log = AuditLog(server.database.url)
+    try:
+        events = [e for e in log.events(run_id) if e.instruction == PULL_OUT]
+    finally:
+        log.close()
+    halted = [e for e in events if e.kind is EventKind.INSTRUCTION_HALTED]
+    assert [e.actor for e in halted] == ["alice"], events
+    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], "a halted pull-out was logged as completed"
+    results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
+    assert results and all(not r.data["success"] for r in results), results
