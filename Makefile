@@ -31,7 +31,7 @@ demo: setup
 # test run writes them to a temporary folder and never touches tracked files).
 docs: setup
 	CARETAKER_SCREENSHOTS=$(CURDIR)/docs/images $(PYTEST) tests/web/test_operator_view.py \
-		tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py
+		tests/web/test_flight_controls.py tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py
 
 bench: setup
 	@for b in bench/*.py; do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done

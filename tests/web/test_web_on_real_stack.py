@@ -5,8 +5,9 @@
 procedure in manual mode; Send the first command and see its result and the audit record with
 the user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry
 the real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX
-send it in the next command; an observer watching the same run cannot Send, and the server
-refuses it when forced. (test_operator_view.py covers the rest of the page on simulated systems.)
+send it in the next command; the id was misread, so the alignment fails, the operator re-enters
+the record and retries, and the run completes; an observer watching the same run cannot Send, and
+the server refuses it when forced. (test_operator_view.py covers the rest of the page on simulated systems.)
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run, stop_run
+from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run
 from pride.audit_log import AuditLog
 from web_server import REPO, WebServer, server_on_real_stack
 
@@ -99,15 +100,29 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     record = instruction(alice, "4.1")
     expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
     expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
-    record.locator("input.record-value").fill("CDRA-F-0012")
+    # a label misread: an id of the right form but of no filter on the rack; the alignment fails,
+    # alice re-enters the record (both values logged), Retry uses the new one and the run completes
+    record.locator("input.record-value").fill("CDRA-F-0021")
     record.locator("button.record").click()
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0012")
-    expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012", timeout=60_000)
-    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
-    stop_run(alice, "acceptance run checked")
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0021")
+    align = instruction(alice, "4.2")
+    expect(align).to_have_attribute("data-status", "failed", timeout=60_000)
+    expect(align.locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0021")
+    record.locator("button.correct").click()
+    alice.fill("#reason-value", "CDRA-F-0012")
+    alice.fill("#reason-input", "label misread: 0021 is 0012 upside down")
+    alice.click("#reason-yes")
+    expect(audit_row(alice, "record_corrected", "4.1", "alice")).to_contain_text("CDRA-F-0021 → CDRA-F-0012")
+    align.locator("button.retry").click()
+    newest_send = alice.locator('#audit li[data-kind="command_sent"][data-instruction="4.2"]').first  # newest on top
+    expect(newest_send).to_contain_text("frame=filter/CDRA-F-0012")
+    expect(align).to_have_attribute("data-status", "completed", timeout=60_000)
+    confirm_slot = instruction(alice, "5.1")
+    expect(confirm_slot).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
+    confirm_slot.locator("button.done").click()
     for page in (alice, carol):
-        expect_ended(page, "stopped")
-    expect(alice.locator('#audit li[data-kind="run_stopped"][data-actor="alice"]')).to_contain_text("acceptance run checked")
+        expect_ended(page, "completed")
+    expect(alice.locator('#audit li[data-kind="run_completed"]')).to_have_count(1)
 
     # the audit log holds every action with its user, and nothing from the observer
     log = AuditLog(server.database.url)
@@ -115,8 +130,10 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
         events = log.events(run_id)
     finally:
         log.close()
-    inputs = [e for e in events if e.kind.value == "operator_input"]
-    assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [("4.1", "alice", "CDRA-F-0012")]
+    inputs = [e for e in events if e.kind.value in ("operator_input", "record_corrected")]
+    assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [
+        ("4.1", "alice", "CDRA-F-0021"), ("4.1", "alice", "CDRA-F-0012")]
+    assert inputs[1].data["old"] == "CDRA-F-0021" and inputs[1].data["reason"].startswith("label misread")
     actors = {e.actor for e in events}
     assert actors == {"alice", "PAX"}, actors
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]

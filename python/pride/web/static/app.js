@@ -32,6 +32,7 @@ const view = {
   followed: null,      // the instruction last scrolled to
   envsSeen: "",
   runsSocket: null,    // pushes the runs list whenever it changes (on any console)
+  runsPushes: 0,       // lists pushed so far: a GET answer overtaken by a push is not shown
   runsTimer: null,     // reconnects it
 };
 
@@ -131,9 +132,12 @@ function hostWords(run) {
   return run.hosted_here ? " · on this console" : ` · on ${run.host}`;
 }
 
+// An answer to a GET that a push overtook is older than what the page shows: the push wins (the
+// server pushes again whenever the list changes after what it pushed).
 async function loadRuns() {
+  const pushes = view.runsPushes;
   const {runs} = await api("GET", "/api/runs");
-  showRuns(runs);
+  if (view.runsPushes === pushes) showRuns(runs);
 }
 
 // the runs list, pushed by the server whenever it changes on any console
@@ -143,7 +147,10 @@ function connectRuns() {
   view.runsSocket = socket;
   socket.addEventListener("message", (message) => {
     const data = JSON.parse(message.data);
-    if (data.type === "runs") showRuns(data.runs);
+    if (data.type === "runs") {
+      view.runsPushes += 1;
+      showRuns(data.runs);
+    }
   });
   socket.addEventListener("close", (event) => {
     if (view.runsSocket !== socket) return;  // replaced on purpose

@@ -360,7 +360,9 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   item.classList.toggle("has-breakpoint", state.breakpoints.includes(number));
   const own = (selector) => item.querySelector(`:scope > ${selector}`);  // not those of a called sub-procedure
   if (envsChanged) fillSentence(own(".line > .text"), view.sentences.get(number), (state.envs || {})[frameOf(number)]);
-  const idle = mayAct && current && !state.executing;
+  // an unknown outcome is settled first (ask again, record what the system shows, or skip)
+  const unsettled = state.hold === "outcome_unknown";
+  const idle = mayAct && current && !state.executing && !unsettled;
   const failed = ["failure", "in_flight", "halted"].includes(state.hold);
   const held = state.mode === "manual" || ["not_automatable", "confirmation", "breakpoint", "paused"].includes(state.hold);
   const kind = [...item.classList].find((c) => c.startsWith("kind-")).slice(5);
@@ -379,17 +381,18 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   const input = own(".instruction-controls > .record-value");
   if (input) input.disabled = !idle;
   show(".retry", running && current && failed, idle);
-  show(".skip", running && current, idle);
+  show(".skip", running && current, mayAct && current && !state.executing);
   // back within the current step, to an instruction already done; a record done may be re-entered
   const sameStep = state.current && number !== state.current && stepOf(number) === stepOf(state.current);
   const done = ["completed", "skipped", "failed", "halted"].includes(status);
-  show(".go-back", running && sameStep && done, mayAct && !state.executing);
+  show(".go-back", running && sameStep && done, mayAct && !state.executing && !unsettled);
   show(".correct", running && status === "completed", mayAct && !state.executing);
   own(".mark").textContent = markText(number, status, details, current, state);
   const parts = [];
   if (details.result) {
     const lines = (details.result_lines || []).map(([label, text]) => `${label}: ${text}`);
-    parts.push(`Result: ${details.result.success ? "succeeded" : "FAILED"}${details.result.message ? " — " + details.result.message : ""}` +
+    const outcome = OUTCOME_WORDS[details.result.outcome] || (details.result.success ? "succeeded" : "FAILED");
+    parts.push(`Result: ${outcome}${details.result.message ? " — " + details.result.message : ""}` +
       (lines.length ? ` · ${lines.join(" · ")}` : ""));
   }
   if (details.value !== undefined) parts.push(`recorded ${formatValue(details.value)}`);
@@ -420,6 +423,9 @@ function attribution(details) {
   return parts.length ? ` · ${parts.join(" · ")}` : "";
 }
 
+// A command's outcome in words: one that is not known is neither a success nor a failure.
+const OUTCOME_WORDS = {succeeded: "succeeded", failed: "FAILED", unknown: "outcome unknown", halted: "halted"};
+
 function markText(number, status, details, current, state) {
   const who = details.actor ? ` by ${details.actor}` : "";
   const when = details.time ? ` at ${new Date(details.time).toLocaleTimeString()}` : "";
@@ -427,7 +433,7 @@ function markText(number, status, details, current, state) {
   const by = attribution(details);
   if (current && state.hold === "outcome_unknown") return `? outcome unknown: neither done nor failed${by}`;
   if (status === "completed") return `✓ completed${who}${when}${by}`;
-  if (status === "halted") return `■ halted${who}${when}${reason}${by}`;
+  if (status === "halted") return `■ halted${who}${when}${by}`;  // why: in the hold banner and the audit log
   if (status === "failed") return current && state.hold === "in_flight" ? `? outcome unknown${reason}` : `✗ failed${who}${when}${reason}${by}`;
   if (status === "skipped") return `⤼ skipped${who}${when}${reason}`;
   if (status === "executing") return `⟳ in progress${who}`;
