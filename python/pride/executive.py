@@ -664,6 +664,7 @@ class Executive:
             raise JournalFailure(f"run {self.run_id} stopped: the audit log could not store {kind.value}: "
                                  f"{state.error}") from exc
         self._seq = event.seq
+        self._last = self._build_snapshot()  # what readers get while a later append waits for the database
         self._changed.notify_all()  # every event is a change someone may be waiting for
         for listener in list(self._listeners):
             try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import json
 import sqlite3
@@ -18,8 +19,13 @@ REPO = HERE.parents[1]
 FIXTURES = HERE / "fixtures"
 sys.path.insert(0, str(HERE))  # lab_gateway is importable here and in runner subprocesses
 
+from lab_gateway import LabGateway  # noqa: E402
+
 from pride.audit_log import AuditLog, Availability  # noqa: E402
 from pride.events import Event, EventKind  # noqa: E402
+from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus, Snapshot  # noqa: E402
+from pride.lint import check_procedure  # noqa: E402
+from pride.robot_control import RobotControl  # noqa: E402
 from pride.sysrep import SysRep, load_sysrep_dir  # noqa: E402
 from support.postgres import OWNER, RUNNER, PostgresServer  # noqa: E402
 
@@ -140,3 +146,52 @@ def new_journal(new_database: Callable[..., AuditDatabase]) -> Iterator[Callable
 def _comparable(event: Event) -> dict[str, object]:
     """An event as it reads back from the database (data through JSON)."""
     return json.loads(json.dumps(event.to_dict(), default=str))
+
+
+# ---- the executive on the lab bench -------------------------------------------------------------
+
+TIMEOUT = 20.0
+
+
+@pytest.fixture
+def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]):
+    """``bench(mode, name, gateway, run_id=, control=)``: an executive on the lab bench gateway, its
+    journal on a fresh audit log (SQLite and PostgreSQL in turn); ``control=True`` puts it under
+    robot control in that log's database. Live runs are stopped at teardown."""
+    made: list[Executive] = []
+    controls: list[RobotControl] = []
+
+    def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None, *,
+             run_id: str = "run-1", control: RobotControl | bool = False, journal: RecordedJournal | None = None):
+        gateway = gateway or LabGateway(str(tmp_path / "images"))
+        journal = journal or new_journal()
+        if control is True:
+            control = RobotControl(journal.log.url)
+            controls.append(control)
+        executive = Executive(check_procedure(FIXTURES / name, sysreps), gateway, journal, run_id=run_id, mode=mode,
+                              control=control or None)
+        made.append(executive)
+        return executive, gateway, journal
+
+    yield make
+    for executive in made:
+        if executive.snapshot().status is RunStatus.ACTIVE:
+            with contextlib.suppress(OperatorActionError):  # a run whose journal a test broke stops by itself
+                executive.stop("teardown")
+        executive.join(TIMEOUT)
+    for control in controls:
+        control.close()
+
+
+def held(executive: Executive, hold: Hold, at: str) -> Snapshot:
+    """The run's snapshot once it holds; it must hold with ``hold`` at ``at``."""
+    snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, TIMEOUT)
+    assert snap is not None, "the run neither held nor ended"
+    assert (snap.hold, snap.current) == (hold, at), snap
+    return snap
+
+
+def finished(executive: Executive) -> Snapshot:
+    snap = executive.wait_for(lambda s: s.status is not RunStatus.ACTIVE, TIMEOUT)
+    assert snap is not None
+    return snap

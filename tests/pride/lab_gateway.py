@@ -55,6 +55,8 @@ class LabGateway:
         self.hold_reply: set[str] = set()  # these execute, then their reply is lost for good
         self.release = threading.Event()  # unblocks in-process blocked commands
         self.cancels: list[str] = []
+        self.cancel_seen = threading.Event()
+        self.blocking = threading.Event()  # a blocked command is waiting now
         self.delay = 0.0  # the link's one-way delay
         self.robot_name = "lab"
         self.image_dir = Path(image_dir or os.environ.get("LAB_GATEWAY_IMAGES", "."))
@@ -92,6 +94,7 @@ class LabGateway:
         with self._lock:
             self.cancels.append(key)
             running = self._running.get(key)
+        self.cancel_seen.set()
         if running is None:
             return CancelResult(True, "nothing was moving")
         running.set()
@@ -147,6 +150,7 @@ class LabGateway:
 
     def _run(self, command_id: str, args: dict[str, Any], cancelled: threading.Event) -> CommandResult:
         if command_id in self.block:
+            self.blocking.set()
             while not self.release.wait(0.02):  # a bench double: waits for either of two events
                 if cancelled.is_set():
                     return CommandResult(Outcome.HALTED, f"{command_id} halted")

@@ -6,52 +6,17 @@ against a killable runner process are in test_runner.py.
 
 from __future__ import annotations
 
-import contextlib
 import threading
 from dataclasses import replace
 
 import pytest
 from lab_gateway import LabGateway
 
-from conftest import FIXTURES
+from conftest import FIXTURES, TIMEOUT, finished, held
 from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
-from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus, Snapshot
+from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
-
-TIMEOUT = 20.0
-
-
-@pytest.fixture
-def bench(tmp_path, sysreps, new_journal):
-    made: list[Executive] = []
-
-    def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None):
-        gateway = gateway or LabGateway(str(tmp_path / "images"))
-        journal = new_journal()  # the audit log, on SQLite and on PostgreSQL (conftest.py)
-        executive = Executive(check_procedure(FIXTURES / name, sysreps), gateway, journal, run_id="run-1", mode=mode)
-        made.append(executive)
-        return executive, gateway, journal
-
-    yield make
-    for executive in made:
-        if executive.snapshot().status is RunStatus.ACTIVE:
-            with contextlib.suppress(OperatorActionError):  # a run whose journal a test broke stops by itself
-                executive.stop("teardown")
-        executive.join(TIMEOUT)
-
-
-def held(executive: Executive, hold: Hold, at: str) -> Snapshot:
-    snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, TIMEOUT)
-    assert snap is not None, "the run neither held nor ended"
-    assert (snap.hold, snap.current) == (hold, at), snap
-    return snap
-
-
-def finished(executive: Executive) -> Snapshot:
-    snap = executive.wait_for(lambda s: s.status is not RunStatus.ACTIVE, TIMEOUT)
-    assert snap is not None
-    return snap
 
 
 def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(bench) -> None:
