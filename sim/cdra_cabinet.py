@@ -29,6 +29,7 @@ class CdraTelemetry:
     filter_present: bool
     installed_filter_id: str
     installed_filter_condition: str
+    clean_filter_ids: str  # the clean filters seated outside the cabinet (on the rack), comma-separated
 
 
 class CdraCabinet:
@@ -61,6 +62,8 @@ class CdraCabinet:
             filter_present=installed is not None,
             installed_filter_id=installed.id if installed else "",
             installed_filter_condition=installed.condition if installed else "",
+            clean_filter_ids=", ".join(sorted(f.id for f in filters.filters.values()
+                                              if f.condition == "clean" and f.slot not in (None, self.slot))),
         )
 
     def _show_lock(self) -> None:

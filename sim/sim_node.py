@@ -96,6 +96,7 @@ class SimNode(Node):
             self.cdra_present_pub = self.create_publisher(Bool, "cdra/filter_present", LATCHED)
             self.cdra_id_pub = self.create_publisher(String, "cdra/installed_filter_id", LATCHED)
             self.cdra_condition_pub = self.create_publisher(String, "cdra/installed_filter_condition", LATCHED)
+            self.cdra_clean_pub = self.create_publisher(String, "cdra/clean_filter_ids", LATCHED)
             self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, qos_profile=SERVICE_QOS, callback_group=group)
             self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group)
         self._last_status: tuple | None = None
@@ -199,6 +200,7 @@ class SimNode(Node):
             self.cdra_present_pub.publish(Bool(data=cdra.filter_present))
             self.cdra_id_pub.publish(String(data=cdra.installed_filter_id))
             self.cdra_condition_pub.publish(String(data=cdra.installed_filter_condition))
+            self.cdra_clean_pub.publish(String(data=cdra.clean_filter_ids))
 
     def _wait(self, done: threading.Event, sim_seconds: float) -> bool:
         """Wait for a physics-thread event; the timeout follows the time scale, generously."""

@@ -63,7 +63,7 @@ class SimulatedSystems:
             ("cdra", "filter_present"): True,
             ("cdra", "installed_filter_id"): "F-DIRTY-07",
             ("cdra", "installed_filter_condition"): "dirty",
-            ("cdra", "rack_filter_ids"): "CDRA-F-0012, CDRA-F-0013",
+            ("cdra", "clean_filter_ids"): "CDRA-F-0012, CDRA-F-0013",
         }
         #: a sensor that stopped reporting: its last value is served, marked stale
         self._stale = {("cdra", "installed_filter_condition")}

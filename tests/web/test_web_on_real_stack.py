@@ -5,8 +5,8 @@
 procedure in manual mode; Send the first command and see its result and the audit record with
 the user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry
 the real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX
-send it in the next command; the id was misread, so the alignment fails, the operator re-enters
-the record and retries, and the run completes; an observer watching the same run cannot Send, and
+send it in the next command (an id the rack does not report as a clean filter is refused; one
+the operator re-enters is used, both values logged), and the run completes; an observer watching the same run cannot Send, and
 the server refuses it when forced. (test_operator_view.py covers the rest of the page on simulated systems.)
 """
 
@@ -100,23 +100,28 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     record = instruction(alice, "4.1")
     expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
     expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
-    # a label misread: an id of the right form but of no filter on the rack; the alignment fails,
-    # alice re-enters the record (both values logged), Retry uses the new one and the run completes
+    # a label misread: an id of no clean filter on the rack is refused before the robot moves
+    alice.click("#mode-manual")  # alice takes the next steps by hand
     record.locator("input.record-value").fill("CDRA-F-0021")
     record.locator("button.record").click()
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0021")
+    expect(alice.locator("#action-error")).to_contain_text(
+        "'CDRA-F-0021' is not one of the values cdra.clean_filter_ids reports now (CDRA-F-0012, CDRA-F-0013)")
+    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    # a clean filter, but not the one set aside for this swap: re-entered before the arm uses it
+    record.locator("input.record-value").fill("CDRA-F-0013")
+    record.locator("button.record").click()
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0013")
     align = instruction(alice, "4.2")
-    expect(align).to_have_attribute("data-status", "failed", timeout=60_000)
-    expect(align.locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0021")
+    expect(align.locator(".line > .text")).to_contain_text("CDRA-F-0013")
     record.locator("button.correct").click()
+    expect(alice.locator("#reason-value")).to_have_value("CDRA-F-0013")
     alice.fill("#reason-value", "CDRA-F-0012")
-    alice.fill("#reason-input", "label misread: 0021 is 0012 upside down")
+    alice.fill("#reason-input", "0013 is kept for the next swap")
     alice.click("#reason-yes")
-    expect(audit_row(alice, "record_corrected", "4.1", "alice")).to_contain_text("CDRA-F-0021 → CDRA-F-0012")
-    align.locator("button.retry").click()
-    newest_send = alice.locator('#audit li[data-kind="command_sent"][data-instruction="4.2"]').first  # newest on top
-    expect(newest_send).to_contain_text("frame=filter/CDRA-F-0012")
-    expect(align).to_have_attribute("data-status", "completed", timeout=60_000)
+    expect(audit_row(alice, "record_corrected", "4.1", "alice")).to_contain_text("CDRA-F-0013 → CDRA-F-0012")
+    expect(align.locator(".line > .text")).to_contain_text("CDRA-F-0012")
+    alice.click("#mode-autonomous")
+    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
     confirm_slot = instruction(alice, "5.1")
     expect(confirm_slot).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
     confirm_slot.locator("button.done").click()
@@ -132,8 +137,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
         log.close()
     inputs = [e for e in events if e.kind.value in ("operator_input", "record_corrected")]
     assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [
-        ("4.1", "alice", "CDRA-F-0021"), ("4.1", "alice", "CDRA-F-0012")]
-    assert inputs[1].data["old"] == "CDRA-F-0021" and inputs[1].data["reason"].startswith("label misread")
+        ("4.1", "alice", "CDRA-F-0013"), ("4.1", "alice", "CDRA-F-0012")]
+    assert inputs[1].data["old"] == "CDRA-F-0013" and inputs[1].data["reason"] == "0013 is kept for the next swap"
     actors = {e.actor for e in events}
     assert actors == {"alice", "PAX"}, actors
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]
