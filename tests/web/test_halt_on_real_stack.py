@@ -5,7 +5,8 @@
 operator confirms the area is clear (2.6) and, while the arm pulls the dirty filter out (2.7),
 presses HALT. The arm's ``/joint_states``, read over the stack's rosbridge with their sim-time
 stamps, stop changing within 0.5 s of sim time after the press; the instruction is recorded as
-halted by the operator, never as completed.
+halted by the operator, never as completed. A second run on the robot is then refused, naming the
+run that controls it, and taken over with a reason logged in both runs.
 """
 
 from __future__ import annotations
@@ -117,6 +118,21 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
     expect(pull).to_have_attribute("data-status", "halted")
     expect(pull.locator(".mark")).to_contain_text("halted by alice")
     expect(audit_row(alice, "halt", PULL_OUT, "alice")).to_contain_text("HALT: crew member at the cabinet")
+
+    # a second run on the robot is refused, naming alice's run; bob takes over with a reason
+    bob = open_page(server, "bob")
+    bob.select_option("#start-procedure", IVA)
+    bob.select_option("#start-binding", "iva.yaml")
+    bob.click("#start-button")
+    expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {run_id} (user alice")
+    bob.click("#take-over")
+    bob.fill("#reason-input", "alice handed over at shift change")
+    bob.click("#reason-yes")
+    expect(bob.locator("#run-id")).not_to_have_text(run_id)
+    expect(bob.locator('#audit li[data-kind="control_taken"][data-actor="bob"]')).to_contain_text(
+        f"took control of iva from run {run_id} (alice): alice handed over at shift change")
+    expect(alice.locator('#audit li[data-kind="control_lost"]')).to_contain_text("taken over by bob")
+    stop_run(bob, "takeover checked")
     stop_run(alice, "halt checked")
 
     log = AuditLog(server.database.url)
