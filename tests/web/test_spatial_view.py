@@ -483,6 +483,6 @@ def test_frame_rate_while_joints_stream_at_50_hz(open_view: Callable[..., Page],
                      f"joint updates at {rate:.1f}/s over {seconds:.1f} s")
     page.evaluate("window.stopJointStream()")
     load = os.getloadavg()[0]
-    print("\nspatial view (1000x700, SwiftShader, load average {:.1f} on {} cores):\n  ".format(load, os.cpu_count()) + "\n  ".join(lines))
+    print(f"\nspatial view (1000x700, SwiftShader, load average {load:.1f} on {os.cpu_count()} cores):\n  " + "\n  ".join(lines))
     joints = inspect(page)["joints"]
     assert_links(inspect(page)["links"], iva.link_poses(joints), "after streaming")

@@ -176,13 +176,17 @@ export class SpatialView {
       return false;
     }
     switch (update.kind) {
-      case 'joints':
+      case 'joints': {
+        // The habitat sends joint states while the arm stands still too: those change no pixel.
+        const moved = Object.entries(update.positions).some(([name, value]) => this.robot.positions[name] !== value);
         this.robot.setJoints(update.positions);
         Object.assign(this.joints.positions, update.positions);
         this.joints.stamp = update.stamp ?? this.joints.stamp;
         this.jointUpdates = (this.jointUpdates || 0) + 1;
+        if (!moved) return true;
         this._jointsSince ??= performance.now();
         break;
+      }
       case 'objects':
         for (const [name, pose] of Object.entries(update.poses)) {
           const o = this.objects.get(name);
