@@ -301,6 +301,19 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
                                 data={"command": "set_display_object_pose", "args": args})
     assert forced.status == 403 and "observer" in forced.json()["error"], forced.text()
 
+    # Execute: PAX runs on to the operator's manual check (2.6); once she marks it done, PAX executes
+    # the pull-out (2.7), the ghost goes (the live arm shows what happens) and stays gone after
+    act(alice, "set_breakpoint", instruction="2.8")
+    act(alice, "continue")
+    wait_until_state(alice, "view.state.current === '2.6' && view.state.hold === 'operator_action'")
+    assert inspect(alice)["ghost"]["visible"], "the ghost of the plan about to run"
+    act(alice, "done", instruction="2.6")
+    wait_view(alice, "!v.ghost.visible")
+    wait_until_state(alice, "view.state.current === '2.8' && view.state.hold !== null && !view.state.executing")
+    expect(instruction(alice, "2.7").locator(".mark")).to_contain_text("completed", timeout=TIMEOUT_MS)
+    assert habitat.plan("cdra_filter:0")["state"] != "PLANNED"
+    assert not inspect(alice)["ghost"]["visible"], "no ghost of a plan that ran"
+
     # moving a waypoint sends set_waypoint_pose, and the habitat's waypoint follows
     waypoint = "0.0:cdra_filter:0"
     before = matrix(inspect(alice)["templates"][waypoint]["pose"])
@@ -311,6 +324,11 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     wait_for_pose(alice, waypoint, target)
     assert_pose(inspect(alice)["templates"][waypoint]["pose"], target, "the waypoint where it was dropped")
     stop_run(alice, "3D view test done")
+
+
+def wait_until_state(page: Page, condition: str) -> None:
+    """Wait until the page's run view satisfies ``condition`` (a JS expression over ``view``)."""
+    page.wait_for_function(f"view.state && ({condition})", timeout=TIMEOUT_MS)
 
 
 def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
