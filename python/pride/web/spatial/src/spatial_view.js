@@ -17,6 +17,15 @@ import { injectStyle } from './style.js';
 import { TemplateLayer } from './template_layer.js';
 import { Toolbar } from './toolbar.js';
 
+const KEEPALIVE_MS = 500;
+const LATENCY_WINDOW = 50;
+
+function median(values) {
+  if (!values.length) return null;
+  const sorted = [...values].sort((a, b) => a - b);
+  return sorted[Math.floor(sorted.length / 2)];
+}
+
 export class SpatialView {
   /**
    * @param {HTMLElement} container where the view draws (it fills it and follows its size)
@@ -25,8 +34,9 @@ export class SpatialView {
    *   onPoseCommand(command): a drag was released; send command.command with command.args
    *   onError(message): something in the data or a mesh could not be shown
    *   pendingTimeoutMs: how long a requested pose waits for an update showing it (default 60 s)
+   *   renderOnDemand: draw only when something changed (default); false draws every animation frame
    */
-  constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000 } = {}) {
+  constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000, renderOnDemand = true } = {}) {
     injectStyle();
     this.container = container;
     container.classList.add('ct-spatial');
@@ -51,7 +61,7 @@ export class SpatialView {
     this.orbit = new OrbitControls(this.camera, this.renderer.domElement);
     this.orbit.enableDamping = false;
     this.occluders = new Occluders();
-    this.orbit.addEventListener('change', () => this._unhide());
+    this.orbit.addEventListener('change', () => { this._unhide(); this.invalidate(); });
 
     this.world = new THREE.Group(); // everything from a document; cleared by load()
     this.scene.add(this.world);
@@ -78,6 +88,11 @@ export class SpatialView {
     this._frames = 0;
     this._fpsWindow = [];
     this._last = performance.now();
+    this._lastDraw = -Infinity;
+    this._dirty = true;
+    this._jointsSince = null; // when the oldest joint update not yet drawn arrived
+    this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
+    this.renderOnDemand = !!renderOnDemand;
     this._installPicking();
     this._resize = new ResizeObserver(() => this._fitCanvas());
     this._resize.observe(container);
@@ -137,6 +152,7 @@ export class SpatialView {
       onChange: () => this._changed(),
       pendingTimeoutMs: this._pendingTimeoutMs,
     });
+    this.registration.controls.addEventListener('change', () => this.invalidate()); // drags, handle hover
     this.registration.setCanAct(this._canAct);
     if (!this.toolbar) this.toolbar = new Toolbar(this.container, this);
     this.layer.update(doc.templates);
@@ -160,12 +176,17 @@ export class SpatialView {
       return false;
     }
     switch (update.kind) {
-      case 'joints':
+      case 'joints': {
+        // The habitat sends joint states while the arm stands still too: those change no pixel.
+        const moved = Object.entries(update.positions).some(([name, value]) => this.robot.positions[name] !== value);
         this.robot.setJoints(update.positions);
         Object.assign(this.joints.positions, update.positions);
         this.joints.stamp = update.stamp ?? this.joints.stamp;
         this.jointUpdates = (this.jointUpdates || 0) + 1;
+        if (!moved) return true;
+        this._jointsSince ??= performance.now();
         break;
+      }
       case 'objects':
         for (const [name, pose] of Object.entries(update.poses)) {
           const o = this.objects.get(name);
@@ -209,6 +230,16 @@ export class SpatialView {
   dragBy(id, motion) { return this.registration ? this.registration.dragBy(id, motion) : { refused: 'no scene loaded' }; }
 
   stepWaypoint(direction) { this.player?.stepWaypoint(direction); }
+
+  /** Something drawn changed outside the view's own paths (the page's doing): draw the next frame. */
+  invalidate() { this._dirty = true; }
+
+  /** On demand (default) or every animation frame: the benchmark compares both in one page. */
+  setRenderOnDemand(onDemand) {
+    this.renderOnDemand = !!onDemand;
+    this._latencies = [];
+    this.invalidate();
+  }
 
   setNamesVisible(visible) {
     this.namesVisible = !!visible;
@@ -289,6 +320,8 @@ export class SpatialView {
       camera_url: this.cameraImg.hidden ? null : this.cameraImg.getAttribute('src'),
       fps: this.fps ?? 0,
       frames: this._frames,
+      render_on_demand: this.renderOnDemand,
+      update_latency_ms: median(this._latencies),
       last_error: this.lastError ?? null,
     };
   }
@@ -322,7 +355,7 @@ export class SpatialView {
     this.statusEl.classList.toggle('ct-spatial-error', error);
   }
 
-  _changed() { this.toolbar?.refresh(); }
+  _changed() { this.toolbar?.refresh(); this.invalidate(); }
 
   _fitCanvas() {
     const w = Math.max(1, this.container.clientWidth);
@@ -331,6 +364,7 @@ export class SpatialView {
     this.labels.setSize(w, h);
     this.camera.aspect = w / h;
     this.camera.updateProjectionMatrix();
+    this.invalidate();
   }
 
   _installPicking() {
@@ -356,10 +390,20 @@ export class SpatialView {
     this._raf = requestAnimationFrame(this._loop);
     const dt = Math.min(0.1, (now - this._last) / 1000);
     this._last = now;
-    if (this.player) this.player.tick(dt);
+    if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
     if (this.registration) this.registration.expire(now);
+    // On demand: a frame only when something changed, and a slow keep-alive frame that shows what
+    // arrived by paths the view does not watch (a mesh that finished loading, a camera image).
+    if (this.renderOnDemand && !this._dirty && now - this._lastDraw < KEEPALIVE_MS) return;
+    this._dirty = false;
+    this._lastDraw = now;
     this.renderer.render(this.scene, this.camera);
     if (this.namesVisible) this.labels.render(this.scene, this.camera);
+    if (this._jointsSince !== null) {
+      this._latencies.push(performance.now() - this._jointsSince);
+      if (this._latencies.length > LATENCY_WINDOW) this._latencies.shift();
+      this._jointsSince = null;
+    }
     this._frames += 1;
     this._fpsWindow.push(now);
     while (this._fpsWindow.length && now - this._fpsWindow[0] > 1000) this._fpsWindow.shift();
