@@ -97,7 +97,7 @@ def test_sessions_end_when_idle_at_their_limit_and_when_the_password_changes(sto
     clock.now += 6
     with pytest.raises(SignInRefused, match="password changed"):
         sign_ins.session(request_with(changed.token))
-    with pytest.raises(SignInRefused, match="sign in first"):  # and it stays ended
+    with pytest.raises(SignInRefused, match="password changed: sign in again"):  # it stays ended, with its reason
         sign_ins.session(request_with(changed.token))
 
 

@@ -18,6 +18,7 @@ only. Accounts, and so the end of sessions, are shared through the database.
 
 from __future__ import annotations
 
+import collections
 import math
 import secrets
 import threading
@@ -35,6 +36,7 @@ __all__ = ["COOKIE", "CSRF_HEADER", "SessionLimits", "SignInRefused", "SignIns",
 
 COOKIE = "caretaker_session"
 CSRF_HEADER = "X-CSRF-Token"
+_ENDED_KEPT = 1000  # reasons of ended sessions remembered
 
 
 @dataclass(frozen=True)
@@ -86,8 +88,11 @@ class SignIns:
         self.limits = limits
         self.throttle = throttle or SignInThrottle(clock=clock)
         self._clock = clock
-        self._lock = threading.Lock()  # guards _sessions
+        self._lock = threading.Lock()  # guards _sessions and _ended
         self._sessions: dict[str, WebSession] = {}
+        # why recent sessions ended, so every request of a page that is still open gets the same
+        # reason, not only the first one to notice (oldest dropped first)
+        self._ended: collections.OrderedDict[str, str] = collections.OrderedDict()
 
     def sign_in(self, user: str, password: str, address: str) -> WebSession:
         """A new session, or SignInRefused (never saying whether the user id or the password was wrong).
@@ -122,8 +127,9 @@ class SignIns:
         now = self._clock()
         with self._lock:
             session = self._sessions.get(token)
+            ended = self._ended.get(token)
         if session is None:
-            raise SignInRefused(401, "sign in first (your session ended or the server restarted)")
+            raise SignInRefused(401, ended or "sign in first (your session ended or the server restarted)")
         if now - session.created > self.limits.absolute:
             self._end(token, "your session reached its time limit: sign in again")
         if now - session.last_used > self.limits.idle:
@@ -147,7 +153,11 @@ class SignIns:
                     session.checked = -math.inf
 
     def _end(self, token: str, message: str) -> None:
-        self.sign_out(token)
+        with self._lock:
+            self._sessions.pop(token, None)
+            self._ended[token] = message
+            while len(self._ended) > _ENDED_KEPT:
+                self._ended.popitem(last=False)
         raise SignInRefused(401, message)
 
     def _forget_expired(self, now: float) -> None:
