@@ -113,9 +113,16 @@ class SimClient:
         self.wait_for(lambda: topic in self.latest and self.latest[topic].data == expected, f"{topic} == {expected!r}", timeout)
 
     def joint_positions(self, names: Sequence[str]) -> list[float]:
-        msg = self.fresh("/joint_states")
-        index = {n: i for i, n in enumerate(msg.name)}
-        return [msg.position[index[n]] for n in names]
+        return _positions(self.fresh("/joint_states"), names)
+
+    def wait_joints(self, names: Sequence[str], expected: Sequence[float], tol: float) -> None:
+        """Wait until ``/joint_states`` shows ``names`` within ``tol`` of ``expected``: under load the
+        messages taken after a result can still be ones queued before it."""
+        def there() -> bool:
+            msg = self.latest.get("/joint_states")
+            return msg is not None and all(abs(q - e) <= tol for q, e in zip(_positions(msg, names), expected, strict=True))
+
+        self.wait_for(there, f"joint_states of {list(names)} at {list(expected)}")
 
     def frame(self, name: str) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
         msg = self.fresh("/sim/frames")
@@ -225,3 +232,8 @@ class SimClient:
             return got[0]
         finally:
             self.node.destroy_subscription(sub)
+
+
+def _positions(msg: Any, names: Sequence[str]) -> list[float]:
+    index = {n: i for i, n in enumerate(msg.name)}
+    return [msg.position[index[n]] for n in names]

@@ -48,14 +48,14 @@ def test_valid_trajectory_reaches_its_goal_with_feedback(client: SimClient, mode
     result = client.follow(ARM, [(1.5, middle), (3.0, goal)])
     assert_ok(result)
     assert "reached the goal" in result.error_string
-    assert close_to(client.joint_positions(ARM), goal, 1e-3)
+    client.wait_joints(ARM, goal, 1e-3)
     # Feedback is published before the result, but the action client drops feedback that it
     # handles after the result: only feedback from during the motion is certain to arrive.
     client.wait_for(lambda: bool(client.feedback), "trajectory feedback")
     assert list(client.feedback[0].joint_names) == ARM
     assert all(len(fb.actual) == len(ARM) and 0.0 <= fb.time_from_start <= 3.0 + 1e-6 for fb in client.feedback)
     assert_ok(move_to(client, model, [HOME]))
-    assert close_to(client.joint_positions(ARM), HOME, 1e-3)
+    client.wait_joints(ARM, HOME, 1e-3)
     client.wait_value("/robot/moving", False)
 
 
@@ -66,7 +66,7 @@ def test_joints_may_be_named_in_any_order_and_subset(client: SimClient) -> None:
     expected = list(start)
     expected[5] += 0.3
     expected[0] -= 0.2
-    assert close_to(client.joint_positions(ARM), expected, 1e-3)
+    client.wait_joints(ARM, expected, 1e-3)
     assert_ok(client.follow(ARM, [(0.5, start)]))
 
 
