@@ -38,7 +38,7 @@ def test_a_duplicate_key_executes_once(start_ledger: StartLedger, client: Ledger
     _, epoch = start_ledger(tmp_path)
     before = client.counts().get("count", 0)
     first = client.execute("run-a/1.1/1", COUNT)
-    assert (first.state, first.epoch) == ("SUCCEEDED", epoch)
+    assert (first.state, first.epoch) == ("SUCCEEDED", epoch), first.message
     assert json.loads(first.response_json) == {"success": True, "message": f"count {before + 1}"}
     again = client.execute("run-a/1.1/1", COUNT, epoch=epoch)
     assert again.state == "SUCCEEDED" and again.response_json == first.response_json

@@ -35,10 +35,12 @@ SERVICE_QOS = QoSProfile(  # type: ignore[no-untyped-call]  # rclpy is not annot
     depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
 """Deep request/response queues like the robot side's services: ROS's default depth 10 drops
 requests silently when more arrive together."""
-DISCOVERY_WAIT_S = 3.0
-"""How long a call waits for a service the graph does not list yet (a ledger or robot part that
-has just restarted is discovered over DDS within a second or two)."""
-SERVER_WAIT_S = 2.0
+DISCOVERY_WAIT_S = 10.0
+"""How long a call waits for a service the graph does not list yet. A ledger or robot part that
+has just (re)started is usually discovered over DDS within a second or two, but on a loaded
+habitat computer it has taken more than 3 s; refusing then would fail a command that was only
+early. The bridge gives a service call the same 10 s."""
+SERVER_WAIT_S = 5.0
 """How long a call waits for a listed service's server to match the ledger's client."""
 POLL_S = 0.05
 """Graph polling period: rclpy offers no graph-change event to wait on."""
