@@ -481,6 +481,14 @@ def test_frame_rate_while_joints_stream_at_50_hz(open_view: Callable[..., Page],
         record_property(f"spatial_latency_ms_{mode}", round(latency, 1))
         lines.append(f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden), update-to-frame median {latency:.0f} ms, "
                      f"joint updates at {rate:.1f}/s over {seconds:.1f} s")
+    # The same scene on a quarter of the pixels, every frame: software compositing costs per pixel,
+    # so this shows how much of the frame rate the canvas size alone takes.
+    page.evaluate("window.caretakerSpatial.setRenderOnDemand(false)")
+    page.set_viewport_size({"width": 500, "height": 350})
+    page.wait_for_function("window.caretakerSpatial.renderer.domElement.width === 500")
+    fps_small, _, _, latency_small = _frame_rate(page, 250)
+    record_property("spatial_fps_every_frame_500x350", round(fps_small, 1))
+    lines.append(f"every_frame at 500x350, names hidden: {fps_small:.1f} frames/s, update-to-frame median {latency_small:.0f} ms")
     page.evaluate("window.stopJointStream()")
     load = os.getloadavg()[0]
     print(f"\nspatial view (1000x700, SwiftShader, load average {load:.1f} on {os.cpu_count()} cores):\n  " + "\n  ".join(lines))
