@@ -47,7 +47,10 @@ def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(sign_in
     stop_run(bob, "stopped from another console")
     expect(listed.locator(".run-status")).to_have_text("stopped")  # without a click on refresh
     expect(listed).not_to_have_class(re.compile(r"\blive\b"))
-    assert listed.locator(".run-status").evaluate("node => getComputedStyle(node, '::before').content") == '"■"'
+    # The mark is read again until it shows: the row may be redrawn by a later push meanwhile.
+    alice.wait_for_function(
+        """(id) => { const n = document.querySelector(`#run-list li[data-run-id="${id}"] .run-status`);
+                     return !!n && getComputedStyle(n, '::before').content === '"■"'; }""", arg=run_id)
 
 
 def test_continue_is_offered_only_where_automation_can_continue(sign_in) -> None:
