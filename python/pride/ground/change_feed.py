@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -68,8 +69,11 @@ class Notice:
 Subscriber = Callable[[Notice], None]
 
 
-class ChangeFeed:
-    """Notices to subscribers, from a thread of the feed's own. Subscribers must return quickly."""
+class ChangeFeed(ABC):
+    """Notices to subscribers, from a thread of the feed's own. Subscribers must return quickly.
+
+    A subclass's :meth:`_run` is that thread: it watches the database until ``_closed`` is set.
+    """
 
     def __init__(self, name: str) -> None:
         self._subscribers: list[Subscriber] = []
@@ -100,8 +104,9 @@ class ChangeFeed:
             except Exception:  # one subscriber's bug must not starve the others
                 log.exception("change feed subscriber %r failed on %s", subscriber, notice)
 
+    @abstractmethod
     def _run(self) -> None:
-        raise NotImplementedError
+        """Watch the database and :meth:`_publish` what changed, until ``_closed`` is set."""
 
 
 class ListeningFeed(ChangeFeed):
