@@ -49,6 +49,17 @@ def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
     return page.locator(f'#audit li[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
 
 
+def shown_image_width(image: Locator) -> int:
+    """The natural width of the picture an ``<img>`` shows, once one has loaded.
+
+    Not ``image.decode()``: a live feed replaces ``src`` every few tenths of a second, and a
+    decode pending when it does is rejected (EncodingError) though every picture is fine.
+    """
+    width = image.page.wait_for_function(
+        "image => image.complete && image.naturalWidth", arg=image.element_handle())
+    return int(width.json_value())
+
+
 def screenshot(page: Page, name: str) -> None:
     """A picture of the console for the documentation (see IMAGES)."""
     IMAGES.mkdir(parents=True, exist_ok=True)

@@ -13,7 +13,17 @@ import re
 
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, sign_in_on, start_run, stop_run
+from operator_page import (
+    IVA,
+    audit_row,
+    expect_ended,
+    instruction,
+    screenshot,
+    shown_image_width,
+    sign_in_on,
+    start_run,
+    stop_run,
+)
 from pride.audit_log import AuditLog
 from web_server import procedure_shelf, start_server
 
@@ -164,7 +174,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     # the camera view followed the arm while it moved (live captures, not audit records)
     camera = alice.locator("#camera")
     expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"live view while the robot moves .*_web_view\.png"))
-    assert camera.evaluate("image => image.decode().then(() => image.naturalWidth)") == 160
+    assert shown_image_width(camera) == 160
     live_image = camera.get_attribute("src")
     expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("execute_plan")
     expect(alice.locator('#audit li[data-kind="command_sent"]', has_text="camera.capture")).to_have_count(0)

@@ -50,6 +50,7 @@ class CameraFeed:
         self._lock = threading.Lock()  # guards _latest, _captures
         self._latest: LiveImage | None = None
         self._captures = 0
+        self._problem: str | None = None  # the last capture's failure, said once until it changes
         self._thread = threading.Thread(target=self._run, name="camera-feed", daemon=True)
         self._thread.start()
 
@@ -87,13 +88,21 @@ class CameraFeed:
         started = time.time()  # an image shows the moment it was asked for, not when it arrived
         try:
             result = self._gateway.execute(CAMERA_SYSREP, CAPTURE_COMMAND, {"camera": self._camera, "label": self._label})
-        except Exception:
-            log.exception("camera capture failed")
+        except Exception as exc:
+            self._failed(f"camera capture failed: {type(exc).__name__}: {exc}")
             return
         path = result.values.get("path")
         if not result.success or not path:
-            log.warning("camera capture gave no image: %s", result.message)
+            self._failed(f"camera capture gave no image: {result.message}")
             return
+        if self._problem is not None:
+            log.info("camera capture gives images again")
+            self._problem = None
         with self._lock:
             self._captures += 1
             self._latest = LiveImage(Path(path), started, self._captures)
+
+    def _failed(self, problem: str) -> None:
+        """Warn of a failing capture once, not every period: the same failure repeats while the arm moves."""
+        log.log(logging.DEBUG if problem == self._problem else logging.WARNING, "%s", problem)
+        self._problem = problem
