@@ -461,35 +461,34 @@ def _frame_rate(page: Page, updates: int) -> tuple[float, float, float, float]:
 
 
 def test_frame_rate_while_joints_stream_at_50_hz(open_view: Callable[..., Page], iva: Habitat, record_property: Callable[[str, Any], None]) -> None:
-    """Reports frames/s and update-to-frame latency while joint updates arrive at 50 Hz, drawing every
-    animation frame and on demand side by side (a measurement, not a timed assertion)."""
+    """Reports frames/s and update-to-frame latency while joint updates arrive at 50 Hz: every animation
+    frame at full resolution, every frame with adaptive resolution, and on demand with it (the
+    console's way), side by side (a measurement, not a timed assertion). Once the stream stops the
+    view draws at full resolution again."""
     running = RunningTemplate.add(iva, "cdra_filter", "ur10", object_name="cdra_filter", frame="cabinet/slot")
     page = open_view(iva.document())
     apply(page, running.update("grasp_and_pull"))
     apply(page, running.plan("grasp_and_pull", iva_start(iva)))
     page.evaluate("([names, base]) => window.startJointStream(50, names, base)", [iva.arm_joints, iva_start(iva)])
     lines = []
-    for on_demand in (False, True):
-        page.evaluate(f"window.caretakerSpatial.setRenderOnDemand({str(on_demand).lower()})")
+    for on_demand, adaptive in ((False, False), (False, True), (True, True)):
+        page.evaluate(f"window.caretakerSpatial.setRenderOnDemand({str(on_demand).lower()});"
+                      f"window.caretakerSpatial.setAdaptiveResolution({str(adaptive).lower()})")
         if not inspect(page)["names_visible"]:
             page.click("[data-action=names]")
+        _frame_rate(page, 100)  # the resolution adapts first
         fps, rate, seconds, latency = _frame_rate(page, 250)
+        scale = inspect(page)["resolution_scale"]
+        assert adaptive or scale == 1, f"drawn at {scale} of full resolution with adaptive resolution off"
         page.click("[data-action=names]")
         fps_unnamed, _, _, _ = _frame_rate(page, 150)
-        mode = "on_demand" if on_demand else "every_frame"
+        mode = ("on_demand" if on_demand else "every_frame") + ("_adaptive" if adaptive else "")
         record_property(f"spatial_fps_{mode}", round(fps, 1))
         record_property(f"spatial_latency_ms_{mode}", round(latency, 1))
-        lines.append(f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden), update-to-frame median {latency:.0f} ms, "
-                     f"joint updates at {rate:.1f}/s over {seconds:.1f} s")
-    # The same scene on a quarter of the pixels, every frame: software compositing costs per pixel,
-    # so this shows how much of the frame rate the canvas size alone takes.
-    page.evaluate("window.caretakerSpatial.setRenderOnDemand(false)")
-    page.set_viewport_size({"width": 500, "height": 350})
-    page.wait_for_function("window.caretakerSpatial.renderer.domElement.width === 500")
-    fps_small, _, _, latency_small = _frame_rate(page, 250)
-    record_property("spatial_fps_every_frame_500x350", round(fps_small, 1))
-    lines.append(f"every_frame at 500x350, names hidden: {fps_small:.1f} frames/s, update-to-frame median {latency_small:.0f} ms")
+        lines.append(f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden) at {scale:.2f} of full resolution, "
+                     f"update-to-frame median {latency:.0f} ms, joint updates at {rate:.1f}/s over {seconds:.1f} s")
     page.evaluate("window.stopJointStream()")
+    page.wait_for_function("window.caretakerSpatial.inspect().resolution_scale === 1")  # still again: drawn sharp
     load = os.getloadavg()[0]
     print(f"\nspatial view (1000x700, SwiftShader, load average {load:.1f} on {os.cpu_count()} cores):\n  " + "\n  ".join(lines))
     joints = inspect(page)["joints"]

@@ -19,6 +19,16 @@ import { Toolbar } from './toolbar.js';
 
 const KEEPALIVE_MS = 500;
 const LATENCY_WINDOW = 50;
+// Adaptive resolution: software WebGL (no GPU) composites the canvas per pixel, so a frame's cost
+// follows the drawing buffer's size (docs/benchmarks.md: 16 frames/s at 1000x700, 30 at half the
+// pixel ratio). While something moves the view draws at a lower resolution if frames cost more
+// than FRAME_SLOW_MS, and back up while they cost less than FRAME_FAST_MS; once nothing has moved
+// for SETTLE_MS it draws one sharp frame at full resolution, when the operator reads details.
+const SETTLE_MS = 300;
+const FRAME_SLOW_MS = 1000 / 25;
+const FRAME_FAST_MS = 1000 / 45;
+const SCALES = [1, 0.85, 0.7, 0.6, 0.5];
+const COST_WINDOW = 8;
 
 function median(values) {
   if (!values.length) return null;
@@ -35,15 +45,18 @@ export class SpatialView {
    *   onError(message): something in the data or a mesh could not be shown
    *   pendingTimeoutMs: how long a requested pose waits for an update showing it (default 60 s)
    *   renderOnDemand: draw only when something changed (default); false draws every animation frame
+   *   adaptiveResolution: draw at a lower resolution while things move when frames are slow (default)
    */
-  constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000, renderOnDemand = true } = {}) {
+  constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000,
+    renderOnDemand = true, adaptiveResolution = true } = {}) {
     injectStyle();
     this.container = container;
     container.classList.add('ct-spatial');
     this.onError = (message) => { this.lastError = message; this._status(message, true); onError(message); };
     // No multisampling: with software WebGL (no GPU) it costs a fifth of the frame rate.
     this.renderer = new THREE.WebGLRenderer({ antialias: false });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+    this._fullRatio = Math.min(window.devicePixelRatio || 1, 2);
+    this.renderer.setPixelRatio(this._fullRatio);
     container.appendChild(this.renderer.domElement);
     this.labels = new CSS2DRenderer();
     this.labels.domElement.className = 'ct-spatial-labels';
@@ -61,7 +74,7 @@ export class SpatialView {
     this.orbit = new OrbitControls(this.camera, this.renderer.domElement);
     this.orbit.enableDamping = false;
     this.occluders = new Occluders();
-    this.orbit.addEventListener('change', () => { this._unhide(); this.invalidate(); });
+    this.orbit.addEventListener('change', () => { this._unhide(); this._moving(); });
 
     this.world = new THREE.Group(); // everything from a document; cleared by load()
     this.scene.add(this.world);
@@ -93,6 +106,11 @@ export class SpatialView {
     this._jointsSince = null; // when the oldest joint update not yet drawn arrived
     this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
     this.renderOnDemand = !!renderOnDemand;
+    this.adaptiveResolution = !!adaptiveResolution;
+    this._scale = 0; // index into SCALES used while moving
+    this._movingUntil = -Infinity;
+    this._drawnAt = null; // when the last frame was drawn, until the next animation frame measures its cost
+    this._costs = []; // ms from a frame drawn while moving to the next animation frame, the last COST_WINDOW
     this._installPicking();
     this._resize = new ResizeObserver(() => this._fitCanvas());
     this._resize.observe(container);
@@ -152,7 +170,7 @@ export class SpatialView {
       onChange: () => this._changed(),
       pendingTimeoutMs: this._pendingTimeoutMs,
     });
-    this.registration.controls.addEventListener('change', () => this.invalidate()); // drags, handle hover
+    this.registration.controls.addEventListener('change', () => this._moving()); // drags, handle hover
     this.registration.setCanAct(this._canAct);
     if (!this.toolbar) this.toolbar = new Toolbar(this.container, this);
     this.layer.update(doc.templates);
@@ -185,6 +203,7 @@ export class SpatialView {
         this.jointUpdates = (this.jointUpdates || 0) + 1;
         if (!moved) return true;
         this._jointsSince ??= performance.now();
+        this._moving();
         break;
       }
       case 'objects':
@@ -233,6 +252,13 @@ export class SpatialView {
 
   /** Something drawn changed outside the view's own paths (the page's doing): draw the next frame. */
   invalidate() { this._dirty = true; }
+
+  /** Adaptive resolution on (default) or off: the benchmark compares both in one page. */
+  setAdaptiveResolution(adaptive) {
+    this.adaptiveResolution = !!adaptive;
+    this._costs = [];
+    this.invalidate();
+  }
 
   /** On demand (default) or every animation frame: the benchmark compares both in one page. */
   setRenderOnDemand(onDemand) {
@@ -321,6 +347,8 @@ export class SpatialView {
       fps: this.fps ?? 0,
       frames: this._frames,
       render_on_demand: this.renderOnDemand,
+      adaptive_resolution: this.adaptiveResolution,
+      resolution_scale: this.renderer.getPixelRatio() / this._fullRatio,
       update_latency_ms: median(this._latencies),
       last_error: this.lastError ?? null,
     };
@@ -357,6 +385,32 @@ export class SpatialView {
 
   _changed() { this.toolbar?.refresh(); this.invalidate(); }
 
+  /** Something on screen moves (joints, camera, a handle): draw it, at the moving resolution until it settles. */
+  _moving() {
+    this._movingUntil = performance.now() + SETTLE_MS;
+    this.invalidate();
+  }
+
+  /** The pixel ratio to draw this frame at: lower while moving if frames are slow, full when still. */
+  _adaptResolution(now) {
+    const moving = now < this._movingUntil || !!this.player?.playing;
+    if (this._drawnAt !== null && moving) {
+      this._costs.push(now - this._drawnAt);
+      if (this._costs.length >= COST_WINDOW) {
+        const cost = median(this._costs);
+        const step = cost > FRAME_SLOW_MS ? 1 : cost < FRAME_FAST_MS ? -1 : 0;
+        this._scale = Math.min(SCALES.length - 1, Math.max(0, this._scale + step));
+        this._costs = [];
+      }
+    }
+    this._drawnAt = null;
+    const ratio = this._fullRatio * (this.adaptiveResolution && moving ? SCALES[this._scale] : 1);
+    if (ratio !== this.renderer.getPixelRatio()) {
+      this.renderer.setPixelRatio(ratio); // resizes the drawing buffer, not the canvas on the page
+      this._dirty = true; // settling: one sharp frame
+    }
+  }
+
   _fitCanvas() {
     const w = Math.max(1, this.container.clientWidth);
     const h = Math.max(1, this.container.clientHeight);
@@ -392,12 +446,14 @@ export class SpatialView {
     this._last = now;
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
     if (this.registration) this.registration.expire(now);
+    this._adaptResolution(now);
     // On demand: a frame only when something changed, and a slow keep-alive frame that shows what
     // arrived by paths the view does not watch (a mesh that finished loading, a camera image).
     if (this.renderOnDemand && !this._dirty && now - this._lastDraw < KEEPALIVE_MS) return;
     this._dirty = false;
     this._lastDraw = now;
     this.renderer.render(this.scene, this.camera);
+    this._drawnAt = now;
     if (this.namesVisible) this.labels.render(this.scene, this.camera);
     if (this._jointsSince !== null) {
       this._latencies.push(performance.now() - this._jointsSince);
