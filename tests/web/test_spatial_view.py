@@ -18,6 +18,7 @@ import pytest
 from playwright.sync_api import Browser, Page, Playwright
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
+from operator_page import shown_image_width
 from pride.web.spatial_scene import objects_update
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
@@ -220,7 +221,7 @@ def test_camera_image_beside_the_scene(open_view: Callable[..., Page], iva: Habi
     assert inspect(page)["camera_url"] is None and page.locator(".ct-spatial-camera").is_hidden()
     apply(page, {"kind": "camera", "url": "/camera.png?seq=1"})
     assert inspect(page)["camera_url"] == "/camera.png?seq=1"
-    page.wait_for_function("document.querySelector('.ct-spatial-camera').complete && document.querySelector('.ct-spatial-camera').naturalWidth > 0")
+    assert shown_image_width(page.locator(".ct-spatial-camera")) > 0
     apply(page, {"kind": "camera", "url": None})
     assert page.locator(".ct-spatial-camera").is_hidden()
 

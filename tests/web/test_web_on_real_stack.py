@@ -22,6 +22,9 @@ from operator_page import IVA, audit_row, expect_ended, instruction, screenshot,
 from pride.audit_log import AuditLog
 from web_server import REPO, WebServer, server_on_real_stack
 
+#: PAX plans and moves the arm on the way to a hold: real motion, as slow as the machine's load makes it.
+MOTION_MS = 180_000
+
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
@@ -82,8 +85,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     alice.click("#mode-autonomous")
     expect(alice.locator("#run-mode")).to_have_text("autonomous")
     for page in (alice, carol):
-        # PAX plans and moves the arm on the way: real motion, as slow as the machine's load makes it
-        expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
+        expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
         expect(page.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
     expect(instruction(alice, "2.5").locator(".mark")).to_contain_text("completed by PAX")
     expect(instruction(alice, "2.1").locator(".raw-detail")).to_contain_text("frame=cabinet/slot")
@@ -99,7 +101,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     instruction(alice, "2.6").locator("button.done").click()
     expect(instruction(alice, "2.6").locator(".mark")).to_contain_text("completed by alice")
     record = instruction(alice, "4.1")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
+    expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
     expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
     # a label misread: an id of no clean filter on the rack is refused before the robot moves
     alice.click("#mode-manual")  # alice takes the next steps by hand
@@ -124,7 +126,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     alice.click("#mode-autonomous")
     expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
     confirm_slot = instruction(alice, "5.1")
-    expect(confirm_slot).to_have_class(re.compile(r"\bcurrent\b"), timeout=180_000)
+    expect(confirm_slot).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
     confirm_slot.locator("button.done").click()
     for page in (alice, carol):
         expect_ended(page, "completed")
