@@ -27,6 +27,7 @@ from operator_page import (
     sign_in_on,
     start_run,
     stop_run,
+    where_the_run_is,
 )
 from playwright.sync_api import Browser, Locator, Page, expect
 from web_server import REPO, WebServer, new_ground_database, start_server
@@ -35,10 +36,12 @@ from pride.audit_log import AuditLog
 from pride.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
 from support.browser import signed_in_pages
 from support.postgres import PostgresServer
-from support.processes import caretaker
+from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+#: Two robots' procedures run at once: the inner waits below (MOTION_MS each) must be what fails
+#: first, with what the page and the processes show, not the suite's 300 s per test.
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(900)]
 
 EVA = "eva_inspection.xml"
 #: An arm's motions at full simulation speed still take minutes on two loaded cores.
@@ -51,6 +54,43 @@ FORWARDED_MS = int((TAKE_WITHIN_S + ANSWER_WITHIN_S) * 1000) + 30_000
 class Ground:
     first: WebServer  # console A: hosts both runs
     second: WebServer  # console B: follows them through the database
+    robots: dict[str, ManagedProcess]  # each robot's ``caretaker up``
+
+    def current(self, page: Page, number: str) -> Locator:
+        """The instruction, once it is the one the run holds at (PAX may take minutes of motion to get there)."""
+        found = instruction(page, number)
+        try:
+            expect(found).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+        except AssertionError as failure:
+            raise self.failure(page, f"instruction {number} did not become current", failure) from None
+        return found
+
+    def seen_by_the_other(self, acting: Page, row: Locator, text: str) -> None:
+        """An operator's record, shown in the other console's audit log; else what the acting page said.
+
+        A record made on B is forwarded to its host A, which has TAKE_WITHIN_S to take it and
+        ANSWER_WITHIN_S to answer before B calls it not performed or unknown; the page then says so.
+        """
+        try:
+            expect(row).to_contain_text(text, timeout=FORWARDED_MS)
+        except AssertionError as failure:
+            said = acting.locator("#action-error").inner_text()
+            raise self.failure(acting, f"the other console did not show {text!r}; the acting page said {said!r}",
+                               failure) from None
+
+    def ended_in(self, page: Page, status: str) -> None:
+        try:
+            expect(page.locator("#run-status")).to_have_text(status, timeout=MOTION_MS)
+        except AssertionError as failure:
+            raise self.failure(page, f"the run did not end {status}", failure) from None
+        expect_ended(page, status)
+
+    def failure(self, page: Page, what: str, failure: AssertionError) -> AssertionError:
+        """``what`` went wrong, with what ``page`` shows of its run and what each process printed last."""
+        logs = {"console A": self.first.process, "console B": self.second.process,
+                **{f"robot {name}": up for name, up in self.robots.items()}}
+        printed = "\n".join(f"--- {name} printed last:\n{process.tail(40)}" for name, process in logs.items())
+        return AssertionError(f"{what}\n{failure}\n--- the page shows:\n{where_the_run_is(page)}\n{printed}")
 
 
 @pytest.fixture(scope="module")
@@ -72,7 +112,7 @@ def ground(
                                    options=["--console", name])
             stack.callback(console.process.stop)
             consoles.append(console)
-        yield Ground(*consoles)
+        yield Ground(consoles[0], consoles[1], ups)
 
 
 @pytest.fixture
@@ -85,13 +125,6 @@ def follow(page: Page, console: WebServer, run_id: str) -> Page:
     page.goto(f"{console.url}/#run={run_id}")
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
     return page
-
-
-def current(page: Page, number: str) -> Locator:
-    """The instruction, once it is the one the run holds at (PAX may take minutes of motion to get there)."""
-    found = instruction(page, number)
-    expect(found).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
-    return found
 
 
 def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground: Ground, open_page) -> None:
@@ -122,32 +155,33 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground:
     expect(bob_eva.locator('#audit li[data-kind="continued"][data-actor="alice"]')).to_have_count(1)
 
     # IVA: bob confirms the manual instruction from B; the run on A goes on
-    current(bob_iva, "2.6").locator("button.done").click()
+    ground.current(bob_iva, "2.6").locator("button.done").click()
     expect(instruction(alice_iva, "2.6").locator(".mark")).to_contain_text("completed by bob")
 
     # EVA: the four targets' assessments, answered alternately from A and from B
     for target, page in zip(("2", "3", "4", "5"), (alice_eva, bob_eva, alice_eva, bob_eva), strict=True):
-        assessment = current(page, f"{target}.1/2.2")
+        assessment = ground.current(page, f"{target}.1/2.2")
         assessment.locator("select.record-value").select_option("false")
         assessment.locator("button.record").click()
         actor = "alice" if page is alice_eva else "bob"
         other = bob_eva if page is alice_eva else alice_eva
-        seen_by_the_other(page, audit_row(other, "operator_input", f"{target}.1/2.2", actor), "damage = false")
+        ground.seen_by_the_other(page, audit_row(other, "operator_input", f"{target}.1/2.2", actor), "damage = false")
         if target == "2":  # the image the EVA arm took, from console A's disk, shown on B out of the database
             expect(bob_eva.locator("#camera-caption")).to_contain_text(".png")
             assert shown_image_width(bob_eva.locator("#camera")) > 0
 
     # IVA: the clean filter's id recorded on A; meanwhile a second run on the IVA robot is refused
-    current(alice_iva, "4.1").locator("input.record-value").fill("CDRA-F-0012")
+    ground.current(alice_iva, "4.1").locator("input.record-value").fill("CDRA-F-0012")
     instruction(alice_iva, "4.1").locator("button.record").click()
-    seen_by_the_other(alice_iva, audit_row(bob_iva, "operator_input", "4.1", "alice"), "clean_filter_id = CDRA-F-0012")
+    recorded = audit_row(bob_iva, "operator_input", "4.1", "alice")
+    ground.seen_by_the_other(alice_iva, recorded, "clean_filter_id = CDRA-F-0012")
     second_controller = second_run_on_the_same_robot(open_page(second, "bob"))
-    current(bob_iva, "5.1").locator("button.done").click()
+    ground.current(bob_iva, "5.1").locator("button.done").click()
 
     for page in (alice_iva, bob_iva):
-        expect_ended_in(page, "completed")
+        ground.ended_in(page, "completed")
     for page in (alice_eva, bob_eva):
-        expect_ended_in(page, "completed")
+        ground.ended_in(page, "completed")
 
     # each run's record is its own: its robot's systems only, whole chains
     log = AuditLog(first.database.url)
@@ -163,19 +197,6 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground:
     assert "controlled by" in second_controller, f"a second run on the IVA robot was not refused: {second_controller!r}"
 
 
-def seen_by_the_other(acting: Page, row: Locator, text: str) -> None:
-    """An operator's record, shown in the other console's audit log; else what the acting page said.
-
-    A record made on B is forwarded to its host A, which has TAKE_WITHIN_S to take it and
-    ANSWER_WITHIN_S to answer before B calls it not performed or unknown; the page then says so.
-    """
-    try:
-        expect(row).to_contain_text(text, timeout=FORWARDED_MS)
-    except AssertionError as failure:
-        said = acting.locator("#action-error").inner_text()
-        raise AssertionError(f"the acting console's page said {said!r} after its action\n{failure}") from None
-
-
 def second_run_on_the_same_robot(page: Page) -> str:
     """Try to start another IVA run (manual: it sends nothing by itself); the refusal, or what happened."""
     page.select_option("#start-procedure", IVA)
@@ -189,8 +210,3 @@ def second_run_on_the_same_robot(page: Page) -> str:
         stop_run(page, "a second controller of the IVA robot must not exist")
         return "started as a second controller"
     return refusal
-
-
-def expect_ended_in(page: Page, status: str) -> None:
-    expect(page.locator("#run-status")).to_have_text(status, timeout=MOTION_MS)
-    expect_ended(page, status)

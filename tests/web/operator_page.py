@@ -49,6 +49,23 @@ def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
     return page.locator(f'#audit li[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
 
 
+def where_the_run_is(page: Page, audit_rows: int = 8) -> str:
+    """What the page shows of its run, for a failure message: status, the instruction it holds
+    at, the hold banner, and the newest audit rows (a failed plan or a verify's timeout shows there)."""
+    return page.evaluate(
+        """rows => {
+            const squash = node => (node?.innerText ?? '').trim().replace(/\\s+/g, ' ');
+            const text = selector => squash(document.querySelector(selector));
+            const at = document.querySelector('#procedure li.instruction.current');
+            const audit = [...document.querySelectorAll('#audit li')].slice(0, rows).map(row => '  ' + squash(row));
+            return [`status ${text('#run-status')}, connection ${text('#connection')}`,
+                    `at ${at ? at.dataset.number + ': ' + squash(at).slice(0, 200) : 'no instruction'}`,
+                    `hold: ${text('#hold')}`, 'newest audit rows:', ...audit].join('\\n');
+        }""",
+        audit_rows,
+    )
+
+
 def shown_image_width(image: Locator) -> int:
     """The natural width of the picture an ``<img>`` shows, once one has loaded.
 
