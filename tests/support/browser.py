@@ -39,6 +39,10 @@ def signed_in_pages(browser: Browser, sign_in_on: Callable[[Page, str], None]) -
 
     try:
         yield open_as
+    except BaseException as failure:  # a script error may be why the test failed: say so with its failure
+        if script_errors:
+            failure.add_note("the page raised script errors:\n" + "\n".join(script_errors))
+        raise
     finally:
         for context in contexts:
             context.close()

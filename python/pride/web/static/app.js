@@ -27,6 +27,7 @@ const view = {
   checks: {},          // check key -> whether the instruction's test of that telemetry holds now
   clockOffset: 0,      // server clock minus this browser's, in ms (countdowns use the server's times)
   socket: null,
+  opening: 0,          // counts openRun calls: an answer to one that a later call overtook is dropped
   reconnectTimer: null,
   lastImageSeq: null,
   followed: null,      // the instruction last scrolled to
@@ -254,7 +255,11 @@ function openRunFromHash() {
   if (match && view.me) openRun(decodeURIComponent(match[1]));
 }
 
+// Opening is asynchronous and may be asked again before it finished (a hash change while signing
+// in, a reconnect): only the last call draws, or the audit list would be redrawn from one answer
+// with only the events the other had not shown.
 async function openRun(runId) {
+  const opening = ++view.opening;
   closeSocket();
   view.runId = runId;
   view.events = [];
@@ -268,10 +273,12 @@ async function openRun(runId) {
   try {
     data = await api("GET", `/api/runs/${encodeURIComponent(runId)}`);
   } catch (error) {
-    if (view.runId === runId) $("action-error").textContent = error.message;
+    if (opening !== view.opening) return;
+    $("action-error").textContent = error.message;
+    if (error.status === undefined || error.status >= 500) reopenLater(runId);  // the network or the server, not a refusal
     return;
   }
-  if (view.runId !== runId) return;  // another run was opened meanwhile
+  if (opening !== view.opening) return;  // opened again meanwhile (this run or another): that call draws
   view.procedure = data.procedure;
   buildProcedure();
   $("no-run").hidden = true;
@@ -299,8 +306,9 @@ function connect() {
   view.socket = socket;
   socket.addEventListener("open", () => setConnection("open", "live"));
   socket.addEventListener("message", (message) => {
+    if (view.socket !== socket) return;  // closed on purpose: a new opening draws from its own answer
     const data = JSON.parse(message.data);
-    if (data.type === "update" && view.runId === runId) applyUpdate(data);
+    if (data.type === "update") applyUpdate(data);
   });
   socket.addEventListener("close", (event) => {
     if (view.socket !== socket) return;  // replaced on purpose
@@ -314,9 +322,13 @@ function connect() {
       if (view.me && /sign in|session/.test(event.reason)) signedOut(event.reason);  // the first to learn it says why
       return;
     }
-    setConnection("reconnecting", "connection lost; reconnecting…");
-    view.reconnectTimer = setTimeout(() => { if (view.runId === runId) openRun(runId); }, RECONNECT_MS);
+    reopenLater(runId);
   });
+}
+
+function reopenLater(runId) {
+  setConnection("reconnecting", "connection lost; reconnecting…");
+  view.reconnectTimer = setTimeout(() => { if (view.runId === runId) openRun(runId); }, RECONNECT_MS);
 }
 
 function closeSocket() {

@@ -1,0 +1,66 @@
+"""The run's live connection: a page that opens its run again, or loses its connection, still shows every audit event.
+
+On the simulated systems (simulated_systems.py). The IVA procedure holds at 2.6 (an operator's
+Done) and records nothing more while it waits, so the audit list can be compared with the run's
+whole record.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+
+import pytest
+from playwright.sync_api import Page, Route, expect
+
+from operator_page import IVA, instruction, start_run, stop_run
+
+
+@pytest.fixture
+def held(sign_in) -> Iterator[tuple[Page, int]]:
+    """Alice's page on an IVA run held at 2.6, and the sequence number of its last event; stopped
+    afterwards (the suite's server has one IVA robot, which a run left live would keep controlling)."""
+    page = sign_in("alice")
+    start_run(page, IVA, "autonomous")
+    expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
+    yield page, int(page.evaluate("view.state.last_seq"))
+    stop_run(page, "test done")
+
+
+def expect_every_event_once(page: Page, last_seq: int) -> None:
+    """The audit list shows events 1..last_seq, each once."""
+    expect(page.locator("#audit li")).to_have_count(last_seq)
+    shown = page.locator("#audit li .seq").all_inner_texts()
+    assert sorted(int(seq.removeprefix("#")) for seq in shown) == list(range(1, last_seq + 1)), shown
+
+
+def test_opening_the_run_again_before_the_first_opening_finished_shows_every_event_once(held) -> None:
+    page, last_seq = held
+
+    # what a hash change while signing in does: two openings, the second asked before the first is drawn
+    page.evaluate("() => { openRun(view.runId); openRun(view.runId); }")
+    expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    expect_every_event_once(page, last_seq)
+
+
+def test_a_lost_connection_whose_reopening_fails_is_tried_again(held) -> None:
+    page, last_seq = held
+    run_id = page.locator("#run-id").inner_text()
+    failed: list[str] = []
+
+    def busy_once(route: Route) -> None:
+        if failed or route.request.method != "GET":
+            route.continue_()
+            return
+        failed.append(route.request.url)
+        route.fulfill(status=503, json={"error": "the console is busy"})
+
+    page.route(f"**/api/runs/{run_id}", busy_once)
+    page.evaluate("() => view.socket.close()")  # the connection drops (not closed by the page's own opening)
+    expect(page.locator("#action-error")).to_have_text("the console is busy")
+    assert failed, "the page did not open its run again after losing the connection"
+    expect(page.locator("#connection")).to_have_attribute("data-state", "reconnecting")
+
+    expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    expect(page.locator("#action-error")).to_have_text("")
+    expect_every_event_once(page, last_seq)
