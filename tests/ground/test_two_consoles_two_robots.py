@@ -109,7 +109,7 @@ def ground(
         consoles = []
         for name in ("console A", "console B"):
             console = start_server(tmp, REPO / "procedures", database=database, rosbridge=urls,
-                                   options=["--console", name])
+                                   cameras=["eva.yaml=ee_camera"], options=["--console", name])
             stack.callback(console.process.stop)
             consoles.append(console)
         yield Ground(consoles[0], consoles[1], ups)
@@ -192,7 +192,7 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground:
             assert log.verify(run_id).ok, log.verify(run_id).describe()
     finally:
         log.close()
-    # the IVA page never showed the EVA camera (the IVA binding has none)
+    # the IVA page never showed the EVA camera (the consoles watch an EVA camera only)
     expect(alice_iva.locator("#camera")).to_be_hidden()
     assert "controlled by" in second_controller, f"a second run on the IVA robot was not refused: {second_controller!r}"
 

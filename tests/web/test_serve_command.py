@@ -24,6 +24,7 @@ from websockets.sync.client import connect
 
 from pride.web.accounts import AccountStore, Role
 from caretaker.demo import DEMO_USER, demo_operator
+from pride.web.run_board import CameraSettings
 from pride.web.server import main
 from support.processes import caretaker
 from web_server import PEOPLE, REPO
@@ -197,6 +198,25 @@ def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(capsys: pytest.
     junk.write_text("not a certificate\n")
     assert main(["--certfile", str(junk), "--keyfile", str(junk), "--port", "0"]) == 2
     assert "not a usable PEM certificate and key" in capsys.readouterr().err
+
+
+def test_rosbridge_urls_and_cameras_are_given_per_binding_and_checked(capsys: pytest.CaptureFixture[str]) -> None:
+    for option, said in (
+        (["--rosbridge", "iva.yaml=http://127.0.0.1:9090"], "--rosbridge iva.yaml=http://127.0.0.1:9090: expected "
+                                                            "[BINDING=]ws://HOST:PORT or wss://HOST:PORT"),
+        (["--rosbridge", "ws://a:1", "--rosbridge", "ws://b:2"], "--rosbridge ws://b:2: every binding was given one already"),
+        (["--camera", "eva.yaml=ee camera"], "--camera eva.yaml=ee camera: expected [BINDING=]NAME"),
+        (["--camera", "iva.yaml=scene", "--camera", "iva.yaml=ee_camera"],
+         "--camera iva.yaml=ee_camera: binding iva.yaml was given one already"),
+    ):
+        assert main([*option, "--port", "0"]) == 2, option
+        assert said in capsys.readouterr().err
+
+
+def test_a_binding_without_its_own_camera_has_the_one_given_for_every_binding() -> None:
+    cameras = CameraSettings({"iva.yaml": "scene", "": "ee_camera"})
+    assert (cameras.camera_for("iva.yaml"), cameras.camera_for("eva.yaml")) == ("scene", "ee_camera")
+    assert CameraSettings({"iva.yaml": "scene"}).camera_for("eva.yaml") is None
 
 
 def test_with_a_certificate_the_view_is_served_over_tls_with_secure_cookies(tmp_path: Path) -> None:

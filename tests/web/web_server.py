@@ -63,17 +63,18 @@ class WebServer:
 
 def start_server(
     tmp: Path, procedures: Path, *, database: GroundDatabase | None = None, rosbridge: Sequence[str] | None = None,
-    sysreps: Path | None = None, options: Sequence[str] = (), env: dict[str, str] | None = None,
+    sysreps: Path | None = None, cameras: Sequence[str] = ("ee_camera",), options: Sequence[str] = (),
+    env: dict[str, str] | None = None,
 ) -> WebServer:
     """Start a server listing ``procedures`` on ``database`` (a new SQLite one in ``tmp`` by default)
-    and reading SysReps from ``sysreps`` (the shipped ones by default).
+    and reading SysReps from ``sysreps`` (the shipped ones by default); ``cameras``: ``--camera`` values.
 
     With ``rosbridge`` (``--rosbridge`` values: a URL, or BINDING=URL per robot) the server opens
     the real PAX host (JVM plugins); without, the simulated systems of simulated_systems.py.
     """
     env = dict(env if env is not None else os.environ)
-    arguments = ["--camera", "ee_camera", "--camera-period", "0.1", *(["--sysreps", str(sysreps)] if sysreps else []),
-                 *options]
+    arguments = [*(f"--camera={camera}" for camera in cameras), "--camera-period", "0.1",
+                 *(["--sysreps", str(sysreps)] if sysreps else []), *options]
     if rosbridge is None:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"

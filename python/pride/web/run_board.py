@@ -22,7 +22,7 @@ import secrets
 import threading
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -66,10 +66,18 @@ _LISTED = {EventKind.RUN_STARTED.value, EventKind.RUN_RESUMED.value, EventKind.R
 
 @dataclass(frozen=True)
 class CameraSettings:
-    """Which camera the live feed captures while the robot moves (None: no live feed), how often."""
+    """Which camera the live feed captures while each binding's robot moves, and how often.
 
-    camera: str | None = None
+    ``cameras`` maps a binding file name to a camera of its robot's scene ("" to every binding not
+    named): robots name their cameras differently (IVA's rack camera ``scene``, EVA's ``ee_camera``).
+    A binding without one has no live feed.
+    """
+
+    cameras: Mapping[str, str] = field(default_factory=dict)
     period: float = 0.5
+
+    def camera_for(self, binding: str) -> str | None:
+        return self.cameras.get(binding, self.cameras.get(""))
 
 
 @dataclass(frozen=True)
@@ -138,6 +146,10 @@ class RunBoard:
         self.feed.subscribe(self._notice)
         self.feed.subscribe(self.forwarding.notice)
 
+    def rosbridge_url_for(self, binding: str) -> str | None:
+        """The rosbridge URL given for a binding file (or for every binding); None: the binding's own."""
+        return self.rosbridge_urls.get(binding, self.rosbridge_urls.get(""))
+
     def sysreps(self) -> dict[str, SysRep]:
         return load_sysrep_dir(self.catalog.sysreps)
 
@@ -201,7 +213,7 @@ class RunBoard:
             raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
         procedure = checked.procedure
         try:
-            gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_urls.get(binding_name, self.rosbridge_urls.get("")))
+            gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url_for(binding_name))
         except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) refuse the start
             log.exception("opening %s", binding)
             raise ActionRefused(502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}") from None
@@ -217,8 +229,9 @@ class RunBoard:
     ) -> LiveRun:
         """Keep a run as live here, with a camera feed when the server has a camera to watch."""
         feed = None
-        if self.camera.camera is not None and CameraFeed.available(gateway):
-            feed = CameraFeed(gateway, self.camera.camera, period=self.camera.period)
+        camera = self.camera.camera_for(binding_name)
+        if camera is not None and CameraFeed.available(gateway):
+            feed = CameraFeed(gateway, camera, period=self.camera.period)
         run_id = executive.run_id
         live = LiveRun(executive, gateway, checked.procedure, binding=binding_name, started_by=started_by,
                        sysreps=dict(checked.sysreps), camera_feed=feed, history=history, host=self.hosting.host,

@@ -12,9 +12,11 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import logging
+import re
 import socket
 import ssl
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import uvicorn
@@ -75,8 +77,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--lease", type=float, default=DEFAULT_LEASE_S, metavar="S",
                         help="seconds after which other consoles take a run hosted here for interrupted if this console "
                              f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}")
-    parser.add_argument("--camera", metavar="NAME",
-                        help="camera to show while the robot moves (e.g. ee_camera, scene), when the binding serves the camera SysRep")
+    parser.add_argument("--camera", metavar="[BINDING=]NAME", action="append", default=[],
+                        help="camera to show while the robot of the binding file BINDING moves (e.g. iva.yaml=scene, "
+                             "eva.yaml=ee_camera), or of every binding without BINDING=, when it serves the camera SysRep")
     parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
     parser.add_argument("--reports", type=Path, default=REPO / "var" / "reports", help="where after-action reports are written")
     return parser
@@ -110,17 +113,21 @@ def _tls_problem(args: argparse.Namespace) -> str | None:
     return None
 
 
-def _rosbridge_urls(options: list[str]) -> dict[str, str]:
-    """``[BINDING=]URL`` options as binding file name -> URL ("" for every binding); ValueError says what is wrong."""
-    urls: dict[str, str] = {}
+#: A camera's name in a robot's scene (``camera/<name>`` frames of the simulation).
+_CAMERA_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _per_binding(flag: str, options: list[str], expected: str, valid: Callable[[str], object]) -> dict[str, str]:
+    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError says what is wrong."""
+    values: dict[str, str] = {}
     for option in options:
-        binding, _, url = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
-        if not url.startswith(("ws://", "wss://")):
-            raise ValueError(f"--rosbridge {option}: expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT")
-        if binding in urls:
-            raise ValueError(f"--rosbridge {option}: {'binding ' + binding if binding else 'every binding'} was given a URL already")
-        urls[binding] = url
-    return urls
+        binding, _, value = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
+        if not valid(value):
+            raise ValueError(f"{flag} {option}: expected [BINDING=]{expected}")
+        if binding in values:
+            raise ValueError(f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already")
+        values[binding] = value
+    return values
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,7 +146,10 @@ def main(argv: list[str] | None = None) -> int:
         print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
         return 2
     try:
-        rosbridge_urls = _rosbridge_urls(args.rosbridge)
+        rosbridge_urls = _per_binding("--rosbridge", args.rosbridge, "ws://HOST:PORT or wss://HOST:PORT",
+                                      lambda url: url.startswith(("ws://", "wss://")))
+        cameras = _per_binding("--camera", args.camera, "NAME (a camera of the robot's scene: scene, ee_camera)",
+                               _CAMERA_NAME.fullmatch)
     except ValueError as exc:
         print(f"caretaker serve: {exc}", file=sys.stderr)
         return 2
@@ -170,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
                     args.db, args.db)
     audit_log = AuditLog(args.db)
     catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
-    board = RunBoard(catalog, audit_log, CameraSettings(args.camera, args.camera_period), accounts=accounts,
+    board = RunBoard(catalog, audit_log, CameraSettings(cameras, args.camera_period), accounts=accounts,
                      console=args.console or f"console {socket.gethostname()}:{port}", lease=args.lease,
                      rosbridge_urls=rosbridge_urls)
     sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))

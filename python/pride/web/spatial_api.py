@@ -57,11 +57,11 @@ class SpatialFeeds:
         run_id = live.run_id
         if run_id not in self._feeds:
             path = board.catalog.binding_path(live.binding)
-            link = await run_in_threadpool(read_binding_link, path, rosbridge_url=board.rosbridge_urls.get(live.binding, board.rosbridge_urls.get("")))
+            link = await run_in_threadpool(read_binding_link, path, rosbridge_url=board.rosbridge_url_for(live.binding))
             if link is None:
                 return None
             if run_id not in self._feeds:  # (another browser may have made it meanwhile)
-                feed = SpatialFeed(link, camera_url=f"/api/runs/{run_id}/spatial/camera", camera=board.camera.camera)
+                feed = SpatialFeed(link, camera_url=f"/api/runs/{run_id}/spatial/camera", camera=board.camera.camera_for(live.binding))
                 feed.start()
                 loop = asyncio.get_running_loop()
 
