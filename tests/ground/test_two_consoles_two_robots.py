@@ -89,7 +89,7 @@ class Ground:
         """``what`` went wrong, with what ``page`` shows of its run and what each process printed last."""
         logs = {"console A": self.first.process, "console B": self.second.process,
                 **{f"robot {name}": up for name, up in self.robots.items()}}
-        printed = "\n".join(f"--- {name} printed last:\n{process.tail(40)}" for name, process in logs.items())
+        printed = "\n".join(f"--- {name} printed last:\n{process.tail(80)}" for name, process in logs.items())
         return AssertionError(f"{what}\n{failure}\n--- the page shows:\n{where_the_run_is(page)}\n{printed}")
 
 
@@ -103,7 +103,8 @@ def ground(
     with ExitStack() as stack:
         ups = {}
         for name, env in robots.items():  # both come up at once
-            ups[name] = caretaker("up", name, "--time-scale", "0", "--bridge-port", "0", env=env, name=f"up-{name}")
+            ups[name] = caretaker("up", name, "--time-scale", "0", "--bridge-port", "0", "--verbose", env=env,
+                                  name=f"up-{name}")  # --verbose: each part's log, for a failure's message
             stack.callback(ups[name].stop)
         urls = [f"{name}.yaml={up.wait_for_line(r'^READY stack ', 240).split()[-1]}" for name, up in ups.items()]
         consoles = []
