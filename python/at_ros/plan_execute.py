@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 import uuid
 from typing import Any
 
@@ -33,23 +34,55 @@ from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.srv import SetGripper
 
-__all__ = ["PLAN_TIMEOUT", "PlanExecutor", "wait_for_future"]
+__all__ = ["PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "trajectory_result", "wait_for_future"]
 
 LOG = logging.getLogger(__name__)
 
 PLAN_TIMEOUT = 60.0
+#: How long a trajectory goal's result is waited for before it is asked for again.
+RESULT_ASK_AGAIN_S = 5.0
+
+
+def _settled(future: Any, timeout: float) -> bool:
+    """Whether an rclpy future completed within ``timeout``; one that did not is cancelled."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    if done.wait(timeout):
+        return True
+    future.cancel()
+    return False
+
+
+def _answer(future: Any, what: str) -> Any:
+    if future.exception() is not None:
+        raise CommandRefused(f"{what} failed: {future.exception()}")
+    return future.result()
 
 
 def wait_for_future(future: Any, timeout: float, what: str) -> Any:
     """The result of an rclpy future, or CommandRefused naming ``what`` on timeout or failure."""
-    done = threading.Event()
-    future.add_done_callback(lambda _: done.set())
-    if not done.wait(timeout):
-        future.cancel()
+    if not _settled(future, timeout):
         raise CommandRefused(f"{what} did not answer within {timeout:.0f} s")
-    if future.exception() is not None:
-        raise CommandRefused(f"{what} failed: {future.exception()}")
-    return future.result()
+    return _answer(future, what)
+
+
+def trajectory_result(handle: Any, timeout: float) -> Any:
+    """The result of an accepted trajectory goal, asked for again every :data:`RESULT_ASK_AGAIN_S`.
+
+    A get_result answer lost between the processes would otherwise leave the execution waiting
+    out its whole timeout and then report a motion that may have finished as failed. Asking
+    only reads (the action server keeps a goal's result), so asking twice cannot move the robot
+    twice; the first answer is the result.
+    """
+    deadline = time.monotonic() + timeout
+    while True:
+        future = handle.get_result_async()
+        if _settled(future, max(0.0, min(RESULT_ASK_AGAIN_S, deadline - time.monotonic()))):
+            return _answer(future, "the trajectory action")
+        if time.monotonic() >= deadline:
+            raise CommandRefused(f"the trajectory action did not answer within {timeout:.0f} s")
+        LOG.warning("no result of trajectory goal %s after %.0f s: asking for it again",
+                    bytes(handle.goal_id.uuid).hex(), RESULT_ASK_AGAIN_S)
 
 
 class PlanExecutor:
@@ -268,7 +301,7 @@ class PlanExecutor:
             last = points[-1].time_from_start
             timeout = 30.0 + 3.0 * (last.sec + last.nanosec * 1e-9)
             try:
-                outcome = wait_for_future(handle.get_result_async(), timeout, "the trajectory action")
+                outcome = trajectory_result(handle, timeout)
             finally:
                 self.halts.goal_ended()
             if outcome.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:  # the .action puts the codes on Goal
