@@ -11,10 +11,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from playwright.sync_api import Browser, expect
+from playwright.sync_api import Browser, Playwright, expect
 
 from operator_page import sign_in_on
-from support.browser import TIMEOUT_MS, signed_in_pages
+from support.browser import CHROMIUM, TIMEOUT_MS, WEBGL_ARGS, signed_in_pages
 from web_server import WebServer, new_ground_database, procedure_shelf, start_server
 
 expect.set_options(timeout=TIMEOUT_MS)
@@ -29,6 +29,14 @@ def server(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
     served = start_server(tmp, procedure_shelf(tmp), database=new_ground_database(request.param, tmp, postgres))
     yield served
     served.process.stop()
+
+
+@pytest.fixture(scope="module")
+def webgl_browser(playwright: Playwright) -> Iterator[Browser]:
+    """Chromium with WebGL on SwiftShader, for the 3D view's suites."""
+    browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
+    yield browser
+    browser.close()
 
 
 @pytest.fixture

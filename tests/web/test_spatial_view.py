@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from playwright.sync_api import Browser, Page, Playwright
+from playwright.sync_api import Browser, Page
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
 from operator_page import shown_image_width
@@ -23,10 +23,6 @@ from pride.web.spatial_scene import objects_update
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
 
-CHROMIUM = "/usr/bin/chromium"
-#: WebGL 2 without a GPU: ANGLE on SwiftShader.
-WEBGL_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-background-networking",
-              "--disable-component-update", "--disable-sync", "--no-first-run"]
 TIMEOUT_MS = 60_000
 MM = 1e-3
 
@@ -37,13 +33,6 @@ pytestmark = pytest.mark.slow
 def site() -> Iterator[SpatialSite]:
     with serve_site() as served:
         yield served
-
-
-@pytest.fixture(scope="module")
-def webgl_browser(playwright: Playwright) -> Iterator[Browser]:
-    browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
-    yield browser
-    browser.close()
 
 
 @pytest.fixture(scope="module")
@@ -152,6 +141,52 @@ def test_robot_links_follow_joint_updates(open_view: Callable[..., Page], iva: H
     update = {**arm, "gripper_left_finger_joint": 0.01, "gripper_right_finger_joint": 0.02}
     apply(page, {"kind": "joints", "stamp": 2.0, "positions": update})
     assert_links(inspect(page)["links"], iva.link_poses(update), "random joints")
+
+
+#: Joint states of wrist_3 every 0.2 s in the page, and what the view drew at every animation frame
+#: meanwhile: [drawn, newest state sent]; then 0.4 s more with no state.
+STREAM_AND_WATCH = """async ([interpolate, values]) => {
+  const view = window.caretakerSpatial;
+  view.setJointInterpolation(interpolate);
+  const frames = [];
+  let newest = view.robot.positions.wrist_3_joint, watching = true;
+  const watch = () => { frames.push([view.robot.positions.wrist_3_joint, newest]); if (watching) requestAnimationFrame(watch); };
+  requestAnimationFrame(watch);
+  const start = newest;
+  for (const value of values) {
+    newest = value;
+    view.apply({kind: 'joints', stamp: 0, positions: {wrist_3_joint: value}});
+    await new Promise((resolve) => setTimeout(resolve, 200));
+  }
+  await new Promise((resolve) => setTimeout(resolve, 400));
+  watching = false;
+  return {start, frames};
+}"""
+
+
+def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callable[..., Page], iva: Habitat) -> None:
+    """States that come as a stream are drawn moving between them at the display's rate, never past
+    the newest one (nothing is extrapolated: an arm that halts is not drawn beyond where it stopped),
+    and the arm ends drawn exactly at the last. With interpolation off every frame shows a state as
+    it came."""
+    page = open_view(iva.document())
+    start = inspect(page)["joints"]["wrist_3_joint"]
+    sent = [start + 0.1 * k for k in range(1, 11)]
+
+    watched = page.evaluate(STREAM_AND_WATCH, [True, sent])
+    drawn = [d for d, _ in watched["frames"]]
+    states = [watched["start"], *sent]
+    for (value, newest), previous in zip(watched["frames"], [watched["start"], *drawn], strict=False):
+        assert previous - 1e-9 <= value <= newest + 1e-9, f"drawn {value} after {previous}, the newest state {newest}"
+    between = [d for d in drawn if min(abs(d - state) for state in states) > 1e-6]
+    assert len(between) >= len(sent), f"{len(between)} frames between states in {len(drawn)} frames: {drawn}"
+    assert drawn[-1] == sent[-1]
+
+    watched = page.evaluate(STREAM_AND_WATCH, [False, sent])
+    states = [watched["start"], *sent]
+    shown = {d for d, _ in watched["frames"]}
+    assert shown <= set(states), f"without interpolation frames showed {sorted(shown - set(states))}, which no state said"
+    assert watched["frames"][-1][0] == sent[-1]
 
 
 def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: Habitat) -> None:
@@ -461,33 +496,40 @@ def _frame_rate(page: Page, updates: int) -> tuple[float, float, float, float]:
     return (after[1] - before[1]) / seconds, (after[2] - before[2]) / seconds, seconds, latency
 
 
-def test_frame_rate_while_joints_stream_at_50_hz(open_view: Callable[..., Page], iva: Habitat, record_property: Callable[[str, Any], None]) -> None:
-    """Reports frames/s and update-to-frame latency while joint updates arrive at 50 Hz: every animation
-    frame at full resolution, every frame with adaptive resolution, and on demand with it (the
-    console's way), side by side (a measurement, not a timed assertion). Once the stream stops the
-    view draws at full resolution again."""
+def test_frame_rate_while_joints_stream(open_view: Callable[..., Page], iva: Habitat, record_property: Callable[[str, Any], None]) -> None:
+    """Reports frames/s and update-to-frame latency while joint updates stream, side by side in one
+    page (a measurement, not a timed assertion): at 50/s every animation frame at full resolution,
+    every frame with adaptive resolution, and on demand with it (the console's way); at 10/s, the
+    rate the ground server forwards, on demand with each state drawn as it arrives and with joint
+    interpolation (the console's way). Once the stream stops the view draws at full resolution again."""
     running = RunningTemplate.add(iva, "cdra_filter", "ur10", object_name="cdra_filter", frame="cabinet/slot")
     page = open_view(iva.document())
     apply(page, running.update("grasp_and_pull"))
     apply(page, running.plan("grasp_and_pull", iva_start(iva)))
-    page.evaluate("([names, base]) => window.startJointStream(50, names, base)", [iva.arm_joints, iva_start(iva)])
     lines = []
-    for on_demand, adaptive in ((False, False), (False, True), (True, True)):
+    rate_now = 0
+    for rate, on_demand, adaptive, interpolate in ((50, False, False, True), (50, False, True, True), (50, True, True, True),
+                                                   (10, True, True, False), (10, True, True, True)):
+        if rate != rate_now:
+            page.evaluate("([hz, names, base]) => { window.stopJointStream(); window.startJointStream(hz, names, base); }",
+                          [rate, iva.arm_joints, iva_start(iva)])
+            rate_now = rate
         page.evaluate(f"window.caretakerSpatial.setRenderOnDemand({str(on_demand).lower()});"
-                      f"window.caretakerSpatial.setAdaptiveResolution({str(adaptive).lower()})")
+                      f"window.caretakerSpatial.setAdaptiveResolution({str(adaptive).lower()});"
+                      f"window.caretakerSpatial.setJointInterpolation({str(interpolate).lower()})")
         if not inspect(page)["names_visible"]:
             page.click("[data-action=names]")
-        _frame_rate(page, 100)  # the resolution adapts first
-        fps, rate, seconds, latency = _frame_rate(page, 250)
+        _frame_rate(page, 2 * rate)  # the resolution adapts first
+        fps, measured_rate, seconds, latency = _frame_rate(page, 5 * rate)
         scale = inspect(page)["resolution_scale"]
         assert adaptive or scale == 1, f"drawn at {scale} of full resolution with adaptive resolution off"
         page.click("[data-action=names]")
-        fps_unnamed, _, _, _ = _frame_rate(page, 150)
-        mode = ("on_demand" if on_demand else "every_frame") + ("_adaptive" if adaptive else "")
+        fps_unnamed, _, _, _ = _frame_rate(page, 3 * rate)
+        mode = f"{rate}hz_" + ("on_demand" if on_demand else "every_frame") + ("_adaptive" if adaptive else "") + ("_interpolated" if interpolate else "")
         record_property(f"spatial_fps_{mode}", round(fps, 1))
         record_property(f"spatial_latency_ms_{mode}", round(latency, 1))
         lines.append(f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden) at {scale:.2f} of full resolution, "
-                     f"update-to-frame median {latency:.0f} ms, joint updates at {rate:.1f}/s over {seconds:.1f} s")
+                     f"update-to-frame median {latency:.0f} ms, joint updates at {measured_rate:.1f}/s over {seconds:.1f} s")
     page.evaluate("window.stopJointStream()")
     page.wait_for_function("window.caretakerSpatial.inspect().resolution_scale === 1")  # still again: drawn sharp
     load = os.getloadavg()[0]

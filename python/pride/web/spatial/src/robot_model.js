@@ -60,6 +60,9 @@ export class RobotModel {
 
   get jointNames() { return Object.keys(this.urdf.joints); }
 
+  /** Whether joint ``name`` turns without limits, so that its value wraps around. */
+  isContinuous(name) { return this.urdf.joints[name]?.jointType === 'continuous'; }
+
   /** World pose (document frame) of every link. */
   linkPoses() {
     this.object.updateMatrixWorld(true);

@@ -6,6 +6,7 @@ import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { CSS2DRenderer } from 'three/examples/jsm/renderers/CSS2DRenderer.js';
 import { checkScene, checkUpdate, ContractError } from './contract.js';
+import { JointInterpolation } from './joint_interpolation.js';
 import { label } from './labels.js';
 import { Occluders } from './occluders.js';
 import { PlanPlayer } from './plan_player.js';
@@ -27,7 +28,7 @@ const LATENCY_WINDOW = 50;
 const SETTLE_MS = 300;
 const FRAME_SLOW_MS = 1000 / 25;
 const FRAME_FAST_MS = 1000 / 45;
-const SCALES = [1, 0.85, 0.7, 0.6, 0.5];
+const SCALES = [1, 0.85, 0.7, 0.6, 0.5, 0.4, 0.35];
 const COST_WINDOW = 8;
 
 function median(values) {
@@ -46,9 +47,10 @@ export class SpatialView {
    *   pendingTimeoutMs: how long a requested pose waits for an update showing it (default 60 s)
    *   renderOnDemand: draw only when something changed (default); false draws every animation frame
    *   adaptiveResolution: draw at a lower resolution while things move when frames are slow (default)
+   *   interpolateJoints: draw the arm moving between joint states at the display's rate (default)
    */
   constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000,
-    renderOnDemand = true, adaptiveResolution = true } = {}) {
+    renderOnDemand = true, adaptiveResolution = true, interpolateJoints = true } = {}) {
     injectStyle();
     this.container = container;
     container.classList.add('ct-spatial');
@@ -107,6 +109,10 @@ export class SpatialView {
     this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
     this.renderOnDemand = !!renderOnDemand;
     this.adaptiveResolution = !!adaptiveResolution;
+    this._interpolateJoints = !!interpolateJoints;
+    this._jointMotion = new JointInterpolation();
+    this._armMovedAt = -Infinity; // when a joint state last moved the arm
+    this._armMovingSince = null; // when the arm's current motion began
     this._scale = 0; // index into SCALES used while moving
     this._movingUntil = -Infinity;
     this._drawnAt = null; // when the last frame was drawn, until the next animation frame measures its cost
@@ -137,6 +143,7 @@ export class SpatialView {
     this.robot = robot;
     this.world.add(robot.object);
     robot.setJoints(doc.joints.positions);
+    this._jointMotion = new JointInterpolation((name) => robot.isContinuous(name));
     this.joints = { stamp: doc.joints.stamp ?? 0, positions: { ...doc.joints.positions } };
     const objects = new THREE.Group();
     objects.name = 'objects';
@@ -196,13 +203,18 @@ export class SpatialView {
     switch (update.kind) {
       case 'joints': {
         // The habitat sends joint states while the arm stands still too: those change no pixel.
-        const moved = Object.entries(update.positions).some(([name, value]) => this.robot.positions[name] !== value);
-        this.robot.setJoints(update.positions);
+        const now = performance.now();
+        const moved = Object.entries(update.positions).some(([name, value]) => this.joints.positions[name] !== value);
+        const interval = this._jointMotion.arrived(now);
         Object.assign(this.joints.positions, update.positions);
         this.joints.stamp = update.stamp ?? this.joints.stamp;
         this.jointUpdates = (this.jointUpdates || 0) + 1;
         if (!moved) return true;
-        this._jointsSince ??= performance.now();
+        if (now - this._armMovedAt > SETTLE_MS) this._armMovingSince = now;
+        this._armMovedAt = now;
+        const drawNow = this._jointMotion.toward(this.robot.positions, update.positions, now, this._interpolateJoints ? interval : 0);
+        if (drawNow) this.robot.setJoints(drawNow);
+        this._jointsSince ??= now;
         this._moving();
         break;
       }
@@ -258,6 +270,12 @@ export class SpatialView {
     this.adaptiveResolution = !!adaptive;
     this._costs = [];
     this.invalidate();
+  }
+
+  /** Joints drawn moving between states (default) or each state as it arrives: the benchmark compares both. */
+  setJointInterpolation(interpolate) {
+    this._interpolateJoints = !!interpolate;
+    this._latencies = [];
   }
 
   /** On demand (default) or every animation frame: the benchmark compares both in one page. */
@@ -336,6 +354,7 @@ export class SpatialView {
       links: this.robot.linkPoses(),
       joints: { ...this.robot.positions },
       joint_updates: this.jointUpdates || 0,
+      arm_moving_ms: performance.now() - this._armMovedAt <= SETTLE_MS ? performance.now() - this._armMovingSince : 0,
       tool_pose: this.robot.toolPose(),
       objects,
       templates,
@@ -348,6 +367,7 @@ export class SpatialView {
       frames: this._frames,
       render_on_demand: this.renderOnDemand,
       adaptive_resolution: this.adaptiveResolution,
+      joint_interpolation: this._interpolateJoints,
       resolution_scale: this.renderer.getPixelRatio() / this._fullRatio,
       update_latency_ms: median(this._latencies),
       last_error: this.lastError ?? null,
@@ -445,6 +465,8 @@ export class SpatialView {
     const dt = Math.min(0.1, (now - this._last) / 1000);
     this._last = now;
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
+    const joints = this._jointMotion.at(now);
+    if (joints) { this.robot.setJoints(joints); this._moving(); }
     if (this.registration) this.registration.expire(now);
     this._adaptResolution(now);
     // On demand: a frame only when something changed, and a slow keep-alive frame that shows what
