@@ -6,15 +6,12 @@
 // nothing is extrapolated, so an arm that halts is never drawn beyond where it stopped. The cost is
 // at most one interval (100 ms at 10/s) more delay than drawing each state as it arrives.
 
+import { median } from './median.js';
+
 const INTERVAL_WINDOW = 5;
 // A state that follows the previous one after longer than this is not part of a stream (the first
 // state, a single update, a stream that stalled): it is drawn at once.
 const STREAM_GAP_MS = 300;
-
-function median(values) {
-  const sorted = [...values].sort((a, b) => a - b);
-  return sorted[Math.floor(sorted.length / 2)];
-}
 
 export class JointInterpolation {
   /** @param {(name: string) => boolean} wraps whether a joint is continuous (goes the short way round) */

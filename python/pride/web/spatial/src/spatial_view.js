@@ -8,6 +8,7 @@ import { CSS2DRenderer } from 'three/examples/jsm/renderers/CSS2DRenderer.js';
 import { checkScene, checkUpdate, ContractError } from './contract.js';
 import { JointInterpolation } from './joint_interpolation.js';
 import { label } from './labels.js';
+import { median } from './median.js';
 import { Occluders } from './occluders.js';
 import { PlanPlayer } from './plan_player.js';
 import { placeAt, worldPose } from './poses.js';
@@ -30,12 +31,6 @@ const FRAME_SLOW_MS = 1000 / 25;
 const FRAME_FAST_MS = 1000 / 45;
 const SCALES = [1, 0.85, 0.7, 0.6, 0.5, 0.4, 0.35];
 const COST_WINDOW = 8;
-
-function median(values) {
-  if (!values.length) return null;
-  const sorted = [...values].sort((a, b) => a - b);
-  return sorted[Math.floor(sorted.length / 2)];
-}
 
 export class SpatialView {
   /**
@@ -110,7 +105,7 @@ export class SpatialView {
     this.renderOnDemand = !!renderOnDemand;
     this.adaptiveResolution = !!adaptiveResolution;
     this._interpolateJoints = !!interpolateJoints;
-    this._jointMotion = new JointInterpolation();
+    this._jointMotion = null; // the loaded robot's (load)
     this._armMovedAt = -Infinity; // when a joint state last moved the arm
     this._armMovingSince = null; // when the arm's current motion began
     this._scale = 0; // index into SCALES used while moving
@@ -342,6 +337,7 @@ export class SpatialView {
 
   /** What tests (and a curious page) may read: poses in the document frame, state, frame rate. */
   inspect() {
+    const now = performance.now();
     if (!this.document) return { loaded: false, fps: this.fps ?? 0, frames: this._frames };
     const objects = {};
     for (const [name, o] of this.objects) objects[name] = { kind: o.kind, pose: worldPose(o.object) };
@@ -354,7 +350,7 @@ export class SpatialView {
       links: this.robot.linkPoses(),
       joints: { ...this.robot.positions },
       joint_updates: this.jointUpdates || 0,
-      arm_moving_ms: performance.now() - this._armMovedAt <= SETTLE_MS ? performance.now() - this._armMovingSince : 0,
+      arm_moving_ms: now - this._armMovedAt <= SETTLE_MS ? now - this._armMovingSince : 0,
       tool_pose: this.robot.toolPose(),
       objects,
       templates,
@@ -465,7 +461,7 @@ export class SpatialView {
     const dt = Math.min(0.1, (now - this._last) / 1000);
     this._last = now;
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
-    const joints = this._jointMotion.at(now);
+    const joints = this._jointMotion?.at(now);
     if (joints) { this.robot.setJoints(joints); this._moving(); }
     if (this.registration) this.registration.expire(now);
     this._adaptResolution(now);
