@@ -58,7 +58,7 @@ def where_the_run_is(page: Page, audit_rows: int = 8) -> str:
             const text = selector => squash(document.querySelector(selector));
             const at = document.querySelector('#procedure li.instruction.current');
             const audit = [...document.querySelectorAll('#audit li')].slice(0, rows).map(row => '  ' + squash(row));
-            return [`status ${text('#run-status')}, connection ${text('#connection')}`,
+            return [`status ${text('#run-status')}, connection ${text('#connection')}, run opened ${view.opening} times`,
                     `at ${at ? at.dataset.number + ': ' + squash(at).slice(0, 200) : 'no instruction'}`,
                     `hold: ${text('#hold')}`, 'newest audit rows:', ...audit].join('\\n');
         }""",

@@ -1,4 +1,5 @@
-"""The run's live connection: a page that opens its run again, or loses its connection, still shows every audit event.
+"""The run's live connection: a page that opens its run again, or loses its connection, still shows
+every audit event and keeps what its operator has entered and not yet recorded.
 
 On the simulated systems (simulated_systems.py). The IVA procedure holds at 2.6 (an operator's
 Done) and records nothing more while it waits, so the audit list can be compared with the run's
@@ -13,7 +14,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Page, Route, expect
 
-from operator_page import IVA, instruction, start_run, stop_run
+from operator_page import IVA, audit_row, instruction, start_run, stop_run
 
 
 @pytest.fixture
@@ -64,3 +65,24 @@ def test_a_lost_connection_whose_reopening_fails_is_tried_again(held) -> None:
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
     expect(page.locator("#action-error")).to_have_text("")
     expect_every_event_once(page, last_seq)
+
+
+def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lost_connection(held) -> None:
+    page, _ = held
+    instruction(page, "2.6").locator("button.done").click()
+    record = instruction(page, "4.1")
+    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    field = record.locator("input.record-value")
+    field.fill("CDRA-F-0012")
+    record.evaluate("item => { item.dataset.drawnBefore = 'yes'; }")
+    openings = page.evaluate("view.opening")
+
+    page.evaluate("() => view.socket.close()")  # the connection drops; the page opens and draws the run again
+    page.wait_for_function("n => view.opening > n", arg=openings)
+    expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    expect(page.locator("#procedure li[data-drawn-before]")).to_have_count(0)  # every instruction drawn anew
+    expect(field).to_have_value("CDRA-F-0012")
+    expect(field).to_be_focused()
+
+    record.locator("button.record").click()
+    expect(audit_row(page, "operator_input", "4.1", "alice")).to_contain_text("recorded clean_filter_id = CDRA-F-0012")

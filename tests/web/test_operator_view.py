@@ -189,6 +189,12 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     assert first_image != live_image
     screenshot(alice, "web_camera.png")
 
+    # nothing is chosen for the operator: Record on the untouched answer records nothing
+    expect(assessment.locator("select.record-value")).to_have_value("")
+    assessment.locator("button.record").click()
+    expect(assessment.locator("select.record-value:invalid")).to_have_count(1)
+    expect(audit_row(alice, "operator_input", "2.1/2.2", "alice")).to_have_count(0)
+
     # the operator answers; PAX retreats, moves to target B and shows its new image
     assessment.locator("select.record-value").select_option("false")
     assessment.locator("button.record").click()

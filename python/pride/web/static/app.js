@@ -28,6 +28,7 @@ const view = {
   clockOffset: 0,      // server clock minus this browser's, in ms (countdowns use the server's times)
   socket: null,
   opening: 0,          // counts openRun calls: an answer to one that a later call overtook is dropped
+  drawnRunId: null,    // the run whose procedure is drawn (its unsent record entries are kept when redrawn)
   reconnectTimer: null,
   lastImageSeq: null,
   followed: null,      // the instruction last scrolled to

@@ -76,7 +76,9 @@ const SVG = "http://www.w3.org/2000/svg";
 
 function buildProcedure() {
   const list = $("procedure");
+  const unsent = view.drawnRunId === view.runId ? unsentEntries() : {values: new Map(), focused: null};
   list.replaceChildren();
+  view.drawnRunId = view.runId;
   view.sentences = new Map();
   const procedure = view.procedure;
   $("proc-title").textContent = procedure ? `${procedure.title} (v${procedure.version})` : "procedure file not available";
@@ -89,6 +91,30 @@ function buildProcedure() {
     item.append(instructions);
     list.append(item);
   }
+  restoreEntries(unsent);
+}
+
+// What operators have typed or chosen in record fields and not yet recorded, by instruction. The
+// run is drawn again when its connection comes back: a field rebuilt empty would lose the entry,
+// and Record pressed on it would send something other than what the operator chose.
+function unsentEntries() {
+  const values = new Map();
+  let focused = null;
+  for (const input of document.querySelectorAll("#procedure .instruction-controls > .record-value")) {
+    const number = input.closest("li.instruction").dataset.number;
+    if (input.value !== "") values.set(number, input.value);
+    if (input === document.activeElement) focused = number;
+  }
+  return {values, focused};
+}
+
+function restoreEntries({values, focused}) {
+  const field = (number) => instructionItem(number)?.querySelector(":scope > .instruction-controls > .record-value");
+  for (const [number, value] of values) {
+    const input = field(number);
+    if (input) input.value = value;
+  }
+  if (focused) field(focused)?.focus();
 }
 
 function noticeBox(notice) {
@@ -195,12 +221,11 @@ function button(text, className, onClick) {
 function recordInput(instruction, number) {
   const record = instruction.record;
   let input;
-  if (record.choices) {
+  const choices = record.choices || (record.type === "boolean" ? ["true", "false"] : null);
+  if (choices) {
+    // no choice made until the operator makes one: Record on an untouched field records nothing
     input = document.createElement("select");
-    input.append(...record.choices.map((choice) => new Option(choice, choice)));
-  } else if (record.type === "boolean") {
-    input = document.createElement("select");
-    input.append(new Option("true", "true"), new Option("false", "false"));
+    input.append(new Option("choose…", ""), ...choices.map((choice) => new Option(choice, choice)));
   } else {
     input = document.createElement("input");
     if (record.type === "integer" || record.type === "real") {
@@ -212,8 +237,8 @@ function recordInput(instruction, number) {
       input.type = "text";
       if (record.pattern) input.pattern = record.pattern;
     }
-    input.required = true;
   }
+  input.required = true;
   input.className = "record-value";
   input.name = record.name;
   input.setAttribute("aria-label", `${record.name} (${record.type})`);
