@@ -114,8 +114,10 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     resumed = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS)
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "RESULT completed" in resumed.stdout
-    assert "LAB executing capture" not in resumed.stdout and f"sent again lab.capture(label='dock_view') [{key}]" \
-        in resumed.stdout
+    # on failure: the keys the resumed runner sent, and every key the habitat's ledger holds
+    said = f"{resumed.stdout}\n--- ledger: {(tmp_path / 'ledger.json').read_text()}"
+    assert f"sent again lab.capture(label='dock_view') [{key}]" in resumed.stdout, said
+    assert "LAB executing capture" not in resumed.stdout, said
 
     events = log.events(run_id)
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # nothing lost, nothing twice
