@@ -129,11 +129,13 @@ def test_rosbridge_killed_then_back(robot: RobotSide, tmp_path: Path) -> None:
         run_id = session.expect(r"READY run (\S+)").group(1)
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
         robot.parts["bridge"].kill()
+        # the run knows the link is down before the operator goes on (a command written to a
+        # connection as it drops is in flight, its outcome unknown: tests/flight covers that)
+        session.expect(r"PAX\s+link lost since \S+, 0 commands in flight")
         session.send("")  # the area is clear: PAX sends the pull-out with no bridge to carry it
         assert _answer_until(session, stop_at=CHECK_AFTER_INTERRUPTION) is None
-        # whether the plugin noticed the dead bridge before sending or on sending, the command
-        # never reached the robot, and the reason says so
-        _assert_pull_failed(_events(db, run_id), r"not connected|connection to rosbridge .* lost")
+        # the command never reached the robot, and the reason says so
+        _assert_pull_failed(_events(db, run_id), r"not connected")
         robot.start("bridge")
         session.expect(r"reconnected to ws://")  # the plugins' rosbridge client logs its reconnection
         session.send("")  # the bridge is back: the operator continues the contingency step
