@@ -58,7 +58,7 @@ def where_the_run_is(page: Page, audit_rows: int = 8) -> str:
             const text = selector => squash(document.querySelector(selector));
             const at = document.querySelector('#procedure li.instruction.current');
             const audit = [...document.querySelectorAll('#audit li')].slice(0, rows).map(row => '  ' + squash(row));
-            return [`status ${text('#run-status')}, connection ${text('#connection')}, run opened ${view.opening} times`,
+            return [`status ${text('#run-status')}, connection ${text('#connection')} (${document.querySelector('#connection').title || 'never lost'}), run opened ${view.opening} times`,
                     `at ${at ? at.dataset.number + ': ' + squash(at).slice(0, 200) : 'no instruction'}`,
                     `hold: ${text('#hold')}`, 'newest audit rows:', ...audit].join('\\n');
         }""",
@@ -100,7 +100,8 @@ def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
         page.wait_for_selector("#main-view:not([hidden])")
 
 
-def expect_ended(page: Page, status: str) -> None:
-    """The open run ended as ``status`` and the page shows it as a past run, drawn from the audit log."""
-    expect(page.locator("#run-status")).to_have_text(status)
+def expect_ended(page: Page, status: str, *, within_ms: float | None = None) -> None:
+    """The open run ended as ``status`` (within Playwright's default wait, or ``within_ms`` where
+    the robot still moves) and the page shows it as a past run, drawn from the audit log."""
+    expect(page.locator("#run-status")).to_have_text(status, timeout=within_ms)
     expect(page.locator("#connection")).to_have_text("past run (from the audit log)")

@@ -63,6 +63,7 @@ def test_a_lost_connection_whose_reopening_fails_is_tried_again(held) -> None:
     expect(page.locator("#connection")).to_have_attribute("data-state", "reconnecting")
 
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    expect(page.locator("#connection")).to_have_attribute("title", re.compile(r"^lost at .+: the console is busy$"))
     expect(page.locator("#action-error")).to_have_text("")
     expect_every_event_once(page, last_seq)
 
@@ -80,6 +81,7 @@ def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lo
     page.evaluate("() => view.socket.close()")  # the connection drops; the page opens and draws the run again
     page.wait_for_function("n => view.opening > n", arg=openings)
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
+    expect(page.locator("#connection")).to_have_attribute("title", re.compile(r"^lost at .+: closed with code \d+$"))
     expect(page.locator("#procedure li[data-drawn-before]")).to_have_count(0)  # every instruction drawn anew
     expect(field).to_have_value("CDRA-F-0012")
     expect(field).to_be_focused()

@@ -30,6 +30,7 @@ const view = {
   opening: 0,          // counts openRun calls: an answer to one that a later call overtook is dropped
   drawnRunId: null,    // the run whose procedure is drawn (its unsent record entries are kept when redrawn)
   reconnectTimer: null,
+  lastLoss: "",        // when and why the run's connection was last lost
   lastImageSeq: null,
   followed: null,      // the instruction last scrolled to
   envsSeen: "",
@@ -276,7 +277,7 @@ async function openRun(runId) {
   } catch (error) {
     if (opening !== view.opening) return;
     $("action-error").textContent = error.message;
-    if (error.status === undefined || error.status >= 500) reopenLater(runId);  // the network or the server, not a refusal
+    if (error.status === undefined || error.status >= 500) reopenLater(runId, error.message);  // the network or the server, not a refusal
     return;
   }
   if (opening !== view.opening) return;  // opened again meanwhile (this run or another): that call draws
@@ -297,6 +298,7 @@ function setConnection(state, text) {
   const badge = $("connection");
   badge.dataset.state = state;
   badge.textContent = text;
+  badge.title = view.lastLoss || "";
 }
 
 function connect() {
@@ -323,11 +325,13 @@ function connect() {
       if (view.me && /sign in|session/.test(event.reason)) signedOut(event.reason);  // the first to learn it says why
       return;
     }
-    reopenLater(runId);
+    reopenLater(runId, `closed with code ${event.code}${event.reason ? ` (${event.reason})` : ""}`);
   });
 }
 
-function reopenLater(runId) {
+// The badge's tooltip keeps when and why the connection was last lost, once it is live again.
+function reopenLater(runId, why) {
+  view.lastLoss = `lost at ${new Date().toLocaleTimeString()}: ${why}`;
   setConnection("reconnecting", "connection lost; reconnecting…");
   view.reconnectTimer = setTimeout(() => { if (view.runId === runId) openRun(runId); }, RECONNECT_MS);
 }
