@@ -245,6 +245,10 @@ class SimNode(Node):
                 goal_handle.abort()
                 result.error_code, result.error_string = ErrorCode.HALTED, "halted before it started"
                 return result
+            if goal_handle.is_cancel_requested:  # cancelled before it started (a client that gave up on it)
+                goal_handle.canceled()
+                result.error_code, result.error_string = ErrorCode.HALTED, "cancelled before it started: nothing moved"
+                return result
             run = sim.start_trajectory(trajectory, goal.goal_tolerance)
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)

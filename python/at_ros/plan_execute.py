@@ -34,13 +34,15 @@ from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.srv import SetGripper
 
-__all__ = ["PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "trajectory_result", "wait_for_future"]
+__all__ = ["CANCEL_WAIT_S", "PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "trajectory_result", "wait_for_future"]
 
 LOG = logging.getLogger(__name__)
 
 PLAN_TIMEOUT = 60.0
 #: How long a trajectory goal's result is waited for before it is asked for again.
 RESULT_ASK_AGAIN_S = 5.0
+#: How long a goal cancelled for want of a result is given to end and say how.
+CANCEL_WAIT_S = 10.0
 
 
 def _settled(future: Any, timeout: float) -> bool:
@@ -73,16 +75,42 @@ def trajectory_result(handle: Any, timeout: float) -> Any:
     out its whole timeout and then report a motion that may have finished as failed. Asking
     only reads (the action server keeps a goal's result), so asking twice cannot move the robot
     twice; the first answer is the result.
+
+    A goal with no result by ``timeout`` is cancelled: a controller that accepted it may still
+    start it late, and the arm must not move after its command was answered. Its result is then
+    waited for :data:`CANCEL_WAIT_S` more, so the answer says what became of it: finished after
+    all (returned), or cancelled before or while it moved. Only if none comes is the motion
+    refused as one whose end is not known.
     """
+    result = _result_within(handle, timeout)
+    if result is not None:
+        return result
+    LOG.warning("no result of trajectory goal %s within %.0f s: cancelling it", _goal_id(handle), timeout)
+    handle.cancel_goal_async()
+    result = _result_within(handle, CANCEL_WAIT_S)
+    if result is None:
+        raise CommandRefused(f"the trajectory action did not answer within {timeout:.0f} s, nor {CANCEL_WAIT_S:.0f} s "
+                             "after its goal was cancelled: whether the arm moves is not known; halt it and check")
+    if result.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:
+        raise CommandRefused(f"the trajectory action gave no result within {timeout:.0f} s, so its goal was cancelled: "
+                             f"{result.result.error_string or f'error code {result.result.error_code}'}")
+    return result
+
+
+def _result_within(handle: Any, timeout: float) -> Any | None:
+    """The goal's result if it comes within ``timeout``, asking again every :data:`RESULT_ASK_AGAIN_S`."""
     deadline = time.monotonic() + timeout
     while True:
         future = handle.get_result_async()
         if _settled(future, max(0.0, min(RESULT_ASK_AGAIN_S, deadline - time.monotonic()))):
             return _answer(future, "the trajectory action")
         if time.monotonic() >= deadline:
-            raise CommandRefused(f"the trajectory action did not answer within {timeout:.0f} s")
-        LOG.warning("no result of trajectory goal %s after %.0f s: asking for it again",
-                    bytes(handle.goal_id.uuid).hex(), RESULT_ASK_AGAIN_S)
+            return None
+        LOG.warning("no result of trajectory goal %s after %.0f s: asking for it again", _goal_id(handle), RESULT_ASK_AGAIN_S)
+
+
+def _goal_id(handle: Any) -> str:
+    return bytes(handle.goal_id.uuid).hex()
 
 
 class PlanExecutor:
