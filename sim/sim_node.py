@@ -210,13 +210,16 @@ class SimNode(Node):
     # ------------------------------------------------------------------ trajectory action
 
     def goal_callback(self, goal_request: FollowJointTrajectory.Goal) -> GoalResponse:
-        # Accept everything: refusals are reported through the result's error_string.
+        # Accept everything: refusals are reported through the result's error_string. Logged, with
+        # the start below, so a goal the executor starts late shows in the log with its delay.
+        LOG.info("trajectory goal accepted: %d points", len(goal_request.trajectory.points))
         return GoalResponse.ACCEPT
 
     def cancel_callback(self, goal_handle: ServerGoalHandle) -> CancelResponse:
         return CancelResponse.ACCEPT
 
     def execute_callback(self, goal_handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
+        called = time.monotonic()
         goal = goal_handle.request
         result = FollowJointTrajectory.Result()
         sim = self.sim
@@ -250,6 +253,8 @@ class SimNode(Node):
                 result.error_code, result.error_string = ErrorCode.HALTED, "cancelled before it started: nothing moved"
                 return result
             run = sim.start_trajectory(trajectory, goal.goal_tolerance)
+        LOG.info("trajectory started: %.3f s long (%.2f s after its execution began, waiting for the world)",
+                 trajectory.duration, time.monotonic() - called)
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)
         deadline_s = trajectory.duration
