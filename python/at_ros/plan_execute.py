@@ -93,7 +93,7 @@ def trajectory_result(handle: Any, timeout: float) -> Any:
                              "after its goal was cancelled: whether the arm moves is not known; halt it and check")
     if result.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:
         raise CommandRefused(f"the trajectory action gave no result within {timeout:.0f} s, so its goal was cancelled: "
-                             f"{result.result.error_string or f'error code {result.result.error_code}'}")
+                             f"{_said(result)}")
     return result
 
 
@@ -111,6 +111,11 @@ def _result_within(handle: Any, timeout: float) -> Any | None:
 
 def _goal_id(handle: Any) -> str:
     return bytes(handle.goal_id.uuid).hex()
+
+
+def _said(outcome: Any) -> str:
+    """What a trajectory result that is not a success says of itself."""
+    return outcome.result.error_string or f"error code {outcome.result.error_code}"
 
 
 class PlanExecutor:
@@ -333,7 +338,7 @@ class PlanExecutor:
             finally:
                 self.halts.goal_ended()
             if outcome.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:  # the .action puts the codes on Goal
-                raise CommandRefused(f"waypoint {segment.label}: {outcome.result.error_string or f'error code {outcome.result.error_code}'}")
+                raise CommandRefused(f"waypoint {segment.label}: {_said(outcome)}")
         pose = segment.end_effector_pose
         if pose and self.gripper_client is not None and pose != self._gripper_pose:
             self.halts.check(mark, f"before the gripper motion of waypoint {segment.label}")
