@@ -65,6 +65,9 @@ class ProvidedAction:
     server: Any = None
     goals: dict[str, tuple[Any, rclpy.task.Future]] = field(default_factory=dict)
     counter: itertools.count = field(default_factory=lambda: itertools.count(1))
+    #: Why it was withdrawn ("" while served). Set, like ``goals`` is changed, only on the
+    #: ros-servers thread: the server is destroyed there once its last goal has answered.
+    withdrawn: str = ""
 
 
 @dataclass
@@ -260,6 +263,9 @@ class Actions:
 
     async def _execute(self, provided: ProvidedAction, goal_handle: Any) -> Any:
         # Runs on the ros-servers thread as an executor task.
+        if provided.withdrawn:  # arrived while its server was being taken down
+            goal_handle.abort()
+            return provided.action_cls.Result()
         goal_id = f"action_goal:{provided.name}:{next(provided.counter)}"
         outcome = rclpy.task.Future()
         provided.goals[goal_id] = (goal_handle, outcome)
@@ -275,6 +281,9 @@ class Actions:
             return provided.action_cls.Result()
         finally:
             provided.goals.pop(goal_id, None)
+            if provided.withdrawn and not provided.goals:
+                # A task of its own, so it runs after this goal's result is published.
+                self.ros.server_executor.create_task(provided.server.destroy)
         if status == p.GOAL_STATUS_SUCCEEDED:
             goal_handle.succeed()
         elif status == p.GOAL_STATUS_CANCELED and goal_handle.is_cancel_requested:
@@ -311,11 +320,23 @@ class Actions:
         if self.provided.get(provided.name) is provided:
             del self.provided[provided.name]
         self.quotas.advertisements.give(provided.session.number)
+        self.ros.on_server_thread(self._take_down, provided, reason)
+
+    @staticmethod
+    def _take_down(provided: ProvidedAction, reason: str) -> None:
+        """End the goals of a withdrawn action and destroy its server once none is left.
+
+        On the ros-servers thread, whose executor waits on the server: destroyed from any other
+        thread, it could vanish between the executor collecting it and adding it to a wait set
+        (``RCLError: action server pointer is invalid``), and a goal still answering would
+        touch a destroyed handle.
+        """
+        provided.withdrawn = reason
         for _, outcome in provided.goals.values():
             if not outcome.done():
                 outcome.set_exception(ActionFailed(f"action {provided.name} {reason}"))
-        self.ros.server_executor.wake()
-        provided.server.destroy()
+        if not provided.goals:
+            provided.server.destroy()
 
     def drop_session(self, session: Session) -> None:
         """Withdraw the actions a closed session served and cancel the goals it sent (their

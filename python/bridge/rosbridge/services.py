@@ -280,8 +280,8 @@ class Services:
         for future in provided.pending.values():
             future.set_exception(RuntimeError(f"service {provided.name} {reason}"))
         provided.pending.clear()
-        self.ros.server_node.destroy_service(provided.service)
-        self.ros.server_executor.wake()
+        # On the executor's own thread, as for actions (actions.py): never under its wait.
+        self.ros.on_server_thread(self.ros.server_node.destroy_service, provided.service)
 
     def drop_session(self, session: Session) -> None:
         """Withdraw the services a closed session provided."""
