@@ -7,7 +7,9 @@ Each subcommand lives with its part (docs/interfaces.md) and is imported only wh
 from __future__ import annotations
 
 import importlib
+import os
 import sys
+from pathlib import Path
 
 __all__ = ["SUBCOMMANDS", "main"]
 
@@ -32,6 +34,13 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 
+#: Subcommands that serve ROS services on the robot side. They load :data:`PARTS_DDS_PROFILE`
+#: unless the operator names a profile of their own (the bridge loads its own, see docs/rosbridge.md).
+ROS_PARTS = ("sim", "planner", "at-server", "ledger")
+PARTS_DDS_PROFILE = Path(__file__).with_name("fastdds_parts.xml")
+DDS_PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
+
+
 def _usage() -> str:
     width = max(map(len, SUBCOMMANDS))
     lines = ["usage: caretaker COMMAND [ARGS...]", "", "commands:"]
@@ -50,6 +59,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
         return 2
     module_name, function_name, _ = SUBCOMMANDS[name]
+    if name in ROS_PARTS:  # before rclpy exists: Fast DDS reads it when its first participant is made
+        os.environ.setdefault(DDS_PROFILE_ENV, str(PARTS_DDS_PROFILE))
     try:
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as exc:
