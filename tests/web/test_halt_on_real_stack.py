@@ -108,6 +108,13 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
     robot.wait(lambda: robot.executing and robot.moving(), "the pull-out moving the arm")
 
     alice.fill("#halt-reason", "crew member at the cabinet")
+    # what the button says after the click, in order: the press is acknowledged before any answer
+    alice.evaluate("""() => {
+      const button = document.getElementById("halt");
+      window.haltSaid = [];
+      new MutationObserver(() => window.haltSaid.push(button.textContent))
+        .observe(button, {childList: true, characterData: true, subtree: true});
+    }""")
     alice.click("#halt")
     pressed = robot.latest_stamp()
     robot.wait(lambda: robot.samples[-1][0] >= pressed + 3.0, "3 s of sim time after the halt", timeout=60)
@@ -116,6 +123,8 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
 
     pull = instruction(alice, PULL_OUT)
     expect(pull).to_have_attribute("data-status", "halted")
+    expect(alice.locator("#halt")).to_have_text("HALT")  # once the console has answered
+    assert alice.evaluate("window.haltSaid") == ["halting…", "HALT"]
     expect(pull.locator(".mark")).to_contain_text("halted by alice")
     expect(audit_row(alice, "halt", PULL_OUT, "alice")).to_contain_text("HALT: crew member at the cabinet")
 

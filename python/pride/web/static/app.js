@@ -370,10 +370,20 @@ $("pause").addEventListener("click", () => act("pause"));
 $("continue").addEventListener("click", () => act("continue"));
 $("step").addEventListener("click", () => act("step"));
 // HALT acts at once: no dialog between the operator and the arm stopping (the reason is optional).
-$("halt").addEventListener("click", () => {
+// The button says "halting…" from the click until the console has answered, so the operator
+// sees the click was taken before the banner can change (that waits for the habitat).
+$("halt").addEventListener("click", async () => {
+  const button = $("halt");
   const reason = $("halt-reason").value.trim();
   $("halt-reason").value = "";
-  act("halt", {reason});
+  button.dataset.state = "halting";
+  button.textContent = "halting…";
+  try {
+    await act("halt", {reason});
+  } finally {
+    delete button.dataset.state;
+    button.textContent = "HALT";
+  }
 });
 $("ask-again").addEventListener("click", () => act("ask_again", {instruction: view.state.current}));
 for (const outcome of ["succeeded", "failed"]) {
