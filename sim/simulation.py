@@ -204,7 +204,10 @@ class Simulation:
         desired, velocity = run.trajectory.sample(elapsed)
         if run.cancel_requested:
             self._set_arm(self.arm_positions, [0.0] * len(self.arm_positions))
-            self._finish(run, ErrorCode.SUCCESSFUL, "canceled")
+            # Not a success: the arm stopped short of the trajectory's end, and a client that read
+            # only the code would plan its next motion from a goal the arm never reached.
+            self._finish(run, ErrorCode.HALTED, f"cancelled after {run.elapsed:.2f} s of its {run.trajectory.duration:.2f} s "
+                                                "trajectory: the arm stopped short of its goal")
             return
         self._set_arm(list(desired), list(velocity))
         run.desired, run.actual, run.elapsed = tuple(desired), tuple(self.arm_positions), elapsed

@@ -23,6 +23,7 @@ import time
 import uuid
 from typing import Any
 
+from action_msgs.msg import GoalStatus
 from affordance_template_msgs.msg import ServerStatus, WaypointGoal
 from affordance_template_msgs.srv import AffordanceTemplateExecuteCommand, AffordanceTemplatePlanCommand, PlanWaypoints
 from at_ros.action_client import RecordedActionClient
@@ -34,7 +35,7 @@ from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.srv import SetGripper
 
-__all__ = ["CANCEL_WAIT_S", "PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "trajectory_result", "wait_for_future"]
+__all__ = ["CANCEL_WAIT_S", "PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "reached", "trajectory_result", "wait_for_future"]
 
 LOG = logging.getLogger(__name__)
 
@@ -91,10 +92,17 @@ def trajectory_result(handle: Any, timeout: float) -> Any:
     if result is None:
         raise CommandRefused(f"the trajectory action did not answer within {timeout:.0f} s, nor {CANCEL_WAIT_S:.0f} s "
                              "after its goal was cancelled: whether the arm moves is not known; halt it and check")
-    if result.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:
+    if not reached(result):
         raise CommandRefused(f"the trajectory action gave no result within {timeout:.0f} s, so its goal was cancelled: "
                              f"{_said(result)}")
     return result
+
+
+def reached(outcome: Any) -> bool:
+    """Whether a trajectory goal's result says the arm reached its end: the goal SUCCEEDED and
+    its error code says so. A goal cancelled mid-motion may carry code SUCCESSFUL (as
+    ros2_controllers' own controller does) while the arm stopped short."""
+    return bool(outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.error_code == FollowJointTrajectory.Goal.SUCCESSFUL)
 
 
 def _result_within(handle: Any, timeout: float) -> Any | None:
@@ -115,7 +123,10 @@ def _goal_id(handle: Any) -> str:
 
 def _said(outcome: Any) -> str:
     """What a trajectory result that is not a success says of itself."""
-    return outcome.result.error_string or f"error code {outcome.result.error_code}"
+    said = outcome.result.error_string or f"error code {outcome.result.error_code}"
+    if outcome.status == GoalStatus.STATUS_CANCELED and "cancel" not in said:
+        said = f"cancelled ({said}): the arm stopped short of the waypoint"
+    return said
 
 
 class PlanExecutor:
@@ -337,7 +348,7 @@ class PlanExecutor:
                 outcome = trajectory_result(handle, timeout)
             finally:
                 self.halts.goal_ended()
-            if outcome.result.error_code != FollowJointTrajectory.Goal.SUCCESSFUL:  # the .action puts the codes on Goal
+            if not reached(outcome):
                 raise CommandRefused(f"waypoint {segment.label}: {_said(outcome)}")
         pose = segment.end_effector_pose
         if pose and self.gripper_client is not None and pose != self._gripper_pose:

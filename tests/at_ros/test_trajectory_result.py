@@ -11,15 +11,21 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
+from action_msgs.msg import GoalStatus
 from rclpy.task import Future
 
 from at_ros import plan_execute
-from at_ros.plan_execute import trajectory_result
+from at_ros.plan_execute import reached, trajectory_result
 from at_ros.server_core import CommandRefused
 from caretaker_sim_msgs.action import FollowJointTrajectory
 
-REACHED = SimpleNamespace(result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""))
-NOTHING_MOVED = SimpleNamespace(result=SimpleNamespace(error_code=-7, error_string="cancelled before it started: nothing moved"))
+REACHED = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
+                          result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""))
+NOTHING_MOVED = SimpleNamespace(status=GoalStatus.STATUS_CANCELED,
+                                result=SimpleNamespace(error_code=-7, error_string="cancelled before it started: nothing moved"))
+#: How ros2_controllers' controller ends a goal cancelled mid-motion: code SUCCESSFUL, status CANCELED.
+STOPPED_SHORT = SimpleNamespace(status=GoalStatus.STATUS_CANCELED,
+                                result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""))
 
 
 class GoalHandle:
@@ -82,3 +88,10 @@ def test_a_goal_that_never_answers_even_once_cancelled_is_not_known_to_have_stop
         trajectory_result(handle, timeout=0.2)
     assert handle.cancelled
     assert handle.requests and all(request.cancelled() for request in handle.requests)
+
+
+def test_a_goal_cancelled_mid_motion_is_never_a_success_whatever_its_code() -> None:
+    assert not reached(STOPPED_SHORT) and reached(REACHED)
+    handle = GoalHandle([None] * 1000, after_cancel=[STOPPED_SHORT])
+    with pytest.raises(CommandRefused, match=r"goal was cancelled: cancelled \(error code 0\): the arm stopped short of the waypoint$"):
+        trajectory_result(handle, timeout=0.3)
