@@ -143,9 +143,10 @@ class AffordanceTemplateServer(Node):
         self.core.frames.update(list(msg.names), [matrix_from_pose(p) for p in msg.poses])
 
     def joint_states_callback(self, msg: JointState) -> None:
-        with self.core.state_lock:
+        with self.core.joints_heard:
             self.core.inputs.joints.update(zip(msg.name, msg.position))
             self.core.inputs.joints_stamp = msg.header.stamp
+            self.core.joints_heard.notify_all()
 
     def moving_callback(self, msg: Bool) -> None:
         with self.core.state_lock:

@@ -44,6 +44,8 @@ PLAN_TIMEOUT = 60.0
 RESULT_ASK_AGAIN_S = 5.0
 #: How long a goal cancelled for want of a result is given to end and say how.
 CANCEL_WAIT_S = 10.0
+#: How long the joint states are waited for to show the arm where a motion starts.
+ARM_AT_START_WAIT_S = 10.0
 
 
 def _settled(future: Any, timeout: float) -> bool:
@@ -336,6 +338,10 @@ class PlanExecutor:
             self.halts.check(mark, f"before the motion to waypoint {segment.label}")
             if not self.trajectory_client.wait_for_server(timeout_sec=5.0):  # type: ignore[no-untyped-call]
                 raise CommandRefused(f"the trajectory action {robot.trajectory_action} is not available")
+            away = self.core.arm_away_from(dict(zip(segment.arm_trajectory.joint_names, points[0].positions)), ARM_AT_START_WAIT_S)
+            if away is not None:  # said here in words, not left to the controller's refusal
+                raise CommandRefused(f"the arm is not where the motion to waypoint {segment.label} starts ({away}); "
+                                     "nothing was sent: plan again from where the arm is")
             goal = FollowJointTrajectory.Goal()
             goal.trajectory = segment.arm_trajectory
             handle = wait_for_future(self.trajectory_client.send_goal_async(goal), 10.0, "the trajectory action")

@@ -9,6 +9,7 @@ command lock serializes commands on that instance.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -24,10 +25,12 @@ from at_ros.library import LibraryError, Template, load_library
 from at_ros.robot_config import RobotConfig
 from at_ros.template_messages import instance_status
 
-__all__ = ["CommandRefused", "RobotInputs", "ServerCore", "ServerState", "HEARTBEAT_TIMEOUT", "JOINT_TOLERANCE", "FRAME_WAIT"]
+__all__ = ["CommandRefused", "RobotInputs", "ServerCore", "ServerState", "HEARTBEAT_TIMEOUT", "JOINT_TOLERANCE", "FRAME_WAIT", "START_TOLERANCE"]
 
 HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few seconds
 JOINT_TOLERANCE = 0.02  # rad the robot may drift from a plan's start and still run it
+#: rad a motion's first point may be from the arm: what trajectory controllers accept as a start.
+START_TOLERANCE = 0.01
 FRAME_WAIT = 3.0  # s to wait for a frame not (yet) published, as the original waited for TF
 
 
@@ -85,6 +88,8 @@ class ServerCore:
         self.state = ServerState(instances=instances)
         self.inputs = RobotInputs()
         self.state_lock = threading.RLock()
+        #: Notified (under ``state_lock``) whenever joint states arrive.
+        self.joints_heard = threading.Condition(self.state_lock)
         self.robot_lock = threading.Lock()
         self._command_locks: dict[str, threading.Lock] = {}
         self.publish_status: Callable[[], None] = lambda: None
@@ -171,6 +176,26 @@ class ServerCore:
         return response
 
     # --- validity and status ---------------------------------------------------------------
+
+    def arm_away_from(self, positions: dict[str, float], timeout: float) -> str | None:
+        """None once the joint states heard put the arm within :data:`START_TOLERANCE` of
+        ``positions``; after ``timeout`` without that, which joint is how far off, in words.
+
+        Waits on joint states, not a time: right after a motion ends, the states last heard can
+        still be from before its end (more so on a starved machine), and are not yet where it ended.
+        """
+
+        def worst() -> tuple[float, str]:
+            joints = self.inputs.joints
+            return max(((abs(joints[j] - q) if j in joints else float("inf"), j) for j, q in positions.items()), default=(0.0, ""))
+
+        with self.joints_heard:
+            if self.joints_heard.wait_for(lambda: worst()[0] <= START_TOLERANCE, timeout):
+                return None
+            distance, joint = worst()
+        if distance == float("inf"):
+            return f"no joint state of {joint} was heard"
+        return f"{joint} is {distance:.3f} rad ({math.degrees(distance):.1f}°) from where the motion starts"
 
     def stale_reason(self, instance: TemplateInstance, plan: StoredPlan) -> str | None:
         """Why ``plan`` no longer fits the world now, or None (call with ``state_lock`` held)."""
