@@ -123,6 +123,7 @@ class SimNode(Node):
         steps = 0
         try:
             while not self._stop.is_set():
+                sim.world_lock.give_way()  # a goal, a halt or a capture waiting for the world goes first
                 with sim.world_lock:
                     sim.step()
                     now = sim.time

@@ -22,6 +22,7 @@ from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
 from sim.scene import Scene
 from sim.world import World, build_world
+from sim.world_lock import WorldLock
 from sim.trajectory import ErrorCode, JointLimit, Trajectory
 
 __all__ = ["Simulation", "TrajectoryRun"]
@@ -61,7 +62,7 @@ class Simulation:
         random.seed(seed)
         np.random.seed(seed)
         self.scene = scene
-        self.world_lock = threading.RLock()
+        self.world_lock = WorldLock()
         self.client = p.connect(p.DIRECT)
         p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
         self.dt = 1.0 / scene.physics_rate_hz
