@@ -9,6 +9,7 @@ meet at ``Simulation.world_lock``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import sys
@@ -21,7 +22,7 @@ import rclpy
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
@@ -78,7 +79,10 @@ class SimNode(Node):
         # Stamps are sim time on a timeline that starts at the wall clock's now: at time scale 1
         # they track the wall clock (ages stay meaningful), and stamp differences are sim time.
         self._epoch_ns = self.get_clock().now().nanoseconds - int(sim.time * 1e9)
-        self.halt_srv = self.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS, callback_group=group)
+        # Halt has a node and a thread of its own (see main): it never queues behind a capture,
+        # a gripper motion or a trajectory that holds the main executor's threads.
+        self.halt_node = rclpy.create_node("caretaker_sim_halt", namespace=namespace)
+        self.halt_srv = self.halt_node.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS)
         self.trajectory_server = ActionServer(
             self, FollowJointTrajectory, "arm_controller/follow_joint_trajectory",
             execute_callback=self.execute_callback, goal_callback=self.goal_callback,
@@ -394,6 +398,11 @@ def snapshot(scene_name: str, path: Path, *, seed: int = 0) -> Path:
         sim.close()
 
 
+def _spin_halts(executor: SingleThreadedExecutor) -> None:
+    with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):  # the main thread's stop ends it too
+        executor.spin()
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
@@ -409,6 +418,9 @@ def main(argv: list[str] | None = None) -> int:
     node = SimNode(sim, time_scale=args.time_scale, namespace=args.namespace, capture_dir=args.capture_dir, camera_period=args.camera_period)
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(node)
+    halt_executor = SingleThreadedExecutor()
+    halt_executor.add_node(node.halt_node)
+    threading.Thread(target=_spin_halts, args=(halt_executor,), name="halt", daemon=True).start()
     node.start()
     print(f"READY sim {sim.scene.name}", flush=True)
     try:
@@ -417,7 +429,9 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         node.stop()
+        halt_executor.shutdown()
         executor.shutdown()
+        node.halt_node.destroy_node()
         node.destroy_node()
         sim.close()
         rclpy.try_shutdown()
