@@ -1,0 +1,124 @@
+"""Megabyte fields and action-server churn on a bridge with its default limits.
+
+Names, types, ids and data of 1 MB and 9.9 MB (just under the 10 MB message limit) in every
+operation that takes them, and clients serving or using actions that disconnect with goals in
+flight, over and over: every call is answered within 10 s, a well-formed call after each attack
+too, and the bridge logs no traceback (an action server destroyed under its executor's wait
+once logged ``RCLError: ... action server pointer is invalid``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from .hostile import BridgeLog
+from .rosbridge_support import RawClient, bridge_url
+from support.processes import ManagedProcess, caretaker
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+ANSWER_WITHIN_S = 10.0
+ACTION_TYPE = "caretaker_sim_msgs/action/FollowJointTrajectory"
+GOAL = {"trajectory": {"joint_names": ["a"], "points": [{"positions": [0.1]}]}, "goal_tolerance": 0.01}
+SIZES = (1_000_000, 9_900_000)
+
+
+@pytest.fixture(scope="module")
+def logged_bridge(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, BridgeLog, tuple[str, int]]]:
+    """A bridge with the default limits, its log read line by line: (process, log, address)."""
+    log = BridgeLog()
+    process = caretaker("bridge", "--port", "0", env=ros_env, on_line=log)
+    try:
+        process.wait_ready(60)
+        host, port = bridge_url(process).split("//")[1].rsplit(":", 1)
+        yield process, log, (host, int(port))
+    finally:
+        process.stop()
+
+
+def _requests(size: int) -> list[dict]:
+    big = "x" * (size - 200)  # the rest of the message fits in what is left of the limit
+    return [
+        {"op": "call_service", "service": "/" + big, "id": "call with a long name"},
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "id": big},
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "type": big, "id": "call with a long type"},
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "args": {"data": big}, "id": "call with long data"},
+        {"op": "subscribe", "topic": "/" + big, "type": "std_msgs/msg/String", "id": "subscribe"},
+        {"op": "advertise", "topic": "/" + big, "type": "std_msgs/msg/String", "id": "advertise"},
+        {"op": "advertise", "topic": "/large/topic", "type": big, "id": "advertise a long type"},
+        {"op": "publish", "topic": "/large/topic", "msg": {"data": big}, "id": "publish"},
+        {"op": "send_action_goal", "action": "/" + big, "action_type": ACTION_TYPE, "args": GOAL, "id": "goal"},
+        {"op": big, "id": "unknown op"},
+    ]
+
+
+def _answered_in_time(client: RawClient, wanted: list[str]) -> list[str]:
+    """Read answers (service_response, action_result) until every id in ``wanted`` has one; the ids
+    not answered within :data:`ANSWER_WITHIN_S` of the last answer are returned."""
+    left = list(wanted)
+    while left:
+        try:
+            message = client.receive(timeout=ANSWER_WITHIN_S)
+        except TimeoutError:
+            break
+        if message.get("op") in ("service_response", "action_result") and message.get("id") in left:
+            left.remove(message["id"])
+    return left
+
+
+@pytest.mark.parametrize("size", SIZES, ids=["1MB", "9.9MB"])
+def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int) -> None:
+    process, log, address = logged_bridge
+    tracebacks = log.snapshot()[1]
+    client = RawClient(*address, max_size=None)
+    try:
+        for request in _requests(size):
+            started = time.monotonic()
+            client.send(request)
+            must_answer = [request["id"]] if request["op"] in ("call_service", "send_action_goal") else []
+            client.send({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "after"})
+            assert not _answered_in_time(client, [*must_answer, "after"]), (
+                f"{request['op']} with a {size}-byte field: not answered within {ANSWER_WITHIN_S} s")
+            print(f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): answered in {time.monotonic() - started:.2f} s")
+    finally:
+        client.close()
+    assert process.running
+    assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
+
+
+def test_clients_leaving_with_goals_in_flight_under_action_server_churn(logged_bridge) -> None:
+    process, log, address = logged_bridge
+    tracebacks = log.snapshot()[1]
+    for round_ in range(6):
+        action = f"/churn/move_{round_ % 2}"  # the same names again: servers replaced and withdrawn
+        server, caller = RawClient(*address), RawClient(*address)
+        server.send({"op": "advertise_action", "action": action, "type": ACTION_TYPE})
+        for attempt in range(200):  # the action server appears on the graph asynchronously
+            caller.send({"op": "send_action_goal", "id": f"goal {attempt}", "action": action,
+                         "action_type": ACTION_TYPE, "args": GOAL})
+            try:
+                server.receive_op("send_action_goal", timeout=0.3)
+                break
+            except TimeoutError:
+                assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
+        else:
+            pytest.fail(f"no goal reached the client serving {action}")
+        if round_ % 2:  # the serving client leaves first: the goal is aborted and answered
+            server.close()
+            assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
+            caller.close()
+        else:  # the caller leaves: its goal is cancelled, then its server goes too
+            caller.close()
+            server.receive_op("cancel_action_goal", timeout=ANSWER_WITHIN_S)
+            server.close()
+    probe = RawClient(*address)
+    try:
+        assert probe.request({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "probe"},
+                             "service_response", timeout=ANSWER_WITHIN_S)["result"] is True
+    finally:
+        probe.close()
+    assert process.running
+    assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
