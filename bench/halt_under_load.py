@@ -1,0 +1,59 @@
+"""HALT from the console beside CPU hogs: wall-clock time from the click to the arm at rest.
+
+Usage: .venv/bin/python bench/halt_under_load.py [--tries 10] [--hogs 2]
+
+Each try runs the browser test tests/web/test_halt_on_real_stack.py (the real IVA stack at time
+scale 1, ``caretaker serve`` with the JVM plugins, Chromium clicking HALT during the pull-out)
+beside ``--hogs`` busy processes (bench/cpu_load.py), and reads the figure the test prints: from
+just before the click to the arrival of the first joint state of the resting arm. Prints each
+try and how many stayed within 0.5 s; exit status 1 if a try failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from bench.cpu_load import cpu_hogs  # noqa: E402 - run as a script, from the checkout
+
+REPO = Path(__file__).resolve().parents[1]
+TEST = "tests/web/test_halt_on_real_stack.py"
+FIGURE = re.compile(r"HALT: the arm at rest ([0-9.]+) s wall-clock after the click \(([0-9.]+) s of sim time")
+TARGET_S = 0.5
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="bench/halt_under_load.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--tries", type=int, default=10)
+    parser.add_argument("--hogs", type=int, default=2, help="busy processes beside each try")
+    args = parser.parse_args(argv)
+    wall: list[float] = []
+    failed = 0
+    for attempt in range(1, args.tries + 1):
+        with cpu_hogs(args.hogs):
+            done = subprocess.run([str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q"], cwd=REPO, capture_output=True,
+                                  text=True, timeout=900)
+        found = FIGURE.search(done.stdout)
+        if done.returncode != 0 or found is None:
+            failed += 1
+            print(f"try {attempt}: the test failed\n{done.stdout[-3000:]}", flush=True)
+            continue
+        wall.append(float(found.group(1)))
+        print(f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)",
+              flush=True)
+    if wall:
+        within = sum(w <= TARGET_S for w in wall)
+        print(f"\n{args.hogs} hogs, {len(wall)} tries measured: median {statistics.median(wall):.3f} s, "
+              f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
