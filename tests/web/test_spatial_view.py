@@ -58,20 +58,25 @@ def screenshots(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture
 def open_view(webgl_browser: Browser, site: SpatialSite) -> Iterator[Callable[..., Page]]:
-    """``open_view(document, can_act=True)``: a fresh page showing ``document``, rendering."""
+    """``open_view(document, can_act=True, clock=False)``: a fresh page showing ``document``,
+    rendering; with ``clock`` the page's timers and animation frames run on Playwright's clock."""
     contexts = []
     problems: list[str] = []
 
-    def open_(document: dict[str, Any], *, can_act: bool = True) -> Page:
+    def open_(document: dict[str, Any], *, can_act: bool = True, clock: bool = False) -> Page:
         context = webgl_browser.new_context(viewport={"width": 1000, "height": 700})
         contexts.append(context)
         page = context.new_page()
+        if clock:  # the page's time is the test's: it runs only as the test advances it
+            page.clock.install()
         page.set_default_timeout(TIMEOUT_MS)
         page.on("pageerror", lambda error: problems.append(f"page error: {error}"))
         page.on("console", lambda msg: problems.append(f"console {msg.type}: {msg.text}") if msg.type == "error" else None)
         path = site.put_json(f"/documents/{len(site.files)}.json", document)
         page.goto(site.url + "/")
         page.evaluate("([url, canAct]) => window.startView(url, canAct)", [path, can_act])
+        if clock:
+            page.clock.run_for(1000)
         page.wait_for_function("window.caretakerSpatial && window.caretakerSpatial.inspect().frames > 2")
         return page
 
@@ -143,25 +148,31 @@ def test_robot_links_follow_joint_updates(open_view: Callable[..., Page], iva: H
     assert_links(inspect(page)["links"], iva.link_poses(update), "random joints")
 
 
-#: Joint states of wrist_3 every 0.2 s in the page, and what the view drew at every animation frame
-#: meanwhile: [drawn, newest state sent]; then 0.4 s more with no state.
-STREAM_AND_WATCH = """async ([interpolate, values]) => {
+#: Records what the view draws at every animation frame: [drawn, newest state sent].
+WATCH_FRAMES = """(interpolate) => {
   const view = window.caretakerSpatial;
   view.setJointInterpolation(interpolate);
-  const frames = [];
-  let newest = view.robot.positions.wrist_3_joint, watching = true;
-  const watch = () => { frames.push([view.robot.positions.wrist_3_joint, newest]); if (watching) requestAnimationFrame(watch); };
+  window.watched = {start: view.robot.positions.wrist_3_joint, frames: []};
+  window.newest = window.watched.start;
+  const watch = () => { window.watched.frames.push([view.robot.positions.wrist_3_joint, window.newest]); requestAnimationFrame(watch); };
   requestAnimationFrame(watch);
-  const start = newest;
-  for (const value of values) {
-    newest = value;
-    view.apply({kind: 'joints', stamp: 0, positions: {wrist_3_joint: value}});
-    await new Promise((resolve) => setTimeout(resolve, 200));
-  }
-  await new Promise((resolve) => setTimeout(resolve, 400));
-  watching = false;
-  return {start, frames};
 }"""
+SEND = """(value) => { window.newest = value; window.caretakerSpatial.apply({kind: 'joints', stamp: 0, positions: {wrist_3_joint: value}}); }"""
+
+
+def _stream(page: Page, interpolate: bool, values: list[float]) -> dict[str, Any]:
+    """Joint states of wrist_3 every 0.2 s of the page's clock, then 0.4 s with none; what was
+    drawn at every animation frame meanwhile. The page's clock is Playwright's (timers and
+    animation frames run as the test advances it), so a loaded machine cannot stretch the
+    intervals into gaps that end the stream."""
+    page.evaluate(WATCH_FRAMES, interpolate)
+    for value in values:
+        page.evaluate(SEND, value)
+        page.clock.run_for(200)
+    page.clock.run_for(400)
+    watched: dict[str, Any] = page.evaluate("window.watched")
+    page.evaluate("window.watched = {start: 0, frames: []}")  # the old watch keeps running into a dead list
+    return watched
 
 
 def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callable[..., Page], iva: Habitat) -> None:
@@ -169,11 +180,11 @@ def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callab
     the newest one (nothing is extrapolated: an arm that halts is not drawn beyond where it stopped),
     and the arm ends drawn exactly at the last. With interpolation off every frame shows a state as
     it came."""
-    page = open_view(iva.document())
+    page = open_view(iva.document(), clock=True)
     start = inspect(page)["joints"]["wrist_3_joint"]
     sent = [start + 0.1 * k for k in range(1, 11)]
 
-    watched = page.evaluate(STREAM_AND_WATCH, [True, sent])
+    watched = _stream(page, True, sent)
     drawn = [d for d, _ in watched["frames"]]
     states = [watched["start"], *sent]
     for (value, newest), previous in zip(watched["frames"], [watched["start"], *drawn], strict=False):
@@ -182,11 +193,11 @@ def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callab
     assert len(between) >= len(sent), f"{len(between)} frames between states in {len(drawn)} frames: {drawn}"
     assert drawn[-1] == sent[-1]
 
-    watched = page.evaluate(STREAM_AND_WATCH, [False, sent])
-    states = [watched["start"], *sent]
+    back = list(reversed([start, *sent[:-1]]))
+    watched = _stream(page, False, back)
     shown = {d for d, _ in watched["frames"]}
-    assert shown <= set(states), f"without interpolation frames showed {sorted(shown - set(states))}, which no state said"
-    assert watched["frames"][-1][0] == sent[-1]
+    assert shown <= {sent[-1], *back}, f"without interpolation frames showed {sorted(shown - {sent[-1], *back})}, which no state said"
+    assert watched["frames"][-1][0] == back[-1]
 
 
 def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: Habitat) -> None:
