@@ -12,6 +12,7 @@ The command's exit status is returned; the hogs are stopped however it ends. Imp
 from __future__ import annotations
 
 import argparse
+import ctypes
 import multiprocessing
 import multiprocessing.synchronize
 import os
@@ -23,8 +24,12 @@ from contextlib import contextmanager
 
 __all__ = ["cpu_hogs", "main"]
 
+_PR_SET_PDEATHSIG = 1
+
 
 def _spin(stop: multiprocessing.synchronize.Event) -> None:
+    # Killed with its parent however the parent ends (a benchmark killed mid-run leaves no hog).
+    ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
     os.setpriority(os.PRIO_PROCESS, 0, 0)  # nice 0 whatever the parent's niceness
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops it, not the terminal's Ctrl-C
     x = 0
