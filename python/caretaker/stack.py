@@ -129,7 +129,8 @@ def _host(address: str) -> str:
 
 def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     bridge = deployment.bridge
-    args = ["bridge", "--address", run.bridge_address, "--port", str(run.bridge_port)]
+    # Halts are called rarely and must act at once: their clients are matched before they are needed.
+    args = ["bridge", "--address", run.bridge_address, "--port", str(run.bridge_port), "--ready-services", "*/halt"]
     for option, path in (("--certfile", bridge.certfile), ("--keyfile", bridge.keyfile), ("--auth-secret-file", bridge.auth_secret_file)):
         if path is not None:
             args += [option, str(path)]

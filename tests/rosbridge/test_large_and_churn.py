@@ -122,3 +122,33 @@ def test_clients_leaving_with_goals_in_flight_under_action_server_churn(logged_b
         probe.close()
     assert process.running
     assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
+
+
+def test_ready_services_have_a_matched_client_before_their_first_call(ros_env: dict[str, str], peer) -> None:
+    """``--ready-services GLOB``: the bridge makes the client of a matching service as soon as the
+    graph shows it (a halt's first call must not wait for discovery), and of no other."""
+    import rclpy
+    from rclpy._rclpy_pybind11 import NodeNameNonExistentError
+
+    process = caretaker("bridge", "--port", "0", "--ready-services", "/peer/set_*", env=ros_env)
+    context = rclpy.Context()  # this test's own: other tests in this process may use rclpy's default
+    rclpy.init(context=context, domain_id=int(ros_env["ROS_DOMAIN_ID"]))
+    try:
+        process.wait_ready(60)
+        node = rclpy.create_node("ready_services_probe", context=context)
+        try:
+            deadline = time.monotonic() + 30.0
+            clients: set[str] = set()
+            while "/peer/set_bool" not in clients and time.monotonic() < deadline:
+                time.sleep(0.05)  # rclpy offers no graph event to await
+                try:
+                    clients = {name for name, _ in node.get_client_names_and_types_by_node("rosbridge_websocket", "/")}
+                except NodeNameNonExistentError:  # the bridge's node is not discovered yet
+                    continue
+            assert "/peer/set_bool" in clients, f"no client for /peer/set_bool without a call: {sorted(clients)}"
+            assert "/peer/slow" not in clients, sorted(clients)
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+        process.stop()

@@ -67,6 +67,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                         help="allow only matching topics (repeatable; default: all)")
     parser.add_argument("--services-glob", action="append", default=[], metavar="GLOB",
                         help="allow only matching services (repeatable; /rosapi/* and /rosbridge/* stay allowed)")
+    parser.add_argument("--ready-services", action="append", default=[], metavar="GLOB",
+                        help="keep a client matched with every service matching GLOB from the moment it appears, "
+                             "so its first call does not wait for discovery (repeatable; e.g. '*/halt')")
     parser.add_argument("--actions-glob", action="append", default=[], metavar="GLOB",
                         help="allow only matching actions (repeatable; default: all)")
     parser.add_argument("--params-glob", action="append", default=[], metavar="GLOB",
@@ -211,7 +214,8 @@ async def run(args: argparse.Namespace) -> int:
                         AllowList("parameter change", tuple(args.set_params_glob) or ("",)))
         quotas = Quotas(limits)
         topics = Topics(ros, quotas)
-        services = Services(ros, args.service_timeout, quotas, policy)
+        services = Services(ros, args.service_timeout, quotas, policy, tuple(args.ready_services))
+        ready = asyncio.get_running_loop().create_task(services.keep_ready())
         actions = Actions(ros, policy.actions, quotas, services.graph)
         server = RosbridgeServer(Bridge(topics, services, actions, policy, limits, quotas), secret, limits)
         origins: list[Any] = [None, *args.allow_origin]  # None: clients that send no Origin
@@ -228,6 +232,7 @@ async def run(args: argparse.Namespace) -> int:
             print(f"READY bridge {scheme}://{args.address}:{port}", flush=True)
             await stop.wait()
             log.info("stopping")
+            ready.cancel()
     finally:
         ros.shutdown()
     return 0
