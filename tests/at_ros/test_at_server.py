@@ -14,7 +14,7 @@ import pytest
 
 from affordance_template_msgs.msg import ServerStatus
 from at_ros.api import SERVICES
-from conftest import start_stack
+from support.at_server import start_stack
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

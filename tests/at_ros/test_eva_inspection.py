@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from conftest import start_stack
+from support.at_server import start_stack
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

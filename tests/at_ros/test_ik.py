@@ -9,7 +9,7 @@ import numpy as np
 from at_ros.ik import IkFailure, IkSolver
 from at_ros.transforms import angle_between, from_xyz_rpy
 
-from conftest import UR10_START, bench_planning_scene
+from support.planning_scenes import UR10_START, bench_planning_scene
 
 
 def test_reaches_a_pose_within_limits_and_near_the_seed(iva_scene) -> None:

@@ -9,7 +9,7 @@ from at_ros.instance import Registration, TemplateInstance
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
 from at_ros.transforms import angle_between, from_xyz_rpy, invert
 
-from conftest import UR10_START
+from support.planning_scenes import UR10_START
 
 CABINET_SLOT = from_xyz_rpy([0.15, 0.90, 1.05], [0.0, 0.0, np.pi / 2])
 

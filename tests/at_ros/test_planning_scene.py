@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from conftest import UR10_START
+from support.planning_scenes import UR10_START
 
 
 def test_scene_file_bodies_and_filters_are_obstacles(iva_scene) -> None:

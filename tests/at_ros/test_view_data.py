@@ -18,7 +18,7 @@ from affordance_template_msgs.srv import GetPlan
 from at_ros.messages import matrix_from_pose
 from at_ros.robot_config import load_robot_configs
 from at_ros.transforms import from_xyz_rpy
-from conftest import start_stack
+from support.at_server import start_stack
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -1,8 +1,6 @@
 """Fixtures of the PAX suite: the real rosbridge server and the real IVA robot stack.
 
-Test modules import these fixtures by name. The suite has no conftest.py on purpose: other
-suites do ``from conftest import ...``, and a second directory-level conftest module would
-shadow theirs when both directories are collected in one run.
+Test modules import these fixtures by name: the suite has no conftest.py.
 """
 
 from __future__ import annotations

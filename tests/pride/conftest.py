@@ -1,33 +1,29 @@
-"""Shared pieces of the procedure-side tests: SysReps, lab procedures, lab gateway, audit log databases."""
+"""Fixtures of the procedure-side tests: SysReps, audit-log databases and journals, the executive on the lab bench.
+
+Their helpers (lab gateway, audit databases, waiting on runs) are in tests/support.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import itertools
 import json
-import sqlite3
-import sys
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import closing
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parents[1]
-FIXTURES = HERE / "fixtures"
-sys.path.insert(0, str(HERE))  # lab_gateway is importable here and in runner subprocesses
-
-from lab_gateway import LabGateway  # noqa: E402
-
-from pride.audit_log import AuditLog, Availability  # noqa: E402
-from pride.events import Event, EventKind  # noqa: E402
-from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus, Snapshot  # noqa: E402
-from pride.lint import check_procedure  # noqa: E402
-from pride.robot_control import RobotControl  # noqa: E402
-from pride.sysrep import SysRep, load_sysrep_dir  # noqa: E402
-from support.postgres import OWNER, RUNNER, PostgresServer  # noqa: E402
+from pride.audit_log import AuditLog
+from pride.events import Event
+from pride.executive import Executive, Mode, OperatorActionError, RunStatus
+from pride.lint import check_procedure
+from pride.robot_control import RobotControl
+from pride.sysrep import SysRep, load_sysrep_dir
+from support.audit import AuditDatabase, RecordedJournal
+from support.executive_runs import TIMEOUT
+from support.lab_gateway import LabGateway
+from support.postgres import OWNER, RUNNER, PostgresServer
+from support.procedures import FIXTURES, REPO
 
 
 @pytest.fixture(scope="session")
@@ -37,28 +33,6 @@ def sysreps() -> dict[str, SysRep]:
 
 
 # ---- the audit log's database: every suite that records runs runs on SQLite and on PostgreSQL ----
-
-
-@dataclass
-class AuditDatabase:
-    """One empty-of-events audit-log database: ``url`` is the runner's, ``owner_url`` the schema owner's."""
-
-    kind: str
-    url: str
-    owner_url: str
-    server: PostgresServer | None = None
-    name: str = ""
-
-    def tamper(self, *statements: str) -> None:
-        """Run SQL with every protection bypassed, as a database superuser (or the SQLite file's owner) could."""
-        if self.server is not None:
-            self.server.sql("SET session_replication_role = replica", *statements, database=self.name)
-            return
-        with closing(sqlite3.connect(self.url.removeprefix("sqlite:///"), isolation_level=None)) as connection:
-            connection.execute("DROP TRIGGER audit_records_no_update")
-            connection.execute("DROP TRIGGER audit_records_no_delete")
-            for statement in statements:
-                connection.execute(statement)
 
 
 @pytest.fixture(scope="session")
@@ -91,29 +65,6 @@ def new_database(request: pytest.FixtureRequest, tmp_path: Path) -> Callable[...
 def database(new_database: Callable[..., AuditDatabase]) -> AuditDatabase:
     """One migrated audit-log database per test, SQLite and PostgreSQL in turn."""
     return new_database()
-
-
-class RecordedJournal:
-    """The audit log as the executive's journal, remembering what went through it for assertions."""
-
-    def __init__(self, log: AuditLog) -> None:
-        self.log = log
-        self.events: list[Event] = []
-        self.stored_before: list[Event] = []
-        self.fail_with: Exception | None = None  # set to make every append fail (a runner's last moments)
-
-    def append(self, event: Event) -> None:
-        if self.fail_with is not None:
-            raise self.fail_with
-        self.log.append(event)
-        self.events.append(event)
-
-    @property
-    def availability(self) -> Availability:
-        return self.log.availability
-
-    def kinds(self, number: str | None = None) -> list[EventKind]:
-        return [e.kind for e in self.events if number is None or e.instruction == number]
 
 
 @pytest.fixture
@@ -150,8 +101,6 @@ def _comparable(event: Event) -> dict[str, object]:
 
 # ---- the executive on the lab bench -------------------------------------------------------------
 
-TIMEOUT = 20.0
-
 
 @pytest.fixture
 def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]):
@@ -181,17 +130,3 @@ def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[...,
         executive.join(TIMEOUT)
     for control in controls:
         control.close()
-
-
-def held(executive: Executive, hold: Hold, at: str) -> Snapshot:
-    """The run's snapshot once it holds; it must hold with ``hold`` at ``at``."""
-    snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, TIMEOUT)
-    assert snap is not None, "the run neither held nor ended"
-    assert (snap.hold, snap.current) == (hold, at), snap
-    return snap
-
-
-def finished(executive: Executive) -> Snapshot:
-    snap = executive.wait_for(lambda s: s.status is not RunStatus.ACTIVE, TIMEOUT)
-    assert snap is not None
-    return snap

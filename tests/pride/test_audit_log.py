@@ -15,11 +15,11 @@ import pytest
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, UniqueConstraint, create_engine, event
 from sqlalchemy.exc import DBAPIError, IntegrityError
 
-from conftest import AuditDatabase
 from pride.audit_chain import GENESIS
 from pride.audit_log import AuditLog, AuditSequenceError, database_url
 from pride.audit_schema import AuditSchemaError, head_revision
 from pride.events import PAX, Event, EventKind
+from support.audit import AuditDatabase
 from support.postgres import OWNER, RUNNER, PostgresServer
 
 

@@ -13,14 +13,14 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 
 import pytest
-from lab_gateway import LabGateway
 
-from conftest import FIXTURES
 from pride.audit_log import AuditLog, Availability
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, RunStatus, Snapshot
 from pride.lint import check_procedure
+from support.lab_gateway import LabGateway
 from support.postgres import RUNNER, PostgresServer
+from support.procedures import FIXTURES
 
 TIMEOUT = 30.0
 PROCEDURE = FIXTURES / "lab_all_kinds.xml"

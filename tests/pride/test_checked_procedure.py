@@ -12,13 +12,13 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from lab_gateway import LabGateway
 
 import pride.lint
-from conftest import FIXTURES
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
 from pride.parser import parse_procedure
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES
 
 
 def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -13,11 +13,12 @@ from datetime import UTC, datetime
 
 import pytest
 
-from conftest import TIMEOUT, RecordedJournal, finished, held
 from pride.audit_log import Availability
 from pride.events import PAX, Event, EventKind
 from pride.executive import Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus
 from pride.systems import Outcome
+from support.audit import RecordedJournal
+from support.executive_runs import TIMEOUT, finished, held
 
 
 def at_move(executive) -> None:

@@ -10,13 +10,14 @@ import threading
 from dataclasses import replace
 
 import pytest
-from lab_gateway import LabGateway
 
-from conftest import FIXTURES, TIMEOUT, finished, held
 from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
+from support.executive_runs import TIMEOUT, finished, held
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES
 
 
 def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(bench) -> None:

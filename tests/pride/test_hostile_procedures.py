@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import FIXTURES
 from pride.lint import lint_file
 from pride.sysrep import SysRep, load_sysrep_dir
+from support.procedures import FIXTURES
 
 HOSTILE = FIXTURES / "hostile"
 EXPECTED: dict[str, list[str]] = yaml.safe_load((HOSTILE / "expected_errors.yaml").read_text())

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from conftest import FIXTURES, REPO
 from pride.lint import lint_file
+from support.procedures import FIXTURES, REPO
 
 BROKEN = FIXTURES / "broken"
 EXPECTED: dict[str, list[str]] = yaml.safe_load((BROKEN / "expected_errors.yaml").read_text())

@@ -8,8 +8,8 @@ from pathlib import Path
 
 from lxml import etree
 
-from conftest import FIXTURES
-from lab_gateway import LabGateway
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure

@@ -1,7 +1,7 @@
 """`caretaker run` as a real process: unattended runs, refusal to start broken procedures, and a
 runner killed mid-command then resumed with nothing lost or repeated.
 
-The runner talks to the lab bench gateway (``PRIDE_GATEWAY=lab_gateway:open_lab``) because the
+The runner talks to the lab bench gateway (``PRIDE_GATEWAY=support.lab_gateway:open_lab``) because the
 robot side is not needed to test the runner; ``LAB_GATEWAY_BLOCK`` makes one command never answer
 so the kill lands while it is in flight.
 """
@@ -19,9 +19,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import FIXTURES, HERE, REPO
 from pride.audit_log import AuditLog
 from pride.events import PAX, EventKind
+from support import lab_gateway
+from support.procedures import FIXTURES, REPO
 from support.processes import ManagedProcess, caretaker
 
 PROCEDURE = str(FIXTURES / "lab_all_kinds.xml")
@@ -33,8 +34,8 @@ def setup(tmp_path: Path, database):
     binding = tmp_path / "lab_binding.yaml"
     binding.write_text("# the lab bench gateway needs no configuration\nrobot: lab\n")
     env = dict(os.environ)
-    env["PRIDE_GATEWAY"] = "lab_gateway:open_lab"
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH")]))
+    env["PRIDE_GATEWAY"] = lab_gateway.PRIDE_GATEWAY
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(lab_gateway.IMPORT_ROOT), env.get("PYTHONPATH")]))
     env["LAB_GATEWAY_IMAGES"] = str(tmp_path / "images")
     db = database.url  # SQLite and PostgreSQL in turn (conftest.py)
     common = ["--binding", str(binding), "--db", db, "--sysrep-dir", str(REPO / "sysrep"),

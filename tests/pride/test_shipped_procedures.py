@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from conftest import REPO
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.parser import load_procedure
+from support.procedures import REPO
 from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

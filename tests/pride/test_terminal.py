@@ -6,14 +6,15 @@ import io
 import itertools
 
 import pytest
-from lab_gateway import LabGateway
 
-from conftest import FIXTURES, RecordedJournal
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.lint import check_procedure
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
+from support.audit import RecordedJournal
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES
 
 
 def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:

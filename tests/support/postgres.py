@@ -23,12 +23,13 @@ import itertools
 import os
 import pwd
 import shutil
-import socket
 import subprocess
 import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from support.ports import free_port
 
 __all__ = ["OWNER", "RUNNER", "RUNNER_GROUP", "SUPERUSER", "PostgresServer", "PostgresUnavailable", "postgres_server"]
 
@@ -53,12 +54,6 @@ def _bin_dir() -> Path:
     return versions[-1].parent
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 @dataclass
 class PostgresServer:
     """One temporary cluster; create it with :func:`postgres_server` or :meth:`create`."""
@@ -80,7 +75,7 @@ class PostgresServer:
     def create(cls, *, settings: dict[str, str] | None = None) -> PostgresServer:
         """initdb a cluster in a new temporary directory, start it, and create the ground-segment roles."""
         directory = Path(tempfile.mkdtemp(prefix="ct-postgres-"))
-        server = cls(directory, _free_port())
+        server = cls(directory, free_port())
         try:
             server.socket_dir.mkdir()
             if os.geteuid() == 0:

@@ -8,9 +8,10 @@ the recorded result, or joins the execution still running (``resent`` lists such
 command (``block``) waits until ``release`` or a cancel of its key (then it answers HALTED);
 ``set_link`` plays a link going down or up.
 Tests steer it in-process through its attributes; a ``caretaker run`` subprocess selects it with
-``PRIDE_GATEWAY=lab_gateway:open_lab`` and reads ``LAB_GATEWAY_BLOCK=<command>`` (that command
-never answers unless cancelled, so a test can kill or interrupt the runner while it is in
-flight), ``LAB_GATEWAY_HOLD_REPLY=<command>`` (it executes, but its reply never comes back),
+``PRIDE_GATEWAY=support.lab_gateway:open_lab`` (:data:`PRIDE_GATEWAY`, with :data:`IMPORT_ROOT`
+on its ``PYTHONPATH``) and reads ``LAB_GATEWAY_BLOCK=<command>`` (that command never answers
+unless cancelled, so a test can kill or interrupt the runner while it is in flight),
+``LAB_GATEWAY_HOLD_REPLY=<command>`` (it executes, but its reply never comes back),
 ``LAB_GATEWAY_LEDGER=<file>`` (the ledger's record of keys and outcomes, kept across runner
 processes as the habitat keeps it across ground restarts) and ``LAB_GATEWAY_IMAGES`` (where
 captures go).
@@ -36,6 +37,11 @@ from pride.systems import (
     TelemetryListener,
     TelemetryValue,
 )
+
+#: The ``PRIDE_GATEWAY`` value that makes a ``caretaker run`` subprocess open :func:`open_lab`.
+PRIDE_GATEWAY = "support.lab_gateway:open_lab"
+#: The tests folder: on a subprocess's ``PYTHONPATH``, it imports this module as ``support.lab_gateway``.
+IMPORT_ROOT = Path(__file__).resolve().parents[1]
 
 OK = Outcome.SUCCEEDED
 LINK = "ws://lab.bench:9090"
@@ -192,7 +198,7 @@ def _png(width: int, height: int) -> bytes:
 
 
 def open_lab(binding_path: str) -> LabGateway:
-    """Gateway factory for ``PRIDE_GATEWAY=lab_gateway:open_lab``."""
+    """Gateway factory for ``PRIDE_GATEWAY=support.lab_gateway:open_lab``."""
     gateway = LabGateway(ledger_file=os.environ.get("LAB_GATEWAY_LEDGER"))
     gateway.announce = True
     blocked = os.environ.get("LAB_GATEWAY_BLOCK")
