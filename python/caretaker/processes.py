@@ -34,17 +34,6 @@ def _die_with_parent() -> None:
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
-def _before_exec(niceness: int) -> Callable[[], None]:
-    """What the child does before exec: die with its parent, then lower its priority by ``niceness``."""
-
-    def prepare() -> None:
-        _die_with_parent()
-        if niceness > 0:
-            os.nice(niceness)
-
-    return prepare
-
-
 class ProcessFailed(RuntimeError):
     """A managed process exited or did not become ready; the message carries its last output."""
 
@@ -59,10 +48,8 @@ class ManagedProcess:
         name: str | None = None,
         *,
         on_line: Callable[[str, str], None] | None = None,
-        niceness: int = 0,
     ) -> None:
-        """Start ``argv``; ``on_line(name, line)`` is called for every line it prints; a positive
-        ``niceness`` runs it at that much lower a priority."""
+        """Start ``argv``; ``on_line(name, line)`` is called for every line it prints."""
         self.argv = argv
         self._on_line = on_line
         self.name = name or Path(argv[0]).name
@@ -78,7 +65,7 @@ class ManagedProcess:
             text=True,
             bufsize=1,
             start_new_session=True,
-            preexec_fn=_before_exec(niceness),
+            preexec_fn=_die_with_parent,
         )
         self._reader = threading.Thread(target=self._read, name=f"{self.name}-output", daemon=True)
         self._reader.start()
@@ -151,13 +138,11 @@ class ManagedProcess:
 
 
 def caretaker(
-    *args: str, env: dict[str, str], name: str | None = None, on_line: Callable[[str, str], None] | None = None,
-    niceness: int = 0,
+    *args: str, env: dict[str, str], name: str | None = None, on_line: Callable[[str, str], None] | None = None
 ) -> ManagedProcess:
-    """Start ``caretaker ARGS...`` from the venv (``niceness``: see :class:`ManagedProcess`)."""
+    """Start ``caretaker ARGS...`` from the venv."""
     return ManagedProcess(
-        [str(VENV_BIN / "caretaker"), *args], env, name or (args[0] if args else "caretaker"), on_line=on_line,
-        niceness=niceness,
+        [str(VENV_BIN / "caretaker"), *args], env, name or (args[0] if args else "caretaker"), on_line=on_line
     )
 
 

@@ -65,14 +65,12 @@ class Part:
 
     ``world``: the part *is* the world (the simulation); it is never restarted, and its death
     ends the stack. ``wanted``: whether a deployment has this part (default: every one does).
-    ``niceness``: added to the launcher's (positive only: any user may lower a priority).
     """
 
     name: str
     command: Callable[[Deployment, StackRun], list[str]]
     world: bool = False
     wanted: Callable[[Deployment], bool] = lambda deployment: True
-    niceness: int = 0
 
 
 def _robot_options(deployment: Deployment) -> list[str]:
@@ -140,10 +138,7 @@ def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
 #: The parts of a robot side, in the order they start (each waits for the ones before).
 PARTS: tuple[Part, ...] = (
     Part("sim", _sim, world=True),
-    # Planning is background work: OMPL's solve is CPU-bound for seconds, and on a busy machine it
-    # must not take the CPU from what keeps the robot safe (the simulation's control loop, a halt
-    # passing through the AT server and the bridge).
-    Part("planner", _planner, niceness=5),
+    Part("planner", _planner),
     Part("at-server", _at_server),
     Part("ledger", _ledger),
     Part("bridge", _bridge),
@@ -250,9 +245,7 @@ class Stack:
             ProcessFailed: it exited or did not become ready in time.
         """
         started = time.monotonic()
-        part = self.part(name)
-        proc = caretaker(*part.command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line,
-                         niceness=part.niceness)
+        proc = caretaker(*self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line)
         self.processes[name] = proc
         threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
         line = proc.wait_ready(self.ready_timeout)

@@ -141,6 +141,8 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         "127.0.0.1",
         "--port",
         "9443",
+        "--ready-services",
+        "*/halt",
         "--certfile",
         str(cert),
         "--keyfile",
