@@ -140,13 +140,17 @@ class Services:
         clients are matched before anybody needs them. (rclpy has no graph event: the graph is
         looked at every :data:`READY_CHECK_S`.)
         """
+        unready: set[str] = set()  # said once each: their type does not load (a call will say so too)
         while self.ready:
             for service in self.graph():
-                if service not in self._clients and any(fnmatch.fnmatchcase(service, glob) for glob in self.ready):
-                    try:
-                        self._client(service)
-                    except Exception as exc:  # a type that does not load: the call will say so
-                        log.warning("cannot keep a client ready for %s: %s", service, exc)
+                if service in self._clients or service in unready or not any(
+                        fnmatch.fnmatchcase(service, glob) for glob in self.ready):
+                    continue
+                try:
+                    self._client(service)
+                except Exception as exc:
+                    unready.add(service)
+                    log.warning("cannot keep a client ready for %s: %s", service, exc)
             await asyncio.sleep(READY_CHECK_S)
 
     def _check_parameters(self, service: str, srv_cls: Any, request: Any) -> None:
