@@ -87,10 +87,12 @@ def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int
     assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
 
 
-def test_ready_services_have_a_matched_client_before_their_first_call(ros_env: dict[str, str], peer) -> None:
+def test_ready_services_have_a_matched_client_before_their_first_call(ros_env: dict[str, str]) -> None:
     """``--ready-services GLOB``: the bridge makes the client of a matching service as soon as the
-    graph shows it (a halt's first call must not wait for discovery), and of no other."""
+    graph shows it (a halt's first call must not wait for discovery), and of no other. The
+    services are this test's own, so no other bridge of the session has clients of them."""
     import rclpy
+    from std_srvs.srv import Trigger
 
     context = rclpy.Context()  # this test's own: other tests in this process may use rclpy's default
     rclpy.init(context=context, domain_id=int(ros_env["ROS_DOMAIN_ID"]))
@@ -98,15 +100,15 @@ def test_ready_services_have_a_matched_client_before_their_first_call(ros_env: d
     try:
         node = rclpy.create_node("ready_services_probe", context=context)
         try:
-            # Counted over the graph, against what other bridges of this session hold already.
-            before = {s: node.count_clients(s) for s in ("/peer/set_bool", "/peer/slow")}
-            process = caretaker("bridge", "--port", "0", "--ready-services", "/peer/set_*", env=ros_env)
+            for name in ("/ready_probe/halt", "/ready_probe/other"):
+                node.create_service(Trigger, name, lambda request, response: response)
+            process = caretaker("bridge", "--port", "0", "--ready-services", "/ready_probe/h*", env=ros_env)
             process.wait_ready(60)
             deadline = time.monotonic() + 30.0
-            while node.count_clients("/peer/set_bool") == before["/peer/set_bool"] and time.monotonic() < deadline:
+            while node.count_clients("/ready_probe/halt") == 0 and time.monotonic() < deadline:
                 time.sleep(0.05)  # rclpy offers no graph event to await
-            assert node.count_clients("/peer/set_bool") == before["/peer/set_bool"] + 1, "no client made without a call"
-            assert node.count_clients("/peer/slow") == before["/peer/slow"]
+            assert node.count_clients("/ready_probe/halt") == 1, "no client made without a call"
+            assert node.count_clients("/ready_probe/other") == 0
         finally:
             node.destroy_node()
     finally:
