@@ -1,8 +1,12 @@
-"""Megabyte fields on a bridge with its default limits, and services kept ready.
+"""Megabyte fields and action-server churn on a bridge with its default limits, and services
+kept ready.
 
 Names, types, ids and data of 1 MB and 9.9 MB (just under the 10 MB message limit) in every
-operation that takes them: every call is answered within 10 s, a well-formed call after each
-too, and the bridge logs no traceback.
+operation that takes them, and clients serving or using actions that disconnect with goals in
+flight, over and over: every call is answered within 10 s, a well-formed call after each attack
+too, and the bridge logs no traceback (an action server destroyed under its executor's wait
+once logged ``RCLError: ... action server pointer is invalid``; one destroyed before its result
+was sent left the caller's goal unanswered).
 """
 
 from __future__ import annotations
@@ -83,6 +87,60 @@ def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int
             print(f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): answered in {time.monotonic() - started:.2f} s")
     finally:
         client.close()
+    assert process.running
+    assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
+
+
+def _in_order(client: RawClient) -> None:
+    """Return once the bridge has handled everything ``client`` sent before (it handles a
+    client's messages in order)."""
+    client.request({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "in order"},
+                   "service_response", timeout=ANSWER_WITHIN_S)
+
+
+def _wait_listed(client: RawClient, action: str) -> None:
+    """Return once the bridge's graph lists the action's goal service (discovery is asynchronous)."""
+    wanted = f"{action}/_action/send_goal"
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline:
+        listed = client.request({"op": "call_service", "service": "/rosapi/services", "id": "listed"},
+                                "service_response", timeout=ANSWER_WITHIN_S)["values"]["services"]
+        if wanted in listed:
+            return
+    pytest.fail(f"{wanted} was not listed within 30 s")
+
+
+def test_clients_leaving_with_goals_in_flight_under_action_server_churn(logged_bridge) -> None:
+    process, log, address = logged_bridge
+    tracebacks = log.snapshot()[1]
+    for round_ in range(8):
+        # The same two names again and again: each advertisement takes over a withdrawn server
+        # (or a new one) while late answers of the previous round may still be on their way.
+        action = f"/churn/move_{round_ % 2}"
+        server, caller = RawClient(*address), RawClient(*address)
+        server.send({"op": "advertise_action", "action": action, "type": ACTION_TYPE})
+        _in_order(server)
+        _wait_listed(caller, action)
+        caller.send({"op": "send_action_goal", "id": "goal", "action": action, "action_type": ACTION_TYPE,
+                     "args": GOAL})
+        server.receive_op("send_action_goal", timeout=ANSWER_WITHIN_S)
+        if round_ % 2:  # the serving client leaves first: the goal is aborted and answered
+            server.close()
+            assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
+            # A goal after its server's client left is answered too (refused or aborted).
+            caller.send({"op": "send_action_goal", "id": "late goal", "action": action,
+                         "action_type": ACTION_TYPE, "args": GOAL})
+            assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
+            caller.close()
+        else:  # the caller leaves: its goal is cancelled, then its server goes too
+            caller.close()
+            server.receive_op("cancel_action_goal", timeout=ANSWER_WITHIN_S)
+            server.close()
+    probe = RawClient(*address)
+    try:
+        _in_order(probe)
+    finally:
+        probe.close()
     assert process.running
     assert log.snapshot()[1] == tracebacks, f"the bridge logged a traceback:\n{process.tail()}"
 

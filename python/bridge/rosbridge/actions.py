@@ -21,7 +21,8 @@ to the client as ``send_action_goal`` (id ``action_goal:<action>:<n>``, ``feedba
 publishes the client's ``action_feedback``, forwards ROS cancel requests as
 ``cancel_action_goal``, and ends the goal as the client's ``action_result`` says (status 4
 succeeded, 5 canceled, anything else or ``result: false`` aborted).  A serving client that
-disconnects aborts its goals.
+disconnects aborts its goals; the ROS server stays :data:`RESULT_LINGER_S` after their end
+(see :class:`ServedAction`), so each of their results reaches its caller.
 """
 
 from __future__ import annotations
@@ -53,21 +54,41 @@ needs no new discovery."""
 MAX_CLIENTS = 64
 ORPHAN_WAIT_S = 60.0
 """How long the bridge follows a cancelled goal of a disconnected client before it lets go."""
+RESULT_LINGER_S = 10.0
+"""A served action nobody serves any more keeps its ROS server this long after its last goal
+(see :class:`ServedAction`): the server answers a result request only while it exists."""
+
+
+@dataclass
+class ServedAction:
+    """The bridge's ROS action server of one action name, executed by one client at a time.
+
+    It outlives the clients that serve it: withdrawn, it is destroyed :data:`RESULT_LINGER_S`
+    after its last goal ended, so that a caller's late request for a result is still answered,
+    and a client that advertises the action again meanwhile takes it over (rather than a second
+    server of the same name answering beside it).
+    """
+
+    name: str
+    action_cls: Any
+    server: Any = None
+    # Set only on the ros-servers thread, which decides each goal's fate:
+    provider: ProvidedAction | None = None
+    """The advertisement whose client executes new goals; None while nobody serves it."""
+    goals: dict[str, tuple[Any, rclpy.task.Future, ProvidedAction]] = field(default_factory=dict)
+    """Goals in flight by id: their handle, their outcome, the advertisement executing them."""
+    counter: itertools.count = field(default_factory=lambda: itertools.count(1))
+    destroyed: bool = False
+    idle_turn: int = 0
+    """Counts the times it fell idle: only the retirement planned at the latest may happen."""
 
 
 @dataclass
 class ProvidedAction:
-    """A ROS action server whose goals a WebSocket client executes."""
+    """One client's advertisement of an action."""
 
-    name: str
-    action_cls: Any
+    served: ServedAction
     session: Session
-    server: Any = None
-    goals: dict[str, tuple[Any, rclpy.task.Future]] = field(default_factory=dict)
-    counter: itertools.count = field(default_factory=lambda: itertools.count(1))
-    #: Why it was withdrawn ("" while served). Set, like ``goals`` is changed, only on the
-    #: ros-servers thread: the server is destroyed there once its last goal has answered.
-    withdrawn: str = ""
 
 
 @dataclass
@@ -102,6 +123,7 @@ class Actions:
         self._clients: dict[tuple[str, str], SharedClient] = {}  # least recently used first
         self._goals: dict[tuple[int, Any], SentGoal] = {}
         self.provided: dict[str, ProvidedAction] = {}
+        self._servers: dict[str, ServedAction] = {}
 
     def operations(self) -> dict[str, Callable[[Session, dict[str, Any]], Any]]:
         """The ops this module serves, for the bridge's dispatch table."""
@@ -234,26 +256,39 @@ class Actions:
         action = self._action(message)
         action_cls = load_type(require(message, "type", str), "action")
         self.quotas.advertisements.take(session.number)
-        if action in self.provided:
-            self._withdraw(self.provided[action], "replaced by a newer advertise_action")
-        provided = ProvidedAction(action, action_cls, session)
+        served = self._servers.get(action)
+        if served is None or served.action_cls is not action_cls:
+            fresh = ServedAction(action, action_cls)
+            try:
+                self._serve(fresh)
+            except Exception as exc:
+                self.quotas.advertisements.give(session.number)
+                raise InvalidField(f"cannot advertise action {action}: {type(exc).__name__}") from None
+            if served is not None:  # another type under this name: the old server retires
+                self.ros.on_server_thread(self._take_over, served, None, "replaced by a newer advertise_action")
+            served = self._servers[action] = fresh
+        previous = self.provided.get(action)
+        if previous is not None:
+            self.quotas.advertisements.give(previous.session.number)
+        provided = self.provided[action] = ProvidedAction(served, session)
+        self.ros.on_server_thread(self._take_over, served, provided, "replaced by a newer advertise_action")
+
+    def _serve(self, served: ServedAction) -> None:
+        """Give ``served`` a new ROS action server."""
+        action = served.name
 
         async def execute_callback(goal_handle: Any) -> Any:
-            return await self._execute(provided, goal_handle)
+            return await self._execute(served, goal_handle)
 
         def cancel_callback(goal_handle: Any) -> CancelResponse:
-            for goal_id, (handle, _) in provided.goals.items():
+            for goal_id, (handle, _, provided) in served.goals.items():
                 if handle is goal_handle:
-                    self.ros.deliver(session.send, {"op": p.OP_CANCEL_ACTION_GOAL, "id": goal_id, "action": action})
+                    self.ros.deliver(provided.session.send,
+                                     {"op": p.OP_CANCEL_ACTION_GOAL, "id": goal_id, "action": action})
             return CancelResponse.ACCEPT
 
-        try:
-            provided.server = ActionServer(self.ros.server_node, action_cls, action, execute_callback,
-                                           cancel_callback=cancel_callback)
-        except Exception as exc:
-            self.quotas.advertisements.give(session.number)
-            raise InvalidField(f"cannot advertise action {action}: {type(exc).__name__}") from None
-        self.provided[action] = provided
+        served.server = ActionServer(self.ros.server_node, served.action_cls, action, execute_callback,
+                                     cancel_callback=cancel_callback)
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         provided = self.provided.get(self._action(message))
@@ -261,29 +296,29 @@ class Actions:
             raise InvalidField(f"action {echo(message['action'])} is not advertised by this client")
         self._withdraw(provided, "unadvertised by its client")
 
-    async def _execute(self, provided: ProvidedAction, goal_handle: Any) -> Any:
+    async def _execute(self, served: ServedAction, goal_handle: Any) -> Any:
         # Runs on the ros-servers thread as an executor task.
-        if provided.withdrawn:  # arrived while its server was being taken down
+        provided = served.provider
+        if provided is None:  # withdrawn, and nobody took it over (yet)
             goal_handle.abort()
-            return provided.action_cls.Result()
-        goal_id = f"action_goal:{provided.name}:{next(provided.counter)}"
+            self._retire_when_idle(served)
+            return served.action_cls.Result()
+        goal_id = f"action_goal:{served.name}:{next(served.counter)}"
         outcome = rclpy.task.Future()
-        provided.goals[goal_id] = (goal_handle, outcome)
+        served.goals[goal_id] = (goal_handle, outcome, provided)
         self.ros.deliver(provided.session.send, {
-            "op": p.OP_SEND_ACTION_GOAL, "id": goal_id, "action": provided.name,
-            "action_type": _type_name(provided.action_cls), "args": message_to_dict(goal_handle.request),
+            "op": p.OP_SEND_ACTION_GOAL, "id": goal_id, "action": served.name,
+            "action_type": _type_name(served.action_cls), "args": message_to_dict(goal_handle.request),
             "feedback": True})
         try:
             status, result = await outcome
         except Exception as exc:
-            log.error("goal %s of %s aborted: %s", goal_id, provided.name, exc)
+            log.error("goal %s of %s aborted: %s", goal_id, served.name, exc)
             goal_handle.abort()
-            return provided.action_cls.Result()
+            return served.action_cls.Result()
         finally:
-            provided.goals.pop(goal_id, None)
-            if provided.withdrawn and not provided.goals:
-                # A task of its own, so it runs after this goal's result is published.
-                self.ros.server_executor.create_task(provided.server.destroy)
+            served.goals.pop(goal_id, None)
+            self._retire_when_idle(served)
         if status == p.GOAL_STATUS_SUCCEEDED:
             goal_handle.succeed()
         elif status == p.GOAL_STATUS_CANCELED and goal_handle.is_cancel_requested:
@@ -292,51 +327,75 @@ class Actions:
             goal_handle.abort()
         return result
 
-    def _goal_of(self, session: Session, message: dict[str, Any]) -> tuple[ProvidedAction, str]:
+    def _goal_of(self, session: Session, message: dict[str, Any]) -> tuple[ServedAction, str]:
         provided = self.provided.get(self._action(message))
         goal_id = require(message, "id", str)
-        if provided is None or provided.session is not session or goal_id not in provided.goals:
+        goal = provided.served.goals.get(goal_id) if provided is not None else None
+        if provided is None or provided.session is not session or goal is None or goal[2] is not provided:
             raise InvalidField(f"no goal {echo(goal_id)!r} of action {echo(message['action'])} is running for this client")
-        return provided, goal_id
+        return provided.served, goal_id
 
     def _feedback(self, session: Session, message: dict[str, Any]) -> None:
-        provided, goal_id = self._goal_of(session, message)
-        feedback = dict_to_message(provided.action_cls.Feedback, optional(message, "values", dict, {}), "values")
-        provided.goals[goal_id][0].publish_feedback(feedback)
+        served, goal_id = self._goal_of(session, message)
+        feedback = dict_to_message(served.action_cls.Feedback, optional(message, "values", dict, {}), "values")
+        served.goals[goal_id][0].publish_feedback(feedback)
 
     def _result(self, session: Session, message: dict[str, Any]) -> None:
-        provided, goal_id = self._goal_of(session, message)
+        served, goal_id = self._goal_of(session, message)
         succeeded = optional(message, "result", bool, True)
         status = optional(message, "status", int, p.GOAL_STATUS_SUCCEEDED if succeeded else p.GOAL_STATUS_ABORTED,
                           bounds=(0, 6))
         if not succeeded:
             status = p.GOAL_STATUS_ABORTED if status == p.GOAL_STATUS_SUCCEEDED else status
         values = optional(message, "values", dict, {})
-        result = dict_to_message(provided.action_cls.Result, values, "values")
-        provided.goals[goal_id][1].set_result((status, result))
+        result = dict_to_message(served.action_cls.Result, values, "values")
+        served.goals[goal_id][1].set_result((status, result))
         self.ros.server_executor.wake()
 
     def _withdraw(self, provided: ProvidedAction, reason: str) -> None:
-        if self.provided.get(provided.name) is provided:
-            del self.provided[provided.name]
-        self.quotas.advertisements.give(provided.session.number)
-        self.ros.on_server_thread(self._take_down, provided, reason)
+        name = provided.served.name
+        if self.provided.get(name) is provided:
+            del self.provided[name]
+            self.quotas.advertisements.give(provided.session.number)
+            self.ros.on_server_thread(self._take_over, provided.served, None, reason, provided)
 
-    @staticmethod
-    def _take_down(provided: ProvidedAction, reason: str) -> None:
-        """End the goals of a withdrawn action and destroy its server once none is left.
+    def _take_over(self, served: ServedAction, provided: ProvidedAction | None, reason: str,
+                   only_from: ProvidedAction | None = None) -> None:
+        """On the ros-servers thread, which decides each goal's fate: ``provided`` executes the
+        new goals of ``served`` from now on (``None``: nobody does). The goals of the client that
+        served it so far end, aborted with ``reason``. With ``only_from``, nothing changes unless
+        that is still the one serving (a withdrawal that a newer advertisement overtook)."""
+        if only_from is not None and served.provider is not only_from:
+            return
+        for _, outcome, owner in served.goals.values():
+            if owner is served.provider and not outcome.done():
+                outcome.set_exception(ActionFailed(f"action {served.name} {reason}"))
+        served.provider = provided
+        if served.destroyed and provided is not None:  # retired meanwhile: serve anew
+            self._serve(served)
+            served.destroyed = False
+        self._retire_when_idle(served)
 
-        On the ros-servers thread, whose executor waits on the server: destroyed from any other
-        thread, it could vanish between the executor collecting it and adding it to a wait set
-        (``RCLError: action server pointer is invalid``), and a goal still answering would
-        touch a destroyed handle.
-        """
-        provided.withdrawn = reason
-        for _, outcome in provided.goals.values():
-            if not outcome.done():
-                outcome.set_exception(ActionFailed(f"action {provided.name} {reason}"))
-        if not provided.goals:
-            provided.server.destroy()
+    def _retire_when_idle(self, served: ServedAction) -> None:
+        """On the ros-servers thread: destroy a server nobody serves :data:`RESULT_LINGER_S` after
+        its last goal ended, if nobody took it over meanwhile."""
+        if served.provider is None and not served.goals and not served.destroyed:
+            served.idle_turn += 1
+            self.ros.deliver(self.ros.loop.call_later, RESULT_LINGER_S, self.ros.on_server_thread,
+                             self._retire, served, served.idle_turn)
+
+    def _retire(self, served: ServedAction, idle_turn: int) -> None:
+        # On the ros-servers thread, whose executor waits on the server: destroyed from any other
+        # thread, it could vanish between the executor collecting it and adding it to a wait set
+        # ("RCLError: action server pointer is invalid").
+        if served.idle_turn == idle_turn and served.provider is None and not served.goals and not served.destroyed:
+            served.destroyed = True
+            served.server.destroy()
+            self.ros.deliver(self._forget, served)
+
+    def _forget(self, served: ServedAction) -> None:
+        if self._servers.get(served.name) is served and served.destroyed:
+            del self._servers[served.name]
 
     def drop_session(self, session: Session) -> None:
         """Withdraw the actions a closed session served and cancel the goals it sent (their
