@@ -10,7 +10,7 @@ VENV=$ROOT/.venv
 STAMPS=$VENV/.stamps
 PYTHON=${PYTHON:-python3}
 
-log() { printf '[setup] %s\n' "$*"; }
+log() { printf '[setup] %s (%d s)\n' "$*" "$SECONDS"; }
 
 # hash_of FILE_OR_DIR...: one hash over the contents of every file under the arguments.
 hash_of() {
@@ -29,7 +29,7 @@ APT_PACKAGES=(
   maven junit5 libsurefire-java libmaven-compiler-plugin-java libmaven-jar-plugin-java
   libmaven-resources-plugin-java libmaven-clean-plugin-java libmaven-install-plugin-java
   libgoogle-gson-java libyaml-snake-java
-  cmake g++ make chromium postgresql
+  cmake g++ make ccache chromium postgresql
 )
 missing=()
 for pkg in "${APT_PACKAGES[@]}"; do
@@ -55,7 +55,9 @@ if step_needed pip "$h"; then
 fi
 
 # 3. ROS 2 interface packages, generated with rosidl into the venv. The wheels' exported CMake
-#    targets hard-code the manylinux build paths of Python and numpy: point them at ours.
+#    targets hard-code the manylinux build paths of Python and numpy: point them at ours. The
+#    generated C and C++ (hundreds of files, most of a fresh checkout's set-up time) compile
+#    through ccache, with paths taken relative to the checkout, so another checkout reuses them.
 INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs python/bridge/caretaker_ledger_msgs)
 h=$(hash_of "${INTERFACE_PACKAGES[@]}" requirements.txt)
 if step_needed interfaces "$h"; then
@@ -72,8 +74,9 @@ if step_needed interfaces "$h"; then
     rm -rf "$build"; mkdir -p "$build"
     CMAKE_PREFIX_PATH=$VENV AMENT_PREFIX_PATH=$VENV cmake -S "$pkg" -B "$build" \
       -DCMAKE_INSTALL_PREFIX="$VENV" -DPython3_EXECUTABLE="$VENV/bin/python" \
+      -DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache \
       -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$build.log" 2>&1 \
-      && cmake --build "$build" -j 2 >> "$build.log" 2>&1 \
+      && CCACHE_BASEDIR=$ROOT cmake --build "$build" -j 2 >> "$build.log" 2>&1 \
       && cmake --install "$build" >> "$build.log" 2>&1 \
       || { tail -40 "$build.log"; log "building $name failed: see $build.log"; exit 1; }
   done
