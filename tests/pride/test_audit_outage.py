@@ -63,6 +63,7 @@ def start_run(url: str, tmp_path, sysreps, *,
     executive = Executive(check_procedure(PROCEDURE, sysreps), gateway, log, run_id="outage-run", mode=Mode.AUTONOMOUS)
     executive.start("alice")
     assert drive(executive, capturing).status is RunStatus.ACTIVE
+    assert gateway.blocking.wait(TIMEOUT)  # capture is in flight, so its command_sent is stored (durable first)
     return executive, gateway, log, states
 
 
