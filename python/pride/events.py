@@ -33,7 +33,9 @@ class EventKind(str, enum.Enum):
     MODE_CHANGED = "mode_changed"
     """Manual ↔ autonomous."""
     INSTRUCTION_STARTED = "instruction_started"
-    """An instruction became active (automation or operator began it)."""
+    """An instruction became active (automation or operator began it): data.instruction_kind,
+    data.text (the author's sentence, ``${...}`` as written) and data.text_filled (that sentence
+    with the values known then filled in; events recorded before it existed lack it)."""
     INSTRUCTION_COMPLETED = "instruction_completed"
     """An instruction finished successfully; data.next is where the run goes."""
     INSTRUCTION_FAILED = "instruction_failed"

@@ -83,6 +83,7 @@ from pride.events import PAX, Event, EventKind, Journal
 from pride.link_watch import LinkWatch
 from pride.lint import CheckedProcedure
 from pride.model import Instruction, ManualInstruction, RecordInstruction
+from pride.phrasing import fill_text
 from pride.replay import replay
 from pride.robot_control import RobotControl, RobotControlled, RunControl
 from pride.run_state import Request, RunState
@@ -696,8 +697,10 @@ class Executive:
                     if job is None:
                         return
                     number = state.begin(job)
+                    text = job.instruction.describe()  # as written: ${...} stay references
                     self._emit(EventKind.INSTRUCTION_STARTED, job.actor, number,
-                               instruction_kind=job.instruction.kind.value, text=job.instruction.describe())
+                               instruction_kind=job.instruction.kind.value, text=text,
+                               text_filled=fill_text(text, job.frame.env))
                 try:
                     outcome = self._automation.carry_out(job.frame.env, job.frame.procedure, job.instruction, number,
                                                          job.actor, job.send)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import enum
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -105,7 +106,24 @@ class Template:
         whole = self.whole_reference
         if whole is not None:
             return lookup(env, whole)
-        return "".join(p if isinstance(p, str) else _text(lookup(env, p)) for p in self.parts)
+        return self.fill(env, strict=True)
+
+    def fill(self, env: dict[str, Any], show: Callable[[Any], str] | None = None, *, strict: bool = False) -> str:
+        """The text with the references ``env`` binds filled in, each value written by ``show``
+        (plain text by default). One not bound yet stays ``${...}``, or raises KeyError if ``strict``."""
+        write = show or _text
+        texts: list[str] = []
+        for part in self.parts:
+            if isinstance(part, str):
+                texts.append(part)
+                continue
+            try:
+                texts.append(write(lookup(env, part)))
+            except KeyError:
+                if strict:
+                    raise
+                texts.append(str(part))
+        return "".join(texts)
 
     def __str__(self) -> str:
         return "".join(str(p) for p in self.parts)

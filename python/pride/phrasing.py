@@ -40,7 +40,10 @@ from pride.model import (
 )
 from pride.sysrep import SysRep
 
-__all__ = ["describe_event", "format_value", "humanize", "labelled_values", "phrase", "raw_form", "template_json"]
+__all__ = [
+    "describe_event", "fill_text", "format_value", "humanize", "labelled_values", "phrase", "raw_form",
+    "started_text", "template_json",
+]
 
 _POSITION = ("x", "y", "z")
 _ORIENTATION = ("roll", "pitch", "yaw")
@@ -284,6 +287,21 @@ def _reason(data: dict[str, Any]) -> str:
     return f": {data['reason']}" if data.get("reason") else ""
 
 
+def fill_text(text: str, env: dict[str, Any]) -> str:
+    """An instruction's sentence as written, with the values ``env`` holds filled in (written as
+    :func:`format_value` writes them); one the run does not know yet stays ``${...}``."""
+    return Template.parse(text).fill(env, format_value)
+
+
+def started_text(event: Event) -> str:
+    """The sentence of an instruction-started event as people read it: with the values the run knew
+    when it began filled in (``text_filled``), else, in a log recorded before events carried that,
+    the author's text with its ``${...}``."""
+    data = event.data or {}
+    filled = data.get("text_filled")
+    return str(filled) if filled is not None else str(data.get("text", ""))
+
+
 def describe_event(event: Event) -> str:
     """One line saying what an audit record was, in words (the web view's log and the report)."""
     d = event.data
@@ -312,7 +330,7 @@ def describe_event(event: Event) -> str:
     if kind is EventKind.INSTRUCTION_COMPLETED:
         return "completed" + (f" → step {d['went_to']}" if d.get("went_to") else "")
     if kind is EventKind.INSTRUCTION_STARTED:
-        return f"started: {d.get('text', '')}"
+        return f"started: {started_text(event)}"
     if kind is EventKind.AWAITING_OPERATOR:
         return f"waiting for an operator: {d.get('reason', '')}"
     if kind is EventKind.MODE_CHANGED:

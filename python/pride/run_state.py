@@ -31,6 +31,7 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
+from pride.phrasing import fill_text
 from pride.replay import Replayed
 from pride.states import Hold, InstructionStatus, Mode, RunStatus
 
@@ -150,23 +151,24 @@ class RunState:
             return Hold.FAILURE, f"{number} failed: {self.failure}"
         if self.resend:
             return None, ""  # PAX sends the same key again by itself: the habitat answers its outcome
+        text = fill_text(instruction.describe(), self.frame.env)  # the sentence with the values known now
         if isinstance(instruction, RecordInstruction):
-            return Hold.OPERATOR_INPUT, f"{number}: {instruction.text}"
+            return Hold.OPERATOR_INPUT, f"{number}: {text}"
         if isinstance(instruction, ManualInstruction):
-            return Hold.OPERATOR_ACTION, f"{number}: {instruction.text}"
+            return Hold.OPERATOR_ACTION, f"{number}: {text}"
         unconfirmed = self.unconfirmed(instruction)
         if self.mode is Mode.MANUAL:
             if unconfirmed:
-                return Hold.CONFIRMATION, f"{number} is hazardous; confirm, then send: {instruction.describe()}"
-            return Hold.MANUAL_MODE, f"{number}: {instruction.describe()}"
+                return Hold.CONFIRMATION, f"{number} is hazardous; confirm, then send: {text}"
+            return Hold.MANUAL_MODE, f"{number}: {text}"
         if self.at_breakpoint:
             return Hold.BREAKPOINT, f"breakpoint at {number}"
         if self.paused:
             return Hold.PAUSED, f"automation paused at {number}"
         if not instruction.automatable:
-            return Hold.NOT_AUTOMATABLE, f"{number} must be performed by an operator: {instruction.describe()}"
+            return Hold.NOT_AUTOMATABLE, f"{number} must be performed by an operator: {text}"
         if unconfirmed:
-            return Hold.CONFIRMATION, f"{number} is hazardous; confirm to send: {instruction.describe()}"
+            return Hold.CONFIRMATION, f"{number} is hazardous; confirm to send: {text}"
         return None, ""
 
     def next_job(self) -> Job | None:

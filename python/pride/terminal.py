@@ -17,6 +17,7 @@ from typing import Any, TextIO
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
 from pride.model import Procedure, RecordInstruction
+from pride.phrasing import started_text
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "Unattended"]
 
@@ -42,7 +43,7 @@ class ProgressPrinter:
             line = f"Run {event.run_id} resumed by {event.actor} at {number}, {data['mode']} mode"
         elif kind is EventKind.INSTRUCTION_STARTED:
             self._header(number)
-            line = f"  {number:<8} {event.actor:<10} {data.get('text', '')}"
+            line = f"  {number:<8} {event.actor:<10} {started_text(event)}"
         elif kind is EventKind.COMMAND_SENT:
             args = ", ".join(f"{k}={v!r}" for k, v in data["args"].items())
             again = " again" if data.get("resend") else ""

@@ -64,6 +64,9 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(re.compile(r"^affordance_templates\.set_display_object_pose\("))
     alice.uncheck("#show-raw")
     expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame=filter/CDRA-F-0012")
+    # the audit log reads the started instruction with the value it was started with, not the author's ${...}
+    expect(audit_row(alice, "instruction_started", "4.2", "alice").locator(".audit-detail")).to_have_text(
+        "started: Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
     screenshot(alice, "web_manual_record.png")
 
     # step, pause, continue and stop, each recorded as alice's
@@ -75,6 +78,8 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     expect(alice.locator("#hold")).to_contain_text("Automation paused at 4.4")
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
+    expect(audit_row(alice, "instruction_started", "4.5", "PAX").locator(".audit-detail")).to_have_text(
+        "started: Pick clean filter CDRA-F-0012 from the rack")
     stop_run(alice, "end of the walk-through")
     expect_ended(alice, "stopped")
     expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_contain_text("end of the walk-through")
