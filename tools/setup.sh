@@ -67,9 +67,11 @@ if step_needed interfaces "$h"; then
     sed -i -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$np_include#g" \
            -e "s#/opt/python/cp311-cp311/include/python3.11#$py_include#g" "$f"
   done
-  for pkg in "${INTERFACE_PACKAGES[@]}"; do
+  # The packages do not depend on each other: built side by side, one's single-threaded code
+  # generation overlaps another's compiling.
+  build_interfaces() {
+    local pkg=$1 name build
     name=$(basename "$pkg")
-    log "building ROS interfaces $name"
     build=$ROOT/build/rosidl/$name
     rm -rf "$build"; mkdir -p "$build"
     CMAKE_PREFIX_PATH=$VENV AMENT_PREFIX_PATH=$VENV cmake -S "$pkg" -B "$build" \
@@ -78,8 +80,17 @@ if step_needed interfaces "$h"; then
       -DBUILD_TESTING=OFF -DCMAKE_BUILD_TYPE=Release > "$build.log" 2>&1 \
       && CCACHE_BASEDIR=$ROOT cmake --build "$build" -j 2 >> "$build.log" 2>&1 \
       && cmake --install "$build" >> "$build.log" 2>&1 \
-      || { tail -40 "$build.log"; log "building $name failed: see $build.log"; exit 1; }
+      || { tail -40 "$build.log"; log "building $name failed: see $build.log"; return 1; }
+    log "built ROS interfaces $name"
+  }
+  builds=()
+  for pkg in "${INTERFACE_PACKAGES[@]}"; do
+    log "building ROS interfaces $(basename "$pkg")"
+    build_interfaces "$pkg" & builds+=($!)
   done
+  failed=0
+  for build in "${builds[@]}"; do wait "$build" || failed=1; done
+  [ $failed -eq 0 ] || exit 1
   step_done interfaces "$h"
 fi
 
