@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import logging
 import math
+import signal
 import sys
 import tempfile
 import threading
@@ -420,16 +421,22 @@ def main(argv: list[str] | None = None) -> int:
     executor.add_node(node)
     halt_executor = SingleThreadedExecutor()
     halt_executor.add_node(node.halt_node)
-    threading.Thread(target=_spin_halts, args=(halt_executor,), name="halt", daemon=True).start()
-    node.start()
-    print(f"READY sim {sim.scene.name}", flush=True)
-    try:
+    halts = threading.Thread(target=_spin_halts, args=(halt_executor,), name="halt", daemon=True)
+    try:  # from the first thread on: a Ctrl-C anywhere (even during the READY line) tears down
+        halts.start()
+        node.start()
+        print(f"READY sim {sim.scene.name}", flush=True)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        # The threads must have left rcl before the process exits (else it aborts: "terminate
+        # called without an active exception"), so a second Ctrl-C must not cut this short.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
         node.stop()
         halt_executor.shutdown()
+        if halts.ident is not None:
+            halts.join(10.0)
         executor.shutdown()
         node.halt_node.destroy_node()
         node.destroy_node()
