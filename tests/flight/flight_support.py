@@ -16,6 +16,7 @@ import sqlite3
 import subprocess
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -175,3 +176,48 @@ def commands(events: list[Event]) -> list[tuple[Event, Event | None]]:
                         and pairs[i][0].instruction == event.instruction)
             pairs[sent] = (pairs[sent][0], event)
     return pairs
+
+
+# ------------------------------------------------------------- what the IVA runs must show
+
+DELAY = 1.3
+#: Arm trajectory goals of one run of the IVA procedure: one per planned waypoint segment that
+#: moves the arm, over the six executions. If the templates change, a clean run shows the new
+#: number (every goal SUCCEEDED once).
+IVA_ARM_GOALS = 14
+#: Commands of one run (adds, poses, plans, executes, unlock, lock, deletes) and its executions.
+IVA_COMMANDS = 23
+IVA_EXECUTIONS = 6
+#: The first placement of a filter on the rack (step 3): the execution after the pull-out.
+PLACE_DIRTY = "insert_and_release"
+
+
+def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
+    """The run completed; every command ran once on the habitat and was logged with its real outcome."""
+    events = f.events(run_id)
+    assert status == "completed", [e.data for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
+    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
+    sent = commands(events)
+    assert len(sent) == IVA_COMMANDS, [s.data["command"] for s, _ in sent]
+    unanswered = [s.instruction for s, answer in sent if answer is None]
+    assert not unanswered, f"commands without a logged outcome: {unanswered}"
+    assert all(answer is not None and answer.data["success"] for _, answer in sent)
+    # The habitat's own record: each command executed once, and it succeeded.
+    records = f.habitat.ledger_records()
+    assert len(records) == IVA_COMMANDS, [(r["command_key"], r["state"]) for r in records]
+    assert {r["state"] for r in records} == {"SUCCEEDED"}, [(r["command_key"], r["message"]) for r in records]
+    executions = [r for r in records if r["service"].endswith("/execute_command")]
+    assert len(executions) == IVA_EXECUTIONS
+    logged = [s.data["command"] for s, _ in sent]
+    assert [r["service"].rsplit("/", 1)[-1] for r in records].count("execute_command") == logged.count("execute_plan")
+    # What the arm did: every motion once, each carried out.
+    goals = f.goals()
+    assert len({goal for goal, _ in goals}) == len(goals) == IVA_ARM_GOALS, goals
+    assert {status for _, status in goals} == {4}, goals
+
+
+def assert_in_flight(events: list[Event], trajectory: str, moment: datetime) -> None:
+    """``moment`` (a fault) fell while the ground waited for the first execution of ``trajectory``."""
+    sent, answer = next((s, a) for s, a in commands(events) if s.data["command"] == "execute_plan"
+                        and s.data["args"]["trajectory"] == trajectory)
+    assert answer is not None and sent.time < moment < answer.time, (sent.time, moment, answer and answer.time)

@@ -1,0 +1,44 @@
+"""The IVA procedure flown across the Gateway link, ground to habitat: the habitat lost mid-motion.
+
+Habitat: ``caretaker up`` (simulation, planner, AT server, command ledger, rosbridge on wss://
+with a secret). Link: 1.3 s each way (issue 15, "Done when"). Ground: ``caretaker run --auto``
+with a binding that states the link, so every command goes through the habitat's ledger.
+
+What the arm did is counted on the habitat (trajectory goals the simulation's controller carried
+out, and the ledger's own records), never from the ground's log; the ground's audit log must
+match it, command for command, with no false success. Each run flies the whole procedure and
+meets its faults at the pull-out of the dirty filter and later executions (one file per
+scenario, so parallel test workers fly them side by side).
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pride.events import EventKind
+
+from .flight_support import DELAY, PULL_OUT, commands, flight
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str, str]) -> None:
+    """The whole habitat side dies during the pull-out and comes back with its memory lost (a new
+    ledger epoch): what became of the pull-out cannot be learnt. The run says so and holds for an
+    operator; it never logs the pull-out as a success (nor as a failure)."""
+    with flight(ros_env, delay=DELAY, time_scale="1", outage_budget=120) as f:
+        run = f.run()
+        f.await_execution(PULL_OUT)
+        f.habitat.up.kill()
+        f.restart_habitat_without_memory()
+        held = run.wait_for_line(r"outcome unknown|unknown outcome", 300)
+        run_id = run.wait_for_line(r"^READY run ").split()[2]
+        events = f.events(run_id)
+        pull = next(s for s, _ in commands(events) if s.data["command"] == "execute_plan"
+                    and s.data["args"]["trajectory"] == PULL_OUT)
+        answers = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == pull.instruction]
+        assert answers and all(a.data["outcome"] == "unknown" and a.data["success"] is None for a in answers), held
+        assert not [e for e in events if e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED)
+                    and e.instruction == pull.instruction]
+        assert events[-1].kind is EventKind.AWAITING_OPERATOR and "unknown" in events[-1].data["reason"]
+        assert run.running, "it holds: no RESULT"
