@@ -18,9 +18,10 @@ test: setup lint test-java test-python
 test-java:
 	@if [ -f pom.xml ]; then mvn -q test; fi
 
-# Two workers (the CI machine has 2 cores; most tests wait on processes, links and browsers), a
-# test file per worker so module fixtures (a robot stack, a browser) are built once.
-PYTEST_WORKERS ?= 2
+# Three workers on the CI machine's 2 cores: the suite waits more than it computes (links,
+# processes, browsers: about two thirds of both cores busy with three). A test file per worker so
+# module fixtures (a robot stack, a browser) are built once.
+PYTEST_WORKERS ?= 3
 test-python:
 	$(PYTEST) -n $(PYTEST_WORKERS) --dist loadfile --durations=15 tests
 
