@@ -22,24 +22,27 @@ _ANSWERS = ("goal", "cancel", "result")
 
 
 class RecordedActionClient(ActionClient):
-    """``rclpy.action.ActionClient`` with request bookkeeping and answer handling serialized."""
+    """``rclpy.action.ActionClient`` with request bookkeeping and answer handling serialized.
+
+    (Its calls of rclpy's methods are marked ``no-untyped-call``: rclpy is not annotated.)
+    """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+        super().__init__(*args, **kwargs)  # type: ignore[no-untyped-call]
         # re-entrant: a future's done-callback, run while an answer is settled, may send a request
         self._records_lock = threading.RLock()
 
     def send_goal_async(self, goal: Any, feedback_callback: Any = None, goal_uuid: Any = None) -> Any:
         with self._records_lock:
-            return super().send_goal_async(goal, feedback_callback, goal_uuid)
+            return super().send_goal_async(goal, feedback_callback, goal_uuid)  # type: ignore[no-untyped-call]
 
     def _cancel_goal_async(self, goal_handle: Any) -> Any:
         with self._records_lock:
-            return super()._cancel_goal_async(goal_handle)
+            return super()._cancel_goal_async(goal_handle)  # type: ignore[no-untyped-call]
 
     def _get_result_async(self, goal_handle: Any) -> Any:
         with self._records_lock:
-            return super()._get_result_async(goal_handle)
+            return super()._get_result_async(goal_handle)  # type: ignore[no-untyped-call]
 
     async def execute(self, taken_data: dict[str, Any]) -> None:
         answers = {key: value for key, value in taken_data.items() if key in _ANSWERS}
@@ -47,7 +50,7 @@ class RecordedActionClient(ActionClient):
             # Settling answers awaits nothing, so the lock is held only while this runs through;
             # feedback (a user callback that may suspend) and status updates go on without it.
             with self._records_lock:
-                await super().execute(answers)
+                await super().execute(answers)  # type: ignore[no-untyped-call]
         rest = {key: value for key, value in taken_data.items() if key not in _ANSWERS}
         if rest:
-            await super().execute(rest)
+            await super().execute(rest)  # type: ignore[no-untyped-call]

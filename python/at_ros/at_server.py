@@ -118,7 +118,8 @@ class AffordanceTemplateServer(Node):
             return self.get_status_callback
         for part in (self.instance_part, self.executor_part, self.plan_part, self.halt_part):
             if hasattr(part, name):
-                return getattr(part, name)
+                handler: Callable[[Any, Any], Any] = getattr(part, name)
+                return handler
         raise AssertionError(f"no handler for service {name!r}")
 
     def _guarded(self, name: str, callback: Callable[[Any, Any], Any]) -> Callable[[Any, Any], Any]:
@@ -130,9 +131,9 @@ class AffordanceTemplateServer(Node):
             except (CommandRefused, InstanceError, UnknownFrame) as exc:
                 message = str(exc)
             except Exception as exc:  # a bug must still answer the client, never hang it
-                self.get_logger().error(f"{name} failed unexpectedly: {exc!r}")
+                self.get_logger().error(f"{name} failed unexpectedly: {exc!r}")  # type: ignore[no-untyped-call]  # rclpy is not annotated
                 message = f"internal error in {name}: {exc!r}"
-            self.get_logger().warning(f"{name} refused: {message}")
+            self.get_logger().warning(f"{name} refused: {message}")  # type: ignore[no-untyped-call]
             return self.core.refuse(name, response, message)
 
         return handle
@@ -225,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         executor.shutdown()
         if node is not None:
-            node.destroy_node()
+            node.destroy_node()  # type: ignore[no-untyped-call]
         if rclpy.ok():
             rclpy.shutdown()
     return 0

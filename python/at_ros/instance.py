@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -96,7 +97,8 @@ class Registration:
 
     @property
     def world(self) -> np.ndarray:
-        return self.frame_pose @ self.offset
+        pose: np.ndarray = self.frame_pose @ self.offset
+        return pose
 
 
 @dataclass(frozen=True)
@@ -142,7 +144,7 @@ class StoredPlan:
     trajectory: str
     end_effector: str
     indices: list[int]
-    segments: list  # affordance_template_msgs/PlannedSegment
+    segments: list[Any]  # affordance_template_msgs/PlannedSegment
     start_joints: dict[str, float]
     registrations: dict[str, Registration]
     held_object: str
@@ -235,7 +237,8 @@ class TemplateInstance:
         if obj is None:
             raise InstanceError(f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}")
         parent = self.object_pose(obj.parent) if obj.parent else self.root_pose
-        return parent @ obj.origin.matrix
+        pose: np.ndarray = parent @ obj.origin.matrix
+        return pose
 
     def register(self, name: str, registration: Registration) -> None:
         if self.template.display_object(name) is None:

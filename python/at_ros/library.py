@@ -211,7 +211,8 @@ def _display_object(f: Field) -> DisplayObject:
 
 def _tolerances(f: Field) -> Tolerances:
     f.mapping(optional=("x", "y", "z", "R", "P", "Y"))
-    position, orientation = [], []
+    position: list[float] = []
+    orientation: list[float] = []
     for axis, bucket in (("x", position), ("y", position), ("z", position), ("R", orientation), ("P", orientation), ("Y", orientation)):
         value = f.get(axis)
         if value is not None:

@@ -11,6 +11,7 @@ named "closed" near some object grasps nothing by itself.
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 
@@ -87,10 +88,12 @@ def _slerp(q0: np.ndarray, q1: np.ndarray, t: float) -> np.ndarray:
     if dot < 0:
         q1, dot = -q1, -dot
     if dot > 0.9995:
-        q = q0 + t * (q1 - q0)
-        return q / np.linalg.norm(q)
+        q: np.ndarray = q0 + t * (q1 - q0)
+        normalized: np.ndarray = q / np.linalg.norm(q)
+        return normalized
     theta = np.arccos(dot)
-    return (np.sin((1 - t) * theta) * q0 + np.sin(t * theta) * q1) / np.sin(theta)
+    slerped: np.ndarray = (np.sin((1 - t) * theta) * q0 + np.sin(t * theta) * q1) / np.sin(theta)
+    return slerped
 
 
 class MotionPlanner:
@@ -186,21 +189,22 @@ class MotionPlanner:
         """OMPL to an IK solution of ``goal``: the one nearest to ``q`` first; later attempts use
         a solution from random seeds that differs from every one tried (another arm configuration)."""
         limits = self.scene.limits
-        tolerances = {"position_tolerance": goal.position_tolerance, "orientation_tolerance": goal.orientation_tolerance}
+        solve = functools.partial(self.ik.solve, position_tolerance=goal.position_tolerance,
+                                  orientation_tolerance=goal.orientation_tolerance)
         if attempt == 0:
-            target = self.ik.solve(goal.pose, q, **tolerances)
+            target = solve(goal.pose, q)
             if isinstance(target, IkFailure):
                 # Every seed failed already: another attempt would not find a different answer.
                 raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}", final=True)
         else:
             for _ in range(DISTINCT_SEARCH):
-                candidate = self.ik.solve(goal.pose, self.ik.rng.uniform(limits.lower, limits.upper), enough=1, **tolerances)
-                if isinstance(candidate, IkFailure):
+                solved = solve(goal.pose, self.ik.rng.uniform(limits.lower, limits.upper), enough=1)
+                if isinstance(solved, IkFailure):
                     continue
                 # Solved near a random seed, it may sit a full turn away on some joint: the same
                 # arm shape nearest to where the arm is costs the least motion.
-                candidate = self.ik.wrap_into_limits(candidate, q)
-                if all(_shape_distance(candidate, t) > DISTINCT_CONFIGURATION for t in tried):
+                candidate = self.ik.wrap_into_limits(solved, q)
+                if candidate is not None and all(_shape_distance(candidate, t) > DISTINCT_CONFIGURATION for t in tried):
                     target = candidate
                     break
             else:
@@ -241,6 +245,7 @@ class MotionPlanner:
                 blocked = f": {self.ik.blocked_by}" if result is None and self.ik.blocked_by else ""
                 what = f"no IK solution continues the line{blocked}" if result is None else f"joint jump {jump:.2f} rad"
                 raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})")
+            assert result is not None  # the loop above broke only on a solution
             why = scene.collision(result)
             if why is not None:
                 raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line blocked at {t + dt:.0%}: collision {why}")

@@ -14,6 +14,7 @@ import argparse
 import logging
 import sys
 import time
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -136,7 +137,7 @@ class PlannerNode(Node):
         except WaypointPlanningError as exc:
             response.success = False
             response.message = str(exc)
-            self.get_logger().warning(f"plan failed: {exc}")
+            self.get_logger().warning(f"plan failed: {exc}")  # type: ignore[no-untyped-call]  # rclpy is not annotated
             return response
         # The tool's pose at each waypoint as planned (FK of its last point): a view's ghost arm
         # and the AT server's get_plan report it; the world is left as it was.
@@ -149,7 +150,7 @@ class PlannerNode(Node):
         response.success = True
         elapsed = time.perf_counter() - started
         response.message = f"planned {len(planned)} waypoints in {elapsed * 1000:.0f} ms"
-        self.get_logger().info(response.message)
+        self.get_logger().info(response.message)  # type: ignore[no-untyped-call]
         return response
 
     def _start_state(self, request: PlanWaypoints.Request) -> np.ndarray:
@@ -161,7 +162,7 @@ class PlannerNode(Node):
             raise WaypointPlanningError(f"start_state lacks joints {missing}")
         return np.array([named[j] for j in self.config.joint_names])
 
-    def _goal(self, waypoint) -> Goal:  # noqa: ANN001 - affordance_template_msgs/WaypointGoal
+    def _goal(self, waypoint: Any) -> Goal:  # affordance_template_msgs/WaypointGoal
         frame = waypoint.pose.header.frame_id or WORLD_FRAME
         if frame != WORLD_FRAME:
             raise WaypointPlanningError(f"waypoint {waypoint.label}: goals must be in frame {WORLD_FRAME!r}, got {frame!r}")
@@ -220,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         if node is not None:
             if node.scene is not None:
                 node.scene.close()
-            node.destroy_node()
+            node.destroy_node()  # type: ignore[no-untyped-call]
         if rclpy.ok():
             rclpy.shutdown()
     return 0

@@ -8,6 +8,7 @@ object in the gripper is attached to the tool link so collision checks include i
 from __future__ import annotations
 
 import itertools
+from typing import Any
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -139,7 +140,7 @@ class PlanningScene:
         pos, quat = to_xyz_quat(pose)
         body = p.createMultiBody(0, shape, -1, pos.tolist(), quat.tolist(), physicsClientId=self.client)
         self.add_obstacle(name, body, graspable=graspable)
-        return body
+        return int(body)
 
     def set_obstacle_pose(self, name: str, pose: np.ndarray) -> None:
         pos, quat = to_xyz_quat(pose)
@@ -241,7 +242,7 @@ class PlanningScene:
     def is_valid(self, q: np.ndarray | list[float]) -> bool:
         return self.collision(q) is None
 
-    def _self_contacts(self) -> list[tuple]:
+    def _self_contacts(self) -> list[tuple[Any, ...]]:
         p.performCollisionDetection(physicsClientId=self.client)
         return [c for c in p.getContactPoints(bodyA=self.robot, bodyB=self.robot, physicsClientId=self.client)]
 

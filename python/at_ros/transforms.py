@@ -40,7 +40,7 @@ def quat_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def matrix_from_quat(q: Sequence[float]) -> np.ndarray:
+def matrix_from_quat(q: Sequence[float] | np.ndarray) -> np.ndarray:
     """3x3 rotation of a quaternion (x, y, z, w); the quaternion need not be normalized."""
     x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
     return np.array(
@@ -94,7 +94,7 @@ def from_xyz_rpy(xyz: Sequence[float], rpy: Sequence[float]) -> np.ndarray:
     return t
 
 
-def from_xyz_quat(xyz: Sequence[float], quat: Sequence[float]) -> np.ndarray:
+def from_xyz_quat(xyz: Sequence[float] | np.ndarray, quat: Sequence[float] | np.ndarray) -> np.ndarray:
     """4x4 transform of a translation and a quaternion (x, y, z, w)."""
     t = np.eye(4)
     t[:3, :3] = matrix_from_quat(quat)

@@ -22,7 +22,8 @@ from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import check_procedure, lint_file
-from pride.robot_control import RobotControl, RobotControlled
+from pride.robot_control import RobotControl
+from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
 from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
 

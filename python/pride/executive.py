@@ -33,7 +33,7 @@ Halt and stop
     :meth:`stop` halts the same way, then ends the run (resumable).
 
 Control of the robot
-    With a :class:`pride.robot_control.RobotControl`, a run takes control of its robot (the
+    With a :class:`pride.run_control.ControlStore`, a run takes control of its robot (the
     binding's ``robot:``) when it starts or resumes, is refused (:class:`RobotControlled`, naming
     the holder) when another run holds it unless it takes over with a reason, checks it still
     holds control before every command, and holds (Hold.CONTROL_LOST) when another run took over.
@@ -85,7 +85,7 @@ from pride.lint import CheckedProcedure
 from pride.model import Instruction, ManualInstruction, RecordInstruction
 from pride.phrasing import fill_text
 from pride.replay import replay
-from pride.robot_control import RobotControl, RobotControlled, RunControl
+from pride.run_control import ControlStore, RobotControlled, RunControl
 from pride.run_state import Request, RunState
 from pride.states import (
     Controller,
@@ -114,7 +114,7 @@ class Executive:
     """Runs one procedure; see the module docstring for the API contract."""
 
     def __init__(self, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, *, run_id: str,
-                 mode: Mode = Mode.MANUAL, control: RobotControl | None = None) -> None:
+                 mode: Mode = Mode.MANUAL, control: ControlStore | None = None) -> None:
         """Prepare a run (nothing happens until :meth:`start`).
 
         Args:
@@ -240,7 +240,7 @@ class Executive:
 
     @classmethod
     def resume(cls, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, events: list[Event], user: str,
-               *, mode: Mode | None = None, control: RobotControl | None = None,
+               *, mode: Mode | None = None, control: ControlStore | None = None,
                take_over: str | None = None) -> Executive:
         """Continue an interrupted run from its recorded events (see Durability above)."""
         procedure = checked.procedure

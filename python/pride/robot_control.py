@@ -44,9 +44,10 @@ from sqlalchemy.exc import IntegrityError, InterfaceError, OperationalError
 
 from pride.audit_chain import utc
 from pride.audit_log import DEFAULT_OUTAGE_BUDGET, AuditLogUnavailable, database_url
+from pride.run_control import RobotControlled
 from pride.states import Controller, OperatorActionError
 
-__all__ = ["TABLE", "RobotControl", "RobotControlled", "RunControl", "robot_control"]
+__all__ = ["TABLE", "RobotControl", "robot_control"]
 
 log = logging.getLogger(__name__)
 
@@ -68,17 +69,9 @@ robot_control = Table(
 _C = robot_control.c
 
 
-class RobotControlled(OperatorActionError):
-    """The robot is controlled by another run: ``holder`` says which, by whom, since when."""
-
-    def __init__(self, holder: Controller) -> None:
-        super().__init__(f"robot {holder.robot} is controlled by {holder.describe()}: take over with a reason "
-                         "to control it from this run")
-        self.holder = holder
-
-
 class RobotControl:
-    """Control of robots in the database at ``url`` (the audit log's). Thread-safe."""
+    """Control of robots in the database at ``url`` (the audit log's): the ground's
+    :class:`~pride.run_control.ControlStore`. Thread-safe."""
 
     def __init__(self, url: str, *, outage_budget: float = DEFAULT_OUTAGE_BUDGET) -> None:
         self.url = url
@@ -185,54 +178,3 @@ class RobotControl:
                     raise AuditLogUnavailable(self.location, str(getattr(exc, "orig", exc)).splitlines()[0]) from exc
                 self._closed.wait(min(delay, self.outage_budget - (now - first_failure)))
                 delay = min(delay * 2, _LONGEST_RETRY)
-
-
-
-class RunControl:
-    """One run's side of robot control: take the robot, check it before each command, give it up.
-
-    Without a :class:`RobotControl` (a bench with one run) every check passes and nothing is stored.
-    """
-
-    def __init__(self, control: RobotControl | None, robot: str, run_id: str) -> None:
-        self.control = control
-        self.robot = robot
-        self.run_id = run_id
-        self.held = False  # taken by this run (it may have been taken over since)
-
-    def take(self, user: str, take_over: str | None) -> Controller | None:
-        """Acquire the robot, or take it over with a reason; the previous holder when taken from another run.
-
-        Raises:
-            RobotControlled: another run holds it and ``take_over`` is None.
-        """
-        if self.control is None:
-            return None
-        if take_over is None:
-            self.control.acquire(self.robot, self.run_id, user)
-            self.held = True
-            return None
-        previous = self.control.take_over(self.robot, self.run_id, user, take_over)
-        self.held = True
-        return previous if previous is not None and previous.run_id != self.run_id else None
-
-    def lost(self) -> tuple[bool, Controller | None]:
-        """(whether another run controls the robot now, who): asked in the database, not remembered."""
-        if self.control is None:
-            return False, None
-        holder = self.control.holder(self.robot)
-        return holder is None or holder.run_id != self.run_id, holder
-
-    def lost_text(self, holder: Controller | None) -> str:
-        if holder is None:
-            return f"control of robot {self.robot} was taken by another run (and released): take control again"
-        return f"control taken over by {holder.user} (run {holder.run_id}): {holder.reason or 'no reason given'}"
-
-    def release(self) -> None:
-        """Give the robot up (a no-op when another run took it)."""
-        if self.control is None:
-            return
-        try:
-            self.control.release(self.robot, self.run_id)
-        except Exception:  # the run is over either way; the row names it until someone takes over
-            log.exception("run %s: releasing robot %s failed", self.run_id, self.robot)

@@ -31,7 +31,7 @@ from .store import State
 
 __all__ = ["CallOutcome", "Refusal", "ServiceCaller", "request_message"]
 
-SERVICE_QOS = QoSProfile(  # type: ignore[no-untyped-call]  # rclpy is not annotated
+SERVICE_QOS = QoSProfile(
     depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
 """Deep request/response queues like the robot side's services: ROS's default depth 10 drops
 requests silently when more arrive together."""

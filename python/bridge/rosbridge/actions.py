@@ -77,7 +77,7 @@ class ServedAction:
     """The advertisement whose client executes new goals; None while nobody serves it."""
     goals: dict[str, tuple[Any, rclpy.task.Future, ProvidedAction]] = field(default_factory=dict)
     """Goals in flight by id: their handle, their outcome, the advertisement executing them."""
-    counter: itertools.count = field(default_factory=lambda: itertools.count(1))
+    counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
     destroyed: bool = False
     idle_turn: int = 0
     """Counts the times it fell idle: only the retirement planned at the latest may happen."""

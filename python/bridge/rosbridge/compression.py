@@ -84,10 +84,11 @@ def to_cbor_value(value: Any) -> Any:
     typecode = getattr(value, "typecode", None)
     dtype = getattr(value, "dtype", None)
     if typecode is not None or dtype is not None:
-        kind_size = _ARRAY_CODES.get(typecode) if typecode else (dtype.kind, dtype.itemsize)
+        kind_size = (_ARRAY_CODES.get(typecode) if typecode
+                     else (dtype.kind, dtype.itemsize) if dtype is not None else None)
         if kind_size == ("u", 1):
             return bytes(value)
-        tag = _TYPED_ARRAY_TAGS.get(kind_size)
+        tag = _TYPED_ARRAY_TAGS.get(kind_size) if kind_size is not None else None
         if tag is not None:
             return cbor2.CBORTag(tag, value.tobytes())
         return [to_cbor_value(v) for v in value.tolist()]

@@ -22,7 +22,7 @@ from typing import Any
 
 from websockets.asyncio.server import ServerConnection
 from websockets.frames import DATA_OPCODES, Frame
-from websockets.frames import apply_mask  # the C version (speedups)
+from websockets.frames import apply_mask  # type: ignore[attr-defined]  # the C version (websockets.speedups) when built
 from websockets.protocol import State
 
 from .session import FIN_TEXT, Traffic

@@ -71,7 +71,7 @@ class ProvidedService:
     session: Session
     service: Any = None
     pending: dict[str, rclpy.task.Future] = field(default_factory=dict)
-    counter: itertools.count = field(default_factory=lambda: itertools.count(1))
+    counter: itertools.count[int] = field(default_factory=lambda: itertools.count(1))
 
 
 class Services:

@@ -19,7 +19,7 @@ import contextlib
 import json
 import logging
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -91,7 +91,7 @@ def _refusal(exc: ActionRefused | SignInRefused) -> JSONResponse:
     return JSONResponse({"error": exc.message, **details}, status_code=exc.status, headers=headers)
 
 
-def _api(handler: Callable[[Request], Any]) -> Callable[[Request], Any]:
+def _api(handler: Callable[[Request], Awaitable[Response]]) -> Callable[[Request], Awaitable[Response]]:
     """Turn refusals into a JSON error with its status; the page shows the message."""
 
     async def wrapped(request: Request) -> Response:
@@ -285,7 +285,8 @@ async def _socket_account(websocket: WebSocket) -> Account | None:
     try:
         if not _same_origin(websocket):
             raise SignInRefused(403, "this connection came from another site's page")
-        return websocket.app.state.sign_ins.session(websocket).account
+        sign_ins: SignIns = websocket.app.state.sign_ins
+        return sign_ins.session(websocket).account
     except SignInRefused as exc:
         await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
         return None
@@ -422,7 +423,8 @@ async def author_open(request: Request) -> Response:
 def _document(body: Any) -> dict[str, Any]:
     if not isinstance(body, dict) or not isinstance(body.get("document"), dict):
         raise ActionRefused(400, "expected a JSON object with a 'document'")
-    return body["document"]
+    document: dict[str, Any] = body["document"]
+    return document
 
 
 @_api

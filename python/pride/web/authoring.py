@@ -13,7 +13,7 @@ import os
 import re
 import secrets
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from lxml import etree
 
@@ -147,9 +147,9 @@ def _line_positions(xml: str) -> list[tuple[int, tuple[int, int]]]:
     root = etree.fromstring(xml.encode())
     found: list[tuple[int, tuple[int, int]]] = []
     for s, step in enumerate(root.findall("step")):
-        found.append((step.sourceline or 0, (s, -1)))
+        found.append((cast(int | None, step.sourceline) or 0, (s, -1)))  # lxml-stubs mistype sourceline
         for i, item in enumerate(step):
-            found.append((item.sourceline or 0, (s, i)))
+            found.append((cast(int | None, item.sourceline) or 0, (s, i)))
     return found
 
 

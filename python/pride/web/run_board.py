@@ -38,7 +38,8 @@ from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from pride.ground.change_feed import Notice, open_change_feed
 from pride.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
-from pride.robot_control import RobotControl, RobotControlled
+from pride.robot_control import RobotControl
+from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
 from pride.web.accounts import Account, AccountStore
