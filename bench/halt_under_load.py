@@ -5,8 +5,10 @@ Usage: .venv/bin/python bench/halt_under_load.py [--tries 10] [--hogs 2]
 Each try runs the browser test tests/web/test_halt_on_real_stack.py (the real IVA stack at time
 scale 1, ``caretaker serve`` with the JVM plugins, Chromium clicking HALT during the pull-out)
 beside ``--hogs`` busy processes (bench/cpu_load.py), and reads the figure the test prints: from
-just before the click to the arrival of the first joint state of the resting arm. Prints each
-try and how many stayed within 0.5 s; exit status 1 if a try failed.
+the click to the arrival of the first joint state of the resting arm. A try whose click fell
+between two segments of the pull-out (the arm still) gives no figure and is run again, up to
+twice ``--tries`` in all. Prints each try and how many stayed within 0.5 s; exit status 1 if a
+try failed.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from bench.cpu_load import cpu_hogs  # noqa: E402 - run as a script, from the ch
 
 REPO = Path(__file__).resolve().parents[1]
 TEST = "tests/web/test_halt_on_real_stack.py"
-FIGURE = re.compile(r"HALT: the arm at rest ([0-9.]+) s wall-clock after the click \(([0-9.]+) s of sim time")
+FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the click \((-?[0-9.]+) s of sim time")
+STILL = "HALT: the arm was still at the click"
 TARGET_S = 0.5
 
 
@@ -35,12 +38,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--hogs", type=int, default=2, help="busy processes beside each try")
     args = parser.parse_args(argv)
     wall: list[float] = []
-    failed = 0
-    for attempt in range(1, args.tries + 1):
+    failed = still = 0
+    for attempt in range(1, 2 * args.tries + 1):  # a try with the arm still at the click gives no figure
+        if len(wall) == args.tries:
+            break
         with cpu_hogs(args.hogs):
             done = subprocess.run([str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q"], cwd=REPO, capture_output=True,
                                   text=True, timeout=900)
         found = FIGURE.search(done.stdout)
+        if done.returncode == 0 and STILL in done.stdout:
+            still += 1
+            print(f"try {attempt}: the arm was still at the click (between two segments): no figure", flush=True)
+            continue
         if done.returncode != 0 or found is None:
             failed += 1
             print(f"try {attempt}: the test failed\n{done.stdout[-3000:]}", flush=True)
@@ -51,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     if wall:
         within = sum(w <= TARGET_S for w in wall)
         print(f"\n{args.hogs} hogs, {len(wall)} tries measured: median {statistics.median(wall):.3f} s, "
-              f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed")
+              f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed, "
+              f"{still} without a figure (the arm still at the click)")
     return 1 if failed else 0
 
 
