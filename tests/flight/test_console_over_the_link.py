@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from caretaker.processes import REPO, ManagedProcess
-from pride.web.accounts import AccountStore
+from console.accounts import AccountStore
 
 from .flight_support import PULL_OUT, Flight, flight
 

@@ -13,9 +13,9 @@ from pathlib import Path
 import pytest
 from web_server import GroundDatabase, new_ground_database
 
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction, run_action_requests
+from console.ground.change_feed import Notice, open_change_feed
 from pride.audit_log import AuditLog
-from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction, run_action_requests
-from pride.ground.change_feed import Notice, open_change_feed
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

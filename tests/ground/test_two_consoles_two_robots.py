@@ -32,8 +32,8 @@ from operator_page import (
 from playwright.sync_api import Browser, Locator, Page, expect
 from web_server import REPO, WebServer, new_ground_database, start_server
 
+from console.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
 from pride.audit_log import AuditLog
-from pride.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
 from support.browser import signed_in_pages
 from support.postgres import PostgresServer
 from support.processes import ManagedProcess, caretaker

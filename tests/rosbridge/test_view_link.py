@@ -1,4 +1,4 @@
-"""The web view's own rosbridge link (pride/web/spatial_link.py) to a bridge with TLS and a
+"""The web view's own rosbridge link (console/spatial_link.py) to a bridge with TLS and a
 shared secret, set up from a binding file as PAX's is: it authenticates with HMAC over wss,
 gets a latched value, calls a service; with the wrong secret it never counts as connected."""
 
@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from .rosbridge_support import bridge_url
-from pride.web.spatial_link import RosbridgeLink, Subscription, read_binding_link
+from console.spatial_link import RosbridgeLink, Subscription, read_binding_link
 from support.processes import ManagedProcess, caretaker
 
 SECRET = "view-link-secret"

@@ -20,8 +20,8 @@ from author_page import bind_arg, card, drop, set_arg, set_attr
 from operator_page import instruction, screenshot
 from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
-from pride.web.authoring import check_document, read_document
-from pride.web.procedure_view import procedure_json
+from console.authoring import check_document, read_document
+from console.procedure_view import procedure_json
 from web_server import REPO, WebServer, server_on_real_stack
 
 SHIPPED = sorted(p.name for p in (REPO / "procedures").glob("*.xml"))

@@ -25,7 +25,7 @@ from pride.audit_log import AuditLog
 from pride.executive import Executive, Mode
 from pride.lint import check_procedure
 from pride.sysrep import load_sysrep_dir
-from pride.web.terminal_host import HostedElsewhere, TerminalHost
+from console.terminal_host import HostedElsewhere, TerminalHost
 from simulated_systems import open_simulated_systems
 from web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from starlette.requests import Request
 
-from pride.ground.change_feed import Notice
-from pride.web.accounts import AccountStore
-from pride.web.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
-from pride.web.sign_in_throttle import Allowance, SignInThrottle
+from console.ground.change_feed import Notice
+from console.accounts import AccountStore
+from console.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
+from console.sign_in_throttle import Allowance, SignInThrottle
 
 
 class Clock:

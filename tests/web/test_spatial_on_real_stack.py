@@ -29,7 +29,7 @@ from at_ros.transforms import angle_between
 from operator_page import IVA, instruction, sign_in_on, start_run, stop_run
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-from pride.web.spatial_world import compose
+from console.spatial_world import compose
 from spatial_data import matrix
 from support.stack import stack_up
 from web_server import REPO, WebServer, start_server
@@ -352,7 +352,7 @@ def wait_until_state(page: Page, condition: str) -> None:
 
 
 def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
-    from pride.web.spatial_scene import pose
+    from console.spatial_scene import pose
     return list(pose(rpy=(roll, pitch, yaw))["quat"])
 
 

@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from pride.web.accounts import AccountStore
+from console.accounts import AccountStore
 from support.postgres import OWNER, RUNNER, PostgresServer
 from support.processes import ManagedProcess, caretaker
 from support.stack import stack_up

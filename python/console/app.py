@@ -2,7 +2,7 @@
 
 Reading is open to every signed-in person; changing anything (starting or resuming a run, any
 operator action, saving a procedure) needs the operator role and goes through
-:mod:`pride.web.actions` to the executive — of this console, or, for a run another console
+:mod:`console.actions` to the executive — of this console, or, for a run another console
 hosts, of that console, through the database (:meth:`RunBoard.act`). Two WebSockets push news:
 one run's state, events and telemetry (``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that changes state carries the
 session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends one, an ``Origin`` of
@@ -36,14 +36,14 @@ from pride.model import Procedure
 from pride.parser import load_procedure
 from pride.phrasing import describe_event
 from pride.events import Event
-from pride.web.accounts import Account
-from pride.web.actions import ActionRefused, ActionRequest
-from pride.web.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
-from pride.web.procedure_view import procedure_json
-from pride.web.run_board import RunBoard
-from pride.web.run_state import fold_events
-from pride.web.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
-from pride.web.spatial_api import spatial_routes
+from console.accounts import Account
+from console.actions import ActionRefused, ActionRequest
+from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
+from console.procedure_view import procedure_json
+from console.run_board import RunBoard
+from console.run_state import fold_events
+from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
+from console.spatial_api import spatial_routes
 
 __all__ = ["build_app"]
 

@@ -1,6 +1,6 @@
 """The 3D view's data from what the habitat publishes over rosbridge (not from its files).
 
-:mod:`pride.web.spatial_scene` builds the contract from a scene file and a URDF on disk; the
+:mod:`console.spatial_scene` builds the contract from a scene file and a URDF on disk; the
 ground has neither, it has the habitat's latched ``sim/visual_world`` (every drawn object with
 its shapes and colours, the robot's root pose, joints, tool link) and ``robot_description``,
 and the AT server's ``get_plan``. This module turns those rosbridge JSON messages into the same
@@ -14,14 +14,14 @@ import xml.etree.ElementTree as ElementTree
 from collections.abc import Mapping
 from typing import Any
 
-from pride.web.spatial_scene import (
+from console.spatial_scene import (
     CONTRACT_VERSION,
     DOCUMENT_FRAME,
     SpatialDataError,
     joints_update,
     objects_update,
 )
-from pride.web.spatial_scene import _duration, _list, _mapping, _names, _number, _numbers, _required, _ros_pose, _str
+from console.spatial_scene import _duration, _list, _mapping, _names, _number, _numbers, _required, _ros_pose, _str
 
 __all__ = ["PLAN_SHOWN_STATES", "world_document", "plan_from_get_plan", "compose"]
 

@@ -8,10 +8,10 @@ Resuming one is ``caretaker run --resume``: the executive rebuilds the run from 
 (:meth:`Executive.resume`). Procedures and bindings are chosen by file name from the configured
 directories, so a request can never name an arbitrary path on the server.
 
-Consoles share runs only through the ground database (:mod:`pride.ground`): a run started here is
+Consoles share runs only through the ground database (:mod:`console.ground`): a run started here is
 claimed in ``run_hosts`` and its view published there; a run hosted elsewhere is shown as a
-:class:`~pride.web.remote_run.RemoteRun`, and an operator action on it is forwarded to its host
-(:mod:`pride.ground.action_requests`), which performs it as that operator, role checked there too.
+:class:`~console.remote_run.RemoteRun`, and an operator action on it is forwarded to its host
+(:mod:`console.ground.action_requests`), which performs it as that operator, role checked there too.
 The change feed tells this board what changed (new events, hosts, accounts, requests).
 """
 
@@ -34,21 +34,21 @@ from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from pride.ground.change_feed import Notice, open_change_feed
-from pride.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
+from console.ground.change_feed import Notice, open_change_feed
+from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
 from pride.robot_control import RobotControl
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
-from pride.web.accounts import Account, AccountStore
-from pride.web.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
-from pride.web.camera_feed import CameraFeed
-from pride.web.live_run import LiveRun
-from pride.web.remote_run import RemoteRun
-from pride.web.run_state import fold_events
-from pride.web.watchers import Watchers
+from console.accounts import Account, AccountStore
+from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
+from console.camera_feed import CameraFeed
+from console.live_run import LiveRun
+from console.remote_run import RemoteRun
+from console.run_state import fold_events
+from console.watchers import Watchers
 
 __all__ = ["CameraSettings", "Catalog", "RunBoard", "RunView"]
 

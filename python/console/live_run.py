@@ -2,12 +2,12 @@
 
 The executive does the work; this class only observes it. Its listener (called on the
 executive's thread with the executive's lock held) appends the event and wakes the watchers'
-send loops on the asyncio side (:mod:`pride.web.watchers`) and the publisher that shows the run
-to other consoles (:meth:`published_view`, :mod:`pride.ground.run_hosts`); they then read
+send loops on the asyncio side (:mod:`console.watchers`) and the publisher that shows the run
+to other consoles (:meth:`published_view`, :mod:`console.ground.run_hosts`); they then read
 :meth:`Executive.snapshot`, which takes the lock, so what they draw is a consistent state and
 never a half-applied transition.
 
-Operator actions are not here: :mod:`pride.web.actions` sends them to the executive.
+Operator actions are not here: :mod:`console.actions` sends them to the executive.
 """
 
 from __future__ import annotations
@@ -20,15 +20,15 @@ from typing import Any
 
 from pride.events import Event
 from pride.executive import Executive, Snapshot
-from pride.ground.run_hosts import PublishedView
+from console.ground.run_hosts import PublishedView
 from pride.model import Procedure
 from pride.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
-from pride.web.accounts import Account
-from pride.web.camera_feed import CameraFeed
-from pride.web.procedure_view import procedure_json, telemetry_checks
-from pride.web.run_state import fold_events
-from pride.web.watchers import Watcher, Watchers
+from console.accounts import Account
+from console.camera_feed import CameraFeed
+from console.procedure_view import procedure_json, telemetry_checks
+from console.run_state import fold_events
+from console.watchers import Watcher, Watchers
 
 __all__ = ["LiveRun", "snapshot_json"]
 
@@ -127,7 +127,7 @@ class LiveRun:
         return self._watchers.people()
 
     def refresh(self) -> None:
-        """Nothing to fetch: the executive runs here (a :class:`~pride.web.remote_run.RemoteRun` reads the database)."""
+        """Nothing to fetch: the executive runs here (a :class:`~console.remote_run.RemoteRun` reads the database)."""
 
     # ---- views --------------------------------------------------------------------------------
     def events_since(self, seq: int) -> list[Event]:
@@ -152,7 +152,7 @@ class LiveRun:
         return camera[0] if camera else None
 
     def published_view(self) -> PublishedView:
-        """The run as other consoles show it (:mod:`pride.ground.run_hosts` publishes it)."""
+        """The run as other consoles show it (:mod:`console.ground.run_hosts` publishes it)."""
         state = self.state_json()
         camera = self.camera()
         return PublishedView({"state": state, "telemetry": self.telemetry_json()}, str(state["status"]), str(state["mode"]),

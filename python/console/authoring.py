@@ -19,7 +19,7 @@ from lxml import etree
 
 from pride.lint import lint_file
 from pride.sysrep import SysRep
-from pride.web.actions import ActionRefused
+from console.actions import ActionRefused
 
 __all__ = ["check_document", "document_to_xml", "procedure_inputs", "read_document", "save_document", "sysrep_palette"]
 

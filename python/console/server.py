@@ -25,12 +25,12 @@ from sqlalchemy.exc import OperationalError
 
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError
-from pride.ground.run_hosts import DEFAULT_LEASE_S
-from pride.web.accounts import AccountStore
-from pride.web.app import build_app
-from pride.web.reports import report_writer
-from pride.web.run_board import CameraSettings, Catalog, RunBoard
-from pride.web.sign_in import SessionLimits, SignIns
+from console.ground.run_hosts import DEFAULT_LEASE_S
+from console.accounts import AccountStore
+from console.app import build_app
+from console.reports import report_writer
+from console.run_board import CameraSettings, Catalog, RunBoard
+from console.sign_in import SessionLimits, SignIns
 
 __all__ = ["main"]
 

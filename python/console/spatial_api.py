@@ -1,6 +1,6 @@
 """The 3D view's routes: its own WebSocket (scene document, then updates) and the drag.
 
-``/ws/runs/{run_id}/spatial`` pushes what :class:`pride.web.spatial_feed.SpatialFeed` keeps of
+``/ws/runs/{run_id}/spatial`` pushes what :class:`console.spatial_feed.SpatialFeed` keeps of
 the habitat (one feed per live run, shared by its browsers, closed with its last one);
 ``/api/runs/{run_id}/spatial/camera`` is the robot camera's newest image from that feed. ``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators
 only (403 for an observer, checked before the body is read), CSRF like every change, sent as
@@ -25,13 +25,13 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from pride.states import OperatorActionError
 from pride.sysrep import SysRep
-from pride.web.accounts import Account
-from pride.web.actions import ActionRefused
-from pride.web.live_run import LiveRun
-from pride.web.run_board import RunBoard
-from pride.web.sign_in import SignInRefused, SignIns
-from pride.web.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
-from pride.web.spatial_link import read_binding_link
+from console.accounts import Account
+from console.actions import ActionRefused
+from console.live_run import LiveRun
+from console.run_board import RunBoard
+from console.sign_in import SignInRefused, SignIns
+from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
+from console.spatial_link import read_binding_link
 
 __all__ = ["POSE_COMMANDS", "spatial_routes"]
 

@@ -1,7 +1,7 @@
 """Who may use the web view: accounts in the ground database, passwords hashed with argon2id.
 
 Accounts live in the same database as the audit log (``--db``), so every console of a ground
-segment signs people in against one list, and ``caretaker accounts`` (:mod:`pride.web.accounts_command`)
+segment signs people in against one list, and ``caretaker accounts`` (:mod:`console.accounts_command`)
 manages it. An *operator* may act on runs (start, send, record, skip, ...); an *observer* may
 only watch. The server checks the role on every action, so hiding buttons in the page is a
 convenience, never the protection.
@@ -11,7 +11,7 @@ next sign-in when those defaults grow, where the console's role may write the ta
 ``console_accounts(user_id PK, name, role, password_hash, created, password_changed)`` belongs to
 the ground database's schema (revision 0004 of :mod:`pride.migrations`): on PostgreSQL the
 consoles' role only reads it and ``caretaker accounts``, run as the database owner, changes it. A
-change NOTIFYs every console (:mod:`pride.ground.change_feed`), which ends that user's sessions.
+change NOTIFYs every console (:mod:`console.ground.change_feed`), which ends that user's sessions.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from __future__ import annotations
 import asyncio
 import threading
 
-from pride.web.accounts import Account
+from console.accounts import Account
 
 __all__ = ["Watcher", "Watchers"]
 

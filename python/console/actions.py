@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from pride.executive import Executive, Mode, OperatorActionError
-from pride.ground.action_requests import Answer, ForwardedAction
-from pride.web.accounts import Account, AccountStore
+from console.ground.action_requests import Answer, ForwardedAction
+from console.accounts import Account, AccountStore
 
 __all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perform_forwarded"]
 

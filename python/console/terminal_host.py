@@ -1,6 +1,6 @@
 """A run driven outside a console (``caretaker run``) hosted as a console hosts one.
 
-The process that runs a run's executive is its host (:mod:`pride.ground.run_hosts`), whether it
+The process that runs a run's executive is its host (:mod:`console.ground.run_hosts`), whether it
 is a console or a runner at a terminal. A runner that wraps its run in a :class:`TerminalHost`
 claims the run in the ground database, publishes its view there, and performs the operator
 actions that consoles forward to it (as the operator who acted, role checked against the
@@ -28,14 +28,14 @@ from sqlalchemy.exc import SQLAlchemyError
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.executive import Executive
-from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from pride.ground.change_feed import open_change_feed
-from pride.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
+from console.ground.change_feed import open_change_feed
+from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
 from pride.lint import CheckedProcedure
 from pride.systems import SystemGateway
-from pride.web.accounts import AccountStore
-from pride.web.actions import perform_forwarded
-from pride.web.live_run import LiveRun
+from console.accounts import AccountStore
+from console.actions import perform_forwarded
+from console.live_run import LiveRun
 
 __all__ = ["HostedElsewhere", "TerminalHost"]
 

@@ -11,7 +11,7 @@ What it asks the habitat for (names under the robot's namespace), sized for a 1.
 | ``affordance_template_server/status`` | subscribe, ``throttle_rate`` 500 ms, ``queue_length`` 1 | <= 2/s |
 | ``get_template_status`` per template | when ``running_templates``, ``plan_id`` or the execute status change, after an AT command of the run, after a reconnect | on change |
 | ``get_plan`` | when ``plan_id`` or the execute status change | on change |
-| ``camera/<name>/image`` (the camera of :func:`~pride.web.spatial_camera.choose_camera`) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
+| ``camera/<name>/image`` (the camera of :func:`~console.spatial_camera.choose_camera`) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
 
 Each browser gets the scene document once it exists, then the latest update of each kind,
 never more often than :data:`PUSH_INTERVAL_S` (an update not yet sent is replaced by a newer
@@ -26,10 +26,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from pride.web.spatial_camera import CameraImageError, choose_camera, png_from_image
-from pride.web.spatial_link import BindingLink, LinkError, RosbridgeLink, Subscription
-from pride.web.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
-from pride.web.spatial_world import plan_from_get_plan, world_document
+from console.spatial_camera import CameraImageError, choose_camera, png_from_image
+from console.spatial_link import BindingLink, LinkError, RosbridgeLink, Subscription
+from console.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
+from console.spatial_world import plan_from_get_plan, world_document
 
 __all__ = ["PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher", "AT_COMMANDS_THAT_MOVE_TEMPLATES"]
 

@@ -12,7 +12,7 @@ import getpass
 import sys
 
 from pride.audit_log import DEFAULT_DB
-from pride.web.accounts import AccountStore, AccountsError, Role
+from console.accounts import AccountStore, AccountsError, Role
 
 __all__ = ["main"]
 
