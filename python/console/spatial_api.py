@@ -31,7 +31,7 @@ from console.live_run import LiveRun
 from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
 from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
-from console.spatial_link import read_binding_link
+from console.spatial_link import read_view_link
 
 __all__ = ["POSE_COMMANDS", "spatial_routes"]
 
@@ -57,7 +57,7 @@ class SpatialFeeds:
         run_id = live.run_id
         if run_id not in self._feeds:
             path = board.catalog.binding_path(live.binding)
-            link = await run_in_threadpool(read_binding_link, path, rosbridge_url=board.rosbridge_url_for(live.binding))
+            link = await run_in_threadpool(read_view_link, path, rosbridge_url=board.rosbridge_url_for(live.binding))
             if link is None:
                 return None
             if run_id not in self._feeds:  # (another browser may have made it meanwhile)

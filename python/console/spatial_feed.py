@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
-from console.spatial_link import BindingLink, LinkError, RosbridgeLink, Subscription
+from console.spatial_link import ViewLink, LinkError, RosbridgeLink, Subscription
 from console.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
 from console.spatial_world import plan_from_get_plan, world_document
 
@@ -67,7 +67,7 @@ class ViewWatcher:
 class SpatialFeed:
     """The habitat's state for one run's 3D views, kept current over one rosbridge link."""
 
-    def __init__(self, link: BindingLink, *, camera_url: str, camera: str | None = None) -> None:
+    def __init__(self, link: ViewLink, *, camera_url: str, camera: str | None = None) -> None:
         """``camera_url``: where the page fetches :attr:`camera_png` (``?seq=N`` is added);
         ``camera``: the camera to show when the scene has it."""
         self.link = link

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import hashlib
-import hmac
 import itertools
 import json
 import logging
@@ -32,9 +30,10 @@ from typing import Any
 import websockets
 from websockets.asyncio.client import ClientConnection
 
-from datafile import load_file
+from pride.binding import read_binding
+from rosbridge_wire import signed_login
 
-__all__ = ["BindingLink", "LinkError", "RosbridgeLink", "Subscription", "read_binding_link"]
+__all__ = ["LinkError", "RosbridgeLink", "Subscription", "ViewLink", "read_view_link"]
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +51,7 @@ class LinkError(RuntimeError):
 
 
 @dataclass(frozen=True)
-class BindingLink:
+class ViewLink:
     """What the view needs of a binding: where its robot's rosbridge is, with what trust, and
     the robot's namespace (the AT server's namespace less ``/affordance_template_server``)."""
 
@@ -68,33 +67,23 @@ class BindingLink:
         return f"{self.namespace.rstrip('/')}/{relative}"
 
 
-def read_binding_link(path: str | Path, *, rosbridge_url: str | None = None) -> BindingLink | None:
-    """The binding's link for the view, or None when it serves no Affordance Template system
-    (nothing to show in 3D). ``rosbridge_url`` replaces the binding's address, as for PAX."""
-    root = load_file(path).mapping(any_keys=True)
-    at_namespace = None
-    for system in root["systems"].sequence():
-        namespace = system.get("namespace")
-        text = namespace.text() if namespace is not None else ""
-        if text.endswith(AT_NAMESPACE_SUFFIX):
-            at_namespace = text[: -len(AT_NAMESPACE_SUFFIX)] or "/"
-    if at_namespace is None:
+def read_view_link(path: str | Path, *, rosbridge_url: str | None = None) -> ViewLink | None:
+    """The binding's link for the view (read by :func:`pride.binding.read_binding`), or None when
+    it serves no Affordance Template system (nothing to show in 3D). ``rosbridge_url`` replaces
+    the binding's address, as for PAX."""
+    binding = read_binding(path)
+    at_system = next((s for s in binding.systems if s.namespace.endswith(AT_NAMESPACE_SUFFIX)), None)
+    if at_system is None:
         return None
-    link = root.get("link")
-    delay_field = link.get("one_way_delay") if link is not None else None
-    delay = delay_field.number(min=0) if delay_field is not None else 0.0
-    security = root.get("security")
-    ca_file = secret = token = None
-    if security is not None:
-        ca = security.get("ca_file")
-        ca_file = ca.file_path() if ca is not None else None
-        secret_field, token_field = security.get("secret_file"), security.get("token_file")
-        if secret_field is not None:
-            secret = secret_field.file_path().read_text(encoding="utf-8").strip()
-        if token_field is not None:
-            token = token_field.file_path().read_text(encoding="utf-8").strip()
-    return BindingLink(url=rosbridge_url or root["rosbridge"].text(), namespace=at_namespace, one_way_delay=delay,
-                       ca_file=ca_file, secret=secret, token=token)
+    security = binding.security
+    return ViewLink(url=rosbridge_url or at_system.rosbridge,
+                    namespace=at_system.namespace[: -len(AT_NAMESPACE_SUFFIX)] or "/",
+                    one_way_delay=binding.link.one_way_delay, ca_file=security.ca_file,
+                    secret=_read_secret(security.secret_file), token=_read_secret(security.token_file))
+
+
+def _read_secret(path: Path | None) -> str | None:
+    return path.read_text(encoding="utf-8").strip() if path is not None else None
 
 
 @dataclass
@@ -116,7 +105,7 @@ class RosbridgeLink:
     view then asks its services afresh: whatever it missed meanwhile is in their answers).
     """
 
-    def __init__(self, link: BindingLink, *, on_connected: Callable[[], Coroutine[Any, Any, None]] | None = None,
+    def __init__(self, link: ViewLink, *, on_connected: Callable[[], Coroutine[Any, Any, None]] | None = None,
                  on_state: Callable[[str], None] | None = None) -> None:
         self.link = link
         self._subscriptions: list[Subscription] = []
@@ -182,12 +171,7 @@ class RosbridgeLink:
             return {"op": "auth", "token": self.link.token}
         if self.link.secret is None:
             return None
-        now = time.time()
-        fields = {"client": "pride-web-view", "dest": self.link.url, "rand": secrets.token_hex(16), "t": now,
-                  "level": "user", "end": now + 60}
-        text = "".join(str(fields[k]) for k in ("client", "dest", "rand", "t", "level", "end"))
-        mac = hmac.new(self.link.secret.encode(), text.encode(), hashlib.sha256).hexdigest()
-        return {"op": "auth", "mac": mac, **fields}
+        return signed_login(self.link.secret, "pride-web-view", self.link.url, time.time())
 
     def _ssl(self) -> ssl.SSLContext | None:
         if not self.link.url.startswith("wss://"):

@@ -29,17 +29,19 @@ FORBIDDEN = {
 
 
 #: The allowed import order: each package and the Caretaker packages it may import. Two columns
-#: on ``datafile`` (the reader of every user file): the procedure side (``pride``: procedures, the
+#: on two leaves, ``datafile`` (the reader of every user file) and ``rosbridge_wire`` (the rosbridge
+#: vocabulary and login of the bridge and its clients): the procedure side (``pride``: procedures, the
 #: executive, the record; the ground ``console`` on top of it) and the robot side (``at_ros``,
 #: ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
 MAY_IMPORT = {
     "datafile": set(),
+    "rosbridge_wire": set(),
     "pride": {"datafile"},
-    "console": {"datafile", "pride"},
-    "bridge": {"datafile"},
+    "console": {"datafile", "pride", "rosbridge_wire"},
+    "bridge": {"datafile", "rosbridge_wire"},
     "at_ros": {"datafile"},
     "sim": {"datafile"},
-    "caretaker": {"datafile", "pride", "console", "bridge", "at_ros", "sim"},
+    "caretaker": {"datafile", "rosbridge_wire", "pride", "console", "bridge", "at_ros", "sim"},
 }
 
 

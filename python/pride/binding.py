@@ -1,11 +1,13 @@
-"""Checking binding files (``sysrep/bindings/*.yaml``) without a JVM.
+"""Binding files (``sysrep/bindings/*.yaml``) read in Python: the one reader and the one type.
 
-The Java ``caretaker.binding.BindingLoader`` is the reader a run uses; this check applies its
-rules (keys, types, plugin names, rosbridge URLs, SysReps loadable and bound once, the ``link``
-and ``security`` sections and the files they name) with the shared :mod:`datafile` reader, so
-``caretaker check`` and ``caretaker up`` can name a broken binding by file, line and key before
-anything starts. Plugin *options* are the plugins' own business and are checked by the Java
-loader when a run opens the binding.
+The Java ``caretaker.binding.BindingLoader`` is the reader a run's plugins use; this module
+applies its rules (keys, types, plugin names, rosbridge URLs, SysReps loadable and bound once,
+the ``link`` and ``security`` sections and the files they name) with the shared :mod:`datafile`
+reader, so ``caretaker check`` and ``caretaker up`` name a broken binding by file, line and key
+before anything starts, and the console's 3D view finds the robot's bridge with its trust.
+Both readers accept and refuse the same fixtures (``tests/fixtures/bindings/``, read by the
+Python and the Java tests). Plugin *options* are the plugins' own business and are checked by
+the Java loader when a run opens the binding.
 
 A binding that states a ``link:`` is across a real link: its commands go only through the
 habitat's command ledger (a habitat without one is refused when the run opens it). Without
@@ -22,8 +24,8 @@ from urllib.parse import urlparse
 from datafile import DataFileError, Field, load_file
 from pride.sysrep import load_sysrep
 
-__all__ = ["BUILT_IN_PLUGINS", "BindingError", "BindingLink", "BindingSecurity", "BoundSystem", "BindingSummary",
-           "check_binding"]
+__all__ = ["BUILT_IN_PLUGINS", "BindingError", "BindingLink", "BindingSecurity", "BoundSystem", "Binding",
+           "read_binding"]
 
 #: The plugins the Java loader knows by name (caretaker.binding.PluginKind); others are class names.
 BUILT_IN_PLUGINS = ("at_commands", "at_telemetry", "ros_convention")
@@ -44,6 +46,8 @@ class BindingError(DataFileError):
 
 @dataclass(frozen=True)
 class BoundSystem:
+    """One SysRep the binding serves, and where."""
+
     sysrep: str  # the SysRep id
     namespace: str
     rosbridge: str
@@ -68,7 +72,9 @@ class BindingSecurity:
 
 
 @dataclass(frozen=True)
-class BindingSummary:
+class Binding:
+    """A binding file as read and checked."""
+
     path: Path
     robot: str
     systems: tuple[BoundSystem, ...]
@@ -134,8 +140,8 @@ def _security(f: Field | None) -> BindingSecurity:
     )
 
 
-def check_binding(path: str | Path) -> BindingSummary:
-    """Check a binding file and every SysRep it names.
+def read_binding(path: str | Path) -> Binding:
+    """Read and check a binding file and every SysRep it names.
 
     Raises:
         BindingError: ``file:line: key: problem`` for the binding itself.
@@ -163,7 +169,8 @@ def check_binding(path: str | Path) -> BindingSummary:
         if not bridge:
             raise entry.fail("no rosbridge URL (set rosbridge at the top or here)")
         if any(s.sysrep == sysrep.id for s in systems):
-            raise entry["sysrep"].fail(f"SysRep {sysrep.id!r} is bound twice; bind each SysRep once (list several plugins instead)")
+            raise entry["sysrep"].fail(f"SysRep {sysrep.id!r} is bound twice; bind each SysRep once "
+                                       "(list several plugins instead)")
         systems.append(BoundSystem(sysrep.id, namespace, bridge))
     link = _link(root.get("link"))
     ledger_namespace = ""
@@ -171,5 +178,5 @@ def check_binding(path: str | Path) -> BindingSummary:
         ledger_namespace = root["ledger_namespace"].text()
         if not NAMESPACE.fullmatch(ledger_namespace):
             raise root["ledger_namespace"].fail(f"must be a ROS namespace like /iva, got {ledger_namespace!r}")
-    return BindingSummary(path, robot, tuple(systems), link, _security(root.get("security")),
+    return Binding(path, robot, tuple(systems), link, _security(root.get("security")),
                           "" if ledger_namespace == "/" else ledger_namespace)
