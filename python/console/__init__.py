@@ -8,5 +8,5 @@ Kept apart from :mod:`pride`, whose executive must run where no web server or gr
 (:mod:`console.app`). Every change to a run is an executive call made as the signed-in user
 (:mod:`console.actions`) and lands in the audit log; everything the page shows is observed
 from the executive (:mod:`console.live_run`) or folded from the audit log
-(:mod:`console.run_state`), never kept as a second copy of the run.
+(:mod:`console.folded_run`), never kept as a second copy of the run.
 """

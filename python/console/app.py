@@ -41,7 +41,7 @@ from console.actions import ActionRefused, ActionRequest
 from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
 from console.procedure_view import procedure_json
 from console.run_board import RunBoard
-from console.run_state import fold_events
+from console.folded_run import fold_events
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
 

@@ -27,7 +27,7 @@ from pride.systems import SystemGateway
 from console.accounts import Account
 from console.camera_feed import CameraFeed
 from console.procedure_view import procedure_json, telemetry_checks
-from console.run_state import fold_events
+from console.folded_run import fold_events
 from console.watchers import Watcher, Watchers
 
 __all__ = ["LiveRun", "snapshot_json"]

@@ -35,7 +35,7 @@ from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import Notice, open_change_feed
+from console.ground.change_feed import ChangeNotice, open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
 from pride.robot_control import RobotControl
@@ -47,7 +47,7 @@ from console.actions import ActionRefused, ActionRequest, perform_action, perfor
 from console.camera_feed import CameraFeed
 from console.live_run import LiveRun
 from console.remote_run import RemoteRun
-from console.run_state import fold_events
+from console.folded_run import fold_events
 from console.watchers import Watchers
 
 __all__ = ["CameraSettings", "Catalog", "RunBoard", "RunView"]
@@ -348,7 +348,7 @@ class RunBoard:
         live = self.live(request.run_id)
         return perform_forwarded(live.executive if live else None, self.accounts, request, self.hosting.host)
 
-    def _notice(self, notice: Notice) -> None:
+    def _notice(self, notice: ChangeNotice) -> None:
         """Change-feed subscriber (its thread): mark what changed and wake who shows it."""
         if notice.channel == "resync":
             with self._lock:

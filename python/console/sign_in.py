@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 from starlette.requests import HTTPConnection
 
-from console.ground.change_feed import Notice
+from console.ground.change_feed import ChangeNotice
 from console.accounts import Account, AccountStore
 from console.sign_in_throttle import SignInThrottle
 
@@ -143,7 +143,7 @@ class SignIns:
         session.last_used = now
         return session
 
-    def notice(self, notice: Notice) -> None:
+    def notice(self, notice: ChangeNotice) -> None:
         """Change-feed subscriber: an account changed (or notices were missed): recheck its sessions at their next use."""
         if notice.channel not in ("accounts", "resync"):
             return

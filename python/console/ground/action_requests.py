@@ -31,7 +31,7 @@ from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text,
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
-from console.ground.change_feed import Notice
+from console.ground.change_feed import ChangeNotice
 
 __all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction", "run_action_requests"]
 
@@ -190,7 +190,7 @@ class ActionRequests:
         return Answer(int(row.status), json.loads(row.answer))
 
     # ---- answering ----------------------------------------------------------------------------
-    def notice(self, notice: Notice) -> None:
+    def notice(self, notice: ChangeNotice) -> None:
         """Change-feed subscriber: wake a waiting :meth:`forward`, or queue a request made to this host."""
         if notice.channel == "resync":
             self._inbox.put(None)  # look for requests missed while the feed was away

@@ -37,7 +37,7 @@ import sqlalchemy as sa
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import SQLAlchemyError
 
-__all__ = ["POLL_S", "ChangeFeed", "Notice", "open_change_feed"]
+__all__ = ["POLL_S", "ChangeFeed", "ChangeNotice", "open_change_feed"]
 
 log = logging.getLogger(__name__)
 
@@ -59,14 +59,14 @@ _accounts = sa.table("console_accounts", sa.column("user_id"), sa.column("role")
 
 
 @dataclass(frozen=True)
-class Notice:
+class ChangeNotice:
     """Something changed: ``channel`` says what kind of thing, ``payload`` which one."""
 
     channel: str
     payload: str
 
 
-Subscriber = Callable[[Notice], None]
+Subscriber = Callable[[ChangeNotice], None]
 
 
 class ChangeFeed(ABC):
@@ -95,7 +95,7 @@ class ChangeFeed(ABC):
         if self._thread.is_alive():
             self._thread.join(5)
 
-    def _publish(self, notice: Notice) -> None:
+    def _publish(self, notice: ChangeNotice) -> None:
         with self._lock:
             subscribers = list(self._subscribers)
         for subscriber in subscribers:
@@ -129,11 +129,11 @@ class ListeningFeed(ChangeFeed):
                     self.connected.set()
                     if lost:
                         log.warning("change feed on %s is back", self._location)
-                        self._publish(Notice("resync", ""))
+                        self._publish(ChangeNotice("resync", ""))
                     delay, lost = 0.05, False
                     while not self._closed.is_set():
                         for note in connection.notifies(timeout=0.5):
-                            self._publish(Notice(CHANNELS.get(note.channel, note.channel), note.payload))
+                            self._publish(ChangeNotice(CHANNELS.get(note.channel, note.channel), note.payload))
             except psycopg.Error as exc:
                 self.connected.clear()
                 if not lost:
@@ -166,7 +166,7 @@ class PollingFeed(ChangeFeed):
                     notices = self._read(connection, announce=self.connected.is_set())
                 self.connected.set()
                 if failing:
-                    notices.insert(0, Notice("resync", ""))
+                    notices.insert(0, ChangeNotice("resync", ""))
                 failing = False
                 for notice in notices:
                     self._publish(notice)
@@ -176,18 +176,18 @@ class PollingFeed(ChangeFeed):
                 failing = True
             self._closed.wait(POLL_S)
 
-    def _read(self, connection: Connection, *, announce: bool) -> list[Notice]:
+    def _read(self, connection: Connection, *, announce: bool) -> list[ChangeNotice]:
         """What changed since the last reading (the first reading only sets the baseline)."""
-        notices: list[Notice] = []
+        notices: list[ChangeNotice] = []
         for row in connection.execute(
             sa.select(_records.c.id, _records.c.seq, _records.c.kind, _records.c.run_id)
             .where(_records.c.id > self._last_event)
             .order_by(_records.c.id)
         ):
             self._last_event = row.id
-            notices.append(Notice("events", f"{row.seq} {row.kind} {row.run_id}"))
+            notices.append(ChangeNotice("events", f"{row.seq} {row.kind} {row.run_id}"))
         hosts = {row.run_id: (row.host_id, row.view_seq) for row in connection.execute(sa.select(_hosts))}
-        notices += [Notice("hosts", run) for run in _changed(self._hosts, hosts)]
+        notices += [ChangeNotice("hosts", run) for run in _changed(self._hosts, hosts)]
         self._hosts = hosts
         floor = (
             min(
@@ -201,13 +201,13 @@ class PollingFeed(ChangeFeed):
             for row in connection.execute(sa.select(_requests).where(_requests.c.id > floor))
         }
         notices += [
-            Notice("actions", f"{requests[i][0]} {i} {requests[i][1]}")
+            ChangeNotice("actions", f"{requests[i][0]} {i} {requests[i][1]}")
             for i in _changed(self._requests, requests)
             if i in requests
         ]
         self._requests = requests
         accounts = {row.user_id: (row.role, row.password_changed) for row in connection.execute(sa.select(_accounts))}
-        notices += [Notice("accounts", user) for user in _changed(self._accounts, accounts) if user in self._accounts]
+        notices += [ChangeNotice("accounts", user) for user in _changed(self._accounts, accounts) if user in self._accounts]
         self._accounts = accounts
         return notices if announce else []
 

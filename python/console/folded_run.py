@@ -15,7 +15,7 @@ from pride.events import Event, EventKind
 from pride.phrasing import labelled_values
 from pride.sysrep import SysRep
 
-__all__ = ["InstructionState", "RunState", "fold_events"]
+__all__ = ["InstructionState", "FoldedRun", "fold_events"]
 
 _IMAGE_KEYS = ("image_path", "image", "path")
 #: Events after which the run is somewhere new or holds for a new reason: a hold is "since" then.
@@ -52,7 +52,7 @@ class InstructionState:
 
 
 @dataclass
-class RunState:
+class FoldedRun:
     """The run as of its last event. ``sysreps`` label result values (they may be missing: then keys show)."""
 
     run_id: str
@@ -193,9 +193,9 @@ def _image_path(data: dict[str, Any]) -> str | None:
     return None
 
 
-def fold_events(run_id: str, events: list[Event], sysreps: Mapping[str, SysRep] | None = None) -> RunState:
+def fold_events(run_id: str, events: list[Event], sysreps: Mapping[str, SysRep] | None = None) -> FoldedRun:
     """The state of a run after ``events``."""
-    state = RunState(run_id, sysreps or {})
+    state = FoldedRun(run_id, sysreps or {})
     for event in events:
         state.apply(event)
     return state
