@@ -11,11 +11,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from web_server import GroundDatabase, new_ground_database
 
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction, run_action_requests
 from console.ground.change_feed import ChangeNotice, open_change_feed
 from pride.audit_log import AuditLog
+from support.web_server import GroundDatabase, new_ground_database
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])

@@ -27,7 +27,7 @@ from caretaker.demo import DEMO_USER, demo_operator
 from console.run_board import CameraSettings
 from console.server import main
 from support.processes import caretaker
-from web_server import PEOPLE, REPO
+from support.web_server import PEOPLE, REPO
 
 Reply = tuple[int, dict[str, Any], dict[str, str]]
 

@@ -26,13 +26,13 @@ import roslibpy
 from playwright.sync_api import Browser, Page, expect
 
 from at_ros.transforms import angle_between
-from operator_page import IVA, instruction, sign_in_on, start_run, stop_run
+from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from console.spatial_world import compose
 from spatial_data import matrix
 from support.stack import stack_up
-from web_server import REPO, WebServer, start_server
+from support.web_server import REPO, WebServer, start_server
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

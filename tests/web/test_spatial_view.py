@@ -18,7 +18,7 @@ import pytest
 from playwright.sync_api import Browser, Page
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
-from operator_page import shown_image_width
+from support.operator_page import shown_image_width
 from console.spatial_scene import objects_update
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from playwright.sync_api import Locator, Page, expect
 
-from web_server import PEOPLE
+from support.web_server import PEOPLE
 
 REPO = Path(__file__).resolve().parents[2]
 #: Where the browser tests save their screenshots. ``make docs`` sets CARETAKER_SCREENSHOTS to
@@ -44,6 +44,11 @@ def instruction(page: Page, number: str) -> Locator:
     return page.locator(f'#procedure li.instruction[data-number="{number}"]')
 
 
+def expect_current(item: Locator, timeout: float | None = None) -> None:
+    """Wait until ``item`` (an instruction) is the run's current one (marked ``current``)."""
+    expect(item).to_have_class(re.compile(r"\bcurrent\b"), timeout=timeout)
+
+
 def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
     """Entries of the page's audit log for one kind of record, instruction and actor."""
     return page.locator(f'#audit li[data-kind="{kind}"][data-instruction="{number}"][data-actor="{actor}"]')
@@ -58,7 +63,9 @@ def where_the_run_is(page: Page, audit_rows: int = 8) -> str:
             const text = selector => squash(document.querySelector(selector));
             const at = document.querySelector('#procedure li.instruction.current');
             const audit = [...document.querySelectorAll('#audit li')].slice(0, rows).map(row => '  ' + squash(row));
-            return [`status ${text('#run-status')}, connection ${text('#connection')} (${document.querySelector('#connection').title || 'never lost'}), run opened ${view.opening} times`,
+            const lost = document.querySelector('#connection').title || 'never lost';
+            const link = `connection ${text('#connection')} (${lost})`;
+            return [`status ${text('#run-status')}, ${link}, run opened ${view.opening} times`,
                     `at ${at ? at.dataset.number + ': ' + squash(at).slice(0, 200) : 'no instruction'}`,
                     `hold: ${text('#hold')}`, 'newest audit rows:', ...audit].join('\\n');
         }""",

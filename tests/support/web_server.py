@@ -14,8 +14,8 @@ from support.postgres import OWNER, RUNNER, PostgresServer
 from support.processes import ManagedProcess, caretaker
 from support.stack import stack_up
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parents[1]
+REPO = Path(__file__).resolve().parents[2]
+WEB = REPO / "tests" / "web"  # the web suite's simulated systems and procedure fixtures
 
 #: The people of the browser tests: user id -> (role, name, password).
 PEOPLE = {
@@ -76,7 +76,7 @@ def start_server(
     arguments = [*(f"--camera={camera}" for camera in cameras), "--camera-period", "0.1",
                  *(["--sysreps", str(sysreps)] if sysreps else []), *options]
     if rosbridge is None:
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), env.get("PYTHONPATH", "")]))
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(WEB), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
         env["SIMULATED_MOTION_S"] = "0.6"
         env["SIMULATED_CAMERA_DIR"] = str(tmp)
@@ -122,6 +122,7 @@ def procedure_shelf(tmp: Path) -> Path:
     """The shipped procedures plus this suite's walk-through, in one directory the server lists."""
     shelf = tmp / "procedures"
     shelf.mkdir()
-    for source in [*sorted((REPO / "procedures").glob("*.xml")), *sorted((HERE / "fixtures" / "procedures").glob("*.xml"))]:
+    shipped, fixtures = REPO / "procedures", WEB / "fixtures" / "procedures"
+    for source in [*sorted(shipped.glob("*.xml")), *sorted(fixtures.glob("*.xml"))]:
         (shelf / source.name).symlink_to(source)
     return shelf
