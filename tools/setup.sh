@@ -123,9 +123,9 @@ if [ -f tests/js/package.json ]; then
 fi
 
 # 7. The web view's 3D view: three.js and urdf-loader from the npm registry, bundled by esbuild
-#    (its Linux binary is an npm package too) into python/pride/web/static/spatial.js.
-SPATIAL=python/pride/web/spatial
-SPATIAL_BUNDLE=python/pride/web/static/spatial.js
+#    (its Linux binary is an npm package too) into python/console/static/spatial.js.
+SPATIAL=python/console/spatial
+SPATIAL_BUNDLE=python/console/static/spatial.js
 if [ -f $SPATIAL/package.json ]; then
   h=$(hash_of $SPATIAL/package.json $SPATIAL/package-lock.json)
   if step_needed spatial-npm "$h" || [ ! -d $SPATIAL/node_modules ]; then

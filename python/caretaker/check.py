@@ -51,9 +51,9 @@ def _sysrep(path: Path) -> Any:
 
 
 def _binding(path: Path) -> Any:
-    from caretaker.binding_file import check_binding
+    from pride.binding import read_binding
 
-    return check_binding(path)
+    return read_binding(path)
 
 
 #: kind -> (loader, what it is called in messages)

@@ -24,8 +24,8 @@ from urllib.parse import urlparse
 from caretaker.deployment import DemoRun, Deployment, load_deployment
 from caretaker.processes import REPO, ProcessFailed, caretaker
 from caretaker.stack import Stack, StackFailed, stack_options
+from console.accounts import AccountStore
 from datafile import DataFileError
-from pride.web.accounts import AccountStore
 from sim.scene import load_scene
 
 __all__ = ["DEMO_USER", "EndStateError", "WORLD_CHECKS", "demo_main", "demo_operator", "eva_end_state", "iva_end_state",

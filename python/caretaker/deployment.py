@@ -33,8 +33,8 @@ from urllib.parse import urlparse
 
 from at_ros.library import load_library
 from at_ros.robot_config import RobotConfig, load_robot_config, load_robot_configs
-from caretaker.binding_file import BindingSummary, check_binding
 from datafile import DataFileError, Field, load_file, shipped_or_path
+from pride.binding import Binding, read_binding
 from sim.scene import Scene, load_scene
 
 __all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "LedgerSettings", "LinkEmulation", "SHIPPED",
@@ -258,7 +258,7 @@ def _check_files(root: Field, deployment: Deployment, robot: RobotConfig) -> Non
     if deployment.robots is not None:
         load_robot_configs(deployment.robots)
     for index, binding_path in enumerate(deployment.bindings):
-        _check_binding_reaches_this_side(root["bindings"].sequence()[index], check_binding(binding_path), deployment)
+        _check_binding_reaches_this_side(root["bindings"].sequence()[index], read_binding(binding_path), deployment)
     if deployment.demo is not None:
         demo = root["demo"]
         if deployment.demo.binding not in deployment.bindings:
@@ -275,7 +275,7 @@ def _check_robot_matches_scene(root: Field, robot: RobotConfig, scene: Scene) ->
         raise root["robot"].fail(f"robot config names gripper_service {robot.gripper_service!r}, but the robot of scene {scene.path} has no gripper")
 
 
-def _check_binding_reaches_this_side(f: Field, binding: BindingSummary, deployment: Deployment) -> None:
+def _check_binding_reaches_this_side(f: Field, binding: Binding, deployment: Deployment) -> None:
     """A binding this side serves must connect to its rosbridge and name its namespace."""
     for system in binding.systems:
         url = urlparse(system.rosbridge)

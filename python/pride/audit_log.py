@@ -313,7 +313,7 @@ class _DriverInsert:
 
 
 class _Announcer:
-    """NOTIFY ``caretaker_events`` of committed appends, for the consoles (:mod:`pride.ground.change_feed`).
+    """NOTIFY ``caretaker_events`` of committed appends, for the consoles (:mod:`console.ground.change_feed`).
 
     Not in the append's own transaction (a trigger): PostgreSQL holds a database-wide lock from a
     notifying transaction's commit to its end, fsync included, so with four runners appending flat

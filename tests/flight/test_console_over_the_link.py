@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 from caretaker.processes import REPO, ManagedProcess
-from pride.web.accounts import AccountStore
+from console.accounts import AccountStore
+from support.operator_page import expect_current
 
 from .flight_support import PULL_OUT, Flight, flight
 
@@ -87,7 +88,7 @@ def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tup
             expect(page.locator("#connection")).to_have_attribute("data-state", "open", timeout=LINK_MS)
             expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected", timeout=LINK_MS)
             confirm = page.locator('#procedure li.instruction[data-number="2.6"]')
-            expect(confirm).to_have_class(re.compile(r"\bcurrent\b"), timeout=240_000)
+            expect_current(confirm, timeout=240_000)
             confirm.locator("button.done").click()
             f.await_execution(PULL_OUT)
             f.link.control.reset(10)

@@ -1,4 +1,4 @@
-"""The package graph: no import cycles, the procedure side never reaches ROS, the robot side never knows procedures.
+"""The package graph: the allowed import order, no import cycles; the procedure side never reaches ROS.
 
 Imports are read statically (ast) from every module of every top-level package that pyproject.toml
 declares, including imports inside functions: a lazy import is still a dependency. A failure
@@ -20,10 +20,28 @@ REPO = Path(__file__).resolve().parents[2]
 #: procedure side (ground) never reaches ROS or habitat code; the habitat side never knows
 #: procedures; the robot's planner and AT server run on a real robot too, so they never need the simulator.
 FORBIDDEN = {
-    "pride": ("rclpy", "bridge", "at_ros", "sim"),
+    "pride": ("rclpy", "bridge", "at_ros", "sim", "starlette", "uvicorn"),
+    "console": ("rclpy", "bridge", "at_ros", "sim"),
     "bridge": ("pride",),
     "at_ros": ("pride", "sim"),
     "sim": ("pride",),
+}
+
+
+#: The allowed import order: each package and the Caretaker packages it may import. Two columns
+#: on two leaves, ``datafile`` (the reader of every user file) and ``rosbridge_wire`` (the rosbridge
+#: vocabulary and login of the bridge and its clients): the procedure side (``pride``: procedures, the
+#: executive, the record; the ground ``console`` on top of it) and the robot side (``at_ros``,
+#: ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
+MAY_IMPORT = {
+    "datafile": set(),
+    "rosbridge_wire": set(),
+    "pride": {"datafile"},
+    "console": {"datafile", "pride", "rosbridge_wire"},
+    "bridge": {"datafile", "rosbridge_wire"},
+    "at_ros": {"datafile"},
+    "sim": {"datafile"},
+    "caretaker": {"datafile", "rosbridge_wire", "pride", "console", "bridge", "at_ros", "sim"},
 }
 
 
@@ -163,8 +181,16 @@ def chain(graph: dict[str, set[str]], package: str, forbidden: str) -> list[str]
 
 def test_packages_are_discovered_from_pyproject() -> None:
     packages = declared_packages()
-    assert {"caretaker", "pride", "bridge", "at_ros", "sim"} <= set(packages)
+    assert {"caretaker", "pride", "console", "bridge", "at_ros", "sim"} <= set(packages)
     assert all((folder / "__init__.py").is_file() for folder in packages.values())
+
+
+def test_packages_import_only_what_the_order_allows() -> None:
+    packages = package_graph(module_graph())
+    assert set(packages) == set(MAY_IMPORT), "a package is missing from MAY_IMPORT (or gone)"
+    wrong = {package: sorted(used - MAY_IMPORT[package]) for package, used in packages.items()
+             if used - MAY_IMPORT[package]}
+    assert not wrong, f"imports against the package order: {wrong}"
 
 
 def test_no_import_cycle_between_packages() -> None:
@@ -187,3 +213,8 @@ def test_the_checker_finds_a_cycle_and_a_chain() -> None:
     graph = {"a.x": {"b.y"}, "b.y": {"a.z"}, "a.z": {"a.x", "rclpy"}}
     assert cycles(graph) == [["a.x", "b.y", "a.z", "a.x"]]
     assert chain(graph, "a", "rclpy") == ["a.z", "rclpy"]
+
+
+def test_the_stack_does_not_import_the_demo() -> None:
+    """``caretaker demo`` builds on ``caretaker.stack``, not the reverse."""
+    assert "caretaker.demo" not in module_graph()["caretaker.stack"]

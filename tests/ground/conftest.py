@@ -1,11 +1,6 @@
-"""The ground segment's tests drive the console as the web suite does: its page helpers are shared."""
+"""The ground segment's tests drive the console as the web suite does (support.operator_page)."""
 
 from __future__ import annotations
-
-import sys
-from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "web"))  # operator_page, web_server
 
 from playwright.sync_api import expect
 

@@ -11,11 +11,11 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from web_server import GroundDatabase, new_ground_database
 
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction, run_action_requests
+from console.ground.change_feed import ChangeNotice, open_change_feed
 from pride.audit_log import AuditLog
-from pride.ground.action_requests import ActionRequests, Answer, ForwardedAction, run_action_requests
-from pride.ground.change_feed import Notice, open_change_feed
+from support.web_server import GroundDatabase, new_ground_database
 
 
 @pytest.fixture(params=["sqlite", "postgresql"])
@@ -68,7 +68,7 @@ def test_a_request_nobody_takes_is_withdrawn_and_never_performed_later(audit: Au
         with audit.engine.connect() as connection:
             assert connection.execute(run_action_requests.select()).one().state == "expired"
         host = requests_of(audit, "host-gone", late)  # the host is back: it looks for what is pending
-        host.notice(Notice("resync", ""))
+        host.notice(ChangeNotice("resync", ""))
         host.close()  # its worker finishes that look first
         assert late == []
     finally:
@@ -94,7 +94,7 @@ def test_a_host_that_was_away_performs_what_was_asked_meanwhile(audit: AuditLog)
         asking.start()
         assert asked.wait(10)  # the request is in the database, its host not listening
         host = requests_of(audit, "host-a", performed)
-        host.notice(Notice("resync", ""))  # what its change feed says when it (re)connects
+        host.notice(ChangeNotice("resync", ""))  # what its change feed says when it (re)connects
         asking.join(30)
         host.close()
         assert answers == [Answer(200, {"ok": True, "result": "continue by bob"})] and len(performed) == 1

@@ -12,15 +12,20 @@ camera stay its own; a second run on a robot already controlled is refused.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass
 
 import pytest
-from operator_page import (
+from playwright.sync_api import Browser, Locator, Page, expect
+
+from console.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
+from pride.audit_log import AuditLog
+from support.browser import signed_in_pages
+from support.operator_page import (
     IVA,
     audit_row,
+    expect_current,
     expect_ended,
     instruction,
     shown_image_width,
@@ -29,15 +34,10 @@ from operator_page import (
     stop_run,
     where_the_run_is,
 )
-from playwright.sync_api import Browser, Locator, Page, expect
-from web_server import REPO, WebServer, new_ground_database, start_server
-
-from pride.audit_log import AuditLog
-from pride.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
-from support.browser import signed_in_pages
 from support.postgres import PostgresServer
 from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
+from support.web_server import REPO, WebServer, new_ground_database, start_server
 
 #: Two robots' procedures run at once: the inner waits below (MOTION_MS each) must be what fails
 #: first, with what the page and the processes show, not the suite's 300 s per test.
@@ -60,7 +60,7 @@ class Ground:
         """The instruction, once it is the one the run holds at (PAX may take minutes of motion to get there)."""
         found = instruction(page, number)
         try:
-            expect(found).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+            expect_current(found, timeout=MOTION_MS)
         except AssertionError as failure:
             raise self.failure(page, f"instruction {number} did not become current", failure) from None
         return found

@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from caretaker.binding_file import BindingError, check_binding
 from caretaker.certs import CertsError, make_link_credentials
 from caretaker.processes import REPO
+from pride.binding import BindingError, read_binding
 
 GROUND = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
 
@@ -56,11 +56,11 @@ def test_certs_make_a_ca_a_bridge_certificate_for_every_host_and_a_secret(tmp_pa
 def test_a_ground_binding_states_its_link_and_security(tmp_path: Path) -> None:
     credentials = make_link_credentials(tmp_path / "link", ["10.77.1.1"], days=1)
     path = _ground_binding(tmp_path, security={"ca_file": "link/ca.pem", "secret_file": "link/rosbridge.secret"})
-    binding = check_binding(path)
+    binding = read_binding(path)
     assert binding.link.stated and binding.link.one_way_delay == 1.3 and binding.link.outage_budget == 120
     assert binding.security.ca_file == credentials["ca.pem"]
     assert binding.security.secret_file == credentials["rosbridge.secret"]
-    loopback = check_binding(REPO / "sysrep" / "bindings" / "iva.yaml")
+    loopback = read_binding(REPO / "sysrep" / "bindings" / "iva.yaml")
     assert not loopback.link.stated and loopback.security.ca_file is None
     checked = _caretaker("check", str(path))
     assert checked.returncode == 0, checked.stderr
@@ -86,5 +86,5 @@ def test_a_wrong_link_or_security_section_is_one_line_naming_the_key(
     (tmp_path / "empty").write_text("\n")
     path = _ground_binding(tmp_path, **{"security": {}, **changes})
     with pytest.raises(BindingError, match=problem.replace(".", r"\.").replace("'", "'")) as error:
-        check_binding(path)
+        read_binding(path)
     assert str(error.value).startswith(f"{path}:")

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
+from console.authoring import check_document, read_document
 from pride.events import Event, EventKind
 from pride.lint import lint_file
 from pride.parser import load_procedure, parse_procedure
 from pride.phrasing import describe_event, format_value, labelled_values, phrase, raw_form, template_json
 from pride.sysrep import load_sysrep_dir
-from pride.web.authoring import check_document, read_document
 
 REPO = Path(__file__).resolve().parents[2]
 SYSREPS = load_sysrep_dir(REPO / "sysrep")

@@ -1,4 +1,4 @@
-"""The web view's own rosbridge link (pride/web/spatial_link.py) to a bridge with TLS and a
+"""The web view's own rosbridge link (console/spatial_link.py) to a bridge with TLS and a
 shared secret, set up from a binding file as PAX's is: it authenticates with HMAC over wss,
 gets a latched value, calls a service; with the wrong secret it never counts as connected."""
 
@@ -14,7 +14,8 @@ from typing import Any
 import pytest
 
 from .rosbridge_support import bridge_url
-from pride.web.spatial_link import RosbridgeLink, Subscription, read_binding_link
+from caretaker.processes import REPO
+from console.spatial_link import RosbridgeLink, Subscription, read_view_link
 from support.processes import ManagedProcess, caretaker
 
 SECRET = "view-link-secret"
@@ -49,7 +50,7 @@ security:
   ca_file: ca.pem
   secret_file: view.secret
 systems:
-- sysrep: ../affordance_templates.yaml
+- sysrep: {REPO / "sysrep" / "affordance_templates.yaml"}
   plugins: [at_commands]
   namespace: /arm7/affordance_template_server
 """)
@@ -57,7 +58,7 @@ systems:
 
 
 async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[str], list[Any], Any]:
-    link = read_binding_link(binding_path)
+    link = read_view_link(binding_path)
     assert link is not None and link.namespace == "/arm7" and link.name("joint_states") == "/arm7/joint_states"
     states: list[str] = []
     latched: list[Any] = []

@@ -3,7 +3,7 @@
 Scenes and URDFs from ``sim/``, frames from a real ``sim.simulation.Simulation`` (pybullet),
 template statuses from the AT server's own code (``at_ros.instance`` and
 ``at_ros.template_messages``, converted to rosbridge JSON by the bridge's converter), all turned
-into the contract by ``pride.web.spatial_scene``. Forward kinematics for the expected poses
+into the contract by ``console.spatial_scene``. Forward kinematics for the expected poses
 comes from a separate pybullet client that loads the URDF itself.
 """
 
@@ -24,7 +24,7 @@ from at_ros.robot_config import RobotConfig, load_robot_configs
 from at_ros.template_messages import instance_status, template_config
 from at_ros.transforms import from_xyz_quat, invert, to_xyz_quat
 from bridge.rosbridge.conversion import message_to_dict
-from pride.web.spatial_scene import PlanSegment, plan_update, scene_document, templates_update
+from console.spatial_scene import PlanSegment, plan_update, scene_document, templates_update
 from sim.scene import load_scene
 from sim.simulation import Simulation
 

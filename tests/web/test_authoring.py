@@ -17,12 +17,12 @@ import pytest
 from playwright.sync_api import expect
 
 from author_page import bind_arg, card, drop, set_arg, set_attr
-from operator_page import instruction, screenshot
+from support.operator_page import expect_current, instruction, screenshot
 from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
-from pride.web.authoring import check_document, read_document
-from pride.web.procedure_view import procedure_json
-from web_server import REPO, WebServer, server_on_real_stack
+from console.authoring import check_document, read_document
+from console.procedure_view import procedure_json
+from support.web_server import REPO, WebServer, server_on_real_stack
 
 SHIPPED = sorted(p.name for p in (REPO / "procedures").glob("*.xml"))
 
@@ -106,7 +106,7 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
     alice.check("#start-form input[name=mode][value=autonomous]")
     alice.click("#start-button")
     record = instruction(alice, "1.2")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(record)
     record.locator("input.record-value").fill("filter/CDRA-F-0012")
     record.locator("button.record").click()
     expect(alice.locator("#run-status")).to_have_text("completed", timeout=120_000)

@@ -10,7 +10,7 @@ import pytest
 
 from pride.events import Event, EventKind
 from pride.systems import CommandResult, Outcome
-from pride.web.camera_feed import CameraFeed
+from console.camera_feed import CameraFeed
 
 
 class Camera:
@@ -40,7 +40,7 @@ def test_a_failing_capture_is_warned_of_once_and_its_recovery_is_said(
     unknown = CommandResult(Outcome.FAILED, "unknown camera 'ee_camera'; cameras are ['scene']")
     image = CommandResult(Outcome.SUCCEEDED, "", {"path": str(tmp_path / "view.png")})
     camera = Camera([unknown, unknown, unknown, *([image] if recovers else [])])
-    caplog.set_level(logging.DEBUG, logger="pride.web.camera_feed")
+    caplog.set_level(logging.DEBUG, logger="console.camera_feed")
     feed = CameraFeed(camera, "ee_camera", period=0.001)  # type: ignore[arg-type]
     try:
         _moving(feed, EventKind.COMMAND_SENT)

@@ -13,7 +13,7 @@ import re
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run, stop_run
+from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run, stop_run
 
 
 def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
@@ -94,7 +94,7 @@ def test_a_stopped_run_is_resumed_from_the_web_view(sign_in, server) -> None:
     expect(bob.locator("#connection")).to_have_attribute("data-state", "open")
     expect(bob.locator("#run-status")).to_have_text("active")
     expect(instruction(bob, "1.1").locator(".mark")).to_contain_text("completed by alice")
-    expect(instruction(bob, "2.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(bob, "2.1"))
     expect(audit_row(bob, "run_resumed", "2.1", "bob")).to_have_count(1)
     expect(audit_row(bob, "run_stopped", "2.1", "alice")).to_contain_text("stopped: shift change")
     instruction(bob, "2.1").locator("button.skip").click()

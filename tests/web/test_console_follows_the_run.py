@@ -14,8 +14,8 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Page, expect
 
-from operator_page import IVA, instruction, screenshot, start_run, stop_run
-from web_server import REPO, WebServer, procedure_shelf, start_server
+from support.operator_page import IVA, expect_current, instruction, screenshot, start_run, stop_run
+from support.web_server import REPO, WebServer, procedure_shelf, start_server
 
 RAW_COMMAND = re.compile(r"\b[a-z_]+\.[a-z_]+\(")
 
@@ -97,13 +97,13 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
 def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_in, server) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
-    expect(instruction(alice, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "2.6"))
     expect(instruction(alice, "2.6")).to_be_in_viewport()
     instruction(alice, "2.6").locator("button.done").click()
 
     # PAX carries the arm through step 3 and holds at the record 4.1, far below: the page goes there
     record = instruction(alice, "4.1")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(record)
     expect(record).to_be_in_viewport()
     expect(instruction(alice, "1.1")).not_to_be_in_viewport()
     hold = alice.locator("#hold")
@@ -128,7 +128,7 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_
     alice.evaluate("window.scrollTo(0, 0)")
     alice.evaluate("act('enter', {instruction: '4.1', value: 'CDRA-F-0012'})")  # the Record button, without scrolling to it
     expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text("Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
-    expect(instruction(alice, "5.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "5.1"))
     expect(instruction(alice, "5.1")).not_to_be_in_viewport()
     assert alice.evaluate("window.scrollY") == 0
     stop_run(alice, "followed")

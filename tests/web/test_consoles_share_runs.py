@@ -20,14 +20,14 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Locator, Page, expect
 
-from operator_page import audit_row, expect_ended, instruction, start_run
+from support.operator_page import audit_row, expect_ended, instruction, start_run
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Mode
 from pride.lint import check_procedure
 from pride.sysrep import load_sysrep_dir
-from pride.web.terminal_host import HostedElsewhere, TerminalHost
+from console.terminal_host import HostedElsewhere, TerminalHost
 from simulated_systems import open_simulated_systems
-from web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
+from support.web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 
 WALKTHROUGH = "web_walkthrough.xml"
 #: Short, so that a dead console's runs show interrupted soon (the default is 10 s).

@@ -10,12 +10,11 @@ with the arm's joint states, is in test_web_on_real_stack.py.
 
 from __future__ import annotations
 
-import re
 
 from playwright.sync_api import Page, expect
 
-from operator_page import audit_row, instruction, screenshot, start_run, stop_run
-from web_server import WebServer
+from support.operator_page import audit_row, expect_current, instruction, screenshot, start_run, stop_run
+from support.web_server import WebServer
 
 FLIGHT = "web_flight_controls.xml"
 WALKTHROUGH = "web_walkthrough.xml"
@@ -75,7 +74,7 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServe
     capture.locator("button.go-back").click()
     answer(alice, "picture of the right filter")
     expect(alice.locator('#audit li[data-kind="stepped_back"][data-actor="alice"]')).to_contain_text("went back to 1.3")
-    expect(capture).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(capture)
     capture.locator("button.perform").click()
     expect(capture).to_have_attribute("data-status", "outcome_unknown")
     alice.click("#resolve-succeeded")

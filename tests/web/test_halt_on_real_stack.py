@@ -16,7 +16,6 @@ figure (docs/benchmarks.md); it is printed, not asserted.
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections.abc import Iterator
@@ -27,11 +26,11 @@ import pytest
 import roslibpy
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, instruction, start_run, stop_run
+from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from support.stack import stack_up
-from web_server import REPO, WebServer, start_server
+from support.web_server import REPO, WebServer, start_server
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -120,7 +119,7 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
     alice = open_page(server, "alice")
     run_id = start_run(alice, IVA, "autonomous")
     confirm = instruction(alice, "2.6")
-    expect(confirm).to_have_class(re.compile(r"\bcurrent\b"), timeout=240_000)
+    expect_current(confirm, timeout=240_000)
     # Ready before the arm moves, so the click follows the first moving sample at once (a click
     # later could fall between two segments of the pull-out, with the arm still).
     alice.fill("#halt-reason", "crew member at the cabinet")

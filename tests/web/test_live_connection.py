@@ -14,7 +14,7 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Page, Route, expect
 
-from operator_page import IVA, audit_row, instruction, start_run, stop_run
+from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
 
 
 @pytest.fixture
@@ -23,7 +23,7 @@ def held(sign_in) -> Iterator[tuple[Page, int]]:
     afterwards (the suite's server has one IVA robot, which a run left live would keep controlling)."""
     page = sign_in("alice")
     start_run(page, IVA, "autonomous")
-    expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(page, "2.6"))
     yield page, int(page.evaluate("view.state.last_seq"))
     stop_run(page, "test done")
 
@@ -72,7 +72,7 @@ def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lo
     page, _ = held
     instruction(page, "2.6").locator("button.done").click()
     record = instruction(page, "4.1")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(record)
     field = record.locator("input.record-value")
     field.fill("CDRA-F-0012")
     record.evaluate("item => { item.dataset.drawnBefore = 'yes'; }")

@@ -13,7 +13,8 @@ import re
 
 from playwright.sync_api import expect
 
-from operator_page import (
+from support.operator_page import (
+    expect_current,
     IVA,
     audit_row,
     expect_ended,
@@ -25,7 +26,7 @@ from operator_page import (
     stop_run,
 )
 from pride.audit_log import AuditLog
-from web_server import procedure_shelf, start_server
+from support.web_server import procedure_shelf, start_server
 
 
 def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_in, server) -> None:
@@ -35,7 +36,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     # PAX holds at the manual instruction; Done lets it carry on to the record at 4.1
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
     instruction(alice, "2.6").locator("button.done").click()
-    expect(instruction(alice, "4.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "4.1"))
     expect(alice.locator("#hold")).to_contain_text("4.1")
     alice.click("#mode-manual")
     expect(alice.locator("#run-mode")).to_have_text("manual")
@@ -129,7 +130,7 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     expect(stale.locator(".mark")).to_contain_text("skipped by alice")
 
     # the manual instruction holds automation until Done
-    expect(instruction(alice, "3.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "3.1"))
     instruction(alice, "3.1").locator("button.done").click()
 
     # the hazardous command waits for a confirmation, given in a dialog, even in autonomous mode
@@ -187,7 +188,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
 
     # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
     assessment = instruction(alice, "2.1/2.2")
-    expect(assessment).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(assessment)
     expect(instruction(alice, "2.1/2.1").locator(".mark")).to_contain_text("completed by PAX")
     expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"^2\.1/2\.1 · .*hull_a\.png"))
     first_image = camera.get_attribute("src")
@@ -203,7 +204,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     # the operator answers; PAX retreats, moves to target B and shows its new image
     assessment.locator("select.record-value").select_option("false")
     assessment.locator("button.record").click()
-    expect(instruction(alice, "3.1/2.2")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "3.1/2.2"))
     expect(alice.locator("#camera-caption")).to_contain_text("hull_b.png")
     assert camera.get_attribute("src") != first_image
     expect(audit_row(alice, "operator_input", "2.1/2.2", "alice")).to_contain_text("damage = false")

@@ -22,12 +22,12 @@ import pytest
 import websockets
 from websockets.sync.client import connect
 
-from pride.web.accounts import AccountStore, Role
+from console.accounts import AccountStore, Role
 from caretaker.demo import DEMO_USER, demo_operator
-from pride.web.run_board import CameraSettings
-from pride.web.server import main
+from console.run_board import CameraSettings
+from console.server import main
 from support.processes import caretaker
-from web_server import PEOPLE, REPO
+from support.web_server import PEOPLE, REPO
 
 Reply = tuple[int, dict[str, Any], dict[str, str]]
 

@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from starlette.requests import Request
 
-from pride.ground.change_feed import Notice
-from pride.web.accounts import AccountStore
-from pride.web.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
-from pride.web.sign_in_throttle import Allowance, SignInThrottle
+from console.ground.change_feed import ChangeNotice
+from console.accounts import AccountStore
+from console.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
+from console.sign_in_throttle import Allowance, SignInThrottle
 
 
 class Clock:
@@ -109,7 +109,7 @@ def test_an_announced_account_change_is_checked_at_the_next_use_not_after_the_re
     bob = sign_ins.sign_in("bob", "bob-secret-12", "10.0.0.1")
     store.remove("alice")  # another console's change: this one learns of it from the change feed
     assert sign_ins.session(request_with(alice.token)).account.user == "alice"  # not rechecked yet (no time passed)
-    sign_ins.notice(Notice("accounts", "alice"))
+    sign_ins.notice(ChangeNotice("accounts", "alice"))
     with pytest.raises(SignInRefused, match="account or password changed"):
         sign_ins.session(request_with(alice.token))
     assert sign_ins.session(request_with(bob.token)).account.user == "bob"  # another user's sessions stay

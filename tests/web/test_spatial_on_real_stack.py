@@ -26,13 +26,13 @@ import roslibpy
 from playwright.sync_api import Browser, Page, expect
 
 from at_ros.transforms import angle_between
-from operator_page import IVA, instruction, sign_in_on, start_run, stop_run
+from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-from pride.web.spatial_world import compose
+from console.spatial_world import compose
 from spatial_data import matrix
 from support.stack import stack_up
-from web_server import REPO, WebServer, start_server
+from support.web_server import REPO, WebServer, start_server
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -352,7 +352,7 @@ def wait_until_state(page: Page, condition: str) -> None:
 
 
 def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
-    from pride.web.spatial_scene import pose
+    from console.spatial_scene import pose
     return list(pose(rpy=(roll, pitch, yaw))["quat"])
 
 

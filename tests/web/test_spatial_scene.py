@@ -1,4 +1,4 @@
-"""The 3D view's data producer (pride.web.spatial_scene) on the shipped files and on bad input."""
+"""The 3D view's data producer (console.spatial_scene) on the shipped files and on bad input."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 import yaml
 
-from pride.web.spatial_scene import PlanSegment, SpatialDataError, objects_update, plan_update, scene_document, templates_update
+from console.spatial_scene import PlanSegment, SpatialDataError, objects_update, plan_update, scene_document, templates_update
 
 REPO = Path(__file__).resolve().parents[2]
 

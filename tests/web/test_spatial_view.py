@@ -1,7 +1,7 @@
-"""The 3D view (``SpatialView``, python/pride/web/spatial) in headless Chromium with WebGL.
+"""The 3D view (``SpatialView``, python/console/spatial) in headless Chromium with WebGL.
 
 Documents are made from the shipped scenes, URDFs and templates by the contract's producer
-(``pride.web.spatial_scene``) and the AT server's own status code (spatial_data.py); expected
+(``console.spatial_scene``) and the AT server's own status code (spatial_data.py); expected
 poses come from pybullet and from ``at_ros``, never from the view. Screenshots go to
 ``$SPATIAL_SCREENSHOT_DIR`` or a temporary folder, never into the source tree.
 """
@@ -18,8 +18,8 @@ import pytest
 from playwright.sync_api import Browser, Page
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
-from operator_page import shown_image_width
-from pride.web.spatial_scene import objects_update
+from support.operator_page import shown_image_width
+from console.spatial_scene import objects_update
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
 

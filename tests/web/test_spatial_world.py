@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from pride.web.spatial_scene import SpatialDataError
-from pride.web.spatial_world import compose, plan_from_get_plan, world_document
+from console.spatial_scene import SpatialDataError
+from console.spatial_world import compose, plan_from_get_plan, world_document
 
 URDF = '<robot name="r"><link name="base"/><link name="tip"/><joint name="j" type="revolute"><parent link="base"/><child link="tip"/></joint></robot>'
 BASE = {"xyz": [1.0, 2.0, 0.5], "quat": [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)]}  # 90 deg about z
@@ -86,7 +86,7 @@ def test_the_camera_image_becomes_a_png_and_bad_images_are_refused() -> None:
     import struct
     import zlib
 
-    from pride.web.spatial_camera import CameraImageError, choose_camera, png_from_image
+    from console.spatial_camera import CameraImageError, choose_camera, png_from_image
 
     pixels = bytes([255, 0, 0, 0, 255, 0, 0, 0, 255, 9, 9, 9])  # 2x2 rgb8
     png = png_from_image({"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(pixels).decode()})

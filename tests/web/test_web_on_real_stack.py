@@ -18,9 +18,9 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from operator_page import IVA, audit_row, expect_ended, instruction, screenshot, start_run
+from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
 from pride.audit_log import AuditLog
-from web_server import REPO, WebServer, server_on_real_stack
+from support.web_server import REPO, WebServer, server_on_real_stack
 
 #: PAX plans and moves the arm on the way to a hold: real motion, as slow as the machine's load makes it.
 MOTION_MS = 180_000
@@ -52,13 +52,13 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(instruction(alice, "1.1").locator(".telemetry")).to_contain_text(
         re.compile(r"✓ Affordance Template Server Active = true · \d+\.\d s ago"))
     expect(instruction(alice, "1.1").locator(".telemetry")).to_have_attribute("data-state", "ok")
-    expect(instruction(alice, "1.1")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "1.1"))
 
     # manual mode: the operator checks the two verifies, then Sends the first command
     instruction(alice, "1.1").locator("button.perform").click()
     expect(instruction(alice, "1.1").locator(".mark")).to_contain_text("completed by alice")
     instruction(alice, "1.2").locator("button.perform").click()
-    expect(instruction(alice, "1.3")).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(instruction(alice, "1.3"))
     send = instruction(alice, "1.3").locator("button.perform")
     expect(send).to_have_text("Send")
     send.click()
@@ -87,7 +87,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     alice.click("#mode-autonomous")
     expect(alice.locator("#run-mode")).to_have_text("autonomous")
     for page in (alice, carol):
-        expect(instruction(page, "2.6")).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+        expect_current(instruction(page, "2.6"), timeout=MOTION_MS)
         expect(page.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
     expect(instruction(alice, "2.5").locator(".mark")).to_contain_text("completed by PAX")
     expect(instruction(alice, "2.1").locator(".raw-detail")).to_contain_text("frame=cabinet/slot")
@@ -103,7 +103,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     instruction(alice, "2.6").locator("button.done").click()
     expect(instruction(alice, "2.6").locator(".mark")).to_contain_text("completed by alice")
     record = instruction(alice, "4.1")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+    expect_current(record, timeout=MOTION_MS)
     expect(instruction(alice, "3.5").locator(".mark")).to_contain_text("completed by PAX")
     # a label misread: an id of no clean filter on the rack is refused before the robot moves
     alice.click("#mode-manual")  # alice takes the next steps by hand
@@ -111,7 +111,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     record.locator("button.record").click()
     expect(alice.locator("#action-error")).to_contain_text(
         "'CDRA-F-0021' is not one of the values cdra.clean_filter_ids reports now (CDRA-F-0012, CDRA-F-0013)")
-    expect(record).to_have_class(re.compile(r"\bcurrent\b"))
+    expect_current(record)
     # a clean filter, but not the one set aside for this swap: re-entered before the arm uses it
     record.locator("input.record-value").fill("CDRA-F-0013")
     record.locator("button.record").click()
@@ -128,7 +128,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     alice.click("#mode-autonomous")
     expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
     confirm_slot = instruction(alice, "5.1")
-    expect(confirm_slot).to_have_class(re.compile(r"\bcurrent\b"), timeout=MOTION_MS)
+    expect_current(confirm_slot, timeout=MOTION_MS)
     confirm_slot.locator("button.done").click()
     for page in (alice, carol):
         expect_ended(page, "completed", within_ms=MOTION_MS)  # the arm inserts the filter and stows first

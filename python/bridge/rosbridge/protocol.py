@@ -17,27 +17,37 @@ import re
 import reprlib
 from typing import Any
 
-# --- ops -----------------------------------------------------------------------------------
-OP_ADVERTISE = "advertise"
-OP_UNADVERTISE = "unadvertise"
-OP_PUBLISH = "publish"
-OP_SUBSCRIBE = "subscribe"
-OP_UNSUBSCRIBE = "unsubscribe"
-OP_CALL_SERVICE = "call_service"
-OP_SERVICE_RESPONSE = "service_response"
-OP_ADVERTISE_SERVICE = "advertise_service"
-OP_UNADVERTISE_SERVICE = "unadvertise_service"
-OP_SEND_ACTION_GOAL = "send_action_goal"
-OP_CANCEL_ACTION_GOAL = "cancel_action_goal"
-OP_ACTION_FEEDBACK = "action_feedback"
-OP_ACTION_RESULT = "action_result"
-OP_ADVERTISE_ACTION = "advertise_action"
-OP_UNADVERTISE_ACTION = "unadvertise_action"
-OP_FRAGMENT = "fragment"
-OP_PNG = "png"
-OP_SET_LEVEL = "set_level"
-OP_STATUS = "status"
-OP_AUTH = "auth"
+# The wire's own vocabulary (ops, close codes, goal statuses), shared with the clients; re-exported
+# so that handlers spell every wire name through this module.
+from rosbridge_wire import (
+    CLOSE_MESSAGE_TOO_BIG as CLOSE_MESSAGE_TOO_BIG,
+    CLOSE_POLICY_VIOLATION as CLOSE_POLICY_VIOLATION,
+    CLOSE_TRY_AGAIN_LATER as CLOSE_TRY_AGAIN_LATER,
+    GOAL_STATUS_ABORTED as GOAL_STATUS_ABORTED,
+    GOAL_STATUS_CANCELED as GOAL_STATUS_CANCELED,
+    GOAL_STATUS_SUCCEEDED as GOAL_STATUS_SUCCEEDED,
+    GOAL_STATUS_UNKNOWN as GOAL_STATUS_UNKNOWN,
+    OP_ACTION_FEEDBACK as OP_ACTION_FEEDBACK,
+    OP_ACTION_RESULT as OP_ACTION_RESULT,
+    OP_ADVERTISE as OP_ADVERTISE,
+    OP_ADVERTISE_ACTION as OP_ADVERTISE_ACTION,
+    OP_ADVERTISE_SERVICE as OP_ADVERTISE_SERVICE,
+    OP_AUTH as OP_AUTH,
+    OP_CALL_SERVICE as OP_CALL_SERVICE,
+    OP_CANCEL_ACTION_GOAL as OP_CANCEL_ACTION_GOAL,
+    OP_FRAGMENT as OP_FRAGMENT,
+    OP_PNG as OP_PNG,
+    OP_PUBLISH as OP_PUBLISH,
+    OP_SEND_ACTION_GOAL as OP_SEND_ACTION_GOAL,
+    OP_SERVICE_RESPONSE as OP_SERVICE_RESPONSE,
+    OP_SET_LEVEL as OP_SET_LEVEL,
+    OP_STATUS as OP_STATUS,
+    OP_SUBSCRIBE as OP_SUBSCRIBE,
+    OP_UNADVERTISE as OP_UNADVERTISE,
+    OP_UNADVERTISE_ACTION as OP_UNADVERTISE_ACTION,
+    OP_UNADVERTISE_SERVICE as OP_UNADVERTISE_SERVICE,
+    OP_UNSUBSCRIBE as OP_UNSUBSCRIBE,
+)
 
 # --- status levels (set_level / status) ------------------------------------------------------
 LEVELS = ("info", "warning", "error", "none")
@@ -50,23 +60,12 @@ COMPRESSION_CBOR = "cbor"
 COMPRESSION_CBOR_RAW = "cbor-raw"
 COMPRESSIONS = (COMPRESSION_NONE, COMPRESSION_PNG, COMPRESSION_CBOR, COMPRESSION_CBOR_RAW)
 
-# --- WebSocket close codes (RFC 6455) --------------------------------------------------------
-CLOSE_POLICY_VIOLATION = 1008
-CLOSE_MESSAGE_TOO_BIG = 1009
-CLOSE_TRY_AGAIN_LATER = 1013
-
 # --- services the bridge answers itself -------------------------------------------------------
 CONNECTION_STATS = "/rosbridge/connection_stats"
 """Answers with the calling connection's traffic (bytes and messages each way, seconds open)."""
 
 # --- texts clients match on (rosbridge 2.x wording) -----------------------------------------
 SERVICE_TIMEOUT_TEXT = "Timeout exceeded while waiting for service response"
-
-#: goal status values of action_msgs/GoalStatus used in action_result
-GOAL_STATUS_UNKNOWN = 0
-GOAL_STATUS_SUCCEEDED = 4
-GOAL_STATUS_CANCELED = 5
-GOAL_STATUS_ABORTED = 6
 
 
 class BridgeError(Exception):

@@ -30,17 +30,17 @@ Anything else first, or a wrong token or MAC, closes the connection with 1008 (p
 from __future__ import annotations
 
 import fnmatch
-import hashlib
 import hmac
 import math
 import time
 from dataclasses import dataclass
 from typing import Any
 
+from rosbridge_wire import MAC_FIELDS, login_mac
+
 from .protocol import Refused, client_text
 
 MAX_CLOCK_SKEW_S = 60.0
-_MAC_FIELDS = ("client", "dest", "rand", "t", "level", "end")
 
 
 @dataclass(frozen=True)
@@ -96,8 +96,8 @@ class Authenticator:
             if isinstance(token, str) and hmac.compare_digest(token.encode("utf-8", "replace"), self._secret):
                 return
             raise Refused("authentication failed: wrong token")
-        if any(name not in message for name in ("mac", *_MAC_FIELDS)):
-            raise Refused(f"authentication failed: an auth message needs a token, or mac, {', '.join(_MAC_FIELDS)}")
+        if any(name not in message for name in ("mac", *MAC_FIELDS)):
+            raise Refused(f"authentication failed: an auth message needs a token, or mac, {', '.join(MAC_FIELDS)}")
         t, end, mac = message["t"], message["end"], message["mac"]
         if not all(_finite_number(value) for value in (t, end)):
             raise Refused("authentication failed: t and end must be finite numbers (Unix seconds)")
@@ -106,8 +106,7 @@ class Authenticator:
         now = time.time()
         if abs(now - t) > MAX_CLOCK_SKEW_S or end < now:
             raise Refused("authentication failed: the auth message is expired or its clock is off")
-        text = "".join(str(message[name]) for name in _MAC_FIELDS)
-        expected = hmac.new(self._secret, text.encode("utf-8", "replace"), hashlib.sha256).hexdigest()
+        expected = login_mac(self._secret, message)
         if not hmac.compare_digest(expected.encode(), mac.lower().encode("utf-8", "replace")):
             raise Refused("authentication failed: wrong mac")
         self._forget_expired(now)

@@ -1,0 +1,213 @@
+"""Who may use the web view: accounts in the ground database, passwords hashed with argon2id.
+
+Accounts live in the same database as the audit log (``--db``), so every console of a ground
+segment signs people in against one list, and ``caretaker accounts`` (:mod:`console.accounts_command`)
+manages it. An *operator* may act on runs (start, send, record, skip, ...); an *observer* may
+only watch. The server checks the role on every action, so hiding buttons in the page is a
+convenience, never the protection.
+
+Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
+next sign-in when those defaults grow, where the console's role may write the table). The table
+``console_accounts(user_id PK, name, role, password_hash, created, password_changed)`` belongs to
+the ground database's schema (revision 0004 of :mod:`pride.migrations`): on PostgreSQL the
+consoles' role only reads it and ``caretaker accounts``, run as the database owner, changes it. A
+change NOTIFYs every console (:mod:`console.ground.change_feed`), which ends that user's sessions.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+import re
+from dataclasses import dataclass
+from datetime import datetime, timezone
+
+from argon2 import PasswordHasher
+from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
+from sqlalchemy import DateTime, String, select, update
+from sqlalchemy.engine import Engine, make_url
+from sqlalchemy.exc import DBAPIError
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
+
+from pride.audit_log import database_url, open_engine
+from pride.audit_schema import ensure_schema
+
+__all__ = ["Account", "AccountStore", "AccountsError", "Role", "TABLE"]
+
+log = logging.getLogger(__name__)
+
+_USER_ID = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
+#: NIST SP 800-63B's floor for a chosen secret; the ceiling keeps hashing bounded.
+MIN_PASSWORD = 8
+MAX_PASSWORD = 1024
+#: The table's name in the ground database.
+TABLE = "console_accounts"
+
+
+class Role(str, enum.Enum):
+    """What a signed-in person may do."""
+
+    OPERATOR = "operator"
+    """May start runs and act on them; every action is logged with the user id."""
+    OBSERVER = "observer"
+    """May watch runs, their telemetry, camera and audit log; never act."""
+
+
+class AccountsError(ValueError):
+    """An account operation cannot be done; the message names the user and what to fix."""
+
+
+@dataclass(frozen=True)
+class Account:
+    """One person who may sign in. ``password_changed`` lets sessions end when the password changes."""
+
+    user: str
+    role: Role
+    name: str = ""
+    password_changed: datetime | None = None
+
+    @property
+    def may_act(self) -> bool:
+        return self.role is Role.OPERATOR
+
+
+class _Base(DeclarativeBase):
+    pass
+
+
+class _AccountRow(_Base):
+    __tablename__ = TABLE
+
+    user_id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    name: Mapped[str] = mapped_column(String(200), default="")
+    role: Mapped[str] = mapped_column(String(16))
+    password_hash: Mapped[str] = mapped_column(String(255))
+    created: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+    password_changed: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+
+    def account(self) -> Account:
+        changed = self.password_changed if self.password_changed.tzinfo else self.password_changed.replace(tzinfo=timezone.utc)
+        return Account(self.user_id, Role(self.role), self.name, changed)
+
+
+def check_user_id(user: str) -> str:
+    """``user`` if it is a valid user id; AccountsError says what one looks like."""
+    if not _USER_ID.match(user):
+        raise AccountsError(f"user id {user!r}: use 1-64 letters, digits or _.@-")
+    return user
+
+
+def check_role(role: str) -> Role:
+    try:
+        return Role(role)
+    except ValueError:
+        raise AccountsError(f"role {role!r}: must be one of {', '.join(r.value for r in Role)}") from None
+
+
+def check_password(password: str) -> str:
+    if len(password) < MIN_PASSWORD:
+        raise AccountsError(f"the password is too short: use at least {MIN_PASSWORD} characters")
+    if len(password) > MAX_PASSWORD:
+        raise AccountsError(f"the password is too long: at most {MAX_PASSWORD} characters")
+    return password
+
+
+class AccountStore:
+    """The accounts table of one database. Thread-safe: one session per call."""
+
+    def __init__(self, url: str) -> None:
+        """Open the accounts of the ground database at ``url``, bringing its schema up to date where
+        this role may (AuditSchemaError says what to do where it may not)."""
+        self.url = url
+        self._engine: Engine = open_engine(url)
+        try:
+            ensure_schema(self._engine, make_url(database_url(url)).render_as_string(hide_password=True))
+        except BaseException:
+            self._engine.dispose()
+            raise
+        self._hasher = PasswordHasher()
+        # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
+        self._decoy = self._hasher.hash("not a password of anyone")
+
+    def add(self, user: str, role: str, password: str, *, name: str = "") -> Account:
+        """Create an account; AccountsError when the user id is taken or a value is invalid."""
+        row = _AccountRow(user_id=check_user_id(user), name=name, role=check_role(role).value,
+                          password_hash=self._hasher.hash(check_password(password)), created=_now(), password_changed=_now())
+        account = row.account()
+        with Session(self._engine) as session, session.begin():
+            if session.get(_AccountRow, user) is not None:
+                raise AccountsError(f"user {user!r} already has an account: use set-password, set-role or remove")
+            session.add(row)
+        return account
+
+    def set_password(self, user: str, password: str) -> None:
+        """Replace a password; the user's sessions end (their stamp changes)."""
+        digest = self._hasher.hash(check_password(password))
+        with Session(self._engine) as session, session.begin():
+            row = self._row(session, user)
+            row.password_hash, row.password_changed = digest, _now()
+
+    def set_role(self, user: str, role: str) -> None:
+        with Session(self._engine) as session, session.begin():
+            self._row(session, user).role = check_role(role).value
+
+    def remove(self, user: str) -> None:
+        with Session(self._engine) as session, session.begin():
+            session.delete(self._row(session, user))
+
+    def get(self, user: str) -> Account | None:
+        with Session(self._engine) as session:
+            row = session.get(_AccountRow, user)
+            return row.account() if row is not None else None
+
+    def accounts(self) -> list[Account]:
+        """Every account, by user id."""
+        with Session(self._engine) as session:
+            return [row.account() for row in session.scalars(select(_AccountRow).order_by(_AccountRow.user_id))]
+
+    def verify(self, user: str, password: str) -> Account | None:
+        """The account when ``password`` is its password, else None (same cost for unknown users)."""
+        password = password[:MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
+        with Session(self._engine) as session:
+            row = session.get(_AccountRow, user) if _USER_ID.match(user) else None
+            if row is None:
+                _matches(self._hasher, self._decoy, password)
+                return None
+            if not _matches(self._hasher, row.password_hash, password):
+                return None
+            account, digest = row.account(), row.password_hash
+        if self._hasher.check_needs_rehash(digest):
+            self._rehash(user, digest, password)
+        return account
+
+    def _rehash(self, user: str, digest: str, password: str) -> None:
+        """Store the password's hash with today's parameters (same password: the stamp, and so the
+        sessions, stay). A console whose role may only read accounts leaves that to the owner."""
+        try:
+            with self._engine.begin() as connection:
+                connection.execute(update(_AccountRow).where(_AccountRow.user_id == user, _AccountRow.password_hash == digest)
+                                   .values(password_hash=self._hasher.hash(password)))
+        except DBAPIError as exc:
+            if getattr(exc.orig, "sqlstate", None) != "42501":  # insufficient_privilege: a read-only console
+                raise
+            log.info("the hash of %s's password uses old parameters; this console may not update it", user)
+
+    def _row(self, session: Session, user: str) -> _AccountRow:
+        row = session.get(_AccountRow, user)
+        if row is None:
+            raise AccountsError(f"no account {user!r} (see `caretaker accounts list`)")
+        return row
+
+    def close(self) -> None:
+        self._engine.dispose()
+
+
+def _matches(hasher: PasswordHasher, digest: str, password: str) -> bool:
+    try:
+        return hasher.verify(digest, password)
+    except (VerifyMismatchError, VerificationError, InvalidHashError):
+        return False
+
+
+def _now() -> datetime:
+    return datetime.now(timezone.utc)

@@ -1,0 +1,87 @@
+"""``caretaker accounts``: add, change and remove the web view's accounts in the ground database.
+
+Passwords come from a prompt (typed twice, not echoed) or, when stdin is not a terminal, from
+its first line, so scripts pipe them in. Never from the command line: argv is visible to every
+user of the machine (``ps``) and lands in shell histories.
+"""
+
+from __future__ import annotations
+
+import argparse
+import getpass
+import sys
+
+from pride.audit_log import DEFAULT_DB
+from console.accounts import AccountStore, AccountsError, Role
+
+__all__ = ["main"]
+
+
+class _PasswordError(Exception):
+    """The password could not be read (prompts differ, nothing on stdin)."""
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="caretaker accounts",
+        description="Manage who may sign in to the web view (caretaker serve). Passwords are read from a "
+                    "prompt, or from the first line of stdin when it is not a terminal; never from arguments.",
+    )
+    parser.add_argument("--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add = commands.add_parser("add", help="create an account (asks for its password)")
+    add.add_argument("user")
+    add.add_argument("--role", required=True, choices=[r.value for r in Role])
+    add.add_argument("--name", default="", help="the person's name as the page shows it")
+    commands.add_parser("set-password", help="replace a password (the user's sessions end)").add_argument("user")
+    role = commands.add_parser("set-role", help="make a user an operator or an observer")
+    role.add_argument("user")
+    role.add_argument("role", choices=[r.value for r in Role])
+    commands.add_parser("remove", help="delete an account (its sessions end)").add_argument("user")
+    commands.add_parser("list", help="every account with its role")
+    return parser
+
+
+def _password(user: str) -> str:
+    if not sys.stdin.isatty():
+        line = sys.stdin.readline()
+        if not line:
+            raise _PasswordError("no password on stdin (give it as the first line)")
+        return line.rstrip("\r\n")
+    first = getpass.getpass(f"password for {user}: ")
+    if getpass.getpass("again: ") != first:
+        raise _PasswordError("the two passwords differ; nothing changed")
+    return first
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one accounts command; returns the exit code (2 with a message on any refusal)."""
+    args = _parser().parse_args(argv)
+    store = AccountStore(args.db)
+    try:
+        if args.command == "add":
+            account = store.add(args.user, args.role, _password(args.user), name=args.name)
+            print(f"added {account.user} ({account.role.value})")
+        elif args.command == "set-password":
+            if store.get(args.user) is None:  # before asking for a password that would be thrown away
+                raise AccountsError(f"no account {args.user!r} (see `caretaker accounts list`)")
+            store.set_password(args.user, _password(args.user))
+            print(f"password of {args.user} changed")
+        elif args.command == "set-role":
+            store.set_role(args.user, args.role)
+            print(f"{args.user} is now an {args.role}")
+        elif args.command == "remove":
+            store.remove(args.user)
+            print(f"removed {args.user}")
+        else:
+            for account in store.accounts():
+                print(f"{account.user}\t{account.role.value}\t{account.name}")
+    except (AccountsError, _PasswordError) as exc:
+        print(f"caretaker accounts: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("caretaker accounts: interrupted; nothing changed", file=sys.stderr)
+        return 2
+    finally:
+        store.close()
+    return 0

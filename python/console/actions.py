@@ -1,0 +1,143 @@
+"""Operator actions from the page, sent to the executive under the signed-in user's id.
+
+This is the only place the web view changes a run, whether the action comes from this console's
+page or is forwarded from another console to the run's host (:func:`perform_forwarded`). Each action is one executive method; the
+executive records it in the audit log with the user id and refuses what does not apply now
+(:class:`~pride.executive.OperatorActionError`). The role check happens here, on the server,
+before anything reaches the executive: an observer's request is refused whatever the page shows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from pride.executive import Executive, Mode, OperatorActionError
+from console.ground.action_requests import Answer, ForwardedAction
+from console.accounts import Account, AccountStore
+
+__all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perform_forwarded"]
+
+
+class ActionRefused(Exception):
+    """The request cannot be carried out; ``status`` is the HTTP status that says why, ``details``
+    what the page needs to offer a way on (e.g. who controls the robot, to take it over)."""
+
+    def __init__(self, status: int, message: str, details: dict[str, Any] | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+        self.message = message
+        self.details = details or {}
+
+
+@dataclass(frozen=True)
+class ActionRequest:
+    """What the page asks: an action name, the instruction it was clicked on, and its values."""
+
+    action: str
+    instruction: str | None = None
+    value: Any = None
+    reason: str = ""
+    mode: str | None = None
+
+    @staticmethod
+    def from_json(body: Any) -> ActionRequest:
+        if not isinstance(body, dict) or not isinstance(body.get("action"), str):
+            raise ActionRefused(400, "expected a JSON object with an 'action' string")
+        mode = body.get("mode")
+        instruction = body.get("instruction")
+        return ActionRequest(
+            action=body["action"],
+            instruction=str(instruction) if instruction is not None else None,
+            value=body.get("value"),
+            reason=str(body.get("reason") or ""),
+            mode=str(mode) if mode is not None else None,
+        )
+
+    def to_json(self) -> dict[str, Any]:
+        """The request as :meth:`from_json` reads it (to forward it to the run's host)."""
+        return {name: value for name, value in self.__dict__.items() if value is not None}
+
+
+def _mode(request: ActionRequest) -> Mode:
+    try:
+        return Mode(request.mode)
+    except ValueError:
+        raise ActionRefused(400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {request.mode!r})") from None
+
+
+def _numbered(request: ActionRequest) -> str:
+    if not request.instruction:
+        raise ActionRefused(400, f"{request.action} needs the instruction number")
+    return request.instruction
+
+
+def _outcome(request: ActionRequest) -> str:
+    if request.value not in ("succeeded", "failed"):
+        raise ActionRefused(400, f"resolve needs value 'succeeded' or 'failed': what the system shows (got {request.value!r})")
+    return str(request.value)
+
+
+#: action name -> (needs the clicked instruction to be the current one, what it does)
+ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] = {
+    "perform": (True, lambda ex, user, r: ex.perform(user)),
+    "step": (False, lambda ex, user, r: ex.step(user)),
+    "confirm": (True, lambda ex, user, r: ex.confirm(user)),
+    "enter": (True, lambda ex, user, r: ex.enter(user, r.value)),
+    "done": (True, lambda ex, user, r: ex.mark_done(user)),
+    "retry": (True, lambda ex, user, r: ex.retry(user)),
+    "skip": (True, lambda ex, user, r: ex.skip(user, r.reason)),
+    "mode": (False, lambda ex, user, r: ex.set_mode(user, _mode(r))),
+    "pause": (False, lambda ex, user, r: ex.pause(user)),
+    "continue": (False, lambda ex, user, r: ex.resume_automation(user)),
+    "stop": (False, lambda ex, user, r: ex.stop(user, r.reason)),
+    "halt": (False, lambda ex, user, r: ex.halt(user, r.reason)),
+    "take_control": (False, lambda ex, user, r: ex.take_control(user, r.reason)),
+    "ask_again": (True, lambda ex, user, r: ex.ask_again(user)),
+    "resolve": (True, lambda ex, user, r: ex.resolve(user, _outcome(r), r.reason)),
+    "correct_record": (False, lambda ex, user, r: ex.correct_record(user, _numbered(r), r.value, r.reason)),
+    "go_back": (False, lambda ex, user, r: ex.go_back(user, _numbered(r), r.reason)),
+    "set_breakpoint": (False, lambda ex, user, r: ex.set_breakpoint(user, _numbered(r))),
+    "clear_breakpoint": (False, lambda ex, user, r: ex.clear_breakpoint(user, _numbered(r))),
+}
+
+
+def perform_action(executive: Executive, account: Account, request: ActionRequest) -> Any:
+    """Carry out ``request`` as ``account``; ActionRefused says why not.
+
+    Actions clicked on an instruction name it, and are refused unless it is still the current
+    one: two operators looking at the same run must not act on an instruction that moved on.
+    """
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+    entry = ACTIONS.get(request.action)
+    if entry is None:
+        raise ActionRefused(400, f"unknown action {request.action!r} (known: {', '.join(ACTIONS)})")
+    on_current, action = entry
+    if on_current:
+        current = executive.snapshot().current
+        if request.instruction is None:
+            raise ActionRefused(400, f"{request.action} needs the instruction number it was clicked on")
+        if request.instruction != current:
+            raise ActionRefused(409, f"{request.instruction} is not the current instruction (the run is at {current or 'no instruction'})")
+    try:
+        return action(executive, account.user, request)
+    except OperatorActionError as exc:
+        raise ActionRefused(409, str(exc)) from None
+
+
+def perform_forwarded(executive: Executive | None, accounts: AccountStore, request: ForwardedAction, host: str) -> Answer:
+    """An action another console forwarded to the run's host (``host``, this process): performed as its
+    operator, whose account and role are checked here against the database, whatever the other console did."""
+    if executive is None:
+        return Answer(404, {"error": f"run {request.run_id} is no longer live on {host}"})
+    account = accounts.get(request.user)
+    if account is None:
+        return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
+    try:
+        action = ActionRequest.from_json(request.action)
+        result = perform_action(executive, account, action)
+    except ActionRefused as exc:
+        return Answer(exc.status, {"error": exc.message})
+    return Answer(200, {"ok": True, "action": action.action, "result": result})

@@ -1,0 +1,498 @@
+"""The web view's routes: the page, its JSON API, the live WebSocket, camera images, reports.
+
+Reading is open to every signed-in person; changing anything (starting or resuming a run, any
+operator action, saving a procedure) needs the operator role and goes through
+:mod:`console.actions` to the executive — of this console, or, for a run another console
+hosts, of that console, through the database (:meth:`RunBoard.act`). Two WebSockets push news:
+one run's state, events and telemetry (``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that changes state carries the
+session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends one, an ``Origin`` of
+this server; the WebSocket only reports (actions go over HTTP) and checks the session and the
+Origin when it opens. Blocking work (password hashing, executive calls that take its lock,
+gateway reads, opening a gateway, the audit log) runs in the thread pool so one slow robot
+never stalls the other browsers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from starlette.applications import Starlette
+from starlette.concurrency import run_in_threadpool
+from starlette.requests import HTTPConnection, Request
+from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from pride.model import Procedure
+from pride.parser import load_procedure
+from pride.phrasing import describe_event
+from pride.events import Event
+from console.accounts import Account
+from console.actions import ActionRefused, ActionRequest
+from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
+from console.procedure_view import procedure_json
+from console.run_board import RunBoard
+from console.folded_run import fold_events
+from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
+from console.spatial_api import spatial_routes
+
+__all__ = ["build_app"]
+
+log = logging.getLogger(__name__)
+
+STATIC = Path(__file__).with_name("static")
+#: How often a watcher gets fresh telemetry ages and staleness when nothing else changed.
+_TELEMETRY_REFRESH_S = 1.0
+#: How often the runs list is recomputed when nothing announced a change (a host's lease running out).
+_LIST_REFRESH_S = 2.0
+#: WebSocket close code for "not signed in" (RFC 6455 policy violation).
+_CLOSE_POLICY = 1008
+#: WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure).
+_CLOSE_ENDED = 1000
+_SAFE_METHODS = ("GET", "HEAD")
+
+
+def _same_origin(connection: HTTPConnection) -> bool:
+    """Whether the browser's Origin (when it sends one) is this server: a page elsewhere must not act here."""
+    origin = connection.headers.get("origin")
+    if origin is None:
+        return True  # not a browser's cross-site request (browsers send Origin on POST and WebSocket)
+    return urlsplit(origin).netloc == connection.headers.get("host", "")
+
+
+def _session(request: Request) -> WebSession:
+    """The request's session; state-changing requests must also carry its CSRF token."""
+    sign_ins: SignIns = request.app.state.sign_ins
+    session = sign_ins.session(request)
+    if request.method not in _SAFE_METHODS:
+        if not _same_origin(request):
+            raise ActionRefused(403, "this request came from another site's page: refused")
+        if not session.csrf_matches(request.headers.get(CSRF_HEADER)):
+            raise ActionRefused(403, f"missing or wrong {CSRF_HEADER}: reload the page")
+    return session
+
+
+def _account(request: Request) -> Account:
+    return _session(request).account
+
+
+def _refusal(exc: ActionRefused | SignInRefused) -> JSONResponse:
+    headers = {"Retry-After": str(exc.retry_after)} if isinstance(exc, SignInRefused) and exc.retry_after else None
+    details = exc.details if isinstance(exc, ActionRefused) else {}
+    return JSONResponse({"error": exc.message, **details}, status_code=exc.status, headers=headers)
+
+
+def _api(handler: Callable[[Request], Awaitable[Response]]) -> Callable[[Request], Awaitable[Response]]:
+    """Turn refusals into a JSON error with its status; the page shows the message."""
+
+    async def wrapped(request: Request) -> Response:
+        try:
+            return await handler(request)
+        except (ActionRefused, SignInRefused) as exc:
+            return _refusal(exc)
+
+    return wrapped
+
+
+async def _json_body(request: Request) -> Any:
+    try:
+        return await request.json()
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise ActionRefused(400, "the request body must be JSON") from None
+
+
+# ---- pages and session ----------------------------------------------------------------------
+async def index(request: Request) -> Response:
+    return FileResponse(STATIC / "index.html")
+
+
+def _session_json(session: WebSession) -> dict[str, Any]:
+    account = session.account
+    return {"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act,
+            "csrf": session.csrf}
+
+
+@_api
+async def session_get(request: Request) -> Response:
+    return JSONResponse(_session_json(_session(request)))
+
+
+@_api
+async def session_post(request: Request) -> Response:
+    """Sign in with a user id and password (JSON); the reply carries the CSRF token for later requests."""
+    if not _same_origin(request):
+        raise ActionRefused(403, "this request came from another site's page: refused")
+    body = await _json_body(request)
+    if not isinstance(body, dict) or not isinstance(body.get("user"), str) or not isinstance(body.get("password"), str):
+        raise ActionRefused(400, "expected a JSON object with 'user' and 'password' strings")
+    address = request.client.host if request.client else "unknown"
+    sign_ins: SignIns = request.app.state.sign_ins
+    try:
+        session = await run_in_threadpool(sign_ins.sign_in, body["user"].strip(), body["password"], address)
+    except SignInRefused as exc:
+        log.warning("sign-in refused for %r from %s: %s", body["user"][:64], address, exc.message)
+        raise
+    response = JSONResponse(_session_json(session))
+    response.set_cookie(COOKIE, session.token, max_age=int(sign_ins.limits.absolute), httponly=True, samesite="strict",
+                        secure=request.app.state.secure)
+    log.info("%s signed in as %s from %s", session.account.user, session.account.role.value, address)
+    return response
+
+
+@_api
+async def session_delete(request: Request) -> Response:
+    session = _session(request)
+    request.app.state.sign_ins.sign_out(session.token)
+    response = JSONResponse({"signed_out": True})
+    response.delete_cookie(COOKIE, httponly=True, samesite="strict", secure=request.app.state.secure)
+    return response
+
+
+# ---- runs -----------------------------------------------------------------------------------
+@_api
+async def catalog(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    return JSONResponse({
+        "procedures": board.catalog.procedure_files(), "bindings": board.catalog.binding_files(),
+        "modes": ["manual", "autonomous"],
+    })
+
+
+@_api
+async def runs_list(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    return JSONResponse({"runs": await run_in_threadpool(board.listing)})
+
+
+async def _operator_request(request: Request, what: str, fields: str) -> tuple[Account, dict[str, str]]:
+    """The operator making a request about a run, and its fields as strings (mode defaults to manual)."""
+    account = _account(request)
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an observer: observers may watch, not {what}")
+    body = await _json_body(request)
+    if not isinstance(body, dict):
+        raise ActionRefused(400, f"expected a JSON object with {fields}")
+    return account, {"procedure": str(body.get("procedure", "")), "binding": str(body.get("binding", "")),
+                     "mode": str(body.get("mode", "manual")), "take_over": str(body.get("take_over") or "")}
+
+
+@_api
+async def runs_start(request: Request) -> Response:
+    account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
+    board: RunBoard = request.app.state.board
+    live = await run_in_threadpool(board.start, account.user, body["procedure"], body["binding"], body["mode"],
+                                   take_over=body["take_over"] or None)
+    return JSONResponse({"run_id": live.run_id}, status_code=201)
+
+
+def _past_procedure(events: list[Any]) -> Procedure | None:
+    path = events[0].data.get("path") if events else None
+    if not path or not Path(path).is_file():
+        return None
+    try:
+        return load_procedure(path)
+    except Exception:  # the file changed since the run: show the log without the procedure
+        log.warning("cannot load %s for a past run", path, exc_info=True)
+        return None
+
+
+def _event_json(event: Event) -> dict[str, Any]:
+    return {**event.to_dict(), "summary": describe_event(event)}
+
+
+def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
+    run = board.view(run_id)
+    if run is not None:
+        return {
+            "procedure": run.procedure_view, "state": run.state_json(), "server_time": time.time(),
+            "events": [_event_json(e) for e in run.events_since(0)], "telemetry": run.telemetry_json(),
+        }
+    events = board.past_events(run_id)
+    procedure = _past_procedure(events)
+    sysreps = board.sysreps()
+    state = {**fold_events(run_id, events, sysreps).to_dict(), "live": False}
+    record = board.host_record(run_id)
+    if record is not None and state["status"] not in ("completed", "stopped"):  # its host died or lost the database
+        state["host_lost"] = {"host": record.host, "since": record.lease_until.isoformat()}
+    return {
+        "procedure": procedure_json(procedure, sysreps=sysreps) if procedure else None,
+        "state": state, "server_time": time.time(),
+        "events": [_event_json(e) for e in events], "telemetry": {"readings": [], "checks": {}},
+    }
+
+
+@_api
+async def run_get(request: Request) -> Response:
+    _account(request)
+    return JSONResponse(await run_in_threadpool(_run_view, request.app.state.board, request.path_params["run_id"]))
+
+
+@_api
+async def run_action(request: Request) -> Response:
+    account = _account(request)
+    if not account.may_act:  # refused before the body is even read
+        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+    board: RunBoard = request.app.state.board
+    action = ActionRequest.from_json(await _json_body(request))
+    result = await run_in_threadpool(board.act, request.path_params["run_id"], account, action)
+    return JSONResponse({"ok": True, "action": action.action, "result": result})
+
+
+@_api
+async def run_resume(request: Request) -> Response:
+    """Continue a stopped or interrupted run (what ``caretaker run --resume`` does) on a binding."""
+    account, body = await _operator_request(request, "resume runs", "binding and mode")
+    board: RunBoard = request.app.state.board
+    live = await run_in_threadpool(board.resume, account.user, request.path_params["run_id"], body["binding"], body["mode"])
+    return JSONResponse({"run_id": live.run_id})
+
+
+@_api
+async def run_camera(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    run_id = request.path_params["run_id"]
+    run = await run_in_threadpool(board.view, run_id)
+    image = await run_in_threadpool(run.camera_image) if run else _past_image(board, run_id)
+    if image is None:
+        raise ActionRefused(404, "no camera image yet: no command result named a PNG and the live feed captured none")
+    if isinstance(image, bytes):  # copied into the database by the console that hosts the run
+        return Response(image, media_type="image/png", headers={"Cache-Control": "no-store"})
+    if not image.is_file():
+        raise ActionRefused(404, f"the camera image {image} does not exist on this server")
+    return FileResponse(image, media_type="image/png", headers={"Cache-Control": "no-store"})
+
+
+def _past_image(board: RunBoard, run_id: str) -> Path | None:
+    image = fold_events(run_id, board.past_events(run_id)).latest_image
+    return Path(image) if image else None
+
+
+# ---- live updates ---------------------------------------------------------------------------
+async def _socket_account(websocket: WebSocket) -> Account | None:
+    """The signed-in account opening a WebSocket from this site's page; None after closing it (refused)."""
+    try:
+        if not _same_origin(websocket):
+            raise SignInRefused(403, "this connection came from another site's page")
+        sign_ins: SignIns = websocket.app.state.sign_ins
+        return sign_ins.session(websocket).account
+    except SignInRefused as exc:
+        await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+        return None
+
+
+async def _still_signed_in(websocket: WebSocket) -> bool:
+    """An open console is in use; a session that ended closes its connection."""
+    try:
+        await run_in_threadpool(websocket.app.state.sign_ins.session, websocket)
+    except SignInRefused as exc:
+        await websocket.close(code=_CLOSE_POLICY, reason=exc.message)
+        return False
+    return True
+
+
+async def run_socket(websocket: WebSocket) -> None:
+    """Push the run's state, new audit events and telemetry to one browser until it leaves or its session ends.
+
+    The run may be hosted here or by another console: then each wake-up first reads what the
+    database has new (:meth:`RemoteRun.refresh`).
+    """
+    account = await _socket_account(websocket)
+    if account is None:
+        return
+    board: RunBoard = websocket.app.state.board
+    run = await run_in_threadpool(board.view, websocket.path_params["run_id"])
+    if run is None:
+        await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on any console")
+        return
+    await websocket.accept()
+    watcher = run.watch(account)
+    receiver = asyncio.create_task(_drain(websocket))
+    try:
+        while not receiver.done():
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(watcher.changed.wait(), _TELEMETRY_REFRESH_S)
+            watcher.changed.clear()
+            await run_in_threadpool(run.refresh)
+            if run.retired:  # the page reloads it as a past run (its last state is in the log)
+                await websocket.close(code=_CLOSE_ENDED, reason="the run ended")
+                return
+            if not await _still_signed_in(websocket):
+                return
+            state, telemetry = await run_in_threadpool(lambda: (run.state_json(), run.telemetry_json()))
+            events = run.events_since(watcher.sent_seq)
+            if events:
+                watcher.sent_seq = events[-1].seq
+            await websocket.send_json({
+                "type": "update", "state": state, "events": [_event_json(e) for e in events], "telemetry": telemetry,
+                "server_time": time.time(),
+            })
+    except (WebSocketDisconnect, RuntimeError):
+        pass  # the browser left (RuntimeError: send after the client closed)
+    finally:
+        run.unwatch(watcher)
+        board.let_go(run)
+        receiver.cancel()
+
+
+async def runs_socket(websocket: WebSocket) -> None:
+    """Push the runs list whenever it changes (a run started, ended, moved host, or its host went silent)."""
+    account = await _socket_account(websocket)
+    if account is None:
+        return
+    board: RunBoard = websocket.app.state.board
+    await websocket.accept()
+    watcher = board.list_watchers.add(account)
+    receiver = asyncio.create_task(_drain(websocket))
+    sent: list[dict[str, Any]] | None = None
+    try:
+        while not receiver.done():
+            with contextlib.suppress(asyncio.TimeoutError):
+                await asyncio.wait_for(watcher.changed.wait(), _LIST_REFRESH_S)  # leases run out unannounced
+            watcher.changed.clear()
+            if not await _still_signed_in(websocket):
+                return
+            runs = await run_in_threadpool(board.listing)
+            if runs != sent:
+                await websocket.send_json({"type": "runs", "runs": runs})
+                sent = runs
+    except (WebSocketDisconnect, RuntimeError):
+        pass
+    finally:
+        board.list_watchers.remove(watcher)
+        receiver.cancel()
+
+
+async def _drain(websocket: WebSocket) -> None:
+    """Read until the browser disconnects (it sends nothing else; actions go over HTTP)."""
+    while True:
+        message = await websocket.receive()
+        if message["type"] == "websocket.disconnect":
+            return
+
+
+# ---- reports --------------------------------------------------------------------------------
+@_api
+async def run_report(request: Request) -> Response:
+    """The after-action report of a run, written by pride's report module (caretaker report)."""
+    _account(request)
+    board: RunBoard = request.app.state.board
+    run_id = request.path_params["run_id"]
+    board.past_events(run_id)  # 404 for unknown runs
+    writer = request.app.state.report_writer
+    if writer is None:
+        raise ActionRefused(501, "this installation has no report writer (pride.report); use `caretaker report RUN`")
+    path = await run_in_threadpool(writer, run_id)
+    return FileResponse(path, media_type="text/html")
+
+
+# ---- authoring ------------------------------------------------------------------------------
+async def author_page(request: Request) -> Response:
+    return FileResponse(STATIC / "author.html")
+
+
+@_api
+async def author_palette(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    sysreps = await run_in_threadpool(board.sysreps)
+    procedures = board.catalog.procedure_files()
+    signatures = await run_in_threadpool(procedure_inputs, board.catalog.procedures, procedures)
+    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": procedures, "procedure_inputs": signatures})
+
+
+@_api
+async def author_open(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    path = board.catalog.procedure_path(request.path_params["name"])
+    return JSONResponse(await run_in_threadpool(read_document, path))
+
+
+def _document(body: Any) -> dict[str, Any]:
+    if not isinstance(body, dict) or not isinstance(body.get("document"), dict):
+        raise ActionRefused(400, "expected a JSON object with a 'document'")
+    document: dict[str, Any] = body["document"]
+    return document
+
+
+@_api
+async def author_check(request: Request) -> Response:
+    _account(request)
+    board: RunBoard = request.app.state.board
+    document = _document(await _json_body(request))
+    checked = await run_in_threadpool(check_document, document, board.catalog.procedures, board.sysreps())
+    return JSONResponse(checked)
+
+
+@_api
+async def author_save(request: Request) -> Response:
+    account = _account(request)
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an observer: observers may read procedures, not save them")
+    board: RunBoard = request.app.state.board
+    body = await _json_body(request)
+    document = _document(body)
+    saved = await run_in_threadpool(lambda: save_document(document, str(body.get("name", "")), board.catalog.procedures,
+                                                          board.sysreps(), replace=body.get("replace") is True))
+    log.info("%s saved procedure %s", account.user, saved["saved"])
+    return JSONResponse(saved)
+
+
+def build_app(
+    board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None, secure: bool = False
+) -> Starlette:
+    """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways.
+
+    ``secure``: served over TLS, so the session cookie is marked Secure (never sent in clear text).
+    """
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
+        try:
+            yield
+        finally:
+            await run_in_threadpool(board.close)
+
+    app = Starlette(
+        routes=[
+            Route("/", index),
+            Route("/runs/{run_id}/report", run_report),
+            Route("/author", author_page),
+            Route("/api/author/palette", author_palette),
+            Route("/api/author/procedures/{name}", author_open),
+            Route("/api/author/check", author_check, methods=["POST"]),
+            Route("/api/author/save", author_save, methods=["POST"]),
+            Route("/api/session", session_get, methods=["GET"]),
+            Route("/api/session", session_post, methods=["POST"]),
+            Route("/api/session", session_delete, methods=["DELETE"]),
+            Route("/api/catalog", catalog),
+            Route("/api/runs", runs_list, methods=["GET"]),
+            Route("/api/runs", runs_start, methods=["POST"]),
+            Route("/api/runs/{run_id}", run_get),
+            Route("/api/runs/{run_id}/actions", run_action, methods=["POST"]),
+            Route("/api/runs/{run_id}/resume", run_resume, methods=["POST"]),
+            Route("/api/runs/{run_id}/camera", run_camera),
+            WebSocketRoute("/ws/runs", runs_socket),
+            WebSocketRoute("/ws/runs/{run_id}", run_socket),
+            *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ],
+        lifespan=lifespan,
+    )
+    app.state.board = board
+    app.state.sign_ins = sign_ins
+    app.state.report_writer = report_writer
+    app.state.secure = secure
+    return app

@@ -1,0 +1,199 @@
+"""``caretaker serve``: the operator web view on uvicorn, bound to loopback unless told otherwise.
+
+Prints ``READY serve http://HOST:PORT`` (``https://`` under TLS) once it accepts connections
+(``--port 0`` picks a free port and the line names it), so launchers and tests wait on that
+line, not on a sleep. Beyond loopback it serves only over TLS (``--certfile``/``--keyfile``):
+passwords and session cookies must not cross a network in clear text; ``--insecure`` is for a
+network that is encrypted otherwise (a VPN, a TLS-terminating proxy on the same host).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import logging
+import re
+import socket
+import ssl
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+import uvicorn
+
+from sqlalchemy.exc import OperationalError
+
+from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from pride.audit_schema import AuditSchemaError
+from console.ground.run_hosts import DEFAULT_LEASE_S
+from console.accounts import AccountStore
+from console.app import build_app
+from console.reports import report_writer
+from console.run_board import CameraSettings, Catalog, RunBoard
+from console.sign_in import SessionLimits, SignIns
+
+__all__ = ["main"]
+
+log = logging.getLogger(__name__)
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+class _Server(uvicorn.Server):
+    """uvicorn, announcing readiness after its sockets accept connections."""
+
+    def __init__(self, config: uvicorn.Config, url: str) -> None:
+        super().__init__(config)
+        self.url = url
+
+    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
+        await super().startup(sockets=sockets)
+        if not self.should_exit:
+            print(f"READY serve {self.url}", flush=True)
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="caretaker serve", description="Serve the operator web view.")
+    parser.add_argument("--address", default="127.0.0.1", help="address to bind (default: loopback only)")
+    parser.add_argument("--port", type=int, default=8080, help="TCP port (0 = any free port; default 8080)")
+    parser.add_argument("--db", default=DEFAULT_DB,
+                        help=f"the ground database: audit log and accounts, a SQLAlchemy URL (default: {DEFAULT_DB})")
+    parser.add_argument("--certfile", type=Path, help="TLS certificate chain (PEM); with --keyfile the view is served over https")
+    parser.add_argument("--keyfile", type=Path, help="TLS private key (PEM)")
+    parser.add_argument("--insecure", action="store_true",
+                        help="allow plain http beyond loopback (only where the network is encrypted otherwise)")
+    parser.add_argument("--session-idle", type=float, default=30.0, metavar="MIN",
+                        help="sign a browser out after this many minutes without use (default 30; an open page is in use)")
+    parser.add_argument("--session-max", type=float, default=12.0, metavar="H",
+                        help="sign everyone out this many hours after they signed in (default 12: a shift)")
+    parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
+    parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
+    parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
+    parser.add_argument("--rosbridge", metavar="[BINDING=]URL", action="append", default=[],
+                        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
+                             "or of every binding without BINDING=; repeat for several robots")
+    parser.add_argument("--console", metavar="NAME",
+                        help="how other consoles name this one when it hosts a run (default: console HOST:PORT)")
+    parser.add_argument("--lease", type=float, default=DEFAULT_LEASE_S, metavar="S",
+                        help="seconds after which other consoles take a run hosted here for interrupted if this console "
+                             f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}")
+    parser.add_argument("--camera", metavar="[BINDING=]NAME", action="append", default=[],
+                        help="camera to show while the robot of the binding file BINDING moves (e.g. iva.yaml=scene, "
+                             "eva.yaml=ee_camera), or of every binding without BINDING=, when it serves the camera SysRep")
+    parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
+    parser.add_argument("--reports", type=Path, default=REPO / "var" / "reports", help="where after-action reports are written")
+    return parser
+
+
+def _loopback(address: str) -> bool:
+    if address == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(address).is_loopback
+    except ValueError:
+        return False  # a host name: it may resolve to anything
+
+
+def _tls_problem(args: argparse.Namespace) -> str | None:
+    """Why the TLS options cannot be used as given (None: they can, or none were given)."""
+    if (args.certfile is None) != (args.keyfile is None):
+        return "--certfile and --keyfile go together"
+    if args.certfile is None:
+        if _loopback(args.address) or args.insecure:
+            return None
+        return (f"--address {args.address} reaches beyond this machine, and passwords and session cookies must not "
+                "cross a network in clear text: give --certfile and --keyfile (TLS), or --insecure if the network "
+                "is encrypted otherwise (VPN, a TLS proxy on this host)")
+    try:
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
+    except ssl.SSLError as exc:  # before OSError, of which it is a kind
+        return f"--certfile {args.certfile} and --keyfile {args.keyfile} are not a usable PEM certificate and key: {exc.reason or exc}"
+    except OSError as exc:
+        return f"cannot read the TLS files: {exc.strerror or exc} ({exc.filename or args.certfile})"
+    return None
+
+
+#: A camera's name in a robot's scene (``camera/<name>`` frames of the simulation).
+_CAMERA_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def _per_binding(flag: str, options: list[str], expected: str, valid: Callable[[str], object]) -> dict[str, str]:
+    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError says what is wrong."""
+    values: dict[str, str] = {}
+    for option in options:
+        binding, _, value = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
+        if not valid(value):
+            raise ValueError(f"{flag} {option}: expected [BINDING=]{expected}")
+        if binding in values:
+            raise ValueError(f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already")
+        values[binding] = value
+    return values
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Serve until interrupted; returns the exit code."""
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    for directory in (args.procedures, args.sysreps):
+        if not directory.is_dir():
+            print(f"caretaker serve: {directory} is not a directory", file=sys.stderr)
+            return 2
+    problem = _tls_problem(args)
+    if problem is not None:
+        print(f"caretaker serve: {problem}", file=sys.stderr)
+        return 2
+    if args.session_idle <= 0 or args.session_max <= 0:
+        print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
+        return 2
+    try:
+        rosbridge_urls = _per_binding("--rosbridge", args.rosbridge, "ws://HOST:PORT or wss://HOST:PORT",
+                                      lambda url: url.startswith(("ws://", "wss://")))
+        cameras = _per_binding("--camera", args.camera, "NAME (a camera of the robot's scene: scene, ee_camera)",
+                               _CAMERA_NAME.fullmatch)
+    except ValueError as exc:
+        print(f"caretaker serve: {exc}", file=sys.stderr)
+        return 2
+    if args.lease < 3:
+        print("caretaker serve: --lease must be at least 3 s (claims are renewed every second)", file=sys.stderr)
+        return 2
+    tls = args.certfile is not None
+    if not _loopback(args.address):
+        log.warning("serving on %s%s: the web view is reachable beyond this machine", args.address, "" if tls else " WITHOUT TLS")
+    family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((args.address, args.port))
+    except OSError as exc:
+        print(f"caretaker serve: cannot bind {args.address}:{args.port}: {exc.strerror}", file=sys.stderr)
+        return 2
+    host, port = sock.getsockname()[:2]
+    scheme = "https" if tls else "http"
+    url = f"{scheme}://[{host}]:{port}" if family == socket.AF_INET6 else f"{scheme}://{host}:{port}"
+    try:
+        accounts = AccountStore(args.db)
+    except (AuditLogUnavailable, AuditSchemaError, OperationalError) as exc:
+        print(f"caretaker serve: {exc}", file=sys.stderr)
+        return 2
+    if not accounts.accounts():
+        log.warning("no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
+                    args.db, args.db)
+    audit_log = AuditLog(args.db)
+    catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
+    board = RunBoard(catalog, audit_log, CameraSettings(cameras, args.camera_period), accounts=accounts,
+                     console=args.console or f"console {socket.gethostname()}:{port}", lease=args.lease,
+                     rosbridge_urls=rosbridge_urls)
+    sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
+    board.feed.subscribe(sign_ins.notice)
+    app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
+    config = uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio",
+                            ssl_certfile=args.certfile, ssl_keyfile=args.keyfile)
+    server = _Server(config, url)
+    try:
+        server.run(sockets=[sock])
+    except KeyboardInterrupt:
+        pass
+    finally:
+        audit_log.close()
+        accounts.close()
+    return 0

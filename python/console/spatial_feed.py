@@ -1,0 +1,271 @@
+"""The 3D view's feed of one live run: robot state over the binding's rosbridge link, as the
+view's contract (``spatial/README.md``), pushed to each browser at a bounded rate.
+
+What it asks the habitat for (names under the robot's namespace), sized for a 1.3 s link:
+
+| what | how | rate |
+|---|---|---|
+| ``robot_description``, ``sim/visual_world`` | subscribe (latched: once per connection) | once |
+| ``joint_states`` | subscribe, ``throttle_rate`` 100 ms, ``queue_length`` 1 | <= 10/s |
+| ``sim/frames`` | subscribe, ``throttle_rate`` 200 ms, ``queue_length`` 1 | <= 5/s |
+| ``affordance_template_server/status`` | subscribe, ``throttle_rate`` 500 ms, ``queue_length`` 1 | <= 2/s |
+| ``get_template_status`` per template | when ``running_templates``, ``plan_id`` or the execute status change, after an AT command of the run, after a reconnect | on change |
+| ``get_plan`` | when ``plan_id`` or the execute status change | on change |
+| ``camera/<name>/image`` (the camera of :func:`~console.spatial_camera.choose_camera`) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
+
+Each browser gets the scene document once it exists, then the latest update of each kind,
+never more often than :data:`PUSH_INTERVAL_S` (an update not yet sent is replaced by a newer
+one of its kind: a slow browser or link gets fewer, fresher updates, never a growing queue).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from console.spatial_camera import CameraImageError, choose_camera, png_from_image
+from console.spatial_link import ViewLink, LinkError, RosbridgeLink, Subscription
+from console.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
+from console.spatial_world import plan_from_get_plan, world_document
+
+__all__ = ["PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher", "AT_COMMANDS_THAT_MOVE_TEMPLATES"]
+
+log = logging.getLogger(__name__)
+
+PUSH_INTERVAL_S = 0.1
+JOINTS_THROTTLE_MS = 100
+FRAMES_THROTTLE_MS = 200
+STATUS_THROTTLE_MS = 500
+CAMERA_THROTTLE_MS = 2000
+
+AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset({
+    "add_template", "delete_template", "set_display_object_pose", "set_waypoint_pose", "plan_trajectory",
+    "execute_trajectory",
+})
+
+Json = dict[str, Any]
+
+
+@dataclass(eq=False)  # each is one browser: hashed by identity
+class ViewWatcher:
+    """One browser's 3D view: what it still has to be sent, and a flag to wake its sender."""
+
+    changed: asyncio.Event = field(default_factory=asyncio.Event)
+    document: Json | None = None
+    pending: dict[str, Json] = field(default_factory=dict)
+
+    def take(self) -> tuple[Json | None, list[Json]]:
+        document, updates = self.document, list(self.pending.values())
+        self.document, self.pending = None, {}
+        self.changed.clear()
+        return document, updates
+
+
+class SpatialFeed:
+    """The habitat's state for one run's 3D views, kept current over one rosbridge link."""
+
+    def __init__(self, link: ViewLink, *, camera_url: str, camera: str | None = None) -> None:
+        """``camera_url``: where the page fetches :attr:`camera_png` (``?seq=N`` is added);
+        ``camera``: the camera to show when the scene has it."""
+        self.link = link
+        self.camera_url = camera_url
+        self.preferred_camera = camera
+        self.camera: str | None = None
+        self.camera_png: bytes | None = None
+        self.camera_seq = 0
+        self.rosbridge = RosbridgeLink(link, on_connected=self._refresh_all, on_state=self._link_state)
+        self.watchers: set[ViewWatcher] = set()
+        self.urdf: str | None = None
+        self.visual_world: Mapping[str, Any] | None = None
+        self.joints: Mapping[str, Any] | None = None
+        self.frames: Mapping[str, Any] | None = None
+        self.frame_poses: dict[str, Json] = {}
+        self.templates: Json = {"kind": "templates", "templates": []}
+        self.plan: Json = {"kind": "plan", "plan": None}
+        self.status_key: tuple[Any, ...] | None = None
+        self.plan_key: tuple[Any, ...] | None = None
+        self.active_template = ""
+        self.last_error: str | None = None
+        self._refreshing: asyncio.Task[None] | None = None
+        self._refresh_again = False
+
+    # ---- life -------------------------------------------------------------------------------
+    def start(self) -> None:
+        name = self.link.name
+        self.rosbridge.subscribe(Subscription(name("robot_description"), "std_msgs/msg/String", self._on_urdf, queue_length=1))
+        self.rosbridge.subscribe(Subscription(name("sim/visual_world"), "caretaker_sim_msgs/msg/VisualWorld", self._on_world,
+                                              queue_length=1))
+        self.rosbridge.subscribe(Subscription(name("joint_states"), "sensor_msgs/msg/JointState", self._on_joints,
+                                              throttle_ms=JOINTS_THROTTLE_MS))
+        self.rosbridge.subscribe(Subscription(name("sim/frames"), "caretaker_sim_msgs/msg/NamedPoses", self._on_frames,
+                                              throttle_ms=FRAMES_THROTTLE_MS))
+        self.rosbridge.subscribe(Subscription(name("affordance_template_server/status"),
+                                              "affordance_template_msgs/msg/ServerStatus", self._on_status,
+                                              throttle_ms=STATUS_THROTTLE_MS))
+        self.rosbridge.start()
+
+    async def close(self) -> None:
+        if self._refreshing is not None:
+            self._refreshing.cancel()
+        await self.rosbridge.close()
+
+    def watch(self) -> ViewWatcher:
+        watcher = ViewWatcher()
+        watcher.document = self.document()
+        watcher.changed.set()
+        self.watchers.add(watcher)
+        return watcher
+
+    def unwatch(self, watcher: ViewWatcher) -> None:
+        self.watchers.discard(watcher)
+
+    def document(self) -> Json | None:
+        """The whole scene now, or None until the latched URDF and visual world have arrived."""
+        if self.urdf is None or self.visual_world is None:
+            return None
+        try:
+            doc = world_document(self.visual_world, self.urdf, frames=self.frames, joints=self.joints, camera_url=self._camera_url())
+        except SpatialDataError as exc:
+            self._report(f"the habitat's scene cannot be shown: {exc}")
+            return None
+        doc["templates"] = self.templates["templates"]
+        doc["plan"] = self.plan["plan"]
+        return doc
+
+    # ---- pushing ----------------------------------------------------------------------------
+    def _push(self, update: Json) -> None:
+        for watcher in self.watchers:
+            watcher.pending[str(update["kind"])] = update
+            watcher.changed.set()
+
+    def _push_document(self) -> None:
+        doc = self.document()
+        if doc is None:
+            return
+        for watcher in self.watchers:
+            watcher.document, watcher.pending = doc, {}
+            watcher.changed.set()
+
+    def _report(self, message: str) -> None:
+        if message != self.last_error:
+            log.warning("3D view feed (%s): %s", self.link.url, message)
+        self.last_error = message
+        self._push({"kind": "link", "state": "error", "message": message})
+
+    def _link_state(self, state: str) -> None:
+        self._push({"kind": "link", "state": state, "message": ""})
+
+    # ---- topics -----------------------------------------------------------------------------
+    def _on_urdf(self, msg: Mapping[str, Any]) -> None:
+        self.urdf = str(msg.get("data", ""))
+        self._push_document()
+
+    def _on_world(self, msg: Mapping[str, Any]) -> None:
+        self.visual_world = msg
+        self._push_document()
+
+    def _on_joints(self, msg: Mapping[str, Any]) -> None:
+        try:
+            update = joints_update(msg)
+        except SpatialDataError as exc:
+            self._report(str(exc))
+            return
+        self.joints = msg
+        self._push(update)
+
+    def _on_frames(self, msg: Mapping[str, Any]) -> None:
+        try:
+            update = objects_update(msg)
+        except SpatialDataError as exc:
+            self._report(str(exc))
+            return
+        self.frames, self.frame_poses = msg, update["poses"]
+        self._push(update)
+        if self.camera is None:
+            self.camera = choose_camera(self.frame_poses, self.preferred_camera)
+            if self.camera is not None:
+                self.rosbridge.subscribe(Subscription(self.link.name(f"camera/{self.camera}/image"), "sensor_msgs/msg/Image",
+                                                      self._on_image, throttle_ms=CAMERA_THROTTLE_MS))
+
+    def _on_image(self, msg: Mapping[str, Any]) -> None:
+        try:
+            self.camera_png = png_from_image(msg)
+        except CameraImageError as exc:
+            self._report(f"camera {self.camera}: {exc}")
+            return
+        self.camera_seq += 1
+        self._push({"kind": "camera", "url": self._camera_url()})
+
+    def _camera_url(self) -> str | None:
+        return f"{self.camera_url}?seq={self.camera_seq}" if self.camera_png is not None else None
+
+    def _on_status(self, msg: Mapping[str, Any]) -> None:
+        running = tuple(str(t) for t in msg.get("running_templates", []) or [])
+        self.active_template = str(msg.get("active_template", ""))
+        execute = str(msg.get("execute_status", ""))
+        plan_key = (str(msg.get("plan_id", "")), execute, self.active_template)
+        status_key = (running, *plan_key, str(msg.get("plan_status", "")))
+        if status_key != self.status_key:
+            self.status_key = status_key
+            self.refresh(plan=plan_key != self.plan_key)
+            self.plan_key = plan_key
+
+    # ---- services, asked on change ----------------------------------------------------------
+    def refresh(self, *, plan: bool = True) -> None:
+        """Ask the templates (and the plan) again; one request at a time, the last one wins."""
+        if self._refreshing is not None and not self._refreshing.done():
+            self._refresh_again = True
+            return
+        self._refreshing = asyncio.get_running_loop().create_task(self._refresh(plan))
+
+    async def _refresh_all(self) -> None:
+        self.refresh(plan=True)
+
+    async def _refresh(self, plan: bool) -> None:
+        while True:
+            self._refresh_again = False
+            try:
+                await self._ask_templates()
+                if plan:
+                    await self._ask_plan()
+            except (LinkError, SpatialDataError) as exc:
+                self._report(str(exc))
+            except Exception as exc:  # never a traceback to the browser; logged whole here
+                log.exception("3D view feed refresh failed")
+                self._report(f"{type(exc).__name__}: {exc}")
+            if not self._refresh_again:
+                return
+            plan = True
+
+    async def _ask_templates(self) -> None:
+        running = self.status_key[0] if self.status_key else ()
+        service = self.link.name("affordance_template_server/get_template_status")
+        statuses = [await self.rosbridge.call(service, {"name": key, "frame_id": "world"}) for key in running]
+        self.templates = templates_update([_status_entry(s, key) for s, key in zip(statuses, running, strict=True)],
+                                          frames=self.frames)
+        self._push(self.templates)
+
+    async def _ask_plan(self) -> None:
+        if not self.active_template:
+            self.plan = {"kind": "plan", "plan": None}
+        else:
+            answer = await self.rosbridge.call(self.link.name("affordance_template_server/get_plan"),
+                                               {"name": self.active_template, "trajectory_name": ""})
+            self.plan = plan_from_get_plan(answer, instance=self.active_template, frames=self.frame_poses)
+        self._push(self.plan)
+
+
+def _status_entry(answer: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    """The status of the instance's current trajectory from a get_template_status answer
+    (which lists one per trajectory)."""
+    if not answer.get("success"):
+        raise SpatialDataError(f"get_template_status {key}", str(answer.get("message") or "refused"))
+    statuses = [s for s in answer.get("affordance_template_status", []) or [] if isinstance(s, Mapping)]
+    current = str(answer.get("current_trajectory", ""))
+    chosen = next((s for s in statuses if s.get("trajectory_name") == current), statuses[0] if statuses else None)
+    if chosen is None:
+        raise SpatialDataError(f"get_template_status {key}", "the answer lists no status")
+    return chosen

@@ -1,0 +1,216 @@
+"""The 3D view's data from what the habitat publishes over rosbridge (not from its files).
+
+:mod:`console.spatial_scene` builds the contract from a scene file and a URDF on disk; the
+ground has neither, it has the habitat's latched ``sim/visual_world`` (every drawn object with
+its shapes and colours, the robot's root pose, joints, tool link) and ``robot_description``,
+and the AT server's ``get_plan``. This module turns those rosbridge JSON messages into the same
+contract (``spatial/README.md``), with the same checks and errors (:class:`SpatialDataError`
+naming the bad value's place). Templates and joint/object updates are spatial_scene's.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ElementTree
+from collections.abc import Mapping
+from typing import Any
+
+from console.spatial_scene import (
+    CONTRACT_VERSION,
+    DOCUMENT_FRAME,
+    SpatialDataError,
+    joints_update,
+    objects_update,
+)
+from console.spatial_scene import _duration, _list, _mapping, _names, _number, _numbers, _required, _ros_pose, _str
+
+__all__ = ["PLAN_SHOWN_STATES", "world_document", "plan_from_get_plan", "compose"]
+
+Json = dict[str, Any]
+
+PLAN_SHOWN_STATES = frozenset({"PLANNED"})
+"""A plan is drawn as the ghost only before it runs; once executing, executed, halted, failed or
+invalidated the ghost goes (the live arm shows what happens)."""
+
+_KINDS = {"filter/": "filter", "target/": "target", "cabinet/lamp": "lamp"}
+
+
+def _rgba(value: Any, where: str) -> list[float]:
+    rgba = _numbers(value, 4, where)
+    return rgba if any(rgba) else [0.6, 0.6, 0.6, 1.0]  # an unset colour (all zero) would be invisible
+
+
+def _shape(value: Any, where: str) -> Json:
+    s = _mapping(value, where)
+    kind = _str(_required(s, "type", where), f"{where}.type")
+    at = _ros_pose(s.get("pose", {}), f"{where}.pose")
+    rgba = _rgba(s.get("rgba", [0, 0, 0, 0]), f"{where}.rgba")
+    if kind == "box":
+        return {"type": "box", "size": _numbers(_required(s, "size", where), 3, f"{where}.size"), "rgba": rgba, "pose": at}
+    if kind == "cylinder":
+        return {"type": "cylinder", "radius": _number(_required(s, "radius", where), f"{where}.radius"),
+                "length": _number(_required(s, "length", where), f"{where}.length"), "rgba": rgba, "pose": at}
+    raise SpatialDataError(f"{where}.type", f"unknown shape {kind!r}; expected box or cylinder")
+
+
+def _objects(world: Mapping[str, Any]) -> list[Json]:
+    out: list[Json] = []
+    seen: set[str] = set()
+    for i, value in enumerate(_list(world.get("objects", []), "visual_world.objects")):
+        where = f"visual_world.objects[{i}]"
+        o = _mapping(value, where)
+        name = _str(_required(o, "name", where), f"{where}.name")
+        if name in seen:
+            raise SpatialDataError(f"{where}.name", f"two objects are named {name!r}")
+        seen.add(name)
+        kind = next((k for prefix, k in _KINDS.items() if name.startswith(prefix)), "body")
+        shapes = [_shape(s, f"{where}.shapes[{k}]") for k, s in enumerate(_list(o.get("shapes", []), f"{where}.shapes"))]
+        out.append({"name": name, "kind": kind, "pose": _ros_pose(o.get("pose", {}), f"{where}.pose"), "shapes": shapes})
+    return out
+
+
+def world_document(
+    visual_world: Mapping[str, Any],
+    urdf: str,
+    *,
+    frames: Mapping[str, Any] | None = None,
+    joints: Mapping[str, Any] | None = None,
+    camera_url: str | None = None,
+) -> Json:
+    """The view's scene document from ``sim/visual_world`` and ``robot_description`` JSON.
+
+    ``frames`` (``sim/frames``) and ``joints`` (``joint_states``) place what moves where it is
+    now. The shipped robots are primitives; a URDF naming mesh files gets no ``mesh_urls``
+    (the ground does not serve the habitat's files), so such meshes are left out, not fetched.
+    """
+    world = _mapping(visual_world, "visual_world")
+    if not isinstance(urdf, str) or "<robot" not in urdf:
+        raise SpatialDataError("robot_description.data", "expected the text of a URDF (no <robot> element found)")
+    arm_joints = _names(_required(world, "arm_joints", "visual_world"), "visual_world.arm_joints")
+    gripper_joints = _names(world.get("gripper_joints", []), "visual_world.gripper_joints")
+    objects = _objects(world)
+    document: Json = {
+        "contract": CONTRACT_VERSION,
+        "kind": "scene",
+        "frame": DOCUMENT_FRAME,
+        "name": _str(world.get("scene", ""), "visual_world.scene") or "scene",
+        "robot": {
+            "name": _str(_required(world, "robot_name", "visual_world"), "visual_world.robot_name"),
+            "urdf": urdf,
+            "mesh_urls": {},
+            "base_link": _urdf_root(urdf),
+            "tool_link": _str(_required(world, "tool_link", "visual_world"), "visual_world.tool_link"),
+            "base_pose": _ros_pose(_required(world, "robot_base", "visual_world"), "visual_world.robot_base"),
+            "arm_joints": arm_joints,
+            "end_effector_poses": {},
+        },
+        "joints": {"stamp": 0.0, "positions": {name: 0.0 for name in arm_joints + gripper_joints}},
+        "objects": objects,
+        "templates": [],
+        "plan": None,
+        "camera": {"url": camera_url},
+        "viewpoint": None,
+    }
+    if frames is not None:
+        moved = objects_update(frames)["poses"]
+        for obj in objects:
+            if obj["name"] in moved:
+                obj["pose"] = moved[obj["name"]]
+        if "robot_base" in moved:
+            document["robot"]["base_pose"] = moved["robot_base"]
+    if joints is not None:
+        document["joints"] = {k: v for k, v in joints_update(joints).items() if k != "kind"}
+    return document
+
+
+def _urdf_root(urdf: str) -> str:
+    """The URDF's root link: the one link that is no joint's child (what the base pose places)."""
+    try:
+        robot = ElementTree.fromstring(urdf)
+    except ElementTree.ParseError as exc:
+        raise SpatialDataError("robot_description.data", f"the URDF is not XML: {exc}") from None
+    links = [link.get("name", "") for link in robot.findall("link")]
+    children = {child.get("link", "") for child in robot.findall("joint/child")}
+    roots = [name for name in links if name not in children]
+    if len(roots) != 1:
+        raise SpatialDataError("robot_description.data", f"expected one root link, found {roots or 'none'}")
+    return roots[0]
+
+
+# ------------------------------------------------------------------------------------- plan
+
+
+def compose(a: Json, b: Json) -> Json:
+    """The pose ``b`` (given in the frame whose pose is ``a``) in ``a``'s frame."""
+    ax, ay, az, aw = a["quat"]
+    bx, by, bz, bw = b["quat"]
+    # rotate b's translation by a's quaternion: v' = v + 2w(q x v) + 2 q x (q x v)
+    vx, vy, vz = b["xyz"]
+    tx, ty, tz = 2 * (ay * vz - az * vy), 2 * (az * vx - ax * vz), 2 * (ax * vy - ay * vx)
+    rx = vx + aw * tx + (ay * tz - az * ty)
+    ry = vy + aw * ty + (az * tx - ax * tz)
+    rz = vz + aw * tz + (ax * ty - ay * tx)
+    return {
+        "xyz": [a["xyz"][0] + rx, a["xyz"][1] + ry, a["xyz"][2] + rz],
+        "quat": [aw * bx + ax * bw + ay * bz - az * by,
+                 aw * by - ax * bz + ay * bw + az * bx,
+                 aw * bz + ax * by - ay * bx + az * bw,
+                 aw * bw - ax * bx - ay * by - az * bz],
+    }
+
+
+def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapping[str, Json]) -> Json:
+    """A ``plan`` update from a ``get_plan`` answer: the ghost while the plan is PLANNED,
+    ``plan: null`` otherwise (executing, executed, halted, failed, invalidated, none).
+
+    ``frames``: named poses in the document frame (``sim/frames``); the end pose, given in the
+    robot's frame (``robot_base``), is placed in the document frame with them.
+    """
+    a = _mapping(answer, "get_plan")
+    if not a.get("success") or a.get("state") not in PLAN_SHOWN_STATES:
+        return {"kind": "plan", "plan": None}
+    traj = _mapping(_required(a, "trajectory", "get_plan"), "get_plan.trajectory")
+    names = _names(_required(traj, "joint_names", "get_plan.trajectory"), "get_plan.trajectory.joint_names")
+    points: list[Json] = []
+    for k, value in enumerate(_list(_required(traj, "points", "get_plan.trajectory"), "get_plan.trajectory.points")):
+        w = f"get_plan.trajectory.points[{k}]"
+        p = _mapping(value, w)
+        t = _duration(_required(p, "time_from_start", w), f"{w}.time_from_start")
+        if points and t < points[-1]["time_from_start"]:
+            raise SpatialDataError(f"{w}.time_from_start", f"time {t:.3f} s goes back (previous point at {points[-1]['time_from_start']:.3f} s)")
+        points.append({"positions": _numbers(_required(p, "positions", w), len(names), f"{w}.positions"), "time_from_start": t})
+    if not points:
+        raise SpatialDataError("get_plan.trajectory.points", "a PLANNED plan without points")
+    labels = _names(a.get("waypoint_names", []), "get_plan.waypoint_names")
+    indices = _list(a.get("waypoint_point_index", []), "get_plan.waypoint_point_index")
+    ee_poses = _list(a.get("end_effector_poses", []), "get_plan.end_effector_poses")
+    if len(indices) != len(labels):
+        raise SpatialDataError("get_plan.waypoint_point_index", f"{len(indices)} indices for {len(labels)} waypoints")
+    waypoints = []
+    for i, (label, index) in enumerate(zip(labels, indices, strict=True)):
+        point = int(_number(index, f"get_plan.waypoint_point_index[{i}]"))
+        if not 0 <= point < len(points):
+            raise SpatialDataError(f"get_plan.waypoint_point_index[{i}]", f"point {point} of a plan of {len(points)} points")
+        waypoints.append({"name": label, "point": point, "end_effector_pose": str(ee_poses[i]) if i < len(ee_poses) else ""})
+    end_pose = None
+    stamped = a.get("end_pose")
+    if isinstance(stamped, dict) and stamped.get("pose") is not None:
+        frame = _mapping(stamped.get("header", {}), "get_plan.end_pose.header").get("frame_id", "") or DOCUMENT_FRAME
+        local = _ros_pose(stamped["pose"], "get_plan.end_pose.pose")
+        if frame == DOCUMENT_FRAME:
+            end_pose = local
+        elif frame in frames:
+            end_pose = compose(frames[frame], local)
+        else:
+            raise SpatialDataError("get_plan.end_pose.header.frame_id", f"frame {frame!r} is not among sim/frames' names")
+    return {
+        "kind": "plan",
+        "plan": {
+            "instance": instance,
+            "trajectory": _str(a.get("trajectory_name", ""), "get_plan.trajectory_name"),
+            "joint_names": names,
+            "points": points,
+            "waypoints": waypoints,
+            "tool_link": _str(a.get("end_pose_link", ""), "get_plan.end_pose_link"),
+            "end_pose": end_pose,
+        },
+    }
