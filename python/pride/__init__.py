@@ -4,7 +4,8 @@ The procedure side (ground): it never imports rclpy nor habitat code (tests/foun
 
 Modules, by concept:
 
-- :mod:`pride.sysrep` — SysRep files: the commands and telemetry procedures may name.
+- :mod:`pride.sysrep` — SysRep files: the commands and telemetry procedures may name;
+  :mod:`pride.binding` — binding files: which plugins serve which SysRep, over which bridge.
 - :mod:`pride.xml_reader` — a procedure file from outside into an XML tree (no DTD, no entities).
 - :mod:`pride.model`, :mod:`pride.parser`, :mod:`pride.schema` — procedure XML
   (``procedures/schema/procedure.xsd``) into numbered steps and instructions.
@@ -20,4 +21,8 @@ Modules, by concept:
   :mod:`pride.audit_chain` its hash chain, :mod:`pride.audit_schema` and :mod:`pride.migrations`
   its tables and their Alembic migrations.
 - :mod:`pride.report` — after-action reports; :mod:`pride.terminal`, :mod:`pride.cli` — the CLI.
+- :mod:`pride.run_control` — a run's control of its robot; :mod:`pride.robot_control` its store
+  in the ground database.
+
+The ground console that serves all this in the browser is its own package, :mod:`console`.
 """
