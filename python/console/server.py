@@ -36,7 +36,7 @@ __all__ = ["main"]
 
 log = logging.getLogger(__name__)
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[2]
 
 
 class _Server(uvicorn.Server):
