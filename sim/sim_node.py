@@ -40,6 +40,7 @@ from sim.cameras import CameraImage, capture_file_name, render, write_png
 from sim.collision_world import collision_world
 from sim.robot_description import robot_description
 from sim.scene import SceneError, load_scene
+from sim.render_budget import RenderBudget
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
 from sim.visual_world import visual_world
@@ -90,6 +91,7 @@ class SimNode(Node):
             cancel_callback=self.cancel_callback, callback_group=group,
         )
         self.capture_srv = self.create_service(CaptureImage, "camera/capture", self.capture_callback, qos_profile=SERVICE_QOS, callback_group=group)
+        self.render_budget = RenderBudget()
         self.image_pubs = {name: self.create_publisher(Image, f"camera/{name}/image", 2) for name in sim.scene.cameras}
         if camera_period > 0:
             self.camera_timer = self.create_timer(camera_period, self.camera_timer_callback, callback_group=group)
@@ -331,12 +333,23 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ cameras
 
-    def _render(self, name: str) -> tuple[CameraImage, float]:
+    def _render(self, name: str, *, wait: bool) -> tuple[CameraImage, float] | None:
+        """An image of camera ``name`` and its sim time, when the render budget gives a turn
+        (``wait``: wait for it; else None when it is not due)."""
+        if not self.render_budget.take_turn(wait):
+            return None
         sim = self.sim
         spec = sim.scene.cameras[name]
-        with sim.world_lock:
-            link_pose = sim.link_pose(sim.world.link_index[spec.link]) if spec.link else None
-            return render(spec, sim.client, link_pose), sim.time
+        spent = 0.0
+        try:
+            with sim.world_lock:
+                started = time.monotonic()
+                link_pose = sim.link_pose(sim.world.link_index[spec.link]) if spec.link else None
+                image = render(spec, sim.client, link_pose), sim.time
+                spent = time.monotonic() - started
+            return image
+        finally:
+            self.render_budget.done(spent)
 
     def _image_msg(self, image: CameraImage, sim_time: float) -> Image:
         msg = Image()
@@ -349,14 +362,18 @@ class SimNode(Node):
     def camera_timer_callback(self) -> None:
         for name, pub in self.image_pubs.items():
             if pub.get_subscription_count() > 0:  # rendering costs CPU: only for someone watching
-                pub.publish(self._image_msg(*self._render(name)))
+                rendered = self._render(name, wait=False)
+                if rendered is not None:  # else not due (the render budget): this period has no image
+                    pub.publish(self._image_msg(*rendered))
 
     def capture_callback(self, request: CaptureImage.Request, response: CaptureImage.Response) -> CaptureImage.Response:
         cameras = self.sim.scene.cameras
         if request.camera not in cameras:
             response.success, response.message = False, f"unknown camera {request.camera!r}; cameras are {sorted(cameras)}"
             return response
-        image, sim_time = self._render(request.camera)
+        rendered = self._render(request.camera, wait=True)
+        assert rendered is not None  # waited for its turn
+        image, sim_time = rendered
         response.image = self._image_msg(image, sim_time)
         response.success = True
         if request.label:

@@ -16,7 +16,7 @@ from typing import Any
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[1]
-BUNDLE = REPO / "python" / "pride" / "web" / "static" / "spatial.js"
+BUNDLE = REPO / "python" / "console" / "static" / "spatial.js"
 PAGE = HERE / "spatial_test_page.html"
 
 
