@@ -1,14 +1,8 @@
 """The IVA procedure flown across the Gateway link, ground to habitat: the habitat lost mid-motion.
 
-Habitat: ``caretaker up`` (simulation, planner, AT server, command ledger, rosbridge on wss://
-with a secret). Link: 1.3 s each way (issue 15, "Done when"). Ground: ``caretaker run --auto``
-with a binding that states the link, so every command goes through the habitat's ledger.
-
-What the arm did is counted on the habitat (trajectory goals the simulation's controller carried
-out, and the ledger's own records), never from the ground's log; the ground's audit log must
-match it, command for command, with no false success. Each run flies the whole procedure and
-meets its faults at the pull-out of the dirty filter and later executions (one file per
-scenario, so parallel test workers fly them side by side).
+One scenario of the IVA procedure flown autonomously from the ground host to the habitat host
+(1.3 s each way); how a flight is set up, and how what the arm did is counted on the habitat,
+is flight_support.py's docstring. One file per scenario, so parallel workers fly them side by side.
 """
 
 from __future__ import annotations
