@@ -5,6 +5,10 @@ command ledger's memory in a folder the test reads) and :mod:`habitat_probe` (wh
 did). Link namespace: ``caretaker link``. Ground namespace: ``caretaker run`` of the IVA
 procedure, autonomous, with a ground binding that states the link (so every command goes
 through the ledger), and its audit log in a SQLite file the test reads.
+
+What the arm did is counted on the habitat (trajectory goals the simulation's controller carried
+out, and the ledger's own records), never from the ground's log; the ground's audit log must
+match it, command for command, with no false success (:func:`assert_flown_exactly_once`).
 """
 
 from __future__ import annotations
