@@ -38,6 +38,7 @@ from pathlib import Path
 from caretaker.deployment import Deployment, load_deployment
 from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
 from datafile import DataFileError
+from pride.terminal import TerminalLines
 
 __all__ = ["PARTS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
@@ -204,6 +205,7 @@ class Stack:
         self.ready_lines: dict[str, str] = {}
         self.restarts: dict[str, deque[float]] = {p.name: deque() for p in self.parts}
         self._exited = threading.Event()
+        self.terminal = TerminalLines()  # the parts' echoed lines come from their reader threads
 
     @property
     def bridge_url(self) -> str:
@@ -220,7 +222,7 @@ class Stack:
 
     def _print_line(self, name: str, line: str) -> None:
         if self.echo:
-            print(f"  [{name}] {line}", flush=True)
+            self.terminal.say(f"  [{name}] {line}")
 
     def start(self) -> None:
         """Start every part in order and wait until each serves.
@@ -282,13 +284,13 @@ class Stack:
                 if not self._may_restart(name):
                     return self.dead_parts()
                 code = self.processes[name].stop()
-                print(f"{name} died (exit {code}); restarting it", flush=True)
+                self.terminal.say(f"{name} died (exit {code}); restarting it")
                 try:
                     self.start_part(name)
                 except ProcessFailed as exc:
                     print(f"{name} did not come back: {exc}", file=sys.stderr, flush=True)
                     return self.dead_parts()
-                print(f"restarted {name}: {self.ready_lines[name]}", flush=True)
+                self.terminal.say(f"restarted {name}: {self.ready_lines[name]}")
         return []
 
     def wake(self) -> None:
@@ -361,6 +363,6 @@ def up_main(argv: list[str] | None = None) -> int:
         print(f"caretaker up: {exc}", file=sys.stderr)
         return 1
     for name, line in stack.ready_lines.items():
-        print(f"{name:10} {line}")
-    print(f"READY stack {deployment.name} {stack.url}", flush=True)
+        stack.terminal.say(f"{name:10} {line}")
+    stack.terminal.say(f"READY stack {deployment.name} {stack.url}")
     return _run_until_signal(stack)

@@ -25,7 +25,7 @@ from pride.lint import check_procedure, lint_file
 from pride.robot_control import RobotControl
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
-from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
+from pride.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 
 __all__ = ["db_main", "lint_main", "report_main", "run_main"]
 
@@ -173,7 +173,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         if missing:
             print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
             return 2
-        printer = ProgressPrinter(procedure)
+        terminal = TerminalLines()
+        printer = ProgressPrinter(procedure, terminal)
         try:
             if args.resume:
                 executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode,
@@ -196,9 +197,10 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
             executive.add_listener(printer)
             for number in args.breakpoints:
                 executive.set_breakpoint(args.user, number)
-        print(f"READY run {executive.run_id}", flush=True)
+        terminal.say(f"READY run {executive.run_id}")
         answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight)
-        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty())
+        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty(),
+                                 out=terminal)
         previous = signal.signal(signal.SIGINT, lambda _signum, _frame: console.interrupt())
         try:
             final = console.run()
@@ -207,10 +209,9 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         executive.join(30)
         if final.error:
             print(f"caretaker run: recording failed, run stopped: {final.error}", file=sys.stderr)
-        print(
+        terminal.say(
             f"RESULT {final.status.value} run {executive.run_id} (report: caretaker report {executive.run_id}"
-            f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})",
-            flush=True,
+            f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})"
         )
         return 0 if final.status is RunStatus.COMPLETED else 1
     finally:

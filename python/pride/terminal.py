@@ -19,17 +19,37 @@ from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorAc
 from pride.model import Procedure, RecordInstruction
 from pride.phrasing import started_text
 
-__all__ = ["OperatorConsole", "ProgressPrinter", "Unattended"]
+__all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 
 _MARKS = {"succeeded": "ok", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
+
+
+class TerminalLines:
+    """Whole lines to one stream from several threads.
+
+    The executive's listener, the operator console and the runner's READY line print from
+    different threads, and ``print`` writes the text and its newline in two calls: without one
+    lock, a READY line could end in the next step's header, and a reader waiting for
+    ``READY run <id>`` would take the header for part of the run id.
+    """
+
+    def __init__(self, stream: TextIO = sys.stdout) -> None:
+        self.stream = stream
+        self._lock = threading.Lock()
+
+    def say(self, text: str) -> None:
+        """Write ``text`` and a newline as one unit, and flush (a reader waits on whole lines)."""
+        with self._lock:
+            self.stream.write(text + "\n")
+            self.stream.flush()
 
 
 class ProgressPrinter:
     """Prints one line per meaningful event, with a header when a new step begins."""
 
-    def __init__(self, procedure: Procedure, stream: TextIO = sys.stdout) -> None:
+    def __init__(self, procedure: Procedure, out: TerminalLines) -> None:
         self.procedure = procedure
-        self.stream = stream
+        self.out = out
         self._step: str | None = None
 
     def __call__(self, event: Event) -> None:
@@ -118,14 +138,14 @@ class ProgressPrinter:
                 f": {data['reason']}" if data.get("reason") else ""
             )
         if line is not None:
-            print(line, file=self.stream, flush=True)
+            self.out.say(line)
 
     def _header(self, number: str) -> None:
         top = number.split(".")[0]
         if top != self._step and top.isdigit():
             self._step = top
             step = self.procedure.steps[int(top) - 1]
-            print(f"Step {step.number}  {step.title}", file=self.stream, flush=True)
+            self.out.say(f"Step {step.number}  {step.title}")
 
 
 def _why(data: dict[str, Any]) -> str:
@@ -156,14 +176,14 @@ class OperatorConsole:
         answers: Unattended,
         *,
         interactive: bool,
-        stream: TextIO = sys.stdout,
+        out: TerminalLines,
         read: Callable[[str], str] = input,
     ) -> None:
         self.executive = executive
         self.user = user
         self.answers = answers
         self.interactive = interactive
-        self.stream = stream
+        self.out = out
         self._read = read
         self._answering: Snapshot | None = None
         self._interrupts = 0
@@ -210,7 +230,7 @@ class OperatorConsole:
         threading.Thread(target=act, name="terminal-interrupt", daemon=True).start()
 
     def _say(self, text: str) -> None:
-        print(text, file=self.stream, flush=True)
+        self.out.say(text)
 
     def _unattended_stop(self, snap: Snapshot, option: str) -> None:
         self._say(f"  {snap.reason}\n  nobody at the terminal to answer: {option}")

@@ -15,7 +15,7 @@ from pride.executive import Hold, Mode, RunStatus
 from pride.model import Template
 from pride.phrasing import describe_event, fill_text, started_text
 from pride.report import summarize, to_html, to_markdown
-from pride.terminal import ProgressPrinter
+from pride.terminal import ProgressPrinter, TerminalLines
 from support.executive_runs import finished, held
 
 FILTER = "CDRA-F-0012"
@@ -24,7 +24,7 @@ FILTER = "CDRA-F-0012"
 def test_the_report_and_the_terminal_show_a_started_sentence_with_the_values_known_then(bench) -> None:
     executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_filled_text.xml", run_id="filled")
     terminal = io.StringIO()
-    executive.add_listener(ProgressPrinter(executive.procedure, terminal))
+    executive.add_listener(ProgressPrinter(executive.procedure, TerminalLines(terminal)))
     executive.start("alice")
     held(executive, Hold.OPERATOR_INPUT, "1.1")
     executive.enter("alice", FILTER)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import io
 import itertools
+import os
+import threading
 
 import pytest
 
@@ -11,7 +13,7 @@ from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.lint import check_procedure
-from pride.terminal import OperatorConsole, ProgressPrinter, Unattended
+from pride.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
@@ -27,7 +29,8 @@ def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJourna
 def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(sysreps, tmp_path) -> None:
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     out = io.StringIO()
-    executive.add_listener(ProgressPrinter(executive.procedure, out))
+    terminal = TerminalLines(out)
+    executive.add_listener(ProgressPrinter(executive.procedure, terminal))
     prompts: list[str] = []
     # Enter = perform; the record gets "dock" (after a refused value); y confirms the hazard
     answers = itertools.chain(["", "garage", "dock", "", "", "y"], itertools.repeat(""))
@@ -37,7 +40,7 @@ def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(sysreps,
         return next(answers)
 
     executive.start("pat")
-    final = OperatorConsole(executive, "pat", Unattended(), interactive=True, stream=out, read=read).run()
+    final = OperatorConsole(executive, "pat", Unattended(), interactive=True, out=terminal, read=read).run()
     assert final.status is RunStatus.COMPLETED, out.getvalue()
     assert any("Where should the arm go? (string) >" in p for p in prompts)
     assert any("hazardous; confirm, then send" in p and "[y] confirm and send" in p for p in prompts)
@@ -56,7 +59,7 @@ def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sys
         raise AssertionError(f"prompted without a terminal: {prompt}")
 
     final = OperatorConsole(executive, "quinn", Unattended({"target": "dock"}, confirm_manual=True), interactive=False,
-                            stream=out, read=no_terminal).run()
+                            out=TerminalLines(out), read=no_terminal).run()
     assert final.status is RunStatus.STOPPED
     assert "pass --confirm-hazardous to confirm hazardous commands" in out.getvalue()
     assert [c for _, c, _ in gateway.sent] == ["move"]
@@ -69,7 +72,35 @@ def test_operator_can_stop_from_the_prompt_saying_why(sysreps, tmp_path, reason,
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     executive.start("rita")
     answers = iter(["q", reason])
-    final = OperatorConsole(executive, "rita", Unattended(), interactive=True, stream=io.StringIO(),
+    final = OperatorConsole(executive, "rita", Unattended(), interactive=True, out=TerminalLines(io.StringIO()),
                             read=lambda prompt: next(answers)).run()
     assert final.status is RunStatus.STOPPED
     assert (journal.events[-1].actor, journal.events[-1].data["reason"]) == ("rita", recorded)
+
+
+class _YieldingStream(io.StringIO):
+    """A stream that gives the CPU away inside every write, as a loaded machine does."""
+
+    def write(self, text: str) -> int:
+        written = super().write(text)
+        os.sched_yield()
+        return written
+
+
+def test_lines_from_several_threads_stay_whole() -> None:
+    # The runner's READY line and the printer's step header come from two threads; a reader
+    # that waits for "READY run <id>" must never get the header glued to the id.
+    stream = _YieldingStream()
+    terminal = TerminalLines(stream)
+    said = {f"thread {t} line {n}" for t in range(4) for n in range(200)}
+
+    def say_all(thread: int) -> None:
+        for n in range(200):
+            terminal.say(f"thread {thread} line {n}")
+
+    threads = [threading.Thread(target=say_all, args=(t,)) for t in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert sorted(stream.getvalue().splitlines()) == sorted(said)
