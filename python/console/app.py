@@ -32,18 +32,18 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from pride.model import Procedure
-from pride.parser import load_procedure
-from pride.phrasing import describe_event
-from pride.events import Event
 from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
 from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
+from console.folded_run import fold_events
 from console.procedure_view import procedure_json
 from console.run_board import RunBoard
-from console.folded_run import fold_events
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
+from pride.events import Event
+from pride.model import Procedure
+from pride.parser import load_procedure
+from pride.phrasing import describe_event
 
 __all__ = ["build_app"]
 
@@ -66,7 +66,10 @@ def _same_origin(connection: HTTPConnection) -> bool:
     origin = connection.headers.get("origin")
     if origin is None:
         return True  # not a browser's cross-site request (browsers send Origin on POST and WebSocket)
-    return urlsplit(origin).netloc == connection.headers.get("host", "")
+    try:
+        return urlsplit(origin).netloc == connection.headers.get("host", "")
+    except ValueError:  # a header no browser sends ("http://[x"): not this server
+        return False
 
 
 def _session(request: Request) -> WebSession:
@@ -117,8 +120,13 @@ async def index(request: Request) -> Response:
 
 def _session_json(session: WebSession) -> dict[str, Any]:
     account = session.account
-    return {"user": account.user, "name": account.name, "role": account.role.value, "may_act": account.may_act,
-            "csrf": session.csrf}
+    return {
+        "user": account.user,
+        "name": account.name,
+        "role": account.role.value,
+        "may_act": account.may_act,
+        "csrf": session.csrf,
+    }
 
 
 @_api
@@ -142,8 +150,14 @@ async def session_post(request: Request) -> Response:
         log.warning("sign-in refused for %r from %s: %s", body["user"][:64], address, exc.message)
         raise
     response = JSONResponse(_session_json(session))
-    response.set_cookie(COOKIE, session.token, max_age=int(sign_ins.limits.absolute), httponly=True, samesite="strict",
-                        secure=request.app.state.secure)
+    response.set_cookie(
+        COOKIE,
+        session.token,
+        max_age=int(sign_ins.limits.absolute),
+        httponly=True,
+        samesite="strict",
+        secure=request.app.state.secure,
+    )
     log.info("%s signed in as %s from %s", session.account.user, session.account.role.value, address)
     return response
 
@@ -162,10 +176,13 @@ async def session_delete(request: Request) -> Response:
 async def catalog(request: Request) -> Response:
     _account(request)
     board: RunBoard = request.app.state.board
-    return JSONResponse({
-        "procedures": board.catalog.procedure_files(), "bindings": board.catalog.binding_files(),
-        "modes": ["manual", "autonomous"],
-    })
+    return JSONResponse(
+        {
+            "procedures": board.catalog.procedure_files(),
+            "bindings": board.catalog.binding_files(),
+            "modes": ["manual", "autonomous"],
+        }
+    )
 
 
 @_api
@@ -183,16 +200,21 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
     body = await _json_body(request)
     if not isinstance(body, dict):
         raise ActionRefused(400, f"expected a JSON object with {fields}")
-    return account, {"procedure": str(body.get("procedure", "")), "binding": str(body.get("binding", "")),
-                     "mode": str(body.get("mode", "manual")), "take_over": str(body.get("take_over") or "")}
+    return account, {
+        "procedure": str(body.get("procedure", "")),
+        "binding": str(body.get("binding", "")),
+        "mode": str(body.get("mode", "manual")),
+        "take_over": str(body.get("take_over") or ""),
+    }
 
 
 @_api
 async def runs_start(request: Request) -> Response:
     account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
     board: RunBoard = request.app.state.board
-    live = await run_in_threadpool(board.start, account.user, body["procedure"], body["binding"], body["mode"],
-                                   take_over=body["take_over"] or None)
+    live = await run_in_threadpool(
+        board.start, account.user, body["procedure"], body["binding"], body["mode"], take_over=body["take_over"] or None
+    )
     return JSONResponse({"run_id": live.run_id}, status_code=201)
 
 
@@ -215,8 +237,11 @@ def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
     run = board.view(run_id)
     if run is not None:
         return {
-            "procedure": run.procedure_view, "state": run.state_json(), "server_time": time.time(),
-            "events": [_event_json(e) for e in run.events_since(0)], "telemetry": run.telemetry_json(),
+            "procedure": run.procedure_view,
+            "state": run.state_json(),
+            "server_time": time.time(),
+            "events": [_event_json(e) for e in run.events_since(0)],
+            "telemetry": run.telemetry_json(),
         }
     events = board.past_events(run_id)
     procedure = _past_procedure(events)
@@ -227,8 +252,10 @@ def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
         state["host_lost"] = {"host": record.host, "since": record.lease_until.isoformat()}
     return {
         "procedure": procedure_json(procedure, sysreps=sysreps) if procedure else None,
-        "state": state, "server_time": time.time(),
-        "events": [_event_json(e) for e in events], "telemetry": {"readings": [], "checks": {}},
+        "state": state,
+        "server_time": time.time(),
+        "events": [_event_json(e) for e in events],
+        "telemetry": {"readings": [], "checks": {}},
     }
 
 
@@ -254,7 +281,9 @@ async def run_resume(request: Request) -> Response:
     """Continue a stopped or interrupted run (what ``caretaker run --resume`` does) on a binding."""
     account, body = await _operator_request(request, "resume runs", "binding and mode")
     board: RunBoard = request.app.state.board
-    live = await run_in_threadpool(board.resume, account.user, request.path_params["run_id"], body["binding"], body["mode"])
+    live = await run_in_threadpool(
+        board.resume, account.user, request.path_params["run_id"], body["binding"], body["mode"]
+    )
     return JSONResponse({"run_id": live.run_id})
 
 
@@ -334,10 +363,15 @@ async def run_socket(websocket: WebSocket) -> None:
             events = run.events_since(watcher.sent_seq)
             if events:
                 watcher.sent_seq = events[-1].seq
-            await websocket.send_json({
-                "type": "update", "state": state, "events": [_event_json(e) for e in events], "telemetry": telemetry,
-                "server_time": time.time(),
-            })
+            await websocket.send_json(
+                {
+                    "type": "update",
+                    "state": state,
+                    "events": [_event_json(e) for e in events],
+                    "telemetry": telemetry,
+                    "server_time": time.time(),
+                }
+            )
     except (WebSocketDisconnect, RuntimeError):
         pass  # the browser left (RuntimeError: send after the client closed)
     finally:
@@ -444,8 +478,15 @@ async def author_save(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     body = await _json_body(request)
     document = _document(body)
-    saved = await run_in_threadpool(lambda: save_document(document, str(body.get("name", "")), board.catalog.procedures,
-                                                          board.sysreps(), replace=body.get("replace") is True))
+    saved = await run_in_threadpool(
+        lambda: save_document(
+            document,
+            str(body.get("name", "")),
+            board.catalog.procedures,
+            board.sysreps(),
+            replace=body.get("replace") is True,
+        )
+    )
     log.info("%s saved procedure %s", account.user, saved["saved"])
     return JSONResponse(saved)
 

@@ -24,8 +24,15 @@ from urllib.parse import urlparse
 from datafile import DataFileError, Field, load_file
 from pride.sysrep import load_sysrep
 
-__all__ = ["BUILT_IN_PLUGINS", "BindingError", "BindingLink", "BindingSecurity", "BoundSystem", "Binding",
-           "read_binding"]
+__all__ = [
+    "BUILT_IN_PLUGINS",
+    "BindingError",
+    "BindingLink",
+    "BindingSecurity",
+    "BoundSystem",
+    "Binding",
+    "read_binding",
+]
 
 #: The plugins the Java loader knows by name (caretaker.binding.PluginKind); others are class names.
 BUILT_IN_PLUGINS = ("at_commands", "at_telemetry", "ros_convention")
@@ -85,12 +92,12 @@ class Binding:
 
 def _rosbridge(f: Field) -> str:
     url = f.text()
-    parsed = urlparse(url)
-    try:
-        port = parsed.port
+    try:  # urlparse itself refuses some hosts ("ws://[]:1"), .port a port out of range
+        parsed = urlparse(url)
+        scheme, host, port = parsed.scheme, parsed.hostname, parsed.port
     except ValueError:
-        port = None
-    if parsed.scheme not in ("ws", "wss") or not parsed.hostname or port is None:
+        scheme, host, port = "", None, None
+    if scheme not in ("ws", "wss") or not host or port is None:
         raise f.fail(f"{url!r} is not a rosbridge URL like ws://127.0.0.1:9090")
     return url
 
@@ -169,8 +176,9 @@ def read_binding(path: str | Path) -> Binding:
         if not bridge:
             raise entry.fail("no rosbridge URL (set rosbridge at the top or here)")
         if any(s.sysrep == sysrep.id for s in systems):
-            raise entry["sysrep"].fail(f"SysRep {sysrep.id!r} is bound twice; bind each SysRep once "
-                                       "(list several plugins instead)")
+            raise entry["sysrep"].fail(
+                f"SysRep {sysrep.id!r} is bound twice; bind each SysRep once (list several plugins instead)"
+            )
         systems.append(BoundSystem(sysrep.id, namespace, bridge))
     link = _link(root.get("link"))
     ledger_namespace = ""
@@ -178,5 +186,11 @@ def read_binding(path: str | Path) -> Binding:
         ledger_namespace = root["ledger_namespace"].text()
         if not NAMESPACE.fullmatch(ledger_namespace):
             raise root["ledger_namespace"].fail(f"must be a ROS namespace like /iva, got {ledger_namespace!r}")
-    return Binding(path, robot, tuple(systems), link, _security(root.get("security")),
-                          "" if ledger_namespace == "/" else ledger_namespace)
+    return Binding(
+        path,
+        robot,
+        tuple(systems),
+        link,
+        _security(root.get("security")),
+        "" if ledger_namespace == "/" else ledger_namespace,
+    )

@@ -22,8 +22,8 @@ import pytest
 import websockets
 from websockets.sync.client import connect
 
-from console.accounts import AccountStore, Role
 from caretaker.demo import DEMO_USER, demo_operator
+from console.accounts import AccountStore, Role
 from console.run_board import CameraSettings
 from console.server import main
 from support.processes import caretaker
@@ -46,17 +46,24 @@ class Client:
 
     def call(self, method: str, path: str, body: dict | None = None, headers: dict[str, str] | None = None) -> Reply:
         data = json.dumps(body).encode() if body is not None else None
-        request = urllib.request.Request(self.url + path, data=data, method=method,
-                                         headers={"Content-Type": "application/json", **(headers or {})})
+        request = urllib.request.Request(
+            self.url + path, data=data, method=method, headers={"Content-Type": "application/json", **(headers or {})}
+        )
         try:
             with self.opener.open(request, timeout=30) as response:
                 return response.status, json.loads(response.read()), dict(response.headers)
         except urllib.error.HTTPError as error:
             text = error.read()
-            return error.code, json.loads(text) if text.startswith(b"{") else {"error": text.decode()}, dict(error.headers)
+            return (
+                error.code,
+                json.loads(text) if text.startswith(b"{") else {"error": text.decode()},
+                dict(error.headers),
+            )
 
     def sign_in(self, user: str, password: str | None = None) -> Reply:
-        reply = self.call("POST", "/api/session", {"user": user, "password": PEOPLE[user][2] if password is None else password})
+        reply = self.call(
+            "POST", "/api/session", {"user": user, "password": PEOPLE[user][2] if password is None else password}
+        )
         if reply[0] == 200:
             self.csrf = reply[1]["csrf"]
         return reply
@@ -67,8 +74,13 @@ class Client:
 
 def accounts(db: str, *args: str, password: str | None = None) -> subprocess.CompletedProcess[str]:
     """``caretaker accounts --db DB ARGS``, the password (if any) on stdin as a script gives it."""
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", "accounts", "--db", db, *args], input=password,
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "accounts", "--db", db, *args],
+        input=password,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_accounts_are_managed_with_passwords_from_stdin_never_arguments(tmp_path: Path) -> None:
@@ -138,8 +150,13 @@ def test_state_changing_requests_need_the_sessions_csrf_token_and_this_sites_ori
     assert status == 403 and "X-CSRF-Token" in body["error"]
     status, body, _ = client.call("POST", "/api/runs/no-such-run/actions", action, {"X-CSRF-Token": "guessed"})
     assert status == 403 and "X-CSRF-Token" in body["error"]
-    status, body, _ = client.call("POST", "/api/runs/no-such-run/actions", action,
-                                  {"X-CSRF-Token": client.csrf, "Origin": "http://evil.example"})
+    status, body, _ = client.call(
+        "POST", "/api/runs/no-such-run/actions", action, {"X-CSRF-Token": client.csrf, "Origin": "http://evil.example"}
+    )
+    assert status == 403 and "another site" in body["error"]
+    status, body, _ = client.call(  # an Origin no browser sends is refused the same way, not a server error
+        "POST", "/api/runs/no-such-run/actions", action, {"X-CSRF-Token": client.csrf, "Origin": "http://[evil"}
+    )
     assert status == 403 and "another site" in body["error"]
     status, body, _ = client.act("/api/runs/no-such-run/actions", action)
     assert status == 404 and "not live on any console" in body["error"]  # past the checks: no such run
@@ -189,7 +206,9 @@ def test_an_observer_may_read_procedures_but_not_save_them(server) -> None:
         assert status in (400, 404), body
 
 
-def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     assert main(["--address", "0.0.0.0", "--port", "0", "--db", f"sqlite:///{tmp_path / 'a.db'}"]) == 2
     assert "give --certfile and --keyfile (TLS), or --insecure" in capsys.readouterr().err
     assert main(["--certfile", str(tmp_path / "missing.pem"), "--port", "0"]) == 2
@@ -202,12 +221,19 @@ def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(capsys: pytest.
 
 def test_rosbridge_urls_and_cameras_are_given_per_binding_and_checked(capsys: pytest.CaptureFixture[str]) -> None:
     for option, said in (
-        (["--rosbridge", "iva.yaml=http://127.0.0.1:9090"], "--rosbridge iva.yaml=http://127.0.0.1:9090: expected "
-                                                            "[BINDING=]ws://HOST:PORT or wss://HOST:PORT"),
-        (["--rosbridge", "ws://a:1", "--rosbridge", "ws://b:2"], "--rosbridge ws://b:2: every binding was given one already"),
+        (
+            ["--rosbridge", "iva.yaml=http://127.0.0.1:9090"],
+            "--rosbridge iva.yaml=http://127.0.0.1:9090: expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT",
+        ),
+        (
+            ["--rosbridge", "ws://a:1", "--rosbridge", "ws://b:2"],
+            "--rosbridge ws://b:2: every binding was given one already",
+        ),
         (["--camera", "eva.yaml=ee camera"], "--camera eva.yaml=ee camera: expected [BINDING=]NAME"),
-        (["--camera", "iva.yaml=scene", "--camera", "iva.yaml=ee_camera"],
-         "--camera iva.yaml=ee_camera: binding iva.yaml was given one already"),
+        (
+            ["--camera", "iva.yaml=scene", "--camera", "iva.yaml=ee_camera"],
+            "--camera iva.yaml=ee_camera: binding iva.yaml was given one already",
+        ),
     ):
         assert main([*option, "--port", "0"]) == 2, option
         assert said in capsys.readouterr().err
@@ -221,16 +247,50 @@ def test_a_binding_without_its_own_camera_has_the_one_given_for_every_binding() 
 
 def test_with_a_certificate_the_view_is_served_over_tls_with_secure_cookies(tmp_path: Path) -> None:
     cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
-                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
-                   check=True, capture_output=True, timeout=60)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            "/CN=127.0.0.1",
+            "-addext",
+            "subjectAltName=IP:127.0.0.1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+        timeout=60,
+    )
     db = tmp_path / "ground.db"
     store = AccountStore(f"sqlite:///{db}")
     store.add("alice", "operator", PEOPLE["alice"][2])
     store.close()
-    served = caretaker("serve", "--port", "0", "--db", f"sqlite:///{db}", "--certfile", str(cert), "--keyfile", str(key),
-                       "--procedures", str(REPO / "procedures"), "--reports", str(tmp_path / "reports"), env=dict(os.environ),
-                       name="serve-tls")
+    served = caretaker(
+        "serve",
+        "--port",
+        "0",
+        "--db",
+        f"sqlite:///{db}",
+        "--certfile",
+        str(cert),
+        "--keyfile",
+        str(key),
+        "--procedures",
+        str(REPO / "procedures"),
+        "--reports",
+        str(tmp_path / "reports"),
+        env=dict(os.environ),
+        name="serve-tls",
+    )
     try:
         url = served.wait_ready(90).split()[-1]
         assert url.startswith("https://127.0.0.1:")
