@@ -32,7 +32,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, replace
-from datetime import datetime, timedelta, UTC
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -45,23 +45,43 @@ from pride.audit_schema import audit_records  # noqa: E402
 from pride.events import PAX, Event, EventKind  # noqa: E402
 from support.postgres import OWNER, RUNNER, postgres_server  # noqa: E402
 
-_DATA = {"system": "ur10", "command": "execute_plan", "hazardous": False,
-         "args": {"affordance_template": "cdra_filter:0", "trajectory": "grasp_and_pull", "steps": 12, "speed": 0.25}}
+_DATA = {
+    "system": "ur10",
+    "command": "execute_plan",
+    "hazardous": False,
+    "args": {"affordance_template": "cdra_filter:0", "trajectory": "grasp_and_pull", "steps": 12, "speed": 0.25},
+}
 
 
 def _event(run_id: str, seq: int) -> Event:
-    return Event(run_id, seq, EventKind.RUN_STARTED if seq == 1 else EventKind.COMMAND_SENT, PAX,
-                 None if seq == 1 else f"{seq // 40 + 1}.{seq % 40 + 1}", {"procedure": "bench"} if seq == 1 else _DATA)
+    return Event(
+        run_id,
+        seq,
+        EventKind.RUN_STARTED if seq == 1 else EventKind.COMMAND_SENT,
+        PAX,
+        None if seq == 1 else f"{seq // 40 + 1}.{seq % 40 + 1}",
+        {"procedure": "bench"} if seq == 1 else _DATA,
+    )
 
 
-_BARE_INSERT = "INSERT INTO bare_records (run_id, seq, time, actor, kind, instruction, data) VALUES ({0},{0},{0},{0},{0},{0},{0})"
+_BARE_INSERT = (
+    "INSERT INTO bare_records (run_id, seq, time, actor, kind, instruction, data) VALUES ({0},{0},{0},{0},{0},{0},{0})"
+)
 
 
 def _bare_commit(url: str) -> Callable[[Event], None]:
     """One INSERT + COMMIT through the driver itself, same durability as the audit log."""
+
     def values(event: Event) -> tuple[Any, ...]:
-        return (event.run_id, event.seq, event.time.isoformat(), event.actor, event.kind.value, event.instruction,
-                json.dumps(event.data, sort_keys=True))
+        return (
+            event.run_id,
+            event.seq,
+            event.time.isoformat(),
+            event.actor,
+            event.kind.value,
+            event.instruction,
+            json.dumps(event.data, sort_keys=True),
+        )
 
     if url.startswith("sqlite"):
         lite = sqlite3.connect(url.removeprefix("sqlite:///"), isolation_level=None, timeout=10)
@@ -72,6 +92,7 @@ def _bare_commit(url: str) -> Callable[[Event], None]:
             lite.execute("BEGIN")
             lite.execute(_BARE_INSERT.format("?"), values(event))
             lite.execute("COMMIT")
+
         return commit_sqlite
 
     import psycopg
@@ -80,13 +101,16 @@ def _bare_commit(url: str) -> Callable[[Event], None]:
 
     def commit_postgresql(event: Event) -> None:  # autocommit: one round trip, as the audit log does
         server.execute(_BARE_INSERT.format("%s"), values(event))
+
     return commit_postgresql
 
 
 _PATHS = ("audit", "peer", "paced")
 
 
-def _writer(url: str, run_id: str, events: int, paced: tuple[int, float, float], barrier: Any) -> dict[str, list[float]]:
+def _writer(
+    url: str, run_id: str, events: int, paced: tuple[int, float, float], barrier: Any
+) -> dict[str, list[float]]:
     """One runner: its own connection, its own run; per-append seconds for each path in :data:`_PATHS`.
 
     ``audit`` and ``peer`` append back to back (throughput); ``paced`` appends ``paced[0]`` events
@@ -96,8 +120,11 @@ def _writer(url: str, run_id: str, events: int, paced: tuple[int, float, float],
     log = AuditLog(url)
     bare = _bare_commit(url)
     times: dict[str, list[float]] = {path: [] for path in _PATHS}
-    for path, append, count, interval in (("audit", log.append, events, 0.0), ("peer", bare, events, 0.0),
-                                          ("paced", log.append, paced[0], 1 / paced[1])):
+    for path, append, count, interval in (
+        ("audit", log.append, events, 0.0),
+        ("peer", bare, events, 0.0),
+        ("paced", log.append, paced[0], 1 / paced[1]),
+    ):
         barrier.wait()  # every writer starts each phase together
         began_phase = time.perf_counter() + (paced[2] if interval else 0.0)
         for seq in range(1, count + 1):
@@ -116,8 +143,10 @@ def _writers(url: str, writers: int, events: int, paced: tuple[int, float]) -> d
     context = multiprocessing.get_context("spawn")
     with context.Manager() as manager, context.Pool(writers) as pool:
         barrier = manager.Barrier(writers + 1)
-        pending = [pool.apply_async(_writer, (url, f"bench-{writers}-{n}", events, (*paced, n / writers / paced[1]), barrier))
-                   for n in range(writers)]
+        pending = [
+            pool.apply_async(_writer, (url, f"bench-{writers}-{n}", events, (*paced, n / writers / paced[1]), barrier))
+            for n in range(writers)
+        ]
         marks = []
         for _ in range(len(_PATHS) + 1):  # each phase's start, and the end
             barrier.wait(timeout=3600)
@@ -126,9 +155,13 @@ def _writers(url: str, writers: int, events: int, paced: tuple[int, float]) -> d
     out: dict[str, Any] = {}
     for n, path in enumerate(_PATHS):
         times = sorted(t for r in results for t in r[path])
-        out[path] = {"p50": statistics.median(times) * 1e3, "p95": times[int(len(times) * 0.95)] * 1e3,
-                     "p99": times[int(len(times) * 0.99)] * 1e3, "max": times[-1] * 1e3,
-                     "rate": len(times) / (marks[n + 1] - marks[n])}
+        out[path] = {
+            "p50": statistics.median(times) * 1e3,
+            "p95": times[int(len(times) * 0.95)] * 1e3,
+            "p99": times[int(len(times) * 0.99)] * 1e3,
+            "max": times[-1] * 1e3,
+            "rate": len(times) / (marks[n + 1] - marks[n]),
+        }
     return out
 
 
@@ -137,8 +170,10 @@ def _prepare_bare(url: str) -> None:
     log.close()
     if url.startswith("sqlite"):
         with sqlite3.connect(url.removeprefix("sqlite:///")) as connection:
-            connection.execute("CREATE TABLE bare_records (run_id TEXT, seq INTEGER, time TEXT, actor TEXT, kind TEXT, "
-                               "instruction TEXT, data TEXT, UNIQUE (run_id, seq))")
+            connection.execute(
+                "CREATE TABLE bare_records (run_id TEXT, seq INTEGER, time TEXT, actor TEXT, kind TEXT, "
+                "instruction TEXT, data TEXT, UNIQUE (run_id, seq))"
+            )
 
 
 def _long_run(url: str, count: int) -> str:
@@ -148,22 +183,40 @@ def _long_run(url: str, count: int) -> str:
     run_id = f"report-{count}"
     started = datetime.now(UTC)
     steps = [{"number": n, "id": f"s{n}", "title": f"Step {n}"} for n in range(1, 11)]
-    kinds = [EventKind.INSTRUCTION_STARTED, EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT,
-             EventKind.TELEMETRY_SEEN, EventKind.INSTRUCTION_COMPLETED]
+    kinds = [
+        EventKind.INSTRUCTION_STARTED,
+        EventKind.COMMAND_SENT,
+        EventKind.COMMAND_RESULT,
+        EventKind.TELEMETRY_SEEN,
+        EventKind.INSTRUCTION_COMPLETED,
+    ]
     engine = create_engine(database_url(url))
     prev, batch = GENESIS, []
     with engine.begin() as connection:
         for seq in range(1, count + 1):
             kind = EventKind.RUN_STARTED if seq == 1 else kinds[seq % len(kinds)]
             instruction = None if seq == 1 else f"{(seq * 10) // count + 1 if seq < count else 10}.{seq % 7 + 1}"
-            data = ({"procedure": "bench", "title": "Bench", "version": "1", "mode": "autonomous", "steps": steps}
-                    if seq == 1 else
-                    {**_DATA} if kind is EventKind.COMMAND_SENT else
-                    {"success": True, "message": "done", "values": {"arrived": True}} if kind is EventKind.COMMAND_RESULT else
-                    {"system": "ur10", "item": "joint_1", "value": 0.5, "condition": "< 1", "ok": True}
-                    if kind is EventKind.TELEMETRY_SEEN else {"next": instruction})
-            row = StoredEvent(run_id, seq, started + timedelta(milliseconds=seq), PAX, kind.value, instruction,
-                              json.dumps(data, sort_keys=True), prev)
+            data = (
+                {"procedure": "bench", "title": "Bench", "version": "1", "mode": "autonomous", "steps": steps}
+                if seq == 1
+                else {**_DATA}
+                if kind is EventKind.COMMAND_SENT
+                else {"success": True, "message": "done", "values": {"arrived": True}}
+                if kind is EventKind.COMMAND_RESULT
+                else {"system": "ur10", "item": "joint_1", "value": 0.5, "condition": "< 1", "ok": True}
+                if kind is EventKind.TELEMETRY_SEEN
+                else {"next": instruction}
+            )
+            row = StoredEvent(
+                run_id,
+                seq,
+                started + timedelta(milliseconds=seq),
+                PAX,
+                kind.value,
+                instruction,
+                json.dumps(data, sort_keys=True),
+                prev,
+            )
             row = replace(row, hash=row.expected_hash())
             prev = row.hash
             batch.append(asdict(row))
@@ -189,8 +242,12 @@ def _report_time(url: str, count: int) -> dict[str, float]:
     log.close()
     with tempfile.TemporaryDirectory() as out:
         began = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", url, "--out", out],
-                              capture_output=True, text=True, timeout=3600)
+        done = subprocess.run(
+            [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", url, "--out", out],
+            capture_output=True,
+            text=True,
+            timeout=3600,
+        )
         report = time.perf_counter() - began
         assert done.returncode == 0, done.stderr
     return {"read": read, "verify": verify, "report": report}
@@ -202,8 +259,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--paced-events", type=int, default=300, help="events each writer appends paced")
     parser.add_argument("--paced-rate", type=float, default=20.0, help="events per second per paced writer")
     parser.add_argument("--report-events", type=int, default=100_000, help="events of the reported run")
-    parser.add_argument("--database", choices=("sqlite", "postgresql"), action="append",
-                        help="only these databases (repeatable; default both)")
+    parser.add_argument(
+        "--database",
+        choices=("sqlite", "postgresql"),
+        action="append",
+        help="only these databases (repeatable; default both)",
+    )
     args = parser.parse_args(argv)
     kinds = args.database or ["sqlite", "postgresql"]
     print(f"load average before: {os.getloadavg()[0]:.1f}")
@@ -216,17 +277,23 @@ def main(argv: list[str] | None = None) -> int:
                 else:
                     name = server.new_database()
                     AuditLog(server.url(name, OWNER)).close()
-                    server.sql("CREATE TABLE bare_records (run_id TEXT, seq INTEGER, time TEXT, actor TEXT, kind TEXT, "
-                               f"instruction TEXT, data TEXT, UNIQUE (run_id, seq)); GRANT SELECT, INSERT ON bare_records TO {RUNNER}",
-                               database=name, role=OWNER)
+                    server.sql(
+                        "CREATE TABLE bare_records (run_id TEXT, seq INTEGER, time TEXT, actor TEXT, kind TEXT, "
+                        f"instruction TEXT, data TEXT, UNIQUE (run_id, seq)); GRANT SELECT, INSERT ON bare_records TO {RUNNER}",
+                        database=name,
+                        role=OWNER,
+                    )
                     url = server.url(name, RUNNER)
                 result = _writers(url, writers, args.events, (args.paced_events, args.paced_rate))
                 a, p, c = result["audit"], result["peer"], result["paced"]
-                print(f"{kind:10} {writers} run(s) | back to back: audit log {a['rate']:5.0f} appends/s, p50 {a['p50']:.2f} "
-                      f"p95 {a['p95']:.2f} p99 {a['p99']:.2f} max {a['max']:.1f} ms; bare commit {p['rate']:5.0f}/s, "
-                      f"p50 {p['p50']:.2f} p95 {p['p95']:.2f} ms; p95 ratio {a['p95'] / p['p95']:.1f} | "
-                      f"paced {args.paced_rate:g}/s per run: p50 {c['p50']:.2f} p95 {c['p95']:.2f} p99 {c['p99']:.2f} "
-                      f"max {c['max']:.1f} ms", flush=True)
+                print(
+                    f"{kind:10} {writers} run(s) | back to back: audit log {a['rate']:5.0f} appends/s, p50 {a['p50']:.2f} "
+                    f"p95 {a['p95']:.2f} p99 {a['p99']:.2f} max {a['max']:.1f} ms; bare commit {p['rate']:5.0f}/s, "
+                    f"p50 {p['p50']:.2f} p95 {p['p95']:.2f} ms; p95 ratio {a['p95'] / p['p95']:.1f} | "
+                    f"paced {args.paced_rate:g}/s per run: p50 {c['p50']:.2f} p95 {c['p95']:.2f} p99 {c['p99']:.2f} "
+                    f"max {c['max']:.1f} ms",
+                    flush=True,
+                )
         for kind in kinds:
             if kind == "sqlite":
                 url = f"sqlite:///{tmp}/report.db"
@@ -236,8 +303,11 @@ def main(argv: list[str] | None = None) -> int:
                 AuditLog(server.url(name, OWNER)).close()
                 url = server.url(name, RUNNER)
             times = _report_time(url, args.report_events)
-            print(f"{kind:10} report of {args.report_events} events: read {times['read']:.2f} s, verify "
-                  f"{times['verify']:.2f} s, caretaker report (new process) {times['report']:.2f} s", flush=True)
+            print(
+                f"{kind:10} report of {args.report_events} events: read {times['read']:.2f} s, verify "
+                f"{times['verify']:.2f} s, caretaker report (new process) {times['report']:.2f} s",
+                flush=True,
+            )
     print(f"load average after: {os.getloadavg()[0]:.1f}")
     return 0
 

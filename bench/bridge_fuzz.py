@@ -39,8 +39,16 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
 from caretaker.processes import ManagedProcess, caretaker, python  # noqa: E402
-from rosbridge.hostile import (HOSTILE_LIMITS, BridgeLog, Watch, await_answers, hostile_frame,  # noqa: E402
-                               hostile_message, parses, serve_raw_frames)
+from rosbridge.hostile import (  # noqa: E402
+    HOSTILE_LIMITS,
+    BridgeLog,
+    Watch,
+    await_answers,
+    hostile_frame,
+    hostile_message,
+    parses,
+    serve_raw_frames,
+)
 from rosbridge.rosbridge_support import PING, FrameSocket, RawClient, bridge_url, frame, text  # noqa: E402
 from support.ros_domain import claim_ros_domain  # noqa: E402
 
@@ -100,7 +108,7 @@ def raw_frames(rng: random.Random, address: tuple[str, int], tally: Tally, count
         tally.add(connections=1, tracked=1)
         try:
             served = serve_raw_frames(address, frames)
-        except (ConnectionError, socket.timeout):
+        except (TimeoutError, ConnectionError):
             served = False
         # a connection refused as a frame called for answers for its request with its close code
         tally.add(answered=int(served), unexpected_closes=int(not served))
@@ -115,11 +123,23 @@ def fragments(rng: random.Random, address: tuple[str, int], tally: Tally, count:
     try:
         while sent < count:
             for _ in range(rng.randint(1, 8)):
-                client.send({"op": "fragment", "id": rng.choice(["a", "b", 7, "c" * 200]),
-                             "num": rng.choice([-1, 0, 1, 2, 5, 2**31, 2**70]),
-                             "total": rng.choice([-1, 0, 1, 2, 3, 6, 2**31, 2**70]),
-                             "data": rng.choice(["{", "}", '{"op":"fragment"}', "x" * rng.randint(1, 400_000),
-                                                 '{"op":"call_service","service":"/rosapi/get_time"}'])})
+                client.send(
+                    {
+                        "op": "fragment",
+                        "id": rng.choice(["a", "b", 7, "c" * 200]),
+                        "num": rng.choice([-1, 0, 1, 2, 5, 2**31, 2**70]),
+                        "total": rng.choice([-1, 0, 1, 2, 3, 6, 2**31, 2**70]),
+                        "data": rng.choice(
+                            [
+                                "{",
+                                "}",
+                                '{"op":"fragment"}',
+                                "x" * rng.randint(1, 400_000),
+                                '{"op":"call_service","service":"/rosapi/get_time"}',
+                            ]
+                        ),
+                    }
+                )
                 sent += 1
             request_id = f"f{sent}"
             client.send({"op": "call_service", "service": "/rosapi/get_ros_version", "id": request_id})
@@ -146,7 +166,7 @@ def abuse(rng: random.Random, address: tuple[str, int], tally: Tally, count: int
             try:
                 if kind == "drop mid-frame":
                     call = text({"op": "call_service", "service": "/rosapi/topics"})
-                    client.sock.sendall(call[:rng.randint(1, len(call) - 1)])
+                    client.sock.sendall(call[: rng.randint(1, len(call) - 1)])
                 elif kind == "no reader":
                     call = text({"op": "call_service", "service": "/rosapi/services", "fragment_size": 1024})
                     client.sock.sendall(call * rng.randint(100, 2000))
@@ -154,9 +174,17 @@ def abuse(rng: random.Random, address: tuple[str, int], tally: Tally, count: int
                     client.sock.sendall(frame(PING, b"p" * 125) * rng.randint(1000, 20_000))
                 else:
                     for number in range(30):
-                        client.sock.sendall(text({"op": "subscribe", "topic": f"/fuzz/sub_{number}",
-                                                  "type": "std_msgs/String", "fragment_size": 1024}))
-            except socket.timeout:
+                        client.sock.sendall(
+                            text(
+                                {
+                                    "op": "subscribe",
+                                    "topic": f"/fuzz/sub_{number}",
+                                    "type": "std_msgs/String",
+                                    "fragment_size": 1024,
+                                }
+                            )
+                        )
+            except TimeoutError:
                 pass  # the bridge stopped reading this client (backpressure)
             finally:
                 client.close()
@@ -202,9 +230,14 @@ def main() -> int:
         tally = Tally()
         started = time.monotonic()
         with Watch(bridge.proc.pid, address) as watch:
-            threads = [threading.Thread(target=attacker, args=(args.seed * 1000 + n, address, tally,
-                                                               args.inputs // args.clients), daemon=True)
-                       for n in range(args.clients)]
+            threads = [
+                threading.Thread(
+                    target=attacker,
+                    args=(args.seed * 1000 + n, address, tally, args.inputs // args.clients),
+                    daemon=True,
+                )
+                for n in range(args.clients)
+            ]
             for thread in threads:
                 thread.start()
             for thread in threads:
@@ -214,15 +247,23 @@ def main() -> int:
         crashed = not bridge.running
         lines, tracebacks = log.snapshot()
         share = 100.0 * tally.answered / tally.tracked if tally.tracked else 100.0
-        print(f"inputs {tally.inputs:,} on {tally.connections:,} connections in {duration:.0f} s "
-              f"(seed {args.seed}, {args.clients} clients)")
+        print(
+            f"inputs {tally.inputs:,} on {tally.connections:,} connections in {duration:.0f} s "
+            f"(seed {args.seed}, {args.clients} clients)"
+        )
         print(f"crashes {int(crashed)}, tracebacks {tracebacks}, log lines {lines:,}")
-        print(f"requests that must be answered: {tally.answered:,} of {tally.tracked:,} ({share:.2f} %); "
-              f"connections closed without a protocol reason: {tally.unexpected_closes}")
-        print(f"RSS {watch.rss_start / MiB:.0f} MiB at start, peak {watch.rss_peak / MiB:.0f} MiB, "
-              f"{rss_end / MiB:.0f} MiB at the end")
-        print(f"worst event-loop stall (a well-formed call every 20 ms, {watch.calls:,} calls): {watch.worst:.3f} s; "
-              f"unanswered {watch.unanswered}")
+        print(
+            f"requests that must be answered: {tally.answered:,} of {tally.tracked:,} ({share:.2f} %); "
+            f"connections closed without a protocol reason: {tally.unexpected_closes}"
+        )
+        print(
+            f"RSS {watch.rss_start / MiB:.0f} MiB at start, peak {watch.rss_peak / MiB:.0f} MiB, "
+            f"{rss_end / MiB:.0f} MiB at the end"
+        )
+        print(
+            f"worst event-loop stall (a well-formed call every 20 ms, {watch.calls:,} calls): {watch.worst:.3f} s; "
+            f"unanswered {watch.unanswered}"
+        )
         if log.first_traceback:
             print("the first traceback logged:\n" + "\n".join(log.first_traceback))
         ok = not crashed and tracebacks == 0 and share == 100.0 and watch.unanswered == 0

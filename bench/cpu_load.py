@@ -70,7 +70,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.hogs < 0:
         parser.error(f"--hogs must be >= 0, got {args.hogs}")
     with cpu_hogs(args.hogs) as pids:
-        print(f"cpu_load: {len(pids)} hogs (pids {', '.join(map(str, pids))}) beside: {' '.join(command)}", file=sys.stderr, flush=True)
+        print(
+            f"cpu_load: {len(pids)} hogs (pids {', '.join(map(str, pids))}) beside: {' '.join(command)}",
+            file=sys.stderr,
+            flush=True,
+        )
         try:
             return subprocess.call(command)
         except FileNotFoundError:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from bench.cpu_load import cpu_hogs  # noqa: E402 - run as a script, from the checkout
+from bench.cpu_load import cpu_hogs
 
 REPO = Path(__file__).resolve().parents[1]
 CARETAKER = REPO / ".venv" / "bin" / "caretaker"
@@ -43,8 +43,19 @@ def demo(deployment: str, hogs: int, time_scale: str, workdir: Path) -> Run:
     """One ``caretaker demo`` (its audit log and report in ``workdir``) beside ``hogs`` hogs."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env.setdefault("ROS_DOMAIN_ID", str(50 + os.getpid() % 40))
-    command = [str(CARETAKER), "demo", deployment, "--time-scale", time_scale, "--bridge-port", "0",
-               "--db", f"sqlite:///{workdir / 'audit.db'}", "--reports", str(workdir / "reports")]
+    command = [
+        str(CARETAKER),
+        "demo",
+        deployment,
+        "--time-scale",
+        time_scale,
+        "--bridge-port",
+        "0",
+        "--db",
+        f"sqlite:///{workdir / 'audit.db'}",
+        "--reports",
+        str(workdir / "reports"),
+    ]
     with cpu_hogs(hogs):
         started = time.monotonic()
         done = subprocess.run(command, env=env, cwd=workdir, capture_output=True, text=True, timeout=1800)
@@ -69,8 +80,11 @@ def main(argv: list[str] | None = None) -> int:
                     workdir.mkdir()
                     run = demo(deployment, hogs, args.time_scale, workdir)
                     runs.append(run)
-                    print(f"{deployment} run {i + 1} with {hogs} hogs: {'passed' if run.passed else 'FAILED'} "
-                          f"in {run.seconds:.1f} s", flush=True)
+                    print(
+                        f"{deployment} run {i + 1} with {hogs} hogs: {'passed' if run.passed else 'FAILED'} "
+                        f"in {run.seconds:.1f} s",
+                        flush=True,
+                    )
                     if not run.passed:
                         print(run.tail, flush=True)
     print("\n| deployment | hogs | passed | median s | min–max s | median ÷ without hogs |\n|---|---|---|---|---|---|")
@@ -79,8 +93,10 @@ def main(argv: list[str] | None = None) -> int:
         for hogs in (0, args.hogs):
             mine = [r for r in runs if r.deployment == deployment and r.hogs == hogs]
             times = [r.seconds for r in mine]
-            print(f"| {deployment} | {hogs} | {sum(r.passed for r in mine)}/{len(mine)} | {statistics.median(times):.1f} "
-                  f"| {min(times):.1f}–{max(times):.1f} | {statistics.median(times) / quiet:.2f} |")
+            print(
+                f"| {deployment} | {hogs} | {sum(r.passed for r in mine)}/{len(mine)} | {statistics.median(times):.1f} "
+                f"| {min(times):.1f}–{max(times):.1f} | {statistics.median(times) / quiet:.2f} |"
+            )
     return 0 if all(r.passed for r in runs) else 1
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from bench.cpu_load import cpu_hogs  # noqa: E402 - run as a script, from the checkout
+from bench.cpu_load import cpu_hogs
 
 REPO = Path(__file__).resolve().parents[1]
 TEST = "tests/web/test_halt_on_real_stack.py"
@@ -43,8 +43,13 @@ def main(argv: list[str] | None = None) -> int:
         if len(wall) == args.tries:
             break
         with cpu_hogs(args.hogs):
-            done = subprocess.run([str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q"], cwd=REPO, capture_output=True,
-                                  text=True, timeout=900)
+            done = subprocess.run(
+                [str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q"],
+                cwd=REPO,
+                capture_output=True,
+                text=True,
+                timeout=900,
+            )
         found = FIGURE.search(done.stdout)
         if done.returncode == 0 and STILL in done.stdout:
             still += 1
@@ -55,13 +60,17 @@ def main(argv: list[str] | None = None) -> int:
             print(f"try {attempt}: the test failed\n{done.stdout[-3000:]}", flush=True)
             continue
         wall.append(float(found.group(1)))
-        print(f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)",
-              flush=True)
+        print(
+            f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)",
+            flush=True,
+        )
     if wall:
         within = sum(w <= TARGET_S for w in wall)
-        print(f"\n{args.hogs} hogs, {len(wall)} tries measured: median {statistics.median(wall):.3f} s, "
-              f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed, "
-              f"{still} without a figure (the arm still at the click)")
+        print(
+            f"\n{args.hogs} hogs, {len(wall)} tries measured: median {statistics.median(wall):.3f} s, "
+            f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed, "
+            f"{still} without a figure (the arm still at the click)"
+        )
     return 1 if failed else 0
 
 

@@ -96,8 +96,9 @@ def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding:
     return path
 
 
-def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_throttle: float | None = None
-        ) -> dict[str, Any]:
+def fly(
+    case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_throttle: float | None = None
+) -> dict[str, Any]:
     """One run of the procedure across ``case``'s link; its figures."""
     from caretaker.certs import make_link_credentials
     from caretaker.link import LinkControl
@@ -116,9 +117,23 @@ def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_t
             url = up.wait_for_line(r"^READY stack ", 300).split()[-1]
             db = f"sqlite:///{folder / 'audit.db'}"
             started = time.monotonic()
-            run = caretaker("run", str(PROCEDURE), "--binding", str(binding), "--rosbridge", url, "--auto",
-                            "--user", "bench", "--db", db, "--confirm-manual", "--set=clean_filter_id=CDRA-F-0012",
-                            env=env, name="run")
+            run = caretaker(
+                "run",
+                str(PROCEDURE),
+                "--binding",
+                str(binding),
+                "--rosbridge",
+                url,
+                "--auto",
+                "--user",
+                "bench",
+                "--db",
+                db,
+                "--confirm-manual",
+                "--set=clean_filter_id=CDRA-F-0012",
+                env=env,
+                name="run",
+            )
             words = run.wait_for_line(r"^RESULT ", 1800).split()
             wall = time.monotonic() - started
             if words[1] != "completed":
@@ -142,10 +157,20 @@ def fly(case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_t
     motion = sum(seconds for service, seconds in records if service.endswith("/execute_command"))
     run_s = (last - first).total_seconds()
     bound = habitat + answers * 2 * case.delay
-    return {"case": case.name, "wall": wall, "run": run_s, "habitat": habitat, "motion": motion, "N": answers,
-            "verifies": sum(e.kind is EventKind.TELEMETRY_SEEN for e in events), "bound": bound,
-            "ratio": run_s / bound, "up": stats.up_bytes, "down": stats.down_bytes,
-            "stalls": stats.up_stalls + stats.down_stalls}
+    return {
+        "case": case.name,
+        "wall": wall,
+        "run": run_s,
+        "habitat": habitat,
+        "motion": motion,
+        "N": answers,
+        "verifies": sum(e.kind is EventKind.TELEMETRY_SEEN for e in events),
+        "bound": bound,
+        "ratio": run_s / bound,
+        "up": stats.up_bytes,
+        "down": stats.down_bytes,
+        "stalls": stats.up_stalls + stats.down_stalls,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -153,7 +178,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
     parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
     parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
-    parser.add_argument("--status-throttle", type=float, help="at_telemetry's status_throttle (s; default the plugin's)")
+    parser.add_argument(
+        "--status-throttle", type=float, help="at_telemetry's status_throttle (s; default the plugin's)"
+    )
     args = parser.parse_args(argv)
     unknown = [name for name in args.cases.split(",") if name not in CASES]
     if unknown:
@@ -165,9 +192,12 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name in args.cases.split(","):
         r = fly(CASES[name], time_scale=args.time_scale, seed=args.seed, env=env, status_throttle=args.status_throttle)
-        print(f"| {r['case']} | {r['run']:.1f} s | {r['wall']:.1f} s | {r['habitat']:.1f} s ({r['motion']:.1f} s) "
-              f"| {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× | {r['up'] / 1024:.1f} KiB "
-              f"| {r['down'] / 1024:.1f} KiB | {r['stalls']} |", flush=True)
+        print(
+            f"| {r['case']} | {r['run']:.1f} s | {r['wall']:.1f} s | {r['habitat']:.1f} s ({r['motion']:.1f} s) "
+            f"| {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× | {r['up'] / 1024:.1f} KiB "
+            f"| {r['down'] / 1024:.1f} KiB | {r['stalls']} |",
+            flush=True,
+        )
     return 0
 
 

@@ -24,6 +24,10 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # imported where it runs: --serve and the direct rclpy client only
+    from std_srvs.srv import Trigger
 
 REPO = Path(__file__).resolve().parents[1]
 NAMESPACE = "/bench_cdra"
@@ -41,7 +45,7 @@ class TriggerServer:
         for command in ("unlock_filter", "lock_filter"):
             self.node.create_service(Trigger, f"{NAMESPACE}/{command}", self.trigger_callback)
 
-    def trigger_callback(self, request, response):  # noqa: ANN001 - std_srvs/Trigger
+    def trigger_callback(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         self.count += 1
         response.success = True
         response.message = f"call {self.count}"
@@ -115,8 +119,10 @@ def main(argv: list[str] | None = None) -> int:
 
         with tempfile.TemporaryDirectory() as tmp:
             binding = Path(tmp) / "bench.yaml"
-            binding.write_text(f"robot: bench\nrosbridge: {url}\nsystems:\n- sysrep: {REPO / 'sysrep/cdra.yaml'}\n"
-                               f"  plugins: [ros_convention]\n  namespace: {NAMESPACE}\n")
+            binding.write_text(
+                f"robot: bench\nrosbridge: {url}\nsystems:\n- sysrep: {REPO / 'sysrep/cdra.yaml'}\n"
+                f"  plugins: [ros_convention]\n  namespace: {NAMESPACE}\n"
+            )
             host = PaxHost(binding)
 
         rclpy.init()
@@ -165,10 +171,14 @@ def main(argv: list[str] | None = None) -> int:
         for name, s in stats.items():
             print(f"{name:<16}{s['p50']:>9.3f}{s['p95']:>9.3f}{s['mean']:>9.3f}")
         chain_s, direct_s, raw_s = stats["PAX chain"], stats["direct rclpy"], stats["rosbridge JSON"]
-        print(f"chain overhead vs rclpy at p50: {chain_s['p50'] - direct_s['p50']:.3f} ms "
-              f"(ratio {chain_s['p50'] / direct_s['p50']:.2f}x); at p95: {chain_s['p95'] - direct_s['p95']:.3f} ms")
-        print(f"of which JPype + Java plugin at p50: {chain_s['p50'] - raw_s['p50']:.3f} ms, "
-              f"rosbridge hop: {raw_s['p50'] - direct_s['p50']:.3f} ms")
+        print(
+            f"chain overhead vs rclpy at p50: {chain_s['p50'] - direct_s['p50']:.3f} ms "
+            f"(ratio {chain_s['p50'] / direct_s['p50']:.2f}x); at p95: {chain_s['p95'] - direct_s['p95']:.3f} ms"
+        )
+        print(
+            f"of which JPype + Java plugin at p50: {chain_s['p50'] - raw_s['p50']:.3f} ms, "
+            f"rosbridge hop: {raw_s['p50'] - direct_s['p50']:.3f} ms"
+        )
     finally:
         resources.close()
         if host is not None:

@@ -27,15 +27,16 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as p
 
+from at_ros.collision_scene import build_planning_scene
 from at_ros.ik import IkFailure, IkSolver
 from at_ros.instance import Registration, TemplateInstance
 from at_ros.library import default_library_path, load_library
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
 from at_ros.robot_config import load_robot_configs
-from at_ros.collision_scene import build_planning_scene
 from at_ros.transforms import from_xyz_quat, from_xyz_rpy, invert
 from sim.collision_world import collision_world
 from sim.scene import filter_grasp_offset, load_scene
+
 
 @dataclass
 class Sample:
@@ -84,10 +85,17 @@ def _samples(slots: list[str], count: int, rng: np.random.Generator) -> tuple[li
     planning = build_planning_scene(config, collision_world(scene_spec))
     slot_pose = {name: from_xyz_quat(s.pose.xyz, s.pose.quaternion) for name, s in scene_spec.slots.items()}
     homes = {name: planning.obstacle_pose(name) for name in ("rack", "cabinet")}
+
     def deepest(fixture: str) -> float:
         """Deepest penetration (m, <= 0) of the fixture into the walls, floor, table or other fixture."""
         others = ("module", "table", "rack" if fixture == "cabinet" else "cabinet")
-        points = [c[8] for o in others for c in p.getClosestPoints(planning.obstacles[fixture], planning.obstacles[o], 0.0, physicsClientId=planning.client)]
+        points = [
+            c[8]
+            for o in others
+            for c in p.getClosestPoints(
+                planning.obstacles[fixture], planning.obstacles[o], 0.0, physicsClientId=planning.client
+            )
+        ]
         return min(points, default=0.0)
 
     # The scene file mounts fixtures touching walls (the cabinet's back plate sits in the wall):
@@ -122,7 +130,9 @@ def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
     slot_pose = {name: from_xyz_quat(s.pose.xyz, s.pose.quaternion) for name, s in scene_spec.slots.items()}
     occupant = {f.slot: f"filter/{f.id}" for f in scene_spec.filters}
     spare = f"filter/{scene_spec.filters[0].id}"
-    grasp = from_xyz_quat(filter_grasp_offset(scene_spec.filter_model).xyz, filter_grasp_offset(scene_spec.filter_model).quaternion)
+    grasp = from_xyz_quat(
+        filter_grasp_offset(scene_spec.filter_model).xyz, filter_grasp_offset(scene_spec.filter_model).quaternion
+    )
     fixtures = {name: planning.obstacle_pose(name) for name in ("rack", "cabinet")}
     filters_home = {name: planning.obstacle_pose(name) for name in planning.graspable}
     outcomes: list[Outcome] = []
@@ -149,15 +159,27 @@ def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
                 planning.set_obstacle_pose(held, planning.tool_pose() @ invert(grasp))
                 holding = held
             trajectory = instance.trajectory(trajectory_name)
-            goals = [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose, gripper_action=w.gripper_action,
-                          object_name=w.object_name, object_pose=w.object_pose) for w in instance.resolve(trajectory, ee)]
+            goals = [
+                Goal(
+                    w.label,
+                    w.tool_goal,
+                    w.waypoint.planner_type,
+                    w.end_effector_pose,
+                    gripper_action=w.gripper_action,
+                    object_name=w.object_name,
+                    object_pose=w.object_pose,
+                )
+                for w in instance.resolve(trajectory, ee)
+            ]
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 planner.plan(start, goals, held_object=holding)
                 outcomes.append(Outcome(trajectory_name, True, time.perf_counter() - t0, time.process_time() - c0))
             except WaypointPlanningError as exc:
                 elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
-                outcomes.append(Outcome(trajectory_name, False, elapsed, cpu, str(exc), reachable=_reachable(reach, goals, holding)))
+                outcomes.append(
+                    Outcome(trajectory_name, False, elapsed, cpu, str(exc), reachable=_reachable(reach, goals, holding))
+                )
         planning.set_obstacle_pose(fixture, fixtures[fixture])
         for name, pose in filters_home.items():
             planning.set_obstacle_pose(name, pose)
@@ -167,7 +189,9 @@ def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
 
 def report(label: str, outcomes: list[Outcome]) -> None:
     print(f"\n{label}")
-    print(f"{'trajectory':<20} {'plans':>6} {'success':>8} {'reachable':>10} {'ok/reachable':>13} {'median ms':>10} {'p95 ms':>8} {'cpu median':>11} {'cpu p95':>8}")
+    print(
+        f"{'trajectory':<20} {'plans':>6} {'success':>8} {'reachable':>10} {'ok/reachable':>13} {'median ms':>10} {'p95 ms':>8} {'cpu median':>11} {'cpu p95':>8}"
+    )
     for name in ("grasp_and_pull", "insert_and_release"):
         rows = [o for o in outcomes if o.trajectory == name]
         reachable = [o for o in rows if o.reachable]
@@ -178,23 +202,35 @@ def report(label: str, outcomes: list[Outcome]) -> None:
             f"{name:<20} {len(rows):>6} {len(ok) / len(rows):>8.1%} {len(reachable):>10} {len(ok) / max(1, len(reachable)):>13.1%} "
             f"{statistics.median(wall):>10.1f} {_percentile(wall, 95):>8.1f} {statistics.median(cpu):>11.1f} {_percentile(cpu, 95):>8.1f}"
         )
-    failures = Counter(("" if o.reachable else "[unreachable] ") + o.reason.split(": ", 1)[-1][:100] for o in outcomes if not o.success)
+    failures = Counter(
+        ("" if o.reachable else "[unreachable] ") + o.reason.split(": ", 1)[-1][:100] for o in outcomes if not o.success
+    )
     for reason, n in failures.most_common(8):
         print(f"  failed x{n}: {reason}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--samples", type=int, default=200, help="randomized filter poses (each planned for both trajectories)")
+    parser.add_argument(
+        "--samples", type=int, default=200, help="randomized filter poses (each planned for both trajectories)"
+    )
     parser.add_argument("--seed", type=int, default=11)
     parser.add_argument("--no-peer", action="store_true", help="skip the run without the straight-line shortcut")
     args = parser.parse_args()
     slots = ["rack/slot_1", "rack/slot_2", "rack/slot_3", "cabinet/slot"]
     samples, rejected = _samples(slots, args.samples, np.random.default_rng(args.seed))
-    print(f"{args.samples} filter poses (+-5 cm, +-10 deg per axis about {', '.join(slots)}; {rejected} draws that pushed a fixture into a wall/table redrawn), UR10 from its start pose")
-    report("at_ros planner (IK, straight-line shortcut, else OMPL RRTConnect + greedy shortcutting)", run(samples, shortcut=True))
+    print(
+        f"{args.samples} filter poses (+-5 cm, +-10 deg per axis about {', '.join(slots)}; {rejected} draws that pushed a fixture into a wall/table redrawn), UR10 from its start pose"
+    )
+    report(
+        "at_ros planner (IK, straight-line shortcut, else OMPL RRTConnect + greedy shortcutting)",
+        run(samples, shortcut=True),
+    )
     if not args.no_peer:
-        report("ablation: same planner, every JOINT waypoint through OMPL RRTConnect (no straight-line shortcut)", run(samples, shortcut=False))
+        report(
+            "ablation: same planner, every JOINT waypoint through OMPL RRTConnect (no straight-line shortcut)",
+            run(samples, shortcut=False),
+        )
 
 
 if __name__ == "__main__":

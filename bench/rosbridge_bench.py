@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import contextlib
 import json
 import os
 import re
@@ -53,6 +54,7 @@ SERVERS = ["caretaker", "rust"]
 
 # --- the ROS echo node (runs as its own process: ``--echo-node``) --------------------------------
 
+
 def echo_node() -> int:
 
     import rclpy
@@ -78,8 +80,11 @@ def echo_node() -> int:
                 self.create_service(SetBool, f"/bench/{name}/echo_srv", self.service_callback, qos_profile=deep)
                 self.fanouts[name] = self.create_publisher(String, f"/bench/{name}/fanout", deep)
                 self.bursts[name] = [0, 0]  # next sequence, remaining
-                self.create_service(Trigger, f"/bench/{name}/start_fanout",
-                                    lambda request, response, name=name: self.start_callback(name, response))
+                self.create_service(
+                    Trigger,
+                    f"/bench/{name}/start_fanout",
+                    lambda request, response, name=name: self.start_callback(name, response),
+                )
             self.timer = self.create_timer(1.0 / FANOUT_HZ, self.fanout_callback)
 
         def service_callback(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
@@ -120,6 +125,7 @@ def echo_node() -> int:
 
 # --- starting servers ----------------------------------------------------------------------------
 
+
 def free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -155,8 +161,13 @@ def start_caretaker(env: dict[str, str], baseline: Path | None = None) -> tuple[
     if baseline is not None:
         env = dict(env, PYTHONPATH=str(baseline / "python"))  # found before this checkout's editable install
         argv = [sys.executable, "-m", "bridge.rosbridge.server"]
-    process = subprocess.Popen([*argv, "--port", "0", "--log-level", "WARNING"],
-                               env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    process = subprocess.Popen(
+        [*argv, "--port", "0", "--log-level", "WARNING"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     line = wait_for_line(process, r"^READY bridge", 60)
     return process, int(line.strip().rsplit(":", 1)[1])
 
@@ -165,6 +176,7 @@ def start_rust(env: dict[str, str], workdir: Path, dds_profile: bool = False) ->
     """The Rust peer as the notes' recipe runs it; with ``dds_profile``, under the Fast DDS
     profile ``caretaker bridge`` loads for itself, to tell its DDS settings from the servers."""
     import rosbridge_server_rs
+
     from bridge.rosbridge.server import DDS_PROFILE, DDS_PROFILE_ENV
 
     binary = Path(rosbridge_server_rs.__file__).with_name("rosbridge_server_rs_jazzy")
@@ -172,15 +184,23 @@ def start_rust(env: dict[str, str], workdir: Path, dds_profile: bool = False) ->
     if not link.exists():
         link.symlink_to(VENV / "lib" / "librmw_fastrtps_cpp.so")
     libpython = Path(sysconfig.get_config_var("LIBDIR")) / sysconfig.get_config_var("LDLIBRARY")
-    env = dict(env, ROS_DISTRO="jazzy", LD_LIBRARY_PATH=f"{workdir}:{env.get('LD_LIBRARY_PATH', '')}",
-               LD_PRELOAD=str(libpython))
+    env = dict(
+        env,
+        ROS_DISTRO="jazzy",
+        LD_LIBRARY_PATH=f"{workdir}:{env.get('LD_LIBRARY_PATH', '')}",
+        LD_PRELOAD=str(libpython),
+    )
     if dds_profile:
         env[DDS_PROFILE_ENV] = str(DDS_PROFILE)
     port = free_port()
     loader = "/lib64/ld-linux-x86-64.so.2"
-    process = subprocess.Popen([loader, str(binary), "--no-rosapi", "--bind", f"127.0.0.1:{port}",
-                                "--log-level", "warn"], env=env, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.DEVNULL, text=True)
+    process = subprocess.Popen(
+        [loader, str(binary), "--no-rosapi", "--bind", f"127.0.0.1:{port}", "--log-level", "warn"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     wait_for_port(port)
     return process, port
 
@@ -195,6 +215,7 @@ def stop(process: subprocess.Popen) -> None:
 
 
 # --- measurements -------------------------------------------------------------------------------
+
 
 @dataclass
 class Results:
@@ -218,22 +239,25 @@ async def connect(port: int) -> Any:
 async def echo_setup(port: int, name: str) -> Any:
     ws = await connect(port)
     await ws.send(json.dumps({"op": "advertise", "topic": f"/bench/{name}/in", "type": "std_msgs/msg/String"}))
-    await ws.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String",
-                              "queue_length": 1000}))
+    await ws.send(
+        json.dumps(
+            {"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String", "queue_length": 1000}
+        )
+    )
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:  # until ROS matched both ends: the first echo
         await ws.send(json.dumps({"op": "publish", "topic": f"/bench/{name}/in", "msg": {"data": "warm-up"}}))
         try:
             await asyncio.wait_for(ws.recv(), 0.2)
             break
-        except asyncio.TimeoutError:
+        except TimeoutError:
             continue
     else:
         raise RuntimeError("no echo within 30 s")
     while True:  # drain leftover warm-up echoes
         try:
             await asyncio.wait_for(ws.recv(), 0.5)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             return ws
 
 
@@ -254,7 +278,7 @@ async def round_trips(ws: Any, name: str, size: int, count: int, in_flight: int)
             # the client must not be the bottleneck: find the index without decoding JSON
             start_of_data = frame.index('"data"') + 6
             start_of_data = frame.index('"', start_of_data) + 1
-            index = int(frame[start_of_data:frame.index(" ", start_of_data)])
+            index = int(frame[start_of_data : frame.index(" ", start_of_data)])
             if index in sent_at:
                 last_receipt[0] = time.perf_counter()
                 rtts.append(last_receipt[0] - sent_at.pop(index))
@@ -267,21 +291,23 @@ async def round_trips(ws: Any, name: str, size: int, count: int, in_flight: int)
     for index in range(count):
         try:
             await asyncio.wait_for(window.acquire(), 1.0)
-        except asyncio.TimeoutError:  # messages were lost: the window would never refill
+        except TimeoutError:  # messages were lost: the window would never refill
             for _ in range(in_flight):
                 window.release()
             await window.acquire()
         sent_at[index] = time.perf_counter()
-        await ws.send('{"op":"publish","topic":"/bench/%s/in","msg":{"data":"%d %s"}}' % (name, index, pad))
-    try:
+        await ws.send(f'{{"op":"publish","topic":"/bench/{name}/in","msg":{{"data":"{index} {pad}"}}}}')
+    with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(done.wait(), 3.0)
-    except asyncio.TimeoutError:
-        pass
     elapsed = (last_receipt[0] if received else time.perf_counter()) - start
     task.cancel()
-    return {"msgs_s": received / elapsed,
-            "lost_pct": 100.0 * (count - received) / count, "p50_ms": 1000 * percentile(rtts, 0.5),
-            "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
+    return {
+        "msgs_s": received / elapsed,
+        "lost_pct": 100.0 * (count - received) / count,
+        "p50_ms": 1000 * percentile(rtts, 0.5),
+        "p95_ms": 1000 * percentile(rtts, 0.95),
+        "p99_ms": 1000 * percentile(rtts, 0.99),
+    }
 
 
 async def service_calls(port: int, name: str, count: int, in_flight: int) -> dict[str, float]:
@@ -311,21 +337,43 @@ async def service_calls(port: int, name: str, count: int, in_flight: int) -> dic
         await window.acquire()
         call_id = f"c{index}"
         sent_at[call_id] = time.perf_counter()
-        await ws.send(json.dumps({"op": "call_service", "id": call_id, "service": f"/bench/{name}/echo_srv",
-                                  "type": "std_srvs/srv/SetBool", "args": {"data": True}}))
+        await ws.send(
+            json.dumps(
+                {
+                    "op": "call_service",
+                    "id": call_id,
+                    "service": f"/bench/{name}/echo_srv",
+                    "type": "std_srvs/srv/SetBool",
+                    "args": {"data": True},
+                }
+            )
+        )
     await asyncio.wait_for(all_answered.wait(), 120)
     elapsed = time.perf_counter() - start
     task.cancel()
     await ws.close()
-    return {"calls_s": count / elapsed, "failed": failures, "p50_ms": 1000 * percentile(rtts, 0.5),
-            "p95_ms": 1000 * percentile(rtts, 0.95), "p99_ms": 1000 * percentile(rtts, 0.99)}
+    return {
+        "calls_s": count / elapsed,
+        "failed": failures,
+        "p50_ms": 1000 * percentile(rtts, 0.5),
+        "p95_ms": 1000 * percentile(rtts, 0.95),
+        "p99_ms": 1000 * percentile(rtts, 0.99),
+    }
 
 
 async def fan_out(port: int, name: str, clients: int, count: int) -> dict[str, float]:
     sockets = [await connect(port) for _ in range(clients)]
     for ws in sockets:
-        await ws.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/fanout", "type": "std_msgs/msg/String",
-                                  "queue_length": 1000}))
+        await ws.send(
+            json.dumps(
+                {
+                    "op": "subscribe",
+                    "topic": f"/bench/{name}/fanout",
+                    "type": "std_msgs/msg/String",
+                    "queue_length": 1000,
+                }
+            )
+        )
     latencies: list[float] = []
     received = [0] * clients
 
@@ -342,18 +390,25 @@ async def fan_out(port: int, name: str, clients: int, count: int) -> dict[str, f
     control = await connect(port)
     deadline = time.monotonic() + 30
     while True:  # the node starts only once the bridge's subscription has matched
-        await control.send(json.dumps({"op": "call_service", "id": "start", "service": f"/bench/{name}/start_fanout",
-                                       "type": "std_srvs/srv/Trigger", "args": {}}))
+        await control.send(
+            json.dumps(
+                {
+                    "op": "call_service",
+                    "id": "start",
+                    "service": f"/bench/{name}/start_fanout",
+                    "type": "std_srvs/srv/Trigger",
+                    "args": {},
+                }
+            )
+        )
         answer = json.loads(await asyncio.wait_for(control.recv(), 30))
         if answer.get("result") and answer["values"]["success"]:
             break
         if time.monotonic() > deadline:
             raise RuntimeError(f"fan-out never started: {answer}")
         await asyncio.sleep(0.1)  # poll the node until the bridge's subscription matched
-    try:
+    with contextlib.suppress(TimeoutError):
         await asyncio.wait_for(readers, count / FANOUT_HZ + 10)
-    except asyncio.TimeoutError:
-        pass
     for ws in sockets + [control]:
         await ws.close()
     expected = clients * count
@@ -376,13 +431,27 @@ async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Resu
     steps: list[tuple[str, int, Any]] = []
     for label, size in SIZES.items():
         count = (4000 if size <= 1024 else 1000) // scale
-        steps.append((f"echo {label}, {IN_FLIGHT} in flight", rounds,
-                      lambda name, port, size=size, count=count: round_trips(sockets[name], name, size, count, IN_FLIGHT)))
-    steps.append(("rtt 64 B, 1 in flight", rounds, lambda name, port: round_trips(sockets[name], name, 64, 1000 // scale, 1)))
-    steps.append((f"services, {IN_FLIGHT} in flight", 1, lambda name, port: service_calls(port, name, 4000 // scale, IN_FLIGHT)))
+        steps.append(
+            (
+                f"echo {label}, {IN_FLIGHT} in flight",
+                rounds,
+                lambda name, port, size=size, count=count: round_trips(sockets[name], name, size, count, IN_FLIGHT),
+            )
+        )
+    steps.append(
+        ("rtt 64 B, 1 in flight", rounds, lambda name, port: round_trips(sockets[name], name, 64, 1000 // scale, 1))
+    )
+    steps.append(
+        (f"services, {IN_FLIGHT} in flight", 1, lambda name, port: service_calls(port, name, 4000 // scale, IN_FLIGHT))
+    )
     for clients in FANOUT_CLIENTS:
-        steps.append((f"fan-out {FANOUT_HZ} Hz to {clients}", 1,
-                      lambda name, port, clients=clients: fan_out(port, name, clients, fanout_count(quick))))
+        steps.append(
+            (
+                f"fan-out {FANOUT_HZ} Hz to {clients}",
+                1,
+                lambda name, port, clients=clients: fan_out(port, name, clients, fanout_count(quick)),
+            )
+        )
     # Warm both paths through the echo node first (unrecorded): the first server measured
     # would otherwise meet a cold echo node alone.
     for name in servers:
@@ -397,8 +466,10 @@ async def measure(servers: dict[str, tuple[int, int]], quick: bool) -> list[Resu
                 runs[name].append(await step(name, port))
             turn += 1
         for name, figures in runs.items():
-            results[name].figures[label] = {key: (statistics.mean if key.startswith("lost") else statistics.median)(
-                [f[key] for f in figures]) for key in figures[0]}
+            results[name].figures[label] = {
+                key: (statistics.mean if key.startswith("lost") else statistics.median)([f[key] for f in figures])
+                for key in figures[0]
+            }
     for name, (_, pid) in servers.items():
         results[name].figures["rss_mib"] = psutil.Process(pid).memory_info().rss / 2**20
         await sockets[name].close()
@@ -419,7 +490,9 @@ async def soak(servers: dict[str, tuple[int, int]], seconds: float) -> list[Resu
         for name, (port, _pid) in servers.items():
             await round_trips(sockets[name], name, 64, 500, IN_FLIGHT)
             churn = await connect(port)
-            await churn.send(json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String"}))
+            await churn.send(
+                json.dumps({"op": "subscribe", "topic": f"/bench/{name}/out", "type": "std_msgs/msg/String"})
+            )
             await churn.close()
         if time.monotonic() >= next_sample:
             for name, (_, pid) in servers.items():
@@ -444,8 +517,10 @@ def report(all_results: list[Results]) -> str:
     pairs = [(name, names[-1]) for name in names[:-1]] if len(names) > 1 else []
     if "baseline" in names and ("caretaker", "baseline") not in pairs:
         pairs.append(("caretaker", "baseline"))
-    lines = ["| measurement | " + " | ".join(names) + "".join(f" | {a} ÷ {b}" for a, b in pairs) + " |",
-             "|---" * (len(names) + 1 + len(pairs)) + "|"]
+    lines = [
+        "| measurement | " + " | ".join(names) + "".join(f" | {a} ÷ {b}" for a, b in pairs) + " |",
+        "|---" * (len(names) + 1 + len(pairs)) + "|",
+    ]
     by_name = {r.server: r.figures for r in all_results}
     for key in all_results[0].figures:
         values = {name: by_name[name][key] for name in names}
@@ -454,8 +529,12 @@ def report(all_results: list[Results]) -> str:
             cell = {name: (v[metric] if metric is not None else v) for name, v in values.items()}
             ratios = "".join(f" | {cell[a] / cell[b]:.2f}" if cell[b] else " | " for a, b in pairs)
             label = f"{key}: {metric}" if metric is not None else key
-            lines.append(f"| {label} | " + " | ".join(f"{cell[n]:.2f}" if isinstance(cell[n], float) else str(cell[n])
-                                                     for n in names) + ratios + " |")
+            lines.append(
+                f"| {label} | "
+                + " | ".join(f"{cell[n]:.2f}" if isinstance(cell[n], float) else str(cell[n]) for n in names)
+                + ratios
+                + " |"
+            )
     return "\n".join(lines)
 
 
@@ -463,12 +542,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="a quarter of the messages")
     parser.add_argument("--only", choices=("caretaker", "rust"), help="measure one server only")
-    parser.add_argument("--soak", type=float, metavar="SECONDS",
-                        help="instead of the measurements: echo traffic for SECONDS, sampling RSS")
-    parser.add_argument("--peer-dds-profile", action="store_true",
-                        help="run the Rust peer under the Fast DDS profile the bridge ships (docs/rosbridge.md)")
-    parser.add_argument("--baseline", type=Path, metavar="DIR",
-                        help="also run the bridge whose python/ folder is in DIR (the code before a change)")
+    parser.add_argument(
+        "--soak",
+        type=float,
+        metavar="SECONDS",
+        help="instead of the measurements: echo traffic for SECONDS, sampling RSS",
+    )
+    parser.add_argument(
+        "--peer-dds-profile",
+        action="store_true",
+        help="run the Rust peer under the Fast DDS profile the bridge ships (docs/rosbridge.md)",
+    )
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        metavar="DIR",
+        help="also run the bridge whose python/ folder is in DIR (the code before a change)",
+    )
     parser.add_argument("--echo-node", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.echo_node:
@@ -476,8 +566,12 @@ def main(argv: list[str] | None = None) -> int:
     names = [n for n in SERVERS if not args.only or args.only == n]
     if args.baseline:
         names.insert(1 if "caretaker" in names else 0, "baseline")
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", BENCH_FANOUT_COUNT=str(fanout_count(args.quick)),
-               BENCH_SERVERS=",".join(names))
+    env = dict(
+        os.environ,
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        BENCH_FANOUT_COUNT=str(fanout_count(args.quick)),
+        BENCH_SERVERS=",".join(names),
+    )
     env.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
     os.environ.update(env)
     echo = subprocess.Popen([sys.executable, __file__, "--echo-node"], env=env, stdout=subprocess.PIPE, text=True)

@@ -20,6 +20,9 @@ import os
 import sys
 import threading
 import time
+from collections.abc import Callable
+from functools import partial
+from typing import Any
 
 import pybullet as p
 
@@ -30,7 +33,7 @@ from sim.simulation import Simulation
 from sim.trajectory import validate_trajectory
 
 
-def rtf(step, dt: float, seconds: float) -> float:
+def rtf(step: Callable[[], object], dt: float, seconds: float) -> float:
     steps = int(seconds / dt)
     start = time.perf_counter()
     for _ in range(steps):
@@ -49,7 +52,13 @@ def moving_rtf(sim: Simulation, seconds: float) -> float:
         goal[0] += sign * 0.4
         goal[1] += sign * 0.1
         sign = -sign
-        traj = validate_trajectory(list(sim.arm_joints), [(2.0, goal, [])], limits=sim.limits, controller_joints=sim.arm_joints, current=current)
+        traj = validate_trajectory(
+            list(sim.arm_joints),
+            [(2.0, goal, [])],
+            limits=sim.limits,
+            controller_joints=sim.arm_joints,
+            current=current,
+        )
         run = sim.start_trajectory(traj, 0.0)
         while not run.done.is_set():
             sim.step()
@@ -63,12 +72,12 @@ def node_rtf(scene: str, seconds: float) -> float:
     """Sim seconds per wall second of the node executing one ``seconds``-long trajectory."""
     import rclpy
     from builtin_interfaces.msg import Duration
+    from caretaker_sim_msgs.action import FollowJointTrajectory
     from rclpy.action import ActionClient
     from rclpy.executors import SingleThreadedExecutor
     from trajectory_msgs.msg import JointTrajectoryPoint
 
     from caretaker.processes import caretaker
-    from caretaker_sim_msgs.action import FollowJointTrajectory
 
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(150 + os.getpid() % 80))
     os.environ.update(env)
@@ -97,14 +106,18 @@ def node_rtf(scene: str, seconds: float) -> float:
         done = threading.Event()
         results: list = []
 
-        def on_result(future) -> None:
+        def on_result(future: Any) -> None:  # an rclpy Future of the goal's result
             results.append(future.result().result)
             done.set()
 
         began = time.perf_counter()
         # On the executor thread: rclpy 7.1's ActionClient drops a response that beats the
         # bookkeeping of a request sent from another thread.
-        executor.create_task(lambda: client.send_goal_async(goal).add_done_callback(lambda f: f.result().get_result_async().add_done_callback(on_result)))
+        executor.create_task(
+            lambda: client.send_goal_async(goal).add_done_callback(
+                lambda f: f.result().get_result_async().add_done_callback(on_result)
+            )
+        )
         if not done.wait(600):
             raise RuntimeError("no result")
         wall = time.perf_counter() - began
@@ -126,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("iva", "eva"):
         sim = Simulation(load_scene(name), seed=0)
         client = sim.client
-        bare = rtf(lambda: p.stepSimulation(physicsClientId=client), sim.dt, args.seconds)
+        bare = rtf(partial(p.stepSimulation, physicsClientId=client), sim.dt, args.seconds)
         idle = rtf(sim.step, sim.dt, args.seconds)
         moving = moving_rtf(sim, args.seconds)
         for case, value in (("bare pybullet step", bare), ("Simulation idle", idle), ("Simulation arm moving", moving)):

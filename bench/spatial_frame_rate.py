@@ -21,10 +21,15 @@ TEST = "tests/web/test_spatial_view.py"
 
 
 def main() -> int:
-    done = subprocess.run([str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q", "-k", "frame_rate"], cwd=REPO,
-                          env={**os.environ, "CARETAKER_FRAME_RATE_MODES": "all"}, capture_output=True, text=True,
-                          timeout=900)
-    report = done.stdout[done.stdout.find("spatial view ("):]
+    done = subprocess.run(
+        [str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q", "-k", "frame_rate"],
+        cwd=REPO,
+        env={**os.environ, "CARETAKER_FRAME_RATE_MODES": "all"},
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    report = done.stdout[done.stdout.find("spatial view (") :]
     print(report.split("\n\n")[0] if done.returncode == 0 else done.stdout[-3000:])
     return 0 if done.returncode == 0 else 1
 

@@ -29,7 +29,9 @@ class CameraImage:
     rgb: bytes  # row-major, 3 bytes per pixel
 
 
-def render(spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tuple[float, ...]] | None = None) -> CameraImage:
+def render(
+    spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+) -> CameraImage:
     """Render one camera; ``link_pose`` is the mounting link's world pose for mounted cameras."""
     if spec.link is not None:
         if link_pose is None:
@@ -43,8 +45,14 @@ def render(spec: CameraSpec, client: int, link_pose: tuple[tuple[float, ...], tu
         view = p.computeViewMatrix(list(spec.eye or (0, 0, 0)), list(spec.target or (1, 0, 0)), [0, 0, 1])
     projection = p.computeProjectionMatrixFOV(spec.fov_deg, spec.width / spec.height, spec.near, spec.far)
     _, _, rgba, depth, _ = p.getCameraImage(
-        spec.width, spec.height, view, projection, renderer=p.ER_TINY_RENDERER, shadow=0,
-        flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=client,
+        spec.width,
+        spec.height,
+        view,
+        projection,
+        renderer=p.ER_TINY_RENDERER,
+        shadow=0,
+        flags=p.ER_NO_SEGMENTATION_MASK,
+        physicsClientId=client,
     )
     pixels = np.array(rgba, dtype=np.uint8).reshape(spec.height, spec.width, 4)[:, :, :3]
     if spec.background is not None:
@@ -81,14 +89,17 @@ def fixed_camera_pose(spec: CameraSpec) -> tuple[tuple[float, float, float], tup
 
 def write_png(image: CameraImage, path: Path) -> Path:
     """Write an 8-bit RGB PNG."""
+
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
     stride = image.width * 3
-    raw = b"".join(b"\x00" + image.rgb[row * stride:(row + 1) * stride] for row in range(image.height))
+    raw = b"".join(b"\x00" + image.rgb[row * stride : (row + 1) * stride] for row in range(image.height))
     header = struct.pack(">IIBBBBB", image.width, image.height, 8, 2, 0, 0, 0)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    path.write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+    )
     return path
 
 

@@ -62,8 +62,11 @@ class CdraCabinet:
             filter_present=installed is not None,
             installed_filter_id=installed.id if installed else "",
             installed_filter_condition=installed.condition if installed else "",
-            clean_filter_ids=", ".join(sorted(f.id for f in filters.filters.values()
-                                              if f.condition == "clean" and f.slot not in (None, self.slot))),
+            clean_filter_ids=", ".join(
+                sorted(
+                    f.id for f in filters.filters.values() if f.condition == "clean" and f.slot not in (None, self.slot)
+                )
+            ),
         )
 
     def _show_lock(self) -> None:

@@ -8,9 +8,9 @@ are drawn only and have no collision shapes, so they are not in it.
 
 from __future__ import annotations
 
+from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
 from geometry_msgs.msg import Pose as PoseMsg
 
-from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
 from sim.scene import Pose, Scene, Shape, filter_parts
 
 __all__ = ["collision_world", "pose_message", "shape_message"]

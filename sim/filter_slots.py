@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import pybullet as p
 
@@ -56,7 +56,9 @@ class FilterSlots:
     def __init__(self, scene: Scene, world: World, is_locked: Callable[[str], bool]) -> None:
         self._client = world.client
         self._is_locked = is_locked
-        self.slot_poses: dict[str, tuple[Vec3, Quat]] = {name: (s.pose.xyz, s.pose.quaternion) for name, s in scene.slots.items()}
+        self.slot_poses: dict[str, tuple[Vec3, Quat]] = {
+            name: (s.pose.xyz, s.pose.quaternion) for name, s in scene.slots.items()
+        }
         self.filters: dict[str, FilterState] = {
             f.id: FilterState(f.id, f.condition, world.filters[f.id], f.slot) for f in scene.filters
         }
@@ -179,6 +181,11 @@ class FilterSlots:
             if self.in_slot(slot) is not None or self._is_locked(slot):
                 continue
             (x, y, z), angle = self._relative(pos, orn, slot_pos, slot_orn)
-            if abs(x) <= CAPTURE_AXIAL and abs(y) <= CAPTURE_LATERAL and abs(z) <= CAPTURE_LATERAL and angle <= CAPTURE_ANGLE:
+            if (
+                abs(x) <= CAPTURE_AXIAL
+                and abs(y) <= CAPTURE_LATERAL
+                and abs(z) <= CAPTURE_LATERAL
+                and angle <= CAPTURE_ANGLE
+            ):
                 return slot
         return None

@@ -70,7 +70,7 @@ class Gripper:
         target = self.spec.poses[pose]
         self.motion = GripperMotion(pose, target)
         self._blocked = [False] * len(self.joints)
-        opening = any(t > q for t, q in zip(target, self.positions))
+        opening = any(t > q for t, q in zip(target, self.positions, strict=False))
         if opening and self._filters.held() is not None:
             self.motion.message = self._filters.release() + "; "
         return self.motion
@@ -87,9 +87,9 @@ class Gripper:
         motion = self.motion
         if motion is None:
             return
-        closing = all(t <= q for t, q in zip(motion.target, self.positions))
+        closing = all(t <= q for t, q in zip(motion.target, self.positions, strict=False))
         arrived = True
-        for i, (joint, target) in enumerate(zip(self.joints, motion.target)):
+        for i, (joint, target) in enumerate(zip(self.joints, motion.target, strict=False)):
             if self._blocked[i]:
                 self.velocities[i] = 0.0
                 continue
@@ -126,12 +126,18 @@ class Gripper:
     def _touched_filter(self, finger: int) -> str | None:
         for state in self._filters.filters.values():
             points = p.getClosestPoints(
-                self._world.robot, state.body, CONTACT_DISTANCE, linkIndexA=self.fingers[finger], physicsClientId=self._world.client
+                self._world.robot,
+                state.body,
+                CONTACT_DISTANCE,
+                linkIndexA=self.fingers[finger],
+                physicsClientId=self._world.client,
             )
             if points:
                 return state.id
         return None
 
     def _tool_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-        state = p.getLinkState(self._world.robot, self._tool_link, computeForwardKinematics=True, physicsClientId=self._world.client)
+        state = p.getLinkState(
+            self._world.robot, self._tool_link, computeForwardKinematics=True, physicsClientId=self._world.client
+        )
         return tuple(state[4]), tuple(state[5])  # type: ignore[return-value]

@@ -61,7 +61,12 @@ class Pose:
         half = [a / 2 for a in self.rpy]
         cr, cp, cy = (math.cos(a) for a in half)
         sr, sp, sy = (math.sin(a) for a in half)
-        return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
+        return (
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+            cr * cp * cy + sr * sp * sy,
+        )
 
 
 @dataclass(frozen=True)
@@ -194,7 +199,10 @@ def filter_grasp_offset(model: FilterModel) -> Pose:
 def filter_shapes(model: FilterModel) -> tuple[Shape, Shape]:
     """A filter cartridge's body (at its frame) and, in front of it (-x), its handle."""
     handle_x = -(model.body_size[0] / 2 + model.handle_size[0] / 2)
-    return (Shape("box", Pose(), size=model.body_size), Shape("box", Pose((handle_x, 0.0, 0.0)), size=model.handle_size))
+    return (
+        Shape("box", Pose(), size=model.body_size),
+        Shape("box", Pose((handle_x, 0.0, 0.0)), size=model.handle_size),
+    )
 
 
 def filter_parts(model: FilterModel, condition: str) -> tuple[tuple[Shape, RGBA], tuple[Shape, RGBA]]:
@@ -258,8 +266,18 @@ def load_scene(scene: str | Path) -> Scene:
     path = resolve_scene(scene)
     root = load_file(path, error=SceneError).mapping(
         required=("name", "robot"),
-        optional=("gravity", "physics_rate_hz", "bodies", "slots", "filter_model", "filters", "cabinet", "targets",
-                  "target_model", "cameras"),
+        optional=(
+            "gravity",
+            "physics_rate_hz",
+            "bodies",
+            "slots",
+            "filter_model",
+            "filters",
+            "cabinet",
+            "targets",
+            "target_model",
+            "cameras",
+        ),
     )
     robot = _load_robot(root["robot"])
     bodies = tuple(_load_body(b) for b in _listed(root, "bodies"))
@@ -285,7 +303,7 @@ def load_scene(scene: str | Path) -> Scene:
             fm["mass"].number(min=1e-6),
             _colors(fm["colors"]),
         )
-        for field, f in zip(filter_fields, filters):
+        for field, f in zip(filter_fields, filters, strict=False):
             if f.condition not in filter_model.colors:
                 raise field["condition"].fail(f"condition {f.condition!r} has no colour in filter_model.colors")
     cabinet = None
@@ -316,9 +334,13 @@ def load_scene(scene: str | Path) -> Scene:
         )
         if "panel" not in target_model.colors:
             raise tm["colors"].fail("needs a 'panel' colour")
-        for field, t in zip(target_fields, targets):
-            if t.condition != "clean" and (t.condition not in target_model.mark_radius or t.condition not in target_model.colors):
-                raise field["condition"].fail(f"condition {t.condition!r} needs a colour and a mark_radius in target_model")
+        for field, t in zip(target_fields, targets, strict=False):
+            if t.condition != "clean" and (
+                t.condition not in target_model.mark_radius or t.condition not in target_model.colors
+            ):
+                raise field["condition"].fail(
+                    f"condition {t.condition!r} needs a colour and a mark_radius in target_model"
+                )
     camera_fields = _listed(root, "cameras")
     cameras = [_load_camera(c) for c in camera_fields]
     _unique(camera_fields, [c.name for c in cameras], "camera")
@@ -347,7 +369,10 @@ def _listed(root: Field, key: str) -> list[Field]:
 
 
 def _load_robot(r: Field) -> RobotSpec:
-    r.mapping(required=("name", "urdf", "base", "tool_link", "arm_joints", "initial_positions"), optional=("base_link", "gripper"))
+    r.mapping(
+        required=("name", "urdf", "base", "tool_link", "arm_joints", "initial_positions"),
+        optional=("base_link", "gripper"),
+    )
     joints = r["arm_joints"].names(min_items=1)
     gripper = None
     if r.has("gripper"):
@@ -383,7 +408,9 @@ def _load_body(b: Field) -> StaticBody:
             shapes.append(Shape("box", _pose_of(s), size=s["size"].numbers(3, min=1e-4)))  # type: ignore[arg-type]
         else:
             s.mapping(required=("type", "radius", "length"), optional=("xyz", "rpy"))
-            shapes.append(Shape("cylinder", _pose_of(s), radius=s["radius"].number(min=1e-4), length=s["length"].number(min=1e-4)))
+            shapes.append(
+                Shape("cylinder", _pose_of(s), radius=s["radius"].number(min=1e-4), length=s["length"].number(min=1e-4))
+            )
     color = b.get("color")
     return StaticBody(
         b["name"].text(),
@@ -413,11 +440,15 @@ def _load_target(t: Field) -> TargetSpec:
 
 
 def _load_camera(c: Field) -> CameraSpec:
-    c.mapping(required=("name", "width", "height", "fov_deg"), optional=("eye", "target", "link", "near", "far", "background"))
+    c.mapping(
+        required=("name", "width", "height", "fov_deg"), optional=("eye", "target", "link", "near", "far", "background")
+    )
     link = c.get("link")
     eye = target = None
     if link is None:
-        c.mapping(required=("name", "width", "height", "fov_deg", "eye", "target"), optional=("near", "far", "background"))
+        c.mapping(
+            required=("name", "width", "height", "fov_deg", "eye", "target"), optional=("near", "far", "background")
+        )
         eye = c["eye"].numbers(3)
         target = c["target"].numbers(3)
     elif c.has("eye") or c.has("target"):

@@ -20,27 +20,26 @@ import time
 from pathlib import Path
 
 import rclpy
+from builtin_interfaces.msg import Time
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses, VisualWorld
+from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
+from geometry_msgs.msg import Pose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
-from caretaker_sim_msgs.action import FollowJointTrajectory
-from builtin_interfaces.msg import Time
-from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
-from geometry_msgs.msg import Pose
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from sim.cameras import CameraImage, capture_file_name, render, write_png
 from sim.collision_world import collision_world
+from sim.render_budget import RenderBudget
 from sim.robot_description import robot_description
 from sim.scene import SceneError, load_scene
-from sim.render_budget import RenderBudget
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
 from sim.visual_world import visual_world
@@ -63,7 +62,9 @@ SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, relia
 class SimNode(Node):
     """ROS face of one :class:`Simulation`; owns the stepping thread."""
 
-    def __init__(self, sim: Simulation, *, time_scale: float, namespace: str, capture_dir: Path, camera_period: float) -> None:
+    def __init__(
+        self, sim: Simulation, *, time_scale: float, namespace: str, capture_dir: Path, camera_period: float
+    ) -> None:
         super().__init__("caretaker_sim", namespace=namespace)
         self.sim = sim
         self.time_scale = time_scale
@@ -86,26 +87,38 @@ class SimNode(Node):
         self.halt_node = rclpy.create_node("caretaker_sim_halt", namespace=namespace)
         self.halt_srv = self.halt_node.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS)
         self.trajectory_server = ActionServer(
-            self, FollowJointTrajectory, "arm_controller/follow_joint_trajectory",
-            execute_callback=self.execute_callback, goal_callback=self.goal_callback,
-            cancel_callback=self.cancel_callback, callback_group=group,
+            self,
+            FollowJointTrajectory,
+            "arm_controller/follow_joint_trajectory",
+            execute_callback=self.execute_callback,
+            goal_callback=self.goal_callback,
+            cancel_callback=self.cancel_callback,
+            callback_group=group,
         )
-        self.capture_srv = self.create_service(CaptureImage, "camera/capture", self.capture_callback, qos_profile=SERVICE_QOS, callback_group=group)
+        self.capture_srv = self.create_service(
+            CaptureImage, "camera/capture", self.capture_callback, qos_profile=SERVICE_QOS, callback_group=group
+        )
         self.render_budget = RenderBudget()
         self.image_pubs = {name: self.create_publisher(Image, f"camera/{name}/image", 2) for name in sim.scene.cameras}
         if camera_period > 0:
             self.camera_timer = self.create_timer(camera_period, self.camera_timer_callback, callback_group=group)
         if sim.gripper is not None:
             self.held_pub = self.create_publisher(String, "gripper/held_object", LATCHED)
-            self.gripper_srv = self.create_service(SetGripper, "gripper/set", self.gripper_callback, qos_profile=SERVICE_QOS, callback_group=group)
+            self.gripper_srv = self.create_service(
+                SetGripper, "gripper/set", self.gripper_callback, qos_profile=SERVICE_QOS, callback_group=group
+            )
         if sim.cabinet is not None:
             self.cdra_locked_pub = self.create_publisher(Bool, "cdra/filter_locked", LATCHED)
             self.cdra_present_pub = self.create_publisher(Bool, "cdra/filter_present", LATCHED)
             self.cdra_id_pub = self.create_publisher(String, "cdra/installed_filter_id", LATCHED)
             self.cdra_condition_pub = self.create_publisher(String, "cdra/installed_filter_condition", LATCHED)
             self.cdra_clean_pub = self.create_publisher(String, "cdra/clean_filter_ids", LATCHED)
-            self.unlock_srv = self.create_service(Trigger, "cdra/unlock_filter", self.unlock_callback, qos_profile=SERVICE_QOS, callback_group=group)
-            self.lock_srv = self.create_service(Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group)
+            self.unlock_srv = self.create_service(
+                Trigger, "cdra/unlock_filter", self.unlock_callback, qos_profile=SERVICE_QOS, callback_group=group
+            )
+            self.lock_srv = self.create_service(
+                Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group
+            )
         self._last_status: tuple | None = None
         self.failed = False
         self._stop = threading.Event()
@@ -239,12 +252,18 @@ class SimNode(Node):
             halts = sim.halts
         try:
             if not math.isfinite(goal.goal_tolerance) or goal.goal_tolerance < 0:
-                raise TrajectoryError(ErrorCode.INVALID_GOAL, f"goal_tolerance {goal.goal_tolerance} must be a finite number >= 0")
+                raise TrajectoryError(
+                    ErrorCode.INVALID_GOAL, f"goal_tolerance {goal.goal_tolerance} must be a finite number >= 0"
+                )
             with sim.world_lock:
                 current = tuple(sim.arm_positions)
             trajectory = validate_trajectory(
-                list(goal.trajectory.joint_names), points, limits=sim.limits,
-                controller_joints=sim.arm_joints, current=current, other_joints=sim.gripper_joints,
+                list(goal.trajectory.joint_names),
+                points,
+                limits=sim.limits,
+                controller_joints=sim.arm_joints,
+                current=current,
+                other_joints=sim.gripper_joints,
             )
         except TrajectoryError as exc:
             self.get_logger().warning(f"trajectory refused: {exc}")
@@ -261,8 +280,11 @@ class SimNode(Node):
                 result.error_code, result.error_string = ErrorCode.HALTED, "cancelled before it started: nothing moved"
                 return result
             run = sim.start_trajectory(trajectory, goal.goal_tolerance)
-        LOG.info("trajectory started: %.3f s long (%.2f s after its execution began, waiting for the world)",
-                 trajectory.duration, time.monotonic() - called)
+        LOG.info(
+            "trajectory started: %.3f s long (%.2f s after its execution began, waiting for the world)",
+            trajectory.duration,
+            time.monotonic() - called,
+        )
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)
         deadline_s = trajectory.duration
@@ -271,7 +293,10 @@ class SimNode(Node):
         # Feedback at the start and every 50 ms of wall time, so even a trajectory that runs
         # faster than that (time scale 0) reports its progress at least once before its result.
         while True:
-            feedback.desired, feedback.actual = list(run.desired or trajectory.positions[0]), list(run.actual or current)
+            feedback.desired, feedback.actual = (
+                list(run.desired or trajectory.positions[0]),
+                list(run.actual or current),
+            )
             feedback.time_from_start = run.elapsed
             goal_handle.publish_feedback(feedback)
             if run.done.wait(0.05):
@@ -286,7 +311,10 @@ class SimNode(Node):
             goal_handle.succeed()
         else:
             if run.cancel_requested:
-                result.error_code, result.error_string = ErrorCode.PATH_TOLERANCE_VIOLATED, "trajectory did not finish in time"
+                result.error_code, result.error_string = (
+                    ErrorCode.PATH_TOLERANCE_VIOLATED,
+                    "trajectory did not finish in time",
+                )
             goal_handle.abort()
         return result
 
@@ -296,7 +324,9 @@ class SimNode(Node):
         reason = request.reason or "no reason given"
         with self.sim.world_lock:
             stopped = self.sim.halt(reason)
-        self.get_logger().warning(f"halt ({reason}): stopped {', '.join(stopped)}" if stopped else f"halt ({reason}): nothing was moving")
+        self.get_logger().warning(
+            f"halt ({reason}): stopped {', '.join(stopped)}" if stopped else f"halt ({reason}): nothing was moving"
+        )
         response.success, response.stopped = True, bool(stopped)
         response.message = f"halted {' and '.join(stopped)}" if stopped else "nothing was moving"
         return response
@@ -311,7 +341,11 @@ class SimNode(Node):
         if not self._wait(motion.done, 2.0):
             response.success, response.message = False, f"gripper did not reach {request.pose!r} in time"
         else:
-            response.success, response.message, response.held_object = motion.success, motion.message, motion.held_object
+            response.success, response.message, response.held_object = (
+                motion.success,
+                motion.message,
+                motion.held_object,
+            )
         return response
 
     # ------------------------------------------------------------------ CDRA cabinet
@@ -369,7 +403,10 @@ class SimNode(Node):
     def capture_callback(self, request: CaptureImage.Request, response: CaptureImage.Response) -> CaptureImage.Response:
         cameras = self.sim.scene.cameras
         if request.camera not in cameras:
-            response.success, response.message = False, f"unknown camera {request.camera!r}; cameras are {sorted(cameras)}"
+            response.success, response.message = (
+                False,
+                f"unknown camera {request.camera!r}; cameras are {sorted(cameras)}",
+            )
             return response
         rendered = self._render(request.camera, wait=True)
         assert rendered is not None  # waited for its turn
@@ -391,14 +428,33 @@ class SimNode(Node):
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(prog="caretaker sim", description="Run a pybullet world as the robot's hardware (ROS 2 node).")
+    parser = argparse.ArgumentParser(
+        prog="caretaker sim", description="Run a pybullet world as the robot's hardware (ROS 2 node)."
+    )
     parser.add_argument("--scene", required=True, help="scene name (iva, eva) or path to a scene YAML file")
-    parser.add_argument("--time-scale", type=float, default=1.0, help="sim seconds per wall second; 0 = as fast as possible while anything moves")
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        default=1.0,
+        help="sim seconds per wall second; 0 = as fast as possible while anything moves",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed for every random generator")
     parser.add_argument("--namespace", default="", help="ROS namespace for all topics and services")
-    parser.add_argument("--capture-dir", type=Path, default=Path(tempfile.gettempdir()) / "caretaker-captures", help="where /camera/capture saves PNGs")
-    parser.add_argument("--camera-period", type=float, default=1.0, help="wall seconds between published camera images (0 = only on request)")
-    parser.add_argument("--snapshot", type=Path, metavar="PNG", help="render the scene camera to this PNG and exit (no ROS)")
+    parser.add_argument(
+        "--capture-dir",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "caretaker-captures",
+        help="where /camera/capture saves PNGs",
+    )
+    parser.add_argument(
+        "--camera-period",
+        type=float,
+        default=1.0,
+        help="wall seconds between published camera images (0 = only on request)",
+    )
+    parser.add_argument(
+        "--snapshot", type=Path, metavar="PNG", help="render the scene camera to this PNG and exit (no ROS)"
+    )
     args = parser.parse_args(argv)
     if not math.isfinite(args.time_scale) or args.time_scale < 0:
         parser.error(f"--time-scale must be >= 0, got {args.time_scale}")
@@ -433,7 +489,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker sim: {exc}", file=sys.stderr)
         return 2
     rclpy.init()
-    node = SimNode(sim, time_scale=args.time_scale, namespace=args.namespace, capture_dir=args.capture_dir, camera_period=args.camera_period)
+    node = SimNode(
+        sim,
+        time_scale=args.time_scale,
+        namespace=args.namespace,
+        capture_dir=args.capture_dir,
+        camera_period=args.camera_period,
+    )
     executor = MultiThreadedExecutor(num_threads=4)
     executor.add_node(node)
     halt_executor = SingleThreadedExecutor()

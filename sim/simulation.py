@@ -21,9 +21,9 @@ from sim.cdra_cabinet import CdraCabinet
 from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
 from sim.scene import Scene
+from sim.trajectory import ErrorCode, JointLimit, Trajectory
 from sim.world import World, build_world
 from sim.world_lock import WorldLock
-from sim.trajectory import ErrorCode, JointLimit, Trajectory
 
 __all__ = ["Simulation", "TrajectoryRun"]
 
@@ -82,7 +82,9 @@ class Simulation:
         self.arm_velocities = [0.0] * len(self.arm_joints)
         self.cabinet = CdraCabinet(scene.cabinet, self.world) if scene.cabinet else None
         self.filters = FilterSlots(scene, self.world, self.cabinet.is_locked if self.cabinet else (lambda slot: False))
-        self.gripper = Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
+        self.gripper = (
+            Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
+        )
         self.gripper_joints = tuple(scene.robot.gripper.joints) if scene.robot.gripper else ()
         self.run: TrajectoryRun | None = None
         self.halts = 0  # robot/halt calls so far: a goal accepted before one must not start after it
@@ -91,7 +93,9 @@ class Simulation:
         self._self_links = sorted({link for pair in self._self_pairs for link in pair})
         # The links that hold a grasped filter and may touch it: the fingers and their palm.
         self._gripper_links = set(self.gripper.fingers) if self.gripper else set()
-        self._gripper_links |= {p.getJointInfo(self.robot, f, physicsClientId=self.client)[16] for f in self._gripper_links}
+        self._gripper_links |= {
+            p.getJointInfo(self.robot, f, physicsClientId=self.client)[16] for f in self._gripper_links
+        }
         self.filters.hold_kinematic(self.link_pose(self.tool_link))
 
     # ------------------------------------------------------------------ commands (world_lock held by caller)
@@ -195,7 +199,7 @@ class Simulation:
         p.stepSimulation(physicsClientId=self.client)
         self._set_arm(self.arm_positions, self.arm_velocities)  # undo what gravity did to the arm
         if self.gripper is not None:
-            for joint, q in zip(self.gripper.joints, self.gripper.positions):
+            for joint, q in zip(self.gripper.joints, self.gripper.positions, strict=False):
                 p.resetJointState(self.robot, joint, q, physicsClientId=self.client)
         self.filters.hold_kinematic(self.link_pose(self.tool_link))
         self.time += self.dt
@@ -207,18 +211,28 @@ class Simulation:
             self._set_arm(self.arm_positions, [0.0] * len(self.arm_positions))
             # Not a success: the arm stopped short of the trajectory's end, and a client that read
             # only the code would plan its next motion from a goal the arm never reached.
-            self._finish(run, ErrorCode.HALTED, f"cancelled after {run.elapsed:.2f} s of its {run.trajectory.duration:.2f} s "
-                                                "trajectory: the arm stopped short of its goal")
+            self._finish(
+                run,
+                ErrorCode.HALTED,
+                f"cancelled after {run.elapsed:.2f} s of its {run.trajectory.duration:.2f} s "
+                "trajectory: the arm stopped short of its goal",
+            )
             return
         self._set_arm(list(desired), list(velocity))
         run.desired, run.actual, run.elapsed = tuple(desired), tuple(self.arm_positions), elapsed
 
     def _finish_at_goal(self, run: TrajectoryRun) -> None:
-        error = max(abs(a - b) for a, b in zip(self.arm_positions, run.trajectory.final))
+        error = max(abs(a - b) for a, b in zip(self.arm_positions, run.trajectory.final, strict=False))
         if error > run.goal_tolerance:
-            self._finish(run, ErrorCode.GOAL_TOLERANCE_VIOLATED, f"final error {error:.4f} rad exceeds the goal tolerance {run.goal_tolerance:.4f} rad")
+            self._finish(
+                run,
+                ErrorCode.GOAL_TOLERANCE_VIOLATED,
+                f"final error {error:.4f} rad exceeds the goal tolerance {run.goal_tolerance:.4f} rad",
+            )
         else:
-            self._finish(run, ErrorCode.SUCCESSFUL, f"reached the goal in {run.elapsed:.3f} s (max joint error {error:.5f} rad)")
+            self._finish(
+                run, ErrorCode.SUCCESSFUL, f"reached the goal in {run.elapsed:.3f} s (max joint error {error:.5f} rad)"
+            )
 
     def _finish(self, run: TrajectoryRun, code: int, message: str) -> None:
         run.error_code = code
@@ -234,7 +248,7 @@ class Simulation:
     def _set_arm(self, positions: list[float], velocities: list[float]) -> None:
         self.arm_positions = list(positions)
         self.arm_velocities = list(velocities)
-        for j, q, v in zip(self._arm_index, positions, velocities):
+        for j, q, v in zip(self._arm_index, positions, velocities, strict=False):
             p.resetJointState(self.robot, j, q, v, physicsClientId=self.client)
 
     def _held_filter_problem(self) -> tuple[int, str] | None:
@@ -254,14 +268,19 @@ class Simulation:
             other, link, depth = c[2], c[3], c[8]
             if depth > -PENETRATION or link == -1 or other == self.robot or other == held_body:
                 continue
-            return ErrorCode.COLLISION, f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)"
+            return (
+                ErrorCode.COLLISION,
+                f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)",
+            )
         # Exact distance queries are costly; only pairs whose bounding boxes overlap need one.
         boxes = {link: p.getAABB(self.robot, link, physicsClientId=self.client) for link in self._self_links}
         for a, b in self._self_pairs:
             (amin, amax), (bmin, bmax) = boxes[a], boxes[b]
             if any(amin[k] > bmax[k] or bmin[k] > amax[k] for k in range(3)):
                 continue
-            points = p.getClosestPoints(self.robot, self.robot, -PENETRATION, linkIndexA=a, linkIndexB=b, physicsClientId=self.client)
+            points = p.getClosestPoints(
+                self.robot, self.robot, -PENETRATION, linkIndexA=a, linkIndexB=b, physicsClientId=self.client
+            )
             if points:
                 return ErrorCode.COLLISION, (
                     f"self-collision: {robot_name}/{self._link_names.get(a, a)} hit {robot_name}/{self._link_names.get(b, b)} "
@@ -272,7 +291,11 @@ class Simulation:
                 other, other_link, depth = c[2], c[4], c[8]
                 if depth > -PENETRATION or (other == self.robot and other_link in self._gripper_links):
                     continue
-                what = f"{robot_name}/{self._link_names.get(other_link, other_link)}" if other == self.robot else self.world.body_name(other)
+                what = (
+                    f"{robot_name}/{self._link_names.get(other_link, other_link)}"
+                    if other == self.robot
+                    else self.world.body_name(other)
+                )
                 return ErrorCode.COLLISION, f"collision: held filter/{held.id} hit {what} ({-depth * 1000:.1f} mm deep)"  # type: ignore[union-attr]
         return None
 
@@ -284,14 +307,21 @@ class Simulation:
         and the gripper's own parts (fingers touch each other when closed).
         """
         robot, client = self.robot, self.client
-        with_shapes = [link for link in [-1, *range(p.getNumJoints(robot, physicsClientId=client))] if p.getCollisionShapeData(robot, link, physicsClientId=client)]
-        parent = {j: p.getJointInfo(robot, j, physicsClientId=client)[16] for j in range(p.getNumJoints(robot, physicsClientId=client))}
+        with_shapes = [
+            link
+            for link in [-1, *range(p.getNumJoints(robot, physicsClientId=client))]
+            if p.getCollisionShapeData(robot, link, physicsClientId=client)
+        ]
+        parent = {
+            j: p.getJointInfo(robot, j, physicsClientId=client)[16]
+            for j in range(p.getNumJoints(robot, physicsClientId=client))
+        }
         gripper = set(self.gripper.fingers) if self.gripper else set()
         if gripper:
             gripper |= {parent[f] for f in gripper}
         pairs = []
         for i, a in enumerate(with_shapes):
-            for b in with_shapes[i + 1:]:
+            for b in with_shapes[i + 1 :]:
                 if parent.get(b) == a or parent.get(a) == b or (a in gripper and b in gripper):
                     continue
                 if p.getClosestPoints(robot, robot, 0.0, linkIndexA=a, linkIndexB=b, physicsClientId=client):

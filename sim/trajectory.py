@@ -82,14 +82,16 @@ class Trajectory:
         q0, q1 = self.positions[i], self.positions[i + 1]
         if self.velocities is None:
             return (
-                tuple(a + (b - a) * s for a, b in zip(q0, q1)),
-                tuple((b - a) / h for a, b in zip(q0, q1)),
+                tuple(a + (b - a) * s for a, b in zip(q0, q1, strict=False)),
+                tuple((b - a) / h for a, b in zip(q0, q1, strict=False)),
             )
         v0, v1 = self.velocities[i], self.velocities[i + 1]
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
         d00, d10, d01, d11 = (6 * s**2 - 6 * s) / h, 3 * s**2 - 4 * s + 1, (-6 * s**2 + 6 * s) / h, 3 * s**2 - 2 * s
-        pos = tuple(h00 * a + h10 * h * va + h01 * b + h11 * h * vb for a, b, va, vb in zip(q0, q1, v0, v1))
-        vel = tuple(d00 * a + d10 * va + d01 * b + d11 * vb for a, b, va, vb in zip(q0, q1, v0, v1))
+        pos = tuple(
+            h00 * a + h10 * h * va + h01 * b + h11 * h * vb for a, b, va, vb in zip(q0, q1, v0, v1, strict=False)
+        )
+        vel = tuple(d00 * a + d10 * va + d01 * b + d11 * vb for a, b, va, vb in zip(q0, q1, v0, v1, strict=False))
         return pos, vel
 
 
@@ -123,9 +125,14 @@ def validate_trajectory(
         raise TrajectoryError(ErrorCode.INVALID_JOINTS, "trajectory names no joints")
     for name in joint_names:
         if name in other_joints:
-            raise TrajectoryError(ErrorCode.INVALID_JOINTS, f"joint {name!r} is not an arm joint (use the gripper service); arm joints are {list(controller_joints)}")
+            raise TrajectoryError(
+                ErrorCode.INVALID_JOINTS,
+                f"joint {name!r} is not an arm joint (use the gripper service); arm joints are {list(controller_joints)}",
+            )
         if name not in controller_joints:
-            raise TrajectoryError(ErrorCode.INVALID_JOINTS, f"unknown joint {name!r}; arm joints are {list(controller_joints)}")
+            raise TrajectoryError(
+                ErrorCode.INVALID_JOINTS, f"unknown joint {name!r}; arm joints are {list(controller_joints)}"
+            )
     if len(set(joint_names)) != len(joint_names):
         raise TrajectoryError(ErrorCode.INVALID_JOINTS, f"joint names repeat: {joint_names}")
     if not points:
@@ -143,7 +150,10 @@ def validate_trajectory(
         if t < 0:
             raise TrajectoryError(ErrorCode.INVALID_GOAL, f"point {k}: time_from_start {t:.6f} s is negative")
         if t <= previous_time:
-            raise TrajectoryError(ErrorCode.INVALID_GOAL, f"point {k}: time_from_start {t:.6f} s is not after point {k - 1} ({previous_time:.6f} s); time stamps must increase")
+            raise TrajectoryError(
+                ErrorCode.INVALID_GOAL,
+                f"point {k}: time_from_start {t:.6f} s is not after point {k - 1} ({previous_time:.6f} s); time stamps must increase",
+            )
         previous_time = t
         if len(q) != n:
             raise TrajectoryError(ErrorCode.INVALID_GOAL, f"point {k}: {len(q)} positions for {n} joints")
@@ -198,4 +208,9 @@ def validate_trajectory(
                     f"joint {name} must move {abs(full_positions[k][j] - full_positions[k - 1][j]):.4f} rad from {label} in {dt:.4f} s "
                     f"({speed:.3f} rad/s), over its velocity limit {lim:.4f} rad/s",
                 )
-    return Trajectory(tuple(controller_joints), tuple(times), tuple(full_positions), tuple(full_velocities) if have_velocities else None)
+    return Trajectory(
+        tuple(controller_joints),
+        tuple(times),
+        tuple(full_positions),
+        tuple(full_velocities) if have_velocities else None,
+    )

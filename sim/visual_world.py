@@ -45,6 +45,8 @@ def visual_world(scene: Scene) -> VisualWorld:
         lamp.name = LAMP_NAME
         lamp.pose = pose_message(slot)
         color = LOCKED_COLOR if scene.cabinet.locked else UNLOCKED_COLOR
-        lamp.shapes = [shape_message(Shape("box", Pose(scene.cabinet.latch_pose.xyz), size=scene.cabinet.latch_size), color)]
+        lamp.shapes = [
+            shape_message(Shape("box", Pose(scene.cabinet.latch_pose.xyz), size=scene.cabinet.latch_size), color)
+        ]
         msg.objects.append(lamp)
     return msg

@@ -12,7 +12,20 @@ from typing import Any
 
 import pybullet as p
 
-from sim.scene import RGBA, FilterModel, Pose, Scene, SceneError, Shape, StaticBody, TargetModel, TargetSpec, filter_parts, filter_shapes, target_parts
+from sim.scene import (
+    RGBA,
+    FilterModel,
+    Pose,
+    Scene,
+    SceneError,
+    Shape,
+    StaticBody,
+    TargetModel,
+    TargetSpec,
+    filter_parts,
+    filter_shapes,
+    target_parts,
+)
 
 __all__ = ["World", "build_world"]
 
@@ -50,20 +63,39 @@ def _shape_arrays(shapes: tuple[Shape, ...]) -> dict[str, list[Any]]:
         lengths.append(s.length)
         positions.append(list(s.pose.xyz))
         orientations.append(list(s.pose.quaternion))
-    return {"shapeTypes": kinds, "halfExtents": extents, "radii": radii, "lengths": lengths, "positions": positions, "orientations": orientations}
+    return {
+        "shapeTypes": kinds,
+        "halfExtents": extents,
+        "radii": radii,
+        "lengths": lengths,
+        "positions": positions,
+        "orientations": orientations,
+    }
 
 
 def _static_body(body: StaticBody, client: int) -> int:
     a = _shape_arrays(body.shapes)
     collision = p.createCollisionShapeArray(
-        shapeTypes=a["shapeTypes"], halfExtents=a["halfExtents"], radii=a["radii"], lengths=a["lengths"],
-        collisionFramePositions=a["positions"], collisionFrameOrientations=a["orientations"], physicsClientId=client,
+        shapeTypes=a["shapeTypes"],
+        halfExtents=a["halfExtents"],
+        radii=a["radii"],
+        lengths=a["lengths"],
+        collisionFramePositions=a["positions"],
+        collisionFrameOrientations=a["orientations"],
+        physicsClientId=client,
     )
     visual = p.createVisualShapeArray(
-        shapeTypes=a["shapeTypes"], halfExtents=a["halfExtents"], radii=a["radii"], lengths=a["lengths"],
-        visualFramePositions=a["positions"], visualFrameOrientations=a["orientations"], physicsClientId=client,
+        shapeTypes=a["shapeTypes"],
+        halfExtents=a["halfExtents"],
+        radii=a["radii"],
+        lengths=a["lengths"],
+        visualFramePositions=a["positions"],
+        visualFrameOrientations=a["orientations"],
+        physicsClientId=client,
     )
-    body_id = p.createMultiBody(0.0, collision, visual, list(body.pose.xyz), list(body.pose.quaternion), physicsClientId=client)
+    body_id = p.createMultiBody(
+        0.0, collision, visual, list(body.pose.xyz), list(body.pose.quaternion), physicsClientId=client
+    )
     p.changeVisualShape(body_id, -1, rgbaColor=list(body.color), physicsClientId=client)
     return int(body_id)
 
@@ -73,11 +105,18 @@ def _part_arrays(parts: tuple[tuple[Shape, RGBA], ...], client: int) -> tuple[in
     visuals = []
     for shape, color in parts:
         kind = p.GEOM_BOX if shape.type == "box" else p.GEOM_CYLINDER
-        visuals.append(p.createVisualShape(
-            kind, halfExtents=[v / 2 for v in shape.size], radius=shape.radius, length=shape.length,
-            visualFramePosition=list(shape.pose.xyz), visualFrameOrientation=list(shape.pose.quaternion),
-            rgbaColor=list(color), physicsClientId=client,
-        ))
+        visuals.append(
+            p.createVisualShape(
+                kind,
+                halfExtents=[v / 2 for v in shape.size],
+                radius=shape.radius,
+                length=shape.length,
+                visualFramePosition=list(shape.pose.xyz),
+                visualFrameOrientation=list(shape.pose.quaternion),
+                rgbaColor=list(color),
+                physicsClientId=client,
+            )
+        )
     return visuals[0], visuals[1:]
 
 
@@ -85,20 +124,38 @@ def _multi_body(mass: float, collision: int, parts: tuple[tuple[Shape, RGBA], ..
     """A body drawn as ``parts``; the parts after the first ride on fixed massless links."""
     base_visual, link_visuals = _part_arrays(parts, client)
     n = len(link_visuals)
-    return int(p.createMultiBody(
-        mass, collision, base_visual, list(pose.xyz), list(pose.quaternion),
-        linkMasses=[0.0] * n, linkCollisionShapeIndices=[-1] * n, linkVisualShapeIndices=link_visuals,
-        linkPositions=[[0, 0, 0]] * n, linkOrientations=[[0, 0, 0, 1]] * n, linkInertialFramePositions=[[0, 0, 0]] * n,
-        linkInertialFrameOrientations=[[0, 0, 0, 1]] * n, linkParentIndices=[0] * n, linkJointTypes=[p.JOINT_FIXED] * n,
-        linkJointAxis=[[0, 0, 1]] * n, physicsClientId=client,
-    ))
+    return int(
+        p.createMultiBody(
+            mass,
+            collision,
+            base_visual,
+            list(pose.xyz),
+            list(pose.quaternion),
+            linkMasses=[0.0] * n,
+            linkCollisionShapeIndices=[-1] * n,
+            linkVisualShapeIndices=link_visuals,
+            linkPositions=[[0, 0, 0]] * n,
+            linkOrientations=[[0, 0, 0, 1]] * n,
+            linkInertialFramePositions=[[0, 0, 0]] * n,
+            linkInertialFrameOrientations=[[0, 0, 0, 1]] * n,
+            linkParentIndices=[0] * n,
+            linkJointTypes=[p.JOINT_FIXED] * n,
+            linkJointAxis=[[0, 0, 1]] * n,
+            physicsClientId=client,
+        )
+    )
 
 
 def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
     shapes = filter_shapes(model)
     extents = [[v / 2 for v in s.size] for s in shapes]
     positions = [list(s.pose.xyz) for s in shapes]
-    collision = p.createCollisionShapeArray(shapeTypes=[p.GEOM_BOX, p.GEOM_BOX], halfExtents=extents, collisionFramePositions=positions, physicsClientId=client)
+    collision = p.createCollisionShapeArray(
+        shapeTypes=[p.GEOM_BOX, p.GEOM_BOX],
+        halfExtents=extents,
+        collisionFramePositions=positions,
+        physicsClientId=client,
+    )
     return _multi_body(model.mass, collision, filter_parts(model, condition), pose, client)
 
 
@@ -115,8 +172,12 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
     """
     p.setGravity(*scene.gravity, physicsClientId=client)
     robot = p.loadURDF(
-        str(scene.robot.urdf), list(scene.robot.base.xyz), list(scene.robot.base.quaternion),
-        useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client,
+        str(scene.robot.urdf),
+        list(scene.robot.base.xyz),
+        list(scene.robot.base.quaternion),
+        useFixedBase=True,
+        flags=p.URDF_USE_INERTIA_FROM_FILE,
+        physicsClientId=client,
     )
     joint_index: dict[str, int] = {}
     link_index: dict[str, int] = {scene.robot.base_link: -1}
@@ -131,10 +192,12 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
     for name in [scene.robot.tool_link] + [c.link for c in scene.cameras.values() if c.link]:
         if name not in link_index:
             raise SceneError(scene.path, 0, "robot", f"robot model {scene.robot.urdf} has no link {name!r}")
-    for name, q in zip(scene.robot.arm_joints, scene.robot.initial_positions):
+    for name, q in zip(scene.robot.arm_joints, scene.robot.initial_positions, strict=False):
         p.resetJointState(robot, joint_index[name], q, physicsClientId=client)
     if scene.robot.gripper:
-        for name, q in zip(scene.robot.gripper.joints, scene.robot.gripper.poses[scene.robot.gripper.initial]):
+        for name, q in zip(
+            scene.robot.gripper.joints, scene.robot.gripper.poses[scene.robot.gripper.initial], strict=False
+        ):
             p.resetJointState(robot, joint_index[name], q, physicsClientId=client)
     world = World(client, robot, joint_index, link_index)
     for body in scene.bodies:
@@ -148,6 +211,8 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
     if scene.cabinet:
         slot = scene.slots[scene.cabinet.slot].pose
         pos, orn = p.multiplyTransforms(slot.xyz, slot.quaternion, scene.cabinet.latch_pose.xyz, [0, 0, 0, 1])
-        latch_visual = p.createVisualShape(p.GEOM_BOX, halfExtents=[v / 2 for v in scene.cabinet.latch_size], physicsClientId=client)
+        latch_visual = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[v / 2 for v in scene.cabinet.latch_size], physicsClientId=client
+        )
         world.latch = p.createMultiBody(0.0, -1, latch_visual, pos, orn, physicsClientId=client)
     return world

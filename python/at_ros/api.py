@@ -7,8 +7,6 @@ node's namespace (none by default: ``/affordance_template_server/...``).
 
 from __future__ import annotations
 
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-
 from affordance_template_msgs.srv import (
     AddAffordanceTemplate,
     AffordanceTemplateExecuteCommand,
@@ -17,13 +15,14 @@ from affordance_template_msgs.srv import (
     GetAffordanceTemplateConfigInfo,
     GetAffordanceTemplateServerStatus,
     GetAffordanceTemplateStatus,
-    GetRobotConfigInfo,
     GetPlan,
+    GetRobotConfigInfo,
     GetRunningAffordanceTemplates,
     Halt,
     SetObjectPose,
     SetWaypointPose,
 )
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 __all__ = ["LATCHED", "PREFIX", "SERVICES", "SERVICE_QOS", "STATUS_TOPIC"]
 

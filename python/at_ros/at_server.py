@@ -23,14 +23,18 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
+from affordance_template_msgs.msg import ServerStatus
+from affordance_template_msgs.srv import PlanWaypoints
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.srv import Halt as RobotHalt
+from caretaker_sim_msgs.srv import SetGripper
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Header, String
 
-from affordance_template_msgs.msg import ServerStatus
-from affordance_template_msgs.srv import PlanWaypoints
 from at_ros.action_client import RecordedActionClient
 from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES, STATUS_TOPIC
 from at_ros.command_line import add_robot_options, choose_robot, split_ros_args
@@ -45,9 +49,6 @@ from at_ros.plan_execute import PlanExecutor
 from at_ros.plan_view import PlanQueries
 from at_ros.robot_config import RobotConfig
 from at_ros.server_core import CommandRefused, ServerCore
-from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import NamedPoses
-from caretaker_sim_msgs.srv import Halt as RobotHalt, SetGripper
 
 __all__ = ["AffordanceTemplateServer", "main"]
 
@@ -73,7 +74,9 @@ class AffordanceTemplateServer(Node):
         """
         restored = load_instances(state_file, robot, templates) if state_file is not None else {}
         super().__init__("affordance_template_server", namespace=namespace)
-        self.core = ServerCore(robot, templates, robots, template_folder=template_folder, state_file=state_file, instances=restored)
+        self.core = ServerCore(
+            robot, templates, robots, template_folder=template_folder, state_file=state_file, instances=restored
+        )
         self.core.publish_status = self.publish_status
         self._last_published: tuple[Any, ...] | None = None
 
@@ -85,28 +88,56 @@ class AffordanceTemplateServer(Node):
         self.status_publisher = self.create_publisher(ServerStatus, STATUS_TOPIC, 10)
         self.status_timer = self.create_timer(STATUS_PERIOD, self.status_timer_callback, callback_group=status)
 
-        self.frames_subscription = self.create_subscription(NamedPoses, "sim/frames", self.frames_callback, 10, callback_group=inputs)
-        self.joint_subscription = self.create_subscription(JointState, "joint_states", self.joint_states_callback, 10, callback_group=inputs)
-        self.moving_subscription = self.create_subscription(Bool, "robot/moving", self.moving_callback, LATCHED, callback_group=inputs)
-        self.held_subscription = self.create_subscription(String, "gripper/held_object", self.held_object_callback, LATCHED, callback_group=inputs)
-        self.heartbeat_subscription = self.create_subscription(Header, "planner/heartbeat", self.heartbeat_callback, 10, callback_group=inputs)
+        self.frames_subscription = self.create_subscription(
+            NamedPoses, "sim/frames", self.frames_callback, 10, callback_group=inputs
+        )
+        self.joint_subscription = self.create_subscription(
+            JointState, "joint_states", self.joint_states_callback, 10, callback_group=inputs
+        )
+        self.moving_subscription = self.create_subscription(
+            Bool, "robot/moving", self.moving_callback, LATCHED, callback_group=inputs
+        )
+        self.held_subscription = self.create_subscription(
+            String, "gripper/held_object", self.held_object_callback, LATCHED, callback_group=inputs
+        )
+        self.heartbeat_subscription = self.create_subscription(
+            Header, "planner/heartbeat", self.heartbeat_callback, 10, callback_group=inputs
+        )
 
         self.halt_part = HaltSwitch(
             self.core,
-            halt_client=self.create_client(RobotHalt, robot.halt_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.halt_service else None,
+            halt_client=self.create_client(
+                RobotHalt, robot.halt_service, qos_profile=SERVICE_QOS, callback_group=clients
+            )
+            if robot.halt_service
+            else None,
         )
         self.executor_part = PlanExecutor(
             self.core,
-            planner_client=self.create_client(PlanWaypoints, "planner/plan_waypoints", qos_profile=SERVICE_QOS, callback_group=clients),
-            trajectory_client=RecordedActionClient(self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients),
-            gripper_client=self.create_client(SetGripper, robot.gripper_service, qos_profile=SERVICE_QOS, callback_group=clients) if robot.gripper_service else None,
+            planner_client=self.create_client(
+                PlanWaypoints, "planner/plan_waypoints", qos_profile=SERVICE_QOS, callback_group=clients
+            ),
+            trajectory_client=RecordedActionClient(
+                self, FollowJointTrajectory, robot.trajectory_action, callback_group=clients
+            ),
+            gripper_client=self.create_client(
+                SetGripper, robot.gripper_service, qos_profile=SERVICE_QOS, callback_group=clients
+            )
+            if robot.gripper_service
+            else None,
             halts=self.halt_part,
         )
         self.instance_part = InstanceServices(self.core)
         self.plan_part = PlanQueries(self.core)
         for name, srv_type in SERVICES.items():
             callback = self._handler(name)
-            self.create_service(srv_type, f"{PREFIX}/{name}", self._guarded(name, callback), qos_profile=SERVICE_QOS, callback_group=services)
+            self.create_service(
+                srv_type,
+                f"{PREFIX}/{name}",
+                self._guarded(name, callback),
+                qos_profile=SERVICE_QOS,
+                callback_group=services,
+            )
 
     @property
     def frames_arrived(self) -> bool:
@@ -145,7 +176,7 @@ class AffordanceTemplateServer(Node):
 
     def joint_states_callback(self, msg: JointState) -> None:
         with self.core.joints_heard:
-            self.core.inputs.joints.update(zip(msg.name, msg.position))
+            self.core.inputs.joints.update(zip(msg.name, msg.position, strict=False))
             self.core.inputs.joints_stamp = msg.header.stamp
             self.core.joints_heard.notify_all()
 
@@ -171,8 +202,19 @@ class AffordanceTemplateServer(Node):
 
     def publish_status(self, *, force: bool = False) -> None:
         msg = self.core.status_message(self.get_clock().now().to_msg())
-        key = (msg.robot_active, msg.planner_node_active, msg.execute_status, msg.plan_status, msg.plan_valid,
-               msg.active_template, msg.active_trajectory, tuple(msg.running_templates), msg.last_error, msg.plan_id, msg.halt_reason)
+        key = (
+            msg.robot_active,
+            msg.planner_node_active,
+            msg.execute_status,
+            msg.plan_status,
+            msg.plan_valid,
+            msg.active_template,
+            msg.active_trajectory,
+            tuple(msg.running_templates),
+            msg.last_error,
+            msg.plan_id,
+            msg.halt_reason,
+        )
         with self.core.state_lock:
             changed = key != self._last_published
             self._last_published = key
@@ -192,8 +234,11 @@ class AffordanceTemplateServer(Node):
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker at-server", description=__doc__.splitlines()[0])
     add_robot_options(parser)
-    parser.add_argument("--state-file", type=Path,
-                        help="keep the instances here and restore them at start, so a restarted server carries on (default: not kept)")
+    parser.add_argument(
+        "--state-file",
+        type=Path,
+        help="keep the instances here and restore them at start, so a restarted server carries on (default: not kept)",
+    )
     ours, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(ours)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
@@ -208,8 +253,14 @@ def main(argv: list[str] | None = None) -> int:
     executor = MultiThreadedExecutor(num_threads=6)
     try:
         try:
-            node = AffordanceTemplateServer(choice.robot, templates, choice.robots, template_folder=choice.templates,
-                                            state_file=args.state_file, namespace=args.namespace)
+            node = AffordanceTemplateServer(
+                choice.robot,
+                templates,
+                choice.robots,
+                template_folder=choice.templates,
+                state_file=args.state_file,
+                namespace=args.namespace,
+            )
         except LibraryError as exc:
             print(f"caretaker at-server: {exc}", file=sys.stderr)
             return 2

@@ -9,12 +9,12 @@ their names from the message (``filter/<id>``, body names), so frame updates fin
 from __future__ import annotations
 
 import pybullet as p
+from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
 
 from at_ros.messages import matrix_from_pose
 from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import RobotConfig
 from at_ros.transforms import to_xyz_quat
-from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
 
 __all__ = ["build_planning_scene"]
 
@@ -32,8 +32,13 @@ def _add_object(scene: PlanningScene, obj: CollisionObject) -> None:
         positions.append(pos.tolist())
         orientations.append(quat.tolist())
     collision = p.createCollisionShapeArray(
-        shapeTypes=kinds, halfExtents=extents, radii=radii, lengths=lengths,
-        collisionFramePositions=positions, collisionFrameOrientations=orientations, physicsClientId=scene.client,
+        shapeTypes=kinds,
+        halfExtents=extents,
+        radii=radii,
+        lengths=lengths,
+        collisionFramePositions=positions,
+        collisionFrameOrientations=orientations,
+        physicsClientId=scene.client,
     )
     pos, quat = to_xyz_quat(matrix_from_pose(obj.pose))
     # pybullet reports no contacts between two bodies of mass 0: a graspable object that the
@@ -52,8 +57,11 @@ def build_planning_scene(config: RobotConfig, world: CollisionWorld) -> Planning
             lacks the config's joints or tool link.
     """
     scene = PlanningScene(
-        config.urdf, config.joint_names, config.tool_link,
-        base_pose=matrix_from_pose(world.robot_base), gripper_links=config.planner.gripper_links,
+        config.urdf,
+        config.joint_names,
+        config.tool_link,
+        base_pose=matrix_from_pose(world.robot_base),
+        gripper_links=config.planner.gripper_links,
     )
     try:
         for obj in world.objects:
@@ -62,4 +70,3 @@ def build_planning_scene(config: RobotConfig, world: CollisionWorld) -> Planning
         scene.close()
         raise
     return scene
-

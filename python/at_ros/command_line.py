@@ -36,13 +36,24 @@ def split_ros_args(argv: list[str]) -> tuple[list[str], list[str]]:
 
 
 def add_robot_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--robot", required=True, metavar="NAME|FILE",
-                        help="a robot config file, or the robot_name of one in the robots folder")
-    parser.add_argument("--library", type=Path, metavar="DIR",
-                        help="a library folder: templates/ (and robots/, if it has one)")
-    parser.add_argument("--templates", type=Path, metavar="DIR", help="template folder (default: the library's templates/)")
-    parser.add_argument("--robots", type=Path, metavar="DIR", help="robot configs folder (default: the library's, else the shipped one)")
-    parser.add_argument("--namespace", default="", help="ROS namespace of the robot's topics and services (default: none)")
+    parser.add_argument(
+        "--robot",
+        required=True,
+        metavar="NAME|FILE",
+        help="a robot config file, or the robot_name of one in the robots folder",
+    )
+    parser.add_argument(
+        "--library", type=Path, metavar="DIR", help="a library folder: templates/ (and robots/, if it has one)"
+    )
+    parser.add_argument(
+        "--templates", type=Path, metavar="DIR", help="template folder (default: the library's templates/)"
+    )
+    parser.add_argument(
+        "--robots", type=Path, metavar="DIR", help="robot configs folder (default: the library's, else the shipped one)"
+    )
+    parser.add_argument(
+        "--namespace", default="", help="ROS namespace of the robot's topics and services (default: none)"
+    )
 
 
 def choose_robot(args: argparse.Namespace) -> RobotChoice:
@@ -66,5 +77,7 @@ def choose_robot(args: argparse.Namespace) -> RobotChoice:
     robots_dir = robots_dir or default_library_path() / "robots"
     robots = load_robot_configs(robots_dir)
     if args.robot not in robots:
-        raise LibraryError(robots_dir, 0, "", f"unknown robot {args.robot!r}; known: {', '.join(sorted(robots)) or 'none'}")
+        raise LibraryError(
+            robots_dir, 0, "", f"unknown robot {args.robot!r}; known: {', '.join(sorted(robots)) or 'none'}"
+        )
     return RobotChoice(robots[args.robot], robots, templates)

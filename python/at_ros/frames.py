@@ -32,7 +32,7 @@ class FrameTable:
 
     def update(self, names: list[str], poses: list[np.ndarray]) -> None:
         with self._lock:
-            self._poses = dict(zip(names, poses))
+            self._poses = dict(zip(names, poses, strict=False))
             self._stamp = time.monotonic()
             self._lock.notify_all()
 

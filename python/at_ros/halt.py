@@ -22,8 +22,9 @@ import threading
 from typing import Any
 
 from affordance_template_msgs.srv import Halt
-from at_ros.server_core import CommandRefused, ServerCore
 from caretaker_sim_msgs.srv import Halt as RobotHalt
+
+from at_ros.server_core import CommandRefused, ServerCore
 
 __all__ = ["HALT_TIMEOUT", "HaltSwitch", "Halted"]
 
@@ -102,12 +103,20 @@ class HaltSwitch:
         if self.halt_client is not None:
             confirmed, stopped, said = self._halt_robot(self.halt_client, reason)
         elif goal is not None:
-            confirmed, stopped, said = True, True, "cancelled the trajectory goal (no halt service: a gripper motion goes on)"
+            confirmed, stopped, said = (
+                True,
+                True,
+                "cancelled the trajectory goal (no halt service: a gripper motion goes on)",
+            )
         else:
             with core.state_lock:
                 moving = core.inputs.moving
             confirmed, stopped = not moving, False
-            said = "the robot moves, not by this server's command, and has no halt service (halt_service in its config)" if moving else ""
+            said = (
+                "the robot moves, not by this server's command, and has no halt service (halt_service in its config)"
+                if moving
+                else ""
+            )
         response.halted = executing
         response.success = confirmed
         if executing or stopped:
@@ -130,7 +139,11 @@ class HaltSwitch:
         future.add_done_callback(lambda _: done.set())
         if not done.wait(HALT_TIMEOUT):
             future.cancel()
-            return False, False, f"the robot's halt service {client.srv_name} did not answer within {HALT_TIMEOUT:.0f} s"
+            return (
+                False,
+                False,
+                f"the robot's halt service {client.srv_name} did not answer within {HALT_TIMEOUT:.0f} s",
+            )
         if future.exception() is not None:
             return False, False, f"the robot's halt service failed: {future.exception()}"
         result = future.result()

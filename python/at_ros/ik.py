@@ -70,8 +70,10 @@ class IkFailure:
         if self.limit:
             return f"reachable only outside the joint limits: {self.limit}"
         if np.isfinite(self.position_error):
-            return (f"unreachable within the joint limits (best IK error {self.position_error * 1000:.1f} mm, "
-                    f"{np.degrees(self.orientation_error):.1f} deg)")
+            return (
+                f"unreachable within the joint limits (best IK error {self.position_error * 1000:.1f} mm, "
+                f"{np.degrees(self.orientation_error):.1f} deg)"
+            )
         return f"unreachable: no IK solution came near the pose from {self.seeds} seeds"
 
 
@@ -142,7 +144,9 @@ class IkSolver:
             return IkFailure(best_pos, best_rot, last_collision, violated, self.seeds)
         return min(found, key=lambda s: float(np.linalg.norm(s - near)))
 
-    def track(self, target: np.ndarray, previous: np.ndarray, position_tolerance: float, orientation_tolerance: float) -> np.ndarray | None:
+    def track(
+        self, target: np.ndarray, previous: np.ndarray, position_tolerance: float, orientation_tolerance: float
+    ) -> np.ndarray | None:
         """A solution for ``target`` continuous with ``previous`` (no restarts), within limits, or None.
 
         Collisions are the caller's to check: a Cartesian line wants to know where it is blocked.
@@ -151,7 +155,10 @@ class IkSolver:
         q = self._newton(target, previous, position_tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
         if q is not None:
             pose = self.scene.forward(q)
-            if np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= position_tolerance and angle_between(pose, target) <= orientation_tolerance:
+            if (
+                np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= position_tolerance
+                and angle_between(pose, target) <= orientation_tolerance
+            ):
                 return q
         if self._last_iterate is not None:
             self.blocked_by = self.limit_blocking(self._last_iterate)
@@ -160,21 +167,31 @@ class IkSolver:
     def limit_blocking(self, q: np.ndarray) -> str | None:
         """The joints of ``q`` that sit at a limit, for messages ("elbow_joint at its upper limit 2.50 rad")."""
         lo, hi = self.scene.limits.lower, self.scene.limits.upper
-        at = [f"{name} at its {'lower' if v <= lo[i] + 1e-6 else 'upper'} limit {lo[i] if v <= lo[i] + 1e-6 else hi[i]:.2f} rad"
-              for i, (name, v) in enumerate(zip(self.scene.joint_names, q)) if v <= lo[i] + 1e-6 or v >= hi[i] - 1e-6]
+        at = [
+            f"{name} at its {'lower' if v <= lo[i] + 1e-6 else 'upper'} limit {lo[i] if v <= lo[i] + 1e-6 else hi[i]:.2f} rad"
+            for i, (name, v) in enumerate(zip(self.scene.joint_names, q, strict=False))
+            if v <= lo[i] + 1e-6 or v >= hi[i] - 1e-6
+        ]
         return ", ".join(at) or None
 
     def _jacobian(self, q: np.ndarray, movable: list[float]) -> np.ndarray:
         scene = self.scene
-        for slot, value in zip(scene.ik_slots, q):
+        for slot, value in zip(scene.ik_slots, q, strict=False):
             movable[slot] = float(value)
         linear, angular = p.calculateJacobian(
-            scene.robot, scene.tool_index, [0.0, 0.0, 0.0], movable, [0.0] * len(movable), [0.0] * len(movable),
+            scene.robot,
+            scene.tool_index,
+            [0.0, 0.0, 0.0],
+            movable,
+            [0.0] * len(movable),
+            [0.0] * len(movable),
             physicsClientId=scene.client,
         )
         return np.vstack([np.array(linear)[:, scene.ik_slots], np.array(angular)[:, scene.ik_slots]])
 
-    def _newton(self, target: np.ndarray, seed: np.ndarray, tolerance: float, *, iterations: int, max_step: float | None) -> np.ndarray | None:
+    def _newton(
+        self, target: np.ndarray, seed: np.ndarray, tolerance: float, *, iterations: int, max_step: float | None
+    ) -> np.ndarray | None:
         """Damped least squares projected onto the joint limits; None if it does not converge.
 
         ``max_step=None`` (tracking from a nearby state): a step larger than 0.5 rad means the
@@ -216,7 +233,9 @@ class IkSolver:
             self._last_iterate = q
         return None
 
-    def _solve_from(self, target: np.ndarray, seed: np.ndarray, near: np.ndarray, tolerance: float) -> tuple[np.ndarray | None, str | None]:
+    def _solve_from(
+        self, target: np.ndarray, seed: np.ndarray, near: np.ndarray, tolerance: float
+    ) -> tuple[np.ndarray | None, str | None]:
         """A solution within the limits from ``seed`` (or None), and a limit that an
         unconstrained solution reaching the pose would violate (or None)."""
         q = self._newton(target, seed, tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
@@ -240,8 +259,12 @@ class IkSolver:
         scene.set_joints(seed)
         pos, quat = to_xyz_quat(target)
         raw = p.calculateInverseKinematics(
-            scene.robot, scene.tool_index, pos.tolist(), quat.tolist(),
-            maxNumIterations=self.iterations, residualThreshold=self.residual,
+            scene.robot,
+            scene.tool_index,
+            pos.tolist(),
+            quat.tolist(),
+            maxNumIterations=self.iterations,
+            residualThreshold=self.residual,
             physicsClientId=scene.client,
         )
         return np.array([raw[i] for i in scene.ik_slots])
@@ -264,7 +287,7 @@ class IkSolver:
         """Add multiples of 2*pi per joint to land inside the limits, nearest to ``near``."""
         lo, hi = self.scene.limits.lower, self.scene.limits.upper
         out = np.empty_like(q)
-        for i, (value, ref) in enumerate(zip(q, near)):
+        for i, (value, ref) in enumerate(zip(q, near, strict=False)):
             k = np.round((ref - value) / (2 * np.pi))
             candidates = [value + 2 * np.pi * (k + d) for d in (0, -1, 1, -2, 2)]
             inside = [c for c in candidates if lo[i] - 1e-9 <= c <= hi[i] + 1e-9]

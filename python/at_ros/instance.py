@@ -51,7 +51,9 @@ def next_free_id(used: set[int]) -> int:
     raise InstanceError(f"all {MAX_ID + 1} ids of this template type are in use; delete an instance first")
 
 
-def path_sequence(n: int, current: int, steps: int | None, *, direct: bool, backwards: bool, resume: bool = False) -> list[int]:
+def path_sequence(
+    n: int, current: int, steps: int | None, *, direct: bool, backwards: bool, resume: bool = False
+) -> list[int]:
     """Waypoint indices to plan, as the original's computePathSequence, plus ``steps=None``.
 
     ``steps=None`` (our default) is the whole trajectory, first to last; with ``resume`` (the
@@ -183,7 +185,9 @@ class TemplateInstance:
     waypoint_overrides: dict[tuple[str, int, int], np.ndarray] = field(default_factory=dict)
     progress: dict[str, TrajectoryProgress] = field(default_factory=dict)
     plan: StoredPlan | None = None  # the plan execute_command would run
-    plans: dict[str, StoredPlan] = field(default_factory=dict)  # the last plan of each trajectory, whatever became of it
+    plans: dict[str, StoredPlan] = field(
+        default_factory=dict
+    )  # the last plan of each trajectory, whatever became of it
     current_trajectory: str = ""
 
     def __post_init__(self) -> None:
@@ -202,7 +206,9 @@ class TemplateInstance:
         name = name or self.current_trajectory
         trajectory = self.template.trajectory(name)
         if trajectory is None:
-            raise InstanceError(f"template {self.template.name!r} has no trajectory {name!r}; it has: {', '.join(self.template.trajectory_names)}")
+            raise InstanceError(
+                f"template {self.template.name!r} has no trajectory {name!r}; it has: {', '.join(self.template.trajectory_names)}"
+            )
         return trajectory
 
     def end_effector(self, trajectory: Trajectory, names: list[str]) -> EndEffector:
@@ -219,12 +225,18 @@ class TemplateInstance:
         if names:
             unknown = [n for n in names if n not in {e.name for e in mapped}]
             if unknown:
-                raise InstanceError(f"unknown end effector {unknown[0]!r} for trajectory {trajectory.name!r}; it has: {', '.join(e.name for e in mapped)}")
+                raise InstanceError(
+                    f"unknown end effector {unknown[0]!r} for trajectory {trajectory.name!r}; it has: {', '.join(e.name for e in mapped)}"
+                )
             if len(names) > 1:
-                raise InstanceError(f"robot {self.robot.robot_name!r} has one arm; plan one end effector at a time, not {names}")
+                raise InstanceError(
+                    f"robot {self.robot.robot_name!r} has one arm; plan one end effector at a time, not {names}"
+                )
             return next(e for e in mapped if e.name == names[0])
         if len(mapped) > 1:
-            raise InstanceError(f"trajectory {trajectory.name!r} has several end effectors; name one of: {', '.join(e.name for e in mapped)}")
+            raise InstanceError(
+                f"trajectory {trajectory.name!r} has several end effectors; name one of: {', '.join(e.name for e in mapped)}"
+            )
         return mapped[0]
 
     # --- frames ----------------------------------------------------------------------------
@@ -235,14 +247,18 @@ class TemplateInstance:
             return self.registrations[name].world
         obj = self.template.display_object(name)
         if obj is None:
-            raise InstanceError(f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}")
+            raise InstanceError(
+                f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}"
+            )
         parent = self.object_pose(obj.parent) if obj.parent else self.root_pose
         pose: np.ndarray = parent @ obj.origin.matrix
         return pose
 
     def register(self, name: str, registration: Registration) -> None:
         if self.template.display_object(name) is None:
-            raise InstanceError(f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}")
+            raise InstanceError(
+                f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}"
+            )
         previous = self.registrations.get(name)
         if previous is None or previous.frame != registration.frame:
             # Another object: an interrupted execution is not resumed on it, it starts over.
@@ -258,7 +274,9 @@ class TemplateInstance:
         group = trajectory.group(ee.id)
         assert group is not None
         if not 0 <= index < len(group.waypoints):
-            raise InstanceError(f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {index}")
+            raise InstanceError(
+                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {index}"
+            )
         parent = self.object_pose(group.waypoints[index].display_object)
         self.waypoint_overrides[(trajectory.name, ee.id, index)] = invert(parent) @ world_pose
         self.invalidate_plan(f"waypoint {ee.id}.{index}:{self.key} of {trajectory.name!r} moved")
@@ -284,8 +302,19 @@ class TemplateInstance:
                     f"does not map for end effector {ee.name!r}; add it to end_effector_pose_map"
                 )
             action, held = (GRASP, wp.grasp) if wp.grasp else (RELEASE, wp.release) if wp.release else ("", "")
-            out.append(ResolvedWaypoint(i, f"{ee.id}.{i}:{self.key}", wp, frame, goal, pose_name, action, held,
-                                        self.object_pose(held) if held else None))
+            out.append(
+                ResolvedWaypoint(
+                    i,
+                    f"{ee.id}.{i}:{self.key}",
+                    wp,
+                    frame,
+                    goal,
+                    pose_name,
+                    action,
+                    held,
+                    self.object_pose(held) if held else None,
+                )
+            )
         return out
 
     # --- plans -----------------------------------------------------------------------------
@@ -302,7 +331,14 @@ class TemplateInstance:
             return self.plans.get(trajectory)
         return max(self.plans.values(), key=lambda plan: plan.planned_at, default=None)
 
-    def stale_reason(self, plan: StoredPlan, frames: dict[str, np.ndarray], joints: dict[str, float], held_object: str, joint_tolerance: float) -> str | None:
+    def stale_reason(
+        self,
+        plan: StoredPlan,
+        frames: dict[str, np.ndarray],
+        joints: dict[str, float],
+        held_object: str,
+        joint_tolerance: float,
+    ) -> str | None:
         """Why ``plan`` no longer fits the world, or None when it can be executed."""
         for name, reg in plan.registrations.items():
             if reg.frame == "world":

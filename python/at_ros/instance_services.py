@@ -17,6 +17,7 @@ from affordance_template_msgs.srv import (
     SetObjectPose,
     SetWaypointPose,
 )
+
 from at_ros.frames import WORLD_FRAME
 from at_ros.instance import InstanceError, Registration, TemplateInstance, next_free_id
 from at_ros.messages import matrix_from_pose
@@ -45,14 +46,18 @@ class InstanceServices:
             root = core.frames.lookup(core.robot.frame_id, FRAME_WAIT) @ core.robot.root_offset_matrix
         with core.state_lock:
             used = {i.id for i in core.state.instances.values() if i.template.name == template.name}
-            instance = TemplateInstance(template, next_free_id(used), core.robot, root, hide_waypoints=request.hide_waypoints)
+            instance = TemplateInstance(
+                template, next_free_id(used), core.robot, root, hide_waypoints=request.hide_waypoints
+            )
             core.state.instances[instance.key] = instance
         response.id = instance.id
         response.instance = instance.key
         core.save_instances(f"added {instance.key}")
         return core.succeed(response, f"added {instance.key}")
 
-    def delete_template(self, request: DeleteAffordanceTemplate.Request, response: DeleteAffordanceTemplate.Response) -> Any:
+    def delete_template(
+        self, request: DeleteAffordanceTemplate.Request, response: DeleteAffordanceTemplate.Response
+    ) -> Any:
         core = self.core
         instance = core.instance(request.class_type, request.id)
         with core.state_lock:
@@ -104,7 +109,9 @@ class InstanceServices:
             instance = core.instance(obj.type, obj.id)
             name = obj.name.split(":")[0]  # accept "cdra_filter" and the frame name "cdra_filter:0"
             if instance.template.display_object(name) is None:
-                raise InstanceError(f"template {instance.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in instance.template.display_objects)}")
+                raise InstanceError(
+                    f"template {instance.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in instance.template.display_objects)}"
+                )
             frame = obj.stamped_pose.header.frame_id or WORLD_FRAME
             frame_pose = core.frames.lookup(frame, FRAME_WAIT)
             updates.append((instance, name, Registration(frame, matrix_from_pose(obj.stamped_pose.pose), frame_pose)))
@@ -123,7 +130,9 @@ class InstanceServices:
         group = trajectory.group(ee.id)
         assert group is not None
         if not 0 <= request.waypoint_id < len(group.waypoints):
-            raise InstanceError(f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {request.waypoint_id}")
+            raise InstanceError(
+                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {request.waypoint_id}"
+            )
         frame = request.pose.header.frame_id
         with core.command_lock(instance.key), core.state_lock:
             if frame:
@@ -137,10 +146,16 @@ class InstanceServices:
 
     # --- queries ---------------------------------------------------------------------------
 
-    def get_template_status(self, request: GetAffordanceTemplateStatus.Request, response: GetAffordanceTemplateStatus.Response) -> Any:
+    def get_template_status(
+        self, request: GetAffordanceTemplateStatus.Request, response: GetAffordanceTemplateStatus.Response
+    ) -> Any:
         core = self.core
         instance = core.instance_named(request.name)
-        names = [instance.trajectory(request.trajectory_name).name] if request.trajectory_name else instance.template.trajectory_names
+        names = (
+            [instance.trajectory(request.trajectory_name).name]
+            if request.trajectory_name
+            else instance.template.trajectory_names
+        )
         response.affordance_template_status = [core.instance_status(instance, n, request.frame_id) for n in names]
         response.current_trajectory = instance.current_trajectory
         response.trajectory_names = instance.template.trajectory_names

@@ -65,7 +65,9 @@ def load_instances(path: Path, robot: RobotConfig, templates: dict[str, Template
     if root["format"].integer() != FORMAT_VERSION:
         raise root["format"].fail(f"expected AT server state format {FORMAT_VERSION}")
     if root["robot"].text() != robot.robot_name:
-        raise root["robot"].fail(f"state of robot {root['robot'].text()!r}, but this server serves {robot.robot_name!r}")
+        raise root["robot"].fail(
+            f"state of robot {root['robot'].text()!r}, but this server serves {robot.robot_name!r}"
+        )
     instances: dict[str, TemplateInstance] = {}
     for entry in root["instances"].sequence():
         try:
@@ -97,25 +99,50 @@ def _instance_to_json(instance: TemplateInstance) -> dict[str, Any]:
             for (trajectory, ee_id, index), origin in instance.waypoint_overrides.items()
         ],
         "current_index": {name: p.current_index for name, p in instance.progress.items()},
-        "executions": {name: {"outcome": p.outcome, "message": p.outcome_message} for name, p in instance.progress.items() if p.outcome},
+        "executions": {
+            name: {"outcome": p.outcome, "message": p.outcome_message}
+            for name, p in instance.progress.items()
+            if p.outcome
+        },
     }
 
 
 def _instance_from_json(entry: Field, robot: RobotConfig, templates: dict[str, Template]) -> TemplateInstance:
-    entry.mapping(required=("template", "id", "root_pose", "hide_waypoints", "current_trajectory", "registrations",
-                            "waypoint_overrides", "current_index"), optional=("executions",))
+    entry.mapping(
+        required=(
+            "template",
+            "id",
+            "root_pose",
+            "hide_waypoints",
+            "current_trajectory",
+            "registrations",
+            "waypoint_overrides",
+            "current_index",
+        ),
+        optional=("executions",),
+    )
     name = entry["template"].text()
     template = templates.get(name)
     if template is None:
         raise entry["template"].fail(f"template {name!r} is not in the library (known: {', '.join(sorted(templates))})")
-    instance = TemplateInstance(template, entry["id"].integer(min=0, max=255), robot, _matrix(entry["root_pose"]),
-                                hide_waypoints=entry["hide_waypoints"].boolean(), current_trajectory=entry["current_trajectory"].text(empty=True))
+    instance = TemplateInstance(
+        template,
+        entry["id"].integer(min=0, max=255),
+        robot,
+        _matrix(entry["root_pose"]),
+        hide_waypoints=entry["hide_waypoints"].boolean(),
+        current_trajectory=entry["current_trajectory"].text(empty=True),
+    )
     for object_name, r in entry["registrations"].entries():
         r.mapping(required=("frame", "offset", "frame_pose"))
         instance.register(object_name, Registration(r["frame"].text(), _matrix(r["offset"]), _matrix(r["frame_pose"])))
     for override in entry["waypoint_overrides"].sequence():
         override.mapping(required=("trajectory", "end_effector_id", "index", "origin"))
-        key = (override["trajectory"].text(), override["end_effector_id"].integer(min=0, max=255), override["index"].integer(min=0, max=255))
+        key = (
+            override["trajectory"].text(),
+            override["end_effector_id"].integer(min=0, max=255),
+            override["index"].integer(min=0, max=255),
+        )
         instance.waypoint_overrides[key] = _matrix(override["origin"])
     for trajectory, index in entry["current_index"].entries():
         if trajectory in instance.progress:

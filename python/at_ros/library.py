@@ -160,7 +160,16 @@ class Template:
 GRASP = "grasp"
 RELEASE = "release"
 
-_WAYPOINT_KEYS = ("controls", "planner_type", "conditioning_metric", "tolerances", "task_compatibility", "tool_offset", GRASP, RELEASE)
+_WAYPOINT_KEYS = (
+    "controls",
+    "planner_type",
+    "conditioning_metric",
+    "tolerances",
+    "task_compatibility",
+    "tool_offset",
+    GRASP,
+    RELEASE,
+)
 
 
 def _origin(f: Field) -> Origin:
@@ -213,7 +222,14 @@ def _tolerances(f: Field) -> Tolerances:
     f.mapping(optional=("x", "y", "z", "R", "P", "Y"))
     position: list[float] = []
     orientation: list[float] = []
-    for axis, bucket in (("x", position), ("y", position), ("z", position), ("R", orientation), ("P", orientation), ("Y", orientation)):
+    for axis, bucket in (
+        ("x", position),
+        ("y", position),
+        ("z", position),
+        ("R", orientation),
+        ("P", orientation),
+        ("Y", orientation),
+    ):
         value = f.get(axis)
         if value is not None:
             pair = value.numbers(2)
@@ -239,7 +255,9 @@ def _waypoint(f: Field) -> Waypoint:
     grasp, release = f.get(GRASP), f.get(RELEASE)
     if grasp is not None and release is not None:
         raise release.fail("a waypoint either grasps or releases, not both")
-    metric, tolerances, compat, controls, tool = (f.get(k) for k in ("conditioning_metric", "tolerances", "task_compatibility", "controls", "tool_offset"))
+    metric, tolerances, compat, controls, tool = (
+        f.get(k) for k in ("conditioning_metric", "tolerances", "task_compatibility", "controls", "tool_offset")
+    )
     return Waypoint(
         ee_pose=f["ee_pose"].integer(min=0, max=255),
         display_object=f["display_object"].text(),
@@ -261,10 +279,12 @@ def _trajectory(f: Field) -> Trajectory:
     group_fields = f["end_effector_group"].sequence(min_items=1)
     for g in group_fields:
         g.mapping(required=("id", "end_effector_waypoint"))
-        groups.append(EndEffectorGroup(
-            id=g["id"].integer(min=0, max=255),
-            waypoints=tuple(_waypoint(w) for w in g["end_effector_waypoint"].sequence(min_items=1)),
-        ))
+        groups.append(
+            EndEffectorGroup(
+                id=g["id"].integer(min=0, max=255),
+                waypoints=tuple(_waypoint(w) for w in g["end_effector_waypoint"].sequence(min_items=1)),
+            )
+        )
     for i, group in enumerate(groups):
         if any(other.id == group.id for other in groups[:i]):
             raise group_fields[i]["id"].fail(f"end-effector group id {group.id} repeats")
@@ -306,8 +326,14 @@ def load_template(path: Path | str) -> Template:
     """
     path = Path(path)
     root = load_file(path, error=LibraryError, json=True)
-    if root.node.kind == "mapping" and root.has("end_effector_trajectories") and not root.has("end_effector_trajectory"):
-        raise root["end_effector_trajectories"].fail("unknown key; the AT format names it 'end_effector_trajectory' (singular)")
+    if (
+        root.node.kind == "mapping"
+        and root.has("end_effector_trajectories")
+        and not root.has("end_effector_trajectory")
+    ):
+        raise root["end_effector_trajectories"].fail(
+            "unknown key; the AT format names it 'end_effector_trajectory' (singular)"
+        )
     root.mapping(required=("name", "image", "display_objects", "end_effector_trajectory"))
     template = Template(
         name=root["name"].text(),
@@ -341,10 +367,14 @@ def _files(folder: Path, suffix: str, recursive: bool) -> list[Path]:
     found: list[Path] = []
     for top, dirs, files in os.walk(folder, followlinks=True, onerror=_walk_error):
         here = Path(top)
-        ancestors = {Path(os.path.realpath(parent)) for parent in [here, *here.parents] if folder in [parent, *parent.parents]}
+        ancestors = {
+            Path(os.path.realpath(parent)) for parent in [here, *here.parents] if folder in [parent, *parent.parents]
+        }
         for name in list(dirs):
             if Path(os.path.realpath(here / name)) in ancestors:
-                raise LibraryError(here / name, 0, "", "linked folder leads back into the library above it; remove the link")
+                raise LibraryError(
+                    here / name, 0, "", "linked folder leads back into the library above it; remove the link"
+                )
         dirs.sort()
         found += [here / name for name in sorted(files) if name.endswith(suffix) and (here / name).is_file()]
     return found
@@ -354,7 +384,9 @@ def _walk_error(exc: OSError) -> None:
     raise LibraryError(exc.filename or "", 0, "", f"cannot read folder: {exc.strerror}")
 
 
-def load_named_files(folder: Path, suffix: str, load: Callable[[Path], Named], key: str, kind: str, *, recursive: bool = False) -> dict[str, Named]:
+def load_named_files(
+    folder: Path, suffix: str, load: Callable[[Path], Named], key: str, kind: str, *, recursive: bool = False
+) -> dict[str, Named]:
     """Every file of ``folder`` ending in ``suffix``, loaded, keyed by its ``key`` attribute.
 
     Adding a template or a robot is adding a file, so a name two files claim is an error that
@@ -367,7 +399,9 @@ def load_named_files(folder: Path, suffix: str, load: Callable[[Path], Named], k
         item = load(path)
         name = getattr(item, key)
         if name in loaded:
-            raise LibraryError(path, 0, key, f"{kind} {key} {name!r} is already used by {getattr(loaded[name], 'filename', '?')}")
+            raise LibraryError(
+                path, 0, key, f"{kind} {key} {name!r} is already used by {getattr(loaded[name], 'filename', '?')}"
+            )
         loaded[name] = item
     return loaded
 

@@ -101,10 +101,14 @@ class MotionPlanner:
         self.scene = scene
         self.settings = settings
         rng = np.random.default_rng(settings.seed)
-        self.ik = IkSolver(scene, seeds=settings.ik_seeds, iterations=settings.ik_iterations, residual=settings.ik_residual, rng=rng)
+        self.ik = IkSolver(
+            scene, seeds=settings.ik_seeds, iterations=settings.ik_iterations, residual=settings.ik_residual, rng=rng
+        )
         self.joint_planner = JointPlanner(scene.limits.lower, scene.limits.upper, scene.is_valid, seed=settings.seed)
 
-    def plan(self, start: np.ndarray, goals: list[Goal], *, held_object: str = "", held_transform: np.ndarray | None = None) -> list[PlannedWaypoint]:
+    def plan(
+        self, start: np.ndarray, goals: list[Goal], *, held_object: str = "", held_transform: np.ndarray | None = None
+    ) -> list[PlannedWaypoint]:
         """Plan every goal in order from ``start``; the scene (attachment, object poses) is restored afterwards.
 
         Args:
@@ -148,7 +152,12 @@ class MotionPlanner:
             scene.restore(saved)
 
     def _timed(self, goal: Goal, path: list[np.ndarray], started: float) -> PlannedWaypoint:
-        timed = time_parameterize(path, self.scene.limits.velocity, self.settings.max_acceleration, velocity_scaling=self.settings.velocity_scaling)
+        timed = time_parameterize(
+            path,
+            self.scene.limits.velocity,
+            self.settings.max_acceleration,
+            velocity_scaling=self.settings.velocity_scaling,
+        )
         return PlannedWaypoint(goal.label, timed, goal.end_effector_pose, time.perf_counter() - started)
 
     def _plan_unit(self, q: np.ndarray, unit: list[Goal]) -> list[PlannedWaypoint]:
@@ -189,8 +198,9 @@ class MotionPlanner:
         """OMPL to an IK solution of ``goal``: the one nearest to ``q`` first; later attempts use
         a solution from random seeds that differs from every one tried (another arm configuration)."""
         limits = self.scene.limits
-        solve = functools.partial(self.ik.solve, position_tolerance=goal.position_tolerance,
-                                  orientation_tolerance=goal.orientation_tolerance)
+        solve = functools.partial(
+            self.ik.solve, position_tolerance=goal.position_tolerance, orientation_tolerance=goal.orientation_tolerance
+        )
         if attempt == 0:
             target = solve(goal.pose, q)
             if isinstance(target, IkFailure):
@@ -244,11 +254,15 @@ class MotionPlanner:
             else:
                 blocked = f": {self.ik.blocked_by}" if result is None and self.ik.blocked_by else ""
                 what = f"no IK solution continues the line{blocked}" if result is None else f"joint jump {jump:.2f} rad"
-                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})")
+                raise WaypointPlanningError(
+                    f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})"
+                )
             assert result is not None  # the loop above broke only on a solution
             why = scene.collision(result)
             if why is not None:
-                raise WaypointPlanningError(f"waypoint {goal.label}: Cartesian line blocked at {t + dt:.0%}: collision {why}")
+                raise WaypointPlanningError(
+                    f"waypoint {goal.label}: Cartesian line blocked at {t + dt:.0%}: collision {why}"
+                )
             path.append(result)
             t += dt
         return path
@@ -270,8 +284,12 @@ class MotionPlanner:
             if grasped is None:
                 raise WaypointPlanningError(
                     f"waypoint {goal.label}: grasps {goal.object_name!r}, but no graspable object of the world is within "
-                    f"{reach * 100:.0f} cm of where {goal.object_name!r} is registered; register it on the object", final=True)
+                    f"{reach * 100:.0f} cm of where {goal.object_name!r} is registered; register it on the object",
+                    final=True,
+                )
             if scene.attachment is not None and scene.attachment.name != grasped:
-                raise WaypointPlanningError(f"waypoint {goal.label}: grasps {grasped!r} while holding {scene.attachment.name!r}", final=True)
+                raise WaypointPlanningError(
+                    f"waypoint {goal.label}: grasps {grasped!r} while holding {scene.attachment.name!r}", final=True
+                )
             scene.set_joints(q)
             scene.attach(grasped)

@@ -114,7 +114,10 @@ class JointPlanner:
         i = 0
         while i < len(vertices) - 1:
             j = len(vertices) - 1
-            while j > i + 1 and (time.perf_counter() > deadline or not segment_is_valid(vertices[i], vertices[j], self.is_valid, self.resolution)):
+            while j > i + 1 and (
+                time.perf_counter() > deadline
+                or not segment_is_valid(vertices[i], vertices[j], self.is_valid, self.resolution)
+            ):
                 j -= 1
             out.append(vertices[j])
             i = j

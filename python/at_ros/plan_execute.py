@@ -26,16 +26,25 @@ from typing import Any
 from action_msgs.msg import GoalStatus
 from affordance_template_msgs.msg import ServerStatus, WaypointGoal
 from affordance_template_msgs.srv import AffordanceTemplateExecuteCommand, AffordanceTemplatePlanCommand, PlanWaypoints
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.srv import SetGripper
+
 from at_ros.action_client import RecordedActionClient
 from at_ros.frames import WORLD_FRAME
 from at_ros.halt import Halted, HaltSwitch
 from at_ros.instance import ExecutionOutcome, PlanState, ResolvedWaypoint, StoredPlan, TemplateInstance, path_sequence
 from at_ros.messages import pose_from_matrix
 from at_ros.server_core import CommandRefused, ServerCore
-from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.srv import SetGripper
 
-__all__ = ["CANCEL_WAIT_S", "PLAN_TIMEOUT", "RESULT_ASK_AGAIN_S", "PlanExecutor", "reached", "trajectory_result", "wait_for_future"]
+__all__ = [
+    "CANCEL_WAIT_S",
+    "PLAN_TIMEOUT",
+    "RESULT_ASK_AGAIN_S",
+    "PlanExecutor",
+    "reached",
+    "trajectory_result",
+    "wait_for_future",
+]
 
 LOG = logging.getLogger(__name__)
 
@@ -92,11 +101,14 @@ def trajectory_result(handle: Any, timeout: float) -> Any:
     handle.cancel_goal_async()
     result = _result_within(handle, CANCEL_WAIT_S)
     if result is None:
-        raise CommandRefused(f"the trajectory action did not answer within {timeout:.0f} s, nor {CANCEL_WAIT_S:.0f} s "
-                             "after its goal was cancelled: whether the arm moves is not known; halt it and check")
+        raise CommandRefused(
+            f"the trajectory action did not answer within {timeout:.0f} s, nor {CANCEL_WAIT_S:.0f} s "
+            "after its goal was cancelled: whether the arm moves is not known; halt it and check"
+        )
     if not reached(result):
-        raise CommandRefused(f"the trajectory action gave no result within {timeout:.0f} s, so its goal was cancelled: "
-                             f"{_said(result)}")
+        raise CommandRefused(
+            f"the trajectory action gave no result within {timeout:.0f} s, so its goal was cancelled: {_said(result)}"
+        )
     return result
 
 
@@ -104,7 +116,10 @@ def reached(outcome: Any) -> bool:
     """Whether a trajectory goal's result says the arm reached its end: the goal SUCCEEDED and
     its error code says so. A goal cancelled mid-motion may carry code SUCCESSFUL (as
     ros2_controllers' own controller does) while the arm stopped short."""
-    return bool(outcome.status == GoalStatus.STATUS_SUCCEEDED and outcome.result.error_code == FollowJointTrajectory.Goal.SUCCESSFUL)
+    return bool(
+        outcome.status == GoalStatus.STATUS_SUCCEEDED
+        and outcome.result.error_code == FollowJointTrajectory.Goal.SUCCESSFUL
+    )
 
 
 def _result_within(handle: Any, timeout: float) -> Any | None:
@@ -116,7 +131,9 @@ def _result_within(handle: Any, timeout: float) -> Any | None:
             return _answer(future, "the trajectory action")
         if time.monotonic() >= deadline:
             return None
-        LOG.warning("no result of trajectory goal %s after %.0f s: asking for it again", _goal_id(handle), RESULT_ASK_AGAIN_S)
+        LOG.warning(
+            "no result of trajectory goal %s after %.0f s: asking for it again", _goal_id(handle), RESULT_ASK_AGAIN_S
+        )
 
 
 def _goal_id(handle: Any) -> str:
@@ -137,8 +154,15 @@ class PlanExecutor:
     ``gripper_client`` is None for a robot without a gripper service; ``halts`` stops them.
     """
 
-    def __init__(self, core: ServerCore, *, planner_client: Any, trajectory_client: RecordedActionClient, gripper_client: Any | None,
-                 halts: HaltSwitch) -> None:
+    def __init__(
+        self,
+        core: ServerCore,
+        *,
+        planner_client: Any,
+        trajectory_client: RecordedActionClient,
+        gripper_client: Any | None,
+        halts: HaltSwitch,
+    ) -> None:
         self.core = core
         self.planner_client = planner_client
         self.trajectory_client = trajectory_client
@@ -148,7 +172,9 @@ class PlanExecutor:
 
     # --- plan ------------------------------------------------------------------------------
 
-    def plan_command(self, request: AffordanceTemplatePlanCommand.Request, response: AffordanceTemplatePlanCommand.Response) -> Any:
+    def plan_command(
+        self, request: AffordanceTemplatePlanCommand.Request, response: AffordanceTemplatePlanCommand.Response
+    ) -> Any:
         core = self.core
         instance = core.instance(request.type, request.id)
         trajectory = instance.trajectory(request.trajectory_name)
@@ -165,15 +191,23 @@ class PlanExecutor:
                     raise CommandRefused(f"the robot is executing {core.state.executing}; plan after it finishes")
                 progress = instance.progress[trajectory.name]
                 steps = int(request.steps[0]) if len(request.steps) else None
-                indices = path_sequence(len(group.waypoints), progress.current_index, steps, direct=request.direct, backwards=request.backwards,
-                                        resume=progress.interrupted)
+                indices = path_sequence(
+                    len(group.waypoints),
+                    progress.current_index,
+                    steps,
+                    direct=request.direct,
+                    backwards=request.backwards,
+                    resume=progress.interrupted,
+                )
                 resolved = instance.resolve(trajectory, ee)
                 joints = dict(core.inputs.joints)
                 held = core.inputs.held_object
                 registrations = dict(instance.registrations)
                 instance.current_trajectory = trajectory.name
                 instance.invalidate_plan(f"dropped: {trajectory.name!r} is planned again")
-            core.set_state(plan_status=ServerStatus.PLAN_PLANNING, active_template=instance.key, active_trajectory=trajectory.name)
+            core.set_state(
+                plan_status=ServerStatus.PLAN_PLANNING, active_template=instance.key, active_trajectory=trajectory.name
+            )
             try:
                 segments = self._request_plan([resolved[i] for i in indices], joints, held)
             except CommandRefused as exc:
@@ -181,8 +215,13 @@ class PlanExecutor:
                 raise CommandRefused(f"planning {trajectory.name!r} of {instance.key} failed: {exc}") from exc
             with core.state_lock:
                 instance.plan = StoredPlan(
-                    trajectory=trajectory.name, end_effector=ee.name, indices=indices, segments=segments,
-                    start_joints={j: joints[j] for j in core.robot.joint_names}, registrations=registrations, held_object=held,
+                    trajectory=trajectory.name,
+                    end_effector=ee.name,
+                    indices=indices,
+                    segments=segments,
+                    start_joints={j: joints[j] for j in core.robot.joint_names},
+                    registrations=registrations,
+                    held_object=held,
                     plan_id=uuid.uuid4().hex,
                 )
                 instance.plans[trajectory.name] = instance.plan
@@ -202,7 +241,9 @@ class PlanExecutor:
         if missing:
             raise CommandRefused(f"no joint_states for {missing} yet; is the simulation running?")
         if not self.planner_client.wait_for_service(timeout_sec=2.0):
-            raise CommandRefused(f"the planner node does not answer on {self.planner_client.srv_name}; start `caretaker planner --robot NAME`")
+            raise CommandRefused(
+                f"the planner node does not answer on {self.planner_client.srv_name}; start `caretaker planner --robot NAME`"
+            )
         request = PlanWaypoints.Request()
         request.robot_name = robot.robot_name
         request.start_state.name = list(robot.joint_names)
@@ -230,7 +271,9 @@ class PlanExecutor:
 
     # --- execute ---------------------------------------------------------------------------
 
-    def execute_command(self, request: AffordanceTemplateExecuteCommand.Request, response: AffordanceTemplateExecuteCommand.Response) -> Any:
+    def execute_command(
+        self, request: AffordanceTemplateExecuteCommand.Request, response: AffordanceTemplateExecuteCommand.Response
+    ) -> Any:
         core = self.core
         instance = core.instance(request.type, request.id)
         trajectory = instance.trajectory(request.trajectory_name)
@@ -246,7 +289,9 @@ class PlanExecutor:
         if not core.robot_lock.acquire(blocking=False):
             with core.state_lock:
                 busy = core.state.executing
-            raise CommandRefused(f"the robot is executing {busy or 'another command'}; this command was refused, not queued")
+            raise CommandRefused(
+                f"the robot is executing {busy or 'another command'}; this command was refused, not queued"
+            )
         try:
             with core.state_lock:
                 plan = instance.plan
@@ -264,21 +309,39 @@ class PlanExecutor:
                     plan.set_state(PlanState.EXECUTING, "executing")
                     instance.plan = None  # a plan runs once; the robot is about to leave its start
             if halted is not None:
-                core.set_state(execute_status=ServerStatus.EXECUTE_HALTED, active_template=instance.key, active_trajectory=trajectory)
-                raise Halted(halted, f"halted ({halted}) before executing {trajectory!r} of {instance.key}: nothing moved; plan again")
-            core.set_state(execute_status=ServerStatus.EXECUTE_EXECUTING, active_template=instance.key, active_trajectory=trajectory)
+                core.set_state(
+                    execute_status=ServerStatus.EXECUTE_HALTED,
+                    active_template=instance.key,
+                    active_trajectory=trajectory,
+                )
+                raise Halted(
+                    halted,
+                    f"halted ({halted}) before executing {trajectory!r} of {instance.key}: nothing moved; plan again",
+                )
+            core.set_state(
+                execute_status=ServerStatus.EXECUTE_EXECUTING,
+                active_template=instance.key,
+                active_trajectory=trajectory,
+            )
             progress = instance.progress[trajectory]
             progress.execution_valid = False
             # Recorded before anything moves: a server that dies now is seen, after its restart,
             # as having been interrupted here.
-            self._record(instance, trajectory, ExecutionOutcome.EXECUTING, f"executing {trajectory!r} of {instance.key}")
+            self._record(
+                instance, trajectory, ExecutionOutcome.EXECUTING, f"executing {trajectory!r} of {instance.key}"
+            )
             # Command the first gripper pose even if it seems unchanged: something else may have moved it.
             self._gripper_pose = None
             try:
-                for index, segment in zip(plan.indices, plan.segments):
+                for index, segment in zip(plan.indices, plan.segments, strict=False):
                     self._run_segment(segment, mark)
                     progress.current_index = index
-                    self._record(instance, trajectory, ExecutionOutcome.EXECUTING, f"{instance.key} reached waypoint {index} of {trajectory!r}")
+                    self._record(
+                        instance,
+                        trajectory,
+                        ExecutionOutcome.EXECUTING,
+                        f"{instance.key} reached waypoint {index} of {trajectory!r}",
+                    )
             except Exception as exc:  # whatever stopped the robot, the status must not stay EXECUTING
                 raise self._interrupted(instance, plan, exc, mark) from exc
             progress.execution_valid = True
@@ -316,7 +379,9 @@ class PlanExecutor:
             message += f"; {unsaved}"
         return Halted(halted, message) if halted is not None else CommandRefused(message)
 
-    def _record(self, instance: TemplateInstance, trajectory: str, outcome: str, message: str, *, strict: bool = False) -> None:
+    def _record(
+        self, instance: TemplateInstance, trajectory: str, outcome: str, message: str, *, strict: bool = False
+    ) -> None:
         """Note how the execution stands and write it to the state file. Mid-motion (not
         ``strict``) a failed write is logged, not raised: stopping the arm would not help it."""
         with self.core.state_lock:
@@ -338,10 +403,14 @@ class PlanExecutor:
             self.halts.check(mark, f"before the motion to waypoint {segment.label}")
             if not self.trajectory_client.wait_for_server(timeout_sec=5.0):  # type: ignore[no-untyped-call]
                 raise CommandRefused(f"the trajectory action {robot.trajectory_action} is not available")
-            away = self.core.arm_away_from(dict(zip(segment.arm_trajectory.joint_names, points[0].positions)), ARM_AT_START_WAIT_S)
+            away = self.core.arm_away_from(
+                dict(zip(segment.arm_trajectory.joint_names, points[0].positions, strict=False)), ARM_AT_START_WAIT_S
+            )
             if away is not None:  # said here in words, not left to the controller's refusal
-                raise CommandRefused(f"the arm is not where the motion to waypoint {segment.label} starts ({away}); "
-                                     "nothing was sent: plan again from where the arm is")
+                raise CommandRefused(
+                    f"the arm is not where the motion to waypoint {segment.label} starts ({away}); "
+                    "nothing was sent: plan again from where the arm is"
+                )
             goal = FollowJointTrajectory.Goal()
             goal.trajectory = segment.arm_trajectory
             handle = wait_for_future(self.trajectory_client.send_goal_async(goal), 10.0, "the trajectory action")

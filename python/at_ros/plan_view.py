@@ -13,10 +13,10 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from affordance_template_msgs.srv import GetPlan
 from builtin_interfaces.msg import Duration, Time
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from affordance_template_msgs.srv import GetPlan
 from at_ros.frames import WORLD_FRAME, UnknownFrame
 from at_ros.instance import InstanceError, PlanState
 from at_ros.messages import matrix_from_pose, pose_from_matrix
@@ -54,13 +54,20 @@ def joined_trajectory(segments: list[Any], joint_names: tuple[str, ...]) -> tupl
     for segment in segments:
         trajectory = segment.arm_trajectory
         if trajectory.points and list(trajectory.joint_names) != joined.joint_names:
-            raise InstanceError(f"waypoint {segment.label}: the planner's joints {list(trajectory.joint_names)} are not the robot's {joined.joint_names}")
+            raise InstanceError(
+                f"waypoint {segment.label}: the planner's joints {list(trajectory.joint_names)} are not the robot's {joined.joint_names}"
+            )
         for k, point in enumerate(trajectory.points):
             t = _seconds(point.time_from_start)
             if k == 0 and t == 0.0 and joined.points:
                 continue
-            joined.points.append(JointTrajectoryPoint(positions=list(point.positions), velocities=list(point.velocities),
-                                                      time_from_start=_duration(offset + t)))
+            joined.points.append(
+                JointTrajectoryPoint(
+                    positions=list(point.positions),
+                    velocities=list(point.velocities),
+                    time_from_start=_duration(offset + t),
+                )
+            )
         if trajectory.points:
             offset += _seconds(trajectory.points[-1].time_from_start)
         ends.append(len(joined.points) - 1)
@@ -83,7 +90,9 @@ class PlanQueries:
             if plan is None:
                 which = f" of {request.trajectory_name!r}" if request.trajectory_name else ""
                 raise InstanceError(f"{instance.key} has no plan{which} yet; call plan_command first")
-            stale = core.stale_reason(instance, plan) if plan.state == PlanState.PLANNED and instance.plan is plan else None
+            stale = (
+                core.stale_reason(instance, plan) if plan.state == PlanState.PLANNED and instance.plan is plan else None
+            )
             response.plan_id = plan.plan_id
             response.state = plan.state
             response.valid = plan.state == PlanState.PLANNED and instance.plan is plan and stale is None

@@ -18,14 +18,15 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from affordance_template_msgs.msg import PlannedSegment
+from affordance_template_msgs.srv import PlanWaypoints
 from builtin_interfaces.msg import Duration
+from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Bool, Header, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from affordance_template_msgs.msg import PlannedSegment
-from affordance_template_msgs.srv import PlanWaypoints
 from at_ros.api import LATCHED, SERVICE_QOS
 from at_ros.collision_scene import build_planning_scene
 from at_ros.command_line import add_robot_options, choose_robot, split_ros_args
@@ -36,7 +37,6 @@ from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import RobotConfig
 from at_ros.time_parameterization import TimedPath
 from at_ros.transforms import invert
-from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
 
 __all__ = ["PlannerNode", "main", "trajectory_message"]
 
@@ -48,7 +48,7 @@ WORLD_TIMEOUT = 60.0
 def trajectory_message(joint_names: tuple[str, ...], path: TimedPath) -> JointTrajectory:
     msg = JointTrajectory()
     msg.joint_names = list(joint_names)
-    for t, q, v in zip(path.times, path.positions, path.velocities):
+    for t, q, v in zip(path.times, path.positions, path.velocities, strict=False):
         point = JointTrajectoryPoint()
         point.positions = [float(x) for x in q]
         point.velocities = [float(x) for x in v]
@@ -70,11 +70,17 @@ class PlannerNode(Node):
         self.held_object = ""
         self.robot_moving = False
         self.grasp_transform: np.ndarray | None = None  # held object in the tool frame
-        self.world_subscription = self.create_subscription(CollisionWorld, "sim/collision_world", self.world_callback, LATCHED)
+        self.world_subscription = self.create_subscription(
+            CollisionWorld, "sim/collision_world", self.world_callback, LATCHED
+        )
         self.frames_subscription = self.create_subscription(NamedPoses, "sim/frames", self.frames_callback, 10)
-        self.held_subscription = self.create_subscription(String, "gripper/held_object", self.held_object_callback, LATCHED)
+        self.held_subscription = self.create_subscription(
+            String, "gripper/held_object", self.held_object_callback, LATCHED
+        )
         self.moving_subscription = self.create_subscription(Bool, "robot/moving", self.moving_callback, LATCHED)
-        self.plan_service = self.create_service(PlanWaypoints, "planner/plan_waypoints", self.plan_callback, qos_profile=SERVICE_QOS)
+        self.plan_service = self.create_service(
+            PlanWaypoints, "planner/plan_waypoints", self.plan_callback, qos_profile=SERVICE_QOS
+        )
         self.heartbeat_publisher = self.create_publisher(Header, "planner/heartbeat", 10)
         self.heartbeat_timer = self.create_timer(0.5, self.heartbeat_callback)
 
@@ -113,7 +119,7 @@ class PlannerNode(Node):
         """
         if self.scene is None:
             return
-        poses = {name: matrix_from_pose(pose) for name, pose in zip(msg.names, msg.poses)}
+        poses = {name: matrix_from_pose(pose) for name, pose in zip(msg.names, msg.poses, strict=False)}
         for name, pose in poses.items():
             if name in self.scene.graspable:
                 self.scene.set_obstacle_pose(name, pose)
@@ -146,7 +152,7 @@ class PlannerNode(Node):
             tool_poses = [self.motion_planner.scene.forward(p.path.positions[-1]) for p in planned]
         finally:
             self.motion_planner.scene.restore(saved)
-        response.segments = [self._segment(p, pose) for p, pose in zip(planned, tool_poses)]
+        response.segments = [self._segment(p, pose) for p, pose in zip(planned, tool_poses, strict=False)]
         response.success = True
         elapsed = time.perf_counter() - started
         response.message = f"planned {len(planned)} waypoints in {elapsed * 1000:.0f} ms"
@@ -155,8 +161,10 @@ class PlannerNode(Node):
 
     def _start_state(self, request: PlanWaypoints.Request) -> np.ndarray:
         if request.robot_name and request.robot_name != self.config.robot_name:
-            raise WaypointPlanningError(f"this planner plans for robot {self.config.robot_name!r}, not {request.robot_name!r}")
-        named = dict(zip(request.start_state.name, request.start_state.position))
+            raise WaypointPlanningError(
+                f"this planner plans for robot {self.config.robot_name!r}, not {request.robot_name!r}"
+            )
+        named = dict(zip(request.start_state.name, request.start_state.position, strict=False))
         missing = [j for j in self.config.joint_names if j not in named]
         if missing:
             raise WaypointPlanningError(f"start_state lacks joints {missing}")
@@ -165,7 +173,9 @@ class PlannerNode(Node):
     def _goal(self, waypoint: Any) -> Goal:  # affordance_template_msgs/WaypointGoal
         frame = waypoint.pose.header.frame_id or WORLD_FRAME
         if frame != WORLD_FRAME:
-            raise WaypointPlanningError(f"waypoint {waypoint.label}: goals must be in frame {WORLD_FRAME!r}, got {frame!r}")
+            raise WaypointPlanningError(
+                f"waypoint {waypoint.label}: goals must be in frame {WORLD_FRAME!r}, got {frame!r}"
+            )
         return Goal(
             label=waypoint.label,
             pose=matrix_from_pose(waypoint.pose.pose),
@@ -209,8 +219,10 @@ def main(argv: list[str] | None = None) -> int:
             executor.spin_once(timeout_sec=0.1)
         if node.scene is None:
             topic = node.world_subscription.topic_name
-            print(f"caretaker planner: {node.world_error or f'no collision world on {topic} within {WORLD_TIMEOUT:.0f} s; is the simulation (or world model) running in this ROS domain and namespace?'}",
-                  file=sys.stderr)
+            print(
+                f"caretaker planner: {node.world_error or f'no collision world on {topic} within {WORLD_TIMEOUT:.0f} s; is the simulation (or world model) running in this ROS domain and namespace?'}",
+                file=sys.stderr,
+            )
             return 2
         print(f"READY planner {config.robot_name}", flush=True)
         executor.spin()

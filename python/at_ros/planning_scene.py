@@ -8,9 +8,9 @@ object in the gripper is attached to the tool link so collision checks include i
 from __future__ import annotations
 
 import itertools
-from typing import Any
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pybullet as p
@@ -75,8 +75,12 @@ class PlanningScene:
         base = np.eye(4) if base_pose is None else base_pose
         pos, quat = to_xyz_quat(base)
         self.robot = p.loadURDF(
-            str(urdf), pos.tolist(), quat.tolist(), useFixedBase=True,
-            flags=p.URDF_USE_SELF_COLLISION, physicsClientId=self.client,
+            str(urdf),
+            pos.tolist(),
+            quat.tolist(),
+            useFixedBase=True,
+            flags=p.URDF_USE_SELF_COLLISION,
+            physicsClientId=self.client,
         )
         self.joint_names = tuple(joint_names)
         self.dof = len(self.joint_names)
@@ -144,7 +148,9 @@ class PlanningScene:
 
     def set_obstacle_pose(self, name: str, pose: np.ndarray) -> None:
         pos, quat = to_xyz_quat(pose)
-        p.resetBasePositionAndOrientation(self.obstacles[name], pos.tolist(), quat.tolist(), physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(
+            self.obstacles[name], pos.tolist(), quat.tolist(), physicsClientId=self.client
+        )
 
     def obstacle_pose(self, name: str) -> np.ndarray:
         pos, quat = p.getBasePositionAndOrientation(self.obstacles[name], physicsClientId=self.client)
@@ -192,7 +198,9 @@ class PlanningScene:
         if self.attachment is not None:
             pose = self.tool_pose() @ self.attachment.tool_T_object
             pos, quat = to_xyz_quat(pose)
-            p.resetBasePositionAndOrientation(self.attachment.body, pos.tolist(), quat.tolist(), physicsClientId=self.client)
+            p.resetBasePositionAndOrientation(
+                self.attachment.body, pos.tolist(), quat.tolist(), physicsClientId=self.client
+            )
 
     def movable_positions(self) -> list[float]:
         """Positions of every movable joint (arm and gripper), in pybullet's order."""

@@ -30,8 +30,17 @@ __all__ = [
     "load_robot_configs",
 ]
 
-_REQUIRED = ("robot_name", "frame_id", "root_offset", "end_effector_group_map", "urdf", "base_frame", "tool_link",
-             "joint_names", "trajectory_action")
+_REQUIRED = (
+    "robot_name",
+    "frame_id",
+    "root_offset",
+    "end_effector_group_map",
+    "urdf",
+    "base_frame",
+    "tool_link",
+    "joint_names",
+    "trajectory_action",
+)
 
 
 @dataclass(frozen=True)
@@ -142,8 +151,12 @@ def _end_effectors(f: Field) -> tuple[EndEffector, ...]:
     for e in f.sequence(min_items=1):
         e.mapping(required=("name", "id"), optional=("pose_offset", "tool_offset"))
         pose, tool = e.get("pose_offset"), e.get("tool_offset")
-        ee = EndEffector(name=e["name"].text(), id=e["id"].integer(min=0, max=255),
-                         pose_offset=_six(pose) if pose else (0.0,) * 6, tool_offset=_six(tool) if tool else (0.0,) * 6)
+        ee = EndEffector(
+            name=e["name"].text(),
+            id=e["id"].integer(min=0, max=255),
+            pose_offset=_six(pose) if pose else (0.0,) * 6,
+            tool_offset=_six(tool) if tool else (0.0,) * 6,
+        )
         if any(o.name == ee.name or o.id == ee.id for o in out):
             raise e.fail(f"end effector {ee.name!r} (id {ee.id}) repeats a name or id")
         out.append(ee)

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from affordance_template_msgs.msg import AffordanceTemplateStatus, ServerStatus
+
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
 from at_ros.instance import InstanceError, StoredPlan, TemplateInstance
 from at_ros.instance_store import save_instances
@@ -25,7 +26,16 @@ from at_ros.library import LibraryError, Template, load_library
 from at_ros.robot_config import RobotConfig
 from at_ros.template_messages import instance_status
 
-__all__ = ["CommandRefused", "RobotInputs", "ServerCore", "ServerState", "HEARTBEAT_TIMEOUT", "JOINT_TOLERANCE", "FRAME_WAIT", "START_TOLERANCE"]
+__all__ = [
+    "CommandRefused",
+    "RobotInputs",
+    "ServerCore",
+    "ServerState",
+    "HEARTBEAT_TIMEOUT",
+    "JOINT_TOLERANCE",
+    "FRAME_WAIT",
+    "START_TOLERANCE",
+]
 
 HEARTBEAT_TIMEOUT = 5.0  # s; a plan may hold the planner's GIL for a few seconds
 JOINT_TOLERANCE = 0.02  # rad the robot may drift from a plan's start and still run it
@@ -128,7 +138,9 @@ class ServerCore:
             running = sorted(self.state.instances)
         if instance is None:
             self.template(type_name)
-            raise InstanceError(f"no running instance {key!r}; running: {', '.join(running) or 'none'} (add_template first)")
+            raise InstanceError(
+                f"no running instance {key!r}; running: {', '.join(running) or 'none'} (add_template first)"
+            )
         return instance
 
     def command_lock(self, key: str) -> threading.Lock:
@@ -149,7 +161,9 @@ class ServerCore:
             with self.state_lock:
                 save_instances(self.state_file, self.robot, self.state.instances)
         except OSError as exc:
-            raise CommandRefused(f"{done}, but the state file {self.state_file} could not be written ({exc}): a restart would lose it") from exc
+            raise CommandRefused(
+                f"{done}, but the state file {self.state_file} could not be written ({exc}): a restart would lose it"
+            ) from exc
 
     def set_state(self, **fields: str) -> None:
         with self.state_lock:
@@ -187,7 +201,10 @@ class ServerCore:
 
         def worst() -> tuple[float, str]:
             joints = self.inputs.joints
-            return max(((abs(joints[j] - q) if j in joints else float("inf"), j) for j, q in positions.items()), default=(0.0, ""))
+            return max(
+                ((abs(joints[j] - q) if j in joints else float("inf"), j) for j, q in positions.items()),
+                default=(0.0, ""),
+            )
 
         with self.joints_heard:
             if self.joints_heard.wait_for(lambda: worst()[0] <= START_TOLERANCE, timeout):
@@ -199,7 +216,9 @@ class ServerCore:
 
     def stale_reason(self, instance: TemplateInstance, plan: StoredPlan) -> str | None:
         """Why ``plan`` no longer fits the world now, or None (call with ``state_lock`` held)."""
-        return instance.stale_reason(plan, self.frames.snapshot(), dict(self.inputs.joints), self.inputs.held_object, JOINT_TOLERANCE)
+        return instance.stale_reason(
+            plan, self.frames.snapshot(), dict(self.inputs.joints), self.inputs.held_object, JOINT_TOLERANCE
+        )
 
     def plan_valid(self) -> bool:
         with self.state_lock:
@@ -245,4 +264,12 @@ class ServerCore:
             execute_status = self.state.execute_status if active else ServerStatus.EXECUTE_IDLE
             plan = instance.plan
             valid = plan is not None and plan.trajectory == trajectory and self.stale_reason(instance, plan) is None
-            return instance_status(instance, trajectory, frame, frame_pose, plan_status=plan_status, execute_status=execute_status, plan_valid=valid)
+            return instance_status(
+                instance,
+                trajectory,
+                frame,
+                frame_pose,
+                plan_status=plan_status,
+                execute_status=execute_status,
+                plan_valid=valid,
+            )

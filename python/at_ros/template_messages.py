@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped
-
 from affordance_template_msgs.msg import (
     AffordanceTemplateConfig,
     AffordanceTemplateStatus,
     EndEffectorConfig,
     EndEffectorPoseData,
     ObjectInfo,
-    RobotConfig as RobotConfigMsg,
     WaypointInfo,
     WaypointTrajectory,
 )
+from affordance_template_msgs.msg import (
+    RobotConfig as RobotConfigMsg,
+)
+from geometry_msgs.msg import PoseStamped
+
 from at_ros.instance import InstanceError, TemplateInstance
 from at_ros.library import Template
 from at_ros.messages import pose_from_matrix
@@ -50,7 +52,9 @@ def template_config(template: Template, robot: RobotConfig) -> AffordanceTemplat
             info.waypoint_index = -1
             info.waypoint_plan_index = -1
             info.waypoint_poses = [_stamped(w.display_object, w.origin.matrix) for w in group.waypoints]
-            info.end_effector_pose_names = [(robot.pose_name(ee.name, w.ee_pose) or "") if ee else "" for w in group.waypoints]
+            info.end_effector_pose_names = [
+                (robot.pose_name(ee.name, w.ee_pose) or "") if ee else "" for w in group.waypoints
+            ]
             info.compact_view = [False] * len(group.waypoints)
             wt.waypoint_info.append(info)
         msg.trajectory_info.append(wt)
@@ -135,4 +139,3 @@ def instance_status(
         o.control_scale = float(obj.controls.scale)
         msg.object_info.append(o)
     return msg
-

@@ -59,7 +59,7 @@ def _pieces(points: np.ndarray, scale: np.ndarray) -> list[np.ndarray]:
         if n0 > 0 and n1 > 0 and np.arccos(np.clip(d0 @ d1 / (n0 * n1), -1, 1)) > CORNER_ANGLE:
             cuts.append(i)
     cuts.append(len(points) - 1)
-    return [points[a : b + 1] for a, b in zip(cuts, cuts[1:])]
+    return [points[a : b + 1] for a, b in zip(cuts, cuts[1:], strict=False)]
 
 
 def time_parameterize(

@@ -72,8 +72,10 @@ def make_link_credentials(folder: Path, hosts: list[str], *, days: int = 365, fo
     paths = {name: folder / name for name in FILES}
     present = [str(p) for p in paths.values() if p.exists()]
     if present and not force:
-        raise CertsError(f"{', '.join(present)} already exist; --force replaces them (hosts holding the old ones "
-                         "are then locked out)")
+        raise CertsError(
+            f"{', '.join(present)} already exist; --force replaces them (hosts holding the old ones "
+            "are then locked out)"
+        )
     with tempfile.TemporaryDirectory(prefix="caretaker-certs-") as scratch:
         work = Path(scratch)
 
@@ -82,14 +84,55 @@ def make_link_credentials(folder: Path, hosts: list[str], *, days: int = 365, fo
             if result.returncode != 0:
                 raise CertsError(f"openssl {args[0]} failed: {result.stderr.strip()}")
 
-        openssl("req", "-x509", "-newkey", "rsa:3072", "-nodes", "-keyout", "ca.key", "-out", "ca.pem",
-                "-days", str(days), "-subj", "/CN=Caretaker link CA",
-                "-addext", "basicConstraints=critical,CA:TRUE", "-addext", "keyUsage=critical,keyCertSign,cRLSign")
+        openssl(
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:3072",
+            "-nodes",
+            "-keyout",
+            "ca.key",
+            "-out",
+            "ca.pem",
+            "-days",
+            str(days),
+            "-subj",
+            "/CN=Caretaker link CA",
+            "-addext",
+            "basicConstraints=critical,CA:TRUE",
+            "-addext",
+            "keyUsage=critical,keyCertSign,cRLSign",
+        )
         (work / "san.ext").write_text(f"subjectAltName={san}\nextendedKeyUsage=serverAuth\n")
-        openssl("req", "-newkey", "rsa:3072", "-nodes", "-keyout", "bridge.key", "-out", "bridge.csr",
-                "-subj", f"/CN={hosts[0]}")
-        openssl("x509", "-req", "-in", "bridge.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
-                "-days", str(days), "-out", "bridge.pem", "-extfile", "san.ext")
+        openssl(
+            "req",
+            "-newkey",
+            "rsa:3072",
+            "-nodes",
+            "-keyout",
+            "bridge.key",
+            "-out",
+            "bridge.csr",
+            "-subj",
+            f"/CN={hosts[0]}",
+        )
+        openssl(
+            "x509",
+            "-req",
+            "-in",
+            "bridge.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-days",
+            str(days),
+            "-out",
+            "bridge.pem",
+            "-extfile",
+            "san.ext",
+        )
         (work / "rosbridge.secret").write_text(secrets.token_urlsafe(32) + "\n")
         for name, path in paths.items():
             shutil.copyfile(work / name, path)
@@ -101,8 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     """``caretaker certs DIR --host ADDRESS...``; exit 1 with one line if they cannot be made."""
     parser = argparse.ArgumentParser(prog="caretaker certs", description=__doc__.splitlines()[0])
     parser.add_argument("folder", metavar="DIR", type=Path, help="where to write them (made if missing)")
-    parser.add_argument("--host", action="append", default=[], metavar="ADDRESS",
-                        help="an IP address or DNS name the ground connects to (repeatable)")
+    parser.add_argument(
+        "--host",
+        action="append",
+        default=[],
+        metavar="ADDRESS",
+        help="an IP address or DNS name the ground connects to (repeatable)",
+    )
     parser.add_argument("--days", type=int, default=365, help="validity of the certificates (default 365)")
     parser.add_argument("--force", action="store_true", help="replace files already there")
     args = parser.parse_args(argv)

@@ -66,8 +66,16 @@ KINDS: dict[str, tuple[Callable[[Path], Any], str]] = {
     "binding": (_binding, "a binding"),
 }
 #: A top-level key that only one kind of YAML file has, in the order they are tried.
-_SIGNATURE_KEYS = (("robot_name", "robot"), ("systems", "binding"), ("commands", "sysrep"), ("telemetry", "sysrep"),
-                   ("templates", "deployment"), ("bodies", "scene"), ("physics_rate_hz", "scene"), ("slots", "scene"))
+_SIGNATURE_KEYS = (
+    ("robot_name", "robot"),
+    ("systems", "binding"),
+    ("commands", "sysrep"),
+    ("telemetry", "sysrep"),
+    ("templates", "deployment"),
+    ("bodies", "scene"),
+    ("physics_rate_hz", "scene"),
+    ("slots", "scene"),
+)
 
 
 def detect_kind(path: Path) -> str:
@@ -89,8 +97,9 @@ def detect_kind(path: Path) -> str:
         return "scene"
     if "id" in keys:
         return "sysrep"
-    raise root.fail("cannot tell what kind of file this is (a scene, robot config, deployment, SysRep or binding); "
-                    "use --kind")
+    raise root.fail(
+        "cannot tell what kind of file this is (a scene, robot config, deployment, SysRep or binding); use --kind"
+    )
 
 
 def check_file(path: Path, kind: str | None = None) -> str:
@@ -108,7 +117,9 @@ def check_file(path: Path, kind: str | None = None) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="caretaker check", description=__doc__.splitlines()[0])
     parser.add_argument("files", nargs="+", metavar="FILE", type=Path)
-    parser.add_argument("--kind", choices=sorted(KINDS), help="what the files are (default: from each file's name and content)")
+    parser.add_argument(
+        "--kind", choices=sorted(KINDS), help="what the files are (default: from each file's name and content)"
+    )
     args = parser.parse_args(argv)
     # A message may quote the file's own bytes: never let printing it fail.
     out = open(sys.stdout.fileno(), "w", encoding="utf-8", errors="backslashreplace", closefd=False, buffering=1)  # noqa: SIM115
@@ -119,7 +130,10 @@ def main(argv: list[str] | None = None) -> int:
         except DataFileError as exc:
             line, failed = str(exc), True
         except Exception as exc:  # a loader bug: still one line, and it counts as an error
-            line, failed = f"{path}: internal error while checking ({type(exc).__name__}: {exc}); please report it", True
+            line, failed = (
+                f"{path}: internal error while checking ({type(exc).__name__}: {exc}); please report it",
+                True,
+            )
         print(line, file=out)
     out.flush()
     return 1 if failed else 0

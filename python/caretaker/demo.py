@@ -28,8 +28,16 @@ from console.accounts import AccountStore
 from datafile import DataFileError
 from sim.scene import load_scene
 
-__all__ = ["DEMO_USER", "EndStateError", "WORLD_CHECKS", "demo_main", "demo_operator", "eva_end_state", "iva_end_state",
-           "run_demo"]
+__all__ = [
+    "DEMO_USER",
+    "EndStateError",
+    "WORLD_CHECKS",
+    "demo_main",
+    "demo_operator",
+    "eva_end_state",
+    "iva_end_state",
+    "run_demo",
+]
 
 DEFAULT_DB = f"sqlite:///{REPO / 'var' / 'caretaker.db'}"
 #: The operator account ``--serve`` signs in with (an account of the demo's database like any other).
@@ -87,7 +95,7 @@ def iva_end_state(bridge_url: str, scene_file: Path, clean_filter_id: str, timeo
         frames = _topic_value(ros, "/sim/frames", "caretaker_sim_msgs/NamedPoses", timeout)
     finally:
         ros.close()
-    poses = dict(zip(frames["names"], frames["poses"]))
+    poses = dict(zip(frames["names"], frames["poses"], strict=False))
     if installed != clean_filter_id:
         raise EndStateError(f"cabinet holds {installed or 'nothing'!r}, expected the clean filter {clean_filter_id!r}")
     if not locked:
@@ -138,12 +146,15 @@ def eva_end_state(db_url: str, run_id: str, scene_file: Path) -> list[str]:
 #: The world checks a deployment's ``demo.check`` may name: what each verifies after the run.
 WORLD_CHECKS: dict[str, Callable[[Deployment, str, str, str], list[str]]] = {
     "cdra_filters_swapped": lambda d, bridge_url, db_url, run_id: iva_end_state(
-        bridge_url, d.scene, (d.demo.inputs if d.demo else {}).get("clean_filter_id", "")),
+        bridge_url, d.scene, (d.demo.inputs if d.demo else {}).get("clean_filter_id", "")
+    ),
     "every_target_imaged": lambda d, bridge_url, db_url, run_id: eva_end_state(db_url, run_id, d.scene),
 }
 
 
-def _run_procedure(demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, str], started: float) -> tuple[str | None, str]:
+def _run_procedure(
+    demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, str], started: float
+) -> tuple[str | None, str]:
     """Run the demo's procedure autonomously in its own process; return (run id, final status)."""
     answers = [f"--set={name}={value}" for name, value in demo.inputs.items()]
     result: dict[str, str] = {}
@@ -157,8 +168,22 @@ def _run_procedure(demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, s
             result["status"], result["run"] = words[1], words[3]
 
     runner = caretaker(
-        "run", str(demo.procedure), "--binding", str(demo.binding), "--rosbridge", bridge_url, "--auto", "--user", "demo",
-        "--db", db_url, "--confirm-manual", *answers, env=env, name="run", on_line=show,
+        "run",
+        str(demo.procedure),
+        "--binding",
+        str(demo.binding),
+        "--rosbridge",
+        bridge_url,
+        "--auto",
+        "--user",
+        "demo",
+        "--db",
+        db_url,
+        "--confirm-manual",
+        *answers,
+        env=env,
+        name="run",
+        on_line=show,
     )
     runner.proc.wait()
     runner.stop()
@@ -186,8 +211,10 @@ def _serve(db_url: str, env: dict[str, str]) -> None:
     web = caretaker("serve", "--db", db_url, env=env, name="serve")
     try:
         print(web.wait_ready(60), "— Ctrl-C to stop", flush=True)
-        print(f"  sign in as {DEMO_USER} with the password {password}  (shown once: each demo --serve sets a new one)",
-              flush=True)
+        print(
+            f"  sign in as {DEMO_USER} with the password {password}  (shown once: each demo --serve sets a new one)",
+            flush=True,
+        )
         web.proc.wait()
     except KeyboardInterrupt:
         pass
@@ -207,7 +234,13 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
     reports = Path(args.reports) if args.reports else REPO / "var" / "reports"
     (REPO / "var").mkdir(exist_ok=True)
     started = time.monotonic()
-    stack = Stack(deployment, time_scale=args.time_scale, bridge_address=args.bridge_address, bridge_port=args.bridge_port, echo=args.verbose)
+    stack = Stack(
+        deployment,
+        time_scale=args.time_scale,
+        bridge_address=args.bridge_address,
+        bridge_port=args.bridge_port,
+        echo=args.verbose,
+    )
     print(f"Starting the {deployment.name} stack: {', '.join(p.name for p in stack.parts)}", flush=True)
     try:
         stack.start()
@@ -215,7 +248,10 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
         print(f"caretaker demo: {exc}")
         return 1
     try:
-        print(f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); running {demo.procedure.name} autonomously", flush=True)
+        print(
+            f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); running {demo.procedure.name} autonomously",
+            flush=True,
+        )
         run_id, status = _run_procedure(demo, stack.bridge_url, db_url, stack.env, started)
         dead = stack.dead_parts()
         if dead:
@@ -252,9 +288,12 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
 def demo_main(argv: list[str] | None = None) -> int:
     """``caretaker demo DEPLOYMENT``: bring the stack up, run its procedure autonomously, report."""
     parser = stack_options("caretaker demo")
-    parser.add_argument("--serve", action="store_true",
-                        help=f"leave the web view running after the procedure; sign in as {DEMO_USER} with the password "
-                             "it prints (a new one each time)")
+    parser.add_argument(
+        "--serve",
+        action="store_true",
+        help=f"leave the web view running after the procedure; sign in as {DEMO_USER} with the password "
+        "it prints (a new one each time)",
+    )
     parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
     parser.add_argument("--reports", default=None, metavar="DIR", help="where the report goes (default: var/reports)")
     parser.set_defaults(time_scale=0.0)

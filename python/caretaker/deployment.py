@@ -37,15 +37,40 @@ from datafile import DataFileError, Field, load_file, shipped_or_path
 from pride.binding import Binding, read_binding
 from sim.scene import Scene, load_scene
 
-__all__ = ["BridgeSettings", "DemoRun", "Deployment", "DeploymentError", "LedgerSettings", "LinkEmulation", "SHIPPED",
-           "WORLD_CHECK_NAMES", "load_deployment", "resolve_deployment"]
+__all__ = [
+    "BridgeSettings",
+    "DemoRun",
+    "Deployment",
+    "DeploymentError",
+    "LedgerSettings",
+    "LinkEmulation",
+    "SHIPPED",
+    "WORLD_CHECK_NAMES",
+    "load_deployment",
+    "resolve_deployment",
+]
 
 #: The deployments that ship with Caretaker: ``caretaker up iva`` means this folder's iva.yaml.
 SHIPPED = Path(__file__).resolve().parents[2] / "deployments"
 #: The checks of the world that ``caretaker demo`` knows by name (caretaker.demo).
 WORLD_CHECK_NAMES = ("cdra_filters_swapped", "every_target_imaged")
-TOP_LEVEL_KEYS = ("name", "scene", "robot", "templates", "robots", "ros", "bridge", "capture_dir", "state_dir",
-                  "time_scale", "bindings", "demo", "link", "ledger", "description")
+TOP_LEVEL_KEYS = (
+    "name",
+    "scene",
+    "robot",
+    "templates",
+    "robots",
+    "ros",
+    "bridge",
+    "capture_dir",
+    "state_dir",
+    "time_scale",
+    "bindings",
+    "demo",
+    "link",
+    "ledger",
+    "description",
+)
 
 
 class DeploymentError(DataFileError):
@@ -89,8 +114,16 @@ class LinkEmulation:
 
     def options(self) -> list[str]:
         """The ``caretaker link`` options of this emulation (but --listen, --to and --control)."""
-        options = ["--delay", str(self.delay), "--jitter", str(self.jitter), "--loss", str(self.loss),
-                   "--seed", str(self.seed)]
+        options = [
+            "--delay",
+            str(self.delay),
+            "--jitter",
+            str(self.jitter),
+            "--loss",
+            str(self.loss),
+            "--seed",
+            str(self.seed),
+        ]
         for option, value in (("--up-kbps", self.up_kbps), ("--down-kbps", self.down_kbps)):
             if value is not None:
                 options += [option, str(value)]
@@ -217,7 +250,9 @@ def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment
         DataFileError: for a file it names (scene, robot config, template, binding, SysRep).
     """
     path = resolve_deployment(path)
-    root = load_file(path, error=DeploymentError).mapping(required=("name", "scene", "robot", "templates"), optional=TOP_LEVEL_KEYS)
+    root = load_file(path, error=DeploymentError).mapping(
+        required=("name", "scene", "robot", "templates"), optional=TOP_LEVEL_KEYS
+    )
     ros = root.get("ros")
     if ros is not None:
         ros.mapping(optional=("domain_id", "namespace"))
@@ -267,12 +302,18 @@ def _check_files(root: Field, deployment: Deployment, robot: RobotConfig) -> Non
 
 def _check_robot_matches_scene(root: Field, robot: RobotConfig, scene: Scene) -> None:
     if os.path.realpath(robot.urdf) != os.path.realpath(scene.robot.urdf):
-        raise root["robot"].fail(f"robot config {robot.filename} uses model {robot.urdf}, but scene {scene.path} has {scene.robot.urdf}")
+        raise root["robot"].fail(
+            f"robot config {robot.filename} uses model {robot.urdf}, but scene {scene.path} has {scene.robot.urdf}"
+        )
     missing = [j for j in robot.joint_names if j not in scene.robot.arm_joints]
     if missing:
-        raise root["robot"].fail(f"robot config joints {missing} are not arm joints of scene {scene.path} ({', '.join(scene.robot.arm_joints)})")
+        raise root["robot"].fail(
+            f"robot config joints {missing} are not arm joints of scene {scene.path} ({', '.join(scene.robot.arm_joints)})"
+        )
     if robot.gripper_service and scene.robot.gripper is None:
-        raise root["robot"].fail(f"robot config names gripper_service {robot.gripper_service!r}, but the robot of scene {scene.path} has no gripper")
+        raise root["robot"].fail(
+            f"robot config names gripper_service {robot.gripper_service!r}, but the robot of scene {scene.path} has no gripper"
+        )
 
 
 def _check_binding_reaches_this_side(f: Field, binding: Binding, deployment: Deployment) -> None:
@@ -280,15 +321,22 @@ def _check_binding_reaches_this_side(f: Field, binding: Binding, deployment: Dep
     for system in binding.systems:
         url = urlparse(system.rosbridge)
         if url.port != deployment.bridge.port and deployment.bridge.port != 0:
-            raise f.fail(f"binding {binding.path} connects {system.sysrep} to {system.rosbridge}, but this deployment's rosbridge port is {deployment.bridge.port}")
+            raise f.fail(
+                f"binding {binding.path} connects {system.sysrep} to {system.rosbridge}, but this deployment's rosbridge port is {deployment.bridge.port}"
+            )
         if url.scheme != deployment.bridge.scheme:
-            raise f.fail(f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://")
+            raise f.fail(
+                f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://"
+            )
         if deployment.namespace and not system.namespace.startswith(deployment.namespace + "/"):
-            raise f.fail(f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}")
+            raise f.fail(
+                f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}"
+            )
     if binding.ledger_namespace != deployment.namespace:
         # The stack puts the command ledger in the deployment's namespace, so that robots sharing a
         # ROS graph never share a ledger (two ledgers on one name would both execute a command).
-        raise f.fail(f"binding {binding.path} looks for the command ledger in {binding.ledger_namespace or '/'}, but this "
-                     f"deployment's ledger is in {deployment.namespace or '/'} (set ledger_namespace: "
-                     f"{deployment.namespace or '/'} in the binding)")
-
+        raise f.fail(
+            f"binding {binding.path} looks for the command ledger in {binding.ledger_namespace or '/'}, but this "
+            f"deployment's ledger is in {deployment.namespace or '/'} (set ledger_namespace: "
+            f"{deployment.namespace or '/'} in the binding)"
+        )

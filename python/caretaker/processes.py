@@ -104,7 +104,11 @@ class ManagedProcess:
         with self._output_changed:
             self._output_changed.wait_for(printed, timeout)
         if not found:
-            state = f"exited with {self.proc.poll()}" if self._ended else f"printed no line matching {pattern!r} in {timeout} s"
+            state = (
+                f"exited with {self.proc.poll()}"
+                if self._ended
+                else f"printed no line matching {pattern!r} in {timeout} s"
+            )
             raise ProcessFailed(f"{self.name} {state}; its output:\n{self.tail()}")
         return found[0]
 

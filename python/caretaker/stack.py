@@ -102,8 +102,15 @@ def _at_server(deployment: Deployment, run: StackRun) -> list[str]:
 
 def _ledger(deployment: Deployment, run: StackRun) -> list[str]:
     ledger = deployment.ledger
-    args = ["ledger", "--state-dir", str(run.state_dir / "ledger"), "--retain-hours", str(ledger.retain_hours),
-            "--default-timeout", str(ledger.default_timeout)]
+    args = [
+        "ledger",
+        "--state-dir",
+        str(run.state_dir / "ledger"),
+        "--retain-hours",
+        str(ledger.retain_hours),
+        "--default-timeout",
+        str(ledger.default_timeout),
+    ]
     namespace = deployment.namespace
     if namespace:  # robots sharing a ROS graph each have their own ledger (bindings: ledger_namespace)
         args += ["--ros-args", "-r", f"__ns:={namespace}"]
@@ -116,9 +123,16 @@ def _link(deployment: Deployment, run: StackRun) -> list[str]:
     link = deployment.link
     assert link is not None  # wanted only then
     host, port = link.listen
-    return ["link", "--listen", f"{_host(host)}:{run.link_port or port}",
-            "--to", f"{_host(run.bridge_address)}:{run.bridge_port}", "--control", str(run.state_dir / "link.sock"),
-            *link.options()]
+    return [
+        "link",
+        "--listen",
+        f"{_host(host)}:{run.link_port or port}",
+        "--to",
+        f"{_host(run.bridge_address)}:{run.bridge_port}",
+        "--control",
+        str(run.state_dir / "link.sock"),
+        *link.options(),
+    ]
 
 
 def _host(address: str) -> str:
@@ -130,7 +144,11 @@ def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     bridge = deployment.bridge
     # Halts are called rarely and must act at once: their clients are matched before they are needed.
     args = ["bridge", "--address", run.bridge_address, "--port", str(run.bridge_port), "--ready-services", "*/halt"]
-    for option, path in (("--certfile", bridge.certfile), ("--keyfile", bridge.keyfile), ("--auth-secret-file", bridge.auth_secret_file)):
+    for option, path in (
+        ("--certfile", bridge.certfile),
+        ("--keyfile", bridge.keyfile),
+        ("--auth-secret-file", bridge.auth_secret_file),
+    ):
         if path is not None:
             args += [option, str(path)]
     return args
@@ -190,7 +208,11 @@ class Stack:
         # A new stack is a new world: without a state folder of the deployment's, instances are
         # kept in a folder of this stack's own and go with it.
         self._own_state_dir = deployment.state_dir is None
-        state_dir = Path(tempfile.mkdtemp(prefix=f"caretaker-{deployment.name}-")) if deployment.state_dir is None else deployment.state_dir
+        state_dir = (
+            Path(tempfile.mkdtemp(prefix=f"caretaker-{deployment.name}-"))
+            if deployment.state_dir is None
+            else deployment.state_dir
+        )
         state_dir.mkdir(parents=True, exist_ok=True)
         self.run = StackRun(
             time_scale=deployment.time_scale if time_scale is None else time_scale,
@@ -247,7 +269,9 @@ class Stack:
             ProcessFailed: it exited or did not become ready in time.
         """
         started = time.monotonic()
-        proc = caretaker(*self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line)
+        proc = caretaker(
+            *self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line
+        )
         self.processes[name] = proc
         threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
         line = proc.wait_ready(self.ready_timeout)
@@ -305,7 +329,10 @@ class Stack:
         while recent and now - recent[0] > RESPAWN_WINDOW_S:
             recent.popleft()
         if len(recent) >= RESPAWN_LIMIT:
-            print(f"{name} died {RESPAWN_LIMIT + 1} times within {RESPAWN_WINDOW_S:.0f} s: not restarting it again", file=sys.stderr)
+            print(
+                f"{name} died {RESPAWN_LIMIT + 1} times within {RESPAWN_WINDOW_S:.0f} s: not restarting it again",
+                file=sys.stderr,
+            )
             return False
         recent.append(now)
         return True
@@ -323,10 +350,18 @@ class Stack:
 def stack_options(prog: str) -> argparse.ArgumentParser:
     """The options ``up`` and ``demo`` share: the deployment and what a run may override."""
     parser = argparse.ArgumentParser(prog=prog)
-    parser.add_argument("deployment", metavar="DEPLOYMENT", help="a deployment file, or the name of a shipped one (iva, eva)")
-    parser.add_argument("--time-scale", type=float, help="simulation speed: 1 = real time, 0 = as fast as possible (default: the deployment's)")
+    parser.add_argument(
+        "deployment", metavar="DEPLOYMENT", help="a deployment file, or the name of a shipped one (iva, eva)"
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=float,
+        help="simulation speed: 1 = real time, 0 = as fast as possible (default: the deployment's)",
+    )
     parser.add_argument("--bridge-address", help="address the rosbridge server binds (default: the deployment's)")
-    parser.add_argument("--bridge-port", type=int, help="rosbridge port; 0 picks a free one (default: the deployment's)")
+    parser.add_argument(
+        "--bridge-port", type=int, help="rosbridge port; 0 picks a free one (default: the deployment's)"
+    )
     parser.add_argument("--verbose", "-v", action="store_true", help="echo every part's output")
     return parser
 
@@ -356,8 +391,14 @@ def up_main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         deployment = load_deployment(args.deployment)
-        stack = Stack(deployment, time_scale=args.time_scale, bridge_address=args.bridge_address, bridge_port=args.bridge_port,
-                      echo=args.verbose, respawn=True)
+        stack = Stack(
+            deployment,
+            time_scale=args.time_scale,
+            bridge_address=args.bridge_address,
+            bridge_port=args.bridge_port,
+            echo=args.verbose,
+            respawn=True,
+        )
         stack.start()
     except (DataFileError, StackFailed) as exc:
         print(f"caretaker up: {exc}", file=sys.stderr)

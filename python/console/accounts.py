@@ -20,7 +20,7 @@ import enum
 import logging
 import re
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
@@ -86,7 +86,7 @@ class _AccountRow(_Base):
     password_changed: Mapped[datetime] = mapped_column(DateTime(timezone=True))
 
     def account(self) -> Account:
-        changed = self.password_changed if self.password_changed.tzinfo else self.password_changed.replace(tzinfo=timezone.utc)
+        changed = self.password_changed if self.password_changed.tzinfo else self.password_changed.replace(tzinfo=UTC)
         return Account(self.user_id, Role(self.role), self.name, changed)
 
 
@@ -131,8 +131,14 @@ class AccountStore:
 
     def add(self, user: str, role: str, password: str, *, name: str = "") -> Account:
         """Create an account; AccountsError when the user id is taken or a value is invalid."""
-        row = _AccountRow(user_id=check_user_id(user), name=name, role=check_role(role).value,
-                          password_hash=self._hasher.hash(check_password(password)), created=_now(), password_changed=_now())
+        row = _AccountRow(
+            user_id=check_user_id(user),
+            name=name,
+            role=check_role(role).value,
+            password_hash=self._hasher.hash(check_password(password)),
+            created=_now(),
+            password_changed=_now(),
+        )
         account = row.account()
         with Session(self._engine) as session, session.begin():
             if session.get(_AccountRow, user) is not None:
@@ -167,7 +173,7 @@ class AccountStore:
 
     def verify(self, user: str, password: str) -> Account | None:
         """The account when ``password`` is its password, else None (same cost for unknown users)."""
-        password = password[:MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
+        password = password[: MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
         with Session(self._engine) as session:
             row = session.get(_AccountRow, user) if _USER_ID.match(user) else None
             if row is None:
@@ -185,8 +191,11 @@ class AccountStore:
         sessions, stay). A console whose role may only read accounts leaves that to the owner."""
         try:
             with self._engine.begin() as connection:
-                connection.execute(update(_AccountRow).where(_AccountRow.user_id == user, _AccountRow.password_hash == digest)
-                                   .values(password_hash=self._hasher.hash(password)))
+                connection.execute(
+                    update(_AccountRow)
+                    .where(_AccountRow.user_id == user, _AccountRow.password_hash == digest)
+                    .values(password_hash=self._hasher.hash(password))
+                )
         except DBAPIError as exc:
             if getattr(exc.orig, "sqlstate", None) != "42501":  # insufficient_privilege: a read-only console
                 raise
@@ -210,4 +219,4 @@ def _matches(hasher: PasswordHasher, digest: str, password: str) -> bool:
 
 
 def _now() -> datetime:
-    return datetime.now(timezone.utc)
+    return datetime.now(UTC)

@@ -11,8 +11,8 @@ import argparse
 import getpass
 import sys
 
+from console.accounts import AccountsError, AccountStore, Role
 from pride.audit_log import DEFAULT_DB
-from console.accounts import AccountStore, AccountsError, Role
 
 __all__ = ["main"]
 
@@ -25,9 +25,11 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="caretaker accounts",
         description="Manage who may sign in to the web view (caretaker serve). Passwords are read from a "
-                    "prompt, or from the first line of stdin when it is not a terminal; never from arguments.",
+        "prompt, or from the first line of stdin when it is not a terminal; never from arguments.",
     )
-    parser.add_argument("--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})")
+    parser.add_argument(
+        "--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})"
+    )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add = commands.add_parser("add", help="create an account (asks for its password)")
     add.add_argument("user")

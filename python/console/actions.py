@@ -13,9 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from pride.executive import Executive, Mode, OperatorActionError
-from console.ground.action_requests import Answer, ForwardedAction
 from console.accounts import Account, AccountStore
+from console.ground.action_requests import Answer, ForwardedAction
+from pride.executive import Executive, Mode, OperatorActionError
 
 __all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perform_forwarded"]
 
@@ -64,7 +64,9 @@ def _mode(request: ActionRequest) -> Mode:
     try:
         return Mode(request.mode)
     except ValueError:
-        raise ActionRefused(400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {request.mode!r})") from None
+        raise ActionRefused(
+            400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {request.mode!r})"
+        ) from None
 
 
 def _numbered(request: ActionRequest) -> str:
@@ -75,7 +77,9 @@ def _numbered(request: ActionRequest) -> str:
 
 def _outcome(request: ActionRequest) -> str:
     if request.value not in ("succeeded", "failed"):
-        raise ActionRefused(400, f"resolve needs value 'succeeded' or 'failed': what the system shows (got {request.value!r})")
+        raise ActionRefused(
+            400, f"resolve needs value 'succeeded' or 'failed': what the system shows (got {request.value!r})"
+        )
     return str(request.value)
 
 
@@ -120,14 +124,19 @@ def perform_action(executive: Executive, account: Account, request: ActionReques
         if request.instruction is None:
             raise ActionRefused(400, f"{request.action} needs the instruction number it was clicked on")
         if request.instruction != current:
-            raise ActionRefused(409, f"{request.instruction} is not the current instruction (the run is at {current or 'no instruction'})")
+            raise ActionRefused(
+                409,
+                f"{request.instruction} is not the current instruction (the run is at {current or 'no instruction'})",
+            )
     try:
         return action(executive, account.user, request)
     except OperatorActionError as exc:
         raise ActionRefused(409, str(exc)) from None
 
 
-def perform_forwarded(executive: Executive | None, accounts: AccountStore, request: ForwardedAction, host: str) -> Answer:
+def perform_forwarded(
+    executive: Executive | None, accounts: AccountStore, request: ForwardedAction, host: str
+) -> Answer:
     """An action another console forwarded to the run's host (``host``, this process): performed as its
     operator, whose account and role are checked here against the database, whatever the other console did."""
     if executive is None:

@@ -17,9 +17,9 @@ from typing import Any, cast
 
 from lxml import etree
 
+from console.actions import ActionRefused
 from pride.lint import lint_file
 from pride.sysrep import SysRep
-from console.actions import ActionRefused
 
 __all__ = ["check_document", "document_to_xml", "procedure_inputs", "read_document", "save_document", "sysrep_palette"]
 
@@ -30,15 +30,26 @@ _WITH_TEXT = ("record", "manual", "note", "caution", "warning")
 
 def sysrep_palette(sysreps: dict[str, SysRep]) -> list[dict[str, Any]]:
     """Every SysRep with its commands (typed arguments) and telemetry, for the palette."""
+
     def value(arg: Any) -> dict[str, Any]:
-        return {"name": arg.name, "type": arg.type, "min": arg.min, "max": arg.max,
-                "enum": list(arg.enum) if arg.enum else None, "units": arg.units}
+        return {
+            "name": arg.name,
+            "type": arg.type,
+            "min": arg.min,
+            "max": arg.max,
+            "enum": list(arg.enum) if arg.enum else None,
+            "units": arg.units,
+        }
 
     return [
         {
-            "id": s.id, "name": s.name, "file": Path(s.path).name,
-            "commands": [{"id": c.id, "label": c.label, "hazardous": c.hazardous, "args": [value(a) for a in c.args]}
-                         for c in s.commands],
+            "id": s.id,
+            "name": s.name,
+            "file": Path(s.path).name,
+            "commands": [
+                {"id": c.id, "label": c.label, "hazardous": c.hazardous, "args": [value(a) for a in c.args]}
+                for c in s.commands
+            ],
             "telemetry": [{"id": t.id, "label": t.label, "type": t.type} for t in s.telemetry],
         }
         for s in sorted(sysreps.values(), key=lambda s: s.id)
@@ -187,7 +198,9 @@ def save_document(
     if checked["problems"]:
         raise ActionRefused(422, f"{name} not saved: lint found {len(checked['problems'])} problem(s); fix them first")
     target = directory / name
-    if replace:  # a whole new file put in place: a reader never sees half of it, a link is replaced, not written through
+    if (
+        replace
+    ):  # a whole new file put in place: a reader never sees half of it, a link is replaced, not written through
         scratch = directory / f".author-{secrets.token_hex(4)}.xml"
         scratch.write_text(checked["xml"], encoding="utf-8")
         os.replace(scratch, target)

@@ -87,7 +87,9 @@ class CameraFeed:
     def _capture(self) -> None:
         started = time.time()  # an image shows the moment it was asked for, not when it arrived
         try:
-            result = self._gateway.execute(CAMERA_SYSREP, CAPTURE_COMMAND, {"camera": self._camera, "label": self._label})
+            result = self._gateway.execute(
+                CAMERA_SYSREP, CAPTURE_COMMAND, {"camera": self._camera, "label": self._label}
+            )
         except Exception as exc:
             self._failed(f"camera capture failed: {type(exc).__name__}: {exc}")
             return

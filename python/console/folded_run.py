@@ -20,9 +20,19 @@ __all__ = ["InstructionState", "FoldedRun", "fold_events"]
 _IMAGE_KEYS = ("image_path", "image", "path")
 #: Events after which the run is somewhere new or holds for a new reason: a hold is "since" then.
 _ARRIVALS = {
-    EventKind.RUN_STARTED, EventKind.RUN_RESUMED, EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED,
-    EventKind.INSTRUCTION_SKIPPED, EventKind.AWAITING_OPERATOR, EventKind.BREAKPOINT_HIT, EventKind.PAUSED,
-    EventKind.CONTINUED, EventKind.MODE_CHANGED, EventKind.CALL_ENTERED, EventKind.CONFIRMATION, EventKind.RUN_STOPPED,
+    EventKind.RUN_STARTED,
+    EventKind.RUN_RESUMED,
+    EventKind.INSTRUCTION_COMPLETED,
+    EventKind.INSTRUCTION_FAILED,
+    EventKind.INSTRUCTION_SKIPPED,
+    EventKind.AWAITING_OPERATOR,
+    EventKind.BREAKPOINT_HIT,
+    EventKind.PAUSED,
+    EventKind.CONTINUED,
+    EventKind.MODE_CHANGED,
+    EventKind.CALL_ENTERED,
+    EventKind.CONFIRMATION,
+    EventKind.RUN_STOPPED,
     EventKind.RUN_COMPLETED,
 }
 
@@ -78,12 +88,23 @@ class FoldedRun:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "run_id": self.run_id, "procedure": self.procedure, "mode": self.mode,
-            "status": self.status, "started_by": self.started_by, "current": self.current,
-            "awaiting": self.awaiting, "breakpoints": sorted(self.breakpoints), "paused": self.paused,
+            "run_id": self.run_id,
+            "procedure": self.procedure,
+            "mode": self.mode,
+            "status": self.status,
+            "started_by": self.started_by,
+            "current": self.current,
+            "awaiting": self.awaiting,
+            "breakpoints": sorted(self.breakpoints),
+            "paused": self.paused,
             "instructions": {n: s.to_dict() for n, s in self.instructions.items()},
-            "camera": self.camera_json(), "last_seq": self.last_seq, "arrived": self.arrived, "stopped": self.stopped,
-            "envs": self.envs, "halted": self.halted, "link": self.link,
+            "camera": self.camera_json(),
+            "last_seq": self.last_seq,
+            "arrived": self.arrived,
+            "stopped": self.stopped,
+            "envs": self.envs,
+            "halted": self.halted,
+            "link": self.link,
         }
 
     def camera_json(self) -> dict[str, Any] | None:
@@ -91,7 +112,10 @@ class FoldedRun:
         event = self.latest_image_event
         if event is None:
             return None
-        return {"version": f"seq{event.seq}", "caption": f"{event.instruction} · {event.time:%H:%M:%S} UTC · {self.latest_image}"}
+        return {
+            "version": f"seq{event.seq}",
+            "caption": f"{event.instruction} · {event.time:%H:%M:%S} UTC · {self.latest_image}",
+        }
 
     def apply(self, event: Event) -> None:
         """Fold one more event in (events arrive in sequence order)."""
@@ -162,8 +186,12 @@ class FoldedRun:
             entry.resolved = {"by": event.actor, "outcome": data.get("outcome"), "reason": data.get("reason", "")}
         elif kind is EventKind.RECORD_CORRECTED:
             entry.value = data.get("value")
-            entry.corrected = {"by": event.actor, "old": data.get("old"), "value": data.get("value"),
-                               "reason": data.get("reason", "")}
+            entry.corrected = {
+                "by": event.actor,
+                "old": data.get("old"),
+                "value": data.get("value"),
+                "reason": data.get("reason", ""),
+            }
             self.envs.setdefault(frame, {})[str(data.get("name"))] = data.get("value")
         elif kind is EventKind.COMMAND_SENT:
             entry.sent, entry.sent_by = dict(data), event.actor
@@ -172,7 +200,11 @@ class FoldedRun:
             values: dict[str, Any] = data["values"] if isinstance(data.get("values"), dict) else {}
             entry.result_lines = labelled_values(values, self.sysreps.get(str(data.get("system"))))
             if data.get("result"):
-                self.envs.setdefault(frame, {})[data["result"]] = {"success": data.get("success"), "message": data.get("message", ""), **values}
+                self.envs.setdefault(frame, {})[data["result"]] = {
+                    "success": data.get("success"),
+                    "message": data.get("message", ""),
+                    **values,
+                }
             image = _image_path(data)
             if image:
                 self.latest_image, self.latest_image_event = image, event

@@ -18,17 +18,17 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
+from console.accounts import Account
+from console.camera_feed import CameraFeed
+from console.folded_run import fold_events
+from console.ground.run_hosts import PublishedView
+from console.procedure_view import procedure_json, telemetry_checks
+from console.watchers import Watcher, Watchers
 from pride.events import Event
 from pride.executive import Executive, Snapshot
-from console.ground.run_hosts import PublishedView
 from pride.model import Procedure
 from pride.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
-from console.accounts import Account
-from console.camera_feed import CameraFeed
-from console.procedure_view import procedure_json, telemetry_checks
-from console.folded_run import fold_events
-from console.watchers import Watcher, Watchers
 
 __all__ = ["LiveRun", "snapshot_json"]
 
@@ -155,8 +155,12 @@ class LiveRun:
         """The run as other consoles show it (:mod:`console.ground.run_hosts` publishes it)."""
         state = self.state_json()
         camera = self.camera()
-        return PublishedView({"state": state, "telemetry": self.telemetry_json()}, str(state["status"]), str(state["mode"]),
-                             (camera[1], camera[0]) if camera else None)
+        return PublishedView(
+            {"state": state, "telemetry": self.telemetry_json()},
+            str(state["status"]),
+            str(state["mode"]),
+            (camera[1], camera[0]) if camera else None,
+        )
 
     def state_json(self) -> dict[str, Any]:
         """The run as the page draws it: the executive's snapshot plus who did what, when."""
@@ -165,9 +169,15 @@ class LiveRun:
             details = self._state.to_dict()
         camera = self.camera()
         return {
-            **details, **snapshot_json(snapshot), "camera": camera[1] if camera else None,
-            "binding": self.binding, "started_by": self.started_by, "live": True, "watchers": self.watchers(),
-            "host": self.host, "hosted_here": True,
+            **details,
+            **snapshot_json(snapshot),
+            "camera": camera[1] if camera else None,
+            "binding": self.binding,
+            "started_by": self.started_by,
+            "live": True,
+            "watchers": self.watchers(),
+            "host": self.host,
+            "hosted_here": True,
         }
 
     def telemetry_json(self) -> dict[str, Any]:
@@ -180,17 +190,25 @@ class LiveRun:
             try:
                 reading = self.gateway.telemetry(system, item)
             except Exception as exc:  # shown as unavailable, never as a value
-                readings.append({"system": system, "item": item, "error": f"{type(exc).__name__}: {exc}", "stale": True})
+                readings.append(
+                    {"system": system, "item": item, "error": f"{type(exc).__name__}: {exc}", "stale": True}
+                )
                 continue
             timestamp = reading.timestamp
             value, stale = reading.value, reading.stale
             if not stale and value is not None:
                 values[(system, item)] = value
-            readings.append({
-                "system": system, "item": item, "value": value, "timestamp": timestamp,
-                "age": (now - timestamp) if timestamp else None, "stale": stale,
-                "out": _out_of_limits(self._item(system, item), value),
-            })
+            readings.append(
+                {
+                    "system": system,
+                    "item": item,
+                    "value": value,
+                    "timestamp": timestamp,
+                    "age": (now - timestamp) if timestamp else None,
+                    "stale": stale,
+                    "out": _out_of_limits(self._item(system, item), value),
+                }
+            )
         checks = {}
         for key, (system, item, condition) in self._checks.items():
             definition = self._item(system, item)
@@ -235,8 +253,16 @@ def snapshot_json(snapshot: Snapshot) -> dict[str, Any]:
         "unknown_key": snapshot.unknown_key,
         "halted_by": snapshot.halted_by,
         "halt_reason": snapshot.halt_reason,
-        "link": {"state": "lost", "since": snapshot.link_lost_since.isoformat(), "in_flight": snapshot.commands_in_flight}
-        if snapshot.link_lost_since else {"state": "connected"},
-        "journal": {"available": snapshot.journal_available, "error": snapshot.journal_error,
-                    "since": snapshot.journal_unavailable_since.isoformat() if snapshot.journal_unavailable_since else None},
+        "link": {
+            "state": "lost",
+            "since": snapshot.link_lost_since.isoformat(),
+            "in_flight": snapshot.commands_in_flight,
+        }
+        if snapshot.link_lost_since
+        else {"state": "connected"},
+        "journal": {
+            "available": snapshot.journal_available,
+            "error": snapshot.journal_error,
+            "since": snapshot.journal_unavailable_since.isoformat() if snapshot.journal_unavailable_since else None,
+        },
     }

@@ -15,8 +15,17 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from pride.model import (
-    BranchInstruction, CallInstruction, CommandInstruction, Condition, Instruction, Notice, Procedure,
-    RecordInstruction, Subject, VerifyInstruction, WaitInstruction,
+    BranchInstruction,
+    CallInstruction,
+    CommandInstruction,
+    Condition,
+    Instruction,
+    Notice,
+    Procedure,
+    RecordInstruction,
+    Subject,
+    VerifyInstruction,
+    WaitInstruction,
 )
 from pride.parser import load_procedure
 from pride.phrasing import phrase, raw_form, template_json
@@ -61,7 +70,9 @@ def check_key(system: str, item: str, condition: Condition | None) -> str:
     return f"{system}.{item} {condition.describe()}" if condition is not None else f"{system}.{item}"
 
 
-def telemetry_checks(procedure: Procedure, load: Loader = load_procedure, *, _depth: int = 0) -> dict[str, TelemetryCheck]:
+def telemetry_checks(
+    procedure: Procedure, load: Loader = load_procedure, *, _depth: int = 0
+) -> dict[str, TelemetryCheck]:
     """Every telemetry test an instruction of the procedure or its sub-procedures makes, by check key."""
     checks: dict[str, TelemetryCheck] = {}
     for instruction in procedure.instructions:
@@ -88,10 +99,15 @@ def _telemetry(subject: Subject, condition: Condition | None, sysreps: Mapping[s
     sysrep = sysreps.get(subject.system or "")
     item = sysrep.telemetry_item(subject.name) if sysrep is not None else None
     return {
-        "system": subject.system, "item": subject.name, "check": check_key(subject.system or "", subject.name, condition),
-        "label": item.label if item is not None else subject.name, "units": item.units if item is not None else None,
+        "system": subject.system,
+        "item": subject.name,
+        "check": check_key(subject.system or "", subject.name, condition),
+        "label": item.label if item is not None else subject.name,
+        "units": item.units if item is not None else None,
         "expected": condition.describe() if condition is not None else None,
-        "limits": {"min": item.min, "max": item.max, "enum": list(item.enum) if item.enum else None} if item is not None else None,
+        "limits": {"min": item.min, "max": item.max, "enum": list(item.enum) if item.enum else None}
+        if item is not None
+        else None,
     }
 
 
@@ -101,8 +117,12 @@ def _hazardous_in_sysrep(instruction: CommandInstruction, sysreps: Mapping[str, 
     return bool(command is not None and command.hazardous)
 
 
-def _instruction(instruction: Instruction, procedure: Procedure, load: Loader, sysreps: Mapping[str, SysRep], depth: int) -> dict[str, Any]:
-    callee = load(instruction.resolved_path) if isinstance(instruction, CallInstruction) and depth < _MAX_DEPTH else None
+def _instruction(
+    instruction: Instruction, procedure: Procedure, load: Loader, sysreps: Mapping[str, SysRep], depth: int
+) -> dict[str, Any]:
+    callee = (
+        load(instruction.resolved_path) if isinstance(instruction, CallInstruction) and depth < _MAX_DEPTH else None
+    )
     sentence = phrase(instruction, sysreps, procedure, callee=callee)
     view: dict[str, Any] = {
         "number": instruction.number,
@@ -118,7 +138,11 @@ def _instruction(instruction: Instruction, procedure: Procedure, load: Loader, s
     if subject is not None and subject.source == "telemetry":
         view["telemetry"] = _telemetry(subject, getattr(instruction, "condition", None), sysreps)
     if isinstance(instruction, (VerifyInstruction, WaitInstruction)):
-        view["timeout"] = instruction.seconds if isinstance(instruction, WaitInstruction) and instruction.seconds is not None else instruction.timeout
+        view["timeout"] = (
+            instruction.seconds
+            if isinstance(instruction, WaitInstruction) and instruction.seconds is not None
+            else instruction.timeout
+        )
     if isinstance(instruction, CommandInstruction):
         view.update(
             system=instruction.system,

@@ -16,11 +16,11 @@ import threading
 import time
 from typing import Any
 
+from console.accounts import Account
+from console.ground.run_hosts import HostRecord, RunHosting
+from console.watchers import Watcher, Watchers
 from pride.audit_log import AuditLog
 from pride.events import Event
-from console.ground.run_hosts import HostRecord, RunHosting
-from console.accounts import Account
-from console.watchers import Watcher, Watchers
 
 __all__ = ["RemoteRun"]
 
@@ -119,8 +119,14 @@ class RemoteRun:
             record = self._record
         there = {w["user"]: w for w in state.get("watchers") or []}
         here = {w["user"]: w for w in self._watchers.people()}
-        state.update(run_id=self.run_id, live=True, hosted_here=False, watchers=[v for _, v in sorted({**there, **here}.items())],
-                     host=record.host if record else "", lease_until=record.lease_until.isoformat() if record else None)
+        state.update(
+            run_id=self.run_id,
+            live=True,
+            hosted_here=False,
+            watchers=[v for _, v in sorted({**there, **here}.items())],
+            host=record.host if record else "",
+            lease_until=record.lease_until.isoformat() if record else None,
+        )
         return state
 
     def telemetry_json(self) -> dict[str, Any]:

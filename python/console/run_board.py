@@ -23,32 +23,32 @@ import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from sqlalchemy.exc import SQLAlchemyError
 
+from console.accounts import Account, AccountStore
+from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
+from console.camera_feed import CameraFeed
+from console.folded_run import fold_events
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
+from console.ground.change_feed import ChangeNotice, open_change_feed
+from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
+from console.live_run import LiveRun
+from console.remote_run import RemoteRun
+from console.watchers import Watchers
 from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import ChangeNotice, open_change_feed
-from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.lint import CheckedProcedure, check_procedure
 from pride.robot_control import RobotControl
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
-from console.accounts import Account, AccountStore
-from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
-from console.camera_feed import CameraFeed
-from console.live_run import LiveRun
-from console.remote_run import RemoteRun
-from console.folded_run import fold_events
-from console.watchers import Watchers
 
 __all__ = ["CameraSettings", "Catalog", "RunBoard", "RunView"]
 
@@ -61,8 +61,12 @@ log = logging.getLogger(__name__)
 #: (another console or a terminal may be running it); a completed run never changes.
 _STATUS_TTL_S = 10.0
 #: Events that change a run's line in the runs list.
-_LISTED = {EventKind.RUN_STARTED.value, EventKind.RUN_RESUMED.value, EventKind.RUN_COMPLETED.value,
-           EventKind.RUN_STOPPED.value}
+_LISTED = {
+    EventKind.RUN_STARTED.value,
+    EventKind.RUN_RESUMED.value,
+    EventKind.RUN_COMPLETED.value,
+    EventKind.RUN_STOPPED.value,
+}
 
 
 @dataclass(frozen=True)
@@ -124,8 +128,15 @@ class RunBoard:
     """
 
     def __init__(
-        self, catalog: Catalog, audit_log: AuditLog, camera: CameraSettings = CameraSettings(), *, accounts: AccountStore,
-        console: str, lease: float = DEFAULT_LEASE_S, rosbridge_urls: Mapping[str, str] | None = None,
+        self,
+        catalog: Catalog,
+        audit_log: AuditLog,
+        camera: CameraSettings = CameraSettings(),
+        *,
+        accounts: AccountStore,
+        console: str,
+        lease: float = DEFAULT_LEASE_S,
+        rosbridge_urls: Mapping[str, str] | None = None,
     ) -> None:
         self.catalog = catalog
         self.audit_log = audit_log
@@ -141,8 +152,9 @@ class RunBoard:
         self.list_watchers = Watchers()  # browsers showing the runs list
         self.hosting = RunHosting(audit_log.engine, host=console, lease=lease)
         self.hosting.on_lost(self._lost)
-        self.forwarding = ActionRequests(audit_log.engine, host_id=self.hosting.host_id, console=console,
-                                         perform=self._perform_forwarded)
+        self.forwarding = ActionRequests(
+            audit_log.engine, host_id=self.hosting.host_id, console=console, perform=self._perform_forwarded
+        )
         self.feed = open_change_feed(audit_log.engine)
         self.feed.subscribe(self._notice)
         self.feed.subscribe(self.forwarding.notice)
@@ -154,8 +166,9 @@ class RunBoard:
     def sysreps(self) -> dict[str, SysRep]:
         return load_sysrep_dir(self.catalog.sysreps)
 
-    def start(self, user: str, procedure_name: str, binding_name: str, mode_name: str, *,
-              take_over: str | None = None) -> LiveRun:
+    def start(
+        self, user: str, procedure_name: str, binding_name: str, mode_name: str, *, take_over: str | None = None
+    ) -> LiveRun:
         """Lint, open the gateway, start the executive; ActionRefused says what to fix.
 
         A robot controlled by another run refuses the start (409, naming the controller) unless
@@ -163,7 +176,7 @@ class RunBoard:
         """
         mode = _mode(mode_name)
         checked, gateway = self._open(procedure_name, binding_name)
-        run_id = f"{checked.procedure.id}-{datetime.now(timezone.utc):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
+        run_id = f"{checked.procedure.id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         try:
             executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode, control=self.control)
         except BaseException as exc:
@@ -184,7 +197,9 @@ class RunBoard:
         """Continue a stopped or interrupted run from its log on ``binding_name``; ActionRefused says why not."""
         mode = _mode(mode_name)
         if self.live(run_id) is not None:  # (a run that has just ended is released in a moment)
-            raise ActionRefused(409, f"run {run_id} is live on this server (or ending): resume it once it shows as stopped")
+            raise ActionRefused(
+                409, f"run {run_id} is live on this server (or ending): resume it once it shows as stopped"
+            )
         record = self.hosting.record(run_id)
         if record is not None and record.alive:
             raise ActionRefused(409, f"run {run_id} is live on {record.host}: act on it as on any live run")
@@ -195,7 +210,9 @@ class RunBoard:
         procedure_name = Path(str(events[0].data.get("path", ""))).name
         checked, gateway = self._open(procedure_name, binding_name)
         try:
-            executive = Executive.resume(checked, gateway, self.audit_log, events, user, mode=mode, control=self.control)
+            executive = Executive.resume(
+                checked, gateway, self.audit_log, events, user, mode=mode, control=self.control
+            )
         except (OperatorActionError, ValueError) as exc:
             gateway.close()
             raise ActionRefused(409, f"run {run_id} cannot be resumed: {exc}") from None
@@ -217,16 +234,25 @@ class RunBoard:
             gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url_for(binding_name))
         except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) refuse the start
             log.exception("opening %s", binding)
-            raise ActionRefused(502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}") from None
+            raise ActionRefused(
+                502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}"
+            ) from None
         missing = {system for system, _ in procedure.uses} - gateway.system_ids()
         if missing:
             gateway.close()
-            raise ActionRefused(422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses")
+            raise ActionRefused(
+                422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses"
+            )
         return checked, gateway
 
     def _hold(
-        self, executive: Executive, gateway: SystemGateway, checked: CheckedProcedure,
-        binding_name: str, started_by: str, history: list[Event] | None = None,
+        self,
+        executive: Executive,
+        gateway: SystemGateway,
+        checked: CheckedProcedure,
+        binding_name: str,
+        started_by: str,
+        history: list[Event] | None = None,
     ) -> LiveRun:
         """Keep a run as live here, with a camera feed when the server has a camera to watch."""
         feed = None
@@ -234,14 +260,28 @@ class RunBoard:
         if camera is not None and CameraFeed.available(gateway):
             feed = CameraFeed(gateway, camera, period=self.camera.period)
         run_id = executive.run_id
-        live = LiveRun(executive, gateway, checked.procedure, binding=binding_name, started_by=started_by,
-                       sysreps=dict(checked.sysreps), camera_feed=feed, history=history, host=self.hosting.host,
-                       on_change=lambda: self.hosting.changed(run_id))
+        live = LiveRun(
+            executive,
+            gateway,
+            checked.procedure,
+            binding=binding_name,
+            started_by=started_by,
+            sysreps=dict(checked.sysreps),
+            camera_feed=feed,
+            history=history,
+            host=self.hosting.host,
+            on_change=lambda: self.hosting.changed(run_id),
+        )
         with self._lock:  # live here before its host row exists: the listing never sees a row without it
             self._live[run_id] = live
         try:
-            self.hosting.claim(run_id, binding=binding_name, started_by=started_by, procedure_view=live.procedure_view,
-                               source=live.published_view)
+            self.hosting.claim(
+                run_id,
+                binding=binding_name,
+                started_by=started_by,
+                procedure_view=live.procedure_view,
+                source=live.published_view,
+            )
         except HostedElsewhere as exc:  # another console resumed it a moment ago
             with self._lock:
                 self._live.pop(run_id, None)
@@ -338,7 +378,9 @@ class RunBoard:
             raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
         record = self.hosting.record(run_id)
         if record is None or not record.alive:
-            raise ActionRefused(404, f"run {run_id!r} is not live on any console (past and interrupted runs are read-only)")
+            raise ActionRefused(
+                404, f"run {run_id!r} is not live on any console (past and interrupted runs are read-only)"
+            )
         answer = self.forwarding.forward(run_id, record.host_id, account.user, request.to_json())
         if not answer.ok:
             raise ActionRefused(answer.status, str(answer.body.get("error", "refused by the run's host")))
@@ -402,13 +444,25 @@ class RunBoard:
             record = hosts.get(run_id)
             if run_id in live:
                 snapshot = live[run_id].executive.snapshot()
-                entry.update(status=snapshot.status.value, mode=snapshot.mode.value, started_by=live[run_id].started_by,
-                             live=snapshot.status is RunStatus.ACTIVE, host=self.hosting.host, hosted_here=True)
+                entry.update(
+                    status=snapshot.status.value,
+                    mode=snapshot.mode.value,
+                    started_by=live[run_id].started_by,
+                    live=snapshot.status is RunStatus.ACTIVE,
+                    host=self.hosting.host,
+                    hosted_here=True,
+                )
             elif record is not None and record.alive and record.host != self.hosting.host:
                 # hosted by another console; a row of this console's without its live run is one
                 # whose release has not reached the database yet: the log says how it ended
-                entry.update(status=record.status, mode=record.mode, started_by=record.started_by,
-                             live=record.status == RunStatus.ACTIVE.value, host=record.host, hosted_here=False)
+                entry.update(
+                    status=record.status,
+                    mode=record.mode,
+                    started_by=record.started_by,
+                    live=record.status == RunStatus.ACTIVE.value,
+                    host=record.host,
+                    hosted_here=False,
+                )
             else:
                 entry.update(status=self._logged_status(run_id), live=False)
                 if record is not None and entry["status"] == "interrupted":
@@ -450,8 +504,18 @@ class RunBoard:
 def _not_started(procedure_name: str, exc: OperatorActionError) -> ActionRefused:
     """A 409 for a start the executive refused; with who controls the robot, so the page can offer a takeover."""
     holder = exc.holder if isinstance(exc, RobotControlled) else None
-    details = {"controlled_by": {"robot": holder.robot, "run_id": holder.run_id, "user": holder.user,
-                                 "since": holder.since.isoformat()}} if holder else None
+    details = (
+        {
+            "controlled_by": {
+                "robot": holder.robot,
+                "run_id": holder.run_id,
+                "user": holder.user,
+                "since": holder.since.isoformat(),
+            }
+        }
+        if holder
+        else None
+    )
     return ActionRefused(409, f"{procedure_name} not started: {exc}", details)
 
 

@@ -20,17 +20,16 @@ from collections.abc import Callable
 from pathlib import Path
 
 import uvicorn
-
 from sqlalchemy.exc import OperationalError
 
-from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
-from pride.audit_schema import AuditSchemaError
-from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.accounts import AccountStore
 from console.app import build_app
+from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.reports import report_writer
 from console.run_board import CameraSettings, Catalog, RunBoard
 from console.sign_in import SessionLimits, SignIns
+from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from pride.audit_schema import AuditSchemaError
 
 __all__ = ["main"]
 
@@ -56,32 +55,74 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="caretaker serve", description="Serve the operator web view.")
     parser.add_argument("--address", default="127.0.0.1", help="address to bind (default: loopback only)")
     parser.add_argument("--port", type=int, default=8080, help="TCP port (0 = any free port; default 8080)")
-    parser.add_argument("--db", default=DEFAULT_DB,
-                        help=f"the ground database: audit log and accounts, a SQLAlchemy URL (default: {DEFAULT_DB})")
-    parser.add_argument("--certfile", type=Path, help="TLS certificate chain (PEM); with --keyfile the view is served over https")
+    parser.add_argument(
+        "--db",
+        default=DEFAULT_DB,
+        help=f"the ground database: audit log and accounts, a SQLAlchemy URL (default: {DEFAULT_DB})",
+    )
+    parser.add_argument(
+        "--certfile", type=Path, help="TLS certificate chain (PEM); with --keyfile the view is served over https"
+    )
     parser.add_argument("--keyfile", type=Path, help="TLS private key (PEM)")
-    parser.add_argument("--insecure", action="store_true",
-                        help="allow plain http beyond loopback (only where the network is encrypted otherwise)")
-    parser.add_argument("--session-idle", type=float, default=30.0, metavar="MIN",
-                        help="sign a browser out after this many minutes without use (default 30; an open page is in use)")
-    parser.add_argument("--session-max", type=float, default=12.0, metavar="H",
-                        help="sign everyone out this many hours after they signed in (default 12: a shift)")
+    parser.add_argument(
+        "--insecure",
+        action="store_true",
+        help="allow plain http beyond loopback (only where the network is encrypted otherwise)",
+    )
+    parser.add_argument(
+        "--session-idle",
+        type=float,
+        default=30.0,
+        metavar="MIN",
+        help="sign a browser out after this many minutes without use (default 30; an open page is in use)",
+    )
+    parser.add_argument(
+        "--session-max",
+        type=float,
+        default=12.0,
+        metavar="H",
+        help="sign everyone out this many hours after they signed in (default 12: a shift)",
+    )
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
-    parser.add_argument("--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files")
+    parser.add_argument(
+        "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files"
+    )
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
-    parser.add_argument("--rosbridge", metavar="[BINDING=]URL", action="append", default=[],
-                        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
-                             "or of every binding without BINDING=; repeat for several robots")
-    parser.add_argument("--console", metavar="NAME",
-                        help="how other consoles name this one when it hosts a run (default: console HOST:PORT)")
-    parser.add_argument("--lease", type=float, default=DEFAULT_LEASE_S, metavar="S",
-                        help="seconds after which other consoles take a run hosted here for interrupted if this console "
-                             f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}")
-    parser.add_argument("--camera", metavar="[BINDING=]NAME", action="append", default=[],
-                        help="camera to show while the robot of the binding file BINDING moves (e.g. iva.yaml=scene, "
-                             "eva.yaml=ee_camera), or of every binding without BINDING=, when it serves the camera SysRep")
-    parser.add_argument("--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)")
-    parser.add_argument("--reports", type=Path, default=REPO / "var" / "reports", help="where after-action reports are written")
+    parser.add_argument(
+        "--rosbridge",
+        metavar="[BINDING=]URL",
+        action="append",
+        default=[],
+        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
+        "or of every binding without BINDING=; repeat for several robots",
+    )
+    parser.add_argument(
+        "--console",
+        metavar="NAME",
+        help="how other consoles name this one when it hosts a run (default: console HOST:PORT)",
+    )
+    parser.add_argument(
+        "--lease",
+        type=float,
+        default=DEFAULT_LEASE_S,
+        metavar="S",
+        help="seconds after which other consoles take a run hosted here for interrupted if this console "
+        f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}",
+    )
+    parser.add_argument(
+        "--camera",
+        metavar="[BINDING=]NAME",
+        action="append",
+        default=[],
+        help="camera to show while the robot of the binding file BINDING moves (e.g. iva.yaml=scene, "
+        "eva.yaml=ee_camera), or of every binding without BINDING=, when it serves the camera SysRep",
+    )
+    parser.add_argument(
+        "--camera-period", type=float, default=0.5, metavar="S", help="seconds between live captures (default 0.5)"
+    )
+    parser.add_argument(
+        "--reports", type=Path, default=REPO / "var" / "reports", help="where after-action reports are written"
+    )
     return parser
 
 
@@ -101,9 +142,11 @@ def _tls_problem(args: argparse.Namespace) -> str | None:
     if args.certfile is None:
         if _loopback(args.address) or args.insecure:
             return None
-        return (f"--address {args.address} reaches beyond this machine, and passwords and session cookies must not "
-                "cross a network in clear text: give --certfile and --keyfile (TLS), or --insecure if the network "
-                "is encrypted otherwise (VPN, a TLS proxy on this host)")
+        return (
+            f"--address {args.address} reaches beyond this machine, and passwords and session cookies must not "
+            "cross a network in clear text: give --certfile and --keyfile (TLS), or --insecure if the network "
+            "is encrypted otherwise (VPN, a TLS proxy on this host)"
+        )
     try:
         ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
     except ssl.SSLError as exc:  # before OSError, of which it is a kind
@@ -125,7 +168,9 @@ def _per_binding(flag: str, options: list[str], expected: str, valid: Callable[[
         if not valid(value):
             raise ValueError(f"{flag} {option}: expected [BINDING=]{expected}")
         if binding in values:
-            raise ValueError(f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already")
+            raise ValueError(
+                f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already"
+            )
         values[binding] = value
     return values
 
@@ -146,10 +191,15 @@ def main(argv: list[str] | None = None) -> int:
         print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
         return 2
     try:
-        rosbridge_urls = _per_binding("--rosbridge", args.rosbridge, "ws://HOST:PORT or wss://HOST:PORT",
-                                      lambda url: url.startswith(("ws://", "wss://")))
-        cameras = _per_binding("--camera", args.camera, "NAME (a camera of the robot's scene: scene, ee_camera)",
-                               _CAMERA_NAME.fullmatch)
+        rosbridge_urls = _per_binding(
+            "--rosbridge",
+            args.rosbridge,
+            "ws://HOST:PORT or wss://HOST:PORT",
+            lambda url: url.startswith(("ws://", "wss://")),
+        )
+        cameras = _per_binding(
+            "--camera", args.camera, "NAME (a camera of the robot's scene: scene, ee_camera)", _CAMERA_NAME.fullmatch
+        )
     except ValueError as exc:
         print(f"caretaker serve: {exc}", file=sys.stderr)
         return 2
@@ -158,7 +208,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     tls = args.certfile is not None
     if not _loopback(args.address):
-        log.warning("serving on %s%s: the web view is reachable beyond this machine", args.address, "" if tls else " WITHOUT TLS")
+        log.warning(
+            "serving on %s%s: the web view is reachable beyond this machine",
+            args.address,
+            "" if tls else " WITHOUT TLS",
+        )
     family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
     sock = socket.socket(family, socket.SOCK_STREAM)
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -176,18 +230,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker serve: {exc}", file=sys.stderr)
         return 2
     if not accounts.accounts():
-        log.warning("no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
-                    args.db, args.db)
+        log.warning(
+            "no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
+            args.db,
+            args.db,
+        )
     audit_log = AuditLog(args.db)
     catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
-    board = RunBoard(catalog, audit_log, CameraSettings(cameras, args.camera_period), accounts=accounts,
-                     console=args.console or f"console {socket.gethostname()}:{port}", lease=args.lease,
-                     rosbridge_urls=rosbridge_urls)
+    board = RunBoard(
+        catalog,
+        audit_log,
+        CameraSettings(cameras, args.camera_period),
+        accounts=accounts,
+        console=args.console or f"console {socket.gethostname()}:{port}",
+        lease=args.lease,
+        rosbridge_urls=rosbridge_urls,
+    )
     sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
     board.feed.subscribe(sign_ins.notice)
     app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
-    config = uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio",
-                            ssl_certfile=args.certfile, ssl_keyfile=args.keyfile)
+    config = uvicorn.Config(
+        app,
+        log_level="warning",
+        lifespan="on",
+        ws="websockets-sansio",
+        ssl_certfile=args.certfile,
+        ssl_keyfile=args.keyfile,
+    )
     server = _Server(config, url)
     try:
         server.run(sockets=[sock])

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 from starlette.requests import HTTPConnection
 
-from console.ground.change_feed import ChangeNotice
 from console.accounts import Account, AccountStore
+from console.ground.change_feed import ChangeNotice
 from console.sign_in_throttle import SignInThrottle
 
 __all__ = ["COOKIE", "CSRF_HEADER", "SessionLimits", "SignInRefused", "SignIns", "WebSession"]
@@ -162,6 +162,9 @@ class SignIns:
 
     def _forget_expired(self, now: float) -> None:
         """Drop sessions past a limit (called with the lock held, at each sign-in)."""
-        for token in [t for t, s in self._sessions.items()
-                      if now - s.created > self.limits.absolute or now - s.last_used > self.limits.idle]:
+        for token in [
+            t
+            for t, s in self._sessions.items()
+            if now - s.created > self.limits.absolute or now - s.last_used > self.limits.idle
+        ]:
             del self._sessions[token]

@@ -79,7 +79,9 @@ class SignInThrottle:
                 failures = self._current(key, now) or self._failures.setdefault(key, _Failures())
                 failures.times.append(now)
             if len(self._failures) > self._max_keys:  # bounded memory: forget the stalest keys
-                for key in sorted(self._failures, key=lambda k: self._failures[k].times[-1])[: len(self._failures) - self._max_keys]:
+                for key in sorted(self._failures, key=lambda k: self._failures[k].times[-1])[
+                    : len(self._failures) - self._max_keys
+                ]:
                     del self._failures[key]
 
     def succeeded(self, user: str, address: str) -> None:

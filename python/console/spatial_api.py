@@ -23,8 +23,6 @@ from starlette.responses import JSONResponse, Response
 from starlette.routing import BaseRoute, Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from pride.states import OperatorActionError
-from pride.sysrep import SysRep
 from console.accounts import Account
 from console.actions import ActionRefused
 from console.live_run import LiveRun
@@ -32,6 +30,8 @@ from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
 from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
 from console.spatial_link import read_view_link
+from pride.states import OperatorActionError
+from pride.sysrep import SysRep
 
 __all__ = ["POSE_COMMANDS", "spatial_routes"]
 
@@ -61,12 +61,17 @@ class SpatialFeeds:
             if link is None:
                 return None
             if run_id not in self._feeds:  # (another browser may have made it meanwhile)
-                feed = SpatialFeed(link, camera_url=f"/api/runs/{run_id}/spatial/camera", camera=board.camera.camera_for(live.binding))
+                feed = SpatialFeed(
+                    link, camera_url=f"/api/runs/{run_id}/spatial/camera", camera=board.camera.camera_for(live.binding)
+                )
                 feed.start()
                 loop = asyncio.get_running_loop()
 
                 def on_event(event: Any) -> None:  # the executive's thread: an AT command ended
-                    if event.kind.value == "command_result" and event.data.get("command") in AT_COMMANDS_THAT_MOVE_TEMPLATES:
+                    if (
+                        event.kind.value == "command_result"
+                        and event.data.get("command") in AT_COMMANDS_THAT_MOVE_TEMPLATES
+                    ):
                         loop.call_soon_threadsafe(feed.refresh)
 
                 live.executive.add_listener(on_event)
@@ -88,8 +93,12 @@ class SpatialFeeds:
         await feed.close()
 
 
-def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Callable[[Request], Any]], Any],
-                   same_origin: Callable[[HTTPConnection], bool]) -> list[BaseRoute]:
+def spatial_routes(
+    *,
+    account: Callable[[Request], Account],
+    api: Callable[[Callable[[Request], Any]], Any],
+    same_origin: Callable[[HTTPConnection], bool],
+) -> list[BaseRoute]:
     """The routes, given the app's session check (``account``), refusal handling (``api``) and
     Origin check, so every request here is checked exactly as the rest of the page's."""
     feeds = SpatialFeeds()
@@ -97,7 +106,9 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
     async def pose(request: Request) -> Response:
         user = account(request)
         if not user.may_act:  # refused before the body is even read
-            raise ActionRefused(403, f"{user.user} is an {user.role.value}: observers may watch the 3D view, not move things")
+            raise ActionRefused(
+                403, f"{user.user} is an {user.role.value}: observers may watch the 3D view, not move things"
+            )
         board: RunBoard = request.app.state.board
         live = board.live(request.path_params["run_id"])
         if live is None:  # a run hosted by another console is moved from that console
@@ -113,8 +124,9 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
         except OperatorActionError as exc:
             raise ActionRefused(409, str(exc)) from None
         outcome = result.outcome.value
-        return JSONResponse({"ok": True, "command": command, "outcome": outcome, "success": result.success,
-                             "message": result.message})
+        return JSONResponse(
+            {"ok": True, "command": command, "outcome": outcome, "success": result.success, "message": result.message}
+        )
 
     async def socket(websocket: WebSocket) -> None:
         sign_ins: SignIns = websocket.app.state.sign_ins
@@ -140,7 +152,9 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
             await websocket.close()
             return
         if feed is None:
-            await websocket.send_json({"type": "none", "message": f"binding {live.binding} has no Affordance Template system to show"})
+            await websocket.send_json(
+                {"type": "none", "message": f"binding {live.binding} has no Affordance Template system to show"}
+            )
             await websocket.close()
             return
         watcher = feed.watch()
@@ -165,7 +179,9 @@ def spatial_routes(*, account: Callable[[Request], Account], api: Callable[[Call
                     await websocket.send_json({"type": "scene", "document": document})
                 for update in updates:
                     await websocket.send_json({"type": "update", "update": update})
-                await asyncio.sleep(PUSH_INTERVAL_S)  # the bound on the push rate; newer updates replace older meanwhile
+                await asyncio.sleep(
+                    PUSH_INTERVAL_S
+                )  # the bound on the push rate; newer updates replace older meanwhile
         except (WebSocketDisconnect, RuntimeError):
             pass
         finally:
@@ -199,8 +215,18 @@ def _pose_command(body: Any, sysrep: SysRep) -> tuple[str, dict[str, Any]]:
     expected = {a.name for a in declared.args}
     if set(args) != expected:
         missing, extra = sorted(expected - set(args)), sorted(set(args) - expected)
-        raise ActionRefused(400, f"{command}: " + "; ".join(
-            part for part in (f"missing {', '.join(missing)}" if missing else "", f"unknown {', '.join(extra)}" if extra else "") if part))
+        raise ActionRefused(
+            400,
+            f"{command}: "
+            + "; ".join(
+                part
+                for part in (
+                    f"missing {', '.join(missing)}" if missing else "",
+                    f"unknown {', '.join(extra)}" if extra else "",
+                )
+                if part
+            ),
+        )
     return command, args
 
 

@@ -28,7 +28,7 @@ class CameraImageError(ValueError):
 
 def choose_camera(frame_names: Iterable[str], preferred: str | None) -> str | None:
     """The camera to show, from the names on ``sim/frames``; None if the scene has none."""
-    cameras = [n[len(CAMERA_FRAME_PREFIX):] for n in frame_names if n.startswith(CAMERA_FRAME_PREFIX)]
+    cameras = [n[len(CAMERA_FRAME_PREFIX) :] for n in frame_names if n.startswith(CAMERA_FRAME_PREFIX)]
     if preferred in cameras:
         return preferred
     return cameras[0] if cameras else None
@@ -50,7 +50,7 @@ def png_from_image(msg: Mapping[str, Any]) -> bytes:
         raise CameraImageError("image.data: not base64") from None
     if step < width * channels or len(data) < step * height:
         raise CameraImageError(f"image.data: {len(data)} bytes for {height} rows of {step}")
-    rows = b"".join(b"\x00" + data[r * step:r * step + width * channels] for r in range(height))
+    rows = b"".join(b"\x00" + data[r * step : r * step + width * channels] for r in range(height))
 
     def chunk(kind: bytes, body: bytes) -> bytes:
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)

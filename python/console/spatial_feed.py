@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
-from console.spatial_link import ViewLink, LinkError, RosbridgeLink, Subscription
+from console.spatial_link import LinkError, RosbridgeLink, Subscription, ViewLink
 from console.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
 from console.spatial_world import plan_from_get_plan, world_document
 
@@ -41,10 +41,16 @@ FRAMES_THROTTLE_MS = 200
 STATUS_THROTTLE_MS = 500
 CAMERA_THROTTLE_MS = 2000
 
-AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset({
-    "add_template", "delete_template", "set_display_object_pose", "set_waypoint_pose", "plan_trajectory",
-    "execute_trajectory",
-})
+AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset(
+    {
+        "add_template",
+        "delete_template",
+        "set_display_object_pose",
+        "set_waypoint_pose",
+        "plan_trajectory",
+        "execute_trajectory",
+    }
+)
 
 Json = dict[str, Any]
 
@@ -95,16 +101,30 @@ class SpatialFeed:
     # ---- life -------------------------------------------------------------------------------
     def start(self) -> None:
         name = self.link.name
-        self.rosbridge.subscribe(Subscription(name("robot_description"), "std_msgs/msg/String", self._on_urdf, queue_length=1))
-        self.rosbridge.subscribe(Subscription(name("sim/visual_world"), "caretaker_sim_msgs/msg/VisualWorld", self._on_world,
-                                              queue_length=1))
-        self.rosbridge.subscribe(Subscription(name("joint_states"), "sensor_msgs/msg/JointState", self._on_joints,
-                                              throttle_ms=JOINTS_THROTTLE_MS))
-        self.rosbridge.subscribe(Subscription(name("sim/frames"), "caretaker_sim_msgs/msg/NamedPoses", self._on_frames,
-                                              throttle_ms=FRAMES_THROTTLE_MS))
-        self.rosbridge.subscribe(Subscription(name("affordance_template_server/status"),
-                                              "affordance_template_msgs/msg/ServerStatus", self._on_status,
-                                              throttle_ms=STATUS_THROTTLE_MS))
+        self.rosbridge.subscribe(
+            Subscription(name("robot_description"), "std_msgs/msg/String", self._on_urdf, queue_length=1)
+        )
+        self.rosbridge.subscribe(
+            Subscription(name("sim/visual_world"), "caretaker_sim_msgs/msg/VisualWorld", self._on_world, queue_length=1)
+        )
+        self.rosbridge.subscribe(
+            Subscription(
+                name("joint_states"), "sensor_msgs/msg/JointState", self._on_joints, throttle_ms=JOINTS_THROTTLE_MS
+            )
+        )
+        self.rosbridge.subscribe(
+            Subscription(
+                name("sim/frames"), "caretaker_sim_msgs/msg/NamedPoses", self._on_frames, throttle_ms=FRAMES_THROTTLE_MS
+            )
+        )
+        self.rosbridge.subscribe(
+            Subscription(
+                name("affordance_template_server/status"),
+                "affordance_template_msgs/msg/ServerStatus",
+                self._on_status,
+                throttle_ms=STATUS_THROTTLE_MS,
+            )
+        )
         self.rosbridge.start()
 
     async def close(self) -> None:
@@ -127,7 +147,9 @@ class SpatialFeed:
         if self.urdf is None or self.visual_world is None:
             return None
         try:
-            doc = world_document(self.visual_world, self.urdf, frames=self.frames, joints=self.joints, camera_url=self._camera_url())
+            doc = world_document(
+                self.visual_world, self.urdf, frames=self.frames, joints=self.joints, camera_url=self._camera_url()
+            )
         except SpatialDataError as exc:
             self._report(f"the habitat's scene cannot be shown: {exc}")
             return None
@@ -187,8 +209,14 @@ class SpatialFeed:
         if self.camera is None:
             self.camera = choose_camera(self.frame_poses, self.preferred_camera)
             if self.camera is not None:
-                self.rosbridge.subscribe(Subscription(self.link.name(f"camera/{self.camera}/image"), "sensor_msgs/msg/Image",
-                                                      self._on_image, throttle_ms=CAMERA_THROTTLE_MS))
+                self.rosbridge.subscribe(
+                    Subscription(
+                        self.link.name(f"camera/{self.camera}/image"),
+                        "sensor_msgs/msg/Image",
+                        self._on_image,
+                        throttle_ms=CAMERA_THROTTLE_MS,
+                    )
+                )
 
     def _on_image(self, msg: Mapping[str, Any]) -> None:
         try:
@@ -244,16 +272,19 @@ class SpatialFeed:
         running = self.status_key[0] if self.status_key else ()
         service = self.link.name("affordance_template_server/get_template_status")
         statuses = [await self.rosbridge.call(service, {"name": key, "frame_id": "world"}) for key in running]
-        self.templates = templates_update([_status_entry(s, key) for s, key in zip(statuses, running, strict=True)],
-                                          frames=self.frames)
+        self.templates = templates_update(
+            [_status_entry(s, key) for s, key in zip(statuses, running, strict=True)], frames=self.frames
+        )
         self._push(self.templates)
 
     async def _ask_plan(self) -> None:
         if not self.active_template:
             self.plan = {"kind": "plan", "plan": None}
         else:
-            answer = await self.rosbridge.call(self.link.name("affordance_template_server/get_plan"),
-                                               {"name": self.active_template, "trajectory_name": ""})
+            answer = await self.rosbridge.call(
+                self.link.name("affordance_template_server/get_plan"),
+                {"name": self.active_template, "trajectory_name": ""},
+            )
             self.plan = plan_from_get_plan(answer, instance=self.active_template, frames=self.frame_poses)
         self._push(self.plan)
 

@@ -76,10 +76,14 @@ def read_view_link(path: str | Path, *, rosbridge_url: str | None = None) -> Vie
     if at_system is None:
         return None
     security = binding.security
-    return ViewLink(url=rosbridge_url or at_system.rosbridge,
-                    namespace=at_system.namespace[: -len(AT_NAMESPACE_SUFFIX)] or "/",
-                    one_way_delay=binding.link.one_way_delay, ca_file=security.ca_file,
-                    secret=_read_secret(security.secret_file), token=_read_secret(security.token_file))
+    return ViewLink(
+        url=rosbridge_url or at_system.rosbridge,
+        namespace=at_system.namespace[: -len(AT_NAMESPACE_SUFFIX)] or "/",
+        one_way_delay=binding.link.one_way_delay,
+        ca_file=security.ca_file,
+        secret=_read_secret(security.secret_file),
+        token=_read_secret(security.token_file),
+    )
 
 
 def _read_secret(path: Path | None) -> str | None:
@@ -105,8 +109,13 @@ class RosbridgeLink:
     view then asks its services afresh: whatever it missed meanwhile is in their answers).
     """
 
-    def __init__(self, link: ViewLink, *, on_connected: Callable[[], Coroutine[Any, Any, None]] | None = None,
-                 on_state: Callable[[str], None] | None = None) -> None:
+    def __init__(
+        self,
+        link: ViewLink,
+        *,
+        on_connected: Callable[[], Coroutine[Any, Any, None]] | None = None,
+        on_state: Callable[[str], None] | None = None,
+    ) -> None:
         self.link = link
         self._subscriptions: list[Subscription] = []
         self._calls: dict[str, asyncio.Future[Any]] = {}
@@ -156,15 +165,25 @@ class RosbridgeLink:
             raise LinkError(service, "no answer in time") from None
         finally:
             self._calls.pop(call_id, None)
-        if not isinstance(answer, dict) or answer.get("result") is not True or not isinstance(answer.get("values"), dict):
+        if (
+            not isinstance(answer, dict)
+            or answer.get("result") is not True
+            or not isinstance(answer.get("values"), dict)
+        ):
             raise LinkError(service, str(answer.get("values") if isinstance(answer, dict) else answer))
         values: Mapping[str, Any] = answer["values"]
         return values
 
     # ---- the connection ---------------------------------------------------------------------
     def _subscribe_message(self, s: Subscription) -> dict[str, Any]:
-        return {"op": "subscribe", "id": s.sub_id, "topic": s.topic, "type": s.type,
-                "throttle_rate": s.throttle_ms, "queue_length": s.queue_length}
+        return {
+            "op": "subscribe",
+            "id": s.sub_id,
+            "topic": s.topic,
+            "type": s.type,
+            "throttle_rate": s.throttle_ms,
+            "queue_length": s.queue_length,
+        }
 
     def _auth_message(self) -> dict[str, Any] | None:
         if self.link.token is not None:
@@ -194,10 +213,14 @@ class RosbridgeLink:
         keepalive = max(5.0, 4 * self.link.one_way_delay)
         while not self._closed:
             try:
-                async with websockets.connect(self.link.url, ssl=self._ssl(), ping_interval=keepalive,
-                                              ping_timeout=keepalive + 2 * self.link.one_way_delay + 10,
-                                              open_timeout=10 + 2 * self.link.one_way_delay,
-                                              max_size=64 * 1024 * 1024) as socket:
+                async with websockets.connect(
+                    self.link.url,
+                    ssl=self._ssl(),
+                    ping_interval=keepalive,
+                    ping_timeout=keepalive + 2 * self.link.one_way_delay + 10,
+                    open_timeout=10 + 2 * self.link.one_way_delay,
+                    max_size=64 * 1024 * 1024,
+                ) as socket:
                     auth = self._auth_message()
                     if auth is not None:
                         await socket.send(json.dumps(auth))
@@ -205,7 +228,9 @@ class RosbridgeLink:
                     for subscription in self._subscriptions:
                         await self._send(self._subscribe_message(subscription))
                     # connected once the bridge answers (with auth, a refusal closes the socket instead)
-                    await self._send({"op": "call_service", "id": _HELLO, "service": "/rosapi/get_ros_version", "args": {}})
+                    await self._send(
+                        {"op": "call_service", "id": _HELLO, "service": "/rosapi/get_ros_version", "args": {}}
+                    )
                     async for frame in socket:
                         if self._receive(frame):
                             attempt = 0

@@ -163,7 +163,9 @@ def _cylinder(radius: float, length: float, rgba: Sequence[float], at: Json | No
 def _scene_shape(value: Any, rgba: list[float], where: str) -> Json:
     data = _mapping(value, where)
     kind = _required(data, "type", where)
-    at = pose(_numbers(data.get("xyz", [0, 0, 0]), 3, f"{where}.xyz"), _numbers(data.get("rpy", [0, 0, 0]), 3, f"{where}.rpy"))
+    at = pose(
+        _numbers(data.get("xyz", [0, 0, 0]), 3, f"{where}.xyz"), _numbers(data.get("rpy", [0, 0, 0]), 3, f"{where}.rpy")
+    )
     if kind == "box":
         size = _numbers(_required(data, "size", where), 3, f"{where}.size")
         if any(v <= 0 for v in size):
@@ -184,7 +186,9 @@ def _scene_shape(value: Any, rgba: list[float], where: str) -> Json:
 def _robot(scene: Mapping[str, Any], urdf: str, mesh_urls: Mapping[str, str]) -> Json:
     r = _mapping(_required(scene, "robot", "scene"), "scene.robot")
     arm_joints = _names(_required(r, "arm_joints", "scene.robot"), "scene.robot.arm_joints")
-    initial = _numbers(_required(r, "initial_positions", "scene.robot"), len(arm_joints), "scene.robot.initial_positions")
+    initial = _numbers(
+        _required(r, "initial_positions", "scene.robot"), len(arm_joints), "scene.robot.initial_positions"
+    )
     positions = dict(zip(arm_joints, initial, strict=True))
     robot: Json = {
         "name": _str(_required(r, "name", "scene.robot"), "scene.robot.name"),
@@ -202,12 +206,18 @@ def _robot(scene: Mapping[str, Any], urdf: str, mesh_urls: Mapping[str, str]) ->
         joints = _names(_required(g, "joints", "scene.robot.gripper"), "scene.robot.gripper.joints")
         named = _mapping(_required(g, "poses", "scene.robot.gripper"), "scene.robot.gripper.poses")
         robot["end_effector_poses"] = {
-            str(name): dict(zip(joints, _numbers(values, len(joints), f"scene.robot.gripper.poses.{name}"), strict=True)) for name, values in named.items()
+            str(name): dict(
+                zip(joints, _numbers(values, len(joints), f"scene.robot.gripper.poses.{name}"), strict=True)
+            )
+            for name, values in named.items()
         }
         initial_pose = g.get("initial")
         if initial_pose is not None:
             if initial_pose not in robot["end_effector_poses"]:
-                raise SpatialDataError("scene.robot.gripper.initial", f"unknown pose {initial_pose!r}; poses: {', '.join(robot['end_effector_poses'])}")
+                raise SpatialDataError(
+                    "scene.robot.gripper.initial",
+                    f"unknown pose {initial_pose!r}; poses: {', '.join(robot['end_effector_poses'])}",
+                )
             positions.update(robot["end_effector_poses"][initial_pose])
     robot["initial_positions"] = positions
     return robot
@@ -219,8 +229,18 @@ def _bodies(scene: Mapping[str, Any]) -> list[Json]:
         where = f"scene.bodies[{i}]"
         b = _mapping(value, where)
         rgba = _rgba(_required(b, "color", where), f"{where}.color")
-        shapes = [_scene_shape(s, rgba, f"{where}.shapes[{k}]") for k, s in enumerate(_list(_required(b, "shapes", where), f"{where}.shapes"))]
-        out.append({"name": _str(_required(b, "name", where), f"{where}.name"), "kind": "body", "pose": _scene_pose(b.get("pose"), f"{where}.pose"), "shapes": shapes})
+        shapes = [
+            _scene_shape(s, rgba, f"{where}.shapes[{k}]")
+            for k, s in enumerate(_list(_required(b, "shapes", where), f"{where}.shapes"))
+        ]
+        out.append(
+            {
+                "name": _str(_required(b, "name", where), f"{where}.name"),
+                "kind": "body",
+                "pose": _scene_pose(b.get("pose"), f"{where}.pose"),
+                "shapes": shapes,
+            }
+        )
     return out
 
 
@@ -228,7 +248,9 @@ def _slots(scene: Mapping[str, Any]) -> dict[str, Json]:
     slots = {}
     for i, value in enumerate(_list(scene.get("slots", []), "scene.slots")):
         s = _mapping(value, f"scene.slots[{i}]")
-        slots[_str(_required(s, "name", f"scene.slots[{i}]"), f"scene.slots[{i}].name")] = _scene_pose(_required(s, "pose", f"scene.slots[{i}]"), f"scene.slots[{i}].pose")
+        slots[_str(_required(s, "name", f"scene.slots[{i}]"), f"scene.slots[{i}].name")] = _scene_pose(
+            _required(s, "pose", f"scene.slots[{i}]"), f"scene.slots[{i}].pose"
+        )
     return slots
 
 
@@ -246,14 +268,23 @@ def _filters(scene: Mapping[str, Any], slots: Mapping[str, Json]) -> list[Json]:
         f = _mapping(value, where)
         condition = _str(_required(f, "condition", where), f"{where}.condition")
         if condition not in colors:
-            raise SpatialDataError(f"{where}.condition", f"no colour for {condition!r} in scene.filter_model.colors ({', '.join(colors)})")
+            raise SpatialDataError(
+                f"{where}.condition", f"no colour for {condition!r} in scene.filter_model.colors ({', '.join(colors)})"
+            )
         slot = _str(_required(f, "slot", where), f"{where}.slot")
         if slot not in slots:
             raise SpatialDataError(f"{where}.slot", f"unknown slot {slot!r}; slots: {', '.join(slots)}")
         body_rgba = _rgba(colors[condition], f"scene.filter_model.colors.{condition}")
         handle_rgba = _rgba(colors.get("handle", body_rgba), "scene.filter_model.colors.handle")
         shapes = [_box(body, body_rgba), _box(handle, handle_rgba, pose((-(body[0] + handle[0]) / 2, 0.0, 0.0)))]
-        out.append({"name": f"filter/{_str(_required(f, 'id', where), f'{where}.id')}", "kind": "filter", "pose": slots[slot], "shapes": shapes})
+        out.append(
+            {
+                "name": f"filter/{_str(_required(f, 'id', where), f'{where}.id')}",
+                "kind": "filter",
+                "pose": slots[slot],
+                "shapes": shapes,
+            }
+        )
     return out
 
 
@@ -271,14 +302,36 @@ def _targets(scene: Mapping[str, Any]) -> list[Json]:
         where = f"scene.targets[{i}]"
         t = _mapping(value, where)
         condition = _str(_required(t, "condition", where), f"{where}.condition")
-        shapes = [_box(panel, _rgba(_required(colors, "panel", "scene.target_model.colors"), "scene.target_model.colors.panel"), pose((0, 0, raise_by)))]
+        shapes = [
+            _box(
+                panel,
+                _rgba(_required(colors, "panel", "scene.target_model.colors"), "scene.target_model.colors.panel"),
+                pose((0, 0, raise_by)),
+            )
+        ]
         if condition != "clean":
             if condition not in radii or condition not in colors:
-                raise SpatialDataError(f"{where}.condition", f"no mark_radius/colour for {condition!r} in scene.target_model")
+                raise SpatialDataError(
+                    f"{where}.condition", f"no mark_radius/colour for {condition!r} in scene.target_model"
+                )
             radius = _number(radii[condition], f"scene.target_model.mark_radius.{condition}")
-            shapes.append(_cylinder(radius, 0.004, _rgba(colors[condition], f"scene.target_model.colors.{condition}"), pose((0, 0, raise_by + panel[2] / 2 + 0.002))))
+            shapes.append(
+                _cylinder(
+                    radius,
+                    0.004,
+                    _rgba(colors[condition], f"scene.target_model.colors.{condition}"),
+                    pose((0, 0, raise_by + panel[2] / 2 + 0.002)),
+                )
+            )
         name = _str(_required(t, "name", where), f"{where}.name")
-        out.append({"name": f"target/{name}", "kind": "target", "pose": _scene_pose(_required(t, "pose", where), f"{where}.pose"), "shapes": shapes})
+        out.append(
+            {
+                "name": f"target/{name}",
+                "kind": "target",
+                "pose": _scene_pose(_required(t, "pose", where), f"{where}.pose"),
+                "shapes": shapes,
+            }
+        )
     return out
 
 
@@ -372,7 +425,10 @@ def _stamp(header: Any, where: str) -> float:
     if header is None:
         return 0.0
     stamp = _mapping(_mapping(header, where).get("stamp", {}), f"{where}.stamp")
-    return _number(stamp.get("sec", 0), f"{where}.stamp.sec") + _number(stamp.get("nanosec", 0), f"{where}.stamp.nanosec") * 1e-9
+    return (
+        _number(stamp.get("sec", 0), f"{where}.stamp.sec")
+        + _number(stamp.get("nanosec", 0), f"{where}.stamp.nanosec") * 1e-9
+    )
 
 
 def joints_update(joint_state: Mapping[str, Any]) -> Json:
@@ -380,7 +436,11 @@ def joints_update(joint_state: Mapping[str, Any]) -> Json:
     msg = _mapping(joint_state, "joint_states")
     names = _names(_required(msg, "name", "joint_states"), "joint_states.name")
     values = _numbers(_required(msg, "position", "joint_states"), len(names), "joint_states.position")
-    return {"kind": "joints", "stamp": _stamp(msg.get("header"), "joint_states.header"), "positions": dict(zip(names, values, strict=True))}
+    return {
+        "kind": "joints",
+        "stamp": _stamp(msg.get("header"), "joint_states.header"),
+        "positions": dict(zip(names, values, strict=True)),
+    }
 
 
 def objects_update(named_poses: Mapping[str, Any]) -> Json:
@@ -392,7 +452,9 @@ def objects_update(named_poses: Mapping[str, Any]) -> Json:
     msg = _mapping(named_poses, "frames")
     frame = _mapping(msg.get("header", {}), "frames.header").get("frame_id", DOCUMENT_FRAME) or DOCUMENT_FRAME
     if frame != DOCUMENT_FRAME:
-        raise SpatialDataError("frames.header.frame_id", f"poses are in {frame!r}; the view's document frame is {DOCUMENT_FRAME!r}")
+        raise SpatialDataError(
+            "frames.header.frame_id", f"poses are in {frame!r}; the view's document frame is {DOCUMENT_FRAME!r}"
+        )
     names = _names(_required(msg, "names", "frames"), "frames.names")
     poses = _list(_required(msg, "poses", "frames"), "frames.poses")
     if len(poses) != len(names):
@@ -410,14 +472,18 @@ def _display_shape(info: Mapping[str, Any], where: str) -> Json:
     size_msg = _mapping(_required(info, "size", where), f"{where}.size")
     size = [_number(_required(size_msg, k, f"{where}.size"), f"{where}.size.{k}") for k in "xyz"]
     if kind not in ("box", "cylinder", "sphere", "mesh"):
-        raise SpatialDataError(f"{where}.type", f"unknown display object type {kind!r}; expected box, cylinder, sphere or mesh")
+        raise SpatialDataError(
+            f"{where}.type", f"unknown display object type {kind!r}; expected box, cylinder, sphere or mesh"
+        )
     shape: Json = {"type": kind, "size": size, "rgba": list(DISPLAY_OBJECT_COLOR)}
     if kind == "mesh":
         shape["mesh"] = _str(_required(info, "mesh_resource", where), f"{where}.mesh_resource")
     return shape
 
 
-def _template(status: Mapping[str, Any], where: str, frames: Mapping[str, Json], waypoint_objects: Mapping[str, Sequence[str]]) -> Json:
+def _template(
+    status: Mapping[str, Any], where: str, frames: Mapping[str, Json], waypoint_objects: Mapping[str, Sequence[str]]
+) -> Json:
     type_name = _str(_required(status, "type", where), f"{where}.type")
     instance_id = int(_number(_required(status, "id", where), f"{where}.id"))
     key = f"{type_name}:{instance_id}"
@@ -457,17 +523,21 @@ def _template(status: Mapping[str, Any], where: str, frames: Mapping[str, Json],
         objects = waypoint_objects.get(ee_name, ())
         for k, stamped in enumerate(poses):
             _in_document_frame(_mapping(stamped, f"{w}.waypoint_poses[{k}]"), f"{w}.waypoint_poses[{k}]")
-            waypoints.append({
-                "name": f"{ee_id}.{k}:{key}",
-                "ee_id": ee_id,
-                "ee_name": ee_name,
-                "index": k,
-                "trajectory": trajectory,
-                "pose": _ros_pose(_required(stamped, "pose", f"{w}.waypoint_poses[{k}]"), f"{w}.waypoint_poses[{k}].pose"),
-                "end_effector_pose": str(pose_names[k]) if k < len(pose_names) else "",
-                "display_object": objects[k] if k < len(objects) else "",
-                "compact": bool(compact[k]) if k < len(compact) else False,
-            })
+            waypoints.append(
+                {
+                    "name": f"{ee_id}.{k}:{key}",
+                    "ee_id": ee_id,
+                    "ee_name": ee_name,
+                    "index": k,
+                    "trajectory": trajectory,
+                    "pose": _ros_pose(
+                        _required(stamped, "pose", f"{w}.waypoint_poses[{k}]"), f"{w}.waypoint_poses[{k}].pose"
+                    ),
+                    "end_effector_pose": str(pose_names[k]) if k < len(pose_names) else "",
+                    "display_object": objects[k] if k < len(objects) else "",
+                    "compact": bool(compact[k]) if k < len(compact) else False,
+                }
+            )
     return {
         "key": key,
         "type": type_name,
@@ -483,7 +553,10 @@ def _template(status: Mapping[str, Any], where: str, frames: Mapping[str, Json],
 def _in_document_frame(stamped: Mapping[str, Any], where: str) -> None:
     frame = _mapping(stamped.get("header", {}), f"{where}.header").get("frame_id", "")
     if frame != DOCUMENT_FRAME:
-        raise SpatialDataError(f"{where}.header.frame_id", f"poses must be in {DOCUMENT_FRAME!r} (ask get_template_status with frame_id {DOCUMENT_FRAME!r}), got {frame!r}")
+        raise SpatialDataError(
+            f"{where}.header.frame_id",
+            f"poses must be in {DOCUMENT_FRAME!r} (ask get_template_status with frame_id {DOCUMENT_FRAME!r}), got {frame!r}",
+        )
 
 
 def templates_update(
@@ -507,7 +580,11 @@ def templates_update(
     for i, status in enumerate(_list(statuses, "statuses")):
         s = _mapping(status, f"statuses[{i}]")
         config = (configs or {}).get(str(s.get("type", "")))
-        waypoint_objects = _waypoint_objects(config, str(s.get("trajectory_name", "")), f"configs[{s.get('type')!r}]") if config else {}
+        waypoint_objects = (
+            _waypoint_objects(config, str(s.get("trajectory_name", "")), f"configs[{s.get('type')!r}]")
+            if config
+            else {}
+        )
         templates.append(_template(s, f"statuses[{i}]", frame_poses, waypoint_objects))
     return {"kind": "templates", "templates": templates}
 
@@ -522,7 +599,9 @@ def _waypoint_objects(config: Mapping[str, Any], trajectory: str, where: str) ->
         for g, info in enumerate(_list(wt.get("waypoint_info", []), f"{where}.trajectory_info[{t}].waypoint_info")):
             w = f"{where}.trajectory_info[{t}].waypoint_info[{g}]"
             stamped = _list(_mapping(info, w).get("waypoint_poses", []), f"{w}.waypoint_poses")
-            out[str(info.get("end_effector_name", ""))] = [str(_mapping(_mapping(p, w).get("header", {}), w).get("frame_id", "")) for p in stamped]
+            out[str(info.get("end_effector_name", ""))] = [
+                str(_mapping(_mapping(p, w).get("header", {}), w).get("frame_id", "")) for p in stamped
+            ]
     return out
 
 
@@ -575,21 +654,36 @@ def plan_update(
         order = []
         for name in seg_names:
             if name not in names:
-                raise SpatialDataError(f"{where}.trajectory.joint_names", f"unknown joint {name!r}; the plan's joints: {', '.join(names)}")
+                raise SpatialDataError(
+                    f"{where}.trajectory.joint_names", f"unknown joint {name!r}; the plan's joints: {', '.join(names)}"
+                )
             order.append(names.index(name))
         offset = points[-1]["time_from_start"]
         for k, value in enumerate(_list(traj.get("points", []), f"{where}.trajectory.points")):
             w = f"{where}.trajectory.points[{k}]"
             p = _mapping(value, w)
             positions = list(points[-1]["positions"])
-            for j, v in zip(order, _numbers(_required(p, "positions", w), len(seg_names), f"{w}.positions"), strict=True):
+            for j, v in zip(
+                order, _numbers(_required(p, "positions", w), len(seg_names), f"{w}.positions"), strict=True
+            ):
                 positions[j] = v
             t = offset + _duration(_required(p, "time_from_start", w), f"{w}.time_from_start")
-            if t < points[-1]["time_from_start"] or (t == points[-1]["time_from_start"] and positions != points[-1]["positions"]):
-                raise SpatialDataError(f"{w}.time_from_start", f"time {t:.3f} s does not increase (previous point at {points[-1]['time_from_start']:.3f} s)")
+            if t < points[-1]["time_from_start"] or (
+                t == points[-1]["time_from_start"] and positions != points[-1]["positions"]
+            ):
+                raise SpatialDataError(
+                    f"{w}.time_from_start",
+                    f"time {t:.3f} s does not increase (previous point at {points[-1]['time_from_start']:.3f} s)",
+                )
             if t > points[-1]["time_from_start"]:
                 points.append({"positions": positions, "time_from_start": t})
-        waypoints.append({"name": _str(segment.label, f"{where}.label"), "point": len(points) - 1, "end_effector_pose": segment.end_effector_pose})
+        waypoints.append(
+            {
+                "name": _str(segment.label, f"{where}.label"),
+                "point": len(points) - 1,
+                "end_effector_pose": segment.end_effector_pose,
+            }
+        )
     return {
         "kind": "plan",
         "plan": {

@@ -18,10 +18,18 @@ from console.spatial_scene import (
     CONTRACT_VERSION,
     DOCUMENT_FRAME,
     SpatialDataError,
+    _duration,
+    _list,
+    _mapping,
+    _names,
+    _number,
+    _numbers,
+    _required,
+    _ros_pose,
+    _str,
     joints_update,
     objects_update,
 )
-from console.spatial_scene import _duration, _list, _mapping, _names, _number, _numbers, _required, _ros_pose, _str
 
 __all__ = ["PLAN_SHOWN_STATES", "world_document", "plan_from_get_plan", "compose"]
 
@@ -45,10 +53,20 @@ def _shape(value: Any, where: str) -> Json:
     at = _ros_pose(s.get("pose", {}), f"{where}.pose")
     rgba = _rgba(s.get("rgba", [0, 0, 0, 0]), f"{where}.rgba")
     if kind == "box":
-        return {"type": "box", "size": _numbers(_required(s, "size", where), 3, f"{where}.size"), "rgba": rgba, "pose": at}
+        return {
+            "type": "box",
+            "size": _numbers(_required(s, "size", where), 3, f"{where}.size"),
+            "rgba": rgba,
+            "pose": at,
+        }
     if kind == "cylinder":
-        return {"type": "cylinder", "radius": _number(_required(s, "radius", where), f"{where}.radius"),
-                "length": _number(_required(s, "length", where), f"{where}.length"), "rgba": rgba, "pose": at}
+        return {
+            "type": "cylinder",
+            "radius": _number(_required(s, "radius", where), f"{where}.radius"),
+            "length": _number(_required(s, "length", where), f"{where}.length"),
+            "rgba": rgba,
+            "pose": at,
+        }
     raise SpatialDataError(f"{where}.type", f"unknown shape {kind!r}; expected box or cylinder")
 
 
@@ -63,8 +81,12 @@ def _objects(world: Mapping[str, Any]) -> list[Json]:
             raise SpatialDataError(f"{where}.name", f"two objects are named {name!r}")
         seen.add(name)
         kind = next((k for prefix, k in _KINDS.items() if name.startswith(prefix)), "body")
-        shapes = [_shape(s, f"{where}.shapes[{k}]") for k, s in enumerate(_list(o.get("shapes", []), f"{where}.shapes"))]
-        out.append({"name": name, "kind": kind, "pose": _ros_pose(o.get("pose", {}), f"{where}.pose"), "shapes": shapes})
+        shapes = [
+            _shape(s, f"{where}.shapes[{k}]") for k, s in enumerate(_list(o.get("shapes", []), f"{where}.shapes"))
+        ]
+        out.append(
+            {"name": name, "kind": kind, "pose": _ros_pose(o.get("pose", {}), f"{where}.pose"), "shapes": shapes}
+        )
     return out
 
 
@@ -151,10 +173,12 @@ def compose(a: Json, b: Json) -> Json:
     rz = vz + aw * tz + (ax * ty - ay * tx)
     return {
         "xyz": [a["xyz"][0] + rx, a["xyz"][1] + ry, a["xyz"][2] + rz],
-        "quat": [aw * bx + ax * bw + ay * bz - az * by,
-                 aw * by - ax * bz + ay * bw + az * bx,
-                 aw * bz + ax * by - ay * bx + az * bw,
-                 aw * bw - ax * bx - ay * by - az * bz],
+        "quat": [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
     }
 
 
@@ -176,8 +200,13 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
         p = _mapping(value, w)
         t = _duration(_required(p, "time_from_start", w), f"{w}.time_from_start")
         if points and t < points[-1]["time_from_start"]:
-            raise SpatialDataError(f"{w}.time_from_start", f"time {t:.3f} s goes back (previous point at {points[-1]['time_from_start']:.3f} s)")
-        points.append({"positions": _numbers(_required(p, "positions", w), len(names), f"{w}.positions"), "time_from_start": t})
+            raise SpatialDataError(
+                f"{w}.time_from_start",
+                f"time {t:.3f} s goes back (previous point at {points[-1]['time_from_start']:.3f} s)",
+            )
+        points.append(
+            {"positions": _numbers(_required(p, "positions", w), len(names), f"{w}.positions"), "time_from_start": t}
+        )
     if not points:
         raise SpatialDataError("get_plan.trajectory.points", "a PLANNED plan without points")
     labels = _names(a.get("waypoint_names", []), "get_plan.waypoint_names")
@@ -189,8 +218,12 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
     for i, (label, index) in enumerate(zip(labels, indices, strict=True)):
         point = int(_number(index, f"get_plan.waypoint_point_index[{i}]"))
         if not 0 <= point < len(points):
-            raise SpatialDataError(f"get_plan.waypoint_point_index[{i}]", f"point {point} of a plan of {len(points)} points")
-        waypoints.append({"name": label, "point": point, "end_effector_pose": str(ee_poses[i]) if i < len(ee_poses) else ""})
+            raise SpatialDataError(
+                f"get_plan.waypoint_point_index[{i}]", f"point {point} of a plan of {len(points)} points"
+            )
+        waypoints.append(
+            {"name": label, "point": point, "end_effector_pose": str(ee_poses[i]) if i < len(ee_poses) else ""}
+        )
     end_pose = None
     stamped = a.get("end_pose")
     if isinstance(stamped, dict) and stamped.get("pose") is not None:
@@ -201,7 +234,9 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
         elif frame in frames:
             end_pose = compose(frames[frame], local)
         else:
-            raise SpatialDataError("get_plan.end_pose.header.frame_id", f"frame {frame!r} is not among sim/frames' names")
+            raise SpatialDataError(
+                "get_plan.end_pose.header.frame_id", f"frame {frame!r} is not among sim/frames' names"
+            )
     return {
         "kind": "plan",
         "plan": {

@@ -25,17 +25,17 @@ import threading
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from pride.audit_log import AuditLog
-from pride.events import Event, EventKind
-from pride.executive import Executive
+from console.accounts import AccountStore
+from console.actions import perform_forwarded
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
+from console.live_run import LiveRun
+from pride.audit_log import AuditLog
+from pride.events import Event, EventKind
+from pride.executive import Executive
 from pride.lint import CheckedProcedure
 from pride.systems import SystemGateway
-from console.accounts import AccountStore
-from console.actions import perform_forwarded
-from console.live_run import LiveRun
 
 __all__ = ["HostedElsewhere", "TerminalHost"]
 
@@ -45,17 +45,20 @@ log = logging.getLogger(__name__)
 class TerminalHost:
     """One runner's run, hosted in the ground database for the consoles."""
 
-    def __init__(self, audit_log: AuditLog, *, binding: str, lease: float = DEFAULT_LEASE_S,
-                 name: str | None = None) -> None:
+    def __init__(
+        self, audit_log: AuditLog, *, binding: str, lease: float = DEFAULT_LEASE_S, name: str | None = None
+    ) -> None:
         """``name``: how consoles name this runner (default ``runner HOST pid PID``)."""
         self.binding = binding
         self._audit_log = audit_log
         self._accounts = AccountStore(audit_log.url)
-        self.hosting = RunHosting(audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}",
-                                  lease=lease)
+        self.hosting = RunHosting(
+            audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}", lease=lease
+        )
         self._live: LiveRun | None = None
-        self._forwarding = ActionRequests(audit_log.engine, host_id=self.hosting.host_id, console=self.hosting.host,
-                                          perform=self._perform)
+        self._forwarding = ActionRequests(
+            audit_log.engine, host_id=self.hosting.host_id, console=self.hosting.host, perform=self._perform
+        )
         self._feed = open_change_feed(audit_log.engine)
         self._feed.subscribe(self._forwarding.notice)
 
@@ -65,15 +68,35 @@ class TerminalHost:
         if record is not None and record.alive and record.host_id != self.hosting.host_id:
             raise HostedElsewhere(record)
 
-    def host(self, executive: Executive, gateway: SystemGateway, checked: CheckedProcedure, *, started_by: str,
-             history: list[Event] | None = None) -> None:
+    def host(
+        self,
+        executive: Executive,
+        gateway: SystemGateway,
+        checked: CheckedProcedure,
+        *,
+        started_by: str,
+        history: list[Event] | None = None,
+    ) -> None:
         """Claim the run and start publishing it; HostedElsewhere if another process claimed it first."""
         run_id = executive.run_id
-        live = LiveRun(executive, gateway, checked.procedure, binding=self.binding, started_by=started_by,
-                       sysreps=dict(checked.sysreps), history=history, host=self.hosting.host,
-                       on_change=lambda: self.hosting.changed(run_id))
-        self.hosting.claim(run_id, binding=self.binding, started_by=started_by, procedure_view=live.procedure_view,
-                           source=live.published_view)
+        live = LiveRun(
+            executive,
+            gateway,
+            checked.procedure,
+            binding=self.binding,
+            started_by=started_by,
+            sysreps=dict(checked.sysreps),
+            history=history,
+            host=self.hosting.host,
+            on_change=lambda: self.hosting.changed(run_id),
+        )
+        self.hosting.claim(
+            run_id,
+            binding=self.binding,
+            started_by=started_by,
+            procedure_view=live.procedure_view,
+            source=live.published_view,
+        )
         self._live = live
         executive.add_listener(self._on_event)
 

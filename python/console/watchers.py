@@ -8,6 +8,7 @@ thread boundary (``loop.call_soon_threadsafe``).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import threading
 
 from console.accounts import Account
@@ -52,10 +53,8 @@ class Watchers:
         with self._lock:
             watchers = list(self._watchers)
         for watcher in watchers:
-            try:
+            with contextlib.suppress(RuntimeError):  # that connection's loop closed: it is going away
                 watcher.loop.call_soon_threadsafe(watcher.changed.set)
-            except RuntimeError:  # that connection's loop is closed: it is going away
-                pass
 
     def people(self) -> list[dict[str, str]]:
         """Who is watching (each person once), by user id."""

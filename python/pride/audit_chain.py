@@ -48,17 +48,36 @@ class StoredEvent:
     hash: str = ""
 
     def expected_hash(self) -> str:
-        return link_hash(self.prev_hash, run_id=self.run_id, seq=self.seq, time=self.time, actor=self.actor,
-                         kind=self.kind, instruction=self.instruction, data=self.data)
+        return link_hash(
+            self.prev_hash,
+            run_id=self.run_id,
+            seq=self.seq,
+            time=self.time,
+            actor=self.actor,
+            kind=self.kind,
+            instruction=self.instruction,
+            data=self.data,
+        )
 
 
-def link_hash(prev_hash: str, *, run_id: str, seq: int, time: datetime, actor: str, kind: str,
-              instruction: str | None, data: str) -> str:
+def link_hash(
+    prev_hash: str, *, run_id: str, seq: int, time: datetime, actor: str, kind: str, instruction: str | None, data: str
+) -> str:
     """The hash an event with these stored fields carries after ``prev_hash``."""
     canonical = json.dumps(
-        {"actor": actor, "data": data, "instruction": instruction, "kind": kind, "prev": prev_hash,
-         "run_id": run_id, "seq": seq, "time": utc(time).isoformat(timespec="microseconds")},
-        sort_keys=True, separators=(",", ":"), ensure_ascii=False,
+        {
+            "actor": actor,
+            "data": data,
+            "instruction": instruction,
+            "kind": kind,
+            "prev": prev_hash,
+            "run_id": run_id,
+            "seq": seq,
+            "time": utc(time).isoformat(timespec="microseconds"),
+        },
+        sort_keys=True,
+        separators=(",", ":"),
+        ensure_ascii=False,
     )
     return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
 

@@ -34,7 +34,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -47,8 +47,16 @@ from pride.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chai
 from pride.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
 from pride.events import Availability, Event, EventKind
 
-__all__ = ["DEFAULT_DB", "DEFAULT_OUTAGE_BUDGET", "AuditLog", "AuditLogUnavailable", "AuditSequenceError",
-           "Availability", "database_url", "open_engine"]
+__all__ = [
+    "DEFAULT_DB",
+    "DEFAULT_OUTAGE_BUDGET",
+    "AuditLog",
+    "AuditLogUnavailable",
+    "AuditSequenceError",
+    "Availability",
+    "database_url",
+    "open_engine",
+]
 
 log = logging.getLogger(__name__)
 
@@ -96,7 +104,9 @@ def database_url(url: str) -> str:
 class AuditLog:
     """Append and read audit records. Safe to share between threads; one writer per run."""
 
-    def __init__(self, url: str = DEFAULT_DB, *, outage_budget: float = DEFAULT_OUTAGE_BUDGET, upgrade: bool = True) -> None:
+    def __init__(
+        self, url: str = DEFAULT_DB, *, outage_budget: float = DEFAULT_OUTAGE_BUDGET, upgrade: bool = True
+    ) -> None:
         """Open the log at ``url``; ``upgrade=False`` leaves the schema as it is (to inspect it only)."""
         self.url = url
         self.outage_budget = outage_budget
@@ -149,11 +159,19 @@ class AuditLog:
             listeners = list(self._listeners)
         if state.available:
             assert previous.since is not None
-            log.warning("audit log %s available again after %.1f s", self.location,
-                        (datetime.now(timezone.utc) - previous.since).total_seconds())
+            log.warning(
+                "audit log %s available again after %.1f s",
+                self.location,
+                (datetime.now(UTC) - previous.since).total_seconds(),
+            )
         else:
-            log.warning("audit log %s unavailable since %s: %s; runs wait for it (at most %g s)", self.location,
-                        f"{state.since:%H:%M:%S}Z", state.error, self.outage_budget)
+            log.warning(
+                "audit log %s unavailable since %s: %s; runs wait for it (at most %g s)",
+                self.location,
+                f"{state.since:%H:%M:%S}Z",
+                state.error,
+                self.outage_budget,
+            )
         for listener in listeners:
             try:
                 listener(state)
@@ -182,12 +200,13 @@ class AuditLog:
                     now = time.monotonic()
                     if first_failure is None:
                         first_failure = now
-                        since = self._availability.since or datetime.now(timezone.utc)
+                        since = self._availability.since or datetime.now(UTC)
                         self._set_availability(Availability(False, since, _error_text(exc)))
                     if now - first_failure >= self.outage_budget or self._closed.is_set():
                         self._heads.pop(record.run_id, None)  # the last commit's fate is unknown: re-read it
-                        raise AuditLogUnavailable(self.location, _error_text(exc), since=self._availability.since,
-                                                  waited=now - first_failure) from exc
+                        raise AuditLogUnavailable(
+                            self.location, _error_text(exc), since=self._availability.since, waited=now - first_failure
+                        ) from exc
                     self._closed.wait(min(delay, self.outage_budget - (now - first_failure)))
                     delay = min(delay * 2, _LONGEST_RETRY)
             self._heads[record.run_id] = (row.seq, row.hash)
@@ -203,8 +222,16 @@ class AuditLog:
                 head = _head(connection, record.run_id)
         if record.seq != head[0] + 1:
             raise AuditSequenceError(record.run_id, record.seq, head[0] + 1)
-        unlinked = StoredEvent(record.run_id, record.seq, moment, record.actor, record.kind.value, record.instruction,
-                               data, prev_hash=head[1])
+        unlinked = StoredEvent(
+            record.run_id,
+            record.seq,
+            moment,
+            record.actor,
+            record.kind.value,
+            record.instruction,
+            data,
+            prev_hash=head[1],
+        )
         row = replace(unlinked, hash=unlinked.expected_hash())
         try:
             self._insert(row)
@@ -231,9 +258,20 @@ class AuditLog:
         """A run's records as stored, with their hashes, in order (those numbered above ``after``)."""
         with self._engine.connect() as connection:
             rows = connection.execute(
-                select(_RECORDS.run_id, _RECORDS.seq, _RECORDS.time, _RECORDS.actor, _RECORDS.kind, _RECORDS.instruction,
-                       _RECORDS.data, _RECORDS.prev_hash, _RECORDS.hash)
-                .where(_RECORDS.run_id == run_id, _RECORDS.seq > after).order_by(_RECORDS.seq))
+                select(
+                    _RECORDS.run_id,
+                    _RECORDS.seq,
+                    _RECORDS.time,
+                    _RECORDS.actor,
+                    _RECORDS.kind,
+                    _RECORDS.instruction,
+                    _RECORDS.data,
+                    _RECORDS.prev_hash,
+                    _RECORDS.hash,
+                )
+                .where(_RECORDS.run_id == run_id, _RECORDS.seq > after)
+                .order_by(_RECORDS.seq)
+            )
             return [StoredEvent(*row) for row in rows]
 
     def schema_revision(self) -> str | None:
@@ -243,8 +281,11 @@ class AuditLog:
     def runs(self) -> list[tuple[str, datetime, str]]:
         """(run id, start time, procedure id) of every run, oldest first."""
         with self._engine.connect() as connection:
-            rows = connection.execute(select(_RECORDS.run_id, _RECORDS.time, _RECORDS.data)
-                                      .where(_RECORDS.kind == EventKind.RUN_STARTED.value).order_by(_RECORDS.time))
+            rows = connection.execute(
+                select(_RECORDS.run_id, _RECORDS.time, _RECORDS.data)
+                .where(_RECORDS.kind == EventKind.RUN_STARTED.value)
+                .order_by(_RECORDS.time)
+            )
             return [(row.run_id, utc(row.time), json.loads(row.data).get("procedure", "")) for row in rows]
 
     def close(self) -> None:
@@ -281,7 +322,9 @@ class _DriverInsert:
             values["time"] = self._time(row.time)
         parameters: Any = tuple(values[name] for name in _COLUMNS) if self._positional else values
         try:
-            connection = self._engine.raw_connection()  # sqlite3 connections BEGIN by hand (audit_schema.sqlite_transactions)
+            connection = (
+                self._engine.raw_connection()
+            )  # sqlite3 connections BEGIN by hand (audit_schema.sqlite_transactions)
         except self._dbapi.Error as exc:  # the pool hands the driver's error on as it is
             raise DBAPIError.instance(None, None, exc, self._dbapi.Error) from exc
         try:
@@ -406,8 +449,11 @@ def open_engine(url: str) -> Engine:
     if database is not None:
         database.parent.mkdir(parents=True, exist_ok=True)
     connect_args = {"timeout": 10, "check_same_thread": False}
-    engine = (create_engine(url, poolclass=StaticPool, connect_args=connect_args) if database is None
-              else create_engine(url, connect_args=connect_args))
+    engine = (
+        create_engine(url, poolclass=StaticPool, connect_args=connect_args)
+        if database is None
+        else create_engine(url, connect_args=connect_args)
+    )
     event.listen(engine, "connect", sqlite_transactions)
     event.listen(engine, "connect", _sqlite_durability)
     event.listen(engine, "begin", sqlite_begin)
@@ -422,13 +468,16 @@ def _sqlite_durability(connection: Any, _record: Any) -> None:
 
 
 def _head(connection: Connection, run_id: str) -> tuple[int, str]:
-    last = connection.execute(select(_RECORDS.seq, _RECORDS.hash).where(_RECORDS.run_id == run_id)
-                              .order_by(_RECORDS.seq.desc()).limit(1)).first()
+    last = connection.execute(
+        select(_RECORDS.seq, _RECORDS.hash).where(_RECORDS.run_id == run_id).order_by(_RECORDS.seq.desc()).limit(1)
+    ).first()
     return (0, GENESIS) if last is None else (last.seq, last.hash)
 
 
 def _event(row: StoredEvent) -> Event:
-    return Event(row.run_id, row.seq, EventKind(row.kind), row.actor, row.instruction, json.loads(row.data), utc(row.time))
+    return Event(
+        row.run_id, row.seq, EventKind(row.kind), row.actor, row.instruction, json.loads(row.data), utc(row.time)
+    )
 
 
 def _error_text(exc: Exception) -> str:

@@ -26,8 +26,15 @@ from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text,
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError
 
-__all__ = ["RUNNER_ROLE", "VERSION_TABLE", "AuditSchemaError", "audit_records", "ensure_schema", "head_revision",
-           "schema_revision"]
+__all__ = [
+    "RUNNER_ROLE",
+    "VERSION_TABLE",
+    "AuditSchemaError",
+    "audit_records",
+    "ensure_schema",
+    "head_revision",
+    "schema_revision",
+]
 
 log = logging.getLogger(__name__)
 
@@ -44,7 +51,8 @@ _metadata = MetaData()
 
 #: The events table at the newest revision (the migrations are its history).
 audit_records = Table(
-    "audit_records", _metadata,
+    "audit_records",
+    _metadata,
     Column("id", Integer, primary_key=True, autoincrement=True),
     Column("run_id", String(120), nullable=False, index=True),
     Column("seq", Integer, nullable=False),
@@ -107,8 +115,12 @@ def ensure_schema(engine: Engine, url: str) -> None:
             if revision == head:
                 return
             if revision is not None and revision not in known:
-                raise AuditSchemaError(url, revision, f"schema revision {revision!r} was written by a newer Caretaker "
-                                                      f"(this one knows up to {head!r}); upgrade Caretaker")
+                raise AuditSchemaError(
+                    url,
+                    revision,
+                    f"schema revision {revision!r} was written by a newer Caretaker "
+                    f"(this one knows up to {head!r}); upgrade Caretaker",
+                )
             config = _config(connection)
             if revision == LEGACY_REVISION and not _versioned(connection):
                 log.warning("audit log %s predates schema migrations: upgrading it in place", url)
@@ -117,9 +129,13 @@ def ensure_schema(engine: Engine, url: str) -> None:
             command.upgrade(config, "head")
     except DBAPIError as exc:
         if getattr(exc.orig, "sqlstate", None) == "42501":  # insufficient_privilege: a runner cannot migrate
-            raise AuditSchemaError(url, None, f"its schema is behind this Caretaker (needs {head!r}) and this role "
-                                              "may not upgrade it; the database owner runs: caretaker db upgrade "
-                                              "--db OWNER_URL") from exc
+            raise AuditSchemaError(
+                url,
+                None,
+                f"its schema is behind this Caretaker (needs {head!r}) and this role "
+                "may not upgrade it; the database owner runs: caretaker db upgrade "
+                "--db OWNER_URL",
+            ) from exc
         raise
 
 

@@ -102,8 +102,14 @@ class ControlLost(Exception):
 class Automation:
     """Carries out automatable instructions against a gateway for one run."""
 
-    def __init__(self, gateway: SystemGateway, checked: CheckedProcedure, record: Callable[..., None], *,
-                 may_send: Callable[[], None]) -> None:
+    def __init__(
+        self,
+        gateway: SystemGateway,
+        checked: CheckedProcedure,
+        record: Callable[..., None],
+        *,
+        may_send: Callable[[], None],
+    ) -> None:
         """``record(kind, actor, number, **data)`` stores an event (the executive's, taking its lock);
         ``may_send()`` raises :class:`ControlLost` when the run must not command its robot."""
         self._gateway = gateway
@@ -167,16 +173,25 @@ class Automation:
         except Exception as exc:
             raise OperatorActionError(f"{instruction.name}: cannot read {where} to check the value: {exc}") from None
         if reading.stale or reading.value is None:
-            raise OperatorActionError(f"{instruction.name}: cannot check {converted!r}: {where} is "
-                                      f"{'stale' if reading.value is not None else 'not received yet'}")
+            raise OperatorActionError(
+                f"{instruction.name}: cannot check {converted!r}: {where} is "
+                f"{'stale' if reading.value is not None else 'not received yet'}"
+            )
         allowed = [v.strip() for v in str(reading.value).split(",") if v.strip()]
         if str(converted) not in allowed:
-            raise OperatorActionError(f"{instruction.name}: {converted!r} is not one of the values {where} reports "
-                                      f"now ({', '.join(allowed) or 'none'})")
+            raise OperatorActionError(
+                f"{instruction.name}: {converted!r} is not one of the values {where} reports "
+                f"now ({', '.join(allowed) or 'none'})"
+            )
         return converted, {"checked_against": where, "allowed": allowed}
 
     def carry_out(
-        self, env: dict[str, Any], procedure: Procedure, instruction: Instruction, number: str, actor: str,
+        self,
+        env: dict[str, Any],
+        procedure: Procedure,
+        instruction: Instruction,
+        number: str,
+        actor: str,
         send: Send | None = None,
     ) -> InstructionResult:
         """Perform one instruction as ``actor`` (a command as ``send`` says); returns once it has ended."""
@@ -210,8 +225,9 @@ class Automation:
             return InstructionResult(True, enter=(callee, inputs))
         raise OperatorActionError(f"{number} is performed by an operator")
 
-    def _send(self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str,
-              send: Send) -> InstructionResult:
+    def _send(
+        self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str, send: Send
+    ) -> InstructionResult:
         args = {binding.name: self._checked.argument(binding, env) for binding in instruction.args}
         self._may_send()
         hazardous = self.is_hazardous(instruction)
@@ -236,8 +252,17 @@ class Automation:
                     self._in_flight = None
         outcome = result.outcome
         success = None if outcome is Outcome.UNKNOWN else result.success  # unknown: neither success nor failure
-        self._record(EventKind.COMMAND_RESULT, actor, number, **about, outcome=outcome.value, success=success,
-                     message=result.message, values=dict(result.values), result=instruction.result)
+        self._record(
+            EventKind.COMMAND_RESULT,
+            actor,
+            number,
+            **about,
+            outcome=outcome.value,
+            success=success,
+            message=result.message,
+            values=dict(result.values),
+            result=instruction.result,
+        )
         saved = None
         if instruction.result and outcome is not Outcome.UNKNOWN:
             saved = (instruction.result, {"success": result.success, "message": result.message, **result.values})
@@ -247,8 +272,9 @@ class Automation:
         if outcome is Outcome.UNKNOWN:
             return InstructionResult(False, f"outcome of {send.key} unknown: {result.message}", unknown_key=send.key)
         if outcome is Outcome.HALTED or self.halt is not None:
-            return InstructionResult(False, f"{name} halted: {result.message or 'no message'}", result=saved,
-                                     halted=True)
+            return InstructionResult(
+                False, f"{name} halted: {result.message or 'no message'}", result=saved, halted=True
+            )
         return InstructionResult(False, f"{name} failed: {result.message or 'no message'}", result=saved)
 
     def _halted(self, during: str) -> InstructionResult:
@@ -256,8 +282,9 @@ class Automation:
         why = f" by {halt.user}" + (f": {halt.reason}" if halt.reason else "") if halt else ""
         return InstructionResult(False, f"halted {during}{why}", halted=True)
 
-    def _watch(self, subject: Subject, condition: Condition, timeout: float, number: str,
-               actor: str) -> InstructionResult:
+    def _watch(
+        self, subject: Subject, condition: Condition, timeout: float, number: str, actor: str
+    ) -> InstructionResult:
         """Watch telemetry until the condition holds (fresh value) or the timeout passes.
 
         The timeout counts the light time too: the procedure's timeout is how long the system may

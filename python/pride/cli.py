@@ -116,10 +116,13 @@ def run_main(argv: list[str] | None = None) -> int:
         "--in-flight",
         choices=("resend", "skip"),
         help="on --resume of a log from before command keys: what to do with a command in flight at the crash "
-             "(a keyed command is sent again with its key by itself: the habitat answers its outcome)",
+        "(a keyed command is sent again with its key by itself: the habitat answers its outcome)",
     )
-    parser.add_argument("--take-over", metavar="REASON",
-                        help="take control of the robot from the run that holds it (logged in both runs)")
+    parser.add_argument(
+        "--take-over",
+        metavar="REASON",
+        help="take control of the robot from the run that holds it (logged in both runs)",
+    )
     _sysrep_option(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
@@ -177,12 +180,26 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         printer = ProgressPrinter(procedure, terminal)
         try:
             if args.resume:
-                executive = Executive.resume(checked, gateway, audit, events, args.user, mode=args.mode,
-                                             control=control, take_over=args.take_over)
+                executive = Executive.resume(
+                    checked,
+                    gateway,
+                    audit,
+                    events,
+                    args.user,
+                    mode=args.mode,
+                    control=control,
+                    take_over=args.take_over,
+                )
                 # the printer joins after the replay: the resumed run's own events follow
             else:
-                executive = Executive(checked, gateway, audit, run_id=_new_run_id(procedure.id),
-                                      mode=args.mode or Mode.MANUAL, control=control)
+                executive = Executive(
+                    checked,
+                    gateway,
+                    audit,
+                    run_id=_new_run_id(procedure.id),
+                    mode=args.mode or Mode.MANUAL,
+                    control=control,
+                )
                 executive.add_listener(printer)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
                     executive.set_breakpoint(args.user, number)
@@ -199,8 +216,7 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                 executive.set_breakpoint(args.user, number)
         terminal.say(f"READY run {executive.run_id}")
         answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight)
-        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty(),
-                                 out=terminal)
+        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty(), out=terminal)
         previous = signal.signal(signal.SIGINT, lambda _signum, _frame: console.interrupt())
         try:
             final = console.run()
@@ -231,8 +247,9 @@ def report_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--db", default=DEFAULT_DB, metavar="URL")
     parser.add_argument("--out", default="var/reports", metavar="DIR", help="where to write RUN.html and RUN.md")
     parser.add_argument("--list", action="store_true", help="list the runs in the audit log")
-    parser.add_argument("--verify", action="store_true",
-                        help="only check the run's hash chain and name the first event that breaks it")
+    parser.add_argument(
+        "--verify", action="store_true", help="only check the run's hash chain and name the first event that breaks it"
+    )
     args = parser.parse_args(argv)
     if args.verify and not args.run:
         parser.error("--verify needs RUN")
@@ -267,9 +284,12 @@ def report_main(argv: list[str] | None = None) -> int:
 def db_main(argv: list[str] | None = None) -> int:
     """``caretaker db upgrade|status --db URL``: the audit log's schema revision (docs/ground-segment.md)."""
     parser = argparse.ArgumentParser(prog="caretaker db", description="create or upgrade the audit log's schema")
-    parser.add_argument("action", choices=("upgrade", "status"),
-                        help="upgrade: bring the schema to this Caretaker's revision (as the database owner); "
-                             "status: print the revision")
+    parser.add_argument(
+        "action",
+        choices=("upgrade", "status"),
+        help="upgrade: bring the schema to this Caretaker's revision (as the database owner); "
+        "status: print the revision",
+    )
     parser.add_argument("--db", default=DEFAULT_DB, metavar="URL", help=f"audit log URL (default {DEFAULT_DB})")
     args = parser.parse_args(argv)
     try:

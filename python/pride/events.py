@@ -113,8 +113,13 @@ class Event:
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "run_id": self.run_id, "seq": self.seq, "kind": self.kind.value, "actor": self.actor,
-            "instruction": self.instruction, "data": self.data, "time": self.time.isoformat(),
+            "run_id": self.run_id,
+            "seq": self.seq,
+            "kind": self.kind.value,
+            "actor": self.actor,
+            "instruction": self.instruction,
+            "data": self.data,
+            "time": self.time.isoformat(),
         }
 
 

@@ -99,8 +99,17 @@ from pride.states import (
 )
 from pride.systems import CancelResult, CommandResult, LinkState, Outcome, SystemGateway, TelemetryValue
 
-__all__ = ["Executive", "Hold", "InstructionStatus", "JournalFailure", "Mode", "OperatorActionError",
-           "RobotControlled", "RunStatus", "Snapshot"]
+__all__ = [
+    "Executive",
+    "Hold",
+    "InstructionStatus",
+    "JournalFailure",
+    "Mode",
+    "OperatorActionError",
+    "RobotControlled",
+    "RunStatus",
+    "Snapshot",
+]
 
 log = logging.getLogger(__name__)
 
@@ -113,8 +122,16 @@ _SUPERVISE_S = 0.5
 class Executive:
     """Runs one procedure; see the module docstring for the API contract."""
 
-    def __init__(self, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, *, run_id: str,
-                 mode: Mode = Mode.MANUAL, control: ControlStore | None = None) -> None:
+    def __init__(
+        self,
+        checked: CheckedProcedure,
+        gateway: SystemGateway,
+        journal: Journal,
+        *,
+        run_id: str,
+        mode: Mode = Mode.MANUAL,
+        control: ControlStore | None = None,
+    ) -> None:
         """Prepare a run (nothing happens until :meth:`start`).
 
         Args:
@@ -139,8 +156,14 @@ class Executive:
         self._seq = 0
         self._listeners: list[Callable[[Event], None]] = []
         self._automation = Automation(gateway, checked, self._record, may_send=self._may_send)
-        self._state = RunState(self.procedure, mode, run_id=run_id, emit=self._emit, notify=self._changed.notify_all,
-                               hazardous=self._automation.is_hazardous)
+        self._state = RunState(
+            self.procedure,
+            mode,
+            run_id=run_id,
+            emit=self._emit,
+            notify=self._changed.notify_all,
+            hazardous=self._automation.is_hazardous,
+        )
         self._worker: threading.Thread | None = None
         self._supervisor: threading.Thread | None = None
         self._links = LinkWatch()
@@ -174,21 +197,38 @@ class Executive:
         current = state.current_number() if state.status is RunStatus.ACTIVE else None
         pending = state.unknown[0] if state.unknown else None
         return Snapshot(
-            run_id=self.run_id, procedure_id=self.procedure.id, status=state.status, mode=state.mode,
-            current=current, hold=hold, reason=reason, executing=state.executing,
-            statuses=dict(state.statuses), breakpoints=frozenset(state.breakpoints),
-            variables=state.variables(), last_seq=self._seq, error=state.error, robot=self.robot,
-            has_control=self._control.held and state.control_lost is None, unknown_key=pending,
-            halted_by=state.halt.user if state.halt else None, halt_reason=state.halt.reason if state.halt else "",
+            run_id=self.run_id,
+            procedure_id=self.procedure.id,
+            status=state.status,
+            mode=state.mode,
+            current=current,
+            hold=hold,
+            reason=reason,
+            executing=state.executing,
+            statuses=dict(state.statuses),
+            breakpoints=frozenset(state.breakpoints),
+            variables=state.variables(),
+            last_seq=self._seq,
+            error=state.error,
+            robot=self.robot,
+            has_control=self._control.held and state.control_lost is None,
+            unknown_key=pending,
+            halted_by=state.halt.user if state.halt else None,
+            halt_reason=state.halt.reason if state.halt else "",
         )
 
     def _live(self, snap: Snapshot) -> Snapshot:
         """``snap`` with the links and the journal as they are now (no executive lock needed)."""
         links = self._links.now()
         availability = self._journal.availability
-        return replace(snap, link_lost_since=links.lost_since, commands_in_flight=links.in_flight,
-                       journal_available=availability.available, journal_unavailable_since=availability.since,
-                       journal_error=availability.error)
+        return replace(
+            snap,
+            link_lost_since=links.lost_since,
+            commands_in_flight=links.in_flight,
+            journal_available=availability.available,
+            journal_unavailable_since=availability.since,
+            journal_error=availability.error,
+        )
 
     def current_instruction(self) -> Instruction | None:
         """The instruction the run is at (in the innermost sub-procedure), or None when finished."""
@@ -230,18 +270,35 @@ class Executive:
             previous = self._control.take(user, take_over)
             state.status = RunStatus.ACTIVE
             procedure = self.procedure
-            self._emit(EventKind.RUN_STARTED, user, None, procedure=procedure.id, title=procedure.title,
-                       version=procedure.version, path=str(Path(procedure.path).resolve()), mode=state.mode.value,
-                       robot=self.robot,
-                       steps=[{"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps])
+            self._emit(
+                EventKind.RUN_STARTED,
+                user,
+                None,
+                procedure=procedure.id,
+                title=procedure.title,
+                version=procedure.version,
+                path=str(Path(procedure.path).resolve()),
+                mode=state.mode.value,
+                robot=self.robot,
+                steps=[{"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps],
+            )
             self._record_takeover(user, previous, take_over)
             state.arrive()
             self._launch()
 
     @classmethod
-    def resume(cls, checked: CheckedProcedure, gateway: SystemGateway, journal: Journal, events: list[Event], user: str,
-               *, mode: Mode | None = None, control: ControlStore | None = None,
-               take_over: str | None = None) -> Executive:
+    def resume(
+        cls,
+        checked: CheckedProcedure,
+        gateway: SystemGateway,
+        journal: Journal,
+        events: list[Event],
+        user: str,
+        *,
+        mode: Mode | None = None,
+        control: ControlStore | None = None,
+        take_over: str | None = None,
+    ) -> Executive:
         """Continue an interrupted run from its recorded events (see Durability above)."""
         procedure = checked.procedure
         if not events or events[0].kind is not EventKind.RUN_STARTED:
@@ -250,10 +307,17 @@ class Executive:
             raise OperatorActionError(f"run {events[0].run_id} is already completed")
         started = events[0]
         if started.data.get("procedure") != procedure.id:
-            raise OperatorActionError(f"run {started.run_id} ran procedure {started.data.get('procedure')!r}, "
-                                      f"not {procedure.id!r}")
-        executive = cls(checked, gateway, journal, run_id=started.run_id,
-                        mode=Mode(started.data.get("mode", "manual")), control=control)
+            raise OperatorActionError(
+                f"run {started.run_id} ran procedure {started.data.get('procedure')!r}, not {procedure.id!r}"
+            )
+        executive = cls(
+            checked,
+            gateway,
+            journal,
+            run_id=started.run_id,
+            mode=Mode(started.data.get("mode", "manual")),
+            control=control,
+        )
         with executive._changed:
             state = executive._state
             replayed = replay(procedure, events, checked.load, mode=state.mode, statuses=state.statuses)
@@ -263,8 +327,14 @@ class Executive:
             if mode is not None:
                 state.mode = mode
             state.status = RunStatus.ACTIVE
-            executive._emit(EventKind.RUN_RESUMED, user, state.frame.number(), mode=state.mode.value,
-                            in_flight=state.in_flight, resend=state.resend)
+            executive._emit(
+                EventKind.RUN_RESUMED,
+                user,
+                state.frame.number(),
+                mode=state.mode.value,
+                in_flight=state.in_flight,
+                resend=state.resend,
+            )
             executive._record_takeover(user, previous, take_over)
             if state.frame.instruction is None:
                 state.advance(state.frame.position)
@@ -298,8 +368,15 @@ class Executive:
 
     def _record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
         if previous is not None:
-            self._emit(EventKind.CONTROL_TAKEN, user, self._state.current_number(), robot=self.robot,
-                       from_run=previous.run_id, from_user=previous.user, reason=reason or "")
+            self._emit(
+                EventKind.CONTROL_TAKEN,
+                user,
+                self._state.current_number(),
+                robot=self.robot,
+                from_run=previous.run_id,
+                from_user=previous.user,
+                reason=reason or "",
+            )
 
     def _may_send(self) -> None:
         """Raise ControlLost unless this run controls its robot (asked in the database, not remembered)."""
@@ -313,9 +390,15 @@ class Executive:
         if state.control_lost is not None or state.status is not RunStatus.ACTIVE:
             return
         state.control_lost = self._control.lost_text(holder)
-        self._emit(EventKind.CONTROL_LOST, PAX, state.current_number(), robot=self.robot,
-                   by_run=holder.run_id if holder else None, by_user=holder.user if holder else None,
-                   reason=holder.reason if holder else "")
+        self._emit(
+            EventKind.CONTROL_LOST,
+            PAX,
+            state.current_number(),
+            robot=self.robot,
+            by_run=holder.run_id if holder else None,
+            by_user=holder.user if holder else None,
+            reason=holder.reason if holder else "",
+        )
         state.announce()
 
     # ---- operator actions -------------------------------------------------------------------
@@ -366,8 +449,15 @@ class Executive:
                 return
             if state.halt is None:
                 state.halt = Halt(user, reason)
-            self._emit(EventKind.HALT, user, state.current_number(), reason=reason, key=key,
-                       cancel=_cancel_data(answer), executing=state.executing)
+            self._emit(
+                EventKind.HALT,
+                user,
+                state.current_number(),
+                reason=reason,
+                key=key,
+                cancel=_cancel_data(answer),
+                executing=state.executing,
+            )
             state.announce()
 
     def stop(self, user: str, reason: str = "") -> None:
@@ -377,8 +467,14 @@ class Executive:
         with self._changed:
             self._require_active()
             self._state.status = RunStatus.STOPPED
-            self._emit(EventKind.RUN_STOPPED, user, self._state.current_number(), reason=reason, key=key,
-                       cancel=_cancel_data(answer))
+            self._emit(
+                EventKind.RUN_STOPPED,
+                user,
+                self._state.current_number(),
+                reason=reason,
+                key=key,
+                cancel=_cancel_data(answer),
+            )
 
     def set_breakpoint(self, user: str, number: str) -> None:
         """Make automation hold when it reaches instruction ``number``."""
@@ -443,8 +539,9 @@ class Executive:
             converted, checked = self._automation.check_record(instruction, value)
             frame = self._state.frame
             frame.env[instruction.name] = converted
-            self._emit(EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted,
-                       **checked)
+            self._emit(
+                EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted, **checked
+            )
             self._state.complete(user, frame.procedure.following(frame.position))
             return converted
 
@@ -467,8 +564,16 @@ class Executive:
             converted, checked = self._automation.check_record(instruction, value)
             old = frame.env[instruction.name]
             frame.env[instruction.name] = converted
-            self._emit(EventKind.RECORD_CORRECTED, user, number, name=instruction.name, old=old, value=converted,
-                       reason=reason, **checked)
+            self._emit(
+                EventKind.RECORD_CORRECTED,
+                user,
+                number,
+                name=instruction.name,
+                old=old,
+                value=converted,
+                reason=reason,
+                **checked,
+            )
             self._state.announce()
             return converted
 
@@ -477,8 +582,9 @@ class Executive:
         with self._changed:
             instruction = self._require_idle()
             if not isinstance(instruction, ManualInstruction):
-                raise OperatorActionError(f"{self._state.current_number()} is a {instruction.kind.value}, "
-                                          "not a manual instruction")
+                raise OperatorActionError(
+                    f"{self._state.current_number()} is a {instruction.kind.value}, not a manual instruction"
+                )
             frame = self._state.frame
             self._state.complete(user, frame.procedure.following(frame.position))
 
@@ -510,8 +616,14 @@ class Executive:
             key = self._pending_key()
             if key is None:
                 raise OperatorActionError(f"{state.current_number()} has no command of unknown outcome")
-            self._emit(EventKind.RETRY, user, state.current_number(),
-                       after=state.unknown[1] if state.unknown else f"{key} in flight", same_key=True, key=key)
+            self._emit(
+                EventKind.RETRY,
+                user,
+                state.current_number(),
+                after=state.unknown[1] if state.unknown else f"{key} in flight",
+                same_key=True,
+                key=key,
+            )
             state.clear_holds()
             self._clear_halt()
             state.resend = key
@@ -595,9 +707,16 @@ class Executive:
         except Exception as exc:  # refused before sending (bad argument, unknown command)
             result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
         outcome = result.outcome
-        self._record(EventKind.COMMAND_RESULT, user, None, **about, outcome=outcome.value,
-                     success=None if outcome is Outcome.UNKNOWN else result.success,
-                     message=result.message, values=dict(result.values))
+        self._record(
+            EventKind.COMMAND_RESULT,
+            user,
+            None,
+            **about,
+            outcome=outcome.value,
+            success=None if outcome is Outcome.UNKNOWN else result.success,
+            message=result.message,
+            values=dict(result.values),
+        )
         return result
 
     # ---- guards and helpers -----------------------------------------------------------------
@@ -625,8 +744,10 @@ class Executive:
         return unknown[0] if unknown else self._state.resend
 
     def _unknown_text(self) -> str:
-        return (f"the outcome of {self._pending_key()} is unknown: ask again (same key), record what you found "
-                "on the robot, or skip it")
+        return (
+            f"the outcome of {self._pending_key()} is unknown: ask again (same key), record what you found "
+            "on the robot, or skip it"
+        )
 
     def _clear_halt(self) -> None:
         self._state.halt = None
@@ -662,8 +783,9 @@ class Executive:
             self._automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
             self._changed.notify_all()
             log.error("run %s stopped: the journal could not store %s: %s", self.run_id, kind.value, exc)
-            raise JournalFailure(f"run {self.run_id} stopped: the audit log could not store {kind.value}: "
-                                 f"{state.error}") from exc
+            raise JournalFailure(
+                f"run {self.run_id} stopped: the audit log could not store {kind.value}: {state.error}"
+            ) from exc
         self._seq = event.seq
         self._last = self._build_snapshot()  # what readers get while a later append waits for the database
         self._changed.notify_all()  # every event is a change someone may be waiting for
@@ -698,12 +820,18 @@ class Executive:
                         return
                     number = state.begin(job)
                     text = job.instruction.describe()  # as written: ${...} stay references
-                    self._emit(EventKind.INSTRUCTION_STARTED, job.actor, number,
-                               instruction_kind=job.instruction.kind.value, text=text,
-                               text_filled=fill_text(text, job.frame.env))
+                    self._emit(
+                        EventKind.INSTRUCTION_STARTED,
+                        job.actor,
+                        number,
+                        instruction_kind=job.instruction.kind.value,
+                        text=text,
+                        text_filled=fill_text(text, job.frame.env),
+                    )
                 try:
-                    outcome = self._automation.carry_out(job.frame.env, job.frame.procedure, job.instruction, number,
-                                                         job.actor, job.send)
+                    outcome = self._automation.carry_out(
+                        job.frame.env, job.frame.procedure, job.instruction, number, job.actor, job.send
+                    )
                 except (JournalFailure, ControlLost):
                     raise
                 except KeyError as exc:

@@ -56,8 +56,9 @@ def position_of(procedure: Procedure, step_ref: str) -> int:
     return next(n for n, i in enumerate(procedure.instructions) if i.number == first)
 
 
-def frames_at(procedure: Procedure, cursor: str, envs: dict[str, dict[str, Any]],
-              load: Callable[[str], Procedure]) -> list[Frame]:
+def frames_at(
+    procedure: Procedure, cursor: str, envs: dict[str, dict[str, Any]], load: Callable[[str], Procedure]
+) -> list[Frame]:
     """The stack of frames positioned at ``cursor``, each with the variables ``envs`` holds for its prefix."""
     frames: list[Frame] = []
     prefix = ""

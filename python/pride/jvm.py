@@ -40,12 +40,15 @@ def classpath() -> list[str]:
         JarNotBuiltError: the plugin jar is not built, or a Debian jar is not installed.
     """
     if not PLUGIN_JAR.is_file():
-        raise JarNotBuiltError(f"the PAX plugin jar {PLUGIN_JAR} is not built: run `make setup` "
-                               "(or `mvn -q package -DskipTests` in the repository root)")
+        raise JarNotBuiltError(
+            f"the PAX plugin jar {PLUGIN_JAR} is not built: run `make setup` "
+            "(or `mvn -q package -DskipTests` in the repository root)"
+        )
     for jar in RUNTIME_JARS:
         if not jar.is_file():
-            raise JarNotBuiltError(f"{jar} is missing: run `make setup` (it installs libgoogle-gson-java and "
-                                   "libyaml-snake-java)")
+            raise JarNotBuiltError(
+                f"{jar} is missing: run `make setup` (it installs libgoogle-gson-java and libyaml-snake-java)"
+            )
     return [str(PLUGIN_JAR), *map(str, RUNTIME_JARS)]
 
 

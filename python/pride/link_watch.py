@@ -57,9 +57,14 @@ class LinkWatch:
             return None
         if links.lost_since is not None:
             self._recorded = links.lost_since
-            return EventKind.LINK_LOST, {"links": list(links.down), "since": links.lost_since.isoformat(),
-                                         "in_flight": links.in_flight}
+            return EventKind.LINK_LOST, {
+                "links": list(links.down),
+                "since": links.lost_since.isoformat(),
+                "in_flight": links.in_flight,
+            }
         since, self._recorded = self._recorded, None
         assert since is not None
-        return EventKind.LINK_RESTORED, {"since": since.isoformat(),
-                                         "seconds": round((datetime.now(UTC) - since).total_seconds(), 1)}
+        return EventKind.LINK_RESTORED, {
+            "since": since.isoformat(),
+            "seconds": round((datetime.now(UTC) - since).total_seconds(), 1),
+        }

@@ -96,8 +96,9 @@ def check_procedure(path: str | Path, sysreps: Mapping[str, SysRep]) -> CheckedP
     if procedure is None or problems:
         raise ProcedureError(problems)
     callees = {p: c for p, (c, _) in session.done.items() if c is not None and c is not procedure}
-    return CheckedProcedure(procedure, MappingProxyType(dict(sysreps)), MappingProxyType(callees),
-                            MappingProxyType(session.literals))
+    return CheckedProcedure(
+        procedure, MappingProxyType(dict(sysreps)), MappingProxyType(callees), MappingProxyType(session.literals)
+    )
 
 
 @dataclass
@@ -217,11 +218,16 @@ class _Linter:
             self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
         item = sysrep.telemetry_item(item_id)
         if item is None:
-            self.fail(where, f"unknown telemetry {item_id!r} in {system} "
-                             f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})")
+            self.fail(
+                where,
+                f"unknown telemetry {item_id!r} in {system} (telemetry: {', '.join(t.id for t in sysrep.telemetry)})",
+            )
         elif item.type != "string":
-            self.fail(where, f"one-of-telemetry needs a string item listing the values (comma-separated); "
-                             f"{system}.{item_id} is {item.type}")
+            self.fail(
+                where,
+                f"one-of-telemetry needs a string item listing the values (comma-separated); "
+                f"{system}.{item_id} is {item.type}",
+            )
 
     def check_command(self, i: CommandInstruction) -> None:
         sysrep = self.system(i, i.system)

@@ -19,10 +19,26 @@ from typing import Any
 from pride.sysrep import check_value
 
 __all__ = [
-    "ArgumentBinding", "BranchInstruction", "CallInstruction", "CommandInstruction", "Condition",
-    "GoToInstruction", "Input", "Instruction", "Kind", "Location", "ManualInstruction", "Notice",
-    "Procedure", "RecordInstruction", "Reference", "Step", "Subject", "Template",
-    "VerifyInstruction", "WaitInstruction",
+    "ArgumentBinding",
+    "BranchInstruction",
+    "CallInstruction",
+    "CommandInstruction",
+    "Condition",
+    "GoToInstruction",
+    "Input",
+    "Instruction",
+    "Kind",
+    "Location",
+    "ManualInstruction",
+    "Notice",
+    "Procedure",
+    "RecordInstruction",
+    "Reference",
+    "Step",
+    "Subject",
+    "Template",
+    "VerifyInstruction",
+    "WaitInstruction",
 ]
 
 

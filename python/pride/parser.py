@@ -64,7 +64,7 @@ class _Builder:
         """An attribute the schema requires (validation ran first, so it is there)."""
         value = el.get(name)
         if value is None:  # the schema and this builder disagree: report it, never crash
-            self.fail(self.pos.element(el), f"<{el.tag}> needs {name}=\"...\"")
+            self.fail(self.pos.element(el), f'<{el.tag}> needs {name}="..."')
             return ""
         return value
 
@@ -291,8 +291,10 @@ class _Builder:
         if listed is not None:
             system, dot, item = listed.partition(".")
             if not (system and dot and item) or "." in item:
-                self.fail(self.pos.attribute(el, "one-of-telemetry"),
-                          f"one-of-telemetry names a telemetry item as system.item, got {listed!r}")
+                self.fail(
+                    self.pos.attribute(el, "one-of-telemetry"),
+                    f"one-of-telemetry names a telemetry item as system.item, got {listed!r}",
+                )
             one_of_telemetry = (system, item)
         minimum, maximum = el.get("min"), el.get("max")
         record = RecordInstruction(

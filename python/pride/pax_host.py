@@ -79,8 +79,9 @@ def to_java(name: str, value: Any) -> Any:
         return jpype.JObject(value, jpype.JClass("java.lang.Double"))
     if isinstance(value, str):
         return jpype.JString(value)
-    raise PaxError(f"argument {name!r}: {type(value).__name__} {value!r} is not a SysRep value "
-                   "(string, boolean, integer or real)")
+    raise PaxError(
+        f"argument {name!r}: {type(value).__name__} {value!r} is not a SysRep value (string, boolean, integer or real)"
+    )
 
 
 def to_python(value: Any) -> Any:
@@ -160,8 +161,9 @@ class PaxHost:
         """The binding's expected one-way delay (``link: {one_way_delay}``), in seconds."""
         return self._one_way_delay
 
-    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
-                ) -> CommandResult:
+    def execute(
+        self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
+    ) -> CommandResult:
         """Execute a SysRep command and wait for the system's real outcome.
 
         The Java host checks the arguments against its SysRep and converts them; it is the one
@@ -254,8 +256,14 @@ class PaxHost:
                 try:
                     lost = state.lostSince()
                     since = None if lost is None else int(lost.getEpochSecond()) + int(lost.getNano()) / 1e9
-                    callback(LinkState(str(state.rosbridge().toString()), bool(state.connected()), since,
-                                       int(state.commandsInFlight())))
+                    callback(
+                        LinkState(
+                            str(state.rosbridge().toString()),
+                            bool(state.connected()),
+                            since,
+                            int(state.commandsInFlight()),
+                        )
+                    )
                 except Exception:
                     _LOG.exception("link listener %r failed", callback)
 
@@ -269,8 +277,10 @@ class PaxHost:
         summary of what it cost the link."""
         return {
             str(t.rosbridge().toString()): {
-                "bytes_up": int(t.bytesUp()), "bytes_down": int(t.bytesDown()),
-                "messages_up": int(t.messagesUp()), "messages_down": int(t.messagesDown()),
+                "bytes_up": int(t.bytesUp()),
+                "bytes_down": int(t.bytesDown()),
+                "messages_up": int(t.messagesUp()),
+                "messages_down": int(t.messagesDown()),
             }
             for t in self._host.traffic()
         }

@@ -41,8 +41,15 @@ from pride.model import (
 from pride.sysrep import SysRep
 
 __all__ = [
-    "describe_event", "fill_text", "format_value", "humanize", "labelled_values", "phrase", "raw_form",
-    "started_text", "template_json",
+    "describe_event",
+    "fill_text",
+    "format_value",
+    "humanize",
+    "labelled_values",
+    "phrase",
+    "raw_form",
+    "started_text",
+    "template_json",
 ]
 
 _POSITION = ("x", "y", "z")
@@ -71,7 +78,7 @@ def format_value(value: Any, units: str | None = None) -> str:
 def _real(value: float) -> str:
     if value != value or value in (float("inf"), float("-inf")):
         return str(value)
-    if value != 0 and abs(value) < 10 ** -_DECIMALS:
+    if value != 0 and abs(value) < 10**-_DECIMALS:
         return f"{value:.2e}"
     text = f"{value:.{_DECIMALS}f}".rstrip("0").rstrip(".")
     return "0" if text == "-0" else text

@@ -29,8 +29,13 @@ _ENDED = {
     EventKind.INSTRUCTION_HALTED: InstructionStatus.HALTED,
 }
 #: Operator decisions after which a halt no longer holds the run.
-_HALT_ENDS = (EventKind.RETRY, EventKind.CONTINUED, EventKind.STEPPED_BACK, EventKind.INSTRUCTION_SKIPPED,
-              EventKind.OUTCOME_RESOLVED)
+_HALT_ENDS = (
+    EventKind.RETRY,
+    EventKind.CONTINUED,
+    EventKind.STEPPED_BACK,
+    EventKind.INSTRUCTION_SKIPPED,
+    EventKind.OUTCOME_RESOLVED,
+)
 
 
 @dataclass
@@ -60,8 +65,14 @@ def _attempt(key: str) -> int:
     return int(tail) if tail.isdigit() else 0
 
 
-def replay(procedure: Procedure, events: Sequence[Event], load: Callable[[str], Procedure], *,
-           mode: Mode, statuses: dict[str, InstructionStatus]) -> Replayed:
+def replay(
+    procedure: Procedure,
+    events: Sequence[Event],
+    load: Callable[[str], Procedure],
+    *,
+    mode: Mode,
+    statuses: dict[str, InstructionStatus],
+) -> Replayed:
     """The state of a run of ``procedure`` after ``events`` (``statuses``: the initial ones)."""
     state = Replayed(frames=[], mode=mode, statuses=dict(statuses))
     cursor = procedure.instructions[0].number
@@ -125,9 +136,13 @@ def replay(procedure: Procedure, events: Sequence[Event], load: Callable[[str], 
     if pending is not None and started == cursor:
         state.resend = pending
         if state.halt is not None:  # halted: nothing is sent again until an operator decides
-            state.unknown = (pending, unknown_why or f"outcome of {pending} unknown: in flight when the runner "
-                                                     "stopped, after a halt")
+            state.unknown = (
+                pending,
+                unknown_why or f"outcome of {pending} unknown: in flight when the runner stopped, after a halt",
+            )
     elif started is not None and started == cursor and sent is not None:
-        state.in_flight = (f"{cursor} was in flight when the runner stopped: the command was sent without a key "
-                           "and no result was recorded. Check the system, then retry (resend) or skip it.")
+        state.in_flight = (
+            f"{cursor} was in flight when the runner stopped: the command was sent without a key "
+            "and no result was recorded. Check the system, then retry (resend) or skip it."
+        )
     return state

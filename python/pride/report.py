@@ -101,17 +101,30 @@ def summarize(events: list[Event]) -> RunSummary:
         elif event.kind is EventKind.RUN_RESUMED:
             outcome = "interrupted"
     images = [
-        Image(e.instruction or "", e.time, str(e.data["values"]["path"]),
-              str(e.data["values"].get("label") or Path(str(e.data["values"]["path"])).stem))
+        Image(
+            e.instruction or "",
+            e.time,
+            str(e.data["values"]["path"]),
+            str(e.data["values"].get("label") or Path(str(e.data["values"]["path"])).stem),
+        )
         for e in events
-        if e.kind is EventKind.COMMAND_RESULT and isinstance(e.data.get("values"), dict)
+        if e.kind is EventKind.COMMAND_RESULT
+        and isinstance(e.data.get("values"), dict)
         and Path(str(e.data["values"].get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES
     ]
     return RunSummary(
-        run_id=start.run_id, procedure=start.data.get("procedure", ""), title=start.data.get("title", ""),
-        version=start.data.get("version", ""), started=start.time, ended=events[-1].time, started_by=start.actor,
-        outcome=outcome, steps=steps, events=events,
-        telemetry=[e for e in events if e.kind is EventKind.TELEMETRY_SEEN], images=images,
+        run_id=start.run_id,
+        procedure=start.data.get("procedure", ""),
+        title=start.data.get("title", ""),
+        version=start.data.get("version", ""),
+        started=start.time,
+        ended=events[-1].time,
+        started_by=start.actor,
+        outcome=outcome,
+        steps=steps,
+        events=events,
+        telemetry=[e for e in events if e.kind is EventKind.TELEMETRY_SEEN],
+        images=images,
     )
 
 
@@ -137,9 +150,11 @@ def timeline_svg(summary: RunSummary, width: int = 860) -> str:
     def x(moment: datetime) -> float:
         return left + (moment - summary.started).total_seconds() * scale
 
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12" role="img" '
-             f'aria-label="Timeline of run {html.escape(summary.run_id)}">']
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12" role="img" '
+        f'aria-label="Timeline of run {html.escape(summary.run_id)}">'
+    ]
     for tick in range(6):
         seconds = total * tick / 5
         tx = left + seconds * scale
@@ -148,26 +163,39 @@ def timeline_svg(summary: RunSummary, width: int = 860) -> str:
     rows = {s.number: i for i, s in enumerate(summary.steps)}
     for i, step in enumerate(summary.steps):
         y = top + i * row
-        parts.append(f'<text x="{left - 8}" y="{y + 15}" text-anchor="end" class="step-label">{html.escape(labels[i])}</text>')
+        parts.append(
+            f'<text x="{left - 8}" y="{y + 15}" text-anchor="end" class="step-label">{html.escape(labels[i])}</text>'
+        )
         color = "#c0392b" if step.failed and not step.completed else "#2e86c1" if step.visits else "#bbb"
         for start, end in step.visits:
             w = max((end - start).total_seconds() * scale, 2)
-            parts.append(f'<rect x="{x(start):.1f}" y="{y + 4}" width="{w:.1f}" height="{row - 10}" rx="3" fill="{color}">'
-                         f'<title>step {step.number}: {_duration((end - start).total_seconds())}</title></rect>')
+            parts.append(
+                f'<rect x="{x(start):.1f}" y="{y + 4}" width="{w:.1f}" height="{row - 10}" rx="3" fill="{color}">'
+                f"<title>step {step.number}: {_duration((end - start).total_seconds())}</title></rect>"
+            )
     for event in summary.events:
         head = (event.instruction or "").split("/")[0].split(".")[0]
         if not head.isdigit() or int(head) not in rows:
             continue
         y = top + rows[int(head)] * row
         if event.kind is EventKind.INSTRUCTION_FAILED:
-            parts.append(f'<circle cx="{x(event.time):.1f}" cy="{y + row / 2 - 1:.1f}" r="4" fill="#e74c3c">'
-                         f'<title>{html.escape(event.instruction or "")} failed</title></circle>')
-        elif event.actor != PAX and event.kind in (EventKind.OPERATOR_INPUT, EventKind.INSTRUCTION_COMPLETED,
-                                                   EventKind.CONFIRMATION, EventKind.INSTRUCTION_SKIPPED,
-                                                   EventKind.COMMAND_SENT, EventKind.RETRY):
+            parts.append(
+                f'<circle cx="{x(event.time):.1f}" cy="{y + row / 2 - 1:.1f}" r="4" fill="#e74c3c">'
+                f"<title>{html.escape(event.instruction or '')} failed</title></circle>"
+            )
+        elif event.actor != PAX and event.kind in (
+            EventKind.OPERATOR_INPUT,
+            EventKind.INSTRUCTION_COMPLETED,
+            EventKind.CONFIRMATION,
+            EventKind.INSTRUCTION_SKIPPED,
+            EventKind.COMMAND_SENT,
+            EventKind.RETRY,
+        ):
             px, py = x(event.time), y + 2
-            parts.append(f'<path d="M{px - 4:.1f},{py:.1f} L{px + 4:.1f},{py:.1f} L{px:.1f},{py + 7:.1f} Z" fill="#f39c12">'
-                         f'<title>{html.escape(event.actor)}: {html.escape(describe_event(event))}</title></path>')
+            parts.append(
+                f'<path d="M{px - 4:.1f},{py:.1f} L{px + 4:.1f},{py:.1f} L{px:.1f},{py + 7:.1f} Z" fill="#f39c12">'
+                f"<title>{html.escape(event.actor)}: {html.escape(describe_event(event))}</title></path>"
+            )
     parts.append(f'<text x="{left}" y="14" fill="#555">bars: time in step · ▼ operator action · ● failure</text>')
     parts.append("</svg>")
     return "\n".join(parts)
@@ -186,34 +214,56 @@ def _copy_images(summary: RunSummary, out_dir: Path) -> None:
 
 def to_markdown(summary: RunSummary) -> str:
     lines = [
-        f"# After-action report: {summary.title}", "",
-        f"- Run: `{summary.run_id}`", f"- Procedure: `{summary.procedure}` version {summary.version}",
+        f"# After-action report: {summary.title}",
+        "",
+        f"- Run: `{summary.run_id}`",
+        f"- Procedure: `{summary.procedure}` version {summary.version}",
         f"- Started: {summary.started:%Y-%m-%d %H:%M:%S} UTC by {summary.started_by}",
-        f"- Duration: {_duration(summary.seconds)}", f"- Outcome: **{summary.outcome}**",
-        *([f"- Audit chain: {summary.integrity}"] if summary.integrity else []), "",
-        "## Steps", "", "| step | title | time | completed | failed | skipped | by |", "|---|---|---|---|---|---|---|",
+        f"- Duration: {_duration(summary.seconds)}",
+        f"- Outcome: **{summary.outcome}**",
+        *([f"- Audit chain: {summary.integrity}"] if summary.integrity else []),
+        "",
+        "## Steps",
+        "",
+        "| step | title | time | completed | failed | skipped | by |",
+        "|---|---|---|---|---|---|---|",
     ]
     for s in summary.steps:
         by = ", ".join(sorted(s.actors)) or "—"
         when = _duration(s.seconds) if s.visits else "not reached"
         lines.append(f"| {s.number} | {s.title} | {when} | {s.completed} | {s.failed} | {s.skipped} | {by} |")
-    lines += ["", "## Timeline", "", f"![timeline]({summary.run_id}-timeline.svg)", "",
-              "## Verified telemetry", "", "| time | instruction | item | value | condition | result |", "|---|---|---|---|---|---|"]
+    lines += [
+        "",
+        "## Timeline",
+        "",
+        f"![timeline]({summary.run_id}-timeline.svg)",
+        "",
+        "## Verified telemetry",
+        "",
+        "| time | instruction | item | value | condition | result |",
+        "|---|---|---|---|---|---|",
+    ]
     for e in summary.telemetry:
         d = e.data
         verdict = "ok" if d.get("ok", True) and not d.get("stale") else "not met"
-        lines.append(f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{format_value(d['value'])}` | "
-                     f"{d.get('condition', '(branch)')} | {verdict} |")
+        lines.append(
+            f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{format_value(d['value'])}` | "
+            f"{d.get('condition', '(branch)')} | {verdict} |"
+        )
     lines += ["", "## Images", ""]
     for image in summary.images:
         target = image.copied or image.source
-        lines.append(f"- {image.instruction} at {_clock(image.time)} {image.label}: "
-                     + (f"![{image.label}]({target})" if image.copied else f"missing file {image.source}"))
+        lines.append(
+            f"- {image.instruction} at {_clock(image.time)} {image.label}: "
+            + (f"![{image.label}]({target})" if image.copied else f"missing file {image.source}")
+        )
     if not summary.images:
         lines.append("None captured.")
     lines += ["", "## Actions", "", "| # | time (UTC) | actor | instruction | action |", "|---|---|---|---|---|"]
     for e in summary.events:
-        lines.append(f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe_event(e).replace('|', '/')} |")
+        lines.append(
+            f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe_event(e).replace('|', '/')} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -230,14 +280,18 @@ def to_html(summary: RunSummary) -> str:
         f"<td>{'ok' if e.data.get('ok', True) and not e.data.get('stale') else '<b>not met</b>'}</td></tr>"
         for e in summary.telemetry
     )
-    images = "".join(
-        f"<figure><img src=\"{esc(i.copied)}\" alt=\"{esc(i.label)}\" style=\"max-width:320px\">"
-        f"<figcaption>{esc(i.instruction)} {_clock(i.time)} {esc(i.label)}</figcaption></figure>"
-        if i.copied else f"<p>{esc(i.instruction)}: missing file {esc(i.source)}</p>"
-        for i in summary.images
-    ) or "<p>None captured.</p>"
+    images = (
+        "".join(
+            f'<figure><img src="{esc(i.copied)}" alt="{esc(i.label)}" style="max-width:320px">'
+            f"<figcaption>{esc(i.instruction)} {_clock(i.time)} {esc(i.label)}</figcaption></figure>"
+            if i.copied
+            else f"<p>{esc(i.instruction)}: missing file {esc(i.source)}</p>"
+            for i in summary.images
+        )
+        or "<p>None captured.</p>"
+    )
     actions = "".join(
-        f"<tr class=\"{'operator' if e.actor != PAX else ''}\"><td>{e.seq}</td><td>{_clock(e.time)}</td><td>{esc(e.actor)}</td>"
+        f'<tr class="{"operator" if e.actor != PAX else ""}"><td>{e.seq}</td><td>{_clock(e.time)}</td><td>{esc(e.actor)}</td>'
         f"<td>{esc(e.instruction or '')}</td><td>{esc(describe_event(e))}</td></tr>"
         for e in summary.events
     )

@@ -59,7 +59,8 @@ _T = TypeVar("_T")
 
 #: The table at the newest revision (migration 0003 creates it).
 robot_control = Table(
-    TABLE, MetaData(),
+    TABLE,
+    MetaData(),
     Column("robot", String(120), primary_key=True),
     Column("run_id", String(120), nullable=False),
     Column("user_id", String(120), nullable=False),
@@ -98,8 +99,9 @@ class RobotControl:
                 now = datetime.now(UTC)
                 try:
                     with self._engine.begin() as connection:
-                        connection.execute(insert(robot_control).values(robot=robot, run_id=run_id, user_id=user,
-                                                                        since=now, reason=""))
+                        connection.execute(
+                            insert(robot_control).values(robot=robot, run_id=run_id, user_id=user, since=now, reason="")
+                        )
                     return Controller(robot, run_id, user, now)
                 except IntegrityError:
                     holder = self._holder(robot)
@@ -108,8 +110,9 @@ class RobotControl:
                 if holder.run_id != run_id:
                     raise RobotControlled(holder)
                 with self._engine.begin() as connection:  # this run again (a resume): now this user's
-                    connection.execute(update(robot_control).where(_C.robot == robot, _C.run_id == run_id)
-                                       .values(user_id=user))
+                    connection.execute(
+                        update(robot_control).where(_C.robot == robot, _C.run_id == run_id).values(user_id=user)
+                    )
                 return Controller(robot, run_id, user, holder.since, holder.reason)
 
         return self._retrying(attempt)
@@ -132,8 +135,9 @@ class RobotControl:
                     except IntegrityError:
                         continue  # someone acquired it meanwhile: take it from them
                 with self._engine.begin() as connection:  # only from the holder just read (compare and swap)
-                    swapped = connection.execute(update(robot_control).where(
-                        _C.robot == robot, _C.run_id == holder.run_id).values(**values)).rowcount
+                    swapped = connection.execute(
+                        update(robot_control).where(_C.robot == robot, _C.run_id == holder.run_id).values(**values)
+                    ).rowcount
                 if swapped == 1:
                     return holder
 
@@ -155,8 +159,9 @@ class RobotControl:
 
     def _holder(self, robot: str) -> Controller | None:
         with self._engine.connect() as connection:
-            row = connection.execute(select(_C.robot, _C.run_id, _C.user_id, _C.since, _C.reason)
-                                     .where(_C.robot == robot)).first()
+            row = connection.execute(
+                select(_C.robot, _C.run_id, _C.user_id, _C.since, _C.reason).where(_C.robot == robot)
+            ).first()
         if row is None:
             return None
         return Controller(row.robot, row.run_id, row.user_id, utc(row.since), row.reason)
@@ -172,8 +177,12 @@ class RobotControl:
                 now = time.monotonic()
                 if first_failure is None:
                     first_failure = now
-                    log.warning("robot control in %s unreachable (%s): waiting up to %g s", self.location,
-                                str(getattr(exc, "orig", exc)).splitlines()[0], self.outage_budget)
+                    log.warning(
+                        "robot control in %s unreachable (%s): waiting up to %g s",
+                        self.location,
+                        str(getattr(exc, "orig", exc)).splitlines()[0],
+                        self.outage_budget,
+                    )
                 if now - first_failure >= self.outage_budget or self._closed.is_set():
                     raise AuditLogUnavailable(self.location, str(getattr(exc, "orig", exc)).splitlines()[0]) from exc
                 self._closed.wait(min(delay, self.outage_budget - (now - first_failure)))

@@ -21,8 +21,10 @@ class RobotControlled(OperatorActionError):
     """The robot is controlled by another run: ``holder`` says which, by whom, since when."""
 
     def __init__(self, holder: Controller) -> None:
-        super().__init__(f"robot {holder.robot} is controlled by {holder.describe()}: take over with a reason "
-                         "to control it from this run")
+        super().__init__(
+            f"robot {holder.robot} is controlled by {holder.describe()}: take over with a reason "
+            "to control it from this run"
+        )
         self.holder = holder
 
 

@@ -77,8 +77,16 @@ def _onward(frame: Frame, outcome: InstructionResult) -> int:
 class RunState:
     """The state of one run; see the module docstring. Fields are read and set by the executive."""
 
-    def __init__(self, procedure: Procedure, mode: Mode, *, run_id: str, emit: Emit, notify: Callable[[], None],
-                 hazardous: Callable[[Instruction], bool]) -> None:
+    def __init__(
+        self,
+        procedure: Procedure,
+        mode: Mode,
+        *,
+        run_id: str,
+        emit: Emit,
+        notify: Callable[[], None],
+        hazardous: Callable[[Instruction], bool],
+    ) -> None:
         self.run_id = run_id
         self.status = RunStatus.READY
         self.mode = mode
@@ -126,7 +134,7 @@ class RunState:
         return self._hazardous(instruction) and self.confirmed_by is None
 
     def halt_text(self) -> str:
-        """"halted by USER: reason" (empty without a halt)."""
+        """ "halted by USER: reason" (empty without a halt)."""
         if self.halt is None:
             return ""
         return f"halted by {self.halt.user}" + (f": {self.halt.reason}" if self.halt.reason else "")
@@ -267,8 +275,15 @@ class RunState:
         self.clear_holds()
         for again in reset:
             self.statuses[again] = InstructionStatus.PENDING
-        self._emit(EventKind.STEPPED_BACK, actor, number, reason=reason, next=frame.number(position), reset=reset,
-                   **{"from": number})
+        self._emit(
+            EventKind.STEPPED_BACK,
+            actor,
+            number,
+            reason=reason,
+            next=frame.number(position),
+            reset=reset,
+            **{"from": number},
+        )
         frame.position = position
         self.arrive()
 
@@ -306,8 +321,14 @@ class RunState:
         assert instruction is not None
         number = frame.number()
         self.clear_holds()
-        self._emit(EventKind.OUTCOME_RESOLVED, actor, number, key=key, reason=reason,
-                   outcome="succeeded" if succeeded else "failed")
+        self._emit(
+            EventKind.OUTCOME_RESOLVED,
+            actor,
+            number,
+            key=key,
+            reason=reason,
+            outcome="succeeded" if succeeded else "failed",
+        )
         finding = f"recorded by {actor}: {reason}"
         if isinstance(instruction, CommandInstruction) and instruction.result:
             frame.env[instruction.result] = {"success": succeeded, "message": finding}
@@ -358,17 +379,23 @@ class RunState:
             return
         self._fail(frame, instruction, number, actor, outcome)
 
-    def _fail(self, frame: Frame, instruction: Instruction, number: str, actor: str,
-              outcome: InstructionResult) -> None:
+    def _fail(
+        self, frame: Frame, instruction: Instruction, number: str, actor: str, outcome: InstructionResult
+    ) -> None:
         """The instruction failed: to its on-failure step if it has one, else hold for an operator."""
         self.statuses[number] = InstructionStatus.FAILED
         target = self.target(frame, instruction, outcome)
         if target is not None:
-            self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=frame.number(target),
-                       branch=_on_failure(instruction))
+            self._emit(
+                EventKind.INSTRUCTION_FAILED,
+                actor,
+                number,
+                reason=outcome.reason,
+                next=frame.number(target),
+                branch=_on_failure(instruction),
+            )
             self.advance(target, actor)
             return
         self.failure = outcome.reason
         self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)
         self.announce()
-

@@ -10,8 +10,16 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-__all__ = ["Controller", "Hold", "InstructionStatus", "JournalFailure", "Mode", "OperatorActionError", "RunStatus",
-           "Snapshot"]
+__all__ = [
+    "Controller",
+    "Hold",
+    "InstructionStatus",
+    "JournalFailure",
+    "Mode",
+    "OperatorActionError",
+    "RunStatus",
+    "Snapshot",
+]
 
 
 class Mode(enum.Enum):
@@ -143,14 +151,14 @@ class Snapshot:
     journal_error: str = ""
 
     def link_summary(self) -> str:
-        """"link lost since T, N commands in flight", or "" while the links are up."""
+        """ "link lost since T, N commands in flight", or "" while the links are up."""
         if self.link_lost_since is None:
             return ""
         n = self.commands_in_flight
-        return (f"link lost since {self.link_lost_since:%H:%M:%S}Z, {n} command{'' if n == 1 else 's'} in flight")
+        return f"link lost since {self.link_lost_since:%H:%M:%S}Z, {n} command{'' if n == 1 else 's'} in flight"
 
     def journal_summary(self) -> str:
-        """"audit log unavailable since T: error", or "" while it takes appends."""
+        """ "audit log unavailable since T: error", or "" while it takes appends."""
         if self.journal_available:
             return ""
         since = f" since {self.journal_unavailable_since:%H:%M:%S}Z" if self.journal_unavailable_since else ""

@@ -216,11 +216,11 @@ class _Reader:
         data: dict[str, Any] = node.plain()
         for key in data:
             if key not in allowed:
-                raise self.fail(
-                    node, where, f"unknown extension {key!r} (allowed: {', '.join(sorted(allowed))})"
-                )
+                raise self.fail(node, where, f"unknown extension {key!r} (allowed: {', '.join(sorted(allowed))})")
         for key in ("min", "max"):
-            if key in data and (isinstance(data[key], bool) or not isinstance(data[key], (int, float)) or not math.isfinite(data[key])):
+            if key in data and (
+                isinstance(data[key], bool) or not isinstance(data[key], (int, float)) or not math.isfinite(data[key])
+            ):
                 raise self.fail(node, where, f"extension {key!r} must be a finite number, got {data[key]!r}")
         if "enum" in data and not isinstance(data["enum"], list):
             raise self.fail(node, where, f"extension 'enum' must be a list, got {data['enum']!r}")
@@ -244,7 +244,9 @@ class _Reader:
 
     def argument(self, node: Node, where: str) -> Argument:
         if node.kind != SEQUENCE or len(node.items) not in (2, 3):
-            raise self.fail(node, where, f"argument must be [name, type] or [name, type, {{extensions}}], got {node.describe()}")
+            raise self.fail(
+                node, where, f"argument must be [name, type] or [name, type, {{extensions}}], got {node.describe()}"
+            )
         name = self.identifier(node.items[0], where, "argument name")
         where = f"{where} {name!r}"
         type_name = self.type_name(node.items[1], where)
@@ -254,7 +256,9 @@ class _Reader:
     def command(self, node: Node, index: int) -> Command:
         where = f"commands[{index}]"
         if node.kind != SEQUENCE or len(node.items) not in (3, 4):
-            raise self.fail(node, where, f"command must be [id, label, [[arg, type], ...]] (3 or 4 items), got {node.describe()}")
+            raise self.fail(
+                node, where, f"command must be [id, label, [[arg, type], ...]] (3 or 4 items), got {node.describe()}"
+            )
         command_id = self.identifier(node.items[0], where, "command id")
         where = f"{where} {command_id!r}"
         label = self.scalar(node.items[1], where, "label")
@@ -283,11 +287,15 @@ class _Reader:
 
     def sysrep(self, root: Node) -> SysRep:
         if root.kind != MAPPING:
-            raise self.fail(root, "", f"a SysRep must be a mapping with id, name, commands, telemetry; got {root.describe()}")
+            raise self.fail(
+                root, "", f"a SysRep must be a mapping with id, name, commands, telemetry; got {root.describe()}"
+            )
         fields: dict[str, Node] = {}
         for key, key_line, value_node in root.entries:
             if key not in _TOP_LEVEL_KEYS:
-                raise SysRepError(self.path, key_line, "", f"unknown key {key!r} (allowed: {', '.join(sorted(_TOP_LEVEL_KEYS))})")
+                raise SysRepError(
+                    self.path, key_line, "", f"unknown key {key!r} (allowed: {', '.join(sorted(_TOP_LEVEL_KEYS))})"
+                )
             fields[key] = value_node
         for required in ("id", "name"):
             if required not in fields:
@@ -296,7 +304,9 @@ class _Reader:
         name = self.scalar(fields["name"], "name", "name")
         commands = self._entries(fields.get("commands"), "commands", self.command)
         telemetry = self._entries(fields.get("telemetry"), "telemetry", self.telemetry)
-        description = self.scalar(fields["description"], "description", "description") if "description" in fields else None
+        description = (
+            self.scalar(fields["description"], "description", "description") if "description" in fields else None
+        )
         version = self.scalar(fields["version"], "version", "version") if "version" in fields else None
         return SysRep(sysrep_id, name, tuple(commands), tuple(telemetry), str(self.path), description, version)
 

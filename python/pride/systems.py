@@ -15,8 +15,16 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
-__all__ = ["CancelResult", "CommandResult", "LinkListener", "LinkState", "Outcome", "SystemGateway",
-           "TelemetryListener", "TelemetryValue"]
+__all__ = [
+    "CancelResult",
+    "CommandResult",
+    "LinkListener",
+    "LinkState",
+    "Outcome",
+    "SystemGateway",
+    "TelemetryListener",
+    "TelemetryValue",
+]
 
 
 class Outcome(str, enum.Enum):
@@ -109,8 +117,9 @@ class SystemGateway(Protocol):
     def robot(self) -> str:
         """The robot the binding names (``robot:``): one run at a time may control it."""
 
-    def execute(self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
-                ) -> CommandResult:
+    def execute(
+        self, sysrep_id: str, command_id: str, args: Mapping[str, Any], *, key: str | None = None
+    ) -> CommandResult:
         """Send a command and block until the system answers.
 
         The gateway checks every argument against the SysRep and converts it to its type: values

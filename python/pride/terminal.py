@@ -68,7 +68,8 @@ class ProgressPrinter:
             args = ", ".join(f"{k}={v!r}" for k, v in data["args"].items())
             again = " again" if data.get("resend") else ""
             line = f"  {number:<8} {event.actor:<10} sent{again} {data['system']}.{data['command']}({args})" + (
-                f" [{data['key']}]" if data.get("key") else "")
+                f" [{data['key']}]" if data.get("key") else ""
+            )
         elif kind is EventKind.COMMAND_RESULT:
             mark = _MARKS.get(data.get("outcome", ""), "ok" if data.get("success") else "FAILED")
             line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (
@@ -82,19 +83,27 @@ class ProgressPrinter:
             line = f"  {number:<8} {event.actor:<10} halted before it finished{_why(data)}"
         elif kind is EventKind.LINK_LOST:
             n = data.get("in_flight", 0)
-            line = (f"  {number:<8} {'PAX':<10} link lost since {data['since'][11:19]}Z, {n} command"
-                    f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}")
+            line = (
+                f"  {number:<8} {'PAX':<10} link lost since {data['since'][11:19]}Z, {n} command"
+                f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}"
+            )
         elif kind is EventKind.LINK_RESTORED:
             line = f"  {number:<8} {'PAX':<10} link restored after {data['seconds']:g} s"
         elif kind is EventKind.CONTROL_TAKEN:
-            line = (f"  {number:<8} {event.actor:<10} took control of {data['robot']} from run {data['from_run']} "
-                    f"({data['from_user']}){_why(data)}")
+            line = (
+                f"  {number:<8} {event.actor:<10} took control of {data['robot']} from run {data['from_run']} "
+                f"({data['from_user']}){_why(data)}"
+            )
         elif kind is EventKind.CONTROL_LOST:
-            line = (f"  {number:<8} {'PAX':<10} control of {data['robot']} taken over by {data['by_user']} "
-                    f"(run {data['by_run']}){_why(data)}")
+            line = (
+                f"  {number:<8} {'PAX':<10} control of {data['robot']} taken over by {data['by_user']} "
+                f"(run {data['by_run']}){_why(data)}"
+            )
         elif kind is EventKind.RECORD_CORRECTED:
-            line = (f"  {number:<8} {event.actor:<10} corrected {data['name']}: {data['old']!r} -> {data['value']!r}"
-                    f"{_why(data)}")
+            line = (
+                f"  {number:<8} {event.actor:<10} corrected {data['name']}: {data['old']!r} -> {data['value']!r}"
+                f"{_why(data)}"
+            )
         elif kind is EventKind.STEPPED_BACK:
             line = f"  {number:<8} {event.actor:<10} back to {data['next']}{_why(data)}"
         elif kind is EventKind.OUTCOME_RESOLVED:
@@ -270,18 +279,24 @@ class OperatorConsole:
         elif hold is Hold.OUTCOME_UNKNOWN:
             if self.interactive:
                 check = "what did you check on the robot? > "
-                self._choose(snap, {
-                    "a": ("ask again (same key)", lambda: ex.ask_again(user)),
-                    "y": ("record: it succeeded", lambda: ex.resolve(user, "succeeded", self._ask(check))),
-                    "n": ("record: it failed", lambda: ex.resolve(user, "failed", self._ask(check))),
-                })
+                self._choose(
+                    snap,
+                    {
+                        "a": ("ask again (same key)", lambda: ex.ask_again(user)),
+                        "y": ("record: it succeeded", lambda: ex.resolve(user, "succeeded", self._ask(check))),
+                        "n": ("record: it failed", lambda: ex.resolve(user, "failed", self._ask(check))),
+                    },
+                )
             else:
                 self._unattended_stop(snap, "resume the run (it asks the habitat again), or at a terminal decide")
         elif hold is Hold.HALTED:
             if self.interactive:
                 halted_here = snap.statuses.get(snap.current or "") is InstructionStatus.HALTED
-                carry_on = ("r", ("retry", lambda: ex.retry(user))) if halted_here else (
-                    "c", ("continue", lambda: ex.resume_automation(user)))
+                carry_on = (
+                    ("r", ("retry", lambda: ex.retry(user)))
+                    if halted_here
+                    else ("c", ("continue", lambda: ex.resume_automation(user)))
+                )
                 self._choose(snap, dict([carry_on]))
             else:
                 self._unattended_stop(snap, "resume the run at a terminal to retry, continue or skip")

@@ -103,7 +103,7 @@ def _position(data: bytes, offset: int) -> tuple[int, int]:
 
 
 def _decode(path: str, data: bytes) -> tuple[str | None, Problem | None]:
-    body = data[len(_BOM):] if data.startswith(_BOM) else data
+    body = data[len(_BOM) :] if data.startswith(_BOM) else data
     try:
         text = body.decode("utf-8")
     except UnicodeDecodeError as exc:

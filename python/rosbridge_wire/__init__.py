@@ -68,6 +68,12 @@ def login_mac(secret: str | bytes, fields: Mapping[str, Any]) -> str:
 def signed_login(secret: str, client: str, dest: str, now: float, *, level: str = "user") -> dict[str, Any]:
     """An ``auth`` message for ``dest`` (the bridge's URL) signed with ``secret``, valid from
     ``now`` (Unix seconds) for :data:`LOGIN_LIFETIME_S`."""
-    fields: dict[str, Any] = {"client": client, "dest": dest, "rand": secrets.token_hex(16), "t": now, "level": level,
-                              "end": now + LOGIN_LIFETIME_S}
+    fields: dict[str, Any] = {
+        "client": client,
+        "dest": dest,
+        "rand": secrets.token_hex(16),
+        "t": now,
+        "level": level,
+        "end": now + LOGIN_LIFETIME_S,
+    }
     return {"op": OP_AUTH, "mac": login_mac(secret, fields), **fields}

@@ -8,6 +8,9 @@ import time
 from typing import Any
 
 import rclpy
+from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
+from caretaker_sim_msgs.msg import NamedPoses
+from caretaker_sim_msgs.srv import CaptureImage
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -15,10 +18,6 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES
-from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
-from caretaker_sim_msgs.msg import NamedPoses
-from caretaker_sim_msgs.srv import CaptureImage
-
 
 
 class AtClient:
@@ -28,7 +27,10 @@ class AtClient:
         if not rclpy.ok():
             rclpy.init()
         self.node = Node("at_test_client")
-        self.clients = {name: self.node.create_client(t, f"{PREFIX}/{name}", qos_profile=SERVICE_QOS) for name, t in SERVICES.items()}
+        self.clients = {
+            name: self.node.create_client(t, f"{PREFIX}/{name}", qos_profile=SERVICE_QOS)
+            for name, t in SERVICES.items()
+        }
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.status: ServerStatus | None = None
@@ -59,7 +61,7 @@ class AtClient:
         self._notify()
 
     def _frames_callback(self, msg: NamedPoses) -> None:
-        self.frames = dict(zip(msg.names, msg.poses))
+        self.frames = dict(zip(msg.names, msg.poses, strict=False))
         self.frames_count += 1
         self._notify()
 
@@ -71,7 +73,7 @@ class AtClient:
         return self.frames
 
     def _joints_callback(self, msg: JointState) -> None:
-        self.joints = dict(zip(msg.name, msg.position))
+        self.joints = dict(zip(msg.name, msg.position, strict=False))
         self._notify()
 
     def joint(self, name: str) -> float:

@@ -98,8 +98,9 @@ def test_answers_taken_before_the_request_is_recorded_still_settle_it(node_pair)
         result.error_string = "done"
         return result
 
-    ActionServer(server_node, FollowJointTrajectory, name, execute_callback=execute,
-                 callback_group=ReentrantCallbackGroup())
+    ActionServer(
+        server_node, FollowJointTrajectory, name, execute_callback=execute, callback_group=ReentrantCallbackGroup()
+    )
     client = ProbedClient(client_node, FollowJointTrajectory, name, callback_group=ReentrantCallbackGroup())
     stall = SendThenStall(client._client_handle, client.handling)
     client._client_handle = stall
@@ -108,13 +109,13 @@ def test_answers_taken_before_the_request_is_recorded_still_settle_it(node_pair)
     for attempt in range(3):
         accepted = threading.Event()
         future = client.send_goal_async(FollowJointTrajectory.Goal())
-        future.add_done_callback(lambda _: accepted.set())
+        future.add_done_callback(lambda _, accepted=accepted: accepted.set())
         assert accepted.wait(ANSWER_WAIT + 5.0), f"goal {attempt}: its acceptance was lost"
         handle = future.result()
         assert handle.accepted
         finished = threading.Event()
         result = handle.get_result_async()
-        result.add_done_callback(lambda _: finished.set())
+        result.add_done_callback(lambda _, finished=finished: finished.set())
         assert finished.wait(ANSWER_WAIT + 5.0), f"goal {attempt}: its result was lost"
         assert result.result().result.error_string == "done"
     assert stall.stalled >= 2, "the answers never overtook their requests: the race was not forced"

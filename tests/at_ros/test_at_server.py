@@ -11,8 +11,8 @@ import math
 import threading
 
 import pytest
-
 from affordance_template_msgs.msg import ServerStatus
+
 from at_ros.api import SERVICES
 from support.at_server import start_stack
 
@@ -56,7 +56,11 @@ def test_instance_ids_are_the_lowest_free(at) -> None:
     assert {again.instance, second.instance} <= set(at.call("get_running").templates)
     for instance_id in (again.id, second.id):
         assert at.call("delete_template", class_type="ready_pose", id=instance_id).success
-    at.wait_for(lambda: not any(t.startswith("ready_pose:") for t in at.status.running_templates), 10, "status without ready_pose")
+    at.wait_for(
+        lambda: not any(t.startswith("ready_pose:") for t in at.status.running_templates),
+        10,
+        "status without ready_pose",
+    )
 
 
 def test_bad_requests_say_what_to_fix(at) -> None:
@@ -65,12 +69,27 @@ def test_bad_requests_say_what_to_fix(at) -> None:
     try:
         cases = [
             (at.call("add_template", class_type="cdra_filtre"), "unknown template 'cdra_filtre'"),
-            (at.call("plan_command", type="cdra_filter", id=99, trajectory_name="grasp_and_pull"), "no running instance 'cdra_filter:99'"),
+            (
+                at.call("plan_command", type="cdra_filter", id=99, trajectory_name="grasp_and_pull"),
+                "no running instance 'cdra_filter:99'",
+            ),
             (at.call("plan_command", type="cdra_filter", id=i, trajectory_name="dance"), "no trajectory 'dance'"),
-            (at.call("plan_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull", end_effectors=["left_hand"]), "unknown end effector 'left_hand'"),
+            (
+                at.call(
+                    "plan_command",
+                    type="cdra_filter",
+                    id=i,
+                    trajectory_name="grasp_and_pull",
+                    end_effectors=["left_hand"],
+                ),
+                "unknown end effector 'left_hand'",
+            ),
             (at.register("cdra_filter", i, "cdra_filter", "filter/CDRA-F-9999"), "unknown frame 'filter/CDRA-F-9999'"),
             (at.register("cdra_filter", i, "lid", "world"), "no display object 'lid'"),
-            (at.call("execute_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull"), "call plan_command first"),
+            (
+                at.call("execute_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull"),
+                "call plan_command first",
+            ),
             (at.call("get_template_status", name="cdra_filter"), "must be 'Type:id'"),
         ]
         for response, expected in cases:
@@ -81,8 +100,14 @@ def test_bad_requests_say_what_to_fix(at) -> None:
         assert far.success
         plan = at.call("plan_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull")
         assert not plan.success
-        assert "0.0:cdra_filter" in plan.message and ("unreachable" in plan.message or "collides" in plan.message), plan.message
-        at.wait_for(lambda: at.status.plan_status == ServerStatus.PLAN_FAILED and "grasp_and_pull" in at.status.last_error, 10, "PLAN_FAILED status")
+        assert "0.0:cdra_filter" in plan.message and ("unreachable" in plan.message or "collides" in plan.message), (
+            plan.message
+        )
+        at.wait_for(
+            lambda: at.status.plan_status == ServerStatus.PLAN_FAILED and "grasp_and_pull" in at.status.last_error,
+            10,
+            "PLAN_FAILED status",
+        )
     finally:
         at.call("delete_template", class_type="cdra_filter", id=i)
 
@@ -93,11 +118,21 @@ def test_hidden_waypoints_plan_the_same_motion(at) -> None:
     try:
         for response in (shown, hidden):
             assert at.register("cdra_filter", response.id, "cdra_filter", f"filter/{DIRTY}").success
-        statuses = [at.call("get_template_status", name=r.instance, trajectory_name="grasp_and_pull", frame_id="world").affordance_template_status[0] for r in (shown, hidden)]
+        statuses = [
+            at.call(
+                "get_template_status", name=r.instance, trajectory_name="grasp_and_pull", frame_id="world"
+            ).affordance_template_status[0]
+            for r in (shown, hidden)
+        ]
         assert statuses[0].waypoint_info[0].compact_view == [False] * 4
         assert statuses[1].waypoint_info[0].compact_view == [True] * 4
-        assert [p.pose for p in statuses[0].waypoint_info[0].waypoint_poses] == [p.pose for p in statuses[1].waypoint_info[0].waypoint_poses]
-        plans = [at.call("plan_command", type="cdra_filter", id=r.id, trajectory_name="grasp_and_pull") for r in (shown, hidden)]
+        assert [p.pose for p in statuses[0].waypoint_info[0].waypoint_poses] == [
+            p.pose for p in statuses[1].waypoint_info[0].waypoint_poses
+        ]
+        plans = [
+            at.call("plan_command", type="cdra_filter", id=r.id, trajectory_name="grasp_and_pull")
+            for r in (shown, hidden)
+        ]
         assert all(p.success for p in plans), [p.message for p in plans]
     finally:
         for response in (shown, hidden):
@@ -108,14 +143,22 @@ def test_steps_direct_and_backwards_choose_waypoints_as_the_original(at) -> None
     added = at.call("add_template", class_type="cdra_filter")
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}").success
-        start = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], direct=True)
+        start = at.call(
+            "plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], direct=True
+        )
         assert start.success and "waypoints [0]" in start.message, start.message
         assert start.affordance_template_status.waypoint_info[0].waypoint_plan_index == 0
         two = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[2])
         assert two.success and "waypoints [0, 1]" in two.message, two.message
-        back = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], backwards=True)
-        assert "waypoints [3]" in back.message or "0.3:cdra_filter" in back.message  # not started: the last waypoint first
-        bad = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[9], direct=True)
+        back = at.call(
+            "plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[1], backwards=True
+        )
+        assert (
+            "waypoints [3]" in back.message or "0.3:cdra_filter" in back.message
+        )  # not started: the last waypoint first
+        bad = at.call(
+            "plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", steps=[9], direct=True
+        )
         assert not bad.success and "between 1 and 4" in bad.message
     finally:
         at.call("delete_template", class_type="cdra_filter", id=added.id)
@@ -131,13 +174,31 @@ def test_set_waypoint_pose_moves_one_waypoint(at) -> None:
         pose.header.frame_id = ""  # relative to the waypoint's display object
         pose.pose.position.x = -0.40
         pose.pose.orientation.w = 1.0
-        moved = at.call("set_waypoint_pose", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", waypoint_id=0, end_effector="gripper", pose=pose)
+        moved = at.call(
+            "set_waypoint_pose",
+            type="cdra_filter",
+            id=added.id,
+            trajectory_name="grasp_and_pull",
+            waypoint_id=0,
+            end_effector="gripper",
+            pose=pose,
+        )
         assert moved.success, moved.message
-        status = at.call("get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id=f"filter/{DIRTY}")
+        status = at.call(
+            "get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id=f"filter/{DIRTY}"
+        )
         poses = status.affordance_template_status[0].waypoint_info[0].waypoint_poses
         assert poses[0].pose.position.x == pytest.approx(-0.40, abs=1e-6)
         assert poses[1].pose.position.x == pytest.approx(-0.13, abs=1e-6)  # the others stay
-        bad = at.call("set_waypoint_pose", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull", waypoint_id=7, end_effector="gripper", pose=pose)
+        bad = at.call(
+            "set_waypoint_pose",
+            type="cdra_filter",
+            id=added.id,
+            trajectory_name="grasp_and_pull",
+            waypoint_id=7,
+            end_effector="gripper",
+            pose=pose,
+        )
         assert not bad.success and "waypoints 0..3" in bad.message
     finally:
         at.call("delete_template", class_type="cdra_filter", id=added.id)
@@ -152,7 +213,9 @@ def test_remove_dirty_filter_and_place_it_on_the_empty_rack_slot(at) -> None:
         plan = at.call("plan_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull")
         assert plan.success, plan.message
         assert plan.affordance_template_status.plan_valid
-        at.wait_for(lambda: at.status.plan_valid and at.status.plan_status == ServerStatus.PLAN_PLANNED, 10, "plan_valid status")
+        at.wait_for(
+            lambda: at.status.plan_valid and at.status.plan_status == ServerStatus.PLAN_PLANNED, 10, "plan_valid status"
+        )
         # Another instance planned on the same filter and start state, to be executed too late.
         assert at.register("cdra_filter", rival.id, "cdra_filter", f"filter/{DIRTY}").success
         assert at.call("plan_command", type="cdra_filter", id=rival.id, trajectory_name="grasp_and_pull").success
@@ -161,7 +224,9 @@ def test_remove_dirty_filter_and_place_it_on_the_empty_rack_slot(at) -> None:
         # Re-planning is not needed: unlocking moved neither the robot nor the filter.
         executed = at.call("execute_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull")
         assert executed.success, executed.message
-        at.wait_for(lambda: at.held_object == DIRTY and at.cdra_present is False, 10, "filter held and out of the cabinet")
+        at.wait_for(
+            lambda: at.held_object == DIRTY and at.cdra_present is False, 10, "filter held and out of the cabinet"
+        )
         frames = at.fresh_frames()
         assert _distance(frames[f"filter/{DIRTY}"], frames["cabinet/slot"]) > 0.25
         assert _distance(frames[f"filter/{DIRTY}"], frames["tool0"]) < 0.2
@@ -196,7 +261,11 @@ def test_second_robot_command_while_executing_is_refused(at) -> None:
             assert at.register("ready_pose", response.id, "robot_base", "robot_base").success
         assert at.call("plan_command", type="ready_pose", id=ready.id, trajectory_name="ready").success
         results = {}
-        worker = threading.Thread(target=lambda: results.update(first=at.call("execute_command", type="ready_pose", id=ready.id, trajectory_name="ready")))
+        worker = threading.Thread(
+            target=lambda: results.update(
+                first=at.call("execute_command", type="ready_pose", id=ready.id, trajectory_name="ready")
+            )
+        )
         worker.start()
         at.wait_for(lambda: at.status.execute_status == ServerStatus.EXECUTE_EXECUTING, 30, "EXECUTING status")
         count = at.status_count
@@ -209,7 +278,11 @@ def test_second_robot_command_while_executing_is_refused(at) -> None:
         at.wait_for(lambda: at.status_count >= count + 2, 10, "status published while executing")
         worker.join(120)
         assert results["first"].success, results["first"].message
-        at.wait_for(lambda: at.status.execute_status == ServerStatus.EXECUTE_SUCCEEDED and not at.status.robot_active, 30, "robot at rest")
+        at.wait_for(
+            lambda: at.status.execute_status == ServerStatus.EXECUTE_SUCCEEDED and not at.status.robot_active,
+            30,
+            "robot at rest",
+        )
     finally:
         for response in (ready, other):
             at.call("delete_template", class_type="ready_pose", id=response.id)

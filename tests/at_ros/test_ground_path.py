@@ -29,7 +29,9 @@ class Ground:
         self.ros.run(TIMEOUT)
 
     def call(self, name: str, service_type: str, request: dict, timeout: float = TIMEOUT) -> dict:
-        return dict(roslibpy.Service(self.ros, name, service_type).call(roslibpy.ServiceRequest(request), timeout=timeout))
+        return dict(
+            roslibpy.Service(self.ros, name, service_type).call(roslibpy.ServiceRequest(request), timeout=timeout)
+        )
 
     def wait_published(self, topic: str, timeout: float = TIMEOUT) -> None:
         """Until the bridge's node has discovered a publisher of ``topic``: it subscribes to a
@@ -68,7 +70,9 @@ class Ground:
 
 @pytest.fixture(scope="module")
 def ground(ros_env, tmp_path_factory):
-    deployment = write_deployment(Path(tmp_path_factory.mktemp("arm2")), "iva", name="arm2", ros={"namespace": NS}, bindings=[], demo=None)
+    deployment = write_deployment(
+        Path(tmp_path_factory.mktemp("arm2")), "iva", name="arm2", ros={"namespace": NS}, bindings=[], demo=None
+    )
     with robot_parts(deployment, ros_env, parts=("sim", "planner", "at-server", "bridge"), time_scale=1.0) as parts:
         client = Ground(parts.bridge_url)
         try:
@@ -81,28 +85,59 @@ def test_the_view_reads_robot_scene_and_plan_through_rosbridge(ground: Ground) -
     for latched in ("robot_description", "sim/visual_world"):
         ground.wait_published(f"{NS}/{latched}")
     description = ground.first(f"{NS}/robot_description", "std_msgs/String")
-    assert "<robot name=\"ur10_gripper\"" in description["data"]
+    assert '<robot name="ur10_gripper"' in description["data"]
     world = ground.first(f"{NS}/sim/visual_world", "caretaker_sim_msgs/VisualWorld")
     assert world["robot_name"] == "ur10" and len(world["arm_joints"]) == 6
     assert f"filter/{DIRTY}" in {o["name"] for o in world["objects"]}
 
-    added = ground.call(f"{AT}/add_template", "affordance_template_msgs/AddAffordanceTemplate", {"class_type": "cdra_filter"})
+    added = ground.call(
+        f"{AT}/add_template", "affordance_template_msgs/AddAffordanceTemplate", {"class_type": "cdra_filter"}
+    )
     assert added["success"], added["message"]
     try:
-        registered = ground.call(f"{AT}/set_object_pose", "affordance_template_msgs/SetObjectPose", {"objects": [{
-            "type": "cdra_filter", "id": added["id"], "name": "cdra_filter",
-            "stamped_pose": {"header": {"frame_id": f"filter/{DIRTY}"}, "pose": {"orientation": {"w": 1.0}}}}]})
+        registered = ground.call(
+            f"{AT}/set_object_pose",
+            "affordance_template_msgs/SetObjectPose",
+            {
+                "objects": [
+                    {
+                        "type": "cdra_filter",
+                        "id": added["id"],
+                        "name": "cdra_filter",
+                        "stamped_pose": {
+                            "header": {"frame_id": f"filter/{DIRTY}"},
+                            "pose": {"orientation": {"w": 1.0}},
+                        },
+                    }
+                ]
+            },
+        )
         assert registered["success"], registered["message"]
-        status = ground.call(f"{AT}/get_template_status", "affordance_template_msgs/GetAffordanceTemplateStatus",
-                             {"name": added["instance"], "trajectory_name": "grasp_and_pull", "frame_id": "world"})
+        status = ground.call(
+            f"{AT}/get_template_status",
+            "affordance_template_msgs/GetAffordanceTemplateStatus",
+            {"name": added["instance"], "trajectory_name": "grasp_and_pull", "frame_id": "world"},
+        )
         obj = status["affordance_template_status"][0]["object_info"][0]
-        assert obj["type"] == "box" and obj["rgba"] == pytest.approx([0.2, 0.9, 0.3, 0.5]) and obj["controls"] == [True] * 6
-        planned = ground.call(f"{AT}/plan_command", "affordance_template_msgs/AffordanceTemplatePlanCommand",
-                              {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"})
+        assert (
+            obj["type"] == "box"
+            and obj["rgba"] == pytest.approx([0.2, 0.9, 0.3, 0.5])
+            and obj["controls"] == [True] * 6
+        )
+        planned = ground.call(
+            f"{AT}/plan_command",
+            "affordance_template_msgs/AffordanceTemplatePlanCommand",
+            {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"},
+        )
         assert planned["success"], planned["message"]
-        plan = ground.call(f"{AT}/get_plan", "affordance_template_msgs/GetPlan", {"name": added["instance"], "trajectory_name": ""})
+        plan = ground.call(
+            f"{AT}/get_plan", "affordance_template_msgs/GetPlan", {"name": added["instance"], "trajectory_name": ""}
+        )
         assert plan["success"] and plan["state"] == "PLANNED" and plan["valid"], plan["message"]
-        assert len(plan["waypoint_point_index"]) == 4 and plan["waypoint_point_index"][-1] == len(plan["trajectory"]["points"]) - 1
+        assert (
+            len(plan["waypoint_point_index"]) == 4
+            and plan["waypoint_point_index"][-1] == len(plan["trajectory"]["points"]) - 1
+        )
         assert plan["end_pose"]["header"]["frame_id"] == "robot_base"
         status_topic = ground.first(f"{AT}/status", "affordance_template_msgs/ServerStatus")
         assert status_topic["plan_id"] == plan["plan_id"]
@@ -111,11 +146,22 @@ def test_the_view_reads_robot_scene_and_plan_through_rosbridge(ground: Ground) -
         unlocked = ground.call(f"{NS}/cdra/unlock_filter", "std_srvs/Trigger", {})
         assert unlocked["success"]
         results: dict = {}
-        worker = threading.Thread(target=lambda: results.update(execute=ground.call(
-            f"{AT}/execute_command", "affordance_template_msgs/AffordanceTemplateExecuteCommand",
-            {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"}, timeout=120)))
+        worker = threading.Thread(
+            target=lambda: results.update(
+                execute=ground.call(
+                    f"{AT}/execute_command",
+                    "affordance_template_msgs/AffordanceTemplateExecuteCommand",
+                    {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"},
+                    timeout=120,
+                )
+            )
+        )
         worker.start()
-        ground.first(f"{AT}/status", "affordance_template_msgs/ServerStatus", lambda m: m["execute_status"] == "EXECUTING" and m["robot_active"])
+        ground.first(
+            f"{AT}/status",
+            "affordance_template_msgs/ServerStatus",
+            lambda m: m["execute_status"] == "EXECUTING" and m["robot_active"],
+        )
         halted = ground.call(f"{AT}/halt", "affordance_template_msgs/Halt", {"reason": "ground: Halt pressed"})
         worker.join(120)
         assert halted["success"] and halted["halted"] == added["instance"], halted["message"]
@@ -124,4 +170,8 @@ def test_the_view_reads_robot_scene_and_plan_through_rosbridge(ground: Ground) -
         direct = ground.call(f"{NS}/robot/halt", "caretaker_sim_msgs/Halt", {"reason": "ground: direct"})
         assert direct["success"] and direct["message"] == "nothing was moving" and not direct["stopped"]
     finally:
-        ground.call(f"{AT}/delete_template", "affordance_template_msgs/DeleteAffordanceTemplate", {"class_type": "cdra_filter", "id": added["id"]})
+        ground.call(
+            f"{AT}/delete_template",
+            "affordance_template_msgs/DeleteAffordanceTemplate",
+            {"class_type": "cdra_filter", "id": added["id"]},
+        )

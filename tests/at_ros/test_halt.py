@@ -15,11 +15,11 @@ import signal
 import threading
 
 import pytest
-from sensor_msgs.msg import JointState
-
 from affordance_template_msgs.msg import ServerStatus
 from affordance_template_msgs.srv import GetPlan
 from at_client import AtClient
+from sensor_msgs.msg import JointState
+
 from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -40,7 +40,9 @@ class JointLog:
 
     def _callback(self, msg: JointState) -> None:
         index = {n: i for i, n in enumerate(msg.name)}
-        self.samples.append((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, tuple(msg.position[index[j]] for j in ARM)))
+        self.samples.append(
+            (msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, tuple(msg.position[index[j]] for j in ARM))
+        )
         self.at._notify()
 
     def latest(self) -> tuple[float, tuple[float, ...]]:
@@ -48,7 +50,11 @@ class JointLog:
         return self.samples[-1]
 
     def wait_moved(self, since: tuple[float, ...], by: float, timeout: float = 60.0) -> None:
-        self.at.wait_for(lambda: max(abs(a - b) for a, b in zip(self.samples[-1][1], since)) > by, timeout, f"the arm moving {by} rad")
+        self.at.wait_for(
+            lambda: max(abs(a - b) for a, b in zip(self.samples[-1][1], since, strict=False)) > by,
+            timeout,
+            f"the arm moving {by} rad",
+        )
 
     def wait_until(self, stamp: float, timeout: float = 30.0) -> None:
         self.at.wait_for(lambda: self.samples[-1][0] >= stamp, timeout, f"joint_states stamped {stamp:.2f}")
@@ -59,7 +65,7 @@ class JointLog:
         rest = later[-1][1]
         still = later[-1][0]
         for stamp, q in reversed(later):
-            if max(abs(a - b) for a, b in zip(q, rest)) > 1e-9:
+            if max(abs(a - b) for a, b in zip(q, rest, strict=False)) > 1e-9:
                 break
             still = stamp
         return still
@@ -70,7 +76,11 @@ def stack(ros_env):
     with robot_parts("iva", ros_env, parts=("sim", "planner", "at-server"), time_scale=1.0) as parts:
         at = AtClient()
         try:
-            at.wait_for(lambda: at.status is not None and at.status.planner_node_active and bool(at.frames), 60.0, "server status with an active planner")
+            at.wait_for(
+                lambda: at.status is not None and at.status.planner_node_active and bool(at.frames),
+                60.0,
+                "server status with an active planner",
+            )
             yield parts, at, JointLog(at)
         finally:
             at.close()
@@ -93,7 +103,7 @@ def _wait_for_waypoint(at: AtClient, name: str, trajectory: str, index: int, tim
         if _waypoint_index(at, name, trajectory) >= index:
             return
         count = at.status_count
-        at.wait_for(lambda: at.status_count > count, 5, "a status message")
+        at.wait_for(lambda count=count: at.status_count > count, 5, "a status message")
     raise TimeoutError(f"{name} did not reach waypoint {index} of {trajectory!r} within {timeout} s")
 
 
@@ -117,7 +127,11 @@ def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack) -> No
         assert at.unlock_filter().success
 
         results: dict = {}
-        worker = threading.Thread(target=lambda: results.update(execute=at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull")))
+        worker = threading.Thread(
+            target=lambda: results.update(
+                execute=at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull")
+            )
+        )
         worker.start()
         # Mid-motion, past the first waypoint: moving towards the filter or pulling it out.
         at.wait_for(lambda: at.status.execute_status == ServerStatus.EXECUTE_EXECUTING, 30, "EXECUTING")
@@ -134,26 +148,41 @@ def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack) -> No
         assert halt.success and halt.halted == name, halt.message
         executed = results["execute"]
         assert not executed.success and f"halted ({REASON})" in executed.message, executed.message
-        at.wait_for(lambda: at.status.execute_status == ServerStatus.EXECUTE_HALTED and at.status.halt_reason == REASON, 10, "HALTED on the status topic")
+        at.wait_for(
+            lambda: at.status.execute_status == ServerStatus.EXECUTE_HALTED and at.status.halt_reason == REASON,
+            10,
+            "HALTED on the status topic",
+        )
 
         # The arm: still within 0.5 s of sim time of the halt reaching the server, and still 1.5 s
         # later (no drift, no finishing the segment).
         joints.wait_until(reached_server + STOP_WITHIN + 1.5)
         stopped_at = joints.still_from(min(sent_after, reached_server))
-        print(f"HALT stop time: {stopped_at - reached_server:.3f} s of sim time after the halt reached the AT server, "
-              f"{stopped_at - sent_after:.3f} s after it was sent ({halt.message})")
-        assert stopped_at - reached_server <= STOP_WITHIN, f"the arm still moved {stopped_at - reached_server:.3f} s of sim time after the halt reached the server"
+        print(
+            f"HALT stop time: {stopped_at - reached_server:.3f} s of sim time after the halt reached the AT server, "
+            f"{stopped_at - sent_after:.3f} s after it was sent ({halt.message})"
+        )
+        assert stopped_at - reached_server <= STOP_WITHIN, (
+            f"the arm still moved {stopped_at - reached_server:.3f} s of sim time after the halt reached the server"
+        )
 
         # An honest record: how far it got, in the status, the plan and the state file.
         reached = _waypoint_index(at, name, "grasp_and_pull")
         assert 0 <= reached < 3
         halted_plan = _get_plan(at, name, "grasp_and_pull")
-        assert halted_plan.plan_id == first_plan.plan_id and halted_plan.state == GetPlan.Response.HALTED and not halted_plan.valid
+        assert (
+            halted_plan.plan_id == first_plan.plan_id
+            and halted_plan.state == GetPlan.Response.HALTED
+            and not halted_plan.valid
+        )
         assert REASON in halted_plan.state_reason and f"after waypoint {reached}" in halted_plan.state_reason
         state = json.loads((parts.run.state_dir / "at_server.json").read_text())
         saved = next(i for i in state["instances"] if f"{i['template']}:{i['id']}" == name)
         assert saved["current_index"]["grasp_and_pull"] == reached
-        assert saved["executions"]["grasp_and_pull"]["outcome"] == "HALTED" and REASON in saved["executions"]["grasp_and_pull"]["message"]
+        assert (
+            saved["executions"]["grasp_and_pull"]["outcome"] == "HALTED"
+            and REASON in saved["executions"]["grasp_and_pull"]["message"]
+        )
         again = at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull")
         assert not again.success and "call plan_command first" in again.message  # the plan is gone
 
@@ -164,13 +193,18 @@ def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack) -> No
         assert resumed.plan_id != first_plan.plan_id and resumed.valid
         assert resumed.waypoint_names[0] == f"0.{reached + 1}:{name}" and resumed.waypoint_names[-1] == f"0.3:{name}"
         here = joints.latest()[1]
-        assert max(abs(a - b) for a, b in zip(resumed.trajectory.points[0].positions, here)) < 0.02
+        assert max(abs(a - b) for a, b in zip(resumed.trajectory.points[0].positions, here, strict=False)) < 0.02
         done = at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull")
         assert done.success, done.message
-        at.wait_for(lambda: at.held_object == DIRTY and at.cdra_present is False, 10, "filter held and out of the cabinet")
+        at.wait_for(
+            lambda: at.held_object == DIRTY and at.cdra_present is False, 10, "filter held and out of the cabinet"
+        )
         # The status topic (5 Hz) says so in its next message, not necessarily in the one already here.
-        at.wait_for(lambda: at.status.execute_status == ServerStatus.EXECUTE_SUCCEEDED and at.status.halt_reason == "",
-                    10, "SUCCEEDED with no halt reason on the status topic")
+        at.wait_for(
+            lambda: at.status.execute_status == ServerStatus.EXECUTE_SUCCEEDED and at.status.halt_reason == "",
+            10,
+            "SUCCEEDED with no halt reason on the status topic",
+        )
         assert _waypoint_index(at, name, "grasp_and_pull") == 3
         assert _get_plan(at, name, "grasp_and_pull").state == GetPlan.Response.EXECUTED
     finally:
@@ -187,9 +221,19 @@ def test_halt_while_planning_with_execute_prevents_the_execution(stack) -> None:
         results: dict = {}
         os.kill(planner, signal.SIGSTOP)  # the plan waits in the planner's queue until the halt is in
         try:
-            worker = threading.Thread(target=lambda: results.update(plan=at.call("plan_command", type="ready_pose", id=added.id, trajectory_name="ready", execute=True)))
+            worker = threading.Thread(
+                target=lambda: results.update(
+                    plan=at.call("plan_command", type="ready_pose", id=added.id, trajectory_name="ready", execute=True)
+                )
+            )
             worker.start()
-            at.wait_for(lambda: at.status.plan_status == ServerStatus.PLAN_PLANNING and at.status.active_template == added.instance, 30, "PLANNING")
+            at.wait_for(
+                lambda: (
+                    at.status.plan_status == ServerStatus.PLAN_PLANNING and at.status.active_template == added.instance
+                ),
+                30,
+                "PLANNING",
+            )
             halt = at.call("halt", reason=REASON)
             assert halt.success and halt.message == "nothing was moving", halt.message
         finally:

@@ -4,8 +4,8 @@ a command learns of a halt (the real stack's halt is tests/at_ros/test_halt.py).
 from __future__ import annotations
 
 import pytest
-
 from affordance_template_msgs.srv import Halt
+
 from at_ros.halt import Halted, HaltSwitch
 from at_ros.robot_config import load_robot_configs
 from at_ros.server_core import ServerCore
@@ -61,4 +61,8 @@ def test_with_nothing_moving_it_says_so_and_when_it_cannot_tell_it_says_that(swi
     assert response.success and response.message == "nothing was moving" and response.halted == ""
     switch.core.inputs.moving = True  # moving, but not by this server's command
     response = _halt(switch)
-    assert not response.success and response.message.startswith("not confirmed: the robot moves") and "halt_service" in response.message
+    assert (
+        not response.success
+        and response.message.startswith("not confirmed: the robot moves")
+        and "halt_service" in response.message
+    )

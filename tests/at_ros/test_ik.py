@@ -8,7 +8,6 @@ import numpy as np
 
 from at_ros.ik import IkFailure, IkSolver
 from at_ros.transforms import angle_between, from_xyz_rpy
-
 from support.planning_scenes import UR10_START, bench_planning_scene
 
 
@@ -65,14 +64,21 @@ def test_a_range_that_excludes_the_nearest_solution_is_solved_inside_it() -> Non
 
 def test_a_pose_reachable_only_outside_the_limits_names_the_limit(tmp_path) -> None:
     # Narrow the wrist roll too: the flipped wrist (roll about +-2.5) is no longer allowed either.
-    narrow = lambda urdf: urdf.replace('<limit lower="-3.0" upper="3.0" effort="50" velocity="2.5"/>',  # noqa: E731
-                                       '<limit lower="-1.0" upper="1.0" effort="50" velocity="2.5"/>')
+    def narrow(urdf: str) -> str:
+        return urdf.replace(
+            '<limit lower="-3.0" upper="3.0" effort="50" velocity="2.5"/>',
+            '<limit lower="-1.0" upper="1.0" effort="50" velocity="2.5"/>',
+        )
+
     config, scene = bench_planning_scene(narrow, tmp_path)
     try:
         failure = IkSolver(scene, seeds=16).solve(BENCH_GOAL, BENCH_START)
         assert isinstance(failure, IkFailure)
-        assert re.search(r"^reachable only outside the joint limits: wrist_(pitch|roll)_joint would be -?\d+\.\d\d rad, "
-                         r"outside its range \[-?\d+\.\d\d, -?\d+\.\d\d\]$", failure.describe()), failure.describe()
+        assert re.search(
+            r"^reachable only outside the joint limits: wrist_(pitch|roll)_joint would be -?\d+\.\d\d rad, "
+            r"outside its range \[-?\d+\.\d\d, -?\d+\.\d\d\]$",
+            failure.describe(),
+        ), failure.describe()
     finally:
         scene.close()
 

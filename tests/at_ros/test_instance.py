@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from at_ros.instance import ExecutionOutcome, InstanceError, PlanState, Registration, StoredPlan, TemplateInstance, next_free_id, path_sequence
+from at_ros.instance import (
+    ExecutionOutcome,
+    InstanceError,
+    PlanState,
+    Registration,
+    StoredPlan,
+    TemplateInstance,
+    next_free_id,
+    path_sequence,
+)
 from at_ros.library import default_library_path, load_library
 from at_ros.robot_config import load_robot_configs
 from at_ros.transforms import from_xyz_rpy
@@ -58,7 +67,9 @@ def test_path_sequence_matches_the_original(n, current, steps, direct, backwards
 )
 def test_an_interrupted_trajectory_resumes_after_the_last_waypoint_reached(current, backwards, expected) -> None:
     assert path_sequence(4, current, None, direct=False, backwards=backwards, resume=True) == expected
-    assert path_sequence(4, current, 2, direct=False, backwards=False, resume=True) == path_sequence(4, current, 2, direct=False, backwards=False)
+    assert path_sequence(4, current, 2, direct=False, backwards=False, resume=True) == path_sequence(
+        4, current, 2, direct=False, backwards=False
+    )
 
 
 def test_registering_to_another_frame_starts_over_and_records_why_the_plan_went(library, ur10) -> None:
@@ -69,7 +80,9 @@ def test_registering_to_another_frame_starts_over_and_records_why_the_plan_went(
     progress.current_index, progress.outcome = 1, ExecutionOutcome.HALTED
     plan = StoredPlan("grasp_and_pull", "gripper", [2, 3], [], {}, {}, "", plan_id="p1")
     instance.plan = instance.plans["grasp_and_pull"] = plan
-    instance.register("cdra_filter", Registration("cabinet/slot", from_xyz_rpy([0.005, 0, 0], [0, 0, 0]), slot))  # nudged
+    instance.register(
+        "cdra_filter", Registration("cabinet/slot", from_xyz_rpy([0.005, 0, 0], [0, 0, 0]), slot)
+    )  # nudged
     assert progress.interrupted and instance.plan is None
     assert plan.state == PlanState.INVALIDATED and plan.state_reason == "cdra_filter:0 registered to 'cabinet/slot'"
     assert instance.last_plan() is plan and instance.last_plan("insert_and_release") is None
@@ -84,7 +97,10 @@ def test_plan_states_are_the_get_plan_service_constants() -> None:
     assert states == {k: getattr(GetPlan.Response, k) for k in states}
 
 
-@pytest.mark.parametrize(("current", "steps", "direct", "message"), [(-1, 0, False, "not started"), (0, 5, True, "between 1 and 4"), (0, -2, False, ">= 0")])
+@pytest.mark.parametrize(
+    ("current", "steps", "direct", "message"),
+    [(-1, 0, False, "not started"), (0, 5, True, "between 1 and 4"), (0, -2, False, ">= 0")],
+)
 def test_path_sequence_rejects_impossible_requests(current, steps, direct, message) -> None:
     with pytest.raises(InstanceError, match=message):
         path_sequence(4, current, steps, direct=direct, backwards=False)

@@ -7,27 +7,56 @@ from pathlib import Path
 
 import pytest
 
-from at_ros.library import PLANNER_CARTESIAN, PLANNER_JOINT, LibraryError, default_library_path, load_library, load_template
+from at_ros.library import (
+    PLANNER_CARTESIAN,
+    PLANNER_JOINT,
+    LibraryError,
+    default_library_path,
+    load_library,
+    load_template,
+)
 
 # The original package's cube.json (data format only), as in the notes.
 CUBE = {
     "name": "Cube",
     "image": "package://affordance_template_library/images/cube.png",
-    "display_objects": [{
-        "name": "cube",
-        "shape": {"type": "box", "material": {"color": "red", "rgba": [0.0, 1.0, 0.0, 1.0]}, "size": [0.04, 0.08, 0.08]},
-        "origin": {"xyz": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 1.57]},
-        "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.1},
-    }],
-    "end_effector_trajectory": [{
-        "name": "Hand Top Grasp",
-        "end_effector_group": [{"id": 0, "end_effector_waypoint": [
-            {"ee_pose": 0, "display_object": "cube", "origin": {"xyz": [0.0, 0.0, -0.16], "rpy": [0.0, -1.57, -1.57]},
-             "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.1}, "planner_type": "JOINT"},
-            {"ee_pose": 3, "display_object": "cube", "origin": {"xyz": [0.0, 0.0, -0.02], "rpy": [0.0, -1.57, -1.57]},
-             "controls": {"xyz": [1, 1, 1], "rpy": [1, 1, 1], "scale": 0.1}},
-        ]}],
-    }],
+    "display_objects": [
+        {
+            "name": "cube",
+            "shape": {
+                "type": "box",
+                "material": {"color": "red", "rgba": [0.0, 1.0, 0.0, 1.0]},
+                "size": [0.04, 0.08, 0.08],
+            },
+            "origin": {"xyz": [0.0, 0.0, 0.0], "rpy": [0.0, 0.0, 1.57]},
+            "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.1},
+        }
+    ],
+    "end_effector_trajectory": [
+        {
+            "name": "Hand Top Grasp",
+            "end_effector_group": [
+                {
+                    "id": 0,
+                    "end_effector_waypoint": [
+                        {
+                            "ee_pose": 0,
+                            "display_object": "cube",
+                            "origin": {"xyz": [0.0, 0.0, -0.16], "rpy": [0.0, -1.57, -1.57]},
+                            "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.1},
+                            "planner_type": "JOINT",
+                        },
+                        {
+                            "ee_pose": 3,
+                            "display_object": "cube",
+                            "origin": {"xyz": [0.0, 0.0, -0.02], "rpy": [0.0, -1.57, -1.57]},
+                            "controls": {"xyz": [1, 1, 1], "rpy": [1, 1, 1], "scale": 0.1},
+                        },
+                    ],
+                }
+            ],
+        }
+    ],
 }
 
 
@@ -75,21 +104,91 @@ WAYPOINT = "end_effector_trajectory[0].end_effector_group[0].end_effector_waypoi
     ("mutate", "key", "problem"),
     [
         (lambda d: d.pop("name"), "name", "missing required key"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].pop("origin"), f"{WAYPOINT}.origin", "missing required key"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(planner_type="JIONT"), f"{WAYPOINT}.planner_type", "JIONT"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(display_object="cubee"), f"{WAYPOINT}.display_object", "unknown display object 'cubee'"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(ee_pose="open"), f"{WAYPOINT}.ee_pose", "expected an integer"),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].pop(
+                "origin"
+            ),
+            f"{WAYPOINT}.origin",
+            "missing required key",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                planner_type="JIONT"
+            ),
+            f"{WAYPOINT}.planner_type",
+            "JIONT",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                display_object="cubee"
+            ),
+            f"{WAYPOINT}.display_object",
+            "unknown display object 'cubee'",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                ee_pose="open"
+            ),
+            f"{WAYPOINT}.ee_pose",
+            "expected an integer",
+        ),
         (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0]), "display_objects[0].origin.xyz", "3 numbers"),
-        (lambda d: d["display_objects"][0]["shape"].update(type="torus"), "display_objects[0].shape.type", "unknown value 'torus'"),
-        (lambda d: d["display_objects"][0].update(parent="table"), "display_objects[0].parent", "unknown display object 'table'"),
-        (lambda d: d.update(end_effector_trajectories=d.pop("end_effector_trajectory")), "end_effector_trajectories", "singular"),
-        (lambda d: d["end_effector_trajectory"].append(d["end_effector_trajectory"][0]), "end_effector_trajectory[1].name", "defined twice"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grap="cube"), f"{WAYPOINT}.grap", "unknown key 'grap'"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grasp="lid"), f"{WAYPOINT}.grasp", "unknown display object 'lid'"),
-        (lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(grasp="cube", release="cube"), f"{WAYPOINT}.release", "not both"),
-        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, float("nan")]), "", "NaN and Infinity are not JSON numbers"),
-        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, 1e400]), "", "NaN and Infinity are not JSON numbers"),
-        (lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, "1"]), "display_objects[0].origin.xyz[2]", "expected a number, got str '1'"),
+        (
+            lambda d: d["display_objects"][0]["shape"].update(type="torus"),
+            "display_objects[0].shape.type",
+            "unknown value 'torus'",
+        ),
+        (
+            lambda d: d["display_objects"][0].update(parent="table"),
+            "display_objects[0].parent",
+            "unknown display object 'table'",
+        ),
+        (
+            lambda d: d.update(end_effector_trajectories=d.pop("end_effector_trajectory")),
+            "end_effector_trajectories",
+            "singular",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"].append(d["end_effector_trajectory"][0]),
+            "end_effector_trajectory[1].name",
+            "defined twice",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                grap="cube"
+            ),
+            f"{WAYPOINT}.grap",
+            "unknown key 'grap'",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                grasp="lid"
+            ),
+            f"{WAYPOINT}.grasp",
+            "unknown display object 'lid'",
+        ),
+        (
+            lambda d: d["end_effector_trajectory"][0]["end_effector_group"][0]["end_effector_waypoint"][1].update(
+                grasp="cube", release="cube"
+            ),
+            f"{WAYPOINT}.release",
+            "not both",
+        ),
+        (
+            lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, float("nan")]),
+            "",
+            "NaN and Infinity are not JSON numbers",
+        ),
+        (
+            lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, 1e400]),
+            "",
+            "NaN and Infinity are not JSON numbers",
+        ),
+        (
+            lambda d: d["display_objects"][0]["origin"].update(xyz=[0, 0, "1"]),
+            "display_objects[0].origin.xyz[2]",
+            "expected a number, got str '1'",
+        ),
     ],
 )
 def test_malformed_template_names_file_and_key(tmp_path: Path, mutate, key: str, problem: str) -> None:
@@ -121,7 +220,9 @@ def test_library_keys_by_name_and_searches_subfolders(tmp_path: Path) -> None:
 
 
 def test_the_error_names_the_line_of_the_key(tmp_path: Path) -> None:
-    path = write(tmp_path, json.dumps(_broken(lambda d: d["display_objects"][0]["shape"].update(type="torus")), indent=2))
+    path = write(
+        tmp_path, json.dumps(_broken(lambda d: d["display_objects"][0]["shape"].update(type="torus")), indent=2)
+    )
     with pytest.raises(LibraryError) as err:
         load_template(path)
     line = path.read_text().splitlines()[err.value.line - 1]
@@ -142,7 +243,9 @@ def test_a_linked_folder_in_the_library_is_followed_and_a_loop_refused(tmp_path:
 
 
 def test_grasp_and_release_are_read_with_defaults_for_the_original_format(tmp_path: Path) -> None:
-    assert all(not w.grasp and not w.release for w in load_template(write(tmp_path, CUBE)).trajectories[0].groups[0].waypoints)
+    assert all(
+        not w.grasp and not w.release for w in load_template(write(tmp_path, CUBE)).trajectories[0].groups[0].waypoints
+    )
     cdra = load_library(default_library_path() / "templates")["cdra_filter"]
     pull = cdra.trajectory("grasp_and_pull").group(0).waypoints
     assert [w.grasp for w in pull] == ["", "", "cdra_filter", ""]

@@ -8,7 +8,6 @@ import pytest
 from at_ros.instance import Registration, TemplateInstance
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
 from at_ros.transforms import angle_between, from_xyz_rpy, invert
-
 from support.planning_scenes import UR10_START
 
 CABINET_SLOT = from_xyz_rpy([0.15, 0.90, 1.05], [0.0, 0.0, np.pi / 2])
@@ -23,8 +22,18 @@ def _goals(library, ur10_config, trajectory: str, frame: np.ndarray) -> list[Goa
     instance = TemplateInstance(library["cdra_filter"], 0, ur10_config, root_pose=np.eye(4))
     instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), frame))
     t = instance.trajectory(trajectory)
-    return [Goal(w.label, w.tool_goal, w.waypoint.planner_type, w.end_effector_pose, gripper_action=w.gripper_action,
-                 object_name=w.object_name, object_pose=w.object_pose) for w in instance.resolve(t, instance.end_effector(t, []))]
+    return [
+        Goal(
+            w.label,
+            w.tool_goal,
+            w.waypoint.planner_type,
+            w.end_effector_pose,
+            gripper_action=w.gripper_action,
+            object_name=w.object_name,
+            object_pose=w.object_pose,
+        )
+        for w in instance.resolve(t, instance.end_effector(t, []))
+    ]
 
 
 def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene, library, ur10_config) -> None:
@@ -33,12 +42,14 @@ def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene,
     assert [p.label for p in planned] == [g.label for g in goals]
     assert [p.end_effector_pose for p in planned] == ["open", "open", "closed", "closed"]
     np.testing.assert_allclose(planned[0].path.positions[0], UR10_START, atol=1e-9)
-    for before, after in zip(planned, planned[1:]):  # chained: each starts where the last ended
+    for before, after in zip(planned, planned[1:], strict=False):  # chained: each starts where the last ended
         np.testing.assert_allclose(after.path.positions[0], before.path.positions[-1], atol=1e-9)
-    for p, goal in zip(planned, goals):
+    for p, goal in zip(planned, goals, strict=False):
         reached = iva_scene.forward(p.path.positions[-1])
         assert np.linalg.norm(reached[:3, 3] - goal.pose[:3, 3]) < 1e-3 and angle_between(reached, goal.pose) < 1e-2
-        assert np.all(np.abs(p.path.velocities) <= iva_scene.limits.velocity * ur10_config.planner.velocity_scaling + 1e-6)
+        assert np.all(
+            np.abs(p.path.velocities) <= iva_scene.limits.velocity * ur10_config.planner.velocity_scaling + 1e-6
+        )
         for q in p.path.positions:
             assert iva_scene.within_limits(q)
     assert iva_scene.attachment is None  # the plan's grasp is not left behind in the scene
@@ -49,16 +60,23 @@ def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur
     # Pull straight through the cabinet's back plate instead of out of the slot: the carried
     # filter (not the arm) runs into the cabinet and the wall behind it: the grasp attached it.
     assert goals[2].gripper_action == "grasp"  # stated by the template, not guessed from "closed"
-    pushed = goals[:3] + [Goal(goals[3].label, goals[2].pose @ from_xyz_rpy([0, 0, 0.15], [0, 0, 0]), "CARTESIAN", "closed")]
-    with pytest.raises(WaypointPlanningError, match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)"):
+    pushed = goals[:3] + [
+        Goal(goals[3].label, goals[2].pose @ from_xyz_rpy([0, 0, 0.15], [0, 0, 0]), "CARTESIAN", "closed")
+    ]
+    with pytest.raises(
+        WaypointPlanningError,
+        match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)",
+    ):
         planner.plan(UR10_START, pushed)
 
 
-def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_clean_world(iva_scene, library, ur10_config) -> None:
+def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_clean_world(
+    iva_scene, library, ur10_config
+) -> None:
     """A cabinet pose found by bench/planning.py: with the nearest arm configuration the pull
     folds the arm into itself at its end, after the filter was grasped and carried. The next
     configuration must start with the filter back in its slot, not where that pull left it."""
-    slot_T_moved = from_xyz_rpy([-0.0282, 0.0073, -0.0405], [-0.0789, 0.0075, -0.0673])
+    slot_T_moved = from_xyz_rpy  # noqa: N806 (a_T_b: the transform notation of robotics)([-0.0282, 0.0073, -0.0405], [-0.0789, 0.0075, -0.0673])
     move = CABINET_SLOT @ slot_T_moved @ invert(CABINET_SLOT)
     saved = iva_scene.snapshot()
     cabinet, filter_ = iva_scene.obstacle_pose("cabinet"), iva_scene.obstacle_pose("filter/CDRA-F-0007")
@@ -89,26 +107,47 @@ RACK_SLOT_2 = from_xyz_rpy([0.96, 0.0, 1.05], [0.0, 0.0, 0.0])  # occupied by CD
 RACK_SLOT_3 = from_xyz_rpy([0.96, 0.25, 1.05], [0.0, 0.0, 0.0])  # empty
 
 
-def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_so(planner, iva_scene, library, ur10_config) -> None:
+def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_so(
+    planner, iva_scene, library, ur10_config
+) -> None:
     """A survey with the gripper closed, stopping in front of a seated filter and rising: nothing
     is grasped (the template states no grasp), so rising is not a collision of the filter with its
     rack (it was, when "closed within 25 cm" counted as a grasp: the filter rose with the tool)."""
     view = from_xyz_rpy([0.0, 0.0, 0.0], [0.0, np.pi / 2, 0.0])
     near = RACK_SLOT_2 @ from_xyz_rpy([-0.22, 0, 0], [0, 0, 0]) @ view
     away = from_xyz_rpy([0, 0, 0.06], [0, 0, 0]) @ near
-    goals = [Goal("survey.0", RACK_SLOT_2 @ from_xyz_rpy([-0.35, 0, 0], [0, 0, 0]) @ view, "JOINT", "closed"),
-             Goal("survey.1", near, "CARTESIAN", "closed"), Goal("survey.2", away, "CARTESIAN", "closed")]
+    goals = [
+        Goal("survey.0", RACK_SLOT_2 @ from_xyz_rpy([-0.35, 0, 0], [0, 0, 0]) @ view, "JOINT", "closed"),
+        Goal("survey.1", near, "CARTESIAN", "closed"),
+        Goal("survey.2", away, "CARTESIAN", "closed"),
+    ]
     planned = planner.plan(UR10_START, goals)
     assert [p.label for p in planned] == ["survey.0", "survey.1", "survey.2"]
     np.testing.assert_allclose(iva_scene.obstacle_pose("filter/CDRA-F-0013")[:3, 3], RACK_SLOT_2[:3, 3], atol=1e-6)
     # Had the template said the survey grasps the filter, it would have carried it into the rack.
-    grasping = [goals[0], Goal("survey.1", near, "CARTESIAN", "closed", gripper_action="grasp", object_name="filter",
-                               object_pose=RACK_SLOT_2), goals[2]]
-    with pytest.raises(WaypointPlanningError, match=r"survey\.2: Cartesian line blocked .*collision filter/CDRA-F-0013/rack"):
+    grasping = [
+        goals[0],
+        Goal(
+            "survey.1",
+            near,
+            "CARTESIAN",
+            "closed",
+            gripper_action="grasp",
+            object_name="filter",
+            object_pose=RACK_SLOT_2,
+        ),
+        goals[2],
+    ]
+    with pytest.raises(
+        WaypointPlanningError, match=r"survey\.2: Cartesian line blocked .*collision filter/CDRA-F-0013/rack"
+    ):
         planner.plan(UR10_START, grasping)
 
 
 def test_a_stated_grasp_where_nothing_is_names_the_object(planner, library, ur10_config) -> None:
-    with pytest.raises(WaypointPlanningError, match=r"waypoint 0\.2:cdra_filter:0: grasps 'cdra_filter', but no graspable object "
-                                                    r"of the world is within 5 cm of where 'cdra_filter' is registered"):
+    with pytest.raises(
+        WaypointPlanningError,
+        match=r"waypoint 0\.2:cdra_filter:0: grasps 'cdra_filter', but no graspable object "
+        r"of the world is within 5 cm of where 'cdra_filter' is registered",
+    ):
         planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", RACK_SLOT_3))

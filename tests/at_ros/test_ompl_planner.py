@@ -25,12 +25,15 @@ def test_blocked_move_goes_around_and_every_state_is_valid() -> None:
     path = planner.plan(start, goal, time_limit=2.0, simplify_time=0.2)
     np.testing.assert_allclose(path[0], start)
     np.testing.assert_allclose(path[-1], goal)
-    for a, b in zip(path, path[1:]):
+    for a, b in zip(path, path[1:], strict=False):
         assert segment_is_valid(a, b, _wall_checker, 0.02)
     assert max(q[1] for q in path) >= 1.0
 
 
-@pytest.mark.parametrize(("start", "goal", "message"), [([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], "start state"), ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], "goal state")])
+@pytest.mark.parametrize(
+    ("start", "goal", "message"),
+    [([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], "start state"), ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], "goal state")],
+)
 def test_invalid_endpoints_are_named(start, goal, message) -> None:
     planner = JointPlanner(-np.ones(3) * 3, np.ones(3) * 3, _wall_checker)
     with pytest.raises(PlanningFailed, match=message):

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import pytest
+from affordance_template_msgs.msg import PlannedSegment
 from builtin_interfaces.msg import Duration
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from affordance_template_msgs.msg import PlannedSegment
 from at_ros.instance import InstanceError
 from at_ros.plan_view import joined_trajectory
 
@@ -17,7 +17,9 @@ def _segment(label: str, points: list[tuple[float, list[float]]], joints: tuple[
     segment = PlannedSegment(label=label, arm_trajectory=JointTrajectory(joint_names=list(joints)))
     for t, q in points:
         ns = int(round(t * 1e9))
-        segment.arm_trajectory.points.append(JointTrajectoryPoint(positions=q, time_from_start=Duration(sec=ns // 10**9, nanosec=ns % 10**9)))
+        segment.arm_trajectory.points.append(
+            JointTrajectoryPoint(positions=q, time_from_start=Duration(sec=ns // 10**9, nanosec=ns % 10**9))
+        )
     return segment
 
 

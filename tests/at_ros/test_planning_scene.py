@@ -39,7 +39,9 @@ def test_attached_object_moves_with_the_tool_and_is_checked(iva_scene) -> None:
         q[0] = 0.6  # swing: the carried filter must come along
         iva_scene.set_joints(q)
         moved = iva_scene.obstacle_pose(name)
-        np.testing.assert_allclose(moved[:3, 3], (iva_scene.tool_pose() @ iva_scene.attachment.tool_T_object)[:3, 3], atol=1e-6)
+        np.testing.assert_allclose(
+            moved[:3, 3], (iva_scene.tool_pose() @ iva_scene.attachment.tool_T_object)[:3, 3], atol=1e-6
+        )
         # Lowering the tool puts the carried filter into the table: a collision of the filter, not the arm.
         low = UR10_START.copy()
         low[1] = -0.9

@@ -41,7 +41,11 @@ def _config(tmp_path: Path, **changes) -> Path:
     [
         ({"robot_name": None}, "robot_name", "missing required key"),
         ({"root_offset": [0, 0, 1]}, "root_offset", "6 numbers"),
-        ({"end_effector_pose_map": [{"name": "open", "group": "hand", "id": 0}]}, "end_effector_pose_map[0].group", "unknown end effector 'hand'"),
+        (
+            {"end_effector_pose_map": [{"name": "open", "group": "hand", "id": 0}]},
+            "end_effector_pose_map[0].group",
+            "unknown end effector 'hand'",
+        ),
         ({"joint_names": []}, "joint_names", "expected at least 1 item"),
         ({"planner": {"plan_tme": 1.0}}, "planner.plan_tme", "unknown key 'plan_tme'"),
         ({"planner": {"plan_time": -1}}, "planner.plan_time", "below the minimum"),
@@ -66,5 +70,7 @@ def test_yaml_syntax_error_names_line(tmp_path: Path) -> None:
 def test_two_files_claiming_one_robot_name_are_refused_naming_both(tmp_path: Path) -> None:
     for name in ("a_ur10.yaml", "b_ur10.yaml"):
         _config(tmp_path).rename(tmp_path / name)
-    with pytest.raises(LibraryError, match=r"b_ur10\.yaml: robot_name: robot robot_name 'ur10' is already used by .*a_ur10\.yaml"):
+    with pytest.raises(
+        LibraryError, match=r"b_ur10\.yaml: robot_name: robot robot_name 'ur10' is already used by .*a_ur10\.yaml"
+    ):
         load_robot_configs(tmp_path)

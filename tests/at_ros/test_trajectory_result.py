@@ -12,20 +12,26 @@ from typing import Any
 
 import pytest
 from action_msgs.msg import GoalStatus
+from caretaker_sim_msgs.action import FollowJointTrajectory
 from rclpy.task import Future
 
 from at_ros import plan_execute
 from at_ros.plan_execute import reached, trajectory_result
 from at_ros.server_core import CommandRefused
-from caretaker_sim_msgs.action import FollowJointTrajectory
 
-REACHED = SimpleNamespace(status=GoalStatus.STATUS_SUCCEEDED,
-                          result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""))
-NOTHING_MOVED = SimpleNamespace(status=GoalStatus.STATUS_CANCELED,
-                                result=SimpleNamespace(error_code=-7, error_string="cancelled before it started: nothing moved"))
+REACHED = SimpleNamespace(
+    status=GoalStatus.STATUS_SUCCEEDED,
+    result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""),
+)
+NOTHING_MOVED = SimpleNamespace(
+    status=GoalStatus.STATUS_CANCELED,
+    result=SimpleNamespace(error_code=-7, error_string="cancelled before it started: nothing moved"),
+)
 #: How ros2_controllers' controller ends a goal cancelled mid-motion: code SUCCESSFUL, status CANCELED.
-STOPPED_SHORT = SimpleNamespace(status=GoalStatus.STATUS_CANCELED,
-                                result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""))
+STOPPED_SHORT = SimpleNamespace(
+    status=GoalStatus.STATUS_CANCELED,
+    result=SimpleNamespace(error_code=FollowJointTrajectory.Goal.SUCCESSFUL, error_string=""),
+)
 
 
 class GoalHandle:
@@ -69,8 +75,11 @@ def test_a_result_whose_answer_was_lost_is_asked_for_again() -> None:
 
 def test_a_goal_with_no_result_in_time_is_cancelled_and_its_answer_says_nothing_moved() -> None:
     handle = GoalHandle([None] * 1000, after_cancel=[NOTHING_MOVED])
-    with pytest.raises(CommandRefused, match=r"^the trajectory action gave no result within 0 s, so its goal was "
-                                             r"cancelled: cancelled before it started: nothing moved$"):
+    with pytest.raises(
+        CommandRefused,
+        match=r"^the trajectory action gave no result within 0 s, so its goal was "
+        r"cancelled: cancelled before it started: nothing moved$",
+    ):
         trajectory_result(handle, timeout=0.2)
     assert handle.cancelled
 
@@ -83,8 +92,11 @@ def test_a_goal_that_finished_as_it_was_cancelled_is_a_success() -> None:
 
 def test_a_goal_that_never_answers_even_once_cancelled_is_not_known_to_have_stopped() -> None:
     handle = GoalHandle([None] * 1000)
-    with pytest.raises(CommandRefused, match=r"^the trajectory action did not answer within 0 s, nor 0 s after its "
-                                             r"goal was cancelled: whether the arm moves is not known; halt it and check$"):
+    with pytest.raises(
+        CommandRefused,
+        match=r"^the trajectory action did not answer within 0 s, nor 0 s after its "
+        r"goal was cancelled: whether the arm moves is not known; halt it and check$",
+    ):
         trajectory_result(handle, timeout=0.2)
     assert handle.cancelled
     assert handle.requests and all(request.cancelled() for request in handle.requests)
@@ -93,5 +105,7 @@ def test_a_goal_that_never_answers_even_once_cancelled_is_not_known_to_have_stop
 def test_a_goal_cancelled_mid_motion_is_never_a_success_whatever_its_code() -> None:
     assert not reached(STOPPED_SHORT) and reached(REACHED)
     handle = GoalHandle([None] * 1000, after_cancel=[STOPPED_SHORT])
-    with pytest.raises(CommandRefused, match=r"goal was cancelled: cancelled \(error code 0\): the arm stopped short of the waypoint$"):
+    with pytest.raises(
+        CommandRefused, match=r"goal was cancelled: cancelled \(error code 0\): the arm stopped short of the waypoint$"
+    ):
         trajectory_result(handle, timeout=0.3)

@@ -10,11 +10,11 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pybullet as p
 import pytest
+from affordance_template_msgs.srv import GetPlan
 from geometry_msgs.msg import Pose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from affordance_template_msgs.srv import GetPlan
 from at_ros.messages import matrix_from_pose
 from at_ros.robot_config import load_robot_configs
 from at_ros.transforms import from_xyz_rpy
@@ -48,10 +48,18 @@ def _forward(joints: list[str], positions: list[float], link: str) -> np.ndarray
     """The link's pose in the robot's root frame: the UR10's URDF in a pybullet client of our own."""
     client = p.connect(p.DIRECT)
     try:
-        robot = p.loadURDF(str(load_robot_configs()["ur10"].urdf), [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=client)
-        index = {p.getJointInfo(robot, j, physicsClientId=client)[1].decode(): j for j in range(p.getNumJoints(robot, physicsClientId=client))}
-        links = {p.getJointInfo(robot, j, physicsClientId=client)[12].decode(): j for j in range(p.getNumJoints(robot, physicsClientId=client))}
-        for name, q in zip(joints, positions):
+        robot = p.loadURDF(
+            str(load_robot_configs()["ur10"].urdf), [0, 0, 0], [0, 0, 0, 1], useFixedBase=True, physicsClientId=client
+        )
+        index = {
+            p.getJointInfo(robot, j, physicsClientId=client)[1].decode(): j
+            for j in range(p.getNumJoints(robot, physicsClientId=client))
+        }
+        links = {
+            p.getJointInfo(robot, j, physicsClientId=client)[12].decode(): j
+            for j in range(p.getNumJoints(robot, physicsClientId=client))
+        }
+        for name, q in zip(joints, positions, strict=False):
             p.resetJointState(robot, index[name], q, physicsClientId=client)
         state = p.getLinkState(robot, links[link], computeForwardKinematics=True, physicsClientId=client)
         pose = Pose()
@@ -76,14 +84,22 @@ def test_template_status_gives_display_objects_and_waypoints_in_the_frame_asked(
     added = at.call("add_template", class_type="cdra_filter")
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}", _pose(OFFSET)).success
-        in_filter = at.call("get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id=f"filter/{DIRTY}").affordance_template_status[0]
+        in_filter = at.call(
+            "get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id=f"filter/{DIRTY}"
+        ).affordance_template_status[0]
         obj = in_filter.object_info[0]
         assert obj.object_name == f"cdra_filter:{added.id}" and obj.object_pose.header.frame_id == f"filter/{DIRTY}"
         assert _close(matrix_from_pose(obj.object_pose.pose), OFFSET, 1e-3, 1e-3)
         assert obj.type == "box" and (obj.size.x, obj.size.y, obj.size.z) == pytest.approx((0.2, 0.14, 0.1))
-        assert list(obj.rgba) == pytest.approx([0.2, 0.9, 0.3, 0.5]) and list(obj.controls) == [True] * 6 and obj.parent == ""
+        assert (
+            list(obj.rgba) == pytest.approx([0.2, 0.9, 0.3, 0.5])
+            and list(obj.controls) == [True] * 6
+            and obj.parent == ""
+        )
         filter_world = matrix_from_pose(at.fresh_frames()[f"filter/{DIRTY}"])
-        in_world = at.call("get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id="world").affordance_template_status[0]
+        in_world = at.call(
+            "get_template_status", name=added.instance, trajectory_name="grasp_and_pull", frame_id="world"
+        ).affordance_template_status[0]
         assert in_world.object_info[0].object_pose.header.frame_id == "world"
         assert _close(matrix_from_pose(in_world.object_info[0].object_pose.pose), filter_world @ OFFSET, 1e-3, 1e-3)
         info = in_world.waypoint_info[0]
@@ -114,10 +130,15 @@ def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at) -> None
         points = plan.trajectory.points
         assert list(plan.trajectory.joint_names) == ARM and len(points) > 4
         times = [pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in points]
-        assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:]))
+        assert times[0] == 0.0 and all(b > a for a, b in zip(times, times[1:], strict=False))
         assert list(plan.waypoint_names) == [f"0.{i}:{name}" for i in range(4)]
         indices = list(plan.waypoint_point_index)
-        assert len(indices) == 4 and all(0 <= i < len(points) for i in indices) and indices == sorted(indices) and indices[-1] == len(points) - 1
+        assert (
+            len(indices) == 4
+            and all(0 <= i < len(points) for i in indices)
+            and indices == sorted(indices)
+            and indices[-1] == len(points) - 1
+        )
         assert list(plan.end_effector_poses) == ["open", "open", "closed", "closed"]
 
         # The end pose is the tool link at the last point, in the robot's frame ...
@@ -125,9 +146,13 @@ def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at) -> None
         end = matrix_from_pose(plan.end_pose.pose)
         assert _close(_forward(ARM, list(points[-1].positions), "tool0"), end, 1e-4, 1e-4)
         # ... at the last waypoint, and each waypoint's point is where the tool reaches it.
-        status = at.call("get_template_status", name=name, trajectory_name="grasp_and_pull", frame_id="robot_base").affordance_template_status[0]
-        for index, waypoint in zip(indices, status.waypoint_info[0].waypoint_poses):
-            assert _close(_forward(ARM, list(points[index].positions), "tool0"), matrix_from_pose(waypoint.pose), 1e-3, 5e-3)
+        status = at.call(
+            "get_template_status", name=name, trajectory_name="grasp_and_pull", frame_id="robot_base"
+        ).affordance_template_status[0]
+        for index, waypoint in zip(indices, status.waypoint_info[0].waypoint_poses, strict=False):
+            assert _close(
+                _forward(ARM, list(points[index].positions), "tool0"), matrix_from_pose(waypoint.pose), 1e-3, 5e-3
+            )
 
         again = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="grasp_and_pull")
         assert again.success
@@ -161,18 +186,27 @@ def test_stepping_waypoint_by_waypoint_previews_and_runs_each_step(at) -> None:
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", "rack/slot_3").success
         for k in range(4):
-            step = at.call("plan_command", type="cdra_filter", id=added.id, trajectory_name="insert_and_release", steps=[1])
+            step = at.call(
+                "plan_command", type="cdra_filter", id=added.id, trajectory_name="insert_and_release", steps=[1]
+            )
             assert step.success and f"waypoints [{k}]" in step.message, step.message
             preview = at.call("get_plan", name=name, trajectory_name="insert_and_release")
             assert list(preview.waypoint_names) == [f"0.{k}:{name}"] and preview.valid
-            assert len(preview.waypoint_point_index) == 1 and preview.waypoint_point_index[0] == len(preview.trajectory.points) - 1
+            assert (
+                len(preview.waypoint_point_index) == 1
+                and preview.waypoint_point_index[0] == len(preview.trajectory.points) - 1
+            )
             here = [at.joint(j) for j in ARM]
-            assert max(abs(a - b) for a, b in zip(preview.trajectory.points[0].positions, here)) < 0.02
+            assert max(abs(a - b) for a, b in zip(preview.trajectory.points[0].positions, here, strict=False)) < 0.02
             done = at.call("execute_command", type="cdra_filter", id=added.id, trajectory_name="insert_and_release")
             assert done.success, done.message
-            status = at.call("get_template_status", name=name, trajectory_name="insert_and_release").affordance_template_status[0]
+            status = at.call(
+                "get_template_status", name=name, trajectory_name="insert_and_release"
+            ).affordance_template_status[0]
             assert status.waypoint_info[0].waypoint_index == k
-            assert at.call("get_plan", name=name, trajectory_name="insert_and_release").state == GetPlan.Response.EXECUTED
+            assert (
+                at.call("get_plan", name=name, trajectory_name="insert_and_release").state == GetPlan.Response.EXECUTED
+            )
         at.wait_for(lambda: at.held_object == "", 10, "gripper empty")
         frames = at.fresh_frames()
         seated = matrix_from_pose(frames[f"filter/{DIRTY}"])[:3, 3] - matrix_from_pose(frames["rack/slot_3"])[:3, 3]

@@ -77,9 +77,22 @@ class Flight:
     def run(self, *extra: str) -> ManagedProcess:
         """``caretaker run`` of the IVA procedure in the ground namespace, autonomous and unattended."""
         return self.hosts.caretaker(
-            self.hosts.ground, "run", str(PROCEDURE), "--binding", str(self.binding), "--auto", "--user", "flight",
-            "--db", self.db_url, "--confirm-manual", f"--set=clean_filter_id={CLEAN_FILTER}", *extra,
-            ready=r"^READY run ", timeout=180)
+            self.hosts.ground,
+            "run",
+            str(PROCEDURE),
+            "--binding",
+            str(self.binding),
+            "--auto",
+            "--user",
+            "flight",
+            "--db",
+            self.db_url,
+            "--confirm-manual",
+            f"--set=clean_filter_id={CLEAN_FILTER}",
+            *extra,
+            ready=r"^READY run ",
+            timeout=180,
+        )
 
     def events(self, run_id: str) -> list[Event]:
         audit = AuditLog(self.db_url)
@@ -90,8 +103,9 @@ class Flight:
 
     def goals(self) -> list[tuple[str, int]]:
         """Every arm trajectory goal that ended on the habitat: (id, status)."""
-        return [(words[1], int(words[2])) for words in (line.split() for line in self.probe.output)
-                if words[:1] == ["GOAL"]]
+        return [
+            (words[1], int(words[2])) for words in (line.split() for line in self.probe.output) if words[:1] == ["GOAL"]
+        ]
 
     def await_execution(self, trajectory: str, timeout: float = RUN_TIMEOUT_S) -> str:
         """Block until the habitat's AT server executes ``trajectory``; return the probe's line."""
@@ -114,13 +128,19 @@ class Flight:
         return self.habitat
 
     def _habitat_pids(self) -> list[int]:
-        listed = subprocess.run(["ip", "netns", "pids", self.hosts.habitat.namespace], capture_output=True,
-                                text=True, check=True, timeout=30).stdout.split()
+        listed = subprocess.run(
+            ["ip", "netns", "pids", self.hosts.habitat.namespace],
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=30,
+        ).stdout.split()
         return [int(pid) for pid in listed]
 
 
-def write_ground_binding(folder: Path, url: str, credentials: dict[str, Path], *, one_way_delay: float,
-                         outage_budget: float) -> Path:
+def write_ground_binding(
+    folder: Path, url: str, credentials: dict[str, Path], *, one_way_delay: float, outage_budget: float
+) -> Path:
     """The shipped ground binding with this flight's URL, link and credentials (paths made absolute)."""
     data = yaml.safe_load(GROUND_BINDING.read_text())
     data["rosbridge"] = url
@@ -133,34 +153,59 @@ def write_ground_binding(folder: Path, url: str, credentials: dict[str, Path], *
     return path
 
 
-def start_habitat(hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *,
-                  time_scale: str) -> Habitat:
+def start_habitat(
+    hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *, time_scale: str
+) -> Habitat:
     """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret."""
     deployment = write_deployment(
-        hosts.folder, "iva-habitat",
-        bridge={"address": "0.0.0.0", "port": BRIDGE_PORT, "certfile": str(credentials["bridge.pem"]),
-                "keyfile": str(credentials["bridge.key"]), "auth_secret_file": str(credentials["rosbridge.secret"])},
-        state_dir=str(state_dir), bindings=[str(binding)])
-    up = hosts.caretaker(hosts.habitat, "up", str(deployment), "--bridge-address", hosts.habitat.address,
-                         "--time-scale", time_scale, ready=r"^READY stack ", timeout=240)
+        hosts.folder,
+        "iva-habitat",
+        bridge={
+            "address": "0.0.0.0",
+            "port": BRIDGE_PORT,
+            "certfile": str(credentials["bridge.pem"]),
+            "keyfile": str(credentials["bridge.key"]),
+            "auth_secret_file": str(credentials["rosbridge.secret"]),
+        },
+        state_dir=str(state_dir),
+        bindings=[str(binding)],
+    )
+    up = hosts.caretaker(
+        hosts.habitat,
+        "up",
+        str(deployment),
+        "--bridge-address",
+        hosts.habitat.address,
+        "--time-scale",
+        time_scale,
+        ready=r"^READY stack ",
+        timeout=240,
+    )
     return Habitat(up, state_dir)
 
 
 @contextlib.contextmanager
-def flight(ros_env: dict[str, str], *, delay: float, link_options: Sequence[str] = (), time_scale: str = "1",
-           outage_budget: float = 120.0) -> Iterator[Flight]:
+def flight(
+    ros_env: dict[str, str],
+    *,
+    delay: float,
+    link_options: Sequence[str] = (),
+    time_scale: str = "1",
+    outage_budget: float = 120.0,
+) -> Iterator[Flight]:
     """Both hosts up, the link between them, nothing run yet; everything stopped and removed after."""
     with TwoHosts.create(ros_env) as hosts:
-        credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address],
-                                            days=2)
+        credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address], days=2)
         link_url = f"wss://{hosts.link.address}:{BRIDGE_PORT}"
-        binding = write_ground_binding(hosts.folder, link_url, credentials, one_way_delay=delay,
-                                       outage_budget=outage_budget)
+        binding = write_ground_binding(
+            hosts.folder, link_url, credentials, one_way_delay=delay, outage_budget=outage_budget
+        )
         probe = hosts.python(hosts.habitat, str(PROBE), ready=r"^READY probe")
         habitat = start_habitat(hosts, credentials, binding, hosts.folder / "habitat-state", time_scale=time_scale)
         link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
-        yield Flight(hosts, habitat, probe, link, binding, f"sqlite:///{hosts.folder / 'audit.db'}", credentials,
-                     time_scale)
+        yield Flight(
+            hosts, habitat, probe, link, binding, f"sqlite:///{hosts.folder / 'audit.db'}", credentials, time_scale
+        )
 
 
 def result_of(run: ManagedProcess, timeout: float = RUN_TIMEOUT_S) -> tuple[str, str]:
@@ -176,8 +221,11 @@ def commands(events: list[Event]) -> list[tuple[Event, Event | None]]:
         if event.kind is EventKind.COMMAND_SENT:
             pairs.append((event, None))
         elif event.kind is EventKind.COMMAND_RESULT:
-            sent = next(i for i in range(len(pairs) - 1, -1, -1) if pairs[i][1] is None
-                        and pairs[i][0].instruction == event.instruction)
+            sent = next(
+                i
+                for i in range(len(pairs) - 1, -1, -1)
+                if pairs[i][1] is None and pairs[i][0].instruction == event.instruction
+            )
             pairs[sent] = (pairs[sent][0], event)
     return pairs
 
@@ -222,6 +270,9 @@ def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
 
 def assert_in_flight(events: list[Event], trajectory: str, moment: datetime) -> None:
     """``moment`` (a fault) fell while the ground waited for the first execution of ``trajectory``."""
-    sent, answer = next((s, a) for s, a in commands(events) if s.data["command"] == "execute_plan"
-                        and s.data["args"]["trajectory"] == trajectory)
+    sent, answer = next(
+        (s, a)
+        for s, a in commands(events)
+        if s.data["command"] == "execute_plan" and s.data["args"]["trajectory"] == trajectory
+    )
     assert answer is not None and sent.time < moment < answer.time, (sent.time, moment, answer and answer.time)

@@ -29,8 +29,9 @@ class HabitatProbe(Node):
         self.executing: tuple[str, str] | None = None
         self.ended: set[str] = set()
         self.create_subscription(ServerStatus, status_topic, self.on_status, 10)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        latched = QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
         self.create_subscription(GoalStatusArray, f"{action}/_action/status", self.on_goals, latched)
 
     def on_status(self, status: ServerStatus) -> None:

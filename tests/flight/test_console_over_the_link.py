@@ -41,9 +41,23 @@ def _serve(f: Flight) -> tuple[ManagedProcess, str]:
         accounts.add(OPERATOR, "operator", PASSWORD, name="Flight operator")
     finally:
         accounts.close()
-    serve = f.hosts.caretaker(f.hosts.ground, "serve", "--port", "0", "--db", db, "--procedures",
-                              str(REPO / "procedures"), "--bindings", str(bindings), "--rosbridge", f.url,
-                              "--reports", str(f.hosts.folder / "reports"), timeout=120)
+    serve = f.hosts.caretaker(
+        f.hosts.ground,
+        "serve",
+        "--port",
+        "0",
+        "--db",
+        db,
+        "--procedures",
+        str(REPO / "procedures"),
+        "--bindings",
+        str(bindings),
+        "--rosbridge",
+        f.url,
+        "--reports",
+        str(f.hosts.folder / "reports"),
+        timeout=120,
+    )
     return serve, serve.wait_ready().split()[-1]
 
 
@@ -68,8 +82,9 @@ def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tup
 
     f, url, chromium = ground
     with sync_playwright() as driver:
-        browser = driver.chromium.launch(executable_path=str(chromium), headless=True,
-                                         args=["--no-sandbox", "--disable-gpu", "--no-first-run"])
+        browser = driver.chromium.launch(
+            executable_path=str(chromium), headless=True, args=["--no-sandbox", "--disable-gpu", "--no-first-run"]
+        )
         try:
             page = browser.new_page(viewport={"width": 1500, "height": 1000})
             page.set_default_timeout(60_000)
@@ -82,8 +97,11 @@ def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tup
             page.check("#start-form input[name=mode][value=autonomous]")
             page.click("#start-button")
             # the start opens the PAX host's link to the habitat first: round trips of 2.6 s
-            page.wait_for_function("() => document.querySelector('#run-id').textContent"
-                                   " || document.querySelector('#start-error').textContent", timeout=180_000)
+            page.wait_for_function(
+                "() => document.querySelector('#run-id').textContent"
+                " || document.querySelector('#start-error').textContent",
+                timeout=180_000,
+            )
             assert not page.locator("#start-error").inner_text(), page.locator("#start-error").inner_text()
             expect(page.locator("#connection")).to_have_attribute("data-state", "open", timeout=LINK_MS)
             expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected", timeout=LINK_MS)

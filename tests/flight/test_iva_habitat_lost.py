@@ -28,11 +28,18 @@ def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str
         held = run.wait_for_line(r"outcome unknown|unknown outcome", 300)
         run_id = run.wait_for_line(r"^READY run ").split()[2]
         events = f.events(run_id)
-        pull = next(s for s, _ in commands(events) if s.data["command"] == "execute_plan"
-                    and s.data["args"]["trajectory"] == PULL_OUT)
+        pull = next(
+            s
+            for s, _ in commands(events)
+            if s.data["command"] == "execute_plan" and s.data["args"]["trajectory"] == PULL_OUT
+        )
         answers = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == pull.instruction]
         assert answers and all(a.data["outcome"] == "unknown" and a.data["success"] is None for a in answers), held
-        assert not [e for e in events if e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED)
-                    and e.instruction == pull.instruction]
+        assert not [
+            e
+            for e in events
+            if e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED)
+            and e.instruction == pull.instruction
+        ]
         assert events[-1].kind is EventKind.AWAITING_OPERATOR and "unknown" in events[-1].data["reason"]
         assert run.running, "it holds: no RESULT"

@@ -30,12 +30,48 @@ _PROBLEM_LINE = re.compile(r"[^\n]+:\d+(?::\d+)?: [^\n]+")
 
 #: Fragments that hit the interesting corners of XML and YAML parsers when spliced into a file.
 TOKENS: tuple[bytes, ...] = (
-    b'<!DOCTYPE p [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">]>', b"&a;", b"&nbsp;", b"&#0;",
-    b'<!DOCTYPE p SYSTEM "http://127.0.0.1:9/x.dtd">', b"</step>", b'<step title="x">', b"<step>" * 200, b"]]>",
-    b"<![CDATA[", b"<!--", b"-->", b'<?xml version="1.0" encoding="latin1"?>', b"\xff\xfe", b"\x00", b"\xc3",
-    b'="', b"'", b"<", b">", b"/>", b"${", b"${x.y}", b"\n", b"\t", b" " * 50,
-    b"&x:", b"*x", b"!!python/object:os.system", b"- [", b"]]", b"{{", b": : :", b"? ", b"---\n", b"1e999999",
-    b"nan", b".inf", b"-9999999999999999999999999", b'"\\u0000"', b"|\n", b">-\n",
+    b'<!DOCTYPE p [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">]>',
+    b"&a;",
+    b"&nbsp;",
+    b"&#0;",
+    b'<!DOCTYPE p SYSTEM "http://127.0.0.1:9/x.dtd">',
+    b"</step>",
+    b'<step title="x">',
+    b"<step>" * 200,
+    b"]]>",
+    b"<![CDATA[",
+    b"<!--",
+    b"-->",
+    b'<?xml version="1.0" encoding="latin1"?>',
+    b"\xff\xfe",
+    b"\x00",
+    b"\xc3",
+    b'="',
+    b"'",
+    b"<",
+    b">",
+    b"/>",
+    b"${",
+    b"${x.y}",
+    b"\n",
+    b"\t",
+    b" " * 50,
+    b"&x:",
+    b"*x",
+    b"!!python/object:os.system",
+    b"- [",
+    b"]]",
+    b"{{",
+    b": : :",
+    b"? ",
+    b"---\n",
+    b"1e999999",
+    b"nan",
+    b".inf",
+    b"-9999999999999999999999999",
+    b'"\\u0000"',
+    b"|\n",
+    b">-\n",
 )
 
 
@@ -78,10 +114,10 @@ def mutated(draw: st.DrawFn, seeds: Sequence[bytes]) -> bytes:
         at = draw(st.integers(0, len(data)))
         kind = draw(st.sampled_from(("cut", "copy", "token", "bytes", "flip")))
         if kind == "cut":
-            del data[at:at + draw(st.integers(1, 200))]
+            del data[at : at + draw(st.integers(1, 200))]
         elif kind == "copy":
             start = draw(st.integers(0, len(data)))
-            data[at:at] = data[start:start + draw(st.integers(1, 400))]
+            data[at:at] = data[start : start + draw(st.integers(1, 400))]
         elif kind == "token":
             data[at:at] = draw(st.sampled_from(TOKENS))
         elif kind == "bytes":
@@ -106,8 +142,13 @@ def _run(loader: Loader, strategy: st.SearchStrategy[bytes], examples: int) -> N
     root = _workspace(loader)
     target = root / f"fuzzed{loader.suffix}"
 
-    @settings(max_examples=examples, deadline=DEADLINE_MS, derandomize=False, database=None,
-              suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+    @settings(
+        max_examples=examples,
+        deadline=DEADLINE_MS,
+        derandomize=False,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+    )
     @given(strategy)
     def one(data: bytes) -> None:
         target.write_bytes(data)

@@ -132,8 +132,11 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         lines = {part.name: part.command(deployment, stack.run) for part in stack.parts}
     finally:
         stack.stop()
-    assert [p.name for p in PARTS if p.name != "link"] == list(lines) == ["sim", "planner", "at-server", "ledger",
-                                                                          "bridge"]
+    assert (
+        [p.name for p in PARTS if p.name != "link"]
+        == list(lines)
+        == ["sim", "planner", "at-server", "ledger", "bridge"]
+    )
     assert lines["ledger"][:3] == ["ledger", "--state-dir", str(stack.run.state_dir / "ledger")]
     assert lines["bridge"] == [
         "bridge",
@@ -156,9 +159,15 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         assert lines[part][1:5] == ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
         assert lines[part][lines[part].index("--namespace") :][:2] == ["--namespace", "/iva"]
     assert lines["at-server"][-2] == "--state-file"
-    assert lines["ledger"][7:] == ["--ros-args", "-r", "__ns:=/iva",
-                                   "-r", "/command_ledger/execute:=/iva/command_ledger/execute",
-                                   "-r", "/command_ledger/outcome:=/iva/command_ledger/outcome"]
+    assert lines["ledger"][7:] == [
+        "--ros-args",
+        "-r",
+        "__ns:=/iva",
+        "-r",
+        "/command_ledger/execute:=/iva/command_ledger/execute",
+        "-r",
+        "/command_ledger/outcome:=/iva/command_ledger/outcome",
+    ]
     assert stack.env["ROS_DOMAIN_ID"] == "42"
     assert stack.bridge_url == "wss://127.0.0.1:9443"
     with pytest.raises(StackFailed, match="unknown parts"):
@@ -166,40 +175,66 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
 
 
 def test_a_link_section_puts_an_emulated_link_in_front_of_the_bridge(tmp_path: Path) -> None:
-    path = write_deployment(tmp_path, "iva", link={"listen": "127.0.0.1:0", "delay": 1.3, "loss": 0.05,
-                                                   "down_kbps": 64, "up_kbps": 16, "seed": 7},
-                            ledger={"retain_hours": 24}, bridge={"address": "127.0.0.1", "port": 9090})
+    path = write_deployment(
+        tmp_path,
+        "iva",
+        link={"listen": "127.0.0.1:0", "delay": 1.3, "loss": 0.05, "down_kbps": 64, "up_kbps": 16, "seed": 7},
+        ledger={"retain_hours": 24},
+        bridge={"address": "127.0.0.1", "port": 9090},
+    )
     deployment = load_deployment(path, check_files=False)
     stack = Stack(deployment, time_scale=0.0, env={})
     try:
         lines = {part.name: part.command(deployment, stack.run) for part in stack.parts}
         assert list(lines)[-2:] == ["bridge", "link"]
         link = lines["link"]
-        assert link[:7] == ["link", "--listen", "127.0.0.1:0", "--to", "127.0.0.1:9090", "--control",
-                            str(stack.run.state_dir / "link.sock")]
+        assert link[:7] == [
+            "link",
+            "--listen",
+            "127.0.0.1:0",
+            "--to",
+            "127.0.0.1:9090",
+            "--control",
+            str(stack.run.state_dir / "link.sock"),
+        ]
         options = dict(zip(link[7::2], link[8::2], strict=True))
-        assert options == {"--delay": "1.3", "--jitter": "0.0", "--loss": "0.05", "--seed": "7", "--up-kbps": "16.0",
-                           "--down-kbps": "64.0"}
+        assert options == {
+            "--delay": "1.3",
+            "--jitter": "0.0",
+            "--loss": "0.05",
+            "--seed": "7",
+            "--up-kbps": "16.0",
+            "--down-kbps": "64.0",
+        }
         assert lines["ledger"][3:] == ["--retain-hours", "24.0", "--default-timeout", "10.0"]
         stack.run.link_port = 40000
         assert stack.url == "ws://127.0.0.1:40000" and stack.bridge_url == "ws://127.0.0.1:9090"
     finally:
         stack.stop()
-    for bad, problem in (({"listen": "nowhere"}, "is not HOST:PORT"), ({"listen": "h:1", "loss": 1.5}, "fraction"),
-                         ({"listen": "h:1", "dealy": 1}, "unknown key 'dealy'")):
+    for bad, problem in (
+        ({"listen": "nowhere"}, "is not HOST:PORT"),
+        ({"listen": "h:1", "loss": 1.5}, "fraction"),
+        ({"listen": "h:1", "dealy": 1}, "unknown key 'dealy'"),
+    ):
         with pytest.raises(DeploymentError, match=problem):
             load_deployment(write_deployment(tmp_path, "iva", link=bad), check_files=False)
 
 
 def test_robots_sharing_a_ros_graph_never_share_a_command_ledger(tmp_path: Path) -> None:
     binding = yaml.safe_load((REPO / "sysrep" / "bindings" / "iva.yaml").read_text())
-    binding["systems"] = [dict(s, sysrep=str(REPO / "sysrep" / Path(s["sysrep"]).name),
-                               namespace="/arm2" + s["namespace"]) for s in binding["systems"]]
+    binding["systems"] = [
+        dict(s, sysrep=str(REPO / "sysrep" / Path(s["sysrep"]).name), namespace="/arm2" + s["namespace"])
+        for s in binding["systems"]
+    ]
     (tmp_path / "binding.yaml").write_text(yaml.safe_dump(binding))
-    path = write_deployment(tmp_path, "iva", ros={"namespace": "/arm2"}, bindings=[str(tmp_path / "binding.yaml")],
-                            demo=None)
-    with pytest.raises(DeploymentError, match=r"looks for the command ledger in /, but this deployment's ledger is in "
-                                              r"/arm2 \(set ledger_namespace: /arm2 in the binding\)"):
+    path = write_deployment(
+        tmp_path, "iva", ros={"namespace": "/arm2"}, bindings=[str(tmp_path / "binding.yaml")], demo=None
+    )
+    with pytest.raises(
+        DeploymentError,
+        match=r"looks for the command ledger in /, but this deployment's ledger is in "
+        r"/arm2 \(set ledger_namespace: /arm2 in the binding\)",
+    ):
         load_deployment(path)
     binding["ledger_namespace"] = "/arm2"
     (tmp_path / "binding.yaml").write_text(yaml.safe_dump(binding))
@@ -227,8 +262,7 @@ def test_caretaker_up_refuses_a_broken_deployment_before_starting_anything(tmp_p
     proc = _caretaker("up", str(path))
     assert proc.returncode == 1
     assert (
-        proc.stderr.strip()
-        == f"caretaker up: {path}:2: scene: no such file: {tmp_path / 'nowhere.yaml'} "
+        proc.stderr.strip() == f"caretaker up: {path}:2: scene: no such file: {tmp_path / 'nowhere.yaml'} "
         f"('nowhere.yaml' relative to {tmp_path})"
     )
     assert _caretaker("up", "moon").stderr.startswith(

@@ -188,8 +188,9 @@ def test_packages_are_discovered_from_pyproject() -> None:
 def test_packages_import_only_what_the_order_allows() -> None:
     packages = package_graph(module_graph())
     assert set(packages) == set(MAY_IMPORT), "a package is missing from MAY_IMPORT (or gone)"
-    wrong = {package: sorted(used - MAY_IMPORT[package]) for package, used in packages.items()
-             if used - MAY_IMPORT[package]}
+    wrong = {
+        package: sorted(used - MAY_IMPORT[package]) for package, used in packages.items() if used - MAY_IMPORT[package]
+    }
     assert not wrong, f"imports against the package order: {wrong}"
 
 

@@ -13,8 +13,10 @@ TESTS = Path(__file__).resolve().parents[1]
 
 def test_a_claimed_domain_is_not_given_to_another_session_until_its_holder_ends() -> None:
     mine = claim_ros_domain(start=0)
-    other = (f"import sys; sys.path.insert(0, {str(TESTS)!r}); from support.ros_domain import claim_ros_domain; "
-             "print(claim_ros_domain(start=0))")
+    other = (
+        f"import sys; sys.path.insert(0, {str(TESTS)!r}); from support.ros_domain import claim_ros_domain; "
+        "print(claim_ros_domain(start=0))"
+    )
     first = subprocess.run([sys.executable, "-c", other], capture_output=True, text=True, timeout=30, check=True)
     second = subprocess.run([sys.executable, "-c", other], capture_output=True, text=True, timeout=30, check=True)
     assert int(first.stdout) != mine and int(first.stdout) in DOMAINS

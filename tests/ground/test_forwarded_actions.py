@@ -50,7 +50,8 @@ def test_a_request_is_performed_once_by_its_host_and_answered_to_the_asker(audit
         answer = asker.forward("run-1", "host-a", "bob", {"action": "pause"})
         assert answer == Answer(200, {"ok": True, "result": "pause by bob"})
         assert [(r.run_id, r.user, r.console, r.action) for r in performed] == [
-            ("run-1", "bob", "console host-b", {"action": "pause"})]
+            ("run-1", "bob", "console host-b", {"action": "pause"})
+        ]
     finally:
         feed.close()
         host.close()

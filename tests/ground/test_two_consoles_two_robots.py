@@ -75,8 +75,9 @@ class Ground:
             expect(row).to_contain_text(text, timeout=FORWARDED_MS)
         except AssertionError as failure:
             said = acting.locator("#action-error").inner_text()
-            raise self.failure(acting, f"the other console did not show {text!r}; the acting page said {said!r}",
-                               failure) from None
+            raise self.failure(
+                acting, f"the other console did not show {text!r}; the acting page said {said!r}", failure
+            ) from None
 
     def ended_in(self, page: Page, status: str) -> None:
         try:
@@ -87,8 +88,11 @@ class Ground:
 
     def failure(self, page: Page, what: str, failure: AssertionError) -> AssertionError:
         """``what`` went wrong, with what ``page`` shows of its run and what each process printed last."""
-        logs = {"console A": self.first.process, "console B": self.second.process,
-                **{f"robot {name}": up for name, up in self.robots.items()}}
+        logs = {
+            "console A": self.first.process,
+            "console B": self.second.process,
+            **{f"robot {name}": up for name, up in self.robots.items()},
+        }
         printed = "\n".join(f"--- {name} printed last:\n{process.tail(80)}" for name, process in logs.items())
         return AssertionError(f"{what}\n{failure}\n--- the page shows:\n{where_the_run_is(page)}\n{printed}")
 
@@ -103,14 +107,21 @@ def ground(
     with ExitStack() as stack:
         ups = {}
         for name, env in robots.items():  # both come up at once
-            ups[name] = caretaker("up", name, "--time-scale", "0", "--bridge-port", "0", "--verbose", env=env,
-                                  name=f"up-{name}")  # --verbose: each part's log, for a failure's message
+            ups[name] = caretaker(
+                "up", name, "--time-scale", "0", "--bridge-port", "0", "--verbose", env=env, name=f"up-{name}"
+            )  # --verbose: each part's log, for a failure's message
             stack.callback(ups[name].stop)
         urls = [f"{name}.yaml={up.wait_for_line(r'^READY stack ', 240).split()[-1]}" for name, up in ups.items()]
         consoles = []
         for name in ("console A", "console B"):
-            console = start_server(tmp, REPO / "procedures", database=database, rosbridge=urls,
-                                   cameras=["eva.yaml=ee_camera"], options=["--console", name])
+            console = start_server(
+                tmp,
+                REPO / "procedures",
+                database=database,
+                rosbridge=urls,
+                cameras=["eva.yaml=ee_camera"],
+                options=["--console", name],
+            )
             stack.callback(console.process.stop)
             consoles.append(console)
         yield Ground(consoles[0], consoles[1], ups)

@@ -19,8 +19,9 @@ class TerminalSession:
 
     def __init__(self, argv: list[str], env: dict[str, str]) -> None:
         self._master, slave = pty.openpty()
-        self.proc = subprocess.Popen(argv, env=env, stdin=slave, stdout=slave, stderr=slave,
-                                     start_new_session=True, close_fds=True)
+        self.proc = subprocess.Popen(
+            argv, env=env, stdin=slave, stdout=slave, stderr=slave, start_new_session=True, close_fds=True
+        )
         os.close(slave)
         self._text = ""
         self._seen = 0  # everything before this offset has been matched by expect()

@@ -46,29 +46,63 @@ def via_roslibpy(url: str) -> dict:
     ros = roslibpy.Ros(host=parsed.hostname, port=parsed.port)
     ros.run(30)
     try:
-        added = _roslibpy_call(ros, "add_template", "AddAffordanceTemplate", {"class_type": "cdra_filter", "hide_waypoints": False})
-        registered = _roslibpy_call(ros, "set_object_pose", "SetObjectPose", {"objects": [{
-            "type": "cdra_filter", "name": "cdra_filter", "id": added["id"],
-            "stamped_pose": {"header": {"frame_id": "cabinet/slot"}, "pose": {"orientation": {"w": 1.0}}}}]})
-        planned = _roslibpy_call(ros, "plan_command", "AffordanceTemplatePlanCommand",
-                                 {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"})
-        wrong = _roslibpy_call(ros, "plan_command", "AffordanceTemplatePlanCommand",
-                               {"type": "cdra_filter", "id": added["id"], "trajectory_name": "no_such_trajectory"})
+        added = _roslibpy_call(
+            ros, "add_template", "AddAffordanceTemplate", {"class_type": "cdra_filter", "hide_waypoints": False}
+        )
+        registered = _roslibpy_call(
+            ros,
+            "set_object_pose",
+            "SetObjectPose",
+            {
+                "objects": [
+                    {
+                        "type": "cdra_filter",
+                        "name": "cdra_filter",
+                        "id": added["id"],
+                        "stamped_pose": {"header": {"frame_id": "cabinet/slot"}, "pose": {"orientation": {"w": 1.0}}},
+                    }
+                ]
+            },
+        )
+        planned = _roslibpy_call(
+            ros,
+            "plan_command",
+            "AffordanceTemplatePlanCommand",
+            {"type": "cdra_filter", "id": added["id"], "trajectory_name": "grasp_and_pull"},
+        )
+        wrong = _roslibpy_call(
+            ros,
+            "plan_command",
+            "AffordanceTemplatePlanCommand",
+            {"type": "cdra_filter", "id": added["id"], "trajectory_name": "no_such_trajectory"},
+        )
         running = _roslibpy_call(ros, "get_running", "GetRunningAffordanceTemplates", {})
-        deleted = _roslibpy_call(ros, "delete_template", "DeleteAffordanceTemplate", {"class_type": "cdra_filter", "id": added["id"]})
+        deleted = _roslibpy_call(
+            ros, "delete_template", "DeleteAffordanceTemplate", {"class_type": "cdra_filter", "id": added["id"]}
+        )
     finally:
         ros.close()
     return {
-        "instance": added["instance"], "added": added["success"], "registered": registered["success"],
-        "planned": planned["success"], "plan_valid": planned["affordance_template_status"]["plan_valid"],
-        "unknown_trajectory_refused": not wrong["success"], "unknown_trajectory_message": wrong["message"],
-        "running_after_add": added["instance"] in running["templates"], "deleted": deleted["success"],
+        "instance": added["instance"],
+        "added": added["success"],
+        "registered": registered["success"],
+        "planned": planned["success"],
+        "plan_valid": planned["affordance_template_status"]["plan_valid"],
+        "unknown_trajectory_refused": not wrong["success"],
+        "unknown_trajectory_message": wrong["message"],
+        "running_after_add": added["instance"] in running["templates"],
+        "deleted": deleted["success"],
     }
 
 
 def via_roslibjs(url: str) -> dict:
-    run = subprocess.run(["node", str(REPO / "tests" / "js" / "at_sequence.mjs"), url],
-                         capture_output=True, text=True, timeout=300, check=False)
+    run = subprocess.run(
+        ["node", str(REPO / "tests" / "js" / "at_sequence.mjs"), url],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert run.returncode == 0, run.stderr[-2000:]
     return json.loads(run.stdout.strip().splitlines()[-1])
 
@@ -77,22 +111,38 @@ def via_pax_plugins(url: str) -> dict:
     from pride.pax_host import PaxHost
 
     with PaxHost(REPO / "sysrep" / "bindings" / "iva.yaml", rosbridge_url=url) as host:
-        added = host.execute("affordance_templates", "add_affordance_template",
-                             {"affordance_template": "cdra_filter", "hide_waypoints": False})
+        added = host.execute(
+            "affordance_templates",
+            "add_affordance_template",
+            {"affordance_template": "cdra_filter", "hide_waypoints": False},
+        )
         assert added.success, added.message
         instance = added.values["instance"]
-        registered = host.execute("affordance_templates", "set_display_object_pose", {
-            "affordance_template": instance, "id": added.values["id"], "display_object": "cdra_filter",
-            "frame": "cabinet/slot", **ZERO_POSE})
+        registered = host.execute(
+            "affordance_templates",
+            "set_display_object_pose",
+            {
+                "affordance_template": instance,
+                "id": added.values["id"],
+                "display_object": "cdra_filter",
+                "frame": "cabinet/slot",
+                **ZERO_POSE,
+            },
+        )
         # The status topic reports the plan a moment after the command's reply: await that message.
         plan_reported = threading.Event()
-        host.add_listener(lambda sysrep, item, value: item == "plan_valid" and value.value is True
-                          and plan_reported.set())
-        planned = host.execute("affordance_templates", "plan_trajectory",
-                               {"affordance_template": instance, "trajectory": "grasp_and_pull"})
+        host.add_listener(
+            lambda sysrep, item, value: item == "plan_valid" and value.value is True and plan_reported.set()
+        )
+        planned = host.execute(
+            "affordance_templates", "plan_trajectory", {"affordance_template": instance, "trajectory": "grasp_and_pull"}
+        )
         plan_valid = plan_reported.wait(10) and host.telemetry("affordance_templates", "plan_valid").value
-        wrong = host.execute("affordance_templates", "plan_trajectory",
-                             {"affordance_template": instance, "trajectory": "no_such_trajectory"})
+        wrong = host.execute(
+            "affordance_templates",
+            "plan_trajectory",
+            {"affordance_template": instance, "trajectory": "no_such_trajectory"},
+        )
         import roslibpy
 
         parsed = urlparse(url)
@@ -102,19 +152,29 @@ def via_pax_plugins(url: str) -> dict:
             running = _roslibpy_call(observer, "get_running", "GetRunningAffordanceTemplates", {})
         finally:
             observer.close()
-        deleted = host.execute("affordance_templates", "delete_affordance_template",
-                               {"affordance_template": "cdra_filter", "id": added.values["id"]})
+        deleted = host.execute(
+            "affordance_templates",
+            "delete_affordance_template",
+            {"affordance_template": "cdra_filter", "id": added.values["id"]},
+        )
     return {
-        "instance": instance, "added": added.success, "registered": registered.success,
-        "planned": planned.success, "plan_valid": plan_valid,
-        "unknown_trajectory_refused": not wrong.success, "unknown_trajectory_message": wrong.message,
-        "running_after_add": instance in running["templates"], "deleted": deleted.success,
+        "instance": instance,
+        "added": added.success,
+        "registered": registered.success,
+        "planned": planned.success,
+        "plan_valid": plan_valid,
+        "unknown_trajectory_refused": not wrong.success,
+        "unknown_trajectory_message": wrong.message,
+        "running_after_add": instance in running["templates"],
+        "deleted": deleted.success,
     }
 
 
 def test_three_clients_have_the_same_effect(bridge_url: str) -> None:
-    effects = {name: client(bridge_url) for name, client in
-               (("pax_plugins", via_pax_plugins), ("roslibpy", via_roslibpy), ("roslibjs", via_roslibjs))}
+    effects = {
+        name: client(bridge_url)
+        for name, client in (("pax_plugins", via_pax_plugins), ("roslibpy", via_roslibpy), ("roslibjs", via_roslibjs))
+    }
     for name, effect in effects.items():
         assert effect["added"] and effect["registered"] and effect["planned"], (name, effect)
         assert effect["plan_valid"] is True, (name, effect)

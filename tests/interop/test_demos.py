@@ -21,8 +21,18 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 def _demo(scenario: str, tmp_path: Path, env: dict[str, str]) -> list[str]:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     # As the README tells it: the shipped deployment file (the port 0: tests run side by side).
-    proc = caretaker("demo", str(REPO / "deployments" / f"{scenario}.yaml"), "--db", db, "--reports", str(tmp_path / "reports"),
-                     "--bridge-port", "0", env=env, name=f"demo-{scenario}")
+    proc = caretaker(
+        "demo",
+        str(REPO / "deployments" / f"{scenario}.yaml"),
+        "--db",
+        db,
+        "--reports",
+        str(tmp_path / "reports"),
+        "--bridge-port",
+        "0",
+        env=env,
+        name=f"demo-{scenario}",
+    )
     try:
         proc.proc.wait(timeout=420)
     finally:
@@ -37,7 +47,9 @@ def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) ->
     verified = [line for line in output if "verified:" in line]
     assert any("cabinet holds CDRA-F-0012, locked" in line for line in verified), output[-30:]
     assert any("dirty filter CDRA-F-0007 seated in rack/slot_3" in line for line in verified), output[-30:]
-    reports = [line.split("report: ", 1)[1] for line in output if "report: " in line and line.strip().startswith("report:")]
+    reports = [
+        line.split("report: ", 1)[1] for line in output if "report: " in line and line.strip().startswith("report:")
+    ]
     assert any(r.endswith(".html") and Path(r).is_file() for r in reports), output[-10:]
 
 

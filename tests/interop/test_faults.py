@@ -60,8 +60,20 @@ def robot(ros_env: dict[str, str]) -> Iterator[RobotSide]:
 
 
 def _run_argv(robot: RobotSide, db: str, *extra: str) -> list[str]:
-    return [str(VENV_BIN / "caretaker"), "run", "--binding", str(BINDING), "--rosbridge", robot.url,
-            "--user", "ops", "--db", db, f"--set=clean_filter_id={CLEAN_FILTER}", *extra]
+    return [
+        str(VENV_BIN / "caretaker"),
+        "run",
+        "--binding",
+        str(BINDING),
+        "--rosbridge",
+        robot.url,
+        "--user",
+        "ops",
+        "--db",
+        db,
+        f"--set=clean_filter_id={CLEAN_FILTER}",
+        *extra,
+    ]
 
 
 class StatusWatch:
@@ -75,8 +87,9 @@ class StatusWatch:
         self._ros.run(30)
         self._changed = threading.Condition()
         self._messages: list[dict] = []
-        self._topic = roslibpy.Topic(self._ros, "/affordance_template_server/status",
-                                     "affordance_template_msgs/msg/ServerStatus")
+        self._topic = roslibpy.Topic(
+            self._ros, "/affordance_template_server/status", "affordance_template_msgs/msg/ServerStatus"
+        )
         self._topic.subscribe(self._take)
 
     def _take(self, message: dict) -> None:
@@ -86,8 +99,9 @@ class StatusWatch:
 
     def wait_for(self, execute_status: str, trajectory: str, timeout: float = 120.0) -> None:
         def seen() -> bool:
-            return any(m["execute_status"] == execute_status and m["active_trajectory"] == trajectory
-                       for m in self._messages)
+            return any(
+                m["execute_status"] == execute_status and m["active_trajectory"] == trajectory for m in self._messages
+            )
 
         with self._changed:
             if not self._changed.wait_for(seen, timeout):
@@ -159,8 +173,10 @@ def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> No
         session.expect(rf"{re.escape(EXECUTE_PULL)}\s+OUTCOME UNKNOWN: execute_plan")
         session.expect(r"\[n\] record: it failed[^\n]*> ")
         events = _events(db, run_id)
-        assert not any(e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED)
-                       and e.instruction == EXECUTE_PULL for e in events), "an unknown outcome was decided"
+        assert not any(
+            e.kind in (EventKind.INSTRUCTION_COMPLETED, EventKind.INSTRUCTION_FAILED) and e.instruction == EXECUTE_PULL
+            for e in events
+        ), "an unknown outcome was decided"
         session.send("n")  # the operator sees the arm stopped with the filter in: record it as failed
         session.expect(r"what did you check on the robot\? > ")
         session.send("camera: the filter is still in its slot")
@@ -182,8 +198,9 @@ def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> No
 def _assert_pull_failed(events: list, reason: str) -> None:
     """The pull-out failed once, for ``reason`` (a regex), and nothing logged it as a success."""
     _assert_log_is_whole(events)
-    assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
-                   for e in events), "a pull-out that did not finish was logged as a success"
+    assert not any(
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success") for e in events
+    ), "a pull-out that did not finish was logged as a success"
     failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL]
     assert len(failed) == 1 and re.search(reason, failed[0].data["reason"]), failed
 
@@ -191,12 +208,20 @@ def _assert_pull_failed(events: list, reason: str) -> None:
 def _assert_pulled_again_and_completed(events: list) -> None:
     """The contingency step pulled the filter out after the operator's check, and the run went on to the end."""
     _assert_log_is_whole(events)
-    assert not any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success")
-                   for e in events), "the interrupted pull-out was logged as a success after all"
+    assert not any(
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success") for e in events
+    ), "the interrupted pull-out was logged as a success after all"
     numbers = [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED]
-    assert CHECK_AFTER_INTERRUPTION in numbers and "3.1" in numbers[numbers.index(CHECK_AFTER_INTERRUPTION):]
-    assert [e.actor for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == CHECK_AFTER_INTERRUPTION] == ["ops"]
-    assert any(e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL_AGAIN and e.data.get("success") for e in events)
+    assert CHECK_AFTER_INTERRUPTION in numbers and "3.1" in numbers[numbers.index(CHECK_AFTER_INTERRUPTION) :]
+    assert [
+        e.actor
+        for e in events
+        if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == CHECK_AFTER_INTERRUPTION
+    ] == ["ops"]
+    assert any(
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL_AGAIN and e.data.get("success")
+        for e in events
+    )
     assert not any(e.kind is EventKind.RETRY for e in events)
     assert events[-1].kind is EventKind.RUN_COMPLETED
 
@@ -204,8 +229,9 @@ def _assert_pulled_again_and_completed(events: list) -> None:
 def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: Path) -> None:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     status = StatusWatch(robot.url)
-    runner = caretaker("run", *_run_argv(robot, db, str(PROCEDURE), "--auto", "--confirm-manual")[2:],
-                       env=robot.env, name="runner")
+    runner = caretaker(
+        "run", *_run_argv(robot, db, str(PROCEDURE), "--auto", "--confirm-manual")[2:], env=robot.env, name="runner"
+    )
     try:
         run_id = runner.wait_ready(120).split()[2]
         status.wait_for("EXECUTING", "grasp_and_pull")  # the robot is pulling the filter out
@@ -220,8 +246,9 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
     assert any(e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL for e in before)
     assert not any(e.kind is EventKind.RUN_COMPLETED for e in before)
     # the command in flight is asked again with its key: the ledger answers its recorded outcome
-    resumed = caretaker("run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual")[2:],
-                        env=robot.env, name="resumed")
+    resumed = caretaker(
+        "run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual")[2:], env=robot.env, name="resumed"
+    )
     try:
         resumed.proc.wait(timeout=300)
     finally:

@@ -36,8 +36,12 @@ NAMESPACE = "/bench"  # the deployment's: this robot's topics and services live 
 
 
 def _git_status() -> str:
-    return subprocess.run(["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=all"],
-                          capture_output=True, text=True, check=True).stdout
+    return subprocess.run(
+        ["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=all"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
 
 
 @pytest.fixture
@@ -69,7 +73,10 @@ def _frames(url: str, timeout: float = 30.0) -> dict[str, tuple[float, float, fl
     finally:
         topic.unsubscribe()
         ros.close()
-    return {name: tuple(pose["position"][k] for k in "xyz") for name, pose in zip(received["names"], received["poses"], strict=True)}
+    return {
+        name: tuple(pose["position"][k] for k in "xyz")
+        for name, pose in zip(received["names"], received["poses"], strict=True)
+    }
 
 
 def test_the_wrist_range_excludes_the_ik_solution_nearest_the_start(robot_folder: Path) -> None:
@@ -88,7 +95,9 @@ def test_the_wrist_range_excludes_the_ik_solution_nearest_the_start(robot_folder
     scene = load_scene(robot_folder / "workbench.yaml")
     planning = build_planning_scene(config, collision_world(scene))
     try:
-        instance = TemplateInstance(load_template(robot_folder / "templates" / "relocate_part.json"), 0, config, np.eye(4))
+        instance = TemplateInstance(
+            load_template(robot_folder / "templates" / "relocate_part.json"), 0, config, np.eye(4)
+        )
         slot = scene.slots[SLOT_A].pose
         instance.register("part", Registration("world", np.eye(4), from_xyz_rpy(slot.xyz, slot.rpy)))
         trajectory = instance.trajectory("move_part")
@@ -105,10 +114,14 @@ def test_the_wrist_range_excludes_the_ik_solution_nearest_the_start(robot_folder
         planning.close()
 
 
-def test_a_robot_added_by_files_only_completes_a_procedure(robot_folder: Path, ros_env: dict[str, str], tmp_path: Path) -> None:
+def test_a_robot_added_by_files_only_completes_a_procedure(
+    robot_folder: Path, ros_env: dict[str, str], tmp_path: Path
+) -> None:
     before = _git_status()
     files = [robot_folder / name for name in ("deployment.yaml", "workbench.yaml", "bench_arm.yaml", "binding.yaml")]
-    check = caretaker("check", *map(str, files), str(robot_folder / "templates" / "relocate_part.json"), env=ros_env, name="check")
+    check = caretaker(
+        "check", *map(str, files), str(robot_folder / "templates" / "relocate_part.json"), env=ros_env, name="check"
+    )
     check.proc.wait(60)
     check.stop()
     assert check.proc.returncode == 0, check.tail()
@@ -118,8 +131,21 @@ def test_a_robot_added_by_files_only_completes_a_procedure(robot_folder: Path, r
         assert "READY stack bench " in up.process.tail()
         start = _frames(up.url)
         assert math.dist(start["filter/P-1"], start[SLOT_A]) < 0.01
-        run = caretaker("run", str(robot_folder / "relocate_part.xml"), "--binding", str(robot_folder / "binding.yaml"),
-                        "--rosbridge", up.url, "--auto", "--user", "integrator", "--db", db, env=ros_env, name="run")
+        run = caretaker(
+            "run",
+            str(robot_folder / "relocate_part.xml"),
+            "--binding",
+            str(robot_folder / "binding.yaml"),
+            "--rosbridge",
+            up.url,
+            "--auto",
+            "--user",
+            "integrator",
+            "--db",
+            db,
+            env=ros_env,
+            name="run",
+        )
         try:
             result = run.wait_for_line(r"^RESULT ", 400)
         finally:

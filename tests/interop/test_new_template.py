@@ -22,20 +22,48 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 LABEL_CHECK = {
     "name": "filter_label_check",
     "image": "package://at_ros/library/images/cdra_filter.png",
-    "display_objects": [{
-        "name": "filter", "shape": {"type": "box", "material": {"color": "blue", "rgba": [0.2, 0.3, 0.9, 0.5]},
-                                    "size": [0.2, 0.14, 0.1]},
-        "origin": {"xyz": [0, 0, 0], "rpy": [0, 0, 0]},
-        "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.3}}],
-    "end_effector_trajectory": [{
-        "name": "look_at_label",
-        "end_effector_group": [{"id": 0, "end_effector_waypoint": [
-            {"ee_pose": 0, "display_object": "filter", "planner_type": "JOINT",
-             "origin": {"xyz": [-0.35, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]}},
-            {"ee_pose": 0, "display_object": "filter", "planner_type": "CARTESIAN",
-             "origin": {"xyz": [-0.25, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]}},
-            {"ee_pose": 0, "display_object": "filter", "planner_type": "CARTESIAN",
-             "origin": {"xyz": [-0.40, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]}}]}]}],
+    "display_objects": [
+        {
+            "name": "filter",
+            "shape": {
+                "type": "box",
+                "material": {"color": "blue", "rgba": [0.2, 0.3, 0.9, 0.5]},
+                "size": [0.2, 0.14, 0.1],
+            },
+            "origin": {"xyz": [0, 0, 0], "rpy": [0, 0, 0]},
+            "controls": {"xyz": [True, True, True], "rpy": [True, True, True], "scale": 0.3},
+        }
+    ],
+    "end_effector_trajectory": [
+        {
+            "name": "look_at_label",
+            "end_effector_group": [
+                {
+                    "id": 0,
+                    "end_effector_waypoint": [
+                        {
+                            "ee_pose": 0,
+                            "display_object": "filter",
+                            "planner_type": "JOINT",
+                            "origin": {"xyz": [-0.35, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]},
+                        },
+                        {
+                            "ee_pose": 0,
+                            "display_object": "filter",
+                            "planner_type": "CARTESIAN",
+                            "origin": {"xyz": [-0.25, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]},
+                        },
+                        {
+                            "ee_pose": 0,
+                            "display_object": "filter",
+                            "planner_type": "CARTESIAN",
+                            "origin": {"xyz": [-0.40, 0.0, 0.0], "rpy": [0.0, 1.570796, 0.0]},
+                        },
+                    ],
+                }
+            ],
+        }
+    ],
 }
 
 PROCEDURE = """<?xml version="1.0" encoding="UTF-8"?>
@@ -83,8 +111,9 @@ def robot_side(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[Path, 
         yield library, stack.bridge_url
 
 
-def test_a_template_file_is_usable_from_a_procedure_at_once(robot_side: tuple[Path, str], tmp_path: Path,
-                                                             ros_env: dict[str, str]) -> None:
+def test_a_template_file_is_usable_from_a_procedure_at_once(
+    robot_side: tuple[Path, str], tmp_path: Path, ros_env: dict[str, str]
+) -> None:
     library, bridge_url = robot_side
     procedure = tmp_path / "filter_label_check.xml"
     procedure.write_text(PROCEDURE)
@@ -96,8 +125,21 @@ def test_a_template_file_is_usable_from_a_procedure_at_once(robot_side: tuple[Pa
     assert lint.proc.returncode == 0, lint.tail()
 
     db = f"sqlite:///{tmp_path / 'audit.db'}"
-    run = caretaker("run", str(procedure), "--binding", str(REPO / "sysrep" / "bindings" / "iva.yaml"),
-                    "--rosbridge", bridge_url, "--auto", "--user", "author", "--db", db, env=ros_env, name="run")
+    run = caretaker(
+        "run",
+        str(procedure),
+        "--binding",
+        str(REPO / "sysrep" / "bindings" / "iva.yaml"),
+        "--rosbridge",
+        bridge_url,
+        "--auto",
+        "--user",
+        "author",
+        "--db",
+        db,
+        env=ros_env,
+        name="run",
+    )
     try:
         result = run.wait_for_line(r"^RESULT ", 300)
     finally:

@@ -25,8 +25,14 @@ def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
         port = urlparse(up.url).port
         assert port
         # READY means each part is up, not that DDS has shown the AT server to the bridge yet
-        wait_until_discovered("127.0.0.1", port, "/affordance_template_server/status",
-                              "/affordance_template_server/add_template", "/affordance_template_server", timeout=60)
+        wait_until_discovered(
+            "127.0.0.1",
+            port,
+            "/affordance_template_server/status",
+            "/affordance_template_server/add_template",
+            "/affordance_template_server",
+            timeout=60,
+        )
         yield up.process, port
 
 
@@ -47,7 +53,9 @@ def _call(port: int, service: str, service_type: str, args: dict) -> dict:
         ros.close()
 
 
-def _call_until_answered(port: int, service: str, service_type: str, args: dict, attempts: int = 6) -> tuple[dict | None, list[str]]:
+def _call_until_answered(
+    port: int, service: str, service_type: str, args: dict, attempts: int = 6
+) -> tuple[dict | None, list[str]]:
     """Call until the service answers; the failures before that.
 
     A request sent in the first moments after a server restarts can be lost in DDS: the dead
@@ -66,16 +74,24 @@ def _call_until_answered(port: int, service: str, service_type: str, args: dict,
 
 def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
     up, port = stack
-    added = _call(port, "/affordance_template_server/add_template", "affordance_template_msgs/srv/AddAffordanceTemplate",
-                  {"class_type": "cdra_filter"})
+    added = _call(
+        port,
+        "/affordance_template_server/add_template",
+        "affordance_template_msgs/srv/AddAffordanceTemplate",
+        {"class_type": "cdra_filter"},
+    )
     assert added["success"], added
     old = _part(up, "at-server")
     old.send_signal(signal.SIGKILL)
     up.wait_for_line(r"^at-server died \(exit -9\); restarting it$", 30)
     up.wait_for_line(r"^restarted at-server: READY at-server ur10$", 120)
     assert _part(up, "at-server").pid != old.pid
-    running, failures = _call_until_answered(port, "/affordance_template_server/get_running",
-                                             "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    running, failures = _call_until_answered(
+        port,
+        "/affordance_template_server/get_running",
+        "affordance_template_msgs/srv/GetRunningAffordanceTemplates",
+        {},
+    )
     assert running is not None, f"get_running never answered after the restart: {failures}\n{up.tail(80)}"
     assert all("Timeout exceeded" in f for f in failures), failures  # answered as failures, never silence
     assert added["instance"] in running["templates"]
@@ -86,8 +102,12 @@ def test_a_dead_bridge_comes_back_on_the_port_it_picked(stack) -> None:
     up, port = stack
     _part(up, "bridge").send_signal(signal.SIGKILL)
     up.wait_for_line(rf"^restarted bridge: READY bridge ws://127\.0\.0\.1:{port}$", 120)
-    answer, failures = _call_until_answered(port, "/affordance_template_server/get_running",
-                                            "affordance_template_msgs/srv/GetRunningAffordanceTemplates", {})
+    answer, failures = _call_until_answered(
+        port,
+        "/affordance_template_server/get_running",
+        "affordance_template_msgs/srv/GetRunningAffordanceTemplates",
+        {},
+    )
     assert answer is not None and answer["success"], failures
 
 

@@ -34,9 +34,14 @@ class LedgerPeer(Node):
         self.counts_lock = threading.Lock()
         self.released = threading.Condition()
         self.releases = 0
-        for name, kind, callback in (("count", Trigger, self.count_callback), ("refuse", Trigger, self.refuse_callback),
-                                     ("hold", Trigger, self.hold_callback), ("release", Trigger, self.release_callback),
-                                     ("set", SetBool, self.set_callback), ("counts", Trigger, self.counts_callback)):
+        for name, kind, callback in (
+            ("count", Trigger, self.count_callback),
+            ("refuse", Trigger, self.refuse_callback),
+            ("hold", Trigger, self.hold_callback),
+            ("release", Trigger, self.release_callback),
+            ("set", SetBool, self.set_callback),
+            ("counts", Trigger, self.counts_callback),
+        ):
             self.create_service(kind, f"/ledger_test/{name}", callback, qos_profile=deep, callback_group=group)
 
     def _executed(self, name: str) -> int:

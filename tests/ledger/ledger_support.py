@@ -60,10 +60,20 @@ class LedgerClient:
             client.remove_pending_request(future)
             assert time.monotonic() < deadline, f"{client.srv_name} did not answer within {timeout} s"
 
-    def execute(self, key: str, service: str, *, epoch: str = "", type_: str = "", request_json: str = "",
-                timeout: float = 0.0, wait: float = 60.0) -> Any:
-        request = ExecuteOnce.Request(command_key=key, epoch=epoch, service=service, type=type_,
-                                      request_json=request_json, timeout=timeout)
+    def execute(
+        self,
+        key: str,
+        service: str,
+        *,
+        epoch: str = "",
+        type_: str = "",
+        request_json: str = "",
+        timeout: float = 0.0,
+        wait: float = 60.0,
+    ) -> Any:
+        request = ExecuteOnce.Request(
+            command_key=key, epoch=epoch, service=service, type=type_, request_json=request_json, timeout=timeout
+        )
         return self._call(self.execute_client, request, wait)
 
     def execute_async(self, key: str, service: str, *, epoch: str = "") -> Any:
@@ -110,12 +120,44 @@ def make_certificates(directory: Path) -> tuple[Path, Path, Path]:
     def openssl(*args: str) -> None:
         subprocess.run(["openssl", *args], cwd=directory, check=True, capture_output=True)
 
-    openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "ca.key", "-out", "ca.pem", "-days", "2",
-            "-subj", "/CN=Caretaker test CA", "-addext", "basicConstraints=critical,CA:TRUE",
-            "-addext", "keyUsage=critical,keyCertSign")
+    openssl(
+        "req",
+        "-x509",
+        "-newkey",
+        "rsa:2048",
+        "-nodes",
+        "-keyout",
+        "ca.key",
+        "-out",
+        "ca.pem",
+        "-days",
+        "2",
+        "-subj",
+        "/CN=Caretaker test CA",
+        "-addext",
+        "basicConstraints=critical,CA:TRUE",
+        "-addext",
+        "keyUsage=critical,keyCertSign",
+    )
     (directory / "san.ext").write_text("subjectAltName=IP:127.0.0.1\n")
-    openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", "key.pem", "-out", "bridge.csr",
-            "-subj", "/CN=127.0.0.1")
-    openssl("x509", "-req", "-in", "bridge.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-days", "2",
-            "-out", "cert.pem", "-extfile", "san.ext")
+    openssl(
+        "req", "-newkey", "rsa:2048", "-nodes", "-keyout", "key.pem", "-out", "bridge.csr", "-subj", "/CN=127.0.0.1"
+    )
+    openssl(
+        "x509",
+        "-req",
+        "-in",
+        "bridge.csr",
+        "-CA",
+        "ca.pem",
+        "-CAkey",
+        "ca.key",
+        "-CAcreateserial",
+        "-days",
+        "2",
+        "-out",
+        "cert.pem",
+        "-extfile",
+        "san.ext",
+    )
     return directory / "ca.pem", directory / "cert.pem", directory / "key.pem"

@@ -50,8 +50,9 @@ def test_a_duplicate_key_executes_once(start_ledger: StartLedger, client: Ledger
     assert client.outcome("run-a/9.9/1").state == "NOT_FOUND"
 
 
-def test_an_answer_of_failure_is_failed_and_recorded(start_ledger: StartLedger, client: LedgerClient,
-                                                     tmp_path: Path) -> None:
+def test_an_answer_of_failure_is_failed_and_recorded(
+    start_ledger: StartLedger, client: LedgerClient, tmp_path: Path
+) -> None:
     _, epoch = start_ledger(tmp_path)
     before = client.counts().get("refuse", 0)
     failed = client.execute("run-b/2.1/1", REFUSE, type_="std_srvs/srv/Trigger")
@@ -60,8 +61,9 @@ def test_an_answer_of_failure_is_failed_and_recorded(start_ledger: StartLedger, 
     assert client.counts()["refuse"] == before + 1
 
 
-def test_a_resend_during_the_call_joins_it(start_ledger: StartLedger, client: LedgerClient, peer: ManagedProcess,
-                                          tmp_path: Path) -> None:
+def test_a_resend_during_the_call_joins_it(
+    start_ledger: StartLedger, client: LedgerClient, peer: ManagedProcess, tmp_path: Path
+) -> None:
     ledger, epoch = start_ledger(tmp_path)
     before = client.counts().get("hold", 0)
     first = client.execute_async("run-c/3.1/1", HOLD)
@@ -76,8 +78,9 @@ def test_a_resend_during_the_call_joins_it(start_ledger: StartLedger, client: Le
     assert client.counts()["hold"] == before + 1
 
 
-def test_bad_requests_get_clear_answers_and_execute_nothing(start_ledger: StartLedger, client: LedgerClient,
-                                                            tmp_path: Path) -> None:
+def test_bad_requests_get_clear_answers_and_execute_nothing(
+    start_ledger: StartLedger, client: LedgerClient, tmp_path: Path
+) -> None:
     start_ledger(tmp_path)
     before = client.counts()
     cases = [
@@ -102,8 +105,9 @@ def test_bad_requests_get_clear_answers_and_execute_nothing(start_ledger: StartL
     assert reused.state == "REFUSED" and "already names another call" in reused.message
 
 
-def test_no_answer_in_time_is_unknown_until_the_answer_comes(start_ledger: StartLedger, client: LedgerClient,
-                                                             peer: ManagedProcess, tmp_path: Path) -> None:
+def test_no_answer_in_time_is_unknown_until_the_answer_comes(
+    start_ledger: StartLedger, client: LedgerClient, peer: ManagedProcess, tmp_path: Path
+) -> None:
     ledger, epoch = start_ledger(tmp_path)
     before = client.counts().get("hold", 0)
     late = client.execute("run-e/1/1", HOLD, timeout=1.0)
@@ -117,7 +121,8 @@ def test_no_answer_in_time_is_unknown_until_the_answer_comes(start_ledger: Start
 
 
 def test_a_restarted_ledger_keeps_outcomes_and_marks_interrupted_calls_unknown(
-        start_ledger: StartLedger, client: LedgerClient, peer: ManagedProcess, tmp_path: Path) -> None:
+    start_ledger: StartLedger, client: LedgerClient, peer: ManagedProcess, tmp_path: Path
+) -> None:
     ledger, epoch = start_ledger(tmp_path)
     before = client.counts()
     finished = client.execute("run-f/1/1", COUNT)
@@ -138,7 +143,8 @@ def test_a_restarted_ledger_keeps_outcomes_and_marks_interrupted_calls_unknown(
 
 
 def test_a_new_memory_has_a_new_epoch_and_never_runs_a_foreign_resend(
-        start_ledger: StartLedger, client: LedgerClient, tmp_path: Path) -> None:
+    start_ledger: StartLedger, client: LedgerClient, tmp_path: Path
+) -> None:
     old_ledger, old_epoch = start_ledger(tmp_path / "old")
     assert client.execute("run-g/1/1", COUNT).state == "SUCCEEDED"
     old_ledger.stop()

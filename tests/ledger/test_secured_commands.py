@@ -42,15 +42,26 @@ class Habitat:
         return process
 
     def start_bridge(self, port: str) -> ManagedProcess:
-        return self._start("bridge", "--port", port, "--certfile", str(self.cert), "--keyfile", str(self.key),
-                           "--auth-secret-file", str(self.secret))
+        return self._start(
+            "bridge",
+            "--port",
+            port,
+            "--certfile",
+            str(self.cert),
+            "--keyfile",
+            str(self.key),
+            "--auth-secret-file",
+            str(self.secret),
+        )
 
     def binding(self, *, secret: bool = True) -> Path:
         security = f"  ca_file: {self.ca.name}\n" + (f"  secret_file: {self.secret.name}\n" if secret else "")
         path = self.directory / ("binding.yaml" if secret else "binding-without-secret.yaml")
-        path.write_text(f"robot: habitat\nrosbridge: {self.url}\nlink:\n  outage_budget: 60\nsecurity:\n{security}"
-                        f"systems:\n- sysrep: {SYSREP}\n  plugins: [ros_convention]\n  namespace: /ledger_test\n"
-                        "  options: {call_timeout: 60}\n")
+        path.write_text(
+            f"robot: habitat\nrosbridge: {self.url}\nlink:\n  outage_budget: 60\nsecurity:\n{security}"
+            f"systems:\n- sysrep: {SYSREP}\n  plugins: [ros_convention]\n  namespace: /ledger_test\n"
+            "  options: {call_timeout: 60}\n"
+        )
         return path
 
     def stop(self) -> None:
@@ -96,11 +107,17 @@ def test_a_client_without_the_secret_is_refused(habitat: Habitat) -> None:
 
 
 def test_a_command_whose_connection_dies_mid_call_is_resent_and_runs_once(
-        habitat: Habitat, host: object, client: LedgerClient, peer: ManagedProcess) -> None:
+    habitat: Habitat, host: object, client: LedgerClient, peer: ManagedProcess
+) -> None:
     before = client.counts().get("hold", 0)
     results: list[object] = []
-    call = threading.Thread(target=lambda: results.append(host.execute(  # type: ignore[attr-defined]
-        "ledger_test", "hold", {}, key="run-s/2.1/1")))
+    call = threading.Thread(
+        target=lambda: results.append(
+            host.execute(  # type: ignore[attr-defined]
+                "ledger_test", "hold", {}, key="run-s/2.1/1"
+            )
+        )
+    )
     call.start()
     peer.wait_for_line(rf"^CALLED hold {before + 1}$", 60)
     habitat.bridge.kill()  # the connection drops with the command in flight

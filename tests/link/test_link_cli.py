@@ -36,11 +36,33 @@ def echo_port() -> Iterator[int]:
 
 
 def test_link_command_relays_with_delay_and_reports_through_its_control_socket(
-        echo_port: int, tmp_path: Path, ros_env: dict[str, str]) -> None:
+    echo_port: int, tmp_path: Path, ros_env: dict[str, str]
+) -> None:
     control_path = tmp_path / "link.sock"
-    link = caretaker("link", "--listen", "127.0.0.1:0", "--to", f"127.0.0.1:{echo_port}", "--delay", "0.1",
-                     "--jitter", "0.02", "--loss", "2%", "--down-kbps", "64", "--up-kbps", "16", "--seed", "7",
-                     "--outage", "hold:0.5@0", "--control", str(control_path), env=ros_env)
+    link = caretaker(
+        "link",
+        "--listen",
+        "127.0.0.1:0",
+        "--to",
+        f"127.0.0.1:{echo_port}",
+        "--delay",
+        "0.1",
+        "--jitter",
+        "0.02",
+        "--loss",
+        "2%",
+        "--down-kbps",
+        "64",
+        "--up-kbps",
+        "16",
+        "--seed",
+        "7",
+        "--outage",
+        "hold:0.5@0",
+        "--control",
+        str(control_path),
+        env=ros_env,
+    )
     try:
         ready = link.wait_ready(30)
         match = re.match(r"READY link 127\.0\.0\.1:(\d+) -> 127\.0\.0\.1:(\d+) \((.*)\) control (\S+)$", ready)
@@ -60,19 +82,21 @@ def test_link_command_relays_with_delay_and_reports_through_its_control_socket(
     assert "stopped: 13 bytes up, 13 bytes down, 1 connection(s)" in link.tail()
 
 
-@pytest.mark.parametrize("options, complaint", [
-    (["--delay", "-1"], "--delay -1.0: expected a number >= 0"),
-    (["--loss", "1.5"], "--loss 1.5: expected a number >= 0 and < 1"),
-    (["--loss", "lots"], "'lots' is not a fraction (0.05) or a percentage (5%)"),
-    (["--up-kbps", "0"], "--up-kbps/--down-kbps 0.0: expected a bit rate > 0"),
-    (["--outage", "pause:1@2"], "--outage 'pause:1@2': expected KIND:SECONDS@START"),
-    (["--to", "habitat"], "--to 'habitat': expected HOST:PORT"),
-    (["--seed", "x"], "argument --seed: invalid int value: 'x'"),
-    (["--bogus"], "unrecognized arguments: --bogus"),
-])
+@pytest.mark.parametrize(
+    "options, complaint",
+    [
+        (["--delay", "-1"], "--delay -1.0: expected a number >= 0"),
+        (["--loss", "1.5"], "--loss 1.5: expected a number >= 0 and < 1"),
+        (["--loss", "lots"], "'lots' is not a fraction (0.05) or a percentage (5%)"),
+        (["--up-kbps", "0"], "--up-kbps/--down-kbps 0.0: expected a bit rate > 0"),
+        (["--outage", "pause:1@2"], "--outage 'pause:1@2': expected KIND:SECONDS@START"),
+        (["--to", "habitat"], "--to 'habitat': expected HOST:PORT"),
+        (["--seed", "x"], "argument --seed: invalid int value: 'x'"),
+        (["--bogus"], "unrecognized arguments: --bogus"),
+    ],
+)
 def test_bad_options_give_one_line_that_names_them(options: list[str], complaint: str) -> None:
-    result = subprocess.run([str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True,
-                            timeout=60)
+    result = subprocess.run([str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=60)
     assert result.returncode == 2
     assert result.stdout == ""
     assert result.stderr.count("\n") == 1 and complaint in result.stderr, result.stderr
@@ -85,10 +109,13 @@ def test_an_address_in_use_or_a_bad_control_path_is_reported(tmp_path: Path) -> 
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         port = taken.getsockname()[1]
-        for options, complaint in [(["--listen", f"127.0.0.1:{port}"], "address already in use"),
-                                   (["--listen", "127.0.0.1:0", "--control", str(plain)], "is not a socket")]:
-            result = subprocess.run([str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True,
-                                    timeout=60)
+        for options, complaint in [
+            (["--listen", f"127.0.0.1:{port}"], "address already in use"),
+            (["--listen", "127.0.0.1:0", "--control", str(plain)], "is not a socket"),
+        ]:
+            result = subprocess.run(
+                [str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=60
+            )
             assert result.returncode == 1
             assert complaint in result.stderr and "Traceback" not in result.stderr, result.stderr
             assert "READY" not in result.stdout

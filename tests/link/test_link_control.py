@@ -72,18 +72,21 @@ def _raw(path: Path, payload: bytes) -> dict[str, object]:
             return answer
 
 
-@pytest.mark.parametrize("payload, complaint", [
-    (b"nonsense\n", "not JSON"),
-    (b"\xff\xfe\n", "not JSON"),
-    (b"[1, 2]\n", "expected a JSON object, got list"),
-    (b'{"stats": false}\n', "unknown request"),
-    (b'{"outage": "pause", "seconds": 1}\n', "unknown outage 'pause'"),
-    (b'{"outage": "hold", "seconds": -1}\n', "seconds -1: expected a number >= 0"),
-    (b'{"outage": "hold", "seconds": true}\n', "seconds True"),
-    (b'{"outage": "hold", "seconds": 1e999}\n', "seconds inf"),
-    (b'{"outage": "hold"}\n', "exactly the keys outage and seconds"),
-    (b"{" + b" " * MAX_REQUEST + b"}\n", f"longer than {MAX_REQUEST} bytes"),
-])
+@pytest.mark.parametrize(
+    "payload, complaint",
+    [
+        (b"nonsense\n", "not JSON"),
+        (b"\xff\xfe\n", "not JSON"),
+        (b"[1, 2]\n", "expected a JSON object, got list"),
+        (b'{"stats": false}\n', "unknown request"),
+        (b'{"outage": "pause", "seconds": 1}\n', "unknown outage 'pause'"),
+        (b'{"outage": "hold", "seconds": -1}\n', "seconds -1: expected a number >= 0"),
+        (b'{"outage": "hold", "seconds": true}\n', "seconds True"),
+        (b'{"outage": "hold", "seconds": 1e999}\n', "seconds inf"),
+        (b'{"outage": "hold"}\n', "exactly the keys outage and seconds"),
+        (b"{" + b" " * MAX_REQUEST + b"}\n", f"longer than {MAX_REQUEST} bytes"),
+    ],
+)
 def test_bad_requests_are_answered_and_change_nothing(tmp_path: Path, payload: bytes, complaint: str) -> None:
     path = tmp_path / "link.sock"
 

@@ -37,11 +37,19 @@ def test_certs_make_a_ca_a_bridge_certificate_for_every_host_and_a_secret(tmp_pa
     files = {p.name: p for p in (tmp_path / "link").iterdir()}
     assert set(files) == {"ca.pem", "ca.key", "bridge.pem", "bridge.key", "rosbridge.secret"}
     assert all(str(files[name]) in made.stdout for name in files)
-    verified = subprocess.run(["openssl", "verify", "-CAfile", str(files["ca.pem"]), str(files["bridge.pem"])],
-                              capture_output=True, text=True, check=False)
+    verified = subprocess.run(
+        ["openssl", "verify", "-CAfile", str(files["ca.pem"]), str(files["bridge.pem"])],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert verified.returncode == 0, verified.stdout + verified.stderr
-    san = subprocess.run(["openssl", "x509", "-in", str(files["bridge.pem"]), "-noout", "-ext", "subjectAltName"],
-                         capture_output=True, text=True, check=True).stdout
+    san = subprocess.run(
+        ["openssl", "x509", "-in", str(files["bridge.pem"]), "-noout", "-ext", "subjectAltName"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
     assert "IP Address:10.77.2.2" in san and "DNS:habitat.example" in san
     assert len(files["rosbridge.secret"].read_text().strip()) >= 32
     assert {oct(files[n].stat().st_mode & 0o777) for n in ("ca.key", "bridge.key", "rosbridge.secret")} == {"0o600"}

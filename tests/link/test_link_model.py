@@ -31,10 +31,17 @@ def test_addresses_parse_and_bad_ones_are_refused() -> None:
             parse_address("--to", bad)
 
 
-@pytest.mark.parametrize("options, option", [
-    ({"delay": -0.1}, "delay"), ({"jitter": float("inf")}, "jitter"), ({"loss": 1.0}, "loss"),
-    ({"loss": -0.01}, "loss"), ({"kbps": 0}, "kbps"), ({"kbps": float("nan")}, "kbps"),
-])
+@pytest.mark.parametrize(
+    "options, option",
+    [
+        ({"delay": -0.1}, "delay"),
+        ({"jitter": float("inf")}, "jitter"),
+        ({"loss": 1.0}, "loss"),
+        ({"loss": -0.01}, "loss"),
+        ({"kbps": 0}, "kbps"),
+        ({"kbps": float("nan")}, "kbps"),
+    ],
+)
 def test_direction_values_out_of_range_are_refused(options: dict[str, float], option: str) -> None:
     with pytest.raises(LinkOptionError) as error:
         DirectionConfig(**options)

@@ -48,7 +48,7 @@ def test_jitter_never_reorders_bytes() -> None:
             reader, writer = await asyncio.open_connection(*link.address)
             sent = b"".join(f"{index:05d};".encode() for index in range(400))
             for index in range(0, len(sent), 6):
-                writer.write(sent[index:index + 6])
+                writer.write(sent[index : index + 6])
                 await writer.drain()
             bulk = os.urandom(200_000)
             writer.write(bulk)
@@ -118,8 +118,10 @@ def test_loss_stalls_follow_the_seed() -> None:
 
     for seed in (5, 6):
         model = TcpModel(LinkConfig.symmetric(loss=0.15, seed=seed))
-        fates = {direction: [model.fate(direction, 1, start) for start in _segment_starts(message, count)]
-                 for direction in Direction}
+        fates = {
+            direction: [model.fate(direction, 1, start) for start in _segment_starts(message, count)]
+            for direction in Direction
+        }
         predicted = {direction: sum(1 for fate in fates[direction] if fate.losses) for direction in Direction}
         up, down, elapsed = run(lockstep(seed))
         assert (up, down) == (predicted[Direction.UP], predicted[Direction.DOWN])

@@ -57,8 +57,17 @@ class Scene:
 def scene(ros_env: dict[str, str]) -> Iterator[Scene]:
     with TwoHosts.create(ros_env) as hosts:
         hosts.python(hosts.habitat, str(PEER))
-        hosts.caretaker(hosts.habitat, "bridge", "--address", hosts.habitat.address, "--port", str(BRIDGE_PORT),
-                        "--service-timeout", "20", "--insecure")  # a test link: no TLS, no secret
+        hosts.caretaker(
+            hosts.habitat,
+            "bridge",
+            "--address",
+            hosts.habitat.address,
+            "--port",
+            str(BRIDGE_PORT),
+            "--service-timeout",
+            "20",
+            "--insecure",
+        )  # a test link: no TLS, no secret
         link = hosts.start_link(target_port=BRIDGE_PORT, delay=DELAY, options=["--seed", "1"])
         probe = hosts.folder / "probe.sock"
         hosts.python(hosts.ground, str(HERE / "ground_probe.py"), str(probe))

@@ -20,8 +20,10 @@ def test_teardown_removes_namespaces_and_processes_even_when_the_test_fails(ros_
         names = {hosts.ground.namespace, hosts.link.namespace, hosts.habitat.namespace}
         assert names <= _namespaces()
         sleeper = hosts.start(hosts.habitat, ["sleep", "600"], ready=None)
-        veths = {host.role: hosts.run(host, ["ip", "-o", "link", "show", "type", "veth"]).stdout.count("\n")
-                 for host in (hosts.ground, hosts.link, hosts.habitat)}
+        veths = {
+            host.role: hosts.run(host, ["ip", "-o", "link", "show", "type", "veth"]).stdout.count("\n")
+            for host in (hosts.ground, hosts.link, hosts.habitat)
+        }
         assert veths == {"ground": 1, "link": 2, "habitat": 1}
         assert hosts.run(hosts.ground, ["ip", "route"]).stdout.split()[0] == "10.77.1.0/24"  # no default route
         raise RuntimeError("the test failed")

@@ -1,6 +1,6 @@
 """Fixtures of the PAX suite: the real rosbridge server and the real IVA robot stack.
 
-Test modules import these fixtures by name: the suite has no conftest.py.
+tests/pax/conftest.py registers these fixtures for the PAX suite.
 """
 
 from __future__ import annotations
@@ -31,6 +31,5 @@ def stack(ros_env_module: dict[str, str]) -> Iterator[Stack]:
     # Time scale 4: executions take a quarter of real time; nothing here observes "while moving".
     # No command ledger: these tests drive the plugins' direct path (a loopback binding on a habitat
     # without a ledger); the ledger path is tested in tests/ledger and tests/flight.
-    with robot_parts("iva", ros_env_module, time_scale=4.0,
-                     parts=["sim", "planner", "at-server", "bridge"]) as stack:
+    with robot_parts("iva", ros_env_module, time_scale=4.0, parts=["sim", "planner", "at-server", "bridge"]) as stack:
         yield stack

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 from pax_probe import RobotProbe
-from pax_stack import BINDINGS, REPO, Stack, ros_env_module, stack  # noqa: F401 (fixtures used by name)
+from pax_stack import BINDINGS, REPO, Stack
 
 from pride.pax_host import PaxHost
 from pride.systems import TelemetryValue
@@ -89,8 +89,10 @@ class Changes:
                 if got[2].value == value and got[2].stale == stale:
                     return time.monotonic()
                 seen.append(got[2])
-        raise TimeoutError(f"{sysrep}.{item} did not become {value!r} (stale={stale}) within {timeout} s;"
-                           f" it reported {seen[-5:]}, now {self.host.telemetry(sysrep, item)} at {time.time():.3f}")
+        raise TimeoutError(
+            f"{sysrep}.{item} did not become {value!r} (stale={stale}) within {timeout} s;"
+            f" it reported {seen[-5:]}, now {self.host.telemetry(sysrep, item)} at {time.time():.3f}"
+        )
 
     def until(self, predicate, what: str, timeout: float = 10.0) -> None:
         """Block until ``predicate()`` (a read of PaxHost telemetry) holds, re-checking on each change."""

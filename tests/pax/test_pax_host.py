@@ -10,7 +10,7 @@ from pathlib import Path
 
 import jpype
 import pytest
-from pax_stack import REPO, ros_env_module  # noqa: F401 (fixtures used by name)
+from pax_stack import REPO
 
 import pride.jvm
 from pride.pax_host import PaxError, PaxHost, to_java, to_python

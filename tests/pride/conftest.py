@@ -110,15 +110,28 @@ def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[...,
     made: list[Executive] = []
     controls: list[RobotControl] = []
 
-    def make(mode: Mode = Mode.AUTONOMOUS, name: str = "lab_all_kinds.xml", gateway: LabGateway | None = None, *,
-             run_id: str = "run-1", control: RobotControl | bool = False, journal: RecordedJournal | None = None):
+    def make(
+        mode: Mode = Mode.AUTONOMOUS,
+        name: str = "lab_all_kinds.xml",
+        gateway: LabGateway | None = None,
+        *,
+        run_id: str = "run-1",
+        control: RobotControl | bool = False,
+        journal: RecordedJournal | None = None,
+    ):
         gateway = gateway or LabGateway(str(tmp_path / "images"))
         journal = journal or new_journal()
         if control is True:
             control = RobotControl(journal.log.url)
             controls.append(control)
-        executive = Executive(check_procedure(FIXTURES / name, sysreps), gateway, journal, run_id=run_id, mode=mode,
-                              control=control or None)
+        executive = Executive(
+            check_procedure(FIXTURES / name, sysreps),
+            gateway,
+            journal,
+            run_id=run_id,
+            mode=mode,
+            control=control or None,
+        )
         made.append(executive)
         return executive, gateway, journal
 

@@ -8,7 +8,7 @@ import sqlite3
 import subprocess
 import sys
 from dataclasses import replace
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta, timezone
 
 import psycopg
 import pytest
@@ -31,13 +31,24 @@ def test_records_come_back_in_order_with_their_data_and_utc_times(database: Audi
     log = AuditLog(database.url)
     log.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice", None, {"procedure": "p", "steps": [{"number": 1}]}))
     log.append(Event("run-b", 1, EventKind.RUN_STARTED, "bob", None, {"procedure": "q"}))
-    log.append(Event("run-a", 2, EventKind.COMMAND_SENT, PAX, "1.1", {"args": {"speed": 0.5, "ok": True}},
-                     datetime(2030, 1, 2, 3, 4, 5, 678901, tzinfo=timezone(timedelta(hours=2)))))
+    log.append(
+        Event(
+            "run-a",
+            2,
+            EventKind.COMMAND_SENT,
+            PAX,
+            "1.1",
+            {"args": {"speed": 0.5, "ok": True}},
+            datetime(2030, 1, 2, 3, 4, 5, 678901, tzinfo=timezone(timedelta(hours=2))),
+        )
+    )
     events = log.events("run-a")
     assert [(e.seq, e.kind, e.actor, e.instruction) for e in events] == [
-        (1, EventKind.RUN_STARTED, "alice", None), (2, EventKind.COMMAND_SENT, PAX, "1.1")]
+        (1, EventKind.RUN_STARTED, "alice", None),
+        (2, EventKind.COMMAND_SENT, PAX, "1.1"),
+    ]
     assert events[1].data == {"args": {"speed": 0.5, "ok": True}}
-    assert events[1].time == datetime(2030, 1, 2, 1, 4, 5, 678901, tzinfo=timezone.utc)
+    assert events[1].time == datetime(2030, 1, 2, 1, 4, 5, 678901, tzinfo=UTC)
     assert all(e.time.utcoffset() == timedelta(0) for e in events)
     assert [(run, proc) for run, _, proc in log.runs()] == [("run-a", "p"), ("run-b", "q")]
     log.close()
@@ -250,7 +261,7 @@ def _todays_log(url: str) -> None:
     )
     engine = create_engine(database_url(url))
     metadata.create_all(engine)
-    start = datetime(2026, 3, 4, 5, 6, 7, 123456, tzinfo=timezone.utc)
+    start = datetime(2026, 3, 4, 5, 6, 7, 123456, tzinfo=UTC)
     rows = [
         {
             "run_id": run,
@@ -285,7 +296,7 @@ def test_a_log_from_before_migrations_is_upgraded_in_place(new_database) -> None
         (2, EventKind.COMMAND_SENT, "move"),
         (3, EventKind.RUN_STOPPED, None),
     ]
-    assert events[0].time == datetime(2026, 3, 4, 5, 6, 8, 123456, tzinfo=timezone.utc)
+    assert events[0].time == datetime(2026, 3, 4, 5, 6, 8, 123456, tzinfo=UTC)
     assert log.verify("old-1").ok and log.verify("old-2").ok
     log.append(Event("old-1", 4, EventKind.RUN_RESUMED, "bob"))  # the old run goes on, in the same chain
     assert log.verify("old-1").ok and log.verify("old-1").events == 4

@@ -36,10 +36,12 @@ def outage(postgres: PostgresServer, audit_template: str) -> Iterator[PostgresSe
 
 def drive(executive: Executive, until: Callable[[Snapshot], bool]) -> Snapshot:
     """Answer every hold as the operator would until ``until`` holds or the run ends."""
-    answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
-               Hold.CONFIRMATION: lambda: executive.confirm("alice"),
-               Hold.OPERATOR_ACTION: lambda: executive.mark_done("alice"),
-               Hold.IN_FLIGHT: lambda: executive.retry("alice")}
+    answers = {
+        Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
+        Hold.CONFIRMATION: lambda: executive.confirm("alice"),
+        Hold.OPERATOR_ACTION: lambda: executive.mark_done("alice"),
+        Hold.IN_FLIGHT: lambda: executive.retry("alice"),
+    }
     while True:
         snap = executive.wait_for(lambda s: until(s) or s.hold is not None or s.status is not RunStatus.ACTIVE, TIMEOUT)
         assert snap is not None, "the run neither held, ended, nor reached the point awaited"
@@ -52,8 +54,9 @@ def capturing(snap: Snapshot) -> bool:
     return snap.executing and snap.current == "2.3"
 
 
-def start_run(url: str, tmp_path, sysreps, *,
-              budget: float) -> tuple[Executive, LabGateway, AuditLog, queue.Queue[tuple[Availability, int]]]:
+def start_run(
+    url: str, tmp_path, sysreps, *, budget: float
+) -> tuple[Executive, LabGateway, AuditLog, queue.Queue[tuple[Availability, int]]]:
     """A run held with ``capture`` in flight; the queue gets each availability change with the commands sent by then."""
     log = AuditLog(url, outage_budget=budget)
     gateway = LabGateway(str(tmp_path / "images"))
@@ -68,7 +71,8 @@ def start_run(url: str, tmp_path, sysreps, *,
 
 
 def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing_lost(
-        outage: PostgresServer, audit_template: str, tmp_path, sysreps, caplog) -> None:
+    outage: PostgresServer, audit_template: str, tmp_path, sysreps, caplog
+) -> None:
     url = outage.url(outage.new_database(template=audit_template), RUNNER)
     executive, gateway, log, states = start_run(url, tmp_path, sysreps, budget=120)
 
@@ -91,7 +95,7 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # no gap, nothing twice
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.3"]
     assert len(results) == 1 and results[0].data["success"] is True
-    after = [e.kind for e in events[events.index(results[0]) - 1:]]
+    after = [e.kind for e in events[events.index(results[0]) - 1 :]]
     assert after[:2] == [EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT]  # the waiting event kept its place
     assert Counter(c for _, c, _ in gateway.sent)["capture"] == 1
     check = log.verify("outage-run")
@@ -100,7 +104,8 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
 
 
 def test_an_outage_longer_than_the_budget_stops_the_run_with_the_reason_and_resume_completes_it(
-        outage: PostgresServer, audit_template: str, tmp_path, sysreps) -> None:
+    outage: PostgresServer, audit_template: str, tmp_path, sysreps
+) -> None:
     url = outage.url(outage.new_database(template=audit_template), RUNNER)
     executive, gateway, log, states = start_run(url, tmp_path, sysreps, budget=1.0)
 

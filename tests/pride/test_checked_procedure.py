@@ -23,9 +23,14 @@ from support.procedures import FIXTURES
 
 def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.MonkeyPatch) -> None:
     main = tmp_path / "twice.xml"
-    main.write_text((FIXTURES / "lab_all_kinds.xml").read_text().replace(
-        '<call procedure="lab_sub.xml">', '<call procedure="lab_sub.xml"><arg name="count">2</arg></call>\n'
-        '    <call procedure="lab_sub.xml">'))
+    main.write_text(
+        (FIXTURES / "lab_all_kinds.xml")
+        .read_text()
+        .replace(
+            '<call procedure="lab_sub.xml">',
+            '<call procedure="lab_sub.xml"><arg name="count">2</arg></call>\n    <call procedure="lab_sub.xml">',
+        )
+    )
     shutil.copy(FIXTURES / "lab_sub.xml", tmp_path / "lab_sub.xml")
     parsed: Counter[str] = Counter()
 
@@ -48,11 +53,14 @@ def test_a_run_runs_what_was_checked(tmp_path: Path, sysreps, new_journal) -> No
     gateway = LabGateway(str(tmp_path / "images"))
     executive = Executive(checked, gateway, new_journal(), run_id="r", mode=Mode.AUTONOMOUS)
     executive.start("ada")
-    answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("ada", "dock"),
-               Hold.CONFIRMATION: lambda: executive.confirm("ada"),
-               Hold.OPERATOR_ACTION: lambda: executive.mark_done("ada")}
-    while (snap := executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, 20)) \
-            and snap.status is RunStatus.ACTIVE:
+    answers = {
+        Hold.OPERATOR_INPUT: lambda: executive.enter("ada", "dock"),
+        Hold.CONFIRMATION: lambda: executive.confirm("ada"),
+        Hold.OPERATOR_ACTION: lambda: executive.mark_done("ada"),
+    }
+    while (
+        snap := executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, 20)
+    ) and snap.status is RunStatus.ACTIVE:
         answers[snap.hold]()
     executive.join(20)
     assert snap is not None and snap.status is RunStatus.COMPLETED, snap

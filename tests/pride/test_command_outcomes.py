@@ -36,21 +36,25 @@ def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the
     gateway.lose_reply["move"] = "link lost since 10:00:00Z, outage budget of 20 s spent"
     at_move(executive)
     snap = held(executive, Hold.OUTCOME_UNKNOWN, "1.3")
-    assert snap.reason == ("1.3: outcome of run-1/1.3/1 unknown: link lost since 10:00:00Z, outage budget of 20 s "
-                           "spent")
+    assert snap.reason == (
+        "1.3: outcome of run-1/1.3/1 unknown: link lost since 10:00:00Z, outage budget of 20 s spent"
+    )
     assert snap.unknown_key == "run-1/1.3/1" and snap.statuses["1.3"] is InstructionStatus.OUTCOME_UNKNOWN
-    result, = of(journal, EventKind.COMMAND_RESULT, "1.3")
+    (result,) = of(journal, EventKind.COMMAND_RESULT, "1.3")
     assert (result.data["outcome"], result.data["success"], result.data["key"]) == ("unknown", None, "run-1/1.3/1")
     assert not of(journal, EventKind.INSTRUCTION_FAILED) and not of(journal, EventKind.INSTRUCTION_COMPLETED, "1.3")
-    for refused in (lambda: executive.retry("alice"), lambda: executive.perform("alice"),
-                    lambda: executive.go_back("alice", "1.2", "redo")):
+    for refused in (
+        lambda: executive.retry("alice"),
+        lambda: executive.perform("alice"),
+        lambda: executive.go_back("alice", "1.2", "redo"),
+    ):
         with pytest.raises(OperatorActionError, match=r"outcome of run-1/1\.3/1 is unknown: ask again"):
             refused()
 
     executive.ask_again("alice")
     held(executive, Hold.CONFIRMATION, "2.1")
     assert [c for _, c, _ in gateway.sent].count("move") == 1 and gateway.resent == ["run-1/1.3/1"]
-    asked, = of(journal, EventKind.RETRY, "1.3")
+    (asked,) = of(journal, EventKind.RETRY, "1.3")
     assert (asked.actor, asked.data["same_key"], asked.data["key"]) == ("alice", True, "run-1/1.3/1")
     resend = of(journal, EventKind.COMMAND_SENT, "1.3")[-1]
     assert (resend.actor, resend.data["key"], resend.data["resend"]) == ("alice", "run-1/1.3/1", True)
@@ -69,14 +73,18 @@ def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench,
     with pytest.raises(OperatorActionError, match="record succeeded or failed, not 'halted'"):
         executive.resolve("bob", "halted", "camera")
     executive.resolve("bob", Outcome(found), "the camera shows the arm at the dock")
-    resolved, = of(journal, EventKind.OUTCOME_RESOLVED, "1.3")
-    assert (resolved.actor, resolved.data) == ("bob", {"key": "run-1/1.3/1", "outcome": found,
-                                                       "reason": "the camera shows the arm at the dock"})
+    (resolved,) = of(journal, EventKind.OUTCOME_RESOLVED, "1.3")
+    assert (resolved.actor, resolved.data) == (
+        "bob",
+        {"key": "run-1/1.3/1", "outcome": found, "reason": "the camera shows the arm at the dock"},
+    )
     if found == "succeeded":
         snap = held(executive, Hold.CONFIRMATION, "2.1")
         assert of(journal, EventKind.INSTRUCTION_COMPLETED, "1.3")[0].actor == "bob"
-        assert snap.variables["moved"] == {"success": True,
-                                           "message": "recorded by bob: the camera shows the arm at the dock"}
+        assert snap.variables["moved"] == {
+            "success": True,
+            "message": "recorded by bob: the camera shows the arm at the dock",
+        }
         return
     snap = held(executive, Hold.FAILURE, "1.3")
     assert "run-1/1.3/1 failed (recorded by bob: the camera shows the arm at the dock)" in snap.reason
@@ -96,15 +104,21 @@ def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_re
     executive.halt("bob", "the arm is drifting")
     snap = held(executive, Hold.HALTED, "2.1")
     assert snap.reason == "halted by bob: the arm is drifting (2.1 was halted before it finished)"
-    assert (snap.halted_by, snap.halt_reason, snap.statuses["2.1"]) == ("bob", "the arm is drifting",
-                                                                        InstructionStatus.HALTED)
+    assert (snap.halted_by, snap.halt_reason, snap.statuses["2.1"]) == (
+        "bob",
+        "the arm is drifting",
+        InstructionStatus.HALTED,
+    )
     assert gateway.cancels == ["run-1/2.1/1"]
-    halt, = of(journal, EventKind.HALT)
-    assert (halt.actor, halt.data["key"], halt.data["cancel"]) == ("bob", "run-1/2.1/1",
-                                                                   {"stopped": True, "message": "stopped where it was"})
-    result, = of(journal, EventKind.COMMAND_RESULT, "2.1")
+    (halt,) = of(journal, EventKind.HALT)
+    assert (halt.actor, halt.data["key"], halt.data["cancel"]) == (
+        "bob",
+        "run-1/2.1/1",
+        {"stopped": True, "message": "stopped where it was"},
+    )
+    (result,) = of(journal, EventKind.COMMAND_RESULT, "2.1")
     assert (result.data["outcome"], result.data["success"]) == ("halted", False)
-    ended, = of(journal, EventKind.INSTRUCTION_HALTED, "2.1")
+    (ended,) = of(journal, EventKind.INSTRUCTION_HALTED, "2.1")
     assert (ended.actor, ended.data["reason"], ended.data["next"]) == ("bob", "the arm is drifting", "2.1")
     assert not of(journal, EventKind.INSTRUCTION_COMPLETED, "2.1") and not of(journal, EventKind.INSTRUCTION_FAILED)
     assert not of(journal, EventKind.INSTRUCTION_STARTED, "2.2")  # automation holds
@@ -142,10 +156,10 @@ def test_halt_ends_a_wait_at_once_and_stop_halts_first(bench) -> None:
     executive.stop("dave", "end of the shift")
     executive.join(TIMEOUT)  # PAX's thread records how the wait ended
     assert finished(executive).status is RunStatus.STOPPED
-    ended, = of(journal, EventKind.INSTRUCTION_HALTED, "1.4")
+    (ended,) = of(journal, EventKind.INSTRUCTION_HALTED, "1.4")
     assert (ended.actor, ended.data["reason"]) == ("dave", "end of the shift")
     assert "halted while watching telemetry by dave: end of the shift" in ended.data["detail"]
-    stopped, = of(journal, EventKind.RUN_STOPPED)
+    (stopped,) = of(journal, EventKind.RUN_STOPPED)
     assert (stopped.actor, stopped.data["reason"]) == ("dave", "end of the shift")
 
 
@@ -162,15 +176,18 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench) -
     assert snap.hold is None and snap.status is RunStatus.ACTIVE  # not a failure: it waits
     lost = executive.wait_for(lambda s: EventKind.LINK_LOST in journal.kinds(), TIMEOUT)
     assert lost is not None
-    event, = of(journal, EventKind.LINK_LOST)
+    (event,) = of(journal, EventKind.LINK_LOST)
     assert (event.actor, event.instruction, event.data) == (
-        PAX, "1.3", {"links": ["ws://lab.bench:9090"], "since": since.isoformat(), "in_flight": 1})
+        PAX,
+        "1.3",
+        {"links": ["ws://lab.bench:9090"], "since": since.isoformat(), "in_flight": 1},
+    )
     gateway.set_link(True)
     gateway.release.set()
     held(executive, Hold.CONFIRMATION, "2.1")
     # the supervisor records the link's return on its own thread: it may follow the move's result
     assert executive.wait_for(lambda s: EventKind.LINK_RESTORED in journal.kinds(), TIMEOUT) is not None
-    restored, = of(journal, EventKind.LINK_RESTORED)
+    (restored,) = of(journal, EventKind.LINK_RESTORED)
     assert restored.actor == PAX and restored.data["since"] == since.isoformat()
     assert executive.snapshot().link_summary() == ""
 
@@ -183,7 +200,7 @@ def test_a_verify_counts_the_light_time_into_its_timeout(bench) -> None:
     held(executive, Hold.CONFIRMATION, "2.1")
     executive.confirm("alice")
     held(executive, Hold.OPERATOR_ACTION, "3.1")  # the verify failed into its recover step
-    failed, = of(journal, EventKind.INSTRUCTION_FAILED, "2.2")
+    (failed,) = of(journal, EventKind.INSTRUCTION_FAILED, "2.2")
     assert "(waited 2 s + 0.5 s light time)" in failed.data["reason"]
 
 

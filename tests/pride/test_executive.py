@@ -35,8 +35,11 @@ def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(benc
 
     assert snap.status is RunStatus.COMPLETED
     assert [(c, a) for _, c, a in gateway.sent] == [
-        ("move", {"target": "dock", "speed": 0.5}), ("vent", {}), ("capture", {"label": "dock_view"}),
-        ("count", {"n": 3}), ("move", {"target": "home", "speed": 1.0}),
+        ("move", {"target": "dock", "speed": 0.5}),
+        ("vent", {}),
+        ("capture", {"label": "dock_view"}),
+        ("count", {"n": 3}),
+        ("move", {"target": "home", "speed": 1.0}),
     ]
     assert [e.seq for e in journal.events] == list(range(1, len(journal.events) + 1))
     by = {(e.kind, e.instruction): e for e in journal.events}
@@ -245,7 +248,8 @@ def _crash_while_venting(bench):
 
 
 def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_twice(
-        bench, sysreps, new_journal) -> None:
+    bench, sysreps, new_journal
+) -> None:
     gateway, log = _crash_while_venting(bench)
     sent = log[-1]
     assert sent.data["key"] == "run-1/2.1/1" and sent.data["confirmed_by"] == "lena"
@@ -373,8 +377,12 @@ def test_stop_while_watching_telemetry_halts_it_and_resume_lets_the_operator_red
     executive.join(TIMEOUT)
     assert EventKind.INSTRUCTION_FAILED not in journal.kinds()  # never the on-failure branch
     halted = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_HALTED)
-    assert (halted.instruction, halted.actor, halted.data["reason"], halted.data["next"]) == ("2.2", "sam",
-                                                                                             "shift change", "2.2")
+    assert (halted.instruction, halted.actor, halted.data["reason"], halted.data["next"]) == (
+        "2.2",
+        "sam",
+        "shift change",
+        "2.2",
+    )
 
     gateway.stale.clear()
     resumed = Executive.resume(

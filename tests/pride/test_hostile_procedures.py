@@ -31,8 +31,12 @@ def lab() -> dict[str, SysRep]:
 
 
 def caretaker_lint(*paths: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", "lint", "--sysrep-dir", str(LAB_SYSREPS),
-                           *map(str, paths)], capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "lint", "--sysrep-dir", str(LAB_SYSREPS), *map(str, paths)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def test_every_hostile_fixture_has_expectations() -> None:

@@ -44,9 +44,20 @@ def test_lab_procedures_are_clean(sysreps) -> None:
 def test_cli_prints_errors_and_exits_nonzero() -> None:
     broken = [str(BROKEN / "unknown_command.xml"), str(BROKEN / "goto_nowhere.xml")]
     proc = subprocess.run(
-        [sys.executable, "-m", "caretaker.cli", "lint", *broken, "--sysrep-dir", str(REPO / "sysrep"),
-         "--sysrep-dir", str(FIXTURES / "sysrep")],
-        capture_output=True, text=True, timeout=60,
+        [
+            sys.executable,
+            "-m",
+            "caretaker.cli",
+            "lint",
+            *broken,
+            "--sysrep-dir",
+            str(REPO / "sysrep"),
+            "--sysrep-dir",
+            str(FIXTURES / "sysrep"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert proc.returncode == 1
     lines = proc.stdout.splitlines()
@@ -56,7 +67,8 @@ def test_cli_prints_errors_and_exits_nonzero() -> None:
 
 
 def test_cli_passes_the_shipped_procedures() -> None:
-    proc = subprocess.run([sys.executable, "-m", "caretaker.cli", "lint", *map(str, SHIPPED)],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "lint", *map(str, SHIPPED)], capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert proc.stdout == ""

@@ -8,21 +8,28 @@ from pathlib import Path
 
 from lxml import etree
 
-from support.lab_gateway import LabGateway
-from support.procedures import FIXTURES
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES
 
 
 def _complete_run(tmp_path: Path, sysreps, db: str) -> tuple[str, str]:
     log = AuditLog(db)
-    executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), LabGateway(str(tmp_path / "images")),
-                          log, run_id="report-run", mode=Mode.AUTONOMOUS)
+    executive = Executive(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps),
+        LabGateway(str(tmp_path / "images")),
+        log,
+        run_id="report-run",
+        mode=Mode.AUTONOMOUS,
+    )
     executive.start("alice")
-    answers = {Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
-               Hold.CONFIRMATION: lambda: executive.confirm("bob"),
-               Hold.OPERATOR_ACTION: lambda: executive.mark_done("bob")}
+    answers = {
+        Hold.OPERATOR_INPUT: lambda: executive.enter("alice", "dock"),
+        Hold.CONFIRMATION: lambda: executive.confirm("bob"),
+        Hold.OPERATOR_ACTION: lambda: executive.mark_done("bob"),
+    }
     while True:
         snap = executive.wait_for(lambda s: s.hold is not None or s.status is not RunStatus.ACTIVE, 20)
         assert snap is not None
@@ -36,8 +43,12 @@ def _complete_run(tmp_path: Path, sysreps, db: str) -> tuple[str, str]:
 
 
 def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *options],
-                          capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *options],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, sysreps, database) -> None:
@@ -70,8 +81,22 @@ def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, 
 
 
 def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
-    proc = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", "nope", "--db", f"sqlite:///{tmp_path}/a.db",
-                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "caretaker.cli",
+            "report",
+            "nope",
+            "--db",
+            f"sqlite:///{tmp_path}/a.db",
+            "--out",
+            str(tmp_path),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "no run 'nope'" in proc.stderr
 
@@ -79,8 +104,9 @@ def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
 def test_report_of_an_edited_run_says_so_and_verify_names_the_event(tmp_path: Path, sysreps, database) -> None:
     db, run_id = _complete_run(tmp_path, sysreps, database.url)
     assert report(run_id, db, "--verify").returncode == 0
-    database.tamper("UPDATE audit_records SET data = replace(data, 'dock', 'bay') "
-                    "WHERE kind = 'operator_input'")  # someone "corrects" the recorded value
+    database.tamper(
+        "UPDATE audit_records SET data = replace(data, 'dock', 'bay') WHERE kind = 'operator_input'"
+    )  # someone "corrects" the recorded value
     seq = next(e.seq for e in AuditLog(db).events(run_id) if e.data.get("value") == "bay")
 
     verify = report(run_id, db, "--verify")

@@ -38,21 +38,44 @@ def setup(tmp_path: Path, database):
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(lab_gateway.IMPORT_ROOT), env.get("PYTHONPATH")]))
     env["LAB_GATEWAY_IMAGES"] = str(tmp_path / "images")
     db = database.url  # SQLite and PostgreSQL in turn (conftest.py)
-    common = ["--binding", str(binding), "--db", db, "--sysrep-dir", str(REPO / "sysrep"),
-              "--sysrep-dir", str(FIXTURES / "sysrep")]
+    common = [
+        "--binding",
+        str(binding),
+        "--db",
+        db,
+        "--sysrep-dir",
+        str(REPO / "sysrep"),
+        "--sysrep-dir",
+        str(FIXTURES / "sysrep"),
+    ]
     return env, db, common
 
 
 def run(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", "run", *args], env=env, capture_output=True,
-                          text=True, timeout=120, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "run", *args],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def runner_at(env: dict[str, str], common: list[str], line: str) -> ManagedProcess:
     """An unattended ``caretaker run`` of the lab procedure, once it printed ``line``."""
     printed = threading.Event()
-    runner = caretaker("run", PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS, env=env,
-                       on_line=lambda _name, text: printed.set() if text == line else None)
+    runner = caretaker(
+        "run",
+        PROCEDURE,
+        "--auto",
+        "--user",
+        "alice",
+        *common,
+        *ANSWERS,
+        env=env,
+        on_line=lambda _name, text: printed.set() if text == line else None,
+    )
     try:
         runner.wait_ready(60)
         assert printed.wait(60), runner.tail()
@@ -69,7 +92,7 @@ def test_unattended_run_completes_with_answers_logged_as_the_user(setup) -> None
     assert "Step 2  Inspect" in proc.stdout
     assert "RESULT completed" in proc.stdout
     log = AuditLog(db)
-    (run_id, _, procedure_id), = log.runs()
+    ((run_id, _, procedure_id),) = log.runs()
     events = log.events(run_id)
     assert procedure_id == "lab_all_kinds"
     assert [e.actor for e in events if e.kind is EventKind.OPERATOR_INPUT] == ["alice"]
@@ -96,17 +119,17 @@ def test_a_procedure_with_lint_errors_does_not_start(setup) -> None:
 
 
 def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_without_running_it_again(
-        setup, tmp_path) -> None:
+    setup, tmp_path
+) -> None:
     env, db, common = setup
     env = {**env, "LAB_GATEWAY_LEDGER": str(tmp_path / "ledger.json")}  # the habitat's memory of keys
-    runner = runner_at({**env, "LAB_GATEWAY_HOLD_REPLY": "capture"}, common,
-                       "LAB executed capture, holding its reply")
+    runner = runner_at({**env, "LAB_GATEWAY_HOLD_REPLY": "capture"}, common, "LAB executed capture, holding its reply")
     try:
         runner.kill()  # SIGKILL while the capture's reply is on its way
     finally:
         runner.stop()
     log = AuditLog(db)
-    (run_id, _, _), = log.runs()
+    ((run_id, _, _),) = log.runs()
     before = log.events(run_id)
     assert before[-1].kind is EventKind.COMMAND_SENT and before[-1].instruction == "2.3"
     key = before[-1].data["key"]
@@ -123,13 +146,20 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     events = log.events(run_id)
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # nothing lost, nothing twice
     assert [(e.seq, e.kind, e.data) for e in events[: len(before)]] == [(e.seq, e.kind, e.data) for e in before]
-    sent = Counter((e.instruction, e.data["command"], e.data["key"]) for e in events
-                   if e.kind is EventKind.COMMAND_SENT)
+    sent = Counter(
+        (e.instruction, e.data["command"], e.data["key"]) for e in events if e.kind is EventKind.COMMAND_SENT
+    )
     assert sent[("2.3", "capture", key)] == 2 and len({k for (n, _, k) in sent if n == "2.3"}) == 1
-    again = [(e.kind, e.actor, e.data.get("resend", False)) for e in events
-             if e.instruction == "2.3" and e.kind in (EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT)]
-    assert again == [(EventKind.COMMAND_SENT, PAX, False), (EventKind.COMMAND_SENT, PAX, True),
-                     (EventKind.COMMAND_RESULT, PAX, False)]
+    again = [
+        (e.kind, e.actor, e.data.get("resend", False))
+        for e in events
+        if e.instruction == "2.3" and e.kind in (EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT)
+    ]
+    assert again == [
+        (EventKind.COMMAND_SENT, PAX, False),
+        (EventKind.COMMAND_SENT, PAX, True),
+        (EventKind.COMMAND_RESULT, PAX, False),
+    ]
     result = next(e for e in events if e.instruction == "2.3" and e.kind is EventKind.COMMAND_RESULT)
     assert result.data["outcome"] == "succeeded" and result.data["values"]["label"] == "dock_view"
     assert [e.actor for e in events if e.kind is EventKind.RUN_RESUMED] == ["bob"]
@@ -152,11 +182,15 @@ def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(set
         runner.stop()
     assert "HALT (Ctrl-C)" in runner.tail()
     log = AuditLog(db)
-    (run_id, _, _), = log.runs()
+    ((run_id, _, _),) = log.runs()
     events = log.events(run_id)
     halt = next(e for e in events if e.kind is EventKind.HALT)
     assert (halt.actor, halt.instruction, halt.data["reason"], halt.data["key"]) == (
-        "alice", "2.1", "Ctrl-C at the terminal", f"{run_id}/2.1/1")
+        "alice",
+        "2.1",
+        "Ctrl-C at the terminal",
+        f"{run_id}/2.1/1",
+    )
     assert halt.data["cancel"] == {"stopped": True, "message": "stopped where it was"}
     result = next(e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.1")
     assert (result.data["outcome"], result.data["success"]) == ("halted", False)

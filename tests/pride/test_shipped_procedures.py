@@ -38,15 +38,34 @@ def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_ste
     # the robot side of the shipped deployment, each part its own process as `caretaker up` starts them
     with robot_parts(scene, ros_env) as stack:
         proc = subprocess.run(
-            [sys.executable, "-m", "caretaker.cli", "run", str(REPO / "procedures" / procedure_file),
-             "--binding", str(REPO / "sysrep" / "bindings" / f"{scene}.yaml"), "--rosbridge", stack.bridge_url,
-             "--auto", "--user", "tester", "--db", db, *answers, "--confirm-manual"],
-            env=ros_env, capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+            [
+                sys.executable,
+                "-m",
+                "caretaker.cli",
+                "run",
+                str(REPO / "procedures" / procedure_file),
+                "--binding",
+                str(REPO / "sysrep" / "bindings" / f"{scene}.yaml"),
+                "--rosbridge",
+                stack.bridge_url,
+                "--auto",
+                "--user",
+                "tester",
+                "--db",
+                db,
+                *answers,
+                "--confirm-manual",
+            ],
+            env=ros_env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            stdin=subprocess.DEVNULL,
         )
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
 
     log = AuditLog(db)
-    (run_id, _, _), = log.runs()
+    ((run_id, _, _),) = log.runs()
     events = log.events(run_id)
     assert events[-1].kind is EventKind.RUN_COMPLETED
     procedure = load_procedure(REPO / "procedures" / procedure_file)
@@ -56,11 +75,18 @@ def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_ste
         assert {i.number for i in step.instructions} <= completed, f"step {step.number} not completed"
     plan_checks = [e for e in events if e.kind is EventKind.TELEMETRY_SEEN and e.data["item"] == "plan_valid"]
     assert plan_checks and all(e.data["value"] is True for e in plan_checks if e.data["ok"])
-    assert all(e.data["success"] for e in events if e.kind is EventKind.COMMAND_RESULT
-               and e.data["command"] != "plan_trajectory")  # a failed plan may only have branched
+    assert all(
+        e.data["success"]
+        for e in events
+        if e.kind is EventKind.COMMAND_RESULT and e.data["command"] != "plan_trajectory"
+    )  # a failed plan may only have branched
 
-    report = subprocess.run([sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db,
-                             "--out", str(tmp_path / "reports")], capture_output=True, text=True, timeout=60)
+    report = subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, "--out", str(tmp_path / "reports")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert report.returncode == 0, report.stderr
     markdown = Path(report.stdout.split()[1]).read_text()
     for step in nominal:

@@ -58,10 +58,24 @@ def test_a_value_not_known_yet_stays_a_reference() -> None:
 
 
 def test_a_started_event_logged_before_it_carried_the_filled_text_reads_as_the_authors_text() -> None:
-    old = Event("r", 5, EventKind.INSTRUCTION_STARTED, "PAX", "4.3", {"instruction_kind": "command",
-                "text": "Pick clean filter ${clean_filter_id} from the rack"}, datetime(2024, 1, 1, tzinfo=UTC))
+    old = Event(
+        "r",
+        5,
+        EventKind.INSTRUCTION_STARTED,
+        "PAX",
+        "4.3",
+        {"instruction_kind": "command", "text": "Pick clean filter ${clean_filter_id} from the rack"},
+        datetime(2024, 1, 1, tzinfo=UTC),
+    )
     assert started_text(old) == "Pick clean filter ${clean_filter_id} from the rack"
     assert describe_event(old) == "started: Pick clean filter ${clean_filter_id} from the rack"
-    new = Event("r", 5, EventKind.INSTRUCTION_STARTED, "PAX", "4.3", {**old.data, "text_filled": "Pick clean filter X"},
-                old.time)
+    new = Event(
+        "r",
+        5,
+        EventKind.INSTRUCTION_STARTED,
+        "PAX",
+        "4.3",
+        {**old.data, "text_filled": "Pick clean filter X"},
+        old.time,
+    )
     assert describe_event(new) == "started: Pick clean filter X"

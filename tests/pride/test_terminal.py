@@ -21,8 +21,9 @@ from support.procedures import FIXTURES
 
 def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
     journal, gateway = RecordedJournal(AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")), LabGateway(str(tmp_path))
-    executive = Executive(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t",
-                          mode=mode)
+    executive = Executive(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t", mode=mode
+    )
     return executive, journal, gateway
 
 
@@ -58,8 +59,14 @@ def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sys
     def no_terminal(prompt: str) -> str:
         raise AssertionError(f"prompted without a terminal: {prompt}")
 
-    final = OperatorConsole(executive, "quinn", Unattended({"target": "dock"}, confirm_manual=True), interactive=False,
-                            out=TerminalLines(out), read=no_terminal).run()
+    final = OperatorConsole(
+        executive,
+        "quinn",
+        Unattended({"target": "dock"}, confirm_manual=True),
+        interactive=False,
+        out=TerminalLines(out),
+        read=no_terminal,
+    ).run()
     assert final.status is RunStatus.STOPPED
     assert "pass --confirm-hazardous to confirm hazardous commands" in out.getvalue()
     assert [c for _, c, _ in gateway.sent] == ["move"]
@@ -72,8 +79,14 @@ def test_operator_can_stop_from_the_prompt_saying_why(sysreps, tmp_path, reason,
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     executive.start("rita")
     answers = iter(["q", reason])
-    final = OperatorConsole(executive, "rita", Unattended(), interactive=True, out=TerminalLines(io.StringIO()),
-                            read=lambda prompt: next(answers)).run()
+    final = OperatorConsole(
+        executive,
+        "rita",
+        Unattended(),
+        interactive=True,
+        out=TerminalLines(io.StringIO()),
+        read=lambda prompt: next(answers),
+    ).run()
     assert final.status is RunStatus.STOPPED
     assert (journal.events[-1].actor, journal.events[-1].data["reason"]) == ("rita", recorded)
 

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Callable
 
 import pytest
 import roslibpy
 
+from support.processes import ManagedProcess, caretaker, python
+
 from .hostile import HOSTILE_LIMITS, BridgeLog, Watch
 from .rosbridge_support import bridge_url, wait_until_discovered
-from support.processes import ManagedProcess, caretaker, python
 
 PEER = Path(__file__).with_name("ros_peer.py")
 
@@ -29,8 +29,9 @@ def peer(ros_env: dict[str, str]) -> Iterator[ManagedProcess]:
 @pytest.fixture(scope="package")
 def bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[str, int]]:
     """A bridge on a free port, shared by all rosbridge tests (each uses its own names): (host, port)."""
-    process = caretaker("bridge", "--port", "0", "--service-timeout", "5", "--set-params-glob", "/bridge_test_peer:*",
-                        env=ros_env)
+    process = caretaker(
+        "bridge", "--port", "0", "--service-timeout", "5", "--set-params-glob", "/bridge_test_peer:*", env=ros_env
+    )
     try:
         process.wait_ready(60)
         url = bridge_url(process)
@@ -58,11 +59,14 @@ def connect(bridge: tuple[str, int]) -> Iterator[Callable[[], roslibpy.Ros]]:
 
 
 @pytest.fixture(scope="package")
-def hostile_bridge(ros_env: dict[str, str], peer: ManagedProcess) -> Iterator[tuple[ManagedProcess, BridgeLog, tuple[str, int]]]:
+def hostile_bridge(
+    ros_env: dict[str, str], peer: ManagedProcess
+) -> Iterator[tuple[ManagedProcess, BridgeLog, tuple[str, int]]]:
     """A bridge with small quotas for the fuzz tests, its log counted: (process, log, address)."""
     bridge_log = BridgeLog()
-    process = caretaker("bridge", "--port", "0", "--service-timeout", "1", *HOSTILE_LIMITS, env=ros_env,
-                        on_line=bridge_log)
+    process = caretaker(
+        "bridge", "--port", "0", "--service-timeout", "1", *HOSTILE_LIMITS, env=ros_env, on_line=bridge_log
+    )
     try:
         process.wait_ready(60)
         host, port = bridge_url(process).split("//")[1].rsplit(":", 1)

@@ -27,12 +27,38 @@ import psutil
 from .rosbridge_support import BINARY, CLOSE, CONTINUATION, PING, PONG, TEXT, FrameSocket, RawClient, frame, text
 
 MiB = 2**20
-HOSTILE_LIMITS = ("--max-connections", "16", "--max-subscriptions", "20", "--max-total-subscriptions", "60",
-                  "--max-advertisements", "10", "--max-total-advertisements", "40", "--max-calls", "8",
-                  "--max-total-calls", "32", "--max-goals", "4", "--max-total-goals", "8",
-                  "--max-message-size", "1000000", "--max-pending-fragments", "4",
-                  "--max-total-fragment-bytes", "4000000", "--max-queued-bytes", str(4 * MiB),
-                  "--max-total-queued-bytes", str(16 * MiB), "--read-pause-bytes", str(256 * 1024))
+HOSTILE_LIMITS = (
+    "--max-connections",
+    "16",
+    "--max-subscriptions",
+    "20",
+    "--max-total-subscriptions",
+    "60",
+    "--max-advertisements",
+    "10",
+    "--max-total-advertisements",
+    "40",
+    "--max-calls",
+    "8",
+    "--max-total-calls",
+    "32",
+    "--max-goals",
+    "4",
+    "--max-total-goals",
+    "8",
+    "--max-message-size",
+    "1000000",
+    "--max-pending-fragments",
+    "4",
+    "--max-total-fragment-bytes",
+    "4000000",
+    "--max-queued-bytes",
+    str(4 * MiB),
+    "--max-total-queued-bytes",
+    str(16 * MiB),
+    "--read-pause-bytes",
+    str(256 * 1024),
+)
 """Small quotas, so the attacks reach them quickly (the bridge under fuzzing runs with these)."""
 LATENCY_BOUND_S = 2.0
 """A generous sanity bound for a well-formed call during an attack (not a performance claim)."""
@@ -78,8 +104,9 @@ class Watch:
     """While an attack runs, a well-formed client calls ``service`` every ``period`` seconds;
     ``worst`` is its slowest round trip and ``rss_peak`` the bridge's largest RSS seen."""
 
-    def __init__(self, pid: int, address: tuple[str, int], service: str = "/rosapi/get_ros_version",
-                 period: float = 0.02) -> None:
+    def __init__(
+        self, pid: int, address: tuple[str, int], service: str = "/rosapi/get_ros_version", period: float = 0.02
+    ) -> None:
         self.process = psutil.Process(pid)
         self.address = address
         self.service = service
@@ -132,22 +159,122 @@ class Watch:
 
 # --- random hostile input ------------------------------------------------------------------------
 
-OPS = ["advertise", "unadvertise", "publish", "subscribe", "unsubscribe", "call_service", "service_response",
-       "advertise_service", "unadvertise_service", "send_action_goal", "cancel_action_goal", "action_feedback",
-       "action_result", "advertise_action", "unadvertise_action", "fragment", "set_level", "auth", "png", "status",
-       "", "teleport"]
-NAMES = ["/fuzz/a", "/fuzz/b", "fuzz", "", "/", "//x", "/1a", "/a/", "/ä/ü", "/a\ud800", "/fuzz/" + "n" * 300,
-         "/rosapi/topics", "/rosapi/services", "/rosapi/set_param", "/rosapi/nope", "/peer/set_bool",
-         "/rosbridge/connection_stats", "/rosbridge_websocket/set_parameters", "/peer/follow", "/fuzz/~x"]
-TYPES = ["std_msgs/String", "std_msgs/msg/Int8", "std_msgs/msg/UInt32", "std_msgs/msg/Header", "std_srvs/srv/SetBool",
-         "std_srvs/Trigger", "caretaker_sim_msgs/action/FollowJointTrajectory", "sensor_msgs/msg/CameraInfo",
-         "this/msg/Zen", "os/msg/System", "../../etc/passwd", "std_msgs/msg/Nope", "", "std_msgs/msg/String/x"]
-FIELDS = ["topic", "type", "msg", "id", "service", "args", "values", "result", "action", "action_type",
-          "throttle_rate", "queue_length", "queue_size", "fragment_size", "compression", "level", "data", "num",
-          "total", "timeout", "latch", "feedback", "status", "mac", "t", "end", "token"]
-NASTY = ["NaN", "Infinity", "-Infinity", "1e400", "-0", "1" * 4000, "1" * 5000, "9" * 400, "2147483648",
-         "4294967296", "-1", "128", "18446744073709551616", '"\\ud800"', '"\\udc00x"', '"é"', '"\\u0000"',
-         "[" * 3000 + "]" * 3000, "{}", "[]", "null", "true", '"' + "x" * 70_000 + '"']
+OPS = [
+    "advertise",
+    "unadvertise",
+    "publish",
+    "subscribe",
+    "unsubscribe",
+    "call_service",
+    "service_response",
+    "advertise_service",
+    "unadvertise_service",
+    "send_action_goal",
+    "cancel_action_goal",
+    "action_feedback",
+    "action_result",
+    "advertise_action",
+    "unadvertise_action",
+    "fragment",
+    "set_level",
+    "auth",
+    "png",
+    "status",
+    "",
+    "teleport",
+]
+NAMES = [
+    "/fuzz/a",
+    "/fuzz/b",
+    "fuzz",
+    "",
+    "/",
+    "//x",
+    "/1a",
+    "/a/",
+    "/ä/ü",
+    "/a\ud800",
+    "/fuzz/" + "n" * 300,
+    "/rosapi/topics",
+    "/rosapi/services",
+    "/rosapi/set_param",
+    "/rosapi/nope",
+    "/peer/set_bool",
+    "/rosbridge/connection_stats",
+    "/rosbridge_websocket/set_parameters",
+    "/peer/follow",
+    "/fuzz/~x",
+]
+TYPES = [
+    "std_msgs/String",
+    "std_msgs/msg/Int8",
+    "std_msgs/msg/UInt32",
+    "std_msgs/msg/Header",
+    "std_srvs/srv/SetBool",
+    "std_srvs/Trigger",
+    "caretaker_sim_msgs/action/FollowJointTrajectory",
+    "sensor_msgs/msg/CameraInfo",
+    "this/msg/Zen",
+    "os/msg/System",
+    "../../etc/passwd",
+    "std_msgs/msg/Nope",
+    "",
+    "std_msgs/msg/String/x",
+]
+FIELDS = [
+    "topic",
+    "type",
+    "msg",
+    "id",
+    "service",
+    "args",
+    "values",
+    "result",
+    "action",
+    "action_type",
+    "throttle_rate",
+    "queue_length",
+    "queue_size",
+    "fragment_size",
+    "compression",
+    "level",
+    "data",
+    "num",
+    "total",
+    "timeout",
+    "latch",
+    "feedback",
+    "status",
+    "mac",
+    "t",
+    "end",
+    "token",
+]
+NASTY = [
+    "NaN",
+    "Infinity",
+    "-Infinity",
+    "1e400",
+    "-0",
+    "1" * 4000,
+    "1" * 5000,
+    "9" * 400,
+    "2147483648",
+    "4294967296",
+    "-1",
+    "128",
+    "18446744073709551616",
+    '"\\ud800"',
+    '"\\udc00x"',
+    '"é"',
+    '"\\u0000"',
+    "[" * 3000 + "]" * 3000,
+    "{}",
+    "[]",
+    "null",
+    "true",
+    '"' + "x" * 70_000 + '"',
+]
 
 
 def _value(rng: random.Random, depth: int = 0) -> str:
@@ -158,11 +285,11 @@ def _value(rng: random.Random, depth: int = 0) -> str:
     if roll < 0.45:
         return json.dumps(rng.choice(NAMES + TYPES))
     if roll < 0.6:
-        return str(rng.choice([0, 1, -1, 127, 128, 255, 256, 2**31, 2**32, 2**63, 2**64, rng.randint(-10**6, 10**6)]))
+        return str(rng.choice([0, 1, -1, 127, 128, 255, 256, 2**31, 2**32, 2**63, 2**64, rng.randint(-(10**6), 10**6)]))
     if roll < 0.7:
         return rng.choice(["0.5", "1e308", "3.5e38", "-3.5e38", "1.5"])
     if roll < 0.8 or depth > 3:
-        return json.dumps("".join(rng.choice("ab/_\\\"é\u2028") for _ in range(rng.randint(0, 12))))
+        return json.dumps("".join(rng.choice('ab/_\\"é\u2028') for _ in range(rng.randint(0, 12))))
     if roll < 0.9:
         return "[" + ",".join(_value(rng, depth + 1) for _ in range(rng.randint(0, 4))) + "]"
     keys = rng.sample(FIELDS + ["data", "sec", "nanosec", "stamp", "header", "k", "uuid", "seq"], rng.randint(0, 4))
@@ -267,8 +394,10 @@ def serve_raw_frames(address: tuple[str, int], frames: list[tuple[bytes, str]]) 
     call is answered, or the connection is closed as one of the frames called for."""
     sock = FrameSocket(*address)
     try:
-        sock.sock.sendall(b"".join(data for data, _ in frames)
-                          + text({"op": "call_service", "service": "/rosapi/get_time", "id": "last"}))
+        sock.sock.sendall(
+            b"".join(data for data, _ in frames)
+            + text({"op": "call_service", "service": "/rosapi/get_time", "id": "last"})
+        )
         while True:
             opcode, payload = sock.read_frame()
             if opcode == CLOSE:

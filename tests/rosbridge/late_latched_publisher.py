@@ -14,7 +14,9 @@ from std_msgs.msg import String
 def main() -> int:
     rclpy.init()
     node = rclpy.create_node("bridge_test_late_latched")
-    publisher = node.create_publisher(String, sys.argv[1], QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    publisher = node.create_publisher(
+        String, sys.argv[1], QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    )
     publisher.publish(String(data="late latched value"))
     print("READY late", flush=True)
     try:

@@ -13,16 +13,14 @@ import sys
 import threading
 
 import rclpy
+from caretaker_sim_msgs.action import FollowJointTrajectory
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
-
-from caretaker_sim_msgs.action import FollowJointTrajectory
 from std_msgs.msg import String
 from std_srvs.srv import SetBool, Trigger
-
 
 SLOW_SERVICE_S = 2.0
 
@@ -37,14 +35,19 @@ class PeerNode(Node):
         self.declare_parameter("greeting", "hello")
         self.echo_publisher = self.create_publisher(String, "/peer/echo_out", 1000)
         self.create_subscription(String, "/peer/echo_in", self.echo_callback, 1000)
-        self.create_service(SetBool, "/peer/set_bool", self.set_bool_callback, qos_profile=deep,
-                            callback_group=group)
+        self.create_service(SetBool, "/peer/set_bool", self.set_bool_callback, qos_profile=deep, callback_group=group)
         self.create_service(Trigger, "/peer/slow", self.slow_callback, qos_profile=deep, callback_group=group)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.latched_publisher = self.create_publisher(String, "/peer/latched", latched)
         self.latched_publisher.publish(String(data="latched value"))
-        self.action_server = ActionServer(self, FollowJointTrajectory, "/peer/follow", self.follow_callback,
-                                          cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=group)
+        self.action_server = ActionServer(
+            self,
+            FollowJointTrajectory,
+            "/peer/follow",
+            self.follow_callback,
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=group,
+        )
 
     def echo_callback(self, message: String) -> None:
         self.echo_publisher.publish(message)
@@ -72,8 +75,11 @@ class PeerNode(Node):
                 goal_handle.canceled()
                 result.error_string = "canceled"
                 return result
-            feedback = FollowJointTrajectory.Feedback(joint_names=list(goal.trajectory.joint_names),
-                                                      desired=list(point.positions), time_from_start=float(index))
+            feedback = FollowJointTrajectory.Feedback(
+                joint_names=list(goal.trajectory.joint_names),
+                desired=list(point.positions),
+                time_from_start=float(index),
+            )
             goal_handle.publish_feedback(feedback)
             threading.Event().wait(0.2)  # the robot "moving" between points
         goal_handle.succeed()

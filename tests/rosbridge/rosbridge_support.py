@@ -35,8 +35,11 @@ class Inbox:
         with self._condition:
             return self._condition.wait_for(lambda: len(self.items) >= count, timeout)
 
-    def wait_for(self, count: int, timeout: float = 20.0, *, counted: Callable[[Any], bool] = lambda _: True) -> list[Any]:
+    def wait_for(
+        self, count: int, timeout: float = 20.0, *, counted: Callable[[Any], bool] = lambda _: True
+    ) -> list[Any]:
         """All items, once ``count`` of them satisfy ``counted`` (by default: any item)."""
+
         def enough() -> bool:
             return sum(1 for item in self.items if counted(item)) >= count
 
@@ -102,8 +105,11 @@ def wait_until_discovered(host: str, port: int, topic: str, service: str, node: 
             topics = client.request({"op": "call_service", "service": "/rosapi/topics"}, "service_response")
             services = client.request({"op": "call_service", "service": "/rosapi/services"}, "service_response")
             nodes = client.request({"op": "call_service", "service": "/rosapi/nodes"}, "service_response")
-            if (topic in topics["values"]["topics"] and service in services["values"]["services"]
-                    and node in nodes["values"]["nodes"]):
+            if (
+                topic in topics["values"]["topics"]
+                and service in services["values"]["services"]
+                and node in nodes["values"]["nodes"]
+            ):
                 return
             threading.Event().wait(0.05)  # between polls of the bridge's graph view
         raise AssertionError(f"the bridge never saw {topic}, {service} and {node}")
@@ -147,8 +153,10 @@ def text(message: dict) -> bytes:
 def handshake(host: str, port: int, headers: str = "") -> bytes:
     """An HTTP upgrade request; ``headers`` are extra header lines, each ending in CRLF."""
     key = base64.b64encode(os.urandom(16)).decode()
-    return (f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
-            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n{headers}\r\n").encode()
+    return (
+        f"GET / HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n{headers}\r\n"
+    ).encode()
 
 
 class FrameSocket:

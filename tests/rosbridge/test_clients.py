@@ -13,14 +13,15 @@ from .rosbridge_support import Inbox, RawClient
 def test_thirty_concurrent_clients_call_and_subscribe(bridge: tuple[str, int], connect) -> None:
     clients = [connect() for _ in range(30)]
     inboxes = [Inbox() for _ in clients]
-    for client, inbox in zip(clients, inboxes):
+    for client, inbox in zip(clients, inboxes, strict=False):
         roslibpy.Topic(client, "/peer/latched", "std_msgs/String").subscribe(inbox)
     answers: list[dict] = []
     lock = threading.Lock()
 
     def call(client: roslibpy.Ros, index: int) -> None:
         answer = roslibpy.Service(client, "/peer/set_bool", "std_srvs/SetBool").call(
-            roslibpy.ServiceRequest({"data": index % 2 == 0}), timeout=30)
+            roslibpy.ServiceRequest({"data": index % 2 == 0}), timeout=30
+        )
         with lock:
             answers.append(answer)
 
@@ -36,8 +37,9 @@ def test_thirty_concurrent_clients_call_and_subscribe(bridge: tuple[str, int], c
 
 
 def publishers_of(raw: RawClient, topic: str) -> list[str]:
-    answer = raw.request({"op": "call_service", "service": "/rosapi/publishers", "args": {"topic": topic}},
-                         "service_response")
+    answer = raw.request(
+        {"op": "call_service", "service": "/rosapi/publishers", "args": {"topic": topic}}, "service_response"
+    )
     return answer["values"]["publishers"]
 
 
@@ -56,8 +58,9 @@ def test_clients_dropping_mid_send_leave_no_ghost_publishers(bridge: tuple[str, 
         while publishers_of(observer, topic) and time.monotonic() < deadline:
             threading.Event().wait(0.2)  # polls the bridge's graph until the publisher is gone
         assert publishers_of(observer, topic) == []
-        answer = observer.request({"op": "call_service", "service": "/rosapi/subscribers", "args": {"topic": topic}},
-                                  "service_response")
+        answer = observer.request(
+            {"op": "call_service", "service": "/rosapi/subscribers", "args": {"topic": topic}}, "service_response"
+        )
         assert answer["values"]["subscribers"] == []
     finally:
         observer.close()

@@ -10,6 +10,7 @@ import cbor2
 import pytest
 
 from bridge.rosbridge.compression import png_decode
+
 from .rosbridge_support import RawClient
 
 
@@ -28,8 +29,11 @@ def publish_latched(raw: RawClient, topic: str, type_: str, msg: dict) -> None:
 def test_png_compression_carries_the_json_message(raw: RawClient) -> None:
     raw.send({"op": "subscribe", "topic": "/peer/latched", "compression": "png"})
     frame = raw.receive_op("png")
-    assert json.loads(png_decode(frame["data"])) == {"op": "publish", "topic": "/peer/latched",
-                                                      "msg": {"data": "latched value"}}
+    assert json.loads(png_decode(frame["data"])) == {
+        "op": "publish",
+        "topic": "/peer/latched",
+        "msg": {"data": "latched value"},
+    }
 
 
 def test_cbor_uses_typed_arrays_and_byte_strings(raw: RawClient) -> None:

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .rosbridge_support import RawClient, bridge_url
 from support.processes import caretaker
+
+from .rosbridge_support import RawClient, bridge_url
 
 PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 
@@ -37,9 +38,11 @@ def test_the_bridge_loads_its_own_profile_and_fast_dds_accepts_it(ros_env: dict[
 def test_an_operator_profile_replaces_the_bridges(ros_env: dict[str, str], tmp_path: Path) -> None:
     """A broken file of the operator's is what Fast DDS reads (and reports), not the bridge's."""
     mine = tmp_path / "operator.xml"
-    mine.write_text('<?xml version="1.0"?>\n<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">'
-                    '<data_writer profile_name="w" is_default_profile="true"><times><notATime/></times>'
-                    "</data_writer></profiles>\n")
+    mine.write_text(
+        '<?xml version="1.0"?>\n<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">'
+        '<data_writer profile_name="w" is_default_profile="true"><times><notATime/></times>'
+        "</data_writer></profiles>\n"
+    )
     output = start_bridge(dict(ros_env, **{PROFILE_ENV: str(mine)}))
     assert f"Error parsing '{mine}'" in output, output
     assert "fastdds_profile.xml" not in output

@@ -31,17 +31,24 @@ def test_frames_split_at_every_byte_are_reassembled(client: FrameSocket) -> None
         call = text({"op": "call_service", "service": "/rosapi/get_ros_version", "id": request_id})
         step = 1 if len(call) < 1000 else 997
         for start in range(0, len(call), step):
-            client.sock.sendall(call[start:start + step])
+            client.sock.sendall(call[start : start + step])
         answer = client.read_message()
         assert (answer["op"], answer["id"], answer["result"]) == ("service_response", request_id, True)
 
 
 def test_frames_in_one_write_are_answered_in_order_with_control_and_fragmented_frames_among_them(
-        client: FrameSocket) -> None:
+    client: FrameSocket,
+) -> None:
     fragmented = json.dumps({"op": "teleport", "id": "third"}).encode()
-    burst = (unknown_op("first") + frame(PING, b"are you there") + unknown_op("second")
-             + frame(TEXT, fragmented[:9], fin=False) + frame(PING, b"mid-message")
-             + frame(CONTINUATION, fragmented[9:]) + unknown_op("fourth"))
+    burst = (
+        unknown_op("first")
+        + frame(PING, b"are you there")
+        + unknown_op("second")
+        + frame(TEXT, fragmented[:9], fin=False)
+        + frame(PING, b"mid-message")
+        + frame(CONTINUATION, fragmented[9:])
+        + unknown_op("fourth")
+    )
     client.sock.sendall(burst)
     pongs, ids = [], []
     while len(ids) < 4:
@@ -70,15 +77,20 @@ def test_a_frame_begun_along_with_the_handshake_is_served(bridge: tuple[str, int
         early.close()
 
 
-@pytest.mark.parametrize("bad, code", [
-    (frame(TEXT, b'{"op":"set_level","level":"info"}', masked=False), 1002),
-    (frame(TEXT, b'{"op":"set_level","level":"info"}', rsv=4), 1002),
-    (frame(TEXT, b'{"op":"teleport","id":"\xff\xfe"}'), 1007),
-    (bytes([0x81, 0x80 | 127]) + struct.pack("!Q", 50_000_000) + os.urandom(4), 1009),
-    (frame(0x3, b"reserved opcode"), 1002),
-], ids=["unmasked", "reserved-bit", "invalid-utf8", "too-big", "reserved-opcode"])
+@pytest.mark.parametrize(
+    "bad, code",
+    [
+        (frame(TEXT, b'{"op":"set_level","level":"info"}', masked=False), 1002),
+        (frame(TEXT, b'{"op":"set_level","level":"info"}', rsv=4), 1002),
+        (frame(TEXT, b'{"op":"teleport","id":"\xff\xfe"}'), 1007),
+        (bytes([0x81, 0x80 | 127]) + struct.pack("!Q", 50_000_000) + os.urandom(4), 1009),
+        (frame(0x3, b"reserved opcode"), 1002),
+    ],
+    ids=["unmasked", "reserved-bit", "invalid-utf8", "too-big", "reserved-opcode"],
+)
 def test_invalid_frames_close_with_the_websocket_code_and_others_are_still_served(
-        bridge: tuple[str, int], bad: bytes, code: int) -> None:
+    bridge: tuple[str, int], bad: bytes, code: int
+) -> None:
     victim = FrameSocket(*bridge)
     try:
         victim.sock.sendall(unknown_op("before") + bad + unknown_op("after"))
@@ -87,7 +99,9 @@ def test_invalid_frames_close_with_the_websocket_code_and_others_are_still_serve
         victim.close()
     bystander = RawClient(*bridge)
     try:
-        answer = bystander.request({"op": "call_service", "service": "/rosapi/get_time", "id": "ok"}, "service_response")
+        answer = bystander.request(
+            {"op": "call_service", "service": "/rosapi/get_time", "id": "ok"}, "service_response"
+        )
         assert answer["result"] is True
     finally:
         bystander.close()

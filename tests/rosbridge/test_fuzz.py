@@ -50,26 +50,33 @@ def test_mutated_messages_are_all_answered(watch, fuzz_client: RawClient, rng: r
 
 @FUZZ
 @given(rng=st.randoms(use_true_random=False), count=st.integers(1, 8))
-def test_raw_frames_are_served_or_refused_with_their_close_code(watch, hostile_bridge, rng: random.Random,
-                                                                count: int) -> None:
+def test_raw_frames_are_served_or_refused_with_their_close_code(
+    watch, hostile_bridge, rng: random.Random, count: int
+) -> None:
     frames = [hostile_frame(rng) for _ in range(count)]
     assert serve_raw_frames(hostile_bridge[2], frames), frames
 
 
-FRAGMENT = st.fixed_dictionaries({
-    "op": st.just("fragment"),
-    "id": st.sampled_from(["a", "b", 7, "c" * 200]),
-    "num": st.one_of(st.integers(-2, 5), st.integers(2**31, 2**70)),
-    "total": st.one_of(st.integers(-1, 6), st.integers(2**31, 2**70)),
-    "data": st.one_of(st.text(max_size=40), st.just('{"op":"call_service","service":"/rosapi/get_time","id":"frag"}'),
-                      st.integers(1, 400_000).map(lambda n: "x" * n)),
-})
+FRAGMENT = st.fixed_dictionaries(
+    {
+        "op": st.just("fragment"),
+        "id": st.sampled_from(["a", "b", 7, "c" * 200]),
+        "num": st.one_of(st.integers(-2, 5), st.integers(2**31, 2**70)),
+        "total": st.one_of(st.integers(-1, 6), st.integers(2**31, 2**70)),
+        "data": st.one_of(
+            st.text(max_size=40),
+            st.just('{"op":"call_service","service":"/rosapi/get_time","id":"frag"}'),
+            st.integers(1, 400_000).map(lambda n: "x" * n),
+        ),
+    }
+)
 
 
 @FUZZ
 @given(fragments=st.lists(FRAGMENT, min_size=1, max_size=8))
-def test_fragments_in_any_order_and_size_leave_the_connection_served(watch, fuzz_client: RawClient,
-                                                                    fragments: list[dict]) -> None:
+def test_fragments_in_any_order_and_size_leave_the_connection_served(
+    watch, fuzz_client: RawClient, fragments: list[dict]
+) -> None:
     for fragment in fragments:
         fuzz_client.send(fragment)
     request_id = f"fuzz {next(_ids)}"

@@ -55,17 +55,44 @@ def until_received(publisher: RawClient, subscriber: RawClient, publish: dict, t
 
 # --- 1. out-of-range integers ------------------------------------------------------------------
 
-@pytest.mark.parametrize("type_, warm, bad, good, expected", [
-    ("std_msgs/msg/Int8", {"data": 1}, {"data": 128}, {"data": 5},
-     "msg.data: int 128 is out of the range of int8 (-128 to 127)"),
-    ("std_msgs/msg/UInt32", {"data": 1}, {"data": 2**32}, {"data": 7}, "out of the range of uint32 (0 to 4294967295)"),
-    ("std_msgs/msg/UInt32", {"data": 1}, {"data": -1}, {"data": 8}, "msg.data: int -1 is out of the range of uint32"),
-    ("std_msgs/msg/Header", {"stamp": {"sec": 1}}, {"stamp": {"sec": 2**31}}, {"stamp": {"sec": 9}},
-     "msg.stamp.sec: int 2147483648 is out of the range of int32"),
-    ("std_msgs/msg/Float32", {"data": 0.5}, {"data": 1e39}, {"data": 1.5}, "out of the range of float32"),
-])
-def test_out_of_range_values_are_refused_and_never_published(watch, client: RawClient, address, type_: str, warm: dict,
-                                                              bad: dict, good: dict, expected: str) -> None:
+
+@pytest.mark.parametrize(
+    "type_, warm, bad, good, expected",
+    [
+        (
+            "std_msgs/msg/Int8",
+            {"data": 1},
+            {"data": 128},
+            {"data": 5},
+            "msg.data: int 128 is out of the range of int8 (-128 to 127)",
+        ),
+        (
+            "std_msgs/msg/UInt32",
+            {"data": 1},
+            {"data": 2**32},
+            {"data": 7},
+            "out of the range of uint32 (0 to 4294967295)",
+        ),
+        (
+            "std_msgs/msg/UInt32",
+            {"data": 1},
+            {"data": -1},
+            {"data": 8},
+            "msg.data: int -1 is out of the range of uint32",
+        ),
+        (
+            "std_msgs/msg/Header",
+            {"stamp": {"sec": 1}},
+            {"stamp": {"sec": 2**31}},
+            {"stamp": {"sec": 9}},
+            "msg.stamp.sec: int 2147483648 is out of the range of int32",
+        ),
+        ("std_msgs/msg/Float32", {"data": 0.5}, {"data": 1e39}, {"data": 1.5}, "out of the range of float32"),
+    ],
+)
+def test_out_of_range_values_are_refused_and_never_published(
+    watch, client: RawClient, address, type_: str, warm: dict, bad: dict, good: dict, expected: str
+) -> None:
     topic = f"/hostile/range_{type_.rsplit('/', 1)[1].lower()}"
     subscriber = RawClient(*address)
     try:
@@ -90,18 +117,26 @@ def _full(type_: str, fields: dict) -> dict:
 
 # --- 2. goals of a client that disconnects ----------------------------------------------------
 
+
 @pytest.mark.parametrize("when", ["before acceptance", "while executing"])
 def test_goals_of_a_client_that_disconnects_are_cancelled(watch, address, when: str) -> None:
     observer = RawClient(*address)
     try:
-        observer.send({"op": "subscribe", "topic": "/peer/follow/_action/status", "type": "action_msgs/GoalStatusArray"})
+        observer.send(
+            {"op": "subscribe", "topic": "/peer/follow/_action/status", "type": "action_msgs/GoalStatusArray"}
+        )
         try:  # the goals the action server still reports (its status topic is latched)
             earlier = {_uuid(s) for s in observer.receive_op("publish", timeout=2)["msg"]["status_list"]}
         except TimeoutError:
             earlier = set()
-        goal = {"op": "send_action_goal", "id": "orphan", "action": "/peer/follow", "action_type": ACTION_TYPE,
-                "feedback": True, "args": {"trajectory": {"joint_names": ["a"],
-                                                          "points": [{"positions": [0.0]}] * 50}}}
+        goal = {
+            "op": "send_action_goal",
+            "id": "orphan",
+            "action": "/peer/follow",
+            "action_type": ACTION_TYPE,
+            "feedback": True,
+            "args": {"trajectory": {"joint_names": ["a"], "points": [{"positions": [0.0]}] * 50}},
+        }
         leaver = FrameSocket(*address)
         leaver.sock.sendall(text(goal))
         if when == "while executing":
@@ -124,16 +159,20 @@ def _uuid(status: dict) -> str:
 
 # --- 3. fragments and the size limit -----------------------------------------------------------
 
+
 def test_fragments_cannot_exceed_the_size_limit(watch, client: RawClient) -> None:
-    smuggled = json.dumps({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "smuggled",
-                           "pad": "x" * 1_200_000})
+    smuggled = json.dumps(
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "id": "smuggled", "pad": "x" * 1_200_000}
+    )
     half = len(smuggled) // 2
     client.send({"op": "fragment", "id": "f", "num": 0, "total": 2, "data": "{"})
     client.send({"op": "fragment", "id": "f", "num": 0, "total": 2, "data": smuggled[:half]})  # replaces the first
-    assert "exceeds 1000000 bytes" in status_of(client, {"op": "fragment", "id": "f", "num": 1, "total": 2,
-                                                          "data": smuggled[half:]})
-    answer = client.request({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "after"},
-                            "service_response")
+    assert "exceeds 1000000 bytes" in status_of(
+        client, {"op": "fragment", "id": "f", "num": 1, "total": 2, "data": smuggled[half:]}
+    )
+    answer = client.request(
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "id": "after"}, "service_response"
+    )
     assert answer["id"] == "after", "the oversized message was executed"
 
 
@@ -141,14 +180,17 @@ def test_pending_fragmented_messages_are_limited_per_connection(watch, client: R
     for number in range(4):
         client.send({"op": "fragment", "id": f"part{number}", "num": 0, "total": 2, "data": "{}"})
     assert "(limit 4, --max-pending-fragments)" in status_of(
-        client, {"op": "fragment", "id": "part4", "num": 0, "total": 2, "data": "{}"})
+        client, {"op": "fragment", "id": "part4", "num": 0, "total": 2, "data": "{}"}
+    )
 
 
 # --- 4. amplification ----------------------------------------------------------------------------
 
+
 def test_fragment_size_below_the_minimum_is_refused(watch, client: RawClient) -> None:
-    answer = client.request({"op": "call_service", "service": "/rosapi/services", "fragment_size": 1, "id": "tiny"},
-                            "service_response")
+    answer = client.request(
+        {"op": "call_service", "service": "/rosapi/services", "fragment_size": 1, "id": "tiny"}, "service_response"
+    )
     assert answer["result"] is False and "'fragment_size' must be between 1024" in answer["values"]
 
 
@@ -171,17 +213,31 @@ def test_subscribers_that_do_not_read_lose_old_messages_and_the_largest_is_cut_o
     try:
         for index, reader in enumerate(readers):
             for copy in range(4):
-                reader.sock.sendall(text({"op": "subscribe", "topic": "/hostile/flood", "type": "std_msgs/String",
-                                          "id": f"{index}.{copy}", "fragment_size": 1024}))
+                reader.sock.sendall(
+                    text(
+                        {
+                            "op": "subscribe",
+                            "topic": "/hostile/flood",
+                            "type": "std_msgs/String",
+                            "id": f"{index}.{copy}",
+                            "fragment_size": 1024,
+                        }
+                    )
+                )
         probe = RawClient(*address)
         try:
             probe.send({"op": "subscribe", "topic": "/hostile/flood", "type": "std_msgs/String"})
-            until_received(publisher, probe, {"op": "publish", "topic": "/hostile/flood", "type": "std_msgs/String",
-                                              "msg": {"data": "warm-up"}})
+            until_received(
+                publisher,
+                probe,
+                {"op": "publish", "topic": "/hostile/flood", "type": "std_msgs/String", "msg": {"data": "warm-up"}},
+            )
         finally:
             probe.close()
         for index in range(40):
-            publisher.send({"op": "publish", "topic": "/hostile/flood", "msg": {"data": f"{index:04d}" + "y" * 500_000}})
+            publisher.send(
+                {"op": "publish", "topic": "/hostile/flood", "msg": {"data": f"{index:04d}" + "y" * 500_000}}
+            )
         publisher.request({"op": "call_service", "service": "/rosapi/get_time"}, "service_response")
         codes = []
         for reader in readers:  # 4 MiB each would be more than the bridge's 16 MiB in total
@@ -199,11 +255,13 @@ def test_subscribers_that_do_not_read_lose_old_messages_and_the_largest_is_cut_o
 
 # --- 5. subscriptions, advertisements, calls, goals, connections --------------------------------
 
+
 def test_subscriptions_are_limited_and_new_connections_still_work(watch, client: RawClient, address) -> None:
     for number in range(20):
         client.send({"op": "subscribe", "topic": f"/hostile/many_{number}", "type": "std_msgs/String"})
     assert "too many subscriptions on this connection (limit 20, --max-subscriptions)" in status_of(
-        client, {"op": "subscribe", "topic": "/hostile/many_20", "type": "std_msgs/String"})
+        client, {"op": "subscribe", "topic": "/hostile/many_20", "type": "std_msgs/String"}
+    )
     newcomer = RawClient(*address)
     try:
         assert newcomer.request({"op": "call_service", "service": "/rosapi/get_time"}, "service_response")["result"]
@@ -215,7 +273,8 @@ def test_advertisements_are_limited(watch, client: RawClient) -> None:
     for number in range(10):
         client.send({"op": "advertise", "topic": f"/hostile/adv_{number}", "type": "std_msgs/String"})
     assert "(limit 10, --max-advertisements)" in status_of(
-        client, {"op": "advertise_service", "service": "/hostile/adv_srv", "type": "std_srvs/Trigger"})
+        client, {"op": "advertise_service", "service": "/hostile/adv_srv", "type": "std_srvs/Trigger"}
+    )
 
 
 def test_calls_in_flight_are_limited(watch, client: RawClient) -> None:
@@ -228,8 +287,12 @@ def test_calls_in_flight_are_limited(watch, client: RawClient) -> None:
 
 
 def test_goals_in_flight_are_limited(watch, client: RawClient) -> None:
-    goal = {"op": "send_action_goal", "action": "/peer/follow", "action_type": ACTION_TYPE,
-            "args": {"trajectory": {"joint_names": ["a"], "points": [{"positions": [0.0]}] * 3}}}
+    goal = {
+        "op": "send_action_goal",
+        "action": "/peer/follow",
+        "action_type": ACTION_TYPE,
+        "args": {"trajectory": {"joint_names": ["a"], "points": [{"positions": [0.0]}] * 3}},
+    }
     for number in range(5):
         client.send({**goal, "id": f"goal {number}"})
     refused = client.receive_op("action_result")
@@ -253,11 +316,18 @@ def test_connections_beyond_the_limit_are_refused_with_503(watch, address) -> No
 
 # --- 6. action clients ---------------------------------------------------------------------------
 
+
 def test_goals_to_actions_nobody_offers_leave_no_action_client(watch, client: RawClient) -> None:
     for batch in range(3):
         for number in range(4):
-            client.send({"op": "send_action_goal", "action": f"/hostile/nothing_{batch}_{number}",
-                         "action_type": ACTION_TYPE, "id": f"{batch}.{number}"})
+            client.send(
+                {
+                    "op": "send_action_goal",
+                    "action": f"/hostile/nothing_{batch}_{number}",
+                    "action_type": ACTION_TYPE,
+                    "id": f"{batch}.{number}",
+                }
+            )
         for _ in range(4):
             assert "is not available" in client.receive_op("action_result")["values"]
     topics = client.request({"op": "call_service", "service": "/rosapi/topics"}, "service_response")["values"]
@@ -265,6 +335,7 @@ def test_goals_to_actions_nobody_offers_leave_no_action_client(watch, client: Ra
 
 
 # --- 7. pings and log volume ---------------------------------------------------------------------
+
 
 def test_pings_a_client_never_reads_are_not_buffered_without_end(watch, address) -> None:
     pinger = FrameSocket(*address)
@@ -282,26 +353,38 @@ def test_pings_a_client_never_reads_are_not_buffered_without_end(watch, address)
 def test_bad_requests_do_not_grow_the_log_without_end(watch, hostile_bridge, client: RawClient) -> None:
     lines_before = hostile_bridge[1].snapshot()[0]
     for number in range(3000):
-        client.send('{"op":"teleport","id":%d,"pad":"%s"}' % (number, "z" * 2000))
+        client.send(f'{{"op":"teleport","id":{number},"pad":"{"z" * 2000}"}}')
     assert client.request({"op": "call_service", "service": "/rosapi/get_time"}, "service_response")["result"]
     assert hostile_bridge[1].snapshot()[0] - lines_before < 60
 
 
 # --- 8. values the bridge echoes -----------------------------------------------------------------
 
-@pytest.mark.parametrize("frame_text, expected", [
-    ('{"op":"call_service","service":"/rosapi/topics","id":NaN}',
-     {"op": "service_response", "service": "/rosapi/topics", "result": False}),
-    ('{"op":"call_service","service":Infinity,"id":"x"}', {"op": "service_response", "id": "x", "result": False}),
-    ('{"op":"call_service","service":"/rosapi/topics","id":%s}' % ("1" * 4400), {"op": "status"}),
-    ('{"op":"call_service","service":"/a\\ud800","id":"\\udc00"}',
-     {"op": "service_response", "id": "\\udc00", "result": False}),
-    ('{"op":"send_action_goal","action":"/peer/follow","action_type":"%s","id":1e400}' % ACTION_TYPE,
-     {"op": "action_result", "result": False}),
-    ('{"op":"publish","topic":"/hostile/s","type":"std_msgs/String","msg":{"data":"\\ud800"}}', {"op": "status"}),
-    ('{"op":"advertise","topic":"/hostile/1bad","type":"std_msgs/String","id":-Infinity}', {"op": "status"}),
-])
-def test_hostile_values_in_echoed_fields_are_answered(watch, client: RawClient, frame_text: str, expected: dict) -> None:
+
+@pytest.mark.parametrize(
+    "frame_text, expected",
+    [
+        (
+            '{"op":"call_service","service":"/rosapi/topics","id":NaN}',
+            {"op": "service_response", "service": "/rosapi/topics", "result": False},
+        ),
+        ('{"op":"call_service","service":Infinity,"id":"x"}', {"op": "service_response", "id": "x", "result": False}),
+        ('{"op":"call_service","service":"/rosapi/topics","id":%s}' % ("1" * 4400), {"op": "status"}),
+        (
+            '{"op":"call_service","service":"/a\\ud800","id":"\\udc00"}',
+            {"op": "service_response", "id": "\\udc00", "result": False},
+        ),
+        (
+            f'{{"op":"send_action_goal","action":"/peer/follow","action_type":"{ACTION_TYPE}","id":1e400}}',
+            {"op": "action_result", "result": False},
+        ),
+        ('{"op":"publish","topic":"/hostile/s","type":"std_msgs/String","msg":{"data":"\\ud800"}}', {"op": "status"}),
+        ('{"op":"advertise","topic":"/hostile/1bad","type":"std_msgs/String","id":-Infinity}', {"op": "status"}),
+    ],
+)
+def test_hostile_values_in_echoed_fields_are_answered(
+    watch, client: RawClient, frame_text: str, expected: dict
+) -> None:
     client.send(frame_text)
     answer = client.receive_op(expected["op"])
     assert {k: answer.get(k) for k in expected} == expected
@@ -312,25 +395,30 @@ def test_hostile_values_in_echoed_fields_are_answered(watch, client: RawClient, 
 def test_a_subscribe_refused_halfway_leaves_no_ros_subscription(watch, client: RawClient, address) -> None:
     topic = "/hostile/throttled"
     assert "'throttle_rate' must be between" in status_of(
-        client, '{"op":"subscribe","topic":"%s","type":"std_msgs/String","throttle_rate":%s}' % (topic, "9" * 400))
+        client, f'{{"op":"subscribe","topic":"{topic}","type":"std_msgs/String","throttle_rate":{"9" * 400}}}'
+    )
     topics = client.request({"op": "call_service", "service": "/rosapi/topics"}, "service_response")["values"]
     assert topic not in topics["topics"]
     subscriber = RawClient(*address)
     try:
         subscriber.send({"op": "subscribe", "topic": topic, "type": "std_msgs/String"})
-        assert until_received(client, subscriber, {"op": "publish", "topic": topic, "type": "std_msgs/String",
-                                                   "msg": {"data": "heard"}})["msg"] == {"data": "heard"}
+        assert until_received(
+            client, subscriber, {"op": "publish", "topic": topic, "type": "std_msgs/String", "msg": {"data": "heard"}}
+        )["msg"] == {"data": "heard"}
     finally:
         subscriber.close()
 
 
 # --- 10. type names ------------------------------------------------------------------------------
 
+
 def test_a_type_name_never_imports_a_module_that_is_no_interface_package(watch, hostile_bridge, client) -> None:
     assert "no ROS interface package 'this' is installed" in status_of(
-        client, {"op": "publish", "topic": "/hostile/zen", "type": "this/msg/Zen", "msg": {}})
+        client, {"op": "publish", "topic": "/hostile/zen", "type": "this/msg/Zen", "msg": {}}
+    )
     assert "no ROS interface package 'os'" in status_of(
-        client, {"op": "subscribe", "topic": "/hostile/os", "type": "os/msg/System"})
+        client, {"op": "subscribe", "topic": "/hostile/os", "type": "os/msg/System"}
+    )
     assert not hostile_bridge[1].forbidden
 
 
@@ -341,6 +429,7 @@ def test_invalid_ros_names_are_answered(watch, client: RawClient, name: str) -> 
 
 
 # --- issue 15: bytes per connection --------------------------------------------------------------
+
 
 def test_bytes_each_way_are_counted_per_connection(watch, client: RawClient) -> None:
     client.send({"op": "publish", "topic": "/hostile/count", "type": "std_msgs/String", "msg": {"data": "c" * 5000}})

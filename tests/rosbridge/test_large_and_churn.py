@@ -16,9 +16,10 @@ from collections.abc import Iterator
 
 import pytest
 
+from support.processes import ManagedProcess, caretaker
+
 from .hostile import BridgeLog
 from .rosbridge_support import RawClient, bridge_url
-from support.processes import ManagedProcess, caretaker
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -47,7 +48,12 @@ def _requests(size: int) -> list[dict]:
         {"op": "call_service", "service": "/" + big, "id": "call with a long name"},
         {"op": "call_service", "service": "/rosapi/get_ros_version", "id": big},
         {"op": "call_service", "service": "/rosapi/get_ros_version", "type": big, "id": "call with a long type"},
-        {"op": "call_service", "service": "/rosapi/get_ros_version", "args": {"data": big}, "id": "call with long data"},
+        {
+            "op": "call_service",
+            "service": "/rosapi/get_ros_version",
+            "args": {"data": big},
+            "id": "call with long data",
+        },
         {"op": "subscribe", "topic": "/" + big, "type": "std_msgs/msg/String", "id": "subscribe"},
         {"op": "advertise", "topic": "/" + big, "type": "std_msgs/msg/String", "id": "advertise"},
         {"op": "advertise", "topic": "/large/topic", "type": big, "id": "advertise a long type"},
@@ -83,8 +89,11 @@ def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int
             must_answer = [request["id"]] if request["op"] in ("call_service", "send_action_goal") else []
             client.send({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "after"})
             assert not _answered_in_time(client, [*must_answer, "after"]), (
-                f"{request['op']} with a {size}-byte field: not answered within {ANSWER_WITHIN_S} s")
-            print(f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): answered in {time.monotonic() - started:.2f} s")
+                f"{request['op']} with a {size}-byte field: not answered within {ANSWER_WITHIN_S} s"
+            )
+            print(
+                f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): answered in {time.monotonic() - started:.2f} s"
+            )
     finally:
         client.close()
     assert process.running
@@ -94,8 +103,11 @@ def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int
 def _in_order(client: RawClient) -> None:
     """Return once the bridge has handled everything ``client`` sent before (it handles a
     client's messages in order)."""
-    client.request({"op": "call_service", "service": "/rosapi/get_ros_version", "id": "in order"},
-                   "service_response", timeout=ANSWER_WITHIN_S)
+    client.request(
+        {"op": "call_service", "service": "/rosapi/get_ros_version", "id": "in order"},
+        "service_response",
+        timeout=ANSWER_WITHIN_S,
+    )
 
 
 def _wait_listed(client: RawClient, action: str) -> None:
@@ -103,8 +115,11 @@ def _wait_listed(client: RawClient, action: str) -> None:
     wanted = f"{action}/_action/send_goal"
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline:
-        listed = client.request({"op": "call_service", "service": "/rosapi/services", "id": "listed"},
-                                "service_response", timeout=ANSWER_WITHIN_S)["values"]["services"]
+        listed = client.request(
+            {"op": "call_service", "service": "/rosapi/services", "id": "listed"},
+            "service_response",
+            timeout=ANSWER_WITHIN_S,
+        )["values"]["services"]
         if wanted in listed:
             return
     pytest.fail(f"{wanted} was not listed within 30 s")
@@ -121,15 +136,23 @@ def test_clients_leaving_with_goals_in_flight_under_action_server_churn(logged_b
         server.send({"op": "advertise_action", "action": action, "type": ACTION_TYPE})
         _in_order(server)
         _wait_listed(caller, action)
-        caller.send({"op": "send_action_goal", "id": "goal", "action": action, "action_type": ACTION_TYPE,
-                     "args": GOAL})
+        caller.send(
+            {"op": "send_action_goal", "id": "goal", "action": action, "action_type": ACTION_TYPE, "args": GOAL}
+        )
         server.receive_op("send_action_goal", timeout=ANSWER_WITHIN_S)
         if round_ % 2:  # the serving client leaves first: the goal is aborted and answered
             server.close()
             assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
             # A goal after its server's client left is answered too (refused or aborted).
-            caller.send({"op": "send_action_goal", "id": "late goal", "action": action,
-                         "action_type": ACTION_TYPE, "args": GOAL})
+            caller.send(
+                {
+                    "op": "send_action_goal",
+                    "id": "late goal",
+                    "action": action,
+                    "action_type": ACTION_TYPE,
+                    "args": GOAL,
+                }
+            )
             assert caller.receive_op("action_result", timeout=ANSWER_WITHIN_S)["result"] is False
             caller.close()
         else:  # the caller leaves: its goal is cancelled, then its server goes too

@@ -10,9 +10,9 @@ from pathlib import Path
 
 from bridge.rosbridge.limits import Limits, option
 from bridge.rosbridge.server import parse_args
+from support.processes import caretaker
 
 from .rosbridge_support import CLOSE, PING, FrameSocket, bridge_url
-from support.processes import caretaker
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "rosbridge.md"
 

@@ -29,7 +29,8 @@ def test_time_and_version(connect) -> None:
     now = roslibpy.Service(ros, "/rosapi/get_time", "rosapi_msgs/srv/GetTime").call(roslibpy.ServiceRequest({}))
     assert now["time"]["sec"] > 1_600_000_000 and 0 <= now["time"]["nanosec"] < 1_000_000_000
     version = roslibpy.Service(ros, "/rosapi/get_ros_version", "rosapi_msgs/srv/GetROSVersion").call(
-        roslibpy.ServiceRequest({}))
+        roslibpy.ServiceRequest({})
+    )
     assert version == {"version": 2, "distro": "jazzy"}
 
 

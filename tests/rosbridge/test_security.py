@@ -18,23 +18,43 @@ from pathlib import Path
 import pytest
 from websockets.exceptions import ConnectionClosed
 
-from .rosbridge_support import RawClient, bridge_url
 from support.processes import ManagedProcess, caretaker
+
+from .rosbridge_support import RawClient, bridge_url
 
 SECRET = "s3cret-for-tests"
 ALLOWED_ORIGIN = "https://console.example:8443"
 
 
 @pytest.fixture(scope="module")
-def guarded(ros_env: dict[str, str], peer: ManagedProcess,
-            tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int]]:
+def guarded(
+    ros_env: dict[str, str], peer: ManagedProcess, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[str, int]]:
     """A bridge with allow-lists, a 4 KiB frame limit and a shared secret."""
     secret_file = tmp_path_factory.mktemp("secret") / "secret"
     secret_file.write_text(SECRET + "\n")
-    process = caretaker("bridge", "--port", "0", "--topics-glob", "/allowed/*", "--services-glob", "/peer/set_*",
-                        "--services-glob", "/rosbridge_websocket/*", "--actions-glob", "/allowed/*",
-                        "--max-message-size", "4096", "--auth-secret-file", str(secret_file), "--auth-timeout", "2",
-                        "--allow-origin", ALLOWED_ORIGIN, env=ros_env)
+    process = caretaker(
+        "bridge",
+        "--port",
+        "0",
+        "--topics-glob",
+        "/allowed/*",
+        "--services-glob",
+        "/peer/set_*",
+        "--services-glob",
+        "/rosbridge_websocket/*",
+        "--actions-glob",
+        "/allowed/*",
+        "--max-message-size",
+        "4096",
+        "--auth-secret-file",
+        str(secret_file),
+        "--auth-timeout",
+        "2",
+        "--allow-origin",
+        ALLOWED_ORIGIN,
+        env=ros_env,
+    )
     yield from _serve(process)
 
 
@@ -57,20 +77,30 @@ def authenticated(address: tuple[str, int]) -> RawClient:
 def test_refused_names_are_answered(guarded: tuple[str, int]) -> None:
     client = authenticated(guarded)
     try:
-        status = client.request({"op": "subscribe", "id": 1, "topic": "/secret/topic", "type": "std_msgs/String"},
-                                "status")
+        status = client.request(
+            {"op": "subscribe", "id": 1, "topic": "/secret/topic", "type": "std_msgs/String"}, "status"
+        )
         assert "topic /secret/topic is not allowed" in status["msg"] and status["id"] == 1
         answer = client.request({"op": "call_service", "id": 2, "service": "/peer/slow"}, "service_response")
         assert answer["result"] is False and "service /peer/slow is not allowed" in answer["values"]
-        answer = client.request({"op": "send_action_goal", "id": 3, "action": "/peer/follow",
-                                 "action_type": "caretaker_sim_msgs/action/FollowJointTrajectory"}, "action_result")
+        answer = client.request(
+            {
+                "op": "send_action_goal",
+                "id": 3,
+                "action": "/peer/follow",
+                "action_type": "caretaker_sim_msgs/action/FollowJointTrajectory",
+            },
+            "action_result",
+        )
         assert answer["result"] is False and "action /peer/follow is not allowed" in answer["values"]
-        allowed = client.request({"op": "call_service", "id": 4, "service": "/rosapi/get_ros_version"},
-                                 "service_response")
+        allowed = client.request(
+            {"op": "call_service", "id": 4, "service": "/rosapi/get_ros_version"}, "service_response"
+        )
         assert allowed["result"] is True
         client.send({"op": "subscribe", "id": 5, "topic": "/allowed/x", "type": "std_msgs/String"})
-        still_up = client.request({"op": "call_service", "id": 6, "service": "/rosapi/get_ros_version"},
-                                  "service_response")
+        still_up = client.request(
+            {"op": "call_service", "id": 6, "service": "/rosapi/get_ros_version"}, "service_response"
+        )
         assert still_up["id"] == 6
     finally:
         client.close()
@@ -84,21 +114,28 @@ def test_oversized_frame_closes_with_1009(guarded: tuple[str, int]) -> None:
     assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009
 
 
-@pytest.mark.parametrize("first_message", [
-    {"op": "call_service", "service": "/rosapi/get_ros_version"},
-    {"op": "auth", "token": "wrong"},
-    {"op": "auth", "mac": "00", "client": "c", "dest": "d", "rand": "r", "t": 0, "level": "user", "end": 0},
-])
+@pytest.mark.parametrize(
+    "first_message",
+    [
+        {"op": "call_service", "service": "/rosapi/get_ros_version"},
+        {"op": "auth", "token": "wrong"},
+        {"op": "auth", "mac": "00", "client": "c", "dest": "d", "rand": "r", "t": 0, "level": "user", "end": 0},
+    ],
+)
 def test_unauthenticated_clients_are_closed_with_1008(guarded: tuple[str, int], first_message: dict) -> None:
     assert closed_with(guarded, first_message) == 1008
 
 
-@pytest.mark.parametrize("auth", [
-    '{"op":"auth","mac":"\u00e9","client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
-    '{"op":"auth","mac":"%(nan_mac)s","client":"c","dest":"d","rand":"r","t":NaN,"level":"user","end":NaN}',
-    '{"op":"auth","mac":5,"client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
-    '{"op":"auth","token":["%(secret)s"]}',
-], ids=["non-hex mac", "NaN times", "number mac", "token list"])
+@pytest.mark.parametrize(
+    "auth",
+    [
+        '{"op":"auth","mac":"\u00e9","client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
+        '{"op":"auth","mac":"%(nan_mac)s","client":"c","dest":"d","rand":"r","t":NaN,"level":"user","end":NaN}',
+        '{"op":"auth","mac":5,"client":"c","dest":"d","rand":"r","t":%(now)d,"level":"user","end":%(end)d}',
+        '{"op":"auth","token":["%(secret)s"]}',
+    ],
+    ids=["non-hex mac", "NaN times", "number mac", "token list"],
+)
 def test_malformed_auth_is_refused_with_1008(guarded: tuple[str, int], auth: str) -> None:
     now = int(time.time())
     nan_mac = hmac.new(SECRET.encode(), b"cdrnanusernan", hashlib.sha256).hexdigest()
@@ -113,8 +150,14 @@ def test_a_client_that_never_authenticates_is_closed(guarded: tuple[str, int]) -
 
 
 def mac_auth(now: int) -> dict:
-    fields = {"client": "127.0.0.1", "dest": "127.0.0.1", "rand": f"abc{now}", "t": now, "level": "user",
-              "end": now + 60}
+    fields = {
+        "client": "127.0.0.1",
+        "dest": "127.0.0.1",
+        "rand": f"abc{now}",
+        "t": now,
+        "level": "user",
+        "end": now + 60,
+    }
     text = "".join(str(fields[k]) for k in ("client", "dest", "rand", "t", "level", "end"))
     return {"op": "auth", "mac": hmac.new(SECRET.encode(), text.encode(), hashlib.sha256).hexdigest(), **fields}
 
@@ -142,6 +185,7 @@ def closed_with(address: tuple[str, int], first_message: dict | str) -> int:
 def test_rosapi_shows_and_touches_only_what_the_globs_allow(guarded: tuple[str, int]) -> None:
     client = authenticated(guarded)
     try:
+
         def call(service: str, args: dict | None = None) -> dict:
             return client.request({"op": "call_service", "service": service, "args": args or {}}, "service_response")
 
@@ -153,16 +197,25 @@ def test_rosapi_shows_and_touches_only_what_the_globs_allow(guarded: tuple[str, 
         assert "/allowed/listed" in topics and all(t.startswith("/allowed/") for t in topics)
         services = call("/rosapi/services")["values"]["services"]
         assert "/peer/set_bool" in services and "/rosbridge/connection_stats" in services
-        assert not [s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/",
-                                                            "/rosbridge_websocket/"))]
-        assert "topic /peer/echo_out is not allowed" in call("/rosapi/topic_type", {"topic": "/peer/echo_out"})["values"]
+        assert not [
+            s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/", "/rosbridge_websocket/"))
+        ]
+        assert (
+            "topic /peer/echo_out is not allowed" in call("/rosapi/topic_type", {"topic": "/peer/echo_out"})["values"]
+        )
         refused = call("/rosapi/set_param", {"name": "/rosbridge_websocket:actual_port", "value": "1"})
-        assert refused["result"] is False and "parameter change /rosbridge_websocket:actual_port is not allowed" \
-            in refused["values"]
-        direct = call("/rosbridge_websocket/set_parameters",
-                      {"parameters": [{"name": "actual_port", "value": {"type": 2, "integer_value": 1}}]})
-        assert direct["result"] is False and "parameter change /rosbridge_websocket:actual_port is not allowed" \
-            in direct["values"]
+        assert (
+            refused["result"] is False
+            and "parameter change /rosbridge_websocket:actual_port is not allowed" in refused["values"]
+        )
+        direct = call(
+            "/rosbridge_websocket/set_parameters",
+            {"parameters": [{"name": "actual_port", "value": {"type": 2, "integer_value": 1}}]},
+        )
+        assert (
+            direct["result"] is False
+            and "parameter change /rosbridge_websocket:actual_port is not allowed" in direct["values"]
+        )
         port = call("/rosapi/get_param", {"name": "/rosbridge_websocket:actual_port"})["values"]["value"]
         assert port == str(guarded[1])
     finally:
@@ -173,8 +226,9 @@ def test_topic_refusals_are_answered_without_set_level(guarded: tuple[str, int])
     client = RawClient(*guarded)
     try:
         client.send({"op": "auth", "token": SECRET})
-        status = client.request({"op": "subscribe", "id": "s", "topic": "/secret/topic", "type": "std_msgs/String"},
-                                "status")
+        status = client.request(
+            {"op": "subscribe", "id": "s", "topic": "/secret/topic", "type": "std_msgs/String"}, "status"
+        )
         assert "topic /secret/topic is not allowed" in status["msg"] and status["id"] == "s"
     finally:
         client.close()
@@ -206,11 +260,18 @@ def test_a_disconnect_logs_the_bytes_each_way(ros_env: dict[str, str]) -> None:
 
 @pytest.mark.parametrize("address", ["0.0.0.0", "192.0.2.1", "::", "bridge.example"])
 def test_an_open_address_needs_tls_and_a_secret(ros_env: dict[str, str], address: str) -> None:
-    run = subprocess.run([str(Path(sys.executable).with_name("caretaker")), "bridge", "--address", address],
-                         capture_output=True, text=True, timeout=60, env=ros_env)
+    run = subprocess.run(
+        [str(Path(sys.executable).with_name("caretaker")), "bridge", "--address", address],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=ros_env,
+    )
     assert run.returncode == 2
-    assert (f"--address {address} is reachable from other hosts, but the bridge has no TLS (--certfile/--keyfile) "
-            f"and no secret") in run.stderr and "--insecure" in run.stderr
+    assert (
+        f"--address {address} is reachable from other hosts, but the bridge has no TLS (--certfile/--keyfile) "
+        f"and no secret"
+    ) in run.stderr and "--insecure" in run.stderr
 
 
 def test_insecure_says_an_open_address_is_meant(ros_env: dict[str, str]) -> None:
@@ -223,9 +284,28 @@ def test_insecure_says_an_open_address_is_meant(ros_env: dict[str, str]) -> None
 def tls_bridge(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int, Path]]:
     directory = tmp_path_factory.mktemp("tls")
     cert, key = directory / "cert.pem", directory / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
-                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            "/CN=127.0.0.1",
+            "-addext",
+            "subjectAltName=IP:127.0.0.1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+    )
     process = caretaker("bridge", "--port", "0", "--certfile", str(cert), "--keyfile", str(key), env=ros_env)
     for host, port in _serve(process):
         yield host, port, cert

@@ -16,8 +16,12 @@ def test_call_with_dict_and_with_list_args(connect) -> None:
     client = connect()
     answers = Inbox()
     client.on("service_response", answers)  # not used by roslibpy; raw frames checked in test_errors
-    assert roslibpy.Service(client, "/peer/set_bool", "std_srvs/SetBool").call(
-        roslibpy.ServiceRequest({"data": False}), timeout=10)["message"] == "got false"
+    assert (
+        roslibpy.Service(client, "/peer/set_bool", "std_srvs/SetBool").call(
+            roslibpy.ServiceRequest({"data": False}), timeout=10
+        )["message"]
+        == "got false"
+    )
 
 
 def test_missing_service_is_answered_as_a_failure(connect) -> None:
@@ -30,7 +34,8 @@ def test_slow_service_does_not_block_other_calls(connect) -> None:
     client = connect()
     slow_done = Inbox()
     roslibpy.Service(client, "/peer/slow", "std_srvs/Trigger").call(
-        roslibpy.ServiceRequest({}), callback=slow_done, errback=slow_done)
+        roslibpy.ServiceRequest({}), callback=slow_done, errback=slow_done
+    )
     fast = roslibpy.Service(client, "/peer/set_bool", "std_srvs/SetBool")
     for _ in range(5):
         assert fast.call(roslibpy.ServiceRequest({"data": True}), timeout=10)["success"] is True

@@ -7,8 +7,9 @@ from pathlib import Path
 
 import roslibpy
 
-from .rosbridge_support import Inbox, publish_until_received
 from support.processes import python
+
+from .rosbridge_support import Inbox, publish_until_received
 
 LATE_PUBLISHER = Path(__file__).with_name("late_latched_publisher.py")
 
@@ -49,8 +50,11 @@ def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect) ->
     talker = roslibpy.Topic(client, topic, "sensor_msgs/msg/Image")
     talker.advertise()
     roslibpy.Topic(client, topic, "sensor_msgs/Image").subscribe(inbox)
-    publish_until_received(talker, {"header": {"stamp": {"secs": 7, "nsecs": 9}, "frame_id": "cam"},
-                                    "width": 3, "height": 1, "data": [1, 2, 250]}, inbox)
+    publish_until_received(
+        talker,
+        {"header": {"stamp": {"secs": 7, "nsecs": 9}, "frame_id": "cam"}, "width": 3, "height": 1, "data": [1, 2, 250]},
+        inbox,
+    )
     image = inbox.items[0]
     assert image["header"] == {"stamp": {"sec": 7, "nanosec": 9}, "frame_id": "cam"}
     assert base64.b64decode(image["data"]) == bytes([1, 2, 250])

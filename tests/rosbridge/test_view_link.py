@@ -6,32 +6,64 @@ from __future__ import annotations
 
 import asyncio
 import subprocess
-from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from .rosbridge_support import bridge_url
 from caretaker.processes import REPO
 from console.spatial_link import RosbridgeLink, Subscription, read_view_link
 from support.processes import ManagedProcess, caretaker
+
+from .rosbridge_support import bridge_url
 
 SECRET = "view-link-secret"
 
 
 @pytest.fixture(scope="module")
-def secure_bridge(ros_env: dict[str, str], peer: ManagedProcess, tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, Path]]:
+def secure_bridge(
+    ros_env: dict[str, str], peer: ManagedProcess, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[str, Path]]:
     """wss:// with a self-signed certificate and HMAC auth: (URL, folder with ca.pem)."""
     folder = tmp_path_factory.mktemp("view-link")
     cert, key = folder / "ca.pem", folder / "key.pem"
-    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
-                    "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key), "-out", str(cert)],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [
+            "openssl",
+            "req",
+            "-x509",
+            "-newkey",
+            "rsa:2048",
+            "-nodes",
+            "-days",
+            "1",
+            "-subj",
+            "/CN=127.0.0.1",
+            "-addext",
+            "subjectAltName=IP:127.0.0.1",
+            "-keyout",
+            str(key),
+            "-out",
+            str(cert),
+        ],
+        check=True,
+        capture_output=True,
+    )
     (folder / "bridge.secret").write_text(SECRET + "\n")
-    process = caretaker("bridge", "--port", "0", "--certfile", str(cert), "--keyfile", str(key),
-                        "--auth-secret-file", str(folder / "bridge.secret"), env=ros_env)
+    process = caretaker(
+        "bridge",
+        "--port",
+        "0",
+        "--certfile",
+        str(cert),
+        "--keyfile",
+        str(key),
+        "--auth-secret-file",
+        str(folder / "bridge.secret"),
+        env=ros_env,
+    )
     try:
         process.wait_ready(60)
         yield bridge_url(process).replace("ws://", "wss://"), folder

@@ -46,16 +46,26 @@ class ArmModel:
                 failures.append(str(exc))
         if not solutions:
             raise AssertionError(failures[0])
-        return min(solutions, key=lambda q: sum((a - b) ** 2 for a, b in zip(q, seed)))
+        return min(solutions, key=lambda q: sum((a - b) ** 2 for a, b in zip(q, seed, strict=False)))
 
     def _ik_from(self, link: str, pos: Sequence[float], orn: Sequence[float], seed: Sequence[float]) -> list[float]:
-        for j, q in zip(self._index, seed):
+        for j, q in zip(self._index, seed, strict=False):
             p.resetJointState(self.world.robot, j, q, physicsClientId=self.client)
         target = self.world.link_index[link]
         q = list(seed)
         for _ in range(5):
-            q = list(p.calculateInverseKinematics(self.world.robot, target, list(pos), list(orn), maxNumIterations=300, residualThreshold=1e-6, physicsClientId=self.client))[: len(self._index)]
-            for j, v in zip(self._index, q):
+            q = list(
+                p.calculateInverseKinematics(
+                    self.world.robot,
+                    target,
+                    list(pos),
+                    list(orn),
+                    maxNumIterations=300,
+                    residualThreshold=1e-6,
+                    physicsClientId=self.client,
+                )
+            )[: len(self._index)]
+            for j, v in zip(self._index, q, strict=False):
                 p.resetJointState(self.world.robot, j, v, physicsClientId=self.client)
             state = p.getLinkState(self.world.robot, target, computeForwardKinematics=True, physicsClientId=self.client)
             if math.dist(state[4], pos) < 2e-4:
@@ -65,7 +75,7 @@ class ArmModel:
         angle = 2 * math.acos(min(1.0, abs(diff[3])))
         if error > 1e-3 or angle > 0.01:
             raise AssertionError(f"IK for {link} at {pos} failed: {error * 1000:.1f} mm, {angle:.3f} rad off")
-        for (lower, upper, _, _), v, name in zip(self.limits, q, self.joints):
+        for (lower, upper, _, _), v, name in zip(self.limits, q, self.joints, strict=False):
             if not lower <= v <= upper:
                 raise AssertionError(f"IK solution puts {name} at {v:.3f}, outside [{lower}, {upper}]")
         return q
@@ -78,7 +88,9 @@ class ArmModel:
         pos, orn = p.multiplyTransforms(s.xyz, s.quaternion, (offset.xyz[0] - back, 0, 0), offset.quaternion)
         return tuple(pos), tuple(orn)  # type: ignore[return-value]
 
-    def slot_line(self, slot: str, start_back: float, end_back: float, seed: Sequence[float], step: float = 0.01) -> list[list[float]]:
+    def slot_line(
+        self, slot: str, start_back: float, end_back: float, seed: Sequence[float], step: float = 0.01
+    ) -> list[list[float]]:
         """IK waypoints moving the tool straight along the slot axis from one depth to another."""
         n = max(1, int(round(abs(end_back - start_back) / step)))
         path, q = [], list(seed)
@@ -90,14 +102,25 @@ class ArmModel:
 
     def look_at(self, camera_link: str, target_pose: Pose, distance: float, seed: Sequence[float]) -> list[float]:
         """Put a camera link ``distance`` m out along the target's normal, looking back at it."""
-        pos, orn = p.multiplyTransforms(target_pose.xyz, target_pose.quaternion, (0, 0, distance), p.getQuaternionFromEuler((math.pi, 0, 0)))
+        pos, orn = p.multiplyTransforms(
+            target_pose.xyz, target_pose.quaternion, (0, 0, distance), p.getQuaternionFromEuler((math.pi, 0, 0))
+        )
         return self.ik(camera_link, pos, orn, seed)
 
-    def timed(self, waypoints: Sequence[Sequence[float]], start: Sequence[float], speed_fraction: float = 0.5, min_dt: float = 0.05) -> list[tuple[float, list[float]]]:
+    def timed(
+        self,
+        waypoints: Sequence[Sequence[float]],
+        start: Sequence[float],
+        speed_fraction: float = 0.5,
+        min_dt: float = 0.05,
+    ) -> list[tuple[float, list[float]]]:
         """(time, positions) points, each segment at ``speed_fraction`` of the slowest joint's limit."""
         points, t, previous = [], 0.0, list(start)
         for q in waypoints:
-            dt = max([min_dt] + [abs(a - b) / (lim[3] * speed_fraction) for a, b, lim in zip(q, previous, self.limits)])
+            dt = max(
+                [min_dt]
+                + [abs(a - b) / (lim[3] * speed_fraction) for a, b, lim in zip(q, previous, self.limits, strict=False)]
+            )
             t += dt
             points.append((t, list(q)))
             previous = list(q)

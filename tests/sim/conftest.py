@@ -6,15 +6,26 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-
 from sim_client import SimClient
+
 from support.processes import ManagedProcess, caretaker
 
 
 def _start_sim(scene: str, env: dict[str, str], capture_dir: Path) -> ManagedProcess:
     proc = caretaker(
-        "sim", "--scene", scene, "--time-scale", "0", "--seed", "7", "--camera-period", "1",
-        "--capture-dir", str(capture_dir), env=env, name=f"sim-{scene}",
+        "sim",
+        "--scene",
+        scene,
+        "--time-scale",
+        "0",
+        "--seed",
+        "7",
+        "--camera-period",
+        "1",
+        "--capture-dir",
+        str(capture_dir),
+        env=env,
+        name=f"sim-{scene}",
     )
     proc.wait_ready(90.0)
     return proc

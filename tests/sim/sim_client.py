@@ -12,18 +12,17 @@ from typing import Any
 
 import rclpy
 from builtin_interfaces.msg import Duration
+from caretaker_sim_msgs.action import FollowJointTrajectory
+from caretaker_sim_msgs.msg import NamedPoses, VisualWorld
+from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
 from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from trajectory_msgs.msg import JointTrajectoryPoint
-
-from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectoryPoint
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 TIMEOUT = 60.0
@@ -55,7 +54,9 @@ class SimClient:
             ("/sim/visual_world", VisualWorld, LATCHED),
         ]:
             self.node.create_subscription(kind, topic, self._store(topic), qos)
-        self.trajectory_client = ActionClient(self.node, FollowJointTrajectory, "/arm_controller/follow_joint_trajectory")
+        self.trajectory_client = ActionClient(
+            self.node, FollowJointTrajectory, "/arm_controller/follow_joint_trajectory"
+        )
         self.gripper_client = self.node.create_client(SetGripper, "/gripper/set")
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
@@ -87,12 +88,15 @@ class SimClient:
                 self.latest[topic] = msg
                 self.counts[topic] = self.counts.get(topic, 0) + 1
                 self._changed.notify_all()
+
         return callback
 
     def wait_for(self, predicate: Callable[[], bool], what: str, timeout: float = TIMEOUT) -> None:
         with self._changed:
             if not self._changed.wait_for(lambda: self.spin_error is not None or predicate(), timeout):
-                raise AssertionError(f"timed out after {timeout} s waiting for {what}; latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }")
+                raise AssertionError(
+                    f"timed out after {timeout} s waiting for {what}; latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }"
+                )
             if self.spin_error is not None and not predicate():
                 raise AssertionError(f"the test client's executor died: {self.spin_error!r}") from self.spin_error
 
@@ -110,7 +114,9 @@ class SimClient:
         return self.latest[topic]
 
     def wait_value(self, topic: str, expected: Any, timeout: float = TIMEOUT) -> None:
-        self.wait_for(lambda: topic in self.latest and self.latest[topic].data == expected, f"{topic} == {expected!r}", timeout)
+        self.wait_for(
+            lambda: topic in self.latest and self.latest[topic].data == expected, f"{topic} == {expected!r}", timeout
+        )
 
     def joint_positions(self, names: Sequence[str]) -> list[float]:
         return _positions(self.fresh("/joint_states"), names)
@@ -118,9 +124,12 @@ class SimClient:
     def wait_joints(self, names: Sequence[str], expected: Sequence[float], tol: float) -> None:
         """Wait until ``/joint_states`` shows ``names`` within ``tol`` of ``expected``: under load the
         messages taken after a result can still be ones queued before it."""
+
         def there() -> bool:
             msg = self.latest.get("/joint_states")
-            return msg is not None and all(abs(q - e) <= tol for q, e in zip(_positions(msg, names), expected, strict=True))
+            return msg is not None and all(
+                abs(q - e) <= tol for q, e in zip(_positions(msg, names), expected, strict=True)
+            )
 
         self.wait_for(there, f"joint_states of {list(names)} at {list(expected)}")
 
@@ -129,7 +138,12 @@ class SimClient:
         if name not in msg.names:
             raise AssertionError(f"no frame {name!r} in /sim/frames; frames are {list(msg.names)}")
         pose = msg.poses[list(msg.names).index(name)]
-        return (pose.position.x, pose.position.y, pose.position.z), (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w)
+        return (pose.position.x, pose.position.y, pose.position.z), (
+            pose.orientation.x,
+            pose.orientation.y,
+            pose.orientation.z,
+            pose.orientation.w,
+        )
 
     # ------------------------------------------------------------------ calls
 
@@ -140,10 +154,19 @@ class SimClient:
             raise AssertionError(f"{what}: no answer in {timeout} s")
         return future.result()
 
-    def follow_and_cancel(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]]) -> tuple[int, FollowJointTrajectory.Result]:
+    def follow_and_cancel(
+        self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]]
+    ) -> tuple[int, FollowJointTrajectory.Result]:
         """Send a trajectory, cancel it at its first feedback; returns (goal status, result)."""
         self.feedback.clear()
-        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, None, 0.0), feedback_callback=self._feedback_callback)), "send goal")
+        handle = self._wait_future(
+            self._in_executor(
+                lambda: self.trajectory_client.send_goal_async(
+                    self._goal(joint_names, points, None, 0.0), feedback_callback=self._feedback_callback
+                )
+            ),
+            "send goal",
+        )
         assert handle.accepted, "goal not accepted"
         self.wait_for(lambda: bool(self.feedback), "trajectory feedback")
         self._wait_future(self._in_executor(handle.cancel_goal_async), "cancel")
@@ -152,7 +175,12 @@ class SimClient:
 
     def start(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]]) -> Any:
         """Send a trajectory and return its goal handle once accepted (see :meth:`result`)."""
-        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, None, 0.0))), "send goal")
+        handle = self._wait_future(
+            self._in_executor(
+                lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, None, 0.0))
+            ),
+            "send goal",
+        )
         assert handle.accepted, "goal not accepted"
         return handle
 
@@ -160,13 +188,33 @@ class SimClient:
         response = self._wait_future(self._in_executor(handle.get_result_async), "trajectory result")
         return response.status, response.result
 
-    def follow(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], *, velocities: Sequence[Sequence[float]] | None = None, tolerance: float = 0.0) -> FollowJointTrajectory.Result:
+    def follow(
+        self,
+        joint_names: Sequence[str],
+        points: Sequence[tuple[float, Sequence[float]]],
+        *,
+        velocities: Sequence[Sequence[float]] | None = None,
+        tolerance: float = 0.0,
+    ) -> FollowJointTrajectory.Result:
         """Send a trajectory of (time_from_start, positions) points and wait for its result."""
-        handle = self._wait_future(self._in_executor(lambda: self.trajectory_client.send_goal_async(self._goal(joint_names, points, velocities, tolerance), feedback_callback=self._feedback_callback)), "send goal")
+        handle = self._wait_future(
+            self._in_executor(
+                lambda: self.trajectory_client.send_goal_async(
+                    self._goal(joint_names, points, velocities, tolerance), feedback_callback=self._feedback_callback
+                )
+            ),
+            "send goal",
+        )
         assert handle.accepted, "goal not accepted"
         return self._wait_future(self._in_executor(handle.get_result_async), "trajectory result").result
 
-    def _goal(self, joint_names: Sequence[str], points: Sequence[tuple[float, Sequence[float]]], velocities: Sequence[Sequence[float]] | None, tolerance: float) -> FollowJointTrajectory.Goal:
+    def _goal(
+        self,
+        joint_names: Sequence[str],
+        points: Sequence[tuple[float, Sequence[float]]],
+        velocities: Sequence[Sequence[float]] | None,
+        tolerance: float,
+    ) -> FollowJointTrajectory.Goal:
         if not self.trajectory_client.wait_for_server(timeout_sec=TIMEOUT):
             raise AssertionError("trajectory action server not available")
         goal = FollowJointTrajectory.Goal()

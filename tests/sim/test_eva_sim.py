@@ -3,13 +3,21 @@
 from __future__ import annotations
 
 import pytest
-
 from arm_paths import ArmModel
 from sim_client import SimClient
+
 from sim.trajectory import ErrorCode
 
 SCENE = "eva"
-ARM = ["shoulder_roll_joint", "shoulder_yaw_joint", "shoulder_pitch_joint", "elbow_pitch_joint", "wrist_pitch_joint", "wrist_yaw_joint", "wrist_roll_joint"]
+ARM = [
+    "shoulder_roll_joint",
+    "shoulder_yaw_joint",
+    "shoulder_pitch_joint",
+    "elbow_pitch_joint",
+    "wrist_pitch_joint",
+    "wrist_yaw_joint",
+    "wrist_roll_joint",
+]
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +30,16 @@ def model() -> ArmModel:
 def test_frames_name_every_target_and_the_camera(client: SimClient) -> None:
     msg = client.fresh("/sim/frames")
     assert msg.header.frame_id == "world"
-    for name in ("robot_base", "tool0", "camera/ee_camera", "camera/scene", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"):
+    for name in (
+        "robot_base",
+        "tool0",
+        "camera/ee_camera",
+        "camera/scene",
+        "target/hull_a",
+        "target/hull_b",
+        "target/hull_c",
+        "target/hull_d",
+    ):
         assert name in msg.names
 
 
@@ -33,7 +50,16 @@ def test_visual_world_has_the_hull_targets_and_the_arm_without_gripper(client: S
     assert list(world.arm_joints) == ARM and list(world.gripper_joints) == []
     assert set(ARM) <= {j.get("name") for j in ET.fromstring(client.value("/robot_description").data).iter("joint")}
     objects = {o.name: o for o in world.objects}
-    assert {"halo", "esprit", "ppe", "solar_arrays", "target/hull_a", "target/hull_b", "target/hull_c", "target/hull_d"} <= set(objects)
+    assert {
+        "halo",
+        "esprit",
+        "ppe",
+        "solar_arrays",
+        "target/hull_a",
+        "target/hull_b",
+        "target/hull_c",
+        "target/hull_d",
+    } <= set(objects)
     assert len(objects["target/hull_a"].shapes) == 1  # clean: the panel only
     assert [sh.type for sh in objects["target/hull_b"].shapes] == ["box", "cylinder"]  # impact: panel and mark
     assert objects["target/hull_b"].shapes[1].radius == pytest.approx(0.05)
@@ -47,7 +73,7 @@ def test_arm_looks_at_a_damaged_target_and_captures_evidence(client: SimClient, 
     assert result.error_code == ErrorCode.SUCCESSFUL, result.error_string
     camera_pos, _ = client.frame("camera/ee_camera")
     target_pos, _ = client.frame("target/hull_b")
-    assert abs(sum((a - b) ** 2 for a, b in zip(camera_pos, target_pos)) ** 0.5 - 1.0) < 0.01
+    assert abs(sum((a - b) ** 2 for a, b in zip(camera_pos, target_pos, strict=False)) ** 0.5 - 1.0) < 0.01
 
     response = client.capture("ee_camera", "hull_b impact")
     assert response.success, response.message
@@ -57,7 +83,9 @@ def test_arm_looks_at_a_damaged_target_and_captures_evidence(client: SimClient, 
     # The panel fills the middle of the view and the impact mark sits at its centre: dark.
     data = bytes(response.image.data)
     centre = (120 * 320 + 160) * 3
-    assert sum(data[centre:centre + 3]) < 150, f"centre pixel {tuple(data[centre:centre + 3])} is not the dark impact mark"
+    assert sum(data[centre : centre + 3]) < 150, (
+        f"centre pixel {tuple(data[centre : centre + 3])} is not the dark impact mark"
+    )
 
 
 def test_scene_camera_publishes_images(client: SimClient) -> None:

@@ -10,9 +10,9 @@ import math
 
 import pytest
 from action_msgs.msg import GoalStatus
-
 from arm_paths import ArmModel
 from sim_client import SimClient
+
 from sim.trajectory import ErrorCode
 
 SCENE = "iva"
@@ -37,7 +37,7 @@ def assert_ok(result) -> None:
 
 
 def close_to(a, b, tol: float) -> bool:
-    return all(abs(x - y) <= tol for x, y in zip(a, b))
+    return all(abs(x - y) <= tol for x, y in zip(a, b, strict=False))
 
 
 def test_valid_trajectory_reaches_its_goal_with_feedback(client: SimClient, model: ArmModel) -> None:
@@ -109,12 +109,14 @@ def test_stamps_are_sim_time(client: SimClient) -> None:
     from sensor_msgs.msg import JointState
 
     stamps: list[int] = []
-    sub = client.node.create_subscription(JointState, "/joint_states", lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec), 100)
+    sub = client.node.create_subscription(
+        JointState, "/joint_states", lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec), 100
+    )
     try:
         client.wait_for(lambda: len(stamps) >= 30, "30 joint states", 30)
     finally:
         client.node.destroy_subscription(sub)
-    steps = [(b - a) * 240 / 1e9 for a, b in zip(stamps, stamps[1:])]
+    steps = [(b - a) * 240 / 1e9 for a, b in zip(stamps, stamps[1:], strict=False)]
     assert all(round(s) in (4, 5) and abs(s - round(s)) < 1e-3 for s in steps), steps
 
 
@@ -137,19 +139,56 @@ def test_robot_description_and_visual_world_describe_what_a_view_draws(client: S
     movable = {n for n in names if n.startswith(("filter/", "target/"))}
     assert movable <= set(frames.names)
     base = frames.poses[list(frames.names).index("robot_base")]
-    assert (base.position.x, base.position.y, base.position.z) == pytest.approx((world.robot_base.position.x, world.robot_base.position.y, world.robot_base.position.z))
+    assert (base.position.x, base.position.y, base.position.z) == pytest.approx(
+        (world.robot_base.position.x, world.robot_base.position.y, world.robot_base.position.z)
+    )
 
 
 INVALID = [
-    ("unknown joint", lambda h: (["shoulder_pan_joint", "elbow"], [(1.0, [0.0, 0.0])], None), ErrorCode.INVALID_JOINTS, "unknown joint 'elbow'"),
-    ("gripper joint", lambda h: (["gripper_left_finger_joint"], [(1.0, [0.01])], None), ErrorCode.INVALID_JOINTS, "not an arm joint"),
+    (
+        "unknown joint",
+        lambda h: (["shoulder_pan_joint", "elbow"], [(1.0, [0.0, 0.0])], None),
+        ErrorCode.INVALID_JOINTS,
+        "unknown joint 'elbow'",
+    ),
+    (
+        "gripper joint",
+        lambda h: (["gripper_left_finger_joint"], [(1.0, [0.01])], None),
+        ErrorCode.INVALID_JOINTS,
+        "not an arm joint",
+    ),
     ("NaN", lambda h: (ARM, [(1.0, h[:2] + [math.nan] + h[3:])], None), ErrorCode.INVALID_GOAL, "non-finite"),
-    ("outside limits", lambda h: (ARM, [(5.0, h[:2] + [3.5] + h[3:])], None), ErrorCode.INVALID_GOAL, "elbow_joint position 3.5000 rad is outside its limits"),
-    ("too fast", lambda h: (ARM, [(0.1, [h[0] + 1.0] + h[1:])], None), ErrorCode.INVALID_GOAL, "over its velocity limit"),
-    ("velocity over limit", lambda h: (ARM, [(2.0, [h[0] + 0.5] + h[1:])], [[5.0, 0, 0, 0, 0, 0]]), ErrorCode.INVALID_GOAL, "velocity 5.0000 rad/s exceeds its limit"),
-    ("non-increasing time", lambda h: (ARM, [(1.0, h), (1.0, [h[0] + 0.1] + h[1:])], None), ErrorCode.INVALID_GOAL, "time stamps must increase"),
+    (
+        "outside limits",
+        lambda h: (ARM, [(5.0, h[:2] + [3.5] + h[3:])], None),
+        ErrorCode.INVALID_GOAL,
+        "elbow_joint position 3.5000 rad is outside its limits",
+    ),
+    (
+        "too fast",
+        lambda h: (ARM, [(0.1, [h[0] + 1.0] + h[1:])], None),
+        ErrorCode.INVALID_GOAL,
+        "over its velocity limit",
+    ),
+    (
+        "velocity over limit",
+        lambda h: (ARM, [(2.0, [h[0] + 0.5] + h[1:])], [[5.0, 0, 0, 0, 0, 0]]),
+        ErrorCode.INVALID_GOAL,
+        "velocity 5.0000 rad/s exceeds its limit",
+    ),
+    (
+        "non-increasing time",
+        lambda h: (ARM, [(1.0, h), (1.0, [h[0] + 0.1] + h[1:])], None),
+        ErrorCode.INVALID_GOAL,
+        "time stamps must increase",
+    ),
     ("no points", lambda h: (ARM, [], None), ErrorCode.INVALID_GOAL, "no points"),
-    ("jump at t=0", lambda h: (ARM, [(0.0, [h[0] + 0.5] + h[1:])], None), ErrorCode.INVALID_GOAL, "away from the current position"),
+    (
+        "jump at t=0",
+        lambda h: (ARM, [(0.0, [h[0] + 0.5] + h[1:])], None),
+        ErrorCode.INVALID_GOAL,
+        "away from the current position",
+    ),
 ]
 
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from arm_paths import ArmModel
 
 from sim.scene import SceneError, load_scene
 from sim.simulation import Simulation
 from sim.trajectory import validate_trajectory
-
-from arm_paths import ArmModel
 
 HOME = [0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0]
 
@@ -18,7 +17,12 @@ HOME = [0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0]
 def run_to(sim: Simulation, waypoints: list[list[float]], model: ArmModel, speed: float = 0.3) -> None:
     current = tuple(sim.arm_positions)
     points = [(t, q, []) for t, q in model.timed(waypoints, current, speed)]
-    run = sim.start_trajectory(validate_trajectory(list(sim.arm_joints), points, limits=sim.limits, controller_joints=sim.arm_joints, current=current), 0.0)
+    run = sim.start_trajectory(
+        validate_trajectory(
+            list(sim.arm_joints), points, limits=sim.limits, controller_joints=sim.arm_joints, current=current
+        ),
+        0.0,
+    )
     while not run.done.is_set():
         sim.step()
     assert run.error_code == 0, run.error_string
@@ -90,7 +94,9 @@ def test_scene_file_errors_name_the_file_line_and_key(tmp_path: Path) -> None:
     with pytest.raises(SceneError, match=r"bad\.yaml:\d+: physics_rate: unknown key 'physics_rate'"):
         load_scene(bad)
     bad.write_text(shipped.read_text())
-    with pytest.raises(SceneError, match=r"bad\.yaml:\d+: robot\.urdf: no such file: .*'\.\./robots/ur10_gripper\.urdf' relative to"):
+    with pytest.raises(
+        SceneError, match=r"bad\.yaml:\d+: robot\.urdf: no such file: .*'\.\./robots/ur10_gripper\.urdf' relative to"
+    ):
         load_scene(bad)
     with pytest.raises(SceneError, match="moon: no such scene; give a scene file or one of eva, iva"):
         load_scene("moon")
@@ -108,7 +114,7 @@ def test_held_filter_does_not_sink_while_the_arm_rests(model: ArmModel) -> None:
         for _ in range(int(5.0 / sim.dt)):  # five seconds at rest under gravity
             sim.step()
         rested_at, _ = sim.filters.pose("CDRA-F-0012")
-        assert max(abs(a - b) for a, b in zip(held_at, rested_at)) < 1e-4, (held_at, rested_at)
+        assert max(abs(a - b) for a, b in zip(held_at, rested_at, strict=False)) < 1e-4, (held_at, rested_at)
     finally:
         sim.close()
 
@@ -121,14 +127,27 @@ def test_halt_stops_the_arm_and_the_fingers_where_they_are(model: ArmModel) -> N
     try:
         current = tuple(sim.arm_positions)
         goal = [current[0] + 1.0, *current[1:]]
-        run = sim.start_trajectory(validate_trajectory(list(sim.arm_joints), [(10.0, goal, [])], limits=sim.limits, controller_joints=sim.arm_joints, current=current), 0.0)
+        run = sim.start_trajectory(
+            validate_trajectory(
+                list(sim.arm_joints),
+                [(10.0, goal, [])],
+                limits=sim.limits,
+                controller_joints=sim.arm_joints,
+                current=current,
+            ),
+            0.0,
+        )
         assert sim.gripper is not None
         fingers = sim.gripper.start("closed")
         for _ in range(20):
             sim.step()
         stopped = sim.halt("operator pressed Halt")
         assert [s.split(" ")[1] for s in stopped] == ["arm", "gripper"], stopped
-        assert run.done.is_set() and run.error_code == ErrorCode.HALTED and run.error_string == "halted: operator pressed Halt"
+        assert (
+            run.done.is_set()
+            and run.error_code == ErrorCode.HALTED
+            and run.error_string == "halted: operator pressed Halt"
+        )
         assert fingers.done.is_set() and not fingers.success and "halted: operator pressed Halt" in fingers.message
         arm, gripper = list(sim.arm_positions), list(sim.gripper.positions)
         assert current[0] < arm[0] < goal[0] - 0.5, "halted part way"
@@ -154,12 +173,20 @@ def test_robot_base_frame_is_the_urdf_root_link() -> None:
         try:
             base_pos, base_orn = dict(sim.frames())["robot_base"]
             # The first joint's origin, as the URDF states it in the root link's frame ...
-            joint = next(j for j in ET.parse(scene.robot.urdf).getroot().iter("joint") if j.find("parent").get("link") == scene.robot.base_link)
+            joint = next(
+                j
+                for j in ET.parse(scene.robot.urdf).getroot().iter("joint")
+                if j.find("parent").get("link") == scene.robot.base_link
+            )
             origin = [float(v) for v in joint.find("origin").get("xyz").split()]
             expected, _ = p.multiplyTransforms(base_pos, base_orn, origin, [0, 0, 0, 1])
             # ... is where the simulation has the child link's frame.
             child = sim.world.link_index[joint.find("child").get("link")]
             actual = p.getLinkState(sim.robot, child, computeForwardKinematics=True, physicsClientId=sim.client)[4]
-            assert max(abs(a - b) for a, b in zip(expected, actual)) < 1e-6, (scene_name, expected, actual)
+            assert max(abs(a - b) for a, b in zip(expected, actual, strict=False)) < 1e-6, (
+                scene_name,
+                expected,
+                actual,
+            )
         finally:
             sim.close()

@@ -13,7 +13,9 @@ LIMITS = {"a": JointLimit(-1.0, 1.0, 1.0), "b": JointLimit(-2.0, 2.0, 0.5), "fin
 
 
 def validate(names, points, current=(0.0, 0.0)):
-    return validate_trajectory(list(names), points, limits=LIMITS, controller_joints=JOINTS, current=current, other_joints=("finger",))
+    return validate_trajectory(
+        list(names), points, limits=LIMITS, controller_joints=JOINTS, current=current, other_joints=("finger",)
+    )
 
 
 def test_implicit_start_and_linear_sampling() -> None:

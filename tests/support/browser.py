@@ -15,15 +15,29 @@ from playwright.sync_api import Browser, BrowserContext, Page
 __all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TIMEOUT_MS", "WEBGL_ARGS", "signed_in_pages"]
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 #: WebGL 2 without a GPU, for the 3D view: ANGLE on SwiftShader draws the WebGL canvas, and the page
 #: is composited in software, as Chromium does on a machine without a usable GPU. Without
 #: ``--disable-gpu-compositing`` SwiftShader would also composite the whole page, redrawing every
 #: pixel of the 1500x1000 console for each frame of the view (79 ms a frame on these machines,
 #: docs/benchmarks.md "3D view frame rate"); software compositing redraws only what changed.
-WEBGL_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--disable-gpu-compositing",
-              "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run"]
+WEBGL_ARGS = [
+    "--no-sandbox",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--disable-gpu-compositing",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+]
 #: Generous: other suites share the two cores while these run.
 TIMEOUT_MS = 30_000
 

@@ -49,8 +49,7 @@ LINK = "ws://lab.bench:9090"
 
 class LabGateway:
     def __init__(self, image_dir: str | None = None, ledger_file: str | None = None) -> None:
-        self.values: dict[str, Any] = {"temperature": 21.5, "door_open": False, "state": "idle",
-                                       "docks": "dock, shelf"}
+        self.values: dict[str, Any] = {"temperature": 21.5, "door_open": False, "state": "idle", "docks": "dock, shelf"}
         self.stale: set[str] = set()
         self.sent: list[tuple[str, str, dict[str, Any]]] = []  # every execution (not re-sends of a known key)
         self.keys: list[str | None] = []  # the key of every send, re-sends included
@@ -71,8 +70,10 @@ class LabGateway:
         self._ledger_file = Path(ledger_file) if ledger_file else None
         self._ledger: dict[str, CommandResult] = {}
         if self._ledger_file is not None and self._ledger_file.exists():
-            self._ledger = {key: CommandResult(Outcome(r["outcome"]), r["message"], r["values"])
-                            for key, r in json.loads(self._ledger_file.read_text()).items()}
+            self._ledger = {
+                key: CommandResult(Outcome(r["outcome"]), r["message"], r["values"])
+                for key, r in json.loads(self._ledger_file.read_text()).items()
+            }
         self._executing: dict[str, threading.Event] = {}  # keys being executed -> set when done
         self._running: dict[str, threading.Event] = {}  # blocked keys -> their cancel
         self._lock = threading.Lock()
@@ -112,8 +113,9 @@ class LabGateway:
         for listener in list(self._listeners):
             listener("lab", item, TelemetryValue(value, time.time()))
 
-    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any], *,
-                key: str | None = None) -> CommandResult:
+    def execute(
+        self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None
+    ) -> CommandResult:
         assert sysrep_id == "lab", sysrep_id
         done: threading.Event | None = None
         with self._lock:
@@ -150,8 +152,10 @@ class LabGateway:
 
     def _save_ledger(self) -> None:
         if self._ledger_file is not None:
-            records = {k: {"outcome": r.outcome.value, "message": r.message, "values": r.values}
-                       for k, r in self._ledger.items()}
+            records = {
+                k: {"outcome": r.outcome.value, "message": r.message, "values": r.values}
+                for k, r in self._ledger.items()
+            }
             self._ledger_file.write_text(json.dumps(records))
 
     def _run(self, command_id: str, args: dict[str, Any], cancelled: threading.Event) -> CommandResult:

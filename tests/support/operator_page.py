@@ -79,8 +79,7 @@ def shown_image_width(image: Locator) -> int:
     Not ``image.decode()``: a live feed replaces ``src`` every few tenths of a second, and a
     decode pending when it does is rejected (EncodingError) though every picture is fine.
     """
-    width = image.page.wait_for_function(
-        "image => image.complete && image.naturalWidth", arg=image.element_handle())
+    width = image.page.wait_for_function("image => image.complete && image.naturalWidth", arg=image.element_handle())
     return int(width.json_value())
 
 

@@ -94,8 +94,7 @@ def _alive(pid: int) -> bool:
 
 def remove_stale_namespaces() -> list[str]:
     """Delete the namespaces this fixture made in sessions whose process has died; return them."""
-    stale = [name for name in _namespaces()
-             if (match := _STALE.match(name)) and not _alive(int(match[1]))]
+    stale = [name for name in _namespaces() if (match := _STALE.match(name)) and not _alive(int(match[1]))]
     for namespace in stale:
         log.warning("removing stale network namespace %s (its test session is gone)", namespace)
         _delete_namespace(namespace)
@@ -132,10 +131,13 @@ class TwoHosts:
         remove_stale_namespaces()
         serial = next(_counter)
         prefix = f"ct2h-{os.getpid()}-{serial}"
-        hosts = cls(Host("ground", f"{prefix}-ground", "10.77.1.2"), Host("link", f"{prefix}-link", "10.77.1.1"),
-                    Host("habitat", f"{prefix}-habitat", "10.77.2.2"),
-                    {**env, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
-                    Path(tempfile.mkdtemp(prefix=f"{prefix}-")))
+        hosts = cls(
+            Host("ground", f"{prefix}-ground", "10.77.1.2"),
+            Host("link", f"{prefix}-link", "10.77.1.1"),
+            Host("habitat", f"{prefix}-habitat", "10.77.2.2"),
+            {**env, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
+            Path(tempfile.mkdtemp(prefix=f"{prefix}-")),
+        )
         created: list[str] = []
         try:
             for host in (hosts.ground, hosts.link, hosts.habitat):
@@ -144,8 +146,7 @@ class TwoHosts:
                 _ip("-n", host.namespace, "link", "set", "lo", "up")
             interface = f"ct{os.getpid()}x{serial}"
             hosts._join(hosts.ground, hosts.ground.address, f"{interface}g", hosts.link.address, f"{interface}a")
-            hosts._join(hosts.habitat, hosts.habitat.address, f"{interface}h", hosts.link_habitat_side,
-                        f"{interface}b")
+            hosts._join(hosts.habitat, hosts.habitat.address, f"{interface}h", hosts.link_habitat_side, f"{interface}b")
             forwarding = hosts.run(hosts.link, ["cat", "/proc/sys/net/ipv4/ip_forward"]).stdout.strip()
             if forwarding != "0":
                 raise RuntimeError(f"IP forwarding is on in {hosts.link.namespace}: ground could bypass the link")
@@ -158,8 +159,20 @@ class TwoHosts:
 
     def _join(self, host: Host, address: str, name: str, link_address: str, link_name: str) -> None:
         """A veth pair from ``host`` to the link namespace, both ends made inside their namespaces."""
-        _ip("link", "add", name, "netns", host.namespace, "type", "veth",
-            "peer", "name", link_name, "netns", self.link.namespace)
+        _ip(
+            "link",
+            "add",
+            name,
+            "netns",
+            host.namespace,
+            "type",
+            "veth",
+            "peer",
+            "name",
+            link_name,
+            "netns",
+            self.link.namespace,
+        )
         for namespace, device, ip in ((host.namespace, name, address), (self.link.namespace, link_name, link_address)):
             _ip("-n", namespace, "addr", "add", f"{ip}/24", "dev", device)
             _ip("-n", namespace, "link", "set", device, "up")
@@ -174,14 +187,23 @@ class TwoHosts:
     def _in(self, host: Host, argv: Sequence[str]) -> list[str]:
         return ["ip", "netns", "exec", host.namespace, *argv]
 
-    def run(self, host: Host, argv: Sequence[str], *, timeout: float = 60.0,
-            check: bool = True) -> subprocess.CompletedProcess[str]:
+    def run(
+        self, host: Host, argv: Sequence[str], *, timeout: float = 60.0, check: bool = True
+    ) -> subprocess.CompletedProcess[str]:
         """Run a short command in ``host`` and return its result (raises on failure if ``check``)."""
-        return subprocess.run(self._in(host, argv), env=self.env, capture_output=True, text=True, timeout=timeout,
-                              check=check)
+        return subprocess.run(
+            self._in(host, argv), env=self.env, capture_output=True, text=True, timeout=timeout, check=check
+        )
 
-    def start(self, host: Host, argv: Sequence[str], *, name: str | None = None, ready: str | None = r"^READY\b",
-              timeout: float = 90.0) -> ManagedProcess:
+    def start(
+        self,
+        host: Host,
+        argv: Sequence[str],
+        *,
+        name: str | None = None,
+        ready: str | None = r"^READY\b",
+        timeout: float = 90.0,
+    ) -> ManagedProcess:
         """Start a long-running process in ``host``; wait for a line matching ``ready`` (None: don't).
 
         The process is stopped when the fixture ends (or earlier by ``process.stop()``).

@@ -62,8 +62,14 @@ class WebServer:
 
 
 def start_server(
-    tmp: Path, procedures: Path, *, database: GroundDatabase | None = None, rosbridge: Sequence[str] | None = None,
-    sysreps: Path | None = None, cameras: Sequence[str] = ("ee_camera",), options: Sequence[str] = (),
+    tmp: Path,
+    procedures: Path,
+    *,
+    database: GroundDatabase | None = None,
+    rosbridge: Sequence[str] | None = None,
+    sysreps: Path | None = None,
+    cameras: Sequence[str] = ("ee_camera",),
+    options: Sequence[str] = (),
     env: dict[str, str] | None = None,
 ) -> WebServer:
     """Start a server listing ``procedures`` on ``database`` (a new SQLite one in ``tmp`` by default)
@@ -73,8 +79,13 @@ def start_server(
     the real PAX host (JVM plugins); without, the simulated systems of simulated_systems.py.
     """
     env = dict(env if env is not None else os.environ)
-    arguments = [*(f"--camera={camera}" for camera in cameras), "--camera-period", "0.1",
-                 *(["--sysreps", str(sysreps)] if sysreps else []), *options]
+    arguments = [
+        *(f"--camera={camera}" for camera in cameras),
+        "--camera-period",
+        "0.1",
+        *(["--sysreps", str(sysreps)] if sysreps else []),
+        *options,
+    ]
     if rosbridge is None:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(WEB), env.get("PYTHONPATH", "")]))
         env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
@@ -86,8 +97,18 @@ def start_server(
     if database is None:
         database = new_ground_database("sqlite", tmp)
     process = caretaker(
-        "serve", "--port", "0", "--db", database.url, "--procedures", str(procedures),
-        "--reports", str(tmp / "reports"), *arguments, env=env, name="serve",
+        "serve",
+        "--port",
+        "0",
+        "--db",
+        database.url,
+        "--procedures",
+        str(procedures),
+        "--reports",
+        str(tmp / "reports"),
+        *arguments,
+        env=env,
+        name="serve",
     )
     try:
         ready = process.wait_ready(90)

@@ -13,8 +13,8 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import Browser, Playwright, expect
 
-from support.operator_page import sign_in_on
 from support.browser import CHROMIUM, TIMEOUT_MS, WEBGL_ARGS, signed_in_pages
+from support.operator_page import sign_in_on
 from support.web_server import WebServer, new_ground_database, procedure_shelf, start_server
 
 expect.set_options(timeout=TIMEOUT_MS)

@@ -29,7 +29,8 @@ __all__ = ["SimulatedSystems", "open_simulated_systems"]
 def _png(width: int, height: int, shade: int) -> bytes:
     """A small gradient PNG (no imaging library needed): what the camera 'captured'."""
     raw = b"".join(
-        b"\x00" + b"".join(bytes(((x * 255) // width, (y * 255) // height, shade)) for x in range(width)) for y in range(height)
+        b"\x00" + b"".join(bytes(((x * 255) // width, (y * 255) // height, shade)) for x in range(width))
+        for y in range(height)
     )
 
     def chunk(kind: bytes, data: bytes) -> bytes:
@@ -106,7 +107,9 @@ class SimulatedSystems:
         for listener in listeners:
             listener(system, item, TelemetryValue(value, time.time()))
 
-    def execute(self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None) -> CommandResult:
+    def execute(
+        self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None
+    ) -> CommandResult:
         sysrep = self._sysreps.get(sysrep_id)
         if sysrep is None or sysrep.command(command_id) is None:
             return CommandResult(Outcome.FAILED, f"{sysrep_id}.{command_id} is not served here")
@@ -132,7 +135,11 @@ class SimulatedSystems:
         template = str(args.get("affordance_template", "")).split(":")[0]
         if command_id == "add_affordance_template":
             self._instances[template] = len(self._instances)
-            return CommandResult(Outcome.SUCCEEDED, f"added {template}", {"id": self._instances[template], "instance": f"{template}:{self._instances[template]}"})
+            return CommandResult(
+                Outcome.SUCCEEDED,
+                f"added {template}",
+                {"id": self._instances[template], "instance": f"{template}:{self._instances[template]}"},
+            )
         if template not in self._instances:
             return CommandResult(Outcome.FAILED, f"no instance of {template!r}: add the template first")
         if command_id == "set_display_object_pose":
@@ -141,8 +148,11 @@ class SimulatedSystems:
         if command_id == "plan_trajectory":
             self._set("affordance_templates", "plan_status", "PLANNED")
             self._set("affordance_templates", "plan_valid", True)
-            return CommandResult(Outcome.SUCCEEDED, "planned", {"plan_status": "PLANNED", "plan_valid": True,
-                                                   "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]})
+            return CommandResult(
+                Outcome.SUCCEEDED,
+                "planned",
+                {"plan_status": "PLANNED", "plan_valid": True, "end_pose": [0.62, -0.18, 0.95, 0.0, 1.57, 0.35]},
+            )
         if command_id == "execute_plan":
             self._set("affordance_templates", "execute_status", "EXECUTING")
             with self._lock:

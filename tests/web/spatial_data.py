@@ -58,7 +58,9 @@ class Habitat:
         sim = Simulation(scene)
         client = p.connect(p.DIRECT)
         base = scene.robot.base
-        robot = p.loadURDF(str(scene.robot.urdf), list(base.xyz), list(base.quaternion), useFixedBase=True, physicsClientId=client)
+        robot = p.loadURDF(
+            str(scene.robot.urdf), list(base.xyz), list(base.quaternion), useFixedBase=True, physicsClientId=client
+        )
         joints, links = {}, {}
         for j in range(p.getNumJoints(robot, physicsClientId=client)):
             info = p.getJointInfo(robot, j, physicsClientId=client)
@@ -79,7 +81,12 @@ class Habitat:
         names, poses = [], []
         for name, (xyz, quat) in self.sim.frames():
             names.append(name)
-            poses.append({"position": dict(zip("xyz", map(float, xyz), strict=True)), "orientation": dict(zip("xyzw", map(float, quat), strict=True))})
+            poses.append(
+                {
+                    "position": dict(zip("xyz", map(float, xyz), strict=True)),
+                    "orientation": dict(zip("xyzw", map(float, quat), strict=True)),
+                }
+            )
         return {"header": {"frame_id": "world", "stamp": {"sec": 1, "nanosec": 0}}, "names": names, "poses": poses}
 
     def frame(self, name: str) -> np.ndarray:
@@ -112,9 +119,19 @@ class Habitat:
             p.resetJointState(self.fk_robot, self.fk_joints[name], q, physicsClientId=self.fk_client)
         xyz, quat = to_xyz_quat(goal)
         solution = p.calculateInverseKinematics(
-            self.fk_robot, self.fk_links[tool_link], list(xyz), list(quat), maxNumIterations=200, residualThreshold=1e-5, physicsClientId=self.fk_client,
+            self.fk_robot,
+            self.fk_links[tool_link],
+            list(xyz),
+            list(quat),
+            maxNumIterations=200,
+            residualThreshold=1e-5,
+            physicsClientId=self.fk_client,
         )
-        movable = [name for name, j in sorted(self.fk_joints.items(), key=lambda kv: kv[1]) if p.getJointInfo(self.fk_robot, j, physicsClientId=self.fk_client)[2] != p.JOINT_FIXED]
+        movable = [
+            name
+            for name, j in sorted(self.fk_joints.items(), key=lambda kv: kv[1])
+            if p.getJointInfo(self.fk_robot, j, physicsClientId=self.fk_client)[2] != p.JOINT_FIXED
+        ]
         by_name = dict(zip(movable, solution, strict=True))
         return [float(by_name[n]) for n in self.arm_joints]
 
@@ -131,7 +148,9 @@ class RunningTemplate:
     def add(cls, habitat: Habitat, template: str, robot: str, *, object_name: str, frame: str) -> RunningTemplate:
         config = load_robot_configs()[robot]
         root = habitat.frame(config.frame_id) @ config.root_offset_matrix
-        instance = TemplateInstance(load_library(REPO / "python" / "at_ros" / "library" / "templates")[template], 0, config, root)
+        instance = TemplateInstance(
+            load_library(REPO / "python" / "at_ros" / "library" / "templates")[template], 0, config, root
+        )
         running = cls(instance, config, habitat)
         running.register(object_name, frame, np.eye(4))
         return running
@@ -141,7 +160,9 @@ class RunningTemplate:
         self.instance.register(object_name, Registration(frame, offset, self.habitat.frame(frame)))
 
     def status_json(self, trajectory: str) -> dict[str, Any]:
-        status = instance_status(self.instance, trajectory, "world", np.eye(4), plan_status="IDLE", execute_status="IDLE", plan_valid=False)
+        status = instance_status(
+            self.instance, trajectory, "world", np.eye(4), plan_status="IDLE", execute_status="IDLE", plan_valid=False
+        )
         data = message_to_dict(status)
         for info in data["object_info"]:  # the proposed ObjectInfo.registered_to
             info["registered_to"] = self.registered_to
@@ -149,13 +170,19 @@ class RunningTemplate:
 
     def update(self, trajectory: str) -> dict[str, Any]:
         config = message_to_dict(template_config(self.instance.template, self.robot))
-        return templates_update([self.status_json(trajectory)], frames=self.habitat.frames_json(), configs={self.instance.template.name: config})
+        return templates_update(
+            [self.status_json(trajectory)],
+            frames=self.habitat.frames_json(),
+            configs={self.instance.template.name: config},
+        )
 
     def resolved(self, trajectory: str) -> list[Any]:
         t = self.instance.trajectory(trajectory)
         return self.instance.resolve(t, self.instance.end_effector(t, []))
 
-    def plan(self, trajectory: str, start: Sequence[float], *, steps_per_segment: int = 12, seconds_per_step: float = 0.1) -> dict[str, Any]:
+    def plan(
+        self, trajectory: str, start: Sequence[float], *, steps_per_segment: int = 12, seconds_per_step: float = 0.1
+    ) -> dict[str, Any]:
         """A plan update through every waypoint: IK goals joined by straight joint lines."""
         segments = []
         previous = list(start)
@@ -170,18 +197,29 @@ class RunningTemplate:
                 for k in range(1, steps_per_segment + 1):
                     f = k / steps_per_segment
                     t = k * seconds_per_step
-                    points.append({
-                        "positions": [a + f * (b - a) for a, b in zip(previous, goal, strict=True)],
-                        "time_from_start": {"sec": int(t), "nanosec": int(round((t - int(t)) * 1e9))},
-                    })
-            segments.append(PlanSegment(wp.label, {"joint_names": self.habitat.arm_joints, "points": points}, wp.end_effector_pose))
+                    points.append(
+                        {
+                            "positions": [a + f * (b - a) for a, b in zip(previous, goal, strict=True)],
+                            "time_from_start": {"sec": int(t), "nanosec": int(round((t - int(t)) * 1e9))},
+                        }
+                    )
+            segments.append(
+                PlanSegment(wp.label, {"joint_names": self.habitat.arm_joints, "points": points}, wp.end_effector_pose)
+            )
             previous = goal
         end = self.habitat.link_poses(dict(zip(self.habitat.arm_joints, previous, strict=True)))[self.robot.tool_link]
         xyz, quat = to_xyz_quat(end)
         return plan_update(
-            instance=self.instance.key, trajectory=trajectory, joint_names=self.habitat.arm_joints, start_positions=start,
-            segments=segments, tool_link=self.robot.tool_link,
-            end_pose={"position": dict(zip("xyz", map(float, xyz), strict=True)), "orientation": dict(zip("xyzw", map(float, quat), strict=True))},
+            instance=self.instance.key,
+            trajectory=trajectory,
+            joint_names=self.habitat.arm_joints,
+            start_positions=start,
+            segments=segments,
+            tool_link=self.robot.tool_link,
+            end_pose={
+                "position": dict(zip("xyz", map(float, xyz), strict=True)),
+                "orientation": dict(zip("xyzw", map(float, quat), strict=True)),
+            },
         )
 
 

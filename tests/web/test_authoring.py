@@ -14,14 +14,14 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from author_page import bind_arg, card, drop, set_arg, set_attr
 from playwright.sync_api import expect
 
-from author_page import bind_arg, card, drop, set_arg, set_attr
-from support.operator_page import expect_current, instruction, screenshot
-from pride.parser import load_procedure
-from pride.sysrep import load_sysrep_dir
 from console.authoring import check_document, read_document
 from console.procedure_view import procedure_json
+from pride.parser import load_procedure
+from pride.sysrep import load_sysrep_dir
+from support.operator_page import expect_current, instruction, screenshot
 from support.web_server import REPO, WebServer, server_on_real_stack
 
 SHIPPED = sorted(p.name for p in (REPO / "procedures").glob("*.xml"))
@@ -95,7 +95,9 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server)
     expect(alice.locator("#check-state")).to_have_text("saved authored_pick.xml")
 
     saved = server.procedures / "authored_pick.xml"
-    lint = subprocess.run([sys.executable, "-m", "caretaker.cli", "lint", str(saved)], capture_output=True, text=True, timeout=60)
+    lint = subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "lint", str(saved)], capture_output=True, text=True, timeout=60
+    )
     assert lint.returncode == 0, lint.stdout + lint.stderr
     assert "${pick_frame}" in saved.read_text()
 

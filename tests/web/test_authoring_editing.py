@@ -9,9 +9,8 @@ from __future__ import annotations
 import re
 
 import pytest
-from playwright.sync_api import Page, expect
-
 from author_page import bind_arg, card, drop, drop_zone, set_arg, set_attr
+from playwright.sync_api import Page, expect
 
 
 def tall_page(sign_in) -> Page:
@@ -37,7 +36,9 @@ def header(number: str) -> str:
     return f'#canvas .card[data-number="{number}"] > header'
 
 
-@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
+@pytest.mark.parametrize(
+    "server", ["sqlite"], indirect=True
+)  # the page only: the log is tested on both databases elsewhere
 def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
@@ -59,7 +60,9 @@ def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, ser
     expect(alice.locator("#check-state")).to_have_text("lint: no problems")
 
 
-@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
+@pytest.mark.parametrize(
+    "server", ["sqlite"], indirect=True
+)  # the page only: the log is tested on both databases elsewhere
 def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
@@ -74,7 +77,9 @@ def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, se
     assert after.index('id="hull_b"') < after.index('id="hull_a"') < after.index('id="hull_c"')
 
 
-@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
+@pytest.mark.parametrize(
+    "server", ["sqlite"], indirect=True
+)  # the page only: the log is tested on both databases elsewhere
 def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_be_edited(sign_in, server) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
@@ -111,5 +116,8 @@ def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_
     alice.click("#save")
     expect(alice.locator("#check-state")).to_have_text("saved inspect_five.xml")
     saved = (server.procedures / "inspect_five.xml").read_text()
-    assert re.search(r'<call procedure="eva_inspect_target.xml">\s*<arg name="template_id">\$\{inspection_at.id\}</arg>\s*'
-                     r'<arg name="target">hull_e</arg>\s*</call>', saved), saved
+    assert re.search(
+        r'<call procedure="eva_inspect_target.xml">\s*<arg name="template_id">\$\{inspection_at.id\}</arg>\s*'
+        r'<arg name="target">hull_e</arg>\s*</call>',
+        saved,
+    ), saved

@@ -8,9 +8,9 @@ from typing import Any
 
 import pytest
 
+from console.camera_feed import CameraFeed
 from pride.events import Event, EventKind
 from pride.systems import CommandResult, Outcome
-from console.camera_feed import CameraFeed
 
 
 class Camera:
@@ -30,7 +30,9 @@ class Camera:
 
 
 def _moving(feed: CameraFeed, kind: EventKind) -> None:
-    feed.event_callback(Event("run", 1, kind, "PAX", "1.1", {"system": "affordance_templates", "command": "execute_plan"}))
+    feed.event_callback(
+        Event("run", 1, kind, "PAX", "1.1", {"system": "affordance_templates", "command": "execute_plan"})
+    )
 
 
 @pytest.mark.parametrize("recovers", [False, True])

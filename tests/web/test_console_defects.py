@@ -13,7 +13,16 @@ import re
 import pytest
 from playwright.sync_api import expect
 
-from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run, stop_run
+from support.operator_page import (
+    IVA,
+    audit_row,
+    expect_current,
+    expect_ended,
+    instruction,
+    screenshot,
+    start_run,
+    stop_run,
+)
 
 
 def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
@@ -21,12 +30,18 @@ def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
     start_run(alice, IVA, "autonomous")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
     sent = audit_row(alice, "command_sent", "1.3", "PAX")
-    expect(sent).to_contain_text("sent affordance_templates.add_affordance_template(affordance_template=cdra_filter, hide_waypoints=false)")
-    expect(audit_row(alice, "command_result", "1.3", "PAX")).to_contain_text("succeeded: added cdra_filter · id 0, instance cdra_filter:0")
+    expect(sent).to_contain_text(
+        "sent affordance_templates.add_affordance_template(affordance_template=cdra_filter, hide_waypoints=false)"
+    )
+    expect(audit_row(alice, "command_result", "1.3", "PAX")).to_contain_text(
+        "succeeded: added cdra_filter · id 0, instance cdra_filter:0"
+    )
     details = alice.locator("#audit li .audit-detail")
     widths = details.evaluate_all("nodes => nodes.map((node) => node.getBoundingClientRect().width)")
     assert len(widths) > 20 and min(widths) > 250, widths  # the whole panel's width, not a table column's sliver
-    lines = sent.locator(".audit-detail").evaluate("node => node.getBoundingClientRect().height / parseFloat(getComputedStyle(node).lineHeight)")
+    lines = sent.locator(".audit-detail").evaluate(
+        "node => node.getBoundingClientRect().height / parseFloat(getComputedStyle(node).lineHeight)"
+    )
     assert lines <= 3, lines
     text = "\n".join(details.all_inner_texts())
     assert '{"' not in text and '":' not in text
@@ -50,7 +65,9 @@ def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(sign_in
     # The mark is read again until it shows: the row may be redrawn by a later push meanwhile.
     alice.wait_for_function(
         """(id) => { const n = document.querySelector(`#run-list li[data-run-id="${id}"] .run-status`);
-                     return !!n && getComputedStyle(n, '::before').content === '"■"'; }""", arg=run_id)
+                     return !!n && getComputedStyle(n, '::before').content === '"■"'; }""",
+        arg=run_id,
+    )
 
 
 def test_continue_is_offered_only_where_automation_can_continue(sign_in) -> None:
@@ -104,7 +121,9 @@ def test_a_stopped_run_is_resumed_from_the_web_view(sign_in, server) -> None:
     stop_run(bob, "resume checked")
 
 
-@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
+@pytest.mark.parametrize(
+    "server", ["sqlite"], indirect=True
+)  # the page only: the log is tested on both databases elsewhere
 @pytest.mark.parametrize("width", [1024, 800])
 def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> None:
     alice = sign_in("alice")
@@ -126,7 +145,9 @@ def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> No
         return found;
     }""")
     assert overflowing == [], overflowing
-    widths = alice.locator("#audit li .audit-detail").evaluate_all("nodes => nodes.map((node) => node.getBoundingClientRect().width)")
+    widths = alice.locator("#audit li .audit-detail").evaluate_all(
+        "nodes => nodes.map((node) => node.getBoundingClientRect().width)"
+    )
     assert min(widths) > 250, widths
     screenshot(alice, f"web_narrow_{width}.png")
     stop_run(alice, f"checked at {width} px")
@@ -149,7 +170,9 @@ def test_the_report_shows_values_as_read_and_whole_step_titles(sign_in, server) 
     assert min(lefts) >= 0, lefts  # no label starts left of the picture
 
 
-@pytest.mark.parametrize("server", ["sqlite"], indirect=True)  # the page only: the log is tested on both databases elsewhere
+@pytest.mark.parametrize(
+    "server", ["sqlite"], indirect=True
+)  # the page only: the log is tested on both databases elsewhere
 def test_author_save_asks_before_replacing_a_procedure(sign_in, server) -> None:
     alice = sign_in("alice")
     alice.goto(f"{server.url}/author")

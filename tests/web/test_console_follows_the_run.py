@@ -62,7 +62,9 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:0"
     assert texts["6.5"] == "Remove the CDRA filter AT (cdra_filter:0)"
     assert texts["4.2"] == "Align the CDRA filter AT with clean filter ‹clean_filter_id› on the rack"
-    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text("Result: succeeded — planned · Plan Status: PLANNED")
+    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text(
+        "Result: succeeded — planned · Plan Status: PLANNED"
+    )
     expect(instruction(alice, "2.2").locator(".detail")).to_contain_text("end pose: (0.62, -0.18, 0.95, 0, 1.57, 0.35)")
     stop_run(alice, "sentences checked")
 
@@ -111,7 +113,9 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_
     expect(hold).to_have_attribute("data-tone", "hold")
     expect(hold).to_contain_text("Needs a value")
     expect(hold).to_contain_text("4.1: Enter the id of a clean filter on the rack")
-    expect(hold.locator(".hold-meta")).to_contain_text(re.compile(r"an operator must enter it \(operators watching: alice\) · since \d"))
+    expect(hold.locator(".hold-meta")).to_contain_text(
+        re.compile(r"an operator must enter it \(operators watching: alice\) · since \d")
+    )
     screenshot(alice, "web_hold_followed.png")
 
     # someone opening the run now lands on the hold as well, and both see who watches
@@ -126,8 +130,12 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_
     # following can be switched off: then the page stays where the operator reads
     alice.uncheck("#follow")
     alice.evaluate("window.scrollTo(0, 0)")
-    alice.evaluate("act('enter', {instruction: '4.1', value: 'CDRA-F-0012'})")  # the Record button, without scrolling to it
-    expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text("Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
+    alice.evaluate(
+        "act('enter', {instruction: '4.1', value: 'CDRA-F-0012'})"
+    )  # the Record button, without scrolling to it
+    expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
+        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+    )
     expect_current(instruction(alice, "5.1"))
     expect(instruction(alice, "5.1")).not_to_be_in_viewport()
     assert alice.evaluate("window.scrollY") == 0
@@ -144,8 +152,10 @@ def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts
     expect(ok).to_contain_text("✓ Affordance Template Server Active = true")
     expect(unexpected).to_have_attribute("data-state", "unexpected")  # locked, where the verify wants it unlocked
     expect(unexpected).to_contain_text("≠ Filter Locked = true (expected false)")
-    colours = {n: instruction(alice, n).locator(".telemetry").evaluate("chip => getComputedStyle(chip).backgroundColor")
-               for n in ("1.1", "1.2", "1.3")}
+    colours = {
+        n: instruction(alice, n).locator(".telemetry").evaluate("chip => getComputedStyle(chip).backgroundColor")
+        for n in ("1.1", "1.2", "1.3")
+    }
     assert len(set(colours.values())) == 3, colours
 
     # PAX checks the first two and waits for the latch: the verify counts down its 60 s

@@ -19,14 +19,14 @@ from pathlib import Path
 
 import pytest
 from playwright.sync_api import Locator, Page, expect
+from simulated_systems import open_simulated_systems
 
-from support.operator_page import audit_row, expect_ended, instruction, start_run
+from console.terminal_host import HostedElsewhere, TerminalHost
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Mode
 from pride.lint import check_procedure
 from pride.sysrep import load_sysrep_dir
-from console.terminal_host import HostedElsewhere, TerminalHost
-from simulated_systems import open_simulated_systems
+from support.operator_page import audit_row, expect_ended, instruction, start_run
 from support.web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 
 WALKTHROUGH = "web_walkthrough.xml"
@@ -42,7 +42,9 @@ def consoles(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[W
     started: list[WebServer] = []
     try:
         for name in ("console A", "console B"):
-            started.append(start_server(tmp_path, shelf, database=database, options=["--lease", LEASE, "--console", name]))
+            started.append(
+                start_server(tmp_path, shelf, database=database, options=["--lease", LEASE, "--console", name])
+            )
         yield started[0], started[1]
     finally:
         for served in started:
@@ -81,18 +83,25 @@ def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_the
     carol = open_page(second, "carol")
     carol.goto(f"{second.url}/#run={run_id}")
     expect(carol.locator("#connection")).to_have_attribute("data-state", "open")
-    status = carol.evaluate("""async (runId) => (await fetch(`/api/runs/${runId}/actions`, {method: "POST",
+    status = carol.evaluate(
+        """async (runId) => (await fetch(`/api/runs/${runId}/actions`, {method: "POST",
         headers: {"Content-Type": "application/json", "X-CSRF-Token": view.me.csrf},
-        body: JSON.stringify({action: "perform", instruction: "2.1"})})).status""", run_id)
+        body: JSON.stringify({action: "perform", instruction: "2.1"})})).status""",
+        run_id,
+    )
     assert status == 403
 
     # a password changed at the database ends bob's sessions on every console
     bob_on_first = open_page(first, "bob")
     bob_on_first.goto(f"{first.url}/#run={run_id}")
     expect(bob_on_first.locator("#connection")).to_have_attribute("data-state", "open")
-    changed = subprocess.run([sys.executable, "-m", "caretaker.cli", "accounts", "--db", first.database.owner_url,
-                              "set-password", "bob"], input=PEOPLE["bob"][2] + "-new\n", capture_output=True, text=True,
-                             timeout=60)
+    changed = subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "accounts", "--db", first.database.owner_url, "set-password", "bob"],
+        input=PEOPLE["bob"][2] + "-new\n",
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert changed.returncode == 0, changed.stderr
     for page in (bob, bob_on_first):
         expect(page.locator("#sign-in-view")).to_be_visible()
@@ -128,7 +137,8 @@ def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_r
 
 
 def test_a_run_driven_outside_a_console_is_live_on_the_consoles_and_acted_on_from_them(
-        consoles, open_page, tmp_path, monkeypatch) -> None:
+    consoles, open_page, tmp_path, monkeypatch
+) -> None:
     """What `caretaker run` does with a TerminalHost: this test process is the runner."""
     first, _ = consoles
     monkeypatch.setenv("SIMULATED_CAMERA_DIR", str(tmp_path))

@@ -10,7 +10,6 @@ with the arm's joint states, is in test_web_on_real_stack.py.
 
 from __future__ import annotations
 
-
 from playwright.sync_api import Page, expect
 
 from support.operator_page import audit_row, expect_current, instruction, screenshot, start_run, stop_run
@@ -66,7 +65,9 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServe
     record.locator("button.correct").click()
     expect(alice.locator("#reason-value")).to_have_value("CDRA-F-0012")
     answer(alice, "label misread", value="CDRA-F-0013")
-    expect(audit_row(alice, "record_corrected", "1.1", "alice")).to_contain_text("CDRA-F-0012 → CDRA-F-0013: label misread")
+    expect(audit_row(alice, "record_corrected", "1.1", "alice")).to_contain_text(
+        "CDRA-F-0012 → CDRA-F-0013: label misread"
+    )
     expect(check.locator(".line > .text")).to_contain_text("CDRA-F-0013")
     expect(record.locator(".mark")).to_contain_text("re-entered by alice: CDRA-F-0012 → CDRA-F-0013")
 
@@ -80,7 +81,9 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServe
     alice.click("#resolve-succeeded")
     answer(alice, "the image is in the ground store")
     expect(capture).to_have_attribute("data-status", "completed")
-    expect(capture.locator(".mark")).to_contain_text("outcome recorded as succeeded by alice: the image is in the ground store")
+    expect(capture.locator(".mark")).to_contain_text(
+        "outcome recorded as succeeded by alice: the image is in the ground store"
+    )
     check.locator("button.done").click()
 
     # the long reach moves until HALT: the instruction is halted by alice, never completed
@@ -104,8 +107,11 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServe
     expect(carol.locator("#hold")).to_have_attribute("data-tone", "halted")
     expect(carol.locator("#halt")).to_be_disabled()
     token = {"X-CSRF-Token": carol.evaluate("view.me.csrf")}
-    refused = carol.request.post(f"{server.url}/api/runs/{carol.evaluate('view.runId')}/actions", headers=token,
-                                 data={"action": "halt", "reason": "not mine to halt"})
+    refused = carol.request.post(
+        f"{server.url}/api/runs/{carol.evaluate('view.runId')}/actions",
+        headers=token,
+        data={"action": "halt", "reason": "not mine to halt"},
+    )
     assert refused.status == 403 and "observer" in refused.json()["error"], refused.text()
     stop_run(alice, "flight controls checked")
 
@@ -127,13 +133,15 @@ def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in) 
     expect(bob.locator("#connection")).to_have_attribute("data-state", "open")
     second = bob.locator("#run-id").inner_text()
     expect(bob.locator('#audit li[data-kind="control_taken"][data-actor="bob"]')).to_contain_text(
-        f"took control of iva from run {first} (alice): alice's console froze")
+        f"took control of iva from run {first} (alice): alice's console froze"
+    )
 
     # alice's run holds, says who took the robot, and offers to take it back
     expect(alice.locator("#hold .hold-what")).to_have_text("Robot taken over")
     expect(alice.locator("#hold .hold-text")).to_contain_text("bob")
     expect(alice.locator('#audit li[data-kind="control_lost"]')).to_contain_text(
-        f"taken over by bob (run {second}): alice's console froze")
+        f"taken over by bob (run {second}): alice's console froze"
+    )
     expect(alice.locator("#take-control")).to_be_visible()
     stop_run(bob, "takeover checked")
     stop_run(alice, "takeover checked")

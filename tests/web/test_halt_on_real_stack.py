@@ -26,9 +26,9 @@ import pytest
 import roslibpy
 from playwright.sync_api import expect
 
-from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
 from pride.audit_log import AuditLog
 from pride.events import EventKind
+from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
@@ -50,8 +50,9 @@ class RobotSide:
         self.received: list[float] = []  # time.time() each sample arrived here
         self.executing = False
         roslibpy.Topic(self.ros, "/joint_states", "sensor_msgs/msg/JointState").subscribe(self._on_joints)
-        roslibpy.Topic(self.ros, "/affordance_template_server/status",
-                       "affordance_template_msgs/msg/ServerStatus").subscribe(self._on_status)
+        roslibpy.Topic(
+            self.ros, "/affordance_template_server/status", "affordance_template_msgs/msg/ServerStatus"
+        ).subscribe(self._on_status)
 
     def _on_joints(self, msg: dict[str, Any]) -> None:
         stamp = msg["header"]["stamp"]
@@ -142,8 +143,10 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
     still, arrived = robot.still_since(clicked)
     stopped_after = still - pressed
     if moving:
-        print(f"HALT: the arm at rest {arrived - clicked:.3f} s wall-clock after the click "
-              f"({stopped_after:.3f} s of sim time after the press)")
+        print(
+            f"HALT: the arm at rest {arrived - clicked:.3f} s wall-clock after the click "
+            f"({stopped_after:.3f} s of sim time after the press)"
+        )
     else:
         print("HALT: the arm was still at the click (between two segments of the pull-out): no figure")
     assert stopped_after <= HALT_WITHIN_S, f"the arm moved for {stopped_after:.2f} s of sim time after HALT"
@@ -166,7 +169,8 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
     bob.click("#reason-yes")
     expect(bob.locator("#run-id")).not_to_have_text(run_id)
     expect(bob.locator('#audit li[data-kind="control_taken"][data-actor="bob"]')).to_contain_text(
-        f"took control of iva from run {run_id} (alice): alice handed over at shift change")
+        f"took control of iva from run {run_id} (alice): alice handed over at shift change"
+    )
     expect(alice.locator('#audit li[data-kind="control_lost"]')).to_contain_text("taken over by bob")
     stop_run(bob, "takeover checked")
     stop_run(alice, "halt checked")
@@ -178,6 +182,8 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, 
         log.close()
     halted = [e for e in events if e.kind is EventKind.INSTRUCTION_HALTED]
     assert [e.actor for e in halted] == ["alice"], events
-    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], "a halted pull-out was logged as completed"
+    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], (
+        "a halted pull-out was logged as completed"
+    )
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
     assert results and all(not r.data["success"] for r in results), results

@@ -13,10 +13,11 @@ import re
 
 from playwright.sync_api import expect
 
+from pride.audit_log import AuditLog
 from support.operator_page import (
-    expect_current,
     IVA,
     audit_row,
+    expect_current,
     expect_ended,
     instruction,
     screenshot,
@@ -25,7 +26,6 @@ from support.operator_page import (
     start_run,
     stop_run,
 )
-from pride.audit_log import AuditLog
 from support.web_server import procedure_shelf, start_server
 
 
@@ -56,18 +56,22 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
 
     # the next instructions read with the recorded id in their sentences; Send puts it into the command
     expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
-        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
+        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+    )
     instruction(alice, "4.2").locator("button.perform").click()
     expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012")
     expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_hidden()  # the raw command only on demand
     alice.check("#show-raw")
     expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_visible()
-    expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(re.compile(r"^affordance_templates\.set_display_object_pose\("))
+    expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(
+        re.compile(r"^affordance_templates\.set_display_object_pose\(")
+    )
     alice.uncheck("#show-raw")
     expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame=filter/CDRA-F-0012")
     # the audit log reads the started instruction with the value it was started with, not the author's ${...}
     expect(audit_row(alice, "instruction_started", "4.2", "alice").locator(".audit-detail")).to_have_text(
-        "started: Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack")
+        "started: Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+    )
     screenshot(alice, "web_manual_record.png")
 
     # step, pause, continue and stop, each recorded as alice's
@@ -80,7 +84,8 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
     expect(audit_row(alice, "instruction_started", "4.5", "PAX").locator(".audit-detail")).to_have_text(
-        "started: Pick clean filter CDRA-F-0012 from the rack")
+        "started: Pick clean filter CDRA-F-0012 from the rack"
+    )
     stop_run(alice, "end of the walk-through")
     expect_ended(alice, "stopped")
     expect(audit_row(alice, "run_stopped", "5.1", "alice")).to_contain_text("end of the walk-through")
@@ -122,8 +127,10 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     # a verify on a stale value fails, and the value is marked stale where it is shown
     stale = instruction(alice, "2.2")
     expect(stale.locator(".telemetry")).to_have_attribute("data-state", "stale")
-    expect(stale.locator(".telemetry")).to_contain_text(re.compile(r"Installed Filter Condition = dirty · \d+\.\d s ago · STALE"))
-    expect(stale.locator(".mark")).to_contain_text('cdra.installed_filter_condition was stale \'dirty\'')
+    expect(stale.locator(".telemetry")).to_contain_text(
+        re.compile(r"Installed Filter Condition = dirty · \d+\.\d s ago · STALE")
+    )
+    expect(stale.locator(".mark")).to_contain_text("cdra.installed_filter_condition was stale 'dirty'")
     stale.locator("button.skip").click()
     alice.fill("#skip-reason", "condition sensor offline; checked by eye")
     alice.click("#skip-yes")
@@ -179,7 +186,9 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
 
     # the camera view followed the arm while it moved (live captures, not audit records)
     camera = alice.locator("#camera")
-    expect(alice.locator("#camera-caption")).to_contain_text(re.compile(r"live view while the robot moves .*_web_view\.png"))
+    expect(alice.locator("#camera-caption")).to_contain_text(
+        re.compile(r"live view while the robot moves .*_web_view\.png")
+    )
     assert shown_image_width(camera) == 160
     live_image = camera.get_attribute("src")
     expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("execute_plan")

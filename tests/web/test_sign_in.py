@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from starlette.requests import Request
 
-from console.ground.change_feed import ChangeNotice
 from console.accounts import AccountStore
+from console.ground.change_feed import ChangeNotice
 from console.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
 from console.sign_in_throttle import Allowance, SignInThrottle
 
@@ -27,7 +27,9 @@ class Clock:
 
 
 def request_with(token: str) -> Request:
-    return Request({"type": "http", "method": "GET", "path": "/", "headers": [(b"cookie", f"{COOKIE}={token}".encode())]})
+    return Request(
+        {"type": "http", "method": "GET", "path": "/", "headers": [(b"cookie", f"{COOKIE}={token}".encode())]}
+    )
 
 
 @pytest.fixture
@@ -40,8 +42,9 @@ def store(tmp_path: Path) -> Iterator[AccountStore]:
 
 def test_the_wait_grows_after_the_free_failures_up_to_its_ceiling_and_is_forgotten_later() -> None:
     clock = Clock()
-    throttle = SignInThrottle(pair=Allowance(3, 8.0), address=Allowance(100, 60.0), user=Allowance(100, 60.0),
-                              window=600.0, clock=clock)
+    throttle = SignInThrottle(
+        pair=Allowance(3, 8.0), address=Allowance(100, 60.0), user=Allowance(100, 60.0), window=600.0, clock=clock
+    )
     waits = []
     for _ in range(7):
         waits.append(throttle.wait("alice", "10.0.0.9"))
@@ -58,12 +61,16 @@ def test_the_wait_grows_after_the_free_failures_up_to_its_ceiling_and_is_forgott
 
 def test_a_guesser_trying_many_users_is_slowed_per_address_and_a_success_clears_the_user() -> None:
     clock = Clock()
-    throttle = SignInThrottle(pair=Allowance(5, 60.0), address=Allowance(4, 300.0), user=Allowance(20, 60.0), clock=clock)
+    throttle = SignInThrottle(
+        pair=Allowance(5, 60.0), address=Allowance(4, 300.0), user=Allowance(20, 60.0), clock=clock
+    )
     for user in ("u1", "u2", "u3", "u4"):
         throttle.failed(user, "10.6.6.6")
     assert throttle.wait("u5", "10.6.6.6") == 1  # a user it never tried, from the same address
     assert throttle.wait("u5", "10.0.0.1") == 0
-    throttle = SignInThrottle(pair=Allowance(5, 60.0), address=Allowance(100, 300.0), user=Allowance(5, 60.0), clock=clock)
+    throttle = SignInThrottle(
+        pair=Allowance(5, 60.0), address=Allowance(100, 300.0), user=Allowance(5, 60.0), clock=clock
+    )
     for _ in range(4):
         throttle.failed("alice", "10.0.0.1")
     throttle.succeeded("alice", "10.0.0.1")
@@ -101,7 +108,9 @@ def test_sessions_end_when_idle_at_their_limit_and_when_the_password_changes(sto
         sign_ins.session(request_with(changed.token))
 
 
-def test_an_announced_account_change_is_checked_at_the_next_use_not_after_the_recheck_period(store: AccountStore) -> None:
+def test_an_announced_account_change_is_checked_at_the_next_use_not_after_the_recheck_period(
+    store: AccountStore,
+) -> None:
     clock = Clock()
     sign_ins = SignIns(store, limits=SessionLimits(recheck=5), clock=clock)
     alice = sign_ins.sign_in("alice", "alice-secret-1", "10.0.0.1")

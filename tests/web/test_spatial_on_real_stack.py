@@ -24,13 +24,13 @@ import numpy as np
 import pytest
 import roslibpy
 from playwright.sync_api import Browser, Page, expect
+from spatial_data import matrix
 
 from at_ros.transforms import angle_between
-from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
+from console.spatial_world import compose
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-from console.spatial_world import compose
-from spatial_data import matrix
+from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
@@ -51,13 +51,16 @@ class Habitat:
         self.ros.run(timeout=30)
         self.frames: dict[str, Any] = {}
         self.urdf = ""
-        roslibpy.Topic(self.ros, "/sim/frames", "caretaker_sim_msgs/msg/NamedPoses", throttle_rate=100,
-                       queue_length=1).subscribe(self._on_frames)
+        roslibpy.Topic(
+            self.ros, "/sim/frames", "caretaker_sim_msgs/msg/NamedPoses", throttle_rate=100, queue_length=1
+        ).subscribe(self._on_frames)
         roslibpy.Topic(self.ros, "/robot_description", "std_msgs/msg/String").subscribe(self._on_urdf)
 
     def _on_frames(self, msg: dict[str, Any]) -> None:
-        self.frames = {n: {"xyz": [p["position"][k] for k in "xyz"], "quat": [p["orientation"][k] for k in "xyzw"]}
-                       for n, p in zip(msg["names"], msg["poses"], strict=True)}
+        self.frames = {
+            n: {"xyz": [p["position"][k] for k in "xyz"], "quat": [p["orientation"][k] for k in "xyzw"]}
+            for n, p in zip(msg["names"], msg["poses"], strict=True)
+        }
 
     def _on_urdf(self, msg: dict[str, Any]) -> None:
         self.urdf = msg["data"]
@@ -71,11 +74,15 @@ class Habitat:
         return self.frames[name]
 
     def call(self, service: str, args: dict[str, Any], type_: str) -> dict[str, Any]:
-        answer: dict[str, Any] = roslibpy.Service(self.ros, service, type_).call(roslibpy.ServiceRequest(args), timeout=120)
+        answer: dict[str, Any] = roslibpy.Service(self.ros, service, type_).call(
+            roslibpy.ServiceRequest(args), timeout=120
+        )
         return answer
 
     def plan(self, name: str) -> dict[str, Any]:
-        return self.call(f"{AT}/get_plan", {"name": name, "trajectory_name": ""}, "affordance_template_msgs/srv/GetPlan")
+        return self.call(
+            f"{AT}/get_plan", {"name": name, "trajectory_name": ""}, "affordance_template_msgs/srv/GetPlan"
+        )
 
     def plan_end_in_world(self, plan: dict[str, Any]) -> np.ndarray:
         stamped = plan["end_pose"]
@@ -101,15 +108,20 @@ def distance(a: dict[str, Any], b: np.ndarray) -> tuple[float, float]:
     return float(np.linalg.norm(m[:3, 3] - b[:3, 3])), float(angle_between(m, b))
 
 
-def assert_pose(actual: dict[str, Any], expected: np.ndarray, what: str, *, position: float = MM, angle: float = 0.01) -> None:
+def assert_pose(
+    actual: dict[str, Any], expected: np.ndarray, what: str, *, position: float = MM, angle: float = 0.01
+) -> None:
     d, a = distance(actual, expected)
     assert d <= position and a <= angle, f"{what}: {d * 1000:.2f} mm, {np.degrees(a):.2f} deg away"
 
 
 def wait_for_pose(page: Page, name: str, expected: np.ndarray) -> None:
     """Wait until the view shows the template part ``name`` within a millimetre of ``expected``."""
-    wait_until(lambda: distance(inspect(page)["templates"][name]["pose"], expected)[0] <= MM,
-               f"{name} in the view at its pose", timeout=30)
+    wait_until(
+        lambda: distance(inspect(page)["templates"][name]["pose"], expected)[0] <= MM,
+        f"{name} in the view at its pose",
+        timeout=30,
+    )
 
 
 def inspect(page: Page) -> dict[str, Any]:
@@ -118,19 +130,26 @@ def inspect(page: Page) -> dict[str, Any]:
 
 def wait_view(page: Page, condition: str) -> None:
     """Wait until ``condition`` (JS over ``v``, the view's inspect()) holds."""
-    page.wait_for_function(f"(() => {{ const s = window.caretakerSpatial; if (!s) return false; const v = s.inspect(); return {condition}; }})()",
-                           timeout=TIMEOUT_MS * 3)
+    page.wait_for_function(
+        f"(() => {{ const s = window.caretakerSpatial; if (!s) return false; const v = s.inspect(); return {condition}; }})()",
+        timeout=TIMEOUT_MS * 3,
+    )
 
 
 def act(page: Page, action: str, **extra: Any) -> None:
-    page.evaluate("([a, e]) => api('POST', `/api/runs/${encodeURIComponent(view.runId)}/actions`, {action: a, ...e})",
-                  [action, extra])
+    page.evaluate(
+        "([a, e]) => api('POST', `/api/runs/${encodeURIComponent(view.runId)}/actions`, {action: a, ...e})",
+        [action, extra],
+    )
 
 
 def expect_camera_image(page: Page) -> None:
     """The robot camera's image, inset in the view, loaded from the ground server."""
-    page.wait_for_function("(() => { const i = document.querySelector('#spatial-view img.ct-spatial-camera');"
-                           " return i && !i.hidden && i.complete && i.naturalWidth > 0; })()", timeout=TIMEOUT_MS)
+    page.wait_for_function(
+        "(() => { const i = document.querySelector('#spatial-view img.ct-spatial-camera');"
+        " return i && !i.hidden && i.complete && i.naturalWidth > 0; })()",
+        timeout=TIMEOUT_MS,
+    )
 
 
 def shoot(page: Page, name: str) -> None:
@@ -161,10 +180,13 @@ def open_as(webgl_browser: Browser) -> Iterator[Callable[[WebServer, str], Page]
 
 
 def test_iva_view_follows_the_robot_registers_by_drag_and_refuses_observers(
-        open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]) -> None:
+    open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]
+) -> None:
     with stack_up("iva", ros_env, time_scale="1") as stack:
         # IVA's camera, captured as often as caretaker serve does by default, as a console would
-        server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url], cameras=["scene"], options=["--camera-period", "0.5"])
+        server = start_server(
+            tmp_path, REPO / "procedures", rosbridge=[stack.url], cameras=["scene"], options=["--camera-period", "0.5"]
+        )
         habitat = Habitat(stack.url)
         try:
             run_iva(open_as, server, habitat)
@@ -192,18 +214,34 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     wait_view(alice, "v.templates['cdra_filter:0'] !== undefined")
     wait_for_pose(alice, "cdra_filter:0", slot)
     templates = inspect(alice)["templates"]
-    assert_pose(templates["cdra_filter:0"]["pose"], slot, "the filter display object at its registration (cabinet/slot)")
-    status = habitat.call(f"{AT}/get_template_status", {"name": "cdra_filter:0", "trajectory_name": "grasp_and_pull",
-                                                         "frame_id": "world"}, "affordance_template_msgs/srv/GetAffordanceTemplateStatus")
-    expected_waypoints = {f"{w['id']}.{k}:cdra_filter:0" for s in status["affordance_template_status"]
-                          if s["trajectory_name"] == "grasp_and_pull" for w in s["waypoint_info"] for k in range(len(w["waypoint_poses"]))}
+    assert_pose(
+        templates["cdra_filter:0"]["pose"], slot, "the filter display object at its registration (cabinet/slot)"
+    )
+    status = habitat.call(
+        f"{AT}/get_template_status",
+        {"name": "cdra_filter:0", "trajectory_name": "grasp_and_pull", "frame_id": "world"},
+        "affordance_template_msgs/srv/GetAffordanceTemplateStatus",
+    )
+    expected_waypoints = {
+        f"{w['id']}.{k}:cdra_filter:0"
+        for s in status["affordance_template_status"]
+        if s["trajectory_name"] == "grasp_and_pull"
+        for w in s["waypoint_info"]
+        for k in range(len(w["waypoint_poses"]))
+    }
     shown = {name for name, t in templates.items() if t["kind"] == "waypoint" and t["template"] == "cdra_filter:0"}
-    assert expected_waypoints and expected_waypoints <= shown, f"waypoints: habitat {sorted(expected_waypoints)}, view {sorted(shown)}"
+    assert expected_waypoints and expected_waypoints <= shown, (
+        f"waypoints: habitat {sorted(expected_waypoints)}, view {sorted(shown)}"
+    )
 
     plan = habitat.plan("cdra_filter:0")
     assert plan["state"] == "PLANNED", plan["message"]
     wait_view(alice, "v.ghost.visible")
-    assert_pose(inspect(alice)["ghost"]["tool_pose"], habitat.plan_end_in_world(plan), "the ghost's last pose is the plan's end pose")
+    assert_pose(
+        inspect(alice)["ghost"]["tool_pose"],
+        habitat.plan_end_in_world(plan),
+        "the ghost's last pose is the plan's end pose",
+    )
     expect_camera_image(alice)
     shoot(alice, "spatial-iva.png")
     if SHOTS is not None:
@@ -219,24 +257,39 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     wait_view(alice, "!v.ghost.visible")  # the registration invalidated the plan: no ghost of it
     log = AuditLog(server.database.url)
     try:
-        sent = [e for e in log.events(run_id) if e.kind is EventKind.COMMAND_SENT and e.data.get("command") == "set_display_object_pose"
-                and e.actor == "alice" and e.instruction is None]
-        results = [e for e in log.events(run_id) if e.kind is EventKind.COMMAND_RESULT and e.data.get("key") == sent[-1].data["key"]]
+        sent = [
+            e
+            for e in log.events(run_id)
+            if e.kind is EventKind.COMMAND_SENT
+            and e.data.get("command") == "set_display_object_pose"
+            and e.actor == "alice"
+            and e.instruction is None
+        ]
+        results = [
+            e
+            for e in log.events(run_id)
+            if e.kind is EventKind.COMMAND_RESULT and e.data.get("key") == sent[-1].data["key"]
+        ]
     finally:
         log.close()
     assert len(sent) == 1, "one drag, one command in the audit log, by alice"
     args = sent[0].data["args"]
     assert args["display_object"] == "cdra_filter" and args["affordance_template"] == "cdra_filter"
-    dropped = compose(habitat.frame(args["frame"]) if args["frame"] != "world" else {"xyz": [0, 0, 0], "quat": [0, 0, 0, 1]},
-                      {"xyz": [args["x"], args["y"], args["z"]], "quat": rpy_quat(args["roll"], args["pitch"], args["yaw"])})
+    dropped = compose(
+        habitat.frame(args["frame"]) if args["frame"] != "world" else {"xyz": [0, 0, 0], "quat": [0, 0, 0, 1]},
+        {"xyz": [args["x"], args["y"], args["z"]], "quat": rpy_quat(args["roll"], args["pitch"], args["yaw"])},
+    )
     assert_pose(dropped, moved, "the logged pose is where it was dropped")
     assert results and results[0].data["success"] is True and results[0].actor == "alice"
 
     # a re-plan uses the new registration: 5 cm off the filter, the planner finds nothing to grasp
     # there; dragged back to 1 cm off, it plans, and its end moved with the registration
     def replan() -> dict[str, Any]:
-        return habitat.call(f"{AT}/plan_command", {"type": "cdra_filter", "id": 0, "trajectory_name": "grasp_and_pull"},
-                            "affordance_template_msgs/srv/AffordanceTemplatePlanCommand")
+        return habitat.call(
+            f"{AT}/plan_command",
+            {"type": "cdra_filter", "id": 0, "trajectory_name": "grasp_and_pull"},
+            "affordance_template_msgs/srv/AffordanceTemplatePlanCommand",
+        )
 
     refused_plan = replan()
     assert not refused_plan["success"] and "no graspable object" in refused_plan["message"], refused_plan["message"]
@@ -262,8 +315,11 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     refused = carol.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0, 0.05, 0]})")
     assert refused.get("refused"), refused
     token = {"X-CSRF-Token": carol.evaluate("view.me.csrf")}
-    forced = carol.request.post(f"{server.url}/api/runs/{run_id}/spatial/pose", headers=token,
-                                data={"command": "set_display_object_pose", "args": args})
+    forced = carol.request.post(
+        f"{server.url}/api/runs/{run_id}/spatial/pose",
+        headers=token,
+        data={"command": "set_display_object_pose", "args": args},
+    )
     assert forced.status == 403 and "observer" in forced.json()["error"], forced.text()
     carol.close()  # a console of its own machine: two 3D views on these two cores would halve the frame rate measured below
 
@@ -300,8 +356,10 @@ class FrameRate:
     the view counts a motion on for 0.3 s after its last joint state). Reported per motion and
     per quarter-second window (the smallest, noisy by one frame in six)."""
 
-    PROBE = ("(() => { const v = window.caretakerSpatial.inspect();"
-             " return [performance.now(), v.frames, v.arm_moving_ms, v.update_latency_ms, v.resolution_scale]; })()")
+    PROBE = (
+        "(() => { const v = window.caretakerSpatial.inspect();"
+        " return [performance.now(), v.frames, v.arm_moving_ms, v.update_latency_ms, v.resolution_scale]; })()"
+    )
 
     def __init__(self, page: Page) -> None:
         self.page = page
@@ -315,7 +373,9 @@ class FrameRate:
         while not self.page.evaluate(f"!!(view.state && ({condition}))"):
             assert time.monotonic() < deadline, f"the run did not reach {condition} in {timeout:.0f} s"
             probe = self.page.evaluate(self.PROBE)
-            if motion and probe[2] - motion[-1][2] < 0.9 * (probe[0] - motion[-1][0]):  # not moving all the time since the last read
+            if motion and probe[2] - motion[-1][2] < 0.9 * (
+                probe[0] - motion[-1][0]
+            ):  # not moving all the time since the last read
                 self._count(motion[:-1])
                 motion = []
             if probe[2] > 0:
@@ -332,18 +392,24 @@ class FrameRate:
                 self.windows.append(((frames1 - frames0) * 1000 / (t1 - t0), latency, scale))
 
     def report(self) -> None:
-        print(f"\n3D view in the console (headless Chromium, SwiftShader, 1500x1000), load average {os.getloadavg()[0]:.1f}; "
-              "arm moving, joint states at 10/s, interpolated:")
+        print(
+            f"\n3D view in the console (headless Chromium, SwiftShader, 1500x1000), load average {os.getloadavg()[0]:.1f}; "
+            "arm moving, joint states at 10/s, interpolated:"
+        )
         if not self.motions:
             print("  no reading: the arm never moved for 0.5 s on end")
             return
         frames, seconds = sum(m[0] for m in self.motions), sum(m[1] for m in self.motions)
         per_motion = ", ".join(f"{f / t:.0f}" for f, t in self.motions)
-        print(f"  {frames / seconds:.1f} frames/s over {len(self.motions)} motions ({seconds:.1f} s; each: {per_motion})")
+        print(
+            f"  {frames / seconds:.1f} frames/s over {len(self.motions)} motions ({seconds:.1f} s; each: {per_motion})"
+        )
         if self.windows:
             fps, latency, scale = zip(*self.windows, strict=True)
-            print(f"  quarter-second windows: median {statistics.median(fps):.0f}, min {min(fps):.0f} frames/s; update-to-frame "
-                  f"median {statistics.median(latency):.0f} ms; resolution scale median {statistics.median(scale):.2f}; {len(fps)} windows")
+            print(
+                f"  quarter-second windows: median {statistics.median(fps):.0f}, min {min(fps):.0f} frames/s; update-to-frame "
+                f"median {statistics.median(latency):.0f} ms; resolution scale median {statistics.median(scale):.2f}; {len(fps)} windows"
+            )
 
 
 def wait_until_state(page: Page, condition: str) -> None:
@@ -353,11 +419,13 @@ def wait_until_state(page: Page, condition: str) -> None:
 
 def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
     from console.spatial_scene import pose
+
     return list(pose(rpy=(roll, pitch, yaw))["quat"])
 
 
 def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
-        open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]) -> None:
+    open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]
+) -> None:
     with stack_up("eva", ros_env) as stack:
         server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
         habitat = Habitat(stack.url)

@@ -16,12 +16,12 @@ from typing import Any
 import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page
-
-from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
-from support.operator_page import shown_image_width
-from console.spatial_scene import objects_update
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
+
+from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
+from console.spatial_scene import objects_update
+from support.operator_page import shown_image_width
 
 TIMEOUT_MS = 60_000
 MM = 1e-3
@@ -71,7 +71,9 @@ def open_view(webgl_browser: Browser, site: SpatialSite) -> Iterator[Callable[..
             page.clock.install()
         page.set_default_timeout(TIMEOUT_MS)
         page.on("pageerror", lambda error: problems.append(f"page error: {error}"))
-        page.on("console", lambda msg: problems.append(f"console {msg.type}: {msg.text}") if msg.type == "error" else None)
+        page.on(
+            "console", lambda msg: problems.append(f"console {msg.type}: {msg.text}") if msg.type == "error" else None
+        )
         path = site.put_json(f"/documents/{len(site.files)}.json", document)
         page.goto(site.url + "/")
         page.evaluate("([url, canAct]) => window.startView(url, canAct)", [path, can_act])
@@ -101,7 +103,9 @@ def apply(page: Page, update: dict[str, Any]) -> None:
     next_frame(page)
 
 
-def assert_pose(actual: dict[str, Any], expected: np.ndarray, what: str, *, position: float = MM, angle: float = 0.01) -> None:
+def assert_pose(
+    actual: dict[str, Any], expected: np.ndarray, what: str, *, position: float = MM, angle: float = 0.01
+) -> None:
     m = matrix(actual)
     d = float(np.linalg.norm(m[:3, 3] - expected[:3, 3]))
     a = angle_between(m, expected)
@@ -137,7 +141,9 @@ def test_robot_links_follow_joint_updates(open_view: Callable[..., Page], iva: H
     expected = iva.link_poses(positions)
     assert_links(after, expected, "wrist_3_joint = 0.7")
     for name in ("base_link", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link"):
-        assert_pose(after[name], matrix(before[name]), f"{name} must not move with wrist_3_joint", position=1e-6, angle=1e-6)
+        assert_pose(
+            after[name], matrix(before[name]), f"{name} must not move with wrist_3_joint", position=1e-6, angle=1e-6
+        )
     assert angle_between(matrix(after["wrist_3_link"]), matrix(before["wrist_3_link"])) == pytest.approx(0.7, abs=1e-3)
 
     # Every joint at once, gripper closed.
@@ -199,14 +205,18 @@ def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callab
     back = list(reversed([start, *sent[:-1]]))
     watched = _stream(page, False, back)
     shown = {d for d, _ in watched["frames"]}
-    assert shown <= {sent[-1], *back}, f"without interpolation frames showed {sorted(shown - {sent[-1], *back})}, which no state said"
+    assert shown <= {sent[-1], *back}, (
+        f"without interpolation frames showed {sorted(shown - {sent[-1], *back})}, which no state said"
+    )
     assert watched["frames"][-1][0] == back[-1]
 
 
 def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: Habitat) -> None:
     page = open_view(iva.document())
     before = inspect(page)["links"]
-    refused = page.evaluate("(u) => window.caretakerSpatial.apply(u)", {"kind": "joints", "positions": {"elbow_joint": "fast"}})
+    refused = page.evaluate(
+        "(u) => window.caretakerSpatial.apply(u)", {"kind": "joints", "positions": {"elbow_joint": "fast"}}
+    )
     assert refused is False
     assert "update.positions.elbow_joint: expected a finite number" in page.evaluate("window.viewErrors")[-1]
     assert inspect(page)["links"] == before
@@ -214,12 +224,20 @@ def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: H
                                      catch (e) { return e.message; } }""")
     assert error == "scene.frame: expected a non-empty string, got undefined"
     hollow = {**iva.document(), "robot": {**iva.document()["robot"], "urdf": "<robot name='hollow'/>"}}
-    error = page.evaluate("(d) => { try { window.caretakerSpatial.load(d); return null; } catch (e) { return e.message; } }", hollow)
+    error = page.evaluate(
+        "(d) => { try { window.caretakerSpatial.load(d); return null; } catch (e) { return e.message; } }", hollow
+    )
     assert error == "robot ur10: the URDF has no links"
     assert page.evaluate("window.viewErrors")[-1] == "scene document refused: robot ur10: the URDF has no links"
-    assert inspect(page)["robot"] == "ur10" and inspect(page)["links"] == before, "a refused document must leave the view as it was"
-    assert page.evaluate("window.caretakerSpatial.dragBy('nothing:0', {translate: [0.05, 0, 0]})") == {"refused": "nothing named nothing:0"}
-    assert page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0')") == {"refused": "nothing named cdra_filter:0"}
+    assert inspect(page)["robot"] == "ur10" and inspect(page)["links"] == before, (
+        "a refused document must leave the view as it was"
+    )
+    assert page.evaluate("window.caretakerSpatial.dragBy('nothing:0', {translate: [0.05, 0, 0]})") == {
+        "refused": "nothing named nothing:0"
+    }
+    assert page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0')") == {
+        "refused": "nothing named cdra_filter:0"
+    }
 
 
 # -------------------------------------------------------------------------------- templates
@@ -234,7 +252,9 @@ def test_objects_and_templates_at_their_poses(open_view: Callable[..., Page], iv
     for name, (xyz, quat) in iva.sim.frames():
         if name in state["objects"]:
             assert_pose(state["objects"][name]["pose"], matrix({"xyz": xyz, "quat": quat}), f"object {name}")
-    assert {"rack", "cabinet", "table", "filter/CDRA-F-0007", "filter/CDRA-F-0012", "cabinet/latch"} <= set(state["objects"])
+    assert {"rack", "cabinet", "table", "filter/CDRA-F-0007", "filter/CDRA-F-0012", "cabinet/latch"} <= set(
+        state["objects"]
+    )
 
     templates = state["templates"]
     assert_pose(templates["cdra_filter:0"]["pose"], running.instance.object_pose("cdra_filter"), "display object")
@@ -292,7 +312,9 @@ def test_plan_ghost_plays_scrubs_and_steps(open_view: Callable[..., Page], iva: 
         ghost = inspect(page)["ghost"]
         assert ghost["time"] == pytest.approx(plan["points"][k]["time_from_start"], abs=1e-9), what
         assert [ghost["joints"][n] for n in names] == pytest.approx(plan["points"][k]["positions"], abs=1e-9), what
-        fk = iva.link_poses({**document["joints"]["positions"], **dict(zip(names, plan["points"][k]["positions"], strict=True))})
+        fk = iva.link_poses(
+            {**document["joints"]["positions"], **dict(zip(names, plan["points"][k]["positions"], strict=True))}
+        )
         assert_pose(ghost["tool_pose"], fk["tool0"], f"{what}: ghost tool")
 
     ghost = inspect(page)["ghost"]
@@ -317,7 +339,9 @@ def test_plan_ghost_plays_scrubs_and_steps(open_view: Callable[..., Page], iva: 
     duration = plan["points"][-1]["time_from_start"]
     assert ghost["time"] == pytest.approx(duration / 2, abs=1e-9)
     times = [p["time_from_start"] for p in plan["points"]]
-    expected = [float(np.interp(duration / 2, times, [p["positions"][j] for p in plan["points"]])) for j in range(len(names))]
+    expected = [
+        float(np.interp(duration / 2, times, [p["positions"][j] for p in plan["points"]])) for j in range(len(names))
+    ]
     assert [ghost["joints"][n] for n in names] == pytest.approx(expected, abs=1e-9)
     # The gripper closes at waypoint 2: before it, the ghost's fingers are the scene's "open".
     assert ghost["joints"]["gripper_left_finger_joint"] == pytest.approx(0.0425)
@@ -356,9 +380,17 @@ def test_operator_drag_asks_and_waits_for_the_server(open_view: Callable[..., Pa
     assert command["command"] == "set_display_object_pose"
     args = command["args"]
     assert {k: args[k] for k in ("affordance_template", "id", "display_object", "frame")} == {
-        "affordance_template": "cdra_filter", "id": 0, "display_object": "cdra_filter", "frame": "cabinet/slot"}
+        "affordance_template": "cdra_filter",
+        "id": 0,
+        "display_object": "cdra_filter",
+        "frame": "cabinet/slot",
+    }
     assert_pose(command["pose"], moved, "requested pose in the document frame")
-    assert_pose({"xyz": [args["x"], args["y"], args["z"]], "quat": list(_quat(_command_pose(args)))}, invert(slot) @ moved, "requested pose in the slot frame")
+    assert_pose(
+        {"xyz": [args["x"], args["y"], args["z"]], "quat": list(_quat(_command_pose(args)))},
+        invert(slot) @ moved,
+        "requested pose in the slot frame",
+    )
 
     # Not committed locally: the object stays where the server has it, the request is pending.
     state = inspect(page)
@@ -380,7 +412,13 @@ def test_operator_drag_asks_and_waits_for_the_server(open_view: Callable[..., Pa
     assert command["command"] == "set_waypoint_pose"
     args = command["args"]
     assert {k: args[k] for k in ("affordance_template", "id", "trajectory", "waypoint_id", "ee_name", "frame_id")} == {
-        "affordance_template": "cdra_filter", "id": 0, "trajectory": "grasp_and_pull", "waypoint_id": 1, "ee_name": "gripper", "frame_id": ""}
+        "affordance_template": "cdra_filter",
+        "id": 0,
+        "trajectory": "grasp_and_pull",
+        "waypoint_id": 1,
+        "ee_name": "gripper",
+        "frame_id": "",
+    }
     trajectory = running.instance.trajectory(args["trajectory"])
     ee = running.instance.end_effector(trajectory, [args["ee_name"]])
     parent = running.instance.object_pose("cdra_filter")
@@ -388,7 +426,9 @@ def test_operator_drag_asks_and_waits_for_the_server(open_view: Callable[..., Pa
     expected = before.copy()
     expected[:3, 3] += [0.0, 0.0, 0.05]
     after = next(wp for wp in running.resolved("grasp_and_pull") if wp.label == label).frame_pose
-    assert_pose({"xyz": list(after[:3, 3]), "quat": list(_quat(after))}, expected, "waypoint where the AT server puts it")
+    assert_pose(
+        {"xyz": list(after[:3, 3]), "quat": list(_quat(after))}, expected, "waypoint where the AT server puts it"
+    )
     apply(page, running.update("grasp_and_pull"))
     assert inspect(page)["registration"]["pending"] == {}
 
@@ -439,7 +479,9 @@ def test_pointer_drag_sends_a_command(open_view: Callable[..., Page], iva: Habit
     assert [c["command"] for c in commands] == ["set_display_object_pose"]
     requested = matrix(commands[0]["pose"])
     assert np.linalg.norm(requested[:3, 3] - start[:3, 3]) > 0.01, "a 70 px drag moves the object by more than 1 cm"
-    assert_pose(inspect(page)["templates"]["cdra_filter:0"]["pose"], start, "object before the server answers", position=1e-6)
+    assert_pose(
+        inspect(page)["templates"]["cdra_filter:0"]["pose"], start, "object before the server answers", position=1e-6
+    )
 
 
 def test_observer_can_move_nothing(open_view: Callable[..., Page], iva: Habitat) -> None:
@@ -451,9 +493,20 @@ def test_observer_can_move_nothing(open_view: Callable[..., Page], iva: Habitat)
     _pointer_drag(page, "cdra_filter:0", 60, -40)
     state = inspect(page)
     assert page.evaluate("window.commands") == []
-    assert state["registration"] == {"can_act": False, "selected": None, "mode": "translate", "pending": {}, "handles": False}
+    assert state["registration"] == {
+        "can_act": False,
+        "selected": None,
+        "mode": "translate",
+        "pending": {},
+        "handles": False,
+    }
     assert page.locator("[data-action=mode]").is_hidden()
-    assert_pose(state["templates"]["cdra_filter:0"]["pose"], running.instance.object_pose("cdra_filter"), "object", position=1e-6)
+    assert_pose(
+        state["templates"]["cdra_filter:0"]["pose"],
+        running.instance.object_pose("cdra_filter"),
+        "object",
+        position=1e-6,
+    )
 
 
 # -------------------------------------------------------------------------------------- EVA
@@ -499,7 +552,9 @@ def test_eva_arm_and_hull_targets_render(open_view: Callable[..., Page], eva: Ha
 def _frame_rate(page: Page, updates: int) -> tuple[float, float, float, float]:
     """Frames/s, joint updates/s, seconds and the median ms from a joint update to the frame showing
     it, while ``updates`` joint updates arrive (counted, not timed)."""
-    probe = "[performance.now(), window.caretakerSpatial.inspect().frames, window.caretakerSpatial.inspect().joint_updates]"
+    probe = (
+        "[performance.now(), window.caretakerSpatial.inspect().frames, window.caretakerSpatial.inspect().joint_updates]"
+    )
     before = page.evaluate(probe)
     page.wait_for_function(f"window.caretakerSpatial.inspect().joint_updates >= {before[2] + updates}")
     after = page.evaluate(probe)
@@ -515,11 +570,18 @@ def _frame_rate(page: Page, updates: int) -> tuple[float, float, float, float]:
 CONSOLE_MODES = ((50, True, True, True), (10, True, True, True))
 #: bench/spatial_frame_rate.py (CARETAKER_FRAME_RATE_MODES=all) compares them with every frame at
 #: full resolution, every frame adaptive, and 10/s drawn as each state arrives.
-ALL_MODES = ((50, False, False, True), (50, False, True, True), (50, True, True, True), (10, True, True, False),
-             (10, True, True, True))
+ALL_MODES = (
+    (50, False, False, True),
+    (50, False, True, True),
+    (50, True, True, True),
+    (10, True, True, False),
+    (10, True, True, True),
+)
 
 
-def test_frame_rate_while_joints_stream(open_view: Callable[..., Page], iva: Habitat, record_property: Callable[[str, Any], None]) -> None:
+def test_frame_rate_while_joints_stream(
+    open_view: Callable[..., Page], iva: Habitat, record_property: Callable[[str, Any], None]
+) -> None:
     """Reports frames/s and update-to-frame latency while joint updates stream, side by side in one
     page (a measurement, not a timed assertion; the suite measures the console's way, the benchmark
     every mode). Frames are drawn while joints stream, each at the resolution its mode allows, and
@@ -533,12 +595,16 @@ def test_frame_rate_while_joints_stream(open_view: Callable[..., Page], iva: Hab
     modes = ALL_MODES if os.environ.get("CARETAKER_FRAME_RATE_MODES") == "all" else CONSOLE_MODES
     for rate, on_demand, adaptive, interpolate in modes:
         if rate != rate_now:
-            page.evaluate("([hz, names, base]) => { window.stopJointStream(); window.startJointStream(hz, names, base); }",
-                          [rate, iva.arm_joints, iva_start(iva)])
+            page.evaluate(
+                "([hz, names, base]) => { window.stopJointStream(); window.startJointStream(hz, names, base); }",
+                [rate, iva.arm_joints, iva_start(iva)],
+            )
             rate_now = rate
-        page.evaluate(f"window.caretakerSpatial.setRenderOnDemand({str(on_demand).lower()});"
-                      f"window.caretakerSpatial.setAdaptiveResolution({str(adaptive).lower()});"
-                      f"window.caretakerSpatial.setJointInterpolation({str(interpolate).lower()})")
+        page.evaluate(
+            f"window.caretakerSpatial.setRenderOnDemand({str(on_demand).lower()});"
+            f"window.caretakerSpatial.setAdaptiveResolution({str(adaptive).lower()});"
+            f"window.caretakerSpatial.setJointInterpolation({str(interpolate).lower()})"
+        )
         if not inspect(page)["names_visible"]:
             page.click("[data-action=names]")
         _frame_rate(page, rate)  # the resolution adapts first
@@ -547,14 +613,24 @@ def test_frame_rate_while_joints_stream(open_view: Callable[..., Page], iva: Hab
         assert adaptive or scale == 1, f"drawn at {scale} of full resolution with adaptive resolution off"
         page.click("[data-action=names]")
         fps_unnamed, _, _, _ = _frame_rate(page, 2 * rate)
-        mode = f"{rate}hz_" + ("on_demand" if on_demand else "every_frame") + ("_adaptive" if adaptive else "") + ("_interpolated" if interpolate else "")
+        mode = (
+            f"{rate}hz_"
+            + ("on_demand" if on_demand else "every_frame")
+            + ("_adaptive" if adaptive else "")
+            + ("_interpolated" if interpolate else "")
+        )
         record_property(f"spatial_fps_{mode}", round(fps, 1))
         record_property(f"spatial_latency_ms_{mode}", round(latency, 1))
-        lines.append(f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden) at {scale:.2f} of full resolution, "
-                     f"update-to-frame median {latency:.0f} ms, joint updates at {measured_rate:.1f}/s over {seconds:.1f} s")
+        lines.append(
+            f"{mode}: {fps:.1f} frames/s ({fps_unnamed:.1f} with names hidden) at {scale:.2f} of full resolution, "
+            f"update-to-frame median {latency:.0f} ms, joint updates at {measured_rate:.1f}/s over {seconds:.1f} s"
+        )
     page.evaluate("window.stopJointStream()")
     page.wait_for_function("window.caretakerSpatial.inspect().resolution_scale === 1")  # still again: drawn sharp
     load = os.getloadavg()[0]
-    print(f"\nspatial view (1000x700, SwiftShader, load average {load:.1f} on {os.cpu_count()} cores):\n  " + "\n  ".join(lines))
+    print(
+        f"\nspatial view (1000x700, SwiftShader, load average {load:.1f} on {os.cpu_count()} cores):\n  "
+        + "\n  ".join(lines)
+    )
     joints = inspect(page)["joints"]
     assert_links(inspect(page)["links"], iva.link_poses(joints), "after streaming")

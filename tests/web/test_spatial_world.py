@@ -21,11 +21,28 @@ BASE = {"xyz": [1.0, 2.0, 0.5], "quat": [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5
 
 def world(**changes: Any) -> dict[str, Any]:
     msg: dict[str, Any] = {
-        "scene": "test", "robot_name": "r", "tool_link": "tip", "arm_joints": ["j"], "gripper_joints": [],
+        "scene": "test",
+        "robot_name": "r",
+        "tool_link": "tip",
+        "arm_joints": ["j"],
+        "gripper_joints": [],
         "robot_base": {"position": {"x": 0, "y": 0, "z": 0.75}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
-        "objects": [{"name": "target/hull_a", "pose": {"position": {"x": 1, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
-                     "shapes": [{"type": "cylinder", "radius": 0.1, "length": 0.02, "size": [0, 0, 0], "rgba": [1, 0, 0, 1],
-                                 "pose": {"position": {"x": 0, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}}]}],
+        "objects": [
+            {
+                "name": "target/hull_a",
+                "pose": {"position": {"x": 1, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
+                "shapes": [
+                    {
+                        "type": "cylinder",
+                        "radius": 0.1,
+                        "length": 0.02,
+                        "size": [0, 0, 0],
+                        "rgba": [1, 0, 0, 1],
+                        "pose": {"position": {"x": 0, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
+                    }
+                ],
+            }
+        ],
     }
     msg.update(changes)
     return msg
@@ -33,14 +50,26 @@ def world(**changes: Any) -> dict[str, Any]:
 
 def plan(state: str = "PLANNED", **changes: Any) -> dict[str, Any]:
     answer: dict[str, Any] = {
-        "success": True, "message": "", "plan_id": "p1", "state": state, "trajectory_name": "t",
-        "trajectory": {"joint_names": ["j"], "points": [
-            {"positions": [0.0], "time_from_start": {"sec": 0, "nanosec": 0}},
-            {"positions": [1.0], "time_from_start": {"sec": 1, "nanosec": 500_000_000}}]},
-        "waypoint_names": ["0.0:T:0"], "waypoint_point_index": [1], "end_effector_poses": ["closed"],
+        "success": True,
+        "message": "",
+        "plan_id": "p1",
+        "state": state,
+        "trajectory_name": "t",
+        "trajectory": {
+            "joint_names": ["j"],
+            "points": [
+                {"positions": [0.0], "time_from_start": {"sec": 0, "nanosec": 0}},
+                {"positions": [1.0], "time_from_start": {"sec": 1, "nanosec": 500_000_000}},
+            ],
+        },
+        "waypoint_names": ["0.0:T:0"],
+        "waypoint_point_index": [1],
+        "end_effector_poses": ["closed"],
         "end_pose_link": "tip",
-        "end_pose": {"header": {"frame_id": "robot_base"},
-                     "pose": {"position": {"x": 0.5, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}},
+        "end_pose": {
+            "header": {"frame_id": "robot_base"},
+            "pose": {"position": {"x": 0.5, "y": 0, "z": 0}, "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}},
+        },
     }
     answer.update(changes)
     return answer
@@ -55,7 +84,9 @@ def test_world_document_places_the_robot_at_its_root_link_and_kinds_objects_by_n
 
 def test_world_document_refuses_bad_input_with_its_place() -> None:
     with pytest.raises(SpatialDataError, match=r"visual_world.objects\[0\].shapes\[0\].type.*unknown shape 'cone'"):
-        world_document(world(objects=[{"name": "x", "shapes": [{"type": "cone", "pose": world()["robot_base"]}]}]), URDF)
+        world_document(
+            world(objects=[{"name": "x", "shapes": [{"type": "cone", "pose": world()["robot_base"]}]}]), URDF
+        )
     with pytest.raises(SpatialDataError, match="robot_description.data"):
         world_document(world(), "not a urdf")
 
@@ -89,15 +120,19 @@ def test_the_camera_image_becomes_a_png_and_bad_images_are_refused() -> None:
     from console.spatial_camera import CameraImageError, choose_camera, png_from_image
 
     pixels = bytes([255, 0, 0, 0, 255, 0, 0, 0, 255, 9, 9, 9])  # 2x2 rgb8
-    png = png_from_image({"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(pixels).decode()})
+    png = png_from_image(
+        {"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(pixels).decode()}
+    )
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", png[16:24]) == (2, 2)
     idat = png.index(b"IDAT")
-    length = struct.unpack(">I", png[idat - 4:idat])[0]
-    assert zlib.decompress(png[idat + 4:idat + 4 + length]) == b"\x00" + pixels[:6] + b"\x00" + pixels[6:]
+    length = struct.unpack(">I", png[idat - 4 : idat])[0]
+    assert zlib.decompress(png[idat + 4 : idat + 4 + length]) == b"\x00" + pixels[:6] + b"\x00" + pixels[6:]
     with pytest.raises(CameraImageError, match="image.encoding: 'bgr16'"):
         png_from_image({"encoding": "bgr16", "width": 2, "height": 2, "step": 6, "data": ""})
     with pytest.raises(CameraImageError, match="image.data: 3 bytes for 2 rows of 6"):
-        png_from_image({"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(b"abc").decode()})
+        png_from_image(
+            {"encoding": "rgb8", "width": 2, "height": 2, "step": 6, "data": base64.b64encode(b"abc").decode()}
+        )
     assert choose_camera(["tool0", "camera/scene", "camera/ee_camera"], "ee_camera") == "ee_camera"
     assert choose_camera(["tool0", "camera/scene"], "ee_camera") == "scene"
     assert choose_camera(["tool0"], "ee_camera") is None

@@ -18,8 +18,8 @@ from collections.abc import Iterator
 import pytest
 from playwright.sync_api import expect
 
-from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
 from pride.audit_log import AuditLog
+from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
 from support.web_server import REPO, WebServer, server_on_real_stack
 
 #: PAX plans and moves the arm on the way to a hold: real motion, as slow as the machine's load makes it.
@@ -50,7 +50,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(alice.locator("#procedure .notice.caution").first).to_contain_text("within reach of the CDRA cabinet")
     expect(instruction(alice, "1.3").locator(".auto-icon")).to_have_attribute("title", re.compile("PAX can run this"))
     expect(instruction(alice, "1.1").locator(".telemetry")).to_contain_text(
-        re.compile(r"✓ Affordance Template Server Active = true · \d+\.\d s ago"))
+        re.compile(r"✓ Affordance Template Server Active = true · \d+\.\d s ago")
+    )
     expect(instruction(alice, "1.1").locator(".telemetry")).to_have_attribute("data-state", "ok")
     expect_current(instruction(alice, "1.1"))
 
@@ -63,7 +64,9 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(send).to_have_text("Send")
     send.click()
     expect(instruction(alice, "1.3").locator(".detail")).to_contain_text("Result: succeeded — added cdra_filter:0")
-    expect(instruction(alice, "2.2").locator(".line > .text")).to_have_text("Plan the grasp-and-pull trajectory for cdra_filter:0")
+    expect(instruction(alice, "2.2").locator(".line > .text")).to_have_text(
+        "Plan the grasp-and-pull trajectory for cdra_filter:0"
+    )
     expect(instruction(alice, "1.3").locator(".mark")).to_contain_text("completed by alice")
     expect(audit_row(alice, "command_sent", "1.3", "alice")).to_contain_text("add_affordance_template")
     expect(audit_row(alice, "command_result", "1.3", "alice")).to_contain_text("succeeded: added cdra_filter:0")
@@ -77,18 +80,26 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     expect(instruction(carol, "1.4").locator("button.perform")).to_be_disabled()
     expect(carol.locator("#mode-autonomous")).to_be_disabled()
     token = {"X-CSRF-Token": carol.evaluate("view.me.csrf")}  # her session's own token: only her role refuses it
-    forced = carol.request.post(f"{server.url}/api/runs/{run_id}/actions",
-                                data={"action": "perform", "instruction": "1.4"}, headers=token)
+    forced = carol.request.post(
+        f"{server.url}/api/runs/{run_id}/actions", data={"action": "perform", "instruction": "1.4"}, headers=token
+    )
     assert forced.status == 403, forced.text()
     assert "observer" in forced.json()["error"]
-    assert carol.request.post(f"{server.url}/api/runs", data={"procedure": IVA, "binding": "iva.yaml"}, headers=token).status == 403
+    assert (
+        carol.request.post(
+            f"{server.url}/api/runs", data={"procedure": IVA, "binding": "iva.yaml"}, headers=token
+        ).status
+        == 403
+    )
 
     # autonomous: PAX runs on and holds at the manual instruction 2.6; both browsers see it
     alice.click("#mode-autonomous")
     expect(alice.locator("#run-mode")).to_have_text("autonomous")
     for page in (alice, carol):
         expect_current(instruction(page, "2.6"), timeout=MOTION_MS)
-        expect(page.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
+        expect(page.locator("#hold")).to_contain_text(
+            "2.6: Confirm that the area in front of the CDRA cabinet is clear"
+        )
     expect(instruction(alice, "2.5").locator(".mark")).to_contain_text("completed by PAX")
     expect(instruction(alice, "2.1").locator(".raw-detail")).to_contain_text("frame=cabinet/slot")
     expect(audit_row(alice, "awaiting_operator", "2.6", "PAX")).to_have_count(1)
@@ -110,7 +121,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
     record.locator("input.record-value").fill("CDRA-F-0021")
     record.locator("button.record").click()
     expect(alice.locator("#action-error")).to_contain_text(
-        "'CDRA-F-0021' is not one of the values cdra.clean_filter_ids reports now (CDRA-F-0012, CDRA-F-0013)")
+        "'CDRA-F-0021' is not one of the values cdra.clean_filter_ids reports now (CDRA-F-0012, CDRA-F-0013)"
+    )
     expect_current(record)
     # a clean filter, but not the one set aside for this swap: re-entered before the arm uses it
     record.locator("input.record-value").fill("CDRA-F-0013")
@@ -142,7 +154,9 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, s
         log.close()
     inputs = [e for e in events if e.kind.value in ("operator_input", "record_corrected")]
     assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [
-        ("4.1", "alice", "CDRA-F-0013"), ("4.1", "alice", "CDRA-F-0012")]
+        ("4.1", "alice", "CDRA-F-0013"),
+        ("4.1", "alice", "CDRA-F-0012"),
+    ]
     assert inputs[1].data["old"] == "CDRA-F-0013" and inputs[1].data["reason"] == "0013 is kept for the next swap"
     actors = {e.actor for e in events}
     assert actors == {"alice", "PAX"}, actors

@@ -21,14 +21,27 @@ STATE_FILE = "command_ledger.sqlite"
 def main(argv: list[str] | None = None) -> int:
     """Serve the ledger until Ctrl-C; prints ``READY ledger <epoch> <state file>`` once it serves."""
     parser = argparse.ArgumentParser(prog="caretaker ledger", description=__doc__.splitlines()[0])
-    parser.add_argument("--state-dir", type=Path, required=True,
-                        help=f"folder of the ledger's memory ({STATE_FILE}); keep it across restarts")
-    parser.add_argument("--default-timeout", type=float, default=10.0,
-                        help="s to wait for a service's answer when a request gives no timeout (default 10)")
-    parser.add_argument("--retain-hours", type=float, default=168.0,
-                        help="keep finished records this long (default a week); pruning starts a new epoch")
-    parser.add_argument("--threads", type=int, default=16,
-                        help="executor threads: calls waiting at once, plus answers (default 16)")
+    parser.add_argument(
+        "--state-dir",
+        type=Path,
+        required=True,
+        help=f"folder of the ledger's memory ({STATE_FILE}); keep it across restarts",
+    )
+    parser.add_argument(
+        "--default-timeout",
+        type=float,
+        default=10.0,
+        help="s to wait for a service's answer when a request gives no timeout (default 10)",
+    )
+    parser.add_argument(
+        "--retain-hours",
+        type=float,
+        default=168.0,
+        help="keep finished records this long (default a week); pruning starts a new epoch",
+    )
+    parser.add_argument(
+        "--threads", type=int, default=16, help="executor threads: calls waiting at once, plus answers (default 16)"
+    )
     parser.add_argument("--log-level", default="INFO")
     args, ros_args = parser.parse_known_args(argv)
     if args.default_timeout <= 0 or args.retain_hours <= 0 or args.threads < 2:
@@ -40,8 +53,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker ledger: {exc}", file=sys.stderr)
         return 2
     if store.interrupted:
-        logging.getLogger(__name__).warning("%d calls were in progress when the ledger stopped: now UNKNOWN",
-                                            store.interrupted)
+        logging.getLogger(__name__).warning(
+            "%d calls were in progress when the ledger stopped: now UNKNOWN", store.interrupted
+        )
     rclpy.init(args=ros_args)
     node = None
     executor = MultiThreadedExecutor(num_threads=args.threads)

@@ -70,10 +70,12 @@ class LedgerNode(Node):
         self._running: dict[str, RunningCall] = {}
         self._calls_lock = threading.Lock()
         group = ReentrantCallbackGroup()
-        self.execute_service = self.create_service(ExecuteOnce, EXECUTE_SERVICE, self.execute_callback,
-                                                   qos_profile=SERVICE_QOS, callback_group=group)
-        self.outcome_service = self.create_service(CommandOutcome, OUTCOME_SERVICE, self.outcome_callback,
-                                                   qos_profile=SERVICE_QOS, callback_group=group)
+        self.execute_service = self.create_service(
+            ExecuteOnce, EXECUTE_SERVICE, self.execute_callback, qos_profile=SERVICE_QOS, callback_group=group
+        )
+        self.outcome_service = self.create_service(
+            CommandOutcome, OUTCOME_SERVICE, self.outcome_callback, qos_profile=SERVICE_QOS, callback_group=group
+        )
         self.prune_timer = self.create_timer(PRUNE_PERIOD_S, self.prune_timer_callback, callback_group=group)
 
     # --- execute ------------------------------------------------------------------------------
@@ -92,15 +94,26 @@ class LedgerNode(Node):
             record = self.store.get(key) if running is None else None
             if running is None and record is None:
                 if request.epoch and request.epoch != self.store.epoch:
-                    log.warning("%s: unknown key re-sent under epoch %s (now %s): UNKNOWN, not executed", key,
-                                request.epoch, self.store.epoch)
-                    return _answer(response, CallOutcome(
-                        State.UNKNOWN, "", f"this ledger's memory is newer than the client's (epoch {request.epoch},"
-                        f" now {self.store.epoch}) and has no record of {key}: whether it executed cannot be learnt;"
-                        " not executed now"))
+                    log.warning(
+                        "%s: unknown key re-sent under epoch %s (now %s): UNKNOWN, not executed",
+                        key,
+                        request.epoch,
+                        self.store.epoch,
+                    )
+                    return _answer(
+                        response,
+                        CallOutcome(
+                            State.UNKNOWN,
+                            "",
+                            f"this ledger's memory is newer than the client's (epoch {request.epoch},"
+                            f" now {self.store.epoch}) and has no record of {key}: whether it executed cannot be learnt;"
+                            " not executed now",
+                        ),
+                    )
                 self.store.begin(key, request.service, request.type, request.request_json)
-                mine = self._running[key] = RunningCall(request.service, request.request_json,
-                                                        time.monotonic() + timeout + JOIN_MARGIN_S)
+                mine = self._running[key] = RunningCall(
+                    request.service, request.request_json, time.monotonic() + timeout + JOIN_MARGIN_S
+                )
         if running is not None:
             return _answer(response, self._join(key, running, request))
         if record is not None:
@@ -114,8 +127,9 @@ class LedgerNode(Node):
             outcome = self.caller.call(request.service, request.type, request.request_json, timeout)
         except Exception as exc:  # the key is claimed: it must end with an answer, whatever failed
             log.exception("%s: the ledger failed during the call", key)
-            outcome = CallOutcome(State.UNKNOWN, "", f"the ledger failed during the call ({exc!r}); it may have"
-                                  " executed")
+            outcome = CallOutcome(
+                State.UNKNOWN, "", f"the ledger failed during the call ({exc!r}); it may have executed"
+            )
         self.store.finish(key, outcome.state, outcome.response_json, outcome.message)
         if outcome.late_answer is not None:
             outcome.late_answer.add_done_callback(lambda future: self._late_answer(key, request.service, future))
@@ -191,5 +205,9 @@ def _same_command(service: str, request_json: str, request: Any) -> bool:
 
 
 def _reused(key: str, service: str) -> CallOutcome:
-    return CallOutcome(State.REFUSED, "", f"command key {key} already names another call (of {service}):"
-                       " a key is one command; use a new attempt number for a new command")
+    return CallOutcome(
+        State.REFUSED,
+        "",
+        f"command key {key} already names another call (of {service}):"
+        " a key is one command; use a new attempt number for a new command",
+    )

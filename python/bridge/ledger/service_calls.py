@@ -31,8 +31,7 @@ from .store import State
 
 __all__ = ["CallOutcome", "Refusal", "ServiceCaller", "request_message"]
 
-SERVICE_QOS = QoSProfile(
-    depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
+SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
 """Deep request/response queues like the robot side's services: ROS's default depth 10 drops
 requests silently when more arrive together."""
 DISCOVERY_WAIT_S = 10.0
@@ -107,12 +106,18 @@ class ServiceCaller:
         deadline = time.monotonic() + timeout
         while not answered.wait(min(SERVER_WATCH_S, max(0.0, deadline - time.monotonic()))):
             if time.monotonic() >= deadline:
-                return CallOutcome(State.UNKNOWN, "", f"no answer from {service} within {timeout:g} s; it may have"
-                                   " executed (an answer that comes later is recorded)", late_answer=future)
+                return CallOutcome(
+                    State.UNKNOWN,
+                    "",
+                    f"no answer from {service} within {timeout:g} s; it may have"
+                    " executed (an answer that comes later is recorded)",
+                    late_answer=future,
+                )
             if not client.service_is_ready():
                 client.remove_pending_request(future)
-                return CallOutcome(State.UNKNOWN, "", f"the server of {service} went away before answering; it"
-                                   " may have executed")
+                return CallOutcome(
+                    State.UNKNOWN, "", f"the server of {service} went away before answering; it may have executed"
+                )
         return answer_outcome(service, future)
 
     def _client(self, service: str, type_text: str) -> tuple[Any, Any]:
@@ -138,8 +143,7 @@ class ServiceCaller:
         with self._clients_lock:
             client = self._clients.get((service, type_name(srv_cls)))
             if client is None:
-                client = self._node.create_client(srv_cls, service, qos_profile=SERVICE_QOS,
-                                                  callback_group=self._group)
+                client = self._node.create_client(srv_cls, service, qos_profile=SERVICE_QOS, callback_group=self._group)
                 self._clients[(service, type_name(srv_cls))] = client
         if not _wait_until(client.service_is_ready, SERVER_WAIT_S):
             raise Refusal(f"service {service} has no server answering")
@@ -149,8 +153,9 @@ class ServiceCaller:
         found: list[str] = []
 
         def listed() -> bool:
-            found[:] = [types[0] for name, types in self._node.get_service_names_and_types()
-                        if name == service and types]
+            found[:] = [
+                types[0] for name, types in self._node.get_service_names_and_types() if name == service and types
+            ]
             return bool(found)
 
         return found[0] if _wait_until(listed, wait) else None
@@ -159,8 +164,12 @@ class ServiceCaller:
 def answer_outcome(service: str, future: Any) -> CallOutcome:
     """The outcome of a call whose rclpy future is done: the service's answer, or UNKNOWN."""
     if future.cancelled() or future.exception() is not None:
-        return CallOutcome(State.UNKNOWN, "", f"the call of {service} ended without an answer"
-                           f" ({future.exception() or 'cancelled'}); it may have executed")
+        return CallOutcome(
+            State.UNKNOWN,
+            "",
+            f"the call of {service} ended without an answer"
+            f" ({future.exception() or 'cancelled'}); it may have executed",
+        )
     response = message_to_dict(future.result())
     text = json.dumps(response, allow_nan=False, separators=(",", ":"))
     message = response.get("message")

@@ -100,8 +100,11 @@ class LedgerStore:
             self._db.executescript(_SCHEMA)
             row = self._db.execute("SELECT value FROM meta WHERE name = 'epoch'").fetchone()
         except (sqlite3.Error, OSError) as exc:
-            raise LedgerStoreError(path, f"cannot use it as the ledger's state ({exc}); move it away to start"
-                                   " with a new memory (clients then get UNKNOWN for keys they re-send)") from None
+            raise LedgerStoreError(
+                path,
+                f"cannot use it as the ledger's state ({exc}); move it away to start"
+                " with a new memory (clients then get UNKNOWN for keys they re-send)",
+            ) from None
         self._epoch = str(row[0]) if row else self._new_epoch()
         self.interrupted = self._mark_interrupted()
         self.prune()
@@ -121,8 +124,13 @@ class LedgerStore:
         with self._db_lock:
             cursor = self._db.execute(
                 "UPDATE commands SET state = ?, finished = ?, message = ? WHERE state = ?",
-                (State.UNKNOWN.value, time.time(), "the ledger stopped while this call was in progress; it may have"
-                 " executed", State.IN_PROGRESS.value))
+                (
+                    State.UNKNOWN.value,
+                    time.time(),
+                    "the ledger stopped while this call was in progress; it may have executed",
+                    State.IN_PROGRESS.value,
+                ),
+            )
             return cursor.rowcount
 
     def get(self, command_key: str) -> Record | None:
@@ -130,7 +138,9 @@ class LedgerStore:
         with self._db_lock:
             row = self._db.execute(
                 "SELECT command_key, service, type, request_json, state, response_json, message, started, finished"
-                " FROM commands WHERE command_key = ?", (command_key,)).fetchone()
+                " FROM commands WHERE command_key = ?",
+                (command_key,),
+            ).fetchone()
         if row is None:
             return None
         return Record(row[0], row[1], row[2], row[3], State(row[4]), row[5], row[6], row[7], row[8])
@@ -141,10 +151,12 @@ class LedgerStore:
             self._db.execute(
                 "INSERT INTO commands (command_key, service, type, request_json, state, started)"
                 " VALUES (?, ?, ?, ?, ?, ?)",
-                (command_key, service, type_name, request_json, State.IN_PROGRESS.value, time.time()))
+                (command_key, service, type_name, request_json, State.IN_PROGRESS.value, time.time()),
+            )
 
-    def finish(self, command_key: str, state: State, response_json: str, message: str, *,
-               was: State = State.IN_PROGRESS) -> bool:
+    def finish(
+        self, command_key: str, state: State, response_json: str, message: str, *, was: State = State.IN_PROGRESS
+    ) -> bool:
         """Record the outcome of ``command_key`` if it is still in state ``was``; True if it was.
 
         ``was=State.UNKNOWN`` records an answer that came after the ledger gave up waiting.
@@ -153,14 +165,17 @@ class LedgerStore:
             cursor = self._db.execute(
                 "UPDATE commands SET state = ?, response_json = ?, message = ?, finished = ?"
                 " WHERE command_key = ? AND state = ?",
-                (state.value, response_json, message, time.time(), command_key, was.value))
+                (state.value, response_json, message, time.time(), command_key, was.value),
+            )
             return cursor.rowcount == 1
 
     def prune(self) -> int:
         """Delete finished records older than the retention time; a new epoch if any went."""
         with self._db_lock:
-            cursor = self._db.execute("DELETE FROM commands WHERE state != ? AND finished < ?",
-                                      (State.IN_PROGRESS.value, time.time() - self.retain_s))
+            cursor = self._db.execute(
+                "DELETE FROM commands WHERE state != ? AND finished < ?",
+                (State.IN_PROGRESS.value, time.time() - self.retain_s),
+            )
             if cursor.rowcount > 0:
                 self._new_epoch()
             return cursor.rowcount

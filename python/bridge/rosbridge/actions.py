@@ -30,8 +30,9 @@ from __future__ import annotations
 import asyncio
 import itertools
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import rclpy.task
 from rclpy.action import ActionClient, ActionServer, CancelResponse
@@ -114,8 +115,9 @@ class SentGoal:
 class Actions:
     """Action goals sent by clients and actions served by clients."""
 
-    def __init__(self, ros: RosThread, allow: AllowList, quotas: Quotas,
-                 services_graph: Callable[[], dict[str, str]]) -> None:
+    def __init__(
+        self, ros: RosThread, allow: AllowList, quotas: Quotas, services_graph: Callable[[], dict[str, str]]
+    ) -> None:
         self.ros = ros
         self.allow = allow
         self.quotas = quotas
@@ -127,9 +129,14 @@ class Actions:
 
     def operations(self) -> dict[str, Callable[[Session, dict[str, Any]], Any]]:
         """The ops this module serves, for the bridge's dispatch table."""
-        return {p.OP_SEND_ACTION_GOAL: self._send_goal, p.OP_CANCEL_ACTION_GOAL: self._cancel_goal,
-                p.OP_ADVERTISE_ACTION: self._advertise, p.OP_UNADVERTISE_ACTION: self._unadvertise,
-                p.OP_ACTION_FEEDBACK: self._feedback, p.OP_ACTION_RESULT: self._result}
+        return {
+            p.OP_SEND_ACTION_GOAL: self._send_goal,
+            p.OP_CANCEL_ACTION_GOAL: self._cancel_goal,
+            p.OP_ADVERTISE_ACTION: self._advertise,
+            p.OP_UNADVERTISE_ACTION: self._unadvertise,
+            p.OP_ACTION_FEEDBACK: self._feedback,
+            p.OP_ACTION_RESULT: self._result,
+        }
 
     def _action(self, message: dict[str, Any]) -> str:
         action = ros_name("action", require(message, "action", str))
@@ -151,8 +158,17 @@ class Actions:
         record = self._goals[key] = SentGoal(session)
         return self._follow_goal(record, key, action, type_name, action_cls, goal, wants_feedback, message)
 
-    async def _follow_goal(self, record: SentGoal, key: tuple[int, Any], action: str, type_name: str,
-                           action_cls: Any, goal: Any, wants_feedback: bool, message: dict[str, Any]) -> None:
+    async def _follow_goal(
+        self,
+        record: SentGoal,
+        key: tuple[int, Any],
+        action: str,
+        type_name: str,
+        action_cls: Any,
+        goal: Any,
+        wants_feedback: bool,
+        message: dict[str, Any],
+    ) -> None:
         # Not cancelled when the client disconnects (see the module doc): it cancels the goal.
         session = record.session
         reply: dict[str, Any] = {"action": echo(message["action"])}
@@ -161,12 +177,14 @@ class Actions:
         shared = None
         try:
             shared = await self._client_for(action, type_name, action_cls)
+
             def forward_feedback(feedback: Any) -> None:
                 values = message_to_dict(feedback.feedback)
                 self.ros.deliver(session.send, {"op": p.OP_ACTION_FEEDBACK, **reply, "values": values})
 
-            handle = await self.ros.ask(shared.client.send_goal_async, goal,
-                                        feedback_callback=forward_feedback if wants_feedback else None)
+            handle = await self.ros.ask(
+                shared.client.send_goal_async, goal, feedback_callback=forward_feedback if wants_feedback else None
+            )
             if not handle.accepted:
                 raise ActionFailed(f"the action server of {action} rejected the goal")
             record.handle = handle
@@ -177,16 +195,24 @@ class Actions:
             else:
                 outcome = await self.ros.ask(handle.get_result_async)
         except TimeoutError:
-            log.warning("a cancelled goal of a disconnected client on %s did not end within %.0f s", action,
-                        ORPHAN_WAIT_S)
+            log.warning(
+                "a cancelled goal of a disconnected client on %s did not end within %.0f s", action, ORPHAN_WAIT_S
+            )
             return
         finally:
             del self._goals[key]
             self.quotas.goals.give(session.number)
             if shared is not None:
                 self._release(action, type_name, shared)
-        session.send({"op": p.OP_ACTION_RESULT, **reply, "values": message_to_dict(outcome.result),
-                      "status": outcome.status, "result": outcome.status == p.GOAL_STATUS_SUCCEEDED})
+        session.send(
+            {
+                "op": p.OP_ACTION_RESULT,
+                **reply,
+                "values": message_to_dict(outcome.result),
+                "status": outcome.status,
+                "result": outcome.status == p.GOAL_STATUS_SUCCEEDED,
+            }
+        )
 
     async def _client_for(self, action: str, type_name: str, action_cls: Any) -> SharedClient:
         """The shared client of (``action``, ``type_name``) once its server is ready, counted as used."""
@@ -217,7 +243,7 @@ class Actions:
 
     def _new_client(self, action_cls: Any, action: str) -> ActionClient:
         idle = [key for key, shared in self._clients.items() if not shared.users]
-        for key in idle[:max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
+        for key in idle[: max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
             self._destroy_client(key, self._clients[key])
         if len(self._clients) >= MAX_CLIENTS:
             raise OverQuota(f"too many actions with goals in flight on this bridge (limit {MAX_CLIENTS})")
@@ -227,7 +253,8 @@ class Actions:
         shared.users -= 1
         if shared.users == 0 and self._clients.get((action, type_name)) is shared:
             shared.expiry = asyncio.get_running_loop().call_later(
-                CLIENT_LINGER_S, self._destroy_client, (action, type_name), shared)
+                CLIENT_LINGER_S, self._destroy_client, (action, type_name), shared
+            )
 
     def _destroy_client(self, key: tuple[str, str], shared: SharedClient) -> None:
         if shared.users or self._clients.get(key) is not shared:
@@ -283,12 +310,14 @@ class Actions:
         def cancel_callback(goal_handle: Any) -> CancelResponse:
             for goal_id, (handle, _, provided) in served.goals.items():
                 if handle is goal_handle:
-                    self.ros.deliver(provided.session.send,
-                                     {"op": p.OP_CANCEL_ACTION_GOAL, "id": goal_id, "action": action})
+                    self.ros.deliver(
+                        provided.session.send, {"op": p.OP_CANCEL_ACTION_GOAL, "id": goal_id, "action": action}
+                    )
             return CancelResponse.ACCEPT
 
-        served.server = ActionServer(self.ros.server_node, served.action_cls, action, execute_callback,
-                                     cancel_callback=cancel_callback)
+        served.server = ActionServer(
+            self.ros.server_node, served.action_cls, action, execute_callback, cancel_callback=cancel_callback
+        )
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         provided = self.provided.get(self._action(message))
@@ -306,10 +335,17 @@ class Actions:
         goal_id = f"action_goal:{served.name}:{next(served.counter)}"
         outcome = rclpy.task.Future()
         served.goals[goal_id] = (goal_handle, outcome, provided)
-        self.ros.deliver(provided.session.send, {
-            "op": p.OP_SEND_ACTION_GOAL, "id": goal_id, "action": served.name,
-            "action_type": _type_name(served.action_cls), "args": message_to_dict(goal_handle.request),
-            "feedback": True})
+        self.ros.deliver(
+            provided.session.send,
+            {
+                "op": p.OP_SEND_ACTION_GOAL,
+                "id": goal_id,
+                "action": served.name,
+                "action_type": _type_name(served.action_cls),
+                "args": message_to_dict(goal_handle.request),
+                "feedback": True,
+            },
+        )
         try:
             status, result = await outcome
         except Exception as exc:
@@ -332,7 +368,9 @@ class Actions:
         goal_id = require(message, "id", str)
         goal = provided.served.goals.get(goal_id) if provided is not None else None
         if provided is None or provided.session is not session or goal is None or goal[2] is not provided:
-            raise InvalidField(f"no goal {echo(goal_id)!r} of action {echo(message['action'])} is running for this client")
+            raise InvalidField(
+                f"no goal {echo(goal_id)!r} of action {echo(message['action'])} is running for this client"
+            )
         return provided.served, goal_id
 
     def _feedback(self, session: Session, message: dict[str, Any]) -> None:
@@ -343,8 +381,9 @@ class Actions:
     def _result(self, session: Session, message: dict[str, Any]) -> None:
         served, goal_id = self._goal_of(session, message)
         succeeded = optional(message, "result", bool, True)
-        status = optional(message, "status", int, p.GOAL_STATUS_SUCCEEDED if succeeded else p.GOAL_STATUS_ABORTED,
-                          bounds=(0, 6))
+        status = optional(
+            message, "status", int, p.GOAL_STATUS_SUCCEEDED if succeeded else p.GOAL_STATUS_ABORTED, bounds=(0, 6)
+        )
         if not succeeded:
             status = p.GOAL_STATUS_ABORTED if status == p.GOAL_STATUS_SUCCEEDED else status
         values = optional(message, "values", dict, {})
@@ -359,8 +398,13 @@ class Actions:
             self.quotas.advertisements.give(provided.session.number)
             self.ros.on_server_thread(self._take_over, provided.served, None, reason, provided)
 
-    def _take_over(self, served: ServedAction, provided: ProvidedAction | None, reason: str,
-                   only_from: ProvidedAction | None = None) -> None:
+    def _take_over(
+        self,
+        served: ServedAction,
+        provided: ProvidedAction | None,
+        reason: str,
+        only_from: ProvidedAction | None = None,
+    ) -> None:
         """On the ros-servers thread, which decides each goal's fate: ``provided`` executes the
         new goals of ``served`` from now on (``None``: nobody does). The goals of the client that
         served it so far end, aborted with ``reason``. With ``only_from``, nothing changes unless
@@ -381,8 +425,14 @@ class Actions:
         its last goal ended, if nobody took it over meanwhile."""
         if served.provider is None and not served.goals and not served.destroyed:
             served.idle_turn += 1
-            self.ros.deliver(self.ros.loop.call_later, RESULT_LINGER_S, self.ros.on_server_thread,
-                             self._retire, served, served.idle_turn)
+            self.ros.deliver(
+                self.ros.loop.call_later,
+                RESULT_LINGER_S,
+                self.ros.on_server_thread,
+                self._retire,
+                served,
+                served.idle_turn,
+            )
 
     def _retire(self, served: ServedAction, idle_turn: int) -> None:
         # On the ros-servers thread, whose executor waits on the server: destroyed from any other

@@ -24,19 +24,37 @@ from .protocol import COMPRESSION_CBOR, COMPRESSION_CBOR_RAW, COMPRESSION_PNG, O
 
 #: (numpy dtype kind, item size) -> CBOR typed-array tag (little-endian), RFC 8746
 _TYPED_ARRAY_TAGS = {
-    ("u", 2): 69, ("u", 4): 70, ("u", 8): 71,
-    ("i", 1): 72, ("i", 2): 77, ("i", 4): 78, ("i", 8): 79,
-    ("f", 4): 85, ("f", 8): 86,
+    ("u", 2): 69,
+    ("u", 4): 70,
+    ("u", 8): 71,
+    ("i", 1): 72,
+    ("i", 2): 77,
+    ("i", 4): 78,
+    ("i", 8): 79,
+    ("f", 4): 85,
+    ("f", 8): 86,
 }
 #: array.array type code -> (kind, item size)
-_ARRAY_CODES = {"b": ("i", 1), "B": ("u", 1), "h": ("i", 2), "H": ("u", 2), "i": ("i", 4), "I": ("u", 4),
-                "l": ("i", 8), "L": ("u", 8), "q": ("i", 8), "Q": ("u", 8), "f": ("f", 4), "d": ("f", 8)}
+_ARRAY_CODES = {
+    "b": ("i", 1),
+    "B": ("u", 1),
+    "h": ("i", 2),
+    "H": ("u", 2),
+    "i": ("i", 4),
+    "I": ("u", 4),
+    "l": ("i", 8),
+    "L": ("u", 8),
+    "q": ("i", 8),
+    "Q": ("u", 8),
+    "f": ("f", 4),
+    "d": ("f", 8),
+}
 
 
 def encode_publish(compression: str, topic: str, message: Any, json_frame: str) -> str | bytes:
     """The frame for a publish of ``message`` on ``topic`` under ``compression``."""
     if compression == COMPRESSION_PNG:
-        return '{"op":"%s","data":"%s"}' % (OP_PNG, png_encode(json_frame.encode("utf-8")))
+        return f'{{"op":"{OP_PNG}","data":"{png_encode(json_frame.encode("utf-8"))}"}}'
     if compression == COMPRESSION_CBOR:
         return cbor2.dumps({"op": OP_PUBLISH, "topic": topic, "msg": to_cbor_value(message)})
     if compression == COMPRESSION_CBOR_RAW:
@@ -51,13 +69,17 @@ def png_encode(data: bytes) -> str:
     side = max(1, math.ceil(math.sqrt(len(data) / 3)))
     data = data.ljust(side * side * 3, b"\n")
     row = side * 3
-    raw = b"".join(b"\x00" + data[y * row:(y + 1) * row] for y in range(side))
+    raw = b"".join(b"\x00" + data[y * row : (y + 1) * row] for y in range(side))
 
     def chunk(kind: bytes, body: bytes) -> bytes:
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
 
-    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0))
-           + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    png = (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw, 6))
+        + chunk(b"IEND", b"")
+    )
     return base64.b64encode(png).decode("ascii")
 
 
@@ -66,15 +88,15 @@ def png_decode(text: str) -> bytes:
     png = base64.b64decode(text)
     pos, idat, width = 8, b"", 0
     while pos < len(png):
-        length, kind = struct.unpack(">I4s", png[pos:pos + 8])
-        body = png[pos + 8:pos + 8 + length]
+        length, kind = struct.unpack(">I4s", png[pos : pos + 8])
+        body = png[pos + 8 : pos + 8 + length]
         if kind == b"IHDR":
             width = struct.unpack(">I", body[:4])[0]
         elif kind == b"IDAT":
             idat += body
         pos += 12 + length
     raw, row = zlib.decompress(idat), width * 3
-    return b"".join(raw[i + 1:i + 1 + row] for i in range(0, len(raw), row + 1)).rstrip(b"\n")
+    return b"".join(raw[i + 1 : i + 1 + row] for i in range(0, len(raw), row + 1)).rstrip(b"\n")
 
 
 def to_cbor_value(value: Any) -> Any:
@@ -84,8 +106,9 @@ def to_cbor_value(value: Any) -> Any:
     typecode = getattr(value, "typecode", None)
     dtype = getattr(value, "dtype", None)
     if typecode is not None or dtype is not None:
-        kind_size = (_ARRAY_CODES.get(typecode) if typecode
-                     else (dtype.kind, dtype.itemsize) if dtype is not None else None)
+        kind_size = (
+            _ARRAY_CODES.get(typecode) if typecode else (dtype.kind, dtype.itemsize) if dtype is not None else None
+        )
         if kind_size == ("u", 1):
             return bytes(value)
         tag = _TYPED_ARRAY_TAGS.get(kind_size) if kind_size is not None else None

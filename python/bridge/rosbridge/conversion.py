@@ -33,17 +33,25 @@ import os
 import re
 import sys
 import time
-from functools import lru_cache
+from collections.abc import Callable
+from functools import cache
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from .protocol import InvalidField, UnknownType, client_text, describe
 
 _NAME = re.compile(r"/?([a-z][a-z0-9_]*)/(?:(msg|srv|action)/)?([A-Z][A-Za-z0-9_]*)\Z")
 _INDEX = Path("share", "ament_index", "resource_index", "rosidl_interfaces")
-_INT_RANGES = {"int8": (-2**7, 2**7 - 1), "uint8": (0, 2**8 - 1), "int16": (-2**15, 2**15 - 1),
-               "uint16": (0, 2**16 - 1), "int32": (-2**31, 2**31 - 1), "uint32": (0, 2**32 - 1),
-               "int64": (-2**63, 2**63 - 1), "uint64": (0, 2**64 - 1)}
+_INT_RANGES = {
+    "int8": (-(2**7), 2**7 - 1),
+    "uint8": (0, 2**8 - 1),
+    "int16": (-(2**15), 2**15 - 1),
+    "uint16": (0, 2**16 - 1),
+    "int32": (-(2**31), 2**31 - 1),
+    "uint32": (0, 2**32 - 1),
+    "int64": (-(2**63), 2**63 - 1),
+    "uint64": (0, 2**64 - 1),
+}
 FLOAT32_MAX = 3.4028234663852886e38
 _BINARY = {"uint8", "char"}
 _TIME_TYPES = {"builtin_interfaces/Time", "builtin_interfaces/Duration"}
@@ -55,7 +63,8 @@ FromJson = Callable[[Any, str], Any]
 
 # --- types ---------------------------------------------------------------------------------------
 
-@lru_cache(maxsize=None)
+
+@cache
 def load_type(name: str, kind: str = "msg") -> Any:
     """The interface class for ``pkg/T`` or ``pkg/kind/T``; ``kind`` is msg, srv or action."""
     match = _NAME.match(name) if isinstance(name, str) else None
@@ -92,6 +101,7 @@ def type_name(cls: Any) -> str:
 
 # --- messages ------------------------------------------------------------------------------------
 
+
 def message_to_dict(message: Any) -> dict[str, Any]:
     """A JSON-ready dict of ``message``."""
     cls: Any = type(message)
@@ -113,7 +123,7 @@ def list_to_request(cls: Any, values: list[Any], path: str = "args") -> Any:
     fields = list(cls.get_fields_and_field_types())
     if len(values) > len(fields):
         raise InvalidField(f"{path}: {len(values)} values given, but {type_name(cls)} has {len(fields)} fields")
-    return dict_to_message(cls, dict(zip(fields, values)), path)
+    return dict_to_message(cls, dict(zip(fields, values, strict=False)), path)
 
 
 def field_types(cls: Any) -> dict[str, str]:
@@ -123,7 +133,8 @@ def field_types(cls: Any) -> dict[str, str]:
 
 # --- plans ---------------------------------------------------------------------------------------
 
-@lru_cache(maxsize=None)
+
+@cache
 def _plan(cls: Any) -> tuple[Callable[[Any], dict[str, Any]], FromJson]:
     fields = [(name, *_field_converters(spec)) for name, spec in cls.get_fields_and_field_types().items()]
     names = {name for name, _, _ in fields}
@@ -148,8 +159,9 @@ def _plan(cls: Any) -> tuple[Callable[[Any], dict[str, Any]], FromJson]:
             if key not in names:
                 if is_header and key == "seq":  # ROS 1 clients (jrosbridge) still send it
                     continue
-                raise InvalidField(f"{path}: {full_name} has no field {client_text(key, 60)!r} "
-                                   f"(fields: {', '.join(sorted(names))})")
+                raise InvalidField(
+                    f"{path}: {full_name} has no field {client_text(key, 60)!r} (fields: {', '.join(sorted(names))})"
+                )
             converted = setters[key](value, f"{path}.{key}")
             try:
                 setattr(message, key, converted)
@@ -164,13 +176,13 @@ def _field_converters(spec: str) -> tuple[ToJson, FromJson]:
     """Converters of one field, from its rosidl type string: ``T``, ``T[N]`` (array),
     ``sequence<T>`` or ``sequence<T, N>`` (bounded), with T a primitive, ``string<=N`` or a message."""
     if spec.startswith("sequence<"):
-        base, bound = spec[len("sequence<"):-1], None
+        base, bound = spec[len("sequence<") : -1], None
         head, _, tail = base.rpartition(",")
         if head and tail.strip().isdigit():
             base, bound = head.strip(), int(tail)
         exact = False
     elif spec.endswith("]"):
-        base, bound, exact = spec[: spec.index("[")], int(spec[spec.index("[") + 1:-1]), True
+        base, bound, exact = spec[: spec.index("[")], int(spec[spec.index("[") + 1 : -1]), True
     else:
         return _scalar_converters(spec)
     element_to, element_from = _scalar_converters(base)
@@ -288,8 +300,9 @@ def _string_from_json(wide: bool, bound: int | None) -> FromJson:
             try:
                 size = len(value.encode(codec)) // unit
             except UnicodeEncodeError:
-                raise InvalidField(f"{path}: the string holds characters {kind} cannot carry "
-                                   f"(a lone surrogate)") from None
+                raise InvalidField(
+                    f"{path}: the string holds characters {kind} cannot carry (a lone surrogate)"
+                ) from None
         if bound is not None and size > bound:
             raise InvalidField(f"{path}: {kind} takes at most {bound} characters, got {size}")
         return value

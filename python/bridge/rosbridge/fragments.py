@@ -46,15 +46,19 @@ class Reassembly:
         if not 0 <= num < total:
             raise InvalidField(f"fragment num {num} of total {total} is out of range")
         if total > self.limits.max_message_size:
-            raise InvalidField(f"a message of {total} fragments exceeds {self.limits.max_message_size} bytes "
-                               f"({option('max_message_size')})")
+            raise InvalidField(
+                f"a message of {total} fragments exceeds {self.limits.max_message_size} bytes "
+                f"({option('max_message_size')})"
+            )
         mine = self._pending.setdefault(session, {})
         self._expire(session, mine)
         pending = mine.get(fragment_id)
         if pending is None:
             if len(mine) >= self.limits.max_pending_fragments:
-                raise OverQuota(f"too many fragmented messages in reassembly on this connection (limit "
-                                f"{self.limits.max_pending_fragments}, {option('max_pending_fragments')})")
+                raise OverQuota(
+                    f"too many fragmented messages in reassembly on this connection (limit "
+                    f"{self.limits.max_pending_fragments}, {option('max_pending_fragments')})"
+                )
             pending = mine[fragment_id] = PendingMessage(total, time.monotonic())
         if pending.total != total:
             self._drop(session, fragment_id)
@@ -63,12 +67,15 @@ class Reassembly:
         connection_bytes = sum(p.size for p in mine.values())
         if connection_bytes + growth > self.limits.max_message_size:
             self._drop(session, fragment_id)
-            raise InvalidField(f"fragmented message {describe(fragment_id)} exceeds {self.limits.max_message_size} "
-                               f"bytes with the others in reassembly ({option('max_message_size')})")
+            raise InvalidField(
+                f"fragmented message {describe(fragment_id)} exceeds {self.limits.max_message_size} "
+                f"bytes with the others in reassembly ({option('max_message_size')})"
+            )
         if self.total_bytes + growth > self.limits.max_total_fragment_bytes:
             self._drop(session, fragment_id)
-            raise OverQuota(f"too many bytes of fragments in reassembly on this bridge "
-                            f"({option('max_total_fragment_bytes')})")
+            raise OverQuota(
+                f"too many bytes of fragments in reassembly on this bridge ({option('max_total_fragment_bytes')})"
+            )
         pending.parts[num] = data
         pending.size += growth
         self.total_bytes += growth

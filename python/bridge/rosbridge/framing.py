@@ -21,8 +21,11 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from websockets.asyncio.server import ServerConnection
-from websockets.frames import DATA_OPCODES, Frame
-from websockets.frames import apply_mask  # type: ignore[attr-defined]  # the C version (websockets.speedups) when built
+from websockets.frames import (  # type: ignore[attr-defined]  # apply_mask: the C version (speedups) when built
+    DATA_OPCODES,
+    Frame,
+    apply_mask,
+)
 from websockets.protocol import State
 
 from .session import FIN_TEXT, Traffic
@@ -50,8 +53,12 @@ class ConnectionGate:
         if self.open >= self.limit:
             self.refused += 1
             if self.refused in (1, 10, 100) or self.refused % 1000 == 0:
-                log.warning("refused %d TCP connections so far: %d open (limit %d, twice --max-connections)",
-                            self.refused, self.open, self.limit)
+                log.warning(
+                    "refused %d TCP connections so far: %d open (limit %d, twice --max-connections)",
+                    self.refused,
+                    self.open,
+                    self.limit,
+                )
             return False
         self.open += 1
         return True
@@ -236,15 +243,18 @@ class BridgeConnection(ServerConnection):
             if length == 126:
                 if size - start < 2:
                     break
-                length = int.from_bytes(buffer[start:start + 2], "big")
+                length = int.from_bytes(buffer[start : start + 2], "big")
                 start += 2
             elif length == 127:
                 if size - start < 8:
                     break
-                length = int.from_bytes(buffer[start:start + 8], "big")
+                length = int.from_bytes(buffer[start : start + 8], "big")
                 start += 8
-            if (protocol.state is not State.OPEN or not second & 0x80
-                    or (protocol.max_message_size is not None and length > protocol.max_message_size)):
+            if (
+                protocol.state is not State.OPEN
+                or not second & 0x80
+                or (protocol.max_message_size is not None and length > protocol.max_message_size)
+            ):
                 # closing, an unmasked frame, or one too big: websockets takes over and refuses it
                 self._framing = Framing.WEBSOCKETS
                 rest = bytes(buffer[offset:])
@@ -256,8 +266,8 @@ class BridgeConnection(ServerConnection):
                 break
             text: str | None = None
             if buffer[offset] == FIN_TEXT and on_text is not None and not self._queued and not self._fragmented:
-                try:
-                    text = apply_mask(buffer[start + 4:end], buffer[start:start + 4]).decode()
+                try:  # noqa: SIM105 (per frame: contextlib.suppress would add a call to the hot path)
+                    text = apply_mask(buffer[start + 4 : end], buffer[start : start + 4]).decode()
                 except UnicodeDecodeError:
                     pass  # websockets closes the connection with 1007
             if text is not None and on_text is not None:

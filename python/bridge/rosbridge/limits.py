@@ -36,23 +36,36 @@ class Limits:
     max_total_calls: int = _limit(512, "service calls in flight of all connections")
     max_goals: int = _limit(16, "action goals in flight per connection")
     max_total_goals: int = _limit(128, "action goals in flight of all connections")
-    max_message_size: int = _limit(10_000_000, "largest incoming message in bytes, also once reassembled from "
-                                               "fragments; a larger frame closes with 1009")
-    max_pending_fragments: int = _limit(8, "fragmented messages in reassembly per connection (their bytes count "
-                                           "against --max-message-size together)")
+    max_message_size: int = _limit(
+        10_000_000,
+        "largest incoming message in bytes, also once reassembled from fragments; a larger frame closes with 1009",
+    )
+    max_pending_fragments: int = _limit(
+        8, "fragmented messages in reassembly per connection (their bytes count against --max-message-size together)"
+    )
     max_total_fragment_bytes: int = _limit(64 * MiB, "bytes of fragments in reassembly of all connections")
     fragment_timeout: float = _limit(600.0, "seconds an incomplete fragmented message is kept")
     min_fragment_size: int = _limit(1024, "smallest fragment_size a client may ask for (characters)")
-    max_queued_bytes: int = _limit(64 * MiB, "bytes waiting to be sent to one client: topic messages beyond it "
-                                             "are dropped oldest first, an answer beyond it closes with 1008")
-    max_total_queued_bytes: int = _limit(512 * MiB, "bytes waiting to be sent to all clients: beyond it the "
-                                                    "client with the most waiting is closed with 1008")
-    read_pause_bytes: int = _limit(1 * MiB, "bytes waiting for one client above which the bridge stops reading "
-                                            "its requests until they are sent (backpressure)")
+    max_queued_bytes: int = _limit(
+        64 * MiB,
+        "bytes waiting to be sent to one client: topic messages beyond it "
+        "are dropped oldest first, an answer beyond it closes with 1008",
+    )
+    max_total_queued_bytes: int = _limit(
+        512 * MiB,
+        "bytes waiting to be sent to all clients: beyond it the client with the most waiting is closed with 1008",
+    )
+    read_pause_bytes: int = _limit(
+        1 * MiB,
+        "bytes waiting for one client above which the bridge stops reading "
+        "its requests until they are sent (backpressure)",
+    )
     auth_timeout: float = _limit(20.0, "seconds a client has to authenticate (with --auth-secret-file)")
     ping_interval: float = _limit(30.0, "seconds between keepalive pings (0: none)")
-    ping_timeout: float = _limit(120.0, "seconds without a pong before the connection is closed (1011); "
-                                        "longer than the link's outages (0: never)")
+    ping_timeout: float = _limit(
+        120.0,
+        "seconds without a pong before the connection is closed (1011); longer than the link's outages (0: never)",
+    )
 
     @staticmethod
     def add_options(parser: argparse.ArgumentParser) -> None:
@@ -60,8 +73,14 @@ class Limits:
         group = parser.add_argument_group("limits (docs/rosbridge.md)")
         for item in dataclasses.fields(Limits):
             kind = float if item.type in ("float", float) else int
-            group.add_argument(option(item.name), dest=item.name, type=kind, default=item.default, metavar="N",
-                               help=f"{item.metadata['help']} (default {item.default:g})")
+            group.add_argument(
+                option(item.name),
+                dest=item.name,
+                type=kind,
+                default=item.default,
+                metavar="N",
+                help=f"{item.metadata['help']} (default {item.default:g})",
+            )
 
     @staticmethod
     def from_args(args: argparse.Namespace) -> Limits:
@@ -88,8 +107,9 @@ class Quota:
         """Count ``amount`` more for ``session``, or raise :class:`OverQuota` (nothing counted)."""
         mine = self.counts.get(session, 0)
         if mine + amount > self.per_connection:
-            raise OverQuota(f"too many {self.what} on this connection (limit {self.per_connection}, "
-                            f"{self._options[0]})")
+            raise OverQuota(
+                f"too many {self.what} on this connection (limit {self.per_connection}, {self._options[0]})"
+            )
         if self.total + amount > self.total_limit:
             raise OverQuota(f"too many {self.what} on this bridge (limit {self.total_limit}, {self._options[1]})")
         self.counts[session] = mine + amount

@@ -30,11 +30,14 @@ def ros_name(kind: str, value: str) -> str:
     """
     name = value if value.startswith("/") else "/" + value
     if not _ABSOLUTE.match(name):
-        raise InvalidName(f"{kind} name {client_text(value, 80)!r} is not a valid ROS name: expected tokens of "
-                          f"letters, digits and '_' (not starting with a digit) joined by '/', like /robot/joint_states")
+        raise InvalidName(
+            f"{kind} name {client_text(value, 80)!r} is not a valid ROS name: expected tokens of "
+            f"letters, digits and '_' (not starting with a digit) joined by '/', like /robot/joint_states"
+        )
     try:
         validate_full_topic_name(name + _ACTION_SUFFIX if kind == "action" else name, is_service=kind == "service")
     except (InvalidTopicNameException, InvalidServiceNameException):
-        raise InvalidName(f"{kind} name {client_text(value, 80)!r} is too long for ROS "
-                          f"({len(name)} characters)") from None
+        raise InvalidName(
+            f"{kind} name {client_text(value, 80)!r} is too long for ROS ({len(name)} characters)"
+        ) from None
     return name

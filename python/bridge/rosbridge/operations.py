@@ -18,14 +18,26 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from . import protocol as p
 from .fragments import Reassembly
 from .limits import Limits, Quotas
 from .names import ros_name
-from .protocol import (CONNECTION_STATS, BridgeError, InvalidField, MalformedMessage, OverQuota, Refused, UnknownOperation, client_text,
-                       echo, optional, require)
+from .protocol import (
+    CONNECTION_STATS,
+    BridgeError,
+    InvalidField,
+    MalformedMessage,
+    OverQuota,
+    Refused,
+    UnknownOperation,
+    client_text,
+    echo,
+    optional,
+    require,
+)
 from .rosapi import Rosapi
 from .security import Policy
 from .services import Services
@@ -40,8 +52,9 @@ MAX_SIZE_FIELD = 2**31 - 1
 class Bridge:
     """Routes each client op to topics, services, actions or rosapi."""
 
-    def __init__(self, topics: Topics, services: Services, actions: Any, policy: Policy, limits: Limits,
-                 quotas: Quotas) -> None:
+    def __init__(
+        self, topics: Topics, services: Services, actions: Any, policy: Policy, limits: Limits, quotas: Quotas
+    ) -> None:
         self.topics = topics
         self.services = services
         self.actions = actions
@@ -53,11 +66,18 @@ class Bridge:
         self._tasks: dict[int, set[asyncio.Task[Any]]] = {}
         self._kept: set[asyncio.Task[Any]] = set()
         self._ops: dict[str, Callable[[Session, dict[str, Any]], Any]] = {
-            p.OP_ADVERTISE: self._advertise, p.OP_UNADVERTISE: self._unadvertise, p.OP_PUBLISH: self._publish,
-            p.OP_SUBSCRIBE: self._subscribe, p.OP_UNSUBSCRIBE: self._unsubscribe,
-            p.OP_CALL_SERVICE: self._call_service, p.OP_SERVICE_RESPONSE: self._service_response,
-            p.OP_ADVERTISE_SERVICE: self._advertise_service, p.OP_UNADVERTISE_SERVICE: self._unadvertise_service,
-            p.OP_FRAGMENT: self._fragment, p.OP_SET_LEVEL: self._set_level, p.OP_AUTH: self._auth_again,
+            p.OP_ADVERTISE: self._advertise,
+            p.OP_UNADVERTISE: self._unadvertise,
+            p.OP_PUBLISH: self._publish,
+            p.OP_SUBSCRIBE: self._subscribe,
+            p.OP_UNSUBSCRIBE: self._unsubscribe,
+            p.OP_CALL_SERVICE: self._call_service,
+            p.OP_SERVICE_RESPONSE: self._service_response,
+            p.OP_ADVERTISE_SERVICE: self._advertise_service,
+            p.OP_UNADVERTISE_SERVICE: self._unadvertise_service,
+            p.OP_FRAGMENT: self._fragment,
+            p.OP_SET_LEVEL: self._set_level,
+            p.OP_AUTH: self._auth_again,
         }
         if actions is not None:
             self._ops.update(actions.operations())
@@ -103,6 +123,7 @@ class Bridge:
         """Run slow work (service calls, goals) as a task, so it never blocks reading; unless
         ``keep``, the task is cancelled when the client disconnects (a goal's task is not: it
         cancels its goal and follows it to its end, see actions.py)."""
+
         async def guarded() -> None:
             try:
                 await work
@@ -126,22 +147,33 @@ class Bridge:
             session.log(logging.INFO, f"{type(error).__name__} (op {op}, id {request_id!r}): {reason}")
         else:
             reason = "internal error of the bridge (logged there)"
-            session.log(logging.ERROR, f"op {op} id {request_id!r} failed: {type(error).__name__}: {error}",
-                        exc_info=error)
+            session.log(
+                logging.ERROR, f"op {op} id {request_id!r} failed: {type(error).__name__}: {error}", exc_info=error
+            )
         answer: dict[str, Any] | None = None
         if op == p.OP_CALL_SERVICE:
-            answer = {"op": p.OP_SERVICE_RESPONSE, "service": echo(fields.get("service")), "values": reason,
-                      "result": False}
+            answer = {
+                "op": p.OP_SERVICE_RESPONSE,
+                "service": echo(fields.get("service")),
+                "values": reason,
+                "result": False,
+            }
         elif op == p.OP_SEND_ACTION_GOAL:
-            answer = {"op": p.OP_ACTION_RESULT, "action": echo(fields.get("action")), "values": reason,
-                      "status": p.GOAL_STATUS_UNKNOWN, "result": False}
+            answer = {
+                "op": p.OP_ACTION_RESULT,
+                "action": echo(fields.get("action")),
+                "values": reason,
+                "status": p.GOAL_STATUS_UNKNOWN,
+                "result": False,
+            }
         if answer is not None:
             if request_id is not None:
                 answer["id"] = request_id
             session.send(answer)
         label = f"{op if isinstance(op, str) else 'message'}{'' if request_id is None else f' {request_id}'}"
-        session.status("error", f"{client_text(label, 120)}: {reason}", request_id,
-                       always=isinstance(error, (Refused, OverQuota)))
+        session.status(
+            "error", f"{client_text(label, 120)}: {reason}", request_id, always=isinstance(error, (Refused, OverQuota))
+        )
 
     def drop_session(self, session: Session) -> None:
         """Release everything a closed session held: tasks, registrations, fragments, quotas."""
@@ -161,9 +193,14 @@ class Bridge:
         return topic
 
     def _advertise(self, session: Session, message: dict[str, Any]) -> None:
-        self.topics.advertise(session, self._topic(message), require(message, "type", str), echo(message.get("id")),
-                              latch=optional(message, "latch", bool, False),
-                              queue_size=optional(message, "queue_size", int, bounds=(0, 100_000)))
+        self.topics.advertise(
+            session,
+            self._topic(message),
+            require(message, "type", str),
+            echo(message.get("id")),
+            latch=optional(message, "latch", bool, False),
+            queue_size=optional(message, "queue_size", int, bounds=(0, 100_000)),
+        )
 
     def _unadvertise(self, session: Session, message: dict[str, Any]) -> None:
         self.topics.unadvertise(session, self._topic(message), echo(message.get("id")))
@@ -179,13 +216,22 @@ class Bridge:
     def _subscribe(self, session: Session, message: dict[str, Any]) -> None:
         compression = optional(message, "compression", str, p.COMPRESSION_NONE)
         if compression not in p.COMPRESSIONS:
-            raise InvalidField(f"compression must be one of {', '.join(p.COMPRESSIONS)}, got {client_text(compression, 40)!r}")
+            raise InvalidField(
+                f"compression must be one of {', '.join(p.COMPRESSIONS)}, got {client_text(compression, 40)!r}"
+            )
         throttle = optional(message, "throttle_rate", int, 0, bounds=(0, 86_400_000))
         queue_length = optional(message, "queue_length", int, 0, bounds=(0, 100_000))
         fragment_size = optional(message, "fragment_size", int, bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD))
-        self.topics.subscribe(session, self._topic(message), optional(message, "type", str), echo(message.get("id")),
-                              throttle_ms=throttle, queue_length=queue_length, fragment_size=fragment_size,
-                              compression=compression)
+        self.topics.subscribe(
+            session,
+            self._topic(message),
+            optional(message, "type", str),
+            echo(message.get("id")),
+            throttle_ms=throttle,
+            queue_length=queue_length,
+            fragment_size=fragment_size,
+            compression=compression,
+        )
 
     def _unsubscribe(self, session: Session, message: dict[str, Any]) -> None:
         self.topics.unsubscribe(session, self._topic(message), echo(message.get("id")))
@@ -202,13 +248,21 @@ class Bridge:
         if args is not None and not isinstance(args, (dict, list)):
             raise InvalidField(f"field 'args' must be an object or a list, got {type(args).__name__}")
         timeout = optional(message, "timeout", float, bounds=(0.0, 86_400.0))
-        answer_fragment_size = optional(message, "fragment_size", int,
-                                        bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD))
+        answer_fragment_size = optional(
+            message, "fragment_size", int, bounds=(self.limits.min_fragment_size, MAX_SIZE_FIELD)
+        )
         self.quotas.calls.take(session.number)
         return self._answer_call(session, message, service, args, timeout, answer_fragment_size)
 
-    async def _answer_call(self, session: Session, message: dict[str, Any], service: str, args: Any,
-                           timeout: float | None, fragment_size: int | None) -> None:
+    async def _answer_call(
+        self,
+        session: Session,
+        message: dict[str, Any],
+        service: str,
+        args: Any,
+        timeout: float | None,
+        fragment_size: int | None,
+    ) -> None:
         try:
             if service == CONNECTION_STATS:
                 values = {"connection": session.number, "peer": session.peer, **session.traffic.as_dict()}
@@ -218,16 +272,25 @@ class Bridge:
                 values = await self.services.call(service, args, timeout)
         finally:
             self.quotas.calls.give(session.number)
-        answer: dict[str, Any] = {"op": p.OP_SERVICE_RESPONSE, "service": echo(message["service"]), "values": values,
-                                  "result": True}
+        answer: dict[str, Any] = {
+            "op": p.OP_SERVICE_RESPONSE,
+            "service": echo(message["service"]),
+            "values": values,
+            "result": True,
+        }
         request_id = echo(message.get("id"))
         if request_id is not None:
             answer["id"] = request_id
         session.send_frame(encode(answer), fragment_size)
 
     def _service_response(self, session: Session, message: dict[str, Any]) -> None:
-        self.services.respond(session, self._service(message), require(message, "id", str),
-                              optional(message, "values", dict, {}), optional(message, "result", bool, True))
+        self.services.respond(
+            session,
+            self._service(message),
+            require(message, "id", str),
+            optional(message, "values", dict, {}),
+            optional(message, "result", bool, True),
+        )
 
     def _advertise_service(self, session: Session, message: dict[str, Any]) -> None:
         self.services.advertise(session, self._service(message), require(message, "type", str))
@@ -269,4 +332,3 @@ def _parse(text: str) -> Any:
     except ValueError as exc:  # JSONDecodeError, and integers beyond Python's 4300-digit limit
         detail = str(exc) if isinstance(exc, json.JSONDecodeError) else "a number has too many digits"
         raise MalformedMessage(f"invalid JSON: {client_text(detail, 120)}") from None
-

@@ -21,31 +21,83 @@ from typing import Any
 # so that handlers spell every wire name through this module.
 from rosbridge_wire import (
     CLOSE_MESSAGE_TOO_BIG as CLOSE_MESSAGE_TOO_BIG,
+)
+from rosbridge_wire import (
     CLOSE_POLICY_VIOLATION as CLOSE_POLICY_VIOLATION,
+)
+from rosbridge_wire import (
     CLOSE_TRY_AGAIN_LATER as CLOSE_TRY_AGAIN_LATER,
+)
+from rosbridge_wire import (
     GOAL_STATUS_ABORTED as GOAL_STATUS_ABORTED,
+)
+from rosbridge_wire import (
     GOAL_STATUS_CANCELED as GOAL_STATUS_CANCELED,
+)
+from rosbridge_wire import (
     GOAL_STATUS_SUCCEEDED as GOAL_STATUS_SUCCEEDED,
+)
+from rosbridge_wire import (
     GOAL_STATUS_UNKNOWN as GOAL_STATUS_UNKNOWN,
+)
+from rosbridge_wire import (
     OP_ACTION_FEEDBACK as OP_ACTION_FEEDBACK,
+)
+from rosbridge_wire import (
     OP_ACTION_RESULT as OP_ACTION_RESULT,
+)
+from rosbridge_wire import (
     OP_ADVERTISE as OP_ADVERTISE,
+)
+from rosbridge_wire import (
     OP_ADVERTISE_ACTION as OP_ADVERTISE_ACTION,
+)
+from rosbridge_wire import (
     OP_ADVERTISE_SERVICE as OP_ADVERTISE_SERVICE,
+)
+from rosbridge_wire import (
     OP_AUTH as OP_AUTH,
+)
+from rosbridge_wire import (
     OP_CALL_SERVICE as OP_CALL_SERVICE,
+)
+from rosbridge_wire import (
     OP_CANCEL_ACTION_GOAL as OP_CANCEL_ACTION_GOAL,
+)
+from rosbridge_wire import (
     OP_FRAGMENT as OP_FRAGMENT,
+)
+from rosbridge_wire import (
     OP_PNG as OP_PNG,
+)
+from rosbridge_wire import (
     OP_PUBLISH as OP_PUBLISH,
+)
+from rosbridge_wire import (
     OP_SEND_ACTION_GOAL as OP_SEND_ACTION_GOAL,
+)
+from rosbridge_wire import (
     OP_SERVICE_RESPONSE as OP_SERVICE_RESPONSE,
+)
+from rosbridge_wire import (
     OP_SET_LEVEL as OP_SET_LEVEL,
+)
+from rosbridge_wire import (
     OP_STATUS as OP_STATUS,
+)
+from rosbridge_wire import (
     OP_SUBSCRIBE as OP_SUBSCRIBE,
+)
+from rosbridge_wire import (
     OP_UNADVERTISE as OP_UNADVERTISE,
+)
+from rosbridge_wire import (
     OP_UNADVERTISE_ACTION as OP_UNADVERTISE_ACTION,
+)
+from rosbridge_wire import (
     OP_UNADVERTISE_SERVICE as OP_UNADVERTISE_SERVICE,
+)
+from rosbridge_wire import (
     OP_UNSUBSCRIBE as OP_UNSUBSCRIBE,
 )
 
@@ -163,7 +215,7 @@ def client_text(text: str, limit: int = MAX_TEXT) -> str:
     """A reason or log text safe to send or log: encodable, at most ``limit`` characters, and
     without source paths (rcl's errors name C files and lines, Python's module files)."""
     if len(text) > limit:  # first: the path pattern is quadratic in the length it scans
-        text = text[:limit - 3] + "..."
+        text = text[: limit - 3] + "..."
     return _SOURCE_PATH.sub("<source>", encodable(text))
 
 
@@ -185,8 +237,13 @@ def require(message: dict[str, Any], field: str, kind: type | tuple[type, ...], 
     return _check(message, field, kind, bounds)
 
 
-def optional(message: dict[str, Any], field: str, kind: type | tuple[type, ...], default: Any = None,
-             bounds: Bounds | None = None) -> Any:
+def optional(
+    message: dict[str, Any],
+    field: str,
+    kind: type | tuple[type, ...],
+    default: Any = None,
+    bounds: Bounds | None = None,
+) -> Any:
     """Return ``message[field]`` if present and not null, else ``default``; checked as :func:`require`."""
     if message.get(field) is None:
         return default
@@ -212,7 +269,9 @@ def _check(message: dict[str, Any], field: str, kind: type | tuple[type, ...], b
     if bounds is not None and isinstance(value, (int, float)) and not isinstance(value, bool):
         low, high = bounds
         if not low <= value <= high:
-            raise InvalidField(f"field '{field}' must be between {_number(low)} and {_number(high)}, got {describe(value)}")
+            raise InvalidField(
+                f"field '{field}' must be between {_number(low)} and {_number(high)}, got {describe(value)}"
+            )
     return value
 
 
@@ -222,5 +281,12 @@ def _number(value: float) -> str:
 
 def _kind_name(kind: type | tuple[type, ...]) -> str:
     kinds = kind if isinstance(kind, tuple) else (kind,)
-    names = {str: "a string", int: "an integer", float: "a number", bool: "a boolean", dict: "an object", list: "a list"}
+    names = {
+        str: "a string",
+        int: "an integer",
+        float: "a number",
+        bool: "a boolean",
+        dict: "an object",
+        list: "a list",
+    }
     return " or ".join(names.get(k, k.__name__) for k in kinds)

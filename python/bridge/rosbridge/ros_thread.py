@@ -32,12 +32,14 @@ pending wake-up, so a burst costs one ``call_soon_threadsafe``.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ctypes
 import logging
 import os
 import threading
 from collections import deque
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -76,8 +78,11 @@ class RosThread:
         # No executor serves topic_node, so it must offer no services (parameters, type
         # descriptions) that callers would wait on in vain.
         self.topic_node = rclpy.create_node(
-            f"{node_name}_topics", context=self.context, start_parameter_services=False,
-            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
+            f"{node_name}_topics",
+            context=self.context,
+            start_parameter_services=False,
+            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
+        )
         self._loop_subscriptions: set[LoopSubscription] = set()
         self._events = EventsExecutor(context=self.context)
         self._events.add_node(self.node)
@@ -98,10 +103,8 @@ class RosThread:
         self._inbox.append((callback, args))
         if not self._drain_scheduled:
             self._drain_scheduled = True
-            try:
+            with contextlib.suppress(RuntimeError):  # a loop closed at shutdown: nobody is left to tell
                 self.loop.call_soon_threadsafe(self._drain)
-            except RuntimeError:  # the loop closed during shutdown: nobody is left to tell
-                pass
 
     def wrap(self, ros_future: Any) -> asyncio.Future[Any]:
         """An asyncio future (of the event loop) settled when the rclpy ``ros_future`` is."""
@@ -180,8 +183,13 @@ class LoopSubscription:
     wake-up, as much as a real one.
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop, subscription: Any, on_message: Callable[[Any], None],
-                 on_close: Callable[[LoopSubscription], None]) -> None:
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        subscription: Any,
+        on_message: Callable[[Any], None],
+        on_close: Callable[[LoopSubscription], None],
+    ) -> None:
         self._loop = loop
         self._subscription = subscription
         self._on_message = on_message

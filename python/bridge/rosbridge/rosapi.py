@@ -13,7 +13,8 @@ are read under ``--params-glob`` and set only under ``--set-params-glob`` (none 
 from __future__ import annotations
 
 import json
-from typing import Any, Awaitable, Callable
+from collections.abc import Awaitable, Callable
+from typing import Any
 
 from rcl_interfaces.msg import ParameterType
 
@@ -27,13 +28,17 @@ from .topics import Topics
 PREFIX = "/rosapi/"
 DISTRO = "jazzy"
 
-_PARAM_FIELDS = {ParameterType.PARAMETER_BOOL: "bool_value", ParameterType.PARAMETER_INTEGER: "integer_value",
-                 ParameterType.PARAMETER_DOUBLE: "double_value", ParameterType.PARAMETER_STRING: "string_value",
-                 ParameterType.PARAMETER_BYTE_ARRAY: "byte_array_value",
-                 ParameterType.PARAMETER_BOOL_ARRAY: "bool_array_value",
-                 ParameterType.PARAMETER_INTEGER_ARRAY: "integer_array_value",
-                 ParameterType.PARAMETER_DOUBLE_ARRAY: "double_array_value",
-                 ParameterType.PARAMETER_STRING_ARRAY: "string_array_value"}
+_PARAM_FIELDS = {
+    ParameterType.PARAMETER_BOOL: "bool_value",
+    ParameterType.PARAMETER_INTEGER: "integer_value",
+    ParameterType.PARAMETER_DOUBLE: "double_value",
+    ParameterType.PARAMETER_STRING: "string_value",
+    ParameterType.PARAMETER_BYTE_ARRAY: "byte_array_value",
+    ParameterType.PARAMETER_BOOL_ARRAY: "bool_array_value",
+    ParameterType.PARAMETER_INTEGER_ARRAY: "integer_array_value",
+    ParameterType.PARAMETER_DOUBLE_ARRAY: "double_array_value",
+    ParameterType.PARAMETER_STRING_ARRAY: "string_array_value",
+}
 
 
 class Rosapi:
@@ -45,12 +50,23 @@ class Rosapi:
         self.policy = policy
         self.node = topics.node
         self._handlers: dict[str, Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]] = {
-            "topics": self._topics, "topics_for_type": self._topics_for_type, "topic_type": self._topic_type,
-            "publishers": self._publishers, "subscribers": self._subscribers, "services": self._services, "service_type": self._service_type, "nodes": self._nodes,
-            "message_details": self._message_details, "service_request_details": self._service_request_details,
-            "service_response_details": self._service_response_details, "get_time": self._get_time,
-            "get_ros_version": self._get_ros_version, "get_param": self._get_param, "set_param": self._set_param,
-            "get_param_names": self._get_param_names, "has_param": self._has_param,
+            "topics": self._topics,
+            "topics_for_type": self._topics_for_type,
+            "topic_type": self._topic_type,
+            "publishers": self._publishers,
+            "subscribers": self._subscribers,
+            "services": self._services,
+            "service_type": self._service_type,
+            "nodes": self._nodes,
+            "message_details": self._message_details,
+            "service_request_details": self._service_request_details,
+            "service_response_details": self._service_response_details,
+            "get_time": self._get_time,
+            "get_ros_version": self._get_ros_version,
+            "get_param": self._get_param,
+            "set_param": self._set_param,
+            "get_param_names": self._get_param_names,
+            "has_param": self._has_param,
         }
 
     @staticmethod
@@ -62,7 +78,7 @@ class Rosapi:
         return [PREFIX + name for name in self._handlers] + [CONNECTION_STATS]
 
     async def call(self, service: str, args: Any) -> dict[str, Any]:
-        handler = self._handlers.get(service[len(PREFIX):])
+        handler = self._handlers.get(service[len(PREFIX) :])
         if handler is None:
             raise InvalidField(f"Service {service} does not exist (rosapi here serves: {', '.join(self._handlers)})")
         if isinstance(args, list):
@@ -71,8 +87,11 @@ class Rosapi:
 
     # --- graph ---------------------------------------------------------------------------------
     def _allowed_topics(self) -> list[tuple[str, list[str]]]:
-        return sorted((name, types) for name, types in self.node.get_topic_names_and_types()
-                      if types and self.policy.topics.allows(name))
+        return sorted(
+            (name, types)
+            for name, types in self.node.get_topic_names_and_types()
+            if types and self.policy.topics.allows(name)
+        )
 
     def _topic(self, args: dict[str, Any]) -> str:
         topic = ros_name("topic", require(args, "topic", str))
@@ -187,8 +206,12 @@ def _split_param(name: str) -> tuple[str, str]:
 
 
 def _parameter(name: str, value: Any) -> dict[str, Any]:
-    kinds = [(bool, ParameterType.PARAMETER_BOOL), (int, ParameterType.PARAMETER_INTEGER),
-             (float, ParameterType.PARAMETER_DOUBLE), (str, ParameterType.PARAMETER_STRING)]
+    kinds = [
+        (bool, ParameterType.PARAMETER_BOOL),
+        (int, ParameterType.PARAMETER_INTEGER),
+        (float, ParameterType.PARAMETER_DOUBLE),
+        (str, ParameterType.PARAMETER_STRING),
+    ]
     for python_type, ros_type in kinds:
         if isinstance(value, python_type):
             return {"name": name, "value": {"type": ros_type, _PARAM_FIELDS[ros_type]: value}}
@@ -206,12 +229,21 @@ def _typedefs(cls: Any) -> list[dict[str, Any]]:
     pending = [cls]
     while pending:
         current = pending.pop(0)
-        name = f"{current.__module__.split('.')[0]}/msg/{current.__name__}".replace("_Request", "").replace("_Response", "")
+        name = f"{current.__module__.split('.')[0]}/msg/{current.__name__}".replace("_Request", "").replace(
+            "_Response", ""
+        )
         if name in seen:
             continue
         fields = field_types(current)
-        typedef: dict[str, Any] = {"type": name, "fieldnames": [], "fieldtypes": [], "fieldarraylen": [], "examples": [],
-                   "constnames": [], "constvalues": []}
+        typedef: dict[str, Any] = {
+            "type": name,
+            "fieldnames": [],
+            "fieldtypes": [],
+            "fieldarraylen": [],
+            "examples": [],
+            "constnames": [],
+            "constvalues": [],
+        }
         for field, spec in fields.items():
             base, array_len = _base_and_len(spec)
             typedef["fieldnames"].append(field)
@@ -230,10 +262,9 @@ _IDL_NAMES = {"double": "float64", "float": "float32", "boolean": "bool", "octet
 
 def _base_and_len(spec: str) -> tuple[str, int]:
     if spec.startswith("sequence<"):
-        base, array_len = spec[len("sequence<"):-1].split(",")[0].strip(), 0
+        base, array_len = spec[len("sequence<") : -1].split(",")[0].strip(), 0
     elif spec.endswith("]"):
-        base, array_len = spec[: spec.index("[")], int(spec[spec.index("[") + 1:-1])
+        base, array_len = spec[: spec.index("[")], int(spec[spec.index("[") + 1 : -1])
     else:
         base, array_len = spec, -1
     return _IDL_NAMES.get(base, base.split("<=")[0]), array_len
-

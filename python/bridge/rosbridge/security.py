@@ -53,8 +53,11 @@ class AllowList:
     """Globs allowed whatever ``globs`` says (the bridge's own services)."""
 
     def allows(self, name: str) -> bool:
-        return (not self.globs or any(fnmatch.fnmatchcase(name, glob) for glob in self.globs)
-                or any(fnmatch.fnmatchcase(name, glob) for glob in self.always))
+        return (
+            not self.globs
+            or any(fnmatch.fnmatchcase(name, glob) for glob in self.globs)
+            or any(fnmatch.fnmatchcase(name, glob) for glob in self.always)
+        )
 
     def check(self, name: str) -> None:
         """Raise :class:`Refused` unless ``name`` is allowed."""
@@ -101,7 +104,9 @@ class Authenticator:
         t, end, mac = message["t"], message["end"], message["mac"]
         if not all(_finite_number(value) for value in (t, end)):
             raise Refused("authentication failed: t and end must be finite numbers (Unix seconds)")
-        if not isinstance(mac, str) or not all(isinstance(message[name], str) for name in ("client", "dest", "rand", "level")):
+        if not isinstance(mac, str) or not all(
+            isinstance(message[name], str) for name in ("client", "dest", "rand", "level")
+        ):
             raise Refused("authentication failed: mac, client, dest, rand and level must be strings")
         now = time.time()
         if abs(now - t) > MAX_CLOCK_SKEW_S or end < now:

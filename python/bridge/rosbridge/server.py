@@ -58,42 +58,93 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--port", type=int, default=9090, help="TCP port; 0 picks a free one (default 9090)")
     parser.add_argument("--certfile", help="TLS certificate (PEM); with --keyfile serves wss://")
     parser.add_argument("--keyfile", help="TLS private key (PEM)")
-    parser.add_argument("--auth-secret-file",
-                        help=f"file holding the shared secret clients must authenticate with "
-                             f"(or set {AUTH_SECRET_ENV}); see docs/rosbridge.md")
-    parser.add_argument("--insecure", action="store_true",
-                        help="allow a non-loopback --address without TLS and a secret")
-    parser.add_argument("--topics-glob", action="append", default=[], metavar="GLOB",
-                        help="allow only matching topics (repeatable; default: all)")
-    parser.add_argument("--services-glob", action="append", default=[], metavar="GLOB",
-                        help="allow only matching services (repeatable; /rosapi/* and /rosbridge/* stay allowed)")
-    parser.add_argument("--ready-services", action="append", default=[], metavar="GLOB",
-                        help="keep a client matched with every service matching GLOB from the moment it appears, "
-                             "so its first call does not wait for discovery (repeatable; e.g. '*/halt')")
-    parser.add_argument("--actions-glob", action="append", default=[], metavar="GLOB",
-                        help="allow only matching actions (repeatable; default: all)")
-    parser.add_argument("--params-glob", action="append", default=[], metavar="GLOB",
-                        help="allow reading only matching parameters, as /node:name (repeatable; default: all)")
-    parser.add_argument("--set-params-glob", action="append", default=[], metavar="GLOB",
-                        help="allow setting matching parameters, as /node:name (repeatable; default: none)")
-    parser.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
-                        help="accept browser connections from this Origin, e.g. https://console.example:8443 "
-                             "(repeatable; default: only clients that send no Origin)")
-    parser.add_argument("--service-timeout", type=float, default=10.0,
-                        help="default call_service timeout in seconds when a call gives none (default 10)")
+    parser.add_argument(
+        "--auth-secret-file",
+        help=f"file holding the shared secret clients must authenticate with "
+        f"(or set {AUTH_SECRET_ENV}); see docs/rosbridge.md",
+    )
+    parser.add_argument(
+        "--insecure", action="store_true", help="allow a non-loopback --address without TLS and a secret"
+    )
+    parser.add_argument(
+        "--topics-glob",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="allow only matching topics (repeatable; default: all)",
+    )
+    parser.add_argument(
+        "--services-glob",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="allow only matching services (repeatable; /rosapi/* and /rosbridge/* stay allowed)",
+    )
+    parser.add_argument(
+        "--ready-services",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="keep a client matched with every service matching GLOB from the moment it appears, "
+        "so its first call does not wait for discovery (repeatable; e.g. '*/halt')",
+    )
+    parser.add_argument(
+        "--actions-glob",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="allow only matching actions (repeatable; default: all)",
+    )
+    parser.add_argument(
+        "--params-glob",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="allow reading only matching parameters, as /node:name (repeatable; default: all)",
+    )
+    parser.add_argument(
+        "--set-params-glob",
+        action="append",
+        default=[],
+        metavar="GLOB",
+        help="allow setting matching parameters, as /node:name (repeatable; default: none)",
+    )
+    parser.add_argument(
+        "--allow-origin",
+        action="append",
+        default=[],
+        metavar="ORIGIN",
+        help="accept browser connections from this Origin, e.g. https://console.example:8443 "
+        "(repeatable; default: only clients that send no Origin)",
+    )
+    parser.add_argument(
+        "--service-timeout",
+        type=float,
+        default=10.0,
+        help="default call_service timeout in seconds when a call gives none (default 10)",
+    )
     parser.add_argument("--log-level", default="INFO")
     Limits.add_options(parser)
     args = parser.parse_args(argv)
     if bool(args.certfile) != bool(args.keyfile):
         parser.error("--certfile and --keyfile go together")
     if not _loopback(args.address) and not args.insecure:
-        missing = [what for what, given in (("TLS (--certfile/--keyfile)", args.certfile),
-                                            (f"secret (--auth-secret-file or {AUTH_SECRET_ENV})",
-                                             args.auth_secret_file or os.environ.get(AUTH_SECRET_ENV)))
-                   if not given]
+        missing = [
+            what
+            for what, given in (
+                ("TLS (--certfile/--keyfile)", args.certfile),
+                (
+                    f"secret (--auth-secret-file or {AUTH_SECRET_ENV})",
+                    args.auth_secret_file or os.environ.get(AUTH_SECRET_ENV),
+                ),
+            )
+            if not given
+        ]
         if missing:
-            parser.error(f"--address {args.address} is reachable from other hosts, but the bridge has no "
-                         f"{' and no '.join(missing)}; give them, or --insecure if this network is trusted")
+            parser.error(
+                f"--address {args.address} is reachable from other hosts, but the bridge has no "
+                f"{' and no '.join(missing)}; give them, or --insecure if this network is trusted"
+            )
     return args
 
 
@@ -128,8 +179,10 @@ class RosbridgeServer:
         """Refuse a WebSocket handshake beyond ``--max-connections`` (HTTP 503)."""
         if len(self.sessions) < self.limits.max_connections:
             return None
-        self._peer_log(connection)(logging.WARNING, f"refused: {len(self.sessions)} clients connected "
-                                                             f"(--max-connections {self.limits.max_connections})")
+        self._peer_log(connection)(
+            logging.WARNING,
+            f"refused: {len(self.sessions)} clients connected (--max-connections {self.limits.max_connections})",
+        )
         return connection.respond(503, "The bridge serves as many clients as it may (--max-connections).\n")
 
     def _peer_log(self, connection: ServerConnection) -> ClientLog:
@@ -144,7 +197,9 @@ class RosbridgeServer:
         session = Session(websocket, authenticated=self.authenticator is None, limits=self.limits, budget=self.budget)
         self.sessions.add(session)
         peer_log = self._peer_log(websocket)
-        peer_log(logging.INFO, f"client {session.number} connected from {session.peer} ({len(self.sessions)} connected)")
+        peer_log(
+            logging.INFO, f"client {session.number} connected from {session.peer} ({len(self.sessions)} connected)"
+        )
         handle = functools.partial(self.bridge.handle_frame, session)
         websocket.on_backlog = session.backlog_changed
         try:
@@ -164,10 +219,13 @@ class RosbridgeServer:
             self.sessions.discard(session)
             self.bridge.drop_session(session)
             traffic = session.traffic
-            peer_log(logging.INFO, f"client {session.number} disconnected after {traffic.as_dict()['connected_s']} s: "
-                                   f"{traffic.bytes_received} bytes in, {traffic.bytes_sent} out, "
-                                   f"{traffic.messages_received} messages in, {traffic.messages_sent} out "
-                                   f"({len(self.sessions)} connected)")
+            peer_log(
+                logging.INFO,
+                f"client {session.number} disconnected after {traffic.as_dict()['connected_s']} s: "
+                f"{traffic.bytes_received} bytes in, {traffic.bytes_sent} out, "
+                f"{traffic.messages_received} messages in, {traffic.messages_sent} out "
+                f"({len(self.sessions)} connected)",
+            )
 
     async def _authenticate(self, session: Session) -> bool:
         """Read the first message within ``--auth-timeout``; True if it authenticates."""
@@ -208,10 +266,13 @@ async def run(args: argparse.Namespace) -> int:
     _raise_fd_limit(limits)
     ros = RosThread(loop)
     try:
-        policy = Policy(AllowList("topic", tuple(args.topics_glob)),
-                        AllowList("service", tuple(args.services_glob), always=BRIDGE_SERVICES),
-                        AllowList("action", tuple(args.actions_glob)), AllowList("parameter", tuple(args.params_glob)),
-                        AllowList("parameter change", tuple(args.set_params_glob) or ("",)))
+        policy = Policy(
+            AllowList("topic", tuple(args.topics_glob)),
+            AllowList("service", tuple(args.services_glob), always=BRIDGE_SERVICES),
+            AllowList("action", tuple(args.actions_glob)),
+            AllowList("parameter", tuple(args.params_glob)),
+            AllowList("parameter change", tuple(args.set_params_glob) or ("",)),
+        )
         quotas = Quotas(limits)
         topics = Topics(ros, quotas)
         services = Services(ros, args.service_timeout, quotas, policy, tuple(args.ready_services))
@@ -221,10 +282,19 @@ async def run(args: argparse.Namespace) -> int:
         origins: list[Any] = [None, *args.allow_origin]  # None: clients that send no Origin
         handler: Any = server.connection  # takes the BridgeConnection that make_connection creates
         factory: Any = server.make_connection
-        async with serve(handler, args.address, args.port, ssl=tls, max_size=limits.max_message_size,
-                         compression=None, ping_interval=limits.ping_interval or None,
-                         ping_timeout=limits.ping_timeout or None, origins=origins,
-                         process_request=server.process_request, create_connection=factory) as ws_server:
+        async with serve(
+            handler,
+            args.address,
+            args.port,
+            ssl=tls,
+            max_size=limits.max_message_size,
+            compression=None,
+            ping_interval=limits.ping_interval or None,
+            ping_timeout=limits.ping_timeout or None,
+            origins=origins,
+            process_request=server.process_request,
+            create_connection=factory,
+        ) as ws_server:
             port = ws_server.sockets[0].getsockname()[1]
             # rosbridge's own launch tests read the bound port from this parameter
             ros.node.declare_parameter("actual_port", port)
@@ -256,8 +326,12 @@ def _raise_fd_limit(limits: Limits) -> None:
         resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
     needed = 2 * limits.max_connections + limits.max_total_subscriptions + FD_RESERVE
     if hard != resource.RLIM_INFINITY and hard < needed:
-        log.warning("only %d file descriptors allowed, but the limits may need %d: lower --max-connections or "
-                    "--max-total-subscriptions, or raise the limit (ulimit -n)", hard, needed)
+        log.warning(
+            "only %d file descriptors allowed, but the limits may need %d: lower --max-connections or "
+            "--max-total-subscriptions, or raise the limit (ulimit -n)",
+            hard,
+            needed,
+        )
 
 
 def use_dds_profile() -> None:
@@ -277,8 +351,9 @@ def use_dds_profile() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``caretaker bridge``."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
-    logging.basicConfig(level=args.log_level.upper(), stream=sys.stderr,
-                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(
+        level=args.log_level.upper(), stream=sys.stderr, format="%(asctime)s %(levelname)s %(name)s: %(message)s"
+    )
     # websockets logs every connection opened, closed or rejected; the bridge's own lines say the
     # same, rate-limited per client address
     logging.getLogger("websockets").setLevel(max(logging.WARNING, logging.getLogger().level))

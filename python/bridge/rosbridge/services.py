@@ -33,9 +33,16 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
 from .limits import Quotas
-from .protocol import (OP_CALL_SERVICE, SERVICE_TIMEOUT_TEXT, InvalidField, echo, ServiceTimeout, ServiceUnanswered,
-                       ServiceUnavailable,
-                       TypeConflict)
+from .protocol import (
+    OP_CALL_SERVICE,
+    SERVICE_TIMEOUT_TEXT,
+    InvalidField,
+    ServiceTimeout,
+    ServiceUnanswered,
+    ServiceUnavailable,
+    TypeConflict,
+    echo,
+)
 from .ros_thread import RosThread
 from .security import Policy
 from .session import Session
@@ -77,8 +84,9 @@ class ProvidedService:
 class Services:
     """Service calls from clients, and services provided by clients."""
 
-    def __init__(self, ros: RosThread, default_timeout: float, quotas: Quotas, policy: Policy,
-                 ready: tuple[str, ...] = ()) -> None:
+    def __init__(
+        self, ros: RosThread, default_timeout: float, quotas: Quotas, policy: Policy, ready: tuple[str, ...] = ()
+    ) -> None:
         """``ready``: globs of services whose client is made as soon as the graph shows them
         (:meth:`keep_ready`)."""
         self.ros = ros
@@ -125,7 +133,7 @@ class Services:
             raise ServiceUnavailable(f"Service {service} does not exist")
         srv_cls = load_type(graph_type, "srv")
         idle = [name for name in self._clients if not self._in_flight.get(name)]
-        for name in idle[:max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
+        for name in idle[: max(0, len(self._clients) + 1 - MAX_CLIENTS)]:
             self._forget_client(name)
         client = self.ros.node.create_client(srv_cls, service, qos_profile=CLIENT_QOS)
         cached = self._clients[service] = (client, srv_cls)
@@ -143,8 +151,11 @@ class Services:
         unready: set[str] = set()  # said once each: their type does not load (a call will say so too)
         while self.ready:
             for service in self.graph():
-                if service in self._clients or service in unready or not any(
-                        fnmatch.fnmatchcase(service, glob) for glob in self.ready):
+                if (
+                    service in self._clients
+                    or service in unready
+                    or not any(fnmatch.fnmatchcase(service, glob) for glob in self.ready)
+                ):
                     continue
                 try:
                     self._client(service)
@@ -316,5 +327,3 @@ class Services:
         """Withdraw the services a closed session provided."""
         for provided in [p for p in self.provided.values() if p.session is session]:
             self._withdraw(provided, "lost its client")
-
-

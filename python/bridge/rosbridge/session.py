@@ -24,7 +24,7 @@ import struct
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Union
+from typing import Any
 
 import orjson
 from websockets.protocol import State
@@ -35,7 +35,7 @@ from .protocol import CLOSE_POLICY_VIOLATION, LEVELS, MAX_TEXT, OP_FRAGMENT, OP_
 log = logging.getLogger(__name__)
 
 #: frames waiting to be sent: text, binary, or the fragments of one text message
-Frame = Union[str, bytes, list[str]]
+Frame = str | bytes | list[str]
 
 WRITE_BATCH = 64
 WRITE_BATCH_BYTES = 256 * 1024
@@ -78,9 +78,13 @@ class Traffic:
     messages_sent: int = 0
 
     def as_dict(self) -> dict[str, Any]:
-        return {"connected_s": round(time.monotonic() - self.started, 3), "bytes_received": self.bytes_received,
-                "bytes_sent": self.bytes_sent, "messages_received": self.messages_received,
-                "messages_sent": self.messages_sent}
+        return {
+            "connected_s": round(time.monotonic() - self.started, 3),
+            "bytes_received": self.bytes_received,
+            "bytes_sent": self.bytes_sent,
+            "messages_received": self.messages_received,
+            "messages_sent": self.messages_sent,
+        }
 
 
 class ClientLog:
@@ -120,8 +124,10 @@ class OutputBudget:
             largest = max(self.sessions, key=lambda s: s.queued, default=None)
             if largest is None or largest.queued == 0:
                 return
-            largest.cut_off(f"the bridge's output buffers are full and this client has the most waiting "
-                            f"({largest.queued} bytes; --max-total-queued-bytes)")
+            largest.cut_off(
+                f"the bridge's output buffers are full and this client has the most waiting "
+                f"({largest.queued} bytes; --max-total-queued-bytes)"
+            )
 
 
 @dataclass
@@ -137,8 +143,9 @@ class SubscriptionQueue:
 class Session:
     """Per-connection state of the bridge, shared by the op handlers of every module."""
 
-    def __init__(self, websocket: Any, authenticated: bool, limits: Limits | None = None,
-                 budget: OutputBudget | None = None) -> None:
+    def __init__(
+        self, websocket: Any, authenticated: bool, limits: Limits | None = None, budget: OutputBudget | None = None
+    ) -> None:
         self.number = next(_session_numbers)
         self.websocket = websocket
         address = getattr(websocket, "remote_address", None)
@@ -175,8 +182,10 @@ class Session:
             return
         size = frame_size(parts)
         if self.queued + size > self.limits.max_queued_bytes:
-            self.cut_off(f"client reads too slowly: {self.queued + size} bytes of answers waiting "
-                         f"(--max-queued-bytes {self.limits.max_queued_bytes})")
+            self.cut_off(
+                f"client reads too slowly: {self.queued + size} bytes of answers waiting "
+                f"(--max-queued-bytes {self.limits.max_queued_bytes})"
+            )
             return
         self._control.append((parts, size))
         self._grew(size)
@@ -245,8 +254,12 @@ class Session:
             return False
         websocket = self.websocket
         transport = websocket.transport
-        if (websocket.protocol.state is not State.OPEN or transport is None or transport.is_closing()
-                or transport.get_write_buffer_size() > DIRECT_WRITE_LIMIT):
+        if (
+            websocket.protocol.state is not State.OPEN
+            or transport is None
+            or transport.is_closing()
+            or transport.get_write_buffer_size() > DIRECT_WRITE_LIMIT
+        ):
             return False
         if isinstance(frame, str):
             if websocket.protocol.writes:  # something websockets queued goes first (a pong)
@@ -367,8 +380,12 @@ def fragmented(frame: str | bytes, size: int | None) -> Frame:
         return frame
     fragment_id = f"fragment:{next(_fragment_ids)}"
     total = (len(frame) + size - 1) // size
-    return [orjson.dumps({"op": OP_FRAGMENT, "id": fragment_id, "data": frame[i * size:(i + 1) * size], "num": i,
-                          "total": total}).decode() for i in range(total)]
+    return [
+        orjson.dumps(
+            {"op": OP_FRAGMENT, "id": fragment_id, "data": frame[i * size : (i + 1) * size], "num": i, "total": total}
+        ).decode()
+        for i in range(total)
+    ]
 
 
 def frame_size(frame: Frame) -> int:

@@ -18,8 +18,9 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import orjson
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -27,7 +28,15 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from . import compression as codecs
 from .conversion import dict_to_message, load_type, message_to_dict, type_name
 from .limits import Quotas
-from .protocol import COMPRESSION_NONE, BridgeError, InvalidField, OP_PUBLISH, TopicNotEstablished, TypeConflict, client_text
+from .protocol import (
+    COMPRESSION_NONE,
+    OP_PUBLISH,
+    BridgeError,
+    InvalidField,
+    TopicNotEstablished,
+    TypeConflict,
+    client_text,
+)
 from .ros_thread import LoopSubscription, RosThread
 from .session import Frame, Session, fragmented
 
@@ -73,7 +82,8 @@ class EncodedMessage:
         text = self._frames.get(COMPRESSION_NONE)
         if not isinstance(text, str):
             text = self._frames[COMPRESSION_NONE] = orjson.dumps(
-                {"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}).decode()
+                {"op": OP_PUBLISH, "topic": self.topic, "msg": self.data}
+            ).decode()
         if compression == COMPRESSION_NONE:
             return text
         return codecs.encode_publish(compression, self.topic, self.message, text)
@@ -150,8 +160,15 @@ class Topics:
         return load_type(known_name, "msg")
 
     # --- publishing ----------------------------------------------------------------------------
-    def advertise(self, session: Session, topic: str, type_name_: str | None, pub_id: Any,
-                  latch: bool = False, queue_size: int | None = None) -> None:
+    def advertise(
+        self,
+        session: Session,
+        topic: str,
+        type_name_: str | None,
+        pub_id: Any,
+        latch: bool = False,
+        queue_size: int | None = None,
+    ) -> None:
         cls = self.resolve_type(topic, type_name_)
         entry = self.publishers.get(topic)
         user = (session.number, pub_id)
@@ -161,10 +178,13 @@ class Topics:
         try:
             if entry is None:
                 if latch:
-                    qos = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                                     reliability=ReliabilityPolicy.RELIABLE)
+                    qos = QoSProfile(
+                        depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE
+                    )
                 else:
-                    qos = QoSProfile(depth=queue_size or DEFAULT_PUBLISHER_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+                    qos = QoSProfile(
+                        depth=queue_size or DEFAULT_PUBLISHER_DEPTH, reliability=ReliabilityPolicy.RELIABLE
+                    )
                 publisher = _ros_call(f"advertise {topic}", self.node.create_publisher, cls, topic, qos)
                 entry = self.publishers[topic] = TopicPublisher(topic, cls, publisher)
         except BaseException:
@@ -203,9 +223,18 @@ class Topics:
             self.node.destroy_publisher(entry.publisher)
 
     # --- subscribing ---------------------------------------------------------------------------
-    def subscribe(self, session: Session, topic: str, type_name_: str | None, sub_id: Any, *,
-                  throttle_ms: int = 0, queue_length: int = 0, fragment_size: int | None = None,
-                  compression: str = COMPRESSION_NONE) -> None:
+    def subscribe(
+        self,
+        session: Session,
+        topic: str,
+        type_name_: str | None,
+        sub_id: Any,
+        *,
+        throttle_ms: int = 0,
+        queue_length: int = 0,
+        fragment_size: int | None = None,
+        compression: str = COMPRESSION_NONE,
+    ) -> None:
         cls = self.resolve_type(topic, type_name_)
         key = (session.number, sub_id)
         feed = self.feeds.get(topic)
@@ -218,7 +247,8 @@ class Topics:
             self.quotas.subscriptions.give(session.number)
             raise
         client = feed.clients[key] = ClientSubscription(
-            session, sub_id, throttle_ms / 1000.0, queue_length, fragment_size, compression)
+            session, sub_id, throttle_ms / 1000.0, queue_length, fragment_size, compression
+        )
         if feed.last is not None:  # what ROS would replay to a new transient-local subscription
             self._send(feed, client, feed.last)
 
@@ -236,13 +266,16 @@ class Topics:
     def _attach(self, feed: TopicFeed, qos: QoSProfile) -> None:
         """Give ``feed`` a ROS subscription with ``qos`` and its taker (both, or neither)."""
         # The callback is never called: no executor spins topic_node; the loop takes messages.
-        subscription = _ros_call(f"subscribe {feed.topic}", self.node.create_subscription, feed.msg_cls, feed.topic,
-                                 _never_called, qos)
+        subscription = _ros_call(
+            f"subscribe {feed.topic}", self.node.create_subscription, feed.msg_cls, feed.topic, _never_called, qos
+        )
         try:
             taker = self.ros.take_on_loop(subscription, lambda message: self._fan_out(feed, message))
         except OSError as exc:  # no file descriptor left for its eventfd
             self.node.destroy_subscription(subscription)
-            raise BridgeError(f"cannot subscribe to {feed.topic} now: {client_text(exc.strerror or str(exc))}") from None
+            raise BridgeError(
+                f"cannot subscribe to {feed.topic} now: {client_text(exc.strerror or str(exc))}"
+            ) from None
         feed.subscription, feed.taker = subscription, taker
         feed.latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
 
@@ -270,9 +303,13 @@ class Topics:
 
     def unsubscribe(self, session: Session, topic: str, sub_id: Any) -> None:
         feed = self.feeds.get(topic)
-        keys = [k for k in (feed.clients if feed else {}) if k[0] == session.number and (sub_id is None or k[1] == sub_id)]
+        keys = [
+            k for k in (feed.clients if feed else {}) if k[0] == session.number and (sub_id is None or k[1] == sub_id)
+        ]
         if feed is None or not keys:
-            raise InvalidField(f"this client has no subscription to {topic}" + (f" with id {sub_id!r}" if sub_id is not None else ""))
+            raise InvalidField(
+                f"this client has no subscription to {topic}" + (f" with id {sub_id!r}" if sub_id is not None else "")
+            )
         for key in keys:
             del feed.clients[key]
             session.forget_queue((topic, key[1]))
@@ -311,8 +348,9 @@ class Topics:
         try:
             frame = encoded.frame(client.compression, client.fragment_size)
         except Exception as exc:
-            client.session.status("error", client_text(f"cannot encode {feed.topic} as {client.compression}: {exc}"),
-                                  client.sub_id)
+            client.session.status(
+                "error", client_text(f"cannot encode {feed.topic} as {client.compression}: {exc}"), client.sub_id
+            )
             return
         client.session.send_topic_frame((feed.topic, client.sub_id), frame, client.queue_length)
 
@@ -345,4 +383,6 @@ def _ros_call(what: str, function: Callable[..., Any], *args: Any) -> Any:
     except BridgeError:
         raise
     except Exception as exc:  # rclpy raises RCLError, ValueError, TypeError... with rcl's file:line
-        raise BridgeError(f"{what} failed: {client_text(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)}") from None
+        raise BridgeError(
+            f"{what} failed: {client_text(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)}"
+        ) from None

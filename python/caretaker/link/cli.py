@@ -43,26 +43,57 @@ def _fraction(text: str) -> float:
 
 
 def _parser() -> _Parser:
-    parser = _Parser(prog=PROG, description="TCP relay that emulates a long, lossy ground-habitat link "
-                                            "(docs/link.md)")
-    parser.add_argument("--listen", default="127.0.0.1:9091", metavar="HOST:PORT",
-                        help="where ground clients connect; port 0 picks one (default 127.0.0.1:9091)")
-    parser.add_argument("--to", default="127.0.0.1:9090", metavar="HOST:PORT",
-                        help="the habitat side to connect to, e.g. its rosbridge (default 127.0.0.1:9090)")
-    parser.add_argument("--delay", type=float, default=0.0, metavar="S",
-                        help="least one-way delay in seconds, each direction (Gateway: 1.3)")
-    parser.add_argument("--jitter", type=float, default=0.0, metavar="S",
-                        help="up to this many seconds more per segment, order kept (default 0)")
-    parser.add_argument("--loss", type=_fraction, default=0.0, metavar="P",
-                        help="segment loss, each direction, as 0.05 or 5%%; seen as TCP retransmission stalls")
+    parser = _Parser(prog=PROG, description="TCP relay that emulates a long, lossy ground-habitat link (docs/link.md)")
+    parser.add_argument(
+        "--listen",
+        default="127.0.0.1:9091",
+        metavar="HOST:PORT",
+        help="where ground clients connect; port 0 picks one (default 127.0.0.1:9091)",
+    )
+    parser.add_argument(
+        "--to",
+        default="127.0.0.1:9090",
+        metavar="HOST:PORT",
+        help="the habitat side to connect to, e.g. its rosbridge (default 127.0.0.1:9090)",
+    )
+    parser.add_argument(
+        "--delay",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="least one-way delay in seconds, each direction (Gateway: 1.3)",
+    )
+    parser.add_argument(
+        "--jitter",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="up to this many seconds more per segment, order kept (default 0)",
+    )
+    parser.add_argument(
+        "--loss",
+        type=_fraction,
+        default=0.0,
+        metavar="P",
+        help="segment loss, each direction, as 0.05 or 5%%; seen as TCP retransmission stalls",
+    )
     parser.add_argument("--up-kbps", type=float, metavar="KBPS", help="uplink (ground→habitat) bit rate")
     parser.add_argument("--down-kbps", type=float, metavar="KBPS", help="downlink (habitat→ground) bit rate")
     parser.add_argument("--seed", type=int, default=0, help="seed of jitter and loss (same seed, same pattern)")
-    parser.add_argument("--outage", action="append", default=[], metavar="KIND:S@T",
-                        help="hold:S@T holds all traffic S seconds from T s after ready; reset:S@T resets "
-                             "every connection and refuses new ones for S seconds (repeatable)")
-    parser.add_argument("--control", type=Path, metavar="PATH",
-                        help="Unix socket for run-time outages and stats (one JSON line per request)")
+    parser.add_argument(
+        "--outage",
+        action="append",
+        default=[],
+        metavar="KIND:S@T",
+        help="hold:S@T holds all traffic S seconds from T s after ready; reset:S@T resets "
+        "every connection and refuses new ones for S seconds (repeatable)",
+    )
+    parser.add_argument(
+        "--control",
+        type=Path,
+        metavar="PATH",
+        help="Unix socket for run-time outages and stats (one JSON line per request)",
+    )
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     return parser
 
@@ -77,8 +108,15 @@ def _config(args: argparse.Namespace) -> tuple[LinkConfig, tuple[str, int], tupl
     target = parse_address("--to", args.to)
     outages = tuple(parse_outage(spec) for spec in args.outage)
     try:
-        config = LinkConfig.symmetric(delay=args.delay, jitter=args.jitter, loss=args.loss, up_kbps=args.up_kbps,
-                                      down_kbps=args.down_kbps, seed=args.seed, outages=outages)
+        config = LinkConfig.symmetric(
+            delay=args.delay,
+            jitter=args.jitter,
+            loss=args.loss,
+            up_kbps=args.up_kbps,
+            down_kbps=args.down_kbps,
+            seed=args.seed,
+            outages=outages,
+        )
     except LinkOptionError as exc:
         option = {"kbps": "--up-kbps/--down-kbps"}.get(exc.option, f"--{exc.option}")
         raise LinkOptionError(option, exc.value, exc.expected) from None
@@ -110,8 +148,12 @@ async def _run(config: LinkConfig, listen: tuple[str, int], target: tuple[str, i
             await control.close()
         await link.close()
     stats = link.stats()
-    logging.getLogger("caretaker.link").info("stopped: %d bytes up, %d bytes down, %d connection(s)",
-                                             stats.up_bytes, stats.down_bytes, len(stats.connections))
+    logging.getLogger("caretaker.link").info(
+        "stopped: %d bytes up, %d bytes down, %d connection(s)",
+        stats.up_bytes,
+        stats.down_bytes,
+        len(stats.connections),
+    )
     return 0
 
 

@@ -106,8 +106,9 @@ class ControlServer:
                 writer.write(json.dumps(self.answer(line)).encode() + b"\n")
                 await writer.drain()
         except ValueError:  # asyncio's LimitOverrunError on a line past MAX_REQUEST
-            writer.write(json.dumps({"ok": False, "error": f"request longer than {MAX_REQUEST} bytes"}).encode()
-                         + b"\n")
+            writer.write(
+                json.dumps({"ok": False, "error": f"request longer than {MAX_REQUEST} bytes"}).encode() + b"\n"
+            )
         except ConnectionError:
             pass  # the client left without reading its answer; nothing to tell it
         finally:
@@ -125,8 +126,11 @@ class ControlServer:
             return {"ok": True, "stats": self.link.stats().to_json()}
         if "outage" in request:
             return self._outage(request)
-        return {"ok": False, "error": f"unknown request {json.dumps(request)[:200]}; expected "
-                                      '{"outage": "hold"|"reset", "seconds": N} or {"stats": true}'}
+        return {
+            "ok": False,
+            "error": f"unknown request {json.dumps(request)[:200]}; expected "
+            '{"outage": "hold"|"reset", "seconds": N} or {"stats": true}',
+        }
 
     def _outage(self, request: dict[str, Any]) -> dict[str, Any]:
         kinds = {kind.value: kind for kind in OutageKind}
@@ -135,8 +139,12 @@ class ControlServer:
             return {"ok": False, "error": f"an outage takes exactly the keys outage and seconds, got {sorted(request)}"}
         if kind not in kinds:
             return {"ok": False, "error": f"unknown outage {kind!r}; expected one of {sorted(kinds)}"}
-        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)) or not math.isfinite(seconds) \
-                or seconds < 0:
+        if (
+            isinstance(seconds, bool)
+            or not isinstance(seconds, (int, float))
+            or not math.isfinite(seconds)
+            or seconds < 0
+        ):
             return {"ok": False, "error": f"seconds {seconds!r}: expected a number >= 0"}
         log.info("control: %s outage for %g s", kind, seconds)
         self.link.outage(Outage(kinds[kind], float(seconds)))

@@ -163,12 +163,24 @@ class LinkConfig:
             raise LinkOptionError("window", self.window, f"at least one segment ({self.mss} bytes)")
 
     @classmethod
-    def symmetric(cls, *, delay: float = 0.0, jitter: float = 0.0, loss: float = 0.0,
-                  up_kbps: float | None = None, down_kbps: float | None = None, seed: int = 0,
-                  outages: tuple[Outage, ...] = ()) -> LinkConfig:
+    def symmetric(
+        cls,
+        *,
+        delay: float = 0.0,
+        jitter: float = 0.0,
+        loss: float = 0.0,
+        up_kbps: float | None = None,
+        down_kbps: float | None = None,
+        seed: int = 0,
+        outages: tuple[Outage, ...] = (),
+    ) -> LinkConfig:
         """The same delay, jitter and loss both ways, with a bandwidth per direction."""
-        return cls(DirectionConfig(delay, jitter, loss, up_kbps), DirectionConfig(delay, jitter, loss, down_kbps),
-                   seed, outages)
+        return cls(
+            DirectionConfig(delay, jitter, loss, up_kbps),
+            DirectionConfig(delay, jitter, loss, down_kbps),
+            seed,
+            outages,
+        )
 
     def direction(self, which: Direction) -> DirectionConfig:
         """The settings of one direction."""
@@ -181,10 +193,10 @@ class LinkConfig:
 
     def describe(self) -> str:
         """One line for logs and the READY line."""
+
         def one(direction: DirectionConfig) -> str:
             rate = "unlimited" if direction.kbps is None else f"{direction.kbps:g} kbit/s"
-            return (f"delay {direction.delay:g} s jitter {direction.jitter:g} s "
-                    f"loss {direction.loss * 100:g}% {rate}")
+            return f"delay {direction.delay:g} s jitter {direction.jitter:g} s loss {direction.loss * 100:g}% {rate}"
 
         text = f"up: {one(self.up)}; down: {one(self.down)}; seed {self.seed}"
         return text + "".join(f"; outage {outage}" for outage in self.outages)

@@ -223,8 +223,9 @@ class LinkEmulator:
             del self._tasks[connection.id]
             log.info("connection %d ended: %s", connection.id, connection.ended_by)
 
-    async def _relay(self, connection: ConnectionStats, client_reader: asyncio.StreamReader,
-                     client_writer: asyncio.StreamWriter) -> str:
+    async def _relay(
+        self, connection: ConnectionStats, client_reader: asyncio.StreamReader, client_writer: asyncio.StreamWriter
+    ) -> str:
         """Carry one connection until both directions ended; return how it ended."""
         accepted = self._now()
         upstream: _Streams = asyncio.get_running_loop().create_future()
@@ -298,8 +299,9 @@ async def _writer_of(upstream: _Streams) -> asyncio.StreamWriter:
 class _Pipe:
     """One direction of one connection: read, transmit over the line, deliver in order."""
 
-    def __init__(self, link: LinkEmulator, connection: ConnectionStats, direction: Direction, *,
-                 not_before: float) -> None:
+    def __init__(
+        self, link: LinkEmulator, connection: ConnectionStats, direction: Direction, *, not_before: float
+    ) -> None:
         self.link = link
         self.connection = connection
         self.direction = direction

@@ -88,8 +88,9 @@ class LinkStats:
     def to_json(self) -> dict[str, Any]:
         """A JSON-ready document with the totals next to the per-connection figures."""
         document = asdict(self)
-        document.update(up_bytes=self.up_bytes, down_bytes=self.down_bytes,
-                        up_stalls=self.up_stalls, down_stalls=self.down_stalls)
+        document.update(
+            up_bytes=self.up_bytes, down_bytes=self.down_bytes, up_stalls=self.up_stalls, down_stalls=self.down_stalls
+        )
         return document
 
     @classmethod
@@ -102,8 +103,10 @@ class LinkStats:
         if not isinstance(document, dict) or not isinstance(document.get("connections"), list):
             raise StatsFormatError(document, "no connections list")
         try:
-            connections = [ConnectionStats(**{f.name: item[f.name] for f in fields(ConnectionStats)})
-                           for item in document["connections"]]
+            connections = [
+                ConnectionStats(**{f.name: item[f.name] for f in fields(ConnectionStats)})
+                for item in document["connections"]
+            ]
             link = {f.name: document[f.name] for f in fields(cls) if f.name != "connections"}
         except (KeyError, TypeError) as exc:
             raise StatsFormatError(document, f"missing {exc}") from None

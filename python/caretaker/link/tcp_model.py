@@ -73,8 +73,11 @@ class TcpModel:
         seed = self.config.seed
         jitter = settings.jitter * _draw(seed, "jitter", direction.value, connection, offset)
         losses, stall, timeout = 0, 0.0, self.rto(direction)
-        while (losses < MAX_TRANSMISSIONS - 1 and settings.loss > 0
-               and _draw(seed, "loss", direction.value, connection, offset, losses) < settings.loss):
+        while (
+            losses < MAX_TRANSMISSIONS - 1
+            and settings.loss > 0
+            and _draw(seed, "loss", direction.value, connection, offset, losses) < settings.loss
+        ):
             losses += 1
             stall += timeout
             timeout = min(RTO_MAX, timeout * 2)

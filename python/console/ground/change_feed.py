@@ -207,7 +207,9 @@ class PollingFeed(ChangeFeed):
         ]
         self._requests = requests
         accounts = {row.user_id: (row.role, row.password_changed) for row in connection.execute(sa.select(_accounts))}
-        notices += [ChangeNotice("accounts", user) for user in _changed(self._accounts, accounts) if user in self._accounts]
+        notices += [
+            ChangeNotice("accounts", user) for user in _changed(self._accounts, accounts) if user in self._accounts
+        ]
         self._accounts = accounts
         return notices if announce else []
 
