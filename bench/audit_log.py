@@ -279,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
                     AuditLog(server.url(name, OWNER)).close()
                     server.sql(
                         "CREATE TABLE bare_records (run_id TEXT, seq INTEGER, time TEXT, actor TEXT, kind TEXT, "
-                        f"instruction TEXT, data TEXT, UNIQUE (run_id, seq)); GRANT SELECT, INSERT ON bare_records TO {RUNNER}",
+                        "instruction TEXT, data TEXT, UNIQUE (run_id, seq)); "
+                        f"GRANT SELECT, INSERT ON bare_records TO {RUNNER}",
                         database=name,
                         role=OWNER,
                     )
@@ -287,7 +288,8 @@ def main(argv: list[str] | None = None) -> int:
                 result = _writers(url, writers, args.events, (args.paced_events, args.paced_rate))
                 a, p, c = result["audit"], result["peer"], result["paced"]
                 print(
-                    f"{kind:10} {writers} run(s) | back to back: audit log {a['rate']:5.0f} appends/s, p50 {a['p50']:.2f} "
+                    f"{kind:10} {writers} run(s) | back to back: "
+                    f"audit log {a['rate']:5.0f} appends/s, p50 {a['p50']:.2f} "
                     f"p95 {a['p95']:.2f} p99 {a['p99']:.2f} max {a['max']:.1f} ms; bare commit {p['rate']:5.0f}/s, "
                     f"p50 {p['p50']:.2f} p95 {p['p95']:.2f} ms; p95 ratio {a['p95'] / p['p95']:.1f} | "
                     f"paced {args.paced_rate:g}/s per run: p50 {c['p50']:.2f} p95 {c['p95']:.2f} p99 {c['p99']:.2f} "

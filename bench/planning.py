@@ -190,7 +190,8 @@ def run(samples: list[Sample], *, shortcut: bool) -> list[Outcome]:
 def report(label: str, outcomes: list[Outcome]) -> None:
     print(f"\n{label}")
     print(
-        f"{'trajectory':<20} {'plans':>6} {'success':>8} {'reachable':>10} {'ok/reachable':>13} {'median ms':>10} {'p95 ms':>8} {'cpu median':>11} {'cpu p95':>8}"
+        f"{'trajectory':<20} {'plans':>6} {'success':>8} {'reachable':>10} {'ok/reachable':>13} "
+        f"{'median ms':>10} {'p95 ms':>8} {'cpu median':>11} {'cpu p95':>8}"
     )
     for name in ("grasp_and_pull", "insert_and_release"):
         rows = [o for o in outcomes if o.trajectory == name]
@@ -199,8 +200,10 @@ def report(label: str, outcomes: list[Outcome]) -> None:
         wall = [o.seconds * 1000 for o in ok]
         cpu = [o.cpu_seconds * 1000 for o in ok]
         print(
-            f"{name:<20} {len(rows):>6} {len(ok) / len(rows):>8.1%} {len(reachable):>10} {len(ok) / max(1, len(reachable)):>13.1%} "
-            f"{statistics.median(wall):>10.1f} {_percentile(wall, 95):>8.1f} {statistics.median(cpu):>11.1f} {_percentile(cpu, 95):>8.1f}"
+            f"{name:<20} {len(rows):>6} {len(ok) / len(rows):>8.1%} {len(reachable):>10} "
+            f"{len(ok) / max(1, len(reachable)):>13.1%} "
+            f"{statistics.median(wall):>10.1f} {_percentile(wall, 95):>8.1f} "
+            f"{statistics.median(cpu):>11.1f} {_percentile(cpu, 95):>8.1f}"
         )
     failures = Counter(
         ("" if o.reachable else "[unreachable] ") + o.reason.split(": ", 1)[-1][:100] for o in outcomes if not o.success
@@ -220,7 +223,8 @@ def main() -> None:
     slots = ["rack/slot_1", "rack/slot_2", "rack/slot_3", "cabinet/slot"]
     samples, rejected = _samples(slots, args.samples, np.random.default_rng(args.seed))
     print(
-        f"{args.samples} filter poses (+-5 cm, +-10 deg per axis about {', '.join(slots)}; {rejected} draws that pushed a fixture into a wall/table redrawn), UR10 from its start pose"
+        f"{args.samples} filter poses (+-5 cm, +-10 deg per axis about {', '.join(slots)}; "
+        f"{rejected} draws that pushed a fixture into a wall/table redrawn), UR10 from its start pose"
     )
     report(
         "at_ros planner (IK, straight-line shortcut, else OMPL RRTConnect + greedy shortcutting)",

@@ -270,7 +270,8 @@ class Simulation:
                 continue
             return (
                 ErrorCode.COLLISION,
-                f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} ({-depth * 1000:.1f} mm deep)",
+                f"collision: {robot_name}/{self._link_names.get(link, link)} hit {self.world.body_name(other)} "
+                f"({-depth * 1000:.1f} mm deep)",
             )
         # Exact distance queries are costly; only pairs whose bounding boxes overlap need one.
         boxes = {link: p.getAABB(self.robot, link, physicsClientId=self.client) for link in self._self_links}
@@ -283,7 +284,8 @@ class Simulation:
             )
             if points:
                 return ErrorCode.COLLISION, (
-                    f"self-collision: {robot_name}/{self._link_names.get(a, a)} hit {robot_name}/{self._link_names.get(b, b)} "
+                    f"self-collision: {robot_name}/{self._link_names.get(a, a)} "
+                    f"hit {robot_name}/{self._link_names.get(b, b)} "
                     f"({-points[0][8] * 1000:.1f} mm deep)"
                 )
         if held_body is not None:

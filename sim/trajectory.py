@@ -127,7 +127,8 @@ def validate_trajectory(
         if name in other_joints:
             raise TrajectoryError(
                 ErrorCode.INVALID_JOINTS,
-                f"joint {name!r} is not an arm joint (use the gripper service); arm joints are {list(controller_joints)}",
+                f"joint {name!r} is not an arm joint (use the gripper service); "
+                f"arm joints are {list(controller_joints)}",
             )
         if name not in controller_joints:
             raise TrajectoryError(
@@ -152,7 +153,8 @@ def validate_trajectory(
         if t <= previous_time:
             raise TrajectoryError(
                 ErrorCode.INVALID_GOAL,
-                f"point {k}: time_from_start {t:.6f} s is not after point {k - 1} ({previous_time:.6f} s); time stamps must increase",
+                f"point {k}: time_from_start {t:.6f} s is not after point {k - 1} ({previous_time:.6f} s); "
+                "time stamps must increase",
             )
         previous_time = t
         if len(q) != n:
@@ -167,7 +169,8 @@ def validate_trajectory(
             if not lim.lower <= q[i] <= lim.upper:
                 raise TrajectoryError(
                     ErrorCode.INVALID_GOAL,
-                    f"point {k}: joint {name} position {q[i]:.4f} rad is outside its limits [{lim.lower:.4f}, {lim.upper:.4f}]",
+                    f"point {k}: joint {name} position {q[i]:.4f} rad "
+                    f"is outside its limits [{lim.lower:.4f}, {lim.upper:.4f}]",
                 )
             if v and abs(v[i]) > lim.velocity * (1 + VELOCITY_SLACK):
                 raise TrajectoryError(
@@ -188,7 +191,8 @@ def validate_trajectory(
         if abs(full_positions[0][worst] - current[worst]) > START_TOLERANCE:
             raise TrajectoryError(
                 ErrorCode.INVALID_GOAL,
-                f"point 0 at t=0 is {abs(full_positions[0][worst] - current[worst]):.4f} rad away from the current position of "
+                f"point 0 at t=0 is {abs(full_positions[0][worst] - current[worst]):.4f} rad "
+                "away from the current position of "
                 f"{controller_joints[worst]}; start at the current state or give the first point a time > 0",
             )
     else:
@@ -205,7 +209,8 @@ def validate_trajectory(
                 label = "the current position" if k == 1 and points[0][0] > 0 else "the previous point"
                 raise TrajectoryError(
                     ErrorCode.INVALID_GOAL,
-                    f"joint {name} must move {abs(full_positions[k][j] - full_positions[k - 1][j]):.4f} rad from {label} in {dt:.4f} s "
+                    f"joint {name} must move {abs(full_positions[k][j] - full_positions[k - 1][j]):.4f} rad "
+                    f"from {label} in {dt:.4f} s "
                     f"({speed:.3f} rad/s), over its velocity limit {lim:.4f} rad/s",
                 )
     return Trajectory(

@@ -168,7 +168,8 @@ class IkSolver:
         """The joints of ``q`` that sit at a limit, for messages ("elbow_joint at its upper limit 2.50 rad")."""
         lo, hi = self.scene.limits.lower, self.scene.limits.upper
         at = [
-            f"{name} at its {'lower' if v <= lo[i] + 1e-6 else 'upper'} limit {lo[i] if v <= lo[i] + 1e-6 else hi[i]:.2f} rad"
+            f"{name} at its {'lower' if v <= lo[i] + 1e-6 else 'upper'} limit "
+            f"{lo[i] if v <= lo[i] + 1e-6 else hi[i]:.2f} rad"
             for i, (name, v) in enumerate(zip(self.scene.joint_names, q, strict=False))
             if v <= lo[i] + 1e-6 or v >= hi[i] - 1e-6
         ]

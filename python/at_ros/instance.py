@@ -207,7 +207,8 @@ class TemplateInstance:
         trajectory = self.template.trajectory(name)
         if trajectory is None:
             raise InstanceError(
-                f"template {self.template.name!r} has no trajectory {name!r}; it has: {', '.join(self.template.trajectory_names)}"
+                f"template {self.template.name!r} has no trajectory {name!r}; "
+                f"it has: {', '.join(self.template.trajectory_names)}"
             )
         return trajectory
 
@@ -218,7 +219,8 @@ class TemplateInstance:
             ee = self.robot.end_effector_by_id(group.id)
             if ee is None:
                 raise InstanceError(
-                    f"trajectory {trajectory.name!r} uses end-effector id {group.id}, which robot {self.robot.robot_name!r} does not map "
+                    f"trajectory {trajectory.name!r} uses end-effector id {group.id}, "
+                    f"which robot {self.robot.robot_name!r} does not map "
                     f"(its end_effector_group_map has ids {[e.id for e in self.robot.end_effectors]})"
                 )
             mapped.append(ee)
@@ -226,7 +228,8 @@ class TemplateInstance:
             unknown = [n for n in names if n not in {e.name for e in mapped}]
             if unknown:
                 raise InstanceError(
-                    f"unknown end effector {unknown[0]!r} for trajectory {trajectory.name!r}; it has: {', '.join(e.name for e in mapped)}"
+                    f"unknown end effector {unknown[0]!r} for trajectory {trajectory.name!r}; "
+                    f"it has: {', '.join(e.name for e in mapped)}"
                 )
             if len(names) > 1:
                 raise InstanceError(
@@ -235,7 +238,8 @@ class TemplateInstance:
             return next(e for e in mapped if e.name == names[0])
         if len(mapped) > 1:
             raise InstanceError(
-                f"trajectory {trajectory.name!r} has several end effectors; name one of: {', '.join(e.name for e in mapped)}"
+                f"trajectory {trajectory.name!r} has several end effectors; "
+                f"name one of: {', '.join(e.name for e in mapped)}"
             )
         return mapped[0]
 
@@ -248,7 +252,8 @@ class TemplateInstance:
         obj = self.template.display_object(name)
         if obj is None:
             raise InstanceError(
-                f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}"
+                f"template {self.template.name!r} has no display object {name!r}; "
+                f"it has: {', '.join(o.name for o in self.template.display_objects)}"
             )
         parent = self.object_pose(obj.parent) if obj.parent else self.root_pose
         pose: np.ndarray = parent @ obj.origin.matrix
@@ -257,7 +262,8 @@ class TemplateInstance:
     def register(self, name: str, registration: Registration) -> None:
         if self.template.display_object(name) is None:
             raise InstanceError(
-                f"template {self.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in self.template.display_objects)}"
+                f"template {self.template.name!r} has no display object {name!r}; "
+                f"it has: {', '.join(o.name for o in self.template.display_objects)}"
             )
         previous = self.registrations.get(name)
         if previous is None or previous.frame != registration.frame:
@@ -275,7 +281,8 @@ class TemplateInstance:
         assert group is not None
         if not 0 <= index < len(group.waypoints):
             raise InstanceError(
-                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {index}"
+                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} "
+                f"for {ee.name!r}, not {index}"
             )
         parent = self.object_pose(group.waypoints[index].display_object)
         self.waypoint_overrides[(trajectory.name, ee.id, index)] = invert(parent) @ world_pose
@@ -349,12 +356,21 @@ class TemplateInstance:
             moved = float(np.linalg.norm(now[:3, 3] - reg.frame_pose[:3, 3]))
             turned = angle_between(now, reg.frame_pose)
             if moved > OBJECT_MOVED_POSITION or turned > OBJECT_MOVED_ANGLE:
-                return f"object {name!r} moved since planning ({reg.frame!r} moved {moved * 1000:.0f} mm, {np.degrees(turned):.1f} deg); plan again"
+                return (
+                    f"object {name!r} moved since planning "
+                    f"({reg.frame!r} moved {moved * 1000:.0f} mm, {np.degrees(turned):.1f} deg); plan again"
+                )
         for joint, value in plan.start_joints.items():
             if joint not in joints:
                 return f"joint {joint!r} is missing from /joint_states"
             if abs(joints[joint] - value) > joint_tolerance:
-                return f"the robot moved since planning ({joint} is {joints[joint]:.3f} rad, the plan starts at {value:.3f}); plan again"
+                return (
+                    f"the robot moved since planning ({joint} is {joints[joint]:.3f} rad, "
+                    f"the plan starts at {value:.3f}); plan again"
+                )
         if held_object != plan.held_object:
-            return f"the gripper holds {held_object or 'nothing'!r} but the plan was made holding {plan.held_object or 'nothing'!r}; plan again"
+            return (
+                f"the gripper holds {held_object or 'nothing'!r} "
+                f"but the plan was made holding {plan.held_object or 'nothing'!r}; plan again"
+            )
         return None

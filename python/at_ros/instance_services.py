@@ -110,7 +110,8 @@ class InstanceServices:
             name = obj.name.split(":")[0]  # accept "cdra_filter" and the frame name "cdra_filter:0"
             if instance.template.display_object(name) is None:
                 raise InstanceError(
-                    f"template {instance.template.name!r} has no display object {name!r}; it has: {', '.join(o.name for o in instance.template.display_objects)}"
+                    f"template {instance.template.name!r} has no display object {name!r}; "
+                    f"it has: {', '.join(o.name for o in instance.template.display_objects)}"
                 )
             frame = obj.stamped_pose.header.frame_id or WORLD_FRAME
             frame_pose = core.frames.lookup(frame, FRAME_WAIT)
@@ -131,7 +132,8 @@ class InstanceServices:
         assert group is not None
         if not 0 <= request.waypoint_id < len(group.waypoints):
             raise InstanceError(
-                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} for {ee.name!r}, not {request.waypoint_id}"
+                f"trajectory {trajectory.name!r} has waypoints 0..{len(group.waypoints) - 1} "
+                f"for {ee.name!r}, not {request.waypoint_id}"
             )
         frame = request.pose.header.frame_id
         with core.command_lock(instance.key), core.state_lock:

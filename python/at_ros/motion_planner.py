@@ -283,7 +283,8 @@ class MotionPlanner:
             grasped = scene.nearest_graspable(goal.object_pose[:3, 3], within=reach)
             if grasped is None:
                 raise WaypointPlanningError(
-                    f"waypoint {goal.label}: grasps {goal.object_name!r}, but no graspable object of the world is within "
+                    f"waypoint {goal.label}: grasps {goal.object_name!r}, "
+                    "but no graspable object of the world is within "
                     f"{reach * 100:.0f} cm of where {goal.object_name!r} is registered; register it on the object",
                     final=True,
                 )

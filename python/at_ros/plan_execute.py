@@ -242,7 +242,8 @@ class PlanExecutor:
             raise CommandRefused(f"no joint_states for {missing} yet; is the simulation running?")
         if not self.planner_client.wait_for_service(timeout_sec=2.0):
             raise CommandRefused(
-                f"the planner node does not answer on {self.planner_client.srv_name}; start `caretaker planner --robot NAME`"
+                f"the planner node does not answer on {self.planner_client.srv_name}; "
+                "start `caretaker planner --robot NAME`"
             )
         request = PlanWaypoints.Request()
         request.robot_name = robot.robot_name
@@ -364,7 +365,10 @@ class PlanExecutor:
         halted = self.halts.halted_since(mark)
         if halted is not None:
             outcome, state, status = ExecutionOutcome.HALTED, PlanState.HALTED, ServerStatus.EXECUTE_HALTED
-            message = f"halted ({halted}): {instance.key} stopped {where} of {trajectory!r}; plan again to go on from where the arm is"
+            message = (
+                f"halted ({halted}): {instance.key} stopped {where} of {trajectory!r}; "
+                "plan again to go on from where the arm is"
+            )
         else:
             outcome, state, status = ExecutionOutcome.FAILED, PlanState.FAILED, ServerStatus.EXECUTE_FAILED
             reason = str(exc) if isinstance(exc, CommandRefused) else repr(exc)

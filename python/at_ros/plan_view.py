@@ -55,7 +55,8 @@ def joined_trajectory(segments: list[Any], joint_names: tuple[str, ...]) -> tupl
         trajectory = segment.arm_trajectory
         if trajectory.points and list(trajectory.joint_names) != joined.joint_names:
             raise InstanceError(
-                f"waypoint {segment.label}: the planner's joints {list(trajectory.joint_names)} are not the robot's {joined.joint_names}"
+                f"waypoint {segment.label}: the planner's joints {list(trajectory.joint_names)} "
+                f"are not the robot's {joined.joint_names}"
             )
         for k, point in enumerate(trajectory.points):
             t = _seconds(point.time_from_start)

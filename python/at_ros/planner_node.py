@@ -219,10 +219,11 @@ def main(argv: list[str] | None = None) -> int:
             executor.spin_once(timeout_sec=0.1)
         if node.scene is None:
             topic = node.world_subscription.topic_name
-            print(
-                f"caretaker planner: {node.world_error or f'no collision world on {topic} within {WORLD_TIMEOUT:.0f} s; is the simulation (or world model) running in this ROS domain and namespace?'}",
-                file=sys.stderr,
+            problem = node.world_error or (
+                f"no collision world on {topic} within {WORLD_TIMEOUT:.0f} s; "
+                "is the simulation (or world model) running in this ROS domain and namespace?"
             )
+            print(f"caretaker planner: {problem}", file=sys.stderr)
             return 2
         print(f"READY planner {config.robot_name}", flush=True)
         executor.spin()

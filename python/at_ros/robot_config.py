@@ -4,9 +4,10 @@ Original keys (``robot_interface.cpp::load``): ``robot_name``, ``planner_type``,
 ``root_offset`` [x y z r p y], ``end_effector_group_map`` (name, id, pose_offset, tool_offset),
 ``end_effector_pose_map`` (name, group, id). Additions, since there is no MoveIt/SRDF here:
 ``urdf``, ``scene``, ``base_frame``, ``tool_link``, ``joint_names``, ``trajectory_action``,
-``gripper_service``, ``halt_service`` and a ``planner`` block. Paths (``urdf``) are relative to
-the config file. ROS names (``trajectory_action``, ``gripper_service``, ``halt_service``) without a leading ``/`` are relative to
-the node's namespace, so one config serves a robot in any namespace. Unknown keys are errors.
+``gripper_service``, ``halt_service`` and a ``planner`` block. Paths (``urdf``) are relative to the
+config file. ROS names (``trajectory_action``, ``gripper_service``, ``halt_service``) without a
+leading ``/`` are relative to the node's namespace, so one config serves a robot in any namespace.
+Unknown keys are errors.
 """
 
 from __future__ import annotations

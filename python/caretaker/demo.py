@@ -249,7 +249,8 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
         return 1
     try:
         print(
-            f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); running {demo.procedure.name} autonomously",
+            f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); "
+            f"running {demo.procedure.name} autonomously",
             flush=True,
         )
         run_id, status = _run_procedure(demo, stack.bridge_url, db_url, stack.env, started)

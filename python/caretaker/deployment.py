@@ -308,11 +308,13 @@ def _check_robot_matches_scene(root: Field, robot: RobotConfig, scene: Scene) ->
     missing = [j for j in robot.joint_names if j not in scene.robot.arm_joints]
     if missing:
         raise root["robot"].fail(
-            f"robot config joints {missing} are not arm joints of scene {scene.path} ({', '.join(scene.robot.arm_joints)})"
+            f"robot config joints {missing} are not arm joints of scene {scene.path} "
+            f"({', '.join(scene.robot.arm_joints)})"
         )
     if robot.gripper_service and scene.robot.gripper is None:
         raise root["robot"].fail(
-            f"robot config names gripper_service {robot.gripper_service!r}, but the robot of scene {scene.path} has no gripper"
+            f"robot config names gripper_service {robot.gripper_service!r}, "
+            f"but the robot of scene {scene.path} has no gripper"
         )
 
 
@@ -322,15 +324,18 @@ def _check_binding_reaches_this_side(f: Field, binding: Binding, deployment: Dep
         url = urlparse(system.rosbridge)
         if url.port != deployment.bridge.port and deployment.bridge.port != 0:
             raise f.fail(
-                f"binding {binding.path} connects {system.sysrep} to {system.rosbridge}, but this deployment's rosbridge port is {deployment.bridge.port}"
+                f"binding {binding.path} connects {system.sysrep} to {system.rosbridge}, "
+                f"but this deployment's rosbridge port is {deployment.bridge.port}"
             )
         if url.scheme != deployment.bridge.scheme:
             raise f.fail(
-                f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, but this deployment's rosbridge serves {deployment.bridge.scheme}://"
+                f"binding {binding.path} connects {system.sysrep} with {url.scheme}://, "
+                f"but this deployment's rosbridge serves {deployment.bridge.scheme}://"
             )
         if deployment.namespace and not system.namespace.startswith(deployment.namespace + "/"):
             raise f.fail(
-                f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, outside this deployment's namespace {deployment.namespace}"
+                f"binding {binding.path} serves {system.sysrep} on {system.namespace or '/'}, "
+                f"outside this deployment's namespace {deployment.namespace}"
             )
     if binding.ledger_namespace != deployment.namespace:
         # The stack puts the command ledger in the deployment's namespace, so that robots sharing a

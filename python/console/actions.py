@@ -1,10 +1,11 @@
 """Operator actions from the page, sent to the executive under the signed-in user's id.
 
 This is the only place the web view changes a run, whether the action comes from this console's
-page or is forwarded from another console to the run's host (:func:`perform_forwarded`). Each action is one executive method; the
-executive records it in the audit log with the user id and refuses what does not apply now
-(:class:`~pride.executive.OperatorActionError`). The role check happens here, on the server,
-before anything reaches the executive: an observer's request is refused whatever the page shows.
+page or is forwarded from another console to the run's host (:func:`perform_forwarded`). Each
+action is one executive method; the executive records it in the audit log with the user id and
+refuses what does not apply now (:class:`~pride.executive.OperatorActionError`). The role check
+happens here, on the server, before anything reaches the executive: an observer's request is
+refused whatever the page shows.
 """
 
 from __future__ import annotations

@@ -2,14 +2,14 @@
 
 Reading is open to every signed-in person; changing anything (starting or resuming a run, any
 operator action, saving a procedure) needs the operator role and goes through
-:mod:`console.actions` to the executive — of this console, or, for a run another console
-hosts, of that console, through the database (:meth:`RunBoard.act`). Two WebSockets push news:
-one run's state, events and telemetry (``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that changes state carries the
-session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends one, an ``Origin`` of
-this server; the WebSocket only reports (actions go over HTTP) and checks the session and the
-Origin when it opens. Blocking work (password hashing, executive calls that take its lock,
-gateway reads, opening a gateway, the audit log) runs in the thread pool so one slow robot
-never stalls the other browsers.
+:mod:`console.actions` to the executive — of this console, or, for a run another console hosts, of
+that console, through the database (:meth:`RunBoard.act`). Two WebSockets push news: one run's
+state, events and telemetry (``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that
+changes state carries the session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends
+one, an ``Origin`` of this server; the WebSocket only reports (actions go over HTTP) and checks the
+session and the Origin when it opens. Blocking work (password hashing, executive calls that take
+its lock, gateway reads, opening a gateway, the audit log) runs in the thread pool so one slow
+robot never stalls the other browsers.
 """
 
 from __future__ import annotations

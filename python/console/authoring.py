@@ -1,10 +1,11 @@
 """Procedure authoring for the web view's Author page: XML ↔ an editable document, checked by lint.
 
 The page edits a *document*: the procedure's elements as plain JSON (tag, attributes in order,
-arguments, text: a record's question, a note's words, or the ``<text>`` sentence of any other instruction), so what it opens it can save unchanged, and every meaning check stays in one
-place, :func:`pride.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back
-with the position (step, item) of the element they concern, found from the line of that element
-in the XML this module writes.
+arguments, text: a record's question, a note's words, or the ``<text>`` sentence of any other
+instruction), so what it opens it can save unchanged, and every meaning check stays in one place,
+:func:`pride.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back with the
+position (step, item) of the element they concern, found from the line of that element in the XML
+this module writes.
 """
 
 from __future__ import annotations

@@ -141,7 +141,10 @@ class LiveRun:
             event = self._state.latest_image_event
         live = self.camera_feed.latest() if self.camera_feed is not None else None
         if live is not None and (event is None or live.time > event.time.timestamp()):
-            caption = f"live view while the robot moves · {time.strftime('%H:%M:%S', time.gmtime(live.time))} UTC · {live.path}"
+            caption = (
+                "live view while the robot moves · "
+                f"{time.strftime('%H:%M:%S', time.gmtime(live.time))} UTC · {live.path}"
+            )
             return live.path, {"version": f"live{live.seq}", "caption": caption}
         if image is None or from_result is None:
             return None

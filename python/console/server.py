@@ -150,7 +150,10 @@ def _tls_problem(args: argparse.Namespace) -> str | None:
     try:
         ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
     except ssl.SSLError as exc:  # before OSError, of which it is a kind
-        return f"--certfile {args.certfile} and --keyfile {args.keyfile} are not a usable PEM certificate and key: {exc.reason or exc}"
+        return (
+            f"--certfile {args.certfile} and --keyfile {args.keyfile} "
+            f"are not a usable PEM certificate and key: {exc.reason or exc}"
+        )
     except OSError as exc:
         return f"cannot read the TLS files: {exc.strerror or exc} ({exc.filename or args.certfile})"
     return None
@@ -161,7 +164,8 @@ _CAMERA_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def _per_binding(flag: str, options: list[str], expected: str, valid: Callable[[str], object]) -> dict[str, str]:
-    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError says what is wrong."""
+    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError
+    says what is wrong."""
     values: dict[str, str] = {}
     for option in options:
         binding, _, value = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
@@ -231,7 +235,8 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if not accounts.accounts():
         log.warning(
-            "no accounts in %s: nobody can sign in until one is added (caretaker accounts add USER --role operator --db %s)",
+            "no accounts in %s: nobody can sign in until one is added "
+            "(caretaker accounts add USER --role operator --db %s)",
             args.db,
             args.db,
         )

@@ -144,7 +144,8 @@ class SignIns:
         return session
 
     def notice(self, notice: ChangeNotice) -> None:
-        """Change-feed subscriber: an account changed (or notices were missed): recheck its sessions at their next use."""
+        """Change-feed subscriber: an account changed (or notices were missed): recheck its sessions
+        at their next use."""
         if notice.channel not in ("accounts", "resync"):
             return
         with self._lock:

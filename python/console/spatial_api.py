@@ -1,11 +1,12 @@
 """The 3D view's routes: its own WebSocket (scene document, then updates) and the drag.
 
-``/ws/runs/{run_id}/spatial`` pushes what :class:`console.spatial_feed.SpatialFeed` keeps of
-the habitat (one feed per live run, shared by its browsers, closed with its last one);
-``/api/runs/{run_id}/spatial/camera`` is the robot camera's newest image from that feed. ``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators
-only (403 for an observer, checked before the body is read), CSRF like every change, sent as
-that operator through the run's executive (:meth:`pride.executive.Executive.operator_command`)
-so the audit log records who moved what where.
+``/ws/runs/{run_id}/spatial`` pushes what :class:`console.spatial_feed.SpatialFeed` keeps of the
+habitat (one feed per live run, shared by its browsers, closed with its last one);
+``/api/runs/{run_id}/spatial/camera`` is the robot camera's newest image from that feed.
+``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators only (403 for an
+observer, checked before the body is read), CSRF like every change, sent as that operator through
+the run's executive (:meth:`pride.executive.Executive.operator_command`) so the audit log records
+who moved what where.
 """
 
 from __future__ import annotations

@@ -9,9 +9,13 @@ What it asks the habitat for (names under the robot's namespace), sized for a 1.
 | ``joint_states`` | subscribe, ``throttle_rate`` 100 ms, ``queue_length`` 1 | <= 10/s |
 | ``sim/frames`` | subscribe, ``throttle_rate`` 200 ms, ``queue_length`` 1 | <= 5/s |
 | ``affordance_template_server/status`` | subscribe, ``throttle_rate`` 500 ms, ``queue_length`` 1 | <= 2/s |
-| ``get_template_status`` per template | when ``running_templates``, ``plan_id`` or the execute status change, after an AT command of the run, after a reconnect | on change |
+| ``get_template_status`` per template | on a change, an AT command of the run, a reconnect (below) | on change |
 | ``get_plan`` | when ``plan_id`` or the execute status change | on change |
-| ``camera/<name>/image`` (the camera of :func:`~console.spatial_camera.choose_camera`) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
+| ``camera/<name>/image`` (camera below) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
+
+``get_template_status`` is asked when ``running_templates``, ``plan_id`` or the execute status
+change, after an AT command of the run, and after a reconnect. The camera is the one
+:func:`~console.spatial_camera.choose_camera` picks.
 
 Each browser gets the scene document once it exists, then the latest update of each kind,
 never more often than :data:`PUSH_INTERVAL_S` (an update not yet sent is replaced by a newer

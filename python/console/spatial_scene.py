@@ -555,7 +555,8 @@ def _in_document_frame(stamped: Mapping[str, Any], where: str) -> None:
     if frame != DOCUMENT_FRAME:
         raise SpatialDataError(
             f"{where}.header.frame_id",
-            f"poses must be in {DOCUMENT_FRAME!r} (ask get_template_status with frame_id {DOCUMENT_FRAME!r}), got {frame!r}",
+            f"poses must be in {DOCUMENT_FRAME!r} (ask get_template_status with frame_id {DOCUMENT_FRAME!r}), "
+            f"got {frame!r}",
         )
 
 

@@ -90,7 +90,8 @@ def test_no_state_file_yet_is_no_instances(tmp_path: Path, library, ur10_config)
         (lambda d: d.update(format=7), r"format: expected AT server state format 1"),
         (
             lambda d: d["instances"][0]["executions"]["grasp_and_pull"].update(outcome="PAUSED"),
-            r"instances\[0\]\.executions\.grasp_and_pull\.outcome: unknown outcome 'PAUSED'; expected one of EXECUTING, SUCCEEDED, FAILED, HALTED",
+            r"instances\[0\]\.executions\.grasp_and_pull\.outcome: unknown outcome 'PAUSED'; "
+            r"expected one of EXECUTING, SUCCEEDED, FAILED, HALTED",
         ),
     ],
 )

@@ -1,14 +1,14 @@
 """A robot Caretaker does not ship, added by files only, completes a procedure (issue 18, Done when).
 
-The files of tests/fixtures/bench_arm are copied to a folder outside the checkout, as a user
-would write them: a 6-DOF arm with a spherical wrist and other link lengths than the UR10
-(URDF), a workbench scene of its own, a robot config, an AT template, a procedure, a binding
-to the generic AT SysRep and a deployment (in ROS namespace /bench). ``caretaker check`` accepts them all; ``caretaker up
-DEPLOYMENT`` starts the robot side (real simulation, planner with OMPL, AT server, rosbridge);
-``caretaker run`` completes the procedure through the Java PAX plugins; the part is then in the
-slot the procedure named, as the simulation itself reports it; and nothing in the checkout
-changed. The arm's wrist pitch range excludes the IK solution nearest to its start (asserted
-below), so the procedure completes only because IK respects the limits while solving.
+The files of tests/fixtures/bench_arm are copied to a folder outside the checkout, as a user would
+write them: a 6-DOF arm with a spherical wrist and other link lengths than the UR10 (URDF), a
+workbench scene of its own, a robot config, an AT template, a procedure, a binding to the generic
+AT SysRep and a deployment (in ROS namespace /bench). ``caretaker check`` accepts them all;
+``caretaker up DEPLOYMENT`` starts the robot side (real simulation, planner with OMPL, AT server,
+rosbridge); ``caretaker run`` completes the procedure through the Java PAX plugins; the part is
+then in the slot the procedure named, as the simulation itself reports it; and nothing in the
+checkout changed. The arm's wrist pitch range excludes the IK solution nearest to its start
+(asserted below), so the procedure completes only because IK respects the limits while solving.
 """
 
 from __future__ import annotations

@@ -92,7 +92,8 @@ def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int
                 f"{request['op']} with a {size}-byte field: not answered within {ANSWER_WITHIN_S} s"
             )
             print(
-                f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): answered in {time.monotonic() - started:.2f} s"
+                f"{size} B, {str(request['op'])[:20]} ({str(request['id'])[:24]}): "
+                f"answered in {time.monotonic() - started:.2f} s"
             )
     finally:
         client.close()

@@ -95,7 +95,8 @@ class SimClient:
         with self._changed:
             if not self._changed.wait_for(lambda: self.spin_error is not None or predicate(), timeout):
                 raise AssertionError(
-                    f"timed out after {timeout} s waiting for {what}; latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }"
+                    f"timed out after {timeout} s waiting for {what}; "
+                    f"latest: { {k: v for k, v in self.latest.items() if k != '/sim/frames'} }"
                 )
             if self.spin_error is not None and not predicate():
                 raise AssertionError(f"the test client's executor died: {self.spin_error!r}") from self.spin_error

@@ -133,13 +133,15 @@ def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> No
     overflowing = alice.evaluate("""() => {
         const width = document.documentElement.clientWidth;
         const found = [];
-        if (document.documentElement.scrollWidth > width) found.push(`the page is ${document.documentElement.scrollWidth} px wide`);
+        if (document.documentElement.scrollWidth > width)
+            found.push(`the page is ${document.documentElement.scrollWidth} px wide`);
         for (const node of document.querySelectorAll('#main-view *')) {
             if (!node.getClientRects().length || node.closest('dialog')) continue;
             const box = node.getBoundingClientRect();
             const name = `${node.tagName.toLowerCase()}.${node.className}`;
             if (box.right > width + 1) found.push(`${name} ends at ${Math.round(box.right)} px`);
-            if (node.clientWidth && node.scrollWidth > node.clientWidth + 1 && getComputedStyle(node).overflowX === 'visible')
+            if (node.clientWidth && node.scrollWidth > node.clientWidth + 1
+                && getComputedStyle(node).overflowX === 'visible')
                 found.push(`${name} holds ${node.scrollWidth} px in ${node.clientWidth} px`);
         }
         return found;

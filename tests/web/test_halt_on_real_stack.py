@@ -8,10 +8,11 @@ stamps, stop changing within 0.5 s of sim time after the press; the instruction 
 halted by the operator, never as completed. A second run on the robot is then refused, naming the
 run that controls it, and taken over with a reason logged in both runs.
 
-It also reports the wall-clock time from the click to the arm at rest: from the click event in
-the page (its timestamp) until the first joint state of the resting arm reached this test (so it
-includes the delivery of that state over the bridge). bench/halt_under_load.py runs this test repeatedly beside CPU hogs and collects that
-figure (docs/benchmarks.md); it is printed, not asserted.
+It also reports the wall-clock time from the click to the arm at rest: from the click event in the
+page (its timestamp) until the first joint state of the resting arm reached this test (so it
+includes the delivery of that state over the bridge). bench/halt_under_load.py runs this test
+repeatedly beside CPU hogs and collects that figure (docs/benchmarks.md); it is printed, not
+asserted.
 """
 
 from __future__ import annotations

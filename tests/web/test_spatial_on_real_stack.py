@@ -131,7 +131,8 @@ def inspect(page: Page) -> dict[str, Any]:
 def wait_view(page: Page, condition: str) -> None:
     """Wait until ``condition`` (JS over ``v``, the view's inspect()) holds."""
     page.wait_for_function(
-        f"(() => {{ const s = window.caretakerSpatial; if (!s) return false; const v = s.inspect(); return {condition}; }})()",
+        "(() => { const s = window.caretakerSpatial; if (!s) return false; "
+        f"const v = s.inspect(); return {condition}; }})()",
         timeout=TIMEOUT_MS * 3,
     )
 
@@ -321,7 +322,8 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
         data={"command": "set_display_object_pose", "args": args},
     )
     assert forced.status == 403 and "observer" in forced.json()["error"], forced.text()
-    carol.close()  # a console of its own machine: two 3D views on these two cores would halve the frame rate measured below
+    # a console of its own machine: two 3D views on these two cores would halve the frame rate measured below
+    carol.close()
 
     # Execute: PAX runs on to the operator's manual check (2.6); once she marks it done, PAX executes
     # the pull-out (2.7), the ghost goes (the live arm shows what happens) and stays gone after
@@ -393,7 +395,8 @@ class FrameRate:
 
     def report(self) -> None:
         print(
-            f"\n3D view in the console (headless Chromium, SwiftShader, 1500x1000), load average {os.getloadavg()[0]:.1f}; "
+            "\n3D view in the console (headless Chromium, SwiftShader, 1500x1000), "
+            f"load average {os.getloadavg()[0]:.1f}; "
             "arm moving, joint states at 10/s, interpolated:"
         )
         if not self.motions:
@@ -407,8 +410,9 @@ class FrameRate:
         if self.windows:
             fps, latency, scale = zip(*self.windows, strict=True)
             print(
-                f"  quarter-second windows: median {statistics.median(fps):.0f}, min {min(fps):.0f} frames/s; update-to-frame "
-                f"median {statistics.median(latency):.0f} ms; resolution scale median {statistics.median(scale):.2f}; {len(fps)} windows"
+                f"  quarter-second windows: median {statistics.median(fps):.0f}, min {min(fps):.0f} frames/s; "
+                f"update-to-frame median {statistics.median(latency):.0f} ms; "
+                f"resolution scale median {statistics.median(scale):.2f}; {len(fps)} windows"
             )
 
 

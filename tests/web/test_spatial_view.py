@@ -160,10 +160,16 @@ WATCH_FRAMES = """(interpolate) => {
   view.setJointInterpolation(interpolate);
   window.watched = {start: view.robot.positions.wrist_3_joint, frames: []};
   window.newest = window.watched.start;
-  const watch = () => { window.watched.frames.push([view.robot.positions.wrist_3_joint, window.newest]); requestAnimationFrame(watch); };
+  const watch = () => {
+    window.watched.frames.push([view.robot.positions.wrist_3_joint, window.newest]);
+    requestAnimationFrame(watch);
+  };
   requestAnimationFrame(watch);
 }"""
-SEND = """(value) => { window.newest = value; window.caretakerSpatial.apply({kind: 'joints', stamp: 0, positions: {wrist_3_joint: value}}); }"""
+SEND = """(value) => {
+  window.newest = value;
+  window.caretakerSpatial.apply({kind: 'joints', stamp: 0, positions: {wrist_3_joint: value}});
+}"""
 
 
 def _stream(page: Page, interpolate: bool, values: list[float]) -> dict[str, Any]:
@@ -522,7 +528,8 @@ def _drawn_fraction(page: Page) -> float:
         const g = c.getContext('2d'); g.drawImage(src, 0, 0);
         const d = g.getImageData(0, 0, c.width, c.height).data;
         let drawn = 0;
-        for (let i = 0; i < d.length; i += 4) if (Math.abs(d[i] - 0x1d) + Math.abs(d[i + 1] - 0x21) + Math.abs(d[i + 2] - 0x27) > 24) drawn++;
+        for (let i = 0; i < d.length; i += 4)
+            if (Math.abs(d[i] - 0x1d) + Math.abs(d[i + 1] - 0x21) + Math.abs(d[i + 2] - 0x27) > 24) drawn++;
         return drawn / (d.length / 4);
     }""")
 

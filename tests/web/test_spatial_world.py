@@ -15,7 +15,10 @@ import pytest
 from console.spatial_scene import SpatialDataError
 from console.spatial_world import compose, plan_from_get_plan, world_document
 
-URDF = '<robot name="r"><link name="base"/><link name="tip"/><joint name="j" type="revolute"><parent link="base"/><child link="tip"/></joint></robot>'
+URDF = (
+    '<robot name="r"><link name="base"/><link name="tip"/>'
+    '<joint name="j" type="revolute"><parent link="base"/><child link="tip"/></joint></robot>'
+)
 BASE = {"xyz": [1.0, 2.0, 0.5], "quat": [0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)]}  # 90 deg about z
 
 

@@ -2,12 +2,13 @@
 
 ``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge: separate processes) and
 ``caretaker serve`` with the JVM-hosted PAX plugins behind the executive: sign in; start the IVA
-procedure in manual mode; Send the first command and see its result and the audit record with
-the user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry
-the real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX
-send it in the next command (an id the rack does not report as a clean filter is refused; one
-the operator re-enters is used, both values logged), and the run completes; an observer watching the same run cannot Send, and
-the server refuses it when forced. (test_operator_view.py covers the rest of the page on simulated systems.)
+procedure in manual mode; Send the first command and see its result and the audit record with the
+user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry the
+real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX send
+it in the next command (an id the rack does not report as a clean filter is refused; one the
+operator re-enters is used, both values logged), and the run completes; an observer watching the
+same run cannot Send, and the server refuses it when forced. (test_operator_view.py covers the rest
+of the page on simulated systems.)
 """
 
 from __future__ import annotations

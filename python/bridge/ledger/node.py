@@ -106,7 +106,8 @@ class LedgerNode(Node):
                             State.UNKNOWN,
                             "",
                             f"this ledger's memory is newer than the client's (epoch {request.epoch},"
-                            f" now {self.store.epoch}) and has no record of {key}: whether it executed cannot be learnt;"
+                            f" now {self.store.epoch}) and has no record of {key}:"
+                            " whether it executed cannot be learnt;"
                             " not executed now",
                         ),
                     )
