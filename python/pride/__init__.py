@@ -12,7 +12,8 @@ Modules, by concept:
 - :mod:`pride.lint` — meaning checks against SysReps (``caretaker lint``); a run's procedure tree
   checked once (:class:`pride.lint.CheckedProcedure`).
 - :mod:`pride.executive` — PAX: manual and autonomous runs, operator actions, observers;
-  :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of
+  :mod:`pride.run_engine` the machinery under it (state under one lock, journal first, PAX's
+  thread, the supervisor), :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of
   (sub-)procedures, :mod:`pride.replay` rebuilding it from the log, :mod:`pride.states` its
   observable states, :mod:`pride.automation` the part that acts on systems.
 - :mod:`pride.systems` — the gateway shape and its result types; :mod:`pride.gateways` opens one;

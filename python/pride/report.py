@@ -262,7 +262,8 @@ def to_markdown(summary: RunSummary) -> str:
     lines += ["", "## Actions", "", "| # | time (UTC) | actor | instruction | action |", "|---|---|---|---|---|"]
     for e in summary.events:
         lines.append(
-            f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} | {describe_event(e).replace('|', '/')} |"
+            f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} "
+            f"| {describe_event(e).replace('|', '/')} |"
         )
     return "\n".join(lines) + "\n"
 
@@ -275,7 +276,8 @@ def to_html(summary: RunSummary) -> str:
         for s in summary.steps
     )
     telemetry = "".join(
-        f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td><td>{esc(e.data['system'])}.{esc(e.data['item'])}</td>"
+        f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td>"
+        f"<td>{esc(e.data['system'])}.{esc(e.data['item'])}</td>"
         f"<td><code>{esc(format_value(e.data['value']))}</code></td><td>{esc(e.data.get('condition', '(branch)'))}</td>"
         f"<td>{'ok' if e.data.get('ok', True) and not e.data.get('stale') else '<b>not met</b>'}</td></tr>"
         for e in summary.telemetry
@@ -291,7 +293,8 @@ def to_html(summary: RunSummary) -> str:
         or "<p>None captured.</p>"
     )
     actions = "".join(
-        f'<tr class="{"operator" if e.actor != PAX else ""}"><td>{e.seq}</td><td>{_clock(e.time)}</td><td>{esc(e.actor)}</td>'
+        f'<tr class="{"operator" if e.actor != PAX else ""}"><td>{e.seq}</td><td>{_clock(e.time)}</td>'
+        f"<td>{esc(e.actor)}</td>"
         f"<td>{esc(e.instruction or '')}</td><td>{esc(describe_event(e))}</td></tr>"
         for e in summary.events
     )

@@ -1,0 +1,359 @@
+"""The machinery under :class:`pride.executive.Executive`: one run's state, PAX's thread, the supervisor.
+
+:class:`RunEngine` holds the run's state under one lock, records every event in the journal
+before anything else happens (:meth:`RunEngine._emit`), answers snapshots and waits, runs PAX's
+thread (which performs the instructions automation or an operator asked for) and the supervisor
+(links and control of the robot). It changes the state only as PAX; the operator's actions, the
+start and the resume are the executive's, and :mod:`pride.executive` documents the whole
+contract. Split so each half can be read on its own: what carries a run out, and what people
+may do to it.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+from pride.automation import Automation, ControlLost, InstructionResult
+from pride.events import PAX, Event, EventKind, Journal
+from pride.link_watch import LinkWatch
+from pride.lint import CheckedProcedure
+from pride.model import Instruction
+from pride.phrasing import fill_text
+from pride.run_control import ControlStore, RunControl
+from pride.run_state import RunState
+from pride.states import (
+    Controller,
+    InstructionStatus,
+    JournalFailure,
+    Mode,
+    RunStatus,
+    Snapshot,
+)
+from pride.systems import LinkState, SystemGateway, TelemetryValue
+
+__all__ = ["RunEngine"]
+
+log = logging.getLogger(__name__)
+
+#: How long :meth:`Executive.snapshot` waits for the lock before it answers from its last state.
+_SNAPSHOT_WAIT_S = 0.05
+#: How often the supervisor looks at the links and at who controls the robot.
+_SUPERVISE_S = 0.5
+
+
+class RunEngine:
+    """One run's state, journal, PAX thread and supervisor; :class:`pride.executive.Executive` adds the actions."""
+
+    def __init__(
+        self,
+        checked: CheckedProcedure,
+        gateway: SystemGateway,
+        journal: Journal,
+        *,
+        run_id: str,
+        mode: Mode = Mode.MANUAL,
+        control: ControlStore | None = None,
+    ) -> None:
+        """Prepare a run (nothing happens until :meth:`start`).
+
+        Args:
+            checked: what to run, as :func:`pride.lint.check_procedure` checked it (with its
+                SysReps and sub-procedures): a procedure with errors never gets this far.
+            gateway: the systems (the PAX host shape, :mod:`pride.systems`).
+            journal: where every event goes first (the audit log).
+            run_id: the run's id in the journal.
+            mode: the initial mode.
+            control: who controls which robot (the ground database); None runs without taking
+                control (a bench with one run).
+        """
+        self.procedure = checked.procedure
+        self.run_id = run_id
+        self.robot = gateway.robot()
+        self._checked = checked
+        self._gateway = gateway
+        self._journal = journal
+        self._control = RunControl(control, self.robot, run_id)
+        self._lock = threading.RLock()  # guards every field below and the run state
+        self._changed = threading.Condition(self._lock)
+        self._seq = 0
+        self._listeners: list[Callable[[Event], None]] = []
+        self._automation = Automation(gateway, checked, self._record, may_send=self._may_send)
+        self._state = RunState(
+            self.procedure,
+            mode,
+            run_id=run_id,
+            emit=self._emit,
+            notify=self._changed.notify_all,
+            hazardous=self._automation.is_hazardous,
+        )
+        self._worker: threading.Thread | None = None
+        self._supervisor: threading.Thread | None = None
+        self._links = LinkWatch()
+        self._wake = threading.Event()  # the supervisor has something to look at
+        self._last = self._build_snapshot()
+        gateway.add_listener(self._telemetry_callback)
+        gateway.add_link_listener(self._link_callback)
+
+    # ---- observation ------------------------------------------------------------------------
+    def add_listener(self, callback: Callable[[Event], None]) -> None:
+        """Call ``callback(event)`` for every event from now on (see the module docstring)."""
+        with self._lock:
+            self._listeners.append(callback)
+
+    def remove_listener(self, callback: Callable[[Event], None]) -> None:
+        with self._lock:
+            self._listeners.remove(callback)
+
+    def snapshot(self) -> Snapshot:
+        """The run's state now (see the module docstring: never waits for the database)."""
+        if self._lock.acquire(timeout=_SNAPSHOT_WAIT_S):
+            try:
+                self._last = self._build_snapshot()
+            finally:
+                self._lock.release()
+        return self._live(self._last)
+
+    def _build_snapshot(self) -> Snapshot:
+        state = self._state
+        hold, reason = state.hold()
+        current = state.current_number() if state.status is RunStatus.ACTIVE else None
+        pending = state.unknown[0] if state.unknown else None
+        return Snapshot(
+            run_id=self.run_id,
+            procedure_id=self.procedure.id,
+            status=state.status,
+            mode=state.mode,
+            current=current,
+            hold=hold,
+            reason=reason,
+            executing=state.executing,
+            statuses=dict(state.statuses),
+            breakpoints=frozenset(state.breakpoints),
+            variables=state.variables(),
+            last_seq=self._seq,
+            error=state.error,
+            robot=self.robot,
+            has_control=self._control.held and state.control_lost is None,
+            unknown_key=pending,
+            halted_by=state.halt.user if state.halt else None,
+            halt_reason=state.halt.reason if state.halt else "",
+        )
+
+    def _live(self, snap: Snapshot) -> Snapshot:
+        """``snap`` with the links and the journal as they are now (no executive lock needed)."""
+        links = self._links.now()
+        availability = self._journal.availability
+        return replace(
+            snap,
+            link_lost_since=links.lost_since,
+            commands_in_flight=links.in_flight,
+            journal_available=availability.available,
+            journal_unavailable_since=availability.since,
+            journal_error=availability.error,
+        )
+
+    def current_instruction(self) -> Instruction | None:
+        """The instruction the run is at (in the innermost sub-procedure), or None when finished."""
+        with self._lock:
+            return self._state.frame.instruction if self._state.status is RunStatus.ACTIVE else None
+
+    def wait_for(self, predicate: Callable[[Snapshot], bool], timeout: float | None = None) -> Snapshot | None:
+        """Block until ``predicate(snapshot)`` holds; return that snapshot, or None on timeout."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._changed:
+            while True:
+                snap = self.snapshot()
+                if predicate(snap):
+                    return snap
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return None
+                self._changed.wait(remaining if remaining is not None else _SUPERVISE_S)
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for PAX's thread to end (after the run completed or stopped)."""
+        if self._worker is not None:
+            self._worker.join(timeout)
+        if self._supervisor is not None:
+            self._supervisor.join(timeout)
+
+    def _launch(self) -> None:
+        self._worker = threading.Thread(target=self._pax_loop, name=f"pax-{self.run_id}", daemon=True)
+        self._worker.start()
+        self._supervisor = threading.Thread(target=self._supervise, name=f"pax-watch-{self.run_id}", daemon=True)
+        self._supervisor.start()
+
+    # ---- control of the robot -----------------------------------------------------------------
+    def _record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
+        if previous is not None:
+            self._emit(
+                EventKind.CONTROL_TAKEN,
+                user,
+                self._state.current_number(),
+                robot=self.robot,
+                from_run=previous.run_id,
+                from_user=previous.user,
+                reason=reason or "",
+            )
+
+    def _may_send(self) -> None:
+        """Raise ControlLost unless this run controls its robot (asked in the database, not remembered)."""
+        lost, holder = self._control.lost()
+        if lost:
+            raise ControlLost(self._control.lost_text(holder), holder)
+
+    def _lose_control(self, holder: Controller | None) -> None:
+        """Another run took the robot: hold and say who (the lock is held)."""
+        state = self._state
+        if state.control_lost is not None or state.status is not RunStatus.ACTIVE:
+            return
+        state.control_lost = self._control.lost_text(holder)
+        self._emit(
+            EventKind.CONTROL_LOST,
+            PAX,
+            state.current_number(),
+            robot=self.robot,
+            by_run=holder.run_id if holder else None,
+            by_user=holder.user if holder else None,
+            reason=holder.reason if holder else "",
+        )
+        state.announce()
+
+    # ---- events -----------------------------------------------------------------------------
+    def _emit(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> Event:
+        """Record an event (the lock is held): durably first, then wake waiters and tell listeners.
+
+        A journal that cannot store it stops the run at once (:class:`JournalFailure`); its
+        sequence number stays free for the event a resume records next.
+        """
+        event = Event(self.run_id, self._seq + 1, kind, actor, instruction, data)
+        try:
+            self._journal.append(event)  # durable first: if this raises, the action does not happen
+        except Exception as exc:
+            state = self._state
+            state.error = f"{type(exc).__name__}: {exc}"
+            state.status = RunStatus.STOPPED
+            self._automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
+            self._changed.notify_all()
+            log.error("run %s stopped: the journal could not store %s: %s", self.run_id, kind.value, exc)
+            raise JournalFailure(
+                f"run {self.run_id} stopped: the audit log could not store {kind.value}: {state.error}"
+            ) from exc
+        self._seq = event.seq
+        self._last = self._build_snapshot()  # what readers get while a later append waits for the database
+        self._changed.notify_all()  # every event is a change someone may be waiting for
+        for listener in list(self._listeners):
+            try:
+                listener(event)
+            except Exception:  # an observer's bug must not stop a robot mid-procedure
+                log.exception("event listener %r failed on %s", listener, kind.value)
+        return event
+
+    def _record(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> None:
+        """Emit from PAX's thread while it does not hold the lock (automation's callback)."""
+        with self._lock:
+            if self._state.error is not None:
+                raise JournalFailure(f"run {self.run_id} stopped: {self._state.error}")
+            self._emit(kind, actor, instruction, **data)
+
+    # ---- PAX's thread -----------------------------------------------------------------------
+    def _next_job(self) -> Any:
+        return None if self._automation.interrupt.is_set() else self._state.next_job()
+
+    def _pax_loop(self) -> None:
+        state = self._state
+        try:
+            while True:
+                with self._changed:
+                    job = self._next_job()
+                    while job is None and state.status is RunStatus.ACTIVE:
+                        self._changed.wait()
+                        job = self._next_job()
+                    if job is None:
+                        return
+                    number = state.begin(job)
+                    text = job.instruction.describe()  # as written: ${...} stay references
+                    self._emit(
+                        EventKind.INSTRUCTION_STARTED,
+                        job.actor,
+                        number,
+                        instruction_kind=job.instruction.kind.value,
+                        text=text,
+                        text_filled=fill_text(text, job.frame.env),
+                    )
+                try:
+                    outcome = self._automation.carry_out(
+                        job.frame.env, job.frame.procedure, job.instruction, number, job.actor, job.send
+                    )
+                except (JournalFailure, ControlLost):
+                    raise
+                except KeyError as exc:
+                    outcome = InstructionResult(False, str(exc.args[0]) if exc.args else str(exc))
+                except Exception as exc:  # a gateway error is a failed instruction, never a success
+                    log.exception("%s failed", number)
+                    outcome = InstructionResult(False, f"{type(exc).__name__}: {exc}")
+                with self._changed:
+                    state.executing = False
+                    if state.halt is None:
+                        state.halt = self._automation.halt
+                    state.finish(job, number, outcome)
+                    if job.then_pause and state.status is RunStatus.ACTIVE and not state.paused:
+                        state.paused = True
+                        self._emit(EventKind.PAUSED, job.actor, state.current_number(), after_step=number)
+                    self._changed.notify_all()
+        except ControlLost as lost:
+            with self._changed:
+                state.executing = False
+                state.statuses[state.frame.number()] = InstructionStatus.ACTIVE
+                self._lose_control(lost.holder)
+            self._pax_loop()  # nothing was sent: carry on waiting (the hold keeps automation back)
+        except JournalFailure:
+            pass  # the run stopped in _emit, with the journal's reason
+        except Exception as exc:  # a bug must not leave a run looking alive
+            log.exception("run %s stopped: %s", self.run_id, exc)
+            with self._changed:
+                state.error = f"{type(exc).__name__}: {exc}"
+                state.status = RunStatus.STOPPED
+                state.executing = False
+                self._automation.interrupt.set()
+                self._changed.notify_all()
+        finally:
+            self._wake.set()
+
+    # ---- the supervisor: links and control, on its own thread -----------------------------------
+    def _supervise(self) -> None:
+        """Record link changes and notice a takeover of the robot until the run ends; then release it."""
+        try:
+            while self._state.status is RunStatus.ACTIVE:
+                self._wake.wait(_SUPERVISE_S)
+                self._wake.clear()
+                change = self._links.change()
+                lost, holder = self._control.lost() if self._state.control_lost is None else (False, None)
+                if change is None and not lost:
+                    continue
+                with self._changed:
+                    if change is not None and self._state.status is RunStatus.ACTIVE:
+                        self._emit(change[0], PAX, self._state.current_number(), **change[1])
+                    if lost:
+                        self._lose_control(holder)
+        except JournalFailure:
+            pass  # the run stopped in _emit, with the journal's reason
+        except Exception:
+            log.exception("run %s: watching links and control failed", self.run_id)
+        finally:
+            if self._state.status is not RunStatus.ACTIVE:
+                self._control.release()
+
+    def _link_callback(self, state: LinkState) -> None:
+        """Called by the gateway on its own thread: note the link, let the supervisor record it."""
+        self._links.update(state)
+        self._wake.set()
+
+    def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
+        """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
+        self._automation.telemetry_changed.set()
