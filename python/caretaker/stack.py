@@ -37,8 +37,8 @@ from pathlib import Path
 
 from caretaker.deployment import Deployment, load_deployment
 from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
+from caretaker.terminal import TerminalLines
 from datafile import DataFileError
-from pride.terminal import TerminalLines
 
 __all__ = ["PARTS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 

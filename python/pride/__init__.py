@@ -21,7 +21,8 @@ Modules, by concept:
 - :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action;
   :mod:`pride.audit_chain` its hash chain, :mod:`pride.audit_schema` and :mod:`pride.migrations`
   its tables and their Alembic migrations.
-- :mod:`pride.report` — after-action reports; :mod:`pride.terminal`, :mod:`pride.cli` — the CLI.
+- :mod:`pride.report` — after-action reports (the commands that use all this, ``caretaker lint``,
+  ``run``, ``report`` and ``db``, are :mod:`caretaker.procedure_commands`).
 - :mod:`pride.run_control` — a run's control of its robot; :mod:`pride.robot_control` its store
   in the ground database.
 

@@ -10,18 +10,18 @@ from __future__ import annotations
 import io
 from datetime import UTC, datetime
 
+from caretaker.terminal import ProgressPrinter, TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Hold, Mode, RunStatus
 from pride.model import Template
 from pride.phrasing import describe_event, fill_text, started_text
 from pride.report import summarize, to_html, to_markdown
-from pride.terminal import ProgressPrinter, TerminalLines
-from support.executive_runs import finished, held
+from support.executive_runs import Bench, finished, held
 
 FILTER = "CDRA-F-0012"
 
 
-def test_the_report_and_the_terminal_show_a_started_sentence_with_the_values_known_then(bench) -> None:
+def test_the_report_and_the_terminal_show_a_started_sentence_with_the_values_known_then(bench: Bench) -> None:
     executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_filled_text.xml", run_id="filled")
     terminal = io.StringIO()
     executive.add_listener(ProgressPrinter(executive.procedure, TerminalLines(terminal)))

@@ -6,20 +6,22 @@ import io
 import itertools
 import os
 import threading
+from pathlib import Path
 
 import pytest
 
+from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus
 from pride.lint import check_procedure
-from pride.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
+from pride.sysrep import SysRep
 from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
 
 
-def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
+def _executive(sysreps: dict[str, SysRep], tmp_path: Path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
     journal, gateway = RecordedJournal(AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")), LabGateway(str(tmp_path))
     executive = Executive(
         check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t", mode=mode
@@ -27,7 +29,9 @@ def _executive(sysreps, tmp_path, mode: Mode) -> tuple[Executive, RecordedJourna
     return executive, journal, gateway
 
 
-def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(sysreps, tmp_path) -> None:
+def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(
+    sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     out = io.StringIO()
     terminal = TerminalLines(out)
@@ -51,7 +55,9 @@ def test_operator_at_a_terminal_runs_a_manual_procedure_through_prompts(sysreps,
     assert {e.actor for e in journal.events if e.kind is EventKind.COMMAND_SENT} == {"pat"}
 
 
-def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sysreps, tmp_path) -> None:
+def test_unattended_console_answers_from_options_and_stops_where_it_has_none(
+    sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS)
     out = io.StringIO()
     executive.start("quinn")
@@ -75,7 +81,9 @@ def test_unattended_console_answers_from_options_and_stops_where_it_has_none(sys
 
 
 @pytest.mark.parametrize("reason, recorded", [("end of shift", "end of shift"), ("", "stopped at the terminal")])
-def test_operator_can_stop_from_the_prompt_saying_why(sysreps, tmp_path, reason, recorded) -> None:
+def test_operator_can_stop_from_the_prompt_saying_why(
+    sysreps: dict[str, SysRep], tmp_path: Path, reason: str, recorded: str
+) -> None:
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.MANUAL)
     executive.start("rita")
     answers = iter(["q", reason])

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError, head_revision
 from pride.diagnostics import ProcedureError
@@ -25,7 +26,6 @@ from pride.lint import check_procedure, lint_file
 from pride.robot_control import RobotControl
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
-from pride.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 
 __all__ = ["db_main", "lint_main", "report_main", "run_main"]
 
