@@ -32,7 +32,8 @@ from typing import Any
 
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
 from console.spatial_link import LinkError, RosbridgeLink, Subscription, ViewLink
-from console.spatial_scene import SpatialDataError, joints_update, objects_update, templates_update
+from console.spatial_updates import joints_update, objects_update, templates_update
+from console.spatial_values import SpatialDataError
 from console.spatial_world import plan_from_get_plan, world_document
 
 __all__ = ["PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher", "AT_COMMANDS_THAT_MOVE_TEMPLATES"]

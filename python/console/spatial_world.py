@@ -5,7 +5,7 @@ ground has neither, it has the habitat's latched ``sim/visual_world`` (every dra
 its shapes and colours, the robot's root pose, joints, tool link) and ``robot_description``,
 and the AT server's ``get_plan``. This module turns those rosbridge JSON messages into the same
 contract (``spatial/README.md``), with the same checks and errors (:class:`SpatialDataError`
-naming the bad value's place). Templates and joint/object updates are spatial_scene's.
+naming the bad value's place). Templates and joint/object updates are :mod:`console.spatial_updates`'s.
 """
 
 from __future__ import annotations
@@ -14,22 +14,9 @@ import xml.etree.ElementTree as ElementTree
 from collections.abc import Mapping
 from typing import Any
 
-from console.spatial_scene import (
-    CONTRACT_VERSION,
-    DOCUMENT_FRAME,
-    SpatialDataError,
-    _duration,
-    _list,
-    _mapping,
-    _names,
-    _number,
-    _numbers,
-    _required,
-    _ros_pose,
-    _str,
-    joints_update,
-    objects_update,
-)
+from console import spatial_values as checked
+from console.spatial_updates import joints_update, objects_update
+from console.spatial_values import CONTRACT_VERSION, DOCUMENT_FRAME, SpatialDataError
 
 __all__ = ["PLAN_SHOWN_STATES", "world_document", "plan_from_get_plan", "compose"]
 
@@ -43,27 +30,27 @@ _KINDS = {"filter/": "filter", "target/": "target", "cabinet/lamp": "lamp"}
 
 
 def _rgba(value: Any, where: str) -> list[float]:
-    rgba = _numbers(value, 4, where)
+    rgba = checked.numbers(value, 4, where)
     return rgba if any(rgba) else [0.6, 0.6, 0.6, 1.0]  # an unset colour (all zero) would be invisible
 
 
 def _shape(value: Any, where: str) -> Json:
-    s = _mapping(value, where)
-    kind = _str(_required(s, "type", where), f"{where}.type")
-    at = _ros_pose(s.get("pose", {}), f"{where}.pose")
+    s = checked.mapping(value, where)
+    kind = checked.text(checked.required(s, "type", where), f"{where}.type")
+    at = checked.ros_pose(s.get("pose", {}), f"{where}.pose")
     rgba = _rgba(s.get("rgba", [0, 0, 0, 0]), f"{where}.rgba")
     if kind == "box":
         return {
             "type": "box",
-            "size": _numbers(_required(s, "size", where), 3, f"{where}.size"),
+            "size": checked.numbers(checked.required(s, "size", where), 3, f"{where}.size"),
             "rgba": rgba,
             "pose": at,
         }
     if kind == "cylinder":
         return {
             "type": "cylinder",
-            "radius": _number(_required(s, "radius", where), f"{where}.radius"),
-            "length": _number(_required(s, "length", where), f"{where}.length"),
+            "radius": checked.number(checked.required(s, "radius", where), f"{where}.radius"),
+            "length": checked.number(checked.required(s, "length", where), f"{where}.length"),
             "rgba": rgba,
             "pose": at,
         }
@@ -73,19 +60,20 @@ def _shape(value: Any, where: str) -> Json:
 def _objects(world: Mapping[str, Any]) -> list[Json]:
     out: list[Json] = []
     seen: set[str] = set()
-    for i, value in enumerate(_list(world.get("objects", []), "visual_world.objects")):
+    for i, value in enumerate(checked.sequence(world.get("objects", []), "visual_world.objects")):
         where = f"visual_world.objects[{i}]"
-        o = _mapping(value, where)
-        name = _str(_required(o, "name", where), f"{where}.name")
+        o = checked.mapping(value, where)
+        name = checked.text(checked.required(o, "name", where), f"{where}.name")
         if name in seen:
             raise SpatialDataError(f"{where}.name", f"two objects are named {name!r}")
         seen.add(name)
         kind = next((k for prefix, k in _KINDS.items() if name.startswith(prefix)), "body")
         shapes = [
-            _shape(s, f"{where}.shapes[{k}]") for k, s in enumerate(_list(o.get("shapes", []), f"{where}.shapes"))
+            _shape(s, f"{where}.shapes[{k}]")
+            for k, s in enumerate(checked.sequence(o.get("shapes", []), f"{where}.shapes"))
         ]
         out.append(
-            {"name": name, "kind": kind, "pose": _ros_pose(o.get("pose", {}), f"{where}.pose"), "shapes": shapes}
+            {"name": name, "kind": kind, "pose": checked.ros_pose(o.get("pose", {}), f"{where}.pose"), "shapes": shapes}
         )
     return out
 
@@ -104,24 +92,26 @@ def world_document(
     now. The shipped robots are primitives; a URDF naming mesh files gets no ``mesh_urls``
     (the ground does not serve the habitat's files), so such meshes are left out, not fetched.
     """
-    world = _mapping(visual_world, "visual_world")
+    world = checked.mapping(visual_world, "visual_world")
     if not isinstance(urdf, str) or "<robot" not in urdf:
         raise SpatialDataError("robot_description.data", "expected the text of a URDF (no <robot> element found)")
-    arm_joints = _names(_required(world, "arm_joints", "visual_world"), "visual_world.arm_joints")
-    gripper_joints = _names(world.get("gripper_joints", []), "visual_world.gripper_joints")
+    arm_joints = checked.names(checked.required(world, "arm_joints", "visual_world"), "visual_world.arm_joints")
+    gripper_joints = checked.names(world.get("gripper_joints", []), "visual_world.gripper_joints")
     objects = _objects(world)
     document: Json = {
         "contract": CONTRACT_VERSION,
         "kind": "scene",
         "frame": DOCUMENT_FRAME,
-        "name": _str(world.get("scene", ""), "visual_world.scene") or "scene",
+        "name": checked.text(world.get("scene", ""), "visual_world.scene") or "scene",
         "robot": {
-            "name": _str(_required(world, "robot_name", "visual_world"), "visual_world.robot_name"),
+            "name": checked.text(checked.required(world, "robot_name", "visual_world"), "visual_world.robot_name"),
             "urdf": urdf,
             "mesh_urls": {},
             "base_link": _urdf_root(urdf),
-            "tool_link": _str(_required(world, "tool_link", "visual_world"), "visual_world.tool_link"),
-            "base_pose": _ros_pose(_required(world, "robot_base", "visual_world"), "visual_world.robot_base"),
+            "tool_link": checked.text(checked.required(world, "tool_link", "visual_world"), "visual_world.tool_link"),
+            "base_pose": checked.ros_pose(
+                checked.required(world, "robot_base", "visual_world"), "visual_world.robot_base"
+            ),
             "arm_joints": arm_joints,
             "end_effector_poses": {},
         },
@@ -189,34 +179,41 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
     ``frames``: named poses in the document frame (``sim/frames``); the end pose, given in the
     robot's frame (``robot_base``), is placed in the document frame with them.
     """
-    a = _mapping(answer, "get_plan")
+    a = checked.mapping(answer, "get_plan")
     if not a.get("success") or a.get("state") not in PLAN_SHOWN_STATES:
         return {"kind": "plan", "plan": None}
-    traj = _mapping(_required(a, "trajectory", "get_plan"), "get_plan.trajectory")
-    names = _names(_required(traj, "joint_names", "get_plan.trajectory"), "get_plan.trajectory.joint_names")
+    traj = checked.mapping(checked.required(a, "trajectory", "get_plan"), "get_plan.trajectory")
+    names = checked.names(
+        checked.required(traj, "joint_names", "get_plan.trajectory"), "get_plan.trajectory.joint_names"
+    )
     points: list[Json] = []
-    for k, value in enumerate(_list(_required(traj, "points", "get_plan.trajectory"), "get_plan.trajectory.points")):
+    for k, value in enumerate(
+        checked.sequence(checked.required(traj, "points", "get_plan.trajectory"), "get_plan.trajectory.points")
+    ):
         w = f"get_plan.trajectory.points[{k}]"
-        p = _mapping(value, w)
-        t = _duration(_required(p, "time_from_start", w), f"{w}.time_from_start")
+        p = checked.mapping(value, w)
+        t = checked.duration(checked.required(p, "time_from_start", w), f"{w}.time_from_start")
         if points and t < points[-1]["time_from_start"]:
             raise SpatialDataError(
                 f"{w}.time_from_start",
                 f"time {t:.3f} s goes back (previous point at {points[-1]['time_from_start']:.3f} s)",
             )
         points.append(
-            {"positions": _numbers(_required(p, "positions", w), len(names), f"{w}.positions"), "time_from_start": t}
+            {
+                "positions": checked.numbers(checked.required(p, "positions", w), len(names), f"{w}.positions"),
+                "time_from_start": t,
+            }
         )
     if not points:
         raise SpatialDataError("get_plan.trajectory.points", "a PLANNED plan without points")
-    labels = _names(a.get("waypoint_names", []), "get_plan.waypoint_names")
-    indices = _list(a.get("waypoint_point_index", []), "get_plan.waypoint_point_index")
-    ee_poses = _list(a.get("end_effector_poses", []), "get_plan.end_effector_poses")
+    labels = checked.names(a.get("waypoint_names", []), "get_plan.waypoint_names")
+    indices = checked.sequence(a.get("waypoint_point_index", []), "get_plan.waypoint_point_index")
+    ee_poses = checked.sequence(a.get("end_effector_poses", []), "get_plan.end_effector_poses")
     if len(indices) != len(labels):
         raise SpatialDataError("get_plan.waypoint_point_index", f"{len(indices)} indices for {len(labels)} waypoints")
     waypoints = []
     for i, (label, index) in enumerate(zip(labels, indices, strict=True)):
-        point = int(_number(index, f"get_plan.waypoint_point_index[{i}]"))
+        point = int(checked.number(index, f"get_plan.waypoint_point_index[{i}]"))
         if not 0 <= point < len(points):
             raise SpatialDataError(
                 f"get_plan.waypoint_point_index[{i}]", f"point {point} of a plan of {len(points)} points"
@@ -227,8 +224,10 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
     end_pose = None
     stamped = a.get("end_pose")
     if isinstance(stamped, dict) and stamped.get("pose") is not None:
-        frame = _mapping(stamped.get("header", {}), "get_plan.end_pose.header").get("frame_id", "") or DOCUMENT_FRAME
-        local = _ros_pose(stamped["pose"], "get_plan.end_pose.pose")
+        frame = (
+            checked.mapping(stamped.get("header", {}), "get_plan.end_pose.header").get("frame_id", "") or DOCUMENT_FRAME
+        )
+        local = checked.ros_pose(stamped["pose"], "get_plan.end_pose.pose")
         if frame == DOCUMENT_FRAME:
             end_pose = local
         elif frame in frames:
@@ -241,11 +240,11 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
         "kind": "plan",
         "plan": {
             "instance": instance,
-            "trajectory": _str(a.get("trajectory_name", ""), "get_plan.trajectory_name"),
+            "trajectory": checked.text(a.get("trajectory_name", ""), "get_plan.trajectory_name"),
             "joint_names": names,
             "points": points,
             "waypoints": waypoints,
-            "tool_link": _str(a.get("end_pose_link", ""), "get_plan.end_pose_link"),
+            "tool_link": checked.text(a.get("end_pose_link", ""), "get_plan.end_pose_link"),
             "end_pose": end_pose,
         },
     }

@@ -24,7 +24,8 @@ from at_ros.robot_config import RobotConfig, load_robot_configs
 from at_ros.template_messages import instance_status, template_config
 from at_ros.transforms import from_xyz_quat, invert, to_xyz_quat
 from bridge.rosbridge.conversion import message_to_dict
-from console.spatial_scene import PlanSegment, plan_update, scene_document, templates_update
+from console.spatial_scene import scene_document
+from console.spatial_updates import PlanSegment, plan_update, templates_update
 from sim.scene import load_scene
 from sim.simulation import Simulation
 

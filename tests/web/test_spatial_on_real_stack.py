@@ -422,7 +422,7 @@ def wait_until_state(page: Page, condition: str) -> None:
 
 
 def rpy_quat(roll: float, pitch: float, yaw: float) -> list[float]:
-    from console.spatial_scene import pose
+    from console.spatial_values import pose
 
     return list(pose(rpy=(roll, pitch, yaw))["quat"])
 

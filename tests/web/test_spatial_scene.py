@@ -11,14 +11,9 @@ from typing import Any
 import pytest
 import yaml
 
-from console.spatial_scene import (
-    PlanSegment,
-    SpatialDataError,
-    objects_update,
-    plan_update,
-    scene_document,
-    templates_update,
-)
+from console.spatial_scene import scene_document
+from console.spatial_updates import PlanSegment, objects_update, plan_update, templates_update
+from console.spatial_values import SpatialDataError
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -20,7 +20,7 @@ from spatial_data import REPO, Habitat, RunningTemplate, matrix
 from spatial_site import SpatialSite, serve_site
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
-from console.spatial_scene import objects_update
+from console.spatial_updates import objects_update
 from support.operator_page import shown_image_width
 
 TIMEOUT_MS = 60_000

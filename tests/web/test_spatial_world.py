@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 
-from console.spatial_scene import SpatialDataError
+from console.spatial_values import SpatialDataError
 from console.spatial_world import compose, plan_from_get_plan, world_document
 
 URDF = (
