@@ -3,8 +3,9 @@
 The browser's ``SpatialView`` (``spatial/``, contract in ``spatial/README.md``) builds itself
 from data only. This module makes its scene document from what crosses the link as plain data
 - a scene file's mapping, a URDF's text, and optionally the first ``/joint_states`` and
-``/sim/frames`` - and :mod:`console.spatial_updates` makes the updates that follow it. It imports neither rclpy nor the robot side, so the ground server can run it on what
-rosbridge hands it, and tests on the shipped files.
+``/sim/frames`` - and :mod:`console.spatial_updates` makes the updates that follow it. It
+imports neither rclpy nor the robot side, so the ground server can run it on what rosbridge
+hands it, and tests on the shipped files.
 
 Every input is hostile until checked: a malformed value raises :class:`SpatialDataError`
 naming where it is (``scene.bodies[2].shapes[0].size``) and what was expected.
