@@ -4,6 +4,7 @@ a dead simulation (the world) ends the stack, and nothing outlives it."""
 
 from __future__ import annotations
 
+import os
 import signal
 from collections.abc import Iterator
 from urllib.parse import urlparse
@@ -12,6 +13,7 @@ import psutil
 import pytest
 import roslibpy
 
+from caretaker.stack import PARTS, URGENT_NICENESS
 from rosbridge.rosbridge_support import wait_until_discovered
 from support.processes import ManagedProcess
 from support.stack import stack_up
@@ -72,7 +74,7 @@ def _call_until_answered(
     return None, failures
 
 
-def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
+def test_a_dead_at_server_is_restarted_with_its_instances(stack: tuple[ManagedProcess, int]) -> None:
     up, port = stack
     added = _call(
         port,
@@ -98,10 +100,30 @@ def test_a_dead_at_server_is_restarted_with_its_instances(stack) -> None:
     assert up.running
 
 
-def test_a_dead_bridge_comes_back_on_the_port_it_picked(stack) -> None:
+def _niceness(process: psutil.Process) -> set[int]:
+    """The niceness of every thread of ``process`` (Linux keeps one per thread)."""
+    return {os.getpriority(os.PRIO_PROCESS, thread.id) for thread in process.threads()}
+
+
+def _assert_urgent_parts_run_ahead(up: ManagedProcess) -> None:
+    urgent = URGENT_NICENESS if os.geteuid() == 0 else 0  # raising priority needs root (CI is root)
+    for part in PARTS:
+        if part.name == "link":
+            continue  # the iva deployment has no emulated link
+        expected = urgent if part.urgent else 0
+        assert _niceness(_part(up, part.name)) == {expected}, part.name
+    if os.geteuid() != 0:
+        assert "may not raise priorities" in up.tail(400)
+
+
+def test_urgent_parts_run_ahead_and_a_dead_bridge_comes_back_urgent_on_its_port(
+    stack: tuple[ManagedProcess, int],
+) -> None:
     up, port = stack
+    _assert_urgent_parts_run_ahead(up)
     _part(up, "bridge").send_signal(signal.SIGKILL)
     up.wait_for_line(rf"^restarted bridge: READY bridge ws://127\.0\.0\.1:{port}$", 120)
+    _assert_urgent_parts_run_ahead(up)
     answer, failures = _call_until_answered(
         port,
         "/affordance_template_server/get_running",
@@ -111,7 +133,7 @@ def test_a_dead_bridge_comes_back_on_the_port_it_picked(stack) -> None:
     assert answer is not None and answer["success"], failures
 
 
-def test_a_dead_simulation_ends_the_stack_and_every_part(stack) -> None:
+def test_a_dead_simulation_ends_the_stack_and_every_part(stack: tuple[ManagedProcess, int]) -> None:
     up, _ = stack
     parts = psutil.Process(up.proc.pid).children(recursive=True)
     _part(up, "sim").send_signal(signal.SIGKILL)
