@@ -10,12 +10,16 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING
 
 import pytest
 
 from support.postgres import PostgresServer, postgres_server
 from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
+
+if TYPE_CHECKING:  # playwright is loaded only by sessions with browser tests
+    from playwright.sync_api import Browser, Playwright
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 # pytest-xdist workers inherit the controller's environment: each claims a domain of its own.
@@ -38,7 +42,7 @@ def postgres() -> Iterator[PostgresServer]:
 
 
 @pytest.fixture(scope="module")
-def playwright() -> Iterator:
+def playwright() -> Iterator[Playwright]:
     """One Playwright driver per test module.
 
     Its sync API keeps an asyncio loop marked running on the main thread while it lives, so a
@@ -51,7 +55,7 @@ def playwright() -> Iterator:
 
 
 @pytest.fixture(scope="module")
-def browser(playwright) -> Iterator:
+def browser(playwright: Playwright) -> Iterator[Browser]:
     """Debian's Chromium, headless."""
     from support.browser import CHROMIUM, CHROMIUM_ARGS
 

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import rclpy
 from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
 from caretaker_sim_msgs.msg import NamedPoses
 from caretaker_sim_msgs.srv import CaptureImage
+from geometry_msgs.msg import Pose
+from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -89,7 +92,7 @@ class AtClient:
         self.cdra_present = msg.data
         self._notify()
 
-    def wait_for(self, predicate, timeout: float = 30.0, what: str = "condition") -> None:
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = 30.0, what: str = "condition") -> None:
         deadline = time.monotonic() + timeout
         with self._changed:
             while not predicate():
@@ -105,7 +108,7 @@ class AtClient:
             setattr(request, key, value)
         return self._call(self.clients[service], request, call_timeout, service)
 
-    def _call(self, client, request, timeout: float, name: str) -> Any:
+    def _call(self, client: Client, request: Any, timeout: float, name: str) -> Any:
         if not client.wait_for_service(timeout_sec=30.0):
             raise TimeoutError(f"service {name} not available")
         future = client.call_async(request)
@@ -123,7 +126,7 @@ class AtClient:
         request.camera, request.label = camera, label
         return self._call(self.capture_client, request, 60.0, "capture")
 
-    def register(self, type_name: str, instance_id: int, obj: str, frame: str, pose=None) -> Any:
+    def register(self, type_name: str, instance_id: int, obj: str, frame: str, pose: Pose | None = None) -> Any:
         info = DisplayObjectInfo()
         info.type, info.id, info.name = type_name, instance_id, obj
         info.stamped_pose.header.frame_id = frame

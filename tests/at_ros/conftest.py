@@ -2,27 +2,30 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
 from at_ros.collision_scene import build_planning_scene
-from at_ros.library import default_library_path, load_library
-from at_ros.robot_config import load_robot_configs
+from at_ros.library import Template, default_library_path, load_library
+from at_ros.planning_scene import PlanningScene
+from at_ros.robot_config import RobotConfig, load_robot_configs
 from sim.collision_world import collision_world
 from sim.scene import load_scene
 
 
 @pytest.fixture(scope="module")
-def library():
+def library() -> dict[str, Template]:
     return load_library(default_library_path() / "templates")
 
 
 @pytest.fixture(scope="module")
-def ur10_config():
+def ur10_config() -> RobotConfig:
     return load_robot_configs()["ur10"]
 
 
 @pytest.fixture(scope="module")
-def iva_scene(ur10_config):
+def iva_scene(ur10_config: RobotConfig) -> Iterator[PlanningScene]:
     """The planner's pybullet world for the IVA scene, from the collision world the simulation publishes."""
     scene = build_planning_scene(ur10_config, collision_world(load_scene("iva")))
     yield scene

@@ -88,7 +88,9 @@ def node_pair() -> Iterator[tuple[Any, Any, MultiThreadedExecutor]]:
         rclpy.shutdown(context=context)
 
 
-def test_answers_taken_before_the_request_is_recorded_still_settle_it(node_pair) -> None:
+def test_answers_taken_before_the_request_is_recorded_still_settle_it(
+    node_pair: tuple[Any, Any, MultiThreadedExecutor],
+) -> None:
     server_node, client_node, _ = node_pair
     name = "/recorded_action_test/follow"
 

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Iterator
 
 import pytest
 from affordance_template_msgs.msg import ServerStatus
+from at_client import AtClient
+from geometry_msgs.msg import Pose
 
 from at_ros.api import SERVICES
 from support.at_server import start_stack
@@ -24,16 +27,16 @@ EMPTY_SLOT = "rack/slot_3"
 
 
 @pytest.fixture(scope="module")
-def at(ros_env):
+def at(ros_env: dict[str, str]) -> Iterator[AtClient]:
     # Real time: executions last seconds, so "while executing" can be observed without races.
     yield from start_stack(ros_env, "iva", 1.0)
 
 
-def _distance(a, b) -> float:
+def _distance(a: Pose, b: Pose) -> float:
     return math.dist((a.position.x, a.position.y, a.position.z), (b.position.x, b.position.y, b.position.z))
 
 
-def test_library_robots_and_status_are_served(at) -> None:
+def test_library_robots_and_status_are_served(at: AtClient) -> None:
     templates = at.call("get_templates")
     assert templates.success
     by_type = {t.type: t for t in templates.templates}
@@ -46,7 +49,7 @@ def test_library_robots_and_status_are_served(at) -> None:
     assert at.status.robot_name == "ur10"
 
 
-def test_instance_ids_are_the_lowest_free(at) -> None:
+def test_instance_ids_are_the_lowest_free(at: AtClient) -> None:
     first = at.call("add_template", class_type="ready_pose")
     second = at.call("add_template", class_type="ready_pose")
     assert (first.instance, second.instance) == (f"ready_pose:{first.id}", f"ready_pose:{first.id + 1}")
@@ -63,7 +66,7 @@ def test_instance_ids_are_the_lowest_free(at) -> None:
     )
 
 
-def test_bad_requests_say_what_to_fix(at) -> None:
+def test_bad_requests_say_what_to_fix(at: AtClient) -> None:
     instance = at.call("add_template", class_type="cdra_filter")
     i = instance.id
     try:
@@ -112,7 +115,7 @@ def test_bad_requests_say_what_to_fix(at) -> None:
         at.call("delete_template", class_type="cdra_filter", id=i)
 
 
-def test_hidden_waypoints_plan_the_same_motion(at) -> None:
+def test_hidden_waypoints_plan_the_same_motion(at: AtClient) -> None:
     shown = at.call("add_template", class_type="cdra_filter", hide_waypoints=False)
     hidden = at.call("add_template", class_type="cdra_filter", hide_waypoints=True)
     try:
@@ -139,7 +142,7 @@ def test_hidden_waypoints_plan_the_same_motion(at) -> None:
             at.call("delete_template", class_type="cdra_filter", id=response.id)
 
 
-def test_steps_direct_and_backwards_choose_waypoints_as_the_original(at) -> None:
+def test_steps_direct_and_backwards_choose_waypoints_as_the_original(at: AtClient) -> None:
     added = at.call("add_template", class_type="cdra_filter")
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}").success
@@ -164,7 +167,7 @@ def test_steps_direct_and_backwards_choose_waypoints_as_the_original(at) -> None
         at.call("delete_template", class_type="cdra_filter", id=added.id)
 
 
-def test_set_waypoint_pose_moves_one_waypoint(at) -> None:
+def test_set_waypoint_pose_moves_one_waypoint(at: AtClient) -> None:
     added = at.call("add_template", class_type="cdra_filter")
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}").success
@@ -204,7 +207,7 @@ def test_set_waypoint_pose_moves_one_waypoint(at) -> None:
         at.call("delete_template", class_type="cdra_filter", id=added.id)
 
 
-def test_remove_dirty_filter_and_place_it_on_the_empty_rack_slot(at) -> None:
+def test_remove_dirty_filter_and_place_it_on_the_empty_rack_slot(at: AtClient) -> None:
     filt = at.call("add_template", class_type="cdra_filter")
     rival = at.call("add_template", class_type="cdra_filter")
     i = filt.id
@@ -253,7 +256,7 @@ def test_remove_dirty_filter_and_place_it_on_the_empty_rack_slot(at) -> None:
             at.call("delete_template", class_type="cdra_filter", id=response.id)
 
 
-def test_second_robot_command_while_executing_is_refused(at) -> None:
+def test_second_robot_command_while_executing_is_refused(at: AtClient) -> None:
     ready = at.call("add_template", class_type="ready_pose")
     other = at.call("add_template", class_type="ready_pose")
     try:
@@ -288,7 +291,7 @@ def test_second_robot_command_while_executing_is_refused(at) -> None:
             at.call("delete_template", class_type="ready_pose", id=response.id)
 
 
-def test_a_burst_of_requests_is_answered_in_full(at) -> None:
+def test_a_burst_of_requests_is_answered_in_full(at: AtClient) -> None:
     """Many clients polling at once (web views, tools): none of their requests may be dropped."""
     client = at.clients["get_status"]
     futures = [client.call_async(SERVICES["get_status"].Request()) for _ in range(BURST)]

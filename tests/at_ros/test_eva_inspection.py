@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import pytest
+from at_client import AtClient
 
 from support.at_server import start_stack
 
@@ -12,11 +14,11 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 @pytest.fixture(scope="module")
-def at(ros_env):
+def at(ros_env: dict[str, str]) -> Iterator[AtClient]:
     yield from start_stack(ros_env, "eva", 0.0)
 
 
-def test_inspection_stand_off_reached_and_image_captured(at) -> None:
+def test_inspection_stand_off_reached_and_image_captured(at: AtClient) -> None:
     added = at.call("add_template", class_type="inspection")
     try:
         assert at.register("inspection", added.id, "target", "target/hull_a").success

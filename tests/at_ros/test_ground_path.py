@@ -4,6 +4,7 @@ roslibpy client, from a deployment in ROS namespace /arm2 (every name is relativ
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from urllib.parse import urlparse
 
@@ -46,7 +47,13 @@ class Ground:
         finally:
             timer.cancel()
 
-    def first(self, topic: str, message_type: str, predicate=lambda message: True, timeout: float = TIMEOUT) -> dict:
+    def first(
+        self,
+        topic: str,
+        message_type: str,
+        predicate: Callable[[dict], bool] = lambda message: True,
+        timeout: float = TIMEOUT,
+    ) -> dict:
         """The first message on ``topic`` for which ``predicate`` holds."""
         got: list[dict] = []
         arrived = threading.Event()
@@ -69,7 +76,7 @@ class Ground:
 
 
 @pytest.fixture(scope="module")
-def ground(ros_env, tmp_path_factory):
+def ground(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[Ground]:
     deployment = write_deployment(
         Path(tmp_path_factory.mktemp("arm2")), "iva", name="arm2", ros={"namespace": NS}, bindings=[], demo=None
     )

@@ -13,6 +13,7 @@ import json
 import os
 import signal
 import threading
+from collections.abc import Iterator
 
 import pytest
 from affordance_template_msgs.msg import ServerStatus
@@ -20,6 +21,7 @@ from affordance_template_msgs.srv import GetPlan
 from at_client import AtClient
 from sensor_msgs.msg import JointState
 
+from caretaker.stack import Stack
 from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -72,7 +74,7 @@ class JointLog:
 
 
 @pytest.fixture(scope="module")
-def stack(ros_env):
+def stack(ros_env: dict[str, str]) -> Iterator[tuple[Stack, AtClient, JointLog]]:
     with robot_parts("iva", ros_env, parts=("sim", "planner", "at-server"), time_scale=1.0) as parts:
         at = AtClient()
         try:
@@ -107,14 +109,14 @@ def _wait_for_waypoint(at: AtClient, name: str, trajectory: str, index: int, tim
     raise TimeoutError(f"{name} did not reach waypoint {index} of {trajectory!r} within {timeout} s")
 
 
-def test_halt_with_nothing_moving_says_so_and_can_be_sent_twice(stack) -> None:
+def test_halt_with_nothing_moving_says_so_and_can_be_sent_twice(stack: tuple[Stack, AtClient, JointLog]) -> None:
     _, at, _ = stack
     for _ in range(2):
         halt = at.call("halt", reason=REASON)
         assert halt.success and halt.message == "nothing was moving" and halt.halted == "", halt.message
 
 
-def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack) -> None:
+def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack: tuple[Stack, AtClient, JointLog]) -> None:
     parts, at, joints = stack
     added = at.call("add_template", class_type="cdra_filter")
     name = added.instance
@@ -211,7 +213,7 @@ def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack) -> No
         at.call("delete_template", class_type="cdra_filter", id=added.id)
 
 
-def test_halt_while_planning_with_execute_prevents_the_execution(stack) -> None:
+def test_halt_while_planning_with_execute_prevents_the_execution(stack: tuple[Stack, AtClient, JointLog]) -> None:
     parts, at, joints = stack
     added = at.call("add_template", class_type="ready_pose")
     planner = parts.processes["planner"].proc.pid

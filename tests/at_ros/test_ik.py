@@ -3,15 +3,17 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
 from at_ros.ik import IkFailure, IkSolver
+from at_ros.planning_scene import PlanningScene
 from at_ros.transforms import angle_between, from_xyz_rpy
 from support.planning_scenes import UR10_START, bench_planning_scene
 
 
-def test_reaches_a_pose_within_limits_and_near_the_seed(iva_scene) -> None:
+def test_reaches_a_pose_within_limits_and_near_the_seed(iva_scene: PlanningScene) -> None:
     solver = IkSolver(iva_scene, rng=np.random.default_rng(3))
     target = iva_scene.forward(UR10_START) @ from_xyz_rpy([0.05, -0.05, 0.08], [0.1, 0.0, 0.2])
     q = solver.solve(target, UR10_START)
@@ -23,14 +25,14 @@ def test_reaches_a_pose_within_limits_and_near_the_seed(iva_scene) -> None:
     assert np.max(np.abs(q - UR10_START)) < 1.0  # same arm configuration, not a flipped one
 
 
-def test_out_of_reach_is_reported_with_the_error(iva_scene) -> None:
+def test_out_of_reach_is_reported_with_the_error(iva_scene: PlanningScene) -> None:
     solver = IkSolver(iva_scene, seeds=4)
     failure = solver.solve(from_xyz_rpy([3.0, 0.0, 1.0], [0, 0, 0]), UR10_START)
     assert isinstance(failure, IkFailure)
     assert "unreachable" in failure.describe() and failure.position_error > 1.0
 
 
-def test_wrap_into_limits_picks_the_turn_nearest_the_reference(iva_scene) -> None:
+def test_wrap_into_limits_picks_the_turn_nearest_the_reference(iva_scene: PlanningScene) -> None:
     solver = IkSolver(iva_scene)
     q = np.array([-1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     near = np.array([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])
@@ -62,7 +64,7 @@ def test_a_range_that_excludes_the_nearest_solution_is_solved_inside_it() -> Non
         scene.close()
 
 
-def test_a_pose_reachable_only_outside_the_limits_names_the_limit(tmp_path) -> None:
+def test_a_pose_reachable_only_outside_the_limits_names_the_limit(tmp_path: Path) -> None:
     # Narrow the wrist roll too: the flipped wrist (roll about +-2.5) is no longer allowed either.
     def narrow(urdf: str) -> str:
         return urdf.replace(

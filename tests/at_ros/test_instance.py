@@ -15,18 +15,18 @@ from at_ros.instance import (
     next_free_id,
     path_sequence,
 )
-from at_ros.library import default_library_path, load_library
-from at_ros.robot_config import load_robot_configs
+from at_ros.library import Template, default_library_path, load_library
+from at_ros.robot_config import RobotConfig, load_robot_configs
 from at_ros.transforms import from_xyz_rpy
 
 
 @pytest.fixture(scope="module")
-def library():
+def library() -> dict[str, Template]:
     return load_library(default_library_path() / "templates")
 
 
 @pytest.fixture(scope="module")
-def ur10():
+def ur10() -> RobotConfig:
     return load_robot_configs()["ur10"]
 
 
@@ -52,7 +52,9 @@ def test_next_free_id_is_the_lowest_unused() -> None:
         (4, 0, 1, False, True, [3]),
     ],
 )
-def test_path_sequence_matches_the_original(n, current, steps, direct, backwards, expected) -> None:
+def test_path_sequence_matches_the_original(
+    n: int, current: int, steps: int | None, direct: bool, backwards: bool, expected: list[int]
+) -> None:
     assert path_sequence(n, current, steps, direct=direct, backwards=backwards) == expected
 
 
@@ -65,14 +67,18 @@ def test_path_sequence_matches_the_original(n, current, steps, direct, backwards
         (1, True, [3, 2, 1, 0]),  # backwards is always whole
     ],
 )
-def test_an_interrupted_trajectory_resumes_after_the_last_waypoint_reached(current, backwards, expected) -> None:
+def test_an_interrupted_trajectory_resumes_after_the_last_waypoint_reached(
+    current: int, backwards: bool, expected: list[int]
+) -> None:
     assert path_sequence(4, current, None, direct=False, backwards=backwards, resume=True) == expected
     assert path_sequence(4, current, 2, direct=False, backwards=False, resume=True) == path_sequence(
         4, current, 2, direct=False, backwards=False
     )
 
 
-def test_registering_to_another_frame_starts_over_and_records_why_the_plan_went(library, ur10) -> None:
+def test_registering_to_another_frame_starts_over_and_records_why_the_plan_went(
+    library: dict[str, Template], ur10: RobotConfig
+) -> None:
     instance = TemplateInstance(library["cdra_filter"], 0, ur10, root_pose=np.eye(4))
     slot = from_xyz_rpy([0.15, 0.9, 1.05], [0, 0, np.pi / 2])
     instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), slot))
@@ -101,12 +107,14 @@ def test_plan_states_are_the_get_plan_service_constants() -> None:
     ("current", "steps", "direct", "message"),
     [(-1, 0, False, "not started"), (0, 5, True, "between 1 and 4"), (0, -2, False, ">= 0")],
 )
-def test_path_sequence_rejects_impossible_requests(current, steps, direct, message) -> None:
+def test_path_sequence_rejects_impossible_requests(current: int, steps: int | None, direct: bool, message: str) -> None:
     with pytest.raises(InstanceError, match=message):
         path_sequence(4, current, steps, direct=direct, backwards=False)
 
 
-def test_waypoint_frames_follow_registration_and_original_naming(library, ur10) -> None:
+def test_waypoint_frames_follow_registration_and_original_naming(
+    library: dict[str, Template], ur10: RobotConfig
+) -> None:
     instance = TemplateInstance(library["cdra_filter"], 2, ur10, root_pose=np.eye(4))
     assert instance.key == "cdra_filter:2"
     slot = from_xyz_rpy([0.15, 0.9, 1.05], [0, 0, np.pi / 2])
@@ -121,7 +129,7 @@ def test_waypoint_frames_follow_registration_and_original_naming(library, ur10) 
     assert [w.end_effector_pose for w in resolved] == ["open", "open", "closed", "closed"]
 
 
-def test_unknown_names_say_what_exists(library, ur10) -> None:
+def test_unknown_names_say_what_exists(library: dict[str, Template], ur10: RobotConfig) -> None:
     instance = TemplateInstance(library["cdra_filter"], 0, ur10, root_pose=np.eye(4))
     with pytest.raises(InstanceError, match="no trajectory 'fly'.*grasp_and_pull"):
         instance.trajectory("fly")
@@ -132,7 +140,9 @@ def test_unknown_names_say_what_exists(library, ur10) -> None:
         instance.register("lid", Registration("world", np.eye(4), np.eye(4)))
 
 
-def test_set_waypoint_moves_only_that_waypoint_and_drops_the_plan(library, ur10) -> None:
+def test_set_waypoint_moves_only_that_waypoint_and_drops_the_plan(
+    library: dict[str, Template], ur10: RobotConfig
+) -> None:
     instance = TemplateInstance(library["cdra_filter"], 0, ur10, root_pose=np.eye(4))
     trajectory = instance.trajectory("grasp_and_pull")
     ee = instance.end_effector(trajectory, [])
@@ -146,7 +156,7 @@ def test_set_waypoint_moves_only_that_waypoint_and_drops_the_plan(library, ur10)
     assert instance.plan is None
 
 
-def test_stale_reason_sees_moved_objects_robot_and_gripper(library, ur10) -> None:
+def test_stale_reason_sees_moved_objects_robot_and_gripper(library: dict[str, Template], ur10: RobotConfig) -> None:
     instance = TemplateInstance(library["cdra_filter"], 0, ur10, root_pose=np.eye(4))
     frame = from_xyz_rpy([1, 0, 1], [0, 0, 0])
     reg = Registration("filter/A", np.eye(4), frame)

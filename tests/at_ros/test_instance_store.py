@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -12,11 +13,12 @@ import pytest
 
 from at_ros.instance import ExecutionOutcome, Registration, StoredPlan, TemplateInstance
 from at_ros.instance_store import load_instances, save_instances
-from at_ros.library import LibraryError
+from at_ros.library import LibraryError, Template
+from at_ros.robot_config import RobotConfig
 from at_ros.transforms import from_xyz_rpy
 
 
-def _worked_instance(library, ur10_config) -> TemplateInstance:
+def _worked_instance(library: dict[str, Template], ur10_config: RobotConfig) -> TemplateInstance:
     """An instance an operator has set up: registered, one waypoint moved, partly executed, planned."""
     instance = TemplateInstance(
         library["cdra_filter"], 3, ur10_config, from_xyz_rpy([0.6, 0, 0.3], [0, 0, 0.1]), hide_waypoints=True
@@ -35,7 +37,9 @@ def _worked_instance(library, ur10_config) -> TemplateInstance:
     return instance
 
 
-def test_instances_come_back_as_they_were_without_their_plan(tmp_path: Path, library, ur10_config) -> None:
+def test_instances_come_back_as_they_were_without_their_plan(
+    tmp_path: Path, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     before = _worked_instance(library, ur10_config)
     path = tmp_path / "state" / "at_server.json"
     save_instances(path, ur10_config, {before.key: before})
@@ -63,7 +67,9 @@ def test_instances_come_back_as_they_were_without_their_plan(tmp_path: Path, lib
     assert [p.name for p in path.parent.iterdir()] == ["at_server.json"]  # no temporary file left behind
 
 
-def test_no_state_file_yet_is_no_instances(tmp_path: Path, library, ur10_config) -> None:
+def test_no_state_file_yet_is_no_instances(
+    tmp_path: Path, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     assert load_instances(tmp_path / "absent.json", ur10_config, library) == {}
 
 
@@ -96,7 +102,7 @@ def test_no_state_file_yet_is_no_instances(tmp_path: Path, library, ur10_config)
     ],
 )
 def test_a_state_file_that_cannot_be_restored_is_named_with_the_entry(
-    tmp_path: Path, library, ur10_config, edit, problem: str
+    tmp_path: Path, library: dict[str, Template], ur10_config: RobotConfig, edit: Callable[[dict], object], problem: str
 ) -> None:
     instance = _worked_instance(library, ur10_config)
     path = tmp_path / "at_server.json"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -91,7 +92,7 @@ def test_original_cube_file_loads_with_parser_defaults(tmp_path: Path) -> None:
     assert waypoints[0].origin.xyz == (0.0, 0.0, -0.16)
 
 
-def _broken(mutate) -> dict:
+def _broken(mutate: Callable[[dict], object]) -> dict:
     data = json.loads(json.dumps(CUBE))
     mutate(data)
     return data
@@ -191,7 +192,9 @@ WAYPOINT = "end_effector_trajectory[0].end_effector_group[0].end_effector_waypoi
         ),
     ],
 )
-def test_malformed_template_names_file_and_key(tmp_path: Path, mutate, key: str, problem: str) -> None:
+def test_malformed_template_names_file_and_key(
+    tmp_path: Path, mutate: Callable[[dict], object], key: str, problem: str
+) -> None:
     path = write(tmp_path, _broken(mutate))
     with pytest.raises(LibraryError) as err:
         load_template(path)

@@ -6,7 +6,10 @@ import numpy as np
 import pytest
 
 from at_ros.instance import Registration, TemplateInstance
+from at_ros.library import Template
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
+from at_ros.planning_scene import PlanningScene
+from at_ros.robot_config import RobotConfig
 from at_ros.transforms import angle_between, from_xyz_rpy, invert
 from support.planning_scenes import UR10_START
 
@@ -14,11 +17,11 @@ CABINET_SLOT = from_xyz_rpy([0.15, 0.90, 1.05], [0.0, 0.0, np.pi / 2])
 
 
 @pytest.fixture(scope="module")
-def planner(iva_scene, ur10_config):
+def planner(iva_scene: PlanningScene, ur10_config: RobotConfig) -> MotionPlanner:
     return MotionPlanner(iva_scene, ur10_config.planner)
 
 
-def _goals(library, ur10_config, trajectory: str, frame: np.ndarray) -> list[Goal]:
+def _goals(library: dict[str, Template], ur10_config: RobotConfig, trajectory: str, frame: np.ndarray) -> list[Goal]:
     instance = TemplateInstance(library["cdra_filter"], 0, ur10_config, root_pose=np.eye(4))
     instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), frame))
     t = instance.trajectory(trajectory)
@@ -36,7 +39,9 @@ def _goals(library, ur10_config, trajectory: str, frame: np.ndarray) -> list[Goa
     ]
 
 
-def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene, library, ur10_config) -> None:
+def test_grasp_and_pull_reaches_every_waypoint_within_limits(
+    planner: MotionPlanner, iva_scene: PlanningScene, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT)
     planned = planner.plan(UR10_START, goals)
     assert [p.label for p in planned] == [g.label for g in goals]
@@ -55,7 +60,9 @@ def test_grasp_and_pull_reaches_every_waypoint_within_limits(planner, iva_scene,
     assert iva_scene.attachment is None  # the plan's grasp is not left behind in the scene
 
 
-def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur10_config) -> None:
+def test_pull_segment_carries_the_grasped_filter(
+    planner: MotionPlanner, iva_scene: PlanningScene, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     goals = _goals(library, ur10_config, "grasp_and_pull", CABINET_SLOT)
     # Pull straight through the cabinet's back plate instead of out of the slot: the carried
     # filter (not the arm) runs into the cabinet and the wall behind it: the grasp attached it.
@@ -71,7 +78,7 @@ def test_pull_segment_carries_the_grasped_filter(planner, iva_scene, library, ur
 
 
 def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_clean_world(
-    iva_scene, library, ur10_config
+    iva_scene: PlanningScene, library: dict[str, Template], ur10_config: RobotConfig
 ) -> None:
     """A cabinet pose found by bench/planning.py: with the nearest arm configuration the pull
     folds the arm into itself at its end, after the filter was grasped and carried. The next
@@ -92,13 +99,15 @@ def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_c
         iva_scene.restore(saved)
 
 
-def test_unreachable_registration_names_the_waypoint(planner, library, ur10_config) -> None:
+def test_unreachable_registration_names_the_waypoint(
+    planner: MotionPlanner, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     far = from_xyz_rpy([3.0, 0.0, 1.0], [0.0, 0.0, 0.0])
     with pytest.raises(WaypointPlanningError, match=r"waypoint 0\.0:cdra_filter:0: unreachable"):
         planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", far))
 
 
-def test_start_in_collision_is_refused(planner) -> None:
+def test_start_in_collision_is_refused(planner: MotionPlanner) -> None:
     with pytest.raises(WaypointPlanningError, match="start state is in collision"):
         planner.plan(np.array([0.0, -0.6, 2.4, -1.57, -1.57, 0.0]), [Goal("x", np.eye(4), "JOINT")])
 
@@ -108,7 +117,7 @@ RACK_SLOT_3 = from_xyz_rpy([0.96, 0.25, 1.05], [0.0, 0.0, 0.0])  # empty
 
 
 def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_so(
-    planner, iva_scene, library, ur10_config
+    planner: MotionPlanner, iva_scene: PlanningScene, library: dict[str, Template], ur10_config: RobotConfig
 ) -> None:
     """A survey with the gripper closed, stopping in front of a seated filter and rising: nothing
     is grasped (the template states no grasp), so rising is not a collision of the filter with its
@@ -144,7 +153,9 @@ def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_
         planner.plan(UR10_START, grasping)
 
 
-def test_a_stated_grasp_where_nothing_is_names_the_object(planner, library, ur10_config) -> None:
+def test_a_stated_grasp_where_nothing_is_names_the_object(
+    planner: MotionPlanner, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
     with pytest.raises(
         WaypointPlanningError,
         match=r"waypoint 0\.2:cdra_filter:0: grasps 'cdra_filter', but no graspable object "

@@ -34,7 +34,7 @@ def test_blocked_move_goes_around_and_every_state_is_valid() -> None:
     ("start", "goal", "message"),
     [([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], "start state"), ([1.0, 0.0, 0.0], [0.0, 0.0, 0.0], "goal state")],
 )
-def test_invalid_endpoints_are_named(start, goal, message) -> None:
+def test_invalid_endpoints_are_named(start: list[float], goal: list[float], message: str) -> None:
     planner = JointPlanner(-np.ones(3) * 3, np.ones(3) * 3, _wall_checker)
     with pytest.raises(PlanningFailed, match=message):
         planner.plan(np.array(start), np.array(goal), time_limit=0.5, simplify_time=0.1)

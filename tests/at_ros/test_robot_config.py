@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -23,7 +24,7 @@ def test_shipped_robots_load_with_files_that_exist() -> None:
     assert ur10.halt_service == robots["eva_arm"].halt_service == "robot/halt"
 
 
-def _config(tmp_path: Path, **changes) -> Path:
+def _config(tmp_path: Path, **changes: Any) -> Path:
     data = yaml.safe_load((default_library_path() / "robots" / "ur10.yaml").read_text())
     data["urdf"] = str(load_robot_configs()["ur10"].urdf)  # the copy lives elsewhere: its path must still lead there
     for key, value in changes.items():

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from at_ros.time_parameterization import time_parameterize
+from at_ros.time_parameterization import TimedPath, time_parameterize
 
 VMAX = np.array([2.0, 2.0, 3.0])
 
 
-def _check_limits(timed, vmax: np.ndarray, amax: float) -> None:
+def _check_limits(timed: TimedPath, vmax: np.ndarray, amax: float) -> None:
     assert np.all(np.diff(timed.times) > 0)
     dt = np.diff(timed.times)[:, None]
     finite_velocity = np.diff(timed.positions, axis=0) / dt

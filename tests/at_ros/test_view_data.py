@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 
 import numpy as np
 import pybullet as p
 import pytest
 from affordance_template_msgs.srv import GetPlan
+from at_client import AtClient
 from geometry_msgs.msg import Pose
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
@@ -29,7 +31,7 @@ OFFSET = from_xyz_rpy([0.0, 0.02, 0.0], [0.0, 0.0, math.radians(3.0)])
 
 
 @pytest.fixture(scope="module")
-def at(ros_env):
+def at(ros_env: dict[str, str]) -> Iterator[AtClient]:
     yield from start_stack(ros_env, "iva", 0.0)
 
 
@@ -70,7 +72,7 @@ def _forward(joints: list[str], positions: list[float], link: str) -> np.ndarray
         p.disconnect(client)
 
 
-def test_robot_description_is_the_urdf_with_the_arm_joints(at) -> None:
+def test_robot_description_is_the_urdf_with_the_arm_joints(at: AtClient) -> None:
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
     got: list[str] = []
     at.node.create_subscription(String, "/robot_description", lambda m: (got.append(m.data), at._notify()), latched)
@@ -80,7 +82,7 @@ def test_robot_description_is_the_urdf_with_the_arm_joints(at) -> None:
     assert set(ARM) <= {j.get("name") for j in urdf.iter("joint") if j.get("type") == "revolute"}
 
 
-def test_template_status_gives_display_objects_and_waypoints_in_the_frame_asked(at) -> None:
+def test_template_status_gives_display_objects_and_waypoints_in_the_frame_asked(at: AtClient) -> None:
     added = at.call("add_template", class_type="cdra_filter")
     try:
         assert at.register("cdra_filter", added.id, "cdra_filter", f"filter/{DIRTY}", _pose(OFFSET)).success
@@ -114,7 +116,7 @@ def test_template_status_gives_display_objects_and_waypoints_in_the_frame_asked(
         at.call("delete_template", class_type="cdra_filter", id=added.id)
 
 
-def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at) -> None:
+def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at: AtClient) -> None:
     added = at.call("add_template", class_type="cdra_filter")
     name = added.instance
     try:
@@ -176,7 +178,7 @@ def test_get_plan_is_the_whole_motion_and_follows_what_becomes_of_it(at) -> None
         at.call("delete_template", class_type="cdra_filter", id=added.id)
 
 
-def test_stepping_waypoint_by_waypoint_previews_and_runs_each_step(at) -> None:
+def test_stepping_waypoint_by_waypoint_previews_and_runs_each_step(at: AtClient) -> None:
     """The original AT's stepping (plan_command steps=[1]): each step's plan is the motion to the
     next waypoint only, from where the arm is; a view previews it with get_plan, then it runs.
     Runs after the pull-out above: the dirty filter is in the gripper and goes into rack slot 3."""

@@ -139,7 +139,9 @@ def follow(page: Page, console: WebServer, run_id: str) -> Page:
     return page
 
 
-def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(ground: Ground, open_page) -> None:
+def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(
+    ground: Ground, open_page: Callable[[WebServer, str], Page]
+) -> None:
     first, second = ground.first, ground.second
     alice_iva, alice_eva = open_page(first, "alice"), open_page(first, "alice")
     iva_run = start_run(alice_iva, IVA, "autonomous", binding="iva.yaml")

@@ -12,14 +12,16 @@ import math
 import queue
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 from pax_probe import RobotProbe
 from pax_stack import BINDINGS, REPO, Stack
 
 from pride.pax_host import PaxHost
-from pride.systems import TelemetryValue
+from pride.systems import CommandResult, TelemetryValue
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -94,7 +96,7 @@ class Changes:
             f" it reported {seen[-5:]}, now {self.host.telemetry(sysrep, item)} at {time.time():.3f}"
         )
 
-    def until(self, predicate, what: str, timeout: float = 10.0) -> None:
+    def until(self, predicate: Callable[[], bool], what: str, timeout: float = 10.0) -> None:
         """Block until ``predicate()`` (a read of PaxHost telemetry) holds, re-checking on each change."""
         deadline = time.monotonic() + timeout
         with self.condition:
@@ -110,7 +112,7 @@ def changes(host: PaxHost) -> Changes:
     return Changes(host)
 
 
-def _positions(status_response) -> list[float]:
+def _positions(status_response: Any) -> list[float]:
     """Every object and waypoint position of a template status, in the robot frame, as x, y, z, x, ..."""
     status = status_response.affordance_template_status[0]
     points = [o.object_pose.pose.position for o in status.object_info]
@@ -275,7 +277,7 @@ def test_camera_capture_by_convention(host: PaxHost, tmp_path: Path) -> None:
     assert not wrong.success and "no_such_camera" in wrong.message
 
 
-def _retry_while(reason: str, command, timeout: float = 30.0):
+def _retry_while(reason: str, command: Callable[[], CommandResult], timeout: float = 30.0) -> CommandResult:
     """Repeat a command while it fails for a transient ``reason`` (a process still starting up)."""
     deadline = time.monotonic() + timeout
     while True:

@@ -20,7 +20,7 @@ from pride.lint import check_procedure
 from pride.robot_control import RobotControl
 from pride.sysrep import SysRep, load_sysrep_dir
 from support.audit import AuditDatabase, RecordedJournal
-from support.executive_runs import TIMEOUT
+from support.executive_runs import TIMEOUT, Bench
 from support.lab_gateway import LabGateway
 from support.postgres import OWNER, RUNNER, PostgresServer
 from support.procedures import FIXTURES, REPO
@@ -103,7 +103,7 @@ def _comparable(event: Event) -> dict[str, object]:
 
 
 @pytest.fixture
-def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]):
+def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]) -> Iterator[Bench]:
     """``bench(mode, name, gateway, run_id=, control=)``: an executive on the lab bench gateway, its
     journal on a fresh audit log (SQLite and PostgreSQL in turn); ``control=True`` puts it under
     robot control in that log's database. Live runs are stopped at teardown."""
@@ -118,7 +118,7 @@ def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[...,
         run_id: str = "run-1",
         control: RobotControl | bool = False,
         journal: RecordedJournal | None = None,
-    ):
+    ) -> tuple[Executive, LabGateway, RecordedJournal]:
         gateway = gateway or LabGateway(str(tmp_path / "images"))
         journal = journal or new_journal()
         if control is True:

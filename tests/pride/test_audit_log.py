@@ -7,13 +7,18 @@ from __future__ import annotations
 import sqlite3
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta, timezone
+from pathlib import Path
+from typing import Any, Self
 
 import psycopg
 import pytest
+from psycopg.abc import Params, Query
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, UniqueConstraint, create_engine, event
 from sqlalchemy.exc import DBAPIError, IntegrityError
+from sqlalchemy.pool import ConnectionPoolEntry
 
 from pride.audit_chain import GENESIS
 from pride.audit_log import AuditLog, AuditSequenceError, database_url
@@ -85,7 +90,7 @@ def test_an_append_whose_answer_was_lost_is_stored_once(postgres: PostgresServer
     lost: list[str] = []
 
     class AnswerLost(psycopg.Cursor):  # type: ignore[type-arg]
-        def execute(self, query, params=None, **kwargs):  # type: ignore[no-untyped-def]
+        def execute(self, query: Query, params: Params | None = None, **kwargs: Any) -> Self:
             done = super().execute(query, params, **kwargs)
             if str(query).startswith("INSERT") and not lost:
                 lost.append(str(query))
@@ -104,7 +109,7 @@ def test_an_append_whose_answer_was_lost_is_stored_once(postgres: PostgresServer
     log.close()
 
 
-def test_an_interrupted_sqlite_append_is_retried(tmp_path) -> None:
+def test_an_interrupted_sqlite_append_is_retried(tmp_path: Path) -> None:
     log = AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")
     states = _append_through_one_failure(log)
     interrupted: list[bool] = []
@@ -115,7 +120,7 @@ def test_an_interrupted_sqlite_append_is_retried(tmp_path) -> None:
         interrupted.append(True)
         return True
 
-    def interrupt_once(dbapi_connection, _record) -> None:
+    def interrupt_once(dbapi_connection: sqlite3.Connection, _record: ConnectionPoolEntry) -> None:
         dbapi_connection.set_progress_handler(first_statement_only, 1)
 
     log._engine.dispose()
@@ -126,7 +131,7 @@ def test_an_interrupted_sqlite_append_is_retried(tmp_path) -> None:
     log.close()
 
 
-def test_a_sqlite_log_is_created_with_its_folder(tmp_path) -> None:
+def test_a_sqlite_log_is_created_with_its_folder(tmp_path: Path) -> None:
     log = AuditLog(f"sqlite:///{tmp_path / 'nested' / 'audit.db'}")
     log.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice"))
     assert (tmp_path / "nested" / "audit.db").is_file() and log.verify("run-a").ok
@@ -284,7 +289,7 @@ def _todays_log(url: str) -> None:
     engine.dispose()
 
 
-def test_a_log_from_before_migrations_is_upgraded_in_place(new_database) -> None:
+def test_a_log_from_before_migrations_is_upgraded_in_place(new_database: Callable[..., AuditDatabase]) -> None:
     database: AuditDatabase = new_database(empty=True)
     _todays_log(database.owner_url)
     log = AuditLog(database.owner_url)

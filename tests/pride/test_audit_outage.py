@@ -11,6 +11,7 @@ import logging
 import queue
 from collections import Counter
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -18,6 +19,7 @@ from pride.audit_log import AuditLog, Availability
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, RunStatus, Snapshot
 from pride.lint import check_procedure
+from pride.sysrep import SysRep
 from support.lab_gateway import LabGateway
 from support.postgres import RUNNER, PostgresServer
 from support.procedures import FIXTURES
@@ -55,7 +57,7 @@ def capturing(snap: Snapshot) -> bool:
 
 
 def start_run(
-    url: str, tmp_path, sysreps, *, budget: float
+    url: str, tmp_path: Path, sysreps: dict[str, SysRep], *, budget: float
 ) -> tuple[Executive, LabGateway, AuditLog, queue.Queue[tuple[Availability, int]]]:
     """A run held with ``capture`` in flight; the queue gets each availability change with the commands sent by then."""
     log = AuditLog(url, outage_budget=budget)
@@ -71,7 +73,11 @@ def start_run(
 
 
 def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing_lost(
-    outage: PostgresServer, audit_template: str, tmp_path, sysreps, caplog
+    outage: PostgresServer,
+    audit_template: str,
+    tmp_path: Path,
+    sysreps: dict[str, SysRep],
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
     url = outage.url(outage.new_database(template=audit_template), RUNNER)
     executive, gateway, log, states = start_run(url, tmp_path, sysreps, budget=120)
@@ -104,7 +110,7 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
 
 
 def test_an_outage_longer_than_the_budget_stops_the_run_with_the_reason_and_resume_completes_it(
-    outage: PostgresServer, audit_template: str, tmp_path, sysreps
+    outage: PostgresServer, audit_template: str, tmp_path: Path, sysreps: dict[str, SysRep]
 ) -> None:
     url = outage.url(outage.new_database(template=audit_template), RUNNER)
     executive, gateway, log, states = start_run(url, tmp_path, sysreps, budget=1.0)

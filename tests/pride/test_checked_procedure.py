@@ -9,19 +9,24 @@ from __future__ import annotations
 
 import shutil
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
 import pride.lint
+from pride.diagnostics import Problem
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
+from pride.model import Procedure
 from pride.parser import parse_procedure
+from pride.sysrep import SysRep
+from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
 
 
-def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_each_file_is_parsed_once(tmp_path: Path, sysreps: dict[str, SysRep], monkeypatch: pytest.MonkeyPatch) -> None:
     main = tmp_path / "twice.xml"
     main.write_text(
         (FIXTURES / "lab_all_kinds.xml")
@@ -34,7 +39,7 @@ def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.M
     shutil.copy(FIXTURES / "lab_sub.xml", tmp_path / "lab_sub.xml")
     parsed: Counter[str] = Counter()
 
-    def counting(path: str | Path):
+    def counting(path: str | Path) -> tuple[Procedure | None, list[Problem]]:
         parsed[Path(path).name] += 1
         return parse_procedure(path)
 
@@ -44,7 +49,9 @@ def test_each_file_is_parsed_once(tmp_path: Path, sysreps, monkeypatch: pytest.M
     assert checked.load(str((tmp_path / "lab_sub.xml").resolve())).id == "lab_sub"
 
 
-def test_a_run_runs_what_was_checked(tmp_path: Path, sysreps, new_journal) -> None:
+def test_a_run_runs_what_was_checked(
+    tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
+) -> None:
     shutil.copy(FIXTURES / "lab_all_kinds.xml", tmp_path / "main.xml")
     shutil.copy(FIXTURES / "lab_sub.xml", tmp_path / "lab_sub.xml")
     checked = check_procedure(tmp_path / "main.xml", sysreps)

@@ -9,19 +9,20 @@ is tests/pride/test_halt_on_the_robot.py.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from datetime import UTC, datetime
 
 import pytest
 
 from pride.audit_log import Availability
 from pride.events import PAX, Event, EventKind
-from pride.executive import Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus
+from pride.executive import Executive, Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus
 from pride.systems import Outcome
 from support.audit import RecordedJournal
-from support.executive_runs import TIMEOUT, finished, held
+from support.executive_runs import TIMEOUT, Bench, finished, held
 
 
-def at_move(executive) -> None:
+def at_move(executive: Executive) -> None:
     executive.start("alice")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
     executive.enter("alice", "dock")
@@ -31,7 +32,7 @@ def of(journal: RecordedJournal, kind: EventKind, number: str | None = None) -> 
     return [e for e in journal.events if e.kind is kind and (number is None or e.instruction == number)]
 
 
-def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the_command_twice(bench) -> None:
+def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the_command_twice(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.lose_reply["move"] = "link lost since 10:00:00Z, outage budget of 20 s spent"
     at_move(executive)
@@ -63,7 +64,7 @@ def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the
 
 
 @pytest.mark.parametrize("found", ["succeeded", "failed"])
-def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench, found) -> None:
+def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench: Bench, found: str) -> None:
     executive, gateway, journal = bench()
     gateway.lose_reply["move"] = "no reply"
     at_move(executive)
@@ -94,7 +95,9 @@ def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench,
     assert [c for _, c, _ in gateway.sent].count("move") == 2
 
 
-def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_retry_is_a_new_attempt(bench) -> None:
+def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_retry_is_a_new_attempt(
+    bench: Bench,
+) -> None:
     executive, gateway, journal = bench()
     gateway.block.add("vent")
     at_move(executive)
@@ -134,7 +137,7 @@ def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_re
     assert [(e.data["key"], e.data["confirmed_by"]) for e in sent] == [("run-1/2.1/1", "carol"), ("run-1/2.1/2", "bob")]
 
 
-def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench) -> None:
+def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("alice")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -148,7 +151,7 @@ def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench) -> No
     held(executive, Hold.OPERATOR_INPUT, "1.2")
 
 
-def test_halt_ends_a_wait_at_once_and_stop_halts_first(bench) -> None:
+def test_halt_ends_a_wait_at_once_and_stop_halts_first(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.stale.add("state")  # the wait of 1.4 would take its whole timeout
     at_move(executive)
@@ -163,7 +166,7 @@ def test_halt_ends_a_wait_at_once_and_stop_halts_first(bench) -> None:
     assert (stopped.actor, stopped.data["reason"]) == ("dave", "end of the shift")
 
 
-def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench) -> None:
+def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.block.add("move")
     at_move(executive)
@@ -192,7 +195,7 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench) -
     assert executive.snapshot().link_summary() == ""
 
 
-def test_a_verify_counts_the_light_time_into_its_timeout(bench) -> None:
+def test_a_verify_counts_the_light_time_into_its_timeout(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.delay = 0.5  # telemetry reaches the ground half a second after it happened
     gateway.stale.add("door_open")
@@ -204,7 +207,7 @@ def test_a_verify_counts_the_light_time_into_its_timeout(bench) -> None:
     assert "(waited 2 s + 0.5 s light time)" in failed.data["reason"]
 
 
-def test_a_journal_that_fails_stops_the_run_at_once_with_its_reason_and_burns_no_number(bench) -> None:
+def test_a_journal_that_fails_stops_the_run_at_once_with_its_reason_and_burns_no_number(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.block.add("move")
     at_move(executive)
@@ -221,7 +224,7 @@ def test_a_journal_that_fails_stops_the_run_at_once_with_its_reason_and_burns_no
         executive.retry("alice")
 
 
-def test_an_operator_action_the_journal_cannot_store_stops_the_run(bench) -> None:
+def test_an_operator_action_the_journal_cannot_store_stops_the_run(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("alice")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -252,7 +255,9 @@ class GatedJournal(RecordedJournal):
         return Availability(True) if self.gate.is_set() else Availability(False, datetime.now(UTC), "gate closed")
 
 
-def test_halt_reaches_the_robot_and_the_snapshot_answers_while_an_append_waits(bench, new_journal) -> None:
+def test_halt_reaches_the_robot_and_the_snapshot_answers_while_an_append_waits(
+    bench: Bench, new_journal: Callable[..., RecordedJournal]
+) -> None:
     journal = GatedJournal(new_journal())
     executive, gateway, _ = bench(journal=journal)
     gateway.block.add("move")
@@ -280,7 +285,7 @@ def test_halt_reaches_the_robot_and_the_snapshot_answers_while_an_append_waits(b
     assert EventKind.BREAKPOINT_SET in kinds and EventKind.HALT in kinds and EventKind.INSTRUCTION_HALTED in kinds
 
 
-def test_manual_run_is_completed_by_the_operator_and_a_confirmed_send_names_its_confirmer(bench) -> None:
+def test_manual_run_is_completed_by_the_operator_and_a_confirmed_send_names_its_confirmer(bench: Bench) -> None:
     executive, gateway, journal = bench(Mode.MANUAL, name="lab_records.xml")
     gateway.values["state"] = "shelf"
     executive.start("carol")

@@ -7,7 +7,9 @@ against a killable runner process are in test_runner.py.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -15,12 +17,14 @@ from pride.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
-from support.executive_runs import TIMEOUT, finished, held
+from pride.sysrep import SysRep
+from support.audit import RecordedJournal
+from support.executive_runs import TIMEOUT, Bench, finished, held
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
 
 
-def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(bench) -> None:
+def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("alice")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -61,7 +65,7 @@ def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(benc
     assert journal.events[-1].kind is EventKind.RUN_COMPLETED
 
 
-def test_manual_mode_waits_for_the_operator_at_every_instruction(bench) -> None:
+def test_manual_mode_waits_for_the_operator_at_every_instruction(bench: Bench) -> None:
     executive, gateway, journal = bench(Mode.MANUAL)
     executive.start("carol")
     held(executive, Hold.MANUAL_MODE, "1.1")
@@ -88,7 +92,7 @@ def test_manual_mode_waits_for_the_operator_at_every_instruction(bench) -> None:
     assert all(e.actor != PAX for e in journal.events if e.kind is EventKind.INSTRUCTION_STARTED)
 
 
-def test_operator_switches_modes_midway(bench) -> None:
+def test_operator_switches_modes_midway(bench: Bench) -> None:
     executive, gateway, journal = bench(Mode.MANUAL)
     executive.start("dave")
     held(executive, Hold.MANUAL_MODE, "1.1")
@@ -102,7 +106,7 @@ def test_operator_switches_modes_midway(bench) -> None:
     assert [e.data["mode"] for e in journal.events if e.kind is EventKind.MODE_CHANGED] == ["autonomous", "manual"]
 
 
-def test_breakpoint_holds_then_step_and_continue(bench) -> None:
+def test_breakpoint_holds_then_step_and_continue(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.set_breakpoint("erin", "1.3")
     executive.start("erin")
@@ -123,7 +127,7 @@ def test_breakpoint_holds_then_step_and_continue(bench) -> None:
         executive.set_breakpoint("erin", "9.9")
 
 
-def test_pause_holds_automation_and_stop_ends_the_run(bench) -> None:
+def test_pause_holds_automation_and_stop_ends_the_run(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("frank")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -140,7 +144,7 @@ def test_pause_holds_automation_and_stop_ends_the_run(bench) -> None:
     assert gateway.sent == []
 
 
-def test_failed_command_holds_with_the_reason_until_retried(bench) -> None:
+def test_failed_command_holds_with_the_reason_until_retried(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.fail_next["move"] = "blocked by debris"
     executive.start("gina")
@@ -160,7 +164,7 @@ def test_failed_command_holds_with_the_reason_until_retried(bench) -> None:
     assert journal.kinds("1.3").count(EventKind.INSTRUCTION_COMPLETED) == 1
 
 
-def test_failed_verify_branches_where_the_procedure_says(bench) -> None:
+def test_failed_verify_branches_where_the_procedure_says(bench: Bench) -> None:
     executive, gateway, journal = bench()
     gateway.stale.add("door_open")  # the door sensor stopped reporting: a verify must not pass
     executive.start("hank")
@@ -177,7 +181,7 @@ def test_failed_verify_branches_where_the_procedure_says(bench) -> None:
     assert ("lab", "capture", {"label": "dock_view"}) not in gateway.sent
 
 
-def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench) -> None:
+def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("ivy")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -195,7 +199,7 @@ def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench) -> 
     assert "lab.state was 'idle'" in snap.reason
 
 
-def test_record_rejects_values_outside_its_constraints(bench) -> None:
+def test_record_rejects_values_outside_its_constraints(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("jack")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -207,7 +211,7 @@ def test_record_rejects_values_outside_its_constraints(bench) -> None:
         executive.perform("jack")
 
 
-def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run(bench) -> None:
+def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run(bench: Bench) -> None:
     executive, gateway, journal = bench()
     seen: list[tuple[int, bool]] = []
 
@@ -225,12 +229,12 @@ def test_listeners_see_each_event_after_it_is_journaled_and_cannot_break_the_run
     assert [s for s, _ in seen] == [e.seq for e in journal.events]
 
 
-def test_a_procedure_with_errors_does_not_start(sysreps) -> None:
+def test_a_procedure_with_errors_does_not_start(sysreps: dict[str, SysRep]) -> None:
     with pytest.raises(ProcedureError, match="unknown command 'mvoe'"):
         check_procedure(FIXTURES / "broken" / "unknown_command.xml", sysreps)
 
 
-def _crash_while_venting(bench):
+def _crash_while_venting(bench: Bench) -> tuple[LabGateway, list[Event]]:
     """A run whose hazardous 2.1 (vent) was sent and has not answered: the log as a crashed runner left it."""
     first, gateway, journal = bench()
     gateway.block.add("vent")
@@ -248,7 +252,7 @@ def _crash_while_venting(bench):
 
 
 def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_twice(
-    bench, sysreps, new_journal
+    bench: Bench, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
 ) -> None:
     gateway, log = _crash_while_venting(bench)
     sent = log[-1]
@@ -273,7 +277,9 @@ def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_t
         resumed.stop("teardown")
 
 
-def test_resume_of_an_old_log_without_keys_holds_the_in_flight_command(bench, sysreps, tmp_path, new_journal) -> None:
+def test_resume_of_an_old_log_without_keys_holds_the_in_flight_command(
+    bench: Bench, sysreps: dict[str, SysRep], tmp_path: Path, new_journal: Callable[..., RecordedJournal]
+) -> None:
     gateway, log = _crash_while_venting(bench)
     unkeyed = {k: v for k, v in log[-1].data.items() if k != "key"}
     log[-1] = replace(log[-1], data=unkeyed)  # as runners wrote it before command keys
@@ -300,7 +306,9 @@ def test_resume_of_an_old_log_without_keys_holds_the_in_flight_command(bench, sy
         gateway.release.set()
 
 
-def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps, new_journal) -> None:
+def test_resume_inside_a_sub_procedure_keeps_its_inputs(
+    bench: Bench, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
+) -> None:
     executive, gateway, journal = bench()
     executive.start("nina")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -338,7 +346,7 @@ def test_resume_inside_a_sub_procedure_keeps_its_inputs(bench, sysreps, new_jour
     ]
 
 
-def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
+def test_operator_actions_are_thread_safe_under_concurrent_users(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("olga")
     held(executive, Hold.OPERATOR_INPUT, "1.2")
@@ -363,7 +371,7 @@ def test_operator_actions_are_thread_safe_under_concurrent_users(bench) -> None:
 
 
 def test_stop_while_watching_telemetry_halts_it_and_resume_lets_the_operator_redo_it(
-    bench, sysreps, new_journal
+    bench: Bench, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
 ) -> None:
     executive, gateway, journal = bench()
     gateway.stale.add("door_open")

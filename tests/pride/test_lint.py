@@ -10,6 +10,7 @@ import pytest
 import yaml
 
 from pride.lint import lint_file
+from pride.sysrep import SysRep
 from support.procedures import FIXTURES, REPO
 
 BROKEN = FIXTURES / "broken"
@@ -22,7 +23,7 @@ def test_every_broken_fixture_has_expectations() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_broken_procedure_reports_each_error_where_it_is(name: str, sysreps) -> None:
+def test_broken_procedure_reports_each_error_where_it_is(name: str, sysreps: dict[str, SysRep]) -> None:
     path = BROKEN / name
     printed = [str(p) for p in lint_file(path, sysreps)]
     assert len(printed) == len(EXPECTED[name]), printed
@@ -33,11 +34,11 @@ def test_broken_procedure_reports_each_error_where_it_is(name: str, sysreps) -> 
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
-def test_shipped_procedures_are_clean(path: Path, sysreps) -> None:
+def test_shipped_procedures_are_clean(path: Path, sysreps: dict[str, SysRep]) -> None:
     assert lint_file(path, sysreps) == []
 
 
-def test_lab_procedures_are_clean(sysreps) -> None:
+def test_lab_procedures_are_clean(sysreps: dict[str, SysRep]) -> None:
     assert lint_file(FIXTURES / "lab_all_kinds.xml", sysreps) == []
 
 

@@ -11,11 +11,13 @@ from lxml import etree
 from pride.audit_log import AuditLog
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
+from pride.sysrep import SysRep
+from support.audit import AuditDatabase
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
 
 
-def _complete_run(tmp_path: Path, sysreps, db: str) -> tuple[str, str]:
+def _complete_run(tmp_path: Path, sysreps: dict[str, SysRep], db: str) -> tuple[str, str]:
     log = AuditLog(db)
     executive = Executive(
         check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps),
@@ -51,7 +53,9 @@ def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[s
     )
 
 
-def test_report_shows_every_step_actor_value_timeline_and_image(tmp_path: Path, sysreps, database) -> None:
+def test_report_shows_every_step_actor_value_timeline_and_image(
+    tmp_path: Path, sysreps: dict[str, SysRep], database: AuditDatabase
+) -> None:
     db, run_id = _complete_run(tmp_path, sysreps, database.url)
     out = tmp_path / "reports"
     proc = report(run_id, db, "--out", str(out))
@@ -101,7 +105,9 @@ def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
     assert "no run 'nope'" in proc.stderr
 
 
-def test_report_of_an_edited_run_says_so_and_verify_names_the_event(tmp_path: Path, sysreps, database) -> None:
+def test_report_of_an_edited_run_says_so_and_verify_names_the_event(
+    tmp_path: Path, sysreps: dict[str, SysRep], database: AuditDatabase
+) -> None:
     db, run_id = _complete_run(tmp_path, sysreps, database.url)
     assert report(run_id, db, "--verify").returncode == 0
     database.tamper(

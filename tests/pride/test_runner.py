@@ -22,6 +22,7 @@ import pytest
 from pride.audit_log import AuditLog
 from pride.events import PAX, EventKind
 from support import lab_gateway
+from support.audit import AuditDatabase
 from support.procedures import FIXTURES, REPO
 from support.processes import ManagedProcess, caretaker
 
@@ -30,7 +31,7 @@ ANSWERS = ["--set", "target=dock", "--confirm-manual", "--confirm-hazardous"]
 
 
 @pytest.fixture
-def setup(tmp_path: Path, database):
+def setup(tmp_path: Path, database: AuditDatabase) -> tuple[dict[str, str], str, list[str]]:
     binding = tmp_path / "lab_binding.yaml"
     binding.write_text("# the lab bench gateway needs no configuration\nrobot: lab\n")
     env = dict(os.environ)
@@ -85,7 +86,7 @@ def runner_at(env: dict[str, str], common: list[str], line: str) -> ManagedProce
     return runner
 
 
-def test_unattended_run_completes_with_answers_logged_as_the_user(setup) -> None:
+def test_unattended_run_completes_with_answers_logged_as_the_user(setup: tuple[dict[str, str], str, list[str]]) -> None:
     env, db, common = setup
     proc = run(env, PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -101,7 +102,9 @@ def test_unattended_run_completes_with_answers_logged_as_the_user(setup) -> None
     assert log.verify(run_id).ok, log.verify(run_id).describe()
 
 
-def test_unattended_run_stops_and_says_which_option_answers_the_record(setup) -> None:
+def test_unattended_run_stops_and_says_which_option_answers_the_record(
+    setup: tuple[dict[str, str], str, list[str]],
+) -> None:
     env, db, common = setup
     proc = run(env, PROCEDURE, "--auto", "--user", "alice", *common)
     assert proc.returncode == 1
@@ -110,7 +113,7 @@ def test_unattended_run_stops_and_says_which_option_answers_the_record(setup) ->
     assert "LAB executing" not in proc.stdout
 
 
-def test_a_procedure_with_lint_errors_does_not_start(setup) -> None:
+def test_a_procedure_with_lint_errors_does_not_start(setup: tuple[dict[str, str], str, list[str]]) -> None:
     env, db, common = setup
     proc = run(env, str(FIXTURES / "broken" / "unknown_command.xml"), "--auto", "--user", "alice", *common)
     assert proc.returncode == 1
@@ -119,7 +122,7 @@ def test_a_procedure_with_lint_errors_does_not_start(setup) -> None:
 
 
 def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_without_running_it_again(
-    setup, tmp_path
+    setup: tuple[dict[str, str], str, list[str]], tmp_path: Path
 ) -> None:
     env, db, common = setup
     env = {**env, "LAB_GATEWAY_LEDGER": str(tmp_path / "ledger.json")}  # the habitat's memory of keys
@@ -170,7 +173,9 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     assert check.ok and check.events == len(events), check.describe()
 
 
-def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(setup) -> None:
+def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(
+    setup: tuple[dict[str, str], str, list[str]],
+) -> None:
     env, db, common = setup
     runner = runner_at({**env, "LAB_GATEWAY_BLOCK": "vent"}, common, "LAB executing vent")
     try:

@@ -31,7 +31,7 @@ SCENES = {
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
 def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_step(
-    scene: str, ros_env, tmp_path: Path
+    scene: str, ros_env: dict[str, str], tmp_path: Path
 ) -> None:
     procedure_file, answers = SCENES[scene]
     db = f"sqlite:///{tmp_path / 'audit.db'}"

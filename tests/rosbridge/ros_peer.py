@@ -15,6 +15,7 @@ import threading
 import rclpy
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from rclpy.action import ActionServer, CancelResponse
+from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
@@ -63,7 +64,7 @@ class PeerNode(Node):
         response.message = "slow answer"
         return response
 
-    def follow_callback(self, goal_handle) -> FollowJointTrajectory.Result:
+    def follow_callback(self, goal_handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
         goal = goal_handle.request
         result = FollowJointTrajectory.Result()
         if goal.goal_tolerance < 0:

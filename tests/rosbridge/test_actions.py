@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import roslibpy
 from roslibpy.core import GoalStatus
 
@@ -17,7 +19,7 @@ def trajectory(points: int, tolerance: float = 0.01) -> dict:
     }
 
 
-def test_goal_with_feedback_succeeds(connect) -> None:
+def test_goal_with_feedback_succeeds(connect: Callable[[], roslibpy.Ros]) -> None:
     client = roslibpy.ActionClient(connect(), "/peer/follow", ACTION_TYPE)
     results, feedback, errors = Inbox(), Inbox(), Inbox()
     goal_id = client.send_goal(roslibpy.Goal(trajectory(3)), results, feedback, errors)
@@ -29,7 +31,7 @@ def test_goal_with_feedback_succeeds(connect) -> None:
     assert [f["desired"] for f in feedback.wait_for(3)] == [[0.0, 0.0], [0.1, 0.2], [0.2, 0.4]]
 
 
-def test_cancelled_goal_reports_canceled(connect) -> None:
+def test_cancelled_goal_reports_canceled(connect: Callable[[], roslibpy.Ros]) -> None:
     client = roslibpy.ActionClient(connect(), "/peer/follow", ACTION_TYPE)
     results, feedback, errors = Inbox(), Inbox(), Inbox()
     goal_id = client.send_goal(roslibpy.Goal(trajectory(50)), results, feedback, errors)

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 
 import roslibpy
 
 from .rosbridge_support import Inbox, RawClient
 
 
-def test_thirty_concurrent_clients_call_and_subscribe(bridge: tuple[str, int], connect) -> None:
+def test_thirty_concurrent_clients_call_and_subscribe(
+    bridge: tuple[str, int], connect: Callable[[], roslibpy.Ros]
+) -> None:
     clients = [connect() for _ in range(30)]
     inboxes = [Inbox() for _ in clients]
     for client, inbox in zip(clients, inboxes, strict=False):

@@ -15,7 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from .hostile import await_answers, hostile_frame, hostile_message, parses, serve_raw_frames
+from support.processes import ManagedProcess
+
+from .hostile import BridgeLog, Watch, await_answers, hostile_frame, hostile_message, parses, serve_raw_frames
 from .rosbridge_support import RawClient
 
 FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
@@ -23,7 +25,7 @@ _ids = itertools.count()
 
 
 @pytest.fixture(scope="module")
-def fuzz_client(hostile_bridge) -> Iterator[RawClient]:
+def fuzz_client(hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]]) -> Iterator[RawClient]:
     client = RawClient(*hostile_bridge[2], max_size=None)
     client.send({"op": "set_level", "level": "error"})
     yield client
@@ -32,7 +34,9 @@ def fuzz_client(hostile_bridge) -> Iterator[RawClient]:
 
 @FUZZ
 @given(rng=st.randoms(use_true_random=False), count=st.integers(1, 8))
-def test_mutated_messages_are_all_answered(watch, fuzz_client: RawClient, rng: random.Random, count: int) -> None:
+def test_mutated_messages_are_all_answered(
+    watch: Watch, fuzz_client: RawClient, rng: random.Random, count: int
+) -> None:
     wanted: set[str] = set()
     for _ in range(count):
         if rng.random() < 0.4:
@@ -51,7 +55,7 @@ def test_mutated_messages_are_all_answered(watch, fuzz_client: RawClient, rng: r
 @FUZZ
 @given(rng=st.randoms(use_true_random=False), count=st.integers(1, 8))
 def test_raw_frames_are_served_or_refused_with_their_close_code(
-    watch, hostile_bridge, rng: random.Random, count: int
+    watch: Watch, hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]], rng: random.Random, count: int
 ) -> None:
     frames = [hostile_frame(rng) for _ in range(count)]
     assert serve_raw_frames(hostile_bridge[2], frames), frames
@@ -75,7 +79,7 @@ FRAGMENT = st.fixed_dictionaries(
 @FUZZ
 @given(fragments=st.lists(FRAGMENT, min_size=1, max_size=8))
 def test_fragments_in_any_order_and_size_leave_the_connection_served(
-    watch, fuzz_client: RawClient, fragments: list[dict]
+    watch: Watch, fuzz_client: RawClient, fragments: list[dict]
 ) -> None:
     for fragment in fragments:
         fuzz_client.send(fragment)

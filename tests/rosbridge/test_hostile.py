@@ -13,7 +13,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from .hostile import SOURCE_PATH
+from support.processes import ManagedProcess
+
+from .hostile import SOURCE_PATH, BridgeLog, Watch
 from .rosbridge_support import PING, FrameSocket, RawClient, frame, text
 
 MiB = 2**20
@@ -21,7 +23,7 @@ ACTION_TYPE = "caretaker_sim_msgs/action/FollowJointTrajectory"
 
 
 @pytest.fixture
-def address(hostile_bridge) -> tuple[str, int]:
+def address(hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]]) -> tuple[str, int]:
     return hostile_bridge[2]
 
 
@@ -91,7 +93,14 @@ def until_received(publisher: RawClient, subscriber: RawClient, publish: dict, t
     ],
 )
 def test_out_of_range_values_are_refused_and_never_published(
-    watch, client: RawClient, address, type_: str, warm: dict, bad: dict, good: dict, expected: str
+    watch: Watch,
+    client: RawClient,
+    address: tuple[str, int],
+    type_: str,
+    warm: dict,
+    bad: dict,
+    good: dict,
+    expected: str,
 ) -> None:
     topic = f"/hostile/range_{type_.rsplit('/', 1)[1].lower()}"
     subscriber = RawClient(*address)
@@ -119,7 +128,7 @@ def _full(type_: str, fields: dict) -> dict:
 
 
 @pytest.mark.parametrize("when", ["before acceptance", "while executing"])
-def test_goals_of_a_client_that_disconnects_are_cancelled(watch, address, when: str) -> None:
+def test_goals_of_a_client_that_disconnects_are_cancelled(watch: Watch, address: tuple[str, int], when: str) -> None:
     observer = RawClient(*address)
     try:
         observer.send(
@@ -160,7 +169,7 @@ def _uuid(status: dict) -> str:
 # --- 3. fragments and the size limit -----------------------------------------------------------
 
 
-def test_fragments_cannot_exceed_the_size_limit(watch, client: RawClient) -> None:
+def test_fragments_cannot_exceed_the_size_limit(watch: Watch, client: RawClient) -> None:
     smuggled = json.dumps(
         {"op": "call_service", "service": "/rosapi/get_ros_version", "id": "smuggled", "pad": "x" * 1_200_000}
     )
@@ -176,7 +185,7 @@ def test_fragments_cannot_exceed_the_size_limit(watch, client: RawClient) -> Non
     assert answer["id"] == "after", "the oversized message was executed"
 
 
-def test_pending_fragmented_messages_are_limited_per_connection(watch, client: RawClient) -> None:
+def test_pending_fragmented_messages_are_limited_per_connection(watch: Watch, client: RawClient) -> None:
     for number in range(4):
         client.send({"op": "fragment", "id": f"part{number}", "num": 0, "total": 2, "data": "{}"})
     assert "(limit 4, --max-pending-fragments)" in status_of(
@@ -187,14 +196,16 @@ def test_pending_fragmented_messages_are_limited_per_connection(watch, client: R
 # --- 4. amplification ----------------------------------------------------------------------------
 
 
-def test_fragment_size_below_the_minimum_is_refused(watch, client: RawClient) -> None:
+def test_fragment_size_below_the_minimum_is_refused(watch: Watch, client: RawClient) -> None:
     answer = client.request(
         {"op": "call_service", "service": "/rosapi/services", "fragment_size": 1, "id": "tiny"}, "service_response"
     )
     assert answer["result"] is False and "'fragment_size' must be between 1024" in answer["values"]
 
 
-def test_a_client_that_does_not_read_its_answers_costs_the_others_nothing(watch, address) -> None:
+def test_a_client_that_does_not_read_its_answers_costs_the_others_nothing(
+    watch: Watch, address: tuple[str, int]
+) -> None:
     greedy = FrameSocket(*address)
     greedy.sock.settimeout(0.5)  # the bridge stops reading it: sends then block
     call = text({"op": "call_service", "service": "/rosapi/services", "fragment_size": 1024})
@@ -207,7 +218,9 @@ def test_a_client_that_does_not_read_its_answers_costs_the_others_nothing(watch,
         greedy.close()
 
 
-def test_subscribers_that_do_not_read_lose_old_messages_and_the_largest_is_cut_off(watch, address) -> None:
+def test_subscribers_that_do_not_read_lose_old_messages_and_the_largest_is_cut_off(
+    watch: Watch, address: tuple[str, int]
+) -> None:
     publisher = RawClient(*address)
     readers = [FrameSocket(*address) for _ in range(5)]
     try:
@@ -256,7 +269,9 @@ def test_subscribers_that_do_not_read_lose_old_messages_and_the_largest_is_cut_o
 # --- 5. subscriptions, advertisements, calls, goals, connections --------------------------------
 
 
-def test_subscriptions_are_limited_and_new_connections_still_work(watch, client: RawClient, address) -> None:
+def test_subscriptions_are_limited_and_new_connections_still_work(
+    watch: Watch, client: RawClient, address: tuple[str, int]
+) -> None:
     for number in range(20):
         client.send({"op": "subscribe", "topic": f"/hostile/many_{number}", "type": "std_msgs/String"})
     assert "too many subscriptions on this connection (limit 20, --max-subscriptions)" in status_of(
@@ -269,7 +284,7 @@ def test_subscriptions_are_limited_and_new_connections_still_work(watch, client:
         newcomer.close()
 
 
-def test_advertisements_are_limited(watch, client: RawClient) -> None:
+def test_advertisements_are_limited(watch: Watch, client: RawClient) -> None:
     for number in range(10):
         client.send({"op": "advertise", "topic": f"/hostile/adv_{number}", "type": "std_msgs/String"})
     assert "(limit 10, --max-advertisements)" in status_of(
@@ -277,7 +292,7 @@ def test_advertisements_are_limited(watch, client: RawClient) -> None:
     )
 
 
-def test_calls_in_flight_are_limited(watch, client: RawClient) -> None:
+def test_calls_in_flight_are_limited(watch: Watch, client: RawClient) -> None:
     for number in range(9):
         client.send({"op": "call_service", "service": "/peer/slow", "id": f"slow {number}", "timeout": 5})
     refused = client.receive_op("service_response")
@@ -286,7 +301,7 @@ def test_calls_in_flight_are_limited(watch, client: RawClient) -> None:
     assert all(answer["result"] for answer in answers)
 
 
-def test_goals_in_flight_are_limited(watch, client: RawClient) -> None:
+def test_goals_in_flight_are_limited(watch: Watch, client: RawClient) -> None:
     goal = {
         "op": "send_action_goal",
         "action": "/peer/follow",
@@ -300,7 +315,7 @@ def test_goals_in_flight_are_limited(watch, client: RawClient) -> None:
     assert all(client.receive_op("action_result")["result"] for _ in range(4))
 
 
-def test_connections_beyond_the_limit_are_refused_with_503(watch, address) -> None:
+def test_connections_beyond_the_limit_are_refused_with_503(watch: Watch, address: tuple[str, int]) -> None:
     from websockets.exceptions import InvalidStatus
 
     clients: list[RawClient] = []
@@ -317,7 +332,7 @@ def test_connections_beyond_the_limit_are_refused_with_503(watch, address) -> No
 # --- 6. action clients ---------------------------------------------------------------------------
 
 
-def test_goals_to_actions_nobody_offers_leave_no_action_client(watch, client: RawClient) -> None:
+def test_goals_to_actions_nobody_offers_leave_no_action_client(watch: Watch, client: RawClient) -> None:
     for batch in range(3):
         for number in range(4):
             client.send(
@@ -337,7 +352,7 @@ def test_goals_to_actions_nobody_offers_leave_no_action_client(watch, client: Ra
 # --- 7. pings and log volume ---------------------------------------------------------------------
 
 
-def test_pings_a_client_never_reads_are_not_buffered_without_end(watch, address) -> None:
+def test_pings_a_client_never_reads_are_not_buffered_without_end(watch: Watch, address: tuple[str, int]) -> None:
     pinger = FrameSocket(*address)
     pinger.sock.settimeout(0.5)
     ping = frame(PING, b"p" * 125)
@@ -350,7 +365,9 @@ def test_pings_a_client_never_reads_are_not_buffered_without_end(watch, address)
         pinger.close()
 
 
-def test_bad_requests_do_not_grow_the_log_without_end(watch, hostile_bridge, client: RawClient) -> None:
+def test_bad_requests_do_not_grow_the_log_without_end(
+    watch: Watch, hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]], client: RawClient
+) -> None:
     lines_before = hostile_bridge[1].snapshot()[0]
     for number in range(3000):
         client.send(f'{{"op":"teleport","id":{number},"pad":"{"z" * 2000}"}}')
@@ -383,7 +400,7 @@ def test_bad_requests_do_not_grow_the_log_without_end(watch, hostile_bridge, cli
     ],
 )
 def test_hostile_values_in_echoed_fields_are_answered(
-    watch, client: RawClient, frame_text: str, expected: dict
+    watch: Watch, client: RawClient, frame_text: str, expected: dict
 ) -> None:
     client.send(frame_text)
     answer = client.receive_op(expected["op"])
@@ -392,7 +409,9 @@ def test_hostile_values_in_echoed_fields_are_answered(
     assert isinstance(reason, str) and reason and not SOURCE_PATH.search(reason)
 
 
-def test_a_subscribe_refused_halfway_leaves_no_ros_subscription(watch, client: RawClient, address) -> None:
+def test_a_subscribe_refused_halfway_leaves_no_ros_subscription(
+    watch: Watch, client: RawClient, address: tuple[str, int]
+) -> None:
     topic = "/hostile/throttled"
     assert "'throttle_rate' must be between" in status_of(
         client, f'{{"op":"subscribe","topic":"{topic}","type":"std_msgs/String","throttle_rate":{"9" * 400}}}'
@@ -412,7 +431,9 @@ def test_a_subscribe_refused_halfway_leaves_no_ros_subscription(watch, client: R
 # --- 10. type names ------------------------------------------------------------------------------
 
 
-def test_a_type_name_never_imports_a_module_that_is_no_interface_package(watch, hostile_bridge, client) -> None:
+def test_a_type_name_never_imports_a_module_that_is_no_interface_package(
+    watch: Watch, hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]], client: RawClient
+) -> None:
     assert "no ROS interface package 'this' is installed" in status_of(
         client, {"op": "publish", "topic": "/hostile/zen", "type": "this/msg/Zen", "msg": {}}
     )
@@ -423,7 +444,7 @@ def test_a_type_name_never_imports_a_module_that_is_no_interface_package(watch, 
 
 
 @pytest.mark.parametrize("name", ["/a//b", "/1a", "/a/", "/ä", "/a b", "/" + "n" * 300, "/~/x"])
-def test_invalid_ros_names_are_answered(watch, client: RawClient, name: str) -> None:
+def test_invalid_ros_names_are_answered(watch: Watch, client: RawClient, name: str) -> None:
     reason = status_of(client, {"op": "subscribe", "topic": name, "type": "std_msgs/String"})
     assert "not a valid ROS name" in reason or "too long for ROS" in reason
 
@@ -431,7 +452,7 @@ def test_invalid_ros_names_are_answered(watch, client: RawClient, name: str) -> 
 # --- issue 15: bytes per connection --------------------------------------------------------------
 
 
-def test_bytes_each_way_are_counted_per_connection(watch, client: RawClient) -> None:
+def test_bytes_each_way_are_counted_per_connection(watch: Watch, client: RawClient) -> None:
     client.send({"op": "publish", "topic": "/hostile/count", "type": "std_msgs/String", "msg": {"data": "c" * 5000}})
     first = client.request({"op": "call_service", "service": "/rosbridge/connection_stats"}, "service_response")
     values = first["values"]
@@ -441,7 +462,9 @@ def test_bytes_each_way_are_counted_per_connection(watch, client: RawClient) -> 
     assert second["values"]["bytes_sent"] >= values["bytes_sent"] + len(json.dumps(first, separators=(",", ":"))) - 10
 
 
-def test_a_request_its_serving_client_fails_or_abandons_logs_no_traceback(watch, address) -> None:
+def test_a_request_its_serving_client_fails_or_abandons_logs_no_traceback(
+    watch: Watch, address: tuple[str, int]
+) -> None:
     server, caller = RawClient(*address), RawClient(*address)
     try:
         server.send({"op": "advertise_service", "service": "/hostile/served", "type": "std_srvs/Trigger"})

@@ -78,7 +78,9 @@ def _answered_in_time(client: RawClient, wanted: list[str]) -> list[str]:
 
 
 @pytest.mark.parametrize("size", SIZES, ids=["1MB", "9.9MB"])
-def test_megabyte_names_types_ids_and_data_are_answered(logged_bridge, size: int) -> None:
+def test_megabyte_names_types_ids_and_data_are_answered(
+    logged_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]], size: int
+) -> None:
     process, log, address = logged_bridge
     tracebacks = log.snapshot()[1]
     client = RawClient(*address, max_size=None)
@@ -126,7 +128,9 @@ def _wait_listed(client: RawClient, action: str) -> None:
     pytest.fail(f"{wanted} was not listed within 30 s")
 
 
-def test_clients_leaving_with_goals_in_flight_under_action_server_churn(logged_bridge) -> None:
+def test_clients_leaving_with_goals_in_flight_under_action_server_churn(
+    logged_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]],
+) -> None:
     process, log, address = logged_bridge
     tracebacks = log.snapshot()[1]
     for round_ in range(8):

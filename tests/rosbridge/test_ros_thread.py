@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from collections.abc import Awaitable, Callable
 
 import pytest
 
 from bridge.rosbridge.ros_thread import RosThread
 
 
-def run_with_ros(work) -> object:
+def run_with_ros(work: Callable[[RosThread], Awaitable[object]]) -> object:
     async def main() -> object:
         ros = RosThread(asyncio.get_running_loop(), node_name="ros_thread_test")
         try:

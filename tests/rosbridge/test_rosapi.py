@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import roslibpy
 
 
-def test_graph_queries(connect) -> None:
+def test_graph_queries(connect: Callable[[], roslibpy.Ros]) -> None:
     ros = connect()
     assert "/peer/echo_out" in ros.get_topics()
     assert ros.get_topic_type("/peer/echo_out") == "std_msgs/msg/String"
@@ -15,7 +17,7 @@ def test_graph_queries(connect) -> None:
     assert "/bridge_test_peer" in ros.get_nodes()
 
 
-def test_message_details_list_nested_types(connect) -> None:
+def test_message_details_list_nested_types(connect: Callable[[], roslibpy.Ros]) -> None:
     typedefs = connect().get_message_details("geometry_msgs/PoseStamped")["typedefs"]
     by_type = {t["type"]: t for t in typedefs}
     assert typedefs[0]["type"] == "geometry_msgs/msg/PoseStamped"
@@ -24,7 +26,7 @@ def test_message_details_list_nested_types(connect) -> None:
     assert "std_msgs/msg/Header" in by_type and "builtin_interfaces/msg/Time" in by_type
 
 
-def test_time_and_version(connect) -> None:
+def test_time_and_version(connect: Callable[[], roslibpy.Ros]) -> None:
     ros = connect()
     now = roslibpy.Service(ros, "/rosapi/get_time", "rosapi_msgs/srv/GetTime").call(roslibpy.ServiceRequest({}))
     assert now["time"]["sec"] > 1_600_000_000 and 0 <= now["time"]["nanosec"] < 1_000_000_000
@@ -34,7 +36,7 @@ def test_time_and_version(connect) -> None:
     assert version == {"version": 2, "distro": "jazzy"}
 
 
-def test_parameters_of_a_node(connect) -> None:
+def test_parameters_of_a_node(connect: Callable[[], roslibpy.Ros]) -> None:
     ros = connect()
     greeting = roslibpy.Param(ros, "/bridge_test_peer:greeting")
     assert greeting.get(timeout=10) == "hello"
@@ -43,5 +45,7 @@ def test_parameters_of_a_node(connect) -> None:
     assert "/bridge_test_peer:greeting" in ros.get_params()
 
 
-def test_bridge_publishes_its_actual_port_as_a_parameter(connect, bridge: tuple[str, int]) -> None:
+def test_bridge_publishes_its_actual_port_as_a_parameter(
+    connect: Callable[[], roslibpy.Ros], bridge: tuple[str, int]
+) -> None:
     assert roslibpy.Param(connect(), "/rosbridge_websocket:actual_port").get(timeout=10) == bridge[1]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 
 import pytest
 import roslibpy
@@ -10,7 +11,7 @@ import roslibpy
 from .rosbridge_support import Inbox
 
 
-def test_call_with_dict_and_with_list_args(connect) -> None:
+def test_call_with_dict_and_with_list_args(connect: Callable[[], roslibpy.Ros]) -> None:
     service = roslibpy.Service(connect(), "/peer/set_bool", "std_srvs/SetBool")
     assert service.call(roslibpy.ServiceRequest({"data": True}), timeout=10) == {"success": True, "message": "got true"}
     client = connect()
@@ -24,13 +25,13 @@ def test_call_with_dict_and_with_list_args(connect) -> None:
     )
 
 
-def test_missing_service_is_answered_as_a_failure(connect) -> None:
+def test_missing_service_is_answered_as_a_failure(connect: Callable[[], roslibpy.Ros]) -> None:
     service = roslibpy.Service(connect(), "/no/such/service", "std_srvs/Trigger")
     with pytest.raises(roslibpy.core.ServiceException, match="Service /no/such/service does not exist"):
         service.call(roslibpy.ServiceRequest({}), timeout=10)
 
 
-def test_slow_service_does_not_block_other_calls(connect) -> None:
+def test_slow_service_does_not_block_other_calls(connect: Callable[[], roslibpy.Ros]) -> None:
     client = connect()
     slow_done = Inbox()
     roslibpy.Service(client, "/peer/slow", "std_srvs/Trigger").call(
@@ -43,7 +44,7 @@ def test_slow_service_does_not_block_other_calls(connect) -> None:
     assert slow_done.wait_for(1)[0] == {"success": True, "message": "slow answer"}
 
 
-def test_client_serves_a_ros_service_called_by_another_client(connect) -> None:
+def test_client_serves_a_ros_service_called_by_another_client(connect: Callable[[], roslibpy.Ros]) -> None:
     server_client, caller_client = connect(), connect()
     served = threading.Event()
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+from collections.abc import Callable
 from pathlib import Path
 
 import roslibpy
@@ -14,7 +15,7 @@ from .rosbridge_support import Inbox, publish_until_received
 LATE_PUBLISHER = Path(__file__).with_name("late_latched_publisher.py")
 
 
-def test_publish_reaches_ros_and_echo_comes_back_in_order(connect) -> None:
+def test_publish_reaches_ros_and_echo_comes_back_in_order(connect: Callable[[], roslibpy.Ros]) -> None:
     publisher_client, subscriber_client = connect(), connect()
     inbox = Inbox()
     roslibpy.Topic(subscriber_client, "/peer/echo_out", "std_msgs/msg/String").subscribe(inbox)
@@ -28,13 +29,13 @@ def test_publish_reaches_ros_and_echo_comes_back_in_order(connect) -> None:
     assert [r for r in received if r != "warm-up"] == [f"message {i}" for i in range(200)]
 
 
-def test_latched_topic_delivers_last_value_without_a_type(connect) -> None:
+def test_latched_topic_delivers_last_value_without_a_type(connect: Callable[[], roslibpy.Ros]) -> None:
     inbox = Inbox()
     roslibpy.Topic(connect(), "/peer/latched", None).subscribe(inbox)
     assert inbox.wait_for(1)[0] == {"data": "latched value"}
 
 
-def test_latched_value_reaches_a_client_subscribing_after_it_arrived(connect) -> None:
+def test_latched_value_reaches_a_client_subscribing_after_it_arrived(connect: Callable[[], roslibpy.Ros]) -> None:
     first, late = Inbox(), Inbox()
     roslibpy.Topic(connect(), "/peer/latched", "std_msgs/String").subscribe(first)
     assert first.wait_for(1)[0] == {"data": "latched value"}
@@ -43,7 +44,7 @@ def test_latched_value_reaches_a_client_subscribing_after_it_arrived(connect) ->
     assert late.wait_for(1)[0] == {"data": "latched value"}
 
 
-def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect) -> None:
+def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect: Callable[[], roslibpy.Ros]) -> None:
     client = connect()
     inbox = Inbox()
     topic = "/bridge_test/image"
@@ -60,7 +61,7 @@ def test_image_with_secs_nsecs_and_uint8_list_comes_back_with_base64(connect) ->
     assert base64.b64decode(image["data"]) == bytes([1, 2, 250])
 
 
-def test_custom_affordance_template_type_round_trips(connect) -> None:
+def test_custom_affordance_template_type_round_trips(connect: Callable[[], roslibpy.Ros]) -> None:
     client = connect()
     inbox = Inbox()
     topic = "/bridge_test/waypoint"
@@ -71,7 +72,7 @@ def test_custom_affordance_template_type_round_trips(connect) -> None:
     assert inbox.items[0]["num_waypoints"] == 5
 
 
-def test_throttled_subscriber_gets_one_message_while_another_gets_all(connect) -> None:
+def test_throttled_subscriber_gets_one_message_while_another_gets_all(connect: Callable[[], roslibpy.Ros]) -> None:
     # separate connections: roslibpy hands every message of a topic to all its callbacks
     every, throttled = Inbox(), Inbox()
     topic = "/bridge_test/rate"
@@ -87,7 +88,9 @@ def test_throttled_subscriber_gets_one_message_while_another_gets_all(connect) -
     assert len(throttled.items) == 1
 
 
-def test_latched_publisher_appearing_after_the_subscription_still_delivers(connect, ros_env) -> None:
+def test_latched_publisher_appearing_after_the_subscription_still_delivers(
+    connect: Callable[[], roslibpy.Ros], ros_env: dict[str, str]
+) -> None:
     # The bridge picks a subscription's QoS from the publishers it sees; with none yet it
     # subscribes volatile and must re-subscribe transient-local once the latched one appears.
     topic = "/bridge_test/late_latched"

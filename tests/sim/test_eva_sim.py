@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from arm_paths import ArmModel
 from sim_client import SimClient
@@ -65,7 +67,9 @@ def test_visual_world_has_the_hull_targets_and_the_arm_without_gripper(client: S
     assert objects["target/hull_b"].shapes[1].radius == pytest.approx(0.05)
 
 
-def test_arm_looks_at_a_damaged_target_and_captures_evidence(client: SimClient, model: ArmModel, capture_dir) -> None:
+def test_arm_looks_at_a_damaged_target_and_captures_evidence(
+    client: SimClient, model: ArmModel, capture_dir: Path
+) -> None:
     start = client.joint_positions(ARM)
     target = next(t for t in model.scene.targets if t.name == "hull_b")
     goal = model.look_at("ee_camera", target.pose, 1.0, start)

@@ -7,10 +7,13 @@ previous left the arm and moves from the current joint state.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import pytest
 from action_msgs.msg import GoalStatus
 from arm_paths import ArmModel
+from caretaker_sim_msgs.action import FollowJointTrajectory
 from sim_client import SimClient
 
 from sim.trajectory import ErrorCode
@@ -27,16 +30,18 @@ def model() -> ArmModel:
     m.close()
 
 
-def move_to(client: SimClient, model: ArmModel, waypoints: list[list[float]], speed_fraction: float = 0.5):
+def move_to(
+    client: SimClient, model: ArmModel, waypoints: list[list[float]], speed_fraction: float = 0.5
+) -> FollowJointTrajectory.Result:
     start = client.joint_positions(ARM)
     return client.follow(ARM, model.timed(waypoints, start, speed_fraction))
 
 
-def assert_ok(result) -> None:
+def assert_ok(result: FollowJointTrajectory.Result) -> None:
     assert result.error_code == ErrorCode.SUCCESSFUL, f"trajectory failed ({result.error_code}): {result.error_string}"
 
 
-def close_to(a, b, tol: float) -> bool:
+def close_to(a: Sequence[float], b: Sequence[float], tol: float) -> bool:
     return all(abs(x - y) <= tol for x, y in zip(a, b, strict=False))
 
 
@@ -193,7 +198,12 @@ INVALID = [
 
 
 @pytest.mark.parametrize("build, code, reason", [case[1:] for case in INVALID], ids=[case[0] for case in INVALID])
-def test_invalid_trajectory_is_refused_and_nothing_moves(client: SimClient, build, code: int, reason: str) -> None:
+def test_invalid_trajectory_is_refused_and_nothing_moves(
+    client: SimClient,
+    build: Callable[[list[float]], tuple[list[str], list[tuple[float, list[float]]], list[list[float]] | None]],
+    code: int,
+    reason: str,
+) -> None:
     before = client.joint_positions(ARM)
     names, points, velocities = build(before)
     result = client.follow(names, points, velocities=velocities)
@@ -270,7 +280,7 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     assert_ok(move_to(client, model, [HOME]))
 
 
-def test_scene_camera_capture_saves_a_png(client: SimClient, capture_dir) -> None:
+def test_scene_camera_capture_saves_a_png(client: SimClient, capture_dir: Path) -> None:
     response = client.capture("scene", "after swap")
     assert response.success, response.message
     assert response.image.width == 640 and response.image.height == 480

@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import pytest
 
-from sim.trajectory import ErrorCode, JointLimit, TrajectoryError, validate_trajectory
+from sim.trajectory import ErrorCode, JointLimit, Trajectory, TrajectoryError, validate_trajectory
 
 JOINTS = ("a", "b")
 LIMITS = {"a": JointLimit(-1.0, 1.0, 1.0), "b": JointLimit(-2.0, 2.0, 0.5), "finger": JointLimit(0.0, 0.04, 0.1)}
 
 
-def validate(names, points, current=(0.0, 0.0)):
+def validate(
+    names: Sequence[str], points: list[tuple[float, list[float], list[float]]], current: tuple[float, ...] = (0.0, 0.0)
+) -> Trajectory:
     return validate_trajectory(
         list(names), points, limits=LIMITS, controller_joints=JOINTS, current=current, other_joints=("finger",)
     )
@@ -55,7 +58,9 @@ def test_hermite_sampling_matches_end_points_and_velocities() -> None:
         (["a"], [(0.0, [0.5], [])], ErrorCode.INVALID_GOAL, "away from the current position"),
     ],
 )
-def test_invalid_trajectories_are_refused_with_their_reason(names, points, code, text) -> None:
+def test_invalid_trajectories_are_refused_with_their_reason(
+    names: Sequence[str], points: list[tuple[float, list[float], list[float]]], code: int, text: str
+) -> None:
     with pytest.raises(TrajectoryError) as err:
         validate(names, points)
     assert err.value.code == code

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
 from support.stack import robot_parts
+
+if TYPE_CHECKING:  # tests/at_ros/at_client.py, importable while that folder's tests run
+    from at_client import AtClient
 
 __all__ = ["start_stack"]
 
 
-def start_stack(ros_env: dict[str, str], deployment: str, time_scale: float):
+def start_stack(ros_env: dict[str, str], deployment: str, time_scale: float) -> Iterator[AtClient]:
     """The deployment's simulation, planner and AT server as real processes, plus a test client; stops them all.
 
     A generator for a module fixture to ``yield from``. The client is tests/at_ros/at_client.py,

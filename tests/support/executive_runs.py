@@ -2,11 +2,20 @@
 
 from __future__ import annotations
 
-from pride.executive import Executive, Hold, RunStatus, Snapshot
+from collections.abc import Callable
+from typing import TypeAlias
 
-__all__ = ["TIMEOUT", "finished", "held"]
+from pride.executive import Executive, Hold, RunStatus, Snapshot
+from support.audit import RecordedJournal
+from support.lab_gateway import LabGateway
+
+__all__ = ["TIMEOUT", "Bench", "finished", "held"]
 
 TIMEOUT = 20.0
+
+#: The ``bench`` fixture of tests/pride/conftest.py: ``bench(mode, name, gateway, run_id=, control=,
+#: journal=)`` makes an executive on the lab bench and returns it with its gateway and journal.
+Bench: TypeAlias = Callable[..., tuple[Executive, LabGateway, RecordedJournal]]
 
 
 def held(executive: Executive, hold: Hold, at: str) -> Snapshot:

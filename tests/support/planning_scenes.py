@@ -4,12 +4,14 @@ of tests/fixtures/bench_arm (a robot not shipped) on its workbench."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from at_ros.collision_scene import build_planning_scene
-from at_ros.robot_config import load_robot_config
+from at_ros.planning_scene import PlanningScene
+from at_ros.robot_config import RobotConfig, load_robot_config
 from sim.collision_world import collision_world
 from sim.scene import load_scene
 
@@ -21,7 +23,9 @@ UR10_START = np.array([0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0])
 BENCH_ARM = Path(__file__).resolve().parents[1] / "fixtures" / "bench_arm"
 
 
-def bench_planning_scene(urdf_edit=None, tmp_path: Path | None = None):
+def bench_planning_scene(
+    urdf_edit: Callable[[str], str] | None = None, tmp_path: Path | None = None
+) -> tuple[RobotConfig, PlanningScene]:
     """The bench arm of tests/fixtures/bench_arm (a robot not shipped) on its workbench; with
     ``urdf_edit`` (text -> text) on a copy of its URDF in ``tmp_path``."""
     config = load_robot_config(BENCH_ARM / "bench_arm.yaml")

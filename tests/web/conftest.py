@@ -8,10 +8,10 @@ browser contexts, so several "people" can watch one run at once.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
-from playwright.sync_api import Browser, Playwright, expect
+from playwright.sync_api import Browser, Page, Playwright, expect
 
 from support.browser import CHROMIUM, TIMEOUT_MS, WEBGL_ARGS, signed_in_pages
 from support.operator_page import sign_in_on
@@ -40,7 +40,7 @@ def webgl_browser(playwright: Playwright) -> Iterator[Browser]:
 
 
 @pytest.fixture
-def open_page(browser: Browser) -> Iterator:
+def open_page(browser: Browser) -> Iterator[Callable[[WebServer, str], Page]]:
     """``open_page(server, "alice")`` opens a fresh browser context on that server signed in as that
     user, with their password; script errors on any page fail the test."""
     with signed_in_pages(browser, sign_in_on) as open_as:
@@ -48,6 +48,6 @@ def open_page(browser: Browser) -> Iterator:
 
 
 @pytest.fixture
-def sign_in(open_page, server: WebServer):
+def sign_in(open_page: Callable[[WebServer, str], Page], server: WebServer) -> Callable[[str], Page]:
     """``sign_in("alice")``: :func:`open_page` on the suite's server."""
     return lambda user: open_page(server, user)

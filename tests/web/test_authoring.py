@@ -10,12 +10,12 @@ import re
 import shutil
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 from author_page import bind_arg, card, drop, set_arg, set_attr
-from playwright.sync_api import expect
+from playwright.sync_api import Page, expect
 
 from console.authoring import check_document, read_document
 from console.procedure_view import procedure_json
@@ -49,7 +49,9 @@ def test_opening_and_saving_a_shipped_procedure_changes_nothing(name: str, tmp_p
     assert procedure_json(load_procedure(saved)) == procedure_json(load_procedure(source))
 
 
-def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(sign_in, server) -> None:
+def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     alice.goto(f"{server.url}/author")
     expect(alice.locator("#check-state")).to_have_text("1 problem(s)")  # a new procedure's empty step

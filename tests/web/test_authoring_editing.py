@@ -7,13 +7,16 @@ and the procedure shelf, and what is saved is read back from the server's disk.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 import pytest
 from author_page import bind_arg, card, drop, drop_zone, set_arg, set_attr
 from playwright.sync_api import Page, expect
 
+from support.web_server import WebServer
 
-def tall_page(sign_in) -> Page:
+
+def tall_page(sign_in: Callable[[str], Page]) -> Page:
     """Alice's page, tall enough that drag and drop stay in view: a synthetic drag does not scroll."""
     page = sign_in("alice")
     page.set_viewport_size({"width": 1500, "height": 1600})
@@ -39,7 +42,9 @@ def header(number: str) -> str:
 @pytest.mark.parametrize(
     "server", ["sqlite"], indirect=True
 )  # the page only: the log is tested on both databases elsewhere
-def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, server) -> None:
+def test_a_card_dragged_by_its_header_moves_within_and_across_steps(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
     open_procedure(alice, "eva_inspection.xml")
@@ -63,7 +68,9 @@ def test_a_card_dragged_by_its_header_moves_within_and_across_steps(sign_in, ser
 @pytest.mark.parametrize(
     "server", ["sqlite"], indirect=True
 )  # the page only: the log is tested on both databases elsewhere
-def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, server) -> None:
+def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
     open_procedure(alice, "eva_inspection.xml")
@@ -80,7 +87,9 @@ def test_a_step_dragged_by_its_handle_moves_and_everything_renumbers(sign_in, se
 @pytest.mark.parametrize(
     "server", ["sqlite"], indirect=True
 )  # the page only: the log is tested on both databases elsewhere
-def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_be_edited(sign_in, server) -> None:
+def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_be_edited(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = tall_page(sign_in)
     alice.goto(f"{server.url}/author")
     open_procedure(alice, "eva_inspection.xml")

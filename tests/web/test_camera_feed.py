@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -37,7 +38,7 @@ def _moving(feed: CameraFeed, kind: EventKind) -> None:
 
 @pytest.mark.parametrize("recovers", [False, True])
 def test_a_failing_capture_is_warned_of_once_and_its_recovery_is_said(
-    caplog: pytest.LogCaptureFixture, tmp_path, recovers: bool
+    caplog: pytest.LogCaptureFixture, tmp_path: Path, recovers: bool
 ) -> None:
     unknown = CommandResult(Outcome.FAILED, "unknown camera 'ee_camera'; cameras are ['scene']")
     image = CommandResult(Outcome.SUCCEEDED, "", {"path": str(tmp_path / "view.png")})

@@ -9,9 +9,10 @@ before it replaces a procedure.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
 import pytest
-from playwright.sync_api import expect
+from playwright.sync_api import Page, expect
 
 from support.operator_page import (
     IVA,
@@ -23,9 +24,10 @@ from support.operator_page import (
     start_run,
     stop_run,
 )
+from support.web_server import WebServer
 
 
-def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
+def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in: Callable[[str], Page]) -> None:
     alice = sign_in("alice")
     start_run(alice, IVA, "autonomous")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
@@ -48,7 +50,9 @@ def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in) -> None:
     stop_run(alice, "audit log read")
 
 
-def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(sign_in, server) -> None:
+def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, "web_walkthrough.xml", "manual")
     listed = alice.locator(f'#run-list li[data-run-id="{run_id}"]')
@@ -70,7 +74,7 @@ def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(sign_in
     )
 
 
-def test_continue_is_offered_only_where_automation_can_continue(sign_in) -> None:
+def test_continue_is_offered_only_where_automation_can_continue(sign_in: Callable[[str], Page]) -> None:
     alice = sign_in("alice")
     start_run(alice, "web_walkthrough.xml", "manual")
     alice.click("#pause")
@@ -87,7 +91,7 @@ def test_continue_is_offered_only_where_automation_can_continue(sign_in) -> None
     stop_run(alice, "continue checked")
 
 
-def test_a_stopped_run_is_resumed_from_the_web_view(sign_in, server) -> None:
+def test_a_stopped_run_is_resumed_from_the_web_view(sign_in: Callable[[str], Page], server: WebServer) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, "web_walkthrough.xml", "manual")
     instruction(alice, "1.1").locator("button.perform").click()
@@ -125,7 +129,7 @@ def test_a_stopped_run_is_resumed_from_the_web_view(sign_in, server) -> None:
     "server", ["sqlite"], indirect=True
 )  # the page only: the log is tested on both databases elsewhere
 @pytest.mark.parametrize("width", [1024, 800])
-def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> None:
+def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in: Callable[[str], Page], width: int) -> None:
     alice = sign_in("alice")
     alice.set_viewport_size({"width": width, "height": 900})
     start_run(alice, IVA, "autonomous")
@@ -155,7 +159,9 @@ def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in, width: int) -> No
     stop_run(alice, f"checked at {width} px")
 
 
-def test_the_report_shows_values_as_read_and_whole_step_titles(sign_in, server) -> None:
+def test_the_report_shows_values_as_read_and_whole_step_titles(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
@@ -175,7 +181,7 @@ def test_the_report_shows_values_as_read_and_whole_step_titles(sign_in, server) 
 @pytest.mark.parametrize(
     "server", ["sqlite"], indirect=True
 )  # the page only: the log is tested on both databases elsewhere
-def test_author_save_asks_before_replacing_a_procedure(sign_in, server) -> None:
+def test_author_save_asks_before_replacing_a_procedure(sign_in: Callable[[str], Page], server: WebServer) -> None:
     alice = sign_in("alice")
     alice.goto(f"{server.url}/author")
     alice.select_option("#open-name", "web_walkthrough.xml")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 from playwright.sync_api import Page, expect
@@ -46,7 +46,7 @@ def assert_readable(texts: dict[str, str]) -> None:
         assert text.strip() and "${" not in text and not RAW_COMMAND.search(text), f"{number} reads as code: {text!r}"
 
 
-def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in) -> None:
+def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in: Callable[[str], Page]) -> None:
     alice = sign_in("alice")
     start_run(alice, IVA, "manual")
     texts = sentences(alice)
@@ -96,7 +96,9 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     stop_run(alice, "sentences checked")
 
 
-def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_in, server) -> None:
+def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
     expect_current(instruction(alice, "2.6"))
@@ -142,7 +144,9 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(sign_
     stop_run(alice, "followed")
 
 
-def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts_down(sign_in) -> None:
+def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts_down(
+    sign_in: Callable[[str], Page],
+) -> None:
     alice = sign_in("alice")
     start_run(alice, "web_console.xml", "manual")
     out, ok, unexpected = (instruction(alice, n).locator(".telemetry") for n in ("1.1", "1.2", "1.3"))

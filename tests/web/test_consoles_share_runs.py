@@ -14,7 +14,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -55,7 +55,9 @@ def run_line(page: Page, run_id: str) -> Locator:
     return page.locator(f'#run-list li[data-run-id="{run_id}"]')
 
 
-def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_there(consoles, open_page) -> None:
+def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_there(
+    consoles: tuple[WebServer, WebServer], open_page: Callable[[WebServer, str], Page]
+) -> None:
     first, second = consoles
     alice = open_page(first, "alice")
     bob = open_page(second, "bob")
@@ -108,7 +110,9 @@ def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_the
         expect(page.locator("#sign-in-error")).to_contain_text("password changed")
 
 
-def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_resumes_it(consoles, open_page) -> None:
+def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_resumes_it(
+    consoles: tuple[WebServer, WebServer], open_page: Callable[[WebServer, str], Page]
+) -> None:
     first, second = consoles
     alice = open_page(first, "alice")
     run_id = start_run(alice, WALKTHROUGH, "manual")
@@ -137,7 +141,10 @@ def test_when_the_hosting_console_dies_the_other_shows_the_run_interrupted_and_r
 
 
 def test_a_run_driven_outside_a_console_is_live_on_the_consoles_and_acted_on_from_them(
-    consoles, open_page, tmp_path, monkeypatch
+    consoles: tuple[WebServer, WebServer],
+    open_page: Callable[[WebServer, str], Page],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """What `caretaker run` does with a TerminalHost: this test process is the runner."""
     first, _ = consoles

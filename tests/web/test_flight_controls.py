@@ -10,6 +10,8 @@ with the arm's joint states, is in test_web_on_real_stack.py.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from playwright.sync_api import Page, expect
 
 from support.operator_page import audit_row, expect_current, instruction, screenshot, start_run, stop_run
@@ -28,7 +30,7 @@ def answer(page: Page, reason: str, value: str | None = None) -> None:
     page.click("#reason-yes")
 
 
-def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServer) -> None:
+def test_halt_unknown_outcome_correction_and_step_back(sign_in: Callable[[str], Page], server: WebServer) -> None:
     alice = sign_in("alice")
     start_run(alice, FLIGHT, "manual")
     expect(alice.locator("#halt")).to_be_enabled()
@@ -116,7 +118,7 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in, server: WebServe
     stop_run(alice, "flight controls checked")
 
 
-def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in) -> None:
+def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in: Callable[[str], Page]) -> None:
     alice = sign_in("alice")
     first = start_run(alice, WALKTHROUGH, "manual")
     bob = sign_in("bob")

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 import roslibpy
-from playwright.sync_api import expect
+from playwright.sync_api import Page, expect
 
 from pride.audit_log import AuditLog
 from pride.events import EventKind
@@ -116,7 +116,9 @@ def real_time_stack(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[W
             server.process.stop()
 
 
-def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(open_page, real_time_stack) -> None:
+def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
+    open_page: Callable[[WebServer, str], Page], real_time_stack: tuple[WebServer, RobotSide]
+) -> None:
     server, robot = real_time_stack
     alice = open_page(server, "alice")
     run_id = start_run(alice, IVA, "autonomous")

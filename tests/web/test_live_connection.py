@@ -9,7 +9,7 @@ whole record.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 from playwright.sync_api import Page, Route, expect
@@ -18,7 +18,7 @@ from support.operator_page import IVA, audit_row, expect_current, instruction, s
 
 
 @pytest.fixture
-def held(sign_in) -> Iterator[tuple[Page, int]]:
+def held(sign_in: Callable[[str], Page]) -> Iterator[tuple[Page, int]]:
     """Alice's page on an IVA run held at 2.6, and the sequence number of its last event; stopped
     afterwards (the suite's server has one IVA robot, which a run left live would keep controlling)."""
     page = sign_in("alice")
@@ -35,7 +35,7 @@ def expect_every_event_once(page: Page, last_seq: int) -> None:
     assert sorted(int(seq.removeprefix("#")) for seq in shown) == list(range(1, last_seq + 1)), shown
 
 
-def test_opening_the_run_again_before_the_first_opening_finished_shows_every_event_once(held) -> None:
+def test_opening_the_run_again_before_the_first_opening_finished_shows_every_event_once(held: tuple[Page, int]) -> None:
     page, last_seq = held
 
     # what a hash change while signing in does: two openings, the second asked before the first is drawn
@@ -44,7 +44,7 @@ def test_opening_the_run_again_before_the_first_opening_finished_shows_every_eve
     expect_every_event_once(page, last_seq)
 
 
-def test_a_lost_connection_whose_reopening_fails_is_tried_again(held) -> None:
+def test_a_lost_connection_whose_reopening_fails_is_tried_again(held: tuple[Page, int]) -> None:
     page, last_seq = held
     run_id = page.locator("#run-id").inner_text()
     failed: list[str] = []
@@ -68,7 +68,9 @@ def test_a_lost_connection_whose_reopening_fails_is_tried_again(held) -> None:
     expect_every_event_once(page, last_seq)
 
 
-def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lost_connection(held) -> None:
+def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lost_connection(
+    held: tuple[Page, int],
+) -> None:
     page, _ = held
     instruction(page, "2.6").locator("button.done").click()
     record = instruction(page, "4.1")

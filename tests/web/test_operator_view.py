@@ -10,8 +10,10 @@ robot motion, is here.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
+from pathlib import Path
 
-from playwright.sync_api import expect
+from playwright.sync_api import Browser, Page, expect
 
 from pride.audit_log import AuditLog
 from support.operator_page import (
@@ -26,10 +28,12 @@ from support.operator_page import (
     start_run,
     stop_run,
 )
-from support.web_server import procedure_shelf, start_server
+from support.web_server import WebServer, procedure_shelf, start_server
 
 
-def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_in, server) -> None:
+def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
 
@@ -98,7 +102,9 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(sign_i
     assert [(e.actor, e.data["args"]["frame"]) for e in sent] == [("alice", "filter/CDRA-F-0012")]
 
 
-def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) -> None:
+def test_breakpoint_failure_retry_skip_and_hazard_confirmation(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, "web_walkthrough.xml", "manual")
 
@@ -171,7 +177,9 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(sign_in, server) 
     assert run_id in report.text() and "alice" in report.text()
 
 
-def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, server) -> None:
+def test_eva_inspection_shows_sub_procedures_and_the_camera_images(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     alice.select_option("#start-procedure", "eva_inspection.xml")
     alice.select_option("#start-binding", "eva.yaml")
@@ -219,7 +227,9 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(sign_in, serv
     expect(audit_row(alice, "operator_input", "2.1/2.2", "alice")).to_contain_text("damage = false")
 
 
-def test_a_past_run_is_drawn_from_the_audit_log_alone(sign_in, server, browser, tmp_path) -> None:
+def test_a_past_run_is_drawn_from_the_audit_log_alone(
+    sign_in: Callable[[str], Page], server: WebServer, browser: Browser, tmp_path: Path
+) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, "web_walkthrough.xml", "manual")
     instruction(alice, "1.1").locator("button.perform").click()

@@ -27,7 +27,7 @@ from console.accounts import AccountStore, Role
 from console.run_board import CameraSettings
 from console.server import main
 from support.processes import caretaker
-from support.web_server import PEOPLE, REPO
+from support.web_server import PEOPLE, REPO, WebServer
 
 Reply = tuple[int, dict[str, Any], dict[str, str]]
 
@@ -120,7 +120,7 @@ def test_accounts_are_managed_with_passwords_from_stdin_never_arguments(tmp_path
     assert "dave-secret" not in (tmp_path / "ground.db").read_bytes().decode("latin-1")  # only hashes are stored
 
 
-def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server) -> None:
+def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server: WebServer) -> None:
     assert server.url.startswith("http://127.0.0.1:")
     client = Client(server.url)
     assert client.call("GET", "/api/runs")[:2] == (401, {"error": "sign in first"})
@@ -137,7 +137,7 @@ def test_serve_binds_loopback_and_serves_nothing_before_sign_in(server) -> None:
     assert refused.value.response.status_code == 403
 
 
-def test_state_changing_requests_need_the_sessions_csrf_token_and_this_sites_origin(server) -> None:
+def test_state_changing_requests_need_the_sessions_csrf_token_and_this_sites_origin(server: WebServer) -> None:
     client = Client(server.url)
     status, body, headers = client.sign_in("bob")
     assert status == 200 and body["user"] == "bob" and len(body["csrf"]) >= 32
@@ -183,7 +183,7 @@ def _from_address(url: str, address: str, body: dict) -> tuple[int, dict[str, st
         connection.close()
 
 
-def test_repeated_failures_slow_that_user_from_that_address_not_the_real_user_elsewhere(server) -> None:
+def test_repeated_failures_slow_that_user_from_that_address_not_the_real_user_elsewhere(server: WebServer) -> None:
     guess = {"user": "bob", "password": "guess-number-n"}
     for _ in range(5):
         assert _from_address(server.url, "127.0.0.3", guess)[0] == 401
@@ -193,7 +193,7 @@ def test_repeated_failures_slow_that_user_from_that_address_not_the_real_user_el
     assert status == 200  # bob at his own console is not locked out
 
 
-def test_an_observer_may_read_procedures_but_not_save_them(server) -> None:
+def test_an_observer_may_read_procedures_but_not_save_them(server: WebServer) -> None:
     client = Client(server.url)
     assert client.sign_in("carol")[0] == 200
     status, document, _ = client.call("GET", "/api/author/procedures/web_walkthrough.xml")

@@ -14,10 +14,10 @@ of the page on simulated systems.)
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
-from playwright.sync_api import expect
+from playwright.sync_api import Page, expect
 
 from pride.audit_log import AuditLog
 from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
@@ -38,7 +38,9 @@ def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) ->
         yield served
 
 
-def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(sign_in, server) -> None:
+def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     expect(alice.locator("#who")).to_have_text("alice (operator)")
     run_id = start_run(alice, IVA, "manual")
