@@ -106,6 +106,7 @@ class ManagedProcess:
                 self._output_changed.notify_all()
             if self._on_line is not None:
                 self._on_line(self.name, line)
+        self.proc.stdout.close()  # the child is gone; its pipe is ours to close
         with self._output_changed:
             self._ended = True
             self._output_changed.notify_all()
