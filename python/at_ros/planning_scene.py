@@ -38,7 +38,7 @@ class Attachment:
 
     name: str
     body: int
-    tool_T_object: np.ndarray
+    tool_T_object: np.ndarray  # noqa: N815 (a_T_b: the transform notation of robotics)
 
 
 @dataclass(frozen=True)
@@ -162,12 +162,12 @@ class PlanningScene:
             return name
         return next((n for n in self.obstacles if n.rsplit("/", 1)[-1] == name), None)
 
-    def attach(self, name: str, tool_T_object: np.ndarray | None = None) -> None:
+    def attach(self, name: str, tool_T_object: np.ndarray | None = None) -> None:  # noqa: N803 (a_T_b: the transform notation of robotics)
         """Carry obstacle ``name`` with the tool; by default where it is now relative to the tool."""
         if name not in self.obstacles:
             raise KeyError(f"unknown object {name!r}")
         if tool_T_object is None:
-            tool_T_object = invert(self.tool_pose()) @ self.obstacle_pose(name)
+            tool_T_object = invert(self.tool_pose()) @ self.obstacle_pose(name)  # noqa: N806 (a_T_b: the transform notation of robotics)
         self.attachment = Attachment(name, self.obstacles[name], tool_T_object)
 
     def detach(self) -> None:
