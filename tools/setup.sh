@@ -47,10 +47,26 @@ if [ ! -x "$VENV/bin/python" ]; then
   log "creating $VENV"
   "$PYTHON" -m venv "$VENV"
 fi
+# uv installs the same pins about seven times faster than pip (from its cache on the next
+# checkout). It does not read pip's configuration, so the indexes, find-links and CA file pip is
+# configured with are handed to it; if uv cannot install, pip does.
+UV_VERSION=0.9.5
+pip_setting() { "$VENV/bin/pip" config get "global.$1" 2>/dev/null || true; }
+install_requirements() {
+  "$VENV/bin/pip" install -q --disable-pip-version-check "uv==$UV_VERSION" 2>&1 | { grep -v "is ignored: it is neither" || true; }
+  local args=(--python "$VENV/bin/python" --index-strategy unsafe-best-match -r requirements.txt) url
+  url=$(pip_setting index-url); [ -z "$url" ] || args+=(--index-url "$url")
+  for url in $(pip_setting extra-index-url); do args+=(--extra-index-url "$url"); done
+  for url in $(pip_setting find-links); do args+=(--find-links "$url"); done
+  local cert; cert=$(pip_setting cert)
+  if env ${cert:+SSL_CERT_FILE="$cert"} "$VENV/bin/uv" pip install -q "${args[@]}"; then return 0; fi
+  log "uv could not install requirements.txt: installing with pip"
+  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt 2>&1 | { grep -v "is ignored: it is neither" || true; }
+}
 h=$(hash_of requirements.txt)
 if step_needed pip "$h"; then
   log "installing Python dependencies (requirements.txt)"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt 2>&1 | { grep -v "is ignored: it is neither" || true; }
+  install_requirements
   step_done pip "$h"
 fi
 
