@@ -66,15 +66,15 @@ class Part:
 
     ``world``: the part *is* the world (the simulation); it is never restarted, and its death
     ends the stack. ``wanted``: whether a deployment has this part (default: every one does).
-    ``urgent``: the part is on the path of a halt or is the control loop, so it runs ahead of
-    other work on the machine (:data:`URGENT_NICENESS`).
+    ``urgent``: whether, in this run, the part is on the path of a halt or is the control loop,
+    so it runs ahead of other work on the machine (:data:`URGENT_NICENESS`).
     """
 
     name: str
     command: Callable[[Deployment, StackRun], list[str]]
     world: bool = False
     wanted: Callable[[Deployment], bool] = lambda deployment: True
-    urgent: bool = False
+    urgent: Callable[[StackRun], bool] = lambda run: False
 
 
 def _robot_options(deployment: Deployment) -> list[str]:
@@ -166,12 +166,14 @@ URGENT_NICENESS = -10
 #: The parts of a robot side, in the order they start (each waits for the ones before). The
 #: planner is not urgent: a plan may wait, a halt may not.
 PARTS: tuple[Part, ...] = (
-    Part("sim", _sim, world=True, urgent=True),
+    # Paced by the clock, the simulation is the control loop. At time scale 0 it steps as fast as
+    # it can while anything moves: ahead of everything, it would starve the machine.
+    Part("sim", _sim, world=True, urgent=lambda run: run.time_scale > 0),
     Part("planner", _planner),
-    Part("at-server", _at_server, urgent=True),
+    Part("at-server", _at_server, urgent=lambda run: True),
     Part("ledger", _ledger),
-    Part("bridge", _bridge, urgent=True),
-    Part("link", _link, wanted=lambda deployment: deployment.link is not None, urgent=True),
+    Part("bridge", _bridge, urgent=lambda run: True),
+    Part("link", _link, wanted=lambda deployment: deployment.link is not None, urgent=lambda run: True),
 )
 
 
@@ -280,7 +282,7 @@ class Stack:
         """
         started = time.monotonic()
         part = self.part(name)
-        wanted = URGENT_NICENESS if part.urgent else 0
+        wanted = URGENT_NICENESS if part.urgent(self.run) else 0
         proc = caretaker(
             *part.command(self.deployment, self.run),
             env=self.env,

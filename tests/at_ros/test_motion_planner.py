@@ -83,7 +83,7 @@ def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_c
     """A cabinet pose found by bench/planning.py: with the nearest arm configuration the pull
     folds the arm into itself at its end, after the filter was grasped and carried. The next
     configuration must start with the filter back in its slot, not where that pull left it."""
-    slot_T_moved = from_xyz_rpy  # noqa: N806 (a_T_b: the transform notation of robotics)([-0.0282, 0.0073, -0.0405], [-0.0789, 0.0075, -0.0673])
+    slot_T_moved = from_xyz_rpy([-0.0282, 0.0073, -0.0405], [-0.0789, 0.0075, -0.0673])  # noqa: N806 (a_T_b notation)
     move = CABINET_SLOT @ slot_T_moved @ invert(CABINET_SLOT)
     saved = iva_scene.snapshot()
     cabinet, filter_ = iva_scene.obstacle_pose("cabinet"), iva_scene.obstacle_pose("filter/CDRA-F-0007")

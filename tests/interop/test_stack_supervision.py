@@ -7,13 +7,14 @@ from __future__ import annotations
 import os
 import signal
 from collections.abc import Iterator
+from pathlib import Path
 from urllib.parse import urlparse
 
 import psutil
 import pytest
 import roslibpy
 
-from caretaker.stack import PARTS, URGENT_NICENESS
+from caretaker.stack import PARTS, URGENT_NICENESS, StackRun
 from rosbridge.rosbridge_support import wait_until_discovered
 from support.processes import ManagedProcess
 from support.stack import stack_up
@@ -107,13 +108,19 @@ def _niceness(process: psutil.Process) -> set[int]:
 
 def _assert_urgent_parts_run_ahead(up: ManagedProcess) -> None:
     urgent = URGENT_NICENESS if os.geteuid() == 0 else 0  # raising priority needs root (CI is root)
-    for part in PARTS:
-        if part.name == "link":
-            continue  # the iva deployment has no emulated link
-        expected = urgent if part.urgent else 0
-        assert _niceness(_part(up, part.name)) == {expected}, part.name
+    # at time scale 0 (this stack) the simulation fast-forwards: not urgent, unlike at real time
+    expected = {"sim": 0, "planner": 0, "at-server": urgent, "ledger": 0, "bridge": urgent}
+    assert {name: _niceness(_part(up, name)) for name in expected} == {
+        name: {value} for name, value in expected.items()
+    }
     if os.geteuid() != 0:
         assert "may not raise priorities" in up.tail(400)
+
+
+def test_the_simulation_is_urgent_only_when_paced_by_the_clock(tmp_path: Path) -> None:
+    sim = next(part for part in PARTS if part.name == "sim")
+    assert sim.urgent(StackRun(time_scale=1.0, bridge_address="127.0.0.1", bridge_port=0, state_dir=tmp_path))
+    assert not sim.urgent(StackRun(time_scale=0.0, bridge_address="127.0.0.1", bridge_port=0, state_dir=tmp_path))
 
 
 def test_urgent_parts_run_ahead_and_a_dead_bridge_comes_back_urgent_on_its_port(

@@ -94,7 +94,11 @@ async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[st
     assert link is not None and link.namespace == "/arm7" and link.name("joint_states") == "/arm7/joint_states"
     states: list[str] = []
     latched: list[Any] = []
-    connected = asyncio.Event()
+    connected, arrived = asyncio.Event(), asyncio.Event()
+
+    def on_latched(message: Any) -> None:
+        latched.append(message)
+        arrived.set()
 
     def on_state(state: str) -> None:
         states.append(state)
@@ -102,16 +106,15 @@ async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[st
             connected.set()
 
     rosbridge = RosbridgeLink(link, on_state=on_state)
-    rosbridge.subscribe(Subscription("/peer/latched", "std_msgs/msg/String", latched.append))
+    rosbridge.subscribe(Subscription("/peer/latched", "std_msgs/msg/String", on_latched))
     rosbridge.start()
     answer = None
     try:
         await asyncio.wait_for(connected.wait(), timeout)
         answer = await rosbridge.call("/rosapi/get_ros_version", {})
-        for _ in range(200):
-            if latched:
-                break
-            await asyncio.sleep(0.05)
+        # the latched message comes once the bridge's subscriber has discovered the publisher,
+        # which a loaded machine can take seconds to do
+        await asyncio.wait_for(arrived.wait(), timeout)
     except TimeoutError:
         pass
     finally:
