@@ -28,6 +28,7 @@ from bench.cpu_load import cpu_hogs
 REPO = Path(__file__).resolve().parents[1]
 TEST = "tests/web/test_halt_on_real_stack.py"
 FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the click \((-?[0-9.]+) s of sim time")
+TIMELINE = re.compile(r"HALT timeline after the click: .*")
 STILL = "HALT: the arm was still at the click"
 TARGET_S = 0.5
 
@@ -60,8 +61,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"try {attempt}: the test failed\n{done.stdout[-3000:]}", flush=True)
             continue
         wall.append(float(found.group(1)))
+        timeline = TIMELINE.search(done.stdout)
         print(
-            f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)",
+            f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)"
+            + (f"\n  {timeline.group(0)}" if timeline else ""),
             flush=True,
         )
     if wall:

@@ -183,6 +183,12 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
         events = [e for e in log.events(run_id) if e.instruction == PULL_OUT]
     finally:
         log.close()
+    recorded = next(e.time.timestamp() for e in events if e.kind is EventKind.HALT)
+    if moving:  # where the time went (the simulation's stamps follow the wall clock at time scale 1)
+        print(
+            f"HALT timeline after the click: console recorded it {recorded - clicked:+.3f} s, "
+            f"arm at rest (sim stamp) {still - clicked:+.3f} s, that state arrived here {arrived - clicked:+.3f} s"
+        )
     halted = [e for e in events if e.kind is EventKind.INSTRUCTION_HALTED]
     assert [e.actor for e in halted] == ["alice"], events
     assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], (
