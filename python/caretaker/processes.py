@@ -8,7 +8,6 @@ killed by the kernel if this process dies first, so a crashed launcher leaves no
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import signal
@@ -35,23 +34,6 @@ def _die_with_parent() -> None:
     ctypes.CDLL("libc.so.6", use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
-def _before_exec(niceness: int) -> Callable[[], None]:
-    """What the child does before exec: die with its parent, and take ``niceness`` if it may.
-
-    Set before exec so every thread the program starts inherits it (Linux keeps a niceness per
-    thread). Raising priority needs CAP_SYS_NICE; without it the child keeps the parent's, and
-    :attr:`ManagedProcess.niceness` tells the caller so.
-    """
-
-    def prepare() -> None:
-        _die_with_parent()
-        if niceness:
-            with contextlib.suppress(PermissionError):  # reported by the parent, which reads it back
-                os.setpriority(os.PRIO_PROCESS, 0, niceness)
-
-    return prepare
-
-
 class ProcessFailed(RuntimeError):
     """A managed process exited or did not become ready; the message carries its last output."""
 
@@ -66,13 +48,8 @@ class ManagedProcess:
         name: str | None = None,
         *,
         on_line: Callable[[str, str], None] | None = None,
-        niceness: int = 0,
     ) -> None:
-        """Start ``argv``; ``on_line(name, line)`` is called for every line it prints.
-
-        ``niceness``: the scheduling priority to run it at (negative: ahead of other work), when
-        this process may raise it; :attr:`niceness` is what it got.
-        """
+        """Start ``argv``; ``on_line(name, line)`` is called for every line it prints."""
         self.argv = argv
         self._on_line = on_line
         self.name = name or Path(argv[0]).name
@@ -88,12 +65,8 @@ class ManagedProcess:
             text=True,
             bufsize=1,
             start_new_session=True,
-            preexec_fn=_before_exec(niceness),
+            preexec_fn=_die_with_parent,
         )
-        try:
-            self.niceness = os.getpriority(os.PRIO_PROCESS, self.proc.pid)
-        except ProcessLookupError:  # already gone: wait_ready says why
-            self.niceness = niceness
         self._reader = threading.Thread(target=self._read, name=f"{self.name}-output", daemon=True)
         self._reader.start()
 
@@ -170,19 +143,11 @@ class ManagedProcess:
 
 
 def caretaker(
-    *args: str,
-    env: dict[str, str],
-    name: str | None = None,
-    on_line: Callable[[str, str], None] | None = None,
-    niceness: int = 0,
+    *args: str, env: dict[str, str], name: str | None = None, on_line: Callable[[str, str], None] | None = None
 ) -> ManagedProcess:
-    """Start ``caretaker ARGS...`` from the venv (``niceness``: see :class:`ManagedProcess`)."""
+    """Start ``caretaker ARGS...`` from the venv."""
     return ManagedProcess(
-        [str(VENV_BIN / "caretaker"), *args],
-        env,
-        name or (args[0] if args else "caretaker"),
-        on_line=on_line,
-        niceness=niceness,
+        [str(VENV_BIN / "caretaker"), *args], env, name or (args[0] if args else "caretaker"), on_line=on_line
     )
 
 

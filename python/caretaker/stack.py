@@ -40,7 +40,7 @@ from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
 from caretaker.terminal import TerminalLines
 from datafile import DataFileError
 
-__all__ = ["PARTS", "URGENT_NICENESS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
+__all__ = ["PARTS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
 log = logging.getLogger("caretaker.stack")
 
@@ -66,15 +66,12 @@ class Part:
 
     ``world``: the part *is* the world (the simulation); it is never restarted, and its death
     ends the stack. ``wanted``: whether a deployment has this part (default: every one does).
-    ``urgent``: whether, in this run, the part is on the path of a halt or is the control loop,
-    so it runs ahead of other work on the machine (:data:`URGENT_NICENESS`).
     """
 
     name: str
     command: Callable[[Deployment, StackRun], list[str]]
     world: bool = False
     wanted: Callable[[Deployment], bool] = lambda deployment: True
-    urgent: Callable[[StackRun], bool] = lambda run: False
 
 
 def _robot_options(deployment: Deployment) -> list[str]:
@@ -157,23 +154,14 @@ def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     return args
 
 
-#: The niceness of the urgent parts. A habitat computer is never idle: a halt and the simulated
-#: control loop must not queue behind planning, image capture or anything else the machine runs
-#: (with two busy processes on two cores, a halt took 0.8 s at equal priority). Taken when the
-#: launcher may raise priorities (root, or CAP_SYS_NICE); otherwise the stack says it could not.
-URGENT_NICENESS = -10
-
-#: The parts of a robot side, in the order they start (each waits for the ones before). The
-#: planner is not urgent: a plan may wait, a halt may not.
+#: The parts of a robot side, in the order they start (each waits for the ones before).
 PARTS: tuple[Part, ...] = (
-    # Paced by the clock, the simulation is the control loop. At time scale 0 it steps as fast as
-    # it can while anything moves: ahead of everything, it would starve the machine.
-    Part("sim", _sim, world=True, urgent=lambda run: run.time_scale > 0),
+    Part("sim", _sim, world=True),
     Part("planner", _planner),
-    Part("at-server", _at_server, urgent=lambda run: True),
+    Part("at-server", _at_server),
     Part("ledger", _ledger),
-    Part("bridge", _bridge, urgent=lambda run: True),
-    Part("link", _link, wanted=lambda deployment: deployment.link is not None, urgent=lambda run: True),
+    Part("bridge", _bridge),
+    Part("link", _link, wanted=lambda deployment: deployment.link is not None),
 )
 
 
@@ -281,23 +269,9 @@ class Stack:
             ProcessFailed: it exited or did not become ready in time.
         """
         started = time.monotonic()
-        part = self.part(name)
-        wanted = URGENT_NICENESS if part.urgent(self.run) else 0
         proc = caretaker(
-            *part.command(self.deployment, self.run),
-            env=self.env,
-            name=name,
-            on_line=self._print_line,
-            niceness=wanted,
+            *self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line
         )
-        if proc.niceness != wanted:
-            log.warning(
-                "%s runs at niceness %d, not %d: this user may not raise priorities (a halt may wait "
-                "behind other work on a loaded machine)",
-                name,
-                proc.niceness,
-                wanted,
-            )
         self.processes[name] = proc
         threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
         line = proc.wait_ready(self.ready_timeout)

@@ -4,17 +4,14 @@ a dead simulation (the world) ends the stack, and nothing outlives it."""
 
 from __future__ import annotations
 
-import os
 import signal
 from collections.abc import Iterator
-from pathlib import Path
 from urllib.parse import urlparse
 
 import psutil
 import pytest
 import roslibpy
 
-from caretaker.stack import PARTS, URGENT_NICENESS, StackRun
 from rosbridge.rosbridge_support import wait_until_discovered
 from support.processes import ManagedProcess
 from support.stack import stack_up
@@ -64,7 +61,8 @@ def _call_until_answered(
     A request sent in the first moments after a server restarts can be lost in DDS: the dead
     server's endpoints stay in the graph until their lease runs out, so the service looks
     available before the new server has matched the bridge's request writer. The bridge answers
-    such a call with a timeout failure (after its default 10 s), never with silence or success.
+    such a call with a timeout failure (after its default 10 s), or says the server was lost when
+    it notices the dead one first; never silence or success.
     """
     failures: list[str] = []
     for _ in range(attempts):
@@ -96,41 +94,16 @@ def test_a_dead_at_server_is_restarted_with_its_instances(stack: tuple[ManagedPr
         {},
     )
     assert running is not None, f"get_running never answered after the restart: {failures}\n{up.tail(80)}"
-    assert all("Timeout exceeded" in f for f in failures), failures  # answered as failures, never silence
+    # answered as failures, never silence: a timeout, or the dead server noticed mid-call
+    assert all("Timeout exceeded" in f or "lost its server before answering" in f for f in failures), failures
     assert added["instance"] in running["templates"]
     assert up.running
 
 
-def _niceness(process: psutil.Process) -> set[int]:
-    """The niceness of every thread of ``process`` (Linux keeps one per thread)."""
-    return {os.getpriority(os.PRIO_PROCESS, thread.id) for thread in process.threads()}
-
-
-def _assert_urgent_parts_run_ahead(up: ManagedProcess) -> None:
-    urgent = URGENT_NICENESS if os.geteuid() == 0 else 0  # raising priority needs root (CI is root)
-    # at time scale 0 (this stack) the simulation fast-forwards: not urgent, unlike at real time
-    expected = {"sim": 0, "planner": 0, "at-server": urgent, "ledger": 0, "bridge": urgent}
-    assert {name: _niceness(_part(up, name)) for name in expected} == {
-        name: {value} for name, value in expected.items()
-    }
-    if os.geteuid() != 0:
-        assert "may not raise priorities" in up.tail(400)
-
-
-def test_the_simulation_is_urgent_only_when_paced_by_the_clock(tmp_path: Path) -> None:
-    sim = next(part for part in PARTS if part.name == "sim")
-    assert sim.urgent(StackRun(time_scale=1.0, bridge_address="127.0.0.1", bridge_port=0, state_dir=tmp_path))
-    assert not sim.urgent(StackRun(time_scale=0.0, bridge_address="127.0.0.1", bridge_port=0, state_dir=tmp_path))
-
-
-def test_urgent_parts_run_ahead_and_a_dead_bridge_comes_back_urgent_on_its_port(
-    stack: tuple[ManagedProcess, int],
-) -> None:
+def test_a_dead_bridge_comes_back_on_the_port_it_picked(stack: tuple[ManagedProcess, int]) -> None:
     up, port = stack
-    _assert_urgent_parts_run_ahead(up)
     _part(up, "bridge").send_signal(signal.SIGKILL)
     up.wait_for_line(rf"^restarted bridge: READY bridge ws://127\.0\.0\.1:{port}$", 120)
-    _assert_urgent_parts_run_ahead(up)
     answer, failures = _call_until_answered(
         port,
         "/affordance_template_server/get_running",
