@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from websockets.exceptions import ConnectionClosed
 
+from support.certificates import self_signed_certificate
 from support.processes import ManagedProcess, caretaker
 
 from .rosbridge_support import RawClient, bridge_url
@@ -283,29 +284,7 @@ def test_insecure_says_an_open_address_is_meant(ros_env: dict[str, str]) -> None
 @pytest.fixture(scope="module")
 def tls_bridge(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int, Path]]:
     directory = tmp_path_factory.mktemp("tls")
-    cert, key = directory / "cert.pem", directory / "key.pem"
-    subprocess.run(
-        [
-            "openssl",
-            "req",
-            "-x509",
-            "-newkey",
-            "rsa:2048",
-            "-nodes",
-            "-days",
-            "1",
-            "-subj",
-            "/CN=127.0.0.1",
-            "-addext",
-            "subjectAltName=IP:127.0.0.1",
-            "-keyout",
-            str(key),
-            "-out",
-            str(cert),
-        ],
-        check=True,
-        capture_output=True,
-    )
+    cert, key = self_signed_certificate(directory)
     process = caretaker("bridge", "--port", "0", "--certfile", str(cert), "--keyfile", str(key), env=ros_env)
     for host, port in _serve(process):
         yield host, port, cert

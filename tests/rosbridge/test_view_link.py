@@ -5,7 +5,6 @@ gets a latched value, calls a service; with the wrong secret it never counts as 
 from __future__ import annotations
 
 import asyncio
-import subprocess
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -15,6 +14,7 @@ import pytest
 
 from caretaker.processes import REPO
 from console.spatial_link import RosbridgeLink, Subscription, read_view_link
+from support.certificates import self_signed_certificate
 from support.processes import ManagedProcess, caretaker
 
 from .rosbridge_support import bridge_url
@@ -28,29 +28,7 @@ def secure_bridge(
 ) -> Iterator[tuple[str, Path]]:
     """wss:// with a self-signed certificate and HMAC auth: (URL, folder with ca.pem)."""
     folder = tmp_path_factory.mktemp("view-link")
-    cert, key = folder / "ca.pem", folder / "key.pem"
-    subprocess.run(
-        [
-            "openssl",
-            "req",
-            "-x509",
-            "-newkey",
-            "rsa:2048",
-            "-nodes",
-            "-days",
-            "1",
-            "-subj",
-            "/CN=127.0.0.1",
-            "-addext",
-            "subjectAltName=IP:127.0.0.1",
-            "-keyout",
-            str(key),
-            "-out",
-            str(cert),
-        ],
-        check=True,
-        capture_output=True,
-    )
+    cert, key = self_signed_certificate(folder, "ca.pem")
     (folder / "bridge.secret").write_text(SECRET + "\n")
     process = caretaker(
         "bridge",

@@ -26,6 +26,7 @@ from caretaker.demo import DEMO_USER, demo_operator
 from console.accounts import AccountStore, Role
 from console.run_board import CameraSettings
 from console.server import main
+from support.certificates import self_signed_certificate
 from support.processes import caretaker
 from support.web_server import PEOPLE, REPO, WebServer
 
@@ -246,30 +247,7 @@ def test_a_binding_without_its_own_camera_has_the_one_given_for_every_binding() 
 
 
 def test_with_a_certificate_the_view_is_served_over_tls_with_secure_cookies(tmp_path: Path) -> None:
-    cert, key = tmp_path / "cert.pem", tmp_path / "key.pem"
-    subprocess.run(
-        [
-            "openssl",
-            "req",
-            "-x509",
-            "-newkey",
-            "rsa:2048",
-            "-nodes",
-            "-days",
-            "1",
-            "-subj",
-            "/CN=127.0.0.1",
-            "-addext",
-            "subjectAltName=IP:127.0.0.1",
-            "-keyout",
-            str(key),
-            "-out",
-            str(cert),
-        ],
-        check=True,
-        capture_output=True,
-        timeout=60,
-    )
+    cert, key = self_signed_certificate(tmp_path)
     db = tmp_path / "ground.db"
     store = AccountStore(f"sqlite:///{db}")
     store.add("alice", "operator", PEOPLE["alice"][2])
