@@ -247,7 +247,9 @@ PLACE_DIRTY = "insert_and_release"
 def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
     """The run completed; every command ran once on the habitat and was logged with its real outcome."""
     events = f.events(run_id)
-    assert status == "completed", [e.data for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
+    assert status == "completed", "\n".join(
+        f"{e.instruction or '-'} {e.kind.value} {e.data}" for e in events[-12:]
+    )  # the last events: the hold that stopped an unattended run, or the failure
     assert not [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
     sent = commands(events)
     assert len(sent) == IVA_COMMANDS, [s.data["command"] for s, _ in sent]

@@ -65,7 +65,16 @@ def hostile_bridge(
     """A bridge with small quotas for the fuzz tests, its log counted: (process, log, address)."""
     bridge_log = BridgeLog()
     process = caretaker(
-        "bridge", "--port", "0", "--service-timeout", "1", *HOSTILE_LIMITS, env=ros_env, on_line=bridge_log
+        "bridge",
+        "--port",
+        "0",
+        "--node-name",
+        "rosbridge_hostile",  # the package's bridge, with the default name, runs beside it
+        "--service-timeout",
+        "1",
+        *HOSTILE_LIMITS,
+        env=ros_env,
+        on_line=bridge_log,
     )
     try:
         process.wait_ready(60)

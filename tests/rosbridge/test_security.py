@@ -25,6 +25,8 @@ from .rosbridge_support import RawClient, bridge_url
 
 SECRET = "s3cret-for-tests"
 ALLOWED_ORIGIN = "https://console.example:8443"
+#: Its own node name: the package's other bridges run on this ROS domain at the same time.
+NODE = "rosbridge_guarded"
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +45,9 @@ def guarded(
         "--services-glob",
         "/peer/set_*",
         "--services-glob",
-        "/rosbridge_websocket/*",
+        f"/{NODE}/*",
+        "--node-name",
+        NODE,
         "--actions-glob",
         "/allowed/*",
         "--max-message-size",
@@ -199,25 +203,25 @@ def test_rosapi_shows_and_touches_only_what_the_globs_allow(guarded: tuple[str, 
         services = call("/rosapi/services")["values"]["services"]
         assert "/peer/set_bool" in services and "/rosbridge/connection_stats" in services
         assert not [
-            s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/", "/rosbridge_websocket/"))
+            s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/", f"/{NODE}/"))
         ]
         assert (
             "topic /peer/echo_out is not allowed" in call("/rosapi/topic_type", {"topic": "/peer/echo_out"})["values"]
         )
-        refused = call("/rosapi/set_param", {"name": "/rosbridge_websocket:actual_port", "value": "1"})
+        refused = call("/rosapi/set_param", {"name": f"/{NODE}:actual_port", "value": "1"})
         assert (
             refused["result"] is False
-            and "parameter change /rosbridge_websocket:actual_port is not allowed" in refused["values"]
+            and f"parameter change /{NODE}:actual_port is not allowed" in refused["values"]
         )
         direct = call(
-            "/rosbridge_websocket/set_parameters",
+            f"/{NODE}/set_parameters",
             {"parameters": [{"name": "actual_port", "value": {"type": 2, "integer_value": 1}}]},
         )
         assert (
             direct["result"] is False
-            and "parameter change /rosbridge_websocket:actual_port is not allowed" in direct["values"]
+            and f"parameter change /{NODE}:actual_port is not allowed" in direct["values"]
         )
-        port = call("/rosapi/get_param", {"name": "/rosbridge_websocket:actual_port"})["values"]["value"]
+        port = call("/rosapi/get_param", {"name": f"/{NODE}:actual_port"})["values"]["value"]
         assert port == str(guarded[1])
     finally:
         client.close()
@@ -298,3 +302,13 @@ def test_tls_serves_wss(tls_bridge: tuple[str, int, Path]) -> None:
     with connect(f"wss://{host}:{port}", ssl=context, open_timeout=20) as connection:
         connection.send('{"op":"call_service","service":"/rosapi/get_ros_version","id":"tls"}')
         assert '"result":true' in connection.recv(timeout=20)
+
+
+@pytest.mark.parametrize("name", ["9lives", "ros/bridge", "", "bridge-1"])
+def test_a_node_name_that_ros_refuses_is_refused_before_start(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    from bridge.rosbridge.server import parse_args
+
+    with pytest.raises(SystemExit) as exited:
+        parse_args(["--node-name", name])
+    assert exited.value.code == 2
+    assert f"{name!r} is not a ROS node name" in capsys.readouterr().err

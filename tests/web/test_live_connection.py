@@ -68,9 +68,11 @@ def test_a_lost_connection_whose_reopening_fails_is_tried_again(held: tuple[Page
     expect_every_event_once(page, last_seq)
 
 
-def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lost_connection(
+def test_a_lost_connection_leaves_the_instructions_an_operator_is_using_as_they_are(
     held: tuple[Page, int],
 ) -> None:
+    """Reopened after a lost connection, the run is not drawn again: the field being typed in keeps
+    its entry and focus, and a button under the pointer is still the one clicked."""
     page, _ = held
     instruction(page, "2.6").locator("button.done").click()
     record = instruction(page, "4.1")
@@ -80,11 +82,11 @@ def test_an_entry_not_yet_recorded_survives_the_run_being_drawn_again_after_a_lo
     record.evaluate("item => { item.dataset.drawnBefore = 'yes'; }")
     openings = page.evaluate("view.opening")
 
-    page.evaluate("() => view.socket.close()")  # the connection drops; the page opens and draws the run again
+    page.evaluate("() => view.socket.close()")  # the connection drops; the page opens the run again
     page.wait_for_function("n => view.opening > n", arg=openings)
     expect(page.locator("#connection")).to_have_attribute("data-state", "open")
     expect(page.locator("#connection")).to_have_attribute("title", re.compile(r"^lost at .+: closed with code \d+$"))
-    expect(page.locator("#procedure li[data-drawn-before]")).to_have_count(0)  # every instruction drawn anew
+    expect(page.locator("#procedure li[data-drawn-before]")).to_have_count(1)  # the same node, not a new one
     expect(field).to_have_value("CDRA-F-0012")
     expect(field).to_be_focused()
 

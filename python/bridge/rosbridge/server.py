@@ -17,6 +17,7 @@ import ipaddress
 import json
 import logging
 import os
+import re
 import resource
 import signal
 import ssl
@@ -35,7 +36,7 @@ from .framing import BridgeConnection, ConnectionGate
 from .limits import Limits, Quotas
 from .operations import Bridge
 from .protocol import CLOSE_POLICY_VIOLATION, Refused
-from .ros_thread import RosThread
+from .ros_thread import NODE_NAME, RosThread
 from .security import BRIDGE_SERVICES, AllowList, Authenticator, Policy
 from .services import Services
 from .session import ClientLog, OutputBudget, Session, SessionState
@@ -123,6 +124,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
         default=10.0,
         help="default call_service timeout in seconds when a call gives none (default 10)",
     )
+    parser.add_argument(
+        "--node-name",
+        default=NODE_NAME,
+        type=_node_name,
+        help=f"the bridge's ROS node name (default {NODE_NAME}); each bridge on one ROS domain needs its own, "
+        "or parameter reads and calls to its services reach whichever answers first",
+    )
     parser.add_argument("--log-level", default="INFO")
     Limits.add_options(parser)
     args = parser.parse_args(argv)
@@ -146,6 +154,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                 f"{' and no '.join(missing)}; give them, or --insecure if this network is trusted"
             )
     return args
+
+
+def _node_name(text: str) -> str:
+    """A ROS node name: a letter or '_' first, then letters, digits and '_' (no namespace)."""
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,254}", text):
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a ROS node name: letters, digits and '_', not starting with a digit, e.g. rosbridge_habitat"
+        )
+    return text
 
 
 def _loopback(address: str) -> bool:
@@ -264,7 +281,7 @@ async def run(args: argparse.Namespace) -> int:
         tls.load_cert_chain(args.certfile, args.keyfile)
     limits = Limits.from_args(args)
     _raise_fd_limit(limits)
-    ros = RosThread(loop)
+    ros = RosThread(loop, args.node_name)
     try:
         policy = Policy(
             AllowList("topic", tuple(args.topics_glob)),

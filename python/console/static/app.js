@@ -28,7 +28,7 @@ const view = {
   clockOffset: 0,      // server clock minus this browser's, in ms (countdowns use the server's times)
   socket: null,
   opening: 0,          // counts openRun calls: an answer to one that a later call overtook is dropped
-  drawnRunId: null,    // the run whose procedure is drawn (its unsent record entries are kept when redrawn)
+  drawn: "",           // the run and procedure drawn: opened again (a reconnect), they are not drawn anew
   reconnectTimer: null,
   lastLoss: "",        // when and why the run's connection was last lost
   lastImageSeq: null,
@@ -263,12 +263,13 @@ function openRunFromHash() {
 async function openRun(runId) {
   const opening = ++view.opening;
   closeSocket();
+  const again = view.runId === runId;
   view.runId = runId;
   view.events = [];
   view.telemetry.clear();
   view.checks = {};
   view.lastImageSeq = null;
-  view.followed = null;
+  if (!again) view.followed = null;  // a reconnect does not scroll the page under the operator's pointer
   view.envsSeen = "";
   $("action-error").textContent = "";
   let data;
@@ -282,7 +283,11 @@ async function openRun(runId) {
   }
   if (opening !== view.opening) return;  // opened again meanwhile (this run or another): that call draws
   view.procedure = data.procedure;
-  buildProcedure();
+  // Drawn anew only when it changed: a reconnect must not replace the buttons and fields under
+  // the operator's pointer (a click would land on a detached node; a typed entry would be lost).
+  const drawn = JSON.stringify([runId, data.procedure]);
+  if (drawn !== view.drawn) buildProcedure();
+  view.drawn = drawn;
   $("no-run").hidden = true;
   $("run-view").hidden = false;
   $("audit").replaceChildren();

@@ -76,9 +76,7 @@ const SVG = "http://www.w3.org/2000/svg";
 
 function buildProcedure() {
   const list = $("procedure");
-  const unsent = view.drawnRunId === view.runId ? unsentEntries() : {values: new Map(), focused: null};
   list.replaceChildren();
-  view.drawnRunId = view.runId;
   view.sentences = new Map();
   const procedure = view.procedure;
   $("proc-title").textContent = procedure ? `${procedure.title} (v${procedure.version})` : "procedure file not available";
@@ -91,30 +89,6 @@ function buildProcedure() {
     item.append(instructions);
     list.append(item);
   }
-  restoreEntries(unsent);
-}
-
-// What operators have typed or chosen in record fields and not yet recorded, by instruction. The
-// run is drawn again when its connection comes back: a field rebuilt empty would lose the entry,
-// and Record pressed on it would send something other than what the operator chose.
-function unsentEntries() {
-  const values = new Map();
-  let focused = null;
-  for (const input of document.querySelectorAll("#procedure .instruction-controls > .record-value")) {
-    const number = input.closest("li.instruction").dataset.number;
-    if (input.value !== "") values.set(number, input.value);
-    if (input === document.activeElement) focused = number;
-  }
-  return {values, focused};
-}
-
-function restoreEntries({values, focused}) {
-  const field = (number) => instructionItem(number)?.querySelector(":scope > .instruction-controls > .record-value");
-  for (const [number, value] of values) {
-    const input = field(number);
-    if (input) input.value = value;
-  }
-  if (focused) field(focused)?.focus();
 }
 
 function noticeBox(notice) {

@@ -85,6 +85,7 @@ const spatialPanel = (() => {
   }
 
   function open(runId, live) {
+    if (live && state.runId === runId) return;  // the run's page reconnected: this feed reconnects by itself
     close();
     if (!live || typeof CaretakerSpatial === "undefined") return;
     state.runId = runId;
