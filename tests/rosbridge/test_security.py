@@ -202,25 +202,19 @@ def test_rosapi_shows_and_touches_only_what_the_globs_allow(guarded: tuple[str, 
         assert "/allowed/listed" in topics and all(t.startswith("/allowed/") for t in topics)
         services = call("/rosapi/services")["values"]["services"]
         assert "/peer/set_bool" in services and "/rosbridge/connection_stats" in services
-        assert not [
-            s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/", f"/{NODE}/"))
-        ]
+        assert not [s for s in services if not s.startswith(("/peer/set_", "/rosapi/", "/rosbridge/", f"/{NODE}/"))]
         assert (
             "topic /peer/echo_out is not allowed" in call("/rosapi/topic_type", {"topic": "/peer/echo_out"})["values"]
         )
         refused = call("/rosapi/set_param", {"name": f"/{NODE}:actual_port", "value": "1"})
         assert (
-            refused["result"] is False
-            and f"parameter change /{NODE}:actual_port is not allowed" in refused["values"]
+            refused["result"] is False and f"parameter change /{NODE}:actual_port is not allowed" in refused["values"]
         )
         direct = call(
             f"/{NODE}/set_parameters",
             {"parameters": [{"name": "actual_port", "value": {"type": 2, "integer_value": 1}}]},
         )
-        assert (
-            direct["result"] is False
-            and f"parameter change /{NODE}:actual_port is not allowed" in direct["values"]
-        )
+        assert direct["result"] is False and f"parameter change /{NODE}:actual_port is not allowed" in direct["values"]
         port = call("/rosapi/get_param", {"name": f"/{NODE}:actual_port"})["values"]["value"]
         assert port == str(guarded[1])
     finally:

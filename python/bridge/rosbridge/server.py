@@ -160,7 +160,8 @@ def _node_name(text: str) -> str:
     """A ROS node name: a letter or '_' first, then letters, digits and '_' (no namespace)."""
     if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,254}", text):
         raise argparse.ArgumentTypeError(
-            f"{text!r} is not a ROS node name: letters, digits and '_', not starting with a digit, e.g. rosbridge_habitat"
+            f"{text!r} is not a ROS node name: letters, digits and '_', not starting with a digit, "
+            "e.g. rosbridge_habitat"
         )
     return text
 
