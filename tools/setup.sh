@@ -76,7 +76,8 @@ fi
 #    targets hard-code the manylinux build paths of Python and numpy: point them at ours. The
 #    generated C and C++ (hundreds of files, most of a fresh checkout's set-up time) compile
 #    through ccache, with paths taken relative to the checkout, so another checkout reuses them.
-INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs python/bridge/caretaker_ledger_msgs)
+INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs python/bridge/caretaker_ledger_msgs
+                    python/onboard/caretaker_onboard_msgs)
 h=$(hash_of "${INTERFACE_PACKAGES[@]}" requirements.txt)
 if step_needed interfaces "$h"; then
   py_include=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')

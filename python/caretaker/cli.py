@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME|FILE)"),
     "bridge": ("bridge.rosbridge.server", "main", "run the rosbridge v2 server"),
     "ledger": ("bridge.ledger.main", "main", "run the habitat's command ledger (--state-dir DIR)"),
+    "onboard": ("onboard.onboard_server", "main", "run the habitat's onboard executive (--bridge URL --binding FILE)"),
     "lint": ("caretaker.procedure_commands", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("caretaker.procedure_commands", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "report": ("caretaker.procedure_commands", "report_main", "write the after-action report of a run"),

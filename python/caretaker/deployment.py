@@ -7,7 +7,9 @@ run). Every path in it is relative to the deployment file; every key is checked 
 are errors) with the shared :mod:`datafile` reader, and the files it names are checked too, so a
 deployment that passes ``caretaker check`` starts. ``ledger`` sets the habitat's command ledger
 (always started; its memory lives in the state folder), ``link`` puts an emulated link in front
-of the bridge (a rehearsal on one host: ground clients connect to ``link.listen``).
+of the bridge (a rehearsal on one host: ground clients connect to ``link.listen``), ``onboard:
+true`` starts the onboard executive (``caretaker onboard``: units from the ground run next to the
+robot, with the deployment's bindings; its store lives in the state folder).
 
 Example (``deployments/iva.yaml``)::
 
@@ -69,6 +71,7 @@ TOP_LEVEL_KEYS = (
     "demo",
     "link",
     "ledger",
+    "onboard",
     "description",
 )
 
@@ -159,6 +162,7 @@ class Deployment:
     demo: DemoRun | None
     link: LinkEmulation | None = None  # None: ground clients reach the bridge itself
     ledger: LedgerSettings = field(default_factory=LedgerSettings)
+    onboard: bool = False  # run the onboard executive (needs bindings, and a secret on the bridge)
 
 
 def resolve_deployment(name_or_path: str | Path) -> Path:
@@ -279,7 +283,14 @@ def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment
         demo=_demo(root.get("demo")),
         link=_link(root.get("link")),
         ledger=_ledger(root.get("ledger")),
+        onboard=root["onboard"].boolean() if root.has("onboard") else False,
     )
+    if deployment.onboard and not deployment.bindings:
+        raise root["onboard"].fail("the onboard executive runs units with this deployment's bindings: list them")
+    if deployment.onboard and deployment.bridge.auth_secret_file is None:
+        raise root["onboard"].fail(
+            "the onboard executive takes only units signed with the link's secret: give bridge.auth_secret_file"
+        )
     if check_files:
         _check_files(root, deployment, robot)
     return deployment

@@ -7,22 +7,27 @@ Exit codes: 0 success; 1 the procedure has errors, the run stopped, or the run f
 from __future__ import annotations
 
 import argparse
+import asyncio
 import logging
 import signal
 import sys
+import time
 import uuid
 from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
+from datafile import DataFileError
+from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, build_unit, supervise
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError, head_revision
+from pride.binding import read_binding
 from pride.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from pride.lint import check_procedure, lint_file
+from pride.lint import CheckedProcedure, check_procedure, lint_file
 from pride.robot_control import RobotControl
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
@@ -113,6 +118,12 @@ def run_main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--resume", metavar="RUN", help="continue an interrupted run from the audit log")
     parser.add_argument(
+        "--onboard",
+        action="store_true",
+        help="uplink the procedure to the habitat's onboard executive and supervise it from here "
+        "(docs/deployment.md, Onboard runs)",
+    )
+    parser.add_argument(
         "--in-flight",
         choices=("resend", "skip"),
         help="on --resume of a log from before command keys: what to do with a command in flight at the crash "
@@ -165,6 +176,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
     procedure = checked.procedure
+    if args.onboard:
+        return _run_onboard(args, checked, audit, values)
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -233,6 +246,50 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
     finally:
         gateway.close()
         control.close()
+
+
+def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: AuditLog, values: dict[str, str]) -> int:
+    """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record."""
+    if args.resume:
+        print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
+        return 2
+    try:
+        endpoint = read_binding(args.binding).endpoint(args.rosbridge)
+    except (DataFileError, OSError) as exc:
+        print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
+        return 2
+    if endpoint.secret is None:
+        print(
+            f"caretaker run: {args.binding} has no security.secret_file: an onboard unit is signed with the "
+            "link's secret",
+            file=sys.stderr,
+        )
+        return 2
+    terminal = TerminalLines()
+    unit = build_unit(
+        checked,
+        run_id=_new_run_id(checked.procedure.id),
+        binding=Path(args.binding).name,
+        user=args.user,
+        mode=(args.mode or Mode.MANUAL).value,
+        values=values,
+        confirm_manual=args.confirm_manual,
+        confirm_hazardous=args.confirm_hazardous,
+        breakpoints=args.breakpoints,
+        lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
+        now=time.time(),
+    )
+    printer = ProgressPrinter(checked.procedure, terminal)
+    try:
+        result = asyncio.run(supervise(endpoint, unit, audit, on_event=printer, say=terminal.say))
+    except DownlinkError as exc:
+        print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
+        return 1
+    terminal.say(
+        f"RESULT {result.status} run {unit.run_id} (report: caretaker report {unit.run_id}"
+        f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})"
+    )
+    return 0 if result.status == RunStatus.COMPLETED.value else 1
 
 
 def report_main(argv: list[str] | None = None) -> int:

@@ -154,6 +154,19 @@ def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     return args
 
 
+def _onboard(deployment: Deployment, run: StackRun) -> list[str]:
+    args = [
+        "onboard",
+        "--bridge",
+        f"{deployment.bridge.scheme}://{_host(run.bridge_address)}:{run.bridge_port}",
+        "--state-dir",
+        str(run.state_dir / "onboard"),
+    ]
+    for binding in deployment.bindings:
+        args += ["--binding", str(binding)]
+    return args
+
+
 #: The parts of a robot side, in the order they start (each waits for the ones before).
 PARTS: tuple[Part, ...] = (
     Part("sim", _sim, world=True),
@@ -162,6 +175,7 @@ PARTS: tuple[Part, ...] = (
     Part("ledger", _ledger),
     Part("bridge", _bridge),
     Part("link", _link, wanted=lambda deployment: deployment.link is not None),
+    Part("onboard", _onboard, wanted=lambda deployment: deployment.onboard),
 )
 
 

@@ -31,10 +31,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
-from console.spatial_link import LinkError, RosbridgeLink, Subscription, ViewLink
+from console.spatial_link import ViewLink
 from console.spatial_updates import joints_update, objects_update, templates_update
 from console.spatial_values import SpatialDataError
 from console.spatial_world import plan_from_get_plan, world_document
+from rosbridge_wire.client import LinkError, RosbridgeClient, Subscription
 
 __all__ = ["PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher", "AT_COMMANDS_THAT_MOVE_TEMPLATES"]
 
@@ -87,7 +88,9 @@ class SpatialFeed:
         self.camera: str | None = None
         self.camera_png: bytes | None = None
         self.camera_seq = 0
-        self.rosbridge = RosbridgeLink(link, on_connected=self._refresh_all, on_state=self._link_state)
+        self.rosbridge = RosbridgeClient(
+            link.endpoint, name="pride-web-view", on_connected=self._refresh_all, on_state=self._link_state
+        )
         self.watchers: set[ViewWatcher] = set()
         self.urdf: str | None = None
         self.visual_world: Mapping[str, Any] | None = None
@@ -178,7 +181,7 @@ class SpatialFeed:
 
     def _report(self, message: str) -> None:
         if message != self.last_error:
-            log.warning("3D view feed (%s): %s", self.link.url, message)
+            log.warning("3D view feed (%s): %s", self.link.endpoint.url, message)
         self.last_error = message
         self._push({"kind": "link", "state": "error", "message": message})
 

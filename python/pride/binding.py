@@ -23,6 +23,7 @@ from urllib.parse import urlparse
 
 from datafile import DataFileError, Field, load_file
 from pride.sysrep import load_sysrep
+from rosbridge_wire.client import Endpoint
 
 __all__ = [
     "BUILT_IN_PLUGINS",
@@ -88,6 +89,21 @@ class Binding:
     link: BindingLink = BindingLink(LOOPBACK_DELAY_S, LOOPBACK_OUTAGE_BUDGET_S, stated=False)
     security: BindingSecurity = BindingSecurity()
     ledger_namespace: str = ""  # where the habitat's command ledger is ("" = the root namespace)
+
+    def endpoint(self, url: str | None = None) -> Endpoint:
+        """The robot's rosbridge as a Python client reaches it: ``url`` (default: the first
+        system's), with this binding's trust and link delay. Reads the secret or token file."""
+
+        def read(path: Path | None) -> str | None:
+            return path.read_text(encoding="utf-8").strip() if path is not None else None
+
+        return Endpoint(
+            url=url or self.systems[0].rosbridge,
+            one_way_delay=self.link.one_way_delay,
+            ca_file=self.security.ca_file,
+            secret=read(self.security.secret_file),
+            token=read(self.security.token_file),
+        )
 
 
 def _rosbridge(f: Field) -> str:

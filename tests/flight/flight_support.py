@@ -28,6 +28,7 @@ import yaml
 
 from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess
+from pride.audit_chain import StoredEvent
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from support.stack import write_deployment
@@ -49,6 +50,14 @@ class Habitat:
 
     up: ManagedProcess
     state_dir: Path
+
+    def onboard_chain(self, run_id: str) -> list[StoredEvent]:
+        """The onboard run's events as the habitat's own store holds them."""
+        store = AuditLog(f"sqlite:///{self.state_dir / 'onboard' / 'onboard.sqlite'}")
+        try:
+            return store.stored_events(run_id)
+        finally:
+            store.close()
 
     def ledger_records(self) -> list[dict[str, Any]]:
         """Every command the ledger executed (or refused), in the order it got them."""
@@ -101,6 +110,14 @@ class Flight:
         finally:
             audit.close()
 
+    def ground_chain(self, run_id: str) -> list[StoredEvent]:
+        """The run's events as the ground's audit log stores them, with their hashes."""
+        audit = AuditLog(self.db_url)
+        try:
+            return audit.stored_events(run_id)
+        finally:
+            audit.close()
+
     def goals(self) -> list[tuple[str, int]]:
         """Every arm trajectory goal that ended on the habitat: (id, status)."""
         return [
@@ -124,7 +141,9 @@ class Flight:
         """A new habitat side after the old one died, its memory lost: a new state folder (a new
         ledger epoch, no AT instances), the simulation's world from the start."""
         state = self.hosts.folder / f"habitat-state-{len(self.hosts.processes)}"
-        self.habitat = start_habitat(self.hosts, self.credentials, self.binding, state, time_scale=self.time_scale)
+        self.habitat = start_habitat(
+            self.hosts, self.credentials, self.binding, state, time_scale=self.time_scale, onboard=False
+        )
         return self.habitat
 
     def _habitat_pids(self) -> list[int]:
@@ -154,9 +173,10 @@ def write_ground_binding(
 
 
 def start_habitat(
-    hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *, time_scale: str
+    hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *, time_scale: str, onboard: bool
 ) -> Habitat:
-    """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret."""
+    """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret
+    (``onboard``: with the onboard executive, serving units that name ``binding``)."""
     deployment = write_deployment(
         hosts.folder,
         "iva-habitat",
@@ -169,6 +189,7 @@ def start_habitat(
         },
         state_dir=str(state_dir),
         bindings=[str(binding)],
+        onboard=onboard,
     )
     up = hosts.caretaker(
         hosts.habitat,
@@ -192,6 +213,7 @@ def flight(
     link_options: Sequence[str] = (),
     time_scale: str = "1",
     outage_budget: float = 120.0,
+    onboard: bool = False,
 ) -> Iterator[Flight]:
     """Both hosts up, the link between them, nothing run yet; everything stopped and removed after."""
     with TwoHosts.create(ros_env) as hosts:
@@ -201,7 +223,9 @@ def flight(
             hosts.folder, link_url, credentials, one_way_delay=delay, outage_budget=outage_budget
         )
         probe = hosts.python(hosts.habitat, str(PROBE), ready=r"^READY probe")
-        habitat = start_habitat(hosts, credentials, binding, hosts.folder / "habitat-state", time_scale=time_scale)
+        habitat = start_habitat(
+            hosts, credentials, binding, hosts.folder / "habitat-state", time_scale=time_scale, onboard=onboard
+        )
         link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
         yield Flight(
             hosts, habitat, probe, link, binding, f"sqlite:///{hosts.folder / 'audit.db'}", credentials, time_scale

@@ -125,6 +125,7 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         demo=None,
         ros={"namespace": "/iva", "domain_id": 42},
         capture_dir=str(tmp_path / "captures"),
+        onboard=True,
     )
     deployment = load_deployment(path, check_files=False)
     stack = Stack(deployment, time_scale=0.0, env={})
@@ -135,8 +136,17 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
     assert (
         [p.name for p in PARTS if p.name != "link"]
         == list(lines)
-        == ["sim", "planner", "at-server", "ledger", "bridge"]
+        == ["sim", "planner", "at-server", "ledger", "bridge", "onboard"]
     )
+    assert lines["onboard"] == [
+        "onboard",
+        "--bridge",
+        "wss://127.0.0.1:9443",
+        "--state-dir",
+        str(stack.run.state_dir / "onboard"),
+        "--binding",
+        str(tmp_path / "binding.yaml"),
+    ]
     assert lines["ledger"][:3] == ["ledger", "--state-dir", str(stack.run.state_dir / "ledger")]
     assert lines["bridge"] == [
         "bridge",
@@ -288,3 +298,26 @@ def test_a_library_of_templates_only_needs_no_robots_folder(tmp_path: Path) -> N
         choose_robot(_robot_args("--robot", "r2d2"))
     with pytest.raises(DeploymentError, match="no such deployment"):
         load_deployment("r2d2")
+
+
+@pytest.mark.parametrize(
+    ("given", "said"),
+    [
+        ({"bindings": []}, "the onboard executive runs units with this deployment's bindings: list them"),
+        ({"bridge": {"address": "127.0.0.1", "port": 0}}, "give bridge.auth_secret_file"),
+    ],
+)
+def test_an_onboard_executive_needs_bindings_and_the_links_secret(
+    tmp_path: Path, given: dict[str, object], said: str
+) -> None:
+    secret = tmp_path / "secret"
+    secret.write_text("x")
+    options: dict[str, object] = {
+        "bridge": {"address": "127.0.0.1", "port": 0, "auth_secret_file": str(secret)},
+        "bindings": [str(REPO / "sysrep" / "bindings" / "iva.yaml")],
+        "onboard": True,
+        **given,
+    }
+    with pytest.raises(DeploymentError) as refused:
+        load_deployment(write_deployment(tmp_path, "iva", **options), check_files=False)
+    assert said in str(refused.value) and str(refused.value).startswith(str(tmp_path / "iva.yaml")), refused.value

@@ -22,6 +22,8 @@ REPO = Path(__file__).resolve().parents[2]
 FORBIDDEN = {
     "pride": ("rclpy", "bridge", "at_ros", "sim", "starlette", "uvicorn"),
     "console": ("rclpy", "bridge", "at_ros", "sim"),
+    # the onboard executive runs PAX on the habitat: procedures, but no web or ROS stack of its own
+    "onboard": ("rclpy", "bridge", "at_ros", "sim", "console", "starlette", "uvicorn"),
     "bridge": ("pride",),
     "at_ros": ("pride", "sim"),
     "sim": ("pride",),
@@ -36,12 +38,13 @@ FORBIDDEN = {
 MAY_IMPORT = {
     "datafile": set(),
     "rosbridge_wire": set(),
-    "pride": {"datafile"},
+    "pride": {"datafile", "rosbridge_wire"},
     "console": {"datafile", "pride", "rosbridge_wire"},
+    "onboard": {"datafile", "pride", "rosbridge_wire"},
     "bridge": {"datafile", "rosbridge_wire"},
     "at_ros": {"datafile"},
     "sim": {"datafile"},
-    "caretaker": {"datafile", "rosbridge_wire", "pride", "console", "bridge", "at_ros", "sim"},
+    "caretaker": {"datafile", "rosbridge_wire", "pride", "console", "onboard", "bridge", "at_ros", "sim"},
 }
 
 

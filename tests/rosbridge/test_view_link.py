@@ -13,7 +13,8 @@ from typing import Any
 import pytest
 
 from caretaker.processes import REPO
-from console.spatial_link import RosbridgeLink, Subscription, read_view_link
+from console.spatial_link import read_view_link
+from rosbridge_wire.client import LinkError, RosbridgeClient, Subscription
 from support.certificates import self_signed_certificate
 from support.processes import ManagedProcess, caretaker
 
@@ -83,7 +84,7 @@ async def read(url: str, binding_path: Path, *, timeout: float) -> tuple[list[st
         if state == "connected":
             connected.set()
 
-    rosbridge = RosbridgeLink(link, on_state=on_state)
+    rosbridge = RosbridgeClient(link.endpoint, name="view-test", on_state=on_state)
     rosbridge.subscribe(Subscription("/peer/latched", "std_msgs/msg/String", on_latched))
     rosbridge.start()
     answer = None
@@ -119,3 +120,43 @@ def test_a_wrong_secret_never_connects(secure_bridge: tuple[str, Path]) -> None:
     states, latched, answer = run(url, binding(folder, url, "not-the-secret"), timeout=4)
     assert "connected" not in states and latched == [] and answer is None
     assert "reconnecting" in states  # refused, and it keeps trying (the next auth is a fresh one)
+
+
+async def serve_and_call(url: str, binding_path: Path) -> tuple[Any, str, Any]:
+    """One client serves a service through the bridge, another calls it: (an answer, what a call
+    the handler failed ended in, the answer to the next call)."""
+    link = read_view_link(binding_path)
+    assert link is not None
+
+    async def served(args: Any) -> dict[str, Any]:
+        if not args["data"]:
+            raise ValueError("refused: data is false")
+        return {"success": True, "message": "served by the client"}
+
+    server = RosbridgeClient(link.endpoint, name="serving-client")
+    server.advertise_service("/view_test/served", "std_srvs/srv/SetBool", served)
+    caller = RosbridgeClient(link.endpoint, name="calling-client")
+    server.start()
+    caller.start()
+    try:
+        await asyncio.wait_for(asyncio.gather(server.ready.wait(), caller.ready.wait()), 30)
+        answer = None
+        while answer is None:  # the bridge knows the service once DDS has discovered the advertisement
+            try:
+                answer = await caller.call("/view_test/served", {"data": True})
+            except LinkError as exc:
+                assert "not advertised" in str(exc) or "no service" in str(exc) or "not available" in str(exc), exc
+        with pytest.raises(LinkError) as refused:  # a ROS service cannot fail: its caller hears nothing
+            await caller.call("/view_test/served", {"data": False}, timeout=3)
+        return answer, str(refused.value), await caller.call("/view_test/served", {"data": True})
+    finally:
+        await caller.close()
+        await server.close()
+
+
+def test_a_client_serves_a_service_and_outlives_a_failing_handler(secure_bridge: tuple[str, Path]) -> None:
+    url, folder = secure_bridge
+    with ThreadPoolExecutor(1) as pool:
+        answer, refused, after = pool.submit(asyncio.run, serve_and_call(url, binding(folder, url, SECRET))).result()
+    assert answer == after == {"success": True, "message": "served by the client"}
+    assert "Timeout exceeded" in refused or "no answer in time" in refused, refused

@@ -284,13 +284,10 @@ class Bridge:
         session.send_frame(encode(answer), fragment_size)
 
     def _service_response(self, session: Session, message: dict[str, Any]) -> None:
-        self.services.respond(
-            session,
-            self._service(message),
-            require(message, "id", str),
-            optional(message, "values", dict, {}),
-            optional(message, "result", bool, True),
-        )
+        result = optional(message, "result", bool, True)
+        # a failed request's values say why, as text or anything else (rosbridge sends a string)
+        values = optional(message, "values", dict, {}) if result else message.get("values")
+        self.services.respond(session, self._service(message), require(message, "id", str), values, result)
 
     def _advertise_service(self, session: Session, message: dict[str, Any]) -> None:
         self.services.advertise(session, self._service(message), require(message, "type", str))

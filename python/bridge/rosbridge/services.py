@@ -23,17 +23,20 @@ from __future__ import annotations
 import asyncio
 import fnmatch
 import itertools
+import json
 import logging
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import rclpy.task
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from .conversion import dict_to_message, list_to_request, load_type, message_to_dict, type_name
 from .limits import Quotas
 from .protocol import (
+    MAX_TEXT,
     OP_CALL_SERVICE,
     SERVICE_TIMEOUT_TEXT,
     InvalidField,
@@ -41,6 +44,7 @@ from .protocol import (
     ServiceUnanswered,
     ServiceUnavailable,
     TypeConflict,
+    client_text,
     echo,
 )
 from .ros_thread import RosThread
@@ -268,7 +272,11 @@ class Services:
             return await self._forward_request(provided, request)
 
         try:
-            provided.service = self.ros.server_node.create_service(srv_cls, service, callback)
+            # Reentrant: requests are forwarded side by side, so one its client is slow to answer
+            # (a long poll, a client that never answers) does not hold the calls behind it.
+            provided.service = self.ros.server_node.create_service(
+                srv_cls, service, callback, callback_group=ReentrantCallbackGroup()
+            )
         except Exception as exc:
             self.quotas.advertisements.give(session.number)
             raise InvalidField(f"cannot advertise service {service}: {type(exc).__name__}") from None
@@ -294,7 +302,8 @@ class Services:
         finally:
             self.ros.server_executor.wake()
         if response is None:
-            future.set_exception(RuntimeError(f"the client serving {service} failed the request: {values}"))
+            why = values if isinstance(values, str) else json.dumps(values)[:MAX_TEXT]  # the client's words, bounded
+            future.set_exception(RuntimeError(f"the client serving {service} failed the request: {client_text(why)}"))
         else:
             future.set_result(response)
         self.ros.server_executor.wake()

@@ -1,0 +1,363 @@
+"""The habitat's onboard runs: take a unit from the ground, run it with PAX here, hand its events down.
+
+One :class:`HabitatRuns` per habitat (``caretaker onboard`` holds it). It keeps, under its state
+folder:
+
+- ``onboard.sqlite``: every onboard run's events in the audit log's own append-only, hash-chained
+  table (:class:`pride.audit_log.AuditLog` on SQLite), and robot control as on the ground: the
+  record that survives a restart, and the one the ground's copy must equal hash for hash;
+- ``units/<hash>/``: each accepted unit as it arrived (``unit.json``) and its procedure files;
+- ``actions.jsonl``: the outcome of every operator action by key, so a resend is never acted on twice.
+
+A run answers by itself only what the unit answered at uplink (record values, manual
+instructions, hazardous commands); any other hold waits for an operator's action from the ground,
+while everything automatable runs on without waiting for the link.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from pride.audit_chain import StoredEvent, utc
+from pride.audit_log import AuditLog
+from pride.diagnostics import ProcedureError
+from pride.events import EventKind
+from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
+from pride.gateways import open_gateway
+from pride.lint import check_procedure
+from pride.model import RecordInstruction
+from pride.robot_control import RobotControl
+from pride.sysrep import SysRep
+from pride.systems import SystemGateway
+
+from .unit import OperatorAction, Unit, UnitError, digest, signed_by
+
+__all__ = ["ActionAnswer", "EventsAnswer", "HabitatRuns", "UplinkAnswer"]
+
+log = logging.getLogger(__name__)
+
+#: The most events one answer carries (a long run is caught up in several).
+MAX_EVENTS = 200
+#: The longest a request for events waits for the next one.
+MAX_WAIT_S = 30.0
+
+
+@dataclass(frozen=True)
+class UplinkAnswer:
+    state: str  # ACCEPTED | REFUSED | EXPIRED
+    unit_hash: str
+    run_id: str
+    message: str
+
+
+@dataclass(frozen=True)
+class EventsAnswer:
+    events: list[dict[str, Any]]
+    head_seq: int
+    status: str  # active | completed | stopped | interrupted | unknown
+    habitat_time: str
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class ActionAnswer:
+    state: str  # DONE | REFUSED | EXPIRED
+    message: str
+
+
+@dataclass
+class _Run:
+    unit: Unit
+    unit_hash: str
+    executive: Executive
+    gateway: SystemGateway
+    answerer: threading.Thread | None = None
+
+
+def stored_event_json(event: StoredEvent) -> dict[str, Any]:
+    """A stored event as it goes down: every field the chain covers, and its hash."""
+    return {
+        "run_id": event.run_id,
+        "seq": event.seq,
+        "time": utc(event.time).isoformat(timespec="microseconds"),
+        "actor": event.actor,
+        "kind": event.kind,
+        "instruction": event.instruction,
+        "data": event.data,
+        "prev_hash": event.prev_hash,
+        "hash": event.hash,
+    }
+
+
+class HabitatRuns:
+    """Units taken, onboard runs, their events and operators' actions on them. Thread-safe."""
+
+    def __init__(
+        self,
+        state_dir: Path,
+        *,
+        secret: str,
+        bindings: Mapping[str, Path],
+        sysreps: Mapping[str, SysRep],
+        rosbridge_url: str | None = None,
+        gateway_factory: Callable[[str, str | None], SystemGateway] | None = None,
+        clock: Callable[[], float] = time.time,
+    ) -> None:
+        """``bindings``: the habitat's binding files by file name (a unit names one);
+        ``rosbridge_url``: the habitat's bridge as this host reaches it (replaces the bindings'
+        address, which is the ground's way in)."""
+        self.state_dir = state_dir
+        self.units_dir = state_dir / "units"
+        self.units_dir.mkdir(parents=True, exist_ok=True)
+        self._secret = secret
+        self._bindings = dict(bindings)
+        self._sysreps = sysreps
+        self._rosbridge_url = rosbridge_url
+        self._open_gateway = gateway_factory or (lambda path, url: open_gateway(path, rosbridge_url=url))
+        self._clock = clock
+        url = f"sqlite:///{state_dir / 'onboard.sqlite'}"
+        self.audit = AuditLog(url)
+        self.control = RobotControl(url)
+        self._lock = threading.Lock()  # units, runs and actions
+        self._news = threading.Condition()  # a run's new event: a run emits while _lock may be held
+        self._runs: dict[str, _Run] = {}
+        self._accepted = {
+            path.parent.name: Unit.from_json(path.read_text()) for path in self.units_dir.glob("*/unit.json")
+        }
+        self._actions_file = state_dir / "actions.jsonl"
+        self._actions: dict[str, ActionAnswer] = {}
+        if self._actions_file.exists():
+            for line in self._actions_file.read_text().splitlines():
+                record = json.loads(line)
+                self._actions[record["key"]] = ActionAnswer(record["state"], record["message"])
+
+    # ---- uplink -----------------------------------------------------------------------------
+    def uplink(self, unit_json: str, signature: str) -> UplinkAnswer:
+        """Take a unit: check its signature, lifetime, binding and lint, then start its run.
+
+        The same unit again is answered as the first time and starts nothing (its answer may have
+        been lost on the link); anything refused starts nothing.
+        """
+        unit_hash = digest(unit_json)
+
+        def refused(message: str, state: str = "REFUSED", run_id: str = "") -> UplinkAnswer:
+            log.warning("unit %s %s: %s", unit_hash[:12], state.lower(), message)
+            return UplinkAnswer(state, unit_hash, run_id, message)
+
+        if not signed_by(unit_json, signature, self._secret):
+            return refused("the unit's signature is not the link's: it was not signed with this habitat's secret")
+        try:
+            unit = Unit.from_json(unit_json)
+        except UnitError as exc:
+            return refused(f"the unit cannot be read: {exc}")
+        with self._lock:
+            if unit_hash in self._accepted:
+                return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, "already accepted: the run was started then")
+            now = self._clock()
+            if now > unit.expires_at:
+                late = now - unit.expires_at
+                return refused(f"the unit ran out {late:.1f} s before it arrived; not started", "EXPIRED", unit.run_id)
+            busy = [r for r in self._runs.values() if r.executive.snapshot().status is RunStatus.ACTIVE]
+            if busy:
+                return refused(
+                    f"onboard run {busy[0].executive.run_id} is active on this habitat; one unit runs at a time",
+                    run_id=unit.run_id,
+                )
+            if self.audit.events(unit.run_id):
+                return refused(
+                    f"run {unit.run_id} already has events here; a unit starts a new run", run_id=unit.run_id
+                )
+            binding = self._bindings.get(unit.binding)
+            if binding is None:
+                known = ", ".join(sorted(self._bindings)) or "none"
+                return refused(f"no binding {unit.binding!r} on this habitat (it has: {known})", run_id=unit.run_id)
+            folder = self.units_dir / unit_hash
+            try:
+                run = self._start(unit, unit_hash, folder, binding)
+            except ProcedureError as exc:
+                # as the ground knows the files: by their path in the unit
+                problems = "\n".join(str(p).replace(f"{folder}/", "") for p in exc.problems)
+                return refused(
+                    f"the unit does not lint against this habitat's SysReps:\n{problems}", run_id=unit.run_id
+                )
+            except RobotControlled as exc:
+                return refused(str(exc), run_id=unit.run_id)
+            (folder / "unit.json").write_text(unit_json)
+            self._accepted[unit_hash] = unit
+            self._runs[unit.run_id] = run
+        log.info("unit %s accepted: onboard run %s of %s", unit_hash[:12], unit.run_id, unit.procedure)
+        return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, f"started {unit.procedure}")
+
+    def _start(self, unit: Unit, unit_hash: str, folder: Path, binding: Path) -> _Run:
+        for name, text in unit.files.items():
+            path = folder / name
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text, encoding="utf-8")
+        try:
+            checked = check_procedure(folder / unit.procedure, self._sysreps)
+        except ProcedureError:
+            _remove(folder)
+            raise
+        gateway = self._open_gateway(str(binding), self._rosbridge_url)
+        executive = Executive(
+            checked, gateway, self.audit, run_id=unit.run_id, mode=Mode(unit.mode), control=self.control
+        )
+        run = _Run(unit, unit_hash, executive, gateway)
+        executive.add_listener(lambda event: self._wake())
+        try:
+            for number in unit.breakpoints:
+                executive.set_breakpoint(unit.user, number)
+            executive.start(unit.user)
+        except (RobotControlled, OperatorActionError):
+            gateway.close()
+            _remove(folder)
+            raise
+        run.answerer = threading.Thread(target=self._answer, args=(run,), name=f"onboard-{unit.run_id}", daemon=True)
+        run.answerer.start()
+        return run
+
+    # ---- answering what the unit answered ----------------------------------------------------
+    def _answer(self, run: _Run) -> None:
+        """Answer the run's holds that the unit answered at uplink, until it ends; others wait."""
+        executive, unit = run.executive, run.unit
+        answered = -1
+
+        def news(s: Snapshot) -> bool:  # ended, or a hold not looked at yet
+            return s.status is not RunStatus.ACTIVE or (s.hold is not None and s.last_seq != answered)
+
+        while True:
+            snap = executive.wait_for(news)
+            assert snap is not None
+            if snap.status is not RunStatus.ACTIVE:
+                break
+            answered = snap.last_seq
+            try:
+                self._answer_hold(executive, unit, snap)
+            except OperatorActionError as exc:  # the hold stays for an operator on the ground
+                log.warning("onboard run %s at %s: %s", snap.run_id, snap.current, exc)
+        executive.join(30)
+        run.gateway.close()
+        self._wake()
+
+    @staticmethod
+    def _answer_hold(executive: Executive, unit: Unit, snap: Snapshot) -> None:
+        instruction = executive.current_instruction()
+        if snap.hold is Hold.OPERATOR_INPUT and isinstance(instruction, RecordInstruction):
+            if instruction.name in unit.values:
+                executive.enter(unit.user, unit.values[instruction.name])
+        elif snap.hold is Hold.OPERATOR_ACTION and unit.confirm_manual:
+            executive.mark_done(unit.user)
+        elif snap.hold is Hold.CONFIRMATION and unit.confirm_hazardous:
+            executive.confirm(unit.user)
+
+    def _wake(self) -> None:
+        with self._news:
+            self._news.notify_all()
+
+    # ---- downlink ---------------------------------------------------------------------------
+    def events(self, run_id: str, after_seq: int, wait_s: float = 0.0, max_events: int = 0) -> EventsAnswer:
+        """The run's stored events numbered above ``after_seq``; with none, wait up to ``wait_s`` for one."""
+        limit = max_events if 0 < max_events <= MAX_EVENTS else MAX_EVENTS
+        deadline = time.monotonic() + min(max(wait_s, 0.0), MAX_WAIT_S)
+        with self._news:
+            while True:
+                status = self._status(run_id)  # first: the events read next include its last one
+                stored = self.audit.stored_events(run_id, after=max(after_seq, 0))
+                if stored or status != "active" or time.monotonic() >= deadline:
+                    break
+                self._news.wait(deadline - time.monotonic())
+        head = stored[-1].seq if stored else max(after_seq, 0)
+        return EventsAnswer(
+            [stored_event_json(e) for e in stored[:limit]],
+            head,
+            status,
+            datetime.now(UTC).isoformat(timespec="microseconds"),
+            "" if status != "unknown" else f"no onboard run {run_id} on this habitat",
+        )
+
+    def _status(self, run_id: str) -> str:
+        """The run's status as its stored events show it: ended only once its last event is stored."""
+        events = self.audit.events(run_id)
+        with self._lock:
+            running = run_id in self._runs
+        if not events:
+            return "active" if running else "unknown"
+        ended = {EventKind.RUN_COMPLETED: "completed", EventKind.RUN_STOPPED: "stopped"}.get(events[-1].kind)
+        return ended or ("active" if running else "interrupted")
+
+    # ---- operators' actions -----------------------------------------------------------------
+    def act(self, action_json: str, signature: str) -> ActionAnswer:
+        """Take an operator's action on an onboard run (a key already taken is answered as then)."""
+        if not signed_by(action_json, signature, self._secret):
+            return ActionAnswer("REFUSED", "the action's signature is not the link's; not acted on")
+        try:
+            action = OperatorAction.from_json(action_json)
+        except UnitError as exc:
+            return ActionAnswer("REFUSED", f"the action cannot be read: {exc}")
+        with self._lock:
+            known = self._actions.get(action.key)
+        if known is not None:
+            return known
+        if self._clock() > action.expires_at:
+            answer = ActionAnswer("EXPIRED", f"{action.action} ran out before it arrived; not acted on")
+        else:
+            answer = self._perform(action)
+        with self._lock:
+            self._actions[action.key] = answer
+            with self._actions_file.open("a") as file:
+                file.write(json.dumps({"key": action.key, "state": answer.state, "message": answer.message}) + "\n")
+        return answer
+
+    def _perform(self, action: OperatorAction) -> ActionAnswer:
+        with self._lock:
+            run = self._runs.get(action.run_id)
+        if run is None:
+            return ActionAnswer("REFUSED", f"no onboard run {action.run_id} is running on this habitat")
+        ex, user, args = run.executive, action.user, action.args
+        status = ex.snapshot().status
+        if status is not RunStatus.ACTIVE:
+            return ActionAnswer("REFUSED", f"onboard run {action.run_id} has ended ({status.value}): not acted on")
+        perform: dict[str, Callable[[], Any]] = {
+            "halt": lambda: ex.halt(user, str(args["reason"])),
+            "pause": lambda: ex.pause(user),
+            "continue": lambda: ex.resume_automation(user),
+            "stop": lambda: ex.stop(user, str(args["reason"])),
+            "step": lambda: ex.perform(user),
+            "skip": lambda: ex.skip(user, str(args["reason"])),
+            "enter": lambda: ex.enter(user, args["value"]),
+            "mark_done": lambda: ex.mark_done(user),
+            "confirm": lambda: ex.confirm(user),
+            "retry": lambda: ex.retry(user),
+        }
+        try:
+            perform[action.action]()
+        except OperatorActionError as exc:
+            return ActionAnswer("REFUSED", str(exc))
+        return ActionAnswer("DONE", f"{action.action} by {user}")
+
+    def close(self) -> None:
+        """Stop every run still active (they can be resumed from the store) and close the store."""
+        with self._lock:
+            runs = list(self._runs.values())
+        for run in runs:
+            if run.executive.snapshot().status is RunStatus.ACTIVE:
+                run.executive.stop("onboard", "the onboard executive is shutting down")
+            if run.answerer is not None:
+                run.answerer.join(30)
+        self.control.close()
+        self.audit.close()
+
+
+def _remove(folder: Path) -> None:
+    """Forget a unit that was not started: its files must not make it look accepted."""
+    for path in sorted(folder.rglob("*"), reverse=True):
+        path.unlink() if path.is_file() else path.rmdir()
+    folder.rmdir()

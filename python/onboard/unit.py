@@ -1,0 +1,215 @@
+"""What the ground sends up: a procedure unit to run onboard, and an operator's action on that run.
+
+Both travel as canonical JSON (sorted keys, no spaces, UTF-8) with a hex HMAC-SHA256 signature
+under the link's shared secret (the bridge's ``auth_secret_file``: whoever may log in to the
+habitat's bridge may also sign). A unit is identified by the SHA-256 of its JSON: the habitat
+acknowledges that hash, so the ground knows exactly what the habitat took. Both carry an expiry
+(Unix seconds): a unit or action that arrives after it is refused as expired, never acted on late.
+
+Everything read here comes from the link and is checked field by field; a bad one raises
+:class:`UnitError` naming the field and what was expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import json
+import re
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import PurePosixPath
+from typing import Any
+
+__all__ = [
+    "ACTIONS",
+    "ACTION_SERVICE",
+    "EVENTS_SERVICE",
+    "UPLINK_SERVICE",
+    "OperatorAction",
+    "Unit",
+    "UnitError",
+    "canonical",
+    "digest",
+    "sign",
+    "signed_by",
+]
+
+#: The onboard executive's services on the habitat's bridge (caretaker_onboard_msgs).
+UPLINK_SERVICE = "/caretaker_onboard/uplink"
+EVENTS_SERVICE = "/caretaker_onboard/events"
+ACTION_SERVICE = "/caretaker_onboard/action"
+
+#: Operators' actions the habitat takes for an onboard run, with the arguments each needs.
+ACTIONS: Mapping[str, tuple[str, ...]] = {
+    "halt": ("reason",),
+    "pause": (),
+    "continue": (),
+    "stop": ("reason",),
+    "step": (),
+    "skip": ("reason",),
+    "enter": ("value",),
+    "mark_done": (),
+    "confirm": (),
+    "retry": (),
+}
+_RUN_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._:-]{0,127}")
+
+
+class UnitError(ValueError):
+    """A unit or action that cannot be taken as sent: the text names the field and what to fix."""
+
+
+def canonical(value: Mapping[str, Any]) -> str:
+    """The one JSON text of ``value`` that is hashed and signed."""
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+
+
+def digest(text: str) -> str:
+    """SHA-256 of ``text`` (UTF-8), hex: a unit's identity."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def sign(text: str, secret: str) -> str:
+    """The hex HMAC-SHA256 of ``text`` under ``secret``."""
+    return hmac.new(secret.encode("utf-8"), text.encode("utf-8"), hashlib.sha256).hexdigest()
+
+
+def signed_by(text: str, signature: str, secret: str) -> bool:
+    """Whether ``signature`` is ``text``'s under ``secret`` (in constant time)."""
+    return hmac.compare_digest(sign(text, secret), signature)
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One procedure to run onboard, with everything the run may answer by itself.
+
+    ``files`` holds the procedure and every sub-procedure it calls, by path relative to one
+    folder (``procedure`` names the one to run); ``binding`` names one of the habitat's own
+    binding files; ``values``, ``confirm_manual`` and ``confirm_hazardous`` are the answers the
+    operator gave at uplink (as ``caretaker run --set``, ``--confirm-manual``,
+    ``--confirm-hazardous``): any other hold waits for the ground.
+    """
+
+    run_id: str
+    procedure: str
+    files: Mapping[str, str]
+    binding: str
+    user: str
+    mode: str
+    issued_at: float
+    expires_at: float
+    values: Mapping[str, str] = field(default_factory=dict)
+    confirm_manual: bool = False
+    confirm_hazardous: bool = False
+    breakpoints: tuple[str, ...] = ()
+
+    def to_json(self) -> str:
+        return canonical({**asdict(self), "files": dict(self.files), "values": dict(self.values)})
+
+    @classmethod
+    def from_json(cls, text: str) -> Unit:
+        data = _object(text, "unit")
+        files = _field(data, "files", dict, "an object of file path → procedure XML text")
+        for name, content in files.items():
+            _relative_path(name)
+            if not isinstance(content, str):
+                raise UnitError(f"files[{name!r}] must be the file's text, not {type(content).__name__}")
+        procedure = _field(data, "procedure", str, "the path of the procedure to run, one of files")
+        if procedure not in files:
+            raise UnitError(f"procedure {procedure!r} is not one of the unit's files ({', '.join(sorted(files))})")
+        values = _field(data, "values", dict, "an object of record name → value text")
+        if not all(isinstance(v, str) for v in values.values()):
+            raise UnitError("values must map each record name to its value as text")
+        breakpoints = _field(data, "breakpoints", list, "a list of instruction numbers")
+        if not all(isinstance(b, str) for b in breakpoints):
+            raise UnitError('breakpoints must be instruction numbers as text, e.g. "2.3"')
+        mode = _field(data, "mode", str, '"autonomous" or "manual"')
+        if mode not in ("autonomous", "manual"):
+            raise UnitError(f'mode must be "autonomous" or "manual", not {mode[:40]!r}')
+        return cls(
+            run_id=_run_id(data),
+            procedure=procedure,
+            files=files,
+            binding=_relative_path(_field(data, "binding", str, "the file name of one of the habitat's bindings")),
+            user=_field(data, "user", str, "who uplinked it"),
+            mode=mode,
+            issued_at=_time(data, "issued_at"),
+            expires_at=_time(data, "expires_at"),
+            values=values,
+            confirm_manual=_field(data, "confirm_manual", bool, "true or false"),
+            confirm_hazardous=_field(data, "confirm_hazardous", bool, "true or false"),
+            breakpoints=tuple(breakpoints),
+        )
+
+
+@dataclass(frozen=True)
+class OperatorAction:
+    """An operator's action on an onboard run: ``key`` is unique per action (a resend under the
+    same key is answered with the first outcome, never acted on twice)."""
+
+    key: str
+    run_id: str
+    action: str
+    user: str
+    expires_at: float
+    args: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> str:
+        return canonical({**asdict(self), "args": dict(self.args)})
+
+    @classmethod
+    def from_json(cls, text: str) -> OperatorAction:
+        data = _object(text, "action")
+        action = _field(data, "action", str, f"one of {', '.join(ACTIONS)}")
+        if action not in ACTIONS:
+            raise UnitError(f"action {action[:40]!r} is not one the habitat takes ({', '.join(ACTIONS)})")
+        args = _field(data, "args", dict, "an object of the action's arguments")
+        missing = [name for name in ACTIONS[action] if name not in args]
+        if missing:
+            raise UnitError(f"action {action} needs {', '.join(missing)} in args")
+        key = _field(data, "key", str, "a key unique to this action")
+        if not 0 < len(key) <= 200:
+            raise UnitError("key must be 1 to 200 characters")
+        return cls(key, _run_id(data), action, _field(data, "user", str, "who acts"), _time(data, "expires_at"), args)
+
+
+def _object(text: str, what: str) -> dict[str, Any]:
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise UnitError(f"the {what} is not JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise UnitError(f"the {what} must be a JSON object, not {type(data).__name__}")
+    return data
+
+
+def _field(data: Mapping[str, Any], name: str, kind: type, expected: str) -> Any:
+    if name not in data:
+        raise UnitError(f"{name} is missing: expected {expected}")
+    value = data[name]
+    if not isinstance(value, kind) or (kind in (int, float) and isinstance(value, bool)):
+        raise UnitError(f"{name} must be {expected}, not {type(value).__name__}")
+    return value
+
+
+def _time(data: Mapping[str, Any], name: str) -> float:
+    value = data.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1e11:
+        raise UnitError(f"{name} must be a time in Unix seconds, not {str(value)[:40]!r}")
+    return float(value)
+
+
+def _run_id(data: Mapping[str, Any]) -> str:
+    run_id = _field(data, "run_id", str, "the run's id")
+    if not _RUN_ID.fullmatch(run_id):
+        raise UnitError(f"run_id {run_id[:40]!r} must be letters, digits and . _ : - (at most 128)")
+    return str(run_id)
+
+
+def _relative_path(name: str) -> str:
+    """A file name that stays inside the unit's folder on the habitat."""
+    path = PurePosixPath(name)
+    if not name or path.is_absolute() or ".." in path.parts or "\\" in name or "\0" in name or len(name) > 255:
+        raise UnitError(f"file path {name[:80]!r} must be relative, without '..', at most 255 characters")
+    return name

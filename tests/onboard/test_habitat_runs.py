@@ -1,0 +1,214 @@
+"""The habitat's onboard runs (onboard/habitat_runs.py) on the lab bench: what a unit may start,
+what the run answers by itself, operators' keyed actions, and a ground copy of the chain that
+equals the habitat's hash for hash (onboard/downlink.py).
+
+The lab bench gateway stands in for PAX's Java host here only: the IVA procedure flown onboard
+across the emulated link, on the real stack, is tests/flight/test_iva_onboard.py.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from onboard.downlink import Downlink, DownlinkError, build_unit
+from onboard.habitat_runs import HabitatRuns
+from onboard.unit import OperatorAction, Unit, sign
+from pride.audit_log import AuditLog
+from pride.events import EventKind
+from pride.lint import check_procedure
+from pride.sysrep import SysRep, load_sysrep_dir
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES, REPO
+
+pytestmark = pytest.mark.timeout(60)
+
+SECRET = "the link's secret"
+PROCEDURE = FIXTURES / "lab_all_kinds.xml"
+
+
+@pytest.fixture(scope="module")
+def sysreps() -> dict[str, SysRep]:
+    return {**load_sysrep_dir(REPO / "sysrep"), **load_sysrep_dir(FIXTURES / "sysrep")}
+
+
+@pytest.fixture
+def habitat(tmp_path: Path, sysreps: dict[str, SysRep]) -> Iterator[tuple[HabitatRuns, list[LabGateway]]]:
+    """The habitat's runs on the lab bench (the binding file is only named: the bench needs none)."""
+    binding = tmp_path / "lab.yaml"
+    binding.write_text("robot: lab\n")
+    gateways: list[LabGateway] = []
+
+    def bench(path: str, url: str | None) -> LabGateway:
+        gateways.append(LabGateway())
+        return gateways[-1]
+
+    runs = HabitatRuns(
+        tmp_path / "habitat", secret=SECRET, bindings={"lab.yaml": binding}, sysreps=sysreps, gateway_factory=bench
+    )
+    yield runs, gateways
+    runs.close()
+
+
+@pytest.fixture
+def make_unit(sysreps: dict[str, SysRep]) -> Callable[..., Unit]:
+    checked = check_procedure(PROCEDURE, sysreps)
+
+    def make(**changes: Any) -> Unit:
+        unit = build_unit(
+            checked,
+            run_id=f"lab-{time.monotonic_ns()}",
+            binding="lab.yaml",
+            user="alice",
+            mode="autonomous",
+            values={"target": "dock"},
+            confirm_manual=True,
+            confirm_hazardous=True,
+            breakpoints=(),
+            lifetime_s=60,
+            now=time.time(),
+        )
+        return replace(unit, **changes)
+
+    return make
+
+
+def uplink(runs: HabitatRuns, unit: Unit, secret: str = SECRET) -> Any:
+    text = unit.to_json()
+    return runs.uplink(text, sign(text, secret))
+
+
+def act(runs: HabitatRuns, action: OperatorAction) -> Any:
+    text = action.to_json()
+    return runs.act(text, sign(text, SECRET))
+
+
+def until_ended(runs: HabitatRuns, run_id: str) -> list[dict[str, Any]]:
+    """Every event of the run as it comes down, asked as the ground asks (above the last one had)."""
+    events: list[dict[str, Any]] = []
+    while True:
+        answer = runs.events(run_id, events[-1]["seq"] if events else 0, wait_s=5)
+        events += answer.events
+        if answer.status != "active" and (not events or events[-1]["seq"] == answer.head_seq):
+            return events
+
+
+def test_a_unit_runs_onboard_answering_what_it_carries_and_the_ground_copy_is_the_habitats_chain(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit], tmp_path: Path
+) -> None:
+    runs, gateways = habitat
+    unit = make_unit()
+    answer = uplink(runs, unit)
+    assert (answer.state, answer.run_id) == ("ACCEPTED", unit.run_id), answer.message
+    events = until_ended(runs, unit.run_id)
+    assert events[-1]["kind"] == EventKind.RUN_COMPLETED.value
+    # the holds the unit answered were answered onboard, as its user
+    kinds = [(e["kind"], e["actor"]) for e in events]
+    assert ("operator_input", "alice") in kinds and ("confirmation", "alice") in kinds
+    assert [command for _, command, _ in gateways[0].sent].count("vent") == 1
+    # the sub-procedure went up with it: its instructions ran here
+    assert any(e["instruction"] and "/" in e["instruction"] for e in events)
+
+    ground = AuditLog(f"sqlite:///{tmp_path / 'ground.sqlite'}")
+    try:
+        downlink = Downlink(ground, unit.run_id)
+        middle = len(events) // 2
+        assert len(downlink.take(events[:middle])) == middle
+        assert len(downlink.take(events)) == len(events) - middle  # asked again from the start: stored once
+        assert downlink.take(events) == []
+        here, there = ground.stored_events(unit.run_id), runs.audit.stored_events(unit.run_id)
+        assert [e.hash for e in here] == [e.hash for e in there] and ground.verify(unit.run_id).ok
+    finally:
+        ground.close()
+
+
+def test_the_same_unit_again_is_answered_as_before_and_starts_nothing(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, gateways = habitat
+    unit = make_unit()
+    first, again = uplink(runs, unit), uplink(runs, unit)
+    assert (
+        first == replace(again, message=first.message) and again.message == "already accepted: the run was started then"
+    )
+    until_ended(runs, unit.run_id)
+    assert len(gateways) == 1
+    assert [e.kind for e in runs.audit.events(unit.run_id)].count(EventKind.RUN_STARTED) == 1
+
+
+def test_refused_units_start_nothing_and_say_why(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, gateways = habitat
+    forged = uplink(runs, make_unit(), secret="not the link's")
+    assert forged.state == "REFUSED" and "not signed with this habitat's secret" in forged.message
+
+    late = uplink(runs, make_unit(expires_at=time.time() - 5))
+    assert late.state == "EXPIRED" and "ran out" in late.message and "before it arrived; not started" in late.message
+
+    unit = make_unit()
+    broken = unit.files[unit.procedure].replace('system="lab" name="vent"', 'system="lab" name="implode"')
+    unlinted = uplink(runs, replace(unit, files={**unit.files, unit.procedure: broken}))
+    assert unlinted.state == "REFUSED" and "does not lint against this habitat's SysReps" in unlinted.message
+    assert f"\n{unit.procedure}:19:27: unknown command 'implode' in lab" in unlinted.message  # as the ground has it
+
+    elsewhere = uplink(runs, make_unit(binding="eva.yaml"))
+    assert (
+        elsewhere.state == "REFUSED" and "no binding 'eva.yaml' on this habitat (it has: lab.yaml)" in elsewhere.message
+    )
+
+    assert gateways == [] and runs.audit.runs() == []  # none of them started a run or left a record
+
+
+def test_a_second_unit_is_refused_while_one_runs_and_the_ground_answers_a_hold_once_per_key(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, _ = habitat
+    unit = make_unit(values={})  # the record is not answered at uplink: the run holds for the ground
+    assert uplink(runs, unit).state == "ACCEPTED"
+    held = runs.events(unit.run_id, 0)
+    while not any(e["kind"] == "awaiting_operator" for e in held.events):
+        held = runs.events(unit.run_id, 0, wait_s=5)
+    second = uplink(runs, make_unit())
+    assert second.state == "REFUSED" and f"onboard run {unit.run_id} is active" in second.message
+
+    entered = OperatorAction("key-1", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock"})
+    assert act(runs, entered).state == "DONE"
+    assert act(runs, entered).state == "DONE"  # a resend: answered from the record, not entered again
+    until_ended(runs, unit.run_id)
+    inputs = [e for e in runs.audit.events(unit.run_id) if e.kind is EventKind.OPERATOR_INPUT]
+    assert [(e.actor, e.data["value"]) for e in inputs] == [("bob", "dock")]
+
+    stale = OperatorAction("key-2", unit.run_id, "halt", "bob", time.time() - 1, {"reason": "late"})
+    assert act(runs, stale).state == "EXPIRED"
+    over = OperatorAction("key-3", unit.run_id, "halt", "bob", time.time() + 60, {"reason": "done already"})
+    assert act(runs, over).state == "REFUSED"  # the run ended: nothing to halt
+    forged = OperatorAction("key-4", unit.run_id, "halt", "eve", time.time() + 60, {"reason": "x"}).to_json()
+    assert runs.act(forged, sign(forged, "guess")).state == "REFUSED"
+
+
+def test_the_ground_refuses_a_copy_that_is_not_the_habitats_chain(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit], tmp_path: Path
+) -> None:
+    runs, _ = habitat
+    unit = make_unit()
+    uplink(runs, unit)
+    events = until_ended(runs, unit.run_id)
+    ground = AuditLog(f"sqlite:///{tmp_path / 'ground.sqlite'}")
+    try:
+        downlink = Downlink(ground, unit.run_id)
+        assert downlink.take([events[0], events[2]]) != [] and downlink.head_seq == 1  # a gap ends the batch
+        changed = dict(events[1], data=json.dumps({**json.loads(events[1]["data"]), "forged": True}, sort_keys=True))
+        with pytest.raises(DownlinkError, match="event 2's contents do not match its hash: not stored"):
+            downlink.take([changed])
+        with pytest.raises(DownlinkError, match="event field seq must be int"):
+            downlink.take([dict(events[1], seq="2")])
+        assert downlink.head_seq == 1 and len(ground.events(unit.run_id)) == 1
+    finally:
+        ground.close()
