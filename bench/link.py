@@ -1,4 +1,5 @@
-"""The IVA procedure flown autonomously across an emulated ground–habitat link: time against its bound.
+"""The IVA procedure flown autonomously across an emulated ground–habitat link: time against its bound,
+run from the ground and run onboard, side by side.
 
 For each link (none, Gateway's 1.3 s, 1.3 s with 5 % of segments lost, 2.6 s at 64 kbit/s down
 and 16 kbit/s up) this brings up the IVA habitat deployment with its link emulated in front of
@@ -16,7 +17,11 @@ the delay, and reports from the run's audit log, the ledger's records and the li
   each answer came one round trip after its question; ``ratio`` = run / bound;
 - bytes up (ground → habitat) and down that crossed the link, TLS included.
 
-    .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16] [--time-scale 1]
+``onboard`` rows run the same procedure with ``caretaker run --onboard`` (the habitat deployment
+with ``onboard: true``): N is then the round trips the ground needs at all (the uplink, and the
+first and last requests for events), so the bound is habitat + 3 round trips.
+
+    .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16] [--modes ground,onboard] [--time-scale 1]
 """
 
 from __future__ import annotations
@@ -77,7 +82,9 @@ def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path], stat
     return path
 
 
-def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding: Path, seed: int) -> Path:
+def _deployment(
+    folder: Path, case: Case, credentials: dict[str, Path], binding: Path, seed: int, onboard: bool
+) -> Path:
     source = REPO / "deployments" / "iva-habitat.yaml"
     data = yaml.safe_load(source.read_text())
     for key in ("scene", "robot", "templates", "robots"):
@@ -87,6 +94,7 @@ def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding:
         data["bridge"].update(certfile=str(credentials["bridge.pem"]), keyfile=str(credentials["bridge.key"]))
     data["state_dir"] = str(folder / "state")
     data["bindings"] = [str(binding)]
+    data["onboard"] = onboard
     link: dict[str, Any] = {"listen": "127.0.0.1:0", "delay": case.delay, "loss": case.loss, "seed": seed}
     if case.down_kbps:
         link.update(down_kbps=case.down_kbps, up_kbps=case.up_kbps)
@@ -97,9 +105,15 @@ def _deployment(folder: Path, case: Case, credentials: dict[str, Path], binding:
 
 
 def fly(
-    case: Case, *, time_scale: str, seed: int, env: dict[str, str], status_throttle: float | None = None
+    case: Case,
+    *,
+    time_scale: str,
+    seed: int,
+    env: dict[str, str],
+    status_throttle: float | None = None,
+    onboard: bool = False,
 ) -> dict[str, Any]:
-    """One run of the procedure across ``case``'s link; its figures."""
+    """One run of the procedure across ``case``'s link, from the ground or onboard; its figures."""
     from caretaker.certs import make_link_credentials
     from caretaker.link import LinkControl
     from caretaker.processes import caretaker
@@ -110,7 +124,7 @@ def fly(
         folder = Path(tmp)
         credentials = make_link_credentials(folder / "link", ["127.0.0.1"], days=1)
         binding = _ground_binding(folder, case, credentials, status_throttle)
-        deployment = _deployment(folder, case, credentials, binding, seed)
+        deployment = _deployment(folder, case, credentials, binding, seed, onboard)
         up = caretaker("up", str(deployment), "--time-scale", time_scale, env=env, name="up")
         run = None
         try:
@@ -131,6 +145,7 @@ def fly(
                 db,
                 "--confirm-manual",
                 "--set=clean_filter_id=CDRA-F-0012",
+                *(["--onboard"] if onboard else []),
                 env=env,
                 name="run",
             )
@@ -152,13 +167,14 @@ def fly(
             up.stop()
     first = next(e.time for e in events if e.kind is EventKind.RUN_STARTED)
     last = next(e.time for e in events if e.kind is EventKind.RUN_COMPLETED)
-    answers = sum(e.kind is EventKind.COMMAND_SENT for e in events)
+    answers = 3 if onboard else sum(e.kind is EventKind.COMMAND_SENT for e in events)
     habitat = sum(seconds for _, seconds in records)
     motion = sum(seconds for service, seconds in records if service.endswith("/execute_command"))
     run_s = (last - first).total_seconds()
     bound = habitat + answers * 2 * case.delay
     return {
         "case": case.name,
+        "mode": "onboard" if onboard else "ground",
         "wall": wall,
         "run": run_s,
         "habitat": habitat,
@@ -176,6 +192,7 @@ def fly(
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
+    parser.add_argument("--modes", default="ground,onboard", help="comma-separated, of ground, onboard")
     parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
     parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
     parser.add_argument(
@@ -188,16 +205,27 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(101, 200)))
     env = dict(os.environ)
-    print("| link | run | wall | habitat (motion) | N | bound | ratio | bytes up | bytes down | stalls |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    modes = args.modes.split(",")
+    if not set(modes) <= {"ground", "onboard"}:
+        parser.error(f"--modes takes ground and onboard, not {args.modes}")
+    print("| link | mode | run | wall | habitat (motion) | N | bound | ratio | bytes up | bytes down | stalls |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.cases.split(","):
-        r = fly(CASES[name], time_scale=args.time_scale, seed=args.seed, env=env, status_throttle=args.status_throttle)
-        print(
-            f"| {r['case']} | {r['run']:.1f} s | {r['wall']:.1f} s | {r['habitat']:.1f} s ({r['motion']:.1f} s) "
-            f"| {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× | {r['up'] / 1024:.1f} KiB "
-            f"| {r['down'] / 1024:.1f} KiB | {r['stalls']} |",
-            flush=True,
-        )
+        for mode in modes:
+            r = fly(
+                CASES[name],
+                time_scale=args.time_scale,
+                seed=args.seed,
+                env=env,
+                status_throttle=args.status_throttle,
+                onboard=mode == "onboard",
+            )
+            print(
+                f"| {r['case']} | {r['mode']} | {r['run']:.1f} s | {r['wall']:.1f} s "
+                f"| {r['habitat']:.1f} s ({r['motion']:.1f} s) | {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× "
+                f"| {r['up'] / 1024:.1f} KiB | {r['down'] / 1024:.1f} KiB | {r['stalls']} |",
+                flush=True,
+            )
     return 0
 
 

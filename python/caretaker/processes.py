@@ -54,6 +54,7 @@ class ManagedProcess:
         self._on_line = on_line
         self.name = name or Path(argv[0]).name
         self.output: deque[str] = deque(maxlen=400)
+        self.printed = 0  # lines printed so far (``output`` keeps the last 400)
         self._output_changed = threading.Condition()
         self._ended = False
         self.proc = subprocess.Popen(
@@ -76,6 +77,7 @@ class ManagedProcess:
             line = raw.rstrip("\n")
             with self._output_changed:
                 self.output.append(line)
+                self.printed += 1
                 self._output_changed.notify_all()
             if self._on_line is not None:
                 self._on_line(self.name, line)
@@ -89,8 +91,9 @@ class ManagedProcess:
         with self._output_changed:
             return "\n".join(list(self.output)[-lines:])
 
-    def wait_for_line(self, pattern: str, timeout: float = 60.0) -> str:
+    def wait_for_line(self, pattern: str, timeout: float = 60.0, *, after: int = 0) -> str:
         """Block until the process printed a line matching ``pattern`` (a regex); return that line.
+        ``after``: only a line printed after the first ``after`` lines (a value of :attr:`printed`).
 
         Raises:
             ProcessFailed: the process ended, or ``timeout`` passed, without printing one.
@@ -99,7 +102,9 @@ class ManagedProcess:
         found: list[str] = []
 
         def printed() -> bool:
-            found[:] = [line for line in self.output if regex.search(line)][:1]
+            first = self.printed - len(self.output)  # the number of the oldest line kept
+            lines = enumerate(self.output, first)
+            found[:] = [line for number, line in lines if number >= after and regex.search(line)][:1]
             return bool(found) or self._ended
 
         with self._output_changed:

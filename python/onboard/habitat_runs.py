@@ -7,7 +7,8 @@ folder:
   table (:class:`pride.audit_log.AuditLog` on SQLite), and robot control as on the ground: the
   record that survives a restart, and the one the ground's copy must equal hash for hash;
 - ``units/<hash>/``: each accepted unit as it arrived (``unit.json``) and its procedure files;
-- ``actions.jsonl``: the outcome of every operator action by key, so a resend is never acted on twice.
+- ``actions.jsonl``: every operator action by key (when it arrived and was answered, on the
+  habitat's clock, and its outcome), so a resend is never acted on twice.
 
 A run answers by itself only what the unit answered at uplink (record values, manual
 instructions, hazardous commands); any other hold waits for an operator's action from the ground,
@@ -296,6 +297,7 @@ class HabitatRuns:
     # ---- operators' actions -----------------------------------------------------------------
     def act(self, action_json: str, signature: str) -> ActionAnswer:
         """Take an operator's action on an onboard run (a key already taken is answered as then)."""
+        received = self._clock()
         if not signed_by(action_json, signature, self._secret):
             return ActionAnswer("REFUSED", "the action's signature is not the link's; not acted on")
         try:
@@ -306,14 +308,24 @@ class HabitatRuns:
             known = self._actions.get(action.key)
         if known is not None:
             return known
-        if self._clock() > action.expires_at:
+        if received > action.expires_at:
             answer = ActionAnswer("EXPIRED", f"{action.action} ran out before it arrived; not acted on")
         else:
             answer = self._perform(action)
         with self._lock:
             self._actions[action.key] = answer
+            record = {
+                "key": action.key,
+                "run_id": action.run_id,
+                "action": action.action,
+                "user": action.user,
+                "received": received,  # the habitat's clock when it arrived
+                "answered": self._clock(),
+                "state": answer.state,
+                "message": answer.message,
+            }
             with self._actions_file.open("a") as file:
-                file.write(json.dumps({"key": action.key, "state": answer.state, "message": answer.message}) + "\n")
+                file.write(json.dumps(record) + "\n")
         return answer
 
     def _perform(self, action: OperatorAction) -> ActionAnswer:

@@ -114,14 +114,14 @@ class RosbridgeClient:
         """Read a topic from now on (and after every reconnect)."""
         self._subscriptions.append(subscription)
         if self._socket is not None:
-            asyncio.get_running_loop().create_task(self._send(self._subscribe_message(subscription)))
+            asyncio.get_running_loop().create_task(self._send_or_redo(self._subscribe_message(subscription)))
 
     def advertise_service(self, service: str, type_: str, handler: ServiceHandler) -> None:
         """Serve ``service`` (of ROS type ``type_``) through the bridge from now on (and after every reconnect)."""
         advertised = _Advertised(service, type_, handler)
         self._advertised.append(advertised)
         if self._socket is not None:
-            asyncio.get_running_loop().create_task(self._send(self._advertise_message(advertised)))
+            asyncio.get_running_loop().create_task(self._send_or_redo(self._advertise_message(advertised)))
 
     def start(self) -> None:
         self._task = asyncio.get_running_loop().create_task(self._run())
@@ -207,7 +207,15 @@ class RosbridgeClient:
         socket = self._socket
         if socket is None:
             raise LinkError(str(message.get("op")), "not connected to rosbridge")
-        await socket.send(json.dumps(message))
+        try:
+            await socket.send(json.dumps(message))
+        except (websockets.ConnectionClosed, OSError) as exc:  # lost while sending: the caller asks again
+            raise LinkError(str(message.get("op")), f"the connection was lost: {exc}") from None
+
+    async def _send_or_redo(self, message: Mapping[str, Any]) -> None:
+        """Send a subscription or advertisement now; one lost with the connection is made again on reconnect."""
+        with contextlib.suppress(LinkError):
+            await self._send(message)
 
     def _fail_calls(self, why: str) -> None:
         for future in self._calls.values():
@@ -305,5 +313,5 @@ class RosbridgeClient:
         except Exception as exc:  # said to the caller; the service stays up for the next call
             log.exception("%s: %s failed", self.name, advertised.service)
             answer.update(result=False, values=f"{type(exc).__name__}: {exc}")
-        with contextlib.suppress(LinkError, websockets.ConnectionClosed):  # the caller asks again after a reconnect
+        with contextlib.suppress(LinkError):  # the caller asks again after a reconnect
             await self._send(answer)

@@ -14,6 +14,7 @@ match it, command for command, with no false success (:func:`assert_flown_exactl
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 import sqlite3
@@ -58,6 +59,11 @@ class Habitat:
             return store.stored_events(run_id)
         finally:
             store.close()
+
+    def onboard_actions(self) -> list[dict[str, Any]]:
+        """Every operator action the onboard executive took, as it recorded them."""
+        path = self.state_dir / "onboard" / "actions.jsonl"
+        return [json.loads(line) for line in path.read_text().splitlines()]
 
     def ledger_records(self) -> list[dict[str, Any]]:
         """Every command the ledger executed (or refused), in the order it got them."""
@@ -127,6 +133,11 @@ class Flight:
     def await_execution(self, trajectory: str, timeout: float = RUN_TIMEOUT_S) -> str:
         """Block until the habitat's AT server executes ``trajectory``; return the probe's line."""
         return self.probe.wait_for_line(rf"^EXECUTING \S+ {trajectory}$", timeout)
+
+    def await_motion(self, trajectory: str, timeout: float = RUN_TIMEOUT_S) -> None:
+        """Block until the arm moves (anew) while the habitat's AT server executes ``trajectory``."""
+        self.await_execution(trajectory, timeout)
+        self.probe.wait_for_line(r"^MOVING ", 60, after=self.probe.printed)
 
     def kill_bridge(self) -> int:
         """SIGKILL the habitat's rosbridge server (a crash); ``caretaker up`` restarts it. Returns its pid."""

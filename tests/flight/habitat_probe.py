@@ -5,7 +5,9 @@ Runs in the habitat's network namespace next to ``caretaker up`` and prints one 
 - ``EXECUTING <template> <trajectory>`` when the AT server starts executing (its status topic),
   ``EXECUTED <template> <trajectory> <status>`` when it stops;
 - ``GOAL <id> <status>`` when a trajectory goal of the arm's controller ends (4 succeeded,
-  5 canceled, 6 aborted), once per goal: every arm motion the simulation carried out.
+  5 canceled, 6 aborted), once per goal: every arm motion the simulation carried out;
+- ``MOVING <time>`` and ``STILL <time>`` when the arm's joint states start to change and stop
+  changing (``time``: this host's clock when the first such sample arrived, Unix seconds).
 
 Prints ``READY probe`` once both subscriptions exist.
 """
@@ -13,21 +15,26 @@ Prints ``READY probe`` once both subscriptions exist.
 from __future__ import annotations
 
 import argparse
+import time
 
 import rclpy
 from action_msgs.msg import GoalStatusArray
 from affordance_template_msgs.msg import ServerStatus
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
 
 TERMINAL = {4, 5, 6}
 
 
 class HabitatProbe(Node):
-    def __init__(self, status_topic: str, action: str) -> None:
+    def __init__(self, status_topic: str, action: str, joints_topic: str) -> None:
         super().__init__("flight_habitat_probe")
         self.executing: tuple[str, str] | None = None
         self.ended: set[str] = set()
+        self.positions: tuple[float, ...] | None = None
+        self.moving = False
+        self.create_subscription(JointState, joints_topic, self.on_joints, 100)
         self.create_subscription(ServerStatus, status_topic, self.on_status, 10)
         latched = QoSProfile(
             depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
@@ -42,6 +49,13 @@ class HabitatProbe(Node):
             print(f"EXECUTED {self.executing[0]} {self.executing[1]} {status.execute_status}", flush=True)
             self.executing = None
 
+    def on_joints(self, message: JointState) -> None:
+        positions = tuple(message.position)
+        if self.positions is not None and (positions != self.positions) != self.moving:
+            self.moving = not self.moving
+            print(f"{'MOVING' if self.moving else 'STILL'} {time.time():.6f}", flush=True)
+        self.positions = positions
+
     def on_goals(self, message: GoalStatusArray) -> None:
         for goal in message.status_list:
             goal_id = bytes(goal.goal_info.goal_id.uuid).hex()
@@ -54,9 +68,10 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--status-topic", default="/affordance_template_server/status")
     parser.add_argument("--action", default="/arm_controller/follow_joint_trajectory")
+    parser.add_argument("--joints", default="/joint_states")
     args = parser.parse_args()
     rclpy.init()
-    node = HabitatProbe(args.status_topic, args.action)
+    node = HabitatProbe(args.status_topic, args.action, args.joints)
     print("READY probe", flush=True)
     try:
         rclpy.spin(node)
