@@ -211,7 +211,6 @@ class HabitatRuns:
         executive = Executive(
             checked, gateway, self.audit, run_id=unit.run_id, mode=Mode(unit.mode), control=self.control
         )
-        run = _Run(unit, unit_hash, executive, gateway)
         executive.add_listener(lambda event: self._wake())
         try:
             for number in unit.breakpoints:
@@ -221,9 +220,43 @@ class HabitatRuns:
             gateway.close()
             _remove(folder)
             raise
-        run.answerer = threading.Thread(target=self._answer, args=(run,), name=f"onboard-{unit.run_id}", daemon=True)
+        return self._answering(_Run(unit, unit_hash, executive, gateway))
+
+    def _answering(self, run: _Run) -> _Run:
+        run.answerer = threading.Thread(
+            target=self._answer, args=(run,), name=f"onboard-{run.unit.run_id}", daemon=True
+        )
         run.answerer.start()
         return run
+
+    def resume_interrupted(self) -> list[str]:
+        """Resume the runs this executive was running when it stopped or crashed (a restart by
+        ``caretaker up``): each goes on from its chain, and a command in flight then is sent again
+        with its key, so the ledger answers what became of it instead of running it twice. A run
+        that cannot be resumed is logged with the reason and stays ``interrupted``. Returns the
+        run ids resumed."""
+        resumed = []
+        for unit_hash, unit in sorted(self._accepted.items(), key=lambda item: item[1].issued_at):
+            events = self.audit.events(unit.run_id)
+            if not events or events[-1].kind in (EventKind.RUN_COMPLETED, EventKind.RUN_STOPPED):
+                continue
+            binding = self._bindings.get(unit.binding)
+            try:
+                if binding is None:
+                    raise OperatorActionError(f"its binding {unit.binding} is no longer one of this habitat's")
+                checked = check_procedure(self.units_dir / unit_hash / unit.procedure, self._sysreps)
+                gateway = self._open_gateway(str(binding), self._rosbridge_url)
+                executive = Executive.resume(checked, gateway, self.audit, events, "onboard", control=self.control)
+            except (OperatorActionError, ProcedureError, RobotControlled) as exc:
+                log.error("onboard run %s cannot be resumed: %s", unit.run_id, exc)
+                continue
+            executive.add_listener(lambda event: self._wake())
+            with self._lock:
+                self._runs[unit.run_id] = self._answering(_Run(unit, unit_hash, executive, gateway))
+            log.info("onboard run %s resumed from event %d", unit.run_id, events[-1].seq)
+            resumed.append(unit.run_id)
+        self._wake()
+        return resumed
 
     # ---- answering what the unit answered ----------------------------------------------------
     def _answer(self, run: _Run) -> None:
@@ -356,14 +389,15 @@ class HabitatRuns:
         return ActionAnswer("DONE", f"{action.action} by {user}")
 
     def close(self) -> None:
-        """Stop every run still active (they can be resumed from the store) and close the store."""
+        """Leave the runs where they are (the next start resumes them from the store) and close it.
+
+        A run still active is not stopped: an onboard executive restarted by ``caretaker up`` picks
+        it up again (:meth:`resume_interrupted`); its gateway is closed, so nothing more is sent.
+        """
         with self._lock:
             runs = list(self._runs.values())
         for run in runs:
-            if run.executive.snapshot().status is RunStatus.ACTIVE:
-                run.executive.stop("onboard", "the onboard executive is shutting down")
-            if run.answerer is not None:
-                run.answerer.join(30)
+            run.gateway.close()
         self.control.close()
         self.audit.close()
 

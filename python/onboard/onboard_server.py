@@ -103,8 +103,12 @@ async def serve(args: argparse.Namespace) -> int:
     stop = asyncio.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(signum, stop.set)
-    client.start()
     try:
+        # resumed before the services are served: the ground must never hear "interrupted" of a
+        # run that is about to go on
+        for run_id in await loop.run_in_executor(pool, runs.resume_interrupted):
+            print(f"RESUMED onboard run {run_id}", flush=True)
+        client.start()
         await client.ready.wait()
         print(f"READY onboard {args.bridge} ({len(bindings)} binding{'s' if len(bindings) != 1 else ''})", flush=True)
         await stop.wait()

@@ -139,14 +139,14 @@ class Flight:
         self.await_execution(trajectory, timeout)
         self.probe.wait_for_line(r"^MOVING ", 60, after=self.probe.printed)
 
-    def kill_bridge(self) -> int:
-        """SIGKILL the habitat's rosbridge server (a crash); ``caretaker up`` restarts it. Returns its pid."""
+    def kill_part(self, part: str) -> int:
+        """SIGKILL one habitat part (``caretaker <part>``: a crash); ``caretaker up`` restarts it. Returns its pid."""
         for pid in self._habitat_pids():
             argv = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-            if len(argv) > 2 and argv[1].endswith(b"caretaker") and argv[2] == b"bridge":
+            if len(argv) > 2 and argv[1].endswith(b"caretaker") and argv[2] == part.encode():
                 os.kill(pid, signal.SIGKILL)
                 return pid
-        raise AssertionError(f"no caretaker bridge runs in {self.hosts.habitat.namespace}")
+        raise AssertionError(f"no caretaker {part} runs in {self.hosts.habitat.namespace}")
 
     def restart_habitat_without_memory(self) -> Habitat:
         """A new habitat side after the old one died, its memory lost: a new state folder (a new

@@ -25,7 +25,7 @@ def test_resets_and_a_bridge_crash_mid_motion_leave_every_motion_done_once(ros_e
         f.link.control.reset(10)
         reset_at = datetime.now(UTC)
         f.await_execution(PLACE_DIRTY)
-        killed = f.kill_bridge()
+        killed = f.kill_part("bridge")
         killed_at = datetime.now(UTC)
         restarted = f.habitat.up.wait_for_line(r"^restarted bridge", 120)
         run_id, status = result_of(run)

@@ -212,3 +212,38 @@ def test_the_ground_refuses_a_copy_that_is_not_the_habitats_chain(
         assert downlink.head_seq == 1 and len(ground.events(unit.run_id)) == 1
     finally:
         ground.close()
+
+
+def test_a_restarted_onboard_executive_resumes_its_run_from_the_chain(
+    habitat: tuple[HabitatRuns, list[LabGateway]],
+    make_unit: Callable[..., Unit],
+    sysreps: dict[str, SysRep],
+    tmp_path: Path,
+) -> None:
+    runs, gateways = habitat
+    unit = make_unit(values={})  # it holds at the record until the ground answers
+    assert uplink(runs, unit).state == "ACCEPTED"
+    while not any(e["kind"] == "awaiting_operator" for e in runs.events(unit.run_id, 0, wait_s=5).events):
+        pass
+    runs.close()  # the executive goes away mid-run (caretaker up restarts it)
+
+    again = HabitatRuns(
+        tmp_path / "habitat",
+        secret=SECRET,
+        bindings={"lab.yaml": tmp_path / "lab.yaml"},
+        sysreps=sysreps,
+        gateway_factory=lambda path, url: gateways[0],
+    )
+    try:
+        assert again.resume_interrupted() == [unit.run_id]
+        assert uplink(again, unit).message == "already accepted: the run was started then"  # it knows the unit
+        entered = OperatorAction("key-r", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock"})
+        assert act(again, entered).state == "DONE"
+        events = until_ended(again, unit.run_id)
+        assert events[-1]["kind"] == EventKind.RUN_COMPLETED.value
+        resumed = [e for e in events if e["kind"] == EventKind.RUN_RESUMED.value]
+        assert [e["actor"] for e in resumed] == ["onboard"]
+        assert again.audit.verify(unit.run_id).ok
+        assert again.resume_interrupted() == []  # nothing left to resume
+    finally:
+        again.close()

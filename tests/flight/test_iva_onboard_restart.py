@@ -1,0 +1,39 @@
+"""The onboard executive killed while the pull-out it commanded is in flight, restarted by ``caretaker up``.
+
+It resumes the run from its own chain: the command in flight at the crash is sent again with its
+key, so the ledger answers what became of it instead of running it again. The run completes,
+every command was executed once and every motion done once (counted on the habitat), and the
+ground's copy of the record, caught up after the gap, is the habitat's chain hash for hash.
+How a flight is set up: flight_support.py.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from pride.audit_chain import verify_chain
+
+from .flight_support import DELAY, IVA_ARM_GOALS, IVA_COMMANDS, PULL_OUT, flight, result_of
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+def test_the_onboard_executive_killed_mid_motion_resumes_and_runs_nothing_twice(ros_env: dict[str, str]) -> None:
+    with flight(ros_env, delay=DELAY, time_scale="1", onboard=True) as f:
+        run = f.run("--onboard")
+        f.await_execution(PULL_OUT)
+        killed = f.kill_part("onboard")
+        f.habitat.up.wait_for_line(r"^restarted onboard", 120)
+        run_id, status = result_of(run)
+        habitat = f.habitat.onboard_chain(run_id)
+        assert status == "completed", [f"{e.seq} {e.kind} {e.data[:120]}" for e in habitat[-10:]]
+        resumed = [e for e in habitat if e.kind == "run_resumed"]
+        assert [e.actor for e in resumed] == ["onboard"], f"onboard executive {killed} was not resumed once"
+        records = f.habitat.ledger_records()  # each command key executed at most once, whatever was re-sent
+        assert len(records) == IVA_COMMANDS and {r["state"] for r in records} == {"SUCCEEDED"}, records
+        goals = f.goals()
+        assert len({goal for goal, _ in goals}) == len(goals) == IVA_ARM_GOALS and {s for _, s in goals} == {4}, goals
+        ground = f.ground_chain(run_id)
+        assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat]
+        assert verify_chain(run_id, ground).ok
+        assert "no news from the habitat since" in run.tail(400)
