@@ -4,7 +4,6 @@ the processes' fixtures (imported by name in the test modules), and a test CA fo
 from __future__ import annotations
 
 import json
-import subprocess
 import threading
 import time
 from collections.abc import Iterator
@@ -112,52 +111,3 @@ def client(peer: ManagedProcess) -> Iterator[LedgerClient]:
     ledger_client = LedgerClient()
     yield ledger_client
     ledger_client.close()
-
-
-def make_certificates(directory: Path) -> tuple[Path, Path, Path]:
-    """A test CA and a bridge certificate it signed for 127.0.0.1 (a SAN): (ca.pem, cert.pem, key.pem)."""
-
-    def openssl(*args: str) -> None:
-        subprocess.run(["openssl", *args], cwd=directory, check=True, capture_output=True)
-
-    openssl(
-        "req",
-        "-x509",
-        "-newkey",
-        "rsa:2048",
-        "-nodes",
-        "-keyout",
-        "ca.key",
-        "-out",
-        "ca.pem",
-        "-days",
-        "2",
-        "-subj",
-        "/CN=Caretaker test CA",
-        "-addext",
-        "basicConstraints=critical,CA:TRUE",
-        "-addext",
-        "keyUsage=critical,keyCertSign",
-    )
-    (directory / "san.ext").write_text("subjectAltName=IP:127.0.0.1\n")
-    openssl(
-        "req", "-newkey", "rsa:2048", "-nodes", "-keyout", "key.pem", "-out", "bridge.csr", "-subj", "/CN=127.0.0.1"
-    )
-    openssl(
-        "x509",
-        "-req",
-        "-in",
-        "bridge.csr",
-        "-CA",
-        "ca.pem",
-        "-CAkey",
-        "ca.key",
-        "-CAcreateserial",
-        "-days",
-        "2",
-        "-out",
-        "cert.pem",
-        "-extfile",
-        "san.ext",
-    )
-    return directory / "ca.pem", directory / "cert.pem", directory / "key.pem"

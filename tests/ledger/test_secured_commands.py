@@ -10,14 +10,14 @@ from pathlib import Path
 
 import pytest
 
+from caretaker.certs import make_link_credentials
 from support.processes import ManagedProcess, caretaker
 
-from .ledger_support import LedgerClient, make_certificates
+from .ledger_support import LedgerClient
 
 pytestmark = pytest.mark.ros
 
 SYSREP = Path(__file__).with_name("ledger_test_sysrep.yaml")
-SECRET = "a-shared-secret-for-tests"
 
 
 class Habitat:
@@ -26,9 +26,9 @@ class Habitat:
     def __init__(self, env: dict[str, str], directory: Path) -> None:
         self.env = env
         self.directory = directory
-        self.ca, self.cert, self.key = make_certificates(directory)
-        self.secret = directory / "bridge.secret"
-        self.secret.write_text(SECRET + "\n")
+        files = make_link_credentials(directory, ["127.0.0.1"], days=2)  # as `caretaker certs` makes them
+        self.ca, self.cert, self.key = files["ca.pem"], files["bridge.pem"], files["bridge.key"]
+        self.secret = files["rosbridge.secret"]
         self.processes: list[ManagedProcess] = []
         self.ledger = self._start("ledger", "--state-dir", str(directory / "state"))
         self.bridge = self.start_bridge("0")
