@@ -281,7 +281,9 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
     )
     printer = ProgressPrinter(checked.procedure, terminal)
     try:
-        result = asyncio.run(supervise(endpoint, unit, audit, on_event=printer, say=terminal.say))
+        result = asyncio.run(
+            supervise(endpoint, unit, audit, on_event=printer, say=terminal.say, unattended=not sys.stdin.isatty())
+        )
     except DownlinkError as exc:
         print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
         return 1

@@ -17,7 +17,7 @@ import os
 import secrets
 import signal
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -167,8 +167,13 @@ async def supervise(
     *,
     on_event: Callable[[Event], None],
     say: Callable[[str], None],
+    unattended: bool,
 ) -> Supervision:
-    """Uplink ``unit`` and follow its run until it ends; Ctrl-C sends a Halt (again: a Stop)."""
+    """Uplink ``unit`` and follow its run until it ends; Ctrl-C sends a Halt (again: a Stop).
+
+    ``unattended`` (nobody at this terminal): a hold the unit did not answer stops the run, as an
+    unattended ``caretaker run`` does on the ground; otherwise the run waits on the habitat.
+    """
     assert endpoint.secret is not None  # the caller checked: units are signed with it
     secret = endpoint.secret
     client = RosbridgeClient(endpoint, name=f"caretaker-run-{unit.user}")
@@ -215,7 +220,14 @@ async def supervise(
             return Supervision(answer["state"].lower(), unit.run_id, str(answer["message"]))
         say(f"uplinked unit {answer['unit_hash']}: the habitat runs {unit.procedure} as run {unit.run_id}")
         say(f"READY run {unit.run_id}")
-        return await _follow(client, Downlink(audit, unit.run_id), on_event, say)
+
+        async def waiting(where: str) -> None:
+            say(f"  the onboard run waits for an operator: {where}")
+            if unattended:
+                say("  nobody at this terminal to answer: the run is stopped")
+                await act("stop", reason=f"unattended run needs an operator at {where}")
+
+        return await _follow(client, Downlink(audit, unit.run_id), on_event, say, waiting)
     finally:
         loop.remove_signal_handler(signal.SIGINT)
         await client.close()
@@ -244,11 +256,17 @@ async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callabl
 
 
 async def _follow(
-    client: RosbridgeClient, downlink: Downlink, on_event: Callable[[Event], None], say: Callable[[str], None]
+    client: RosbridgeClient,
+    downlink: Downlink,
+    on_event: Callable[[Event], None],
+    say: Callable[[str], None],
+    on_waiting: Callable[[str], Awaitable[None]],
 ) -> Supervision:
-    """Store the run's events as they come, until it ended and the ground has them all."""
+    """Store the run's events as they come, until it ended and the ground has them all; tell
+    ``on_waiting`` once per hold the habitat leaves for an operator."""
     heard = time.time()
     silent = False
+    waited = ""
     while True:
         try:
             values = await client.call(
@@ -273,6 +291,11 @@ async def _follow(
         for event in downlink.take(items):
             on_event(event)
         status, head = str(values.get("status")), values.get("head_seq")
+        waiting = str(values.get("waiting", ""))
+        if waiting != waited and isinstance(head, int) and downlink.head_seq >= head:
+            waited = waiting
+            if waiting:
+                await on_waiting(waiting)
         if status == "unknown":
             return Supervision("unknown", downlink.run_id, str(values.get("message")))
         if status != "active" and isinstance(head, int) and downlink.head_seq >= head:

@@ -65,6 +65,7 @@ class EventsAnswer:
     head_seq: int
     status: str  # active | completed | stopped | interrupted | unknown
     habitat_time: str
+    waiting: str = ""  # "N: why" while the run holds for an operator the unit did not answer
     message: str = ""
 
 
@@ -81,6 +82,7 @@ class _Run:
     executive: Executive
     gateway: SystemGateway
     answerer: threading.Thread | None = None
+    looked_at: int = -1  # the last event after which the answerer looked at a hold (and left it for the ground)
 
 
 def stored_event_json(event: StoredEvent) -> dict[str, Any]:
@@ -277,6 +279,8 @@ class HabitatRuns:
                 self._answer_hold(executive, unit, snap)
             except OperatorActionError as exc:  # the hold stays for an operator on the ground
                 log.warning("onboard run %s at %s: %s", snap.run_id, snap.current, exc)
+            run.looked_at = answered
+            self._wake()
         executive.join(30)
         run.gateway.close()
         self._wake()
@@ -314,8 +318,21 @@ class HabitatRuns:
             head,
             status,
             datetime.now(UTC).isoformat(timespec="microseconds"),
+            self._waiting(run_id),
             "" if status != "unknown" else f"no onboard run {run_id} on this habitat",
         )
+
+    def _waiting(self, run_id: str) -> str:
+        """ "N: why" when the run holds and its answerer left the hold for an operator, else ""."""
+        with self._lock:
+            run = self._runs.get(run_id)
+        if run is None:
+            return ""
+        snap = run.executive.snapshot()
+        if snap.status is not RunStatus.ACTIVE or snap.hold is None or run.looked_at != snap.last_seq:
+            return ""
+        number = str(snap.current)
+        return snap.reason if snap.reason.startswith(f"{number}:") else f"{number}: {snap.reason or snap.hold.value}"
 
     def _status(self, run_id: str) -> str:
         """The run's status as its stored events show it: ended only once its last event is stored."""

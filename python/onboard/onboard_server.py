@@ -125,6 +125,7 @@ class _EventsValues:
     head_seq: int
     status: str
     habitat_time: str
+    waiting: str
     message: str
 
 
@@ -141,7 +142,9 @@ def _events_values(runs: HabitatRuns, request: Mapping[str, Any]) -> _EventsValu
         float(number("wait_s", float)),
         int(number("max_events", int)),
     )
-    return _EventsValues(json.dumps(answer.events), answer.head_seq, answer.status, answer.habitat_time, answer.message)
+    return _EventsValues(
+        json.dumps(answer.events), answer.head_seq, answer.status, answer.habitat_time, answer.waiting, answer.message
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

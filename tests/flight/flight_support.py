@@ -89,8 +89,9 @@ class Flight:
         """The habitat's bridge as the ground reaches it: wss:// through the link."""
         return f"wss://{self.link.address[0]}:{self.link.address[1]}"
 
-    def run(self, *extra: str) -> ManagedProcess:
-        """``caretaker run`` of the IVA procedure in the ground namespace, autonomous and unattended."""
+    def run(self, *extra: str, record: bool = True) -> ManagedProcess:
+        """``caretaker run`` of the IVA procedure in the ground namespace, autonomous and unattended
+        (``record``: with the clean filter's id, which 4.1 records, given on the command line)."""
         return self.hosts.caretaker(
             self.hosts.ground,
             "run",
@@ -103,7 +104,7 @@ class Flight:
             "--db",
             self.db_url,
             "--confirm-manual",
-            f"--set=clean_filter_id={CLEAN_FILTER}",
+            *([f"--set=clean_filter_id={CLEAN_FILTER}"] if record else []),
             *extra,
             ready=r"^READY run ",
             timeout=180,

@@ -1,8 +1,10 @@
 """An onboard run through an outage: all traffic held for 60 s from the start of the pull-out.
 
-The habitat finishes the IVA procedure alone while the link is held (every motion once, counted on
-the habitat); the ground says since when it has no news, then catches up, and its audit log is
-the habitat's chain, hash for hash. How a flight is set up: flight_support.py.
+The clean filter's id (4.1, a record) is not given at uplink. During the outage the habitat does
+everything automatable up to it, each motion once (counted on the habitat), and holds there for
+an operator; the ground says since when it has no news, catches up after the outage with the
+habitat's chain hash for hash, learns that the run waits for an operator at 4.1, and (nobody at
+its terminal) stops it, as an unattended ground run stops. How a flight is set up: flight_support.py.
 """
 
 from __future__ import annotations
@@ -13,35 +15,46 @@ import pytest
 
 from pride.audit_chain import utc
 
-from .flight_support import DELAY, PULL_OUT, assert_flown_exactly_once, flight, result_of
+from .flight_support import DELAY, PULL_OUT, flight, result_of
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
 #: Longer than the ground client's keepalive gives up (its connection is dropped and made again)
-#: and than the rest of the onboard run: the habitat finishes alone, the ground catches up afterwards.
+#: and than the onboard run takes from the pull-out to the record.
 OUTAGE_S = 60.0
 
 
-def test_an_outage_from_the_pull_out_on_the_habitat_finishes_alone_and_the_ground_catches_up(
+def test_an_outage_from_the_pull_out_the_habitat_goes_on_alone_to_the_record_and_the_ground_catches_up(
     ros_env: dict[str, str],
 ) -> None:
     with flight(ros_env, delay=DELAY, time_scale="0", onboard=True) as f:  # the motions at full speed
-        run = f.run("--onboard")
+        run = f.run("--onboard", record=False)
         f.await_execution(PULL_OUT)
         f.link.control.hold(OUTAGE_S)
         held_at = datetime.now(UTC)
         silent = run.wait_for_line(r"no news from the habitat since", 120)
+        waits = run.wait_for_line(r"the onboard run waits for an operator: 4\.1: ", 300)
         run_id, status = result_of(run)
         caught_up = run.wait_for_line(r"the habitat answers again; catching up from event \d+", 5)
+        assert status == "stopped"
         habitat = f.habitat.onboard_chain(run_id)
-        ended = habitat[-1]
-        # every motion and the end of the run happened on the habitat while the link was held
-        assert ended.kind == "run_completed" and utc(ended.time) < held_at + timedelta(seconds=OUTAGE_S), (
-            f"the habitat ended at {ended.time}, the outage from {held_at} lasted {OUTAGE_S} s"
-        )
-        assert_flown_exactly_once(f, run_id, status)
+        # on the habitat, while the link was held: everything up to the record, then the hold
+        awaiting = next(e for e in habitat if e.kind == "awaiting_operator" and e.instruction == "4.1")
+        assert utc(awaiting.time) < held_at + timedelta(seconds=OUTAGE_S), (awaiting.time, held_at)
+        after = [e for e in habitat if e.seq > awaiting.seq]
+        assert not [e for e in after if e.kind in ("instruction_started", "command_sent")], after  # nothing past it
+        stopped = habitat[-1]
+        assert stopped.kind == "run_stopped" and "unattended run needs an operator at 4.1" in stopped.data
+        # every command up to the hold executed once, and succeeded; every motion done once
+        records = f.habitat.ledger_records()
+        assert records and {r["state"] for r in records} == {"SUCCEEDED"}, records
+        assert len({r["command_key"] for r in records}) == len(records)
+        goals = f.goals()
+        assert goals and len({goal for goal, _ in goals}) == len(goals) and {s for _, s in goals} == {4}, goals
+        sent = [e for e in habitat if e.kind == "command_sent"]
+        assert len(sent) == len(records), "a command logged on the habitat that the ledger did not execute, or twice"
         ground = f.ground_chain(run_id)
         assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat], "caught up, not the same"
         assert f.link.control.stats().holds == 1
-        print(f"{silent.strip()} / {caught_up.strip()}")
+        print(f"{silent.strip()} / {caught_up.strip()} / {waits.strip()}")

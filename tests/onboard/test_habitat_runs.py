@@ -177,6 +177,10 @@ def test_a_second_unit_is_refused_while_one_runs_and_the_ground_answers_a_hold_o
         held = runs.events(unit.run_id, 0, wait_s=5)
     second = uplink(runs, make_unit())
     assert second.state == "REFUSED" and f"onboard run {unit.run_id} is active" in second.message
+    waiting = ""
+    while not waiting:  # once the run's answerer has left the hold to the ground, the ground hears so
+        waiting = runs.events(unit.run_id, held.head_seq, wait_s=0.5).waiting
+    assert waiting.startswith("1.2: "), waiting
 
     entered = OperatorAction("key-1", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock"})
     assert act(runs, entered).state == "DONE"
