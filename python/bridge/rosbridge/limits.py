@@ -63,8 +63,9 @@ class Limits:
     auth_timeout: float = _limit(20.0, "seconds a client has to authenticate (with --auth-secret-file)")
     ping_interval: float = _limit(30.0, "seconds between keepalive pings (0: none)")
     ping_timeout: float = _limit(
-        120.0,
-        "seconds without a pong before the connection is closed (1011); longer than the link's outages (0: never)",
+        180.0,
+        "seconds without a pong before the connection is closed (1011); longer than the ground's outage "
+        "budget (120 s by default) and a ping interval, so a client the ground still waits for is kept (0: never)",
     )
 
     @staticmethod
