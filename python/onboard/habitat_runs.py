@@ -131,6 +131,7 @@ class HabitatRuns:
         self.control = RobotControl(url)
         self._lock = threading.Lock()  # units, runs and actions
         self._news = threading.Condition()  # a run's new event: a run emits while _lock may be held
+        self._wakes = 0  # how often _news was notified
         self._runs: dict[str, _Run] = {}
         self._accepted = {
             path.parent.name: Unit.from_json(path.read_text()) for path in self.units_dir.glob("*/unit.json")
@@ -298,6 +299,7 @@ class HabitatRuns:
 
     def _wake(self) -> None:
         with self._news:
+            self._wakes += 1
             self._news.notify_all()
 
     # ---- downlink ---------------------------------------------------------------------------
@@ -305,13 +307,18 @@ class HabitatRuns:
         """The run's stored events numbered above ``after_seq``; with none, wait up to ``wait_s`` for one."""
         limit = max_events if 0 < max_events <= MAX_EVENTS else MAX_EVENTS
         deadline = time.monotonic() + min(max(wait_s, 0.0), MAX_WAIT_S)
-        with self._news:
-            while True:
-                status = self._status(run_id)  # first: the events read next include its last one
-                stored = self.audit.stored_events(run_id, after=max(after_seq, 0))
-                if stored or status != "active" or time.monotonic() >= deadline:
-                    break
-                self._news.wait(deadline - time.monotonic())
+        while True:
+            # read outside the lock: a run's every event wakes waiters (_wake), and its PAX thread
+            # must not wait for a database read; the count tells a wake-up that came meanwhile
+            with self._news:
+                seen = self._wakes
+            status = self._status(run_id)  # first: the events read next include its last one
+            stored = self.audit.stored_events(run_id, after=max(after_seq, 0))
+            if stored or status != "active" or time.monotonic() >= deadline:
+                break
+            with self._news:
+                if self._wakes == seen:
+                    self._news.wait(deadline - time.monotonic())
         head = stored[-1].seq if stored else max(after_seq, 0)
         return EventsAnswer(
             [stored_event_json(e) for e in stored[:limit]],
@@ -336,13 +343,17 @@ class HabitatRuns:
 
     def _status(self, run_id: str) -> str:
         """The run's status as its stored events show it: ended only once its last event is stored."""
-        events = self.audit.events(run_id)
         with self._lock:
-            running = run_id in self._runs
+            run = self._runs.get(run_id)
+        # a running run's newest events only (asked on every request for events); another's all
+        after = max(run.executive.snapshot().last_seq - 1, 0) if run is not None else 0
+        events = self.audit.stored_events(run_id, after=after)
         if not events:
-            return "active" if running else "unknown"
-        ended = {EventKind.RUN_COMPLETED: "completed", EventKind.RUN_STOPPED: "stopped"}.get(events[-1].kind)
-        return ended or ("active" if running else "interrupted")
+            return "active" if run is not None else "unknown"
+        ended = {EventKind.RUN_COMPLETED.value: "completed", EventKind.RUN_STOPPED.value: "stopped"}.get(
+            events[-1].kind
+        )
+        return ended or ("active" if run is not None else "interrupted")
 
     # ---- operators' actions -----------------------------------------------------------------
     def act(self, action_json: str, signature: str) -> ActionAnswer:
