@@ -162,11 +162,13 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(
         expect(telemetry).to_contain_text("Affordance Template Server Active = true")
 
     # an operator on B pauses the EVA run, one on A continues it: each sees the other's action
+    # (B's pause is forwarded to the run's host A: it may take the protocol's whole time to act)
     bob_eva.click("#pause")
-    expect(alice_eva.locator('#audit li[data-kind="paused"][data-actor="bob"]')).to_have_count(1)
+    ground.seen_by_the_other(bob_eva, alice_eva.locator('#audit li[data-kind="paused"][data-actor="bob"]'), "paused")
     expect(alice_eva.locator("#continue")).to_be_enabled()
     alice_eva.click("#continue")
-    expect(bob_eva.locator('#audit li[data-kind="continued"][data-actor="alice"]')).to_have_count(1)
+    continued = bob_eva.locator('#audit li[data-kind="continued"][data-actor="alice"]')
+    ground.seen_by_the_other(alice_eva, continued, "continued")
 
     # IVA: bob confirms the manual instruction from B; the run on A goes on
     ground.current(bob_iva, "2.6").locator("button.done").click()
