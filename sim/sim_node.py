@@ -9,7 +9,6 @@ meet at ``Simulation.world_lock``.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import logging
 import math
 import signal
@@ -29,6 +28,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState
@@ -472,9 +472,19 @@ def snapshot(scene_name: str, path: Path, *, seed: int = 0) -> Path:
         sim.close()
 
 
-def _spin_halts(executor: SingleThreadedExecutor) -> None:
-    with contextlib.suppress(KeyboardInterrupt, ExternalShutdownException):  # the main thread's stop ends it too
+def _spin_until_stopped(executor: SingleThreadedExecutor | MultiThreadedExecutor) -> None:
+    """Spin until Ctrl-C or shutdown, whichever thread sees it.
+
+    The signal handler shuts the context down between two waits at any moment: rcl then refuses
+    the next wait set with an RCLError, which is the same stop, not a failure.
+    """
+    try:
         executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -500,13 +510,13 @@ def main(argv: list[str] | None = None) -> int:
     executor.add_node(node)
     halt_executor = SingleThreadedExecutor()
     halt_executor.add_node(node.halt_node)
-    halts = threading.Thread(target=_spin_halts, args=(halt_executor,), name="halt", daemon=True)
+    halts = threading.Thread(target=_spin_until_stopped, args=(halt_executor,), name="halt", daemon=True)
     try:  # from the first thread on: a Ctrl-C anywhere (even during the READY line) tears down
         halts.start()
         node.start()
         print(f"READY sim {sim.scene.name}", flush=True)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        _spin_until_stopped(executor)
+    except KeyboardInterrupt:  # during the start, before the executor took over
         pass
     finally:
         # The threads must have left rcl before the process exits (else it aborts: "terminate

@@ -31,6 +31,7 @@ from caretaker_sim_msgs.srv import Halt as RobotHalt
 from caretaker_sim_msgs.srv import SetGripper
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Header, String
@@ -274,6 +275,9 @@ def main(argv: list[str] | None = None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
+        if rclpy.ok():
+            raise
     finally:
         executor.shutdown()
         if node is not None:

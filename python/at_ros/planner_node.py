@@ -23,6 +23,7 @@ from affordance_template_msgs.srv import PlanWaypoints
 from builtin_interfaces.msg import Duration
 from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from std_msgs.msg import Bool, Header, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -229,6 +230,9 @@ def main(argv: list[str] | None = None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
+        if rclpy.ok():
+            raise
     finally:
         executor.shutdown()
         if node is not None:

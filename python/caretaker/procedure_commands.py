@@ -13,18 +13,19 @@ import signal
 import sys
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
-from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, build_unit, supervise
+from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError, head_revision
 from pride.binding import read_binding
 from pride.diagnostics import ProcedureError
-from pride.events import EventKind
+from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure, lint_file
@@ -279,14 +280,53 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
         now=time.time(),
     )
+    from console.ground.action_requests import ANSWER_WITHIN_S
+    from console.onboard_view import OnboardView
+    from console.terminal_host import TerminalHost
+
     printer = ProgressPrinter(checked.procedure, terminal)
-    try:
-        result = asyncio.run(
-            supervise(endpoint, unit, audit, on_event=printer, say=terminal.say, unattended=not sys.stdin.isatty())
+    # Hosted for the consoles as a ground run is: they show it live and forward operators' actions here.
+    host = TerminalHost(audit, binding=unit.binding)
+    view = OnboardView(
+        unit.run_id,
+        checked.procedure,
+        binding=unit.binding,
+        started_by=args.user,
+        mode=unit.mode,
+        sysreps=dict(checked.sysreps),
+        host=f"{host.hosting.host} (supervising; the habitat runs it)",
+        on_change=lambda: host.changed(unit.run_id),
+    )
+
+    def on_event(event: Event) -> None:
+        printer(event)
+        view.event(event)
+
+    def on_news(news: HabitatNews) -> None:
+        view.news(
+            snapshot=news.snapshot,
+            habitat_time=news.habitat_time,
+            heard=news.heard,
+            waiting=news.waiting,
+            silent_since=news.silent_since,
         )
+
+    supervisor = OnboardSupervisor(
+        endpoint, unit, audit, on_event=on_event, say=terminal.say, unattended=not sys.stdin.isatty(), on_news=on_news
+    )
+
+    def send(action: str, user: str, action_args: Mapping[str, Any]) -> tuple[str, str]:
+        outcome = supervisor.act_from_thread(action, user, action_args, timeout=ANSWER_WITHIN_S - 5.0)
+        return outcome.state, outcome.message
+
+    try:
+        host.host_onboard(view, send)
+        result = asyncio.run(supervisor.run())
     except DownlinkError as exc:
         print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
         return 1
+    finally:
+        host.close()
     terminal.say(
         f"RESULT {result.status} run {unit.run_id} (report: caretaker report {unit.run_id}"
         f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})"

@@ -10,7 +10,7 @@ refused whatever the page shows.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +18,16 @@ from console.accounts import Account, AccountStore
 from console.ground.action_requests import Answer, ForwardedAction
 from pride.executive import Executive, Mode, OperatorActionError
 
-__all__ = ["ACTIONS", "ActionRefused", "ActionRequest", "perform_action", "perform_forwarded"]
+__all__ = [
+    "ACTIONS",
+    "ONBOARD_ACTIONS",
+    "ActionRefused",
+    "ActionRequest",
+    "OnboardSend",
+    "perform_action",
+    "perform_forwarded",
+    "perform_onboard",
+]
 
 
 class ActionRefused(Exception):
@@ -151,3 +160,52 @@ def perform_forwarded(
     except ActionRefused as exc:
         return Answer(exc.status, {"error": exc.message})
     return Answer(200, {"ok": True, "action": action.action, "result": result})
+
+
+#: Sends an operator's action on an onboard run up the link: (action, user, args) → (state, message),
+#: state DONE | REFUSED | EXPIRED, or UNKNOWN when the habitat did not answer in time.
+OnboardSend = Callable[[str, str, Mapping[str, Any]], tuple[str, str]]
+
+#: Actions the habitat takes on an onboard run, and the arguments each sends up. Those clicked on
+#: an instruction name it: the habitat refuses them if its run has moved on meanwhile (the page
+#: saw the run one light time ago). The rest of :data:`ACTIONS` changes how the ground runs a
+#: procedure (mode, breakpoints, going back, corrections) and is not offered for onboard runs.
+ONBOARD_ACTIONS: dict[str, Callable[[str, ActionRequest], dict[str, Any]]] = {
+    "halt": lambda user, r: {"reason": r.reason or f"halted from the console by {user}"},
+    "pause": lambda user, r: {},
+    "continue": lambda user, r: {},
+    "stop": lambda user, r: {"reason": r.reason or f"stopped from the console by {user}"},
+    "perform": lambda user, r: {"instruction": _numbered(r)},
+    "confirm": lambda user, r: {"instruction": _numbered(r)},
+    "enter": lambda user, r: {"instruction": _numbered(r), "value": r.value},
+    "done": lambda user, r: {"instruction": _numbered(r)},
+    "retry": lambda user, r: {"instruction": _numbered(r)},
+    "skip": lambda user, r: {"instruction": _numbered(r), "reason": r.reason},
+}
+
+
+def perform_onboard(send: OnboardSend, accounts: AccountStore, request: ForwardedAction) -> Answer:
+    """An action on an onboard run, forwarded to the runner that supervises it: the role is checked
+    here, then it goes up to the habitat, which acts on it (or refuses) and says so."""
+    account = accounts.get(request.user)
+    if account is None:
+        return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
+    if not account.may_act:
+        return Answer(403, {"error": f"{account.user} is an {account.role.value}: observers may watch, not act"})
+    try:
+        action = ActionRequest.from_json(request.action)
+        arguments = ONBOARD_ACTIONS.get(action.action)
+        if arguments is None:
+            raise ActionRefused(
+                409,
+                f"{action.action} is not taken by an onboard run (the habitat takes: {', '.join(ONBOARD_ACTIONS)})",
+            )
+        args = arguments(account.user, action)
+    except ActionRefused as exc:
+        return Answer(exc.status, {"error": exc.message})
+    state, message = send(action.action, account.user, args)
+    if state == "DONE":
+        return Answer(200, {"ok": True, "action": action.action, "result": f"on the habitat: {message}"})
+    if state == "UNKNOWN":
+        return Answer(504, {"error": f"outcome unknown: {message}"})
+    return Answer(409, {"error": f"the habitat {state.lower()} it: {message}"})

@@ -25,12 +25,12 @@ from console.ground.run_hosts import PublishedView
 from console.procedure_view import procedure_json, telemetry_checks
 from console.watchers import Watcher, Watchers
 from pride.events import Event
-from pride.executive import Executive, Snapshot
+from pride.executive import Executive
 from pride.model import Procedure
 from pride.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
 
-__all__ = ["LiveRun", "snapshot_json"]
+__all__ = ["LiveRun"]
 
 
 class LiveRun:
@@ -173,7 +173,7 @@ class LiveRun:
         camera = self.camera()
         return {
             **details,
-            **snapshot_json(snapshot),
+            **snapshot.to_json(),
             "camera": camera[1] if camera else None,
             "binding": self.binding,
             "started_by": self.started_by,
@@ -233,39 +233,3 @@ def _out_of_limits(item: Telemetry | None, value: Any) -> str | None:
     except ValueError as exc:
         return str(exc).split(": ", 1)[-1]
     return None
-
-
-def snapshot_json(snapshot: Snapshot) -> dict[str, Any]:
-    """The executive's authoritative state (status, mode, current instruction, hold)."""
-    return {
-        "run_id": snapshot.run_id,
-        "procedure": snapshot.procedure_id,
-        "status": snapshot.status.value,
-        "mode": snapshot.mode.value,
-        "current": snapshot.current,
-        "hold": snapshot.hold.value if snapshot.hold else None,
-        "reason": snapshot.reason,
-        "executing": snapshot.executing,
-        "statuses": {n: s.value for n, s in snapshot.statuses.items()},
-        "breakpoints": sorted(snapshot.breakpoints),
-        "variables": snapshot.variables,
-        "error": snapshot.error,
-        "last_seq": snapshot.last_seq,
-        "robot": snapshot.robot,
-        "has_control": snapshot.has_control,
-        "unknown_key": snapshot.unknown_key,
-        "halted_by": snapshot.halted_by,
-        "halt_reason": snapshot.halt_reason,
-        "link": {
-            "state": "lost",
-            "since": snapshot.link_lost_since.isoformat(),
-            "in_flight": snapshot.commands_in_flight,
-        }
-        if snapshot.link_lost_since
-        else {"state": "connected"},
-        "journal": {
-            "available": snapshot.journal_available,
-            "error": snapshot.journal_error,
-            "since": snapshot.journal_unavailable_since.isoformat() if snapshot.journal_unavailable_since else None,
-        },
-    }

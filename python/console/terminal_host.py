@@ -14,6 +14,10 @@ Use::
     host.host(executive, gateway, checked, started_by=user)
     ...                                      # the run
     host.close()                             # the runner stops (an ended run is let go of at once)
+
+An onboard run (``caretaker run --onboard``) is hosted the same way by the runner that supervises
+it: :meth:`TerminalHost.host_onboard` publishes its :class:`~console.onboard_view.OnboardView`, and
+an action forwarded to it goes up the link to the habitat (:func:`console.actions.perform_onboard`).
 """
 
 from __future__ import annotations
@@ -26,11 +30,12 @@ import threading
 from sqlalchemy.exc import SQLAlchemyError
 
 from console.accounts import AccountStore
-from console.actions import perform_forwarded
+from console.actions import OnboardSend, perform_forwarded, perform_onboard
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
 from console.live_run import LiveRun
+from console.onboard_view import OnboardView
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.executive import Executive
@@ -56,6 +61,7 @@ class TerminalHost:
             audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}", lease=lease
         )
         self._live: LiveRun | None = None
+        self._onboard: tuple[OnboardView, OnboardSend] | None = None
         self._forwarding = ActionRequests(
             audit_log.engine, host_id=self.hosting.host_id, console=self.hosting.host, perform=self._perform
         )
@@ -100,6 +106,21 @@ class TerminalHost:
         self._live = live
         executive.add_listener(self._on_event)
 
+    def host_onboard(self, view: OnboardView, send: OnboardSend) -> None:
+        """Claim an onboard run and publish what the ground hears of it; forwarded actions go to ``send``."""
+        self.hosting.claim(
+            view.run_id,
+            binding=self.binding,
+            started_by=view.started_by,
+            procedure_view=view.procedure_view,
+            source=view.published_view,
+        )
+        self._onboard = (view, send)
+
+    def changed(self, run_id: str) -> None:
+        """The hosted run's view changed (an onboard view calls it): publish it soon."""
+        self.hosting.changed(run_id)
+
     def _on_event(self, event: Event) -> None:
         """An executive listener (its lock held): once the run ended, let go of it on a thread of its own."""
         if event.kind in (EventKind.RUN_COMPLETED, EventKind.RUN_STOPPED):
@@ -107,14 +128,19 @@ class TerminalHost:
 
     def _release(self) -> None:
         live, self._live = self._live, None
-        if live is None:
+        onboard, self._onboard = self._onboard, None
+        run_id = live.run_id if live is not None else onboard[0].run_id if onboard is not None else None
+        if run_id is None:
             return
         try:
-            self.hosting.release(live.run_id)
+            self.hosting.release(run_id)
         except SQLAlchemyError:  # its lease runs out instead
-            log.exception("releasing the host row of run %s", live.run_id)
+            log.exception("releasing the host row of run %s", run_id)
 
     def _perform(self, request: ForwardedAction) -> Answer:
+        onboard = self._onboard
+        if onboard is not None and onboard[0].run_id == request.run_id:
+            return perform_onboard(onboard[1], self._accounts, request)
         live = self._live
         executive = live.executive if live is not None and live.run_id == request.run_id else None
         return perform_forwarded(executive, self._accounts, request, self.hosting.host)

@@ -1,6 +1,6 @@
 """The ground's side of an onboard run: uplink the unit, then keep the run's record exactly.
 
-:func:`supervise` sends the unit (again, unchanged, until the habitat answers: it answers a repeat
+:class:`OnboardSupervisor` sends the unit (again, unchanged, until the habitat answers: it answers a repeat
 as the first time), then asks the habitat for the run's events above the last one the ground has
 stored, each request waiting on the habitat for the next event. :class:`Downlink` stores each event
 once, in order, in the ground's audit log, checking that it links to the one before and that its
@@ -11,13 +11,14 @@ While the habitat does not answer, the ground says since when it has no news, an
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import json
 import logging
 import os
 import secrets
 import signal
 import time
-from collections.abc import Awaitable, Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -31,7 +32,15 @@ from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
 
 from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign
 
-__all__ = ["Downlink", "DownlinkError", "Supervision", "build_unit", "supervise"]
+__all__ = [
+    "ActionOutcome",
+    "Downlink",
+    "DownlinkError",
+    "HabitatNews",
+    "OnboardSupervisor",
+    "Supervision",
+    "build_unit",
+]
 
 log = logging.getLogger(__name__)
 
@@ -155,82 +164,211 @@ def build_unit(
 class Supervision:
     """How a supervised onboard run ended, as the ground knows it."""
 
-    status: str  # completed | stopped | interrupted | refused | expired | unreachable
+    status: str  # completed | stopped | interrupted | refused | expired | unreachable | unknown
     run_id: str
     message: str = ""
 
 
-async def supervise(
-    endpoint: Endpoint,
-    unit: Unit,
-    audit: AuditLog,
-    *,
-    on_event: Callable[[Event], None],
-    say: Callable[[str], None],
-    unattended: bool,
-) -> Supervision:
-    """Uplink ``unit`` and follow its run until it ends; Ctrl-C sends a Halt (again: a Stop).
+@dataclass(frozen=True)
+class HabitatNews:
+    """What the ground last heard of an onboard run, for views that show it live.
+
+    ``snapshot`` is the onboard executive's state (``Snapshot.to_json``) as of an event the ground
+    has stored (None until one came); ``silent_since`` (ground clock, epoch s) is set while the
+    habitat does not answer: the views then say "no news since", and never fill in.
+    """
+
+    run_id: str
+    head_seq: int
+    snapshot: Mapping[str, Any] | None
+    habitat_time: str  # the habitat's clock at its last answer (ISO 8601), "" before one
+    heard: float  # ground clock (epoch s) of the last answer
+    waiting: str  # "N: why" while the run holds for an operator
+    silent_since: float | None = None
+
+
+@dataclass(frozen=True)
+class ActionOutcome:
+    """The habitat's answer to an operator's action: DONE | REFUSED | EXPIRED, or UNKNOWN when
+    none came before the action ran out (it may or may not have been acted on)."""
+
+    state: str
+    message: str
+
+
+class OnboardSupervisor:
+    """Uplinks ``unit`` and follows its run until it ends (:meth:`run`); operators' actions go up
+    keyed (:meth:`act`, or :meth:`act_from_thread` from a console's thread).
 
     ``unattended`` (nobody at this terminal): a hold the unit did not answer stops the run, as an
-    unattended ``caretaker run`` does on the ground; otherwise the run waits on the habitat.
+    unattended ``caretaker run`` does on the ground; otherwise the run waits on the habitat for an
+    operator (at this terminal's Ctrl-C, or at a console). ``on_news`` is called on the event loop
+    after each answer of the habitat and when it falls silent.
     """
-    assert endpoint.secret is not None  # the caller checked: units are signed with it
-    secret = endpoint.secret
-    client = RosbridgeClient(endpoint, name=f"caretaker-run-{unit.user}")
-    client.start()
-    loop = asyncio.get_running_loop()
-    interrupts = 0
 
-    async def act(action: str, **args: Any) -> None:
+    def __init__(
+        self,
+        endpoint: Endpoint,
+        unit: Unit,
+        audit: AuditLog,
+        *,
+        on_event: Callable[[Event], None],
+        say: Callable[[str], None],
+        unattended: bool,
+        on_news: Callable[[HabitatNews], None] | None = None,
+    ) -> None:
+        if endpoint.secret is None:
+            raise ValueError("an onboard unit is signed with the link's secret: the endpoint has none")
+        self.endpoint = endpoint
+        self.unit = unit
+        self._secret = endpoint.secret
+        self._downlink = Downlink(audit, unit.run_id)
+        self._on_event = on_event
+        self._say = say
+        self._unattended = unattended
+        self._on_news = on_news
+        self._client = RosbridgeClient(endpoint, name=f"caretaker-run-{unit.user}")
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._interrupts = 0
+
+    async def run(self) -> Supervision:
+        """Uplink, then follow the run to its end; Ctrl-C sends a Halt (again: a Stop)."""
+        self._loop = asyncio.get_running_loop()
+        self._client.start()
+        self._loop.add_signal_handler(signal.SIGINT, self._interrupt)
+        try:
+            answer = await _uplink(self._client, self.unit, self._secret, self._say)
+            if answer["state"] != "ACCEPTED":
+                self._say(f"caretaker run: the habitat {answer['state'].lower()} the unit {answer['unit_hash'][:12]}:")
+                self._say(str(answer["message"]))
+                return Supervision(answer["state"].lower(), self.unit.run_id, str(answer["message"]))
+            self._say(
+                f"uplinked unit {answer['unit_hash']}: the habitat runs {self.unit.procedure} as run {self.unit.run_id}"
+            )
+            self._say(f"READY run {self.unit.run_id}")
+            return await self._follow()
+        finally:
+            self._loop.remove_signal_handler(signal.SIGINT)
+            await self._client.close()
+
+    async def act(self, action: str, user: str, **args: Any) -> ActionOutcome:
+        """Send an operator's action up, under one key until the habitat answers or it runs out."""
         operator = OperatorAction(
-            key=f"{unit.run_id}/{action}/{secrets.token_hex(6)}",
-            run_id=unit.run_id,
+            key=f"{self.unit.run_id}/{action}/{secrets.token_hex(6)}",
+            run_id=self.unit.run_id,
             action=action,
-            user=unit.user,
-            expires_at=time.time() + 60 + 2 * endpoint.one_way_delay,
+            user=user,
+            expires_at=time.time() + 60 + 2 * self.endpoint.one_way_delay,
             args=args,
         )
         text = operator.to_json()
+        request = {"action_json": text, "signature": sign(text, self._secret)}
         while time.time() < operator.expires_at:  # the same key again until answered: acted on once
             try:
-                answer = await client.call(ACTION_SERVICE, {"action_json": text, "signature": sign(text, secret)})
-                say(f"  {action.upper()} {answer['state'].lower()}: {answer['message']}")
-                return
+                answer = await self._client.call(ACTION_SERVICE, request)
+                outcome = ActionOutcome(str(answer["state"]), str(answer["message"]))
+                self._say(f"  {action.upper()} {outcome.state.lower()}: {outcome.message}")
+                return outcome
             except LinkError as exc:
-                say(f"  {action.upper()} not answered yet ({exc}); sending it again")
+                self._say(f"  {action.upper()} not answered yet ({exc}); sending it again")
                 await asyncio.sleep(1.0)
-        say(f"  {action.upper()} ran out before the habitat answered: not known whether it was acted on")
+        message = f"{action} ran out before the habitat answered: not known whether it was acted on"
+        self._say(f"  {message}")
+        return ActionOutcome("UNKNOWN", message)
 
-    def interrupt() -> None:
-        nonlocal interrupts
-        interrupts += 1
-        if interrupts == 1:
-            say("\n  HALT (Ctrl-C): sent to the habitat; Ctrl-C again stops the run")
-            loop.create_task(act("halt", reason="Ctrl-C at the ground terminal"))
+    def act_from_thread(self, action: str, user: str, args: Mapping[str, Any], timeout: float) -> ActionOutcome:
+        """:meth:`act` from another thread (a console's forwarded request), waiting up to ``timeout``."""
+        if self._loop is None:
+            return ActionOutcome("REFUSED", "the run is not uplinked yet: not sent")
+        future = asyncio.run_coroutine_threadsafe(self.act(action, user, **args), self._loop)
+        try:
+            return future.result(timeout)
+        except TimeoutError:
+            return ActionOutcome(
+                "UNKNOWN", f"sent; no answer from the habitat within {timeout:.0f} s (see the run's log)"
+            )
+
+    def _interrupt(self) -> None:
+        self._interrupts += 1
+        assert self._loop is not None
+        user = self.unit.user
+        if self._interrupts == 1:
+            self._say("\n  HALT (Ctrl-C): sent to the habitat; Ctrl-C again stops the run")
+            self._loop.create_task(self.act("halt", user, reason="Ctrl-C at the ground terminal"))
         else:
-            say("\n  STOP (Ctrl-C twice): sent to the habitat")
-            loop.create_task(act("stop", reason="Ctrl-C twice at the ground terminal"))
+            self._say("\n  STOP (Ctrl-C twice): sent to the habitat")
+            self._loop.create_task(self.act("stop", user, reason="Ctrl-C twice at the ground terminal"))
 
-    loop.add_signal_handler(signal.SIGINT, interrupt)
-    try:
-        answer = await _uplink(client, unit, secret, say)
-        if answer["state"] != "ACCEPTED":
-            say(f"caretaker run: the habitat {answer['state'].lower()} the unit {answer['unit_hash'][:12]}:")
-            say(str(answer["message"]))
-            return Supervision(answer["state"].lower(), unit.run_id, str(answer["message"]))
-        say(f"uplinked unit {answer['unit_hash']}: the habitat runs {unit.procedure} as run {unit.run_id}")
-        say(f"READY run {unit.run_id}")
+    async def _waiting(self, where: str) -> None:
+        self._say(f"  the onboard run waits for an operator: {where}")
+        if self._unattended:
+            self._say("  nobody at this terminal to answer: the run is stopped")
+            await self.act("stop", self.unit.user, reason=f"unattended run needs an operator at {where}")
 
-        async def waiting(where: str) -> None:
-            say(f"  the onboard run waits for an operator: {where}")
-            if unattended:
-                say("  nobody at this terminal to answer: the run is stopped")
-                await act("stop", reason=f"unattended run needs an operator at {where}")
+    def _news(self, news: HabitatNews) -> None:
+        if self._on_news is not None:
+            self._on_news(news)
 
-        return await _follow(client, Downlink(audit, unit.run_id), on_event, say, waiting)
-    finally:
-        loop.remove_signal_handler(signal.SIGINT)
-        await client.close()
+    async def _follow(self) -> Supervision:
+        """Store the run's events as they come, until it ended and the ground has them all."""
+        client, downlink = self._client, self._downlink
+        heard = time.time()
+        last = HabitatNews(downlink.run_id, downlink.head_seq, None, "", heard, "")
+        silent = False
+        waited = ""
+        while True:
+            try:
+                values = await client.call(
+                    EVENTS_SERVICE,
+                    {"run_id": downlink.run_id, "after_seq": downlink.head_seq, "wait_s": POLL_WAIT_S, "max_events": 0},
+                    timeout=client.call_timeout(POLL_WAIT_S + 10.0),
+                )
+                items = json.loads(str(values.get("events_json", "[]")))
+                if not isinstance(items, list):
+                    raise DownlinkError("events_json must be a list")
+                snapshot = _snapshot(values.get("snapshot_json"))
+            except (LinkError, ValueError) as exc:
+                if not silent:
+                    since = time.strftime("%H:%M:%S", time.gmtime(heard))
+                    self._say(f"  no news from the habitat since {since} UTC (at event {downlink.head_seq}): {exc}")
+                    silent = True
+                    last = dataclasses.replace(last, silent_since=heard)
+                    self._news(last)
+                await asyncio.sleep(1.0)
+                continue
+            heard = time.time()
+            if silent:
+                self._say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
+                silent = False
+            for event in downlink.take(items):
+                self._on_event(event)
+            status, head = str(values.get("status")), values.get("head_seq")
+            waiting = str(values.get("waiting", ""))
+            caught_up = isinstance(head, int) and downlink.head_seq >= head
+            if snapshot is not None and int(snapshot.get("last_seq", 0)) > downlink.head_seq:
+                snapshot = last.snapshot  # ahead of what the ground has stored: shown once the events are
+            last = HabitatNews(
+                downlink.run_id, downlink.head_seq, snapshot, str(values.get("habitat_time", "")), heard, waiting
+            )
+            self._news(last)
+            if waiting != waited and caught_up:
+                waited = waiting
+                if waiting:
+                    await self._waiting(waiting)
+            if status == "unknown":
+                return Supervision("unknown", downlink.run_id, str(values.get("message")))
+            if status != "active" and caught_up:
+                return Supervision(status, downlink.run_id)
+
+
+def _snapshot(text: Any) -> Mapping[str, Any] | None:
+    """The habitat's snapshot of the run, checked to be an object ("" when it has none)."""
+    if not text:
+        return None
+    value = json.loads(str(text))
+    if not isinstance(value, dict):
+        raise DownlinkError("snapshot_json must be an object")
+    return value
 
 
 async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callable[[str], None]) -> Mapping[str, Any]:
@@ -253,50 +391,3 @@ async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callabl
             say(f"  uplink not answered yet ({exc or 'not connected'}); sending the same unit again")
             await asyncio.sleep(_RETRY_S[min(attempt, len(_RETRY_S) - 1)])
             attempt += 1
-
-
-async def _follow(
-    client: RosbridgeClient,
-    downlink: Downlink,
-    on_event: Callable[[Event], None],
-    say: Callable[[str], None],
-    on_waiting: Callable[[str], Awaitable[None]],
-) -> Supervision:
-    """Store the run's events as they come, until it ended and the ground has them all; tell
-    ``on_waiting`` once per hold the habitat leaves for an operator."""
-    heard = time.time()
-    silent = False
-    waited = ""
-    while True:
-        try:
-            values = await client.call(
-                EVENTS_SERVICE,
-                {"run_id": downlink.run_id, "after_seq": downlink.head_seq, "wait_s": POLL_WAIT_S, "max_events": 0},
-                timeout=client.call_timeout(POLL_WAIT_S + 10.0),
-            )
-            items = json.loads(str(values.get("events_json", "[]")))
-            if not isinstance(items, list):
-                raise DownlinkError("events_json must be a list")
-        except (LinkError, ValueError) as exc:
-            if not silent:
-                since = time.strftime("%H:%M:%S", time.gmtime(heard))
-                say(f"  no news from the habitat since {since} UTC (at event {downlink.head_seq}): {exc}")
-                silent = True
-            await asyncio.sleep(1.0)
-            continue
-        heard = time.time()
-        if silent:
-            say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
-            silent = False
-        for event in downlink.take(items):
-            on_event(event)
-        status, head = str(values.get("status")), values.get("head_seq")
-        waiting = str(values.get("waiting", ""))
-        if waiting != waited and isinstance(head, int) and downlink.head_seq >= head:
-            waited = waiting
-            if waiting:
-                await on_waiting(waiting)
-        if status == "unknown":
-            return Supervision("unknown", downlink.run_id, str(values.get("message")))
-        if status != "active" and isinstance(head, int) and downlink.head_seq >= head:
-            return Supervision(status, downlink.run_id)

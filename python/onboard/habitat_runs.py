@@ -67,6 +67,7 @@ class EventsAnswer:
     habitat_time: str
     waiting: str = ""  # "N: why" while the run holds for an operator the unit did not answer
     message: str = ""
+    snapshot: dict[str, Any] | None = None  # the executive's state (Snapshot.to_json) as of an event sent
 
 
 @dataclass(frozen=True)
@@ -313,6 +314,7 @@ class HabitatRuns:
             with self._news:
                 seen = self._wakes
             status = self._status(run_id)  # first: the events read next include its last one
+            snapshot = self._snapshot(run_id)  # so too: its last_seq is at most the head sent
             stored = self.audit.stored_events(run_id, after=max(after_seq, 0))
             if stored or status != "active" or time.monotonic() >= deadline:
                 break
@@ -327,7 +329,13 @@ class HabitatRuns:
             datetime.now(UTC).isoformat(timespec="microseconds"),
             self._waiting(run_id),
             "" if status != "unknown" else f"no onboard run {run_id} on this habitat",
+            snapshot,
         )
+
+    def _snapshot(self, run_id: str) -> dict[str, Any] | None:
+        with self._lock:
+            run = self._runs.get(run_id)
+        return run.executive.snapshot().to_json() if run is not None else None
 
     def _waiting(self, run_id: str) -> str:
         """ "N: why" when the run holds and its answerer left the hold for an operator, else ""."""
@@ -395,18 +403,25 @@ class HabitatRuns:
         if run is None:
             return ActionAnswer("REFUSED", f"no onboard run {action.run_id} is running on this habitat")
         ex, user, args = run.executive, action.user, action.args
-        status = ex.snapshot().status
-        if status is not RunStatus.ACTIVE:
-            return ActionAnswer("REFUSED", f"onboard run {action.run_id} has ended ({status.value}): not acted on")
+        snap = ex.snapshot()
+        if snap.status is not RunStatus.ACTIVE:
+            return ActionAnswer("REFUSED", f"onboard run {action.run_id} has ended ({snap.status.value}): not acted on")
+        # An action clicked on an instruction a light time ago must not land on the next one.
+        clicked = args.get("instruction")
+        if clicked is not None and clicked != snap.current:
+            return ActionAnswer(
+                "REFUSED",
+                f"{action.action} was for {clicked}, the run is at {snap.current or 'no instruction'}: not acted on",
+            )
         perform: dict[str, Callable[[], Any]] = {
             "halt": lambda: ex.halt(user, str(args["reason"])),
             "pause": lambda: ex.pause(user),
             "continue": lambda: ex.resume_automation(user),
             "stop": lambda: ex.stop(user, str(args["reason"])),
-            "step": lambda: ex.perform(user),
+            "perform": lambda: ex.perform(user),
             "skip": lambda: ex.skip(user, str(args["reason"])),
             "enter": lambda: ex.enter(user, args["value"]),
-            "mark_done": lambda: ex.mark_done(user),
+            "done": lambda: ex.mark_done(user),
             "confirm": lambda: ex.confirm(user),
             "retry": lambda: ex.retry(user),
         }

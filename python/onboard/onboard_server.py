@@ -127,6 +127,7 @@ class _EventsValues:
     habitat_time: str
     waiting: str
     message: str
+    snapshot_json: str
 
 
 def _events_values(runs: HabitatRuns, request: Mapping[str, Any]) -> _EventsValues:
@@ -143,7 +144,13 @@ def _events_values(runs: HabitatRuns, request: Mapping[str, Any]) -> _EventsValu
         int(number("max_events", int)),
     )
     return _EventsValues(
-        json.dumps(answer.events), answer.head_seq, answer.status, answer.habitat_time, answer.waiting, answer.message
+        json.dumps(answer.events),
+        answer.head_seq,
+        answer.status,
+        answer.habitat_time,
+        answer.waiting,
+        answer.message,
+        json.dumps(answer.snapshot, default=str) if answer.snapshot is not None else "",
     )
 
 

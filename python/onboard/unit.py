@@ -40,16 +40,18 @@ UPLINK_SERVICE = "/caretaker_onboard/uplink"
 EVENTS_SERVICE = "/caretaker_onboard/events"
 ACTION_SERVICE = "/caretaker_onboard/action"
 
-#: Operators' actions the habitat takes for an onboard run, with the arguments each needs.
+#: Operators' actions the habitat takes for an onboard run, named as the console names them, with
+#: the arguments each needs. Any may name the ``instruction`` it was clicked on: the habitat then
+#: refuses it if the run has moved on meanwhile.
 ACTIONS: Mapping[str, tuple[str, ...]] = {
     "halt": ("reason",),
     "pause": (),
     "continue": (),
     "stop": ("reason",),
-    "step": (),
+    "perform": (),
     "skip": ("reason",),
     "enter": ("value",),
-    "mark_done": (),
+    "done": (),
     "confirm": (),
     "retry": (),
 }
@@ -168,6 +170,8 @@ class OperatorAction:
         missing = [name for name in ACTIONS[action] if name not in args]
         if missing:
             raise UnitError(f"action {action} needs {', '.join(missing)} in args")
+        if not isinstance(args.get("instruction", ""), str):
+            raise UnitError('args.instruction must be an instruction number as text, e.g. "2.7"')
         key = _field(data, "key", str, "a key unique to this action")
         if not 0 < len(key) <= 200:
             raise UnitError("key must be 1 to 200 characters")

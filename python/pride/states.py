@@ -150,6 +150,41 @@ class Snapshot:
     journal_unavailable_since: datetime | None = None
     journal_error: str = ""
 
+    def to_json(self) -> dict[str, Any]:
+        """The state as views draw it (JSON types): status, mode, current instruction, hold, links."""
+        return {
+            "run_id": self.run_id,
+            "procedure": self.procedure_id,
+            "status": self.status.value,
+            "mode": self.mode.value,
+            "current": self.current,
+            "hold": self.hold.value if self.hold else None,
+            "reason": self.reason,
+            "executing": self.executing,
+            "statuses": {n: s.value for n, s in self.statuses.items()},
+            "breakpoints": sorted(self.breakpoints),
+            "variables": self.variables,
+            "error": self.error,
+            "last_seq": self.last_seq,
+            "robot": self.robot,
+            "has_control": self.has_control,
+            "unknown_key": self.unknown_key,
+            "halted_by": self.halted_by,
+            "halt_reason": self.halt_reason,
+            "link": {
+                "state": "lost",
+                "since": self.link_lost_since.isoformat(),
+                "in_flight": self.commands_in_flight,
+            }
+            if self.link_lost_since
+            else {"state": "connected"},
+            "journal": {
+                "available": self.journal_available,
+                "error": self.journal_error,
+                "since": self.journal_unavailable_since.isoformat() if self.journal_unavailable_since else None,
+            },
+        }
+
     def link_summary(self) -> str:
         """ "link lost since T, N commands in flight", or "" while the links are up."""
         if self.link_lost_since is None:

@@ -29,6 +29,7 @@ import yaml
 
 from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess
+from console.accounts import AccountStore
 from pride.audit_chain import StoredEvent
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
@@ -148,6 +149,45 @@ class Flight:
                 os.kill(pid, signal.SIGKILL)
                 return pid
         raise AssertionError(f"no caretaker {part} runs in {self.hosts.habitat.namespace}")
+
+    def serve_console(self, operator: str, password: str) -> tuple[ManagedProcess, str]:
+        """``caretaker serve`` in the ground namespace on the ground's audit log, offering the ground
+        binding, with ``operator`` an operator's account; (process, URL)."""
+        bindings = self.hosts.folder / "bindings"
+        bindings.mkdir(exist_ok=True)
+        with contextlib.suppress(FileExistsError):
+            (bindings / self.binding.name).symlink_to(self.binding)
+        accounts = AccountStore(self.db_url)
+        try:
+            accounts.add(operator, "operator", password, name="Flight operator")
+        finally:
+            accounts.close()
+        serve = self.hosts.caretaker(
+            self.hosts.ground,
+            "serve",
+            "--port",
+            "0",
+            "--db",
+            self.db_url,
+            "--procedures",
+            str(REPO / "procedures"),
+            "--bindings",
+            str(bindings),
+            "--rosbridge",
+            self.url,
+            "--reports",
+            str(self.hosts.folder / "reports"),
+            timeout=120,
+        )
+        return serve, serve.wait_ready().split()[-1]
+
+    def ground_chromium(self) -> Path:
+        """A launcher that starts Debian's Chromium inside the ground namespace (pipes pass through),
+        as an operator's browser on the ground network."""
+        wrapper = self.hosts.folder / "chromium-on-the-ground"
+        wrapper.write_text(f'#!/bin/sh\nexec ip netns exec {self.hosts.ground.namespace} /usr/bin/chromium "$@"\n')
+        wrapper.chmod(0o755)
+        return wrapper
 
     def restart_habitat_without_memory(self) -> Habitat:
         """A new habitat side after the old one died, its memory lost: a new state folder (a new

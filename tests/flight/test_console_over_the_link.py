@@ -18,8 +18,6 @@ from pathlib import Path
 
 import pytest
 
-from caretaker.processes import REPO, ManagedProcess
-from console.accounts import AccountStore
 from support.operator_page import expect_current
 
 from .flight_support import PULL_OUT, Flight, flight
@@ -30,50 +28,11 @@ OPERATOR, PASSWORD = "flight", "flight-over-the-link"
 LINK_MS = 60_000  # what the page shows waits on round trips over the 1.3 s link
 
 
-def _serve(f: Flight) -> tuple[ManagedProcess, str]:
-    """``caretaker serve`` in the ground namespace, offering the ground binding; (process, URL)."""
-    bindings = f.hosts.folder / "bindings"
-    bindings.mkdir()
-    (bindings / f.binding.name).symlink_to(f.binding)
-    db = f"sqlite:///{f.hosts.folder / 'console.db'}"
-    accounts = AccountStore(db)
-    try:
-        accounts.add(OPERATOR, "operator", PASSWORD, name="Flight operator")
-    finally:
-        accounts.close()
-    serve = f.hosts.caretaker(
-        f.hosts.ground,
-        "serve",
-        "--port",
-        "0",
-        "--db",
-        db,
-        "--procedures",
-        str(REPO / "procedures"),
-        "--bindings",
-        str(bindings),
-        "--rosbridge",
-        f.url,
-        "--reports",
-        str(f.hosts.folder / "reports"),
-        timeout=120,
-    )
-    return serve, serve.wait_ready().split()[-1]
-
-
-def _chromium_in(f: Flight) -> Path:
-    """A launcher that starts Debian's Chromium inside the ground namespace (pipes pass through)."""
-    wrapper = f.hosts.folder / "chromium-on-the-ground"
-    wrapper.write_text(f'#!/bin/sh\nexec ip netns exec {f.hosts.ground.namespace} /usr/bin/chromium "$@"\n')
-    wrapper.chmod(0o755)
-    return wrapper
-
-
 @pytest.fixture
 def ground(ros_env: dict[str, str]) -> Iterator[tuple[Flight, str, Path]]:
     with flight(ros_env, delay=1.3, time_scale="1") as f:
-        serve, url = _serve(f)
-        yield f, url, _chromium_in(f)
+        serve, url = f.serve_console(OPERATOR, PASSWORD)
+        yield f, url, f.ground_chromium()
         serve.stop()
 
 

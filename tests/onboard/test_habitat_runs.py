@@ -181,8 +181,17 @@ def test_a_second_unit_is_refused_while_one_runs_and_the_ground_answers_a_hold_o
     while not waiting:  # once the run's answerer has left the hold to the ground, the ground hears so
         waiting = runs.events(unit.run_id, held.head_seq, wait_s=0.5).waiting
     assert waiting.startswith("1.2: "), waiting
+    state = runs.events(unit.run_id, held.head_seq).snapshot  # the executive's own state, as of an event sent
+    assert state is not None and state["current"] == "1.2" and state["hold"] is not None
+    assert state["last_seq"] <= runs.events(unit.run_id, 0).head_seq
 
-    entered = OperatorAction("key-1", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock"})
+    # clicked on an instruction the run has left (the ground saw it a light time ago): refused
+    late = OperatorAction("key-0", unit.run_id, "enter", "bob", time.time() + 60, {"value": "x", "instruction": "1.1"})
+    refused = act(runs, late)
+    assert refused.state == "REFUSED" and refused.message == "enter was for 1.1, the run is at 1.2: not acted on"
+    entered = OperatorAction(
+        "key-1", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock", "instruction": "1.2"}
+    )
     assert act(runs, entered).state == "DONE"
     assert act(runs, entered).state == "DONE"  # a resend: answered from the record, not entered again
     until_ended(runs, unit.run_id)

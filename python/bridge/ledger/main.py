@@ -9,6 +9,7 @@ from pathlib import Path
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
 from .node import LedgerNode
 from .store import LedgerStore, LedgerStoreError
@@ -66,6 +67,9 @@ def main(argv: list[str] | None = None) -> int:
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
+        if rclpy.ok():
+            raise
     finally:
         executor.shutdown()
         if node is not None:

@@ -329,9 +329,17 @@ function renderLink(state) {
   const link = state.link || {state: "connected"};
   const box = $("robot-link");
   box.dataset.state = link.state;
-  if (link.state === "lost") {
+  const clock = (iso) => new Date(iso).toISOString().slice(11, 19);
+  if (state.onboard) {  // the habitat runs it: the banner is what the ground heard, and how old that is
+    const news = state.onboard;
+    const at = news.at ? `, last reported at ${news.at}` : "";
+    const age = news.last_event_age_s == null ? "" : `, event #${news.last_seq} arrived ${news.last_event_age_s.toFixed(1)} s after it happened`;
+    box.textContent = link.state === "silent"
+      ? `⚠ no news from the habitat since ${clock(link.since)} UTC${at}`
+      : `onboard run on the habitat: habitat time ${news.habitat_time ? clock(news.habitat_time) : "—"} UTC${at}${age}`;
+  } else if (link.state === "lost") {
     const n = link.in_flight || 0;
-    box.textContent = `⚠ link lost since ${new Date(link.since).toISOString().slice(11, 19)} UTC, ${n} command${n === 1 ? "" : "s"} in flight`;
+    box.textContent = `⚠ link lost since ${clock(link.since)} UTC, ${n} command${n === 1 ? "" : "s"} in flight`;
   } else {
     box.textContent = state.live ? "link connected" : "";
   }

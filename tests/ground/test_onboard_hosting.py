@@ -1,0 +1,175 @@
+"""An onboard run hosted for the consoles by the runner that supervises it.
+
+A real SQLite ground database and change feed; a :class:`TerminalHost` hosting an
+:class:`OnboardView` as ``caretaker run --onboard`` does, another "console" reading it and
+forwarding actions through the database. The link to the habitat is the test's ``send``: what
+the runner would send up, and the habitat's answer (the habitat's side: tests/onboard, and the
+browser over the emulated link: tests/flight/test_iva_onboard_halt.py).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator, Mapping
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from console.accounts import AccountStore
+from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
+from console.ground.change_feed import open_change_feed
+from console.ground.run_hosts import RunHosting
+from console.onboard_view import OnboardView
+from console.terminal_host import TerminalHost
+from pride.audit_log import AuditLog
+from pride.events import Event, EventKind
+from pride.lint import check_procedure
+from pride.sysrep import load_sysrep_dir
+from support.procedures import REPO
+
+PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
+RUN = "iva-onboard-1"
+
+
+@pytest.fixture
+def audit(tmp_path: Path) -> Iterator[AuditLog]:
+    log = AuditLog(f"sqlite:///{tmp_path / 'ground.db'}")
+    accounts = AccountStore(log.url)
+    accounts.add("alice", "operator", "alice-password-1")
+    accounts.add("olga", "observer", "olga-password-1")
+    accounts.close()
+    yield log
+    log.close()
+
+
+class Habitat:
+    """What the runner would send up, and what the habitat answers (``answers``: by action)."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[str, str, dict[str, Any]]] = []
+        self.answers: dict[str, tuple[str, str]] = {}
+
+    def __call__(self, action: str, user: str, args: Mapping[str, Any]) -> tuple[str, str]:
+        self.sent.append((action, user, dict(args)))
+        return self.answers.get(action, ("DONE", f"{action} by {user}"))
+
+
+@pytest.fixture
+def hosted(audit: AuditLog) -> Iterator[tuple[TerminalHost, OnboardView, Habitat]]:
+    sysreps = load_sysrep_dir(REPO / "sysrep")
+    checked = check_procedure(str(PROCEDURE), sysreps)
+    host = TerminalHost(audit, binding="iva-ground.yaml", name="runner at the bench")
+    view = OnboardView(
+        RUN,
+        checked.procedure,
+        binding="iva-ground.yaml",
+        started_by="alice",
+        mode="autonomous",
+        sysreps=dict(checked.sysreps),
+        host="runner at the bench (supervising; the habitat runs it)",
+        on_change=lambda: host.changed(RUN),
+    )
+    habitat = Habitat()
+    host.host_onboard(view, habitat)
+    yield host, view, habitat
+    host.close()
+
+
+def forward(audit: AuditLog, host: TerminalHost, user: str, action: dict[str, Any]) -> Answer:
+    """What a console does with an action on a run hosted elsewhere."""
+    asker = ActionRequests(audit.engine, host_id="console-b", console="console B", perform=_never)
+    feed = open_change_feed(audit.engine)
+    feed.subscribe(asker.notice)
+    try:
+        assert feed.connected.wait(10)
+        return asker.forward(RUN, host.hosting.host_id, user, action)
+    finally:
+        feed.close()
+        asker.close()
+
+
+def _never(request: ForwardedAction) -> Answer:
+    raise AssertionError(f"nothing is hosted on console B: {request}")
+
+
+def test_actions_go_up_as_the_operator_who_clicked_with_the_instruction_they_clicked_on(
+    audit: AuditLog, hosted: tuple[TerminalHost, OnboardView, Habitat]
+) -> None:
+    host, _, habitat = hosted
+    halted = forward(audit, host, "alice", {"action": "halt", "reason": "crew at the cabinet"})
+    assert halted == Answer(200, {"ok": True, "action": "halt", "result": "on the habitat: halt by alice"})
+    entered = forward(audit, host, "alice", {"action": "enter", "instruction": "4.1", "value": "CDRA-F-0012"})
+    assert entered.ok
+    assert habitat.sent == [
+        ("halt", "alice", {"reason": "crew at the cabinet"}),
+        ("enter", "alice", {"instruction": "4.1", "value": "CDRA-F-0012"}),
+    ]
+
+
+def test_what_the_habitat_refuses_or_does_not_answer_is_said_and_nothing_else_goes_up(
+    audit: AuditLog, hosted: tuple[TerminalHost, OnboardView, Habitat]
+) -> None:
+    host, _, habitat = hosted
+    habitat.answers["done"] = ("REFUSED", "done was for 2.6, the run is at 2.7: not acted on")
+    habitat.answers["pause"] = ("UNKNOWN", "sent; no answer from the habitat within 25 s (see the log)")
+    refused = forward(audit, host, "alice", {"action": "done", "instruction": "2.6"})
+    assert refused == Answer(
+        409, {"error": "the habitat refused it: done was for 2.6, the run is at 2.7: not acted on"}
+    )
+    unknown = forward(audit, host, "alice", {"action": "pause"})
+    assert unknown.status == 504 and unknown.body["error"].startswith("outcome unknown: sent; no answer")
+    # refused on the ground, before anything is sent
+    observer = forward(audit, host, "olga", {"action": "halt"})
+    assert observer.status == 403 and "observers may watch, not act" in observer.body["error"]
+    mode = forward(audit, host, "alice", {"action": "mode", "mode": "manual"})
+    assert mode.status == 409 and mode.body["error"].startswith(
+        "mode is not taken by an onboard run (the habitat takes: halt,"
+    )
+    unnumbered = forward(audit, host, "alice", {"action": "retry"})
+    assert unnumbered == Answer(400, {"error": "retry needs the instruction number"})
+    assert [action for action, _, _ in habitat.sent] == ["done", "pause"]
+
+
+def test_consoles_see_what_came_down_and_since_when_the_habitat_is_silent(
+    audit: AuditLog, hosted: tuple[TerminalHost, OnboardView, Habitat]
+) -> None:
+    _, view, _ = hosted
+    reader = RunHosting(audit.engine, host="console B")
+    try:
+        start = datetime.now(UTC) - timedelta(seconds=2)
+        view.event(Event(RUN, 1, EventKind.RUN_STARTED, "alice", None, {"procedure": "iva"}, start))
+        snapshot = {"status": "active", "mode": "autonomous", "current": "2.7", "hold": None, "last_seq": 1}
+        view.news(snapshot=snapshot, habitat_time=start.isoformat(), heard=time.time(), waiting="", silent_since=None)
+        state = _published_state(audit, reader, lambda s: s.get("onboard", {}).get("heard") is not None)
+        assert state["status"] == "active" and state["current"] == "2.7" and state["link"] == {"state": "connected"}
+        assert state["onboard"]["last_seq"] == 1 and state["onboard"]["last_event_age_s"] >= 2.0
+        silent = time.time() - 30
+        view.news(snapshot=None, habitat_time="", heard=silent, waiting="", silent_since=silent)
+        state = _published_state(audit, reader, lambda s: s["link"]["state"] == "silent")
+        assert state["link"]["since"] == datetime.fromtimestamp(silent, UTC).isoformat()
+        assert state["current"] == "2.7"  # the last news, not a guess of what happened since
+    finally:
+        reader.close()
+
+
+def _published_state(audit: AuditLog, reader: RunHosting, ready: Any = None, timeout: float = 30.0) -> dict[str, Any]:
+    """The run's view as another console reads it from the database, once ``ready`` holds (read
+    again at each change of the run's host row, as a console does)."""
+    changed = threading.Event()
+    feed = open_change_feed(audit.engine)
+    feed.subscribe(lambda notice: changed.set() if notice.channel in ("hosts", "resync") else None)
+    try:
+        assert feed.connected.wait(10)
+        deadline = time.monotonic() + timeout
+        while True:
+            changed.clear()
+            published = reader.published(RUN)
+            state = published[2].get("state") if published else None
+            if state and (ready is None or ready(state)):
+                return dict(state)
+            assert changed.wait(deadline - time.monotonic()), f"no published view of {RUN} that holds: {state}"
+    finally:
+        feed.close()
