@@ -28,6 +28,30 @@ if "ROS_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 
 
+#: What a file marked ``slow`` without ``seconds=`` is taken to last.
+SLOW_DEFAULT_S = 30
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The longest test files first, each file's tests in their own order.
+
+    pytest-xdist hands whole files to its workers in collection order (``make test`` turns off its
+    own reordering by test count): a file that takes ten minutes started last would end the
+    suite ten minutes late; started first, it runs beside everything else. A module states its
+    length with ``pytest.mark.slow(seconds=N)``, a rough figure from a quiet run.
+    """
+
+    def seconds(item: pytest.Item) -> float:
+        marker = item.get_closest_marker("slow")
+        return 0.0 if marker is None else float(marker.kwargs.get("seconds", SLOW_DEFAULT_S))
+
+    files: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        files.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    longest = sorted(files.values(), key=lambda group: -max(seconds(item) for item in group))  # stable
+    items[:] = [item for group in longest for item in group]
+
+
 @pytest.fixture(scope="session")
 def ros_env() -> dict[str, str]:
     """Environment for child processes: this session's ROS domain, loopback only."""

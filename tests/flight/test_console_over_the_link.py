@@ -22,7 +22,7 @@ from support.operator_page import expect_current
 
 from .flight_support import PULL_OUT, Flight, flight
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=85)]
 
 OPERATOR, PASSWORD = "flight", "flight-over-the-link"
 LINK_MS = 60_000  # what the page shows waits on round trips over the 1.3 s link

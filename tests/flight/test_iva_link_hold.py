@@ -13,7 +13,7 @@ import pytest
 
 from .flight_support import DELAY, PULL_OUT, assert_flown_exactly_once, assert_in_flight, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240)]
 
 
 def test_a_30_s_hold_on_a_lossy_link_mid_motion_is_ridden_out(ros_env: dict[str, str]) -> None:

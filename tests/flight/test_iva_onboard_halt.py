@@ -19,7 +19,7 @@ import pytest
 
 from .flight_support import DELAY, PULL_OUT, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60)]
 
 
 #: From the halt's arrival on the habitat to the arm at rest (the issue's bound for a halt).

@@ -1,4 +1,4 @@
-"""An onboard run through an outage: all traffic held for 60 s from the start of the pull-out.
+"""An onboard run through an outage: all traffic held for 10 minutes from the start of the pull-out.
 
 The clean filter's id (4.1, a record) is not given at uplink. During the outage the habitat does
 everything automatable up to it, each motion once (counted on the habitat), and holds there for
@@ -17,12 +17,12 @@ from pride.audit_chain import utc
 
 from .flight_support import DELAY, PULL_OUT, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=720), pytest.mark.timeout(1200)]
 
 
-#: Longer than the ground client's keepalive gives up (its connection is dropped and made again)
-#: and than the onboard run takes from the pull-out to the record.
-OUTAGE_S = 60.0
+#: The issue's outage: far longer than the ground client's keepalive (its connection is dropped
+#: and made again, many times), the bridge's ping timeout, and the onboard run's way to the record.
+OUTAGE_S = 600.0
 
 
 def test_an_outage_from_the_pull_out_the_habitat_goes_on_alone_to_the_record_and_the_ground_catches_up(
@@ -34,8 +34,8 @@ def test_an_outage_from_the_pull_out_the_habitat_goes_on_alone_to_the_record_and
         f.link.control.hold(OUTAGE_S)
         held_at = datetime.now(UTC)
         silent = run.wait_for_line(r"no news from the habitat since", 120)
-        waits = run.wait_for_line(r"the onboard run waits for an operator: 4\.1: ", 300)
-        run_id, status = result_of(run)
+        waits = run.wait_for_line(r"the onboard run waits for an operator: 4\.1: ", OUTAGE_S + 300)
+        run_id, status = result_of(run, 120)
         caught_up = run.wait_for_line(r"the habitat answers again; catching up from event \d+", 5)
         assert status == "stopped"
         habitat = f.habitat.onboard_chain(run_id)
@@ -52,6 +52,7 @@ def test_an_outage_from_the_pull_out_the_habitat_goes_on_alone_to_the_record_and
         assert len({r["command_key"] for r in records}) == len(records)
         goals = f.goals()
         assert goals and len({goal for goal, _ in goals}) == len(goals) and {s for _, s in goals} == {4}, goals
+        print(f"{len(goals)} arm motions on the habitat during the outage, each once")
         sent = [e for e in habitat if e.kind == "command_sent"]
         assert len(sent) == len(records), "a command logged on the habitat that the ledger did not execute, or twice"
         ground = f.ground_chain(run_id)

@@ -15,7 +15,7 @@ import pytest
 from caretaker.processes import REPO
 from support.processes import caretaker
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
 
 
 def _demo(scenario: str, tmp_path: Path, env: dict[str, str]) -> list[str]:

@@ -27,7 +27,7 @@ from pride.audit_log import AuditLog
 from pride.events import EventKind
 from support.stack import robot_parts
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90)]
 
 PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
 BINDING = REPO / "sysrep" / "bindings" / "iva.yaml"

@@ -21,7 +21,7 @@ from pride.parser import load_procedure
 from support.procedures import REPO
 from support.stack import robot_parts
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90)]
 
 SCENES = {
     "iva": ("iva_cdra_filter_replacement.xml", ["--set", "clean_filter_id=CDRA-F-0012"]),

@@ -20,6 +20,8 @@ from support.processes import ManagedProcess
 from .hostile import BridgeLog, Watch, await_answers, hostile_frame, hostile_message, parses, serve_raw_frames
 from .rosbridge_support import RawClient
 
+pytestmark = pytest.mark.slow(seconds=80)
+
 FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
 _ids = itertools.count()
 
