@@ -18,12 +18,12 @@ test: setup lint test-java test-python
 test-java:
 	@if [ -f pom.xml ]; then mvn -q test; fi
 
-# Four workers on the CI machine's 2 cores: the suite waits more than it computes (links,
-# processes, browsers), and one worker spends its first 12 minutes on the onboard outage test,
-# which mostly waits out a 10-minute outage. A test file per worker so module fixtures (a robot
-# stack, a browser) are built once; the longest files first (tests/conftest.py), so none of them
-# starts last and ends the suite late.
-PYTEST_WORKERS ?= 4
+# Three workers on the CI machine's 2 cores: the suite waits more than it computes (links,
+# processes, browsers: about two thirds of both cores busy with three; four starve the robot
+# stacks). A test file per worker so module fixtures (a robot stack, a browser) are built once;
+# the longest files first (tests/conftest.py), so the 12-minute onboard outage test, which mostly
+# waits out its outage, runs beside everything else instead of after it.
+PYTEST_WORKERS ?= 3
 test-python:
 	$(PYTEST) -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=25 tests
 

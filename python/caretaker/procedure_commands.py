@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import logging
+import os
 import signal
 import sys
 import time
@@ -109,7 +110,11 @@ def run_main(argv: list[str] | None = None) -> int:
         "--user", required=True, metavar="NAME", help="who runs it (recorded with every operator action)"
     )
     parser.add_argument(
-        "--db", default=DEFAULT_DB, metavar="URL", help=f"audit log SQLAlchemy URL (default {DEFAULT_DB})"
+        "--db",
+        default=os.environ.get("CARETAKER_DB", DEFAULT_DB),
+        metavar="URL",
+        help=f"audit log SQLAlchemy URL (default $CARETAKER_DB, else {DEFAULT_DB}: a URL with a password "
+        "is better in the environment than on a command line others can read)",
     )
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="answer the record NAME")
     parser.add_argument("--confirm-manual", action="store_true", help="mark manual instructions done unattended")
@@ -123,6 +128,12 @@ def run_main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="uplink the procedure to the habitat's onboard executive and supervise it from here "
         "(docs/deployment.md, Onboard runs)",
+    )
+    parser.add_argument(
+        "--at-consoles",
+        action="store_true",
+        help="with --onboard: operators answer at the consoles (the run is hosted for them), so a hold waits for "
+        "them; without it, a supervising terminal with nobody at it stops the run at a hold",
     )
     parser.add_argument(
         "--in-flight",
@@ -280,13 +291,20 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
         now=time.time(),
     )
+    from sqlalchemy.exc import SQLAlchemyError
+
     from console.ground.action_requests import ANSWER_WITHIN_S
     from console.onboard_view import OnboardView
-    from console.terminal_host import TerminalHost
+    from console.terminal_host import HostedElsewhere, TerminalHost
 
     printer = ProgressPrinter(checked.procedure, terminal)
     # Hosted for the consoles as a ground run is: they show it live and forward operators' actions here.
-    host = TerminalHost(audit, binding=unit.binding)
+    try:
+        host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True)
+    except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
+        print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
+        host = None
+    hosting = host
     view = OnboardView(
         unit.run_id,
         checked.procedure,
@@ -294,8 +312,8 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         started_by=args.user,
         mode=unit.mode,
         sysreps=dict(checked.sysreps),
-        host=f"{host.hosting.host} (supervising; the habitat runs it)",
-        on_change=lambda: host.changed(unit.run_id),
+        host=f"{hosting.hosting.host if hosting else 'a runner'} (supervising; the habitat runs it)",
+        on_change=(lambda: hosting.changed(unit.run_id)) if hosting else None,
     )
 
     def on_event(event: Event) -> None:
@@ -312,7 +330,13 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         )
 
     supervisor = OnboardSupervisor(
-        endpoint, unit, audit, on_event=on_event, say=terminal.say, unattended=not sys.stdin.isatty(), on_news=on_news
+        endpoint,
+        unit,
+        audit,
+        on_event=on_event,
+        say=terminal.say,
+        unattended=not sys.stdin.isatty() and not args.at_consoles,
+        on_news=on_news,
     )
 
     def send(action: str, user: str, action_args: Mapping[str, Any]) -> tuple[str, str]:
@@ -320,13 +344,18 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         return outcome.state, outcome.message
 
     try:
-        host.host_onboard(view, send)
+        if host is not None:
+            try:
+                host.host_onboard(view, send)
+            except (SQLAlchemyError, HostedElsewhere) as exc:  # as above
+                print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
         result = asyncio.run(supervisor.run())
     except DownlinkError as exc:
         print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
         return 1
     finally:
-        host.close()
+        if host is not None:
+            host.close()
     terminal.say(
         f"RESULT {result.status} run {unit.run_id} (report: caretaker report {unit.run_id}"
         f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})"

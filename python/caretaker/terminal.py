@@ -84,7 +84,8 @@ class ProgressPrinter:
         elif kind is EventKind.LINK_LOST:
             n = data.get("in_flight", 0)
             line = (
-                f"  {number:<8} {'PAX':<10} link lost since {data['since'][11:19]}Z, {n} command"
+                f"  {number:<8} {'PAX':<10} {'no news' if data.get('quiet') else 'link lost'} since "
+                f"{data['since'][11:19]}Z, {n} command"
                 f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}"
             )
         elif kind is EventKind.LINK_RESTORED:

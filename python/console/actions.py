@@ -117,14 +117,18 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
 }
 
 
+def _require_operator(account: Account) -> None:
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+
+
 def perform_action(executive: Executive, account: Account, request: ActionRequest) -> Any:
     """Carry out ``request`` as ``account``; ActionRefused says why not.
 
     Actions clicked on an instruction name it, and are refused unless it is still the current
     one: two operators looking at the same run must not act on an instruction that moved on.
     """
-    if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+    _require_operator(account)
     entry = ACTIONS.get(request.action)
     if entry is None:
         raise ActionRefused(400, f"unknown action {request.action!r} (known: {', '.join(ACTIONS)})")
@@ -151,15 +155,21 @@ def perform_forwarded(
     operator, whose account and role are checked here against the database, whatever the other console did."""
     if executive is None:
         return Answer(404, {"error": f"run {request.run_id} is no longer live on {host}"})
-    account = accounts.get(request.user)
-    if account is None:
-        return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
     try:
+        account = _forwarded_account(accounts, request)
         action = ActionRequest.from_json(request.action)
         result = perform_action(executive, account, action)
     except ActionRefused as exc:
         return Answer(exc.status, {"error": exc.message})
     return Answer(200, {"ok": True, "action": action.action, "result": result})
+
+
+def _forwarded_account(accounts: AccountStore, request: ForwardedAction) -> Account:
+    """The forwarded request's operator, as this host's database has them (whatever the asking console did)."""
+    account = accounts.get(request.user)
+    if account is None:
+        raise ActionRefused(403, f"{request.user!r} has no account (any more)")
+    return account
 
 
 #: Sends an operator's action on an onboard run up the link: (action, user, args) → (state, message),
@@ -181,18 +191,17 @@ ONBOARD_ACTIONS: dict[str, Callable[[str, ActionRequest], dict[str, Any]]] = {
     "done": lambda user, r: {"instruction": _numbered(r)},
     "retry": lambda user, r: {"instruction": _numbered(r)},
     "skip": lambda user, r: {"instruction": _numbered(r), "reason": r.reason},
+    "ask_again": lambda user, r: {"instruction": _numbered(r)},
+    "resolve": lambda user, r: {"instruction": _numbered(r), "value": _outcome(r), "reason": r.reason},
 }
 
 
 def perform_onboard(send: OnboardSend, accounts: AccountStore, request: ForwardedAction) -> Answer:
     """An action on an onboard run, forwarded to the runner that supervises it: the role is checked
     here, then it goes up to the habitat, which acts on it (or refuses) and says so."""
-    account = accounts.get(request.user)
-    if account is None:
-        return Answer(403, {"error": f"{request.user!r} has no account (any more)"})
-    if not account.may_act:
-        return Answer(403, {"error": f"{account.user} is an {account.role.value}: observers may watch, not act"})
     try:
+        account = _forwarded_account(accounts, request)
+        _require_operator(account)
         action = ActionRequest.from_json(request.action)
         arguments = ONBOARD_ACTIONS.get(action.action)
         if arguments is None:

@@ -205,6 +205,7 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
         "binding": str(body.get("binding", "")),
         "mode": str(body.get("mode", "manual")),
         "take_over": str(body.get("take_over") or ""),
+        "onboard": "yes" if body.get("onboard") is True else "",
     }
 
 
@@ -212,6 +213,11 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
 async def runs_start(request: Request) -> Response:
     account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
     board: RunBoard = request.app.state.board
+    if body["onboard"]:
+        run_id = await run_in_threadpool(
+            board.start_onboard, account.user, body["procedure"], body["binding"], body["mode"]
+        )
+        return JSONResponse({"run_id": run_id}, status_code=201)
     live = await run_in_threadpool(
         board.start, account.user, body["procedure"], body["binding"], body["mode"], take_over=body["take_over"] or None
     )

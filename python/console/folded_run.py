@@ -155,7 +155,12 @@ class FoldedRun:
         elif kind is EventKind.HALT:
             self.halted = {"by": event.actor, "time": when, "reason": str(data.get("reason") or "")}
         elif kind is EventKind.LINK_LOST:
-            self.link = {"state": "lost", "since": data.get("since"), "in_flight": data.get("in_flight", 0)}
+            self.link = {
+                "state": "lost",
+                "since": data.get("since"),
+                "in_flight": data.get("in_flight", 0),
+                "quiet": bool(data.get("quiet")),
+            }
         elif kind is EventKind.LINK_RESTORED:
             self.link = {"state": "connected", "since": when}
         if entry is None:

@@ -37,6 +37,7 @@ from console.ground.action_requests import ActionRequests, Answer, ForwardedActi
 from console.ground.change_feed import ChangeNotice, open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from console.live_run import LiveRun
+from console.onboard_launch import LaunchRefused, launch_onboard
 from console.remote_run import RemoteRun
 from console.watchers import Watchers
 from pride.audit_log import AuditLog
@@ -192,6 +193,30 @@ class RunBoard:
             raise _not_started(procedure_name, exc) from None
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
+
+    def start_onboard(self, user: str, procedure_name: str, binding_name: str, mode_name: str) -> str:
+        """Start an onboard run ("run on the habitat"): its supervising runner, on this host
+        (:mod:`console.onboard_launch`), hosts it for the consoles; the run's id once the habitat
+        accepted it. ActionRefused says what to fix (lint errors here or on the habitat, the
+        habitat's refusal, an unreachable habitat)."""
+        mode = _mode(mode_name)
+        path = self.catalog.procedure_path(procedure_name)
+        try:
+            check_procedure(path, self.sysreps())
+        except ProcedureError as exc:
+            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
+        try:
+            return launch_onboard(
+                path,
+                self.catalog.binding_path(binding_name),
+                user=user,
+                autonomous=mode is Mode.AUTONOMOUS,
+                db_url=self.audit_log.url,
+                sysreps=self.catalog.sysreps,
+                rosbridge=self.rosbridge_url_for(binding_name),
+            )
+        except LaunchRefused as exc:
+            raise ActionRefused(502, f"{procedure_name} did not start on the habitat:\n{exc}") from None
 
     def resume(self, user: str, run_id: str, binding_name: str, mode_name: str) -> LiveRun:
         """Continue a stopped or interrupted run from its log on ``binding_name``; ActionRefused says why not."""

@@ -51,9 +51,16 @@ class TerminalHost:
     """One runner's run, hosted in the ground database for the consoles."""
 
     def __init__(
-        self, audit_log: AuditLog, *, binding: str, lease: float = DEFAULT_LEASE_S, name: str | None = None
+        self,
+        audit_log: AuditLog,
+        *,
+        binding: str,
+        lease: float = DEFAULT_LEASE_S,
+        name: str | None = None,
+        onboard: bool = False,
     ) -> None:
-        """``name``: how consoles name this runner (default ``runner HOST pid PID``)."""
+        """``name``: how consoles name this runner (default ``runner HOST pid PID``); ``onboard``: it
+        will host an onboard run, whose actions each wait for the habitat's answer side by side."""
         self.binding = binding
         self._audit_log = audit_log
         self._accounts = AccountStore(audit_log.url)
@@ -63,7 +70,11 @@ class TerminalHost:
         self._live: LiveRun | None = None
         self._onboard: tuple[OnboardView, OnboardSend] | None = None
         self._forwarding = ActionRequests(
-            audit_log.engine, host_id=self.hosting.host_id, console=self.hosting.host, perform=self._perform
+            audit_log.engine,
+            host_id=self.hosting.host_id,
+            console=self.hosting.host,
+            perform=self._perform,
+            aside=onboard,
         )
         self._feed = open_change_feed(audit_log.engine)
         self._feed.subscribe(self._forwarding.notice)

@@ -11,6 +11,7 @@ While the habitat does not answer, the ground says since when it has no news, an
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import dataclasses
 import json
 import logging
@@ -178,8 +179,6 @@ class HabitatNews:
     habitat does not answer: the views then say "no news since", and never fill in.
     """
 
-    run_id: str
-    head_seq: int
     snapshot: Mapping[str, Any] | None
     habitat_time: str  # the habitat's clock at its last answer (ISO 8601), "" before one
     heard: float  # ground clock (epoch s) of the last answer
@@ -278,11 +277,19 @@ class OnboardSupervisor:
 
     def act_from_thread(self, action: str, user: str, args: Mapping[str, Any], timeout: float) -> ActionOutcome:
         """:meth:`act` from another thread (a console's forwarded request), waiting up to ``timeout``."""
-        if self._loop is None:
+        loop = self._loop
+        if loop is None:
             return ActionOutcome("REFUSED", "the run is not uplinked yet: not sent")
-        future = asyncio.run_coroutine_threadsafe(self.act(action, user, **args), self._loop)
+        sending = self.act(action, user, **args)
+        try:
+            future = asyncio.run_coroutine_threadsafe(sending, loop)
+        except RuntimeError:  # the loop has ended: supervision is over
+            sending.close()
+            return ActionOutcome("REFUSED", "the ground no longer supervises this run: not sent")
         try:
             return future.result(timeout)
+        except concurrent.futures.CancelledError:  # supervision ended while it was being sent
+            return ActionOutcome("UNKNOWN", "supervision ended while it was being sent (see the log)")
         except TimeoutError:
             return ActionOutcome(
                 "UNKNOWN", f"sent; no answer from the habitat within {timeout:.0f} s (see the run's log)"
@@ -313,7 +320,7 @@ class OnboardSupervisor:
         """Store the run's events as they come, until it ended and the ground has them all."""
         client, downlink = self._client, self._downlink
         heard = time.time()
-        last = HabitatNews(downlink.run_id, downlink.head_seq, None, "", heard, "")
+        last = HabitatNews(None, "", heard, "")
         silent = False
         waited = ""
         while True:
@@ -325,8 +332,7 @@ class OnboardSupervisor:
                 )
                 items = json.loads(str(values.get("events_json", "[]")))
                 if not isinstance(items, list):
-                    raise DownlinkError("events_json must be a list")
-                snapshot = _snapshot(values.get("snapshot_json"))
+                    raise ValueError("events_json must be a list")
             except (LinkError, ValueError) as exc:
                 if not silent:
                     since = time.strftime("%H:%M:%S", time.gmtime(heard))
@@ -345,11 +351,8 @@ class OnboardSupervisor:
             status, head = str(values.get("status")), values.get("head_seq")
             waiting = str(values.get("waiting", ""))
             caught_up = isinstance(head, int) and downlink.head_seq >= head
-            if snapshot is not None and int(snapshot.get("last_seq", 0)) > downlink.head_seq:
-                snapshot = last.snapshot  # ahead of what the ground has stored: shown once the events are
-            last = HabitatNews(
-                downlink.run_id, downlink.head_seq, snapshot, str(values.get("habitat_time", "")), heard, waiting
-            )
+            snapshot = _snapshot(values.get("snapshot_json"), downlink.head_seq) or last.snapshot
+            last = HabitatNews(snapshot, str(values.get("habitat_time", "")), heard, waiting)
             self._news(last)
             if waiting != waited and caught_up:
                 waited = waiting
@@ -361,14 +364,20 @@ class OnboardSupervisor:
                 return Supervision(status, downlink.run_id)
 
 
-def _snapshot(text: Any) -> Mapping[str, Any] | None:
-    """The habitat's snapshot of the run, checked to be an object ("" when it has none)."""
+def _snapshot(text: Any, head_seq: int) -> Mapping[str, Any] | None:
+    """The onboard executive's state as the habitat sent it, if it is an object and not ahead of the
+    events the ground has stored (shown once they are); None otherwise (the view keeps the last)."""
     if not text:
         return None
-    value = json.loads(str(text))
-    if not isinstance(value, dict):
-        raise DownlinkError("snapshot_json must be an object")
-    return value
+    try:
+        value = json.loads(str(text))
+    except ValueError:
+        log.warning("the habitat's snapshot_json is not JSON: %.80r", text)
+        return None
+    if not isinstance(value, dict) or not isinstance(value.get("last_seq", 0), int):
+        log.warning("the habitat's snapshot_json is not a snapshot: %.80r", text)
+        return None
+    return value if value.get("last_seq", 0) <= head_seq else None
 
 
 async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callable[[str], None]) -> Mapping[str, Any]:

@@ -424,6 +424,8 @@ class HabitatRuns:
             "done": lambda: ex.mark_done(user),
             "confirm": lambda: ex.confirm(user),
             "retry": lambda: ex.retry(user),
+            "ask_again": lambda: ex.ask_again(user),
+            "resolve": lambda: ex.resolve(user, str(args["value"]), str(args["reason"])),
         }
         try:
             perform[action.action]()

@@ -54,6 +54,8 @@ ACTIONS: Mapping[str, tuple[str, ...]] = {
     "done": (),
     "confirm": (),
     "retry": (),
+    "ask_again": (),
+    "resolve": ("value", "reason"),
 }
 _RUN_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._:-]{0,127}")
 

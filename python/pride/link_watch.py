@@ -1,8 +1,11 @@
 """The links of a run's gateway as the run sees them: lost since when, how many commands wait.
 
 The gateway calls :meth:`LinkWatch.update` on its own thread whenever a link (a rosbridge
-connection) goes down or up, or while down when its commands in flight change; that must be
-quick, so it only notes the state. The executive's supervisor then asks :meth:`LinkWatch.change`
+connection) goes down or up, falls quiet or is heard again, or while down or quiet when its
+commands in flight change; that must be quick, so it only notes the state. A quiet link (nothing
+heard for a few keepalive intervals, the connection not yet given up) is a lost link from the
+moment it was last heard: a held link says nothing else for minutes, and the run must not look
+connected meanwhile. The executive's supervisor then asks :meth:`LinkWatch.change`
 whether a loss or a recovery is to be recorded (LINK_LOST, LINK_RESTORED), and snapshots read
 :meth:`LinkWatch.now` at any time, without the executive's lock.
 """
@@ -22,11 +25,13 @@ __all__ = ["LinkWatch", "Links"]
 
 @dataclass(frozen=True)
 class Links:
-    """All links together: lost (since when, UTC) if any is down; the commands waiting on those down."""
+    """All links together: lost (since when, UTC) if any is down or quiet; the commands waiting on
+    those; ``quiet``: every such link is still connected, only nothing came from it."""
 
     lost_since: datetime | None
     in_flight: int
     down: tuple[str, ...]
+    quiet: bool = False
 
 
 class LinkWatch:
@@ -43,12 +48,14 @@ class LinkWatch:
 
     def now(self) -> Links:
         with self._lock:
-            down = [s for s in self._links.values() if not s.connected]
+            down = [s for s in self._links.values() if not s.connected or s.quiet_since is not None]
         if not down:
             return Links(None, 0, ())
-        since = min((s.lost_since for s in down if s.lost_since is not None), default=None)
+        times = [s.lost_since if not s.connected else s.quiet_since for s in down]
+        since = min((t for t in times if t is not None), default=None)
         lost_since = datetime.fromtimestamp(since, UTC) if since is not None else datetime.now(UTC)
-        return Links(lost_since, sum(s.in_flight for s in down), tuple(sorted(s.link for s in down)))
+        quiet = all(s.connected for s in down)
+        return Links(lost_since, sum(s.in_flight for s in down), tuple(sorted(s.link for s in down)), quiet)
 
     def change(self) -> tuple[EventKind, dict[str, Any]] | None:
         """The event to record if the links went down or came back since the last one recorded."""
@@ -61,6 +68,7 @@ class LinkWatch:
                 "links": list(links.down),
                 "since": links.lost_since.isoformat(),
                 "in_flight": links.in_flight,
+                "quiet": links.quiet,
             }
         since, self._recorded = self._recorded, None
         assert since is not None

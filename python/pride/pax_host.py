@@ -8,7 +8,7 @@ The executive talks to systems through :class:`PaxHost`, a :class:`pride.systems
     host.cancel("run-1/2.7/1")                             # a halt of a command in flight
     locked = host.telemetry("cdra", "filter_locked")     # TelemetryValue(value, timestamp, stale)
     host.add_listener(lambda sysrep, item, value: ...)
-    host.add_link_listener(lambda state: ...)            # LinkState(link, connected, lost_since, in_flight)
+    host.add_link_listener(lambda state: ...)  # LinkState(link, connected, lost_since, in_flight, quiet_since)
     host.close()
 
 Everything real happens in Java (``caretaker.binding.PaxHost`` in java/pax-plugins): loading the
@@ -246,22 +246,22 @@ class PaxHost:
         self._host.addListener(listener)
 
     def add_link_listener(self, callback: LinkListener) -> None:
-        """Call ``callback(LinkState)`` when a link goes down or up (and while down, when the number
-        of commands in flight changes); on a Java thread, so it must return quickly."""
+        """Call ``callback(LinkState)`` when a link goes down or up, falls quiet or is heard again
+        (and while down or quiet, when the number of commands in flight changes); on a Java
+        thread, so it must return quickly."""
 
         @jpype.JImplements("caretaker.rosbridge.LinkListener")
         class _LinkListener:
             @jpype.JOverride  # type: ignore[untyped-decorator]  # JPype has no type information
             def linkChanged(self, state: Any) -> None:  # noqa: N802 (Java name)
                 try:
-                    lost = state.lostSince()
-                    since = None if lost is None else int(lost.getEpochSecond()) + int(lost.getNano()) / 1e9
                     callback(
                         LinkState(
                             str(state.rosbridge().toString()),
                             bool(state.connected()),
-                            since,
+                            _epoch(state.lostSince()),
                             int(state.commandsInFlight()),
+                            _epoch(state.quietSince()),
                         )
                     )
                 except Exception:
@@ -303,3 +303,8 @@ class PaxHost:
 
     def __exit__(self, *exc_info: object) -> None:
         self.close()
+
+
+def _epoch(instant: Any) -> float | None:
+    """A java.time.Instant (or null) as epoch seconds."""
+    return None if instant is None else int(instant.getEpochSecond()) + int(instant.getNano()) / 1e9

@@ -364,7 +364,8 @@ def describe_event(event: Event) -> str:
         return f"went back to {d.get('next')}{_reason(d)}"
     if kind is EventKind.LINK_LOST:
         n = d.get("in_flight", 0)
-        return f"link lost since {str(d.get('since', ''))[11:19]} UTC, {n} command{'' if n == 1 else 's'} in flight"
+        what = "no news from the habitat" if d.get("quiet") else "link lost"  # quiet: held, not yet given up
+        return f"{what} since {str(d.get('since', ''))[11:19]} UTC, {n} command{'' if n == 1 else 's'} in flight"
     if kind is EventKind.LINK_RESTORED:
         return f"link restored after {d.get('seconds')} s"
     if kind is EventKind.CONTROL_TAKEN:

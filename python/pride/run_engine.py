@@ -152,6 +152,7 @@ class RunEngine:
             snap,
             link_lost_since=links.lost_since,
             commands_in_flight=links.in_flight,
+            link_quiet=links.quiet,
             journal_available=availability.available,
             journal_unavailable_since=availability.since,
             journal_error=availability.error,

@@ -146,6 +146,7 @@ class Snapshot:
     halt_reason: str = ""
     link_lost_since: datetime | None = None  # a robot link is down since then (UTC)
     commands_in_flight: int = 0  # while it is down: commands waiting for their outcome
+    link_quiet: bool = False  # down only in that nothing came from it for a few keepalive intervals
     journal_available: bool = True  # the audit log takes appends now
     journal_unavailable_since: datetime | None = None
     journal_error: str = ""
@@ -175,6 +176,7 @@ class Snapshot:
                 "state": "lost",
                 "since": self.link_lost_since.isoformat(),
                 "in_flight": self.commands_in_flight,
+                "quiet": self.link_quiet,
             }
             if self.link_lost_since
             else {"state": "connected"},
@@ -186,11 +188,13 @@ class Snapshot:
         }
 
     def link_summary(self) -> str:
-        """ "link lost since T, N commands in flight", or "" while the links are up."""
+        """ "link lost since T, N commands in flight" ("no news since T" while the link is only
+        quiet), or "" while the links are up."""
         if self.link_lost_since is None:
             return ""
         n = self.commands_in_flight
-        return f"link lost since {self.link_lost_since:%H:%M:%S}Z, {n} command{'' if n == 1 else 's'} in flight"
+        what = "no news" if self.link_quiet else "link lost"
+        return f"{what} since {self.link_lost_since:%H:%M:%S}Z, {n} command{'' if n == 1 else 's'} in flight"
 
     def journal_summary(self) -> str:
         """ "audit log unavailable since T: error", or "" while it takes appends."""

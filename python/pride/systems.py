@@ -79,13 +79,16 @@ class LinkState:
     """The link to one robot connection (a rosbridge server), as commands see it.
 
     ``lost_since`` (epoch seconds) is None while connected; ``in_flight`` counts the commands sent
-    or waiting to be sent whose outcome is not known yet.
+    or waiting to be sent whose outcome is not known yet. ``quiet_since``: while connected, when
+    the server was last heard if nothing has come from it for a few keepalive intervals (a held
+    link looks connected until the keepalive gives it up, minutes later).
     """
 
     link: str
     connected: bool
     lost_since: float | None = None
     in_flight: int = 0
+    quiet_since: float | None = None
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -36,6 +36,9 @@ from pride.events import Event, EventKind
 from support.stack import write_deployment
 from support.two_hosts import LinkProcess, TwoHosts
 
+if TYPE_CHECKING:  # playwright is loaded by the browser flights only
+    from playwright.sync_api import Page
+
 PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
 GROUND_BINDING = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
 PROBE = Path(__file__).with_name("habitat_probe.py")
@@ -44,6 +47,8 @@ CLEAN_FILTER = "CDRA-F-0012"
 #: The pull-out of the dirty filter: the execute the outages aim at.
 PULL_OUT = "grasp_and_pull"
 RUN_TIMEOUT_S = 900.0
+#: What a console page shows waits on round trips over the 1.3 s link.
+LINK_MS = 60_000
 
 
 @dataclass
@@ -181,13 +186,29 @@ class Flight:
         )
         return serve, serve.wait_ready().split()[-1]
 
-    def ground_chromium(self) -> Path:
-        """A launcher that starts Debian's Chromium inside the ground namespace (pipes pass through),
-        as an operator's browser on the ground network."""
+    @contextlib.contextmanager
+    def console_page(self, url: str, operator: str, password: str) -> Iterator[Page]:
+        """Chromium in the ground namespace (as an operator's browser on the ground network; pipes
+        pass through ``ip netns exec``), signed in to the console at ``url``."""
+        from playwright.sync_api import sync_playwright
+
         wrapper = self.hosts.folder / "chromium-on-the-ground"
         wrapper.write_text(f'#!/bin/sh\nexec ip netns exec {self.hosts.ground.namespace} /usr/bin/chromium "$@"\n')
         wrapper.chmod(0o755)
-        return wrapper
+        with sync_playwright() as driver:
+            browser = driver.chromium.launch(
+                executable_path=str(wrapper), headless=True, args=["--no-sandbox", "--disable-gpu", "--no-first-run"]
+            )
+            try:
+                page = browser.new_page(viewport={"width": 1500, "height": 1000})
+                page.set_default_timeout(LINK_MS)
+                page.goto(url)
+                page.fill("#user-id", operator)
+                page.fill("#password", password)
+                page.click("#sign-in-form button[type=submit]")
+                yield page
+            finally:
+                browser.close()
 
     def restart_habitat_without_memory(self) -> Habitat:
         """A new habitat side after the old one died, its memory lost: a new state folder (a new
@@ -354,3 +375,20 @@ def assert_in_flight(events: list[Event], trajectory: str, moment: datetime) -> 
         if s.data["command"] == "execute_plan" and s.data["args"]["trajectory"] == trajectory
     )
     assert answer is not None and sent.time < moment < answer.time, (sent.time, moment, answer and answer.time)
+
+
+def start_from_console(page: Page, f: Flight, *, onboard: bool) -> str:
+    """Start the IVA procedure, autonomous (``onboard``: on the habitat) from the signed-in console
+    page; its run id once the page shows the run (every step waits on round trips of 2.6 s)."""
+    page.select_option("#start-procedure", PROCEDURE.name)
+    page.select_option("#start-binding", f.binding.name)
+    page.check("#start-form input[name=mode][value=autonomous]")
+    page.set_checked("#start-onboard", onboard)
+    page.click("#start-button")
+    page.wait_for_function(
+        "() => document.querySelector('#run-id').textContent || document.querySelector('#start-error').textContent",
+        timeout=180_000,
+    )
+    said = page.locator("#start-error").inner_text()
+    assert not said, said
+    return page.locator("#run-id").inner_text().strip()

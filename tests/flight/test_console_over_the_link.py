@@ -13,55 +13,25 @@ shows the executive's LINK_LOST / LINK_RESTORED records.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 from support.operator_page import expect_current
 
-from .flight_support import PULL_OUT, Flight, flight
+from .flight_support import LINK_MS, PULL_OUT, flight, start_from_console
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=85)]
 
 OPERATOR, PASSWORD = "flight", "flight-over-the-link"
-LINK_MS = 60_000  # what the page shows waits on round trips over the 1.3 s link
 
 
-@pytest.fixture
-def ground(ros_env: dict[str, str]) -> Iterator[tuple[Flight, str, Path]]:
+def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ros_env: dict[str, str]) -> None:
+    from playwright.sync_api import expect
+
     with flight(ros_env, delay=1.3, time_scale="1") as f:
         serve, url = f.serve_console(OPERATOR, PASSWORD)
-        yield f, url, f.ground_chromium()
-        serve.stop()
-
-
-def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tuple[Flight, str, Path]) -> None:
-    from playwright.sync_api import expect, sync_playwright
-
-    f, url, chromium = ground
-    with sync_playwright() as driver:
-        browser = driver.chromium.launch(
-            executable_path=str(chromium), headless=True, args=["--no-sandbox", "--disable-gpu", "--no-first-run"]
-        )
-        try:
-            page = browser.new_page(viewport={"width": 1500, "height": 1000})
-            page.set_default_timeout(60_000)
-            page.goto(url)
-            page.fill("#user-id", OPERATOR)
-            page.fill("#password", PASSWORD)
-            page.click("#sign-in-form button[type=submit]")
-            page.select_option("#start-procedure", "iva_cdra_filter_replacement.xml")
-            page.select_option("#start-binding", f.binding.name)
-            page.check("#start-form input[name=mode][value=autonomous]")
-            page.click("#start-button")
-            # the start opens the PAX host's link to the habitat first: round trips of 2.6 s
-            page.wait_for_function(
-                "() => document.querySelector('#run-id').textContent"
-                " || document.querySelector('#start-error').textContent",
-                timeout=180_000,
-            )
-            assert not page.locator("#start-error").inner_text(), page.locator("#start-error").inner_text()
+        with f.console_page(url, OPERATOR, PASSWORD) as page:
+            start_from_console(page, f, onboard=False)  # the PAX host opens its link to the habitat first
             expect(page.locator("#connection")).to_have_attribute("data-state", "open", timeout=LINK_MS)
             expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected", timeout=LINK_MS)
             confirm = page.locator('#procedure li.instruction[data-number="2.6"]')
@@ -81,5 +51,4 @@ def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ground: tup
             page.fill("#stop-reason", "link check done")
             page.click("#stop-yes")
             expect(page.locator("#run-status")).to_have_text("stopped", timeout=LINK_MS)
-        finally:
-            browser.close()
+        serve.stop()

@@ -7,13 +7,17 @@ is flight_support.py's docstring. One file per scenario, so parallel workers fly
 
 from __future__ import annotations
 
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 
 import pytest
+
+from pride.events import EventKind
 
 from .flight_support import DELAY, PULL_OUT, assert_flown_exactly_once, assert_in_flight, flight, result_of
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240)]
+
+HOLD_S = 30.0
 
 
 def test_a_30_s_hold_on_a_lossy_link_mid_motion_is_ridden_out(ros_env: dict[str, str]) -> None:
@@ -22,11 +26,19 @@ def test_a_30_s_hold_on_a_lossy_link_mid_motion_is_ridden_out(ros_env: dict[str,
     with flight(ros_env, delay=DELAY, link_options=["--loss", "0.05", "--seed", "15"], time_scale="0") as f:
         run = f.run()
         f.await_execution(PULL_OUT)
-        f.link.control.hold(30)
+        f.link.control.hold(HOLD_S)
         held_at = datetime.now(UTC)
         run_id, status = result_of(run)
         assert_flown_exactly_once(f, run_id, status)
-        assert_in_flight(f.events(run_id), PULL_OUT, held_at)
+        events = f.events(run_id)
+        assert_in_flight(events, PULL_OUT, held_at)
+        # The held link stayed connected (its keepalive gives up after 128 s), yet the run said at
+        # once that it had no news, with the pull-out in flight, while the link was still held.
+        lost = [e for e in events if e.kind is EventKind.LINK_LOST]
+        assert any(
+            e.data["quiet"] and e.data["in_flight"] == 1 and e.time < held_at + timedelta(seconds=HOLD_S) for e in lost
+        ), [(e.time, e.data) for e in lost]
+        assert EventKind.LINK_RESTORED in {e.kind for e in events}
         stats = f.link.control.stats()
         assert stats.holds == 1 and stats.up_stalls + stats.down_stalls > 0, stats
         assert not [c for c in stats.connections if c.ended_by == "reset by outage"]

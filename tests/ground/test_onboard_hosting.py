@@ -22,6 +22,7 @@ from console.accounts import AccountStore
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import open_change_feed
 from console.ground.run_hosts import RunHosting
+from console.onboard_launch import LaunchRefused, launch_onboard
 from console.onboard_view import OnboardView
 from console.terminal_host import TerminalHost
 from pride.audit_log import AuditLog
@@ -173,3 +174,24 @@ def _published_state(audit: AuditLog, reader: RunHosting, ready: Any = None, tim
             assert changed.wait(deadline - time.monotonic()), f"no published view of {RUN} that holds: {state}"
     finally:
         feed.close()
+
+
+def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_nothing_running(
+    audit: AuditLog,
+) -> None:
+    """The console's "run on the habitat" starts the supervising runner; one that ends before the
+    habitat accepted the unit (here: a binding with no link secret to sign it with) is a refusal
+    with the runner's own words."""
+    with pytest.raises(LaunchRefused) as refused:
+        launch_onboard(
+            PROCEDURE,
+            REPO / "sysrep" / "bindings" / "iva.yaml",
+            user="alice",
+            autonomous=True,
+            db_url=audit.url,
+            sysreps=REPO / "sysrep",
+            rosbridge=None,
+        )
+    said = str(refused.value)
+    assert "iva.yaml has no security.secret_file: an onboard unit is signed with the link's secret" in said, said
+    assert audit.runs() == []  # nothing started, nothing logged

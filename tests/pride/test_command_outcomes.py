@@ -183,7 +183,7 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: B
     assert (event.actor, event.instruction, event.data) == (
         PAX,
         "1.3",
-        {"links": ["ws://lab.bench:9090"], "since": since.isoformat(), "in_flight": 1},
+        {"links": ["ws://lab.bench:9090"], "since": since.isoformat(), "in_flight": 1, "quiet": False},
     )
     gateway.set_link(True)
     gateway.release.set()
@@ -193,6 +193,31 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: B
     (restored,) = of(journal, EventKind.LINK_RESTORED)
     assert restored.actor == PAX and restored.data["since"] == since.isoformat()
     assert executive.snapshot().link_summary() == ""
+
+
+def test_a_quiet_link_is_a_lost_link_from_when_it_was_last_heard(bench: Bench) -> None:
+    """A held link stays connected for minutes before the keepalive gives it up; the run must say
+    at once that it has no news, since when, and what is in flight, and not again when it drops."""
+    executive, gateway, journal = bench()
+    gateway.block.add("move")
+    at_move(executive)
+    assert executive.wait_for(lambda s: s.executing and s.current == "1.3", TIMEOUT)
+    heard = datetime(2026, 11, 23, 10, 0, 0, tzinfo=UTC)
+    gateway.set_link(True, in_flight=1, quiet_since=heard.timestamp())
+    snap = executive.wait_for(lambda s: s.link_lost_since is not None, TIMEOUT)
+    assert snap is not None and (snap.link_lost_since, snap.commands_in_flight, snap.link_quiet) == (heard, 1, True)
+    assert snap.link_summary() == "no news since 10:00:00Z, 1 command in flight"
+    assert snap.to_json()["link"] == {"state": "lost", "since": heard.isoformat(), "in_flight": 1, "quiet": True}
+    assert executive.wait_for(lambda s: EventKind.LINK_LOST in journal.kinds(), TIMEOUT) is not None
+    gateway.set_link(False, in_flight=1, since=heard.timestamp())  # the keepalive gives it up: the same loss
+    snap = executive.wait_for(lambda s: not s.link_quiet, TIMEOUT)
+    assert snap is not None and snap.link_lost_since == heard
+    gateway.set_link(True)
+    gateway.release.set()
+    held(executive, Hold.CONFIRMATION, "2.1")
+    assert executive.wait_for(lambda s: EventKind.LINK_RESTORED in journal.kinds(), TIMEOUT) is not None
+    (lost,) = of(journal, EventKind.LINK_LOST)  # one loss, recorded when the link fell quiet
+    assert lost.data == {"links": ["ws://lab.bench:9090"], "since": heard.isoformat(), "in_flight": 1, "quiet": True}
 
 
 def test_a_verify_counts_the_light_time_into_its_timeout(bench: Bench) -> None:

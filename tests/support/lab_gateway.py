@@ -92,8 +92,11 @@ class LabGateway:
     def add_link_listener(self, callback: LinkListener) -> None:
         self._link_listeners.append(callback)
 
-    def set_link(self, connected: bool, in_flight: int = 0, since: float | None = None) -> None:
-        state = LinkState(LINK, connected, None if connected else (since or time.time()), in_flight)
+    def set_link(
+        self, connected: bool, in_flight: int = 0, since: float | None = None, quiet_since: float | None = None
+    ) -> None:
+        """Tell the run the link went down (``since``), came back, or is up but quiet (``quiet_since``)."""
+        state = LinkState(LINK, connected, None if connected else (since or time.time()), in_flight, quiet_since)
         for listener in list(self._link_listeners):
             listener(state)
 

@@ -92,11 +92,15 @@ class ActionRequests:
     Subscribe :meth:`notice` to the process's change feed.
     """
 
-    def __init__(self, engine: Engine, *, host_id: str, console: str, perform: Performer) -> None:
+    def __init__(self, engine: Engine, *, host_id: str, console: str, perform: Performer, aside: bool = False) -> None:
+        """``aside``: perform each taken request on a thread of its own, for a host whose performing
+        waits on a far habitat (an action waiting for its answer must not keep a Halt from being
+        taken within :data:`TAKE_WITHIN_S`); otherwise one at a time, in order."""
         self._engine = engine
         self._host_id = host_id
         self._console = console[:200]
         self._perform = perform
+        self._aside = aside
         self._lock = threading.Lock()  # guards _waiting
         self._waiting: dict[int, threading.Event] = {}
         self._inbox: queue.Queue[int | None] = queue.Queue()
@@ -244,6 +248,16 @@ class ActionRequests:
         if not taken:
             return  # withdrawn, or taken already
         request = ForwardedAction(request_id, row.run_id, row.user_id, row.console, _action(row.action))
+        if self._aside:
+            threading.Thread(
+                target=self._perform_and_answer, args=(request,), name=f"forwarded-{request_id}", daemon=True
+            ).start()
+        else:
+            self._perform_and_answer(request)
+
+    def _perform_and_answer(self, request: ForwardedAction) -> None:
+        """Perform a taken request and write its answer (an answer that cannot be written: its requester
+        says the outcome is unknown, as for any host that did not answer)."""
         try:
             answer = self._perform(request)
         except Exception as exc:  # answered all the same: the requester must not wait for nothing
@@ -257,6 +271,12 @@ class ActionRequests:
             request.console,
             answer.status,
         )
+        try:
+            self._write_answer(request.request_id, answer)
+        except SQLAlchemyError as exc:
+            log.warning("cannot answer forwarded action %s: %s", request.request_id, str(exc).splitlines()[0])
+
+    def _write_answer(self, request_id: int, answer: Answer) -> None:
         with self._engine.begin() as connection:
             connection.execute(
                 update(run_action_requests)

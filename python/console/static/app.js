@@ -205,6 +205,7 @@ async function startRun(takeOver) {
   try {
     const {run_id} = await api("POST", "/api/runs", {
       procedure: form.get("procedure"), binding: form.get("binding"), mode: form.get("mode"), take_over: takeOver,
+      onboard: form.get("onboard") === "on",
     });
     location.hash = `run=${encodeURIComponent(run_id)}`;
     await loadRuns();

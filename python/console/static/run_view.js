@@ -339,7 +339,8 @@ function renderLink(state) {
       : `onboard run on the habitat: habitat time ${news.habitat_time ? clock(news.habitat_time) : "—"} UTC${at}${age}`;
   } else if (link.state === "lost") {
     const n = link.in_flight || 0;
-    box.textContent = `⚠ link lost since ${clock(link.since)} UTC, ${n} command${n === 1 ? "" : "s"} in flight`;
+    const what = link.quiet ? "no news from the habitat" : "link lost";  // quiet: held, not yet given up
+    box.textContent = `⚠ ${what} since ${clock(link.since)} UTC, ${n} command${n === 1 ? "" : "s"} in flight`;
   } else {
     box.textContent = state.live ? "link connected" : "";
   }

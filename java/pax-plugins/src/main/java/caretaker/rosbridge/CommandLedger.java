@@ -106,6 +106,11 @@ public final class CommandLedger implements AutoCloseable {
             public void handleDisconnection() {
                 tellListeners();
             }
+
+            @Override
+            public void handleQuiet(Instant since) {
+                tellListeners();
+            }
         };
         ros.addRosHandler(linkWatcher);
     }
@@ -215,7 +220,8 @@ public final class CommandLedger implements AutoCloseable {
     /** @return the link's state now */
     public LinkState linkState() {
         boolean connected = ros.isConnected();
-        return new LinkState(ros.getUri(), connected, connected ? null : ros.lostSince(), inFlight.get());
+        return new LinkState(ros.getUri(), connected, connected ? null : ros.lostSince(), inFlight.get(),
+                connected ? ros.quietSince() : null);
     }
 
     /** @param listener told about link state changes */
@@ -236,16 +242,19 @@ public final class CommandLedger implements AutoCloseable {
 
     private void changeInFlight(int delta) {
         inFlight.addAndGet(delta);
-        if (!ros.isConnected()) {
+        if (!ros.isConnected() || ros.quietSince() != null) {
             tellListeners();
         }
     }
 
     private void tellListeners() {
-        LinkState state = linkState();
-        for (LinkListener listener : listeners) {
-            ros.dispatch(() -> listener.linkChanged(state));
-        }
+        // read when it runs on the one callback thread, so the last state told is the state now
+        ros.dispatch(() -> {
+            LinkState state = linkState();
+            for (LinkListener listener : listeners) {
+                listener.linkChanged(state);
+            }
+        });
     }
 
     /** Parses a ledger reply {state, epoch, response_json, message}; unreadable parts make it UNKNOWN. */
@@ -295,7 +304,7 @@ public final class CommandLedger implements AutoCloseable {
 
     /** How long one command has been cut off from the habitat, against the outage budget. */
     private final class Outage {
-        /** When the trouble began (the link's own loss time when it knows one); null: no trouble. */
+        /** When the trouble began (when the link was last heard, if it knows); null: no trouble. */
         private Instant since;
         /** The latest failure, for the message. */
         private String latest = "";
@@ -307,8 +316,8 @@ public final class CommandLedger implements AutoCloseable {
          */
         void began(RosException failure) {
             latest = failure.getMessage();
-            if (since == null) {
-                Instant lost = ros.lostSince();
+            if (since == null) { // a quiet link: from when the habitat was last heard, as a lost one
+                Instant lost = ros.isConnected() ? ros.quietSince() : ros.lostSince();
                 since = lost != null ? lost : Instant.now();
             }
         }

@@ -40,6 +40,14 @@ final class Connection implements AutoCloseable {
         void lost(RosException failure);
 
         /**
+         * Nothing came from the server for a few keepalive intervals: it may be gone, long before
+         * the connection is given up; or it came again ({@code since} null).
+         *
+         * @param since when the server was last heard, or null when it is heard again
+         */
+        void quiet(Instant since);
+
+        /**
          * Something failed that no caller waits for.
          *
          * @param error what failed
@@ -91,7 +99,7 @@ final class Connection implements AutoCloseable {
         }
         this.http = builder.build();
         this.keepalive = new Keepalive("rosbridge-keepalive " + uri, options.pingInterval(), options.pingTimeout(),
-                this::ping, this::silent);
+                this::ping, this::silent, events::quiet, () -> events.quiet(null));
     }
 
     /** @see Ros#connect() */
@@ -248,6 +256,11 @@ final class Connection implements AutoCloseable {
         synchronized (connectionLock) {
             return socket != null;
         }
+    }
+
+    /** @see Ros#quietSince() */
+    Instant quietSince() {
+        return keepalive.quietSince();
     }
 
     /** @see Ros#lostSince() */

@@ -119,6 +119,13 @@ public final class Ros implements AutoCloseable {
             }
 
             @Override
+            public void quiet(Instant since) {
+                for (RosHandler handler : handlers) {
+                    dispatch(() -> handler.handleQuiet(since));
+                }
+            }
+
+            @Override
             public void received(String text) {
                 receive(text);
             }
@@ -269,6 +276,14 @@ public final class Ros implements AutoCloseable {
      */
     public Instant lostSince() {
         return connection.lostSince();
+    }
+
+    /**
+     * @return when the server was last heard, while nothing has come from it for a few keepalive
+     *         intervals (the connection still up); null while it is heard
+     */
+    public Instant quietSince() {
+        return connection.isConnected() ? connection.quietSince() : null;
     }
 
     /**

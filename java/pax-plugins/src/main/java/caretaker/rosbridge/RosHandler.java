@@ -11,6 +11,15 @@ public interface RosHandler {
     }
 
     /**
+     * Nothing came from the server for a few keepalive intervals (the connection is still up, and
+     * is given up only after the ping timeout), or it came again.
+     *
+     * @param since when it was last heard, or null when it is heard again
+     */
+    default void handleQuiet(java.time.Instant since) {
+    }
+
+    /**
      * Something failed that no caller is waiting for (a malformed message, a callback that threw).
      *
      * @param error what failed

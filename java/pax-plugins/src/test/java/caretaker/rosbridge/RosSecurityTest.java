@@ -211,6 +211,39 @@ class RosSecurityTest {
     }
 
     @Test
+    void aQuietServerIsSaidSoLongBeforeItIsDroppedAndHeardAgainWhenItAnswers() throws Exception {
+        // pings every 100 ms, given up after 30 s: quiet after 3 unanswered pings
+        RosOptions quick = new RosOptions(Duration.ofSeconds(5), Duration.ofMillis(50), Duration.ofMillis(200),
+                Duration.ofMillis(100), Duration.ofSeconds(30), null, null);
+        try (TestServer server = new TestServer(); Ros ros = new Ros(server.uri(), quick)) {
+            ros.connect();
+            BlockingQueue<String> events = new LinkedBlockingQueue<>();
+            ros.addRosHandler(new RosHandler() {
+                @Override
+                public void handleDisconnection() {
+                    events.add("down");
+                }
+
+                @Override
+                public void handleQuiet(java.time.Instant since) {
+                    events.add(since == null ? "heard again" : "quiet");
+                }
+            });
+            server.awaitClient();
+            while (server.pings() < 5) {
+                assertEquals(null, events.poll(100, TimeUnit.MILLISECONDS), "answered pings: not quiet");
+            }
+            server.answerPings(false);
+            assertEquals("quiet", events.poll(10, TimeUnit.SECONDS));
+            assertTrue(ros.isConnected() && ros.quietSince() != null, "quiet, still connected, last heard known");
+            server.answerPings(true);
+            assertEquals("heard again", events.poll(10, TimeUnit.SECONDS));
+            assertEquals(null, ros.quietSince());
+            assertEquals(null, events.poll(300, TimeUnit.MILLISECONDS), "never dropped: it was quiet, not gone");
+        }
+    }
+
+    @Test
     void linkOptionsKeepTheConnectionThroughAnOutageWithinTheBudget() {
         LinkOptions gateway = new LinkOptions(Duration.ofMillis(1300), Duration.ofSeconds(60));
         assertEquals(Duration.ofMillis(5200), gateway.pingInterval());

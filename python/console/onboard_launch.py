@@ -1,0 +1,119 @@
+"""Starting an onboard run from the console: "run on the habitat".
+
+The console does not supervise the habitat's run itself. It starts, on its own host, the runner
+an operator would start at a terminal (``caretaker run PROC --onboard``), with ``--at-consoles``
+so that a hold waits for an operator at a console instead of stopping the run. The runner lints,
+uplinks, keeps the ground's record and hosts the run in the ground database, so this console (and
+every other) shows it as any hosted run, and operators' actions are forwarded to it. It outlives
+a console that stops: the habitat's run must not lose its supervisor because a browser's server
+restarted.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+__all__ = ["LaunchRefused", "launch_onboard"]
+
+log = logging.getLogger(__name__)
+
+#: How long the start waits for the habitat to accept the unit (the runner keeps trying after
+#: that, until the unit's own lifetime runs out).
+READY_WITHIN_S = 60.0
+
+
+class LaunchRefused(RuntimeError):
+    """The runner ended before the habitat accepted the unit, or has not heard yet: the text is
+    what it said (lint errors, the habitat's refusal, an unreachable habitat) and where its log is."""
+
+
+def launch_onboard(
+    procedure: Path,
+    binding: Path,
+    *,
+    user: str,
+    autonomous: bool,
+    db_url: str,
+    sysreps: Path,
+    rosbridge: str | None,
+    ready_within: float = READY_WITHIN_S,
+) -> str:
+    """Start the supervising runner and wait until the habitat accepted the unit; the run's id.
+
+    The runner writes to a log file of its own (named in the console's log), not to a pipe: it
+    must go on printing after this console is gone.
+
+    Raises:
+        LaunchRefused: the runner could not start, ended before ``READY run``, or is still waiting
+            for the habitat's answer after ``ready_within`` (it is left running: the habitat may
+            yet accept the unit, and then the run appears in the list).
+    """
+    command = [
+        str(Path(sys.executable).with_name("caretaker")),
+        "run",
+        str(procedure),
+        "--binding",
+        str(binding),
+        "--onboard",
+        "--at-consoles",
+        "--auto" if autonomous else "--manual",
+        "--user",
+        user,
+        "--sysrep-dir",
+        str(sysreps),
+        *(["--rosbridge", rosbridge] if rosbridge else []),
+    ]
+    with tempfile.NamedTemporaryFile("w", prefix="caretaker-onboard-runner-", suffix=".log", delete=False) as out:
+        logfile = Path(out.name)
+        try:
+            runner = subprocess.Popen(
+                command,
+                stdin=subprocess.DEVNULL,
+                stdout=out,
+                stderr=subprocess.STDOUT,
+                env={**os.environ, "CARETAKER_DB": db_url},  # not on the command line: it may hold a password
+                start_new_session=True,  # not stopped with the console (a Ctrl-C at its terminal)
+            )
+        except OSError as exc:
+            raise LaunchRefused(f"cannot start the runner ({command[0]}): {exc}") from None
+    log.info("onboard runner %d started by %s; its log: %s", runner.pid, user, logfile)
+    ended = threading.Event()
+
+    def reap() -> None:  # a runner that ends is waited for, whether or not the start still waits on it
+        runner.wait()
+        ended.set()
+
+    threading.Thread(target=reap, name=f"runner-{runner.pid}", daemon=True).start()
+    run_id = _await_ready(logfile, ended, ready_within)
+    said = logfile.read_text(errors="replace").strip()
+    if run_id is None and ended.is_set():
+        raise LaunchRefused(f"{said or 'the runner ended without a word'}\n(runner log: {logfile})")
+    if run_id is None:
+        raise LaunchRefused(
+            f"no answer from the habitat within {ready_within:.0f} s; the runner (pid {runner.pid}) keeps "
+            f"sending the unit until it expires, and the run appears in the list if the habitat accepts it "
+            f"(runner log: {logfile}):\n{said}"
+        )
+    log.info("onboard run %s started by %s (runner pid %d)", run_id, user, runner.pid)
+    return run_id
+
+
+def _await_ready(logfile: Path, ended: threading.Event, within: float) -> str | None:
+    """The run id from the runner's ``READY run <id>`` line, read as the runner writes it; None if
+    it ended first or ``within`` ran out. The file is read again each time the runner may have
+    written (a tenth of a second apart: a file gives no event to wait on)."""
+    deadline = time.monotonic() + within
+    while True:
+        for line in logfile.read_text(errors="replace").splitlines():
+            if line.startswith("READY run "):
+                return line.split()[-1]
+        if ended.is_set() or time.monotonic() >= deadline:
+            return None
+        ended.wait(0.1)
