@@ -113,7 +113,11 @@ def test_report_of_an_edited_run_says_so_and_verify_names_the_event(
     database.tamper(
         "UPDATE audit_records SET data = replace(data, 'dock', 'bay') WHERE kind = 'operator_input'"
     )  # someone "corrects" the recorded value
-    seq = next(e.seq for e in AuditLog(db).events(run_id) if e.data.get("value") == "bay")
+    log = AuditLog(db)
+    try:
+        seq = next(e.seq for e in log.events(run_id) if e.data.get("value") == "bay")
+    finally:
+        log.close()
 
     verify = report(run_id, db, "--verify")
     assert verify.returncode == 1

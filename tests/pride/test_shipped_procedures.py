@@ -65,8 +65,11 @@ def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_ste
     assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
 
     log = AuditLog(db)
-    ((run_id, _, _),) = log.runs()
-    events = log.events(run_id)
+    try:
+        ((run_id, _, _),) = log.runs()
+        events = log.events(run_id)
+    finally:
+        log.close()
     assert events[-1].kind is EventKind.RUN_COMPLETED
     procedure = load_procedure(REPO / "procedures" / procedure_file)
     nominal = [s for s in procedure.steps if not s.contingency]
