@@ -127,7 +127,7 @@ public final class PaxHost implements AutoCloseable {
      */
     private static void connect(SystemBinding system, Ros ros, CommandLedger ledger) {
         try {
-            ros.connect();
+            ros.connect(ledger.link().outageBudget()); // a slow habitat (a starved CPU, a far link) is not a dead one
         } catch (RosAuthException e) {
             throw new RosAuthException(system.where() + ": " + e.getMessage());
         } catch (RosException e) {

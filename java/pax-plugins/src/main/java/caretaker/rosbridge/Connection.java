@@ -178,6 +178,9 @@ final class Connection implements AutoCloseable {
             throw new RosException("interrupted while connecting to " + uri, e);
         } catch (ExecutionException e) {
             Throwable cause = e.getCause() == null ? e : e.getCause();
+            if (cause instanceof java.net.http.HttpTimeoutException) { // the HTTP client's own clock ran out first
+                throw new RosTimeoutException("connect to " + uri, options.timeout());
+            }
             throw new RosException("cannot connect to rosbridge at " + uri + ": " + describe(cause), cause);
         }
         return new Opened(opened, listener);

@@ -179,6 +179,29 @@ public final class Ros implements AutoCloseable {
         }
     }
 
+    /**
+     * Connects as {@link #connect()} does, and tries again while the server does not answer in time,
+     * until {@code patience} has run out: a starved or far server is slow, not gone. A refused
+     * connection or authentication fails at once.
+     *
+     * @param patience how long to keep trying after timeouts (a link's outage budget)
+     * @throws RosTimeoutException no connection within the timeout, on the last try
+     */
+    public void connect(Duration patience) {
+        long deadline = System.nanoTime() + patience.toNanos();
+        while (true) {
+            try {
+                connect();
+                return;
+            } catch (RosTimeoutException e) {
+                if (System.nanoTime() - deadline >= 0) {
+                    throw e;
+                }
+                LOG.log(System.Logger.Level.WARNING, e.getMessage() + "; trying again (slow, perhaps not gone)");
+            }
+        }
+    }
+
     private void confirmAuthentication() {
         try {
             new Service(this, "/rosapi/get_ros_version", null).callServiceAndWait(new ServiceRequest(),

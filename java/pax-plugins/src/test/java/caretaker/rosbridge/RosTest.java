@@ -79,6 +79,24 @@ class RosTest {
     }
 
     @Test
+    void aSlowServerIsTriedAgainWithinThePatienceAndATimeoutPastItIsReported() throws Exception {
+        RosOptions quick = new RosOptions(Duration.ofMillis(300), Duration.ofMillis(50), Duration.ofMillis(200));
+        try (TestServer slow = new TestServer(); Ros patient = new Ros(slow.uri(), quick)) {
+            slow.leaveHandshakesUnanswered(2); // two opening handshakes time out, the third is answered
+            patient.connect(Duration.ofSeconds(30));
+            assertTrue(patient.isConnected());
+            assertEquals(1, slow.handshakes());
+        }
+        try (TestServer slow = new TestServer(); Ros impatient = new Ros(slow.uri(), quick)) {
+            slow.leaveHandshakesUnanswered(100);
+            RosTimeoutException error = assertThrows(RosTimeoutException.class,
+                    () -> impatient.connect(Duration.ofMillis(500)));
+            assertTrue(error.getMessage().contains("no answer within"), error.getMessage());
+            assertFalse(impatient.isConnected());
+        }
+    }
+
+    @Test
     void rejectsNonWebSocketUri() {
         assertThrows(IllegalArgumentException.class, () -> new Ros(URI.create("http://x:1"), FAST));
     }

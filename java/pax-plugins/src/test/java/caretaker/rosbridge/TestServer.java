@@ -46,6 +46,7 @@ public final class TestServer implements AutoCloseable {
     private final AtomicInteger handshakes = new AtomicInteger();
     private final AtomicInteger pings = new AtomicInteger();
     private volatile boolean answerPings = true;
+    private final AtomicInteger unanswered = new AtomicInteger();
     private final String scheme;
 
     /** Starts listening on an ephemeral loopback port. */
@@ -200,10 +201,22 @@ public final class TestServer implements AutoCloseable {
         }
     }
 
+    /**
+     * Leaves the next {@code count} opening handshakes unanswered (the connection stays open, as a
+     * starved server's would), as if the server were too slow to answer them.
+     */
+    public void leaveHandshakesUnanswered(int count) {
+        unanswered.set(count);
+    }
+
     private void serve(Socket socket) {
         try (socket) {
             InputStream in = socket.getInputStream();
             String key = handshake(in);
+            if (unanswered.getAndUpdate(n -> Math.max(n - 1, 0)) > 0) {
+                in.transferTo(OutputStream.nullOutputStream()); // until the client gives up on it
+                return;
+            }
             OutputStream out = socket.getOutputStream();
             String accept = Base64.getEncoder().encodeToString(MessageDigest.getInstance("SHA-1")
                     .digest((key + GUID).getBytes(StandardCharsets.US_ASCII)));
