@@ -8,23 +8,30 @@ PYTEST := $(VENV)/bin/pytest
 setup:
 	@./tools/setup.sh
 
-# ruff and mypy on the project's own code (configured in pyproject.toml); `make test` runs it first.
+# Runs a command with its output held until it ends: beside the test suite's live output, lint's
+# and JUnit's each come as one block.
+held = out=$$( { $(1); } 2>&1 ); status=$$?; [ -z "$$out" ] || printf '%s\n' "$$out"; exit $$status
+
+# ruff and mypy on the project's own code (configured in pyproject.toml).
 lint: setup
-	$(VENV)/bin/ruff check
-	$(VENV)/bin/mypy
+	@$(call held,$(VENV)/bin/ruff check && $(VENV)/bin/mypy)
 
-test: setup lint test-java test-python
+# Lint, JUnit and pytest side by side: the whole command lasts as long as its longest test file
+# (the 10-minute onboard outage) plus set-up, instead of their sum; a failure in any fails it.
+test: setup
+	@$(MAKE) --no-print-directory -j 3 lint test-java test-python
 
-test-java:
-	@if [ -f pom.xml ]; then mvn -q test; fi
+test-java: setup
+	@if [ -f pom.xml ]; then $(call held,mvn -q test); fi
 
-# Three workers on the CI machine's 2 cores: the suite waits more than it computes (links,
-# processes, browsers: about two thirds of both cores busy with three; four starve the robot
-# stacks). A test file per worker so module fixtures (a robot stack, a browser) are built once;
-# the longest files first (tests/conftest.py), so the 12-minute onboard outage test, which mostly
-# waits out its outage, runs beside everything else instead of after it.
-PYTEST_WORKERS ?= 3
-test-python:
+# Six workers on the CI machine's 2 cores: the suite waits more than it computes (a link's light
+# time, a ten-minute outage, processes and browsers starting), so more files run at once than there
+# are cores; while lighter files remain, no more than the cores can carry. The scheduler (tests/
+# support/file_schedule.py) hands out whole files, the longest first, within a budget of cores
+# measured per file (tests/file_costs.json), and queues no file behind a long one. A file per
+# worker at a time, so module fixtures (a robot stack, a browser) are built once.
+PYTEST_WORKERS ?= 6
+test-python: setup
 	$(PYTEST) -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=25 tests
 
 demo: setup
@@ -36,8 +43,11 @@ docs: setup
 	CARETAKER_SCREENSHOTS=$(CURDIR)/docs/images $(PYTEST) tests/web/test_operator_view.py \
 		tests/web/test_flight_controls.py tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py
 
+# Every benchmark; the harnesses that run another command (cpu_load.py, cpu_by_part.py,
+# suite_profile.py) are tools for any of them, not benchmarks themselves.
+BENCHMARKS := $(filter-out bench/cpu_load.py bench/cpu_by_part.py bench/suite_profile.py,$(wildcard bench/*.py))
 bench: setup
-	@for b in bench/*.py; do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done
+	@for b in $(BENCHMARKS); do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done
 
 clean:
 	rm -rf build java/pax-plugins/target

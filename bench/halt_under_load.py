@@ -26,7 +26,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.cpu_load import cpu_hogs
 
 REPO = Path(__file__).resolve().parents[1]
-TEST = "tests/web/test_halt_on_real_stack.py"
+#: The HALT test alone (the file's other test, the way on after a halt, runs the whole procedure).
+TEST = "tests/web/test_halt_on_real_stack.py::test_halt_during_the_pull_out_stops_the_arm_within_half_a_second"
 FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the click \((-?[0-9.]+) s of sim time")
 TIMELINE = re.compile(r"HALT timeline after the click: .*")
 STILL = "HALT: the arm was still at the click"

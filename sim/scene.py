@@ -10,10 +10,12 @@ line naming file, line and key (:mod:`datafile`); building the world into pybull
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import re
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from datafile import DataFileError, Field, load_file, shipped_or_path
+from datafile.urdf import read_urdf
 
 __all__ = [
     "SCENES_DIR",
@@ -22,6 +24,7 @@ __all__ = [
     "FilterModel",
     "FilterSpec",
     "GripperSpec",
+    "MarkerSpec",
     "Pose",
     "RobotSpec",
     "Scene",
@@ -35,12 +38,16 @@ __all__ = [
     "filter_parts",
     "filter_shapes",
     "load_scene",
+    "marker_frames",
     "resolve_scene",
+    "slot_body",
     "target_parts",
 ]
 
 SCENES_DIR = Path(__file__).resolve().parent / "scenes"
 SHAPE_TYPES = ("box", "cylinder")
+#: The dictionary markers are drawn from unless the scene names another (OpenCV's name for it).
+DEFAULT_MARKER_DICTIONARY = "DICT_APRILTAG_36h11"
 RGBA = tuple[float, float, float, float]
 
 
@@ -150,6 +157,17 @@ class CameraSpec:
 
 
 @dataclass(frozen=True)
+class MarkerSpec:
+    """A fiducial marker printed on an object: ``pose`` in ``frame`` (z out of the printed face,
+    x right and y up as the marker reads), ``size`` the black square's side in m."""
+
+    id: int
+    size: float
+    frame: str  # a body, a slot, filter/<id> or target/<name>
+    pose: Pose
+
+
+@dataclass(frozen=True)
 class GripperSpec:
     joints: tuple[str, ...]
     finger_links: tuple[str, ...]
@@ -184,6 +202,24 @@ class Scene:
     targets: tuple[TargetSpec, ...]
     target_model: TargetModel | None
     cameras: dict[str, CameraSpec]
+    markers: tuple[MarkerSpec, ...] = ()
+    marker_dictionary: str = DEFAULT_MARKER_DICTIONARY
+
+
+def slot_body(scene: Scene, slot: str) -> str | None:
+    """The body a slot is part of: the one its name starts with (``rack/slot_1`` is the rack's)."""
+    body = slot.partition("/")[0]
+    return body if "/" in slot and any(b.name == body for b in scene.bodies) else None
+
+
+def marker_frames(scene: Scene) -> list[str]:
+    """The frames a marker may be fixed to: bodies, slots, filters and targets."""
+    return (
+        [b.name for b in scene.bodies]
+        + list(scene.slots)
+        + [f"filter/{f.id}" for f in scene.filters]
+        + [f"target/{t.name}" for t in scene.targets]
+    )
 
 
 def filter_grasp_offset(model: FilterModel) -> Pose:
@@ -277,6 +313,8 @@ def load_scene(scene: str | Path) -> Scene:
             "targets",
             "target_model",
             "cameras",
+            "markers",
+            "marker_dictionary",
         ),
     )
     robot = _load_robot(root["robot"])
@@ -346,7 +384,7 @@ def load_scene(scene: str | Path) -> Scene:
     _unique(camera_fields, [c.name for c in cameras], "camera")
     gravity = root.get("gravity")
     rate = root.get("physics_rate_hz")
-    return Scene(
+    loaded = Scene(
         name=root["name"].text(),
         path=path,
         gravity=gravity.numbers(3) if gravity else (0.0, 0.0, -9.81),  # type: ignore[arg-type]
@@ -360,6 +398,42 @@ def load_scene(scene: str | Path) -> Scene:
         targets=targets,
         target_model=target_model,
         cameras={c.name: c for c in cameras},
+    )
+    dictionary = root.get("marker_dictionary")
+    marker_fields = _listed(root, "markers")
+    if not marker_fields and dictionary is None:
+        return loaded
+    size = _dictionary_size(dictionary)
+    frames = marker_frames(loaded)
+    markers = tuple(_load_marker(m, frames, size) for m in marker_fields)
+    _unique(marker_fields, [str(m.id) for m in markers], "marker")
+    return replace(
+        loaded, markers=markers, marker_dictionary=dictionary.text() if dictionary else DEFAULT_MARKER_DICTIONARY
+    )
+
+
+def _dictionary_size(f: Field | None) -> int:
+    """How many markers the named OpenCV dictionary has (its ids are 0 to that, exclusive)."""
+    import cv2  # only scenes with markers need OpenCV
+
+    name = f.text() if f is not None else DEFAULT_MARKER_DICTIONARY
+    known = sorted(n for n in dir(cv2.aruco) if n.startswith("DICT_") and isinstance(getattr(cv2.aruco, n), int))
+    if name not in known:
+        assert f is not None  # the default is one of them
+        raise f.fail(f"unknown marker dictionary {name!r}; OpenCV's are {', '.join(known)}")
+    return int(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0])
+
+
+def _load_marker(m: Field, frames: list[str], dictionary_size: int) -> MarkerSpec:
+    m.mapping(required=("id", "size", "frame"), optional=("xyz", "rpy"))
+    frame = m["frame"].text()
+    if frame not in frames:
+        raise m["frame"].fail(f"unknown frame {frame!r}; markers are fixed to one of {', '.join(frames)}")
+    return MarkerSpec(
+        id=m["id"].integer(min=0, max=dictionary_size - 1),
+        size=m["size"].number(min=0.005, max=2.0),
+        frame=frame,
+        pose=_pose_of(m),
     )
 
 
@@ -385,6 +459,18 @@ def _load_robot(r: Field) -> RobotSpec:
         if initial not in poses:
             raise g["initial"].fail(f"unknown pose {initial!r}; poses are {sorted(poses)}")
         gripper = GripperSpec(gripper_joints, g["finger_links"].names(), poses, initial)
+    # every name the scene gives the robot, checked where it is written, not when pybullet loads it
+    urdf = read_urdf(r["urdf"].file_path())
+    urdf.check_link(r["tool_link"])
+    if r.has("base_link"):
+        urdf.check_link(r["base_link"])
+    for joint in r["arm_joints"].sequence():
+        urdf.check_joint(joint)
+    if r.has("gripper"):
+        for joint in r["gripper"]["joints"].sequence():
+            urdf.check_joint(joint)
+        for link in r["gripper"]["finger_links"].sequence():
+            urdf.check_link(link)
     base_link = r.get("base_link")
     return RobotSpec(
         name=r["name"].text(),
@@ -454,8 +540,12 @@ def _load_camera(c: Field) -> CameraSpec:
     elif c.has("eye") or c.has("target"):
         raise c.fail("a camera is either fixed (eye, target) or mounted on a link, not both")
     near, far, background = c.get("near"), c.get("far"), c.get("background")
+    name = c["name"].text()
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+        # it names the camera's topics (camera/<name>/image): only a ROS name will do
+        raise c["name"].fail(f"{name!r} is not a ROS name: letters, digits and _, starting with a letter")
     return CameraSpec(
-        name=c["name"].text(),
+        name=name,
         width=c["width"].integer(min=8, max=4096),
         height=c["height"].integer(min=8, max=4096),
         fov_deg=c["fov_deg"].number(min=1.0, max=179.0),

@@ -16,13 +16,14 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import rclpy
 from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
+from caretaker_sim_msgs.msg import CollisionWorld, Marker, Markers, NamedPoses, VisualWorld
+from caretaker_sim_msgs.srv import CaptureImage, GetFrames, Halt, PrintMarker, SetGripper
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
@@ -31,15 +32,16 @@ from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, Si
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, JointState
+from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from sim.cameras import CameraImage, capture_file_name, render, write_png
-from sim.collision_world import collision_world
+from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, intrinsics, render, write_png
+from sim.collision_world import collision_world, pose_message
+from sim.publish_gate import PublishGate
 from sim.render_budget import RenderBudget
 from sim.robot_description import robot_description
-from sim.scene import SceneError, load_scene
+from sim.scene import CameraSpec, Scene, SceneError, load_scene
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
 from sim.visual_world import visual_world
@@ -54,6 +56,14 @@ FRAMES_PERIOD = 0.1  # s of sim time
 #: bounded rate, and at --time-scale 0 sim time can run many times faster than the wall clock.
 FRAMES_MIN_WALL_PERIOD = 0.05
 STATUS_PERIOD = 1.0  # s of sim time; status topics are also published on every change
+#: s of sim time between repeats of joint states and frames that have not changed (publish_gate.py)
+REST_PERIOD = 1.0
+#: Physics steps of sim time per wake-up while nothing moves: a quarter of the wake-ups.
+IDLE_BATCH = 4
+#: s of sim time the physics still runs after the last thing moved, so that whatever was let go
+#: settles; after that a world at rest only has its clock moved (Simulation.rest), which took an
+#: idle simulator from 8 % of a core, most of it pybullet stepping bodies at rest, to next to nothing.
+SETTLE_S = 0.5
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 #: Requests a service keeps queued: ROS's default of 10 drops the rest of a burst silently.
 SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
@@ -70,8 +80,12 @@ class SimNode(Node):
         self.time_scale = time_scale
         self.capture_dir = capture_dir
         group = ReentrantCallbackGroup()
-        self.joint_state_pub = self.create_publisher(JointState, "joint_states", 10)
-        self.frames_pub = self.create_publisher(NamedPoses, "sim/frames", 10)
+        # Latched: at rest they are published once a second (publish_gate.py), and a part that
+        # starts then (an AT server restarted mid-run) must not plan without the arm's state.
+        # Depth 1: a late subscriber gets the newest sample only, never a replay of older ones
+        # (a depth of 10 handed a late reader the part's pose from mid-motion).
+        self.joint_state_pub = self.create_publisher(JointState, "joint_states", LATCHED)
+        self.frames_pub = self.create_publisher(NamedPoses, "sim/frames", LATCHED)
         self.moving_pub = self.create_publisher(Bool, "robot/moving", LATCHED)
         self.collision_world_pub = self.create_publisher(CollisionWorld, "sim/collision_world", LATCHED)
         self.collision_world_pub.publish(collision_world(sim.scene))
@@ -79,6 +93,19 @@ class SimNode(Node):
         self.visual_world_pub.publish(visual_world(sim.scene))
         self.description_pub = self.create_publisher(String, "robot_description", LATCHED)
         self.description_pub.publish(String(data=robot_description(sim.scene.robot.urdf)))
+        self.markers_pub = self.create_publisher(Markers, "sim/markers", LATCHED)
+        self.markers_pub.publish(markers_message(sim.scene))
+        self.camera_info_pubs = {}
+        for name, spec in sim.scene.cameras.items():
+            self.camera_info_pubs[name] = self.create_publisher(CameraInfo, f"camera/{name}/camera_info", LATCHED)
+            self.camera_info_pubs[name].publish(camera_info(spec))
+        # The ground truth, for tests and world checks: nothing on the robot side calls these.
+        self.true_frames_srv = self.create_service(
+            GetFrames, "sim/check/frames", self.true_frames_callback, qos_profile=SERVICE_QOS, callback_group=group
+        )
+        self.print_marker_srv = self.create_service(
+            PrintMarker, "sim/check/print_marker", self.print_marker_callback, qos_profile=SERVICE_QOS
+        )
         # Stamps are sim time on a timeline that starts at the wall clock's now: at time scale 1
         # they track the wall clock (ages stay meaningful), and stamp differences are sim time.
         self._epoch_ns = self.get_clock().now().nanoseconds - int(sim.time * 1e9)
@@ -120,6 +147,8 @@ class SimNode(Node):
                 Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group
             )
         self._last_status: tuple | None = None
+        self._joint_gate = PublishGate(REST_PERIOD)
+        self._frames_gate = PublishGate(REST_PERIOD)
         self.failed = False
         self._stop = threading.Event()
         self._stepper = threading.Thread(target=self._step_loop, name="sim-stepper", daemon=True)
@@ -141,24 +170,34 @@ class SimNode(Node):
         frames_wall = 0.0
         wall_origin, sim_origin = time.monotonic(), sim.time
         steps = 0
+        moved_at = sim.time
         try:
             while not self._stop.is_set():
                 sim.world_lock.give_way()  # a goal, a halt or a capture waiting for the world goes first
                 with sim.world_lock:
-                    sim.step()
+                    if sim.busy:
+                        sim.step()
+                        moved_at = sim.time
+                    elif sim.time - moved_at < SETTLE_S:
+                        for _ in range(IDLE_BATCH):
+                            sim.step()
+                    else:
+                        sim.rest(IDLE_BATCH)
                     now = sim.time
                     busy = sim.busy
                     if now >= next_joint_states:
                         next_joint_states = now + JOINT_STATE_PERIOD
                         self._publish_joint_states()
+                        # status changes are looked for at the joint states' rate, not every step:
+                        # a change seen 16 ms later is as good, for a quarter of the lookups
+                        status = self._status()
+                        if status != self._last_status or now >= next_status:
+                            next_status = now + STATUS_PERIOD
+                            self._publish_status(status)
                     if now >= next_frames and time.monotonic() - frames_wall >= FRAMES_MIN_WALL_PERIOD:
                         next_frames = now + FRAMES_PERIOD
                         frames_wall = time.monotonic()
                         self._publish_frames()
-                    status = self._status()
-                    if status != self._last_status or now >= next_status:
-                        next_status = now + STATUS_PERIOD
-                        self._publish_status(status)
                 steps += 1
                 if self.time_scale > 0 or not busy:
                     # Idle at time scale 0 still runs at real time: nothing changes, and a
@@ -188,22 +227,46 @@ class SimNode(Node):
 
     def _publish_joint_states(self) -> None:
         names, positions, velocities = self.sim.joint_state()
+        if not self._joint_gate.due([*positions, *velocities], self.sim.time):
+            return
         msg = JointState()
         msg.header.stamp = self.sim_stamp()
         msg.name, msg.position, msg.velocity = names, positions, velocities
         self.joint_state_pub.publish(msg)
 
     def _publish_frames(self) -> None:
+        frames = self.sim.frames()
+        if not self._frames_gate.due([v for _, (pos, orn) in frames for v in (*pos, *orn)], self.sim.time):
+            return
+        self.frames_pub.publish(self._named_poses(frames))
+
+    def _named_poses(self, frames: Sequence[tuple[str, CameraPose]]) -> NamedPoses:
         msg = NamedPoses()
         msg.header.stamp = self.sim_stamp()
         msg.header.frame_id = "world"
-        for name, (pos, orn) in self.sim.frames():
-            pose = Pose()
-            pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pos)
-            pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in orn)
+        for name, (pos, orn) in frames:
             msg.names.append(name)
-            msg.poses.append(pose)
-        self.frames_pub.publish(msg)
+            msg.poses.append(_pose(pos, orn))
+        return msg
+
+    def true_frames_callback(self, request: GetFrames.Request, response: GetFrames.Response) -> GetFrames.Response:
+        with self.sim.world_lock:
+            response.frames = self._named_poses(self.sim.true_frames())
+        return response
+
+    def print_marker_callback(
+        self, request: PrintMarker.Request, response: PrintMarker.Response
+    ) -> PrintMarker.Response:
+        markers = self.sim.world.markers
+        if request.id not in markers:
+            response.success = False
+            response.message = f"no marker {request.id} is declared; markers are {sorted(markers)}"
+            return response
+        with self.sim.world_lock:
+            self.sim.world.print_marker(request.id, request.printed_id)
+        shown = "nothing (covered)" if request.printed_id < 0 else f"marker {request.printed_id}"
+        response.success, response.message = True, f"marker {request.id} now shows {shown}"
+        return response
 
     def _status(self) -> tuple:
         sim = self.sim
@@ -367,9 +430,9 @@ class SimNode(Node):
 
     # ------------------------------------------------------------------ cameras
 
-    def _render(self, name: str, *, wait: bool) -> tuple[CameraImage, float] | None:
-        """An image of camera ``name`` and its sim time, when the render budget gives a turn
-        (``wait``: wait for it; else None when it is not due)."""
+    def _render(self, name: str, *, wait: bool) -> tuple[CameraImage, float, CameraPose] | None:
+        """An image of camera ``name``, its sim time and the camera's pose then, when the render
+        budget gives a turn (``wait``: wait for it; else None when it is not due)."""
         if not self.render_budget.take_turn(wait):
             return None
         sim = self.sim
@@ -379,7 +442,7 @@ class SimNode(Node):
             with sim.world_lock:
                 started = time.monotonic()
                 link_pose = sim.link_pose(sim.world.link_index[spec.link]) if spec.link else None
-                image = render(spec, sim.client, link_pose), sim.time
+                image = render(spec, sim.client, link_pose), sim.time, link_pose or fixed_camera_pose(spec)
                 spent = time.monotonic() - started
             return image
         finally:
@@ -398,7 +461,7 @@ class SimNode(Node):
             if pub.get_subscription_count() > 0:  # rendering costs CPU: only for someone watching
                 rendered = self._render(name, wait=False)
                 if rendered is not None:  # else not due (the render budget): this period has no image
-                    pub.publish(self._image_msg(*rendered))
+                    pub.publish(self._image_msg(*rendered[:2]))
 
     def capture_callback(self, request: CaptureImage.Request, response: CaptureImage.Response) -> CaptureImage.Response:
         cameras = self.sim.scene.cameras
@@ -410,8 +473,9 @@ class SimNode(Node):
             return response
         rendered = self._render(request.camera, wait=True)
         assert rendered is not None  # waited for its turn
-        image, sim_time = rendered
+        image, sim_time, (position, orientation) = rendered
         response.image = self._image_msg(image, sim_time)
+        response.camera_pose = _pose(position, orientation)
         response.success = True
         if request.label:
             path = self.capture_dir / capture_file_name(self.sim.scene.name, request.camera, request.label, sim_time)
@@ -427,6 +491,38 @@ class SimNode(Node):
         return response
 
 
+CameraPose = tuple[tuple[float, ...], tuple[float, ...]]
+
+
+def _pose(position: tuple[float, ...], orientation: tuple[float, ...]) -> Pose:
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in orientation)
+    return pose
+
+
+def markers_message(scene: Scene) -> Markers:
+    """The markers the scene declares, where they are on their frames (the world model's)."""
+    msg = Markers(dictionary=scene.marker_dictionary)
+    for spec in scene.markers:
+        msg.markers.append(Marker(id=spec.id, size=float(spec.size), frame=spec.frame, pose=pose_message(spec.pose)))
+    return msg
+
+
+def camera_info(spec: CameraSpec) -> CameraInfo:
+    """``spec``'s calibration: the pinhole it renders with (``sim.cameras.intrinsics``), no distortion."""
+    fx, fy, cx, cy = intrinsics(spec)
+    msg = CameraInfo()
+    msg.header.frame_id = f"camera/{spec.name}"
+    msg.width, msg.height = spec.width, spec.height
+    msg.distortion_model = "plumb_bob"
+    msg.d = [0.0] * 5
+    msg.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
+    msg.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    msg.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+    return msg
+
+
 def _parse(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="caretaker sim", description="Run a pybullet world as the robot's hardware (ROS 2 node)."
@@ -439,6 +535,13 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         help="sim seconds per wall second; 0 = as fast as possible while anything moves",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed for every random generator")
+    parser.add_argument(
+        "--displace",
+        type=int,
+        metavar="SEED",
+        help="build the world with its slot bodies and targets moved by a random offset of this seed"
+        " (sim/displacement.py); sim/frames still says where the scene file puts them",
+    )
     parser.add_argument("--namespace", default="", help="ROS namespace for all topics and services")
     parser.add_argument(
         "--capture-dir",
@@ -494,7 +597,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.snapshot:
             print(f"wrote {snapshot(args.scene, args.snapshot, seed=args.seed)}")
             return 0
-        sim = Simulation(load_scene(args.scene), seed=args.seed)
+        sim = Simulation(load_scene(args.scene), seed=args.seed, displace=args.displace)
     except SceneError as exc:
         print(f"caretaker sim: {exc}", file=sys.stderr)
         return 2
@@ -514,7 +617,8 @@ def main(argv: list[str] | None = None) -> int:
     try:  # from the first thread on: a Ctrl-C anywhere (even during the READY line) tears down
         halts.start()
         node.start()
-        print(f"READY sim {sim.scene.name}", flush=True)
+        displaced = "" if args.displace is None else f" (displaced, seed {args.displace})"
+        print(f"READY sim {sim.scene.name}{displaced}", flush=True)
         _spin_until_stopped(executor)
     except KeyboardInterrupt:  # during the start, before the executor took over
         pass

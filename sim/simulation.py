@@ -18,6 +18,7 @@ import pybullet as p
 
 from sim.cameras import fixed_camera_pose
 from sim.cdra_cabinet import CdraCabinet
+from sim.displacement import displaced_scene
 from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
 from sim.scene import Scene
@@ -54,20 +55,26 @@ class TrajectoryRun:
 
 
 class Simulation:
-    """One scene in one pybullet DIRECT client; ``step`` advances it by ``dt``."""
+    """One scene in one pybullet DIRECT client; ``step`` advances it by ``dt``.
 
-    def __init__(self, scene: Scene, *, seed: int = 0) -> None:
+    With ``displace`` (a seed) the physical world is ``sim.displacement.displaced_scene``: things
+    are not where ``scene`` says, while :meth:`frames` still says what ``scene`` says (the world
+    model) and only :meth:`true_frames` (the ground truth, for checks) says where they are.
+    """
+
+    def __init__(self, scene: Scene, *, seed: int = 0, displace: int | None = None) -> None:
         # Seeded although the dynamics are deterministic anyway: any randomness added later
         # (sensor noise, perturbations) stays reproducible under the same --seed.
         random.seed(seed)
         np.random.seed(seed)
         self.scene = scene
+        self.physical = scene if displace is None else displaced_scene(scene, displace)
         self.world_lock = WorldLock()
         self.client = p.connect(p.DIRECT)
         p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
         self.dt = 1.0 / scene.physics_rate_hz
         p.setTimeStep(self.dt, physicsClientId=self.client)
-        self.world: World = build_world(scene, self.client)
+        self.world: World = build_world(self.physical, self.client)
         self.time = 0.0
         self.robot = self.world.robot
         self.arm_joints = tuple(scene.robot.arm_joints)
@@ -80,8 +87,9 @@ class Simulation:
         self.tool_link = self.world.link_index[scene.robot.tool_link]
         self.arm_positions = list(scene.robot.initial_positions)
         self.arm_velocities = [0.0] * len(self.arm_joints)
-        self.cabinet = CdraCabinet(scene.cabinet, self.world) if scene.cabinet else None
-        self.filters = FilterSlots(scene, self.world, self.cabinet.is_locked if self.cabinet else (lambda slot: False))
+        self.cabinet = CdraCabinet(self.physical.cabinet, self.world) if self.physical.cabinet else None
+        locked = self.cabinet.is_locked if self.cabinet else (lambda slot: False)
+        self.filters = FilterSlots(self.physical, self.world, locked)
         self.gripper = (
             Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
         )
@@ -152,7 +160,16 @@ class Simulation:
         return names, positions, velocities
 
     def frames(self) -> list[tuple[str, Pose]]:
-        """Ground-truth poses of every named frame (docs/interfaces.md, /sim/frames)."""
+        """Every named frame as the robot side knows it (docs/interfaces.md, /sim/frames): the
+        robot, its tool and cameras, and a held or free filter where they are; slots, targets
+        and seated filters where the scene file puts them (on a displaced world, not where they are)."""
+        return self._frames(truth=False)
+
+    def true_frames(self) -> list[tuple[str, Pose]]:
+        """Every named frame where it is (sim/check/frames): the ground truth, for checks only."""
+        return self._frames(truth=True)
+
+    def _frames(self, *, truth: bool) -> list[tuple[str, Pose]]:
         # The base link's frame as the URDF has it (pybullet's base pose is its inertial frame),
         # so a view drawing robot_description at robot_base puts every link where it is.
         base = self.scene.robot.base
@@ -162,11 +179,13 @@ class Simulation:
         ]
         if "flange" in self.world.link_index:
             out.append(("flange", self.link_pose(self.world.link_index["flange"])))
-        for fid in self.filters.filters:
-            out.append((f"filter/{fid}", self.filters.pose(fid)))
-        for slot, pose in self.filters.slot_poses.items():
-            out.append((slot, pose))
-        for t in self.scene.targets:
+        scene = self.physical if truth else self.scene
+        slots = {name: (s.pose.xyz, s.pose.quaternion) for name, s in scene.slots.items()}
+        for fid, state in self.filters.filters.items():
+            seated = state.slot is not None and not state.held
+            out.append((f"filter/{fid}", slots[state.slot] if seated else self.filters.pose(fid)))  # type: ignore[index]
+        out += list(slots.items())
+        for t in scene.targets:
             out.append((f"target/{t.name}", (t.pose.xyz, t.pose.quaternion)))
         for cam in self.scene.cameras.values():
             pose = self.link_pose(self.world.link_index[cam.link]) if cam.link else fixed_camera_pose(cam)
@@ -204,8 +223,16 @@ class Simulation:
         self.filters.hold_kinematic(self.link_pose(self.tool_link))
         self.time += self.dt
 
+    def rest(self, steps: int) -> None:
+        """Let ``steps`` physics steps of time pass in a world at rest (not :attr:`busy`, and settled):
+        only the clock moves. Stepping bodies that do not move would change nothing but the CPU
+        spent (caller holds ``world_lock``)."""
+        self.time += steps * self.dt
+
     def _advance_arm(self, run: TrajectoryRun) -> None:
-        elapsed = self.time + self.dt - run.start_time
+        # The trajectory's clock stops at its end: a clock summed from steps can pass the end by a
+        # rounding error plus a step, and a client would read a time its trajectory does not have.
+        elapsed = min(self.time + self.dt - run.start_time, run.trajectory.duration)
         desired, velocity = run.trajectory.sample(elapsed)
         if run.cancel_requested:
             self._set_arm(self.arm_positions, [0.0] * len(self.arm_positions))
@@ -333,3 +360,5 @@ class Simulation:
 
     def close(self) -> None:
         p.disconnect(physicsClientId=self.client)
+        if self.world.marker_textures is not None:
+            self.world.marker_textures.close()

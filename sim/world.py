@@ -12,9 +12,11 @@ from typing import Any
 
 import pybullet as p
 
+from sim.markers import MarkerTextures, marker_visual
 from sim.scene import (
     RGBA,
     FilterModel,
+    MarkerSpec,
     Pose,
     Scene,
     SceneError,
@@ -42,6 +44,17 @@ class World:
     filters: dict[str, int] = field(default_factory=dict)
     targets: dict[str, int] = field(default_factory=dict)
     latch: int | None = None
+    #: marker id -> (body, link) that shows it, and the textures they can show
+    markers: dict[int, tuple[int, int]] = field(default_factory=dict)
+    marker_textures: MarkerTextures | None = None
+
+    def print_marker(self, marker_id: int, printed_id: int) -> None:
+        """Show ``printed_id`` (-1: nothing, a covered tag) where marker ``marker_id`` is declared."""
+        assert self.marker_textures is not None  # a world with markers has textures
+        body, link = self.markers[marker_id]
+        p.changeVisualShape(
+            body, link, textureUniqueId=self.marker_textures.texture(printed_id), physicsClientId=self.client
+        )
 
     def body_name(self, body_id: int) -> str:
         """Name of a body for messages ("rack", "filter/CDRA-F-0012", "ur10")."""
@@ -120,9 +133,18 @@ def _part_arrays(parts: tuple[tuple[Shape, RGBA], ...], client: int) -> tuple[in
     return visuals[0], visuals[1:]
 
 
-def _multi_body(mass: float, collision: int, parts: tuple[tuple[Shape, RGBA], ...], pose: Pose, client: int) -> int:
-    """A body drawn as ``parts``; the parts after the first ride on fixed massless links."""
+def _multi_body(
+    mass: float,
+    collision: int,
+    parts: tuple[tuple[Shape, RGBA], ...],
+    pose: Pose,
+    client: int,
+    extra_visuals: tuple[int, ...] = (),
+) -> int:
+    """A body drawn as ``parts``; the parts after the first, then ``extra_visuals``, ride on
+    fixed massless links (in that order: link i is the (i+1)-th part)."""
     base_visual, link_visuals = _part_arrays(parts, client)
+    link_visuals += extra_visuals
     n = len(link_visuals)
     return int(
         p.createMultiBody(
@@ -146,7 +168,7 @@ def _multi_body(mass: float, collision: int, parts: tuple[tuple[Shape, RGBA], ..
     )
 
 
-def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) -> int:
+def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int, marker_visuals: tuple[int, ...]) -> int:
     shapes = filter_shapes(model)
     extents = [[v / 2 for v in s.size] for s in shapes]
     positions = [list(s.pose.xyz) for s in shapes]
@@ -156,7 +178,7 @@ def _filter_body(model: FilterModel, condition: str, pose: Pose, client: int) ->
         collisionFramePositions=positions,
         physicsClientId=client,
     )
-    return _multi_body(model.mass, collision, filter_parts(model, condition), pose, client)
+    return _multi_body(model.mass, collision, filter_parts(model, condition), pose, client, marker_visuals)
 
 
 def _target_body(spec: TargetSpec, model: TargetModel, client: int) -> int:
@@ -204,7 +226,13 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
         world.bodies[body.name] = _static_body(body, client)
     if with_filters and scene.filter_model:
         for f in scene.filters:
-            world.filters[f.id] = _filter_body(scene.filter_model, f.condition, scene.slots[f.slot].pose, client)
+            on_filter = [m for m in scene.markers if m.frame == f"filter/{f.id}"]
+            visuals = tuple(marker_visual(m, scene.marker_dictionary, client) for m in on_filter)
+            world.filters[f.id] = _filter_body(
+                scene.filter_model, f.condition, scene.slots[f.slot].pose, client, visuals
+            )
+            first = len(filter_shapes(scene.filter_model)) - 1  # the link after the filter's parts
+            world.markers.update({m.id: (world.filters[f.id], first + k) for k, m in enumerate(on_filter)})
     if with_targets and scene.target_model:
         for t in scene.targets:
             world.targets[t.name] = _target_body(t, scene.target_model, client)
@@ -215,4 +243,24 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
             p.GEOM_BOX, halfExtents=[v / 2 for v in scene.cabinet.latch_size], physicsClientId=client
         )
         world.latch = p.createMultiBody(0.0, -1, latch_visual, pos, orn, physicsClientId=client)
+    _fixed_markers(scene, world)
+    if world.markers:
+        world.marker_textures = MarkerTextures(scene.marker_dictionary, client)
+        for marker_id in world.markers:
+            world.print_marker(marker_id, marker_id)
     return world
+
+
+def _fixed_markers(scene: Scene, world: World) -> None:
+    """A visual-only body per marker on a static frame (a body, a slot or a target), where that
+    frame is in ``scene`` (the physical world: displaced, when it is)."""
+    frames = {b.name: b.pose for b in scene.bodies} | {n: s.pose for n, s in scene.slots.items()}
+    frames |= {f"target/{t.name}": t.pose for t in scene.targets}
+    for marker in scene.markers:
+        if marker.frame in frames:
+            world.markers[marker.id] = (_marker_body(marker, frames[marker.frame], scene, world.client), -1)
+
+
+def _marker_body(marker: MarkerSpec, frame: Pose, scene: Scene, client: int) -> int:
+    visual = marker_visual(marker, scene.marker_dictionary, client)
+    return int(p.createMultiBody(0.0, -1, visual, list(frame.xyz), list(frame.quaternion), physicsClientId=client))

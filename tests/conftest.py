@@ -14,12 +14,14 @@ from typing import TYPE_CHECKING
 
 import pytest
 
+from support.file_schedule import CostAwareFileScheduling, longest_files_first
 from support.postgres import PostgresServer, postgres_server
 from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
 
 if TYPE_CHECKING:  # playwright is loaded only by sessions with browser tests
     from playwright.sync_api import Browser, Playwright
+    from xdist.remote import Producer  # type: ignore[import-untyped]
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 # pytest-xdist workers inherit the controller's environment: each claims a domain of its own.
@@ -28,28 +30,22 @@ if "ROS_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
 
 
-#: What a file marked ``slow`` without ``seconds=`` is taken to last.
-SLOW_DEFAULT_S = 30
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """The longest test files first, each file's tests in their own order.
 
     pytest-xdist hands whole files to its workers in collection order (``make test`` turns off its
-    own reordering by test count): a file that takes ten minutes started last would end the
-    suite ten minutes late; started first, it runs beside everything else. A module states its
-    length with ``pytest.mark.slow(seconds=N)``, a rough figure from a quiet run.
+    own reordering by test count, and :func:`pytest_xdist_make_scheduler` picks from this order): a
+    file that takes ten minutes started last would end the suite ten minutes late; started first,
+    it runs beside everything else. What each file takes is measured (tests/file_costs.json, by
+    bench/suite_profile.py --save-costs); a new file states it with ``pytest.mark.slow(seconds=N)``.
     """
+    longest_files_first(items, config.rootpath)
 
-    def seconds(item: pytest.Item) -> float:
-        marker = item.get_closest_marker("slow")
-        return 0.0 if marker is None else float(marker.kwargs.get("seconds", SLOW_DEFAULT_S))
 
-    files: dict[str, list[pytest.Item]] = {}
-    for item in items:
-        files.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
-    longest = sorted(files.values(), key=lambda group: -max(seconds(item) for item in group))  # stable
-    items[:] = [item for group in longest for item in group]
+@pytest.hookimpl(optionalhook=True)  # only where pytest-xdist runs the session
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Producer) -> CostAwareFileScheduling:
+    """Whole files to workers, none queued behind a long one, within the cores (support/file_schedule.py)."""
+    return CostAwareFileScheduling(config, log)
 
 
 @pytest.fixture(scope="session")

@@ -72,12 +72,25 @@ if step_needed pip "$h"; then
   step_done pip "$h"
 fi
 
+# Built artifacts that take long to make are kept in the user's cache, each under a key of
+# everything that goes into it: another checkout on this machine (a fresh clone in CI) unpacks them
+# in a second instead of building them again, as ccache and uv do for their parts. Unused for 30
+# days, they are removed.
+CACHE=${XDG_CACHE_HOME:-$HOME/.cache}/caretaker
+mkdir -p "$CACHE"
+find "$CACHE" -type f -mtime +30 -delete
+
+# cache_put FILE KEY_PATH: FILE into the cache as KEY_PATH, atomically (checkouts may set up at once).
+cache_put() { mkdir -p "$(dirname "$2")"; cp "$1" "$2.$$" && mv -f "$2.$$" "$2"; }
+
 # 3. ROS 2 interface packages, generated with rosidl into the venv. The wheels' exported CMake
 #    targets hard-code the manylinux build paths of Python and numpy: point them at ours. The
 #    generated C and C++ (hundreds of files, most of a fresh checkout's set-up time) compile
-#    through ccache, with paths taken relative to the checkout, so another checkout reuses them.
+#    through ccache, with paths taken relative to the checkout. A package's installed files are
+#    cached (relative to the venv, keyed by its sources, the pinned dependencies and the Python);
+#    its exported CMake files name the venv they were built for, rewritten on unpacking.
 INTERFACE_PACKAGES=(python/at_ros/affordance_template_msgs sim/caretaker_sim_msgs python/bridge/caretaker_ledger_msgs
-                    python/onboard/caretaker_onboard_msgs)
+                    python/onboard/caretaker_onboard_msgs python/perception/caretaker_perception_msgs)
 h=$(hash_of "${INTERFACE_PACKAGES[@]}" requirements.txt)
 if step_needed interfaces "$h"; then
   py_include=$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')
@@ -89,8 +102,18 @@ if step_needed interfaces "$h"; then
   # The packages do not depend on each other: built side by side, one's single-threaded code
   # generation overlaps another's compiling.
   build_interfaces() {
-    local pkg=$1 name build
+    local pkg=$1 name build key archive built_for
     name=$(basename "$pkg")
+    key=$( { hash_of "$pkg" requirements.txt; "$VENV/bin/python" -VV; } | sha256sum | cut -c1-16)
+    archive=$CACHE/interfaces/$name-$key.tar
+    if [ -f "$archive" ] && [ -f "$archive.venv" ]; then
+      built_for=$(cat "$archive.venv")
+      tar -xf "$archive" -C "$VENV" && touch "$archive" "$archive.venv" || return 1
+      { grep -rlF "$built_for" "$VENV/share/$name" || true; } | while read -r f; do sed -i "s#$built_for#$VENV#g" "$f"; done
+      log "ROS interfaces $name from the cache"
+      return 0
+    fi
+    log "building ROS interfaces $name"
     build=$ROOT/build/rosidl/$name
     rm -rf "$build"; mkdir -p "$build"
     CMAKE_PREFIX_PATH=$VENV AMENT_PREFIX_PATH=$VENV cmake -S "$pkg" -B "$build" \
@@ -100,11 +123,13 @@ if step_needed interfaces "$h"; then
       && CCACHE_BASEDIR=$ROOT cmake --build "$build" -j 2 >> "$build.log" 2>&1 \
       && cmake --install "$build" >> "$build.log" 2>&1 \
       || { tail -40 "$build.log"; log "building $name failed: see $build.log"; return 1; }
+    sed "s#^$VENV/##" "$build/install_manifest.txt" | tar -cf "$build.tar" -C "$VENV" -T - \
+      && echo "$VENV" > "$build.venv" && cache_put "$build.venv" "$archive.venv" && cache_put "$build.tar" "$archive" \
+      || log "could not cache ROS interfaces $name (the next checkout builds them again)"
     log "built ROS interfaces $name"
   }
   builds=()
   for pkg in "${INTERFACE_PACKAGES[@]}"; do
-    log "building ROS interfaces $(basename "$pkg")"
     build_interfaces "$pkg" & builds+=($!)
   done
   failed=0
@@ -126,9 +151,17 @@ fi
 # 5. The Java PAX plugins, built offline against Debian's Maven repository (.mvn/maven.config).
 if [ -f pom.xml ]; then
   h=$(hash_of pom.xml .mvn java)
-  if step_needed java "$h" || [ ! -f java/pax-plugins/target/pax-plugins.jar ]; then
-    log "building the Java PAX plugins (mvn package)"
-    mvn -q package -DskipTests
+  jar=java/pax-plugins/target/pax-plugins.jar
+  if step_needed java "$h" || [ ! -f $jar ]; then
+    cached=$CACHE/java/pax-plugins-$( { echo "$h"; javac -version 2>&1; } | sha256sum | cut -c1-16).jar
+    if [ -f "$cached" ]; then
+      mkdir -p "$(dirname $jar)" && cp "$cached" $jar && touch "$cached"
+      log "the Java PAX plugins from the cache"
+    else
+      log "building the Java PAX plugins (mvn package)"
+      mvn -q package -DskipTests
+      cache_put $jar "$cached"
+    fi
     step_done java "$h"
   fi
 fi

@@ -90,10 +90,10 @@ class AffordanceTemplateServer(Node):
         self.status_timer = self.create_timer(STATUS_PERIOD, self.status_timer_callback, callback_group=status)
 
         self.frames_subscription = self.create_subscription(
-            NamedPoses, "sim/frames", self.frames_callback, 10, callback_group=inputs
+            NamedPoses, "sim/frames", self.frames_callback, LATCHED, callback_group=inputs
         )
         self.joint_subscription = self.create_subscription(
-            JointState, "joint_states", self.joint_states_callback, 10, callback_group=inputs
+            JointState, "joint_states", self.joint_states_callback, LATCHED, callback_group=inputs
         )
         self.moving_subscription = self.create_subscription(
             Bool, "robot/moving", self.moving_callback, LATCHED, callback_group=inputs

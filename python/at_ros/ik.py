@@ -9,9 +9,11 @@ natural continuation), then random states within the limits; pybullet's unconstr
 is a fallback that finds distant basins, its answer wrapped by whole turns into the limits and
 finished by the projected solver.
 
-When nothing within the limits reaches the pose, the failure says why: a solution outside the
-limits reaches it (naming the joint, the value it would need and its range), every solution
-collides (naming the contact), or the pose is out of reach (the best error seen).
+When no solution is accepted, the failure gives one reason, decided in this order so that it
+never contradicts itself: solutions within the limits reach the pose but collide (naming the
+contact), only solutions outside the limits reach it (naming the joints, the values they would
+need and the limits they pass), or nothing reaches it even ignoring limits and collisions: it is
+out of reach.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import pybullet as p
 from at_ros.planning_scene import PlanningScene
 from at_ros.transforms import angle_between, to_xyz_quat
 
-__all__ = ["IkSolver", "IkFailure", "rotation_vector"]
+__all__ = ["IkSolver", "IkFailure", "LimitExcess", "rotation_vector"]
 
 #: Iterations of the projected solver from a nearby seed (a Cartesian sample, the last waypoint).
 NEWTON_ITERATIONS = 8
@@ -35,6 +37,10 @@ NEWTON_DAMPING = 1e-6
 GLOBAL_STEP = 0.4
 #: A joint this close to a limit counts as at it (rad).
 AT_LIMIT = 1e-9
+#: How near the answer of pybullet's solver (which ignores the limits) must come to count as
+#: reaching the pose: its residual is looser than ours, and only then do its limits matter.
+UNCONSTRAINED_POSITION = 5e-3
+UNCONSTRAINED_ORIENTATION = 0.05
 
 
 def rotation_vector(r: np.ndarray) -> np.ndarray:
@@ -50,31 +56,51 @@ def rotation_vector(r: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class IkFailure:
-    """Why no solution was accepted.
+class LimitExcess:
+    """A joint that a solution reaching the pose puts outside its range: the value it would need
+    (over whole turns, the one nearest the range) and the limit it passes."""
 
-    ``position_error``/``orientation_error``: the best pose error reached within the limits
-    (infinite when no attempt converged anywhere); ``collision``: the last contact of a solution
-    that reached the pose; ``limit``: a joint limit that a solution reaching the pose violates.
+    joint: str
+    value: float
+    limit: float
+    upper: bool
+
+    @property
+    def excess(self) -> float:
+        return abs(self.value - self.limit)
+
+    def __str__(self) -> str:
+        side = "upper" if self.upper else "lower"
+        return f"{self.joint} would be {self.value:.2f} rad, beyond its {side} limit {self.limit:.2f} rad"
+
+
+@dataclass(frozen=True)
+class IkFailure:
+    """Why no solution was accepted: one reason, the first of these that holds.
+
+    ``collision``: solutions within the limits reach the pose and all collide; the contact of the
+    one nearest the seed state (the configuration an operator expects). ``beyond_limits``: only
+    solutions outside the limits reach it; the joints of the one needing the least. Neither: no
+    attempt reached it even ignoring limits and collisions, it is out of reach. How near an attempt
+    came is not said: out of reach, pybullet's solver trades position for orientation, so its
+    nearest answer overstates the distance.
     """
 
-    position_error: float
-    orientation_error: float
-    collision: str | None
-    limit: str | None = None
-    seeds: int = 0
+    collision: str | None = None
+    beyond_limits: tuple[LimitExcess, ...] = ()
 
     def describe(self) -> str:
-        if self.collision and self.position_error < 1e-3:
-            return f"every IK solution within the joint limits collides ({self.collision})"
-        if self.limit:
-            return f"reachable only outside the joint limits: {self.limit}"
-        if np.isfinite(self.position_error):
-            return (
-                f"unreachable within the joint limits (best IK error {self.position_error * 1000:.1f} mm, "
-                f"{np.degrees(self.orientation_error):.1f} deg)"
-            )
-        return f"unreachable: no IK solution came near the pose from {self.seeds} seeds"
+        """The reason as the rest of a sentence whose subject is the pose: "is out of reach"."""
+        if self.collision is not None:
+            return f"is reachable only in collision ({self.collision})"
+        if self.beyond_limits:
+            return f"is reachable only outside the joint limits ({', '.join(map(str, self.beyond_limits))})"
+        return "is out of reach"
+
+
+def _total(excess: tuple[LimitExcess, ...]) -> float:
+    """How far a solution is outside the limits: of several, the one needing the least is named."""
+    return sum(e.excess for e in excess)
 
 
 class IkSolver:
@@ -110,38 +136,37 @@ class IkSolver:
         nearest to ``near``.
 
         Tries ``near`` first, then random seeds within the limits; stops after ``enough`` valid
-        solutions.
+        solutions. Without one, the failure says why (:class:`IkFailure`).
         """
         scene = self.scene
         limits = scene.limits
         near = np.clip(np.asarray(near, dtype=float), limits.lower, limits.upper)
         found: list[np.ndarray] = []
-        best_pos, best_rot = np.inf, np.inf
-        last_collision: str | None = None
-        violated: str | None = None
+        colliding: list[tuple[np.ndarray, str]] = []
+        beyond: tuple[LimitExcess, ...] = ()
         for attempt in range(self.seeds):
             seed = near if attempt == 0 else self.rng.uniform(limits.lower, limits.upper)
-            q, outside = self._solve_from(target, seed, near, position_tolerance)
-            violated = violated or outside
+            q, raw = self._solve_from(target, seed, near, position_tolerance)
             if q is None:
+                excess = self._beyond_limits(raw, target, position_tolerance) if raw is not None else ()
+                if excess and (not beyond or _total(excess) < _total(beyond)):
+                    beyond = excess
                 continue
-            pose = scene.forward(q)
-            pos_err = float(np.linalg.norm(pose[:3, 3] - target[:3, 3]))
-            rot_err = angle_between(pose, target)
-            best_pos, best_rot = min(best_pos, pos_err), min(best_rot, rot_err)
-            if pos_err > position_tolerance or rot_err > orientation_tolerance:
+            position, orientation = self._pose_error(q, target)
+            if position > position_tolerance or orientation > orientation_tolerance:
                 continue
             if check_collisions:
                 why = scene.collision(q)
                 if why is not None:
-                    last_collision = why
+                    colliding.append((q, why))
                     continue
             found.append(q)
             # A solution reached from the previous state is the natural continuation: take it.
             if attempt == 0 or len(found) >= enough:
                 break
         if not found:
-            return IkFailure(best_pos, best_rot, last_collision, violated, self.seeds)
+            expected = min(colliding, key=lambda c: float(np.linalg.norm(c[0] - near)), default=None)
+            return IkFailure(expected[1] if expected else None, beyond)
         return min(found, key=lambda s: float(np.linalg.norm(s - near)))
 
     def track(
@@ -154,11 +179,8 @@ class IkSolver:
         self.blocked_by = None
         q = self._newton(target, previous, position_tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
         if q is not None:
-            pose = self.scene.forward(q)
-            if (
-                np.linalg.norm(pose[:3, 3] - target[:3, 3]) <= position_tolerance
-                and angle_between(pose, target) <= orientation_tolerance
-            ):
+            position, orientation = self._pose_error(q, target)
+            if position <= position_tolerance and orientation <= orientation_tolerance:
                 return q
         if self._last_iterate is not None:
             self.blocked_by = self.limit_blocking(self._last_iterate)
@@ -236,23 +258,24 @@ class IkSolver:
 
     def _solve_from(
         self, target: np.ndarray, seed: np.ndarray, near: np.ndarray, tolerance: float
-    ) -> tuple[np.ndarray | None, str | None]:
-        """A solution within the limits from ``seed`` (or None), and a limit that an
-        unconstrained solution reaching the pose would violate (or None)."""
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """A solution within the limits from ``seed`` (or None), and the answer of pybullet's
+        solver, which ignores the limits, when it was asked (or None): what tells a pose out of
+        reach from one reachable only outside the limits."""
+        raw = None
         q = self._newton(target, seed, tolerance, iterations=NEWTON_ITERATIONS, max_step=None)
         if q is None:
             q = self._newton(target, seed, tolerance, iterations=GLOBAL_ITERATIONS, max_step=GLOBAL_STEP)
         if q is None:
             raw = self._unconstrained(target, seed)
             wrapped = self.wrap_into_limits(raw, near)
-            if wrapped is None:
-                return None, self._violation(raw, target, tolerance)
-            q = self._newton(target, wrapped, tolerance, iterations=GLOBAL_ITERATIONS, max_step=GLOBAL_STEP)
+            if wrapped is not None:
+                q = self._newton(target, wrapped, tolerance, iterations=GLOBAL_ITERATIONS, max_step=GLOBAL_STEP)
         if q is not None:
             # The same arm shape a whole turn nearer to where the arm is costs less motion.
             nearer = self.wrap_into_limits(q, near)
             q = q if nearer is None else nearer
-        return q, None
+        return q, raw
 
     def _unconstrained(self, target: np.ndarray, seed: np.ndarray) -> np.ndarray:
         """pybullet's damped solver, which ignores the limits (its null-space mode converges worse)."""
@@ -270,19 +293,28 @@ class IkSolver:
         )
         return np.array([raw[i] for i in scene.ik_slots])
 
-    def _violation(self, q: np.ndarray, target: np.ndarray, tolerance: float) -> str | None:
-        """If ``q`` (outside the limits) reaches ``target``, which joint limit it breaks."""
+    def _pose_error(self, q: np.ndarray, target: np.ndarray) -> tuple[float, float]:
+        """How far the tool at ``q`` is from ``target``: position (m), orientation (rad)."""
         pose = self.scene.forward(q)
-        if np.linalg.norm(pose[:3, 3] - target[:3, 3]) > max(tolerance, 1e-3) * 5 or angle_between(pose, target) > 0.05:
-            return None
+        return float(np.linalg.norm(pose[:3, 3] - target[:3, 3])), angle_between(pose, target)
+
+    def _beyond_limits(self, raw: np.ndarray, target: np.ndarray, tolerance: float) -> tuple[LimitExcess, ...]:
+        """If pybullet's answer ``raw`` reaches ``target``, its joints outside their range even a
+        whole turn either way: what keeps it from being a solution; none when it does not reach."""
+        position, orientation = self._pose_error(raw, target)
+        if position > max(5 * tolerance, UNCONSTRAINED_POSITION) or orientation > UNCONSTRAINED_ORIENTATION:
+            return ()
         lo, hi = self.scene.limits.lower, self.scene.limits.upper
+        out = []
         for i, name in enumerate(self.scene.joint_names):
             # The value nearest to the range, over whole turns: what the joint would need.
-            candidates = [q[i] + 2 * np.pi * k for k in range(-3, 4)]
+            candidates = [raw[i] + 2 * np.pi * k for k in range(-3, 4)]
             value = min(candidates, key=lambda c: max(lo[i] - c, c - hi[i], 0.0))
-            if value < lo[i] - 1e-6 or value > hi[i] + 1e-6:
-                return f"{name} would be {value:.2f} rad, outside its range [{lo[i]:.2f}, {hi[i]:.2f}]"
-        return None
+            if value < lo[i] - 1e-6:
+                out.append(LimitExcess(name, float(value), float(lo[i]), upper=False))
+            elif value > hi[i] + 1e-6:
+                out.append(LimitExcess(name, float(value), float(hi[i]), upper=True))
+        return tuple(out)
 
     def wrap_into_limits(self, q: np.ndarray, near: np.ndarray) -> np.ndarray | None:
         """Add multiples of 2*pi per joint to land inside the limits, nearest to ``near``."""

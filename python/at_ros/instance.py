@@ -107,6 +107,7 @@ class Registration:
 class ResolvedWaypoint:
     index: int
     label: str  # "<ee>.<wp>:<Type>:<id>"
+    source: str  # "<template file>:<line>" of the waypoint, for messages
     waypoint: Waypoint
     frame_pose: np.ndarray  # world pose of the waypoint frame
     tool_goal: np.ndarray  # world pose the robot's tool link must take
@@ -313,6 +314,7 @@ class TemplateInstance:
                 ResolvedWaypoint(
                     i,
                     f"{ee.id}.{i}:{self.key}",
+                    f"{self.template.filename}:{wp.line}",
                     wp,
                     frame,
                     goal,

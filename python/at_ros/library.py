@@ -117,6 +117,9 @@ class Waypoint:
     tool_offset: Origin = Origin()
     grasp: str = ""  # display object the gripper holds from this waypoint on ("" = none)
     release: str = ""  # display object the gripper lets go of at this waypoint
+    #: Where the template file states it, so a waypoint that cannot be planned is found in the
+    #: file; not part of what the waypoint is.
+    line: int = field(default=0, compare=False)
 
 
 @dataclass(frozen=True)
@@ -270,6 +273,7 @@ def _waypoint(f: Field) -> Waypoint:
         tool_offset=_origin(tool) if tool else Origin(),
         grasp=grasp.text() if grasp else "",
         release=release.text() if release else "",
+        line=f.line,
     )
 
 

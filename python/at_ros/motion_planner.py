@@ -23,7 +23,7 @@ from at_ros.ompl_planner import JointPlanner, PlanningFailed
 from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import PlannerSettings
 from at_ros.time_parameterization import TimedPath, time_parameterize
-from at_ros.transforms import angle_between, from_xyz_quat, to_xyz_quat
+from at_ros.transforms import angle_between, from_xyz_quat, invert, pose_text, to_xyz_quat
 
 __all__ = ["Goal", "PlannedWaypoint", "MotionPlanner", "WaypointPlanningError"]
 
@@ -55,6 +55,12 @@ class Goal:
     gripper_action: str = ""  # GRASP, RELEASE or "": what the template says happens here
     object_name: str = ""  # the template's display object grasped or released
     object_pose: np.ndarray | None = None  # world pose of that display object (for a grasp)
+    source: str = ""  # "<template file>:<line>" that states this waypoint ("" = none does)
+
+    @property
+    def where(self) -> str:
+        """The waypoint as failures name it: by its frame, and where to change it in its template."""
+        return f"waypoint {self.label} ({self.source})" if self.source else f"waypoint {self.label}"
 
 
 @dataclass(frozen=True)
@@ -68,8 +74,8 @@ class PlannedWaypoint:
 class WaypointPlanningError(RuntimeError):
     """A waypoint could not be planned; the message names the waypoint and why.
 
-    ``final`` means retrying with another arm configuration cannot help (the pose itself is
-    unreachable or every solution collides).
+    ``final`` means retrying with another arm configuration cannot help (no configuration within
+    the limits and free of collisions reaches the pose).
     """
 
     def __init__(self, message: str, *, final: bool = False) -> None:
@@ -163,7 +169,7 @@ class MotionPlanner:
     def _plan_unit(self, q: np.ndarray, unit: list[Goal]) -> list[PlannedWaypoint]:
         first = unit[0]
         if first.planner_type not in (JOINT, CARTESIAN):
-            raise WaypointPlanningError(f"waypoint {first.label}: unknown planner type {first.planner_type!r}")
+            raise WaypointPlanningError(f"{first.where}: unknown planner type {first.planner_type!r}")
         # A failed attempt may have grasped and carried an object along its lines: the next
         # attempt starts from the world as it was.
         before = self.scene.snapshot()
@@ -191,7 +197,10 @@ class MotionPlanner:
                 failure = failure or str(exc)
                 if exc.final:
                     break
-        suffix = f" (also with {attempts - 1} other IK solutions for {first.label})" if attempts > 1 else ""
+        # Only configurations that were tried are counted: an IK failure ends the search at the
+        # first, and the search for another may find none.
+        others = len(tried) - 1
+        suffix = f" (and with {others} other arm configurations for {first.label})" if others > 0 else ""
         raise WaypointPlanningError(failure + suffix)
 
     def _joint(self, q: np.ndarray, goal: Goal, attempt: int, tried: list[np.ndarray]) -> list[np.ndarray]:
@@ -205,7 +214,7 @@ class MotionPlanner:
             target = solve(goal.pose, q)
             if isinstance(target, IkFailure):
                 # Every seed failed already: another attempt would not find a different answer.
-                raise WaypointPlanningError(f"waypoint {goal.label}: {target.describe()}", final=True)
+                raise WaypointPlanningError(f"{goal.where}: {self._pose(goal)} {target.describe()}", final=True)
         else:
             for _ in range(DISTINCT_SEARCH):
                 solved = solve(goal.pose, self.ik.rng.uniform(limits.lower, limits.upper), enough=1)
@@ -218,13 +227,13 @@ class MotionPlanner:
                     target = candidate
                     break
             else:
-                raise WaypointPlanningError(f"waypoint {goal.label}: no other arm configuration reaches it", final=True)
+                raise WaypointPlanningError(f"{goal.where}: no other arm configuration reaches it", final=True)
         tried.append(target)
         try:
             budget = self.settings.plan_time * ATTEMPT_BUDGET[attempt]
             return self.joint_planner.plan(q, target, time_limit=budget, simplify_time=self.settings.simplify_time)
         except PlanningFailed as exc:
-            raise WaypointPlanningError(f"waypoint {goal.label}: {exc}") from exc
+            raise WaypointPlanningError(f"{goal.where}: {self._pose(goal)} is reachable, but {exc}") from exc
 
     def _cartesian(self, q: np.ndarray, goal: Goal) -> list[np.ndarray]:
         """A straight tool line to ``goal``, tracked by local IK from sample to sample.
@@ -255,17 +264,23 @@ class MotionPlanner:
                 blocked = f": {self.ik.blocked_by}" if result is None and self.ik.blocked_by else ""
                 what = f"no IK solution continues the line{blocked}" if result is None else f"joint jump {jump:.2f} rad"
                 raise WaypointPlanningError(
-                    f"waypoint {goal.label}: Cartesian line breaks IK continuity at {t:.0%} ({what})"
+                    f"{goal.where}: the Cartesian line to {self._pose(goal)} breaks IK continuity at {t:.0%} ({what})"
                 )
             assert result is not None  # the loop above broke only on a solution
             why = scene.collision(result)
             if why is not None:
                 raise WaypointPlanningError(
-                    f"waypoint {goal.label}: Cartesian line blocked at {t + dt:.0%}: collision {why}"
+                    f"{goal.where}: the Cartesian line to {self._pose(goal)} is blocked at {t + dt:.0%} "
+                    f"by a collision ({why})"
                 )
             path.append(result)
             t += dt
         return path
+
+    def _pose(self, goal: Goal) -> str:
+        """The goal as the robot sees it: in its base frame, where an operator can judge reach."""
+        base_T_goal = invert(self.scene.base_pose()) @ goal.pose  # noqa: N806 (a_T_b notation)
+        return f"the pose {pose_text(base_T_goal)} in {self.scene.base_link}"
 
     def _update_attachment(self, q: np.ndarray, goal: Goal) -> None:
         """Carry or let go of the object the template names at ``goal`` (arm at ``q``).
@@ -283,14 +298,14 @@ class MotionPlanner:
             grasped = scene.nearest_graspable(goal.object_pose[:3, 3], within=reach)
             if grasped is None:
                 raise WaypointPlanningError(
-                    f"waypoint {goal.label}: grasps {goal.object_name!r}, "
+                    f"{goal.where}: grasps {goal.object_name!r}, "
                     "but no graspable object of the world is within "
                     f"{reach * 100:.0f} cm of where {goal.object_name!r} is registered; register it on the object",
                     final=True,
                 )
             if scene.attachment is not None and scene.attachment.name != grasped:
                 raise WaypointPlanningError(
-                    f"waypoint {goal.label}: grasps {grasped!r} while holding {scene.attachment.name!r}", final=True
+                    f"{goal.where}: grasps {grasped!r} while holding {scene.attachment.name!r}", final=True
                 )
             scene.set_joints(q)
             scene.attach(grasped)

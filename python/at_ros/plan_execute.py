@@ -253,6 +253,7 @@ class PlanExecutor:
         for wp in waypoints:
             goal = WaypointGoal()
             goal.label = wp.label
+            goal.source = wp.source
             goal.pose.header.frame_id = WORLD_FRAME
             goal.pose.pose = pose_from_matrix(wp.tool_goal)
             goal.planner_type = wp.waypoint.planner_type

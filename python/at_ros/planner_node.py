@@ -74,7 +74,7 @@ class PlannerNode(Node):
         self.world_subscription = self.create_subscription(
             CollisionWorld, "sim/collision_world", self.world_callback, LATCHED
         )
-        self.frames_subscription = self.create_subscription(NamedPoses, "sim/frames", self.frames_callback, 10)
+        self.frames_subscription = self.create_subscription(NamedPoses, "sim/frames", self.frames_callback, LATCHED)
         self.held_subscription = self.create_subscription(
             String, "gripper/held_object", self.held_object_callback, LATCHED
         )
@@ -179,6 +179,7 @@ class PlannerNode(Node):
             )
         return Goal(
             label=waypoint.label,
+            source=waypoint.source,
             pose=matrix_from_pose(waypoint.pose.pose),
             planner_type=waypoint.planner_type,
             end_effector_pose=waypoint.end_effector_pose,

@@ -84,7 +84,9 @@ class PlanningScene:
         )
         self.joint_names = tuple(joint_names)
         self.dof = len(self.joint_names)
-        self._link_index: dict[str, int] = {p.getBodyInfo(self.robot, physicsClientId=self.client)[0].decode(): -1}
+        #: The URDF's root link: the robot's base frame, in which messages give poses.
+        self.base_link: str = p.getBodyInfo(self.robot, physicsClientId=self.client)[0].decode()
+        self._link_index: dict[str, int] = {self.base_link: -1}
         joint_index: dict[str, int] = {}
         self._movable: list[int] = []
         self._parent: dict[int, int] = {}
@@ -132,6 +134,13 @@ class PlanningScene:
         local_pos, local_quat = p.getDynamicsInfo(self.robot, -1, physicsClientId=self.client)[3:5]
         pos, quat = to_xyz_quat(pose @ from_xyz_quat(local_pos, local_quat))
         p.resetBasePositionAndOrientation(self.robot, pos.tolist(), quat.tolist(), physicsClientId=self.client)
+
+    def base_pose(self) -> np.ndarray:
+        """World pose of the robot's root link frame (pybullet keeps its inertial frame's)."""
+        pos, quat = p.getBasePositionAndOrientation(self.robot, physicsClientId=self.client)
+        local_pos, local_quat = p.getDynamicsInfo(self.robot, -1, physicsClientId=self.client)[3:5]
+        pose: np.ndarray = from_xyz_quat(pos, quat) @ invert(from_xyz_quat(local_pos, local_quat))
+        return pose
 
     def add_obstacle(self, name: str, body: int, *, graspable: bool = False) -> None:
         """Register a body created in this client (by the scene loader) under its frame name."""
@@ -221,7 +230,9 @@ class PlanningScene:
     # --- collisions ------------------------------------------------------------------------
 
     def collision(self, q: np.ndarray | list[float]) -> str | None:
-        """Why ``q`` is in collision ("link_a/obstacle"), or None when it is free."""
+        """Why ``q`` is in collision ("link_a with obstacle"), or None when it is free.
+
+        "with", not a separator: object names hold slashes (``filter/CDRA-F-0007``)."""
         self.set_joints(q)
         p.performCollisionDetection(physicsClientId=self.client)
         names = self._body_names()
@@ -233,18 +244,18 @@ class PlanningScene:
             if other == self.robot:
                 if frozenset((link_a, link_b)) in self._allowed_self_pairs:
                     continue
-                return f"{self._link_name(link_a)}/{self._link_name(link_b)}"
+                return f"{self._link_name(link_a)} with {self._link_name(link_b)}"
             if other == held:
                 continue  # the carried part sits in the gripper
             if link_a in self.gripper_link_indices and names.get(other) in self.graspable:
                 continue
-            return f"{self._link_name(link_a)}/{names.get(other, other)}"
+            return f"{self._link_name(link_a)} with {names.get(other, other)}"
         if held is not None:
             for c in p.getContactPoints(bodyA=held, physicsClientId=self.client):
                 other = c[2]
                 if other == self.robot or c[8] > -PENETRATION_ALLOWANCE:
                     continue
-                return f"{self.attachment.name}/{names.get(other, other)}"  # type: ignore[union-attr]
+                return f"{self.attachment.name} with {names.get(other, other)}"  # type: ignore[union-attr]
         return None
 
     def is_valid(self, q: np.ndarray | list[float]) -> bool:

@@ -21,6 +21,7 @@ import numpy as np
 from at_ros.library import LibraryError, default_library_path, load_named_files
 from at_ros.transforms import from_xyz_rpy
 from datafile import Field, load_file
+from datafile.urdf import read_urdf
 
 __all__ = [
     "EndEffector",
@@ -188,6 +189,10 @@ def load_robot_config(path: Path | str) -> RobotConfig:
     root = load_file(path, error=LibraryError).mapping(required=_REQUIRED, optional=_ORIGINAL_KEYS + _OUR_KEYS)
     end_effectors = _end_effectors(root["end_effector_group_map"])
     joints = root["joint_names"].names(min_items=1)
+    urdf = read_urdf(root["urdf"].file_path())
+    urdf.check_link(root["tool_link"])
+    for joint in root["joint_names"].sequence():
+        urdf.check_joint(joint)
     home = root.get("home_joints")
     planner_type, gripper, halt = root.get("planner_type"), root.get("gripper_service"), root.get("halt_service")
     return RobotConfig(

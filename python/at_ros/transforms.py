@@ -22,6 +22,7 @@ __all__ = [
     "quat_from_matrix",
     "invert",
     "angle_between",
+    "pose_text",
 ]
 
 
@@ -124,3 +125,16 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> float:
     """Rotation angle (radians) between the orientations of two transforms."""
     r = a[:3, :3].T @ b[:3, :3]
     return float(np.arccos(np.clip((np.trace(r) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def pose_text(t: np.ndarray) -> str:
+    """A 4x4 transform as an operator reads it: metres to the millimetre, fixed-axis
+    roll/pitch/yaw to a tenth of a degree ("x=0.912 y=-0.130 z=1.204 m, roll/pitch/yaw=180.0/0.0/90.0 deg")."""
+
+    def shown(value: float, digits: int) -> str:
+        return f"{round(value, digits) + 0.0:.{digits}f}"  # + 0.0: a rounded -0.0 shows as 0.0
+
+    xyz, rpy = to_xyz_rpy(t)
+    x, y, z = (shown(float(v), 3) for v in xyz)
+    roll, pitch, yaw = (shown(float(np.degrees(a)), 1) for a in rpy)
+    return f"x={x} y={y} z={z} m, roll/pitch/yaw={roll}/{pitch}/{yaw} deg"

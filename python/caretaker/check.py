@@ -2,7 +2,8 @@
 
 Scenes, robot configs, AT templates, deployments, SysReps and bindings are each checked by the
 loader that reads them for real (one mechanism, :mod:`datafile`), so what passes here loads
-there. The kind of a file comes from its name and content (``--kind`` to say it); each file
+there; a procedure (``.xml``) is checked as ``caretaker lint`` checks it, against the shipped
+SysReps, one line per problem. The kind of a file comes from its name and content (``--kind`` to say it); each file
 gets one line, ``FILE: ok (kind)`` or the error ``file:line: key: problem``, and the exit code
 is 1 if any file has an error. No input ends in a traceback.
 """
@@ -10,12 +11,14 @@ is 1 if any file has an error. No input ends in a traceback.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from datafile import DataFileError, load_file
+from pride.diagnostics import ProcedureError
 
 __all__ = ["KINDS", "check_file", "detect_kind", "main"]
 
@@ -56,6 +59,29 @@ def _binding(path: Path) -> Any:
     return read_binding(path)
 
 
+def _urdf(path: Path) -> Any:
+    from datafile.urdf import read_urdf
+
+    return read_urdf(path)
+
+
+@functools.cache
+def _shipped_sysreps() -> Any:
+    """The shipped SysReps, read once however many procedures one ``check`` is given."""
+    from caretaker.procedure_commands import load_sysreps
+
+    return load_sysreps(None)
+
+
+def _procedure(path: Path) -> Any:
+    from pride.lint import lint_file
+
+    problems = lint_file(path, _shipped_sysreps())
+    if problems:
+        raise ProcedureError(problems)
+    return None
+
+
 #: kind -> (loader, what it is called in messages)
 KINDS: dict[str, tuple[Callable[[Path], Any], str]] = {
     "scene": (_scene, "a scene"),
@@ -64,6 +90,8 @@ KINDS: dict[str, tuple[Callable[[Path], Any], str]] = {
     "deployment": (_deployment, "a deployment"),
     "sysrep": (_sysrep, "a SysRep"),
     "binding": (_binding, "a binding"),
+    "procedure": (_procedure, "a procedure, linted against the shipped SysReps"),
+    "urdf": (_urdf, "a URDF: it parses and every mesh it names on this host is there"),
 }
 #: A top-level key that only one kind of YAML file has, in the order they are tried.
 _SIGNATURE_KEYS = (
@@ -86,6 +114,10 @@ def detect_kind(path: Path) -> str:
     """
     if path.suffix.lower() == ".json":
         return "template"
+    if path.suffix.lower() == ".xml":
+        return "procedure"
+    if path.suffix.lower() == ".urdf":
+        return "urdf"
     root = load_file(path)
     keys = {key for key, _, _ in root.node.entries}
     for key, kind in _SIGNATURE_KEYS:
@@ -128,6 +160,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             line = check_file(path, args.kind)
         except DataFileError as exc:
+            line, failed = str(exc), True
+        except ProcedureError as exc:  # one line per problem, as `caretaker lint` prints them
             line, failed = str(exc), True
         except Exception as exc:  # a loader bug: still one line, and it counts as an error
             line, failed = (

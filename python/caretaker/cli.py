@@ -18,6 +18,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "sim": ("sim.sim_node", "main", "run the pybullet simulation node (--scene FILE|iva|eva)"),
     "planner": ("at_ros.planner_node", "main", "run the OMPL planner node (--robot NAME|FILE)"),
     "at-server": ("at_ros.at_server", "main", "run the Affordance Template server (--robot NAME|FILE)"),
+    "perception": ("perception.perception_node", "main", "run the perception node (perception/locate from markers)"),
     "bridge": ("bridge.rosbridge.server", "main", "run the rosbridge v2 server"),
     "ledger": ("bridge.ledger.main", "main", "run the habitat's command ledger (--state-dir DIR)"),
     "onboard": ("onboard.onboard_server", "main", "run the habitat's onboard executive (--bridge URL --binding FILE)"),
@@ -29,7 +30,8 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "accounts": ("console.accounts_command", "main", "add, change, remove and list the web view's accounts"),
     "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
-    "check": ("caretaker.check", "main", "check scene, robot, template, deployment, SysRep and binding files"),
+    "check": ("caretaker.check", "main", "check data files (scenes, robots, templates, deployments, procedures...)"),
+    "new": ("caretaker.scaffold", "main", "write a working robot folder from a URDF, or a template skeleton"),
     "link": ("caretaker.link.cli", "main", "emulate a long, lossy ground-habitat link (--delay 1.3 ...)"),
     "certs": ("caretaker.certs", "main", "make the CA, bridge certificate and secret of a link (DIR --host ADDR)"),
 }
@@ -37,7 +39,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
 
 #: Subcommands that serve ROS services on the robot side. They load :data:`PARTS_DDS_PROFILE`
 #: unless the operator names a profile of their own (the bridge loads its own, see docs/rosbridge.md).
-ROS_PARTS = ("sim", "planner", "at-server", "ledger")
+ROS_PARTS = ("sim", "perception", "planner", "at-server", "ledger")
 PARTS_DDS_PROFILE = Path(__file__).with_name("fastdds_parts.xml")
 DDS_PROFILE_ENV = "FASTRTPS_DEFAULT_PROFILES_FILE"
 
@@ -69,7 +71,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"caretaker: {name!r} is not available in this checkout ({module_name} is missing)", file=sys.stderr)
             return 2
         raise
-    return int(getattr(module, function_name)(rest) or 0)
+    try:
+        return int(getattr(module, function_name)(rest) or 0)
+    except KeyboardInterrupt:  # Ctrl-C (or a supervisor's SIGINT) where a command has no handler of its own
+        print(f"caretaker {name}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -1,161 +1,56 @@
-"""``caretaker demo DEPLOYMENT``: stack up, the deployment's procedure autonomously, world check, report.
+"""``caretaker demo DEPLOYMENT``: stack up, the deployment's procedure autonomously, world checks, report.
 
 The procedure runs in its own process (``caretaker run``, with its own JVM), exactly as an
 operator would start it, with the answers the deployment's ``demo.inputs`` give. The demo then
-checks the *world*, not the procedure's word for it — the check the deployment names in
-``demo.check`` (:data:`WORLD_CHECKS`): a run that says COMPLETED while the filter is still in the
-wrong place is a failed demo.
+checks the *world*, not the procedure's word for it — the deployment's ``demo.checks``
+(:mod:`caretaker.world_checks`), watched from before the procedure starts: a run that says
+COMPLETED while the filter is still in the wrong place is a failed demo.
+
+The audit log and the report go where ``--db`` and ``--reports`` say, else to ``var/`` of the
+deployment's home: the checkout for a deployment inside it, the deployment's own folder for one
+outside, so a robot kept in a folder of its own never writes into the checkout.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
-import math
 import secrets
 import sys
-import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-from urllib.parse import urlparse
 
-from caretaker.deployment import DemoRun, Deployment, load_deployment
+from caretaker.deployment import Deployment, load_deployment
 from caretaker.processes import REPO, ProcessFailed, caretaker
 from caretaker.stack import Stack, StackFailed, stack_options
+from caretaker.world_checks import watch_world
 from console.accounts import AccountStore
 from datafile import DataFileError
 from sim.scene import load_scene
 
-__all__ = [
-    "DEMO_USER",
-    "EndStateError",
-    "WORLD_CHECKS",
-    "demo_main",
-    "demo_operator",
-    "eva_end_state",
-    "iva_end_state",
-    "run_demo",
-]
+__all__ = ["DEMO_USER", "demo_main", "demo_operator", "demo_home", "run_demo"]
 
-DEFAULT_DB = f"sqlite:///{REPO / 'var' / 'caretaker.db'}"
 #: The operator account ``--serve`` signs in with (an account of the demo's database like any other).
 DEMO_USER = "demo"
-#: How far a filter may sit from its slot frame and still count as seated (m).
-SEATED_TOLERANCE = 0.03
 
 
-class EndStateError(RuntimeError):
-    """The world is not in the state the procedure was meant to leave it in."""
-
-
-def _topic_value(ros: object, name: str, msg_type: str, timeout: float) -> dict[str, Any]:
-    """First message on ``name`` via rosbridge (latched topics answer at once)."""
-    import roslibpy
-
-    received: dict[str, Any] = {}
-    arrived = threading.Event()
-
-    def take(message: dict[str, Any]) -> None:
-        received.update(message)
-        arrived.set()
-
-    topic = roslibpy.Topic(ros, name, msg_type)
-    topic.subscribe(take)
-    try:
-        if not arrived.wait(timeout):
-            raise EndStateError(f"no message on {name} within {timeout} s")
-        return received
-    finally:
-        topic.unsubscribe()
-
-
-def iva_end_state(bridge_url: str, scene_file: Path, clean_filter_id: str, timeout: float = 20.0) -> list[str]:
-    """Check the IVA world after the CDRA procedure; return what was verified.
-
-    Raises:
-        EndStateError: the clean filter is not locked in the cabinet, or the dirty filter is not
-            seated in the slot that was empty at the start.
-    """
-    import roslibpy
-
-    scene = load_scene(scene_file)
-    dirty = next((f for f in scene.filters if f.condition == "dirty"), None)
-    occupied = {f.slot for f in scene.filters}
-    empty_slot = next((name for name in scene.slots if name not in occupied), None)
-    if dirty is None or empty_slot is None:
-        raise EndStateError(f"scene {scene_file} has no dirty filter or no empty slot: this check does not apply to it")
-    url = urlparse(bridge_url)
-    ros = roslibpy.Ros(host=url.hostname, port=url.port)
-    ros.run(timeout)
-    try:
-        installed = _topic_value(ros, "/cdra/installed_filter_id", "std_msgs/String", timeout)["data"]
-        locked = _topic_value(ros, "/cdra/filter_locked", "std_msgs/Bool", timeout)["data"]
-        frames = _topic_value(ros, "/sim/frames", "caretaker_sim_msgs/NamedPoses", timeout)
-    finally:
-        ros.close()
-    poses = dict(zip(frames["names"], frames["poses"], strict=False))
-    if installed != clean_filter_id:
-        raise EndStateError(f"cabinet holds {installed or 'nothing'!r}, expected the clean filter {clean_filter_id!r}")
-    if not locked:
-        raise EndStateError(f"{clean_filter_id} is in the cabinet but not locked")
-    dirty_pose, slot_pose = poses.get(f"filter/{dirty.id}"), poses.get(empty_slot)
-    if dirty_pose is None or slot_pose is None:
-        raise EndStateError(f"frames filter/{dirty.id} or {empty_slot} are not published")
-    distance = math.dist(*(tuple(p["position"][k] for k in "xyz") for p in (dirty_pose, slot_pose)))
-    if distance > SEATED_TOLERANCE:
-        raise EndStateError(f"dirty filter {dirty.id} is {distance:.3f} m from {empty_slot}, not seated there")
-    return [
-        f"cabinet holds {installed}, locked",
-        f"dirty filter {dirty.id} seated in {empty_slot} ({distance * 1000:.0f} mm from the slot frame)",
-    ]
-
-
-def eva_end_state(db_url: str, run_id: str, scene_file: Path) -> list[str]:
-    """Check that the EVA run captured a non-empty image of every hull target in the scene.
-
-    Raises:
-        EndStateError: a target has no captured image, or an image file is missing or empty.
-    """
-    from pride.audit_log import AuditLog
-    from pride.events import EventKind
-
-    targets = [t.name for t in load_scene(scene_file).targets]
-    audit = AuditLog(db_url)
-    try:
-        events = audit.events(run_id)
-    finally:
-        audit.close()
-    images: dict[str, Path] = {}
-    for event in events:
-        if event.kind is EventKind.COMMAND_RESULT and event.data.get("success"):
-            path = (event.data.get("values") or {}).get("path")
-            label = (event.data.get("args") or {}).get("label")
-            if path and label:
-                images[label] = Path(path)
-    missing = [t for t in targets if t not in images]
-    if missing:
-        raise EndStateError(f"no image captured of {', '.join(missing)}")
-    empty = [t for t in targets if not images[t].is_file() or images[t].stat().st_size == 0]
-    if empty:
-        raise EndStateError(f"image files missing or empty for {', '.join(empty)}")
-    return [f"{target}: {images[target]}" for target in targets]
-
-
-#: The world checks a deployment's ``demo.check`` may name: what each verifies after the run.
-WORLD_CHECKS: dict[str, Callable[[Deployment, str, str, str], list[str]]] = {
-    "cdra_filters_swapped": lambda d, bridge_url, db_url, run_id: iva_end_state(
-        bridge_url, d.scene, (d.demo.inputs if d.demo else {}).get("clean_filter_id", "")
-    ),
-    "every_target_imaged": lambda d, bridge_url, db_url, run_id: eva_end_state(db_url, run_id, d.scene),
-}
+def demo_home(deployment: Deployment) -> Path:
+    """The ``var/`` folder the demo's defaults live in: the checkout's for a deployment inside the
+    checkout (``make demo`` leaves its log where ``caretaker report`` looks), else one beside the
+    deployment file."""
+    inside = deployment.path.resolve().is_relative_to(REPO)
+    return (REPO if inside else deployment.path.resolve().parent) / "var"
 
 
 def _run_procedure(
-    demo: DemoRun, bridge_url: str, db_url: str, env: dict[str, str], started: float
+    deployment: Deployment, bridge_url: str, db_url: str, env: dict[str, str], started: float
 ) -> tuple[str | None, str]:
-    """Run the demo's procedure autonomously in its own process; return (run id, final status)."""
+    """Run the demo's procedure autonomously in its own process; return (run id, final status).
+
+    On a simulator it runs as a rehearsal (the procedure as it is in the checkout, released or
+    not); on a real robot only its released version runs."""
+    demo = deployment.demo
+    assert demo is not None, "main() runs a demo only for a deployment that has one"
     answers = [f"--set={name}={value}" for name, value in demo.inputs.items()]
     result: dict[str, str] = {}
 
@@ -180,6 +75,9 @@ def _run_procedure(
         "--db",
         db_url,
         "--confirm-manual",
+        "--deployment",
+        str(deployment.path),
+        *(["--rehearsal"] if deployment.simulator else []),
         *answers,
         env=env,
         name="run",
@@ -230,15 +128,18 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
     if demo is None:
         print(f"caretaker demo: {deployment.path} has no demo: section (procedure, binding) to run")
         return 1
-    db_url = args.db or DEFAULT_DB
-    reports = Path(args.reports) if args.reports else REPO / "var" / "reports"
-    (REPO / "var").mkdir(exist_ok=True)
+    home = demo_home(deployment)
+    db_url = args.db or f"sqlite:///{home / 'caretaker.db'}"
+    reports = Path(args.reports) if args.reports else home / "reports"
+    if not args.db:  # SQLite makes the file, not its folder (the report makes its own)
+        home.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
     stack = Stack(
         deployment,
         time_scale=args.time_scale,
         bridge_address=args.bridge_address,
         bridge_port=args.bridge_port,
+        displace=args.displace,
         echo=args.verbose,
     )
     print(f"Starting the {deployment.name} stack: {', '.join(p.name for p in stack.parts)}", flush=True)
@@ -250,25 +151,27 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
     try:
         print(
             f"[{time.monotonic() - started:7.1f} s] stack ready ({stack.bridge_url}); "
-            f"running {demo.procedure.name} autonomously",
+            f"running {demo.procedure.name} autonomously"
+            + (", as a rehearsal on the simulator (released or not)" if deployment.simulator else ""),
             flush=True,
         )
-        run_id, status = _run_procedure(demo, stack.bridge_url, db_url, stack.env, started)
-        dead = stack.dead_parts()
-        if dead:
-            print(f"caretaker demo: {', '.join(dead)} died during the run")
-            return 1
-        if status != "completed" or run_id is None:
-            print(f"caretaker demo: the procedure did not complete ({status})")
-            return 1
-        if demo.check is not None:
-            try:
-                verified = WORLD_CHECKS[demo.check](deployment, stack.bridge_url, db_url, run_id)
-            except EndStateError as exc:
-                print(f"caretaker demo: the procedure completed but the world is wrong: {exc}")
+        with watch_world(demo.checks, stack.bridge_url, deployment.namespace, load_scene(deployment.scene)) as world:
+            run_id, status = _run_procedure(deployment, stack.bridge_url, db_url, stack.env, started)
+            dead = stack.dead_parts()
+            if dead:
+                print(f"caretaker demo: {', '.join(dead)} died during the run")
                 return 1
-            for line in verified:
-                print(f"  verified: {line}")
+            if status != "completed" or run_id is None:
+                print(f"caretaker demo: the procedure did not complete ({status})")
+                return 1
+            verdicts = world.judge(db_url, run_id)
+        for verdict in verdicts:
+            # one write: another thread's log line must not land between a verdict and its newline
+            sys.stdout.write(f"  {'verified' if verdict.holds else 'WRONG'}: {verdict.words}\n")
+            sys.stdout.flush()
+        if not all(verdict.holds for verdict in verdicts):
+            print("caretaker demo: the procedure completed but the world is wrong (WRONG above)")
+            return 1
         report = caretaker("report", run_id, "--db", db_url, "--out", str(reports), env=stack.env, name="report")
         report.proc.wait()
         report.stop()
@@ -295,8 +198,15 @@ def demo_main(argv: list[str] | None = None) -> int:
         help=f"leave the web view running after the procedure; sign in as {DEMO_USER} with the password "
         "it prints (a new one each time)",
     )
-    parser.add_argument("--db", default=None, help="audit log SQLAlchemy URL (default: var/caretaker.db)")
-    parser.add_argument("--reports", default=None, metavar="DIR", help="where the report goes (default: var/reports)")
+    parser.add_argument(
+        "--db",
+        default=None,
+        help="audit log SQLAlchemy URL (default: var/caretaker.db of the checkout for a deployment in it, "
+        "else beside the deployment file)",
+    )
+    parser.add_argument(
+        "--reports", default=None, metavar="DIR", help="where the report goes (default: var/reports, as for --db)"
+    )
     parser.set_defaults(time_scale=0.0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")

@@ -3,13 +3,19 @@
 A deployment names the scene, the robot config, the template library, the ROS domain and
 namespace, the rosbridge server's address, port and TLS/auth files, the capture and state
 folders, and the bindings this robot side serves (and, for ``caretaker demo``, the procedure to
-run). Every path in it is relative to the deployment file; every key is checked (unknown keys
+run). Every path in it is relative to the deployment file, and a bare name names a shipped file
+(``scene: iva``, ``robot: ur10``, ``bindings: [iva]``); every key is checked (unknown keys
 are errors) with the shared :mod:`datafile` reader, and the files it names are checked too, so a
 deployment that passes ``caretaker check`` starts. ``ledger`` sets the habitat's command ledger
 (always started; its memory lives in the state folder), ``link`` puts an emulated link in front
 of the bridge (a rehearsal on one host: ground clients connect to ``link.listen``), ``onboard:
 true`` starts the onboard executive (``caretaker onboard``: units from the ground run next to the
-robot, with the deployment's bindings; its store lives in the state folder).
+robot, with the deployment's bindings; its store lives in the state folder). ``simulator: true``
+says the robot side is a simulation, where a draft procedure may run as a rehearsal;
+``critical_commanding`` which commands need a second operator's approval (:mod:`pride.approvals`;
+the ground reads both through :mod:`pride.robot_sides`). ``displace: SEED`` builds the simulated
+world with its slot bodies and targets moved by a seeded offset that only perception finds
+(``sim.displacement``; ``caretaker up --displace`` overrides it for one run).
 
 Example (``deployments/iva.yaml``)::
 
@@ -23,7 +29,9 @@ Example (``deployments/iva.yaml``)::
       procedure: ../procedures/iva_cdra_filter_replacement.xml
       binding: ../sysrep/bindings/iva.yaml
       inputs: {clean_filter_id: CDRA-F-0012}
-      check: cdra_filters_swapped
+      checks:                           # what must hold of the world afterwards (caretaker.world_checks)
+        - {object: filter/CDRA-F-0007, at: rack/slot_3, within_mm: 30}
+        - {topic: cdra/installed_filter_id, equals: "${clean_filter_id}"}
 """
 
 from __future__ import annotations
@@ -35,9 +43,12 @@ from urllib.parse import urlparse
 
 from at_ros.library import load_library
 from at_ros.robot_config import RobotConfig, load_robot_config, load_robot_configs
+from caretaker.world_checks import WorldCheck, check_against_scene, load_checks
 from datafile import DataFileError, Field, load_file, shipped_or_path
+from pride.approvals import ApprovalPolicy, policy_from
 from pride.binding import Binding, read_binding
-from sim.scene import Scene, load_scene
+from pride.robot_sides import simulator_flag
+from sim.scene import SCENES_DIR, Scene, load_scene
 
 __all__ = [
     "BridgeSettings",
@@ -47,15 +58,15 @@ __all__ = [
     "LedgerSettings",
     "LinkEmulation",
     "SHIPPED",
-    "WORLD_CHECK_NAMES",
     "load_deployment",
     "resolve_deployment",
 ]
 
 #: The deployments that ship with Caretaker: ``caretaker up iva`` means this folder's iva.yaml.
 SHIPPED = Path(__file__).resolve().parents[2] / "deployments"
-#: The checks of the world that ``caretaker demo`` knows by name (caretaker.demo).
-WORLD_CHECK_NAMES = ("cdra_filters_swapped", "every_target_imaged")
+#: Where the bare names a deployment may use for shipped files are looked up (`scene: iva`).
+ROBOTS = Path(__file__).resolve().parents[1] / "at_ros" / "library" / "robots"
+BINDINGS = Path(__file__).resolve().parents[2] / "sysrep" / "bindings"
 TOP_LEVEL_KEYS = (
     "name",
     "scene",
@@ -72,6 +83,9 @@ TOP_LEVEL_KEYS = (
     "link",
     "ledger",
     "onboard",
+    "simulator",
+    "critical_commanding",
+    "displace",
     "description",
 )
 
@@ -135,12 +149,13 @@ class LinkEmulation:
 
 @dataclass(frozen=True)
 class DemoRun:
-    """What ``caretaker demo`` runs on this robot side, and how it checks the world afterwards."""
+    """What ``caretaker demo`` runs on this robot side, and what it checks of the world (none: the
+    run's own outcome only)."""
 
     procedure: Path
     binding: Path
     inputs: dict[str, str]
-    check: str | None
+    checks: tuple[WorldCheck, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -163,6 +178,9 @@ class Deployment:
     link: LinkEmulation | None = None  # None: ground clients reach the bridge itself
     ledger: LedgerSettings = field(default_factory=LedgerSettings)
     onboard: bool = False  # run the onboard executive (needs bindings, and a secret on the bridge)
+    simulator: bool = False  # a simulation: drafts may run on it as rehearsals
+    approvals: ApprovalPolicy = field(default_factory=lambda: policy_from(None))  # critical commanding
+    displace: int | None = None  # a displaced world's seed (sim --displace); None: the scene as drawn
 
 
 def resolve_deployment(name_or_path: str | Path) -> Path:
@@ -191,7 +209,7 @@ def _bridge(f: Field | None) -> BridgeSettings:
 def _demo(f: Field | None) -> DemoRun | None:
     if f is None:
         return None
-    f.mapping(required=("procedure", "binding"), optional=("inputs", "check"))
+    f.mapping(required=("procedure", "binding"), optional=("inputs", "checks"))
     inputs = {}
     for key, value in f["inputs"].entries() if f.has("inputs") else []:
         if value.node.kind != "scalar" or value.node.value is None:
@@ -199,9 +217,9 @@ def _demo(f: Field | None) -> DemoRun | None:
         inputs[key] = str(value.node.value).lower() if isinstance(value.node.value, bool) else str(value.node.value)
     return DemoRun(
         procedure=f["procedure"].file_path(),
-        binding=f["binding"].file_path(),
+        binding=f["binding"].file_path(shipped=BINDINGS, what="binding"),
         inputs=inputs,
-        check=f["check"].choice(WORLD_CHECK_NAMES) if f.has("check") else None,
+        checks=load_checks(f["checks"], inputs) if f.has("checks") else (),
     )
 
 
@@ -263,12 +281,12 @@ def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment
     namespace = ros["namespace"].text(empty=True) if ros is not None and ros.has("namespace") else ""
     if namespace and not namespace.startswith("/"):
         raise ros["namespace"].fail(f"a namespace starts with '/', e.g. /{namespace}")  # type: ignore[index]
-    robot_file = root["robot"].file_path()
+    robot_file = root["robot"].file_path(shipped=ROBOTS, what="robot config")
     robot = load_robot_config(robot_file)
     deployment = Deployment(
         path=path,
         name=root["name"].text(),
-        scene=root["scene"].file_path(),
+        scene=root["scene"].file_path(shipped=SCENES_DIR, what="scene"),
         robot=robot_file,
         robot_name=robot.robot_name,
         templates=root["templates"].file_path(folder=True),
@@ -279,11 +297,16 @@ def load_deployment(path: str | Path, *, check_files: bool = True) -> Deployment
         capture_dir=root["capture_dir"].file_path(folder=True, must_exist=False) if root.has("capture_dir") else None,
         state_dir=root["state_dir"].file_path(folder=True, must_exist=False) if root.has("state_dir") else None,
         time_scale=root["time_scale"].number(min=0.0, max=1000.0) if root.has("time_scale") else 1.0,
-        bindings=tuple(b.file_path() for b in root["bindings"].sequence()) if root.has("bindings") else (),
+        bindings=tuple(b.file_path(shipped=BINDINGS, what="binding") for b in root["bindings"].sequence())
+        if root.has("bindings")
+        else (),
         demo=_demo(root.get("demo")),
         link=_link(root.get("link")),
         ledger=_ledger(root.get("ledger")),
         onboard=root["onboard"].boolean() if root.has("onboard") else False,
+        simulator=simulator_flag(root.get("simulator")),
+        approvals=policy_from(root.get("critical_commanding")),
+        displace=root["displace"].integer(min=0) if root.has("displace") else None,
     )
     if deployment.onboard and not deployment.bindings:
         raise root["onboard"].fail("the onboard executive runs units with this deployment's bindings: list them")
@@ -309,6 +332,8 @@ def _check_files(root: Field, deployment: Deployment, robot: RobotConfig) -> Non
         demo = root["demo"]
         if deployment.demo.binding not in deployment.bindings:
             raise demo["binding"].fail("the demo's binding is not one of this deployment's bindings")
+        if deployment.demo.checks:
+            check_against_scene(demo["checks"], deployment.demo.checks, scene)
 
 
 def _check_robot_matches_scene(root: Field, robot: RobotConfig, scene: Scene) -> None:

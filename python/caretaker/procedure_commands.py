@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import getpass
 import logging
 import os
 import signal
@@ -22,6 +23,7 @@ from typing import Any
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
+from pride.approvals import onboard_refusal
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError, head_revision
 from pride.binding import read_binding
@@ -30,19 +32,24 @@ from pride.events import Event, EventKind
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure, lint_file
+from pride.phrasing import Wording
+from pride.releases import ReleaseRefused, ReleaseStore, RunVersion, resume_refusal, version_for_run
 from pride.robot_control import RobotControl
+from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
 
-__all__ = ["db_main", "lint_main", "report_main", "run_main"]
+__all__ = ["LeftBehind", "db_main", "lint_main", "report_main", "run_main"]
 
 log = logging.getLogger(__name__)
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_SYSREP_DIR = REPO / "sysrep"
+#: Where an unattended ``caretaker run --approver USER`` finds that operator's password.
+APPROVER_PASSWORD_ENV = "CARETAKER_APPROVER_PASSWORD"
 
 
-def _load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
+def load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
     sysreps: dict[str, SysRep] = {}
     for directory in directories or [str(DEFAULT_SYSREP_DIR)]:
         for sysrep_id, sysrep in load_sysrep_dir(directory).items():
@@ -63,6 +70,15 @@ def _sysrep_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _raw_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--raw",
+        action="store_true",
+        help="also show each command sent as the call (system.command(arg=value, ...), values in full), "
+        "as the web view's raw-commands switch does",
+    )
+
+
 def lint_main(argv: list[str] | None = None) -> int:
     """``caretaker lint FILE...``: print every problem as file:line:col: message."""
     parser = argparse.ArgumentParser(
@@ -72,7 +88,7 @@ def lint_main(argv: list[str] | None = None) -> int:
     _sysrep_option(parser)
     args = parser.parse_args(argv)
     try:
-        sysreps = _load_sysreps(args.sysrep_dir)
+        sysreps = load_sysreps(args.sysrep_dir)
     except SysRepError as exc:
         print(exc, file=sys.stderr)
         return 2
@@ -81,10 +97,31 @@ def lint_main(argv: list[str] | None = None) -> int:
         problems = lint_file(path, sysreps)
         for problem in problems:
             print(problem)
+        if not problems:  # say what was checked, so silence is never mistaken for success
+            against = f"{len(sysreps)} SysRep{'' if len(sysreps) == 1 else 's'}"
+            print(f"{path}: ok (schema, and every command and telemetry name against {against})")
         failed += bool(problems)
     if failed:
         print(f"{failed} of {len(args.files)} procedure(s) have errors", file=sys.stderr)
     return 1 if failed else 0
+
+
+class LeftBehind:
+    """An executive listener: once the run ends, one ``LEFT`` line per thing it left on a system.
+
+    A stopped run takes back the Affordance Template instances it added; what it could not (a
+    removal failed, the link was lost, an outcome is not known) or a completed procedure did not
+    remove is listed in the end event (:mod:`pride.leftovers`). Said here too, so an operator at
+    the terminal sees what to clean up without reading the report.
+    """
+
+    def __init__(self, out: TerminalLines) -> None:
+        self.out = out
+
+    def __call__(self, event: Event) -> None:
+        if event.kind in (EventKind.RUN_STOPPED, EventKind.RUN_COMPLETED):
+            for item in event.data.get("left_behind", []):
+                self.out.say(f"LEFT {item['name']} on {item['system']}: {item['why']}")
 
 
 def _new_run_id(procedure_id: str) -> str:
@@ -120,6 +157,27 @@ def run_main(argv: list[str] | None = None) -> int:
     parser.add_argument("--confirm-manual", action="store_true", help="mark manual instructions done unattended")
     parser.add_argument("--confirm-hazardous", action="store_true", help="confirm hazardous commands unattended")
     parser.add_argument(
+        "--approver",
+        metavar="USER",
+        help="a second operator who approves the commands that need approval (the robot side's critical "
+        "commanding), checked against their account: their password from $CARETAKER_APPROVER_PASSWORD, or asked "
+        "at the start; without it such a command waits for a second operator at this terminal",
+    )
+    parser.add_argument(
+        "--rehearsal",
+        action="store_true",
+        help="run a draft (or a procedure changed since its release) as a rehearsal, on a simulator only",
+    )
+    parser.add_argument(
+        "--deployment",
+        action="append",
+        default=[],
+        type=Path,
+        metavar="PATH",
+        help="the deployment of the robot side the binding reaches, or a folder of deployments (a simulator? "
+        "which commands need approval?), when it is neither shipped nor beside the binding",
+    )
+    parser.add_argument(
         "--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N"
     )
     parser.add_argument("--resume", metavar="RUN", help="continue an interrupted run from the audit log")
@@ -147,6 +205,7 @@ def run_main(argv: list[str] | None = None) -> int:
         help="take control of the robot from the run that holds it (logged in both runs)",
     )
     _sysrep_option(parser)
+    _raw_option(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
@@ -176,7 +235,7 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
     if not path:
         parser.error("give PROC (or --resume RUN)")
     try:
-        sysreps = _load_sysreps(args.sysrep_dir)
+        sysreps = load_sysreps(args.sysrep_dir)
     except SysRepError as exc:
         print(exc, file=sys.stderr)
         return 2
@@ -188,8 +247,26 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
     procedure = checked.procedure
+    try:
+        side = robot_side_for(Path(args.binding), deployments=args.deployment)
+    except DataFileError as exc:
+        print(f"caretaker run: the deployment serving {args.binding} cannot be used: {exc}", file=sys.stderr)
+        return 2
+    version = _version_or_refusal(args, checked, path, side, audit, events)
+    if isinstance(version, str):
+        print(f"caretaker run: {version}", file=sys.stderr)
+        return 2
     if args.onboard:
-        return _run_onboard(args, checked, audit, values)
+        refused = onboard_refusal(checked, side.approvals)
+        if refused is not None:
+            print(f"caretaker run: {path} cannot run on the habitat: {refused}", file=sys.stderr)
+            return 2
+        return _run_onboard(args, checked, audit, values, version)
+    try:
+        approver = _approver(args, checked, side)
+    except ValueError as exc:
+        print(f"caretaker run: {exc}", file=sys.stderr)
+        return 2
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -202,7 +279,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
             print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
             return 2
         terminal = TerminalLines()
-        printer = ProgressPrinter(procedure, terminal)
+        printer = ProgressPrinter(procedure, terminal, Wording(checked.sysreps, args.raw))
+        left_behind = LeftBehind(terminal)
         try:
             if args.resume:
                 executive = Executive.resume(
@@ -214,6 +292,7 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                     mode=args.mode,
                     control=control,
                     take_over=args.take_over,
+                    approvals=side.approvals,
                 )
                 # the printer joins after the replay: the resumed run's own events follow
             else:
@@ -224,8 +303,11 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                     run_id=_new_run_id(procedure.id),
                     mode=args.mode or Mode.MANUAL,
                     control=control,
+                    approvals=side.approvals,
+                    version=version,
                 )
                 executive.add_listener(printer)
+                executive.add_listener(left_behind)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
                     executive.set_breakpoint(args.user, number)
                 executive.start(args.user, take_over=args.take_over)
@@ -237,11 +319,19 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
             return 2
         if args.resume:
             executive.add_listener(printer)
+            executive.add_listener(left_behind)
             for number in args.breakpoints:
                 executive.set_breakpoint(args.user, number)
         terminal.say(f"READY run {executive.run_id}")
-        answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight)
-        console = OperatorConsole(executive, args.user, answers, interactive=sys.stdin.isatty(), out=terminal)
+        answers = Unattended(values, args.confirm_manual, args.confirm_hazardous, args.in_flight, approver)
+        console = OperatorConsole(
+            executive,
+            args.user,
+            answers,
+            interactive=sys.stdin.isatty(),
+            out=terminal,
+            second_operator=lambda user, password: _second_operator(args, user, password),
+        )
         previous = signal.signal(signal.SIGINT, lambda _signum, _frame: console.interrupt())
         try:
             final = console.run()
@@ -260,7 +350,63 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         control.close()
 
 
-def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: AuditLog, values: dict[str, str]) -> int:
+def _version_or_refusal(
+    args: argparse.Namespace,
+    checked: CheckedProcedure,
+    path: str,
+    side: RobotSide,
+    audit: AuditLog,
+    events: list[Event],
+) -> RunVersion | str | None:
+    """The version a new run runs (None for a resume), or why the run may not start (a str)."""
+    if events:
+        return resume_refusal(checked, path, events[0].data, side)
+    try:
+        return version_for_run(ReleaseStore(audit.engine), checked, path, side, rehearsal=args.rehearsal)
+    except ReleaseRefused as exc:
+        return f"{exc} (--rehearsal)" if not args.rehearsal else str(exc)
+
+
+def _second_operator(args: argparse.Namespace, user: str, password: str) -> str:
+    """The user id of a second operator whose password checks out in the ground database, who is
+    not the run's user; ValueError says why not."""
+    from console.accounts import AccountStore
+
+    if user == args.user:
+        raise ValueError(f"{user} runs this: a second operator must approve, not {user}")
+    store = AccountStore(args.db)
+    try:
+        account = store.verify(user, password)
+    finally:
+        store.close()
+    if account is None:
+        raise ValueError(f"{user}: unknown user or wrong password (accounts of {args.db})")
+    if not account.may_act:
+        raise ValueError(f"{user} is an {account.role.value}: only an operator approves commands")
+    return account.user
+
+
+def _approver(args: argparse.Namespace, checked: CheckedProcedure, side: RobotSide) -> str | None:
+    """``--approver``, checked against their account before the run starts (ValueError says why not)."""
+    if args.approver is None:
+        return None
+    password = os.environ.get(APPROVER_PASSWORD_ENV)
+    if not password and sys.stdin.isatty():
+        password = getpass.getpass(f"{args.approver}'s password (approving for {args.user}): ")
+    if not password:
+        raise ValueError(f"--approver {args.approver}: give their password in ${APPROVER_PASSWORD_ENV}")
+    approver = _second_operator(args, args.approver, password)
+    log.info("%s approves the commands that need approval (%s)", approver, side.approvals.describe())
+    return approver
+
+
+def _run_onboard(
+    args: argparse.Namespace,
+    checked: CheckedProcedure,
+    audit: AuditLog,
+    values: dict[str, str],
+    version: RunVersion | None,
+) -> int:
     """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record."""
     if args.resume:
         print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
@@ -290,6 +436,7 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
         breakpoints=args.breakpoints,
         lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
         now=time.time(),
+        version=version,
     )
     from sqlalchemy.exc import SQLAlchemyError
 
@@ -297,7 +444,8 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
     from console.onboard_view import OnboardView
     from console.terminal_host import HostedElsewhere, TerminalHost
 
-    printer = ProgressPrinter(checked.procedure, terminal)
+    printer = ProgressPrinter(checked.procedure, terminal, Wording(checked.sysreps, args.raw))
+    left_behind = LeftBehind(terminal)
     # Hosted for the consoles as a ground run is: they show it live and forward operators' actions here.
     try:
         host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True)
@@ -318,6 +466,7 @@ def _run_onboard(args: argparse.Namespace, checked: CheckedProcedure, audit: Aud
 
     def on_event(event: Event) -> None:
         printer(event)
+        left_behind(event)
         view.event(event)
 
     def on_news(news: HabitatNews) -> None:
@@ -378,6 +527,8 @@ def report_main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--verify", action="store_true", help="only check the run's hash chain and name the first event that breaks it"
     )
+    _sysrep_option(parser)
+    _raw_option(parser)
     args = parser.parse_args(argv)
     if args.verify and not args.run:
         parser.error("--verify needs RUN")
@@ -399,9 +550,15 @@ def report_main(argv: list[str] | None = None) -> int:
         if args.verify:
             print(check.describe(), file=sys.stdout if check.ok else sys.stderr)
             return 0 if check.ok else 1
+        try:
+            sysreps = load_sysreps(args.sysrep_dir)  # the report names commands and telemetry by their labels
+        except SysRepError as exc:
+            print(exc, file=sys.stderr)
+            return 2
         if not check.ok:
             print(f"caretaker report: WARNING {check.describe()}", file=sys.stderr)
-        html_path, md_path = write_report(events, Path(args.out), integrity=check.describe())
+        wording = Wording(sysreps, args.raw)
+        html_path, md_path = write_report(events, Path(args.out), integrity=check.describe(), wording=wording)
         print(html_path)
         print(md_path)
         return 0 if check.ok else 1

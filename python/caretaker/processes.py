@@ -110,13 +110,26 @@ class ManagedProcess:
         with self._output_changed:
             self._output_changed.wait_for(printed, timeout)
         if not found:
-            state = (
-                f"exited with {self.proc.poll()}"
-                if self._ended
-                else f"printed no line matching {pattern!r} in {timeout} s"
-            )
+            state = self.how_it_ended() if self._ended else f"printed no line matching {pattern!r} in {timeout} s"
             raise ProcessFailed(f"{self.name} {state}; its output:\n{self.tail()}")
         return found[0]
+
+    def how_it_ended(self, patience: float = 5.0) -> str:
+        """In words, once its output has closed: the exit code, or the signal that killed it.
+
+        The output closes a moment before the process is reaped, so the code is waited for
+        (briefly) rather than polled, which would read "None".
+        """
+        try:
+            code = self.proc.wait(patience)
+        except subprocess.TimeoutExpired:
+            return f"closed its output but was still running {patience} s later"
+        if code < 0:
+            try:
+                return f"was killed by {signal.Signals(-code).name}"
+            except ValueError:
+                return f"was killed by signal {-code}"
+        return f"exited with code {code}"
 
     def wait_ready(self, timeout: float = 60.0) -> str:
         """Block until the process printed its READY line (returned); raise ProcessFailed otherwise."""

@@ -40,7 +40,7 @@ from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
 from caretaker.terminal import TerminalLines
 from datafile import DataFileError
 
-__all__ = ["PARTS", "Part", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
+__all__ = ["PARTS", "Part", "PartEcho", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
 log = logging.getLogger("caretaker.stack")
 
@@ -58,6 +58,7 @@ class StackRun:
     bridge_port: int  # 0 until the bridge picked one, when the deployment says 0
     state_dir: Path
     link_port: int = 0  # the emulated link's listening port (0 until it picked one, if asked to)
+    displace: int | None = None  # the seed of a displaced world (sim --displace), None: as the scene says
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,13 @@ def _sim(deployment: Deployment, run: StackRun) -> list[str]:
         args += ["--namespace", deployment.namespace]
     if deployment.capture_dir is not None:
         args += ["--capture-dir", str(deployment.capture_dir)]
+    if run.displace is not None:
+        args += ["--displace", str(run.displace)]
     return args
+
+
+def _perception(deployment: Deployment, run: StackRun) -> list[str]:
+    return ["perception", *(["--namespace", deployment.namespace] if deployment.namespace else [])]
 
 
 def _planner(deployment: Deployment, run: StackRun) -> list[str]:
@@ -170,6 +177,7 @@ def _onboard(deployment: Deployment, run: StackRun) -> list[str]:
 #: The parts of a robot side, in the order they start (each waits for the ones before).
 PARTS: tuple[Part, ...] = (
     Part("sim", _sim, world=True),
+    Part("perception", _perception),
     Part("planner", _planner),
     Part("at-server", _at_server),
     Part("ledger", _ledger),
@@ -181,6 +189,22 @@ PARTS: tuple[Part, ...] = (
 
 class StackFailed(RuntimeError):
     """A part of the stack did not start, or died while running."""
+
+
+class PartEcho:
+    """Echoes the parts' output, each line after its part's name (``[at-server] ...``).
+
+    The parts print from their own reader threads, so their lines interleave: the name says who
+    wrote each, and one column as wide as the longest name keeps the lines themselves aligned.
+    """
+
+    def __init__(self, names: Sequence[str], out: TerminalLines) -> None:
+        self.out = out
+        self.width = max((len(name) for name in names), default=0) + 2  # the brackets
+
+    def __call__(self, name: str, line: str) -> None:
+        """``ManagedProcess``'s ``on_line``: print one line of part ``name``."""
+        self.out.say(f"{f'[{name}]':<{self.width}} {line}")
 
 
 class Stack:
@@ -197,15 +221,17 @@ class Stack:
         time_scale: float | None = None,
         bridge_address: str | None = None,
         bridge_port: int | None = None,
+        displace: int | None = None,
         parts: Sequence[str] | None = None,
         env: dict[str, str] | None = None,
         ready_timeout: float = 120.0,
         echo: bool = False,
         respawn: bool = False,
     ) -> None:
-        """Overrides (``time_scale``, ``bridge_*``) replace the deployment's values; ``parts``
-        names a subset of :data:`PARTS` to run (tests); ``respawn``: :meth:`supervise` restarts
-        parts that die (all but the world).
+        """Overrides (``time_scale``, ``bridge_*``, ``displace``) replace the deployment's values; ``parts``
+        names a subset of :data:`PARTS` to run (tests); ``echo``: print every line the parts print,
+        after the part's name (:class:`PartEcho`); ``respawn``: :meth:`supervise` restarts parts that
+        die (all but the world).
 
         Raises:
             StackFailed: ``parts`` names a part that does not exist.
@@ -233,15 +259,16 @@ class Stack:
             bridge_address=deployment.bridge.address if bridge_address is None else bridge_address,
             bridge_port=deployment.bridge.port if bridge_port is None else bridge_port,
             state_dir=state_dir,
+            displace=deployment.displace if displace is None else displace,
         )
         self.ready_timeout = ready_timeout
-        self.echo = echo
         self.respawn = respawn
         self.processes: dict[str, ManagedProcess] = {}
         self.ready_lines: dict[str, str] = {}
         self.restarts: dict[str, deque[float]] = {p.name: deque() for p in self.parts}
         self._exited = threading.Event()
         self.terminal = TerminalLines()  # the parts' echoed lines come from their reader threads
+        self._echo = PartEcho([p.name for p in self.parts], self.terminal) if echo else None
 
     @property
     def bridge_url(self) -> str:
@@ -255,10 +282,6 @@ class Stack:
         if link is None or not any(p.name == "link" for p in self.parts):
             return self.bridge_url
         return f"{self.deployment.bridge.scheme}://{_host(link.listen[0])}:{self.run.link_port or link.listen[1]}"
-
-    def _print_line(self, name: str, line: str) -> None:
-        if self.echo:
-            self.terminal.say(f"  [{name}] {line}")
 
     def start(self) -> None:
         """Start every part in order and wait until each serves.
@@ -284,7 +307,7 @@ class Stack:
         """
         started = time.monotonic()
         proc = caretaker(
-            *self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._print_line
+            *self.part(name).command(self.deployment, self.run), env=self.env, name=name, on_line=self._echo
         )
         self.processes[name] = proc
         threading.Thread(target=self._await_exit, args=(proc,), name=f"{name}-exit", daemon=True).start()
@@ -376,6 +399,13 @@ def stack_options(prog: str) -> argparse.ArgumentParser:
     parser.add_argument(
         "--bridge-port", type=int, help="rosbridge port; 0 picks a free one (default: the deployment's)"
     )
+    parser.add_argument(
+        "--displace",
+        type=int,
+        metavar="SEED",
+        help="a world not where the scene file puts it: the slot bodies and targets moved by a random offset of"
+        " this seed, found only by perception (default: the deployment's displace, else none)",
+    )
     parser.add_argument("--verbose", "-v", action="store_true", help="echo every part's output")
     return parser
 
@@ -410,6 +440,7 @@ def up_main(argv: list[str] | None = None) -> int:
             time_scale=args.time_scale,
             bridge_address=args.bridge_address,
             bridge_port=args.bridge_port,
+            displace=args.displace,
             echo=args.verbose,
             respawn=True,
         )

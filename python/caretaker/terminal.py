@@ -8,6 +8,7 @@ the run and says which option would have answered.
 
 from __future__ import annotations
 
+import getpass
 import sys
 import threading
 from collections.abc import Callable
@@ -17,10 +18,11 @@ from typing import Any, TextIO
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
 from pride.model import Procedure, RecordInstruction
-from pride.phrasing import started_text
+from pride.phrasing import Wording, describe_event, result_text, started_text, telemetry_text
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 
+#: A command's outcome as the terminal marks it (short, the failures in capitals to stand out).
 _MARKS = {"succeeded": "ok", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
 
 
@@ -45,11 +47,17 @@ class TerminalLines:
 
 
 class ProgressPrinter:
-    """Prints one line per meaningful event, with a header when a new step begins."""
+    """Prints one line per meaningful event, with a header when a new step begins.
 
-    def __init__(self, procedure: Procedure, out: TerminalLines) -> None:
+    Commands, results, readings and records read as in the audit panel and the report
+    (:mod:`pride.phrasing`, with ``wording``'s SysRep labels); the call as sent only with
+    ``wording.raw`` (``caretaker run --raw``).
+    """
+
+    def __init__(self, procedure: Procedure, out: TerminalLines, wording: Wording | None = None) -> None:
         self.procedure = procedure
         self.out = out
+        self.wording = wording or Wording()
         self._step: str | None = None
 
     def __call__(self, event: Event) -> None:
@@ -65,16 +73,11 @@ class ProgressPrinter:
             self._header(number)
             line = f"  {number:<8} {event.actor:<10} {started_text(event)}"
         elif kind is EventKind.COMMAND_SENT:
-            args = ", ".join(f"{k}={v!r}" for k, v in data["args"].items())
-            again = " again" if data.get("resend") else ""
-            line = f"  {number:<8} {event.actor:<10} sent{again} {data['system']}.{data['command']}({args})" + (
+            line = f"  {number:<8} {event.actor:<10} {describe_event(event, self.wording)}" + (
                 f" [{data['key']}]" if data.get("key") else ""
             )
         elif kind is EventKind.COMMAND_RESULT:
-            mark = _MARKS.get(data.get("outcome", ""), "ok" if data.get("success") else "FAILED")
-            line = f"  {number:<8} {'':<10} {mark}: {data['message']}" + (
-                f" {data['values']}" if data["values"] else ""
-            )
+            line = f"  {number:<8} {'':<10} {result_text(data, self.wording, _MARKS)}"
         elif kind is EventKind.HALT:
             cancel = data.get("cancel") or {}
             told = f"; the system: {cancel['message']}" if cancel.get("message") else ""
@@ -100,19 +103,16 @@ class ProgressPrinter:
                 f"  {number:<8} {'PAX':<10} control of {data['robot']} taken over by {data['by_user']} "
                 f"(run {data['by_run']}){_why(data)}"
             )
-        elif kind is EventKind.RECORD_CORRECTED:
-            line = (
-                f"  {number:<8} {event.actor:<10} corrected {data['name']}: {data['old']!r} -> {data['value']!r}"
-                f"{_why(data)}"
-            )
+        elif kind in (EventKind.RECORD_CORRECTED, EventKind.OPERATOR_INPUT):
+            if kind is EventKind.OPERATOR_INPUT:  # a correction may be of an earlier step's record
+                self._header(number)
+            line = f"  {number:<8} {event.actor:<10} {describe_event(event, self.wording)}"
         elif kind is EventKind.STEPPED_BACK:
             line = f"  {number:<8} {event.actor:<10} back to {data['next']}{_why(data)}"
         elif kind is EventKind.OUTCOME_RESOLVED:
             line = f"  {number:<8} {event.actor:<10} recorded {data['key']} as {data['outcome']}{_why(data)}"
         elif kind is EventKind.TELEMETRY_SEEN:
-            line = f"  {number:<8} {'':<10} {data['system']}.{data['item']} = {data['value']!r}" + (
-                " (stale)" if data["stale"] else ""
-            )
+            line = f"  {number:<8} {'':<10} {telemetry_text(data, self.wording)}"
         elif kind is EventKind.INSTRUCTION_COMPLETED:
             line = f"  {number:<8} {event.actor:<10} done" + (
                 f", go to step {data['went_to']}" if data.get("went_to") else ""
@@ -122,9 +122,6 @@ class ProgressPrinter:
             line = f"  {number:<8} {event.actor:<10} FAILED: {data['reason']}{branch}"
         elif kind is EventKind.INSTRUCTION_SKIPPED:
             line = f"  {number:<8} {event.actor:<10} skipped: {data['reason']}"
-        elif kind is EventKind.OPERATOR_INPUT:
-            self._header(number)
-            line = f"  {number:<8} {event.actor:<10} recorded {data['name']} = {data['value']!r}"
         elif kind is EventKind.AWAITING_OPERATOR:
             self._header(number)
             line = f"  {number:<8} {'PAX':<10} waiting for an operator: {data['reason']}"
@@ -174,6 +171,7 @@ class Unattended:
     confirm_manual: bool = False
     confirm_hazardous: bool = False
     in_flight: str | None = None  # "resend" | "skip"
+    approver: str | None = None  # a second operator (--approver, checked at the start) who approves
 
 
 class OperatorConsole:
@@ -188,13 +186,19 @@ class OperatorConsole:
         interactive: bool,
         out: TerminalLines,
         read: Callable[[str], str] = input,
+        read_secret: Callable[[str], str] = getpass.getpass,
+        second_operator: Callable[[str, str], str] | None = None,
     ) -> None:
+        """``second_operator(user, password)``: that second operator's user id once their
+        password checks out (ValueError says why not), so one can approve at this terminal."""
         self.executive = executive
         self.user = user
         self.answers = answers
         self.interactive = interactive
         self.out = out
         self._read = read
+        self._read_secret = read_secret
+        self._second_operator = second_operator
         self._answering: Snapshot | None = None
         self._interrupts = 0
 
@@ -254,7 +258,7 @@ class OperatorConsole:
                 ex.enter(user, self.answers.values[instruction.name])
             elif self.interactive:
                 self._notices(instruction)
-                answer = self._ask(f"{snap.current} {instruction.text} ({instruction.type}) > ")
+                answer = self._ask(f"{snap.reason} ({instruction.type}) > ")  # its text, values filled in
                 if answer == "!skip":
                     ex.skip(user, self._ask("reason > "))
                 else:
@@ -270,13 +274,27 @@ class OperatorConsole:
             else:
                 self._unattended_stop(snap, "pass --confirm-manual to mark manual instructions done")
         elif hold is Hold.CONFIRMATION:
+            approval = snap.approval is not None
             if self.answers.confirm_hazardous:
                 ex.confirm(user)
             elif self.interactive:
                 self._notices(instruction)
-                self._choose(snap, {"y": ("confirm and send", lambda: ex.confirm(user))})
+                label = "send it for a second operator's approval" if approval else "confirm and send"
+                self._choose(snap, {"y": (label, lambda: ex.confirm(user))})
             else:
-                self._unattended_stop(snap, "pass --confirm-hazardous to confirm hazardous commands")
+                todo = "send it for a second operator's approval" if approval else "confirm hazardous commands"
+                self._unattended_stop(snap, f"pass --confirm-hazardous to {todo}")
+        elif hold is Hold.APPROVAL:
+            if self.answers.approver is not None:
+                ex.approve(self.answers.approver)
+            elif self.interactive and self._second_operator is not None:
+                self._choose(snap, {"a": ("a second operator approves it here", self._approve_here)})
+            else:
+                self._unattended_stop(
+                    snap,
+                    "waiting for a second operator's approval: give --approver USER (a second operator; their "
+                    "password in $CARETAKER_APPROVER_PASSWORD)",
+                )
         elif hold is Hold.OUTCOME_UNKNOWN:
             if self.interactive:
                 check = "what did you check on the robot? > "
@@ -298,7 +316,16 @@ class OperatorConsole:
                     if halted_here
                     else ("c", ("continue", lambda: ex.resume_automation(user)))
                 )
-                self._choose(snap, dict([carry_on]))
+                # after a halted motion its plan ended with it: only re-planning from where the arm is can go on
+                ways = {} if snap.no_retry else dict([carry_on])
+                if snap.replan_from:
+                    ways["p"] = (
+                        f"re-plan from where the arm is and go on (from {snap.replan_from})",
+                        lambda: ex.replan(user),
+                    )
+                if snap.no_retry:
+                    self._say(f"  {snap.no_retry}")
+                self._choose(snap, ways)
             else:
                 self._unattended_stop(snap, "resume the run at a terminal to retry, continue or skip")
         elif hold is Hold.CONTROL_LOST:
@@ -339,6 +366,17 @@ class OperatorConsole:
                 )
             else:
                 ex.resume_automation(user)
+
+    def _approve_here(self) -> None:
+        """A second operator approves at this terminal with their own user and password."""
+        assert self._second_operator is not None
+        who = self._ask("second operator's user > ").strip()
+        try:
+            approver = self._second_operator(who, self._read_secret(f"{who}'s password > "))
+        except ValueError as exc:
+            self._say(f"  not approved: {exc}")
+            return
+        self.executive.approve(approver)
 
     def _resend(self, snap: Snapshot, instruction: Any) -> None:
         if self.executive.is_hazardous(instruction):

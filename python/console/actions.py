@@ -98,6 +98,7 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
     "perform": (True, lambda ex, user, r: ex.perform(user)),
     "step": (False, lambda ex, user, r: ex.step(user)),
     "confirm": (True, lambda ex, user, r: ex.confirm(user)),
+    "approve": (True, lambda ex, user, r: ex.approve(user)),
     "enter": (True, lambda ex, user, r: ex.enter(user, r.value)),
     "done": (True, lambda ex, user, r: ex.mark_done(user)),
     "retry": (True, lambda ex, user, r: ex.retry(user)),
@@ -105,13 +106,16 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
     "mode": (False, lambda ex, user, r: ex.set_mode(user, _mode(r))),
     "pause": (False, lambda ex, user, r: ex.pause(user)),
     "continue": (False, lambda ex, user, r: ex.resume_automation(user)),
-    "stop": (False, lambda ex, user, r: ex.stop(user, r.reason)),
+    # An operator's stop keeps the run's templates, listed in its end, so the next shift can
+    # resume it; an unattended stop (``caretaker run``) takes them back.
+    "stop": (False, lambda ex, user, r: ex.stop(user, r.reason, take_back=False)),
     "halt": (False, lambda ex, user, r: ex.halt(user, r.reason)),
     "take_control": (False, lambda ex, user, r: ex.take_control(user, r.reason)),
     "ask_again": (True, lambda ex, user, r: ex.ask_again(user)),
     "resolve": (True, lambda ex, user, r: ex.resolve(user, _outcome(r), r.reason)),
     "correct_record": (False, lambda ex, user, r: ex.correct_record(user, _numbered(r), r.value, r.reason)),
     "go_back": (False, lambda ex, user, r: ex.go_back(user, _numbered(r), r.reason)),
+    "replan": (True, lambda ex, user, r: ex.replan(user)),
     "set_breakpoint": (False, lambda ex, user, r: ex.set_breakpoint(user, _numbered(r))),
     "clear_breakpoint": (False, lambda ex, user, r: ex.clear_breakpoint(user, _numbered(r))),
 }
@@ -190,6 +194,7 @@ ONBOARD_ACTIONS: dict[str, Callable[[str, ActionRequest], dict[str, Any]]] = {
     "enter": lambda user, r: {"instruction": _numbered(r), "value": r.value},
     "done": lambda user, r: {"instruction": _numbered(r)},
     "retry": lambda user, r: {"instruction": _numbered(r)},
+    "replan": lambda user, r: {"instruction": _numbered(r)},
     "skip": lambda user, r: {"instruction": _numbered(r), "reason": r.reason},
     "ask_again": lambda user, r: {"instruction": _numbered(r)},
     "resolve": lambda user, r: {"instruction": _numbered(r), "value": _outcome(r), "reason": r.reason},

@@ -20,6 +20,7 @@ import json
 import logging
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -43,7 +44,7 @@ from console.spatial_api import spatial_routes
 from pride.events import Event
 from pride.model import Procedure
 from pride.parser import load_procedure
-from pride.phrasing import describe_event
+from pride.phrasing import Wording, describe_event
 
 __all__ = ["build_app"]
 
@@ -116,6 +117,11 @@ async def _json_body(request: Request) -> Any:
 # ---- pages and session ----------------------------------------------------------------------
 async def index(request: Request) -> Response:
     return FileResponse(STATIC / "index.html")
+
+
+async def favicon(request: Request) -> Response:
+    """The icon a browser asks for on its own (a report page names none): not a 404 in every log."""
+    return FileResponse(STATIC / "favicon.svg", media_type="image/svg+xml")
 
 
 def _session_json(session: WebSession) -> dict[str, Any]:
@@ -206,6 +212,7 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
         "mode": str(body.get("mode", "manual")),
         "take_over": str(body.get("take_over") or ""),
         "onboard": "yes" if body.get("onboard") is True else "",
+        "rehearsal": "yes" if body.get("rehearsal") is True else "",
     }
 
 
@@ -215,11 +222,19 @@ async def runs_start(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     if body["onboard"]:
         run_id = await run_in_threadpool(
-            board.start_onboard, account.user, body["procedure"], body["binding"], body["mode"]
+            partial(board.start_onboard, rehearsal=bool(body["rehearsal"])),
+            account.user,
+            body["procedure"],
+            body["binding"],
+            body["mode"],
         )
         return JSONResponse({"run_id": run_id}, status_code=201)
     live = await run_in_threadpool(
-        board.start, account.user, body["procedure"], body["binding"], body["mode"], take_over=body["take_over"] or None
+        partial(board.start, take_over=body["take_over"] or None, rehearsal=bool(body["rehearsal"])),
+        account.user,
+        body["procedure"],
+        body["binding"],
+        body["mode"],
     )
     return JSONResponse({"run_id": live.run_id}, status_code=201)
 
@@ -235,23 +250,25 @@ def _past_procedure(events: list[Any]) -> Procedure | None:
         return None
 
 
-def _event_json(event: Event) -> dict[str, Any]:
-    return {**event.to_dict(), "summary": describe_event(event)}
+def _event_json(event: Event, wording: Wording) -> dict[str, Any]:
+    """An audit record for the page: as stored, and its ``summary`` in the procedure view's words
+    (the audit panel shows it; the calls as sent are behind the page's raw switch, not here)."""
+    return {**event.to_dict(), "summary": describe_event(event, wording)}
 
 
 def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
     run = board.view(run_id)
+    sysreps = board.sysreps()
     if run is not None:
         return {
             "procedure": run.procedure_view,
             "state": run.state_json(),
             "server_time": time.time(),
-            "events": [_event_json(e) for e in run.events_since(0)],
+            "events": [_event_json(e, Wording(sysreps)) for e in run.events_since(0)],
             "telemetry": run.telemetry_json(),
         }
     events = board.past_events(run_id)
     procedure = _past_procedure(events)
-    sysreps = board.sysreps()
     state = {**fold_events(run_id, events, sysreps).to_dict(), "live": False}
     record = board.host_record(run_id)
     if record is not None and state["status"] not in ("completed", "stopped"):  # its host died or lost the database
@@ -260,7 +277,7 @@ def _run_view(board: RunBoard, run_id: str) -> dict[str, Any]:
         "procedure": procedure_json(procedure, sysreps=sysreps) if procedure else None,
         "state": state,
         "server_time": time.time(),
-        "events": [_event_json(e) for e in events],
+        "events": [_event_json(e, Wording(sysreps)) for e in events],
         "telemetry": {"readings": [], "checks": {}},
     }
 
@@ -351,6 +368,7 @@ async def run_socket(websocket: WebSocket) -> None:
     if run is None:
         await websocket.close(code=_CLOSE_POLICY, reason="that run is not live on any console")
         return
+    wording = Wording(await run_in_threadpool(board.sysreps))
     await websocket.accept()
     watcher = run.watch(account)
     receiver = asyncio.create_task(_drain(websocket))
@@ -373,7 +391,7 @@ async def run_socket(websocket: WebSocket) -> None:
                 {
                     "type": "update",
                     "state": state,
-                    "events": [_event_json(e) for e in events],
+                    "events": [_event_json(e, wording) for e in events],
                     "telemetry": telemetry,
                     "server_time": time.time(),
                 }
@@ -433,7 +451,7 @@ async def run_report(request: Request) -> Response:
     writer = request.app.state.report_writer
     if writer is None:
         raise ActionRefused(501, "this installation has no report writer (pride.report); use `caretaker report RUN`")
-    path = await run_in_threadpool(writer, run_id)
+    path = await run_in_threadpool(writer, run_id, Wording(board.sysreps()))
     return FileResponse(path, media_type="text/html")
 
 
@@ -494,11 +512,42 @@ async def author_save(request: Request) -> Response:
         )
     )
     log.info("%s saved procedure %s", account.user, saved["saved"])
+    await run_in_threadpool(board.saved, account.user, saved["saved"])
     return JSONResponse(saved)
 
 
+@_api
+async def author_version(request: Request) -> Response:
+    """Where a procedure's file stands: its version's hash, its newest release, a request for one."""
+    _account(request)
+    board: RunBoard = request.app.state.board
+    return JSONResponse(await run_in_threadpool(board.version_state, request.path_params["name"]))
+
+
+@_api
+async def author_release(request: Request) -> Response:
+    """``{"action": "request" | "release", "sha256": the version the operator saw}``: ask a second
+    operator to review and release it, or (as that second operator) release it."""
+    account = _account(request)
+    if not account.may_act:
+        raise ActionRefused(403, f"{account.user} is an observer: observers may read procedures, not release them")
+    board: RunBoard = request.app.state.board
+    body = await _json_body(request)
+    if not isinstance(body, dict) or body.get("action") not in ("request", "release"):
+        raise ActionRefused(400, 'expected {"action": "request" or "release", "sha256": the version you reviewed}')
+    seen = str(body.get("sha256", ""))
+    act = board.ask_release if body["action"] == "request" else board.release
+    state = await run_in_threadpool(act, account.user, request.path_params["name"], seen)
+    log.info("%s: %s of %s (sha256 %s)", account.user, body["action"], request.path_params["name"], seen)
+    return JSONResponse(state)
+
+
 def build_app(
-    board: RunBoard, sign_ins: SignIns, *, report_writer: Callable[[str], Path] | None = None, secure: bool = False
+    board: RunBoard,
+    sign_ins: SignIns,
+    *,
+    report_writer: Callable[[str, Wording], Path] | None = None,
+    secure: bool = False,
 ) -> Starlette:
     """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways.
 
@@ -521,6 +570,8 @@ def build_app(
             Route("/api/author/procedures/{name}", author_open),
             Route("/api/author/check", author_check, methods=["POST"]),
             Route("/api/author/save", author_save, methods=["POST"]),
+            Route("/api/author/procedures/{name}/version", author_version),
+            Route("/api/author/procedures/{name}/release", author_release, methods=["POST"]),
             Route("/api/session", session_get, methods=["GET"]),
             Route("/api/session", session_post, methods=["POST"]),
             Route("/api/session", session_delete, methods=["DELETE"]),
@@ -534,6 +585,7 @@ def build_app(
             WebSocketRoute("/ws/runs", runs_socket),
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
             *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
+            Route("/favicon.ico", favicon),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
         lifespan=lifespan,

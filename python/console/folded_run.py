@@ -83,6 +83,7 @@ class FoldedRun:
     stopped: dict[str, str] | None = None  # who stopped the run, when and why
     halted: dict[str, str] | None = None  # who halted the run last, when and why
     link: dict[str, Any] | None = None  # the robot link as last recorded: state lost|connected, since, in_flight
+    version: dict[str, Any] | None = None  # the procedure version it runs: sha256, release, rehearsal
     #: the values ``${...}`` take, per procedure frame: "" for the main one, "2.1/" in the one 2.1 called
     envs: dict[str, dict[str, Any]] = field(default_factory=dict)
 
@@ -105,6 +106,7 @@ class FoldedRun:
             "envs": self.envs,
             "halted": self.halted,
             "link": self.link,
+            "version": self.version,
         }
 
     def camera_json(self) -> dict[str, Any] | None:
@@ -133,6 +135,8 @@ class FoldedRun:
             self.mode = data.get("mode", self.mode)
             self.started_by = self.started_by or event.actor
             self.status = "running"
+            if kind is EventKind.RUN_STARTED and "sha256" in data:
+                self.version = {key: data.get(key) for key in ("sha256", "release", "rehearsal")}
         elif kind is EventKind.MODE_CHANGED:
             self.mode = data.get("mode", data.get("to", self.mode))
         elif kind is EventKind.RUN_COMPLETED:

@@ -18,6 +18,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 __all__ = ["LaunchRefused", "launch_onboard"]
@@ -40,6 +41,8 @@ def launch_onboard(
     *,
     user: str,
     autonomous: bool,
+    rehearsal: bool = False,
+    deployments: Sequence[Path] = (),
     db_url: str,
     sysreps: Path,
     rosbridge: str | None,
@@ -64,6 +67,8 @@ def launch_onboard(
         "--onboard",
         "--at-consoles",
         "--auto" if autonomous else "--manual",
+        *(["--rehearsal"] if rehearsal else []),
+        *(option for path in deployments for option in ("--deployment", str(path))),
         "--user",
         user,
         "--sysrep-dir",

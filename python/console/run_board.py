@@ -40,13 +40,25 @@ from console.live_run import LiveRun
 from console.onboard_launch import LaunchRefused, launch_onboard
 from console.remote_run import RemoteRun
 from console.watchers import Watchers
+from datafile import DataFileError
+from pride.approvals import onboard_refusal
 from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
-from pride.executive import Executive, Mode, OperatorActionError, RunStatus
+from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure
+from pride.releases import (
+    ReleaseRefused,
+    ReleaseStore,
+    RunVersion,
+    procedure_digest,
+    resume_refusal,
+    short,
+    version_for_run,
+)
 from pride.robot_control import RobotControl
+from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.sysrep import SysRep, load_sysrep_dir
 from pride.systems import SystemGateway
@@ -67,6 +79,10 @@ _LISTED = {
     EventKind.RUN_RESUMED.value,
     EventKind.RUN_COMPLETED.value,
     EventKind.RUN_STOPPED.value,
+    # a request for a second operator's approval shows in every console's list, not only where the run is open
+    EventKind.APPROVAL_REQUESTED.value,
+    EventKind.APPROVAL_GIVEN.value,
+    EventKind.APPROVAL_EXPIRED.value,
 }
 
 
@@ -88,11 +104,14 @@ class CameraSettings:
 
 @dataclass(frozen=True)
 class Catalog:
-    """Where procedures, bindings and SysReps are read from."""
+    """Where procedures, bindings and SysReps are read from, and the deployments that say what
+    the robot side of each binding is (a simulator? which commands need approval?) besides the
+    shipped ones and those beside a binding (:mod:`pride.robot_sides`)."""
 
     procedures: Path
     bindings: Path
     sysreps: Path
+    deployments: tuple[Path, ...] = ()
 
     def procedure_files(self) -> list[str]:
         return sorted(p.name for p in self.procedures.glob("*.xml"))
@@ -105,6 +124,18 @@ class Catalog:
 
     def binding_path(self, name: str) -> Path:
         return _choose(self.bindings, name, self.binding_files(), "binding")
+
+    def shown(self, procedure_name: str) -> str:
+        """A procedure as messages name it: ``procedures/x.xml``."""
+        return f"{self.procedures.name}/{procedure_name}"
+
+    def robot_side(self, binding_name: str) -> RobotSide:
+        """The robot side a binding reaches, as its deployment describes it; ActionRefused when
+        that deployment's simulator or critical_commanding is wrong."""
+        try:
+            return robot_side_for(self.binding_path(binding_name), deployments=self.deployments)
+        except DataFileError as exc:
+            raise ActionRefused(422, f"the deployment serving {binding_name} cannot be used: {exc}") from None
 
 
 def _mode(name: str) -> Mode:
@@ -145,6 +176,7 @@ class RunBoard:
         self.camera = camera
         self.accounts = accounts
         self.rosbridge_urls = dict(rosbridge_urls or {})
+        self.releases = ReleaseStore(audit_log.engine)
         self._lock = threading.Lock()  # guards _live, _remote, _statuses, _starts
         self._live: dict[str, LiveRun] = {}
         self._remote: dict[str, RemoteRun] = {}
@@ -168,18 +200,40 @@ class RunBoard:
         return load_sysrep_dir(self.catalog.sysreps)
 
     def start(
-        self, user: str, procedure_name: str, binding_name: str, mode_name: str, *, take_over: str | None = None
+        self,
+        user: str,
+        procedure_name: str,
+        binding_name: str,
+        mode_name: str,
+        *,
+        take_over: str | None = None,
+        rehearsal: bool = False,
     ) -> LiveRun:
-        """Lint, open the gateway, start the executive; ActionRefused says what to fix.
+        """Lint, check the version may run, open the gateway, start the executive; ActionRefused
+        says what to fix.
 
-        A robot controlled by another run refuses the start (409, naming the controller) unless
-        ``take_over`` gives the reason to take it over: the other run then holds.
+        A draft or a file changed since its release runs only as a ``rehearsal``, and a rehearsal
+        only on a simulator (:mod:`pride.releases`). A robot controlled by another run refuses the
+        start (409, naming the controller) unless ``take_over`` gives the reason to take it over:
+        the other run then holds.
         """
         mode = _mode(mode_name)
-        checked, gateway = self._open(procedure_name, binding_name)
+        checked = self._check(procedure_name)
+        side = self.catalog.robot_side(binding_name)
+        version = self._version(checked, procedure_name, side, rehearsal)
+        gateway = self._gateway(checked, procedure_name, binding_name)
         run_id = f"{checked.procedure.id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         try:
-            executive = Executive(checked, gateway, self.audit_log, run_id=run_id, mode=mode, control=self.control)
+            executive = Executive(
+                checked,
+                gateway,
+                self.audit_log,
+                run_id=run_id,
+                mode=mode,
+                control=self.control,
+                approvals=side.approvals,
+                version=version,
+            )
         except BaseException as exc:
             gateway.close()
             if isinstance(exc, OperatorActionError):  # e.g. the robot is controlled by another run
@@ -194,22 +248,36 @@ class RunBoard:
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
 
-    def start_onboard(self, user: str, procedure_name: str, binding_name: str, mode_name: str) -> str:
+    def _version(self, checked: CheckedProcedure, procedure_name: str, side: RobotSide, rehearsal: bool) -> RunVersion:
+        """The version a run would run, if it may (ActionRefused 409 with the reason if not)."""
+        try:
+            shown = self.catalog.shown(procedure_name)
+            return version_for_run(self.releases, checked, shown, side, rehearsal=rehearsal)
+        except ReleaseRefused as exc:
+            raise ActionRefused(409, str(exc)) from None
+
+    def start_onboard(
+        self, user: str, procedure_name: str, binding_name: str, mode_name: str, *, rehearsal: bool = False
+    ) -> str:
         """Start an onboard run ("run on the habitat"): its supervising runner, on this host
         (:mod:`console.onboard_launch`), hosts it for the consoles; the run's id once the habitat
         accepted it. ActionRefused says what to fix (lint errors here or on the habitat, the
         habitat's refusal, an unreachable habitat)."""
         mode = _mode(mode_name)
         path = self.catalog.procedure_path(procedure_name)
-        try:
-            check_procedure(path, self.sysreps())
-        except ProcedureError as exc:
-            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
+        checked = self._check(procedure_name)
+        side = self.catalog.robot_side(binding_name)
+        self._version(checked, procedure_name, side, rehearsal)
+        refusal = onboard_refusal(checked, side.approvals)
+        if refusal is not None:
+            raise ActionRefused(409, f"{self.catalog.shown(procedure_name)} cannot run on the habitat: {refusal}")
         try:
             return launch_onboard(
                 path,
                 self.catalog.binding_path(binding_name),
                 user=user,
+                rehearsal=rehearsal,
+                deployments=self.catalog.deployments,
                 autonomous=mode is Mode.AUTONOMOUS,
                 db_url=self.audit_log.url,
                 sysreps=self.catalog.sysreps,
@@ -233,10 +301,22 @@ class RunBoard:
         if status == "completed":
             raise ActionRefused(409, f"run {run_id} is completed: there is nothing to resume")
         procedure_name = Path(str(events[0].data.get("path", ""))).name
-        checked, gateway = self._open(procedure_name, binding_name)
+        checked = self._check(procedure_name)
+        side = self.catalog.robot_side(binding_name)
+        refusal = resume_refusal(checked, self.catalog.shown(procedure_name), events[0].data, side)
+        if refusal is not None:
+            raise ActionRefused(409, f"run {run_id} cannot be resumed: {refusal}")
+        gateway = self._gateway(checked, procedure_name, binding_name)
         try:
             executive = Executive.resume(
-                checked, gateway, self.audit_log, events, user, mode=mode, control=self.control
+                checked,
+                gateway,
+                self.audit_log,
+                events,
+                user,
+                mode=mode,
+                control=self.control,
+                approvals=side.approvals,
             )
         except (OperatorActionError, ValueError) as exc:
             gateway.close()
@@ -246,14 +326,61 @@ class RunBoard:
         log.info("%s resumed run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
 
-    def _open(self, procedure_name: str, binding_name: str) -> tuple[CheckedProcedure, SystemGateway]:
-        """The checked procedure (with its SysReps) and an open gateway that serves every system it uses."""
-        path = self.catalog.procedure_path(procedure_name)
-        binding = self.catalog.binding_path(binding_name)
+    # ---- released versions (the Author page) -----------------------------------------------------
+    def version_state(self, procedure_name: str) -> dict[str, Any]:
+        """Where the procedure's file stands: its version's hash, its newest release, a request."""
+        checked = self._check(procedure_name)
+        state = self.releases.state(checked.procedure.id, procedure_digest(checked))
+        return {"procedure": checked.procedure.id, "name": procedure_name, **state.to_json()}
+
+    def saved(self, user: str, procedure_name: str) -> None:
+        """``user`` saved the procedure on the Author page: they may not release this version."""
+        checked = self._check(procedure_name)
+        self.releases.saved(checked.procedure.id, procedure_digest(checked), user, self.catalog.shown(procedure_name))
+
+    def ask_release(self, user: str, procedure_name: str, seen: str) -> dict[str, Any]:
+        """``user`` asks a second operator to review and release the version they saw (``seen``: its hash)."""
+        checked = self._current(procedure_name, seen)
         try:
-            checked = check_procedure(path, self.sysreps())
+            self.releases.request(checked.procedure.id, seen, user, self.catalog.shown(procedure_name))
+        except ReleaseRefused as exc:
+            raise ActionRefused(409, str(exc)) from None
+        return self.version_state(procedure_name)
+
+    def release(self, user: str, procedure_name: str, seen: str) -> dict[str, Any]:
+        """``user`` reviewed the version they saw (``seen``: its hash) and releases it."""
+        checked = self._current(procedure_name, seen)
+        path = self.catalog.procedure_path(procedure_name)
+        try:
+            self.releases.release(
+                checked.procedure.id, seen, user, self.catalog.shown(procedure_name), path.read_text(encoding="utf-8")
+            )
+        except ReleaseRefused as exc:
+            raise ActionRefused(409, str(exc)) from None
+        return self.version_state(procedure_name)
+
+    def _current(self, procedure_name: str, seen: str) -> CheckedProcedure:
+        """The procedure, if its file is still the version the operator saw (ActionRefused 409 if not)."""
+        checked = self._check(procedure_name)
+        now = procedure_digest(checked)
+        if now != seen:
+            raise ActionRefused(
+                409,
+                f"{self.catalog.shown(procedure_name)} changed since you opened it (sha256 {short(seen)} → "
+                f"{short(now)}): open it again and review what is there now",
+            )
+        return checked
+
+    def _check(self, procedure_name: str) -> CheckedProcedure:
+        """The checked procedure, with its SysReps (ActionRefused 422 listing its problems)."""
+        try:
+            return check_procedure(self.catalog.procedure_path(procedure_name), self.sysreps())
         except ProcedureError as exc:
             raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
+
+    def _gateway(self, checked: CheckedProcedure, procedure_name: str, binding_name: str) -> SystemGateway:
+        """An open gateway that serves every system the procedure uses."""
+        binding = self.catalog.binding_path(binding_name)
         procedure = checked.procedure
         try:
             gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url_for(binding_name))
@@ -268,7 +395,7 @@ class RunBoard:
             raise ActionRefused(
                 422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses"
             )
-        return checked, gateway
+        return gateway
 
     def _hold(
         self,
@@ -353,7 +480,8 @@ class RunBoard:
         if live is None:
             return
         try:
-            live.executive.stop("web-server", f"this console lost the run: {reason}")
+            # the run goes on elsewhere: what it added is that host's to use
+            live.executive.stop("web-server", f"this console lost the run: {reason}", take_back=False)
         except Exception:  # its log is another host's now: the stop may well not be recordable
             log.exception("stopping run %s after losing it", run_id)
         threading.Thread(target=_release, args=(live,), name=f"lost-{run_id}", daemon=True).start()
@@ -476,6 +604,7 @@ class RunBoard:
                     live=snapshot.status is RunStatus.ACTIVE,
                     host=self.hosting.host,
                     hosted_here=True,
+                    approval=snapshot.approval if snapshot.hold is Hold.APPROVAL else None,
                 )
             elif record is not None and record.alive and record.host != self.hosting.host:
                 # hosted by another console; a row of this console's without its live run is one
@@ -487,6 +616,7 @@ class RunBoard:
                     live=record.status == RunStatus.ACTIVE.value,
                     host=record.host,
                     hosted_here=False,
+                    approval=self._approval_wanted(run_id) if record.status == RunStatus.ACTIVE.value else None,
                 )
             else:
                 entry.update(status=self._logged_status(run_id), live=False)
@@ -494,6 +624,16 @@ class RunBoard:
                     entry["host_lost"] = {"host": record.host, "since": record.lease_until.isoformat()}
             rows.append(entry)
         return rows
+
+    def _approval_wanted(self, run_id: str) -> dict[str, Any] | None:
+        """The request for a second operator's approval a run hosted elsewhere waits on, as its
+        host last published it (None: it waits on none)."""
+        published = self.hosting.published(run_id)
+        state = published[2].get("state") if published is not None else None
+        if not isinstance(state, dict) or state.get("hold") != Hold.APPROVAL.value:
+            return None
+        approval = state.get("approval")
+        return approval if isinstance(approval, dict) else None
 
     def _logged_status(self, run_id: str) -> str:
         with self._lock:
@@ -515,7 +655,8 @@ class RunBoard:
             snapshot = live.executive.snapshot()
             if snapshot.status is RunStatus.ACTIVE:
                 try:
-                    live.executive.stop("web-server", "the web server shut down")
+                    # resumable, so it keeps what it added (a resume goes on with it)
+                    live.executive.stop("web-server", "the web server shut down", take_back=False)
                 except Exception:
                     log.exception("stopping run %s", live.run_id)
             _release(live)

@@ -89,6 +89,15 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
     parser.add_argument(
+        "--deployments",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="a deployment file, or a folder of them, saying what the robot side of a binding is (a simulator? "
+        "which commands need a second operator's approval?) besides the shipped ones and those beside a binding",
+    )
+    parser.add_argument(
         "--rosbridge",
         metavar="[BINDING=]URL",
         action="append",
@@ -241,7 +250,12 @@ def main(argv: list[str] | None = None) -> int:
             args.db,
         )
     audit_log = AuditLog(args.db)
-    catalog = Catalog(args.procedures.resolve(), args.bindings.resolve(), args.sysreps.resolve())
+    catalog = Catalog(
+        args.procedures.resolve(),
+        args.bindings.resolve(),
+        args.sysreps.resolve(),
+        tuple(path.resolve() for path in args.deployments),
+    )
     board = RunBoard(
         catalog,
         audit_log,

@@ -197,15 +197,27 @@ class Field:
         if maximum is not None and value > maximum:
             raise self.fail(f"{value!r} is above the maximum {maximum!r}")
 
-    def file_path(self, *, folder: bool = False, must_exist: bool = True) -> Path:
+    def file_path(
+        self, *, folder: bool = False, must_exist: bool = True, shipped: Path | None = None, what: str = ""
+    ) -> Path:
         """A path written in the file, relative to the file's folder (``~`` expanded).
 
         ``must_exist`` checks it is there and of the right kind (file or ``folder``).
+        ``shipped``: a folder of shipped YAML files that a bare name (``iva``: no folder, no
+        suffix, and no such file beside this one) names, so a file kept outside the checkout
+        names shipped ones without the checkout's path; ``what`` they are, for the message.
         """
         text = self.text()
         if "\x00" in text:
             raise self.fail("a path must not contain NUL characters")
         path = Path(os.path.abspath(self.folder / Path(text).expanduser()))
+        bare = "/" not in text and not Path(text).suffix and not text.startswith("~")
+        if shipped is not None and bare and not path.exists():
+            candidate = shipped / f"{text}.yaml"
+            if not candidate.is_file():
+                known = ", ".join(sorted(p.stem for p in shipped.glob("*.yaml")))
+                raise self.fail(f"no shipped {what or 'file'} named {text!r}; give a file path or one of: {known}")
+            return candidate
         if must_exist:
             kind = "folder" if folder else "file"
             try:

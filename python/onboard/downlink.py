@@ -29,6 +29,7 @@ from pride.audit_chain import GENESIS, link_hash
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.lint import CheckedProcedure
+from pride.releases import RunVersion
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
 
 from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign
@@ -139,6 +140,7 @@ def build_unit(
     breakpoints: Sequence[str],
     lifetime_s: float,
     now: float,
+    version: RunVersion | None = None,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
     the folder that holds them all."""
@@ -158,6 +160,7 @@ def build_unit(
         confirm_manual=confirm_manual,
         confirm_hazardous=confirm_hazardous,
         breakpoints=tuple(breakpoints),
+        version=version,
     )
 
 

@@ -213,7 +213,13 @@ class HabitatRuns:
             raise
         gateway = self._open_gateway(str(binding), self._rosbridge_url)
         executive = Executive(
-            checked, gateway, self.audit, run_id=unit.run_id, mode=Mode(unit.mode), control=self.control
+            checked,
+            gateway,
+            self.audit,
+            run_id=unit.run_id,
+            mode=Mode(unit.mode),
+            control=self.control,
+            version=unit.version,
         )
         executive.add_listener(lambda event: self._wake())
         try:
@@ -424,6 +430,7 @@ class HabitatRuns:
             "done": lambda: ex.mark_done(user),
             "confirm": lambda: ex.confirm(user),
             "retry": lambda: ex.retry(user),
+            "replan": lambda: ex.replan(user),
             "ask_again": lambda: ex.ask_again(user),
             "resolve": lambda: ex.resolve(user, str(args["value"]), str(args["reason"])),
         }

@@ -21,6 +21,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import PurePosixPath
 from typing import Any
 
+from pride.releases import RunVersion
+
 __all__ = [
     "ACTIONS",
     "ACTION_SERVICE",
@@ -54,6 +56,7 @@ ACTIONS: Mapping[str, tuple[str, ...]] = {
     "done": (),
     "confirm": (),
     "retry": (),
+    "replan": (),
     "ask_again": (),
     "resolve": ("value", "reason"),
 }
@@ -92,7 +95,9 @@ class Unit:
     folder (``procedure`` names the one to run); ``binding`` names one of the habitat's own
     binding files; ``values``, ``confirm_manual`` and ``confirm_hazardous`` are the answers the
     operator gave at uplink (as ``caretaker run --set``, ``--confirm-manual``,
-    ``--confirm-hazardous``): any other hold waits for the ground.
+    ``--confirm-hazardous``): any other hold waits for the ground. ``version`` is the procedure
+    version the ground let it run (:class:`pride.releases.RunVersion`: its release, or a
+    rehearsal), recorded in its ``run_started``.
     """
 
     run_id: str
@@ -107,6 +112,7 @@ class Unit:
     confirm_manual: bool = False
     confirm_hazardous: bool = False
     breakpoints: tuple[str, ...] = ()
+    version: RunVersion | None = None
 
     def to_json(self) -> str:
         return canonical({**asdict(self), "files": dict(self.files), "values": dict(self.values)})
@@ -144,6 +150,7 @@ class Unit:
             confirm_manual=_field(data, "confirm_manual", bool, "true or false"),
             confirm_hazardous=_field(data, "confirm_hazardous", bool, "true or false"),
             breakpoints=tuple(breakpoints),
+            version=_version(data.get("version")),
         )
 
 
@@ -188,6 +195,22 @@ def _object(text: str, what: str) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise UnitError(f"the {what} must be a JSON object, not {type(data).__name__}")
     return data
+
+
+def _version(data: Any) -> RunVersion | None:
+    """The unit's ``version`` (absent: a unit from before versions were recorded)."""
+    if data is None:
+        return None
+    if not isinstance(data, dict):
+        raise UnitError(f"version must be an object of sha256, release and rehearsal, not {type(data).__name__}")
+    release = data.get("release")
+    if release is not None and (isinstance(release, bool) or not isinstance(release, int)):
+        raise UnitError(f"version.release must be a release number or null, not {str(release)[:40]!r}")
+    return RunVersion(
+        _field(data, "sha256", str, "the procedure version's sha256"),
+        release,
+        _field(data, "rehearsal", bool, "true or false"),
+    )
 
 
 def _field(data: Mapping[str, Any], name: str, kind: type, expected: str) -> Any:

@@ -26,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from pride.approvals import command_hazardous
 from pride.events import EventKind
 from pride.lint import CheckedProcedure
 from pride.model import (
@@ -43,6 +44,7 @@ from pride.model import (
     WaitInstruction,
     lookup,
 )
+from pride.phrasing import record_refusal
 from pride.states import Controller, OperatorActionError
 from pride.sysrep import check_value
 from pride.systems import CommandResult, Outcome, SystemGateway
@@ -89,6 +91,8 @@ class Send:
     key: str
     resend: bool = False
     confirmed_by: str | None = None
+    requested_by: str | None = None  # under critical commanding: who sent it for approval
+    approved_by: str | None = None  # ... and the second operator who approved it
 
 
 class ControlLost(Exception):
@@ -151,11 +155,7 @@ class Automation:
 
     def is_hazardous(self, instruction: Instruction) -> bool:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
-        if not isinstance(instruction, CommandInstruction):
-            return False
-        sysrep = self._sysreps.get(instruction.system)
-        command = sysrep.command(instruction.command) if sysrep is not None else None
-        return instruction.hazardous or bool(command is not None and command.hazardous)
+        return command_hazardous(instruction, self._sysreps)
 
     def check_record(self, instruction: RecordInstruction, value: Any) -> tuple[Any, dict[str, Any]]:
         """A record's value converted and checked (including against the telemetry it names), and what
@@ -167,23 +167,18 @@ class Automation:
         if instruction.one_of_telemetry is None:
             return converted, {}
         system, item = instruction.one_of_telemetry
-        where = f"{system}.{item}"
         try:
             reading = self._gateway.telemetry(system, item)
         except Exception as exc:
-            raise OperatorActionError(f"{instruction.name}: cannot read {where} to check the value: {exc}") from None
+            problem = f"{type(exc).__name__}: {exc}"
+            raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, problem=problem)) from None
         if reading.stale or reading.value is None:
-            raise OperatorActionError(
-                f"{instruction.name}: cannot check {converted!r}: {where} is "
-                f"{'stale' if reading.value is not None else 'not received yet'}"
-            )
+            problem = "stale" if reading.value is not None else "missing"
+            raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, problem=problem))
         allowed = [v.strip() for v in str(reading.value).split(",") if v.strip()]
         if str(converted) not in allowed:
-            raise OperatorActionError(
-                f"{instruction.name}: {converted!r} is not one of the values {where} reports "
-                f"now ({', '.join(allowed) or 'none'})"
-            )
-        return converted, {"checked_against": where, "allowed": allowed}
+            raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, listed=allowed))
+        return converted, {"checked_against": f"{system}.{item}", "allowed": allowed}
 
     def carry_out(
         self,
@@ -235,6 +230,8 @@ class Automation:
         extra: dict[str, Any] = {"resend": True} if send.resend else {}
         if hazardous and send.confirmed_by:
             extra["confirmed_by"] = send.confirmed_by
+        if send.approved_by:
+            extra.update(requested_by=send.requested_by, approved_by=send.approved_by)
         self._record(EventKind.COMMAND_SENT, actor, number, **about, hazardous=hazardous, **extra)
         with self._signal_lock:
             halted_first = self._halt is not None

@@ -34,8 +34,9 @@ class EventKind(str, enum.Enum):
     """Manual ↔ autonomous."""
     INSTRUCTION_STARTED = "instruction_started"
     """An instruction became active (automation or operator began it): data.instruction_kind,
-    data.text (the author's sentence, ``${...}`` as written) and data.text_filled (that sentence
-    with the values known then filled in; events recorded before it existed lack it)."""
+    data.text (its sentence as the procedure view shows it: the author's, else made from the
+    SysRep's labels; ``${...}`` as written) and data.text_filled (that sentence with the values
+    known then filled in; events recorded before it existed lack it)."""
     INSTRUCTION_COMPLETED = "instruction_completed"
     """An instruction finished successfully; data.next is where the run goes."""
     INSTRUCTION_FAILED = "instruction_failed"
@@ -47,7 +48,8 @@ class EventKind(str, enum.Enum):
     halted it; data.reason their words, data.next the instruction (it is performed again on retry)."""
     COMMAND_SENT = "command_sent"
     """A command went to a system: data.key (``run/instruction/attempt``), args, hazardous,
-    confirmed_by (who confirmed a hazardous one), resend (the same key sent again)."""
+    confirmed_by (who confirmed a hazardous one), requested_by and approved_by (the sender and the
+    second operator of a command that needed approval), resend (the same key sent again)."""
     COMMAND_RESULT = "command_result"
     """A system answered a command: data.key, data.outcome (succeeded, failed, unknown, halted),
     success (True, False, or None while the outcome is unknown), message, values."""
@@ -79,6 +81,15 @@ class EventKind(str, enum.Enum):
     """An operator entered a recorded value."""
     CONFIRMATION = "confirmation"
     """An operator confirmed a hazardous command."""
+    APPROVAL_REQUESTED = "approval_requested"
+    """An operator (the sender) asked for a command that needs a second operator's approval to be
+    sent (:mod:`pride.approvals`): data.command (in words), data.level."""
+    APPROVAL_GIVEN = "approval_given"
+    """A second operator approved it (the actor): data.sender, data.command, data.expires (UTC);
+    it is sent at once, its command_sent naming both."""
+    APPROVAL_EXPIRED = "approval_expired"
+    """An approval ran out before its command could be sent (actor PAX): data.approver,
+    data.sender, data.expired; nothing was sent and the command waits for a new approval."""
     AWAITING_OPERATOR = "awaiting_operator"
     """Automation holds at an instruction until an operator acts; data.reason says why."""
     PAUSED = "paused"

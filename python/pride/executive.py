@@ -16,8 +16,15 @@ Modes (:class:`Mode`)
 
 Operator actions (raise :class:`OperatorActionError` saying why when not applicable now)
     start, set_mode, pause, resume_automation ("continue"), halt, stop, set_breakpoint,
-    clear_breakpoint, perform, step, confirm, enter, correct_record, mark_done, retry, ask_again,
-    resolve, skip, go_back, take_control.
+    clear_breakpoint, perform, step, confirm, approve, enter, correct_record, mark_done, retry,
+    ask_again, resolve, skip, go_back, replan, take_control.
+
+Critical commanding (:mod:`pride.approvals`)
+    With a policy whose level is not off, a command that needs approval holds until an operator
+    sends it for approval (:meth:`confirm`, the sender) and a different operator approves it
+    (:meth:`approve`; the sender's own is refused); it is then sent at once, ``command_sent``
+    naming both. An approval that runs out before the command could be sent is recorded
+    (APPROVAL_EXPIRED) and the command waits for a new one.
 
 Commands and their outcomes
     Every command carries a key ``run/instruction/attempt`` (:func:`pride.automation.command_key`);
@@ -30,7 +37,17 @@ Halt and stop
     :meth:`halt` cancels the command in flight through the gateway *before* it takes the lock
     (so it works while the lock is held by an append waiting out a database outage), then holds
     the run (Hold.HALTED); the instruction is recorded as halted by that user, never completed.
-    :meth:`stop` halts the same way, then ends the run (resumable).
+    :meth:`stop` halts the same way, takes back what the run added to its systems (its AT
+    instances, :mod:`pride.leftovers`), then ends the run. A run that took nothing back can be
+    resumed; one that did cannot (what it worked on is gone). What a run leaves behind, stopped
+    or completed, is listed in its end event (``left_behind``), never passed over.
+
+After a halted motion
+    A halted motion's plan ended with the halt (:mod:`pride.replanning`): retry and continue
+    cannot work and are refused, saying what can. :meth:`replan` goes back to the instruction of
+    the step that planned it (recorded as the operator's step back), so the run plans again from
+    where the arm is and goes on from there; the snapshot names that instruction
+    (``replan_from``) and why the motion cannot be sent again (``no_retry``).
 
 Control of the robot
     With a :class:`pride.run_control.ControlStore`, a run takes control of its robot (the
@@ -71,13 +88,19 @@ Durability
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, self_approval_refusal
 from pride.automation import ControlLost, Halt
 from pride.events import Event, EventKind, Journal
+from pride.leftovers import Leftover, TakenBack, taken_back
 from pride.lint import CheckedProcedure
 from pride.model import Instruction, ManualInstruction, RecordInstruction
+from pride.phrasing import filled_sentence
+from pride.replanning import Replan, halted_motion
 from pride.replay import replay
 from pride.run_control import ControlStore, RobotControlled
 from pride.run_engine import RunEngine
@@ -137,6 +160,7 @@ class Executive(RunEngine):
                 mode=state.mode.value,
                 robot=self.robot,
                 steps=[{"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps],
+                **(self.version.data() if self.version else {}),
             )
             self._record_takeover(user, previous, take_over)
             state.arrive()
@@ -154,13 +178,21 @@ class Executive(RunEngine):
         mode: Mode | None = None,
         control: ControlStore | None = None,
         take_over: str | None = None,
+        approvals: ApprovalPolicy | None = None,
     ) -> Executive:
-        """Continue an interrupted run from its recorded events (see Durability above)."""
+        """Continue an interrupted run from its recorded events (see Durability above); an
+        approval given before the interruption is not carried over (it is asked again)."""
         procedure = checked.procedure
         if not events or events[0].kind is not EventKind.RUN_STARTED:
             raise OperatorActionError("the log holds no start of that run")
         if any(e.kind is EventKind.RUN_COMPLETED for e in events):
             raise OperatorActionError(f"run {events[0].run_id} is already completed")
+        removed = taken_back(events)
+        if removed:
+            raise OperatorActionError(
+                f"run {events[0].run_id} took back what it had added when it stopped ({', '.join(removed)}): "
+                "it cannot go on without it; start the procedure again"
+            )
         started = events[0]
         if started.data.get("procedure") != procedure.id:
             raise OperatorActionError(
@@ -173,7 +205,10 @@ class Executive(RunEngine):
             run_id=started.run_id,
             mode=Mode(started.data.get("mode", "manual")),
             control=control,
+            approvals=approvals,
         )
+        for event in events:
+            executive._holdings.note(event)
         with executive._changed:
             state = executive._state
             replayed = replay(procedure, events, checked.load, mode=state.mode, statuses=state.statuses)
@@ -245,6 +280,9 @@ class Executive(RunEngine):
                 raise OperatorActionError("automation is neither paused, halted nor at a breakpoint")
             if state.halt and state.executing:
                 raise OperatorActionError(f"{state.current_number()} is still ending after the halt; wait for it")
+            replan = self._halted_motion() if state.halt else None
+            if replan is not None:  # automation would send the halted motion again: it cannot work
+                raise OperatorActionError(replan.why_not_again())
             state.paused = state.at_breakpoint = False
             self._clear_halt()
             self._emit(EventKind.CONTINUED, user, state.current_number())
@@ -275,20 +313,38 @@ class Executive(RunEngine):
             )
             state.announce()
 
-    def stop(self, user: str, reason: str = "") -> None:
-        """Halt as :meth:`halt` does, then end the run (it can be resumed)."""
+    def stop(self, user: str, reason: str = "", *, take_back: bool = True) -> None:
+        """Halt as :meth:`halt` does, take back what the run added to its systems, then end the run.
+
+        Taking back waits for the command in flight to end (the halt cancelled it; its answer may
+        add an instance), then removes each instance the run added and still holds, as ``user``,
+        through the gateway and the journal like any command (:meth:`_take_back`). RUN_STOPPED
+        lists what was taken back and what is left behind, and why. ``take_back=False`` leaves
+        everything for a resume elsewhere (a console shutting down, or one that lost the run to
+        another host), listed all the same; such a run can be resumed, one that took back cannot.
+        """
         key = self._automation.request_halt(Halt(user, reason)) or self._pending_key()
         answer = self._cancel(key)
         with self._changed:
             self._require_active()
-            self._state.status = RunStatus.STOPPED
+            state = self._state
+            if take_back:
+                state.stopping = True  # the run moves on no more, and nobody else acts on it
+                self._changed.wait_for(lambda: not state.executing or state.status is not RunStatus.ACTIVE)
+                if state.status is not RunStatus.ACTIVE:  # its journal failed meanwhile: nothing more unrecorded
+                    raise JournalFailure(f"run {self.run_id} stopped: {state.error}")
+                ended = self._take_back(user)
+            else:
+                ended = self._holdings.left("kept for a resume of the run")
+            state.status = RunStatus.STOPPED
             self._emit(
                 EventKind.RUN_STOPPED,
                 user,
-                self._state.current_number(),
+                state.current_number(),
                 reason=reason,
                 key=key,
                 cancel=_cancel_data(answer),
+                **ended.data(),
             )
 
     def set_breakpoint(self, user: str, number: str) -> None:
@@ -326,24 +382,66 @@ class Executive(RunEngine):
             if state.failure or state.in_flight:
                 raise OperatorActionError(f"{number} failed or was interrupted: retry or skip it")
             if state.halt:
-                raise OperatorActionError(f"the run is {state.halt_text()}: continue, retry or skip first")
+                replan = self._halted_motion()
+                way = replan.why_not_again() if replan else "continue, retry or skip first"
+                raise OperatorActionError(f"the run is {state.halt_text()}: {way}")
             if state.control_lost:
                 raise OperatorActionError(f"{state.control_lost}: take control first")
             if state.unconfirmed(instruction):
-                raise OperatorActionError(f"{number} is a hazardous command: confirm it first")
+                raise OperatorActionError(state.unconfirmed_text(number, instruction))
             state.request = Request(user, then_pause)
             state.at_breakpoint = False
             self._changed.notify_all()
 
     def confirm(self, user: str) -> None:
-        """Confirm the current hazardous command (needed before it is sent, in either mode)."""
+        """Confirm the current hazardous command (needed before it is sent, in either mode); under
+        critical commanding, send it for a second operator's approval, ``user`` its sender."""
         with self._changed:
             instruction = self._require_idle()
+            state = self._state
+            number = state.current_number()
+            frame = state.frame
+            said = filled_sentence(instruction, self._checked.sysreps, frame.procedure, frame.env)
+            if state.needs_approval(instruction):
+                if state.approval_request is not None or state.approval is not None:
+                    raise OperatorActionError(state.unconfirmed_text(number, instruction))
+                state.approval_request = ApprovalRequest(number or "", user, state.approvals.clock(), said)
+                self._emit(EventKind.APPROVAL_REQUESTED, user, number, command=said, level=state.approvals.level.value)
+                state.announce()
+                return
             if not self.is_hazardous(instruction):
-                raise OperatorActionError(f"{self._state.current_number()} is not a hazardous command")
-            self._state.confirmed_by = user
-            self._emit(EventKind.CONFIRMATION, user, self._state.current_number(), command=instruction.describe())
-            self._state.announce()
+                raise OperatorActionError(f"{number} is not a hazardous command")
+            state.confirmed_by = user
+            self._emit(EventKind.CONFIRMATION, user, number, command=said)
+            state.announce()
+
+    def approve(self, user: str) -> None:
+        """Approve the command sent for approval, as the second operator: it is sent at once (by
+        PAX, or in manual mode as its sender). The sender's own approval is refused."""
+        with self._changed:
+            self._require_idle()
+            state = self._state
+            number = state.current_number()
+            request = state.approval_request
+            if request is None or request.number != number:
+                raise OperatorActionError(f"{number} waits for no approval")
+            refusal = self_approval_refusal(request, user)
+            if refusal is not None:
+                raise OperatorActionError(refusal)
+            approval = Approval.given(request, user, state.approvals)
+            state.approval = approval
+            self._emit(
+                EventKind.APPROVAL_GIVEN,
+                user,
+                number,
+                sender=request.sender,
+                command=request.command,
+                expires=approval.expires.isoformat(),
+            )
+            if state.mode is Mode.MANUAL and state.clear_to_send():  # the sender pressed Send: it goes now, as theirs
+                state.request = Request(request.sender)
+            self._changed.notify_all()
+            state.announce()
 
     def enter(self, user: str, value: Any) -> Any:
         """Answer the current record; returns the value as recorded (converted to its type)."""
@@ -414,8 +512,11 @@ class Executive(RunEngine):
             halted_here = state.statuses.get(state.frame.number()) is InstructionStatus.HALTED
             if not (state.failure or state.in_flight or halted_here):
                 raise OperatorActionError(f"{number} has not failed or been halted")
+            replan = self._halted_motion()
+            if replan is not None:
+                raise OperatorActionError(replan.why_not_again())
             if state.unconfirmed(instruction):
-                raise OperatorActionError(f"{number} is a hazardous command: confirm it first")
+                raise OperatorActionError(state.unconfirmed_text(number, instruction))
             self._emit(EventKind.RETRY, user, number, after=state.failure or state.in_flight or state.halt_text())
             state.clear_holds()
             self._clear_halt()
@@ -495,6 +596,20 @@ class Executive(RunEngine):
             self._clear_halt()
             state.go_back(user, position, reason)
 
+    def replan(self, user: str) -> None:
+        """After a halted motion, go back to the instruction of its step that planned it, as ``user``:
+        the run plans it again from where the arm is and goes on from there (see After a halted motion)."""
+        with self._changed:
+            self._require_idle()
+            replan = self._halted_motion()
+            number = self._state.current_number()
+            if replan is None:
+                raise OperatorActionError(f"{number} is no halted motion to plan again")
+            if replan.position is None:
+                raise OperatorActionError(replan.why_not_again())  # no instruction of its step plans it
+            self._clear_halt()
+            self._state.go_back(user, replan.position, replan.reason())
+
     def operator_command(self, user: str, system: str, command: str, args: dict[str, Any]) -> CommandResult:
         """Send a command an operator gave outside the procedure's instructions (a registration
         dragged in the 3D view), as ``user``, through the run's gateway like any command.
@@ -514,11 +629,23 @@ class Executive(RunEngine):
                 self._may_send()
             except ControlLost as exc:
                 raise OperatorActionError(str(exc)) from None
-            key = f"{self.run_id}/operator/{self._seq + 1}"
-            about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True}
-            self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
+            about = self._ad_hoc_sent(user, "operator", system, command, args)
+        return self._ad_hoc_result(user, about)
+
+    def _ad_hoc_sent(
+        self, user: str, kind: str, system: str, command: str, args: Mapping[str, Any], **marks: Any
+    ) -> dict[str, Any]:
+        """Record COMMAND_SENT of a command that is no instruction (the lock is held); return what
+        its result repeats. Its key, ``<run>/<kind>/<seq>``, is its own: the habitat executes it once."""
+        key = f"{self.run_id}/{kind}/{self._seq + 1}"
+        about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True, **marks}
+        self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
+        return about
+
+    def _ad_hoc_result(self, user: str, about: dict[str, Any]) -> CommandResult:
+        """Send the command :meth:`_ad_hoc_sent` recorded and record its answer (unknown stays unknown)."""
         try:
-            result = self._gateway.execute(system, command, args, key=key)
+            result = self._gateway.execute(about["system"], about["command"], about["args"], key=about["key"])
         except Exception as exc:  # refused before sending (bad argument, unknown command)
             result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
         outcome = result.outcome
@@ -534,10 +661,49 @@ class Executive(RunEngine):
         )
         return result
 
+    def _take_back(self, user: str) -> TakenBack:
+        """Remove, as ``user``, what the run added and still holds (the lock is held, PAX's thread idle).
+
+        A removal that fails, or whose outcome is not known, is listed as left behind with the
+        system's words; where removing could not be honest nothing is sent (:meth:`_may_not_take_back`).
+        """
+        why_not = self._may_not_take_back()
+        if why_not is not None:
+            return self._holdings.left(f"not removed: {why_not}")
+        removed: list[str] = []
+        left = self._holdings.unsure()
+        for held in self._holdings.held():
+            undo = held.undo
+            about = self._ad_hoc_sent(user, "take-back", undo.system, undo.removes, held.arguments, take_back=held.name)
+            result = self._ad_hoc_result(user, about)
+            if result.success:
+                removed.append(held.name)
+            else:
+                log.warning("run %s left %s on %s: %s", self.run_id, held.name, undo.system, result.message)
+                why = f"{undo.removes} {result.outcome.value}: {result.message}"
+                left.append(Leftover(undo.system, held.name, why))
+        return TakenBack(tuple(removed), tuple(left))
+
+    def _may_not_take_back(self) -> str | None:
+        """Why the run must not send removals now, or None: its link is lost (their answers would
+        not be known), a command's outcome is not known (a resume asks about it, and needs what the
+        run added), or another run controls the robot."""
+        if self._links.now().lost_since is not None:
+            return f"the link to robot {self.robot} is lost"
+        pending = self._pending_key()
+        if pending is not None:
+            return f"the outcome of {pending} is not known"
+        if self._state.in_flight:  # a log from before command keys
+            return f"the outcome of the command of {self._state.current_number()} is not known"
+        lost, holder = self._control.lost()
+        return self._control.lost_text(holder) if lost else None
+
     # ---- guards and helpers -----------------------------------------------------------------
     def _require_active(self) -> None:
         if self._state.status is not RunStatus.ACTIVE:
             raise OperatorActionError(f"run {self.run_id} is {self._state.status.value}")
+        if self._state.stopping:
+            raise OperatorActionError(f"run {self.run_id} is stopping")
 
     def _require_idle(self) -> Instruction:
         self._require_active()
@@ -563,6 +729,21 @@ class Executive(RunEngine):
             f"the outcome of {self._pending_key()} is unknown: ask again (same key), record what you found "
             "on the robot, or skip it"
         )
+
+    def _halted_motion(self) -> Replan | None:
+        """The current instruction's motion if a halt ended it and used up its plan (the lock is held)."""
+        state = self._state
+        if state.statuses.get(state.frame.number()) is not InstructionStatus.HALTED:
+            return None
+        return halted_motion(state.frame, self._checked.argument)
+
+    def _build_snapshot(self) -> Snapshot:
+        """The engine's snapshot with the way on after a halted motion, so views offer what can work."""
+        snap = super()._build_snapshot()
+        replan = self._halted_motion() if snap.current is not None else None
+        if replan is None:
+            return snap
+        return replace(snap, replan_from=replan.plan, no_retry=replan.why_not_again())
 
     def _clear_halt(self) -> None:
         self._state.halt = None

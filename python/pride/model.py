@@ -124,9 +124,17 @@ class Template:
             return lookup(env, whole)
         return self.fill(env, strict=True)
 
-    def fill(self, env: dict[str, Any], show: Callable[[Any], str] | None = None, *, strict: bool = False) -> str:
+    def fill(
+        self,
+        env: dict[str, Any],
+        show: Callable[[Any], str] | None = None,
+        *,
+        strict: bool = False,
+        unknown: Callable[[Reference], str] = str,
+    ) -> str:
         """The text with the references ``env`` binds filled in, each value written by ``show``
-        (plain text by default). One not bound yet stays ``${...}``, or raises KeyError if ``strict``."""
+        (plain text by default). One not bound yet is written by ``unknown`` (as ``${...}`` by
+        default: an author reads the text as written), or raises KeyError if ``strict``."""
         write = show or _text
         texts: list[str] = []
         for part in self.parts:
@@ -138,7 +146,7 @@ class Template:
             except KeyError:
                 if strict:
                     raise
-                texts.append(str(part))
+                texts.append(unknown(part))
         return "".join(texts)
 
     def __str__(self) -> str:

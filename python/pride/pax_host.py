@@ -14,7 +14,8 @@ The executive talks to systems through :class:`PaxHost`, a :class:`pride.systems
 Everything real happens in Java (``caretaker.binding.PaxHost`` in java/pax-plugins): loading the
 binding, connecting to the robot's rosbridge, the plugins. This module converts Python values
 to the SysRep's Java types and back, and turns Java exceptions into :class:`PaxError` carrying
-the Java message, so a caller never sees a JPype type.
+the Java message, so a caller never sees a JPype type. Every text from the robot side leaves here
+in an operator's words (:func:`pride.at_words.operator_words`): no AT server service name gets past.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from typing import Any
 
 import jpype
 
+from pride.at_words import operator_words
 from pride.jvm import JarNotBuiltError, start_jvm
 from pride.systems import (
     CancelResult,
@@ -59,7 +61,7 @@ class PaxError(RuntimeError):
 def _java_error(exc: Exception) -> PaxError:
     message = exc.getMessage() if hasattr(exc, "getMessage") else None
     java_class = str(exc.getClass().getName()) if hasattr(exc, "getClass") else type(exc).__name__
-    return PaxError(str(message) if message is not None else java_class, java_class)
+    return PaxError(operator_words(str(message)) if message is not None else java_class, java_class)
 
 
 def to_java(name: str, value: Any) -> Any:
@@ -196,7 +198,8 @@ class PaxHost:
         except jpype.JException as exc:
             raise _java_error(exc) from None
         values = {str(k): to_python(v) for k, v in result.values().items()}
-        return CommandResult(Outcome(str(result.outcome().name()).lower()), str(result.message()), values)
+        outcome = Outcome(str(result.outcome().name()).lower())
+        return CommandResult(outcome, operator_words(str(result.message())), values)
 
     def cancel(self, key: str) -> CancelResult:
         """Stop the command ``key`` if it still runs (``caretaker.binding.PaxHost.cancel``).
@@ -212,7 +215,7 @@ class PaxHost:
             answer = self._host.cancel(jpype.JClass("caretaker.pax.CommandKey").parse(jpype.JString(key)))
         except jpype.JException as exc:
             raise _java_error(exc) from None
-        return CancelResult(bool(answer.stopped()), str(answer.message()))
+        return CancelResult(bool(answer.stopped()), operator_words(str(answer.message())))
 
     def telemetry(self, sysrep_id: str, item_id: str) -> TelemetryValue:
         """The current value, timestamp and staleness of a telemetry item.

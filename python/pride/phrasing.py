@@ -1,7 +1,10 @@
-"""How a procedure reads to an operator: sentences, labelled values and plain audit lines, not code.
+"""How a procedure and its run read to an operator: sentences, rounded values with units and plain
+audit lines, not code. One module phrases all of it, so the procedure view, the audit panel, the
+after-action report and the runner's terminal say the same thing the same way.
 
 An instruction reads as the author's ``<text>`` when there is one. Otherwise its sentence is made
-from the SysRep's labels:
+from the SysRep's labels (an id as title-cased words where no SysRep is at hand, as Fig. 1 writes
+its labels):
 
 - command: the command's label; the argument the label names (``trajectory`` for "Plan
   Trajectory", ``affordance_template`` for "Add Affordance Template") follows it in quotes; the
@@ -13,18 +16,44 @@ from the SysRep's labels:
 - record / manual: their text, which the schema requires.
 
 A sentence is a :class:`~pride.model.Template`: ``${...}`` stay references, which a view fills in
-once the run knows their values. The raw command (``system.command(arg=value, …)``) is kept for
-whoever wants to see exactly what is sent. Values are shown rounded (``0.35``, not
-``0.3500000000000001``), with units where the SysRep gives them, and never as Python reprs.
+once the run knows their values. Filled in here (:func:`fill_text`), a value the run does not know
+yet reads "‹cdra at id: not known yet›": people never read ``${...}``.
+
+A command that was sent reads as its instruction's sentence, with the values sent
+(:func:`command_text`): ``Set Display Object Pose "part" for relocate_part:0 (id: 0, frame:
+shelf/slot_a, position 0 mm, orientation 0°)``. The call itself, every value exactly as sent
+(``affordance_templates.set_display_object_pose(affordance_template=relocate_part:0, …)``), is
+for whoever turns on the raw-commands switch: the web view's "raw commands" box, ``--raw`` of
+``caretaker run`` and ``caretaker report`` (:attr:`Wording.raw`).
+
+Values are rounded to what an operator can use, never shown as Python reprs:
+
+- lengths (SysRep units ``m``; without units, ``x``/``y``/``z`` and a pose's position, metres by
+  the ROS convention REP 103, as Fig. 1's poses are) in millimetres, no decimals, one below
+  10 mm (``150 mm``, ``4.5 mm``): registrations and reaches are checked to the millimetre, and
+  planner noise (0.14999985 m) disappears;
+- angles (SysRep units ``rad``; without units, ``roll``/``pitch``/``yaw`` and a pose's
+  orientation, radians by REP 103) in degrees, one decimal (``90°``, ``12.5°``): people picture
+  90°, not 1.5708 rad, and a tenth of a degree is finer than any check an operator makes;
+- joint values (a list whose name says ``joint``) in degrees like every other angle;
+- a pose (six numbers whose name ends in ``pose``: x, y, z, roll, pitch, yaw) as ``position
+  (150, 450, 300) mm, orientation (0, 90, 90)°``, "in <frame>" when a ``<name>_frame`` value
+  names its frame; a group that is all zero as ``position 0 mm``;
+- other reals to 4 significant digits, at most 4 decimals (``0.3333``, ``21.5``, ``1235``),
+  below 0.0001 as ``3.4e-10``, with the SysRep's units; integers and strings as they are;
+  booleans true/false; nothing as "—".
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from pride.events import Event, EventKind
 from pride.model import (
+    ArgumentBinding,
     BranchInstruction,
     CallInstruction,
     CommandInstruction,
@@ -38,55 +67,129 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.sysrep import SysRep
+from pride.sysrep import Argument, Command, SysRep
 
 __all__ = [
+    "Wording",
+    "command_text",
     "describe_event",
+    "version_text",
     "fill_text",
+    "filled_sentence",
     "format_value",
     "humanize",
     "labelled_values",
     "phrase",
+    "raw_call",
     "raw_form",
+    "reading_words",
+    "record_refusal",
+    "result_text",
     "started_text",
+    "telemetry_text",
     "template_json",
 ]
 
 _POSITION = ("x", "y", "z")
 _ORIENTATION = ("roll", "pitch", "yaw")
-#: Decimals a real is rounded to when shown (a millimetre, a milliradian).
-_DECIMALS = 3
+_LENGTH, _ANGLE = "length", "angle"
+#: What a value measures, by its SysRep units (others keep their units and are plain reals).
+_KIND_OF_UNITS = {"m": _LENGTH, "rad": _ANGLE}
+#: The units a length or an angle is written in where it is not a number yet (a ``${...}``):
+#: the SI units the run sends, so the value filled in later reads right.
+_SI = {_LENGTH: "m", _ANGLE: "rad"}
+#: Significant digits (and at most as many decimals) of a real that is no length or angle.
+_SIGNIFICANT = 4
 
 
-def format_value(value: Any, units: str | None = None) -> str:
-    """A value as an operator reads it: rounded reals, true/false, lists in brackets, no quotes."""
+@dataclass(frozen=True)
+class Wording:
+    """How a run's records read: the SysReps whose labels and units they use (ids as words when
+    one is missing) and whether a sent command also shows the call as sent (the raw switch)."""
+
+    sysreps: Mapping[str, SysRep] = field(default_factory=dict)
+    raw: bool = False
+
+
+# ---- values ----------------------------------------------------------------------------------
+def format_value(value: Any, units: str | None = None, *, name: str = "") -> str:
+    """A value as an operator reads it (the rules are in the module docstring): ``units`` are the
+    SysRep's, ``name`` the value's id, which says what it measures where no units do."""
+    kind = _kind(name, units)
     if isinstance(value, bool):
-        text = "true" if value else "false"
-    elif isinstance(value, float):
-        text = _real(value)
-    elif isinstance(value, (list, tuple)):
-        text = "(" + ", ".join(format_value(v) for v in value) + ")"
-    elif isinstance(value, dict):
-        text = ", ".join(f"{humanize(str(k))} {format_value(v)}" for k, v in value.items())
-    elif value is None:
-        text = "—"
-    else:
-        text = str(value)
-    return f"{text} {units}" if units and not isinstance(value, (bool, dict)) and value is not None else text
+        return "true" if value else "false"
+    if isinstance(value, int) and kind is None:
+        return f"{value}{_suffix(None, units)}"
+    if isinstance(value, (int, float)):
+        return _number(float(value), kind) + _suffix(kind, units)
+    if isinstance(value, (list, tuple)):
+        numbers = [float(v) for v in value if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if len(numbers) != len(value):
+            return "(" + ", ".join(format_value(v) for v in value) + ")" + _suffix(None, units)
+        if len(numbers) == 6 and name.endswith("pose"):
+            return f"{_group('position', numbers[:3], _LENGTH)}, {_group('orientation', numbers[3:], _ANGLE)}"
+        kind = kind or (_ANGLE if "joint" in name else None)
+        return "(" + ", ".join(_number(v, kind) for v in numbers) + ")" + _suffix(kind, units)
+    if isinstance(value, Mapping):
+        return ", ".join(f"{humanize(str(k))} {format_value(v, name=str(k))}" for k, v in value.items())
+    if value is None:
+        return "—"
+    return f"{value}{_suffix(None, units)}"
 
 
-def _real(value: float) -> str:
-    if value != value or value in (float("inf"), float("-inf")):
-        return str(value)
-    if value != 0 and abs(value) < 10**-_DECIMALS:
-        return f"{value:.2e}"
-    text = f"{value:.{_DECIMALS}f}".rstrip("0").rstrip(".")
+def _kind(name: str, units: str | None) -> str | None:
+    """Whether a value is a length or an angle: by its units, else by its name (REP 103)."""
+    if units:
+        return _KIND_OF_UNITS.get(units)
+    return _LENGTH if name in _POSITION else _ANGLE if name in _ORIENTATION else None
+
+
+def _suffix(kind: str | None, units: str | None) -> str:
+    if kind == _LENGTH:
+        return " mm"
+    if kind == _ANGLE:
+        return "°"
+    return f" {units}" if units else ""
+
+
+def _number(value: float, kind: str | None) -> str:
+    """A number without its units: metres as millimetres, radians as degrees, other reals rounded."""
+    if kind == _LENGTH:
+        millimetres = value * 1000
+        return _fixed(millimetres, 1 if abs(millimetres) < 10 else 0)
+    if kind == _ANGLE:
+        return _fixed(math.degrees(value), 1)
+    if not math.isfinite(value) or value == 0:
+        return _fixed(value, 0)
+    if abs(value) < 10**-_SIGNIFICANT:
+        return f"{value:.1e}"
+    whole_digits = math.floor(math.log10(abs(value))) + 1
+    return _fixed(value, min(_SIGNIFICANT, max(0, _SIGNIFICANT - whole_digits)))
+
+
+def _fixed(value: float, decimals: int) -> str:
+    """``value`` to ``decimals`` places without trailing zeros, and never "-0"."""
+    text = f"{value:.{decimals}f}"
+    if "." in text:
+        text = text.rstrip("0").rstrip(".")
     return "0" if text == "-0" else text
+
+
+def _group(word: str, numbers: Sequence[float], kind: str | None, units: str | None = None) -> str:
+    """x/y/z or roll/pitch/yaw as one value: ``position (350, 0, 1000) mm``, ``orientation 0°``."""
+    texts = [_number(v, kind) for v in numbers]
+    shown = "0" if all(t == "0" for t in texts) else f"({', '.join(texts)})"
+    return f"{word} {shown}{_suffix(kind, units)}"
 
 
 def humanize(identifier: str) -> str:
     """``end_pose`` → ``end pose``: an identifier as words."""
     return identifier.replace("_", " ").strip()
+
+
+def _titled(identifier: str) -> str:
+    """``unlock_filter`` → ``Unlock Filter``: a label where no SysRep gives one, written as Fig. 1's are."""
+    return humanize(identifier).title()
 
 
 # ---- instruction sentences -------------------------------------------------------------------
@@ -130,33 +233,117 @@ def phrase(
         parts: list[str | Reference] = [f"Run {name}"]
         if instruction.args:
             parts.append(" with ")
-            parts += _join([_pair(a.name, a.value) for a in instruction.args])
+            parts += _join([[f"{humanize(a.name)}: ", *a.value.parts] for a in instruction.args])
         return _template(parts)
     return Template((instruction.describe(),))
 
 
+def filled_sentence(
+    instruction: Instruction, sysreps: Mapping[str, SysRep], procedure: Procedure, env: dict[str, Any]
+) -> str:
+    """The instruction's sentence with the values the run knows now (``env``) filled in: what a
+    hold, a confirmation or a started instruction says."""
+    return fill_text(str(phrase(instruction, sysreps, procedure)), env)
+
+
+@dataclass(frozen=True)
+class _Argument:
+    """A command argument as its sentence shows it: as written (with references) or as sent,
+    and its value as a number where that is known now (a length or an angle is shown converted)."""
+
+    name: str
+    parts: tuple[str | Reference, ...]
+    number: float | None = None
+
+
+def _command_definition(system: str, command: str, sysreps: Mapping[str, SysRep]) -> Command | None:
+    sysrep = sysreps.get(system)
+    return sysrep.command(command) if sysrep is not None else None
+
+
 def _command(instruction: CommandInstruction, sysreps: Mapping[str, SysRep]) -> Template:
-    sysrep = sysreps.get(instruction.system)
-    command = sysrep.command(instruction.command) if sysrep is not None else None
-    label = command.label if command is not None else humanize(instruction.command).capitalize()
-    args = {a.name: a.value for a in instruction.args}
+    definition = _command_definition(instruction.system, instruction.command, sysreps)
+    arguments = [_written(b, definition.arg(b.name) if definition else None) for b in instruction.args]
+    label = definition.label if definition is not None else _titled(instruction.command)
+    return _command_sentence(label, definition, arguments)
+
+
+def _written(binding: ArgumentBinding, argument: Argument | None) -> _Argument:
+    """An argument as the procedure writes it; a real written as a number is that number."""
+    real = argument.type == "real" if argument is not None else _kind(binding.name, None) is not None
+    if real and not binding.value.references:
+        try:
+            return _Argument(binding.name, binding.value.parts, float(str(binding.value)))
+        except ValueError:
+            pass  # lint refuses such a literal; shown as written
+    return _Argument(binding.name, binding.value.parts)
+
+
+def command_text(system: str, command: str, args: Mapping[str, Any], sysreps: Mapping[str, SysRep]) -> str:
+    """A command as sent, in the words of its instruction's sentence, with the values sent.
+
+    The audit log keeps arguments sorted by name, so the SysRep's order is taken back; without the
+    SysRep, which argument comes first (the target) is not known, and every one reads "name: value".
+    """
+    definition = _command_definition(system, command, sysreps)
+    if definition is None:
+        arguments = [_sent(n, v, None) for n, v in args.items()]
+        return str(_command_sentence(_titled(command), None, arguments, target=False))
+    ordered = _in_order(args, definition)
+    return str(_command_sentence(definition.label, definition, [_sent(n, v, definition.arg(n)) for n, v in ordered]))
+
+
+def _in_order(args: Mapping[str, Any], definition: Command | None) -> list[tuple[str, Any]]:
+    """Arguments in the SysRep's order (any it does not name last), else as given."""
+    order = [a.name for a in definition.args] if definition is not None else []
+    return sorted(args.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order))
+
+
+def _sent(name: str, value: Any, argument: Argument | None) -> _Argument:
+    real = argument.type == "real" if argument is not None else _kind(name, None) is not None
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and (real or isinstance(value, float)):
+        return _Argument(name, (), float(value))
+    return _Argument(name, (format_value(value, name=name),))
+
+
+def _command_sentence(
+    label: str, definition: Command | None, arguments: Sequence[_Argument], *, target: bool = True
+) -> Template:
+    """The sentence of a command; ``target``: the first argument is its target (the arguments are
+    in the order the procedure or the SysRep gives them)."""
+    args = {a.name: a for a in arguments}
     named = _named_argument(label, list(args))
-    first = next(iter(args), None)  # by convention the command's target (Fig. 1: affordance_template)
+    first = next(iter(args), None) if target else None  # by convention the target (Fig. 1: affordance_template)
     parts: list[str | Reference] = [label]
     if named is not None:
-        parts += [' "', *args.pop(named).parts, '"']
+        parts += [' "', *_shown(args.pop(named), _units(definition, named)), '"']
     if first is not None and first != named:
-        parts += [" for ", *args.pop(first).parts]
-    rest: list[list[str | Reference]] = []
+        parts += [" for ", *_shown(args.pop(first), _units(definition, first))]
+    groups: list[list[str | Reference]] = []
     for group, word in ((_POSITION, "position"), (_ORIENTATION, "orientation")):
         if all(name in args for name in group):
-            values = [args.pop(name) for name in group]
-            units = _units(command, group[0])
-            rest.append([f"{word} (", *_join([list(v.parts) for v in values]), ")" + (f" {units}" if units else "")])
-    rest[:0] = [_pair(name, value, _units(command, name)) for name, value in args.items()]
+            groups.append(_grouped(word, [args.pop(name) for name in group], _units(definition, group[0])))
+    rest = [[f"{humanize(a.name)}: ", *_shown(a, _units(definition, a.name))] for a in args.values()] + groups
     if rest:
         parts += [" (", *_join(rest), ")"]
     return _template(parts)
+
+
+def _shown(argument: _Argument, units: str | None) -> list[str | Reference]:
+    kind = _kind(argument.name, units)
+    if argument.number is not None:
+        return [_number(argument.number, kind) + _suffix(kind, units)]
+    written = units or _SI.get(kind or "")
+    return [*argument.parts, *([f" {written}"] if written else [])]
+
+
+def _grouped(word: str, arguments: list[_Argument], units: str | None) -> list[str | Reference]:
+    kind = _kind(arguments[0].name, units)
+    numbers = [a.number for a in arguments]
+    if all(n is not None for n in numbers):
+        return [_group(word, [n for n in numbers if n is not None], kind, units)]
+    written = units or _SI.get(kind or "")  # a ${...} among them: all as written, in the units sent
+    return [f"{word} (", *_join([list(a.parts) for a in arguments]), ")" + (f" {written}" if written else "")]
 
 
 def _named_argument(label: str, names: list[str]) -> str | None:
@@ -170,13 +357,9 @@ def _named_argument(label: str, names: list[str]) -> str | None:
     return None
 
 
-def _units(command: Any, name: str) -> str | None:
+def _units(command: Command | None, name: str) -> str | None:
     argument = command.arg(name) if command is not None else None
     return argument.units if argument is not None else None
-
-
-def _pair(name: str, value: Template, units: str | None = None) -> list[str | Reference]:
-    return [f"{humanize(name)}: ", *value.parts, *([f" {units}"] if units else [])]
 
 
 def _join(items: list[list[str | Reference]]) -> list[str | Reference]:
@@ -199,26 +382,33 @@ def _template(parts: list[str | Reference]) -> Template:
     return Template(tuple(merged) or ("",))
 
 
-def _telemetry(subject: Subject, sysreps: Mapping[str, SysRep]) -> Any:
-    sysrep = sysreps.get(subject.system or "")
-    return sysrep.telemetry_item(subject.name) if sysrep is not None else None
+def _telemetry(system: str, item: str, sysreps: Mapping[str, SysRep]) -> Any:
+    sysrep = sysreps.get(system)
+    return sysrep.telemetry_item(item) if sysrep is not None else None
+
+
+def _telemetry_label(system: str, item: str, sysreps: Mapping[str, SysRep]) -> str:
+    """A telemetry item as the procedure view names it: its SysRep label."""
+    found = _telemetry(system, item, sysreps)
+    return found.label if found is not None else _titled(item)
 
 
 def _subject(subject: Subject, sysreps: Mapping[str, SysRep]) -> str:
     if subject.source == "telemetry":
-        item = _telemetry(subject, sysreps)
-        return item.label if item is not None else humanize(subject.name)
+        return _telemetry_label(subject.system or "", subject.name, sysreps)
     if subject.source == "result":
         return f"{humanize(subject.name)} {humanize(subject.field or 'success')}"
     return f"the recorded {humanize(subject.name)}"
 
 
 _CONDITION_WORDS = (("equals", "is"), ("not_equals", "is not"), ("minimum", "is at least"), ("maximum", "is at most"))
+#: Condition.describe()'s symbols, by the condition field each stands for.
+_CONDITION_SYMBOLS = {"=": "equals", "≠": "not_equals", "≥": "minimum", "≤": "maximum"}
 
 
 def _condition(condition: Condition, subject: Subject, sysreps: Mapping[str, SysRep]) -> str:
     """The condition in words ("is at least 2 m"); Condition.describe() has it in symbols."""
-    item = _telemetry(subject, sysreps) if subject.source == "telemetry" else None
+    item = _telemetry(subject.system or "", subject.name, sysreps) if subject.source == "telemetry" else None
     units = f" {item.units}" if item is not None and item.units else ""
     tolerance = f" ± {format_value(condition.tolerance)}" if condition.tolerance is not None else ""
     return " and ".join(
@@ -228,16 +418,29 @@ def _condition(condition: Condition, subject: Subject, sysreps: Mapping[str, Sys
     )
 
 
+def _condition_words(described: str, units: str | None) -> str:
+    """A condition as a record keeps it (Condition.describe(): ``= true``, ``≥ 2 and ≤ 5``) in
+    the words of the procedure view (``is true``, ``is at least 2 degC and is at most 5 degC``)."""
+    words = dict(_CONDITION_WORDS)
+    said = []
+    for part in described.split(" and "):
+        symbol, _, rest = part.partition(" ")
+        if symbol in _CONDITION_SYMBOLS:
+            part = f"{words[_CONDITION_SYMBOLS[symbol]]} {rest}" + (f" {units}" if units else "")
+        said.append(part)
+    return " and ".join(said)
+
+
 def _step(reference: str | None, procedure: Procedure | None) -> str:
     step = procedure.step(reference) if procedure is not None and reference is not None else None
     return f"step {step.number} ({step.title})" if step is not None else f"step {reference}"
 
 
+# ---- the raw view ----------------------------------------------------------------------------
 def raw_form(instruction: Instruction) -> str:
     """Exactly what the instruction does, in the procedure's own terms (the "raw command" view)."""
     if isinstance(instruction, CommandInstruction):
-        args = ", ".join(f"{a.name}={a.value}" for a in instruction.args)
-        return f"{instruction.system}.{instruction.command}({args})"
+        return _call(f"{instruction.system}.{instruction.command}", {a.name: a.value for a in instruction.args})
     if (
         isinstance(instruction, (VerifyInstruction, WaitInstruction))
         and instruction.subject is not None
@@ -251,13 +454,26 @@ def raw_form(instruction: Instruction) -> str:
             f"if {instruction.subject.describe()} {instruction.condition.describe()} goto {instruction.goto}{otherwise}"
         )
     if isinstance(instruction, CallInstruction):
-        args = ", ".join(f"{a.name}={a.value}" for a in instruction.args)
-        return f"call {instruction.procedure}({args})"
+        return "call " + _call(instruction.procedure, {a.name: a.value for a in instruction.args})
     if isinstance(instruction, GoToInstruction):
         return f"goto {instruction.step}"
     if isinstance(instruction, WaitInstruction):
         return f"wait {instruction.seconds:g} s"
     return f"{instruction.kind.value}: {instruction.text}"
+
+
+def raw_call(system: str, command: str, args: Mapping[str, Any]) -> str:
+    """A command as sent, as a call with every value in full (the raw view of a sent command)."""
+    return _call(f"{system}.{command}", {name: _exact(value) for name, value in args.items()})
+
+
+def _exact(value: Any) -> object:
+    """A value as sent: in full (``0.14999985294229648``), booleans as the procedure writes them."""
+    return ("true" if value else "false") if isinstance(value, bool) else value
+
+
+def _call(callee: str, args: Mapping[str, object]) -> str:
+    return f"{callee}({', '.join(f'{name}={value}' for name, value in args.items())})"
 
 
 def template_json(template: Template) -> list[dict[str, str]]:
@@ -271,19 +487,27 @@ def template_json(template: Template) -> list[dict[str, str]]:
 # ---- values and audit records ----------------------------------------------------------------
 def labelled_values(values: Mapping[str, Any], sysrep: SysRep | None = None) -> list[tuple[str, str]]:
     """A command's result values as (label, text): the SysRep's telemetry label and units where a
-    value shares a telemetry item's id (``plan_status`` → "Plan Status"), else the key as words."""
+    value shares a telemetry item's id (``plan_status`` → "Plan Status"), else the key as words.
+    A pose is said in its frame (``end_pose`` with ``end_pose_frame``), the frame not again."""
     lines = []
     for key, value in values.items():
+        pose = key.removesuffix("_frame")
+        if pose != key and isinstance(values.get(pose), (list, tuple)):
+            continue  # said with its pose
         item = sysrep.telemetry_item(key) if sysrep is not None else None
         label = item.label if item is not None else humanize(key)
-        lines.append((label, format_value(value, item.units if item is not None else None)))
+        text = format_value(value, item.units if item is not None else None, name=key)
+        frame = values.get(f"{key}_frame")
+        lines.append((label, f"{text} in {frame}" if frame and isinstance(value, (list, tuple)) else text))
     return lines
 
 
-def _values(values: Any) -> str:
+def _values(data: Mapping[str, Any], wording: Wording) -> str:
+    values = data.get("values")
     if not isinstance(values, Mapping) or not values:
         return ""
-    return " · " + ", ".join(f"{label} {text}" for label, text in labelled_values(values))
+    lines = labelled_values(values, wording.sysreps.get(str(data.get("system"))))
+    return " · " + ", ".join(f"{label} {text}" for label, text in lines)
 
 
 #: How a command's outcome reads; an unknown one is neither a success nor a failure.
@@ -294,42 +518,128 @@ def _reason(data: dict[str, Any]) -> str:
     return f": {data['reason']}" if data.get("reason") else ""
 
 
+def _not_known(reference: Reference) -> str:
+    name = humanize(reference.name) + (f" {humanize(reference.field)}" if reference.field else "")
+    return f"‹{name}: not known yet›"  # marked as the page marks a value it does not know yet
+
+
 def fill_text(text: str, env: dict[str, Any]) -> str:
     """An instruction's sentence as written, with the values ``env`` holds filled in (written as
-    :func:`format_value` writes them); one the run does not know yet stays ``${...}``."""
-    return Template.parse(text).fill(env, format_value)
+    :func:`format_value` writes them); one the run does not know yet is said to be so in words."""
+    return Template.parse(text).fill(env, format_value, unknown=_not_known)
 
 
 def started_text(event: Event) -> str:
     """The sentence of an instruction-started event as people read it: with the values the run knew
     when it began filled in (``text_filled``), else, in a log recorded before events carried that,
-    the author's text with its ``${...}``."""
+    the author's text, its references said to be not known (the record does not hold them)."""
     data = event.data or {}
     filled = data.get("text_filled")
-    return str(filled) if filled is not None else str(data.get("text", ""))
+    return str(filled) if filled is not None else fill_text(str(data.get("text", "")), {})
 
 
-def describe_event(event: Event) -> str:
+def _sent_text(data: Mapping[str, Any], wording: Wording) -> str:
+    """A COMMAND_SENT record in words: "sent" (again, when its key was re-sent), the command as its
+    instruction reads, a hazard mark; with the raw switch, the call as sent after it."""
+    system, command, args = str(data.get("system")), str(data.get("command")), data.get("args") or {}
+    text = f"sent{' again' if data.get('resend') else ''} {command_text(system, command, args, wording.sysreps)}"
+    text += " [hazardous]" if data.get("hazardous") else ""
+    if data.get("approved_by"):
+        text += f" (sent by {data.get('requested_by')}, approved by {data['approved_by']})"
+    if not wording.raw:
+        return text
+    ordered = dict(_in_order(args, _command_definition(system, command, wording.sysreps)))
+    return f"{text} · raw: {raw_call(system, command, ordered)}"
+
+
+def result_text(data: Mapping[str, Any], wording: Wording, outcomes: Mapping[str, str] = _OUTCOME_WORDS) -> str:
+    """A COMMAND_RESULT record in words: its outcome (as ``outcomes`` says it), the system's
+    message and the values it returned, labelled and rounded."""
+    success = "succeeded" if data.get("success") else "failed"
+    outcome = outcomes.get(str(data.get("outcome")), outcomes[success])
+    message = f": {data['message']}" if data.get("message") else ""
+    return f"{outcome}{message}{_values(data, wording)}"
+
+
+def reading_words(data: Mapping[str, Any], wording: Wording) -> tuple[str, str, str]:
+    """A TELEMETRY_SEEN record as the procedure view words it: the item's label, the value read
+    (rounded, in its units, "(stale)" when it was) and the condition it was checked against
+    ("" for a branch's reading, which has none of its own)."""
+    system, item = str(data.get("system")), str(data.get("item"))
+    found = _telemetry(system, item, wording.sysreps)
+    units = found.units if found is not None else None
+    value = format_value(data.get("value"), units, name=item) + (" (stale)" if data.get("stale") else "")
+    condition = _condition_words(str(data["condition"]), units) if data.get("condition") else ""
+    return _telemetry_label(system, item, wording.sysreps), value, condition
+
+
+def telemetry_text(data: Mapping[str, Any], wording: Wording) -> str:
+    """A TELEMETRY_SEEN record's reading in words: ``Plan Valid = true (stale)``."""
+    label, value, _ = reading_words(data, wording)
+    return f"{label} = {value}"
+
+
+def record_refusal(
+    value: Any,
+    system: str,
+    item: str,
+    sysreps: Mapping[str, SysRep],
+    *,
+    listed: Sequence[str] | None = None,
+    problem: str = "",
+) -> str:
+    """Why a recorded value is refused that must be one the system lists in a telemetry item now:
+    it is not among them (``listed``: what the system reports), or they could not be read
+    (``problem``: "stale", "missing", or what the reading failed with)."""
+    sysrep = sysreps.get(system)
+    listing = _telemetry_label(system, item, sysreps).lower()
+    source = f"the {sysrep.name}" if sysrep is not None else system
+    if listed is not None:
+        return f"{format_value(value)} is not one of the {listing} now; {source} reports {_and(listed)}"
+    why = {
+        "stale": f"the last report of the {listing} from {source} is stale",
+        "missing": f"{source} has not reported the {listing} yet",
+    }.get(problem, f"reading the {listing} from {source} failed: {problem}")
+    return f"{format_value(value)} cannot be checked now: {why}"
+
+
+def _and(items: Sequence[str]) -> str:
+    """``a, b and c``, as a sentence lists things; "none" for nothing."""
+    if len(items) < 2:
+        return items[0] if items else "none"
+    return f"{', '.join(items[:-1])} and {items[-1]}"
+
+
+def version_text(data: Mapping[str, Any]) -> str:
+    """The procedure version of a run_started record: " · release 3 (sha256 ab12cd34…)" or
+    " · REHEARSAL of a draft (…)"; "" for a run recorded without one."""
+    sha = data.get("sha256")
+    if not sha:
+        return ""
+    release = data.get("release")
+    which = f"release {release}" if release else "a draft, not released"
+    what = f"REHEARSAL on a simulator, {which}" if data.get("rehearsal") else which
+    return f" · {what} (sha256 {str(sha)[:8]}…)"
+
+
+def describe_event(event: Event, wording: Wording | None = None) -> str:
     """One line saying what an audit record was, in words (the web view's log and the report)."""
+    said = wording or Wording()
     d = event.data
     kind = event.kind
     if kind is EventKind.RUN_STARTED:
-        return f"started {d.get('procedure')} v{d.get('version')} in {d.get('mode')} mode"
+        return f"started {d.get('procedure')} v{d.get('version')} in {d.get('mode')} mode{version_text(d)}"
     if kind is EventKind.RUN_RESUMED:
         return f"resumed in {d.get('mode')} mode" + (" (a command was in flight)" if d.get("in_flight") else "")
     if kind is EventKind.COMMAND_SENT:
-        args = ", ".join(f"{k}={format_value(v)}" for k, v in (d.get("args") or {}).items())
-        return f"sent {d.get('system')}.{d.get('command')}({args})" + (" [hazardous]" if d.get("hazardous") else "")
+        return _sent_text(d, said)
     if kind is EventKind.COMMAND_RESULT:
-        message = f": {d['message']}" if d.get("message") else ""
-        outcome = _OUTCOME_WORDS.get(str(d.get("outcome")), "succeeded" if d.get("success") else "FAILED")
-        return f"{outcome}{message}{_values(d.get('values'))}"
+        return result_text(d, said)
     if kind is EventKind.TELEMETRY_SEEN:
         verdict = "" if "ok" not in d else (" ✓" if d["ok"] else " ✗")
-        stale = " (stale)" if d.get("stale") else ""
-        return f"saw {d.get('system')}.{d.get('item')} = {format_value(d.get('value'))}{stale}{verdict}"
+        return f"saw {telemetry_text(d, said)}{verdict}"
     if kind is EventKind.OPERATOR_INPUT:
-        return f"recorded {d.get('name')} = {format_value(d.get('value'))}"
+        return f"recorded {humanize(str(d.get('name')))} = {format_value(d.get('value'))}"
     if kind is EventKind.INSTRUCTION_FAILED:
         return f"failed: {d.get('reason', '')}" + (f" → step {d['branch']}" if d.get("branch") else "")
     if kind is EventKind.INSTRUCTION_SKIPPED:
@@ -347,10 +657,19 @@ def describe_event(event: Event) -> str:
     if kind is EventKind.RETRY:
         return f"retry after: {d.get('after', '')}"
     if kind is EventKind.CALL_ENTERED:
-        inputs = ", ".join(f"{k}={format_value(v)}" for k, v in (d.get("inputs") or {}).items())
-        return f"entered {d.get('procedure')} with {inputs or 'no inputs'}"
+        return f"entered {d.get('procedure')} with {format_value(d.get('inputs') or {}) or 'no inputs'}"
     if kind is EventKind.CONFIRMATION:
-        return f"confirmed the hazardous command: {d.get('command', '')}"
+        return f"confirmed the hazardous command: {fill_text(str(d.get('command', '')), {})}"
+    if kind is EventKind.APPROVAL_REQUESTED:
+        return f"sent for a second operator's approval: {d.get('command', '')}"
+    if kind is EventKind.APPROVAL_GIVEN:
+        until = str(d.get("expires"))[11:19]
+        return f"approved {d.get('sender')}'s command: {d.get('command', '')} (good until {until} UTC)"
+    if kind is EventKind.APPROVAL_EXPIRED:
+        return (
+            f"{d.get('approver')}'s approval of {d.get('sender')}'s command ran out at {str(d.get('expired'))[11:19]} "
+            "UTC before it could be sent: nothing sent, it waits for a new approval"
+        )
     if kind is EventKind.HALT:
         told = (d.get("cancel") or {}).get("message")
         return f"HALT{_reason(d)}" + (f"; the system: {told}" if told else "")
@@ -359,7 +678,8 @@ def describe_event(event: Event) -> str:
     if kind is EventKind.OUTCOME_RESOLVED:
         return f"recorded the unknown outcome as {d.get('outcome')}{_reason(d)}"
     if kind is EventKind.RECORD_CORRECTED:
-        return f"corrected {d.get('name')}: {format_value(d.get('old'))} → {format_value(d.get('value'))}{_reason(d)}"
+        old, new = format_value(d.get("old")), format_value(d.get("value"))
+        return f"corrected {humanize(str(d.get('name')))}: {old} → {new}{_reason(d)}"
     if kind is EventKind.STEPPED_BACK:
         return f"went back to {d.get('next')}{_reason(d)}"
     if kind is EventKind.LINK_LOST:

@@ -3,7 +3,9 @@
 Who did what when, how long each step took, the telemetry values verifies decided on, a
 timeline (hand-made inline SVG: no plotting library), and the images captured during the run
 (command results whose values carry an image ``path``; copied next to the report so it stays
-complete when the run's files are cleaned up).
+complete when the run's files are cleaned up). Everything reads as the procedure view and the
+audit panel read (:mod:`pride.phrasing`, with the SysReps' labels a :class:`Wording` holds);
+the calls as sent only in a raw report (``caretaker report --raw``).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from datetime import datetime
 from pathlib import Path
 
 from pride.events import PAX, Event, EventKind
-from pride.phrasing import describe_event, format_value
+from pride.phrasing import Wording, describe_event, reading_words, version_text
 
 __all__ = ["RunSummary", "StepSummary", "summarize", "to_html", "to_markdown", "write_report"]
 
@@ -64,6 +66,8 @@ class RunSummary:
     images: list[Image]
     integrity: str = ""
     """What checking the run's hash chain found (empty: not checked)."""
+    released: str = ""
+    """The version it ran: its release, or a rehearsal (empty: recorded without one)."""
 
     @property
     def seconds(self) -> float:
@@ -125,6 +129,7 @@ def summarize(events: list[Event]) -> RunSummary:
         events=events,
         telemetry=[e for e in events if e.kind is EventKind.TELEMETRY_SEEN],
         images=images,
+        released=version_text(start.data).removeprefix(" · "),
     )
 
 
@@ -137,7 +142,7 @@ def _duration(seconds: float) -> str:
     return f"{int(minutes)} min {rest:04.1f} s" if minutes else f"{rest:.1f} s"
 
 
-def timeline_svg(summary: RunSummary, width: int = 860) -> str:
+def timeline_svg(summary: RunSummary, width: int = 860, wording: Wording | None = None) -> str:
     """Steps as rows, visits as bars on a shared time axis; operator actions and failures marked."""
     labels = [f"{step.number}. {step.title}" for step in summary.steps]
     # the label column fits the longest step title (about 7 px a character at 12 px): never clipped
@@ -194,7 +199,7 @@ def timeline_svg(summary: RunSummary, width: int = 860) -> str:
             px, py = x(event.time), y + 2
             parts.append(
                 f'<path d="M{px - 4:.1f},{py:.1f} L{px + 4:.1f},{py:.1f} L{px:.1f},{py + 7:.1f} Z" fill="#f39c12">'
-                f"<title>{html.escape(event.actor)}: {html.escape(describe_event(event))}</title></path>"
+                f"<title>{html.escape(event.actor)}: {html.escape(describe_event(event, wording))}</title></path>"
             )
     parts.append(f'<text x="{left}" y="14" fill="#555">bars: time in step · ▼ operator action · ● failure</text>')
     parts.append("</svg>")
@@ -212,12 +217,22 @@ def _copy_images(summary: RunSummary, out_dir: Path) -> None:
             image.copied = f"{folder.name}/{target.name}"
 
 
-def to_markdown(summary: RunSummary) -> str:
+def _reading(event: Event, wording: Wording) -> tuple[str, str, str, str]:
+    """A verified reading as the report's telemetry table shows it: item, value, condition, result."""
+    d = event.data
+    label, value, condition = reading_words(d, wording)
+    return label, value, condition or "(branch)", "ok" if d.get("ok", True) and not d.get("stale") else "not met"
+
+
+def to_markdown(summary: RunSummary, wording: Wording | None = None) -> str:
+    """The report in Markdown (``wording``: labels and units, and whether the calls as sent show)."""
+    said = wording or Wording()
     lines = [
         f"# After-action report: {summary.title}",
         "",
         f"- Run: `{summary.run_id}`",
         f"- Procedure: `{summary.procedure}` version {summary.version}",
+        *([f"- Ran: **{summary.released}**"] if summary.released else []),
         f"- Started: {summary.started:%Y-%m-%d %H:%M:%S} UTC by {summary.started_by}",
         f"- Duration: {_duration(summary.seconds)}",
         f"- Outcome: **{summary.outcome}**",
@@ -244,12 +259,8 @@ def to_markdown(summary: RunSummary) -> str:
         "|---|---|---|---|---|---|",
     ]
     for e in summary.telemetry:
-        d = e.data
-        verdict = "ok" if d.get("ok", True) and not d.get("stale") else "not met"
-        lines.append(
-            f"| {_clock(e.time)} | {e.instruction} | {d['system']}.{d['item']} | `{format_value(d['value'])}` | "
-            f"{d.get('condition', '(branch)')} | {verdict} |"
-        )
+        item, value, condition, verdict = _reading(e, said)
+        lines.append(f"| {_clock(e.time)} | {e.instruction} | {item} | `{value}` | {condition} | {verdict} |")
     lines += ["", "## Images", ""]
     for image in summary.images:
         target = image.copied or image.source
@@ -263,24 +274,26 @@ def to_markdown(summary: RunSummary) -> str:
     for e in summary.events:
         lines.append(
             f"| {e.seq} | {_clock(e.time)} | {e.actor} | {e.instruction or ''} "
-            f"| {describe_event(e).replace('|', '/')} |"
+            f"| {describe_event(e, said).replace('|', '/')} |"
         )
     return "\n".join(lines) + "\n"
 
 
-def to_html(summary: RunSummary) -> str:
+def to_html(summary: RunSummary, wording: Wording | None = None) -> str:
+    """The report as one HTML page (``wording`` as for :func:`to_markdown`)."""
+    said = wording or Wording()
     esc = html.escape
     rows = "".join(
         f"<tr><td>{s.number}</td><td>{esc(s.title)}</td><td>{_duration(s.seconds) if s.visits else 'not reached'}</td>"
         f"<td>{s.completed}</td><td>{s.failed}</td><td>{s.skipped}</td><td>{esc(', '.join(sorted(s.actors)))}</td></tr>"
         for s in summary.steps
     )
+    readings = [(e, *_reading(e, said)) for e in summary.telemetry]
     telemetry = "".join(
-        f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td>"
-        f"<td>{esc(e.data['system'])}.{esc(e.data['item'])}</td>"
-        f"<td><code>{esc(format_value(e.data['value']))}</code></td><td>{esc(e.data.get('condition', '(branch)'))}</td>"
-        f"<td>{'ok' if e.data.get('ok', True) and not e.data.get('stale') else '<b>not met</b>'}</td></tr>"
-        for e in summary.telemetry
+        f"<tr><td>{_clock(e.time)}</td><td>{esc(e.instruction or '')}</td><td>{esc(item)}</td>"
+        f"<td><code>{esc(value)}</code></td><td>{esc(condition)}</td>"
+        f"<td>{'ok' if verdict == 'ok' else '<b>not met</b>'}</td></tr>"
+        for e, item, value, condition, verdict in readings
     )
     images = (
         "".join(
@@ -295,7 +308,7 @@ def to_html(summary: RunSummary) -> str:
     actions = "".join(
         f'<tr class="{"operator" if e.actor != PAX else ""}"><td>{e.seq}</td><td>{_clock(e.time)}</td>'
         f"<td>{esc(e.actor)}</td>"
-        f"<td>{esc(e.instruction or '')}</td><td>{esc(describe_event(e))}</td></tr>"
+        f"<td>{esc(e.instruction or '')}</td><td>{esc(describe_event(e, said))}</td></tr>"
         for e in summary.events
     )
     return f"""<!doctype html>
@@ -309,11 +322,12 @@ figure{{display:inline-block;margin:0 1em 1em 0}}
 <p>Run <code>{esc(summary.run_id)}</code> · procedure <code>{esc(summary.procedure)}</code> v{esc(summary.version)} ·
 started {summary.started:%Y-%m-%d %H:%M:%S} UTC by {esc(summary.started_by)} · {_duration(summary.seconds)} ·
 outcome <b>{esc(summary.outcome)}</b></p>
+{f"<p>Ran: <b>{esc(summary.released)}</b></p>" if summary.released else ""}
 {f"<p>Audit chain: {esc(summary.integrity)}</p>" if summary.integrity else ""}
 <h2>Steps</h2>
 <table><tr><th>step</th><th>title</th><th>time</th><th>completed</th><th>failed</th><th>skipped</th><th>by</th></tr>{rows}</table>
 <h2>Timeline</h2>
-{timeline_svg(summary)}
+{timeline_svg(summary, wording=said)}
 <h2>Verified telemetry</h2>
 <table><tr><th>time</th><th>instruction</th><th>item</th><th>value</th><th>condition</th><th>result</th></tr>{telemetry}</table>
 <h2>Images</h2>
@@ -324,10 +338,13 @@ outcome <b>{esc(summary.outcome)}</b></p>
 """
 
 
-def write_report(events: list[Event], out_dir: Path, *, integrity: str = "") -> tuple[Path, Path]:
+def write_report(
+    events: list[Event], out_dir: Path, *, integrity: str = "", wording: Wording | None = None
+) -> tuple[Path, Path]:
     """Write ``RUN.html``, ``RUN.md`` and ``RUN-timeline.svg`` (and copied images) into ``out_dir``.
 
-    ``integrity`` is what checking the run's hash chain found; the report states it.
+    ``integrity`` is what checking the run's hash chain found; the report states it. ``wording``:
+    the SysReps whose labels and units it uses, and whether the calls as sent show (raw).
     """
     summary = summarize(events)
     summary.integrity = integrity
@@ -335,7 +352,7 @@ def write_report(events: list[Event], out_dir: Path, *, integrity: str = "") -> 
     _copy_images(summary, out_dir)
     html_path = out_dir / f"{summary.run_id}.html"
     md_path = out_dir / f"{summary.run_id}.md"
-    html_path.write_text(to_html(summary), encoding="utf-8")
-    md_path.write_text(to_markdown(summary), encoding="utf-8")
-    (out_dir / f"{summary.run_id}-timeline.svg").write_text(timeline_svg(summary), encoding="utf-8")
+    html_path.write_text(to_html(summary, wording), encoding="utf-8")
+    md_path.write_text(to_markdown(summary, wording), encoding="utf-8")
+    (out_dir / f"{summary.run_id}-timeline.svg").write_text(timeline_svg(summary, wording=wording), encoding="utf-8")
     return html_path, md_path

@@ -16,14 +16,16 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from pride.approvals import ApprovalPolicy
 from pride.automation import Automation, ControlLost, InstructionResult
 from pride.events import PAX, Event, EventKind, Journal
+from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
 from pride.lint import CheckedProcedure
 from pride.model import Instruction
-from pride.phrasing import fill_text
+from pride.phrasing import fill_text, phrase
 from pride.run_control import ControlStore, RunControl
 from pride.run_state import RunState
 from pride.states import (
@@ -35,6 +37,9 @@ from pride.states import (
     Snapshot,
 )
 from pride.systems import LinkState, SystemGateway, TelemetryValue
+
+if TYPE_CHECKING:  # the release history is the ground database's: the executive only carries a run's version
+    from pride.releases import RunVersion
 
 __all__ = ["RunEngine"]
 
@@ -58,6 +63,8 @@ class RunEngine:
         run_id: str,
         mode: Mode = Mode.MANUAL,
         control: ControlStore | None = None,
+        approvals: ApprovalPolicy | None = None,
+        version: RunVersion | None = None,
     ) -> None:
         """Prepare a run (nothing happens until :meth:`start`).
 
@@ -70,11 +77,17 @@ class RunEngine:
             mode: the initial mode.
             control: who controls which robot (the ground database); None runs without taking
                 control (a bench with one run).
+            approvals: which commands need a second operator's approval (the robot side's
+                critical commanding, :mod:`pride.approvals`); None: off, a hazardous command
+                needs its operator's confirmation only (a bench).
+            version: the procedure version it runs (its release, or a rehearsal), recorded in
+                ``run_started`` (:mod:`pride.releases`); None: not recorded (a bench).
         """
         self.procedure = checked.procedure
         self.run_id = run_id
         self.robot = gateway.robot()
         self._checked = checked
+        self.version = version
         self._gateway = gateway
         self._journal = journal
         self._control = RunControl(control, self.robot, run_id)
@@ -83,6 +96,7 @@ class RunEngine:
         self._seq = 0
         self._listeners: list[Callable[[Event], None]] = []
         self._automation = Automation(gateway, checked, self._record, may_send=self._may_send)
+        self._holdings = Holdings()  # what the run added to its systems: a stop takes it back
         self._state = RunState(
             self.procedure,
             mode,
@@ -90,6 +104,9 @@ class RunEngine:
             emit=self._emit,
             notify=self._changed.notify_all,
             hazardous=self._automation.is_hazardous,
+            sysreps=checked.sysreps,
+            holdings=self._holdings,
+            approvals=approvals or ApprovalPolicy(),
         )
         self._worker: threading.Thread | None = None
         self._supervisor: threading.Thread | None = None
@@ -142,6 +159,7 @@ class RunEngine:
             unknown_key=pending,
             halted_by=state.halt.user if state.halt else None,
             halt_reason=state.halt.reason if state.halt else "",
+            approval=state.approval_json(),
         )
 
     def _live(self, snap: Snapshot) -> Snapshot:
@@ -246,6 +264,7 @@ class RunEngine:
                 f"run {self.run_id} stopped: the audit log could not store {kind.value}: {state.error}"
             ) from exc
         self._seq = event.seq
+        self._holdings.note(event)
         self._last = self._build_snapshot()  # what readers get while a later append waits for the database
         self._changed.notify_all()  # every event is a change someone may be waiting for
         for listener in list(self._listeners):
@@ -278,7 +297,8 @@ class RunEngine:
                     if job is None:
                         return
                     number = state.begin(job)
-                    text = job.instruction.describe()  # as written: ${...} stay references
+                    # the sentence the procedure view shows, as written: ${...} stay references
+                    text = str(phrase(job.instruction, self._checked.sysreps, job.frame.procedure))
                     self._emit(
                         EventKind.INSTRUCTION_STARTED,
                         job.actor,
@@ -303,7 +323,7 @@ class RunEngine:
                     if state.halt is None:
                         state.halt = self._automation.halt
                     state.finish(job, number, outcome)
-                    if job.then_pause and state.status is RunStatus.ACTIVE and not state.paused:
+                    if job.then_pause and state.going_on and not state.paused:
                         state.paused = True
                         self._emit(EventKind.PAUSED, job.actor, state.current_number(), after_step=number)
                     self._changed.notify_all()

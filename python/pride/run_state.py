@@ -15,13 +15,15 @@ unknown outcome, and re-sending a command that was in flight when the runner die
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest
 from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.events import PAX, Event, EventKind
 from pride.frames import Frame, position_of
+from pride.leftovers import Holdings
 from pride.model import (
     CommandInstruction,
     Instruction,
@@ -31,9 +33,10 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.phrasing import fill_text
+from pride.phrasing import filled_sentence
 from pride.replay import Replayed
 from pride.states import Hold, InstructionStatus, Mode, RunStatus
+from pride.sysrep import SysRep
 
 __all__ = ["Emit", "Job", "Request", "RunState"]
 
@@ -86,9 +89,15 @@ class RunState:
         emit: Emit,
         notify: Callable[[], None],
         hazardous: Callable[[Instruction], bool],
+        sysreps: Mapping[str, SysRep],
+        holdings: Holdings,
+        approvals: ApprovalPolicy,
     ) -> None:
+        """``holdings``: what the run added to its systems (its completion lists what is left);
+        ``approvals``: which commands need a second operator's approval (:mod:`pride.approvals`)."""
         self.run_id = run_id
         self.status = RunStatus.READY
+        self.stopping = False  # a stop is under way: the run moves on no more, nobody answers its holds
         self.mode = mode
         self.frames: list[Frame] = [Frame(procedure, "", 0)]
         self.statuses = {i.number: InstructionStatus.PENDING for i in procedure.instructions}
@@ -96,6 +105,9 @@ class RunState:
         self.paused = False
         self.at_breakpoint = False
         self.confirmed_by: str | None = None  # who confirmed the current hazardous command
+        self.approvals = approvals
+        self.approval_request: ApprovalRequest | None = None  # the current command, sent for approval
+        self.approval: Approval | None = None  # ... and approved by a second operator
         self.failure: str | None = None
         self.in_flight: str | None = None  # a log from before command keys: sent, no result, no key
         self.unknown: tuple[str, str] | None = None  # (key, why) of the command whose outcome is unknown
@@ -110,6 +122,8 @@ class RunState:
         self._emit = emit
         self._notify = notify
         self._hazardous = hazardous
+        self._sysreps = sysreps  # their labels word the sentence a hold shows
+        self._holdings = holdings
 
     def restore(self, replayed: Replayed) -> None:
         """Take the state a replay of the run's events found."""
@@ -119,6 +133,11 @@ class RunState:
         self.halt = Halt(*replayed.halt) if replayed.halt else None
 
     # ---- queries ----------------------------------------------------------------------------
+    @property
+    def going_on(self) -> bool:
+        """Whether the run may still move on: active, and no stop under way."""
+        return self.status is RunStatus.ACTIVE and not self.stopping
+
     @property
     def frame(self) -> Frame:
         """The innermost frame: the procedure (or sub-procedure) the run is in."""
@@ -130,8 +149,60 @@ class RunState:
     def variables(self) -> dict[str, Any]:
         return {k: v for f in self.frames for k, v in f.env.items()}
 
+    def needs_approval(self, instruction: Instruction) -> bool:
+        """Whether a second operator must approve this instruction's command before it is sent."""
+        return self.approvals.needs_approval(isinstance(instruction, CommandInstruction), self._hazardous(instruction))
+
     def unconfirmed(self, instruction: Instruction) -> bool:
+        """Whether the instruction may not be sent yet: not approved (critical commanding), or a
+        hazardous command not confirmed."""
+        if self.needs_approval(instruction):
+            return self.approval is None
         return self._hazardous(instruction) and self.confirmed_by is None
+
+    def unconfirmed_text(self, number: str | None, instruction: Instruction) -> str:
+        """What an operator must do first about an unconfirmed command."""
+        if not self.needs_approval(instruction):
+            return f"{number} is a hazardous command: confirm it first"
+        if self.approval_request is not None:
+            sender = self.approval_request.sender
+            return f"{number} waits for a second operator's approval (sent for approval by {sender})"
+        return f"{number} needs a second operator's approval: send it for approval first"
+
+    def clear_to_send(self) -> bool:
+        """Whether nothing but its approval holds the current command back: after a failure, a halt or
+        an unknown outcome an operator still decides (retry, ask again, ...) once it is approved."""
+        return not (self.failure or self.in_flight or self.unknown or self.resend or self.halt or self.control_lost)
+
+    def approval_json(self) -> dict[str, Any] | None:
+        """The current command's approval as views show it: needed (nobody sent it for approval
+        yet), requested or approved (None: it needs none)."""
+        approval, request = self.approval, self.approval_request
+        if approval is not None:
+            request = approval.request
+        if request is None:
+            instruction = self.frame.instruction
+            if instruction is None or not self.going_on or not self.needs_approval(instruction):
+                return None
+            return {"number": self.current_number(), "state": "needed", "level": self.approvals.level.value}
+        shown: dict[str, Any] = {
+            "number": request.number,
+            "sender": request.sender,
+            "asked": request.asked.isoformat(),
+            "command": request.command,
+            "state": "requested",
+        }
+        if approval is not None:
+            shown.update(state="approved", approver=approval.approver, expires=approval.expires.isoformat())
+        return shown
+
+    def _unconfirmed_hold(self, instruction: Instruction, number: str | None, text: str, then: str) -> tuple[Hold, str]:
+        if not self.needs_approval(instruction):
+            return Hold.CONFIRMATION, f"{number} is hazardous; {then}: {text}"
+        if self.approval_request is not None:
+            sender = self.approval_request.sender
+            return Hold.APPROVAL, f"{number} waits for a second operator's approval (sent by {sender}): {text}"
+        return Hold.CONFIRMATION, f"{number} needs a second operator's approval; send it for approval: {text}"
 
     def halt_text(self) -> str:
         """ "halted by USER: reason" (empty without a halt)."""
@@ -142,7 +213,7 @@ class RunState:
     def hold(self) -> tuple[Hold | None, str]:
         """Why automation does not perform the current instruction now (None when it may)."""
         instruction = self.frame.instruction
-        if self.status is not RunStatus.ACTIVE or instruction is None or self.executing or self.request:
+        if not self.going_on or instruction is None or self.executing or self.request:
             return None, ""
         number = self.current_number()
         if self.control_lost:
@@ -159,7 +230,7 @@ class RunState:
             return Hold.FAILURE, f"{number} failed: {self.failure}"
         if self.resend:
             return None, ""  # PAX sends the same key again by itself: the habitat answers its outcome
-        text = fill_text(instruction.describe(), self.frame.env)  # the sentence with the values known now
+        text = filled_sentence(instruction, self._sysreps, self.frame.procedure, self.frame.env)
         if isinstance(instruction, RecordInstruction):
             return Hold.OPERATOR_INPUT, f"{number}: {text}"
         if isinstance(instruction, ManualInstruction):
@@ -167,7 +238,7 @@ class RunState:
         unconfirmed = self.unconfirmed(instruction)
         if self.mode is Mode.MANUAL:
             if unconfirmed:
-                return Hold.CONFIRMATION, f"{number} is hazardous; confirm, then send: {text}"
+                return self._unconfirmed_hold(instruction, number, text, "confirm, then send")
             return Hold.MANUAL_MODE, f"{number}: {text}"
         if self.at_breakpoint:
             return Hold.BREAKPOINT, f"breakpoint at {number}"
@@ -176,12 +247,12 @@ class RunState:
         if not instruction.automatable:
             return Hold.NOT_AUTOMATABLE, f"{number} must be performed by an operator: {text}"
         if unconfirmed:
-            return Hold.CONFIRMATION, f"{number} is hazardous; confirm to send: {text}"
+            return self._unconfirmed_hold(instruction, number, text, "confirm to send")
         return None, ""
 
     def next_job(self) -> Job | None:
         """What PAX's thread should perform now: an operator's request, or the instruction automation may do."""
-        if self.status is not RunStatus.ACTIVE or self.executing:
+        if not self.going_on or self.executing:
             return None
         frame = self.frame
         instruction = frame.instruction
@@ -196,9 +267,39 @@ class RunState:
         send = None
         if isinstance(instruction, CommandInstruction):
             number = frame.number()
+            if self._approval_expired(number):
+                return None
             key = self.resend or command_key(self.run_id, number, self.attempts.get(number, 0) + 1)
-            send = Send(key, resend=self.resend is not None, confirmed_by=self.confirmed_by)
+            approval = self.approval
+            send = Send(
+                key,
+                resend=self.resend is not None,
+                confirmed_by=self.confirmed_by,
+                requested_by=approval.request.sender if approval else None,
+                approved_by=approval.approver if approval else None,
+            )
         return Job(frame, instruction, actor, then_pause, send)
+
+    def _approval_expired(self, number: str) -> bool:
+        """Drop an approval that ran out before its command could be sent (recorded; the command
+        waits for a new one): a command is never sent on a stale approval."""
+        approval = self.approval
+        now = self.approvals.clock()
+        if approval is None or self.resend or not approval.stale(now):
+            return False
+        self.approval = self.approval_request = None
+        self.request = None
+        self._emit(
+            EventKind.APPROVAL_EXPIRED,
+            PAX,
+            number,
+            approver=approval.approver,
+            sender=approval.request.sender,
+            command=approval.request.command,
+            expired=approval.expires.isoformat(),
+        )
+        self.announce()
+        return True
 
     def begin(self, job: Job) -> str:
         """PAX's thread takes ``job``: the instruction is executing (a command's attempt is counted)."""
@@ -235,6 +336,7 @@ class RunState:
     def arrive(self) -> None:
         """Make the frame's position the current instruction."""
         self.confirmed_by = None
+        self.approval = self.approval_request = None
         self.failure = None
         number = self.current_number()
         if number is None:
@@ -297,7 +399,8 @@ class RunState:
         while frame.instruction is None:
             if len(self.frames) == 1:
                 self.status = RunStatus.COMPLETED
-                self._emit(EventKind.RUN_COMPLETED, actor, None)
+                left = self._holdings.left("the procedure completed without removing it")
+                self._emit(EventKind.RUN_COMPLETED, actor, None, **left.data())
                 self._notify()
                 return
             self.frames.pop()
@@ -345,6 +448,7 @@ class RunState:
             frame.env[name] = values
         if not outcome.ok:
             self.confirmed_by = None  # a hazardous command is confirmed again before a new attempt
+            self.approval = self.approval_request = None  # ... and approved again
         if outcome.unknown_key is not None:
             # neither done nor failed: it waits here (a resume asks again) until an operator decides
             self.statuses[number] = InstructionStatus.OUTCOME_UNKNOWN
@@ -355,7 +459,7 @@ class RunState:
             self.halted(number, actor, outcome.reason)
             self.announce()
             return
-        if self.status is not RunStatus.ACTIVE:
+        if not self.going_on:
             # stopped meanwhile: record how it ended so a resume knows, but go nowhere. A failure is
             # redone on resume, never branched from; a sub-procedure about to start starts again.
             if outcome.enter is not None:

@@ -75,7 +75,10 @@ class Hold(enum.Enum):
     NOT_AUTOMATABLE = "not_automatable"
     """The author marked it automatable=false: an operator must perform it."""
     CONFIRMATION = "confirmation"
-    """A hazardous command: an operator must confirm it before it is sent."""
+    """A hazardous command: an operator must confirm it before it is sent (under critical
+    commanding: an operator must send it for a second operator's approval)."""
+    APPROVAL = "approval"
+    """A command sent for approval: a second operator must approve it (:mod:`pride.approvals`)."""
     BREAKPOINT = "breakpoint"
     """A breakpoint: an operator must continue or step."""
     PAUSED = "paused"
@@ -91,7 +94,9 @@ class Hold(enum.Enum):
     """Its command's outcome could not be learnt: ask again (same key), record what the system
     shows (succeeded or failed, with a reason), or skip it with a reason."""
     HALTED = "halted"
-    """An operator halted the run: retry (a new attempt), continue, skip, or stop."""
+    """An operator halted the run: retry (a new attempt), continue, skip, or stop. After a halted
+    motion whose plan ended with it (:mod:`pride.replanning`) retry and continue cannot work:
+    re-plan from where the arm is and go on, go back, skip, or stop."""
     CONTROL_LOST = "control_lost"
     """Another run took control of the robot: this run sends nothing until control is taken back."""
 
@@ -144,6 +149,9 @@ class Snapshot:
     unknown_key: str | None = None  # the command whose outcome is unknown (Hold.OUTCOME_UNKNOWN)
     halted_by: str | None = None  # who halted the run (Hold.HALTED), and why
     halt_reason: str = ""
+    replan_from: str | None = None  # after a halted motion: the instruction that plans it again (the way on)
+    no_retry: str = ""  # why sending the held instruction again cannot work, and what can ("" when it can)
+    approval: dict[str, Any] | None = None  # the current command's approval request or approval (JSON)
     link_lost_since: datetime | None = None  # a robot link is down since then (UTC)
     commands_in_flight: int = 0  # while it is down: commands waiting for their outcome
     link_quiet: bool = False  # down only in that nothing came from it for a few keepalive intervals
@@ -172,6 +180,9 @@ class Snapshot:
             "unknown_key": self.unknown_key,
             "halted_by": self.halted_by,
             "halt_reason": self.halt_reason,
+            "replan_from": self.replan_from,
+            "no_retry": self.no_retry,
+            "approval": self.approval,
             "link": {
                 "state": "lost",
                 "since": self.link_lost_since.isoformat(),

@@ -21,6 +21,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from at_ros.api import LATCHED, PREFIX, SERVICE_QOS, SERVICES
+from support.spinner import Spinner
 
 
 class AtClient:
@@ -51,8 +52,7 @@ class AtClient:
         self.node.create_subscription(JointState, "/joint_states", self._joints_callback, 10)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self._thread.start()
+        self._spinner = Spinner(self.executor, self.node, name="at-client")
 
     def _notify(self) -> None:
         with self._changed:
@@ -137,6 +137,5 @@ class AtClient:
         return self.call("set_object_pose", objects=[info])
 
     def close(self) -> None:
-        self.executor.shutdown()
+        self._spinner.stop()
         self.node.destroy_node()
-        self._thread.join(5)

@@ -19,6 +19,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 
 from at_ros.action_client import RecordedActionClient
+from support.spinner import Spinner
 
 ANSWER_WAIT = 5.0
 
@@ -76,13 +77,11 @@ def node_pair() -> Iterator[tuple[Any, Any, MultiThreadedExecutor]]:
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(server_node)
     executor.add_node(client_node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    spinner = Spinner(executor, server_node, name="action-pair")
     try:
         yield server_node, client_node, executor
     finally:
-        executor.shutdown()
-        spinner.join(10)
+        spinner.stop()
         server_node.destroy_node()
         client_node.destroy_node()
         rclpy.shutdown(context=context)

@@ -8,6 +8,7 @@ of the cabinet), register it on the empty rack slot, plan, execute (the filter i
 from __future__ import annotations
 
 import math
+import re
 import threading
 from collections.abc import Iterator
 
@@ -98,14 +99,17 @@ def test_bad_requests_say_what_to_fix(at: AtClient) -> None:
         for response, expected in cases:
             assert not response.success
             assert expected in response.message, response.message
-        # A registration the arm cannot reach: planning says which waypoint and why.
-        far = at.register("cdra_filter", i, "cdra_filter", "world")  # the world origin is under the table
+        # A registration the arm cannot take: planning says which waypoint, where the template
+        # states it, the pose in the robot's base frame and why, across the planner's process.
+        far = at.register("cdra_filter", i, "cdra_filter", "world")  # the world origin is in the floor
         assert far.success
         plan = at.call("plan_command", type="cdra_filter", id=i, trajectory_name="grasp_and_pull")
         assert not plan.success
-        assert "0.0:cdra_filter" in plan.message and ("unreachable" in plan.message or "collides" in plan.message), (
-            plan.message
-        )
+        assert re.search(
+            rf"waypoint 0\.0:cdra_filter:{i} \(\S*/cdra_filter\.json:\d+\): the pose x=-?\d+\.\d{{3}} .* deg "
+            r"in base_link is reachable only in collision \(\S+ with module\)$",
+            plan.message,
+        ), plan.message
         at.wait_for(
             lambda: at.status.plan_status == ServerStatus.PLAN_FAILED and "grasp_and_pull" in at.status.last_error,
             10,

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 
 from at_ros.ik import IkFailure, IkSolver
 from at_ros.planning_scene import PlanningScene
+from at_ros.robot_config import RobotConfig
 from at_ros.transforms import angle_between, from_xyz_rpy
 from support.planning_scenes import UR10_START, bench_planning_scene
 
@@ -25,11 +25,12 @@ def test_reaches_a_pose_within_limits_and_near_the_seed(iva_scene: PlanningScene
     assert np.max(np.abs(q - UR10_START)) < 1.0  # same arm configuration, not a flipped one
 
 
-def test_out_of_reach_is_reported_with_the_error(iva_scene: PlanningScene) -> None:
+def test_out_of_reach_is_reported_as_reach_alone(iva_scene: PlanningScene) -> None:
     solver = IkSolver(iva_scene, seeds=4)
     failure = solver.solve(from_xyz_rpy([3.0, 0.0, 1.0], [0, 0, 0]), UR10_START)
     assert isinstance(failure, IkFailure)
-    assert "unreachable" in failure.describe() and failure.position_error > 1.0
+    assert failure == IkFailure(collision=None, beyond_limits=())  # neither limits nor a collision is blamed
+    assert failure.describe() == "is out of reach"
 
 
 def test_wrap_into_limits_picks_the_turn_nearest_the_reference(iva_scene: PlanningScene) -> None:
@@ -64,25 +65,21 @@ def test_a_range_that_excludes_the_nearest_solution_is_solved_inside_it() -> Non
         scene.close()
 
 
-def test_a_pose_reachable_only_outside_the_limits_names_the_limit(tmp_path: Path) -> None:
-    # Narrow the wrist roll too: the flipped wrist (roll about +-2.5) is no longer allowed either.
-    def narrow(urdf: str) -> str:
-        return urdf.replace(
-            '<limit lower="-3.0" upper="3.0" effort="50" velocity="2.5"/>',
-            '<limit lower="-1.0" upper="1.0" effort="50" velocity="2.5"/>',
-        )
-
-    config, scene = bench_planning_scene(narrow, tmp_path)
-    try:
-        failure = IkSolver(scene, seeds=16).solve(BENCH_GOAL, BENCH_START)
-        assert isinstance(failure, IkFailure)
-        assert re.search(
-            r"^reachable only outside the joint limits: wrist_(pitch|roll)_joint would be -?\d+\.\d\d rad, "
-            r"outside its range \[-?\d+\.\d\d, -?\d+\.\d\d\]$",
-            failure.describe(),
-        ), failure.describe()
-    finally:
-        scene.close()
+def test_a_pose_reachable_only_outside_the_limits_names_the_limit(
+    narrow_wrist_bench: tuple[RobotConfig, PlanningScene],
+) -> None:
+    config, scene = narrow_wrist_bench
+    failure = IkSolver(scene, seeds=16).solve(BENCH_GOAL, BENCH_START)
+    assert isinstance(failure, IkFailure) and failure.collision is None
+    assert re.search(
+        r"^is reachable only outside the joint limits \(wrist_(pitch|roll)_joint would be -?\d+\.\d\d rad, "
+        r"beyond its (lower|upper) limit -?\d+\.\d\d rad(, |\)$)",
+        failure.describe(),
+    ), failure.describe()
+    for excess in failure.beyond_limits:  # each joint named is beyond the limit it is said to pass
+        i = config.joint_names.index(excess.joint)
+        limit = scene.limits.upper[i] if excess.upper else scene.limits.lower[i]
+        assert excess.limit == limit and (excess.value > limit if excess.upper else excess.value < limit)
 
 
 def test_a_line_that_runs_into_a_limit_names_the_joint() -> None:

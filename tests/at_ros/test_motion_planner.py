@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from at_ros.ik import IkFailure, IkSolver
 from at_ros.instance import Registration, TemplateInstance
-from at_ros.library import Template
+from at_ros.library import Template, load_template
 from at_ros.motion_planner import Goal, MotionPlanner, WaypointPlanningError
 from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import RobotConfig
 from at_ros.transforms import angle_between, from_xyz_rpy, invert
-from support.planning_scenes import UR10_START
+from sim.scene import load_scene
+from support.planning_scenes import BENCH_ARM, UR10_START
 
 CABINET_SLOT = from_xyz_rpy([0.15, 0.90, 1.05], [0.0, 0.0, np.pi / 2])
 
@@ -22,8 +27,15 @@ def planner(iva_scene: PlanningScene, ur10_config: RobotConfig) -> MotionPlanner
 
 
 def _goals(library: dict[str, Template], ur10_config: RobotConfig, trajectory: str, frame: np.ndarray) -> list[Goal]:
-    instance = TemplateInstance(library["cdra_filter"], 0, ur10_config, root_pose=np.eye(4))
-    instance.register("cdra_filter", Registration("cabinet/slot", np.eye(4), frame))
+    return _template_goals(library["cdra_filter"], ur10_config, trajectory, "cdra_filter", frame)
+
+
+def _template_goals(
+    template: Template, config: RobotConfig, trajectory: str, registered: str, frame: np.ndarray
+) -> list[Goal]:
+    """The goals the AT server would send for ``trajectory`` with ``registered`` at ``frame``."""
+    instance = TemplateInstance(template, 0, config, root_pose=np.eye(4))
+    instance.register(registered, Registration("world", np.eye(4), frame))
     t = instance.trajectory(trajectory)
     return [
         Goal(
@@ -34,6 +46,7 @@ def _goals(library: dict[str, Template], ur10_config: RobotConfig, trajectory: s
             gripper_action=w.gripper_action,
             object_name=w.object_name,
             object_pose=w.object_pose,
+            source=w.source,
         )
         for w in instance.resolve(t, instance.end_effector(t, []))
     ]
@@ -72,7 +85,8 @@ def test_pull_segment_carries_the_grasped_filter(
     ]
     with pytest.raises(
         WaypointPlanningError,
-        match=r"0\.3:cdra_filter:0: Cartesian line blocked .*collision filter/CDRA-F-0007/(cabinet|module)",
+        match=r"waypoint 0\.3:cdra_filter:0: the Cartesian line to the pose .* "
+        r"is blocked at \d+% by a collision \(filter/CDRA-F-0007 with (cabinet|module)\)",
     ):
         planner.plan(UR10_START, pushed)
 
@@ -99,12 +113,96 @@ def test_an_arm_configuration_that_fails_after_the_grasp_leaves_the_next_one_a_c
         iva_scene.restore(saved)
 
 
-def test_unreachable_registration_names_the_waypoint(
+def _first_waypoint_line(template: Template, trajectory: str) -> int:
+    """The line of the first waypoint of ``trajectory`` in the template file, found in its text."""
+    text = Path(template.filename).read_text()
+    waypoints = text.index('"end_effector_waypoint"', text.index(f'"name": "{trajectory}"'))
+    return text.count("\n", 0, text.index("{", waypoints)) + 1
+
+
+def _pose_in_message(message: str, base_frame: str) -> np.ndarray:
+    """The pose a failure message states in ``base_frame``, back as a 4x4 transform."""
+    found = re.search(
+        rf"the pose x=(\S+) y=(\S+) z=(\S+) m, roll/pitch/yaw=(\S+)/(\S+)/(\S+) deg in {base_frame} ", message
+    )
+    assert found, message
+    values = [float(v) for v in found.groups()]
+    return from_xyz_rpy(values[:3], [float(np.radians(v)) for v in values[3:]])
+
+
+def _assert_states_the_pose(message: str, goal: Goal, scene_file: str | Path) -> None:
+    """The message gives ``goal`` in the robot's base frame, as the scene file places the base
+    (not the world frame), to the millimetre and the tenth of a degree."""
+    base = load_scene(scene_file).robot.base
+    expected = invert(from_xyz_rpy(base.xyz, base.rpy)) @ goal.pose
+    stated = _pose_in_message(message, "base_link")
+    assert np.max(np.abs(stated[:3, 3] - expected[:3, 3])) <= 0.0005 + 1e-9, message
+    assert np.degrees(angle_between(stated, expected)) < 0.1, message
+
+
+def test_an_unreachable_waypoint_names_its_template_line_its_pose_and_reach(
     planner: MotionPlanner, library: dict[str, Template], ur10_config: RobotConfig
 ) -> None:
-    far = from_xyz_rpy([3.0, 0.0, 1.0], [0.0, 0.0, 0.0])
-    with pytest.raises(WaypointPlanningError, match=r"waypoint 0\.0:cdra_filter:0: unreachable"):
-        planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", far))
+    template = library["cdra_filter"]
+    goals = _template_goals(
+        template, ur10_config, "grasp_and_pull", "cdra_filter", from_xyz_rpy([3.0, 0, 1.0], [0, 0, 0])
+    )
+    with pytest.raises(WaypointPlanningError) as refused:
+        planner.plan(UR10_START, goals)
+    message = str(refused.value)
+    where = f"{template.filename}:{_first_waypoint_line(template, 'grasp_and_pull')}"
+    assert message.startswith(f"waypoint 0.0:cdra_filter:0 ({where}): the pose x="), message
+    assert message.endswith(" deg in base_link is out of reach"), message  # one reason, nothing after it
+    _assert_states_the_pose(message, goals[0], "iva")
+    assert "\n" not in message and "seeds" not in message and "other" not in message, message
+
+
+def test_a_waypoint_reachable_only_in_collision_names_the_contact(
+    planner: MotionPlanner, iva_scene: PlanningScene, library: dict[str, Template], ur10_config: RobotConfig
+) -> None:
+    # Registered at the world origin, the filter's approach pose is in the module's floor.
+    goals = _template_goals(library["cdra_filter"], ur10_config, "grasp_and_pull", "cdra_filter", np.eye(4))
+    with pytest.raises(WaypointPlanningError) as refused:
+        planner.plan(UR10_START, goals)
+    message = str(refused.value)
+    contact = re.search(r" deg in base_link is reachable only in collision \((\S+) with module\)$", message)
+    assert contact and message.startswith("waypoint 0.0:cdra_filter:0 ("), message
+    _assert_states_the_pose(message, goals[0], "iva")
+    # Not a contradiction: within the limits the arm does reach the pose when collisions are not checked.
+    reached = IkSolver(iva_scene, seeds=32).solve(goals[0].pose, UR10_START, check_collisions=False)
+    assert isinstance(reached, np.ndarray), reached
+    assert iva_scene.collision(reached) is not None
+
+
+def test_a_waypoint_reachable_only_outside_the_joint_limits_names_the_joint(
+    narrow_wrist_bench: tuple[RobotConfig, PlanningScene],
+) -> None:
+    # The grasp in front of shelf slot A needs the wrist pitched below its range (or rolled beyond it).
+    config, scene = narrow_wrist_bench
+    workbench = load_scene(BENCH_ARM / "workbench.yaml")
+    slot = workbench.slots["shelf/slot_a"].pose
+    template = load_template(BENCH_ARM / "templates" / "relocate_part.json")
+    goals = _template_goals(template, config, "move_part", "part", from_xyz_rpy(slot.xyz, slot.rpy))
+    start = np.array(workbench.robot.initial_positions)
+    with pytest.raises(WaypointPlanningError) as refused:
+        MotionPlanner(scene, config.planner).plan(start, goals)
+    message = str(refused.value)
+    where = f"{template.filename}:{_first_waypoint_line(template, 'move_part')}"
+    assert message.startswith(f"waypoint 0.0:relocate_part:0 ({where}): the pose x="), message
+    _assert_states_the_pose(message, goals[0], BENCH_ARM / "workbench.yaml")
+    stated = re.search(r" deg in base_link is reachable only outside the joint limits \((.+)\)$", message)
+    assert stated, message
+    joints = re.findall(
+        r"(\w+) would be (-?\d+\.\d\d) rad, beyond its (lower|upper) limit (-?\d+\.\d\d) rad", stated[1]
+    )
+    assert joints, message
+    for joint, value, side, limit in joints:  # each joint named is beyond the limit it is said to pass
+        i = config.joint_names.index(joint)
+        assert float(limit) == pytest.approx(getattr(scene.limits, side)[i], abs=0.005)
+        assert float(value) < float(limit) if side == "lower" else float(value) > float(limit)
+    # Not a contradiction: no solution within the limits reaches it, collisions or not.
+    alone = IkSolver(scene, seeds=32).solve(goals[0].pose, start, check_collisions=False)
+    assert isinstance(alone, IkFailure) and alone.beyond_limits
 
 
 def test_start_in_collision_is_refused(planner: MotionPlanner) -> None:
@@ -148,7 +246,9 @@ def test_a_closed_gripper_near_a_filter_grasps_nothing_unless_the_template_says_
         goals[2],
     ]
     with pytest.raises(
-        WaypointPlanningError, match=r"survey\.2: Cartesian line blocked .*collision filter/CDRA-F-0013/rack"
+        WaypointPlanningError,
+        match=r"waypoint survey\.2: the Cartesian line to .* is blocked at \d+% by a collision "
+        r"\(filter/CDRA-F-0013 with rack\)",
     ):
         planner.plan(UR10_START, grasping)
 
@@ -158,7 +258,7 @@ def test_a_stated_grasp_where_nothing_is_names_the_object(
 ) -> None:
     with pytest.raises(
         WaypointPlanningError,
-        match=r"waypoint 0\.2:cdra_filter:0: grasps 'cdra_filter', but no graspable object "
+        match=r"waypoint 0\.2:cdra_filter:0 \(.*cdra_filter\.json:\d+\): grasps 'cdra_filter', but no graspable object "
         r"of the world is within 5 cm of where 'cdra_filter' is registered",
     ):
         planner.plan(UR10_START, _goals(library, ur10_config, "grasp_and_pull", RACK_SLOT_3))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -49,3 +51,24 @@ def test_enclosed_goal_fails_after_the_time_limit() -> None:
     planner = JointPlanner(-np.ones(3) * 3, np.ones(3) * 3, boxed)
     with pytest.raises(PlanningFailed, match="no collision-free joint path"):
         planner.plan(np.zeros(3), np.full(3, 2.0), time_limit=0.3, simplify_time=0.1)
+
+
+def test_the_time_limit_is_the_planners_own_cpu_time_not_the_wall_clock() -> None:
+    """A starved planner (here: each check waits 1 ms off the CPU, as a thread descheduled by
+    other work) still gets its whole budget: the same blocked move is found although its wall
+    time runs far past the limit."""
+    checks = 0
+
+    def starved(q: np.ndarray) -> bool:
+        nonlocal checks
+        checks += 1
+        time.sleep(0.001)  # off the CPU: the stand-in for a busy machine, not a synchronisation
+        return _wall_checker(q)
+
+    planner = JointPlanner(-np.ones(3) * 3, np.ones(3) * 3, starved, resolution=0.02, seed=5)
+    began = time.perf_counter()
+    path = planner.plan(np.array([-1.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), time_limit=0.3, simplify_time=0.0)
+    waited = time.perf_counter() - began
+    assert max(q[1] for q in path) >= 1.0
+    # a wall-clock limit would have stopped it after 0.3 s, with at most 300 checks made
+    assert checks > 0.3 / 0.001 and waited > 0.3, (checks, waited)

@@ -24,7 +24,7 @@ def test_folded_arm_collides_with_itself(iva_scene: PlanningScene) -> None:
     q = np.array([0.0, -1.5708, 3.1, 0.0, 0.0, 0.0])  # elbow folded back onto the upper arm
     why = iva_scene.collision(q)
     assert why is not None
-    a, b = why.split("/")
+    a, b = why.split(" with ")
     assert a.endswith("_link") and b.endswith("_link")  # two links of the arm, no obstacle
 
 

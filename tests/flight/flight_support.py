@@ -110,6 +110,7 @@ class Flight:
             "--db",
             self.db_url,
             "--confirm-manual",
+            "--rehearsal",
             *([f"--set=clean_filter_id={CLEAN_FILTER}"] if record else []),
             *extra,
             ready=r"^READY run ",
@@ -384,6 +385,7 @@ def start_from_console(page: Page, f: Flight, *, onboard: bool) -> str:
     page.select_option("#start-binding", f.binding.name)
     page.check("#start-form input[name=mode][value=autonomous]")
     page.set_checked("#start-onboard", onboard)
+    page.check("#start-rehearsal")  # the shipped procedure, never released in this flight's database
     page.click("#start-button")
     page.wait_for_function(
         "() => document.querySelector('#run-id').textContent || document.querySelector('#start-error').textContent",

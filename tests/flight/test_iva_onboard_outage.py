@@ -9,6 +9,7 @@ its terminal) stops it, as an unattended ground run stops. How a flight is set u
 
 from __future__ import annotations
 
+import json
 from datetime import UTC, datetime, timedelta
 
 import pytest
@@ -43,9 +44,12 @@ def test_an_outage_from_the_pull_out_the_habitat_goes_on_alone_to_the_record_and
         awaiting = next(e for e in habitat if e.kind == "awaiting_operator" and e.instruction == "4.1")
         assert utc(awaiting.time) < held_at + timedelta(seconds=OUTAGE_S), (awaiting.time, held_at)
         after = [e for e in habitat if e.seq > awaiting.seq]
-        assert not [e for e in after if e.kind in ("instruction_started", "command_sent")], after  # nothing past it
+        acted = [e for e in after if e.kind in ("instruction_started", "command_sent")]
+        # nothing past it but the stop's take-back of the templates the run added, once stopped
+        assert all(e.kind == "command_sent" and "/take-back/" in json.loads(e.data)["key"] for e in acted), acted
         stopped = habitat[-1]
         assert stopped.kind == "run_stopped" and "unattended run needs an operator at 4.1" in stopped.data
+        assert len(json.loads(stopped.data).get("taken_back", [])) == len(acted), stopped.data
         # every command up to the hold executed once, and succeeded; every motion done once
         records = f.habitat.ledger_records()
         assert records and {r["state"] for r in records} == {"SUCCEEDED"}, records

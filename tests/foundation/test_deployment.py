@@ -19,7 +19,7 @@ import yaml
 
 from at_ros.command_line import add_robot_options, choose_robot
 from at_ros.library import LibraryError, default_library_path
-from caretaker.deployment import SHIPPED, WORLD_CHECK_NAMES, DeploymentError, load_deployment
+from caretaker.deployment import SHIPPED, DeploymentError, load_deployment
 from caretaker.stack import PARTS, Stack, StackFailed
 from datafile import DataFileError
 from support.stack import write_deployment
@@ -42,14 +42,8 @@ def test_the_shipped_deployments_load_with_every_file_they_name() -> None:
         deployment = load_deployment(name)
         assert deployment.path == SHIPPED / f"{name}.yaml"
         assert deployment.scene == REPO / "sim" / "scenes" / f"{name}.yaml"  # relative to the deployment file
-        assert deployment.demo is not None and deployment.demo.check in WORLD_CHECK_NAMES
+        assert deployment.demo is not None and deployment.demo.checks  # the demo checks the world
     assert load_deployment("eva").bridge.port == 9091
-
-
-def test_world_checks_named_in_deployments_are_the_ones_demo_knows() -> None:
-    from caretaker.demo import WORLD_CHECKS
-
-    assert set(WORLD_CHECKS) == set(WORLD_CHECK_NAMES)
 
 
 @pytest.mark.parametrize(
@@ -69,11 +63,11 @@ def test_world_checks_named_in_deployments_are_the_ones_demo_knows() -> None:
                 "demo": {
                     "procedure": str(REPO / "procedures" / "iva_cdra_filter_replacement.xml"),
                     "binding": str(REPO / "sysrep" / "bindings" / "iva.yaml"),
-                    "check": "looks_fine",
+                    "checks": [{"object": "filter/CDRA-F-0007", "at": "rack/slot_9", "within_mm": 30}],
                 }
             },
-            "demo.check",
-            "unknown value 'looks_fine'",
+            "demo.checks[0].at",
+            "scene iva.yaml has no frame 'rack/slot_9'",
         ),
         ({"scene": str(REPO / "sim" / "scenes" / "eva.yaml")}, "robot", "but scene"),
         ({"link": ["delay"]}, "link", "expected a mapping"),
@@ -126,6 +120,7 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         ros={"namespace": "/iva", "domain_id": 42},
         capture_dir=str(tmp_path / "captures"),
         onboard=True,
+        displace=7,
     )
     deployment = load_deployment(path, check_files=False)
     stack = Stack(deployment, time_scale=0.0, env={})
@@ -136,7 +131,7 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
     assert (
         [p.name for p in PARTS if p.name != "link"]
         == list(lines)
-        == ["sim", "planner", "at-server", "ledger", "bridge", "onboard"]
+        == ["sim", "perception", "planner", "at-server", "ledger", "bridge", "onboard"]
     )
     assert lines["onboard"] == [
         "onboard",
@@ -164,7 +159,8 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         str(secret),
     ]
     assert lines["sim"][:4] == ["sim", "--scene", str(deployment.scene), "--time-scale"] and "/iva" in lines["sim"]
-    assert ["--capture-dir", str(tmp_path / "captures")] == lines["sim"][-2:]
+    assert ["--capture-dir", str(tmp_path / "captures"), "--displace", "7"] == lines["sim"][-4:]
+    assert lines["perception"] == ["perception", "--namespace", "/iva"]
     for part in ("planner", "at-server"):
         assert lines[part][1:5] == ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
         assert lines[part][lines[part].index("--namespace") :][:2] == ["--namespace", "/iva"]
@@ -321,3 +317,35 @@ def test_an_onboard_executive_needs_bindings_and_the_links_secret(
     with pytest.raises(DeploymentError) as refused:
         load_deployment(write_deployment(tmp_path, "iva", **options), check_files=False)
     assert said in str(refused.value) and str(refused.value).startswith(str(tmp_path / "iva.yaml")), refused.value
+
+
+def test_a_deployment_outside_the_checkout_names_shipped_files_by_name(tmp_path: Path) -> None:
+    path = tmp_path / "mine.yaml"
+    path.write_text(
+        "name: mine\nscene: iva\nrobot: ur10\n"
+        f"templates: {default_library_path() / 'templates'}\n"
+        "bindings: [iva]\n"
+        "demo: {procedure: %s, binding: iva}\n" % (REPO / "procedures" / "iva_cdra_filter_replacement.xml")
+    )
+    deployment = load_deployment(path)
+    assert deployment.scene == REPO / "sim" / "scenes" / "iva.yaml"
+    assert deployment.robot == default_library_path() / "robots" / "ur10.yaml"
+    assert deployment.bindings == (REPO / "sysrep" / "bindings" / "iva.yaml",)
+    assert deployment.demo is not None and deployment.demo.binding == deployment.bindings[0]
+
+
+def test_an_unknown_shipped_name_is_refused_at_its_line_with_the_names_there_are(tmp_path: Path) -> None:
+    path = tmp_path / "mine.yaml"
+    path.write_text(f"name: mine\nscene: iva\nrobot: ur11\ntemplates: {default_library_path() / 'templates'}\n")
+    with pytest.raises(
+        DeploymentError, match=r"mine\.yaml:3: robot: no shipped robot config named 'ur11'; .*eva_arm, ur10"
+    ):
+        load_deployment(path)
+
+
+def test_the_demo_keeps_its_log_beside_a_deployment_outside_the_checkout(tmp_path: Path) -> None:
+    from caretaker.demo import demo_home
+
+    assert demo_home(load_deployment("iva")) == REPO / "var"  # where `caretaker report` looks from the checkout
+    outside = load_deployment(write_deployment(tmp_path, "iva"), check_files=False)
+    assert demo_home(outside) == tmp_path / "var"

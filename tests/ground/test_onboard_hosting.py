@@ -188,6 +188,7 @@ def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_noth
             REPO / "sysrep" / "bindings" / "iva.yaml",
             user="alice",
             autonomous=True,
+            rehearsal=True,  # the shipped procedure is a draft in this database; the IVA robot side a simulator
             db_url=audit.url,
             sysreps=REPO / "sysrep",
             rosbridge=None,

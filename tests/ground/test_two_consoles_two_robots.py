@@ -190,7 +190,7 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(
     ground.current(alice_iva, "4.1").locator("input.record-value").fill("CDRA-F-0012")
     instruction(alice_iva, "4.1").locator("button.record").click()
     recorded = audit_row(bob_iva, "operator_input", "4.1", "alice")
-    ground.seen_by_the_other(alice_iva, recorded, "clean_filter_id = CDRA-F-0012")
+    ground.seen_by_the_other(alice_iva, recorded, "clean filter id = CDRA-F-0012")
     second_controller = second_run_on_the_same_robot(open_page(second, "bob"))
     ground.current(bob_iva, "5.1").locator("button.done").click()
 
@@ -218,6 +218,7 @@ def second_run_on_the_same_robot(page: Page) -> str:
     page.select_option("#start-procedure", IVA)
     page.select_option("#start-binding", "iva.yaml")
     page.check("#start-form input[name=mode][value=manual]")
+    page.check("#start-rehearsal")  # the shipped procedure is a draft here: a rehearsal on the simulator
     page.click("#start-button")
     page.wait_for_function("() => document.getElementById('start-error').textContent || location.hash.includes('run=')")
     refusal = page.locator("#start-error").inner_text()

@@ -72,6 +72,7 @@ def _run_argv(robot: RobotSide, db: str, *extra: str) -> list[str]:
         "--db",
         db,
         f"--set=clean_filter_id={CLEAN_FILTER}",
+        "--rehearsal",
         *extra,
     ]
 
@@ -167,7 +168,7 @@ def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> No
         run_id = session.expect(r"READY run (\S+)").group(1)
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
         session.send("")
-        session.expect(rf"{re.escape(EXECUTE_PULL)}\s+PAX\s+sent affordance_templates\.execute_plan")
+        session.expect(rf"{re.escape(EXECUTE_PULL)}\s+PAX\s+sent Execute Plan for cdra_filter:")
         robot.parts["at-server"].kill()
         # the call was on its way: whether the arm moved is not known, and the run says so
         session.expect(rf"{re.escape(EXECUTE_PULL)}\s+OUTCOME UNKNOWN: execute_plan")

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import subprocess
 import threading
 from pathlib import Path
 from urllib.parse import urlparse
@@ -25,6 +24,7 @@ import pytest
 import roslibpy
 
 from caretaker.processes import REPO, caretaker
+from support.checkout import checkout_status
 from support.stack import stack_up
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -33,15 +33,6 @@ FIXTURE = REPO / "tests" / "fixtures" / "bench_arm"
 GENERIC_AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"
 SLOT_A, SLOT_B = "shelf/slot_a", "shelf/slot_b"
 NAMESPACE = "/bench"  # the deployment's: this robot's topics and services live under it
-
-
-def _git_status() -> str:
-    return subprocess.run(
-        ["git", "-C", str(REPO), "status", "--porcelain", "--untracked-files=all"],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
 
 
 @pytest.fixture
@@ -117,7 +108,7 @@ def test_the_wrist_range_excludes_the_ik_solution_nearest_the_start(robot_folder
 def test_a_robot_added_by_files_only_completes_a_procedure(
     robot_folder: Path, ros_env: dict[str, str], tmp_path: Path
 ) -> None:
-    before = _git_status()
+    before = checkout_status()
     files = [robot_folder / name for name in ("deployment.yaml", "workbench.yaml", "bench_arm.yaml", "binding.yaml")]
     check = caretaker(
         "check", *map(str, files), str(robot_folder / "templates" / "relocate_part.json"), env=ros_env, name="check"
@@ -139,6 +130,7 @@ def test_a_robot_added_by_files_only_completes_a_procedure(
             "--rosbridge",
             up.url,
             "--auto",
+            "--rehearsal",
             "--user",
             "integrator",
             "--db",
@@ -157,4 +149,4 @@ def test_a_robot_added_by_files_only_completes_a_procedure(
     assert math.dist(end["filter/P-1"], end[SLOT_A]) > 0.4
     # The deployment's own folders were used, inside the user's folder.
     assert (robot_folder / "state" / "at_server.json").is_file()
-    assert _git_status() == before
+    assert checkout_status() == before

@@ -133,6 +133,7 @@ def test_a_template_file_is_usable_from_a_procedure_at_once(
         "--rosbridge",
         bridge_url,
         "--auto",
+        "--rehearsal",
         "--user",
         "author",
         "--db",

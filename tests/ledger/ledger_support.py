@@ -18,6 +18,7 @@ from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import Trigger
 
 from support.processes import ManagedProcess, python
+from support.spinner import Spinner
 
 PEER = Path(__file__).with_name("ledger_peer.py")
 EXECUTE = "/command_ledger/execute"
@@ -38,8 +39,7 @@ class LedgerClient:
         self.release_client = self.node.create_client(Trigger, "/ledger_test/release")
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self._spinner = Spinner(self.executor, self.node, name="ledger-client")
 
     def _call(self, client: Any, request: Any, timeout: float) -> Any:
         """Call and wait; re-send the same request every RESEND_S without an answer.
@@ -90,7 +90,7 @@ class LedgerClient:
         self._call(self.release_client, Trigger.Request(), 30.0)
 
     def close(self) -> None:
-        self.executor.shutdown()
+        self._spinner.stop()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
 

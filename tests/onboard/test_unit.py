@@ -22,6 +22,7 @@ UNIT: dict[str, Any] = {
     "confirm_manual": True,
     "confirm_hazardous": False,
     "breakpoints": ["2.1"],
+    "version": {"sha256": "ab" * 32, "release": None, "rehearsal": True},
 }
 
 
@@ -58,6 +59,11 @@ def test_a_signature_holds_only_for_the_same_text_and_secret() -> None:
         ({"confirm_manual": "yes"}, "confirm_manual must be true or false, not str"),
         ({"binding": "../ground.yaml"}, "must be relative, without '..'"),
         ({"user": None}, "user must be who uplinked it, not NoneType"),
+        (
+            {"version": {"sha256": "ab", "release": "3", "rehearsal": False}},
+            "version.release must be a release number or null, not '3'",
+        ),
+        ({"version": {"sha256": "ab", "release": 3}}, "rehearsal is missing: expected true or false"),
     ],
 )
 def test_a_bad_unit_is_refused_with_the_field_and_what_to_fix(change: dict[str, Any], said: str) -> None:

@@ -16,6 +16,7 @@ from rclpy.node import Node
 from std_msgs.msg import Bool, String
 
 from at_ros.api import LATCHED, PREFIX, SERVICES
+from support.spinner import Spinner
 
 
 class RobotProbe:
@@ -35,8 +36,7 @@ class RobotProbe:
         self.node.create_subscription(Bool, "/cdra/filter_locked", self.locked_callback, LATCHED)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self._thread.start()
+        self._spinner = Spinner(self.executor, self.node, name="pax-probe")
 
     def _set(self, name: str, value: Any) -> None:
         with self._changed:
@@ -86,5 +86,5 @@ class RobotProbe:
         return self.call("set_object_pose", objects=[info])
 
     def close(self) -> None:
-        self.executor.shutdown()
+        self._spinner.stop()
         self.node.destroy_node()

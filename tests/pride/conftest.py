@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from pride.approvals import ApprovalPolicy
 from pride.audit_log import AuditLog
 from pride.events import Event
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
@@ -104,9 +105,10 @@ def _comparable(event: Event) -> dict[str, object]:
 
 @pytest.fixture
 def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]) -> Iterator[Bench]:
-    """``bench(mode, name, gateway, run_id=, control=)``: an executive on the lab bench gateway, its
-    journal on a fresh audit log (SQLite and PostgreSQL in turn); ``control=True`` puts it under
-    robot control in that log's database. Live runs are stopped at teardown."""
+    """``bench(mode, name, gateway, run_id=, control=, approvals=)``: an executive on the lab bench
+    gateway, its journal on a fresh audit log (SQLite and PostgreSQL in turn); ``control=True`` puts
+    it under robot control in that log's database; ``approvals`` its critical commanding. Live runs
+    are stopped at teardown."""
     made: list[Executive] = []
     controls: list[RobotControl] = []
 
@@ -118,6 +120,7 @@ def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[...,
         run_id: str = "run-1",
         control: RobotControl | bool = False,
         journal: RecordedJournal | None = None,
+        approvals: ApprovalPolicy | None = None,
     ) -> tuple[Executive, LabGateway, RecordedJournal]:
         gateway = gateway or LabGateway(str(tmp_path / "images"))
         journal = journal or new_journal()
@@ -131,6 +134,7 @@ def bench(tmp_path: Path, sysreps: dict[str, SysRep], new_journal: Callable[...,
             run_id=run_id,
             mode=mode,
             control=control or None,
+            approvals=approvals,
         )
         made.append(executive)
         return executive, gateway, journal

@@ -14,7 +14,17 @@ from console.authoring import check_document, read_document
 from pride.events import Event, EventKind
 from pride.lint import lint_file
 from pride.parser import load_procedure, parse_procedure
-from pride.phrasing import describe_event, format_value, labelled_values, phrase, raw_form, template_json
+from pride.phrasing import (
+    Wording,
+    command_text,
+    describe_event,
+    fill_text,
+    format_value,
+    labelled_values,
+    phrase,
+    raw_form,
+    template_json,
+)
 from pride.sysrep import load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]
@@ -80,7 +90,7 @@ def test_sentences_are_the_authors_text_or_made_from_the_sysreps_labels(procedur
         "1.1": "Add the filter AT",
         "1.2": "Which frame?",
         "1.3": 'Set Display Object Pose "cdra_filter" for cdra_filter:${at.id} '
-        "(id: ${at.id}, frame: ${frame}, position (0.35, 0, 1), orientation (0, 0, 0))",
+        "(id: ${at.id}, frame: ${frame}, position (350, 0, 1000) mm, orientation 0°)",
         "1.4": "Plan the pull of cdra_filter:${at.id} out of ${frame}",  # written across lines, read as one
         "1.5": "Execute Plan for cdra_filter:${at.id} (trajectory: grasp_and_pull)",
         "1.6": "Verify Filter Locked is false",
@@ -145,23 +155,41 @@ def test_the_author_page_keeps_the_text_when_it_opens_and_saves(procedure_file: 
 
 
 @pytest.mark.parametrize(
-    ("value", "units", "shown"),
+    ("value", "units", "name", "shown"),
     [
-        (0.3500000000000001, None, "0.35"),
-        (1.0 / 3.0, "m", "0.333 m"),
-        (-0.0001, None, "-1.00e-04"),
-        (-0.0, None, "0"),
-        (True, None, "true"),
-        (False, "m", "false"),
-        (12, "s", "12 s"),
-        ("SUCCEEDED", None, "SUCCEEDED"),
-        ([0.62, -0.18, 0.95000001], None, "(0.62, -0.18, 0.95)"),
-        (None, "m", "—"),
-        ({"plan_valid": True}, None, "plan valid true"),
+        (0.3500000000000001, None, "", "0.35"),
+        (1.0 / 3.0, None, "", "0.3333"),  # 4 significant digits
+        (12345.678, "s", "", "12346 s"),
+        (0.000123, None, "", "0.0001"),  # never more than 4 decimals
+        (-3.397308328442832e-10, None, "", "-3.4e-10"),
+        (-0.0, None, "", "0"),
+        (1.0 / 3.0, "m", "", "333 mm"),  # lengths in millimetres
+        (0.0045, None, "x", "4.5 mm"),  # x/y/z are metres (REP 103) when the SysRep gives no units
+        (-0.0000001, None, "z", "0 mm"),
+        (1.5707959999869179, None, "pitch", "90°"),  # angles in degrees
+        (0.2181661564992912, "rad", "", "12.5°"),
+        (
+            [0.14999985294229648, 0.45000000000002405, 0.30000000000000004, -3.4e-10, 1.570795999647377, 1.5707959],
+            None,
+            "end_pose",
+            "position (150, 450, 300) mm, orientation (0, 90, 90)°",
+        ),
+        ([0.0, 0.0, 0.0, 0.0, 0.0, 0.0], None, "start_pose", "position 0 mm, orientation 0°"),
+        ([0.1, -1.5707963, 3.14159265], None, "joint_positions", "(5.7, -90, 180)°"),  # joints in degrees
+        (True, None, "", "true"),
+        (False, "m", "", "false"),
+        (12, "s", "", "12 s"),
+        (7, None, "id", "7"),
+        ("SUCCEEDED", None, "", "SUCCEEDED"),
+        ([0.62, -0.18, 0.95000001], None, "", "(0.62, -0.18, 0.95)"),
+        (None, "m", "", "—"),
+        ({"plan_valid": True, "x": 0.25}, None, "", "plan valid true, x 250 mm"),
     ],
 )
-def test_values_read_rounded_with_units_and_never_as_reprs(value: object, units: str | None, shown: str) -> None:
-    assert format_value(value, units) == shown
+def test_values_read_rounded_with_units_and_never_as_reprs(
+    value: object, units: str | None, name: str, shown: str
+) -> None:
+    assert format_value(value, units, name=name) == shown
 
 
 def test_results_are_labelled_from_the_sysrep_and_audit_records_read_as_words() -> None:
@@ -171,6 +199,10 @@ def test_results_are_labelled_from_the_sysrep_and_audit_records_read_as_words() 
         ("Plan Valid", "true"),
         ("end pose", "(0.5, 0.25)"),
     ]
+    pose = [0.45, 0.35, 0.3500000000000001, 8.49327084130506e-10, 1.5707959999869179, 0.7853980011248014]
+    assert labelled_values({"end_pose": pose, "end_pose_frame": "robot_base"}, at) == [
+        ("end pose", "position (450, 350, 350) mm, orientation (0, 90, 45)° in robot_base")  # one line, its frame
+    ]
     seen = Event(
         "r",
         3,
@@ -179,7 +211,8 @@ def test_results_are_labelled_from_the_sysrep_and_audit_records_read_as_words() 
         "1.9",
         {"system": "affordance_templates", "item": "execute_status", "value": "SUCCEEDED", "ok": True},
     )
-    assert describe_event(seen) == "saw affordance_templates.execute_status = SUCCEEDED ✓"
+    assert describe_event(seen, Wording(SYSREPS)) == "saw Execution Status = SUCCEEDED ✓"  # the SysRep's label
+    assert describe_event(seen) == "saw Execute Status = SUCCEEDED ✓"  # no SysRep at hand: the id as a label
     result = Event(
         "r",
         4,
@@ -188,4 +221,45 @@ def test_results_are_labelled_from_the_sysrep_and_audit_records_read_as_words() 
         "1.3",
         {"success": True, "message": "planned", "values": {"x": 0.30000000000000004, "ok": False}},
     )
-    assert describe_event(result) == "succeeded: planned · x 0.3, ok false"
+    assert describe_event(result) == "succeeded: planned · x 300 mm, ok false"
+
+
+def test_a_sent_command_reads_as_its_instruction_with_the_values_sent_and_its_call_only_when_raw(
+    procedure_file: Path,
+) -> None:
+    procedure = load_procedure(procedure_file)
+    env = {"at": {"id": 0, "instance": "cdra_filter:0"}, "frame": "cabinet/slot"}
+    sent_args = {  # as the audit log keeps them: sorted by name, the literals typed
+        "affordance_template": "cdra_filter:0",
+        "display_object": "cdra_filter",
+        "frame": "cabinet/slot",
+        "id": 0,
+        "pitch": 0.0,
+        "roll": 0.0,
+        "x": 0.35000000000000003,
+        "y": 0.0,
+        "yaw": 0.0,
+        "z": 1.0,
+    }
+    shown = fill_text(str(phrase(procedure.instruction("1.3"), SYSREPS, procedure)), env)
+    said = command_text("affordance_templates", "set_display_object_pose", sent_args, SYSREPS)
+    expected = (
+        'Set Display Object Pose "cdra_filter" for cdra_filter:0 '
+        "(id: 0, frame: cabinet/slot, position (350, 0, 1000) mm, orientation 0°)"
+    )
+    assert said == shown == expected
+    sent = Event(
+        "r",
+        5,
+        EventKind.COMMAND_SENT,
+        "PAX",
+        "1.3",
+        {"system": "affordance_templates", "command": "set_display_object_pose", "args": sent_args, "resend": True},
+    )
+    assert describe_event(sent, Wording(SYSREPS)) == f"sent again {said}"
+    raw = describe_event(sent, Wording(SYSREPS, raw=True))
+    assert raw.startswith(f"sent again {said} · raw: affordance_templates.set_display_object_pose(")
+    assert "x=0.35000000000000003" in raw and "frame=cabinet/slot" in raw  # the call, values in full
+    assert fill_text("Remove cdra_filter:${at.id} from ${frame}", {"frame": "rack/slot_3"}) == (
+        "Remove cdra_filter:‹at id: not known yet› from rack/slot_3"
+    )

@@ -14,7 +14,7 @@ from pride.lint import check_procedure
 from pride.sysrep import SysRep
 from support.audit import AuditDatabase
 from support.lab_gateway import LabGateway
-from support.procedures import FIXTURES
+from support.procedures import FIXTURES, REPO
 
 
 def _complete_run(tmp_path: Path, sysreps: dict[str, SysRep], db: str) -> tuple[str, str]:
@@ -45,8 +45,10 @@ def _complete_run(tmp_path: Path, sysreps: dict[str, SysRep], db: str) -> tuple[
 
 
 def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[str]:
+    """``caretaker report`` with the lab bench's SysReps beside the shipped ones (their labels)."""
+    sysreps = ["--sysrep-dir", str(REPO / "sysrep"), "--sysrep-dir", str(FIXTURES / "sysrep")]
     return subprocess.run(
-        [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *options],
+        [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *sysreps, *options],
         capture_output=True,
         text=True,
         timeout=60,
@@ -69,7 +71,13 @@ def test_report_shows_every_step_actor_value_timeline_and_image(
     assert rows["Prepare the bench"].endswith("| 4 | 0 | 0 | PAX, alice |")
     assert rows["Inspect"].endswith("| 6 | 0 | 0 | PAX, bob |")
     assert "recorded target = dock" in html_text and "'dock'" not in html_text
-    assert "| lab.door_open | `true` | = true | ok |" in markdown
+    assert "| Door Open | `true` | is true | ok |" in markdown  # the SysRep's label, the condition in words
+    assert "| Temperature | `21.5 degC` | is 21 ± 1 degC | ok |" in markdown
+    # 1.3 and 2.1 have no text of their own: they read as the procedure view words them
+    assert "started: Move for dock (speed: 0.5)" in markdown and "sent Move for dock (speed: 0.5)" in markdown
+    assert "confirmed the hazardous command: Vent Chamber" in markdown
+    assert "sent Vent Chamber [hazardous]" in markdown
+    assert "lab.move(" not in markdown + html_text  # the call only in a raw report
     assert "**completed**" in markdown
     assert f"- Audit chain: run {run_id}: chain of " in markdown and " events intact; head " in markdown
 
@@ -82,6 +90,11 @@ def test_report_shows_every_step_actor_value_timeline_and_image(
     assert copied.read_bytes().startswith(b"\x89PNG")
     assert f"![dock_view]({images[0].get('src')})" in markdown
     assert (out / f"{run_id}-timeline.svg").read_text().startswith("<svg")
+
+    raw = report(run_id, db, "--out", str(tmp_path / "raw"), "--raw")
+    assert raw.returncode == 0, raw.stderr
+    raw_markdown = Path(raw.stdout.split()[1]).read_text()
+    assert "sent Move for dock (speed: 0.5) · raw: lab.move(target=dock, speed=0.5)" in raw_markdown
 
 
 def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from console.accounts import AccountStore
 from pride.audit_log import AuditLog
 from pride.events import PAX, EventKind
 from support import lab_gateway
@@ -27,7 +28,9 @@ from support.procedures import FIXTURES, REPO
 from support.processes import ManagedProcess, caretaker
 
 PROCEDURE = str(FIXTURES / "lab_all_kinds.xml")
-ANSWERS = ["--set", "target=dock", "--confirm-manual", "--confirm-hazardous"]
+#: The lab binding has no deployment: hazardous commands need a second operator's approval (bob's).
+ANSWERS = ["--set", "target=dock", "--confirm-manual", "--confirm-hazardous", "--approver", "bob"]
+BOB_PASSWORD = "bob-battery-staple"
 
 
 @pytest.fixture
@@ -38,8 +41,15 @@ def setup(tmp_path: Path, database: AuditDatabase) -> tuple[dict[str, str], str,
     env["PRIDE_GATEWAY"] = lab_gateway.PRIDE_GATEWAY
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(lab_gateway.IMPORT_ROOT), env.get("PYTHONPATH")]))
     env["LAB_GATEWAY_IMAGES"] = str(tmp_path / "images")
+    env["CARETAKER_APPROVER_PASSWORD"] = BOB_PASSWORD
     db = database.url  # SQLite and PostgreSQL in turn (conftest.py)
+    accounts = AccountStore(database.owner_url)
+    try:
+        accounts.add("bob", "operator", BOB_PASSWORD, name="Bob (approver)")
+    finally:
+        accounts.close()
     common = [
+        "--rehearsal",  # the lab procedure is a draft; the lab bench's systems are simulated in the runner
         "--binding",
         str(binding),
         "--db",
@@ -97,9 +107,35 @@ def test_unattended_run_completes_with_answers_logged_as_the_user(setup: tuple[d
     events = log.events(run_id)
     assert procedure_id == "lab_all_kinds"
     assert [e.actor for e in events if e.kind is EventKind.OPERATOR_INPUT] == ["alice"]
-    assert [e.actor for e in events if e.kind is EventKind.CONFIRMATION] == ["alice"]
+    approvals = [(e.kind, e.actor) for e in events if e.kind.value.startswith("approval_")]
+    assert approvals == [(EventKind.APPROVAL_REQUESTED, "alice"), (EventKind.APPROVAL_GIVEN, "bob")]
+    vent = next(e for e in events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1")
+    assert (vent.data["requested_by"], vent.data["approved_by"]) == ("alice", "bob")
+    assert events[0].data["rehearsal"] is True and events[0].data["release"] is None
     assert events[-1].kind is EventKind.RUN_COMPLETED
     assert log.verify(run_id).ok, log.verify(run_id).describe()
+
+
+def test_a_hazardous_command_without_a_second_operator_stops_an_unattended_run_and_self_approval_is_refused(
+    setup: tuple[dict[str, str], str, list[str]],
+) -> None:
+    env, db, common = setup
+    answers = ANSWERS[: ANSWERS.index("--approver")]
+    proc = run(env, PROCEDURE, "--auto", "--user", "alice", *common, *answers)
+    assert proc.returncode == 1
+    assert "waiting for a second operator's approval: give --approver USER" in proc.stdout, proc.stdout
+    assert "LAB executing vent" not in proc.stdout
+    itself = run(env, PROCEDURE, "--auto", "--user", "bob", *common, *ANSWERS)
+    assert itself.returncode == 2 and "a second operator must approve, not bob" in itself.stderr, itself.stderr
+    wrong = run({**env, "CARETAKER_APPROVER_PASSWORD": "not-bobs"}, PROCEDURE, "--auto", "--user", "alice", *common)
+    assert wrong.returncode == 1  # no --approver: the password is not even read
+    guessed = run(
+        {**env, "CARETAKER_APPROVER_PASSWORD": "not-bobs"}, PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS
+    )
+    assert guessed.returncode == 2 and "bob: unknown user or wrong password" in guessed.stderr, guessed.stderr
+    draft = run(env, PROCEDURE, "--auto", "--user", "alice", *common[1:], *ANSWERS)
+    assert draft.returncode == 2
+    assert "lab_all_kinds.xml is a draft (never released)" in draft.stderr and "(--rehearsal)" in draft.stderr
 
 
 def test_unattended_run_stops_and_says_which_option_answers_the_record(
@@ -138,12 +174,12 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     key = before[-1].data["key"]
 
     # resumed unattended: the capture's key goes again by itself; the habitat answers what it did
-    resumed = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS)
+    resumed = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS[:-2])  # past the vent: no approver
     assert resumed.returncode == 0, resumed.stdout + resumed.stderr
     assert "RESULT completed" in resumed.stdout
     # on failure: the keys the resumed runner sent, and every key the habitat's ledger holds
     said = f"{resumed.stdout}\n--- ledger: {(tmp_path / 'ledger.json').read_text()}"
-    assert f"sent again lab.capture(label='dock_view') [{key}]" in resumed.stdout, said
+    assert f"sent again Capture Image for dock_view [{key}]" in resumed.stdout, said
     assert "LAB executing capture" not in resumed.stdout, said
 
     events = log.events(run_id)

@@ -55,6 +55,7 @@ def test_shipped_procedure_completes_autonomously_and_the_report_shows_every_ste
                 db,
                 *answers,
                 "--confirm-manual",
+                "--rehearsal",  # the shipped procedure as it is (a draft in this new database), on the simulator
             ],
             env=ros_env,
             capture_output=True,

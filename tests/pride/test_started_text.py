@@ -1,8 +1,8 @@
 """A started instruction reads with the values the run knew then: in the log, the report and the terminal.
 
 The started event keeps the author's sentence (``text``, with its ``${...}``) and adds it filled in
-(``text_filled``); everything that shows a started event to people shows the filled one, and the
-author's text for a log recorded before events carried it.
+(``text_filled``); everything that shows a started event to people shows the filled one, and for a
+log recorded before events carried it, the author's text with its values said to be not known.
 """
 
 from __future__ import annotations
@@ -49,15 +49,15 @@ def test_the_report_and_the_terminal_show_a_started_sentence_with_the_values_kno
     assert "${" not in printed
 
 
-def test_a_value_not_known_yet_stays_a_reference() -> None:
+def test_a_value_not_known_yet_stays_a_reference_for_authors_and_reads_as_words_for_operators() -> None:
     sentence = Template.parse("Put ${filter} in ${slot.name} at ${slot.depth} m (${later})")
     env = {"filter": "CDRA-F-0012", "slot": {"name": "B", "depth": 0.30000000000000004}}
     assert sentence.fill(env) == "Put CDRA-F-0012 in B at 0.30000000000000004 m (${later})"
     assert sentence.fill({"slot": {}}) == "Put ${filter} in ${slot.name} at ${slot.depth} m (${later})"
-    assert fill_text(str(sentence), env) == "Put CDRA-F-0012 in B at 0.3 m (${later})"  # read as the page reads it
+    assert fill_text(str(sentence), env) == "Put CDRA-F-0012 in B at 0.3 m (‹later: not known yet›)"
 
 
-def test_a_started_event_logged_before_it_carried_the_filled_text_reads_as_the_authors_text() -> None:
+def test_a_started_event_logged_before_it_carried_the_filled_text_reads_as_the_authors_text_in_words() -> None:
     old = Event(
         "r",
         5,
@@ -67,8 +67,9 @@ def test_a_started_event_logged_before_it_carried_the_filled_text_reads_as_the_a
         {"instruction_kind": "command", "text": "Pick clean filter ${clean_filter_id} from the rack"},
         datetime(2024, 1, 1, tzinfo=UTC),
     )
-    assert started_text(old) == "Pick clean filter ${clean_filter_id} from the rack"
-    assert describe_event(old) == "started: Pick clean filter ${clean_filter_id} from the rack"
+    said = "Pick clean filter ‹clean filter id: not known yet› from the rack"  # the record does not hold it
+    assert started_text(old) == said
+    assert describe_event(old) == f"started: {said}"
     new = Event(
         "r",
         5,

@@ -30,6 +30,8 @@ class ArmModel:
 
     def close(self) -> None:
         p.disconnect(self.client)
+        if self.world.marker_textures is not None:  # the scene's marker images, in a folder of their own
+            self.world.marker_textures.close()
 
     def ik(self, link: str, pos: Sequence[float], orn: Sequence[float], seed: Sequence[float]) -> list[float]:
         """Joint positions putting ``link`` at the pose, the solution nearest ``seed``; raises if unreachable.

@@ -24,6 +24,8 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from support.spinner import Spinner
+
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 TIMEOUT = 60.0
 
@@ -63,22 +65,18 @@ class SimClient:
         self.lock_client = self.node.create_client(Trigger, "/cdra/lock_filter")
         self.halt_client = self.node.create_client(Halt, "/robot/halt")
         self.spin_error: BaseException | None = None
-        self._thread = threading.Thread(target=self._spin, name="sim-client", daemon=True)
-        self._thread.start()
+        self._spinner = Spinner(self.executor, self.node, name="sim-client", on_error=self._spin_failed)
 
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except BaseException as exc:  # reported by the next wait instead of a silent stall
-            with self._changed:
-                self.spin_error = exc
-                self._changed.notify_all()
+    def _spin_failed(self, exc: BaseException) -> None:
+        """Reported by the next wait instead of a silent stall."""
+        with self._changed:
+            self.spin_error = exc
+            self._changed.notify_all()
 
     def close(self) -> None:
-        self.executor.shutdown()
+        self._spinner.stop()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self.context)
-        self._thread.join(10)
 
     # ------------------------------------------------------------------ topics
 

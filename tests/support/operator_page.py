@@ -26,11 +26,15 @@ else:
 IVA = "iva_cdra_filter_replacement.xml"
 
 
-def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml") -> str:
-    """Start a run from the page's form; returns its run id once the live connection is open."""
+def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml", *, rehearsal: bool = True) -> str:
+    """Start a run from the page's form; returns its run id once the live connection is open.
+
+    A rehearsal by default: the browser tests' procedures are drafts (never released in their
+    ground database), and every robot side they use is a simulator."""
     page.select_option("#start-procedure", procedure)
     page.select_option("#start-binding", binding)
     page.check(f"#start-form input[name=mode][value={mode}]")
+    page.set_checked("#start-rehearsal", rehearsal)
     before = page.locator("#run-id").inner_text() if page.locator("#run-id").count() else ""
     page.click("#start-button")
     expect(page.locator("#run-id")).not_to_have_text(before or "-")
@@ -46,7 +50,10 @@ def instruction(page: Page, number: str) -> Locator:
 
 def expect_current(item: Locator, timeout: float | None = None) -> None:
     """Wait until ``item`` (an instruction) is the run's current one (marked ``current``)."""
-    expect(item).to_have_class(re.compile(r"\bcurrent\b"), timeout=timeout)
+    try:
+        expect(item).to_have_class(re.compile(r"\bcurrent\b"), timeout=timeout)
+    except AssertionError as failure:
+        raise _with_where_the_run_is(item.page, failure) from None
 
 
 def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:
@@ -71,6 +78,11 @@ def where_the_run_is(page: Page, audit_rows: int = 8) -> str:
         }""",
         audit_rows,
     )
+
+
+def _with_where_the_run_is(page: Page, failure: AssertionError) -> AssertionError:
+    """A wait for the run that timed out, with what the page showed then (where it held, why)."""
+    return AssertionError(f"{failure}\n--- the page shows:\n{where_the_run_is(page)}")
 
 
 def shown_image_width(image: Locator) -> int:
@@ -109,5 +121,8 @@ def sign_in_on(page: Page, user: str, password: str | None = None) -> None:
 def expect_ended(page: Page, status: str, *, within_ms: float | None = None) -> None:
     """The open run ended as ``status`` (within Playwright's default wait, or ``within_ms`` where
     the robot still moves) and the page shows it as a past run, drawn from the audit log."""
-    expect(page.locator("#run-status")).to_have_text(status, timeout=within_ms)
+    try:
+        expect(page.locator("#run-status")).to_have_text(status, timeout=within_ms)
+    except AssertionError as failure:
+        raise _with_where_the_run_is(page, failure) from None
     expect(page.locator("#connection")).to_have_text("past run (from the audit log)")

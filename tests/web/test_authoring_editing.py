@@ -112,6 +112,9 @@ def test_a_call_gets_the_inputs_of_the_procedure_it_names_and_its_arguments_can_
     expect(call).to_have_class(re.compile(r"\bhas-problem\b"))
     expect(call.locator(".problem")).to_contain_text("unknown input 'colour'")
     call.get_by_role("button", name="remove argument colour").click()
+    # the page is valid again; its lint result redraws the card (the problem line goes), so the
+    # next click waits for that instead of landing where the layout was
+    expect(alice.locator("#check-state")).to_have_text("lint: no problems")
     # a declared one removed is missed; added back by name, it is typed again
     call.get_by_role("button", name="remove argument target").click()
     expect(call.locator(".problem")).to_contain_text("missing input 'target'")

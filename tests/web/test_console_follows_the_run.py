@@ -65,7 +65,9 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     expect(instruction(alice, "2.2").locator(".detail")).to_contain_text(
         "Result: succeeded — planned · Plan Status: PLANNED"
     )
-    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text("end pose: (0.62, -0.18, 0.95, 0, 1.57, 0.35)")
+    expect(instruction(alice, "2.2").locator(".detail")).to_contain_text(
+        "end pose: position (620, -180, 950) mm, orientation (0, 90, 20.1)°"  # millimetres and degrees
+    )
     stop_run(alice, "sentences checked")
 
     # the EVA inspection, with the sub-procedure each target calls: its input is known once it is called

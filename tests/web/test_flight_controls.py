@@ -124,6 +124,7 @@ def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in: 
     bob = sign_in("bob")
     bob.select_option("#start-procedure", WALKTHROUGH)
     bob.select_option("#start-binding", "iva.yaml")
+    bob.check("#start-rehearsal")
     bob.click("#start-button")
     expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {first} (user alice")
     take_over = bob.locator("#take-over")

@@ -1,4 +1,5 @@
-"""HALT from the console stops the real arm (issue 16), measured on the robot side.
+"""HALT from the console stops the real arm (issue 16), measured on the robot side; after it, the
+operator's way on completes the run (issue 29).
 
 ``caretaker up iva`` at real time (simulation, planner, AT server, ledger, rosbridge) and
 ``caretaker serve`` with the JVM PAX plugins. PAX runs the IVA procedure autonomously; the
@@ -13,10 +14,17 @@ page (its timestamp) until the first joint state of the resting arm reached this
 includes the delivery of that state over the bridge). bench/halt_under_load.py runs this test
 repeatedly beside CPU hogs and collects that figure (docs/benchmarks.md); it is printed, not
 asserted.
+
+After a Halt mid-motion the plan of the pull-out has ended with it: the banner offers to re-plan
+from where the arm is and go on (no retry or continue of the halted motion, which cannot work);
+that goes back to the plan instruction, the AT server plans the rest of the pull-out from where
+the arm stopped, and the run completes. No text the operator sees names an AT server service.
 """
 
 from __future__ import annotations
 
+import json
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -25,18 +33,31 @@ from typing import Any
 
 import pytest
 import roslibpy
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Locator, Page, expect
 
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
+from support.operator_page import (
+    IVA,
+    audit_row,
+    expect_current,
+    expect_ended,
+    instruction,
+    start_run,
+    stop_run,
+)
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 PULL_OUT = "2.7"
+PLAN_PULL_OUT = "2.2"
 HALT_WITHIN_S = 0.5  # of sim time, from the press to the arm's last change
+#: PAX plans and moves the real arm on the way to a hold, at real time.
+MOTION_MS = 180_000
+#: The AT server's service names: an operator meets the SysRep's commands, never these.
+SERVICE_NAMES = ("plan_command", "execute_command")
 
 
 class RobotSide:
@@ -116,14 +137,21 @@ def real_time_stack(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[W
             server.process.stop()
 
 
-def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
-    open_page: Callable[[WebServer, str], Page], real_time_stack: tuple[WebServer, RobotSide]
-) -> None:
-    server, robot = real_time_stack
+def _at_the_confirmation(open_page: Callable[[WebServer, str], Page], server: WebServer) -> tuple[Page, str, Locator]:
+    """alice starts the IVA procedure autonomously; once PAX holds at the confirmation that the area
+    in front of the cabinet is clear (2.6, before the pull-out): her page, the run's id, that instruction."""
     alice = open_page(server, "alice")
     run_id = start_run(alice, IVA, "autonomous")
     confirm = instruction(alice, "2.6")
     expect_current(confirm, timeout=240_000)
+    return alice, run_id, confirm
+
+
+def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
+    open_page: Callable[[WebServer, str], Page], real_time_stack: tuple[WebServer, RobotSide]
+) -> None:
+    server, robot = real_time_stack
+    alice, run_id, confirm = _at_the_confirmation(open_page, server)
     # Ready before the arm moves, so the click follows the first moving sample at once (a click
     # later could fall between two segments of the pull-out, with the arm still).
     alice.fill("#halt-reason", "crew member at the cabinet")
@@ -150,9 +178,12 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
             f"HALT: the arm at rest {arrived - clicked:.3f} s wall-clock after the click "
             f"({stopped_after:.3f} s of sim time after the press)"
         )
+        assert stopped_after <= HALT_WITHIN_S, f"the arm moved for {stopped_after:.2f} s of sim time after HALT"
     else:
+        # A click between two segments races the next one: the AT server cancels a goal that
+        # was accepted after the halt, one round trip later, so there is no figure of the halt
+        # itself to hold to 0.5 s (bench/halt_under_load.py counts such tries apart).
         print("HALT: the arm was still at the click (between two segments of the pull-out): no figure")
-    assert stopped_after <= HALT_WITHIN_S, f"the arm moved for {stopped_after:.2f} s of sim time after HALT"
 
     pull = instruction(alice, PULL_OUT)
     expect(pull).to_have_attribute("data-status", "halted")
@@ -165,6 +196,7 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
     bob = open_page(server, "bob")
     bob.select_option("#start-procedure", IVA)
     bob.select_option("#start-binding", "iva.yaml")
+    bob.check("#start-rehearsal")
     bob.click("#start-button")
     expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {run_id} (user alice")
     bob.click("#take-over")
@@ -196,3 +228,89 @@ def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
     )
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
     assert results and all(not r.data["success"] for r in results), results
+
+
+def _pull_out_halted(alice: Page, robot: RobotSide, confirm: Locator) -> Locator:
+    """alice confirms the area is clear, then halts the pull-out mid-motion; returns the pull-out."""
+    alice.fill("#halt-reason", "crew member at the cabinet")  # beforehand: the click is all that is left to do
+    confirm.locator("button.done").click()
+    robot.wait(lambda: robot.executing and robot.moving(), "the pull-out moving the arm")
+    alice.click("#halt")
+    pull = instruction(alice, PULL_OUT)
+    expect(pull).to_have_attribute("data-status", "halted")
+    return pull
+
+
+@pytest.mark.slow(seconds=90)
+@pytest.mark.timeout(900)
+def test_after_a_halt_mid_motion_re_planning_from_where_the_arm_is_completes_the_run(
+    open_page: Callable[[WebServer, str], Page], real_time_stack: tuple[WebServer, RobotSide]
+) -> None:
+    server, robot = real_time_stack
+    alice, run_id, confirm = _at_the_confirmation(open_page, server)
+    pull = _pull_out_halted(alice, robot, confirm)
+
+    # the banner offers what can work, in the operator's words; not the retry or continue of the
+    # halted pull-out, whose plan ended with the halt
+    hold = alice.locator("#hold")
+    replan = alice.locator("#replan")
+    expect(replan).to_be_visible()
+    expect(replan).to_have_text("Re-plan from where the arm is and go on")
+    expect(hold).to_contain_text(
+        "its plan ended with the halt: an operator may re-plan from where the arm is and go on "
+        f"(from {PLAN_PULL_OUT}), go back to an earlier instruction, skip it or stop the run"
+    )
+    expect(hold).to_contain_text("by alice: crew member at the cabinet")
+    expect(hold).not_to_contain_text(re.compile("retry|continue", re.IGNORECASE))
+    expect(pull.locator("button.retry")).to_be_hidden()
+    expect(alice.locator("#continue")).to_be_disabled()
+    expect(pull.locator("button.skip")).to_be_visible()
+    expect(instruction(alice, PLAN_PULL_OUT).locator("button.go-back")).to_be_visible()
+    # forced through the API, the executive refuses them and says what can work
+    token = {"X-CSRF-Token": alice.evaluate("view.me.csrf")}
+    for action in ("retry", "continue"):
+        refused = alice.request.post(
+            f"{server.url}/api/runs/{run_id}/actions", headers=token, data={"action": action, "instruction": PULL_OUT}
+        )
+        assert refused.status == 409, refused.text()
+        assert refused.json()["error"] == (
+            f"{PULL_OUT} cannot be sent again: the plan of grasp_and_pull of cdra_filter:0 ended with the halt; "
+            f"re-plan from where the arm is ({PLAN_PULL_OUT}) and go on"
+        )
+
+    # re-planned: back to the plan, recorded as alice's; PAX plans the rest of the pull-out from
+    # where the arm stopped, and holds for the confirmation that the area is clear again
+    replan.click()
+    expect(audit_row(alice, "stepped_back", PULL_OUT, "alice")).to_contain_text(
+        f"went back to {PLAN_PULL_OUT}: re-plan grasp_and_pull of cdra_filter:0 from where the arm is and go on"
+    )
+    expect(replan).to_be_hidden()
+    expect_current(confirm, timeout=MOTION_MS)
+    expect(audit_row(alice, "command_result", PLAN_PULL_OUT, "PAX").first).to_contain_text("succeeded")
+    confirm.locator("button.done").click()
+    record = instruction(alice, "4.1")
+    expect_current(record, timeout=MOTION_MS)
+    expect(pull.locator(".mark")).to_contain_text("completed by PAX")
+    record.locator("input.record-value").fill("CDRA-F-0012")
+    record.locator("button.record").click()
+    slot_clear = instruction(alice, "5.1")
+    expect_current(slot_clear, timeout=MOTION_MS)
+    slot_clear.locator("button.done").click()
+    expect_ended(alice, "completed", within_ms=MOTION_MS)
+
+    # nothing the operator sees, on the page or in the run's report, names an AT server service
+    page_text = alice.evaluate("document.body.textContent")
+    report = alice.request.get(f"{server.url}/runs/{run_id}/report")
+    assert report.ok, report.status
+    log = AuditLog(server.database.url)
+    try:
+        events = log.events(run_id)
+    finally:
+        log.close()
+    for name in SERVICE_NAMES:
+        assert name not in page_text and name not in report.text()
+        assert not [e for e in events if name in json.dumps(e.data)], name
+    back = [e for e in events if e.kind is EventKind.STEPPED_BACK]
+    assert [(e.actor, e.instruction, e.data["next"]) for e in back] == [("alice", PULL_OUT, PLAN_PULL_OUT)]
+    pulls = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == PULL_OUT]
+    assert [e.data["outcome"] for e in pulls] == ["halted", "succeeded"], pulls

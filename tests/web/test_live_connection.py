@@ -91,4 +91,4 @@ def test_a_lost_connection_leaves_the_instructions_an_operator_is_using_as_they_
     expect(field).to_be_focused()
 
     record.locator("button.record").click()
-    expect(audit_row(page, "operator_input", "4.1", "alice")).to_contain_text("recorded clean_filter_id = CDRA-F-0012")
+    expect(audit_row(page, "operator_input", "4.1", "alice")).to_contain_text("recorded clean filter id = CDRA-F-0012")

@@ -16,6 +16,7 @@ from pathlib import Path
 from playwright.sync_api import Browser, Page, expect
 
 from pride.audit_log import AuditLog
+from pride.phrasing import format_value
 from support.operator_page import (
     IVA,
     audit_row,
@@ -52,11 +53,11 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
     expect(record.locator("input.record-value:invalid")).to_have_count(1)
     record.locator("input.record-value").evaluate("input => input.removeAttribute('pattern')")
     record.locator("button.record").click()
-    expect(alice.locator("#action-error")).to_contain_text("does not match the pattern")
+    expect(record.locator(".record-error")).to_contain_text("does not match the pattern")  # next to the field
     record.locator("input.record-value").fill("CDRA-F-0012")
     record.locator("button.record").click()
     expect(record.locator(".detail")).to_contain_text("recorded CDRA-F-0012")
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("recorded clean_filter_id = CDRA-F-0012")
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("recorded clean filter id = CDRA-F-0012")
 
     # the next instructions read with the recorded id in their sentences; Send puts it into the command
     expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
@@ -71,7 +72,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
         re.compile(r"^affordance_templates\.set_display_object_pose\(")
     )
     alice.uncheck("#show-raw")
-    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame=filter/CDRA-F-0012")
+    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame: filter/CDRA-F-0012")
     # the audit log reads the started instruction with the value it was started with, not the author's ${...}
     expect(audit_row(alice, "instruction_started", "4.2", "alice").locator(".audit-detail")).to_have_text(
         "started: Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
@@ -146,18 +147,29 @@ def test_breakpoint_failure_retry_skip_and_hazard_confirmation(
     expect_current(instruction(alice, "3.1"))
     instruction(alice, "3.1").locator("button.done").click()
 
-    # the hazardous command waits for a confirmation, given in a dialog, even in autonomous mode
+    # the hazardous command waits, even in autonomous mode: alice sends it for approval in a dialog
+    # (the IVA deployment's critical commanding), and a second operator, bob, approves it
     hazardous = instruction(alice, "3.2")
     expect(hazardous.locator(".hazard")).to_be_visible()
     expect(alice.locator("#hold")).to_contain_text("Hazardous command 3.2: Unlock Filter")
     expect(alice.locator("#hold")).to_have_attribute("data-tone", "hold")
+    expect(hazardous.locator("button.confirm")).to_have_text("Send for approval…")
     hazardous.locator("button.confirm").click()
     expect(alice.locator("#confirm-dialog")).to_be_visible()
-    expect(alice.locator("#confirm-text")).to_contain_text("3.2: Unlock Filter.")
+    expect(alice.locator("#confirm-text")).to_contain_text(
+        "3.2: Unlock Filter. Send it for a second operator's approval"
+    )
     screenshot(alice, "web_hazard_confirmation.png")
     alice.click("#confirm-yes")
-    expect(audit_row(alice, "confirmation", "3.2", "alice")).to_have_count(1)
-    expect(audit_row(alice, "command_sent", "3.2", "PAX")).to_have_count(1)
+    expect(audit_row(alice, "approval_requested", "3.2", "alice")).to_have_count(1)
+    expect(alice.locator("#hold")).to_contain_text("Waits for a second operator's approval")
+    bob = sign_in("bob")
+    bob.goto(f"{server.url}/#run={run_id}")
+    instruction(bob, "3.2").locator("button.approve").click()
+    expect(bob.locator("#confirm-text")).to_contain_text("alice sent it for approval")
+    bob.click("#confirm-yes")
+    expect(audit_row(alice, "approval_given", "3.2", "bob")).to_have_count(1)
+    expect(audit_row(alice, "command_sent", "3.2", "PAX")).to_contain_text("sent by alice, approved by bob")
 
     # PAX stops at the breakpoint; Continue finishes the run
     expect(alice.locator("#hold")).to_contain_text("Breakpoint at 3.3")
@@ -183,6 +195,7 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(
     alice = sign_in("alice")
     alice.select_option("#start-procedure", "eva_inspection.xml")
     alice.select_option("#start-binding", "eva.yaml")
+    alice.check("#start-rehearsal")
     alice.click("#start-button")
     expect(alice.locator("#connection")).to_have_attribute("data-state", "open")
 
@@ -199,8 +212,8 @@ def test_eva_inspection_shows_sub_procedures_and_the_camera_images(
     )
     assert shown_image_width(camera) == 160
     live_image = camera.get_attribute("src")
-    expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("execute_plan")
-    expect(alice.locator('#audit li[data-kind="command_sent"]', has_text="camera.capture")).to_have_count(0)
+    expect(audit_row(alice, "command_sent", "2.1/1.4", "PAX")).to_contain_text("sent Execute Plan")
+    expect(alice.locator('#audit li[data-kind="command_sent"]', has_text="Capture Image")).to_have_count(0)
     alice.click("#continue")
 
     # PAX runs into the called sub-procedure and holds at the operator's assessment of target A
@@ -255,3 +268,42 @@ def test_a_past_run_is_drawn_from_the_audit_log_alone(
             context.close()
     finally:
         other.process.stop()
+
+
+def test_a_page_load_asks_for_nothing_the_console_does_not_have(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
+    alice = sign_in("alice")
+    failed: list[str] = []
+    alice.on("response", lambda r: failed.append(f"{r.status} {r.url}") if r.status >= 400 else None)
+    alice.reload()
+    expect(alice.locator("#run-list")).to_be_visible()
+    # what a browser asks for on its own when a page names no icon (a run's report names none)
+    icon = alice.request.get(f"{server.url}/favicon.ico")
+    assert icon.ok and icon.headers["content-type"] == "image/svg+xml", icon.status
+    assert alice.locator('link[rel="icon"]').get_attribute("href") == "/static/favicon.svg"
+    assert failed == []
+
+
+#: Values as runs report them, and the id that says what each measures (what the page knows of it).
+ROUNDING: list[tuple[object, str]] = [
+    (0.14999985294229648, "x"),
+    (-3.397308328442832e-10, ""),
+    (1.5707963, "yaw"),
+    ([0.15, 0.45, 0.3, 0.0, 1.5708, 1.5708], "end_pose"),
+    ([0.1, -0.5, 1.2, 0.0, 0.0, 3.14159], "joint_positions"),
+    ([0.0049, 0.0, -0.0], "xyz_unnamed"),
+    (12345.678, ""),
+    (0.000012, ""),
+    (7, ""),
+    (2, "x"),
+    ({"x": 0.35, "y": 0.0049, "yaw": 0.0, "plan_valid": True}, ""),
+    (0.5, "speed"),
+]
+
+
+def test_the_page_rounds_values_as_the_report_and_the_terminal_do(sign_in: Callable[[str], Page]) -> None:
+    page = sign_in("carol")
+    shown = page.evaluate("cases => cases.map(([value, name]) => formatValue(value, name))", ROUNDING)
+    assert shown == [format_value(value, name=name) for value, name in ROUNDING]
+    assert shown[0] == "150 mm" and shown[3] == "position (150, 450, 300) mm, orientation (0, 90, 90)°"

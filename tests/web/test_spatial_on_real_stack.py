@@ -200,7 +200,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     alice = open_as(server, "alice")
     run_id = start_run(alice, IVA, "manual")
     expect(alice.locator("#spatial-panel")).to_be_visible()
-    wait_view(alice, "v.frames > 2 && Object.keys(v.links).length > 0")
+    wait_view(alice, "v.settled && Object.keys(v.links).length > 0")
     assert set(inspect(alice)["links"]) == habitat.links(), "the view's robot is the habitat's URDF"
 
     # PAX adds, registers and plans (steps 1 and 2.1-2.2) and holds before 2.3; the arm moves to its
@@ -436,7 +436,7 @@ def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
         try:
             page = open_as(server, "alice")
             start_run(page, "eva_inspection.xml", "manual", binding="eva.yaml")
-            wait_view(page, "v.frames > 2 && Object.keys(v.links).length > 0 && Object.keys(v.objects).length > 0")
+            wait_view(page, "v.settled && Object.keys(v.links).length > 0 && Object.keys(v.objects).length > 0")
             view = inspect(page)
             assert set(view["links"]) == habitat.links(), "the view's robot is the EVA arm's URDF"
             targets = {name for name, o in view["objects"].items() if o["kind"] == "target"}
@@ -448,7 +448,7 @@ def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
             shoot(page, "spatial-eva.png")
             # at 1024 px the view stays beside the procedure, in view, and nothing overflows sideways
             page.set_viewport_size({"width": 1024, "height": 768})
-            wait_view(page, "v.frames > 2")
+            wait_view(page, "v.settled")
             box = page.locator("#spatial-view").bounding_box()
             procedure = page.locator("#procedure").bounding_box()
             assert box is not None and procedure is not None and box["width"] > 300, box

@@ -71,7 +71,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
         "Plan the grasp-and-pull trajectory for cdra_filter:0"
     )
     expect(instruction(alice, "1.3").locator(".mark")).to_contain_text("completed by alice")
-    expect(audit_row(alice, "command_sent", "1.3", "alice")).to_contain_text("add_affordance_template")
+    sent_row = audit_row(alice, "command_sent", "1.3", "alice")
+    expect(sent_row).to_contain_text('sent Add Affordance Template "cdra_filter"')
     expect(audit_row(alice, "command_result", "1.3", "alice")).to_contain_text("succeeded: added cdra_filter:0")
 
     # an observer opens the same run in another browser and sees it live, without controls
@@ -123,14 +124,15 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     alice.click("#mode-manual")  # alice takes the next steps by hand
     record.locator("input.record-value").fill("CDRA-F-0021")
     record.locator("button.record").click()
-    expect(alice.locator("#action-error")).to_contain_text(
-        "'CDRA-F-0021' is not one of the values cdra.clean_filter_ids reports now (CDRA-F-0012, CDRA-F-0013)"
+    expect(record.locator(".record-error")).to_contain_text(  # next to the field, in words
+        "CDRA-F-0021 is not one of the clean filters on the rack now; the CDRA Filter Bay reports CDRA-F-0012 and "
+        "CDRA-F-0013"
     )
     expect_current(record)
     # a clean filter, but not the one set aside for this swap: re-entered before the arm uses it
     record.locator("input.record-value").fill("CDRA-F-0013")
     record.locator("button.record").click()
-    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean_filter_id = CDRA-F-0013")
+    expect(audit_row(alice, "operator_input", "4.1", "alice")).to_contain_text("clean filter id = CDRA-F-0013")
     align = instruction(alice, "4.2")
     expect(align.locator(".line > .text")).to_contain_text("CDRA-F-0013")
     record.locator("button.correct").click()
@@ -141,7 +143,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     expect(audit_row(alice, "record_corrected", "4.1", "alice")).to_contain_text("CDRA-F-0013 → CDRA-F-0012")
     expect(align.locator(".line > .text")).to_contain_text("CDRA-F-0012")
     alice.click("#mode-autonomous")
-    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame=filter/CDRA-F-0012")
+    expect(audit_row(alice, "command_sent", "4.2", "PAX")).to_contain_text("frame: filter/CDRA-F-0012")
     confirm_slot = instruction(alice, "5.1")
     expect_current(confirm_slot, timeout=MOTION_MS)
     confirm_slot.locator("button.done").click()

@@ -55,12 +55,15 @@ async function api(method, path, body) {
   return data;
 }
 
+// A refused action says why under the run's controls; a refused record, next to its field.
 async function act(action, extra = {}) {
   $("action-error").textContent = "";
+  const field = action === "enter" ? recordError(extra.instruction) : null;
+  if (field) field.textContent = "";
   try {
     await api("POST", `/api/runs/${encodeURIComponent(view.runId)}/actions`, {action, ...extra});
   } catch (error) {
-    $("action-error").textContent = error.message;
+    (field || $("action-error")).textContent = error.message;
   }
 }
 
@@ -190,6 +193,12 @@ function showRuns(runs) {
     report.href = `/runs/${encodeURIComponent(run.run_id)}/report`;
     report.target = "_blank";
     item.append(open, status, meta, report);
+    if (run.approval) {
+      // every console lists it: a second operator need not have the run open to see it waits for them
+      const wanted = element("span", "approval-wanted",
+        `⚠ ${run.approval.number}: ${run.approval.command} — sent by ${run.approval.sender}, waits for a second operator's approval`);
+      item.append(wanted);
+    }
     return item;
   }));
 }
@@ -205,7 +214,7 @@ async function startRun(takeOver) {
   try {
     const {run_id} = await api("POST", "/api/runs", {
       procedure: form.get("procedure"), binding: form.get("binding"), mode: form.get("mode"), take_over: takeOver,
-      onboard: form.get("onboard") === "on",
+      onboard: form.get("onboard") === "on", rehearsal: form.get("rehearsal") === "on",
     });
     location.hash = `run=${encodeURIComponent(run_id)}`;
     await loadRuns();
@@ -392,6 +401,8 @@ $("halt").addEventListener("click", async () => {
   }
 });
 $("ask-again").addEventListener("click", () => act("ask_again", {instruction: view.state.current}));
+// after a halted motion: back to the instruction that planned it, which plans again from where the arm is
+$("replan").addEventListener("click", () => act("replan", {instruction: view.state.current}));
 for (const outcome of ["succeeded", "failed"]) {
   $(`resolve-${outcome}`).addEventListener("click", async () => {
     const number = view.state.current;

@@ -507,6 +507,7 @@ $("open").addEventListener("click", async () => {
     author.doc = await api("GET", `/api/author/procedures/${encodeURIComponent(name)}`);
     $("save-name").value = name;
     changed();
+    await showVersion(name);
   } catch (error) {
     $("author-error").textContent = error.message;
   }
@@ -516,7 +517,53 @@ async function save(replace) {
   const result = await api("POST", "/api/author/save", {name, document: author.doc, replace});
   $("check-state").textContent = `saved ${result.saved}`;
   $("check-state").dataset.ok = "true";
+  await showVersion(result.saved);
 }
+
+// ---- released versions: the file on the shelf, as runs will run it --------------------------
+// A second operator (not who saved it, not who asked) reviews a version and releases it; operators
+// run released versions, and a draft only as a rehearsal on a simulator.
+async function showVersion(name) {
+  author.version = await api("GET", `/api/author/procedures/${encodeURIComponent(name)}/version`);
+  renderVersion();
+}
+
+function renderVersion() {
+  const version = author.version;
+  const box = $("release-state");
+  $("release-bar").hidden = !version;
+  if (!version) return;
+  const me = author.me.user;
+  const sha = `sha256 ${version.sha256.slice(0, 8)}…`;
+  const release = version.release;
+  let text = version.released ? `release ${release.number} (released by ${release.released_by}` +
+    `${release.requested_by ? ", asked by " + release.requested_by : ""}) · ${sha}` :
+    release ? `changed since release ${release.number} (sha256 ${release.sha256.slice(0, 8)}… → ${version.sha256.slice(0, 8)}…): a draft` :
+    `draft, never released · ${sha}`;
+  if (!version.released && version.requested_by) text += ` · ${version.requested_by} asks for its release`;
+  box.textContent = `${version.name}: ${text}`;
+  box.dataset.released = String(version.released);
+  const mayAct = author.me.may_act && !version.released;
+  $("ask-release").hidden = !mayAct || Boolean(version.requested_by);
+  const mine = [version.requested_by, version.saved_by].includes(me);
+  $("release").hidden = !mayAct || !version.requested_by;
+  $("release").disabled = mine;
+  $("release").title = mine ? "a second operator reviews and releases what you saved or asked for" :
+    "you reviewed this version: release it for operators to run";
+}
+
+async function releaseAction(action) {
+  $("author-error").textContent = "";
+  try {
+    author.version = await api("POST", `/api/author/procedures/${encodeURIComponent(author.version.name)}/release`,
+      {action, sha256: author.version.sha256});
+    renderVersion();
+  } catch (error) {
+    $("author-error").textContent = error.message;
+  }
+}
+$("ask-release").addEventListener("click", () => releaseAction("request"));
+$("release").addEventListener("click", () => releaseAction("release"));
 
 $("save").addEventListener("click", async () => {
   $("author-error").textContent = "";

@@ -22,12 +22,55 @@ function appendAudit(events) {
 }
 
 // ---- values and sentences --------------------------------------------------------------------
-function formatValue(value) {
+// A value as an operator reads it, by pride.phrasing's rules (the report and the terminal read the
+// same): lengths (x, y, z) in mm, angles (roll, pitch, yaw, joints) in degrees, a 6-number pose as
+// position/orientation, other reals to 4 significant digits. ``name``: the value's id, which says
+// what it measures.
+const LENGTHS = ["x", "y", "z"];
+const ANGLES = ["roll", "pitch", "yaw"];
+const SIGNIFICANT = 4;
+
+function fixed(value, decimals) {
+  let text = value.toFixed(decimals);
+  if (text.includes(".")) text = text.replace(/0+$/, "").replace(/\.$/, "");
+  return text === "-0" ? "0" : text;
+}
+
+function numberText(value, kind) {
+  if (kind === "length") {
+    const millimetres = value * 1000;
+    return fixed(millimetres, Math.abs(millimetres) < 10 ? 1 : 0);
+  }
+  if (kind === "angle") return fixed(value * 180 / Math.PI, 1);
+  if (!Number.isFinite(value) || value === 0) return fixed(value, 0);
+  if (Math.abs(value) < 10 ** -SIGNIFICANT) return value.toExponential(1).replace(/e([+-])(\d)$/, "e$10$2");
+  const whole = Math.floor(Math.log10(Math.abs(value))) + 1;
+  return fixed(value, Math.min(SIGNIFICANT, Math.max(0, SIGNIFICANT - whole)));
+}
+
+function unitOf(kind) {
+  return kind === "length" ? " mm" : kind === "angle" ? "°" : "";
+}
+
+function group(word, numbers, kind) {
+  const texts = numbers.map((number) => numberText(number, kind));
+  return `${word} ${texts.every((t) => t === "0") ? "0" : `(${texts.join(", ")})`}${unitOf(kind)}`;
+}
+
+function formatValue(value, name = "") {
+  const kind = LENGTHS.includes(name) ? "length" : ANGLES.includes(name) ? "angle" : null;
   if (typeof value === "boolean") return value ? "true" : "false";
-  if (typeof value === "number") return Number.isInteger(value) ? String(value) : String(Number(value.toFixed(3)));
-  if (Array.isArray(value)) return `(${value.map(formatValue).join(", ")})`;
+  if (typeof value === "number") return Number.isInteger(value) && !kind ? String(value) : numberText(value, kind) + unitOf(kind);
+  if (Array.isArray(value)) {
+    if (!value.every((v) => typeof v === "number")) return `(${value.map((v) => formatValue(v)).join(", ")})`;
+    if (value.length === 6 && name.endsWith("pose")) {
+      return `${group("position", value.slice(0, 3), "length")}, ${group("orientation", value.slice(3), "angle")}`;
+    }
+    const of = kind || (name.includes("joint") ? "angle" : null);
+    return `(${value.map((v) => numberText(v, of)).join(", ")})${unitOf(of)}`;
+  }
   if (value === null || value === undefined) return "—";
-  if (typeof value === "object") return Object.entries(value).map(([k, v]) => `${k.replaceAll("_", " ")} ${formatValue(v)}`).join(", ");
+  if (typeof value === "object") return Object.entries(value).map(([k, v]) => `${k.replaceAll("_", " ")} ${formatValue(v, k)}`).join(", ");
   return String(value);
 }
 
@@ -54,7 +97,7 @@ function fillSentence(node, parts, env) {
       unknown.title = `${part.ref}: known once the run has it`;
       return unknown;
     }
-    const known = element("span", "value", formatValue(value));
+    const known = element("span", "value", formatValue(value, part.ref.split(".").pop()));
     known.title = part.ref;
     return known;
   }));
@@ -157,6 +200,7 @@ function buildInstruction(instruction, prefix = "") {
   else controls.append(button(KIND_LABEL[instruction.kind] || "Perform", "perform", () => perform(instruction, number)));
   controls.append(
     button("Confirm", "confirm", () => confirmHazard(instruction, number, false)),
+    button("Approve…", "approve", () => approve(number)),
     button("Retry", "retry", () => act("retry", {instruction: number})),
     button("Skip…", "skip", () => skip(number)),
     button("Go back here…", "go-back", () => goBack(number)),
@@ -220,7 +264,14 @@ function recordInput(instruction, number) {
     if (input.reportValidity && !input.reportValidity()) return;
     act("enter", {instruction: number, value: typedValue(record.type, input.value)});
   });
-  return [element("span", "record-name", `${record.name.replaceAll("_", " ")} (${record.type})`), input, submit];
+  const refused = element("span", "record-error error");
+  refused.setAttribute("role", "alert");
+  return [element("span", "record-name", `${record.name.replaceAll("_", " ")} (${record.type})`), input, submit, refused];
+}
+
+// Where a record's refusal is said: next to its field.
+function recordError(number) {
+  return document.querySelector(`#procedure li.instruction[data-number="${number}"] > .instruction-controls > .record-error`);
 }
 
 function typedValue(type, text) {
@@ -231,21 +282,47 @@ function typedValue(type, text) {
 }
 
 async function perform(instruction, number) {
-  if (instruction.hazardous && view.state.hold !== "failure") {
+  if ((instruction.hazardous || approvalNeeded(number)) && view.state.hold !== "failure") {
     confirmHazard(instruction, number, true);
     return;
   }
   await act("perform", {instruction: number});
 }
 
+// Critical commanding: the current command needs a second operator's approval (and nobody sent it for one yet).
+function approvalNeeded(number) {
+  const approval = view.state.approval;
+  return Boolean(approval) && approval.number === number && approval.state === "needed";
+}
+
+// A hazardous command: confirm it is safe to send; under critical commanding the same click sends
+// it for a second operator's approval (this operator its sender), and the approval sends it.
 function confirmHazard(instruction, number, thenSend) {
   const dialog = $("confirm-dialog");
-  $("confirm-text").textContent = `${number}: ${sentenceOf(number)}. Confirm that it is safe to send.`;
+  const forApproval = approvalNeeded(number);
+  $("confirm-text").textContent = forApproval ?
+    `${number}: ${sentenceOf(number)}. Send it for a second operator's approval: it is sent once another operator approves it.` :
+    `${number}: ${sentenceOf(number)}. Confirm that it is safe to send.`;
+  $("confirm-yes").textContent = forApproval ? "Send for approval" : "Confirm";
   dialog.returnValue = "";
   dialog.onclose = async () => {
     if (dialog.returnValue !== "confirm") return;
     await act("confirm", {instruction: number});
-    if (thenSend && view.state.mode === "manual") await act("perform", {instruction: number});
+    if (thenSend && !forApproval && view.state.mode === "manual") await act("perform", {instruction: number});
+  };
+  dialog.showModal();
+}
+
+// The second operator's approval of a command another operator sent for approval: it is sent at once.
+function approve(number) {
+  const approval = view.state.approval || {};
+  const dialog = $("confirm-dialog");
+  $("confirm-text").textContent = `${number}: ${approval.command || sentenceOf(number)}. ` +
+    `${approval.sender} sent it for approval. Approve it to send it now.`;
+  $("confirm-yes").textContent = "Approve and send";
+  dialog.returnValue = "";
+  dialog.onclose = async () => {
+    if (dialog.returnValue === "confirm") await act("approve", {instruction: number});
   };
   dialog.showModal();
 }
@@ -283,6 +360,7 @@ function renderRun() {
   $("run-status").textContent = shownStatus;
   $("run-status").dataset.status = shownStatus;
   $("run-mode").textContent = state.mode || "";
+  renderVersion(state.version);
   renderWatchers(state);
   $("run-host").textContent = !state.live ? "" : state.hosted_here ? "hosted by this console" : `hosted by ${state.host}`;
   const live = Boolean(state.live) && state.status === "active";
@@ -295,7 +373,9 @@ function renderRun() {
   // a pause in manual mode holds automation for when someone switches to autonomous; only then can it continue
   const autonomous = state.mode === "autonomous";
   $("pause").disabled = !mayAct || state.paused;
-  $("continue").disabled = !mayAct || !autonomous || !(state.paused || ["breakpoint", "halted"].includes(state.hold));
+  // after a halted motion automation would send it again, which cannot work (state.no_retry says why)
+  $("continue").disabled = !mayAct || !autonomous || !(state.paused || ["breakpoint", "halted"].includes(state.hold)) ||
+    Boolean(state.no_retry);
   $("step").disabled = !mayAct || state.executing || !state.current;
   $("stop").disabled = !mayAct;
   $("halt").disabled = !mayAct;
@@ -306,7 +386,10 @@ function renderRun() {
   const lost = mayAct && state.hold === "control_lost";
   for (const id of ["ask-again", "resolve-succeeded", "resolve-failed"]) $(id).hidden = !unknown;
   $("take-control").hidden = !lost;
-  $("hold-actions").hidden = !(unknown || lost);
+  const replan = mayAct && state.hold === "halted" && Boolean(state.replan_from) && !state.executing;
+  $("replan").hidden = !replan;
+  $("replan").title = replan ? `back to ${state.replan_from}: it plans the motion again from where the arm is, and the run goes on from there` : "";
+  $("hold-actions").hidden = !(unknown || lost || replan);
   $("past-controls").hidden = Boolean(state.live) || !(view.me && view.me.may_act) || shownStatus === "completed";
   const envs = JSON.stringify(state.envs || {});
   const envsChanged = envs !== view.envsSeen;
@@ -383,12 +466,16 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   };
   // Send and its kin: on every such instruction in manual mode, on the held one in autonomous mode
   show(".perform", running && (state.mode === "manual" || current), idle && held && !failed);
-  show(".confirm", running && current && state.hold === "confirmation", idle);
+  // under critical commanding a failed or halted command is sent for approval again before its retry
+  show(".confirm", running && current && (state.hold === "confirmation" || approvalNeeded(number)), idle);
+  own(".instruction-controls > .confirm").textContent = current && approvalNeeded(number) ? "Send for approval…" : "Confirm";
+  const requested = state.approval && state.approval.number === number && state.approval.state === "requested";
+  show(".approve", running && current && Boolean(requested), idle);
   show(".done", running, idle && kind === "manual");
   show(".record", running, idle);
   const input = own(".instruction-controls > .record-value");
   if (input) input.disabled = !idle;
-  show(".retry", running && current && failed, idle);
+  show(".retry", running && current && failed && !state.no_retry, idle);
   show(".skip", running && current, mayAct && current && !state.executing);
   // back within the current step, to an instruction already done; a record done may be re-entered
   const sameStep = state.current && number !== state.current && stepOf(number) === stepOf(state.current);
@@ -418,11 +505,13 @@ function stepOf(number) {
   return frameOf(number) + local.split(".")[0];
 }
 
-// Who did what to an instruction: sent, confirmed, recorded an unknown outcome, re-entered its record.
+// Who did what to an instruction: sent, confirmed or approved, recorded an unknown outcome, re-entered its record.
 function attribution(details) {
   const parts = [];
   if (details.sent_by) parts.push(`sent by ${details.sent_by}`);
   if (details.confirmed_by) parts.push(`confirmed by ${details.confirmed_by}`);
+  const approved = details.sent && details.sent.approved_by;
+  if (approved) parts.push(`sent for approval by ${details.sent.requested_by}, approved by ${approved}`);
   if (details.resolved) parts.push(`outcome recorded as ${details.resolved.outcome} by ${details.resolved.by}: ${details.resolved.reason}`);
   if (details.corrected) {
     const c = details.corrected;
@@ -454,15 +543,34 @@ function formatArgs(args) {
   return Object.entries(args || {}).map(([name, value]) => `${name}=${formatValue(value)}`).join(", ");
 }
 
+// The procedure version the run runs: its release, or a rehearsal (a draft, or a file changed since
+// its release, run on a simulator), marked so wherever the run is shown.
+function renderVersion(version) {
+  const badge = $("run-version");
+  badge.hidden = !version;
+  if (!version) return;
+  const sha = `sha256 ${version.sha256.slice(0, 8)}…`;
+  badge.dataset.rehearsal = String(Boolean(version.rehearsal));
+  badge.textContent = version.rehearsal ?
+    `REHEARSAL · ${version.release ? "release " + version.release : "draft, not released"} · ${sha}` :
+    `release ${version.release} · ${sha}`;
+  badge.title = version.rehearsal ? "a rehearsal on a simulator: this version was not released for the robot" :
+    "the released version of the procedure that this run runs";
+  document.body.classList.toggle("rehearsal", Boolean(version.rehearsal));
+}
+
 // ---- the hold banner: what is needed, by whom, since when -------------------------------------
 const HOLDS = {
   failure: ["failure", "✗", () => "Failed", () => "an operator must retry or skip it"],
   in_flight: ["unknown", "?", () => "Outcome unknown", () => "an operator must check the system, then retry (resend) or skip it"],
   outcome_unknown: ["unknown", "?", () => "Outcome unknown",
     () => "an operator must ask the habitat again, record what the system shows, or skip it"],
-  halted: ["halted", "■", () => "Halted", () => "an operator may retry, continue, skip or stop"],
+  halted: ["halted", "■", () => "Halted", haltedWayOn],
   control_lost: ["failure", "⚑", () => "Robot taken over", () => "this run sends nothing until an operator takes control back"],
-  confirmation: ["hold", "⚠", () => "Hazardous command", () => "an operator must confirm it is safe to send"],
+  confirmation: ["hold", "⚠", () => "Hazardous command", (state) => state.approval ?
+    "an operator must send it for a second operator's approval" : "an operator must confirm it is safe to send"],
+  approval: ["hold", "⚠", () => "Waits for a second operator's approval",
+    (state) => `an operator other than ${(state.approval || {}).sender} must approve it`],
   operator_input: ["hold", "✎", () => "Needs a value", () => "an operator must enter it"],
   operator_action: ["hold", "☞", () => "Needs an operator", () => "an operator must do it, then mark it Done"],
   not_automatable: ["hold", "☞", () => "Needs an operator", () => "an operator must perform it"],
@@ -470,6 +578,14 @@ const HOLDS = {
   paused: ["info", "‖", (n) => `Automation paused at ${n}`, () => "an operator may Continue"],
   manual_mode: ["info", "▶", () => "Manual mode", () => "an operator performs each instruction"],
 };
+
+// What an operator may do after a halt: after a halted motion (its plan ended with it) sending it
+// again cannot work, so the way on is to plan it again from where the arm is.
+function haltedWayOn(state) {
+  if (!state.no_retry) return "an operator may retry, continue, skip or stop";
+  const replan = state.replan_from ? `re-plan from where the arm is and go on (from ${state.replan_from}), ` : "";
+  return `its plan ended with the halt: an operator may ${replan}go back to an earlier instruction, skip it or stop the run`;
+}
 
 function renderHold(state) {
   const box = $("hold");
@@ -491,8 +607,8 @@ function renderHold(state) {
     who = view.me && view.me.may_act ? "an operator may resume it" : "";
   } else if (state.hold && HOLDS[state.hold]) {
     const [holdTone, holdIcon, title, needed] = HOLDS[state.hold];
-    [tone, icon, what, who] = [holdTone, holdIcon, title(number), needed()];
-    text = ["failure", "in_flight", "outcome_unknown", "control_lost"].includes(state.hold) ? state.reason :
+    [tone, icon, what, who] = [holdTone, holdIcon, title(number), needed(state)];
+    text = ["failure", "in_flight", "outcome_unknown", "control_lost", "approval"].includes(state.hold) ? state.reason :
       state.hold === "halted" ? `by ${state.halted_by}${state.halt_reason ? ": " + state.halt_reason : ""} · ${sentence}` : sentence;
     if (state.hold === "manual_mode" && state.paused) who = "automation is paused for when the run goes autonomous";
   } else if (number) {
@@ -616,7 +732,7 @@ function renderTrajectory() {
   const box = $("trajectory");
   const plans = view.events.filter((e) => e.kind === "command_result" && e.data.values && e.data.values.end_pose);
   const planTelemetry = [...view.telemetry.values()].filter((r) => r.item === "plan_valid" || r.item === "plan_status");
-  const lines = planTelemetry.map((r) => `${r.item.replaceAll("_", " ")} = ${formatValue(r.value)}${r.stale ? " (stale)" : ""}`);
+  const lines = planTelemetry.map((r) => `${r.item.replaceAll("_", " ")} = ${formatValue(r.value, r.item)}${r.stale ? " (stale)" : ""}`);
   if (!plans.length) {
     box.textContent = (lines.length ? lines.join(" · ") + ". " : "") +
       "No end pose yet: it is drawn when a plan result carries one (values.end_pose).";
@@ -625,7 +741,7 @@ function renderTrajectory() {
   const latest = plans[plans.length - 1];
   const pose = normalizePose(latest.data.values.end_pose);
   if (!pose) {
-    box.textContent = `end pose not understood: ${formatValue(latest.data.values.end_pose)}`;
+    box.textContent = `end pose not understood: ${formatValue(latest.data.values.end_pose, "end_pose")}`;
     return;
   }
   const scale = 60, cx = 100, cy = 100;

@@ -43,6 +43,9 @@ export class JointInterpolation {
     return null;
   }
 
+  /** Whether a move toward the last state is still being drawn. */
+  get moving() { return this._move !== null; }
+
   /** The values to draw at ``now`` while a move lasts (its last answer is its target), else null. */
   at(now) {
     const move = this._move;

@@ -8,7 +8,7 @@ const GHOST = new THREE.MeshLambertMaterial({ color: 0xffb347, transparent: true
 export class PlanPlayer {
   constructor(robot, { onError, onChange }) {
     this.robot = robot;
-    this.ghost = new RobotModel(robot, { material: GHOST, onError });
+    this.ghost = new RobotModel(robot, { material: GHOST, onError, onMeshLoaded: () => onChange?.() });
     this.ghost.object.visible = false;
     this.object = this.ghost.object;
     this.onChange = onChange;

@@ -7,14 +7,16 @@ import { placeAt, worldPose } from './poses.js';
 export class RobotModel {
   /**
    * @param robot the scene document's ``robot``
-   * @param {{material?: THREE.Material, onError: (message: string) => void}} options
-   *   ``material`` replaces every link's material (the ghost arm).
+   * @param {{material?: THREE.Material, onError: (message: string) => void, onMeshLoaded?: () => void}} options
+   *   ``material`` replaces every link's material (the ghost arm); ``onMeshLoaded`` hears each
+   *   mesh that arrived (a view drawing on demand draws it then, and need not poll for it).
    */
-  constructor(robot, { material, onError }) {
+  constructor(robot, { material, onError, onMeshLoaded }) {
     const loader = new URDFLoader();
     const meshUrls = robot.mesh_urls || {};
     // Keep package:// URIs as they are, so the URL map is keyed by what the URDF says.
     loader.packages = (pkg) => `package://${pkg}`;
+    this.meshesLoading = 0;
     loader.loadMeshCb = (uri, manager, mat, done) => {
       const url = meshUrls[uri];
       if (!url) {
@@ -22,9 +24,12 @@ export class RobotModel {
         done(null, new Error(`no URL for ${uri}`));
         return;
       }
+      this.meshesLoading += 1;
       loader.defaultMeshLoader(url, manager, material || mat, (mesh, err) => {
+        this.meshesLoading -= 1;
         if (err) onError(`robot ${robot.name}: mesh ${uri} (${url}) did not load: ${err.message || err}`);
         done(mesh, err);
+        if (!err) onMeshLoaded?.();
       });
     };
     this.loader = loader;

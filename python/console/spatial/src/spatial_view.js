@@ -19,7 +19,6 @@ import { injectStyle } from './style.js';
 import { TemplateLayer } from './template_layer.js';
 import { Toolbar } from './toolbar.js';
 
-const KEEPALIVE_MS = 500;
 const LATENCY_WINDOW = 50;
 // Adaptive resolution: software WebGL (no GPU) composites the canvas per pixel, so a frame's cost
 // follows the drawing buffer's size (docs/benchmarks.md: 16 frames/s at 1000x700, 30 at half the
@@ -98,7 +97,6 @@ export class SpatialView {
     this._frames = 0;
     this._fpsWindow = [];
     this._last = performance.now();
-    this._lastDraw = -Infinity;
     this._dirty = true;
     this._jointsSince = null; // when the oldest joint update not yet drawn arrived
     this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
@@ -128,7 +126,7 @@ export class SpatialView {
     let robot;
     try {
       checkScene(doc);
-      robot = new RobotModel(doc.robot, { onError: this.onError });
+      robot = new RobotModel(doc.robot, { onError: this.onError, onMeshLoaded: () => this.invalidate() });
     } catch (error) {
       this.onError(`scene document refused: ${error.message}`);
       throw error;
@@ -361,6 +359,10 @@ export class SpatialView {
       camera_url: this.cameraImg.hidden ? null : this.cameraImg.getAttribute('src'),
       fps: this.fps ?? 0,
       frames: this._frames,
+      // everything there is to draw has been drawn: no change waiting, no arm still drawn moving
+      // toward a joint state (each frame of that move is drawn at once), no mesh still loading
+      settled: this._frames > 0 && !this._dirty && !this._jointMotion.moving
+        && this.robot.meshesLoading + this.player.ghost.meshesLoading === 0,
       render_on_demand: this.renderOnDemand,
       adaptive_resolution: this.adaptiveResolution,
       joint_interpolation: this._interpolateJoints,
@@ -465,11 +467,10 @@ export class SpatialView {
     if (joints) { this.robot.setJoints(joints); this._moving(); }
     if (this.registration) this.registration.expire(now);
     this._adaptResolution(now);
-    // On demand: a frame only when something changed, and a slow keep-alive frame that shows what
-    // arrived by paths the view does not watch (a mesh that finished loading, a camera image).
-    if (this.renderOnDemand && !this._dirty && now - this._lastDraw < KEEPALIVE_MS) return;
+    // On demand: a frame only when something changed (a mesh that finished loading says so too).
+    // An idle view then costs nothing: drawn in software, each frame of it was tens of ms of CPU.
+    if (this.renderOnDemand && !this._dirty) return;
     this._dirty = false;
-    this._lastDraw = now;
     this.renderer.render(this.scene, this.camera);
     this._drawnAt = now;
     if (this.namesVisible) this.labels.render(this.scene, this.camera);

@@ -1,0 +1,160 @@
+"""The suite's own scheduling (support/file_schedule.py): no file behind a long one, cores respected.
+
+Small suites in a temporary folder, run by real pytest-xdist: a long file whose test waits until
+other files have run. pytest-xdist's own scheduling queues a file on the long file's worker, behind
+it, so the long test waits in vain; :class:`CostAwareFileScheduling` gives that worker the
+shortest file instead. And two files that each keep two cores busy never run at once while lighter
+files are left to run beside them.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from support.file_schedule import CORE_BUDGET, COSTS, QUICK_S, SLOW_DEFAULT_S, FileCost, file_cost
+
+pytest_plugins = ["pytester"]
+pytestmark = pytest.mark.slow(seconds=30)  # three small suites, each starting pytest-xdist workers
+
+TESTS = Path(__file__).resolve().parents[1]
+#: A file one of which fits the core budget and two do not, and one that fits beside it.
+HEAVY, LIGHT = 0.6 * CORE_BUDGET, 0.1 * CORE_BUDGET
+
+CONFTEST = """
+import os
+import pytest
+from support.file_schedule import CostAwareFileScheduling, longest_files_first
+
+def pytest_collection_modifyitems(config, items):
+    longest_files_first(items, config.rootpath)
+
+if os.environ.get("SCHEDULE") == "ours":
+    @pytest.hookimpl(optionalhook=True)
+    def pytest_xdist_make_scheduler(config, log):
+        return CostAwareFileScheduling(config, log)
+"""
+
+#: The first test of a file: it waits (a bounded time) until the files named in $WAIT_FOR have run,
+#: and fails if a file named in $NOT_BESIDE started meanwhile.
+WAITING = """
+import os, pathlib, time
+
+def test_waiting(request):
+    done = pathlib.Path(os.environ["DONE"])
+    (done / ("started " + request.node.path.name)).touch()
+    wanted = {"done " + name for name in os.environ["WAIT_FOR"].split()}
+    deadline = time.monotonic() + float(os.environ["PATIENCE"])
+    while not wanted <= {p.name for p in done.iterdir()} and time.monotonic() < deadline:
+        time.sleep(0.05)  # polling a folder other processes write: there is no event to wait on
+    seen = {p.name for p in done.iterdir()}
+    assert wanted <= seen, f"never ran beside this file: {sorted(wanted - seen)}"
+    beside = {"started " + name for name in os.environ.get("NOT_BESIDE", "").split()} & seen
+    assert not beside, f"ran beside this file: {sorted(beside)}"
+"""
+
+MARKING = """
+import os, pathlib
+
+def test_marking(request):
+    done = pathlib.Path(os.environ["DONE"])
+    (done / ("started " + request.node.path.name)).touch()
+    (done / ("done " + request.node.path.name)).touch()
+"""
+
+
+def run_suite(
+    pytester: pytest.Pytester,
+    monkeypatch: pytest.MonkeyPatch,
+    *,
+    files: dict[str, str],
+    costs: dict[str, FileCost],
+    schedule: str,
+    patience: float,
+    wait_for: str,
+    not_beside: str = "",
+    workers: int = 2,
+) -> pytest.RunResult:
+    pytester.makeconftest(CONFTEST)
+    pytester.makepyfile(**files)
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    (pytester.path / COSTS).write_text(json.dumps({f"{name}.py": vars(cost) for name, cost in costs.items()}))
+    done = pytester.mkdir("done")
+    for name, value in {
+        "PYTHONPATH": str(TESTS),
+        "DONE": str(done),
+        "PATIENCE": str(patience),
+        "SCHEDULE": schedule,
+        "WAIT_FOR": wait_for,
+        "NOT_BESIDE": not_beside,
+        "PYTEST_DISABLE_PLUGIN_AUTOLOAD": "1",  # xdist alone (-p below): each worker starts in a fraction
+    }.items():
+        monkeypatch.setenv(name, value)
+    return pytester.runpytest_subprocess(
+        "-p", "xdist", "-n", str(workers), "--dist", "loadfile", "--no-loadscope-reorder", "-p", "no:cacheprovider"
+    )
+
+
+def behind_the_long_one(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, schedule: str) -> pytest.RunResult:
+    """One long file waiting for three mediums; one quick file."""
+    return run_suite(
+        pytester,
+        monkeypatch,
+        files={"test_long": WAITING, "test_m1": MARKING, "test_m2": MARKING, "test_m3": MARKING, "test_q": MARKING},
+        costs={"test_long": FileCost(100, 0.2), **{f"test_m{i}": FileCost(10, 0.2) for i in (1, 2, 3)}},
+        schedule=schedule,
+        patience=120 if schedule == "ours" else 3,
+        wait_for="test_m1.py test_m2.py test_m3.py",
+    )
+
+
+def test_no_file_waits_behind_the_long_one(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> None:
+    behind_the_long_one(pytester, monkeypatch, "ours").assert_outcomes(passed=5)
+
+
+def test_pytest_xdist_alone_queues_a_file_behind_the_long_one(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The behaviour the scheduler exists for: without it the long test's wait is in vain."""
+    behind_the_long_one(pytester, monkeypatch, "xdist").assert_outcomes(passed=4, failed=1)
+
+
+def test_two_files_of_two_cores_never_run_at_once_while_lighter_ones_wait(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Three workers; the heavy long file waits until both light files ran beside it, and the other
+    heavy file (two do not fit the core budget) may not have started meanwhile (it is longer than
+    the light ones: in plain order it would go first)."""
+    run_suite(
+        pytester,
+        monkeypatch,
+        files={"test_heavy_a": WAITING, "test_heavy_b": MARKING, "test_light1": MARKING, "test_light2": MARKING},
+        costs={
+            "test_heavy_a": FileCost(100, HEAVY),
+            "test_heavy_b": FileCost(50, HEAVY),
+            "test_light1": FileCost(20, LIGHT),
+            "test_light2": FileCost(20, LIGHT),
+        },
+        schedule="ours",
+        patience=120,
+        wait_for="test_light1.py test_light2.py",
+        not_beside="test_heavy_b.py",
+        workers=3,
+    ).assert_outcomes(passed=4)
+
+
+def test_a_file_costs_what_was_measured_or_what_its_mark_declares(tmp_path: Path) -> None:
+    (tmp_path / COSTS).parent.mkdir(parents=True)
+    (tmp_path / COSTS).write_text(json.dumps({"m.py": {"seconds": 12.5, "cores": 0.3}}))
+    cases = {
+        "m.py": ("pytestmark = pytest.mark.slow(seconds=240)", FileCost(12.5, 0.3)),
+        "a.py": ("pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240)]", FileCost(240.0)),
+        "b.py": ("pytestmark = pytest.mark.slow", FileCost(SLOW_DEFAULT_S)),
+        "c.py": ("def test(): pass", FileCost(QUICK_S)),
+    }
+    for name, (text, cost) in cases.items():
+        (tmp_path / name).write_text(text)
+        assert file_cost(tmp_path / name, tmp_path) == cost, name
+    assert file_cost(tmp_path / "missing.py", tmp_path) == FileCost(QUICK_S)

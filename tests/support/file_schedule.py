@@ -1,0 +1,140 @@
+"""Which test file runs where: whole files to pytest-xdist workers, longest first, within the machine's cores.
+
+What a file costs is measured: ``bench/suite_profile.py --save-costs`` writes each file's wall
+time and the share of a core its processes kept busy into ``tests/file_costs.json``. A file not
+measured yet states its length with ``pytest.mark.slow(seconds=N)`` in its ``pytestmark`` and is
+taken to keep a whole core busy. :func:`file_cost` reads both from the files themselves, because
+the scheduler runs in pytest-xdist's controller, which never imports the test modules.
+
+pytest-xdist's own file scheduling hands a worker its next file while the worker's current file
+still has two tests to run (a worker cannot finish a test before it knows the next one: the
+fixtures to tear down depend on it). For a file of one long test that happens the moment it starts:
+the ten-minute outage test got a two-minute file queued behind it, which then waited ten minutes
+while the other workers ran out of work. And it hands out files in order, whatever they cost:
+more workers than cores ran several robot stacks and browsers at once, each slower for it.
+
+:class:`CostAwareFileScheduling` gives the next longest file only to the worker that will be free
+first (a worker still busy for longer than another gets the shortest file instead), and only if
+the cores of the files running then stay within :data:`CORE_BUDGET`; otherwise the file that
+needs the fewest cores. Files that mostly wait (a link's light time, a ten-minute outage) thus run
+beside the ones that compute, on workers that would otherwise be too many.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import pytest
+
+# pytest-xdist ships no type information.
+from xdist.remote import Producer  # type: ignore[import-untyped]
+from xdist.scheduler import LoadFileScheduling  # type: ignore[import-untyped]
+from xdist.workermanage import WorkerController  # type: ignore[import-untyped]
+
+__all__ = ["COSTS", "CostAwareFileScheduling", "FileCost", "file_cost", "longest_files_first"]
+
+#: Measured costs (bench/suite_profile.py --save-costs), relative to the repository, as are the
+#: test files named in it.
+COSTS = Path("tests/file_costs.json")
+#: What a file marked ``slow`` without ``seconds=`` is taken to last.
+SLOW_DEFAULT_S = 30.0
+#: What an unmarked file (unit tests) is taken to last.
+QUICK_S = 1.0
+#: The sum of the running files' cores the scheduler stays within while it can. The figures in
+#: tests/file_costs.json were measured on the two-core machine beside other work (load 12-25), where
+#: a file's share of a core is lower than on a quiet machine; 1.6 in those terms keeps about two
+#: cores' worth of files running at once. Measured again on a quiet machine, it would be about 2.4.
+CORE_BUDGET = 1.6
+
+_SLOW_MARK = re.compile(r"mark\.slow\b(?:\(\s*seconds\s*=\s*(\d+(?:\.\d*)?)\s*\))?")
+
+
+@dataclass(frozen=True)
+class FileCost:
+    """What running one test file takes: wall seconds, and the share of a core its processes use."""
+
+    seconds: float
+    cores: float = 1.0
+
+
+@cache
+def _measured(costs: Path) -> dict[str, FileCost]:
+    try:
+        data = json.loads(costs.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return {}
+    return {name: FileCost(float(cost["seconds"]), float(cost["cores"])) for name, cost in data.items()}
+
+
+@cache
+def file_cost(path: Path, root: Path) -> FileCost:
+    """The measured cost of test file ``path`` (relative to the repository ``root``) or, not measured,
+    the seconds its ``pytest.mark.slow(seconds=N)`` states (:data:`SLOW_DEFAULT_S` for a bare
+    ``slow``, :data:`QUICK_S` for none) at a whole core."""
+    measured = _measured(root / COSTS).get(path.relative_to(root).as_posix()) if path.is_relative_to(root) else None
+    if measured is not None:
+        return measured
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError:
+        return FileCost(QUICK_S)
+    found = _SLOW_MARK.search(text)
+    if found is None:
+        return FileCost(QUICK_S)
+    return FileCost(float(found.group(1)) if found.group(1) else SLOW_DEFAULT_S)
+
+
+def longest_files_first(items: list[pytest.Item], root: Path) -> None:
+    """Order ``items`` by file, the longest file first, each file's tests in their own order."""
+    files: dict[Path, list[pytest.Item]] = {}
+    for item in items:
+        files.setdefault(item.path, []).append(item)
+    longest = sorted(files, key=lambda path: -file_cost(path, root).seconds)  # stable
+    items[:] = [item for path in longest for item in files[path]]
+
+
+class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an untyped base
+    """Whole files, longest first, to the worker free first, within :data:`CORE_BUDGET`.
+
+    The work queue arrives longest first (the workers collect in that order: tests/conftest.py).
+    """
+
+    def __init__(self, config: pytest.Config, log: Producer | None = None) -> None:
+        super().__init__(config, log)
+        self._root = Path(config.rootpath)
+        self._free_at: dict[WorkerController, float] = {}
+
+    def _cost(self, scope: str) -> FileCost:
+        return file_cost(self._root / scope, self._root)
+
+    def _cores_running(self, besides: WorkerController) -> float:
+        """The cores of the files the other workers run now (a file queued behind one has not started)."""
+        total = 0.0
+        for node, work in self.assigned_work.items():
+            current = next((scope for scope, tests in work.items() if not all(tests.values())), None)
+            if node is not besides and current is not None:
+                total += self._cost(current).cores
+        return total
+
+    def _choose(self, node: WorkerController, free_at: float, now: float) -> str:
+        others = [max(t, now) for other, t in self._free_at.items() if other is not node and not other.shutting_down]
+        if others and free_at > min(others):
+            return str(next(reversed(self.workqueue)))  # busy longer than another worker: the shortest file
+        room = CORE_BUDGET - self._cores_running(besides=node)
+        fitting = (scope for scope in self.workqueue if self._cost(scope).cores <= room)
+        return str(next(fitting, None) or min(self.workqueue, key=lambda scope: self._cost(scope).cores))
+
+    def _assign_work_unit(self, node: WorkerController) -> None:
+        now = time.monotonic()
+        free_at = max(self._free_at.get(node, now), now)
+        scope = self._choose(node, free_at, now)
+        work_unit = self.workqueue.pop(scope)
+        self._free_at[node] = free_at + self._cost(scope).seconds
+        self.assigned_work.setdefault(node, {})[scope] = work_unit
+        collection = self.registered_collections[node]
+        node.send_runtest_some([collection.index(nodeid) for nodeid, done in work_unit.items() if not done])
