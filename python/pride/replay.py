@@ -52,6 +52,7 @@ class Replayed:
     unknown: tuple[str, str] | None = None  # (key, why) when the run was halted with an outcome unknown
     halt: tuple[str, str] | None = None  # (who, why) when the run was halted
     attempts: dict[str, int] = field(default_factory=dict)
+    branches: dict[str, int] = field(default_factory=dict)  # times each instruction's on-failure branch was taken
     seq: int = 0
 
 
@@ -126,6 +127,8 @@ def replay(
             cursor = data["next"]
             started = sent = pending = None
             failed_here = kind is EventKind.INSTRUCTION_FAILED and cursor == number
+            if kind is EventKind.INSTRUCTION_FAILED and data.get("branch"):
+                state.branches[number] = state.branches.get(number, 0) + 1
             state.failure = data.get("reason") if failed_here else None
             if kind is EventKind.INSTRUCTION_HALTED:
                 state.halt = (event.actor, data.get("reason", ""))

@@ -7,6 +7,11 @@ one (or holding: failed, halted, outcome unknown), entering and leaving sub-proc
 back within a step, and which hold applies now. Every move records its event through the
 executive's ``emit`` (the journal first) as it makes it.
 
+An on-failure branch is taken at most :data:`BRANCHES_BEFORE_HOLD` times from one instruction in
+a run; after that the failure holds for an operator. A contingency step that loops back to itself
+(plan again, move again) would otherwise retry a motion that cannot succeed for as long as the
+run lasts, with nobody asked.
+
 Command keys: each send of a command is an attempt with its own key
 (:func:`pride.automation.command_key`); ``attempts`` counts them per instruction, so a retry, a
 loop back or a step back sends a new key. Only two sends reuse a key: asking again about an
@@ -66,6 +71,10 @@ class Job:
     send: Send | None = None
 
 
+#: Times one instruction's on-failure branch is taken in a run before its failure holds instead.
+BRANCHES_BEFORE_HOLD = 3
+
+
 def _on_failure(instruction: Instruction) -> str | None:
     if isinstance(instruction, (CommandInstruction, VerifyInstruction, WaitInstruction)):
         return instruction.on_failure
@@ -115,6 +124,7 @@ class RunState:
         self.halt: Halt | None = None
         self.control_lost: str | None = None  # why this run may not command its robot
         self.attempts: dict[str, int] = {}  # instruction number -> attempts at its command so far
+        self.branches: dict[str, int] = {}  # instruction number -> times its on-failure branch was taken
         self.request: Request | None = None
         self.executing = False
         self.error: str | None = None
@@ -130,6 +140,7 @@ class RunState:
         self.frames, self.mode, self.statuses = replayed.frames, replayed.mode, replayed.statuses
         self.breakpoints, self.failure, self.in_flight = replayed.breakpoints, replayed.failure, replayed.in_flight
         self.unknown, self.resend, self.attempts = replayed.unknown, replayed.resend, replayed.attempts
+        self.branches = replayed.branches
         self.halt = Halt(*replayed.halt) if replayed.halt else None
 
     # ---- queries ----------------------------------------------------------------------------
@@ -489,7 +500,15 @@ class RunState:
         """The instruction failed: to its on-failure step if it has one, else hold for an operator."""
         self.statuses[number] = InstructionStatus.FAILED
         target = self.target(frame, instruction, outcome)
+        reason = outcome.reason
+        if target is not None and self.branches.get(number, 0) >= BRANCHES_BEFORE_HOLD:
+            reason = (
+                f"{reason} (its on-failure step {_on_failure(instruction)!r} was already taken "
+                f"{self.branches[number]} times in this run: an operator decides)"
+            )
+            target = None
         if target is not None:
+            self.branches[number] = self.branches.get(number, 0) + 1
             self._emit(
                 EventKind.INSTRUCTION_FAILED,
                 actor,
@@ -500,6 +519,6 @@ class RunState:
             )
             self.advance(target, actor)
             return
-        self.failure = outcome.reason
-        self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)
+        self.failure = reason
+        self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=reason, next=number)
         self.announce()

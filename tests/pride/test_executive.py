@@ -181,6 +181,41 @@ def test_failed_verify_branches_where_the_procedure_says(bench: Bench) -> None:
     assert ("lab", "capture", {"label": "dock_view"}) not in gateway.sent
 
 
+def test_a_contingency_looping_back_to_itself_holds_after_three_branches_and_a_resume_keeps_the_count(
+    bench: Bench, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
+) -> None:
+    executive, gateway, journal = bench(name="lab_retry_loop.xml")
+    gateway.failing["move"] = "blocked by debris"
+    executive.start("ivy")
+    snap = held(executive, Hold.FAILURE, "2.1")
+    assert "already taken 3 times in this run: an operator decides" in snap.reason
+    assert "blocked by debris" in snap.reason
+    failed = [e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED]
+    # 1.1 into the contingency, then 2.1 back to itself three times, then the hold
+    assert [(e.instruction, e.data.get("branch"), e.data["next"]) for e in failed] == [
+        ("1.1", "move_interrupted", "2.1"),
+        *[("2.1", "move_interrupted", "2.1")] * 3,
+        ("2.1", None, "2.1"),
+    ]
+    assert len(gateway.sent) == 5
+    executive.stop("ivy", "runner restarted")
+    executive.join(TIMEOUT)
+
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_retry_loop.xml", sysreps),
+        gateway,
+        new_journal(journal.events),
+        list(journal.events),
+        "ivy",
+    )
+    held(resumed, Hold.FAILURE, "2.1")
+    resumed.retry("ivy")  # the operator's retry fails again: it holds again, it does not loop
+    snap = held(resumed, Hold.FAILURE, "2.1")
+    assert "already taken 3 times" in snap.reason
+    assert len(gateway.sent) == 6
+    resumed.stop("teardown")
+
+
 def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench: Bench) -> None:
     executive, gateway, journal = bench()
     executive.start("ivy")

@@ -55,6 +55,7 @@ class LabGateway:
         self.keys: list[str | None] = []  # the key of every send, re-sends included
         self.resent: list[str] = []  # keys sent again after they had executed
         self.fail_next: dict[str, str] = {}  # command -> message of its next (failing) answer
+        self.failing: dict[str, str] = {}  # command -> message of every answer (it always fails)
         self.lose_reply: dict[str, str] = {}  # command -> why its next reply is lost (it executes; UNKNOWN)
         self.block: set[str] = set()
         self.hold_reply: set[str] = set()  # these execute, then their reply is lost for good
@@ -169,6 +170,8 @@ class LabGateway:
                     return CommandResult(Outcome.HALTED, f"{command_id} halted")
         if command_id in self.fail_next:
             return CommandResult(Outcome.FAILED, self.fail_next.pop(command_id), {})
+        if command_id in self.failing:
+            return CommandResult(Outcome.FAILED, self.failing[command_id], {})
         if command_id == "move":
             self.set("state", args["target"])
             return CommandResult(OK, f"moved to {args['target']}", {"arrived": True})
