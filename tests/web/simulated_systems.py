@@ -4,7 +4,8 @@ The browser tests are about the web view, so the server under test opens this ga
 of the JVM-hosted PAX plugins (``PRIDE_GATEWAY=simulated_systems:open_simulated_systems``, see
 pride/systems.py). It serves the SysReps the binding file names, with the state changes a
 procedure checks: plans become valid, executions succeed, the CDRA latch locks and unlocks, the
-camera writes a real PNG. The robot side itself is tested by its own suites.
+camera writes a real PNG, perception finds objects where the drawings put them. The robot side
+itself is tested by its own suites.
 """
 
 from __future__ import annotations
@@ -129,6 +130,14 @@ class SimulatedSystems:
             path = self._images / f"{self._captures:03d}_{args.get('label') or 'capture'}.png"
             path.write_bytes(_png(160, 120, (self._captures * 70) % 256))
             return CommandResult(Outcome.SUCCEEDED, "captured", {"path": str(path)})
+        if sysrep_id == "perception" and command_id == "locate":  # a world where the drawings put it
+            pose = dict.fromkeys(("x", "y", "z", "roll", "pitch", "yaw", "qx", "qy", "qz"), 0.0)
+            located = {**pose, "qw": 1.0, "residual_px": 0.2, "markers": "30,31", "distance": 1.0}
+            return CommandResult(
+                Outcome.SUCCEEDED,
+                f"located {args.get('object')}",
+                {**located, "offset_mm": 0.0, "offset_deg": 0.0, "frame": str(args.get("frame") or "world")},
+            )
         return CommandResult(Outcome.SUCCEEDED, "ok")
 
     def _at(self, command_id: str, args: dict[str, Any], key: str) -> CommandResult:

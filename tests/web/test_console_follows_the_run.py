@@ -77,7 +77,7 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     alice.click("#mode-autonomous")
     expect(alice.locator("#hold")).to_contain_text("Breakpoint at 2.1/1.2")
     texts = sentences(alice)
-    assert len(texts) == 17 + 4 * 14  # the four calls draw the sub-procedure each
+    assert len(texts) == 17 + 4 * 20  # the four calls draw the sub-procedure each
     assert_readable(texts)
     assert texts["2.1/1.1"] == "Align the inspection AT with hull target hull_a"
     assert texts["3.1/1.1"] == "Align the inspection AT with hull target ‹target›"
