@@ -60,6 +60,10 @@ AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset(
 
 Json = dict[str, Any]
 
+#: What the view asks the AT server for, in the words an operator reads when it cannot be had
+#: (the service's ROS name goes to the log: an operator meets commands, never services).
+ASKED = {"get_template_status": "the templates' status", "get_plan": "the current plan"}
+
 
 @dataclass(eq=False)  # each is one browser: hashed by identity
 class ViewWatcher:
@@ -276,10 +280,21 @@ class SpatialFeed:
                 return
             plan = True
 
+    async def _ask(self, service: str, request: Json) -> Mapping[str, Any]:
+        """The AT server's answer to ``service``; a LinkError in the operator's words if none."""
+        name = self.link.name(f"affordance_template_server/{service}")
+        try:
+            return await self.rosbridge.call(name, request)
+        except LinkError as exc:
+            log.warning("3D view feed: %s", exc)
+            reason = str(exc).removeprefix(f"{exc.what}: ")
+            if service in reason:  # rosbridge's own refusal names the service
+                reason = "the robot side refused the request"
+            raise LinkError(f"could not read {ASKED[service]} from the robot", reason) from None
+
     async def _ask_templates(self) -> None:
         running = self.status_key[0] if self.status_key else ()
-        service = self.link.name("affordance_template_server/get_template_status")
-        statuses = [await self.rosbridge.call(service, {"name": key, "frame_id": "world"}) for key in running]
+        statuses = [await self._ask("get_template_status", {"name": key, "frame_id": "world"}) for key in running]
         self.templates = templates_update(
             [_status_entry(s, key) for s, key in zip(statuses, running, strict=True)], frames=self.frames
         )
@@ -289,10 +304,7 @@ class SpatialFeed:
         if not self.active_template:
             self.plan = {"kind": "plan", "plan": None}
         else:
-            answer = await self.rosbridge.call(
-                self.link.name("affordance_template_server/get_plan"),
-                {"name": self.active_template, "trajectory_name": ""},
-            )
+            answer = await self._ask("get_plan", {"name": self.active_template, "trajectory_name": ""})
             self.plan = plan_from_get_plan(answer, instance=self.active_template, frames=self.frame_poses)
         self._push(self.plan)
 
@@ -301,10 +313,10 @@ def _status_entry(answer: Mapping[str, Any], key: str) -> Mapping[str, Any]:
     """The status of the instance's current trajectory from a get_template_status answer
     (which lists one per trajectory)."""
     if not answer.get("success"):
-        raise SpatialDataError(f"get_template_status {key}", str(answer.get("message") or "refused"))
+        raise SpatialDataError(f"the status of {key}", str(answer.get("message") or "refused"))
     statuses = [s for s in answer.get("affordance_template_status", []) or [] if isinstance(s, Mapping)]
     current = str(answer.get("current_trajectory", ""))
     chosen = next((s for s in statuses if s.get("trajectory_name") == current), statuses[0] if statuses else None)
     if chosen is None:
-        raise SpatialDataError(f"get_template_status {key}", "the answer lists no status")
+        raise SpatialDataError(f"the status of {key}", "the answer lists no status")
     return chosen
