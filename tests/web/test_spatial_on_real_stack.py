@@ -25,6 +25,7 @@ import pytest
 import roslibpy
 from playwright.sync_api import Browser, Page, expect
 from spatial_data import matrix
+from spatial_names import names_hide_nothing
 
 from at_ros.transforms import angle_between
 from console.spatial_world import compose
@@ -180,6 +181,32 @@ def open_as(webgl_browser: Browser) -> Iterator[Callable[[WebServer, str], Page]
     assert not errors, "the page raised script errors:\n" + "\n".join(errors)
 
 
+def names_clear_at_both_widths_and_enlarged(page: Page) -> None:
+    """Names on (the default), the filter's display object, the robot camera and the plan's
+    controls in the panel: at 1500 px and at 1024 px half of the display object stays in sight and
+    no name lies on another or on a control; then the view fills the window and Esc puts it back."""
+    for width, height in ((1500, 1000), (1024, 768)):
+        page.set_viewport_size({"width": width, "height": height})
+        wait_view(page, "v.settled")
+        found = names_hide_nothing(page, "cdra_filter:0", f"console at {width} px")
+        print(
+            f"3D view names at {width} px: {found['visible']:.0%} of the display object visible, "
+            f"{found['placed']} names shown, {found['unplaced']} without room"
+        )
+    page.set_viewport_size({"width": 1500, "height": 1000})
+    page.click("#spatial-view [data-action=enlarge]")
+    wait_view(page, "v.enlarged && v.settled")
+    box = page.locator("#spatial-view").bounding_box()
+    assert box is not None and (box["width"], box["height"]) == (1500, 1000), box
+    names_hide_nothing(page, "cdra_filter:0", "enlarged view")
+    if SHOTS is not None:
+        page.screenshot(path=str(SHOTS / "spatial-iva-enlarged.png"))
+    page.keyboard.press("Escape")
+    wait_view(page, "!v.enlarged && v.settled")
+    box = page.locator("#spatial-view").bounding_box()
+    assert box is not None and box["width"] < 1500, box
+
+
 def test_iva_view_follows_the_robot_registers_by_drag_and_refuses_observers(
     open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]
 ) -> None:
@@ -247,12 +274,14 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     shoot(alice, "spatial-iva.png")
     if SHOTS is not None:
         alice.screenshot(path=str(SHOTS / "spatial-iva-console.png"))
+    names_clear_at_both_widths_and_enlarged(alice)
 
     # the operator drags the filter's display object 5 cm towards the robot and releases
     moved = slot.copy()
     moved[1, 3] -= 0.05
     alice.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0, -0.05, 0]})")
     expect(alice.locator("#spatial-status")).to_contain_text("set_display_object_pose succeeded", timeout=TIMEOUT_MS)
+    expect(alice.locator("#spatial-status")).to_have_text("", timeout=TIMEOUT_MS)  # news for a moment, not the run
     wait_for_pose(alice, "cdra_filter:0", moved)
     assert_pose(inspect(alice)["templates"]["cdra_filter:0"]["pose"], moved, "the display object where it was dropped")
     wait_view(alice, "!v.ghost.visible")  # the registration invalidated the plan: no ghost of it

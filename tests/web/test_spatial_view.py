@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
+from spatial_names import names_hide_nothing
 from spatial_site import SpatialSite, serve_site
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
@@ -291,6 +292,26 @@ def test_objects_and_templates_at_their_poses(open_view: Callable[..., Page], iv
     moved = inspect(page)["objects"]
     assert moved["filter/CDRA-F-0007"]["pose"]["xyz"] == pytest.approx([0.5, 0.4, 1.2], abs=1e-6)
     assert moved["rack"] == state["objects"]["rack"]
+
+
+@pytest.mark.parametrize("width, height", [(440, 340), (360, 340), (1000, 700)])
+def test_names_leave_the_display_object_in_sight_and_lie_on_nothing(
+    open_view: Callable[..., Page], iva: Habitat, screenshots: Path, width: int, height: int
+) -> None:
+    """The console's 3D panel at 1500 px (440 wide) and at 1024 px (360), and the view alone."""
+    running = RunningTemplate.add(iva, "cdra_filter", "ur10", object_name="cdra_filter", frame="cabinet/slot")
+    page = open_view(iva.document())
+    page.set_viewport_size({"width": width, "height": height})
+    apply(page, running.update("grasp_and_pull"))
+    plan = running.plan("grasp_and_pull", [float(v) for v in iva.mapping["robot"]["initial_positions"]])
+    apply(page, plan)  # the plan player's controls join the bar: names keep off them too
+    found = names_hide_nothing(page, "cdra_filter:0", f"{width}x{height}")
+    print(
+        f"{width}x{height}: {found['visible']:.0%} of the display object visible with names on, "
+        f"{found['placed']} names shown, {found['unplaced']} without room"
+    )
+    assert page.locator(".ct-spatial-label-display_object", has_text="cdra_filter:0").is_visible()
+    page.screenshot(path=str(screenshots / f"spatial_names_{width}.png"))
 
 
 def test_camera_image_beside_the_scene(open_view: Callable[..., Page], iva: Habitat, site: SpatialSite) -> None:

@@ -8,12 +8,16 @@
 "use strict";
 
 const spatialPanel = (() => {
-  const state = { runId: null, socket: null, view: null, timer: null };
+  const state = { runId: null, socket: null, view: null, timer: null, clearing: null };
+  // A command's success is news for a moment, not for the rest of the run; errors stay until the next message.
+  const SUCCESS_SHOWN_MS = 6000;
 
-  function status(text, tone = "") {
+  function status(text, tone = "", { clears = false } = {}) {
     const node = $("spatial-status");
+    clearTimeout(state.clearing);
     node.textContent = text;
     node.dataset.tone = tone;
+    if (clears) state.clearing = setTimeout(() => { if (node.textContent === text) status(""); }, SUCCESS_SHOWN_MS);
   }
 
   function ensureView() {
@@ -35,8 +39,9 @@ const spatialPanel = (() => {
                                {command: command.command, args: command.args});
       if (state.runId !== runId || !state.view) return;
       state.view.resolvePending(command.target, answer.outcome);
+      const succeeded = answer.outcome === "succeeded";
       status(`${command.command} ${answer.outcome}${answer.message ? ": " + answer.message : ""}`,
-             answer.outcome === "succeeded" ? "" : "error");
+             succeeded ? "" : "error", { clears: succeeded });
     } catch (error) {
       if (state.runId !== runId || !state.view) return;
       state.view.resolvePending(command.target, "failed");
@@ -75,6 +80,7 @@ const spatialPanel = (() => {
 
   function close() {
     clearTimeout(state.timer);
+    clearTimeout(state.clearing);
     const socket = state.socket;
     state.socket = null;
     if (socket) socket.close();

@@ -4,10 +4,9 @@
 // onPoseCommand hands it through PAX as the signed-in user.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { CSS2DRenderer } from 'three/examples/jsm/renderers/CSS2DRenderer.js';
 import { checkScene, checkUpdate, ContractError } from './contract.js';
 import { JointInterpolation } from './joint_interpolation.js';
-import { label } from './labels.js';
+import { label, LabelLayout } from './labels.js';
 import { median } from './median.js';
 import { Occluders } from './occluders.js';
 import { PlanPlayer } from './plan_player.js';
@@ -54,8 +53,7 @@ export class SpatialView {
     this._fullRatio = Math.min(window.devicePixelRatio || 1, 2);
     this.renderer.setPixelRatio(this._fullRatio);
     container.appendChild(this.renderer.domElement);
-    this.labels = new CSS2DRenderer();
-    this.labels.domElement.className = 'ct-spatial-labels';
+    this.labels = new LabelLayout();
     container.appendChild(this.labels.domElement);
 
     this.scene = new THREE.Scene();
@@ -80,6 +78,10 @@ export class SpatialView {
     this.objects = new Map();
     this.document = null;
     this.namesVisible = true;
+    this.enlarged = false;
+    // Esc gives the page back from an enlarged view, as a full-screen video does.
+    this._onKey = (e) => { if (e.key === 'Escape' && this.enlarged) this.setEnlarged(false); };
+    document.addEventListener('keydown', this._onKey);
     this._canAct = !!canAct;
     this._onPoseCommand = onPoseCommand;
     this._pendingTimeoutMs = pendingTimeoutMs;
@@ -284,6 +286,25 @@ export class SpatialView {
     this._changed();
   }
 
+  /** Fill the window with the view (``true``), or put it back in its panel; Esc also puts it back. */
+  setEnlarged(enlarged) {
+    this.enlarged = !!enlarged;
+    const el = this.container;
+    el.classList.toggle('ct-spatial-enlarged', this.enlarged);
+    // In the top layer (a popover) the view is above the page whatever stacking contexts hold
+    // it: a sticky panel or header would otherwise still draw over a fixed element inside it.
+    if (typeof el.showPopover === 'function') {
+      if (this.enlarged) {
+        el.setAttribute('popover', 'manual');
+        el.showPopover();
+      } else if (el.hasAttribute('popover')) {
+        el.hidePopover();
+        el.removeAttribute('popover');
+      }
+    }
+    this._changed(); // the resize observer refits the canvas to the new size
+  }
+
   /** The document's viewpoint (the scene's own camera), or a framing of the work when it has none. */
   home() {
     const v = this.viewpoint;
@@ -325,6 +346,7 @@ export class SpatialView {
   dispose() {
     cancelAnimationFrame(this._raf);
     this._resize.disconnect();
+    document.removeEventListener('keydown', this._onKey);
     this.orbit.dispose();
     this.registration?.controls.dispose();
     this.renderer.dispose();
@@ -355,6 +377,7 @@ export class SpatialView {
       ghost: this.player.describe(),
       registration: this.registration.describe(),
       names_visible: this.namesVisible,
+      enlarged: this.enlarged,
       camera: { eye: this.camera.position.toArray(), target: this.orbit.target.toArray(), faded: this.occluders.faded() },
       camera_url: this.cameraImg.hidden ? null : this.cameraImg.getAttribute('src'),
       fps: this.fps ?? 0,
@@ -429,6 +452,18 @@ export class SpatialView {
     }
   }
 
+  /** The view's controls and notes as boxes in view px, for names to stay clear of. */
+  _controlBoxes() {
+    const origin = this.container.getBoundingClientRect();
+    const boxes = [];
+    for (const el of [this.toolbar?.bar, this.statusEl, this.cameraImg]) {
+      if (!el || el.hidden || !el.offsetParent) continue; // not shown (an empty status is display: none)
+      const r = el.getBoundingClientRect();
+      if (r.width && r.height) boxes.push({ x: r.left - origin.left, y: r.top - origin.top, w: r.width, h: r.height });
+    }
+    return boxes;
+  }
+
   _fitCanvas() {
     const w = Math.max(1, this.container.clientWidth);
     const h = Math.max(1, this.container.clientHeight);
@@ -473,7 +508,7 @@ export class SpatialView {
     this._dirty = false;
     this.renderer.render(this.scene, this.camera);
     this._drawnAt = now;
-    if (this.namesVisible) this.labels.render(this.scene, this.camera);
+    if (this.namesVisible) this.labels.render(this.scene, this.camera, this._controlBoxes());
     if (this._jointsSince !== null) {
       this._latencies.push(performance.now() - this._jointsSince);
       if (this._latencies.length > LATENCY_WINDOW) this._latencies.shift();

@@ -2,12 +2,15 @@
 const CSS = `
 .ct-spatial { position: relative; overflow: hidden; background: #1d2127; min-height: 200px; font: 12px system-ui, sans-serif; }
 .ct-spatial canvas { display: block; }
+.ct-spatial.ct-spatial-enlarged { position: fixed !important; inset: 0; width: auto !important; height: auto !important; margin: 0; padding: 0; border: 0; z-index: 1000; border-radius: 0; }
 .ct-spatial-labels { position: absolute; top: 0; left: 0; pointer-events: none; }
-.ct-spatial-label { padding: 1px 4px; border-radius: 3px; color: #fff; background: rgba(0, 0, 0, 0.55); white-space: nowrap; transform: translateY(-14px); }
+.ct-spatial-label { position: absolute; top: 0; left: 0; padding: 1px 4px; border-radius: 3px; color: #fff; background: rgba(0, 0, 0, 0.55); white-space: nowrap; }
+.ct-spatial-leaders { position: absolute; top: 0; left: 0; overflow: visible; }
+.ct-spatial-leaders path { stroke: rgba(255, 255, 255, 0.55); stroke-width: 1; fill: none; }
 .ct-spatial-label-display_object { border-left: 3px solid #33e64d; }
 .ct-spatial-label-waypoint { border-left: 3px solid #00a0a0; }
 .ct-spatial-label-object { color: #ccc; }
-.ct-spatial-names-off .ct-spatial-label { display: none; }
+.ct-spatial-names-off .ct-spatial-labels { display: none; }
 .ct-spatial-bar { position: absolute; left: 6px; right: 6px; bottom: 6px; display: flex; gap: 6px; align-items: center; flex-wrap: wrap; }
 .ct-spatial-bar button { background: #2d333b; color: #eee; border: 1px solid #555; border-radius: 4px; padding: 3px 8px; cursor: pointer; }
 .ct-spatial-bar button[aria-pressed="true"] { background: #3d6fb4; }

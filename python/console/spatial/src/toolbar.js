@@ -1,4 +1,4 @@
-// The view's controls: fit, names, move/turn handles, and the plan player (play/pause, step to
+// The view's controls: fit, names, move/turn handles, enlarge, and the plan player (play/pause, step to
 // the previous/next waypoint, a scrub slider, time and waypoint).
 
 function button(text, title, onClick) {
@@ -23,6 +23,8 @@ export class Toolbar {
     this.names.dataset.action = 'names';
     this.mode = button('Move', 'handles: move (translate) or turn (rotate)', () => view.registration.setMode(view.registration.mode === 'translate' ? 'rotate' : 'translate'));
     this.mode.dataset.action = 'mode';
+    this.enlarge = button('Enlarge', 'fill the window with the view (Esc: back)', () => view.setEnlarged(!view.enlarged));
+    this.enlarge.dataset.action = 'enlarge';
     const plan = document.createElement('div');
     plan.className = 'ct-spatial-plan';
     plan.hidden = true;
@@ -46,13 +48,16 @@ export class Toolbar {
     this.readout = document.createElement('span');
     plan.append(this.prev, this.play, this.next, this.slider, this.readout);
     this.plan = plan;
-    bar.append(this.home, this.fit, this.names, this.mode, plan);
+    bar.append(this.home, this.fit, this.names, this.mode, this.enlarge, plan);
     container.appendChild(bar);
+    this.bar = bar;
   }
 
   refresh() {
     const v = this.view;
     this.names.setAttribute('aria-pressed', String(v.namesVisible));
+    this.enlarge.setAttribute('aria-pressed', String(v.enlarged));
+    this.enlarge.textContent = v.enlarged ? 'Restore' : 'Enlarge';
     this.mode.hidden = !v.registration.canAct;
     this.mode.textContent = v.registration.mode === 'translate' ? 'Move' : 'Turn';
     const p = v.player;
