@@ -30,8 +30,7 @@ from caretaker_sim_msgs.msg import NamedPoses
 from caretaker_sim_msgs.srv import Halt as RobotHalt
 from caretaker_sim_msgs.srv import SetGripper
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Header, String
@@ -50,6 +49,7 @@ from at_ros.plan_execute import PlanExecutor
 from at_ros.plan_view import PlanQueries
 from at_ros.robot_config import RobotConfig
 from at_ros.server_core import CommandRefused, ServerCore
+from ros_process import spinning
 
 __all__ = ["AffordanceTemplateServer", "main"]
 
@@ -250,9 +250,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker at-server: {exc}", file=sys.stderr)
         return 2
     rclpy.init(args=["caretaker-at-server", *ros_args])
-    node = None
     executor = MultiThreadedExecutor(num_threads=6)
-    try:
+    with spinning(executor) as nodes:
         try:
             node = AffordanceTemplateServer(
                 choice.robot,
@@ -265,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
         except LibraryError as exc:
             print(f"caretaker at-server: {exc}", file=sys.stderr)
             return 2
+        nodes.append(node)
         if node.core.state.instances:
             print(f"restored {', '.join(sorted(node.core.state.instances))} from {args.state_file}", flush=True)
         executor.add_node(node)
@@ -273,15 +273,4 @@ def main(argv: list[str] | None = None) -> int:
             executor.spin_once(timeout_sec=0.1)
         print(f"READY at-server {choice.robot.robot_name}", flush=True)
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
-        if rclpy.ok():
-            raise
-    finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()  # type: ignore[no-untyped-call]
-        if rclpy.ok():
-            rclpy.shutdown()
     return 0

@@ -22,8 +22,7 @@ from affordance_template_msgs.msg import PlannedSegment
 from affordance_template_msgs.srv import PlanWaypoints
 from builtin_interfaces.msg import Duration
 from caretaker_sim_msgs.msg import CollisionWorld, NamedPoses
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from std_msgs.msg import Bool, Header, String
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -38,6 +37,7 @@ from at_ros.planning_scene import PlanningScene
 from at_ros.robot_config import RobotConfig
 from at_ros.time_parameterization import TimedPath
 from at_ros.transforms import invert
+from ros_process import spinning
 
 __all__ = ["PlannerNode", "main", "trajectory_message"]
 
@@ -84,6 +84,12 @@ class PlannerNode(Node):
         )
         self.heartbeat_publisher = self.create_publisher(Header, "planner/heartbeat", 10)
         self.heartbeat_timer = self.create_timer(0.5, self.heartbeat_callback)
+
+    def destroy_node(self) -> None:
+        """Also let go of the planning scene's physics client, which the node owns."""
+        if self.scene is not None:
+            self.scene.close()
+        super().destroy_node()  # type: ignore[no-untyped-call]  # rclpy is not annotated
 
     def world_callback(self, msg: CollisionWorld) -> None:
         """Build the planning scene once from the first world that arrives (the world is static;
@@ -211,10 +217,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker planner: {exc}", file=sys.stderr)
         return 2
     rclpy.init(args=["caretaker-planner", *ros_args])
-    node = None
     executor = SingleThreadedExecutor()
-    try:
+    with spinning(executor) as nodes:
         node = PlannerNode(config, namespace=args.namespace)
+        nodes.append(node)
         executor.add_node(node)
         deadline = time.monotonic() + WORLD_TIMEOUT
         while node.scene is None and not node.world_error and time.monotonic() < deadline:
@@ -229,17 +235,4 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print(f"READY planner {config.robot_name}", flush=True)
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
-        if rclpy.ok():
-            raise
-    finally:
-        executor.shutdown()
-        if node is not None:
-            if node.scene is not None:
-                node.scene.close()
-            node.destroy_node()  # type: ignore[no-untyped-call]
-        if rclpy.ok():
-            rclpy.shutdown()
     return 0

@@ -33,8 +33,7 @@ from caretaker_sim_msgs.msg import Markers, NamedPoses
 from caretaker_sim_msgs.srv import CaptureImage
 from geometry_msgs.msg import Pose
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo
@@ -42,6 +41,7 @@ from std_msgs.msg import Bool, Float64, String
 
 from at_ros.transforms import angle_between, from_xyz_quat, invert, to_xyz_quat, to_xyz_rpy
 from perception.locate import DEFAULT_TOLERANCE_PX, Calibration, MarkerOnObject, NotLocated, locate
+from ros_process import spinning
 
 __all__ = ["PerceptionNode", "main"]
 
@@ -224,10 +224,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--tolerance-px must be positive")
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
     rclpy.init(args=ros_args)
-    node = None
     executor = MultiThreadedExecutor(num_threads=4)
-    try:
+    with spinning(executor) as nodes:
         node = PerceptionNode(namespace=args.namespace, default_tolerance_px=args.tolerance_px)
+        nodes.append(node)
         executor.add_node(node)
         deadline = time.monotonic() + WAIT_S
         while not node.markers.arrived.is_set() and time.monotonic() < deadline:
@@ -237,15 +237,4 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         print(f"READY perception {len(node.markers.value.markers)} markers", flush=True)
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
-        if rclpy.ok():
-            raise
-    finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()  # type: ignore[no-untyped-call]  # rclpy is not annotated
-        if rclpy.ok():
-            rclpy.shutdown()
     return 0

@@ -43,11 +43,23 @@ MAY_IMPORT = {
     "pride": {"datafile", "rosbridge_wire"},
     "console": {"datafile", "pride", "rosbridge_wire"},
     "onboard": {"datafile", "pride", "rosbridge_wire"},
-    "bridge": {"datafile", "rosbridge_wire"},
-    "at_ros": {"datafile"},
+    "ros_process": set(),
+    "bridge": {"datafile", "rosbridge_wire", "ros_process"},
+    "at_ros": {"datafile", "ros_process"},
     "sim": {"datafile"},
-    "perception": {"at_ros"},
-    "caretaker": {"datafile", "rosbridge_wire", "pride", "console", "onboard", "bridge", "at_ros", "sim", "perception"},
+    "perception": {"at_ros", "ros_process"},
+    "caretaker": {
+        "datafile",
+        "rosbridge_wire",
+        "pride",
+        "console",
+        "onboard",
+        "bridge",
+        "at_ros",
+        "sim",
+        "perception",
+        "ros_process",
+    },
 }
 
 

@@ -8,8 +8,9 @@ import sys
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.executors import MultiThreadedExecutor
+
+from ros_process import spinning
 
 from .node import LedgerNode
 from .store import LedgerStore, LedgerStoreError
@@ -58,23 +59,14 @@ def main(argv: list[str] | None = None) -> int:
             "%d calls were in progress when the ledger stopped: now UNKNOWN", store.interrupted
         )
     rclpy.init(args=ros_args)
-    node = None
     executor = MultiThreadedExecutor(num_threads=args.threads)
     try:
-        node = LedgerNode(store, default_timeout=args.default_timeout)
-        executor.add_node(node)
-        print(f"READY ledger {store.epoch} {store.path}", flush=True)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except _rclpy.RCLError:  # the signal handler shut the context down between two waits: a stop
-        if rclpy.ok():
-            raise
+        with spinning(executor) as nodes:
+            node = LedgerNode(store, default_timeout=args.default_timeout)
+            nodes.append(node)
+            executor.add_node(node)
+            print(f"READY ledger {store.epoch} {store.path}", flush=True)
+            executor.spin()
     finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()  # type: ignore[no-untyped-call]  # rclpy is not annotated
-        if rclpy.ok():
-            rclpy.shutdown()
         store.close()
     return 0
