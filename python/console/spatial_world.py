@@ -22,9 +22,11 @@ __all__ = ["PLAN_SHOWN_STATES", "world_document", "plan_from_get_plan", "compose
 
 Json = dict[str, Any]
 
-PLAN_SHOWN_STATES = frozenset({"PLANNED"})
-"""A plan is drawn as the ghost only before it runs; once executing, executed, halted, failed or
-invalidated the ghost goes (the live arm shows what happens)."""
+PLAN_SHOWN_STATES = frozenset({"PLANNED", "EXECUTING"})
+"""A plan is drawn as the ghost before it runs, and while it runs as the path the arm has been told
+to follow (``commanded``: on a long link the arm drawn is where it was a light time ago, the path
+where it is going); once executed, halted, failed or invalidated it goes (the live arm shows what
+happened)."""
 
 _KINDS = {"filter/": "filter", "target/": "target", "cabinet/lamp": "lamp"}
 
@@ -173,8 +175,9 @@ def compose(a: Json, b: Json) -> Json:
 
 
 def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapping[str, Json]) -> Json:
-    """A ``plan`` update from a ``get_plan`` answer: the ghost while the plan is PLANNED,
-    ``plan: null`` otherwise (executing, executed, halted, failed, invalidated, none).
+    """A ``plan`` update from a ``get_plan`` answer: the ghost while the plan is PLANNED, the
+    commanded path (``commanded: true``) while EXECUTING, ``plan: null`` otherwise (executed,
+    halted, failed, invalidated, none).
 
     ``frames``: named poses in the document frame (``sim/frames``); the end pose, given in the
     robot's frame (``robot_base``), is placed in the document frame with them.
@@ -246,5 +249,6 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
             "waypoints": waypoints,
             "tool_link": checked.text(a.get("end_pose_link", ""), "get_plan.end_pose_link"),
             "end_pose": end_pose,
+            "commanded": a.get("state") == "EXECUTING",
         },
     }

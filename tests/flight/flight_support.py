@@ -188,17 +188,22 @@ class Flight:
         return serve, serve.wait_ready().split()[-1]
 
     @contextlib.contextmanager
-    def console_page(self, url: str, operator: str, password: str) -> Iterator[Page]:
+    def console_page(self, url: str, operator: str, password: str, *, webgl: bool = False) -> Iterator[Page]:
         """Chromium in the ground namespace (as an operator's browser on the ground network; pipes
-        pass through ``ip netns exec``), signed in to the console at ``url``."""
+        pass through ``ip netns exec``), signed in to the console at ``url``; with ``webgl`` it
+        draws the 3D view (WebGL on SwiftShader), which costs CPU while the arm moves."""
         from playwright.sync_api import sync_playwright
+
+        from support.browser import WEBGL_ARGS
 
         wrapper = self.hosts.folder / "chromium-on-the-ground"
         wrapper.write_text(f'#!/bin/sh\nexec ip netns exec {self.hosts.ground.namespace} /usr/bin/chromium "$@"\n')
         wrapper.chmod(0o755)
         with sync_playwright() as driver:
             browser = driver.chromium.launch(
-                executable_path=str(wrapper), headless=True, args=["--no-sandbox", "--disable-gpu", "--no-first-run"]
+                executable_path=str(wrapper),
+                headless=True,
+                args=WEBGL_ARGS if webgl else ["--no-sandbox", "--disable-gpu", "--no-first-run"],
             )
             try:
                 page = browser.new_page(viewport={"width": 1500, "height": 1000})

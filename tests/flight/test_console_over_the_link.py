@@ -1,5 +1,8 @@
 """The operator's console on the ground host, flying the IVA procedure across the link, in a browser.
 
+Its 3D view shows a motion honestly across the light time: the arm's age, the path it was told to
+follow, and the arm never drawn beyond what the habitat reported.
+
 ``caretaker serve`` runs in the ground namespace with the ground binding (wss://, secret, 1.3 s
 link); Chromium runs in the ground namespace too (Playwright drives it through a pipe), as an
 operator's browser on the ground network would. The connection to the habitat is reset for 10 s
@@ -12,28 +15,76 @@ shows the executive's LINK_LOST / LINK_RESTORED records.
 
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
 from support.operator_page import expect_current
 
-from .flight_support import LINK_MS, PULL_OUT, flight, start_from_console
+from .flight_support import DELAY, LINK_MS, PULL_OUT, flight, start_from_console
+
+if TYPE_CHECKING:
+    from playwright.sync_api import Page
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=85)]
 
 OPERATOR, PASSWORD = "flight", "flight-over-the-link"
+SHOTS = Path(os.environ["CARETAKER_SCREENSHOTS"]) if os.environ.get("CARETAKER_SCREENSHOTS") else None
+#: What the test reads of the 3D view at once (inspect() and the age it shows).
+_VIEW_NOW = """() => {
+  const view = window.caretakerSpatial;
+  if (!view) return null;
+  const v = view.inspect();
+  return {age: v.arm_age_s, said: view.ageEl.hidden ? null : view.ageEl.textContent, commanded: v.commanded,
+          drawn: v.joints_drawn, reports: v.joints_reported_recently};
+}"""
+
+
+def _a_motion_seen_across_the_link(page: Page) -> None:
+    """While the habitat executes a motion, the view says how old the arm drawn is (at least the
+    light time), draws the path the arm was told to follow, and draws the arm only between states
+    the habitat reported (per joint, within the last reports' range: never ahead of them)."""
+    page.wait_for_function(
+        f"(() => {{ const v = ({_VIEW_NOW})(); return v && v.commanded.visible; }})()", timeout=240_000
+    )
+    samples: list[dict[str, Any]] = []
+    while len(samples) < 40:
+        sample = page.evaluate(_VIEW_NOW)
+        if not sample["commanded"]["visible"]:
+            break
+        samples.append(sample)
+    moving = [b for a, b in zip(samples, samples[1:], strict=False) if a["drawn"] != b["drawn"]]
+    assert moving, f"the arm was never drawn moving while the path was shown ({len(samples)} samples)"
+    for sample in moving:
+        assert sample["age"] is not None and sample["age"] >= DELAY - 0.1, sample["age"]
+        assert re.fullmatch(r"arm as reported \d+\.\d s ago", sample["said"] or ""), sample["said"]
+        for joint, drawn in sample["drawn"].items():
+            reported = [r[joint] for r in sample["reports"] if joint in r]
+            assert reported and min(reported) - 1e-9 <= drawn <= max(reported) + 1e-9, (
+                f"{joint} drawn at {drawn}, beyond what the habitat reported ({min(reported)}..{max(reported)})"
+            )
+    print(
+        f"3D view over the {DELAY} s link: {len(moving)} samples of the arm moving, its age "
+        f"{min(s['age'] for s in moving):.2f}-{max(s['age'] for s in moving):.2f} s, the commanded path of "
+        f"{samples[0]['commanded']['trajectory']} shown"
+    )
+    if SHOTS is not None:
+        page.locator("#spatial-view").screenshot(path=str(SHOTS / "spatial-iva-over-the-link.png"))
 
 
 def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ros_env: dict[str, str]) -> None:
     from playwright.sync_api import expect
 
-    with flight(ros_env, delay=1.3, time_scale="1") as f:
+    with flight(ros_env, delay=DELAY, time_scale="1") as f:
         serve, url = f.serve_console(OPERATOR, PASSWORD)
-        with f.console_page(url, OPERATOR, PASSWORD) as page:
+        with f.console_page(url, OPERATOR, PASSWORD, webgl=True) as page:
             start_from_console(page, f, onboard=False)  # the PAX host opens its link to the habitat first
             expect(page.locator("#connection")).to_have_attribute("data-state", "open", timeout=LINK_MS)
             expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected", timeout=LINK_MS)
+            _a_motion_seen_across_the_link(page)
             confirm = page.locator('#procedure li.instruction[data-number="2.6"]')
             expect_current(confirm, timeout=240_000)
             confirm.locator("button.done").click()

@@ -1,7 +1,8 @@
 """What the 3D view's names hide, measured in the page: for the fixed-data view and the console alike.
 
-An object's footprint is the set of canvas pixels that change when it is drawn or not (the view
-drawn twice, read back in the same task); a footprint pixel is covered when a shown name or one
+An object's footprint is the set of canvas pixels that change when it is drawn alone or not at
+all (the view drawn twice, everything else hidden, read back in the same task): its silhouette,
+whatever the arm or a cabinet hides of it. A footprint pixel is covered when a shown name or one
 of the view's controls lies over it. Names must not cover each other or the controls either.
 """
 
@@ -26,10 +27,21 @@ _MEASURE = """(name) => {
     g.drawImage(canvas, 0, 0);
     return g.getImageData(0, 0, copy.width, copy.height).data;
   };
+  // the object's silhouette, drawn alone: names are judged on what they cover, not on what the
+  // arm or the cabinet hides of it
+  const others = [];
+  view.world.traverse((o) => {
+    if ((o.isMesh || o.isLine) && o.visible && !o.parent?.userData?.isLabel) {
+      let inside = false;
+      for (let a = o; a; a = a.parent) if (a === entry.object) inside = true;
+      if (!inside) { others.push(o); o.visible = false; }
+    }
+  });
   const drawn = read();
   entry.object.visible = false;
   const without = read();
   entry.object.visible = true;
+  for (const o of others) o.visible = true;
   view.invalidate();
   const box = (e) => {
     const r = e.getBoundingClientRect();

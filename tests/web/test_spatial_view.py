@@ -386,6 +386,38 @@ def test_plan_ghost_plays_scrubs_and_steps(open_view: Callable[..., Page], iva: 
     assert page.locator(".ct-spatial-plan").is_hidden()
 
 
+def test_a_running_plan_is_drawn_as_the_path_ahead_and_its_end_reached_only_when_reported(
+    open_view: Callable[..., Page], iva: Habitat
+) -> None:
+    running = RunningTemplate.add(iva, "cdra_filter", "ur10", object_name="cdra_filter", frame="cabinet/slot")
+    page = open_view(iva.document())
+    apply(page, running.update("grasp_and_pull"))
+    plan = running.plan("grasp_and_pull", iva_start(iva))["plan"]
+    names, points = plan["joint_names"], plan["points"]
+    apply(page, {"kind": "plan", "plan": {**plan, "commanded": True}})  # the habitat executes it
+    state = inspect(page)
+    assert state["ghost"] == {"visible": False}, "a running plan is no ghost to play"
+    commanded = state["commanded"]
+    assert commanded["visible"] and not commanded["reached"]
+    assert commanded["end"] == pytest.approx(list(matrix(plan["end_pose"])[:3, 3]), abs=MM)
+
+    def reported(point: dict[str, Any], stamp: float) -> dict[str, Any]:
+        return {"kind": "joints", "stamp": stamp, "positions": dict(zip(names, point["positions"], strict=True))}
+
+    apply(page, reported(points[len(points) // 2], 1.0))
+    assert not inspect(page)["commanded"]["reached"], "half-way reported: the end is not reached"
+    apply(page, reported(points[-1], 2.0))
+    assert inspect(page)["commanded"]["reached"], "the arm reported at the end"
+    apply(page, {"kind": "plan", "plan": None})  # executed
+    assert inspect(page)["commanded"] == {"visible": False}
+
+    refused = page.evaluate(
+        "(u) => window.caretakerSpatial.apply(u)", {"kind": "plan", "plan": {**plan, "commanded": "yes"}}
+    )
+    assert refused is False
+    assert "update.plan.commanded: expected true or false" in page.evaluate("window.viewErrors")[-1]
+
+
 # ---------------------------------------------------------------------------- registration
 
 

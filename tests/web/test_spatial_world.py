@@ -94,13 +94,16 @@ def test_world_document_refuses_bad_input_with_its_place() -> None:
         world_document(world(), "not a urdf")
 
 
-def test_the_ghost_is_shown_only_while_planned_with_its_end_in_the_world_frame() -> None:
+def test_the_plan_is_shown_while_planned_and_as_commanded_while_executing_with_its_end_in_the_world_frame() -> None:
     update = plan_from_get_plan(plan(), instance="T:0", frames={"robot_base": BASE})
     ghost = update["plan"]
     assert [p["time_from_start"] for p in ghost["points"]] == [0.0, 1.5]
     assert ghost["waypoints"] == [{"name": "0.0:T:0", "point": 1, "end_effector_pose": "closed"}]
     assert ghost["end_pose"]["xyz"] == pytest.approx([1.0, 2.5, 0.5])  # 0.5 m along the base's x, turned 90 deg
-    for state in ("EXECUTING", "EXECUTED", "HALTED", "FAILED", "INVALIDATED"):
+    assert ghost["commanded"] is False
+    running = plan_from_get_plan(plan("EXECUTING"), instance="T:0", frames={"robot_base": BASE})["plan"]
+    assert running["commanded"] is True and running["points"] == ghost["points"]
+    for state in ("EXECUTED", "HALTED", "FAILED", "INVALIDATED"):
         assert plan_from_get_plan(plan(state), instance="T:0", frames={}) == {"kind": "plan", "plan": None}
 
 

@@ -27,6 +27,8 @@ const spatialPanel = (() => {
       canAct: mayAct,
       onPoseCommand: (command) => send(command),
       onError: (message) => status(message, "error"),
+      // the arm's age on the ground server's clock, as the countdowns use it
+      clock: () => Date.now() + view.clockOffset,
     });
     return state.view;
   }

@@ -120,6 +120,9 @@ export function checkPlan(plan, where) {
     if (!Number.isInteger(k) || k < 0 || k >= points.length) fail(`${where}.waypoints[${i}].point`, `expected a point index 0..${points.length - 1}, got ${k}`);
   });
   if (plan.end_pose !== null && plan.end_pose !== undefined) checkPose(plan.end_pose, `${where}.end_pose`);
+  if (plan.commanded !== undefined && typeof plan.commanded !== 'boolean') {
+    fail(`${where}.commanded`, `expected true or false, got ${JSON.stringify(plan.commanded)}`);
+  }
 }
 
 export function checkScene(doc) {

@@ -4,6 +4,7 @@
 // onPoseCommand hands it through PAX as the signed-in user.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { CommandedPath } from './commanded_path.js';
 import { checkScene, checkUpdate, ContractError } from './contract.js';
 import { JointInterpolation } from './joint_interpolation.js';
 import { label, LabelLayout } from './labels.js';
@@ -29,6 +30,12 @@ const FRAME_SLOW_MS = 1000 / 25;
 const FRAME_FAST_MS = 1000 / 45;
 const SCALES = [1, 0.85, 0.7, 0.6, 0.5, 0.4, 0.35];
 const COST_WINDOW = 8;
+// The arm's age is said four times a second: fresh enough to read, no layout work per frame.
+const AGE_EVERY_MS = 250;
+// A stamp up to this far ahead of the page's clock is clock error, not a habitat running ahead.
+const CLOCK_SLACK_S = 0.5;
+// Joint states kept as reported, for inspect(): about two seconds at the feed's 10 per second.
+const REPORTS_KEPT = 20;
 
 export class SpatialView {
   /**
@@ -41,9 +48,11 @@ export class SpatialView {
    *   renderOnDemand: draw only when something changed (default); false draws every animation frame
    *   adaptiveResolution: draw at a lower resolution while things move when frames are slow (default)
    *   interpolateJoints: draw the arm moving between joint states at the display's rate (default)
+   *   clock: now in ms on the habitat's timeline as this page best knows it (default Date.now;
+   *     the console corrects it by its server's clock), for the age of the arm drawn
    */
   constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000,
-    renderOnDemand = true, adaptiveResolution = true, interpolateJoints = true } = {}) {
+    renderOnDemand = true, adaptiveResolution = true, interpolateJoints = true, clock = () => Date.now() } = {}) {
     injectStyle();
     this.container = container;
     container.classList.add('ct-spatial');
@@ -95,6 +104,14 @@ export class SpatialView {
     this.cameraImg.alt = 'robot camera';
     this.cameraImg.hidden = true;
     container.appendChild(this.cameraImg);
+    // How old the arm drawn is: on a long link it is where it was a light time ago, or more.
+    this.ageEl = document.createElement('div');
+    this.ageEl.className = 'ct-spatial-age';
+    this.ageEl.hidden = true;
+    container.appendChild(this.ageEl);
+    this._clock = clock;
+    this._ageShownAt = -Infinity;
+    this._reports = []; // the last REPORTS_KEPT joint states as reported, for inspect()
 
     this._frames = 0;
     this._fpsWindow = [];
@@ -160,6 +177,8 @@ export class SpatialView {
     this.world.add(this.layer.group);
     this.player = new PlanPlayer(doc.robot, { onError: this.onError, onChange: () => this._changed() });
     this.world.add(this.player.object);
+    this.commanded = new CommandedPath();
+    this.world.add(this.commanded.object);
     this.registration = new Registration({
       scene: this.world,
       camera: this.camera,
@@ -176,7 +195,7 @@ export class SpatialView {
     this.registration.setCanAct(this._canAct);
     if (!this.toolbar) this.toolbar = new Toolbar(this.container, this);
     this.layer.update(doc.templates);
-    this.player.setPlan(doc.plan, this.joints.positions);
+    this._showPlan(doc.plan);
     this._camera(doc.camera?.url ?? null);
     this._status('');
     this.viewpoint = doc.viewpoint || null;
@@ -204,6 +223,14 @@ export class SpatialView {
         Object.assign(this.joints.positions, update.positions);
         this.joints.stamp = update.stamp ?? this.joints.stamp;
         this.jointUpdates = (this.jointUpdates || 0) + 1;
+        this._reports.push({ ...this.joints.positions });
+        if (this._reports.length > REPORTS_KEPT) this._reports.shift();
+        this._ageShownAt = -Infinity; // say the new age at the next frame
+        if (this.commanded.plan && !this.commanded.reached) {
+          // the ghost is hidden while a plan runs: it serves to place the tool as reported
+          this.player.ghost.setJoints(this.joints.positions);
+          if (this.commanded.reported(this.player.ghost.toolPose().xyz)) this._changed();
+        }
         if (!moved) return true;
         if (now - this._armMovedAt > SETTLE_MS) this._armMovingSince = now;
         this._armMovedAt = now;
@@ -227,7 +254,7 @@ export class SpatialView {
         this._unhide();
         break;
       case 'plan':
-        this.player.setPlan(update.plan, this.joints.positions);
+        this._showPlan(update.plan);
         break;
       case 'camera':
         this._camera(update.url);
@@ -284,6 +311,17 @@ export class SpatialView {
     this.namesVisible = !!visible;
     this.container.classList.toggle('ct-spatial-names-off', !this.namesVisible);
     this._changed();
+  }
+
+  /** A plan before it runs is the ghost to play; while it runs (``commanded``) the path ahead of the arm. */
+  _showPlan(plan) {
+    if (plan && plan.commanded) {
+      this.commanded.set(plan, this.player.ghost, this.joints.positions);
+      this.player.setPlan(null, this.joints.positions);
+    } else {
+      this.commanded.clear();
+      this.player.setPlan(plan, this.joints.positions);
+    }
   }
 
   /** Fill the window with the view (``true``), or put it back in its panel; Esc also puts it back. */
@@ -370,6 +408,10 @@ export class SpatialView {
       links: this.robot.linkPoses(),
       joints: { ...this.robot.positions },
       joint_updates: this.jointUpdates || 0,
+      joints_drawn: { ...this.robot.positions },
+      joints_reported_recently: this._reports.map((r) => ({ ...r })),
+      arm_age_s: this._age(),
+      commanded: this.commanded.describe(),
       arm_moving_ms: now - this._armMovedAt <= SETTLE_MS ? now - this._armMovingSince : 0,
       tool_pose: this.robot.toolPose(),
       objects,
@@ -456,12 +498,29 @@ export class SpatialView {
   _controlBoxes() {
     const origin = this.container.getBoundingClientRect();
     const boxes = [];
-    for (const el of [this.toolbar?.bar, this.statusEl, this.cameraImg]) {
+    for (const el of [this.toolbar?.bar, this.statusEl, this.cameraImg, this.ageEl]) {
       if (!el || el.hidden || !el.offsetParent) continue; // not shown (an empty status is display: none)
       const r = el.getBoundingClientRect();
       if (r.width && r.height) boxes.push({ x: r.left - origin.left, y: r.top - origin.top, w: r.width, h: r.height });
     }
     return boxes;
+  }
+
+  /** Seconds since the arm drawn was where it is (its joint state's stamp), or null before one came. */
+  _age() {
+    if (!this.joints || !this.joints.stamp) return null;
+    return this._clock() / 1000 - this.joints.stamp;
+  }
+
+  _showAge(now) {
+    this._ageShownAt = now;
+    const age = this._age();
+    this.ageEl.hidden = age === null;
+    if (age === null) return;
+    // A stamp ahead of this clock: the habitat's clock runs ahead (a simulation faster than real time).
+    const text = age >= -CLOCK_SLACK_S ? `arm as reported ${Math.max(0, age).toFixed(1)} s ago` : "arm as last reported (the habitat's clock is ahead of this one)";
+    if (this.ageEl.textContent !== text) this.ageEl.textContent = text;
+    this.ageEl.dataset.ageS = age.toFixed(2);
   }
 
   _fitCanvas() {
@@ -501,6 +560,7 @@ export class SpatialView {
     const joints = this._jointMotion?.at(now);
     if (joints) { this.robot.setJoints(joints); this._moving(); }
     if (this.registration) this.registration.expire(now);
+    if (now - this._ageShownAt >= AGE_EVERY_MS) this._showAge(now);
     this._adaptResolution(now);
     // On demand: a frame only when something changed (a mesh that finished loading says so too).
     // An idle view then costs nothing: drawn in software, each frame of it was tens of ms of CPU.

@@ -20,7 +20,9 @@ const CSS = `
 .ct-spatial-plan input[type=range] { flex: 1; min-width: 120px; }
 .ct-spatial-camera { position: absolute; top: 6px; right: 6px; max-width: 30%; border: 1px solid #555; }
 .ct-spatial-camera[hidden] { display: none; }
-.ct-spatial-status { position: absolute; top: 6px; left: 6px; color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; }
+.ct-spatial-age { position: absolute; top: 6px; left: 6px; color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; }
+.ct-spatial-age[hidden] { display: none; }
+.ct-spatial-status { position: absolute; top: 30px; left: 6px; color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; }
 .ct-spatial-status:empty { display: none; }
 .ct-spatial-error { color: #ff8a80; }
 `;
