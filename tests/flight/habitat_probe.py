@@ -6,8 +6,9 @@ Runs in the habitat's network namespace next to ``caretaker up`` and prints one 
   ``EXECUTED <template> <trajectory> <status>`` when it stops;
 - ``GOAL <id> <status>`` when a trajectory goal of the arm's controller ends (4 succeeded,
   5 canceled, 6 aborted), once per goal: every arm motion the simulation carried out;
-- ``MOVING <time>`` and ``STILL <time>`` when the arm's joint states start to change and stop
-  changing (``time``: this host's clock when the first such sample arrived, Unix seconds).
+- ``MOVING <time>`` and ``STILL <time>`` when the arm's joint states start to change (by more than
+  :data:`MOVED_RAD` from where it came to rest) and stop changing (``time``: this host's clock when
+  the first such sample arrived, Unix seconds).
 
 Prints ``READY probe`` once both subscriptions exist.
 """
@@ -25,6 +26,10 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 TERMINAL = {4, 5, 6}
+#: How far a joint must get from where the arm came to rest for it to be moving again: a goal that
+#: starts moves it by hundredths of a radian within a round trip; the physics' last settling
+#: after a halt changes the published values by far less than this, and is no motion.
+MOVED_RAD = 1e-4
 
 
 class HabitatProbe(Node):
@@ -33,6 +38,7 @@ class HabitatProbe(Node):
         self.executing: tuple[str, str] | None = None
         self.ended: set[str] = set()
         self.positions: tuple[float, ...] | None = None
+        self.rest: tuple[float, ...] = ()  # where the arm last came to rest
         self.moving = False
         self.create_subscription(JointState, joints_topic, self.on_joints, 100)
         self.create_subscription(ServerStatus, status_topic, self.on_status, 10)
@@ -51,9 +57,15 @@ class HabitatProbe(Node):
 
     def on_joints(self, message: JointState) -> None:
         positions = tuple(message.position)
-        if self.positions is not None and (positions != self.positions) != self.moving:
-            self.moving = not self.moving
-            print(f"{'MOVING' if self.moving else 'STILL'} {time.time():.6f}", flush=True)
+        if self.positions is None:
+            self.rest = positions
+        elif self.moving and positions == self.positions:
+            self.moving = False
+            self.rest = positions
+            print(f"STILL {time.time():.6f}", flush=True)
+        elif not self.moving and max(abs(a - b) for a, b in zip(positions, self.rest, strict=False)) > MOVED_RAD:
+            self.moving = True
+            print(f"MOVING {time.time():.6f}", flush=True)
         self.positions = positions
 
     def on_goals(self, message: GoalStatusArray) -> None:

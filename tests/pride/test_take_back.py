@@ -315,6 +315,8 @@ def test_a_stop_waiting_for_the_command_in_flight_ends_when_the_journal_fails_me
     held(executive, Hold.CONFIRMATION, "2.1")
     executive.confirm("lena")
     assert executive.wait_for(lambda s: s.executing and s.current == "2.1", TIMEOUT)
+    # the vent reached the system (so its command_sent is in the journal) and waits there
+    assert gateway.blocking.wait(TIMEOUT), "the vent never reached the lab"
     journal.fail_with = RuntimeError("the database is gone")  # the vent's halted answer cannot be recorded
     with pytest.raises(JournalFailure, match="the database is gone"):
         executive.stop("lena", "end of shift")
