@@ -353,7 +353,8 @@ def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
     assert status == "completed", "\n".join(
         f"{e.instruction or '-'} {e.kind.value} {e.data}" for e in events[-12:]
     )  # the last events: the hold that stopped an unattended run, or the failure
-    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
+    failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
+    assert not failed, "\n".join(f"{e.instruction} failed: {e.data}" for e in failed)  # what went wrong, not just that
     sent = commands(events)
     assert len(sent) == IVA_COMMANDS, [s.data["command"] for s, _ in sent]
     unanswered = [s.instruction for s, answer in sent if answer is None]
