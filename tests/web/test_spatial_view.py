@@ -9,6 +9,7 @@ poses come from pybullet and from ``at_ros``, never from the view. Screenshots g
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -219,6 +220,24 @@ def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callab
         f"without interpolation frames showed {sorted(shown - {sent[-1], *back})}, which no state said"
     )
     assert watched["frames"][-1][0] == back[-1]
+
+
+def test_the_arm_drawn_says_its_age_from_the_moment_a_state_comes(open_view: Callable[..., Page], iva: Habitat) -> None:
+    """A joint state's age is said as it comes, not at the next frame (under load a frame comes late,
+    and an arm shown without its age reads as the arm now); the clock running on, the age grows."""
+    page = open_view(iva.document(), clock=True)
+    page.clock.pause_at(page.evaluate("Date.now()") + 1)
+    said = page.evaluate(
+        """() => {
+      const view = window.caretakerSpatial;
+      view.apply({kind: 'joints', stamp: Date.now() / 1000 - 1.3, positions: {wrist_3_joint: 0.2}});
+      return view.ageEl.hidden ? null : view.ageEl.textContent;  // no frame ran in between
+    }"""
+    )
+    assert said == "arm as reported 1.3 s ago"
+    page.clock.run_for(2000)
+    later = re.fullmatch(r"arm as reported (\d+\.\d) s ago", page.locator(".ct-spatial-age").text_content() or "")
+    assert later and 3.3 - 0.25 <= float(later[1]) <= 3.3, later  # said four times a second
 
 
 def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: Habitat) -> None:

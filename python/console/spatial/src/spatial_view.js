@@ -156,7 +156,8 @@ export class SpatialView {
     this.world.add(robot.object);
     robot.setJoints(doc.joints.positions);
     this._jointMotion = new JointInterpolation((name) => robot.isContinuous(name));
-    this.joints = { stamp: doc.joints.stamp ?? 0, positions: { ...doc.joints.positions } };
+    this.joints = { stamp: 0, positions: {} };
+    this._reported(doc.joints.positions, doc.joints.stamp);
     const objects = new THREE.Group();
     objects.name = 'objects';
     for (const o of doc.objects) {
@@ -220,12 +221,8 @@ export class SpatialView {
         const now = performance.now();
         const moved = Object.entries(update.positions).some(([name, value]) => this.joints.positions[name] !== value);
         const interval = this._jointMotion.arrived(now);
-        Object.assign(this.joints.positions, update.positions);
-        this.joints.stamp = update.stamp ?? this.joints.stamp;
+        this._reported(update.positions, update.stamp);
         this.jointUpdates = (this.jointUpdates || 0) + 1;
-        this._reports.push({ ...this.joints.positions });
-        if (this._reports.length > REPORTS_KEPT) this._reports.shift();
-        this._ageShownAt = -Infinity; // say the new age at the next frame
         if (this.commanded.plan && !this.commanded.reached) {
           // the ghost is hidden while a plan runs: it serves to place the tool as reported
           this.player.ghost.setJoints(this.joints.positions);
@@ -504,6 +501,16 @@ export class SpatialView {
       if (r.width && r.height) boxes.push({ x: r.left - origin.left, y: r.top - origin.top, w: r.width, h: r.height });
     }
     return boxes;
+  }
+
+  /** A joint state the habitat reported (in the scene document or the feed): kept, and its age said
+   * at once, so the page never shows an arm without saying how old it is (the frame may come late). */
+  _reported(positions, stamp) {
+    Object.assign(this.joints.positions, positions);
+    this.joints.stamp = stamp ?? this.joints.stamp;
+    this._reports.push({ ...this.joints.positions });
+    if (this._reports.length > REPORTS_KEPT) this._reports.shift();
+    this._showAge(performance.now());
   }
 
   /** Seconds since the arm drawn was where it is (its joint state's stamp), or null before one came. */
