@@ -113,6 +113,7 @@ class SimNode(Node):
         # a gripper motion or a trajectory that holds the main executor's threads.
         self.halt_node = rclpy.create_node("caretaker_sim_halt", namespace=namespace)
         self.halt_srv = self.halt_node.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS)
+        self._halts_at_arrival: dict[int, int] = {}  # id(goal request) -> sim.halts when it came
         self.trajectory_server = ActionServer(
             self,
             FollowJointTrajectory,
@@ -297,6 +298,11 @@ class SimNode(Node):
         # Accept everything: refusals are reported through the result's error_string. Logged, with
         # the start below, so a goal the executor starts late shows in the log with its delay.
         LOG.info("trajectory goal accepted: %d points", len(goal_request.trajectory.points))
+        # The halts so far, noted before the client hears the goal accepted: a halt its client
+        # sends after that answer (at_ros.halt) then keeps the goal from starting, even if this
+        # process's halt thread serves it before the goal's execution begins.
+        with self.sim.world_lock:
+            self._halts_at_arrival[id(goal_request)] = self.sim.halts
         return GoalResponse.ACCEPT
 
     def cancel_callback(self, goal_handle: ServerGoalHandle) -> CancelResponse:
@@ -312,7 +318,7 @@ class SimNode(Node):
             for pt in goal.trajectory.points
         ]
         with sim.world_lock:
-            halts = sim.halts
+            halts = self._halts_at_arrival.pop(id(goal), sim.halts)  # the goal is the request accepted
         try:
             if not math.isfinite(goal.goal_tolerance) or goal.goal_tolerance < 0:
                 raise TrajectoryError(

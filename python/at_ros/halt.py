@@ -10,9 +10,14 @@ cancel is kept as the stop for a robot without a halt service.
 
 The execution in flight learns of a halt through a count: every command notes the count when
 it starts (:meth:`HaltSwitch.mark`) and checks it before each motion it commands, so a halt
-while it plans, between waypoints or during a gripper motion ends it too, and a goal sent just
-as the halt arrived is cancelled as soon as it is accepted. The halt itself never waits for
-planning or for the execution to wind down: it answers once the robot confirms it holds still.
+while it plans, between waypoints or during a gripper motion ends it too. A trajectory goal is
+sent under the switch's lock (:meth:`HaltSwitch.send_goal`), so a halt either comes first (the
+goal is not sent) or after; after, it waits for the controller to answer the goal before it
+halts the robot, because the controller notes its halts when a goal arrives: a goal that
+arrived before the robot's halt never starts after it, whatever order the two requests' threads
+take there. (Halting the robot at once and cancelling the goal once accepted let the arm move
+for 30 ms under load.) The halt itself never waits for planning or for the execution to wind
+down: it answers once the robot confirms it holds still.
 """
 
 from __future__ import annotations
@@ -26,12 +31,15 @@ from caretaker_sim_msgs.srv import Halt as RobotHalt
 
 from at_ros.server_core import CommandRefused, ServerCore
 
-__all__ = ["HALT_TIMEOUT", "HaltSwitch", "Halted"]
+__all__ = ["GOAL_ANSWER_WAIT_S", "HALT_TIMEOUT", "HaltSwitch", "Halted"]
 
 LOG = logging.getLogger(__name__)
 
 #: s to wait for the robot to confirm a halt; it answers within a physics step when it can.
 HALT_TIMEOUT = 2.0
+#: s a halt waits for the controller to answer a goal sent just before it (a local round trip);
+#: past it the robot is halted anyway and the goal cancelled once accepted.
+GOAL_ANSWER_WAIT_S = 1.0
 
 
 class Halted(CommandRefused):
@@ -56,6 +64,7 @@ class HaltSwitch:
         self._count = 0
         self._reason = ""
         self._goal: Any = None  # ClientGoalHandle of the trajectory goal in flight
+        self._sending: Any = None  # the future of a goal sent and not yet answered
 
     def mark(self) -> int:
         """The number of halts so far: a command notes it when it starts."""
@@ -73,17 +82,28 @@ class HaltSwitch:
         if reason is not None:
             raise Halted(reason, f"halted ({reason}) {what}")
 
-    def goal_started(self, handle: Any, mark: int) -> None:
-        """Note the goal in flight; one accepted just after a halt is cancelled now."""
+    def send_goal(self, client: Any, goal: Any, mark: int, what: str) -> Any:
+        """Send trajectory ``goal`` through action ``client`` unless a halt came after ``mark``
+        (:class:`Halted`, ``what`` naming the motion); the future of the goal's answer."""
         with self._lock:
+            if self._count != mark:
+                raise Halted(self._reason, f"halted ({self._reason}) {what}")
+            self._sending = client.send_goal_async(goal)
+            return self._sending
+
+    def goal_started(self, handle: Any, mark: int) -> None:
+        """Note the goal in flight; one accepted after a halt that did not wait for it is cancelled now."""
+        with self._lock:
+            self._sending = None
             self._goal = handle
             late = self._count != mark
         if late:
             handle.cancel_goal_async()
 
     def goal_ended(self) -> None:
+        """The goal sent is over (ended, refused, or never answered)."""
         with self._lock:
-            self._goal = None
+            self._goal = self._sending = None
 
     def halt(self, request: Halt.Request, response: Halt.Response) -> Any:
         """The halt service: stop everything now, then say what was stopped."""
@@ -93,6 +113,12 @@ class HaltSwitch:
             self._count += 1
             self._reason = reason
             goal = self._goal
+            sending = self._sending
+        if sending is not None:  # the robot's halt after the controller has this goal: it then never starts
+            answered = threading.Event()
+            sending.add_done_callback(lambda _: answered.set())
+            if answered.wait(GOAL_ANSWER_WAIT_S) and sending.exception() is None and sending.result().accepted:
+                goal = sending.result()
         with core.state_lock:
             executing = core.state.executing
             if core.inputs.joints_stamp is not None:

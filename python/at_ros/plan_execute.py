@@ -405,7 +405,7 @@ class PlanExecutor:
         robot = self.core.robot
         points = segment.arm_trajectory.points
         if len(points) >= 2:
-            self.halts.check(mark, f"before the motion to waypoint {segment.label}")
+            self.halts.check(mark, f"before the motion to waypoint {segment.label}")  # before waiting for the arm
             if not self.trajectory_client.wait_for_server(timeout_sec=5.0):  # type: ignore[no-untyped-call]
                 raise CommandRefused(f"the trajectory action {robot.trajectory_action} is not available")
             away = self.core.arm_away_from(
@@ -418,14 +418,16 @@ class PlanExecutor:
                 )
             goal = FollowJointTrajectory.Goal()
             goal.trajectory = segment.arm_trajectory
-            handle = wait_for_future(self.trajectory_client.send_goal_async(goal), 10.0, "the trajectory action")
-            if not handle.accepted:
-                raise CommandRefused(f"waypoint {segment.label}: the controller rejected the trajectory")
-            self.halts.goal_started(handle, mark)
-            last = points[-1].time_from_start
-            timeout = 30.0 + 3.0 * (last.sec + last.nanosec * 1e-9)
+            motion = f"before the motion to waypoint {segment.label}"
             try:
-                outcome = trajectory_result(handle, timeout)
+                handle = wait_for_future(
+                    self.halts.send_goal(self.trajectory_client, goal, mark, motion), 10.0, "the trajectory action"
+                )
+                if not handle.accepted:
+                    raise CommandRefused(f"waypoint {segment.label}: the controller rejected the trajectory")
+                self.halts.goal_started(handle, mark)
+                last = points[-1].time_from_start
+                outcome = trajectory_result(handle, 30.0 + 3.0 * (last.sec + last.nanosec * 1e-9))
             finally:
                 self.halts.goal_ended()
             if not reached(outcome):
