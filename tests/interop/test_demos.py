@@ -4,7 +4,9 @@ Each runs ``caretaker demo`` exactly as the README tells a newcomer (simulation 
 possible): separate processes for the simulation, planner, AT server, rosbridge and the
 procedure runner with its JVM. ``caretaker demo`` exits 0 only if the procedure completed AND
 its own checks of the world hold (the deployment's ``demo.checks``, measured by the simulation),
-so these tests also read what it verified: one line per check.
+so these tests also read what it verified: one line per check. The undisplaced runs are the
+shipped procedures' autonomous runs: their audit log must show every nominal step completed and
+the report every step reached.
 
 The EVA inspection also runs on displaced worlds (``--displace SEED``: each hull target moved by
 up to 4 cm and 8 degrees, told to nobody but the simulator): the procedure locates each target
@@ -14,6 +16,7 @@ where the seed put the target.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +25,8 @@ import pytest
 from at_ros.transforms import angle_between, from_xyz_quat, from_xyz_rpy
 from caretaker.processes import REPO
 from pride.audit_log import AuditLog
-from pride.events import EventKind
+from pride.events import Event, EventKind
+from pride.parser import load_procedure
 from sim.displacement import displaced_scene
 from sim.scene import load_scene
 from support.processes import caretaker
@@ -55,6 +59,45 @@ def _demo(scenario: str, tmp_path: Path, env: dict[str, str], *more: str) -> lis
     return output
 
 
+def _events(tmp_path: Path) -> list[Event]:
+    log = AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")
+    try:
+        ((run_id, _, _),) = log.runs()
+        return log.events(run_id)
+    finally:
+        log.close()
+
+
+def _reports(output: list[str]) -> list[Path]:
+    return [Path(line.split("report: ", 1)[1]) for line in output if line.strip().startswith("report: ")]
+
+
+def _every_step_done_and_reported(procedure_file: str, tmp_path: Path, output: list[str]) -> str:
+    """The run's audit log has every nominal step's instructions completed, every plan check valid
+    and every command but a plan succeeded; the report shows each nominal step reached. Its markdown."""
+    events = _events(tmp_path)
+    assert events[-1].kind is EventKind.RUN_COMPLETED
+    nominal = [s for s in load_procedure(REPO / "procedures" / procedure_file).steps if not s.contingency]
+    completed = {e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED}
+    for step in nominal:
+        assert {i.number for i in step.instructions} <= completed, f"step {step.number} not completed"
+    plan_checks = [e for e in events if e.kind is EventKind.TELEMETRY_SEEN and e.data["item"] == "plan_valid"]
+    assert plan_checks and all(e.data["value"] is True for e in plan_checks if e.data["ok"])
+    failed = [
+        e.data
+        for e in events
+        if e.kind is EventKind.COMMAND_RESULT and e.data["command"] != "plan_trajectory" and not e.data["success"]
+    ]
+    assert not failed, failed  # a failed plan may only have branched
+    reports = _reports(output)
+    assert any(r.suffix == ".html" and r.is_file() for r in reports), output[-10:]
+    markdown = next(r for r in reports if r.suffix == ".md").read_text()
+    for step in nominal:
+        row = next(line for line in markdown.splitlines() if line.startswith(f"| {step.number} | {step.title} |"))
+        assert "not reached" not in row
+    return markdown
+
+
 def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) -> None:
     output = _demo("iva", tmp_path, ros_env)
     verified = [line.strip() for line in output if "verified:" in line]
@@ -65,16 +108,18 @@ def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) ->
         "verified: /cdra/installed_filter_id is 'CDRA-F-0012'",
         "verified: /cdra/filter_locked is True",
     ]
-    reports = [
-        line.split("report: ", 1)[1] for line in output if "report: " in line and line.strip().startswith("report:")
-    ]
-    assert any(r.endswith(".html") and Path(r).is_file() for r in reports), output[-10:]
+    _every_step_done_and_reported("iva_cdra_filter_replacement.xml", tmp_path, output)
 
 
 def test_eva_inspection(tmp_path: Path, ros_env: dict[str, str]) -> None:
     output = _demo("eva", tmp_path, ros_env)
     verified = [line.strip() for line in output if "verified:" in line]
     assert verified == ["verified: images of hull_a, hull_b, hull_c, hull_d captured (4 non-empty files)"], output[-30:]
+    markdown = _every_step_done_and_reported("eva_inspection.xml", tmp_path, output)
+    captured = re.findall(r"!\[[^\]]*(hull_[a-d])[^\]]*\]\(([^)]+)\)", markdown)
+    assert sorted(target for target, _ in captured) == ["hull_a", "hull_b", "hull_c", "hull_d"]
+    for _, image in captured:  # copied next to the report, real PNGs
+        assert (tmp_path / "reports" / image).read_bytes().startswith(b"\x89PNG")
 
 
 @pytest.mark.parametrize("seed", [3, 17, 42])
@@ -87,12 +132,7 @@ def test_eva_inspection_of_a_displaced_hull_registers_each_target_where_the_came
 
     nominal = load_scene(REPO / "sim" / "scenes" / "eva.yaml")
     truth = {t.name: t.pose for t in displaced_scene(nominal, seed).targets}
-    log = AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")
-    try:
-        ((run_id, _, _),) = log.runs()
-        events = log.events(run_id)
-    finally:
-        log.close()
+    events = _events(tmp_path)
     located = {
         e.data["args"]["object"]: e.data["values"]
         for e in events
