@@ -26,6 +26,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from console.accounts import Account
 from console.actions import ActionRefused
+from console.camera_feed import MOTION_COMMAND
 from console.live_run import LiveRun
 from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
@@ -68,11 +69,16 @@ class SpatialFeeds:
                 feed.start()
                 loop = asyncio.get_running_loop()
 
-                def on_event(event: Any) -> None:  # the executive's thread: an AT command ended
-                    if (
-                        event.kind.value == "command_result"
-                        and event.data.get("command") in AT_COMMANDS_THAT_MOVE_TEMPLATES
-                    ):
+                def on_event(event: Any) -> None:  # the executive's thread: an AT command sent or ended
+                    command = event.data.get("command")
+                    motion = (event.data.get("system"), command) == MOTION_COMMAND
+                    if event.kind.value == "command_sent" and motion:
+                        args = event.data.get("args") or {}
+                        sent = (str(args.get("affordance_template", "")), str(args.get("trajectory", "")))
+                        loop.call_soon_threadsafe(feed.command_sent, *sent)
+                    elif event.kind.value == "command_result" and motion:
+                        loop.call_soon_threadsafe(feed.command_ended)
+                    elif event.kind.value == "command_result" and command in AT_COMMANDS_THAT_MOVE_TEMPLATES:
                         loop.call_soon_threadsafe(feed.refresh)
 
                 live.executive.add_listener(on_event)

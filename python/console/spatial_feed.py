@@ -30,6 +30,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from console.camera_feed import MOTION_COMMAND
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
 from console.spatial_link import ViewLink
 from console.spatial_updates import joints_update, objects_update, templates_update
@@ -37,7 +38,7 @@ from console.spatial_values import SpatialDataError
 from console.spatial_world import plan_from_get_plan, world_document
 from rosbridge_wire.client import LinkError, RosbridgeClient, Subscription
 
-__all__ = ["PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher", "AT_COMMANDS_THAT_MOVE_TEMPLATES"]
+__all__ = ["AT_COMMANDS_THAT_MOVE_TEMPLATES", "PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher"]
 
 log = logging.getLogger(__name__)
 
@@ -47,14 +48,16 @@ FRAMES_THROTTLE_MS = 200
 STATUS_THROTTLE_MS = 500
 CAMERA_THROTTLE_MS = 2000
 
+#: The AT SysRep's commands (sysrep/affordance_templates.yaml) after which the templates or the
+#: plan have changed: the feed asks again when one of the run's ends.
 AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset(
     {
-        "add_template",
-        "delete_template",
+        "add_affordance_template",
+        "delete_affordance_template",
         "set_display_object_pose",
         "set_waypoint_pose",
         "plan_trajectory",
-        "execute_trajectory",
+        MOTION_COMMAND[1],
     }
 )
 
@@ -106,6 +109,7 @@ class SpatialFeed:
         self.status_key: tuple[Any, ...] | None = None
         self.plan_key: tuple[Any, ...] | None = None
         self.active_template = ""
+        self.commanded: tuple[str, str] | None = None  # (instance, trajectory) the run sent a motion for
         self.last_error: str | None = None
         self._refreshing: asyncio.Task[None] | None = None
         self._refresh_again = False
@@ -306,6 +310,26 @@ class SpatialFeed:
         else:
             answer = await self._ask("get_plan", {"name": self.active_template, "trajectory_name": ""})
             self.plan = plan_from_get_plan(answer, instance=self.active_template, frames=self.frame_poses)
+        self._push_plan()
+
+    # ---- the run's commands -----------------------------------------------------------------
+    def command_sent(self, instance: str, trajectory: str) -> None:
+        """The run sent the motion command (``execute_plan``) for ``instance``'s ``trajectory``: its
+        plan is drawn as the path the arm has been told to follow from now, not a light time later
+        when the habitat reports it executing (on a 1.3 s link a short motion would otherwise end
+        before its path came)."""
+        self.commanded = (instance, trajectory)
+        self._push_plan()
+
+    def command_ended(self) -> None:
+        """The run's motion command has its answer: the plan is what the habitat says again."""
+        self.commanded = None
+        self.refresh()
+
+    def _push_plan(self) -> None:
+        plan = self.plan["plan"]
+        if plan is not None and not plan["commanded"] and (plan["instance"], plan["trajectory"]) == self.commanded:
+            self.plan = {"kind": "plan", "plan": {**plan, "commanded": True}}
         self._push(self.plan)
 
 

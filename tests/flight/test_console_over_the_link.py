@@ -1,8 +1,7 @@
 """The operator's console on the ground host, flying the IVA procedure across the link, in a browser.
 
 Its 3D view shows the motions before the pull-out honestly across the light time: the arm's age,
-and the arm never drawn beyond what the habitat reported (the path it was told to follow when a
-motion outlasts the round trip that brings it).
+the arm never drawn beyond what the habitat reported, and the path it was told to follow.
 
 ``caretaker serve`` runs in the ground namespace with the ground binding (wss://, secret, 1.3 s
 link); Chromium runs in the ground namespace too (Playwright drives it through a pipe), as an
@@ -49,9 +48,10 @@ _RECORD = """() => {
 
 
 def _what_the_view_drew_across_the_link(page: Page) -> None:
-    """While the arm moved, the view said how old the arm drawn was (at least the light time) and
-    drew it only between states the habitat reported (per joint, within the last reports' range:
-    never ahead of them); where a motion outlasted a round trip, the path it was told to follow."""
+    """While the arm moved, the view said how old the arm drawn was (at least the light time), drew
+    it only between states the habitat reported (per joint, within the last reports' range: never
+    ahead of them), and drew the path it had been told to follow (from the moment the ground sent
+    the motion)."""
     samples: list[dict[str, Any]] = page.evaluate("window.viewSamples")
     moving = [b for a, b in zip(samples, samples[1:], strict=False) if a["drawn"] != b["drawn"]]
     assert moving, f"the arm was never drawn moving ({len(samples)} samples of the view)"
@@ -64,10 +64,12 @@ def _what_the_view_drew_across_the_link(page: Page) -> None:
                 f"{joint} drawn at {drawn}, beyond what the habitat reported ({min(reported)}..{max(reported)})"
             )
     commanded = {s["commanded"]["trajectory"] for s in moving if s["commanded"]["visible"]}
+    # the ground sent each motion: its path is drawn from then, a light time before the arm moves
+    assert commanded, "no motion was drawn with the path the arm had been told to follow"
     print(
         f"3D view over the {DELAY} s link: {len(moving)} samples of the arm moving, its age "
         f"{min(s['age'] for s in moving):.2f}-{max(s['age'] for s in moving):.2f} s; the commanded path shown "
-        f"while moving: {', '.join(sorted(commanded)) or 'never (no motion outlasted a round trip)'}"
+        f"while moving: {', '.join(sorted(commanded))}"
     )
     if SHOTS is not None:
         page.locator("#spatial-view").screenshot(path=str(SHOTS / "spatial-iva-over-the-link.png"))

@@ -1,0 +1,75 @@
+"""A motion the run sent is drawn as commanded from the moment it is sent, not a light time later.
+
+A unit test of console/spatial_feed.py alone: its rosbridge client is replaced by one that
+answers ``get_plan`` as the AT server does; the real link is exercised by
+tests/flight/test_console_over_the_link.py (the ground run over the 1.3 s link).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from typing import Any
+
+from console.spatial_feed import SpatialFeed
+from console.spatial_link import ViewLink
+from rosbridge_wire.client import Endpoint
+
+
+def _get_plan(state: str, trajectory: str = "ready") -> dict[str, Any]:
+    return {
+        "success": True,
+        "state": state,
+        "trajectory_name": trajectory,
+        "end_pose_link": "tool0",
+        "trajectory": {
+            "joint_names": ["shoulder_pan_joint"],
+            "points": [
+                {"positions": [0.0], "time_from_start": {"sec": 0, "nanosec": 0}},
+                {"positions": [0.5], "time_from_start": {"sec": 2, "nanosec": 0}},
+            ],
+        },
+    }
+
+
+class PlanBridge:
+    """Answers get_plan with the state the test sets."""
+
+    def __init__(self) -> None:
+        self.answer = _get_plan("PLANNED")
+        self.asked = 0
+
+    async def call(self, service: str, request: dict[str, Any]) -> dict[str, Any]:
+        assert service == "/affordance_template_server/get_plan", service
+        self.asked += 1
+        return self.answer
+
+
+def test_the_plan_sent_is_commanded_until_its_answer_and_another_plan_is_not() -> None:
+    async def walk() -> None:
+        feed = SpatialFeed(ViewLink(Endpoint("ws://127.0.0.1:9"), "/"), camera_url="/camera")
+        bridge = PlanBridge()
+        feed.rosbridge = bridge  # type: ignore[assignment]
+        pushed: list[dict[str, Any]] = []
+        feed._push = pushed.append  # type: ignore[method-assign]
+        feed.active_template = "ready_pose:0"
+        await feed._ask_plan()
+        assert pushed[-1]["plan"]["commanded"] is False  # planned: the ghost
+
+        feed.command_sent("cdra_filter:0", "ready")  # another instance's motion: not this plan
+        assert pushed[-1]["plan"]["commanded"] is False
+        feed.command_sent("ready_pose:0", "ready")
+        assert pushed[-1]["plan"]["commanded"] is True and pushed[-1]["plan"]["trajectory"] == "ready"
+        await feed._ask_plan()  # the habitat still says PLANNED (its news is a light time old)
+        assert pushed[-1]["plan"]["commanded"] is True
+
+        bridge.answer = {"success": True, "state": "EXECUTED"}
+        asked = bridge.asked
+        feed.command_ended()
+        assert feed._refreshing is not None
+        await feed._refreshing
+        assert bridge.asked == asked + 1 and pushed[-1] == {"kind": "plan", "plan": None}
+        bridge.answer = _get_plan("PLANNED")
+        await feed._ask_plan()  # planned again after the motion: the ghost, not commanded
+        assert pushed[-1]["plan"]["commanded"] is False
+
+    asyncio.run(walk())
