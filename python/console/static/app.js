@@ -359,11 +359,26 @@ function closeSocket() {
   setConnection("idle", "not connected");
 }
 
+// ---- the server's clock -----------------------------------------------------------------------
+// Each update says the server's time when it left; it arrives later by however long it took, so
+// each sample puts the server's clock behind by that delay (under load 0.1-0.3 s: an arm's age
+// then read less than the light time). The least delayed sample of the last CLOCK_WINDOW_MS is
+// the best estimate: the largest offset.
+const CLOCK_WINDOW_MS = 30000;
+const clockSamples = [];  // [received at (this browser's ms), server minus browser (ms)]
+
+function noteServerTime(serverTime) {
+  const now = Date.now();
+  clockSamples.push([now, serverTime * 1000 - now]);
+  while (clockSamples.length > 1 && now - clockSamples[0][0] > CLOCK_WINDOW_MS) clockSamples.shift();
+  view.clockOffset = Math.max(...clockSamples.map(([, offset]) => offset));
+}
+
 // ---- applying updates ------------------------------------------------------------------------
 function applyUpdate(data) {
   const before = view.state ? view.state.status : null;
   view.state = data.state;
-  if (data.server_time) view.clockOffset = data.server_time * 1000 - Date.now();
+  if (data.server_time) noteServerTime(data.server_time);
   const seen = new Set(view.events.map((e) => e.seq));
   const fresh = (data.events || []).filter((e) => !seen.has(e.seq));
   view.events.push(...fresh);
