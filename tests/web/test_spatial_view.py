@@ -333,6 +333,59 @@ def test_names_leave_the_display_object_in_sight_and_lie_on_nothing(
     page.screenshot(path=str(screenshots / f"spatial_names_{width}.png"))
 
 
+#: The table's top, world frame (sim/scenes/iva.yaml: a 1.0 x 0.8 x 0.04 m box at z 0.73).
+TABLE_TOP = (np.array([-0.5, -0.4, 0.71]), np.array([0.5, 0.4, 0.75]))
+
+
+def _crosses(box: tuple[np.ndarray, np.ndarray], start: np.ndarray, end: np.ndarray) -> bool:
+    """Whether the segment start..end passes through the axis-aligned box (slab test)."""
+    d = end - start
+    low, high = 0.0, 1.0
+    for axis in range(3):
+        if abs(d[axis]) < 1e-12:
+            if not box[0][axis] <= start[axis] <= box[1][axis]:
+                return False
+            continue
+        t0, t1 = sorted(((box[0][axis] - start[axis]) / d[axis], (box[1][axis] - start[axis]) / d[axis]))
+        low, high = max(low, t0), min(high, t1)
+    return low <= high
+
+
+def test_what_hides_the_gripper_fades_and_follows_it_as_the_arm_moves(
+    open_view: Callable[..., Page], iva: Habitat
+) -> None:
+    """The robot's tool is kept in sight like the point looked at: a scene object between the eye
+    and the gripper fades (a gripper reaching into a cabinet stays visible), and as the arm moves
+    what fades follows the tool."""
+    document = iva.document()
+    document["templates"] = []
+    page = open_view(document)
+    page.evaluate("window.caretakerSpatial.setJointInterpolation(false)")
+    tool = np.array(inspect(page)["tool_pose"]["xyz"])
+    centre = (TABLE_TOP[0] + TABLE_TOP[1]) / 2
+    eye = tool + 2.0 * (centre - tool)  # under the table, the gripper above it
+    away = eye + 0.05 * (eye - tool) / np.linalg.norm(eye - tool)  # looking away from it: only the tool's line crosses
+    assert _crosses(TABLE_TOP, eye, tool) and not _crosses(TABLE_TOP, eye, away)
+    page.evaluate(
+        """([eye, target]) => {
+      const view = window.caretakerSpatial;
+      view.camera.position.set(...eye);
+      view.orbit.target.set(...target);
+      view.orbit.update();
+    }""",
+        [eye.tolist(), away.tolist()],
+    )
+    drawn(page)
+    assert "table" in inspect(page)["camera"]["faded"]
+
+    # the arm stretched out to the side: the line to the tool passes beside the table, which shows again
+    turned = {"shoulder_pan_joint": -1.5708, "shoulder_lift_joint": -0.6, "elbow_joint": 0.3}
+    apply(page, {"kind": "joints", "stamp": 1.0, "positions": turned})
+    moved = np.array(inspect(page)["tool_pose"]["xyz"])
+    assert np.linalg.norm(moved - tool) > 0.1 and not _crosses(TABLE_TOP, eye, moved)
+    assert "table" not in inspect(page)["camera"]["faded"]
+
+
 def test_camera_image_beside_the_scene(open_view: Callable[..., Page], iva: Habitat, site: SpatialSite) -> None:
     site.files["/camera.png"] = ((REPO / "docs" / "images" / "scene_iva.png").read_bytes(), "image/png")
     page = open_view(iva.document())

@@ -1,6 +1,7 @@
-// Scene objects between the camera and what matters fade: the point it looks at and every
-// template object and waypoint. So an operator sees the arm from outside a module's walls and the
-// green filter inside the cabinet that holds it, without a per-scene rule.
+// Scene objects between the camera and what matters fade: the point it looks at, every template
+// object and waypoint, and the robot's tool. So an operator sees the arm from outside a module's
+// walls, the green filter inside the cabinet that holds it and the gripper reaching in for it,
+// without a per-scene rule.
 import * as THREE from 'three';
 
 const FADED_OPACITY = 0.12;
@@ -14,6 +15,7 @@ export class Occluders {
 
   /** Watch every mesh under ``root`` (the scene's objects; never the robot or templates). */
   watch(root) {
+    this.root = root;
     this.meshes = [];
     root.traverse((o) => {
       if (!o.isMesh) return;
@@ -43,5 +45,15 @@ export class Occluders {
     }
   }
 
-  faded() { return this.meshes.filter((m) => m.userData.faded).length; }
+  /** The names of the watched objects (the children of the watched root) a faded mesh belongs to. */
+  faded() {
+    const names = new Set();
+    for (const mesh of this.meshes) {
+      if (!mesh.userData.faded) continue;
+      let o = mesh;
+      while (o.parent && o.parent !== this.root) o = o.parent;
+      names.add(o.name);
+    }
+    return [...names].sort();
+  }
 }

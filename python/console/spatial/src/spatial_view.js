@@ -34,6 +34,9 @@ const COST_WINDOW = 8;
 const AGE_EVERY_MS = 250;
 // A stamp up to this far ahead of the page's clock is clock error, not a habitat running ahead.
 const CLOCK_SLACK_S = 0.5;
+// How far the tool drawn moves before what hides it is worked out again (m): a few times over a
+// motion, not at every frame.
+const TOOL_UNHIDE_M = 0.02;
 // Joint states kept as reported, for inspect(): about two seconds at the feed's 10 per second.
 const REPORTS_KEPT = 20;
 
@@ -110,6 +113,7 @@ export class SpatialView {
     this.ageEl.hidden = true;
     container.appendChild(this.ageEl);
     this._clock = clock;
+    this._toolSeenAt = null; // where the tool was when what hides it was last worked out
     this._ageShownAt = -Infinity;
     this._reports = []; // the last REPORTS_KEPT joint states as reported, for inspect()
 
@@ -232,7 +236,7 @@ export class SpatialView {
         if (now - this._armMovedAt > SETTLE_MS) this._armMovingSince = now;
         this._armMovedAt = now;
         const drawNow = this._jointMotion.toward(this.robot.positions, update.positions, now, this._interpolateJoints ? interval : 0);
-        if (drawNow) this.robot.setJoints(drawNow);
+        if (drawNow) this._drawArm(drawNow);
         this._jointsSince ??= now;
         this._moving();
         break;
@@ -375,7 +379,19 @@ export class SpatialView {
   _unhide() {
     const targets = [this.orbit.target.clone()];
     if (this.layer) for (const e of this.layer.entries.values()) targets.push(new THREE.Vector3(...e.pose.xyz));
+    // The gripper at work: reaching into a cabinet it would otherwise vanish behind the housing.
+    if (this.robot) {
+      this._toolSeenAt = new THREE.Vector3(...this.robot.toolPose().xyz);
+      targets.push(this._toolSeenAt.clone());
+    }
     this.occluders.update(this.camera.position, targets);
+  }
+
+  /** Draw the arm at ``positions``; what hides its tool is worked out again once it moved TOOL_UNHIDE_M. */
+  _drawArm(positions) {
+    this.robot.setJoints(positions);
+    const tool = new THREE.Vector3(...this.robot.toolPose().xyz);
+    if (!this._toolSeenAt || tool.distanceTo(this._toolSeenAt) >= TOOL_UNHIDE_M) this._unhide();
   }
 
   dispose() {
@@ -565,7 +581,7 @@ export class SpatialView {
     this._last = now;
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
     const joints = this._jointMotion?.at(now);
-    if (joints) { this.robot.setJoints(joints); this._moving(); }
+    if (joints) { this._drawArm(joints); this._moving(); }
     if (this.registration) this.registration.expire(now);
     if (now - this._ageShownAt >= AGE_EVERY_MS) this._showAge(now);
     this._adaptResolution(now);
