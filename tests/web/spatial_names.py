@@ -12,21 +12,29 @@ from typing import Any
 
 from playwright.sync_api import Page
 
+#: ``(view) => data``: the view drawn now and its canvas's RGBA pixels, read in the same task (the
+#: WebGL buffer is not preserved past it).
+READ_PIXELS = """(view) => {
+  view.renderer.render(view.scene, view.camera);
+  const canvas = view.renderer.domElement;
+  const copy = document.createElement('canvas');
+  copy.width = canvas.width; copy.height = canvas.height;
+  const g = copy.getContext('2d');
+  g.drawImage(canvas, 0, 0);
+  return g.getImageData(0, 0, copy.width, copy.height).data;
+}"""
+
 #: ``(name) => {...}``: the footprint of template object ``name``, how much of it is covered, and
 #: the boxes (CSS px in the page) of every shown name and control.
-_MEASURE = """(name) => {
+_MEASURE = (
+    """(name) => {
   const view = window.caretakerSpatial;
   const entry = view.layer.get(name);
   if (!entry) return {missing: true};
   const canvas = view.renderer.domElement;
-  const read = () => {
-    view.renderer.render(view.scene, view.camera); // read in the same task: the buffer is not preserved
-    const copy = document.createElement('canvas');
-    copy.width = canvas.width; copy.height = canvas.height;
-    const g = copy.getContext('2d');
-    g.drawImage(canvas, 0, 0);
-    return g.getImageData(0, 0, copy.width, copy.height).data;
-  };
+  const read = () => ("""
+    + READ_PIXELS
+    + """)(view);
   // the object's silhouette, drawn alone: names are judged on what they cover, not on what the
   // arm or the cabinet hides of it
   const others = [];
@@ -69,6 +77,7 @@ _MEASURE = """(name) => {
   return {footprint, covered, names, controls, placed: names.length,
           unplaced: [...view.container.querySelectorAll('.ct-spatial-label[data-placed="no-room"]')].length};
 }"""
+)
 
 
 def _overlap(a: dict[str, Any], b: dict[str, Any]) -> bool:

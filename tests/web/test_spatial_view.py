@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page
 from spatial_data import REPO, Habitat, RunningTemplate, matrix
-from spatial_names import names_hide_nothing
+from spatial_names import READ_PIXELS, names_hide_nothing
 from spatial_site import SpatialSite, serve_site
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
@@ -648,18 +648,17 @@ def test_observer_can_move_nothing(open_view: Callable[..., Page], iva: Habitat)
 
 def _drawn_fraction(page: Page) -> float:
     """Share of canvas pixels that differ from the background: the scene was really drawn."""
-    return page.evaluate("""() => {
-        const view = window.caretakerSpatial;
-        view.renderer.render(view.scene, view.camera); // read in the same task: the buffer is not preserved
-        const src = view.renderer.domElement;
-        const c = document.createElement('canvas'); c.width = src.width; c.height = src.height;
-        const g = c.getContext('2d'); g.drawImage(src, 0, 0);
-        const d = g.getImageData(0, 0, c.width, c.height).data;
+    return page.evaluate(
+        """() => {
+        const d = ("""
+        + READ_PIXELS
+        + """)(window.caretakerSpatial);
         let drawn = 0;
         for (let i = 0; i < d.length; i += 4)
             if (Math.abs(d[i] - 0x1d) + Math.abs(d[i + 1] - 0x21) + Math.abs(d[i + 2] - 0x27) > 24) drawn++;
         return drawn / (d.length / 4);
-    }""")
+    }"""
+    )
 
 
 def test_eva_arm_and_hull_targets_render(open_view: Callable[..., Page], eva: Habitat, screenshots: Path) -> None:

@@ -543,7 +543,6 @@ export class SpatialView {
     // A stamp ahead of this clock: the habitat's clock runs ahead (a simulation faster than real time).
     const text = age >= -CLOCK_SLACK_S ? `arm as reported ${Math.max(0, age).toFixed(1)} s ago` : "arm as last reported (the habitat's clock is ahead of this one)";
     if (this.ageEl.textContent !== text) this.ageEl.textContent = text;
-    this.ageEl.dataset.ageS = age.toFixed(2);
   }
 
   _fitCanvas() {
