@@ -29,9 +29,9 @@ from bench.cpu_load import cpu_hogs
 REPO = Path(__file__).resolve().parents[1]
 #: The HALT test alone (the file's other test, the way on after a halt, runs the whole procedure).
 TEST = "tests/web/test_halt_on_real_stack.py::test_halt_during_the_pull_out_stops_the_arm_within_half_a_second"
-FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the click \((-?[0-9.]+) s of sim time")
-TIMELINE = re.compile(r"HALT timeline after the click: .*")
-HALTING = re.compile(r"HALT: 'halting…' drawn (-?[0-9.]+) s after the click")
+FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the press \((-?[0-9.]+) s of sim time")
+TIMELINE = re.compile(r"HALT timeline after the press: .*")
+HALTING = re.compile(r"HALT: 'halting…' drawn (-?[0-9.]+) s after the press")
 STILL = "HALT: the arm was still at the click"
 TARGET_S = 0.5
 HALTING_TARGET_S = 0.1
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         wall.append(float(found.group(1)))
         timeline = TIMELINE.search(done.stdout)
         print(
-            f"try {attempt}: at rest {found.group(1)} s wall-clock after the click ({found.group(2)} s sim time)"
+            f"try {attempt}: at rest {found.group(1)} s wall-clock after the press ({found.group(2)} s sim time)"
             + (f", 'halting…' drawn after {shown.group(1)} s" if shown else "")
             + (f"\n  {timeline.group(0)}" if timeline else ""),
             flush=True,
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     if halting:
         print(
-            f"'halting…' drawn after the click: median {statistics.median(halting):.3f} s, max {max(halting):.3f} s, "
+            f"'halting…' drawn after the press: median {statistics.median(halting):.3f} s, max {max(halting):.3f} s, "
             f"{sum(h <= HALTING_TARGET_S for h in halting)}/{len(halting)} within {HALTING_TARGET_S} s"
         )
     return 1 if failed else 0

@@ -400,9 +400,11 @@ $("pause").addEventListener("click", () => act("pause"));
 $("continue").addEventListener("click", () => act("continue"));
 $("step").addEventListener("click", () => act("step"));
 // HALT acts at once: no dialog between the operator and the arm stopping (the reason is optional).
-// The button says "halting…" from the click until the console has answered, so the operator
-// sees the click was taken before the banner can change (that waits for the habitat).
-$("halt").addEventListener("click", async () => {
+// It acts on the press, as an emergency stop does, not on the release a person makes a tenth of a
+// second later; Enter or Space (a click with no pointer: detail 0) acts through click. The button
+// says "halting…" from then until the console has answered, so the operator sees the press was
+// taken before the banner can change (that waits for the habitat).
+async function halt() {
   const button = $("halt");
   const reason = $("halt-reason").value.trim();
   $("halt-reason").value = "";
@@ -414,6 +416,12 @@ $("halt").addEventListener("click", async () => {
     delete button.dataset.state;
     button.textContent = "HALT";
   }
+}
+$("halt").addEventListener("pointerdown", (event) => {
+  if (event.button === 0 && !$("halt").disabled) halt();
+});
+$("halt").addEventListener("click", (event) => {
+  if (event.detail === 0) halt();  // a pointer's click follows the press that already halted
 });
 $("ask-again").addEventListener("click", () => act("ask_again", {instruction: view.state.current}));
 // after a halted motion: back to the instruction that planned it, which plans again from where the arm is
