@@ -146,7 +146,7 @@ def _at_the_confirmation(open_page: Callable[[WebServer, str], Page], server: We
     return alice, run_id, confirm
 
 
-def test_halt_during_the_pull_out_stops_the_arm_within_half_a_second(
+def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
     open_page: Callable[[WebServer, str], Page], real_time_stack: tuple[WebServer, RobotSide]
 ) -> None:
     server, robot = real_time_stack
