@@ -23,7 +23,7 @@ from typing import Any
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
-from pride.approvals import onboard_refusal
+from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from pride.audit_schema import AuditSchemaError, head_revision
 from pride.binding import read_binding
@@ -45,8 +45,6 @@ log = logging.getLogger(__name__)
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_SYSREP_DIR = REPO / "sysrep"
-#: Where an unattended ``caretaker run --approver USER`` finds that operator's password.
-APPROVER_PASSWORD_ENV = "CARETAKER_APPROVER_PASSWORD"
 
 
 def load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
@@ -161,7 +159,8 @@ def run_main(argv: list[str] | None = None) -> int:
         metavar="USER",
         help="a second operator who approves the commands that need approval (the robot side's critical "
         "commanding), checked against their account: their password from $CARETAKER_APPROVER_PASSWORD, or asked "
-        "at the start; without it such a command waits for a second operator at this terminal",
+        "at the start; without it such a command waits for a second operator at this terminal. With --onboard "
+        "the approvals go up in the unit, signed with it",
     )
     parser.add_argument(
         "--rehearsal",
@@ -256,17 +255,13 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
     if isinstance(version, str):
         print(f"caretaker run: {version}", file=sys.stderr)
         return 2
-    if args.onboard:
-        refused = onboard_refusal(checked, side.approvals)
-        if refused is not None:
-            print(f"caretaker run: {path} cannot run on the habitat: {refused}", file=sys.stderr)
-            return 2
-        return _run_onboard(args, checked, audit, values, version)
     try:
         approver = _approver(args, checked, side)
     except ValueError as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)
         return 2
+    if args.onboard:
+        return _run_onboard(args, checked, audit, values, version, side, approver)
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -406,8 +401,11 @@ def _run_onboard(
     audit: AuditLog,
     values: dict[str, str],
     version: RunVersion | None,
+    side: RobotSide,
+    approver: str | None,
 ) -> int:
-    """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record."""
+    """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record.
+    The commands that need a second operator's approval go up approved by ``approver``."""
     if args.resume:
         print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
         return 2
@@ -423,21 +421,31 @@ def _run_onboard(
             file=sys.stderr,
         )
         return 2
+    try:
+        unit = build_unit(
+            checked,
+            run_id=_new_run_id(checked.procedure.id),
+            binding=Path(args.binding).name,
+            user=args.user,
+            mode=(args.mode or Mode.MANUAL).value,
+            values=values,
+            confirm_manual=args.confirm_manual,
+            confirm_hazardous=args.confirm_hazardous,
+            breakpoints=args.breakpoints,
+            lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
+            now=time.time(),
+            version=version,
+            policy=side.approvals,
+            approver=approver,
+        )
+    except ValueError as exc:
+        print(
+            f"caretaker run: {checked.procedure.path} cannot go up to the habitat: {exc} "
+            f"(give --approver USER, their password in ${APPROVER_PASSWORD_ENV})",
+            file=sys.stderr,
+        )
+        return 2
     terminal = TerminalLines()
-    unit = build_unit(
-        checked,
-        run_id=_new_run_id(checked.procedure.id),
-        binding=Path(args.binding).name,
-        user=args.user,
-        mode=(args.mode or Mode.MANUAL).value,
-        values=values,
-        confirm_manual=args.confirm_manual,
-        confirm_hazardous=args.confirm_hazardous,
-        breakpoints=args.breakpoints,
-        lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
-        now=time.time(),
-        version=version,
-    )
     from sqlalchemy.exc import SQLAlchemyError
 
     from console.ground.action_requests import ANSWER_WITHIN_S

@@ -37,6 +37,7 @@ from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
 from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
 from console.folded_run import fold_events
+from console.onboard_launch import SecondOperator
 from console.procedure_view import procedure_json
 from console.run_board import RunBoard
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
@@ -216,13 +217,36 @@ async def _operator_request(request: Request, what: str, fields: str) -> tuple[A
     }
 
 
+async def _second_operator(request: Request, for_user: str) -> SecondOperator | None:
+    """The second operator approving, at ``for_user``'s console, the commands of an onboard unit
+    (the body's ``approver`` and ``approver_password``), signed in here for that alone; None if
+    the body names none. A wrong password is refused as at sign-in (throttled), but as 403: the
+    operator at the console stays signed in."""
+    body = await _json_body(request)
+    user, password = body.get("approver"), body.get("approver_password")
+    if not user:
+        return None
+    if not isinstance(user, str) or not isinstance(password, str):
+        raise ActionRefused(400, "approver and approver_password must be strings")
+    address = request.client.host if request.client else "unknown"
+    sign_ins: SignIns = request.app.state.sign_ins
+    try:
+        account = await run_in_threadpool(sign_ins.second_operator, user.strip(), password, address, for_user)
+    except SignInRefused as exc:
+        log.warning("approval by %r at %s's console refused: %s", user[:64], for_user, exc.message)
+        raise ActionRefused(429 if exc.status == 429 else 403, f"the second operator: {exc.message}") from None
+    log.info("%s approves, at %s's console, the commands of an onboard unit", account.user, for_user)
+    return SecondOperator(account.user, password)
+
+
 @_api
 async def runs_start(request: Request) -> Response:
     account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
     board: RunBoard = request.app.state.board
     if body["onboard"]:
+        approver = await _second_operator(request, account.user)
         run_id = await run_in_threadpool(
-            partial(board.start_onboard, rehearsal=bool(body["rehearsal"])),
+            partial(board.start_onboard, rehearsal=bool(body["rehearsal"]), approver=approver),
             account.user,
             body["procedure"],
             body["binding"],

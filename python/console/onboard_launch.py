@@ -19,15 +19,28 @@ import tempfile
 import threading
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["LaunchRefused", "launch_onboard"]
+from pride.approvals import APPROVER_PASSWORD_ENV
+
+__all__ = ["LaunchRefused", "SecondOperator", "launch_onboard"]
 
 log = logging.getLogger(__name__)
 
 #: How long the start waits for the habitat to accept the unit (the runner keeps trying after
 #: that, until the unit's own lifetime runs out).
 READY_WITHIN_S = 60.0
+
+
+@dataclass(frozen=True)
+class SecondOperator:
+    """The second operator who approves an onboard unit's commands at this console, with the
+    password they signed it with: the runner checks it again against the accounts before the unit
+    goes up, as it does for ``caretaker run --approver`` at a terminal."""
+
+    user: str
+    password: str = field(repr=False)
 
 
 class LaunchRefused(RuntimeError):
@@ -41,6 +54,7 @@ def launch_onboard(
     *,
     user: str,
     autonomous: bool,
+    approver: SecondOperator | None = None,
     rehearsal: bool = False,
     deployments: Sequence[Path] = (),
     db_url: str,
@@ -71,6 +85,7 @@ def launch_onboard(
         *(option for path in deployments for option in ("--deployment", str(path))),
         "--user",
         user,
+        *(["--approver", approver.user] if approver else []),
         "--sysrep-dir",
         str(sysreps),
         *(["--rosbridge", rosbridge] if rosbridge else []),
@@ -83,7 +98,12 @@ def launch_onboard(
                 stdin=subprocess.DEVNULL,
                 stdout=out,
                 stderr=subprocess.STDOUT,
-                env={**os.environ, "CARETAKER_DB": db_url},  # not on the command line: it may hold a password
+                # not on the command line, where any user of the host sees them: passwords
+                env={
+                    **os.environ,
+                    "CARETAKER_DB": db_url,
+                    **({APPROVER_PASSWORD_ENV: approver.password} if approver else {}),
+                },
                 start_new_session=True,  # not stopped with the console (a Ctrl-C at its terminal)
             )
         except OSError as exc:

@@ -37,11 +37,11 @@ from console.ground.action_requests import ActionRequests, Answer, ForwardedActi
 from console.ground.change_feed import ChangeNotice, open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from console.live_run import LiveRun
-from console.onboard_launch import LaunchRefused, launch_onboard
+from console.onboard_launch import LaunchRefused, SecondOperator, launch_onboard
 from console.remote_run import RemoteRun
 from console.watchers import Watchers
 from datafile import DataFileError
-from pride.approvals import onboard_refusal
+from pride.approvals import approval_points, missing_approvals_text
 from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
@@ -257,25 +257,43 @@ class RunBoard:
             raise ActionRefused(409, str(exc)) from None
 
     def start_onboard(
-        self, user: str, procedure_name: str, binding_name: str, mode_name: str, *, rehearsal: bool = False
+        self,
+        user: str,
+        procedure_name: str,
+        binding_name: str,
+        mode_name: str,
+        *,
+        rehearsal: bool = False,
+        approver: SecondOperator | None = None,
     ) -> str:
         """Start an onboard run ("run on the habitat"): its supervising runner, on this host
         (:mod:`console.onboard_launch`), hosts it for the consoles; the run's id once the habitat
-        accepted it. ActionRefused says what to fix (lint errors here or on the habitat, the
-        habitat's refusal, an unreachable habitat)."""
+        accepted it. The commands that need a second operator's approval go up approved by
+        ``approver`` (the habitat cannot wait a round trip for each); without one, ActionRefused
+        409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here or
+        on the habitat, the habitat's refusal, an unreachable habitat)."""
         mode = _mode(mode_name)
         path = self.catalog.procedure_path(procedure_name)
         checked = self._check(procedure_name)
         side = self.catalog.robot_side(binding_name)
         self._version(checked, procedure_name, side, rehearsal)
-        refusal = onboard_refusal(checked, side.approvals)
-        if refusal is not None:
-            raise ActionRefused(409, f"{self.catalog.shown(procedure_name)} cannot run on the habitat: {refusal}")
+        points = approval_points(checked, side.approvals)
+        if points and approver is None:
+            main = Path(checked.procedure.path).resolve()
+            raise ActionRefused(
+                409,
+                f"{self.catalog.shown(procedure_name)} goes up to the habitat only approved: "
+                f"{missing_approvals_text(points, main, side.approvals)}; a second operator approves them here",
+                {"approvals_needed": [point.describe(main) for point in points]},
+            )
+        if approver is not None and approver.user == user:
+            raise ActionRefused(403, f"{user} starts this run: a second operator must approve, not {user}")
         try:
             return launch_onboard(
                 path,
                 self.catalog.binding_path(binding_name),
                 user=user,
+                approver=approver if points else None,
                 rehearsal=rehearsal,
                 deployments=self.catalog.deployments,
                 autonomous=mode is Mode.AUTONOMOUS,

@@ -99,6 +99,27 @@ class SignIns:
 
         Blocking: the password hash takes a deliberate ~0.1 s of CPU; call it from a worker thread.
         """
+        account = self._verified(user, password, address)
+        now = self._clock()
+        session = WebSession(secrets.token_urlsafe(32), secrets.token_urlsafe(32), account, now, now, now)
+        with self._lock:
+            self._forget_expired(now)
+            self._sessions[session.token] = session
+        return session
+
+    def second_operator(self, user: str, password: str, address: str, for_user: str) -> Account:
+        """``user``'s account, approving at ``for_user``'s console what ``for_user`` does: their
+        password checked as at sign-in (and throttled alike), an operator, not ``for_user``.
+        SignInRefused says why not. Blocking, as :meth:`sign_in`."""
+        if user == for_user:
+            raise SignInRefused(403, f"{for_user} asks for this: a second operator must approve, not {for_user}")
+        account = self._verified(user, password, address)
+        if not account.may_act:
+            raise SignInRefused(403, f"{user} is an {account.role.value}: only an operator approves commands")
+        return account
+
+    def _verified(self, user: str, password: str, address: str) -> Account:
+        """The account whose password this is (throttled per user and address), or SignInRefused."""
         wait = self.throttle.wait(user, address)
         if wait > 0:
             seconds = math.ceil(wait)
@@ -108,12 +129,7 @@ class SignIns:
             self.throttle.failed(user, address)
             raise SignInRefused(401, "wrong user id or password")
         self.throttle.succeeded(user, address)
-        now = self._clock()
-        session = WebSession(secrets.token_urlsafe(32), secrets.token_urlsafe(32), account, now, now, now)
-        with self._lock:
-            self._forget_expired(now)
-            self._sessions[session.token] = session
-        return session
+        return account
 
     def sign_out(self, token: str) -> None:
         with self._lock:

@@ -25,6 +25,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.audit_chain import GENESIS, link_hash
 from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
@@ -141,12 +142,31 @@ def build_unit(
     lifetime_s: float,
     now: float,
     version: RunVersion | None = None,
+    policy: ApprovalPolicy | None = None,
+    approver: str | None = None,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
-    the folder that holds them all."""
-    paths = [Path(checked.procedure.path).resolve(), *(Path(p) for p in checked.callees)]
+    the folder that holds them all; under ``policy``, ``approver``'s approval of each command that
+    needs one, given now.
+
+    Raises:
+        ValueError: a command needs approval and no ``approver`` is given, or it is ``user``.
+    """
+    paths = [Path(checked.procedure.path).resolve(), *(Path(p).resolve() for p in checked.callees)]
     root = Path(os.path.commonpath([p.parent for p in paths]))
     files = {p.relative_to(root).as_posix(): p.read_text(encoding="utf-8") for p in paths}
+    points = approval_points(checked, policy) if policy is not None else []
+    if points and approver is None:
+        assert policy is not None
+        raise ValueError(
+            f"{missing_approvals_text(points, paths[0], policy)}: the habitat cannot wait a round trip for "
+            "each, so a second operator approves them before the unit goes up"
+        )
+    approvals = tuple(
+        CarriedApproval.given(point, point.procedure.relative_to(root).as_posix(), user, str(approver), policy)
+        for point in points
+        if policy is not None
+    )
     return Unit(
         run_id=run_id,
         procedure=paths[0].relative_to(root).as_posix(),
@@ -161,6 +181,7 @@ def build_unit(
         confirm_hazardous=confirm_hazardous,
         breakpoints=tuple(breakpoints),
         version=version,
+        approvals=approvals,
     )
 
 

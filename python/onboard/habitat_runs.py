@@ -27,6 +27,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from pride.approvals import ApprovalPolicy, CarriedApproval
 from pride.audit_chain import StoredEvent, utc
 from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
@@ -34,8 +35,9 @@ from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
 from pride.lint import check_procedure
-from pride.model import RecordInstruction
+from pride.model import CommandInstruction, RecordInstruction
 from pride.robot_control import RobotControl
+from pride.robot_sides import robot_side_for
 from pride.sysrep import SysRep
 from pride.systems import SystemGateway
 
@@ -114,10 +116,12 @@ class HabitatRuns:
         rosbridge_url: str | None = None,
         gateway_factory: Callable[[str, str | None], SystemGateway] | None = None,
         clock: Callable[[], float] = time.time,
+        policy_for: Callable[[Path], ApprovalPolicy] = lambda binding: robot_side_for(binding).approvals,
     ) -> None:
         """``bindings``: the habitat's binding files by file name (a unit names one);
         ``rosbridge_url``: the habitat's bridge as this host reaches it (replaces the bindings'
-        address, which is the ground's way in)."""
+        address, which is the ground's way in); ``policy_for``: which commands need a second
+        operator's approval on the robot side a binding reaches (its deployment's, as on the ground)."""
         self.state_dir = state_dir
         self.units_dir = state_dir / "units"
         self.units_dir.mkdir(parents=True, exist_ok=True)
@@ -127,6 +131,7 @@ class HabitatRuns:
         self._rosbridge_url = rosbridge_url
         self._open_gateway = gateway_factory or (lambda path, url: open_gateway(path, rosbridge_url=url))
         self._clock = clock
+        self._policy_for = policy_for
         url = f"sqlite:///{state_dir / 'onboard.sqlite'}"
         self.audit = AuditLog(url)
         self.control = RobotControl(url)
@@ -220,6 +225,7 @@ class HabitatRuns:
             mode=Mode(unit.mode),
             control=self.control,
             version=unit.version,
+            approvals=self._policy_for(binding),
         )
         executive.add_listener(lambda event: self._wake())
         try:
@@ -256,7 +262,15 @@ class HabitatRuns:
                     raise OperatorActionError(f"its binding {unit.binding} is no longer one of this habitat's")
                 checked = check_procedure(self.units_dir / unit_hash / unit.procedure, self._sysreps)
                 gateway = self._open_gateway(str(binding), self._rosbridge_url)
-                executive = Executive.resume(checked, gateway, self.audit, events, "onboard", control=self.control)
+                executive = Executive.resume(
+                    checked,
+                    gateway,
+                    self.audit,
+                    events,
+                    "onboard",
+                    control=self.control,
+                    approvals=self._policy_for(binding),
+                )
             except (OperatorActionError, ProcedureError, RobotControlled) as exc:
                 log.error("onboard run %s cannot be resumed: %s", unit.run_id, exc)
                 continue
@@ -272,6 +286,8 @@ class HabitatRuns:
     def _answer(self, run: _Run) -> None:
         """Answer the run's holds that the unit answered at uplink, until it ends; others wait."""
         executive, unit = run.executive, run.unit
+        folder = (self.units_dir / run.unit_hash).resolve()
+        stale: set[CarriedApproval] = set()  # tried once and ran out: the ground approves instead
         answered = -1
 
         def news(s: Snapshot) -> bool:  # ended, or a hold not looked at yet
@@ -284,7 +300,7 @@ class HabitatRuns:
                 break
             answered = snap.last_seq
             try:
-                self._answer_hold(executive, unit, snap)
+                self._answer_hold(executive, unit, snap, folder, stale)
             except OperatorActionError as exc:  # the hold stays for an operator on the ground
                 log.warning("onboard run %s at %s: %s", snap.run_id, snap.current, exc)
             run.looked_at = answered
@@ -294,15 +310,30 @@ class HabitatRuns:
         self._wake()
 
     @staticmethod
-    def _answer_hold(executive: Executive, unit: Unit, snap: Snapshot) -> None:
-        instruction = executive.current_instruction()
+    def _answer_hold(
+        executive: Executive, unit: Unit, snap: Snapshot, folder: Path, stale: set[CarriedApproval]
+    ) -> None:
+        place = executive.current_place()
+        if place is None:
+            return
+        path, instruction = place
         if snap.hold is Hold.OPERATOR_INPUT and isinstance(instruction, RecordInstruction):
             if instruction.name in unit.values:
                 executive.enter(unit.user, unit.values[instruction.name])
         elif snap.hold is Hold.OPERATOR_ACTION and unit.confirm_manual:
             executive.mark_done(unit.user)
-        elif snap.hold is Hold.CONFIRMATION and unit.confirm_hazardous:
-            executive.confirm(unit.user)
+        elif snap.hold in (Hold.CONFIRMATION, Hold.APPROVAL) and isinstance(instruction, CommandInstruction):
+            carried = unit.approval_of(
+                _within(path, folder), instruction.number, f"{instruction.system}.{instruction.command}"
+            )
+            if snap.hold is Hold.CONFIRMATION and (carried is not None or unit.confirm_hazardous):
+                executive.confirm(unit.user)  # the sender's ask: approved next (carried), or by the ground
+            elif snap.hold is Hold.APPROVAL and carried is not None and carried not in stale:
+                try:
+                    executive.approve(carried.approver, carried=carried)
+                except OperatorActionError:
+                    stale.add(carried)
+                    raise
 
     def _wake(self) -> None:
         with self._news:
@@ -429,6 +460,7 @@ class HabitatRuns:
             "enter": lambda: ex.enter(user, args["value"]),
             "done": lambda: ex.mark_done(user),
             "confirm": lambda: ex.confirm(user),
+            "approve": lambda: ex.approve(user),
             "retry": lambda: ex.retry(user),
             "replan": lambda: ex.replan(user),
             "ask_again": lambda: ex.ask_again(user),
@@ -452,6 +484,14 @@ class HabitatRuns:
             run.gateway.close()
         self.control.close()
         self.audit.close()
+
+
+def _within(path: Path, folder: Path) -> str:
+    """``path``'s name within the unit's ``folder``, as the unit names its files ("" if outside)."""
+    try:
+        return path.resolve().relative_to(folder).as_posix()
+    except ValueError:
+        return ""
 
 
 def _remove(folder: Path) -> None:

@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import PurePosixPath
 from typing import Any
 
+from pride.approvals import CarriedApproval
 from pride.releases import RunVersion
 
 __all__ = [
@@ -55,6 +56,7 @@ ACTIONS: Mapping[str, tuple[str, ...]] = {
     "enter": ("value",),
     "done": (),
     "confirm": (),
+    "approve": (),
     "retry": (),
     "replan": (),
     "ask_again": (),
@@ -95,7 +97,9 @@ class Unit:
     folder (``procedure`` names the one to run); ``binding`` names one of the habitat's own
     binding files; ``values``, ``confirm_manual`` and ``confirm_hazardous`` are the answers the
     operator gave at uplink (as ``caretaker run --set``, ``--confirm-manual``,
-    ``--confirm-hazardous``): any other hold waits for the ground. ``version`` is the procedure
+    ``--confirm-hazardous``): any other hold waits for the ground. ``approvals`` are the second
+    operator's approvals of the commands that need one (:class:`pride.approvals.CarriedApproval`),
+    given on the ground before the unit went up and signed with it. ``version`` is the procedure
     version the ground let it run (:class:`pride.releases.RunVersion`: its release, or a
     rehearsal), recorded in its ``run_started``.
     """
@@ -113,9 +117,14 @@ class Unit:
     confirm_hazardous: bool = False
     breakpoints: tuple[str, ...] = ()
     version: RunVersion | None = None
+    approvals: tuple[CarriedApproval, ...] = ()
 
     def to_json(self) -> str:
         return canonical({**asdict(self), "files": dict(self.files), "values": dict(self.values)})
+
+    def approval_of(self, procedure: str, instruction: str, command: str) -> CarriedApproval | None:
+        """The carried approval of that command (``procedure``: its file within the unit), if any."""
+        return next((a for a in self.approvals if a.covers(procedure, instruction, command)), None)
 
     @classmethod
     def from_json(cls, text: str) -> Unit:
@@ -151,6 +160,12 @@ class Unit:
             confirm_hazardous=_field(data, "confirm_hazardous", bool, "true or false"),
             breakpoints=tuple(breakpoints),
             version=_version(data.get("version")),
+            approvals=tuple(
+                _approval(a, i, files)
+                for i, a in enumerate(
+                    _field(data, "approvals", list, "a list of approvals") if "approvals" in data else []
+                )
+            ),
         )
 
 
@@ -211,6 +226,36 @@ def _version(data: Any) -> RunVersion | None:
         release,
         _field(data, "rehearsal", bool, "true or false"),
     )
+
+
+def _approvals(data: Mapping[str, Any]) -> list[Any]:
+    """The unit's ``approvals`` (absent: a unit from before approvals were carried)."""
+    return _field(data, "approvals", list, "a list of approvals") if "approvals" in data else []
+
+
+def _approval(data: Any, index: int, files: Mapping[str, str]) -> CarriedApproval:
+    """``approvals[index]``: a second operator's approval of one command of the unit's files."""
+    where = f"approvals[{index}]"
+    if not isinstance(data, dict):
+        raise UnitError(f"{where} must be an object of procedure, instruction, command, sender, approver and times")
+    try:
+        procedure = _field(data, "procedure", str, "the path of one of the unit's files")
+        if procedure not in files:
+            raise UnitError(f"procedure {procedure[:80]!r} is not one of the unit's files")
+        approval = CarriedApproval(
+            procedure=procedure,
+            instruction=_field(data, "instruction", str, 'an instruction number as text, e.g. "2.3"'),
+            command=_field(data, "command", str, '"system.command"'),
+            sender=_field(data, "sender", str, "who sends the command"),
+            approver=_field(data, "approver", str, "the second operator who approved it"),
+            approved_at=_time(data, "approved_at"),
+            expires_at=_time(data, "expires_at"),
+        )
+    except UnitError as exc:
+        raise UnitError(f"{where}.{exc}") from None
+    if approval.approver == approval.sender:
+        raise UnitError(f"{where}: {approval.sender} may not approve their own command")
+    return approval
 
 
 def _field(data: Mapping[str, Any], name: str, kind: type, expected: str) -> Any:

@@ -15,6 +15,9 @@ at once, the sender and the approver both in its ``command_sent`` record. An app
 ``approval_expires_s`` (default five minutes): a command that could not be sent in that time (the
 run paused, a breakpoint, the link) is never sent on it; the run records that it expired and waits
 for a new approval.
+
+An onboard run cannot wait a round trip for each approval: its approvals are given on the ground
+before the unit goes up and carried in it, signed with the unit (:class:`CarriedApproval`).
 """
 
 from __future__ import annotations
@@ -31,13 +34,17 @@ from pride.model import CommandInstruction, Instruction
 from pride.sysrep import SysRep
 
 __all__ = [
+    "APPROVER_PASSWORD_ENV",
     "DEFAULT_EXPIRY_S",
     "Approval",
+    "ApprovalPoint",
     "ApprovalPolicy",
     "ApprovalRequest",
+    "CarriedApproval",
     "CriticalLevel",
+    "approval_points",
     "command_hazardous",
-    "onboard_refusal",
+    "missing_approvals_text",
     "policy_from",
     "self_approval_refusal",
 ]
@@ -45,6 +52,9 @@ __all__ = [
 #: How long an approval stays good when the deployment does not say (s): long enough for the
 #: sender to see it land, short enough that nobody sends on yesterday's judgement.
 DEFAULT_EXPIRY_S = 300.0
+#: Where a runner started unattended (``caretaker run --approver USER``, or by a console for an
+#: onboard unit) finds the approver's password: never on a command line, where the host shows it.
+APPROVER_PASSWORD_ENV = "CARETAKER_APPROVER_PASSWORD"
 
 
 class CriticalLevel(str, enum.Enum):
@@ -112,6 +122,16 @@ class Approval:
     def stale(self, now: datetime) -> bool:
         return now >= self.expires
 
+    def expiry_record(self) -> dict[str, str]:
+        """What an ``approval_expired`` event records of it."""
+        request = self.request
+        return {
+            "approver": self.approver,
+            "sender": request.sender,
+            "command": request.command,
+            "expired": self.expires.isoformat(),
+        }
+
 
 def command_hazardous(instruction: Instruction, sysreps: Mapping[str, SysRep]) -> bool:
     """Whether an instruction is a hazardous command: marked so in the procedure, or in its SysRep."""
@@ -122,28 +142,84 @@ def command_hazardous(instruction: Instruction, sysreps: Mapping[str, SysRep]) -
     return instruction.hazardous or bool(command is not None and command.hazardous)
 
 
-def onboard_refusal(checked: CheckedProcedure, policy: ApprovalPolicy) -> str | None:
-    """Why a procedure may not run onboard under ``policy`` (None: it may).
+@dataclass(frozen=True)
+class ApprovalPoint:
+    """A command of a procedure (or of a sub-procedure it calls) that needs a second operator's approval."""
 
-    Approvals of an onboard run would have to be collected on the ground before the unit goes up
-    and carried with it, signed; that is not built yet, so a procedure with a command that needs
-    approval runs from the ground, where every console can approve it.
-    """
-    needing = [
-        f"{instruction.number} {instruction.command}" if where == "" else f"{instruction.command} in {where}"
-        for where, procedure in (("", checked.procedure), *((Path(p).name, c) for p, c in checked.callees.items()))
-        for instruction in procedure.instructions
-        if policy.needs_approval(
-            isinstance(instruction, CommandInstruction), command_hazardous(instruction, checked.sysreps)
-        )
-        and isinstance(instruction, CommandInstruction)
-    ]
-    if not needing:
-        return None
-    return (
-        f"{', '.join(needing)} need{'s' if len(needing) == 1 else ''} a second operator's approval "
-        f"({policy.describe()}), and approvals are not carried to the habitat yet: run it from the ground"
+    procedure: Path  # the file that holds it
+    number: str  # its number in that file
+    command: str  # "system.command"
+
+    def describe(self, main: Path) -> str:
+        """ "2.1 cdra.vent", or "1.4 cdra.vent in lab_sub.xml" outside ``main``."""
+        where = "" if self.procedure == main else f" in {self.procedure.name}"
+        return f"{self.number} {self.command}{where}"
+
+
+def approval_points(checked: CheckedProcedure, policy: ApprovalPolicy) -> list[ApprovalPoint]:
+    """Every command of ``checked`` and its sub-procedures that needs approval under ``policy``:
+    what an onboard unit must carry approved, since the habitat cannot wait a round trip for each."""
+    procedures = ((Path(checked.procedure.path).resolve(), checked.procedure),) + tuple(
+        (Path(path).resolve(), callee) for path, callee in checked.callees.items()
     )
+    return [
+        ApprovalPoint(path, instruction.number, f"{instruction.system}.{instruction.command}")
+        for path, procedure in procedures
+        for instruction in procedure.instructions
+        if isinstance(instruction, CommandInstruction)
+        and policy.needs_approval(True, command_hazardous(instruction, checked.sysreps))
+    ]
+
+
+@dataclass(frozen=True)
+class CarriedApproval:
+    """A second operator's approval given on the ground before an onboard unit went up, carried in
+    the signed unit: the habitat sends the command on it without a round trip to the ground.
+
+    ``procedure`` is the file's path within the unit, ``instruction`` its number there; the
+    approval covers that command each time the run reaches it until ``expires_at`` (Unix seconds,
+    the habitat's clock). Once stale the command waits for a live approval from the ground.
+    """
+
+    procedure: str
+    instruction: str
+    command: str
+    sender: str
+    approver: str
+    approved_at: float
+    expires_at: float
+
+    @classmethod
+    def given(
+        cls, point: ApprovalPoint, procedure: str, sender: str, approver: str, policy: ApprovalPolicy
+    ) -> CarriedApproval:
+        """``approver``'s approval of ``point`` (``procedure``: its path within the unit), now."""
+        if approver == sender:
+            raise ValueError(f"{sender} uplinks this unit: a second operator must approve, not {sender}")
+        now = policy.clock().timestamp()
+        return cls(procedure, point.number, point.command, sender, approver, now, now + policy.expires_s)
+
+    def covers(self, procedure: str, instruction: str, command: str) -> bool:
+        return (self.procedure, self.instruction, self.command) == (procedure, instruction, command)
+
+    def approval(self, request: ApprovalRequest) -> Approval:
+        """The approval of ``request`` this carries, with the time it was given on the ground."""
+        if request.sender != self.sender:
+            raise ValueError(
+                f"{request.number} was sent for approval by {request.sender}, the approval is of {self.sender}'s"
+            )
+        return Approval(
+            request,
+            self.approver,
+            datetime.fromtimestamp(self.approved_at, UTC),
+            datetime.fromtimestamp(self.expires_at, UTC),
+        )
+
+
+def missing_approvals_text(points: list[ApprovalPoint], main: Path, policy: ApprovalPolicy) -> str:
+    """Why a unit without approvals may not go up: what needs them, and under which policy."""
+    listed = ", ".join(point.describe(main) for point in points)
+    return f"{listed} need{'s' if len(points) == 1 else ''} a second operator's approval ({policy.describe()})"
 
 
 def self_approval_refusal(request: ApprovalRequest, approver: str) -> str | None:

@@ -93,7 +93,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, self_approval_refusal
+from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
 from pride.automation import ControlLost, Halt
 from pride.events import Event, EventKind, Journal
 from pride.leftovers import Leftover, TakenBack, taken_back
@@ -415,9 +415,12 @@ class Executive(RunEngine):
             self._emit(EventKind.CONFIRMATION, user, number, command=said)
             state.announce()
 
-    def approve(self, user: str) -> None:
+    def approve(self, user: str, *, carried: CarriedApproval | None = None) -> None:
         """Approve the command sent for approval, as the second operator: it is sent at once (by
-        PAX, or in manual mode as its sender). The sender's own approval is refused."""
+        PAX, or in manual mode as its sender). The sender's own approval is refused.
+
+        ``carried``: ``user``'s approval given on the ground before an onboard unit went up; it
+        keeps the time it was given and its expiry, and a stale one is refused."""
         with self._changed:
             self._require_idle()
             state = self._state
@@ -428,7 +431,16 @@ class Executive(RunEngine):
             refusal = self_approval_refusal(request, user)
             if refusal is not None:
                 raise OperatorActionError(refusal)
-            approval = Approval.given(request, user, state.approvals)
+            try:
+                approval = carried.approval(request) if carried else Approval.given(request, user, state.approvals)
+            except ValueError as exc:
+                raise OperatorActionError(str(exc)) from None
+            if approval.stale(state.approvals.clock()):
+                self._emit(EventKind.APPROVAL_EXPIRED, user, number, **approval.expiry_record())
+                raise OperatorActionError(
+                    f"{user}'s approval of {number}, carried with the unit, ran out at "
+                    f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
+                )
             state.approval = approval
             self._emit(
                 EventKind.APPROVAL_GIVEN,
@@ -437,6 +449,7 @@ class Executive(RunEngine):
                 sender=request.sender,
                 command=request.command,
                 expires=approval.expires.isoformat(),
+                **({"given": approval.approved.isoformat(), "carried": True} if carried else {}),
             )
             if state.mode is Mode.MANUAL and state.clear_to_send():  # the sender pressed Send: it goes now, as theirs
                 state.request = Request(request.sender)

@@ -664,7 +664,10 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
         return f"sent for a second operator's approval: {d.get('command', '')}"
     if kind is EventKind.APPROVAL_GIVEN:
         until = str(d.get("expires"))[11:19]
-        return f"approved {d.get('sender')}'s command: {d.get('command', '')} (good until {until} UTC)"
+        carried = (
+            f", given on the ground at {str(d.get('given'))[11:19]} UTC and carried up" if d.get("carried") else ""
+        )
+        return f"approved {d.get('sender')}'s command: {d.get('command', '')} (good until {until} UTC{carried})"
     if kind is EventKind.APPROVAL_EXPIRED:
         return (
             f"{d.get('approver')}'s approval of {d.get('sender')}'s command ran out at {str(d.get('expired'))[11:19]} "

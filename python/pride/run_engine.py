@@ -16,6 +16,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pride.approvals import ApprovalPolicy
@@ -178,8 +179,16 @@ class RunEngine:
 
     def current_instruction(self) -> Instruction | None:
         """The instruction the run is at (in the innermost sub-procedure), or None when finished."""
+        place = self.current_place()
+        return place[1] if place else None
+
+    def current_place(self) -> tuple[Path, Instruction] | None:
+        """The file of the (sub-)procedure the run is in and its instruction there, or None when finished."""
         with self._lock:
-            return self._state.frame.instruction if self._state.status is RunStatus.ACTIVE else None
+            frame = self._state.frame
+            if self._state.status is not RunStatus.ACTIVE or frame.instruction is None:
+                return None
+            return Path(frame.procedure.path), frame.instruction
 
     def wait_for(self, predicate: Callable[[Snapshot], bool], timeout: float | None = None) -> Snapshot | None:
         """Block until ``predicate(snapshot)`` holds; return that snapshot, or None on timeout."""

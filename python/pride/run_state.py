@@ -300,15 +300,7 @@ class RunState:
             return False
         self.approval = self.approval_request = None
         self.request = None
-        self._emit(
-            EventKind.APPROVAL_EXPIRED,
-            PAX,
-            number,
-            approver=approval.approver,
-            sender=approval.request.sender,
-            command=approval.request.command,
-            expired=approval.expires.isoformat(),
-        )
+        self._emit(EventKind.APPROVAL_EXPIRED, PAX, number, **approval.expiry_record())
         self.announce()
         return True
 

@@ -19,7 +19,7 @@ import os
 import signal
 import sqlite3
 import subprocess
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -156,16 +156,19 @@ class Flight:
                 return pid
         raise AssertionError(f"no caretaker {part} runs in {self.hosts.habitat.namespace}")
 
-    def serve_console(self, operator: str, password: str) -> tuple[ManagedProcess, str]:
+    def serve_console(
+        self, operator: str, password: str, *, others: Mapping[str, str] | None = None
+    ) -> tuple[ManagedProcess, str]:
         """``caretaker serve`` in the ground namespace on the ground's audit log, offering the ground
-        binding, with ``operator`` an operator's account; (process, URL)."""
+        binding, with ``operator`` (and ``others``: user → password) operators' accounts; (process, URL)."""
         bindings = self.hosts.folder / "bindings"
         bindings.mkdir(exist_ok=True)
         with contextlib.suppress(FileExistsError):
             (bindings / self.binding.name).symlink_to(self.binding)
         accounts = AccountStore(self.db_url)
         try:
-            accounts.add(operator, "operator", password, name="Flight operator")
+            for user, secret in {operator: password, **(others or {})}.items():
+                accounts.add(user, "operator", secret, name="Flight operator")
         finally:
             accounts.close()
         serve = self.hosts.caretaker(
@@ -252,10 +255,18 @@ def write_ground_binding(
 
 
 def start_habitat(
-    hosts: TwoHosts, credentials: dict[str, Path], binding: Path, state_dir: Path, *, time_scale: str, onboard: bool
+    hosts: TwoHosts,
+    credentials: dict[str, Path],
+    binding: Path,
+    state_dir: Path,
+    *,
+    time_scale: str,
+    onboard: bool,
+    critical_commanding: dict[str, Any] | None = None,
 ) -> Habitat:
     """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret
-    (``onboard``: with the onboard executive, serving units that name ``binding``)."""
+    (``onboard``: with the onboard executive, serving units that name ``binding``;
+    ``critical_commanding``: the deployment's, which the ground and the habitat both apply)."""
     deployment = write_deployment(
         hosts.folder,
         "iva-habitat",
@@ -269,6 +280,7 @@ def start_habitat(
         state_dir=str(state_dir),
         bindings=[str(binding)],
         onboard=onboard,
+        **({"critical_commanding": critical_commanding} if critical_commanding else {}),
     )
     up = hosts.caretaker(
         hosts.habitat,
@@ -293,6 +305,7 @@ def flight(
     time_scale: str = "1",
     outage_budget: float = 120.0,
     onboard: bool = False,
+    critical_commanding: dict[str, Any] | None = None,
 ) -> Iterator[Flight]:
     """Both hosts up, the link between them, nothing run yet; everything stopped and removed after."""
     with TwoHosts.create(ros_env) as hosts:
@@ -303,7 +316,13 @@ def flight(
         )
         probe = hosts.python(hosts.habitat, str(PROBE), ready=r"^READY probe")
         habitat = start_habitat(
-            hosts, credentials, binding, hosts.folder / "habitat-state", time_scale=time_scale, onboard=onboard
+            hosts,
+            credentials,
+            binding,
+            hosts.folder / "habitat-state",
+            time_scale=time_scale,
+            onboard=onboard,
+            critical_commanding=critical_commanding,
         )
         link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
         yield Flight(
@@ -384,15 +403,30 @@ def assert_in_flight(events: list[Event], trajectory: str, moment: datetime) -> 
     assert answer is not None and sent.time < moment < answer.time, (sent.time, moment, answer and answer.time)
 
 
-def start_from_console(page: Page, f: Flight, *, onboard: bool) -> str:
+def start_from_console(
+    page: Page, f: Flight, *, onboard: bool, approver: tuple[str, str] | None = None, own: tuple[str, str] | None = None
+) -> str:
     """Start the IVA procedure, autonomous (``onboard``: on the habitat) from the signed-in console
-    page; its run id once the page shows the run (every step waits on round trips of 2.6 s)."""
+    page; its run id once the page shows the run (every step waits on round trips of 2.6 s).
+    ``approver`` (user, password): the second operator who approves, at this console, the commands
+    the unit must carry approved (the start is first refused with the list of them); ``own``: the
+    signed-in operator's account, tried as the approver first, which the console must refuse."""
     page.select_option("#start-procedure", PROCEDURE.name)
     page.select_option("#start-binding", f.binding.name)
     page.check("#start-form input[name=mode][value=autonomous]")
     page.set_checked("#start-onboard", onboard)
     page.check("#start-rehearsal")  # the shipped procedure, never released in this flight's database
     page.click("#start-button")
+    if approver is not None:
+        from playwright.sync_api import expect
+
+        page.locator("#uplink-approval").wait_for(state="visible")
+        for user, password in [own, approver] if own else [approver]:
+            page.fill("#approver-user", user)
+            page.fill("#approver-password", password)
+            page.click("#approve-uplink")
+            if (user, password) == own:
+                expect(page.locator("#start-error")).to_contain_text(f"a second operator must approve, not {user}")
     page.wait_for_function(
         "() => document.querySelector('#run-id').textContent || document.querySelector('#start-error').textContent",
         timeout=180_000,

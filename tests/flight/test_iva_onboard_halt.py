@@ -27,6 +27,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60)]
 #: From the halt's arrival on the habitat to the arm at rest (the issue's bound for a halt).
 HALT_WITHIN_S = 0.5
 OPERATOR, PASSWORD = "console-op", "halts-from-the-ground"
+APPROVER, APPROVER_PASSWORD = "second-op", "approves-before-the-uplink"
+#: Every command needs a second operator's approval on this robot side, on the ground and onboard.
+EVERY_COMMAND = {"level": "all", "approval_expires_s": 3600}
 
 
 def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm_within_half_a_second(
@@ -34,10 +37,13 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
 ) -> None:
     from playwright.sync_api import expect
 
-    with flight(ros_env, delay=DELAY, time_scale="1", onboard=True) as f:
-        serve, url = f.serve_console(OPERATOR, PASSWORD)
+    with flight(ros_env, delay=DELAY, time_scale="1", onboard=True, critical_commanding=EVERY_COMMAND) as f:
+        serve, url = f.serve_console(OPERATOR, PASSWORD, others={APPROVER: APPROVER_PASSWORD})
         with f.console_page(url, OPERATOR, PASSWORD) as page:
-            run_id = start_from_console(page, f, onboard=True)
+            # approved at this console before the unit goes up (not by the operator who starts it)
+            run_id = start_from_console(
+                page, f, onboard=True, approver=(APPROVER, APPROVER_PASSWORD), own=(OPERATOR, PASSWORD)
+            )
             # shown live from what came down, with what the ground last heard from the habitat
             link = page.locator("#robot-link")
             expect(link).to_contain_text("onboard run on the habitat")
@@ -84,6 +90,18 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
             near = [(kind, round(at - arrived, 3)) for kind, at in changes if abs(at - arrived) < 10]
             print(f"HALT onboard: the arm was between two segments when the halt arrived: no figure ({near})")
         assert not [at for kind, at in after if kind == "MOVING"], f"the arm moved again after the halt: {after}"
+        # each command sent on the habitat went on the approval carried up, without a round trip
+        # (the run's end removes the templates it added, as the stop's own clean-up: no instruction)
+        sent = [
+            (e.instruction, e.actor, json.loads(e.data)) for e in habitat if e.kind == "command_sent" and e.instruction
+        ]
+        given = [(e.actor, json.loads(e.data)) for e in habitat if e.kind == "approval_given"]
+        unapproved = [(number, actor, d["command"]) for number, actor, d in sent if d.get("approved_by") != APPROVER]
+        assert sent and not unapproved, f"sent without {APPROVER}'s approval: {unapproved}"
+        assert len(given) >= len(sent) and all(
+            a == APPROVER and d["carried"] and d["sender"] == OPERATOR for a, d in given
+        )
+        assert not [e for e in habitat if e.kind == "approval_expired"]
         ground = f.ground_chain(run_id)
         assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat]
         assert next(e for e in ground if e.kind == "halt").actor == OPERATOR  # logged halted by them on both sides

@@ -20,6 +20,7 @@ import pytest
 from onboard.downlink import Downlink, DownlinkError, build_unit
 from onboard.habitat_runs import HabitatRuns
 from onboard.unit import OperatorAction, Unit, sign
+from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.lint import check_procedure
@@ -73,6 +74,8 @@ def make_unit(sysreps: dict[str, SysRep]) -> Callable[..., Unit]:
             breakpoints=(),
             lifetime_s=60,
             now=time.time(),
+            policy=ApprovalPolicy(CriticalLevel.HAZARDOUS),  # the habitat's (no deployment serves lab.yaml)
+            approver="bob",
         )
         return replace(unit, **changes)
 
@@ -110,7 +113,7 @@ def test_a_unit_runs_onboard_answering_what_it_carries_and_the_ground_copy_is_th
     assert events[-1]["kind"] == EventKind.RUN_COMPLETED.value
     # the holds the unit answered were answered onboard, as its user
     kinds = [(e["kind"], e["actor"]) for e in events]
-    assert ("operator_input", "alice") in kinds and ("confirmation", "alice") in kinds
+    assert ("operator_input", "alice") in kinds and ("approval_requested", "alice") in kinds
     assert [command for _, command, _ in gateways[0].sent].count("vent") == 1
     # the sub-procedure went up with it: its instructions ran here
     assert any(e["instruction"] and "/" in e["instruction"] for e in events)
@@ -260,3 +263,57 @@ def test_a_restarted_onboard_executive_resumes_its_run_from_the_chain(
         assert again.resume_interrupted() == []  # nothing left to resume
     finally:
         again.close()
+
+
+def test_the_approvals_given_on_the_ground_go_up_signed_and_the_habitat_sends_on_them(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, gateways = habitat
+    unit = make_unit()
+    assert [(a.instruction, a.command, a.sender, a.approver) for a in unit.approvals] == [
+        ("2.1", "lab.vent", "alice", "bob")
+    ]
+    assert uplink(runs, unit).state == "ACCEPTED"
+    events = until_ended(runs, unit.run_id)
+    assert events[-1]["kind"] == EventKind.RUN_COMPLETED.value
+    at_vent = [(e["kind"], e["actor"], json.loads(e["data"])) for e in events if e["instruction"] == "2.1"]
+    asked = next(data for kind, actor, data in at_vent if kind == "approval_requested" and actor == "alice")
+    given = next(data for kind, actor, data in at_vent if kind == "approval_given" and actor == "bob")
+    assert given["carried"] is True and given["sender"] == "alice" and given["command"] == asked["command"]
+    assert given["given"].startswith(time.strftime("%Y-%m-%dT", time.gmtime(unit.approvals[0].approved_at)))
+    sent = next(data for kind, _, data in at_vent if kind == "command_sent")
+    assert sent["approved_by"] == "bob"
+    assert [command for _, command, _ in gateways[0].sent].count("vent") == 1
+
+    # the signature covers the approvals: one added on the way is not the link's unit
+    forged = replace(unit, run_id=f"{unit.run_id}-x", approvals=(replace(unit.approvals[0], approver="eve"),))
+    text = forged.to_json()
+    assert runs.uplink(text, sign(unit.to_json(), SECRET)).state == "REFUSED"
+
+
+def test_an_approval_that_ran_out_on_the_way_is_recorded_and_a_second_operator_approves_from_the_ground(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, gateways = habitat
+    unit = make_unit()
+    now = time.time()
+    ran_out = replace(unit.approvals[0], approved_at=now - 400, expires_at=now - 100)
+    unit = replace(unit, approvals=(ran_out,))
+    assert uplink(runs, unit).state == "ACCEPTED"
+    head = 0
+    while not any(e["kind"] == "approval_expired" for e in runs.events(unit.run_id, 0).events):
+        head = runs.events(unit.run_id, head, wait_s=1).head_seq
+    expired = next(e for e in runs.events(unit.run_id, 0).events if e["kind"] == "approval_expired")
+    assert (expired["actor"], expired["instruction"]) == ("bob", "2.1")
+    assert "vent" not in [command for _, command, _ in gateways[0].sent]  # nothing sent on a stale approval
+
+    own = OperatorAction("key-own", unit.run_id, "approve", "alice", time.time() + 60, {"instruction": "2.1"})
+    refused = act(runs, own)
+    assert refused.state == "REFUSED" and "a second operator must approve it, not alice" in refused.message
+    live = OperatorAction("key-carol", unit.run_id, "approve", "carol", time.time() + 60, {"instruction": "2.1"})
+    assert act(runs, live).state == "DONE"
+    events = until_ended(runs, unit.run_id)
+    assert events[-1]["kind"] == EventKind.RUN_COMPLETED.value
+    given = [(e["actor"], json.loads(e["data"]).get("carried")) for e in events if e["kind"] == "approval_given"]
+    assert given == [("carol", None)]
+    assert [command for _, command, _ in gateways[0].sent].count("vent") == 1

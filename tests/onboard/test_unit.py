@@ -23,7 +23,19 @@ UNIT: dict[str, Any] = {
     "confirm_hazardous": False,
     "breakpoints": ["2.1"],
     "version": {"sha256": "ab" * 32, "release": None, "rehearsal": True},
+    "approvals": [
+        {
+            "procedure": "lab/sub.xml",
+            "instruction": "1.4",
+            "command": "lab.vent",
+            "sender": "alice",
+            "approver": "bob",
+            "approved_at": 1_800_000_000.0,
+            "expires_at": 1_800_000_300.0,
+        }
+    ],
 }
+APPROVAL = UNIT["approvals"][0]
 
 
 def test_a_unit_goes_up_and_comes_back_the_same_with_one_hash() -> None:
@@ -64,6 +76,18 @@ def test_a_signature_holds_only_for_the_same_text_and_secret() -> None:
             "version.release must be a release number or null, not '3'",
         ),
         ({"version": {"sha256": "ab", "release": 3}}, "rehearsal is missing: expected true or false"),
+        ({"approvals": {"2.1": "bob"}}, "approvals must be a list of approvals, not dict"),
+        ({"approvals": ["bob"]}, "approvals[0] must be an object of procedure, instruction"),
+        ({"approvals": [{**APPROVAL, "approver": "alice"}]}, "approvals[0]: alice may not approve their own command"),
+        (
+            {"approvals": [{**APPROVAL, "procedure": "x.xml"}]},
+            "approvals[0].procedure 'x.xml' is not one of the unit's",
+        ),
+        (
+            {"approvals": [{**APPROVAL, "expires_at": "later"}]},
+            "approvals[0].expires_at must be a time in Unix seconds",
+        ),
+        ({"approvals": [{**APPROVAL, "instruction": 1.4}]}, "approvals[0].instruction must be an instruction number"),
     ],
 )
 def test_a_bad_unit_is_refused_with_the_field_and_what_to_fix(change: dict[str, Any], said: str) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from datafile import DataFileError
-from pride.approvals import ApprovalPolicy, CriticalLevel, onboard_refusal
+from pride.approvals import ApprovalPolicy, CriticalLevel, approval_points, missing_approvals_text
 from pride.gateways import GATEWAY_ENV
 from pride.lint import check_procedure
 from pride.robot_sides import robot_side_for
@@ -67,13 +67,17 @@ def test_off_is_the_yaml_word_too(tmp_path: Path) -> None:
     assert robot_side_for(folder / "binding.yaml").approvals.level is CriticalLevel.OFF
 
 
-def test_a_procedure_with_a_command_that_needs_approval_does_not_run_onboard(sysreps: dict[str, SysRep]) -> None:
+def test_the_commands_an_onboard_unit_must_carry_approved_are_named_where_they_are(sysreps: dict[str, SysRep]) -> None:
     checked = check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps)
-    refusal = onboard_refusal(checked, ApprovalPolicy(CriticalLevel.HAZARDOUS))
-    assert refusal == (
-        "2.1 vent needs a second operator's approval (hazardous commands need a second operator's approval "
-        "(good for 300 s)), and approvals are not carried to the habitat yet: run it from the ground"
+    main = (FIXTURES / "lab_all_kinds.xml").resolve()
+    hazardous = ApprovalPolicy(CriticalLevel.HAZARDOUS)
+    points = approval_points(checked, hazardous)
+    assert [point.describe(main) for point in points] == ["2.1 lab.vent"]
+    assert missing_approvals_text(points, main, hazardous) == (
+        "2.1 lab.vent needs a second operator's approval (hazardous commands need a second operator's approval "
+        "(good for 300 s))"
     )
-    assert onboard_refusal(checked, ApprovalPolicy(CriticalLevel.OFF)) is None
-    every = onboard_refusal(checked, ApprovalPolicy(CriticalLevel.ALL)) or ""
-    assert every.startswith("1.3 move, 2.1 vent, 2.3 capture") and "count in lab_sub.xml" in every
+    assert approval_points(checked, ApprovalPolicy(CriticalLevel.OFF)) == []
+    every = [point.describe(main) for point in approval_points(checked, ApprovalPolicy(CriticalLevel.ALL))]
+    assert every[:3] == ["1.3 lab.move", "2.1 lab.vent", "2.3 lab.capture"]
+    assert any(described.endswith(" in lab_sub.xml") and "count" in described for described in every)

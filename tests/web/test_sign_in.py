@@ -135,3 +135,23 @@ def test_failed_sign_ins_are_refused_with_a_wait_before_the_password_is_even_che
     assert (slowed.value.status, slowed.value.retry_after) == (429, 1)
     clock.now += 1
     assert sign_ins.sign_in("alice", "alice-secret-1", "10.0.0.2").account.user == "alice"
+
+
+def test_a_second_operator_signs_an_approval_with_their_own_password_and_guessing_it_is_slowed(
+    store: AccountStore,
+) -> None:
+    store.add("bob", "operator", "bob-secret-1")
+    store.add("olga", "observer", "olga-secret-1")
+    clock = Clock()
+    sign_ins = SignIns(store, throttle=SignInThrottle(pair=Allowance(2, 60.0), clock=clock), clock=clock)
+    assert sign_ins.second_operator("bob", "bob-secret-1", "10.0.0.2", for_user="alice").user == "bob"
+    with pytest.raises(SignInRefused, match="a second operator must approve, not alice"):
+        sign_ins.second_operator("alice", "alice-secret-1", "10.0.0.2", for_user="alice")
+    with pytest.raises(SignInRefused, match="olga is an observer: only an operator approves commands"):
+        sign_ins.second_operator("olga", "olga-secret-1", "10.0.0.2", for_user="alice")
+    for _ in range(2):
+        with pytest.raises(SignInRefused, match="wrong user id or password"):
+            sign_ins.second_operator("bob", "guess", "10.0.0.2", for_user="alice")
+    with pytest.raises(SignInRefused) as slowed:  # the same throttle as the sign-in page's
+        sign_ins.second_operator("bob", "bob-secret-1", "10.0.0.2", for_user="alice")
+    assert slowed.value.status == 429

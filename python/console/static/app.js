@@ -205,8 +205,9 @@ function showRuns(runs) {
 
 $("refresh-runs").addEventListener("click", () => loadRuns().catch(() => {}));
 
-// A start refused because another run controls the robot offers a takeover (with a reason, logged in both runs).
-async function startRun(takeOver) {
+// A start refused because another run controls the robot offers a takeover (with a reason, logged in both runs);
+// an onboard start whose commands need approval asks for a second operator's, signed here with their password.
+async function startRun(takeOver, approval = {}) {
   $("start-error").textContent = "";
   $("take-over").hidden = true;
   const form = new FormData($("start-form"));
@@ -214,12 +215,18 @@ async function startRun(takeOver) {
   try {
     const {run_id} = await api("POST", "/api/runs", {
       procedure: form.get("procedure"), binding: form.get("binding"), mode: form.get("mode"), take_over: takeOver,
-      onboard: form.get("onboard") === "on", rehearsal: form.get("rehearsal") === "on",
+      onboard: form.get("onboard") === "on", rehearsal: form.get("rehearsal") === "on", ...approval,
     });
+    $("uplink-approval").hidden = true;
     location.hash = `run=${encodeURIComponent(run_id)}`;
     await loadRuns();
   } catch (error) {
     $("start-error").textContent = error.message;
+    const needed = error.data && error.data.approvals_needed;
+    if (needed) {
+      $("uplink-approval-list").replaceChildren(...needed.map((text) => element("li", "", text)));
+      $("uplink-approval").hidden = false;
+    }
     const holder = error.data && error.data.controlled_by;
     if (holder) {
       $("take-over").hidden = false;
@@ -233,7 +240,13 @@ async function startRun(takeOver) {
 
 $("start-form").addEventListener("submit", (event) => {
   event.preventDefault();
+  $("uplink-approval").hidden = true;
   startRun(null);
+});
+$("approve-uplink").addEventListener("click", async () => {
+  const password = $("approver-password");
+  await startRun(null, {approver: $("approver-user").value.trim(), approver_password: password.value});
+  password.value = "";
 });
 $("take-over").addEventListener("click", async () => {
   const answer = await askReason("Take over the robot", `${$("take-over").dataset.from} holds and sends nothing more.`, "Take over");
