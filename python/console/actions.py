@@ -191,6 +191,8 @@ ONBOARD_ACTIONS: dict[str, Callable[[str, ActionRequest], dict[str, Any]]] = {
     "stop": lambda user, r: {"reason": r.reason or f"stopped from the console by {user}"},
     "perform": lambda user, r: {"instruction": _numbered(r)},
     "confirm": lambda user, r: {"instruction": _numbered(r)},
+    # a carried approval that ran out before the run reached its command: approved live
+    "approve": lambda user, r: {"instruction": _numbered(r)},
     "enter": lambda user, r: {"instruction": _numbered(r), "value": r.value},
     "done": lambda user, r: {"instruction": _numbered(r)},
     "retry": lambda user, r: {"instruction": _numbered(r)},
