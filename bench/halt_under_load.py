@@ -4,9 +4,10 @@ Usage: .venv/bin/python bench/halt_under_load.py [--tries 10] [--hogs 2]
 
 Each try runs the browser test tests/web/test_halt_on_real_stack.py (the real IVA stack at time
 scale 1, ``caretaker serve`` with the JVM plugins, Chromium clicking HALT during the pull-out)
-beside ``--hogs`` busy processes (bench/cpu_load.py), and reads the figure the test prints: from
+beside ``--hogs`` busy processes (bench/cpu_load.py), and reads the figures the test prints: from
 the click to the arrival of the first joint state of the resting arm, and from the click to the
-first frame drawn after the button said "halting…" (target 0.1 s). A try whose click fell
+paint that showed "halting…" (the browser's event timing of the press, target 0.1 s; the test
+also prints the start of the second frame after the change, an upper bound). A try whose click fell
 between two segments of the pull-out (the arm still) gives no figure and is run again, up to
 twice ``--tries`` in all. Prints each try and how many stayed within 0.5 s (and 0.1 s for
 "halting…"); exit status 1 if a try failed.
@@ -31,7 +32,8 @@ REPO = Path(__file__).resolve().parents[1]
 TEST = "tests/web/test_halt_on_real_stack.py::test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon"
 FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the press \((-?[0-9.]+) s of sim time")
 TIMELINE = re.compile(r"HALT timeline after the press: .*")
-HALTING = re.compile(r"HALT: 'halting…' drawn (-?[0-9.]+) s after the press")
+HALTING = re.compile(r"HALT: 'halting…' painted <?(-?[0-9.]+) s after the press")
+BOUND = re.compile(r"the second frame after the change began (-?[0-9.]+) s")
 STILL = "HALT: the arm was still at the click"
 TARGET_S = 0.5
 HALTING_TARGET_S = 0.1
@@ -72,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
         timeline = TIMELINE.search(done.stdout)
         print(
             f"try {attempt}: at rest {found.group(1)} s wall-clock after the press ({found.group(2)} s sim time)"
-            + (f", 'halting…' drawn after {shown.group(1)} s" if shown else "")
+            + (f", 'halting…' painted after {shown.group(1)} s" if shown else "")
+            + (f" (second frame {bound.group(1)} s)" if (bound := BOUND.search(done.stdout)) else "")
             + (f"\n  {timeline.group(0)}" if timeline else ""),
             flush=True,
         )
@@ -85,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     if halting:
         print(
-            f"'halting…' drawn after the press: median {statistics.median(halting):.3f} s, max {max(halting):.3f} s, "
+            f"'halting…' painted after the press: median {statistics.median(halting):.3f} s, max {max(halting):.3f} s, "
             f"{sum(h <= HALTING_TARGET_S for h in halting)}/{len(halting)} within {HALTING_TARGET_S} s"
         )
     return 1 if failed else 0

@@ -240,6 +240,31 @@ def test_the_arm_drawn_says_its_age_from_the_moment_a_state_comes(open_view: Cal
     assert later and 3.3 - 0.25 <= float(later[1]) <= 3.3, later  # said four times a second
 
 
+def test_an_emergency_action_s_frame_is_not_held_by_the_view_which_draws_the_frame_after(
+    open_view: Callable[..., Page], iva: Habitat
+) -> None:
+    """HALT's "halting…" goes out in the next frame without the 3D view's drawing (tens of ms in
+    software while the arm moves); the change is drawn in the frame after."""
+    page = open_view(iva.document())
+    drawn(page)
+    frames = page.evaluate(
+        """() => new Promise((done) => {
+      const view = window.caretakerSpatial;
+      const counted = [view.inspect().frames];
+      view.yieldFrames(2);
+      view.apply({kind: 'joints', stamp: Date.now() / 1000, positions: {wrist_3_joint: 0.4}});
+      const next = () => requestAnimationFrame(() => {
+        counted.push(view.inspect().frames);
+        if (counted.length < 5) next(); else done(counted);
+      });
+      next();
+    })"""
+    )
+    # the view's own frame callback runs before the test's in each frame: two frames without drawing
+    assert frames[1] == frames[2] == frames[0], frames
+    assert frames[4] > frames[0], f"the view did not draw the change after yielding: {frames}"
+
+
 def test_malformed_input_is_refused_whole(open_view: Callable[..., Page], iva: Habitat) -> None:
     page = open_view(iva.document())
     before = inspect(page)["links"]

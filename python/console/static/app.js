@@ -421,6 +421,7 @@ async function halt() {
   const button = $("halt");
   const reason = $("halt-reason").value.trim();
   $("halt-reason").value = "";
+  window.caretakerSpatial?.yieldFrames(2); // the next frame shows "halting…" without waiting for the 3D view
   button.dataset.state = "halting";
   button.textContent = "halting…";
   try {

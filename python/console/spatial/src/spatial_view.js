@@ -121,6 +121,7 @@ export class SpatialView {
     this._fpsWindow = [];
     this._last = performance.now();
     this._dirty = true;
+    this._yieldFrames = 0; // frames left to skip for an emergency action's feedback (yieldFrames)
     this._jointsSince = null; // when the oldest joint update not yet drawn arrived
     this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
     this.renderOnDemand = !!renderOnDemand;
@@ -287,6 +288,13 @@ export class SpatialView {
 
   /** Something drawn changed outside the view's own paths (the page's doing): draw the next frame. */
   invalidate() { this._dirty = true; }
+
+  /**
+   * Draw nothing in the next `frames` animation frames: the frame that shows an operator's
+   * emergency action (HALT's "halting…") must not wait for this view, which drawn in software
+   * takes tens of ms a frame while the arm moves. The view catches up in the frame after.
+   */
+  yieldFrames(frames = 1) { this._yieldFrames = Math.max(this._yieldFrames, frames); }
 
   /** Adaptive resolution on (default) or off: the benchmark compares both in one page. */
   setAdaptiveResolution(adaptive) {
@@ -586,6 +594,7 @@ export class SpatialView {
     this._adaptResolution(now);
     // On demand: a frame only when something changed (a mesh that finished loading says so too).
     // An idle view then costs nothing: drawn in software, each frame of it was tens of ms of CPU.
+    if (this._yieldFrames > 0) { this._yieldFrames -= 1; return; } // still dirty: drawn next frame
     if (this.renderOnDemand && !this._dirty) return;
     this._dirty = false;
     this.renderer.render(this.scene, this.camera);
