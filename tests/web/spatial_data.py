@@ -226,3 +226,31 @@ class RunningTemplate:
 
 def relative(frame: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return invert(frame) @ pose
+
+
+def world_boxes(body: Mapping[str, Any]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """A scene file body's box shapes as world-aligned boxes (low, high corners) around their
+    corners, as the 3D view bounds a mesh."""
+    pose = body.get("pose", {"xyz": [0, 0, 0], "rpy": [0, 0, 0]})
+    rotation = np.array(p.getMatrixFromQuaternion(p.getQuaternionFromEuler(pose["rpy"]))).reshape(3, 3)
+    boxes = []
+    for shape in body["shapes"]:
+        half = np.array(shape["size"]) / 2
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+        world = (corners + np.array(shape.get("xyz", [0, 0, 0]))) @ rotation.T + np.array(pose["xyz"])
+        boxes.append((world.min(axis=0), world.max(axis=0)))
+    return boxes
+
+
+def crosses(box: tuple[np.ndarray, np.ndarray], start: np.ndarray, end: np.ndarray) -> bool:
+    """Whether the segment start..end passes through the axis-aligned box (slab test)."""
+    d = end - start
+    low, high = 0.0, 1.0
+    for axis in range(3):
+        if abs(d[axis]) < 1e-12:
+            if not box[0][axis] <= start[axis] <= box[1][axis]:
+                return False
+            continue
+        t0, t1 = sorted(((box[0][axis] - start[axis]) / d[axis], (box[1][axis] - start[axis]) / d[axis]))
+        low, high = max(low, t0), min(high, t1)
+    return low <= high

@@ -23,8 +23,9 @@ from typing import Any
 import numpy as np
 import pytest
 import roslibpy
+import yaml
 from playwright.sync_api import Browser, Page, expect
-from spatial_data import matrix
+from spatial_data import crosses, matrix, world_boxes
 from spatial_names import names_hide_nothing
 
 from at_ros.transforms import angle_between
@@ -362,8 +363,13 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     assert inspect(alice)["ghost"]["visible"], "the ghost of the plan about to run"
     act(alice, "done", instruction="2.6")
     wait_view(alice, "!v.ghost.visible")
+    # looked at from above the cabinet, near the wall: its housing is between the eye and the
+    # gripper while the gripper works at the slot
+    alice.evaluate(f"window.caretakerSpatial.look({ABOVE_EYE}, {CABINET_SLOT})")
+    sight = GripperInSight(alice)
     frame_rate.measure_until("view.state.current === '2.8' && view.state.hold !== null && !view.state.executing")
     frame_rate.report()
+    sight.check()
     expect(instruction(alice, "2.7").locator(".mark")).to_contain_text("completed", timeout=TIMEOUT_MS)
     assert habitat.plan("cdra_filter:0")["state"] != "PLANNED"
     assert not inspect(alice)["ghost"]["visible"], "no ghost of a plan that ran"
@@ -378,6 +384,55 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     wait_for_pose(alice, waypoint, target)
     assert_pose(inspect(alice)["templates"][waypoint]["pose"], target, "the waypoint where it was dropped")
     stop_run(alice, "3D view test done")
+
+
+#: The cabinet's slot (sim/scenes/iva.yaml) and an eye above the cabinet, near the wall it hangs on.
+CABINET_SLOT = [0.15, 0.90, 1.05]
+ABOVE_EYE = [0.15, 1.00, 1.90]
+
+
+class GripperInSight:
+    """Whether the scene objects between the view's eye and the gripper were faded while the arm
+    worked inside the cabinet (the pull-out). What is between is worked out here from the scene
+    file's boxes (sim/scenes/iva.yaml, as world-aligned boxes like the view's own), independently
+    of the view; the page reads the eye, the drawn tool and the names the view faded every 50 ms
+    from the start (``check`` stops it)."""
+
+    START = """() => {
+      window.sightReads = [];
+      window.sightTimer = setInterval(() => {
+        const v = window.caretakerSpatial.inspect();
+        window.sightReads.push([v.camera.eye, v.tool_pose.xyz, v.camera.faded]);
+      }, 50);
+    }"""
+    #: The view re-checks what hides the tool each time the drawn tool moved 2 cm: a box counts
+    #: as in the way when the line of sight crosses it shrunk by this much.
+    MARGIN_M = 0.03
+
+    def __init__(self, page: Page) -> None:
+        self.page = page
+        scene = yaml.safe_load((REPO / "sim" / "scenes" / "iva.yaml").read_text())
+        self.boxes = [(body["name"], box) for body in scene["bodies"] for box in world_boxes(body)]
+        page.evaluate(self.START)
+
+    def check(self) -> None:
+        reads = self.page.evaluate("() => { clearInterval(window.sightTimer); return window.sightReads; }")
+        self.reads = [(np.array(eye), np.array(tool), faded) for eye, tool, faded in reads]
+        hidden = 0
+        for eye, tool, faded in self.reads:
+            between = {
+                name
+                for name, (low, high) in self.boxes
+                if crosses((low + self.MARGIN_M, high - self.MARGIN_M), eye, tool)
+                and not np.all((low <= tool) & (tool <= high))
+            }
+            if between:
+                hidden += 1
+                assert between <= set(faded), f"the gripper at {tool.round(3)} is behind {between}, faded: {faded}"
+        print(f"gripper in sight: {hidden} of {len(self.reads)} reads had scene objects between it and the eye")
+        assert hidden, "no read had the gripper behind a scene object: the check saw nothing to fade; " + "; ".join(
+            f"eye {eye.round(2)} tool {tool.round(3)} faded {faded}" for eye, tool, faded in self.reads
+        )
 
 
 class FrameRate:

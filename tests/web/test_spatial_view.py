@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 from playwright.sync_api import Browser, Page
-from spatial_data import REPO, Habitat, RunningTemplate, matrix
+from spatial_data import REPO, Habitat, RunningTemplate, crosses, matrix
 from spatial_names import READ_PIXELS, names_hide_nothing
 from spatial_site import SpatialSite, serve_site
 
@@ -362,20 +362,6 @@ def test_names_leave_the_display_object_in_sight_and_lie_on_nothing(
 TABLE_TOP = (np.array([-0.5, -0.4, 0.71]), np.array([0.5, 0.4, 0.75]))
 
 
-def _crosses(box: tuple[np.ndarray, np.ndarray], start: np.ndarray, end: np.ndarray) -> bool:
-    """Whether the segment start..end passes through the axis-aligned box (slab test)."""
-    d = end - start
-    low, high = 0.0, 1.0
-    for axis in range(3):
-        if abs(d[axis]) < 1e-12:
-            if not box[0][axis] <= start[axis] <= box[1][axis]:
-                return False
-            continue
-        t0, t1 = sorted(((box[0][axis] - start[axis]) / d[axis], (box[1][axis] - start[axis]) / d[axis]))
-        low, high = max(low, t0), min(high, t1)
-    return low <= high
-
-
 def test_what_hides_the_gripper_fades_and_follows_it_as_the_arm_moves(
     open_view: Callable[..., Page], iva: Habitat
 ) -> None:
@@ -390,7 +376,7 @@ def test_what_hides_the_gripper_fades_and_follows_it_as_the_arm_moves(
     centre = (TABLE_TOP[0] + TABLE_TOP[1]) / 2
     eye = tool + 2.0 * (centre - tool)  # under the table, the gripper above it
     away = eye + 0.05 * (eye - tool) / np.linalg.norm(eye - tool)  # looking away from it: only the tool's line crosses
-    assert _crosses(TABLE_TOP, eye, tool) and not _crosses(TABLE_TOP, eye, away)
+    assert crosses(TABLE_TOP, eye, tool) and not crosses(TABLE_TOP, eye, away)
     page.evaluate(
         """([eye, target]) => {
       const view = window.caretakerSpatial;
@@ -407,7 +393,7 @@ def test_what_hides_the_gripper_fades_and_follows_it_as_the_arm_moves(
     turned = {"shoulder_pan_joint": -1.5708, "shoulder_lift_joint": -0.6, "elbow_joint": 0.3}
     apply(page, {"kind": "joints", "stamp": 1.0, "positions": turned})
     moved = np.array(inspect(page)["tool_pose"]["xyz"])
-    assert np.linalg.norm(moved - tool) > 0.1 and not _crosses(TABLE_TOP, eye, moved)
+    assert np.linalg.norm(moved - tool) > 0.1 and not crosses(TABLE_TOP, eye, moved)
     assert "table" not in inspect(page)["camera"]["faded"]
 
 

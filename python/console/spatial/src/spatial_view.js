@@ -373,6 +373,9 @@ export class SpatialView {
     this._look(sphere.center.clone().addScaledVector(direction, distance), sphere.center);
   }
 
+  /** Look from ``eye`` at ``target`` (world [x, y, z]), as an operator orbiting there would. */
+  look(eye, target) { this._look(new THREE.Vector3(...eye), new THREE.Vector3(...target)); }
+
   _look(eye, target) {
     const distance = eye.distanceTo(target);
     this.camera.position.copy(eye);
