@@ -74,14 +74,27 @@ def playwright() -> Iterator[Playwright]:
         yield driver
 
 
-@pytest.fixture(scope="module")
-def browser(playwright: Playwright) -> Iterator[Browser]:
-    """Debian's Chromium, headless."""
-    from support.browser import CHROMIUM, CHROMIUM_ARGS
+@pytest.fixture(scope="session")
+def chromium() -> Iterator[Callable[[str], str]]:
+    """``chromium("plain" | "webgl")``: the DevTools endpoint of this worker's Chromium of that kind
+    (support/browser.py SharedChromium), started on first use and stopped at the end."""
+    from support.browser import CHROMIUM_ARGS, WEBGL_ARGS, SharedChromium
 
-    launched = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-    yield launched
-    launched.close()
+    kinds = {"plain": SharedChromium(CHROMIUM_ARGS), "webgl": SharedChromium(WEBGL_ARGS)}
+    yield lambda kind: kinds[kind].endpoint()
+    for shared in kinds.values():
+        shared.close()
+
+
+@pytest.fixture(scope="module")
+def browser(playwright: Playwright, chromium: Callable[[str], str]) -> Iterator[Browser]:
+    """Debian's Chromium, headless: this worker's, connected for this module, which leaves it to
+    the next module with the contexts it opened closed."""
+    from support.browser import leave
+
+    connected = playwright.chromium.connect_over_cdp(chromium("plain"))
+    yield connected
+    leave(connected)
 
 
 @pytest.fixture

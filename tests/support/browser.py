@@ -1,18 +1,24 @@
 """Debian's Chromium through Playwright, for every suite that drives the console in a browser.
 
-One Playwright driver serves the whole test session (tests/conftest.py): its sync API cannot run
-twice at once in a thread. :func:`signed_in_pages` opens fresh browser contexts, one per person,
-and fails the test if any page raised a script error.
+One Chromium of each kind serves a whole pytest worker (:class:`SharedChromium`); each test
+module connects to it with a Playwright driver of its own (tests/conftest.py).
+:func:`signed_in_pages` opens fresh browser contexts, one per person, and fails the test if any
+page raised a script error.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import re
+import shutil
+import subprocess
+import tempfile
+import threading
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 from playwright.sync_api import Browser, BrowserContext, Page
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TIMEOUT_MS", "WEBGL_ARGS", "signed_in_pages"]
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TIMEOUT_MS", "WEBGL_ARGS", "SharedChromium", "leave", "signed_in_pages"]
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -40,6 +46,96 @@ WEBGL_ARGS = [
 ]
 #: Generous: other suites share the two cores while these run.
 TIMEOUT_MS = 30_000
+#: What Playwright's own launch adds for tests, for a Chromium started here: no throttling of
+#: pages it deems in the background, nothing of a user's profile.
+HEADLESS_ARGS = [
+    "--headless",
+    "--disable-background-timer-throttling",
+    "--disable-backgrounding-occluded-windows",
+    "--disable-renderer-backgrounding",
+    "--disable-ipc-flooding-protection",
+    "--disable-hang-monitor",
+    "--disable-extensions",
+    "--disable-default-apps",
+    "--disable-dev-shm-usage",
+    "--no-default-browser-check",
+    "--password-store=basic",
+    "--hide-scrollbars",
+    "--mute-audio",
+]
+_LISTENING = re.compile(r"DevTools listening on (ws://\S+)")
+
+
+class SharedChromium:
+    """One Chromium for every browser test module of a pytest worker, reached over the DevTools
+    protocol (``connect_over_cdp``): a launch costs its browser process about a second of CPU, and
+    a worker runs a dozen such modules. Each module still has a Playwright driver of its own (see
+    tests/conftest.py) and closes the contexts it opened (:func:`leave`); a Chromium that ended is
+    started again.
+    """
+
+    def __init__(self, args: Sequence[str]) -> None:
+        self.args = list(args)
+        self._process: subprocess.Popen[str] | None = None
+        self._profile = ""
+        self._endpoint = ""
+        self._drain: threading.Thread | None = None
+
+    def endpoint(self) -> str:
+        """The DevTools WebSocket of the running Chromium, started now if it is not running."""
+        if self._process is None or self._process.poll() is not None:
+            self._start()
+        return self._endpoint
+
+    def _start(self) -> None:
+        self.close()
+        self._profile = tempfile.mkdtemp(prefix="caretaker-chromium-")
+        process = subprocess.Popen(
+            [CHROMIUM, *HEADLESS_ARGS, *self.args, "--remote-debugging-port=0", f"--user-data-dir={self._profile}"],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        self._process = process
+        assert process.stderr is not None
+        said: list[str] = []
+        for line in process.stderr:  # Chromium says where it listens before anything else can connect
+            said.append(line)
+            found = _LISTENING.search(line)
+            if found:
+                self._endpoint = found.group(1)
+                break
+        else:
+            raise RuntimeError(f"Chromium ended before it listened (exit {process.wait()}):\n{''.join(said[-20:])}")
+        # the rest of what it says is read and dropped, so a full pipe never blocks it
+        self._drain = threading.Thread(target=lambda: [None for _ in process.stderr or ()], daemon=True)
+        self._drain.start()
+
+    def close(self) -> None:
+        if self._process is not None:
+            self._process.terminate()
+            try:
+                self._process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+                self._process.wait()
+            if self._drain is not None:
+                self._drain.join(timeout=10)  # the pipe ends with the process
+            if self._process.stderr is not None:
+                self._process.stderr.close()
+            self._process = None
+        if self._profile:
+            shutil.rmtree(self._profile, ignore_errors=True)
+            self._profile = ""
+
+
+def leave(browser: Browser) -> None:
+    """Close the contexts a module opened on a shared Chromium and leave the browser running
+    (``Browser.close`` of a connection over CDP would end the browser itself); the module's
+    Playwright driver then ends the connection."""
+    for context in browser.contexts[1:]:  # the first is the browser's own default context
+        context.close()
 
 
 @contextmanager

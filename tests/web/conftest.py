@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Browser, Page, Playwright, expect
 
-from support.browser import CHROMIUM, TIMEOUT_MS, WEBGL_ARGS, signed_in_pages
+from support.browser import TIMEOUT_MS, leave, signed_in_pages
 from support.operator_page import sign_in_on
 from support.web_server import WebServer, new_ground_database, procedure_shelf, start_server
 
@@ -32,11 +32,11 @@ def server(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
 
 
 @pytest.fixture(scope="module")
-def webgl_browser(playwright: Playwright) -> Iterator[Browser]:
-    """Chromium with WebGL on SwiftShader, for the 3D view's suites."""
-    browser = playwright.chromium.launch(executable_path=CHROMIUM, headless=True, args=WEBGL_ARGS)
+def webgl_browser(playwright: Playwright, chromium: Callable[[str], str]) -> Iterator[Browser]:
+    """Chromium with WebGL on SwiftShader, for the 3D view's suites (this worker's, as ``browser``)."""
+    browser = playwright.chromium.connect_over_cdp(chromium("webgl"))
     yield browser
-    browser.close()
+    leave(browser)
 
 
 @pytest.fixture

@@ -78,7 +78,7 @@ public final class TestServer implements AutoCloseable {
         return listener.getLocalPort();
     }
 
-    /** @return how many WebSocket handshakes completed so far */
+    /** @return how many WebSocket handshakes the server answered so far */
     public int handshakes() {
         return handshakes.get();
     }
@@ -218,6 +218,8 @@ public final class TestServer implements AutoCloseable {
                 return;
             }
             OutputStream out = socket.getOutputStream();
+            // counted before the answer: a client that hears it may ask the count at once
+            handshakes.incrementAndGet();
             String accept = Base64.getEncoder().encodeToString(MessageDigest.getInstance("SHA-1")
                     .digest((key + GUID).getBytes(StandardCharsets.US_ASCII)));
             out.write(("HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
@@ -227,7 +229,6 @@ public final class TestServer implements AutoCloseable {
                 client = socket;
                 clientOut = out;
             }
-            handshakes.incrementAndGet();
             connected.countDown();
             readFrames(new DataInputStream(in));
         } catch (IOException | NoSuchAlgorithmException e) {
