@@ -23,6 +23,8 @@ if TYPE_CHECKING:  # playwright is loaded only by sessions with browser tests
     from playwright.sync_api import Browser, Playwright
     from xdist.remote import Producer  # type: ignore[import-untyped]
 
+    from support.browser import SharedChromium
+
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 # pytest-xdist workers inherit the controller's environment: each claims a domain of its own.
 if "ROS_DOMAIN_ID" not in os.environ or "PYTEST_XDIST_WORKER" in os.environ:
@@ -75,26 +77,22 @@ def playwright() -> Iterator[Playwright]:
 
 
 @pytest.fixture(scope="session")
-def chromium() -> Iterator[Callable[[str], str]]:
-    """``chromium("plain" | "webgl")``: the DevTools endpoint of this worker's Chromium of that kind
-    (support/browser.py SharedChromium), started on first use and stopped at the end."""
+def chromium() -> Iterator[dict[str, SharedChromium]]:
+    """This worker's Chromiums by kind, "plain" and "webgl" (support/browser.py SharedChromium),
+    each started on first use and stopped at the end."""
     from support.browser import CHROMIUM_ARGS, WEBGL_ARGS, SharedChromium
 
     kinds = {"plain": SharedChromium(CHROMIUM_ARGS), "webgl": SharedChromium(WEBGL_ARGS)}
-    yield lambda kind: kinds[kind].endpoint()
+    yield kinds
     for shared in kinds.values():
         shared.close()
 
 
 @pytest.fixture(scope="module")
-def browser(playwright: Playwright, chromium: Callable[[str], str]) -> Iterator[Browser]:
-    """Debian's Chromium, headless: this worker's, connected for this module, which leaves it to
-    the next module with the contexts it opened closed."""
-    from support.browser import leave
-
-    connected = playwright.chromium.connect_over_cdp(chromium("plain"))
-    yield connected
-    leave(connected)
+def browser(playwright: Playwright, chromium: dict[str, SharedChromium]) -> Iterator[Browser]:
+    """Debian's Chromium, headless: this worker's, connected for this module (the contexts it
+    opened end with the module's driver)."""
+    yield chromium["plain"].connect(playwright)
 
 
 @pytest.fixture

@@ -8,6 +8,7 @@ page raised a script error.
 
 from __future__ import annotations
 
+import logging
 import re
 import shutil
 import subprocess
@@ -16,9 +17,10 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
-from playwright.sync_api import Browser, BrowserContext, Page
+from playwright.sync_api import Browser, BrowserContext, Page, Playwright
+from playwright.sync_api import Error as PlaywrightError
 
-__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TIMEOUT_MS", "WEBGL_ARGS", "SharedChromium", "leave", "signed_in_pages"]
+__all__ = ["CHROMIUM", "CHROMIUM_ARGS", "TIMEOUT_MS", "WEBGL_ARGS", "SharedChromium", "signed_in_pages"]
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
@@ -63,6 +65,9 @@ HEADLESS_ARGS = [
     "--hide-scrollbars",
     "--mute-audio",
 ]
+#: A connection to the shared Chromium answered within this, or it is replaced.
+CONNECT_TIMEOUT_MS = 60_000
+log = logging.getLogger(__name__)
 _LISTENING = re.compile(r"DevTools listening on (ws://\S+)")
 
 
@@ -70,8 +75,8 @@ class SharedChromium:
     """One Chromium for every browser test module of a pytest worker, reached over the DevTools
     protocol (``connect_over_cdp``): a launch costs its browser process about a second of CPU, and
     a worker runs a dozen such modules. Each module still has a Playwright driver of its own (see
-    tests/conftest.py) and closes the contexts it opened (:func:`leave`); a Chromium that ended is
-    started again.
+    tests/conftest.py); the contexts a connection opened end with it. A Chromium that ended, or
+    does not answer, is started again.
     """
 
     def __init__(self, args: Sequence[str]) -> None:
@@ -86,6 +91,17 @@ class SharedChromium:
         if self._process is None or self._process.poll() is not None:
             self._start()
         return self._endpoint
+
+    def connect(self, playwright: Playwright) -> Browser:
+        """This Chromium, connected through ``playwright`` (a module's driver). A Chromium that
+        does not answer the connection is replaced by a new one, and that is logged: the test
+        needs a browser, not that one."""
+        try:
+            return playwright.chromium.connect_over_cdp(self.endpoint(), timeout=CONNECT_TIMEOUT_MS)
+        except PlaywrightError as exc:
+            log.warning("the shared Chromium did not answer (%s): starting another", str(exc).splitlines()[0])
+            self._start()
+            return playwright.chromium.connect_over_cdp(self._endpoint, timeout=CONNECT_TIMEOUT_MS)
 
     def _start(self) -> None:
         self.close()
@@ -128,14 +144,6 @@ class SharedChromium:
         if self._profile:
             shutil.rmtree(self._profile, ignore_errors=True)
             self._profile = ""
-
-
-def leave(browser: Browser) -> None:
-    """Close the contexts a module opened on a shared Chromium and leave the browser running
-    (``Browser.close`` of a connection over CDP would end the browser itself); the module's
-    Playwright driver then ends the connection."""
-    for context in browser.contexts[1:]:  # the first is the browser's own default context
-        context.close()
 
 
 @contextmanager

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Browser, Page, Playwright, expect
 
-from support.browser import TIMEOUT_MS, leave, signed_in_pages
+from support.browser import TIMEOUT_MS, SharedChromium, signed_in_pages
 from support.operator_page import sign_in_on
 from support.web_server import WebServer, new_ground_database, procedure_shelf, start_server
 
@@ -32,11 +32,9 @@ def server(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFact
 
 
 @pytest.fixture(scope="module")
-def webgl_browser(playwright: Playwright, chromium: Callable[[str], str]) -> Iterator[Browser]:
+def webgl_browser(playwright: Playwright, chromium: dict[str, SharedChromium]) -> Iterator[Browser]:
     """Chromium with WebGL on SwiftShader, for the 3D view's suites (this worker's, as ``browser``)."""
-    browser = playwright.chromium.connect_over_cdp(chromium("webgl"))
-    yield browser
-    leave(browser)
+    yield chromium["webgl"].connect(playwright)
 
 
 @pytest.fixture
