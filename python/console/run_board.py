@@ -286,8 +286,6 @@ class RunBoard:
                 f"{missing_approvals_text(points, main, side.approvals)}; a second operator approves them here",
                 {"approvals_needed": [point.describe(main) for point in points]},
             )
-        if approver is not None and approver.user == user:
-            raise ActionRefused(403, f"{user} starts this run: a second operator must approve, not {user}")
         try:
             return launch_onboard(
                 path,

@@ -141,8 +141,8 @@ def build_unit(
     breakpoints: Sequence[str],
     lifetime_s: float,
     now: float,
+    policy: ApprovalPolicy,
     version: RunVersion | None = None,
-    policy: ApprovalPolicy | None = None,
     approver: str | None = None,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
@@ -155,9 +155,8 @@ def build_unit(
     paths = [Path(checked.procedure.path).resolve(), *(Path(p).resolve() for p in checked.callees)]
     root = Path(os.path.commonpath([p.parent for p in paths]))
     files = {p.relative_to(root).as_posix(): p.read_text(encoding="utf-8") for p in paths}
-    points = approval_points(checked, policy) if policy is not None else []
+    points = approval_points(checked, policy)
     if points and approver is None:
-        assert policy is not None
         raise ValueError(
             f"{missing_approvals_text(points, paths[0], policy)}: the habitat cannot wait a round trip for "
             "each, so a second operator approves them before the unit goes up"
@@ -165,7 +164,6 @@ def build_unit(
     approvals = tuple(
         CarriedApproval.given(point, point.procedure.relative_to(root).as_posix(), user, str(approver), policy)
         for point in points
-        if policy is not None
     )
     return Unit(
         run_id=run_id,

@@ -27,7 +27,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from pride.approvals import ApprovalPolicy, CarriedApproval
+from pride.approvals import ApprovalPolicy, CarriedApproval, command_name
 from pride.audit_chain import StoredEvent, utc
 from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
@@ -323,9 +323,7 @@ class HabitatRuns:
         elif snap.hold is Hold.OPERATOR_ACTION and unit.confirm_manual:
             executive.mark_done(unit.user)
         elif snap.hold in (Hold.CONFIRMATION, Hold.APPROVAL) and isinstance(instruction, CommandInstruction):
-            carried = unit.approval_of(
-                _within(path, folder), instruction.number, f"{instruction.system}.{instruction.command}"
-            )
+            carried = unit.approval_of(_within(path, folder), instruction.number, command_name(instruction))
             if snap.hold is Hold.CONFIRMATION and (carried is not None or unit.confirm_hazardous):
                 executive.confirm(unit.user)  # the sender's ask: approved next (carried), or by the ground
             elif snap.hold is Hold.APPROVAL and carried is not None and carried not in stale:

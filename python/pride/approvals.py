@@ -44,6 +44,7 @@ __all__ = [
     "CriticalLevel",
     "approval_points",
     "command_hazardous",
+    "command_name",
     "missing_approvals_text",
     "policy_from",
     "self_approval_refusal",
@@ -142,6 +143,11 @@ def command_hazardous(instruction: Instruction, sysreps: Mapping[str, SysRep]) -
     return instruction.hazardous or bool(command is not None and command.hazardous)
 
 
+def command_name(instruction: CommandInstruction) -> str:
+    """ "system.command": how an approval names the command it covers."""
+    return f"{instruction.system}.{instruction.command}"
+
+
 @dataclass(frozen=True)
 class ApprovalPoint:
     """A command of a procedure (or of a sub-procedure it calls) that needs a second operator's approval."""
@@ -163,7 +169,7 @@ def approval_points(checked: CheckedProcedure, policy: ApprovalPolicy) -> list[A
         (Path(path).resolve(), callee) for path, callee in checked.callees.items()
     )
     return [
-        ApprovalPoint(path, instruction.number, f"{instruction.system}.{instruction.command}")
+        ApprovalPoint(path, instruction.number, command_name(instruction))
         for path, procedure in procedures
         for instruction in procedure.instructions
         if isinstance(instruction, CommandInstruction)
