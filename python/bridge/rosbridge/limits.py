@@ -60,6 +60,11 @@ class Limits:
         "bytes waiting for one client above which the bridge stops reading "
         "its requests until they are sent (backpressure)",
     )
+    handshake_timeout: float = _limit(
+        60.0,
+        "seconds a client has to finish the TLS and WebSocket opening handshakes; several round trips "
+        "of a lossy 1.3 s link, or a starved bridge, need more than websockets' 10 s",
+    )
     auth_timeout: float = _limit(20.0, "seconds a client has to authenticate (with --auth-secret-file)")
     ping_interval: float = _limit(30.0, "seconds between keepalive pings (0: none)")
     ping_timeout: float = _limit(

@@ -305,6 +305,7 @@ async def run(args: argparse.Namespace) -> int:
             args.address,
             args.port,
             ssl=tls,
+            open_timeout=limits.handshake_timeout,
             max_size=limits.max_message_size,
             compression=None,
             ping_interval=limits.ping_interval or None,
