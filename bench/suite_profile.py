@@ -37,7 +37,7 @@ import pytest
 OUT_ENV = "CARETAKER_SUITE_PROFILE"
 COSTS = Path(__file__).resolve().parents[1] / "tests" / "file_costs.json"
 
-_started: dict[str, tuple[float, float]] = {}
+_started: dict[str, tuple[float, float, float]] = {}
 
 
 def _cpu_seconds() -> float:
@@ -56,13 +56,14 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     name = _file_of(item)
     assert name is not None
     if name not in _started:
-        _started[name] = (time.monotonic(), _cpu_seconds())
+        _started[name] = (time.time(), time.monotonic(), _cpu_seconds())
     yield
     out = os.environ.get(OUT_ENV)
     if out and _file_of(nextitem) != name:
-        wall0, cpu0 = _started[name]
+        began, wall0, cpu0 = _started[name]
         record = {
             "file": name,
+            "began": round(began, 1),  # the clock's time, so the workers' files line up on one timeline
             "wall_s": round(time.monotonic() - wall0, 1),
             "cpu_s": round(_cpu_seconds() - cpu0, 1),
             "worker": os.environ.get("PYTEST_XDIST_WORKER", "main"),
