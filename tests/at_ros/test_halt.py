@@ -144,7 +144,9 @@ def test_halt_mid_pull_out_stops_the_arm_and_a_new_plan_finishes_it(stack: tuple
         # When the halt reached the server, by the robot's clock (at or before the true sim time).
         reached_server = halt.robot_time.sec + halt.robot_time.nanosec * 1e-9
         assert reached_server > 0, "the halt's answer carries no robot time"
-        assert "halted the arm" in halt.message, halt.message  # it was moving
+        # Moving, or between two segments of it (under load the next goal can be a while coming):
+        # either way the execution ends halted and no later segment starts.
+        assert "halted the arm" in halt.message or halt.message.endswith(": nothing was moving"), halt.message
         worker.join(60)
 
         assert halt.success and halt.halted == name, halt.message

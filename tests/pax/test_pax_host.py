@@ -110,8 +110,9 @@ def test_commands_and_telemetry_without_a_robot(url: str, tmp_path: Path, caplog
         host.add_listener(lambda sysrep, item, value: changes.put((sysrep, item, value)))
 
         # No AT server: after stale_after the server reads inactive (a fresh false), the rest stale.
+        # The bound is the suite's load, not the plugin: a starved JVM looks late (seen past 15 s).
         with caplog.at_level(logging.ERROR, logger="pride.pax_host"):
-            sysrep, item, value = changes.get(timeout=15.0)
+            sysrep, item, value = changes.get(timeout=90.0)
         assert (sysrep, item) == ("affordance_templates", "affordance_template_server_active")
         assert value.value is False and value.stale is False and isinstance(value.timestamp, float)
         assert host.telemetry("affordance_templates", "plan_status") == TelemetryValue(None, None, True)
