@@ -79,6 +79,8 @@ class SpatialFeeds:
                     elif event.kind.value == "command_result" and motion:
                         loop.call_soon_threadsafe(feed.command_ended)
                     elif event.kind.value == "command_result" and command in AT_COMMANDS_THAT_MOVE_TEMPLATES:
+                        if command == "set_display_object_pose" and event.data.get("success") is True:
+                            loop.call_soon_threadsafe(feed.registered, event.data.get("args") or {})
                         loop.call_soon_threadsafe(feed.refresh)
 
                 live.executive.add_listener(on_event)

@@ -12,6 +12,7 @@ What it asks the habitat for (names under the robot's namespace), sized for a 1.
 | ``get_template_status`` per template | on a change, an AT command of the run, a reconnect (below) | on change |
 | ``get_plan`` | when ``plan_id`` or the execute status change | on change |
 | ``camera/<name>/image`` (camera below) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
+| ``perception/last_result`` | subscribe (latched), ``queue_length`` 1 | once per locate (a few hundred bytes) |
 
 ``get_template_status`` is asked when ``running_templates``, ``plan_id`` or the execute status
 change, after an AT command of the run, and after a reconnect. The camera is the one
@@ -33,7 +34,7 @@ from typing import Any
 from console.camera_feed import MOTION_COMMAND
 from console.spatial_camera import CameraImageError, choose_camera, png_from_image
 from console.spatial_link import ViewLink
-from console.spatial_updates import joints_update, objects_update, templates_update
+from console.spatial_updates import joints_update, located_update, objects_update, templates_update
 from console.spatial_values import SpatialDataError
 from console.spatial_world import plan_from_get_plan, world_document
 from rosbridge_wire.client import LinkError, RosbridgeClient, Subscription
@@ -106,6 +107,11 @@ class SpatialFeed:
         self.frame_poses: dict[str, Json] = {}
         self.templates: Json = {"kind": "templates", "templates": []}
         self.plan: Json = {"kind": "plan", "plan": None}
+        # (template instance, display object) -> the frame the run last registered it to: the AT
+        # server reports poses only, and a drag or a proposal is relative to that frame
+        self.registrations: dict[tuple[str, str], str] = {}
+        self.located_msg: Mapping[str, Any] | None = None  # perception's last result, as it came
+        self.located: Json | None = None  # ... as the update made of it
         self.status_key: tuple[Any, ...] | None = None
         self.plan_key: tuple[Any, ...] | None = None
         self.active_template = ""
@@ -141,6 +147,14 @@ class SpatialFeed:
                 throttle_ms=STATUS_THROTTLE_MS,
             )
         )
+        self.rosbridge.subscribe(
+            Subscription(
+                name("perception/last_result"),
+                "caretaker_perception_msgs/msg/LocateResult",
+                self._on_located,
+                queue_length=1,
+            )
+        )
         self.rosbridge.start()
 
     async def close(self) -> None:
@@ -151,6 +165,8 @@ class SpatialFeed:
     def watch(self) -> ViewWatcher:
         watcher = ViewWatcher()
         watcher.document = self.document()
+        if self.located is not None:  # after the document: it proposes the templates the document has
+            watcher.pending["located"] = self.located
         watcher.changed.set()
         self.watchers.add(watcher)
         return watcher
@@ -185,6 +201,8 @@ class SpatialFeed:
             return
         for watcher in self.watchers:
             watcher.document, watcher.pending = doc, {}
+            if self.located is not None:
+                watcher.pending["located"] = self.located
             watcher.changed.set()
 
     def _report(self, message: str) -> None:
@@ -222,6 +240,8 @@ class SpatialFeed:
             return
         self.frames, self.frame_poses = msg, update["poses"]
         self._push(update)
+        if self.located_msg is not None and self.located is None:
+            self._show_located()
         if self.camera is None:
             self.camera = choose_camera(self.frame_poses, self.preferred_camera)
             if self.camera is not None:
@@ -233,6 +253,22 @@ class SpatialFeed:
                         throttle_ms=CAMERA_THROTTLE_MS,
                     )
                 )
+
+    def _on_located(self, msg: Mapping[str, Any]) -> None:
+        """The habitat's last locate: pushed as a proposal, kept for a view that opens later.
+        Its pose may be in a named frame: until ``sim/frames`` has come, it waits for them."""
+        self.located_msg, self.located = msg, None
+        if self.frame_poses:
+            self._show_located()
+
+    def _show_located(self) -> None:
+        try:
+            self.located = located_update(self.located_msg or {}, self.frame_poses)
+        except SpatialDataError as exc:
+            self.located_msg = None
+            self._report(f"perception's result cannot be shown: {exc}")
+            return
+        self._push(self.located)
 
     def _on_image(self, msg: Mapping[str, Any]) -> None:
         try:
@@ -300,7 +336,9 @@ class SpatialFeed:
         running = self.status_key[0] if self.status_key else ()
         statuses = [await self._ask("get_template_status", {"name": key, "frame_id": "world"}) for key in running]
         self.templates = templates_update(
-            [_status_entry(s, key) for s, key in zip(statuses, running, strict=True)], frames=self.frames
+            [_status_entry(s, key) for s, key in zip(statuses, running, strict=True)],
+            frames=self.frames,
+            registrations=self.registrations,
         )
         self._push(self.templates)
 
@@ -313,6 +351,16 @@ class SpatialFeed:
         self._push_plan()
 
     # ---- the run's commands -----------------------------------------------------------------
+    def registered(self, args: Mapping[str, Any]) -> None:
+        """The run registered a display object (set_display_object_pose succeeded with ``args``):
+        remember the frame, so the view shows it registered there (what a drag is relative to,
+        and which display objects a located frame proposes)."""
+        template, name, frame = (str(args.get(k, "")) for k in ("affordance_template", "display_object", "frame"))
+        if ":" not in template:
+            template = f"{template}:{args.get('id', '')}"
+        if template and name:
+            self.registrations[(template, name)] = frame or "world"
+
     def command_sent(self, instance: str, trajectory: str) -> None:
         """The run sent the motion command (``execute_plan``) for ``instance``'s ``trajectory``: its
         plan is drawn as the path the arm has been told to follow from now, not a light time later

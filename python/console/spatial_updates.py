@@ -15,7 +15,7 @@ from typing import Any
 from console import spatial_values as checked
 from console.spatial_values import DISPLAY_OBJECT_COLOR, DOCUMENT_FRAME, Json, SpatialDataError, pose
 
-__all__ = ["PlanSegment", "joints_update", "objects_update", "plan_update", "templates_update"]
+__all__ = ["PlanSegment", "joints_update", "located_update", "objects_update", "plan_update", "templates_update"]
 
 # ---------------------------------------------------------------------------------- updates
 
@@ -57,6 +57,48 @@ def objects_update(named_poses: Mapping[str, Any]) -> Json:
     }
 
 
+def located_update(result: Mapping[str, Any], frame_poses: Mapping[str, Json]) -> Json:
+    """A ``located`` update from rosbridge JSON of caretaker_perception_msgs/LocateResult
+    (``perception/last_result``): where the habitat's camera found an object, in the document
+    frame (the result's frame, a named frame of ``/sim/frames`` or the document frame, composed
+    with the pose), or why it did not. The view proposes the display objects registered to that
+    object there; only the operator's Accept or drag registers anything."""
+    where = "located"
+    msg = checked.mapping(result, where)
+    success = msg.get("success")
+    if not isinstance(success, bool):
+        raise SpatialDataError(f"{where}.success", f"expected true or false, got {success!r}")
+    located: Json = {
+        "object": checked.text(checked.required(msg, "object", where), f"{where}.object"),
+        "camera": checked.text(checked.required(msg, "camera", where), f"{where}.camera"),
+        "success": success,
+        "message": str(msg.get("message", "")),
+        "stamp": checked.stamp(msg.get("header"), f"{where}.header"),
+        "residual_px": checked.number(msg.get("residual_px", 0.0), f"{where}.residual_px"),
+        "offset_mm": checked.number(msg.get("offset_mm", 0.0), f"{where}.offset_mm"),
+        "offset_deg": checked.number(msg.get("offset_deg", 0.0), f"{where}.offset_deg"),
+        "markers": [
+            int(checked.number(m, f"{where}.markers[{i}]"))
+            for i, m in enumerate(checked.sequence(msg.get("markers", []), f"{where}.markers"))
+        ],
+        "pose": None,
+    }
+    if success:
+        frame = checked.mapping(msg.get("header", {}), f"{where}.header").get("frame_id", "") or DOCUMENT_FRAME
+        base = pose() if frame == DOCUMENT_FRAME else frame_poses.get(frame)
+        if base is None:
+            raise SpatialDataError(
+                f"{where}.header.frame_id", f"the pose is in {frame!r}, a frame the view was not given"
+            )
+        xyz = checked.numbers(checked.required(msg, "xyz", where), 3, f"{where}.xyz")
+        quat = checked.numbers(checked.required(msg, "quaternion", where), 4, f"{where}.quaternion")
+        norm = sum(q * q for q in quat) ** 0.5
+        if norm < 1e-9:
+            raise SpatialDataError(f"{where}.quaternion", "the quaternion is zero")
+        located["pose"] = checked.compose(base, {"xyz": xyz, "quat": [q / norm for q in quat]})
+    return {"kind": "located", "located": located}
+
+
 def _display_shape(info: Mapping[str, Any], where: str) -> Json:
     """ObjectInfo's shape; cylinder and sphere sizes are marker scales (diameters, length)."""
     kind = checked.text(checked.required(info, "type", where), f"{where}.type")
@@ -73,7 +115,11 @@ def _display_shape(info: Mapping[str, Any], where: str) -> Json:
 
 
 def _template(
-    status: Mapping[str, Any], where: str, frames: Mapping[str, Json], waypoint_objects: Mapping[str, Sequence[str]]
+    status: Mapping[str, Any],
+    where: str,
+    frames: Mapping[str, Json],
+    waypoint_objects: Mapping[str, Sequence[str]],
+    registrations: Mapping[tuple[str, str], str],
 ) -> Json:
     type_name = checked.text(checked.required(status, "type", where), f"{where}.type")
     instance_id = int(checked.number(checked.required(status, "id", where), f"{where}.id"))
@@ -86,9 +132,10 @@ def _template(
         frame_name = checked.text(checked.required(info, "object_name", w), f"{w}.object_name")
         stamped = checked.mapping(checked.required(info, "object_pose", w), f"{w}.object_pose")
         _in_document_frame(stamped, f"{w}.object_pose")
-        registered_to = info.get("registered_to", "") or DOCUMENT_FRAME
+        name = frame_name.split(":")[0]
+        registered_to = info.get("registered_to", "") or registrations.get((key, name)) or DOCUMENT_FRAME
         entry: Json = {
-            "name": frame_name.split(":")[0],
+            "name": name,
             "frame": frame_name,
             "pose": checked.ros_pose(checked.required(stamped, "pose", f"{w}.object_pose"), f"{w}.object_pose.pose"),
             "shape": _display_shape(info, w),
@@ -156,13 +203,16 @@ def templates_update(
     *,
     frames: Mapping[str, Any] | None = None,
     configs: Mapping[str, Mapping[str, Any]] | None = None,
+    registrations: Mapping[tuple[str, str], str] | None = None,
 ) -> Json:
     """A ``templates`` update (every running template) from the AT server's statuses.
 
     ``statuses``: rosbridge JSON of AffordanceTemplateStatus, one per running instance, asked
     with ``frame_id: world``. An ObjectInfo may carry ``registered_to`` (the named frame its
-    registration is relative to; proposed addition) - a drag is then sent in that frame, whose
-    pose comes from ``frames`` (``/sim/frames`` JSON). ``configs``: get_templates'
+    registration is relative to; proposed addition); else ``registrations`` may say it (by
+    ``("Type:id", display object)``: the frames the run registered them to). A drag is then sent
+    in that frame, whose pose comes from ``frames`` (``/sim/frames`` JSON), and a located frame
+    proposes the display objects registered to it. ``configs``: get_templates'
     AffordanceTemplateConfig JSON by template type, which says which display object each
     waypoint is defined on (its waypoint poses' frame_id).
     """
@@ -177,7 +227,7 @@ def templates_update(
             if config
             else {}
         )
-        templates.append(_template(s, f"statuses[{i}]", frame_poses, waypoint_objects))
+        templates.append(_template(s, f"statuses[{i}]", frame_poses, waypoint_objects, registrations or {}))
     return {"kind": "templates", "templates": templates}
 
 

@@ -95,6 +95,27 @@ def pose(xyz: Sequence[float] = (0.0, 0.0, 0.0), rpy: Sequence[float] = (0.0, 0.
     return {"xyz": [float(v) for v in xyz], "quat": quat_from_rpy(*(float(v) for v in rpy))}
 
 
+def compose(a: Json, b: Json) -> Json:
+    """Pose ``b`` (given in the frame whose pose is ``a``) in ``a``'s own frame: a * b."""
+    ax, ay, az, aw = a["quat"]
+    bx, by, bz, bw = b["quat"]
+    quat = [
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    ]
+    # b's position rotated by a's quaternion: v + 2w(q x v) + 2q x (q x v)
+    vx, vy, vz = b["xyz"]
+    tx, ty, tz = 2 * (ay * vz - az * vy), 2 * (az * vx - ax * vz), 2 * (ax * vy - ay * vx)
+    rotated = [
+        vx + aw * tx + (ay * tz - az * ty),
+        vy + aw * ty + (az * tx - ax * tz),
+        vz + aw * tz + (ax * ty - ay * tx),
+    ]
+    return {"xyz": [p + r for p, r in zip(a["xyz"], rotated, strict=True)], "quat": quat}
+
+
 def scene_pose(value: Any, where: str) -> Json:
     """``{xyz, rpy}`` of a scene file (both optional, zeros by default)."""
     if value is None:

@@ -40,10 +40,17 @@ class UpStack:
 
 @contextmanager
 def stack_up(
-    deployment: str | Path, env: dict[str, str], *, time_scale: str = "0", timeout: float = 180.0
+    deployment: str | Path,
+    env: dict[str, str],
+    *,
+    time_scale: str = "0",
+    timeout: float = 180.0,
+    displace: int | None = None,
 ) -> Iterator[UpStack]:
-    """``caretaker up DEPLOYMENT --bridge-port 0``, up until the ``READY stack`` line, stopped after."""
-    up = caretaker("up", str(deployment), "--time-scale", time_scale, "--bridge-port", "0", env=env, name="up")
+    """``caretaker up DEPLOYMENT --bridge-port 0`` (``--displace SEED`` with ``displace``), up until
+    the ``READY stack`` line, stopped after."""
+    extra = ["--displace", str(displace)] if displace is not None else []
+    up = caretaker("up", str(deployment), "--time-scale", time_scale, "--bridge-port", "0", *extra, env=env, name="up")
     try:
         line = up.wait_for_line(r"^READY stack ", timeout)
         yield UpStack(up, line.split()[-1])

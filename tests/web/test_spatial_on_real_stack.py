@@ -544,3 +544,118 @@ def test_eva_view_shows_the_eva_arm_and_the_hull_targets(
         finally:
             habitat.close()
             server.process.stop()
+
+
+#: A displaced Gateway (issue 28): its hull targets are where this seed put them, not where the
+#: drawings (and so the frames the ground is told) have them.
+DISPLACE_SEED = 17
+#: The first target's registration with the values its locate (2.1/1.6) returned.
+REGISTER_LOCATED = "2.1/1.7"
+
+
+def test_a_located_target_is_a_proposal_the_operator_corrects_or_accepts(
+    open_as: Callable[[WebServer, str], Page], tmp_path: Path, ros_env: dict[str, str]
+) -> None:
+    """Manual mode: PAX runs the EVA inspection to the first target's registration from the
+    camera and holds there. The view draws the inspection template's display object where the
+    camera found hull_a, beside where it is registered (hull_a's frame from the drawings); alice
+    drags that proposal 1 cm to correct it (registered as hers), then perception locates hull_a
+    again and she accepts the new proposal with the view's Accept (registered as hers too).
+    Nothing is registered by the view without her."""
+    with stack_up("eva", ros_env, displace=DISPLACE_SEED) as stack:
+        server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
+        habitat = Habitat(stack.url)
+        try:
+            alice = open_as(server, "alice")
+            run_id = start_run(alice, "eva_inspection.xml", "manual", binding="eva.yaml")
+            act(alice, "set_breakpoint", instruction=REGISTER_LOCATED)
+            act(alice, "mode", mode="autonomous")
+            wait_until_state(alice, f"view.state.current === '{REGISTER_LOCATED}' && view.state.hold !== null")
+            wait_view(alice, "Object.keys(v.registration.proposals).length === 1")
+            view = inspect(alice)
+            ((shown, proposal),) = view["registration"]["proposals"].items()
+            located = view["registration"]["located"]
+            assert located["object"] == "target/hull_a" and located["success"], located
+            expect(alice.locator("#spatial-view [data-action='accept-proposal']")).to_be_visible()
+            expect(alice.locator("#spatial-view .ct-spatial-status")).to_contain_text(
+                "target/hull_a located by ee_camera"
+            )
+
+            # the proposal is the located pose the run's own locate returned, in the world; the
+            # display object itself stays registered to the drawings' frame until alice acts
+            values = _locate_values(server, run_id)
+            nominal = habitat.frame("target/hull_a")
+            rpy = (values["roll"], values["pitch"], values["yaw"])
+            where_located = matrix(compose(nominal, {"xyz": [values[k] for k in "xyz"], "quat": rpy_quat(*rpy)}))
+            assert_pose(proposal["pose"], where_located, "the proposal at the located pose", position=MM)
+            assert_pose(view["templates"][shown]["pose"], matrix(nominal), "the display object still at the drawings")
+            assert distance(proposal["pose"], matrix(nominal))[0] >= 5 * MM, "a displaced target is off the drawings"
+
+            # a correction: the proposal dragged 1 cm up, registered where it was dropped, as alice's
+            corrected = where_located.copy()
+            corrected[2, 3] += 0.01
+            alice.evaluate(
+                f"window.caretakerSpatial.dragBy({shown!r}, {{translate: [0, 0, 0.01], fromProposal: true}})"
+            )
+            wait_for_pose(alice, shown, corrected)
+            wait_view(alice, "Object.keys(v.registration.proposals).length === 0")  # acted on: proposed no more
+
+            # perception locates hull_a again (the habitat's own service): a new proposal, accepted
+            again = habitat.call(
+                "/perception/locate",
+                {"object": "target/hull_a", "camera": "ee_camera", "frame": "world", "tolerance_px": 0.0},
+                "caretaker_perception_msgs/srv/Locate",
+            )
+            assert again["success"], again["message"]
+            relocated = matrix({"xyz": [again[k] for k in "xyz"], "quat": [again[k] for k in ("qx", "qy", "qz", "qw")]})
+            wait_view(alice, "Object.keys(v.registration.proposals).length === 1")
+            alice.locator("#spatial-view [data-action='accept-proposal']").click()
+            wait_for_pose(alice, shown, relocated)
+            expect(alice.locator("#spatial-view [data-action='accept-proposal']")).to_be_hidden()
+
+            registered = _registrations_by(server, run_id, "alice")
+            assert len(registered) == 2, "one command for the correction, one for the acceptance, both alice's"
+            for (args, success), expected in zip(registered, (corrected, relocated), strict=True):
+                assert success is True and args["frame"] == "target/hull_a", args
+                local = {"xyz": [args[k] for k in "xyz"], "quat": rpy_quat(args["roll"], args["pitch"], args["yaw"])}
+                assert_pose(compose(nominal, local), expected, "the logged registration")
+            stop_run(alice, "proposal checked")
+        finally:
+            habitat.close()
+            server.process.stop()
+
+
+def _locate_values(server: WebServer, run_id: str) -> dict[str, float]:
+    """The values of the run's one successful perception.locate, from its audit log."""
+    log = AuditLog(server.database.url)
+    try:
+        results = [
+            e.data
+            for e in log.events(run_id)
+            if e.kind is EventKind.COMMAND_RESULT and e.data.get("command") == "locate" and e.data.get("success")
+        ]
+    finally:
+        log.close()
+    assert len(results) == 1, results
+    return {k: float(v) for k, v in results[0]["values"].items() if k in ("x", "y", "z", "roll", "pitch", "yaw")}
+
+
+def _registrations_by(server: WebServer, run_id: str, user: str) -> list[tuple[dict[str, Any], bool]]:
+    """(arguments, success) of each set_display_object_pose ``user`` sent outside the procedure."""
+    log = AuditLog(server.database.url)
+    try:
+        events = log.events(run_id)
+    finally:
+        log.close()
+    sent = [
+        e
+        for e in events
+        if e.kind is EventKind.COMMAND_SENT
+        and e.actor == user
+        and e.instruction is None
+        and e.data.get("command") == "set_display_object_pose"
+    ]
+    results = {e.data.get("key"): e for e in events if e.kind is EventKind.COMMAND_RESULT}
+    return [
+        (e.data["args"], results[e.data["key"]].data["success"] if e.data["key"] in results else None) for e in sent
+    ]

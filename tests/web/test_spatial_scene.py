@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,7 @@ import pytest
 import yaml
 
 from console.spatial_scene import scene_document
-from console.spatial_updates import PlanSegment, objects_update, plan_update, templates_update
+from console.spatial_updates import PlanSegment, located_update, objects_update, plan_update, templates_update
 from console.spatial_values import SpatialDataError
 
 REPO = Path(__file__).resolve().parents[2]
@@ -189,3 +190,53 @@ def test_plan_segments_join_into_one_path() -> None:
             start_positions=[0],
             segments=[_segment("x", [1.0], [[1, 1]])],
         )
+
+
+def _located(**changes: Any) -> dict[str, Any]:
+    """rosbridge JSON of a LocateResult: target/hull_a found 2 cm along its own x, turned 90 deg about z."""
+    half = math.sqrt(0.5)
+    result: dict[str, Any] = {
+        "header": {"stamp": {"sec": 12, "nanosec": 500_000_000}, "frame_id": "target/hull_a"},
+        "object": "target/hull_a",
+        "camera": "ee_camera",
+        "success": True,
+        "message": "target/hull_a located",
+        "xyz": [0.02, 0.0, 0.0],
+        "quaternion": [0.0, 0.0, half, half],
+        "residual_px": 0.31,
+        "markers": [30, 31],
+        "offset_mm": 20.0,
+        "offset_deg": 90.0,
+    }
+    result.update(changes)
+    return result
+
+
+def test_a_locate_result_becomes_a_pose_in_the_document_frame() -> None:
+    half = math.sqrt(0.5)
+    # the named frame at (1, 2, 3), turned 90 deg about z: its x is the world's y
+    frames = {"target/hull_a": {"xyz": [1.0, 2.0, 3.0], "quat": [0.0, 0.0, half, half]}}
+    located = located_update(_located(), frames)["located"]
+    assert located["success"] and located["markers"] == [30, 31] and located["stamp"] == 12.5
+    assert located["pose"]["xyz"] == pytest.approx([1.0, 2.02, 3.0])
+    assert located["pose"]["quat"] == pytest.approx([0.0, 0.0, 1.0, 0.0], abs=1e-12)  # 180 deg about z
+    in_world = located_update(_located(header={"frame_id": "world"}), {})["located"]
+    assert in_world["pose"]["xyz"] == pytest.approx([0.02, 0.0, 0.0])
+    refused = located_update(_located(success=False, message="none of its markers (36, 37) is seen"), {})
+    assert refused["located"]["pose"] is None and "is seen" in refused["located"]["message"]
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"header": {"frame_id": "robot_base"}}, "located.header.frame_id: the pose is in 'robot_base'"),
+        ({"success": "yes"}, "located.success: expected true or false"),
+        ({"quaternion": [0, 0, 0, 0]}, "located.quaternion: the quaternion is zero"),
+        ({"xyz": [1, 2]}, "located.xyz: expected 3 numbers"),
+        ({"markers": ["x"]}, "located.markers[0]"),
+        ({"object": 7}, "located.object"),
+    ],
+)
+def test_a_bad_locate_result_names_the_value(changes: dict[str, Any], message: str) -> None:
+    with pytest.raises(SpatialDataError, match=re.escape(message)):
+        located_update(_located(**changes), {"target/hull_a": {"xyz": [0, 0, 0], "quat": [0, 0, 0, 1]}})

@@ -635,6 +635,8 @@ def test_observer_can_move_nothing(open_view: Callable[..., Page], iva: Habitat)
     apply(page, running.update("grasp_and_pull"))
     result = page.evaluate("window.caretakerSpatial.dragBy('cdra_filter:0', {translate: [0.05, 0, 0]})")
     assert "observers cannot move" in result["refused"]
+    accepted = page.evaluate("window.caretakerSpatial.accept('cdra_filter:0')")
+    assert "observers cannot accept" in accepted["refused"]
     _pointer_drag(page, "cdra_filter:0", 60, -40)
     state = inspect(page)
     assert page.evaluate("window.commands") == []
@@ -643,6 +645,8 @@ def test_observer_can_move_nothing(open_view: Callable[..., Page], iva: Habitat)
         "selected": None,
         "mode": "translate",
         "pending": {},
+        "proposals": {},
+        "located": None,
         "handles": False,
     }
     assert page.locator("[data-action=mode]").is_hidden()

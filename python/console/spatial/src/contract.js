@@ -152,6 +152,17 @@ export function checkScene(doc) {
   return doc;
 }
 
+function checkLocated(l, where) {
+  object(l, where);
+  string(l.object, `${where}.object`);
+  string(l.camera, `${where}.camera`);
+  if (typeof l.message !== 'string') fail(`${where}.message`, `expected a string, got ${JSON.stringify(l.message)}`);
+  if (typeof l.success !== 'boolean') fail(`${where}.success`, `expected true or false, got ${JSON.stringify(l.success)}`);
+  if (l.success) checkPose(l.pose, `${where}.pose`);
+  for (const k of ['residual_px', 'offset_mm', 'offset_deg']) number(l[k], `${where}.${k}`);
+  list(l.markers, `${where}.markers`).forEach((m, i) => number(m, `${where}.markers[${i}]`));
+}
+
 export function checkUpdate(u) {
   object(u, 'update');
   switch (u.kind) {
@@ -163,7 +174,8 @@ export function checkUpdate(u) {
     case 'templates': checkTemplates(u.templates, 'update.templates'); break;
     case 'plan': checkPlan(u.plan, 'update.plan'); break;
     case 'camera': if (u.url !== null) string(u.url, 'update.url'); break;
-    default: fail('update.kind', `unknown update ${JSON.stringify(u.kind)}; expected joints, objects, templates, plan or camera`);
+    case 'located': checkLocated(u.located, 'update.located'); break;
+    default: fail('update.kind', `unknown update ${JSON.stringify(u.kind)}; expected joints, objects, templates, plan, camera or located`);
   }
   return u;
 }

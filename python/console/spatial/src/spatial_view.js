@@ -261,6 +261,10 @@ export class SpatialView {
       case 'camera':
         this._camera(update.url);
         break;
+      case 'located':
+        this.registration.setLocated(update.located);
+        this._status(locatedText(update.located, this.registration.proposals.size));
+        break;
       default:
         break;
     }
@@ -283,6 +287,17 @@ export class SpatialView {
 
   /** A drag without a pointer (tests, keyboard nudges): same path as releasing a handle. */
   dragBy(id, motion) { return this.registration ? this.registration.dragBy(id, motion) : { refused: 'no scene loaded' }; }
+
+  /** Register display object ``id`` where perception proposes it (every proposal without ``id``). */
+  accept(id) {
+    if (!this.registration) return { refused: 'no scene loaded' };
+    const ids = id === undefined ? [...this.registration.proposals.keys()] : [id];
+    if (ids.length === 0) return { refused: 'no proposal to accept' };
+    const answers = ids.map((one) => this.registration.accept(one));
+    const refused = answers.find((a) => a.refused);
+    if (refused) this._status(refused.refused);
+    return ids.length === 1 ? answers[0] : { commands: answers };
+  }
 
   stepWaypoint(direction) { this.player?.stepWaypoint(direction); }
 
@@ -613,4 +628,13 @@ export class SpatialView {
     while (this._fpsWindow.length && now - this._fpsWindow[0] > 1000) this._fpsWindow.shift();
     this.fps = this._fpsWindow.length;
   }
+}
+
+
+/** What the view says of a locate result: where perception found the object, or why not. */
+function locatedText(located, proposals) {
+  if (!located.success) return `not registered: ${located.message}`;
+  const found = `${located.object} located by ${located.camera}: ${located.offset_mm.toFixed(1)} mm, `
+    + `${located.offset_deg.toFixed(1)}° from the drawings (${located.residual_px.toFixed(2)} px)`;
+  return proposals > 0 ? `${found}; proposed in cyan: Accept, or drag it to correct` : found;
 }

@@ -25,6 +25,9 @@ export class Toolbar {
     this.mode.dataset.action = 'mode';
     this.enlarge = button('Enlarge', 'fill the window with the view (Esc: back)', () => view.setEnlarged(!view.enlarged));
     this.enlarge.dataset.action = 'enlarge';
+    this.accept = button('Accept', 'register the template where the camera located it (the cyan proposal)', () => view.accept());
+    this.accept.dataset.action = 'accept-proposal';
+    this.accept.hidden = true;
     const plan = document.createElement('div');
     plan.className = 'ct-spatial-plan';
     plan.hidden = true;
@@ -48,7 +51,7 @@ export class Toolbar {
     this.readout = document.createElement('span');
     plan.append(this.prev, this.play, this.next, this.slider, this.readout);
     this.plan = plan;
-    bar.append(this.home, this.fit, this.names, this.mode, this.enlarge, plan);
+    bar.append(this.home, this.fit, this.names, this.mode, this.accept, this.enlarge, plan);
     container.appendChild(bar);
     this.bar = bar;
   }
@@ -60,6 +63,7 @@ export class Toolbar {
     this.enlarge.textContent = v.enlarged ? 'Restore' : 'Enlarge';
     this.mode.hidden = !v.registration.canAct;
     this.mode.textContent = v.registration.mode === 'translate' ? 'Move' : 'Turn';
+    this.accept.hidden = !v.registration.canAct || v.registration.proposals.size === 0;
     const p = v.player;
     this.plan.hidden = !p.plan;
     if (!p.plan) return;
