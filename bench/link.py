@@ -22,6 +22,10 @@ with ``onboard: true``): N is then the round trips the ground needs at all (the 
 first and last requests for events), so the bound is habitat + 3 round trips.
 
     .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16] [--modes ground,onboard] [--time-scale 1]
+                                   [--robot iva|eva] [--displace SEED]
+
+``--robot eva --displace SEED`` flies the EVA inspection on a displaced Gateway: each hull target
+is located from the arm's camera on the habitat, and only the located pose crosses the link.
 """
 
 from __future__ import annotations
@@ -41,8 +45,34 @@ from typing import Any
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
-PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
-GROUND_BINDING = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A robot side to fly across the link: its deployment, the ground's binding and procedure."""
+
+    deployment: Path
+    binding: Path  # the ground's; the link, security and address are set per case
+    procedure: Path
+    run_options: tuple[str, ...]  # caretaker run's: the answers an operator would give at the records, ...
+
+
+ROBOTS = {
+    "iva": Robot(
+        REPO / "deployments" / "iva-habitat.yaml",
+        REPO / "sysrep" / "bindings" / "iva-ground.yaml",
+        REPO / "procedures" / "iva_cdra_filter_replacement.xml",
+        ("--set=clean_filter_id=CDRA-F-0012",),
+    ),
+    # the hull targets located from the arm's camera before each registration (issue 28): with
+    # --displace, only the located poses (a few hundred bytes each) cross the link for them
+    "eva": Robot(
+        REPO / "deployments" / "eva.yaml",
+        REPO / "sysrep" / "bindings" / "eva.yaml",
+        REPO / "procedures" / "eva_inspection.xml",
+        ("--set=damage=false", "--rehearsal"),  # a draft: rehearsed on the simulator
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -66,8 +96,10 @@ CASES = {
 }
 
 
-def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path], status_throttle: float | None) -> Path:
-    data = yaml.safe_load(GROUND_BINDING.read_text())
+def _ground_binding(
+    folder: Path, robot: Robot, case: Case, credentials: dict[str, Path], status_throttle: float | None
+) -> Path:
+    data = yaml.safe_load(robot.binding.read_text())
     if status_throttle is not None:
         data["systems"][0]["options"]["status_throttle"] = status_throttle
     data["link"] = {"one_way_delay": case.delay, "outage_budget": 120}
@@ -76,17 +108,27 @@ def _ground_binding(folder: Path, case: Case, credentials: dict[str, Path], stat
         data["security"]["ca_file"] = str(credentials["ca.pem"])
     data["rosbridge"] = f"{'wss' if case.tls else 'ws'}://127.0.0.1:9090"
     for system in data["systems"]:
-        system["sysrep"] = str((GROUND_BINDING.parent / system["sysrep"]).resolve())
+        system["sysrep"] = str((robot.binding.parent / system["sysrep"]).resolve())
     path = folder / "ground.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 
 
 def _deployment(
-    folder: Path, case: Case, credentials: dict[str, Path], binding: Path, seed: int, onboard: bool
+    folder: Path,
+    robot: Robot,
+    case: Case,
+    credentials: dict[str, Path],
+    binding: Path,
+    seed: int,
+    onboard: bool,
+    displace: int | None,
 ) -> Path:
-    source = REPO / "deployments" / "iva-habitat.yaml"
+    source = robot.deployment
     data = yaml.safe_load(source.read_text())
+    data.pop("demo", None)
+    if displace is not None:
+        data["displace"] = displace
     for key in ("scene", "robot", "templates", "robots"):
         data[key] = str((source.parent / data[key]).resolve())
     data["bridge"] = {"address": "127.0.0.1", "port": 0, "auth_secret_file": str(credentials["rosbridge.secret"])}
@@ -112,8 +154,11 @@ def fly(
     env: dict[str, str],
     status_throttle: float | None = None,
     onboard: bool = False,
+    robot: Robot = ROBOTS["iva"],
+    displace: int | None = None,
 ) -> dict[str, Any]:
-    """One run of the procedure across ``case``'s link, from the ground or onboard; its figures."""
+    """One run of ``robot``'s procedure across ``case``'s link, from the ground or onboard, on its
+    world as drawn or (``displace``) displaced by that seed; its figures."""
     from caretaker.certs import make_link_credentials
     from caretaker.link import LinkControl
     from caretaker.processes import caretaker
@@ -123,8 +168,8 @@ def fly(
     with tempfile.TemporaryDirectory(prefix="caretaker-bench-link-") as tmp:
         folder = Path(tmp)
         credentials = make_link_credentials(folder / "link", ["127.0.0.1"], days=1)
-        binding = _ground_binding(folder, case, credentials, status_throttle)
-        deployment = _deployment(folder, case, credentials, binding, seed, onboard)
+        binding = _ground_binding(folder, robot, case, credentials, status_throttle)
+        deployment = _deployment(folder, robot, case, credentials, binding, seed, onboard, displace)
         up = caretaker("up", str(deployment), "--time-scale", time_scale, env=env, name="up")
         run = None
         try:
@@ -133,7 +178,7 @@ def fly(
             started = time.monotonic()
             run = caretaker(
                 "run",
-                str(PROCEDURE),
+                str(robot.procedure),
                 "--binding",
                 str(binding),
                 "--rosbridge",
@@ -144,7 +189,7 @@ def fly(
                 "--db",
                 db,
                 "--confirm-manual",
-                "--set=clean_filter_id=CDRA-F-0012",
+                *robot.run_options,
                 *(["--onboard"] if onboard else []),
                 env=env,
                 name="run",
@@ -195,6 +240,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--modes", default="ground,onboard", help="comma-separated, of ground, onboard")
     parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
     parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
+    parser.add_argument("--robot", choices=sorted(ROBOTS), default="iva", help="whose procedure to fly (default iva)")
+    parser.add_argument(
+        "--displace", type=int, metavar="SEED", help="the world displaced by this seed (sim --displace)"
+    )
     parser.add_argument(
         "--status-throttle", type=float, help="at_telemetry's status_throttle (s; default the plugin's)"
     )
@@ -219,6 +268,8 @@ def main(argv: list[str] | None = None) -> int:
                 env=env,
                 status_throttle=args.status_throttle,
                 onboard=mode == "onboard",
+                robot=ROBOTS[args.robot],
+                displace=args.displace,
             )
             print(
                 f"| {r['case']} | {r['mode']} | {r['run']:.1f} s | {r['wall']:.1f} s "
