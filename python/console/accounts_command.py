@@ -11,6 +11,8 @@ import argparse
 import getpass
 import sys
 
+from sqlalchemy.exc import OperationalError
+
 from console.accounts import AccountsError, AccountStore, Role
 from pride.audit_log import DEFAULT_DB
 
@@ -59,8 +61,9 @@ def _password(user: str) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run one accounts command; returns the exit code (2 with a message on any refusal)."""
     args = _parser().parse_args(argv)
-    store = AccountStore(args.db)
+    store: AccountStore | None = None
     try:
+        store = AccountStore(args.db)  # its schema check writes too
         if args.command == "add":
             account = store.add(args.user, args.role, _password(args.user), name=args.name)
             print(f"added {account.user} ({account.role.value})")
@@ -81,9 +84,16 @@ def main(argv: list[str] | None = None) -> int:
     except (AccountsError, _PasswordError) as exc:
         print(f"caretaker accounts: {exc}", file=sys.stderr)
         return 2
+    except OperationalError as exc:  # a transaction rolls back whole: nothing half-changed
+        print(
+            f"caretaker accounts: the database did not take the change ({exc.orig}); nothing changed, try again",
+            file=sys.stderr,
+        )
+        return 2
     except KeyboardInterrupt:
         print("caretaker accounts: interrupted; nothing changed", file=sys.stderr)
         return 2
     finally:
-        store.close()
+        if store is not None:
+            store.close()
     return 0

@@ -438,6 +438,12 @@ def _sqlite_file(url: str) -> Path | None:
     return Path(url.removeprefix("sqlite:///"))
 
 
+#: s a SQLite connection waits for another's write lock before "database is locked". Consoles,
+#: runs and the accounts command share one file; a writer starved of the CPU mid-transaction holds
+#: the lock as long as it is starved (past 10 s under load: a password change then failed).
+SQLITE_BUSY_TIMEOUT_S = 60.0
+
+
 def open_engine(url: str) -> Engine:
     """An engine on the ground database at ``url`` (any form :func:`database_url` takes), set up as the
     audit log needs it: a connect timeout on PostgreSQL; on SQLite WAL, full durability, and
@@ -448,7 +454,7 @@ def open_engine(url: str) -> Engine:
     database = _sqlite_file(url)
     if database is not None:
         database.parent.mkdir(parents=True, exist_ok=True)
-    connect_args = {"timeout": 10, "check_same_thread": False}
+    connect_args = {"timeout": SQLITE_BUSY_TIMEOUT_S, "check_same_thread": False}
     engine = (
         create_engine(url, poolclass=StaticPool, connect_args=connect_args)
         if database is None

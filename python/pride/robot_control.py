@@ -43,7 +43,7 @@ from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError, InterfaceError, OperationalError
 
 from pride.audit_chain import utc
-from pride.audit_log import DEFAULT_OUTAGE_BUDGET, AuditLogUnavailable, database_url
+from pride.audit_log import DEFAULT_OUTAGE_BUDGET, SQLITE_BUSY_TIMEOUT_S, AuditLogUnavailable, database_url
 from pride.run_control import RobotControlled
 from pride.states import Controller, OperatorActionError
 
@@ -78,7 +78,8 @@ class RobotControl:
         self.url = url
         self.location = make_url(database_url(url)).render_as_string(hide_password=True)  # for messages
         self.outage_budget = outage_budget
-        options: dict[str, object] = {"connect_timeout": 5} if not url.startswith("sqlite") else {"timeout": 10}
+        sqlite = url.startswith("sqlite")
+        options: dict[str, object] = {"timeout": SQLITE_BUSY_TIMEOUT_S} if sqlite else {"connect_timeout": 5}
         self._engine: Engine = create_engine(database_url(url), connect_args=options)
         self._closed = threading.Event()
 
