@@ -58,7 +58,6 @@ export class Registration {
     this.located = null; // the last locate result (a ``located`` update's ``located``)
     this.proposals = new Map(); // display object id -> {pose, marker}
     this._settled = new Set(); // ids the operator accepted or corrected from the last result: proposed no more
-    this._fromProposal = false; // the selection's proxy started at its proposal
     this.proxy = new THREE.Group();
     this.proxy.name = 'drag proxy';
     scene.add(this.proxy);
@@ -92,7 +91,6 @@ export class Registration {
     if (fromProposal && !proposal) return `no proposal for ${id}: perception has not located its frame`;
     this.deselect();
     this.selected = id;
-    this._fromProposal = fromProposal;
     this.proxy.clear();
     entry.object.children.forEach((c) => { if (!c.userData.isLabel) this.proxy.add(wireCopy(c)); });
     placeAt(this.proxy, fromProposal ? proposal.pose : entry.pose);
