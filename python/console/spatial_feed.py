@@ -307,15 +307,17 @@ class SpatialFeed:
     async def _refresh(self, plan: bool) -> None:
         while True:
             self._refresh_again = False
-            try:
-                await self._ask_templates()
-                if plan:
-                    await self._ask_plan()
-            except (LinkError, SpatialDataError) as exc:
-                self._report(str(exc))
-            except Exception as exc:  # never a traceback to the browser; logged whole here
-                log.exception("3D view feed refresh failed")
-                self._report(f"{type(exc).__name__}: {exc}")
+            # Asked together: over a 1.3 s link each question is a round trip, and a plan asked
+            # after the templates would come a round trip later still.
+            asked = [self._ask_templates(), self._ask_plan()] if plan else [self._ask_templates()]
+            for outcome in await asyncio.gather(*asked, return_exceptions=True):
+                if isinstance(outcome, (LinkError, SpatialDataError)):
+                    self._report(str(outcome))
+                elif isinstance(outcome, Exception):  # never a traceback to the browser; logged whole here
+                    log.error("3D view feed refresh failed", exc_info=outcome)
+                    self._report(f"{type(outcome).__name__}: {outcome}")
+                elif isinstance(outcome, BaseException):
+                    raise outcome
             if not self._refresh_again:
                 return
             plan = True
@@ -343,11 +345,14 @@ class SpatialFeed:
         self._push(self.templates)
 
     async def _ask_plan(self) -> None:
-        if not self.active_template:
+        # While a motion the run sent has no answer, its plan is the one shown: the habitat's
+        # status naming the active template is a light time old.
+        instance, trajectory = self.commanded or (self.active_template, "")
+        if not instance:
             self.plan = {"kind": "plan", "plan": None}
         else:
-            answer = await self._ask("get_plan", {"name": self.active_template, "trajectory_name": ""})
-            self.plan = plan_from_get_plan(answer, instance=self.active_template, frames=self.frame_poses)
+            answer = await self._ask("get_plan", {"name": instance, "trajectory_name": trajectory})
+            self.plan = plan_from_get_plan(answer, instance=instance, frames=self.frame_poses, sent=self.commanded)
         self._push_plan()
 
     # ---- the run's commands -----------------------------------------------------------------
@@ -367,6 +372,11 @@ class SpatialFeed:
         when the habitat reports it executing (on a 1.3 s link a short motion would otherwise end
         before its path came)."""
         self.commanded = (instance, trajectory)
+        plan = self.plan["plan"]
+        if plan is None or (plan["instance"], plan["trajectory"]) != self.commanded:
+            # The plan is not here yet (its refresh is a round trip behind the run): ask now,
+            # or a short motion is over on the habitat before its path is drawn.
+            self.refresh()
         self._push_plan()
 
     def command_ended(self) -> None:

@@ -174,16 +174,28 @@ def compose(a: Json, b: Json) -> Json:
     }
 
 
-def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapping[str, Json]) -> Json:
+def plan_from_get_plan(
+    answer: Mapping[str, Any],
+    *,
+    instance: str,
+    frames: Mapping[str, Json],
+    sent: tuple[str, str] | None = None,
+) -> Json:
     """A ``plan`` update from a ``get_plan`` answer: the ghost while the plan is PLANNED, the
     commanded path (``commanded: true``) while EXECUTING, ``plan: null`` otherwise (executed,
     halted, failed, invalidated, none).
+
+    ``sent``: the (instance, trajectory) whose motion command the run sent and has no answer
+    for yet. That plan is the commanded path whatever state the habitat reported: across the
+    light time a short motion is EXECUTED there before the ground has drawn it, and the arm
+    drawn (a light time old) is still following that path.
 
     ``frames``: named poses in the document frame (``sim/frames``); the end pose, given in the
     robot's frame (``robot_base``), is placed in the document frame with them.
     """
     a = checked.mapping(answer, "get_plan")
-    if not a.get("success") or a.get("state") not in PLAN_SHOWN_STATES:
+    is_sent = sent is not None and sent == (instance, a.get("trajectory_name"))
+    if not a.get("success") or (a.get("state") not in PLAN_SHOWN_STATES and not is_sent):
         return {"kind": "plan", "plan": None}
     traj = checked.mapping(checked.required(a, "trajectory", "get_plan"), "get_plan.trajectory")
     names = checked.names(
@@ -249,6 +261,6 @@ def plan_from_get_plan(answer: Mapping[str, Any], *, instance: str, frames: Mapp
             "waypoints": waypoints,
             "tool_link": checked.text(a.get("end_pose_link", ""), "get_plan.end_pose_link"),
             "end_pose": end_pose,
-            "commanded": a.get("state") == "EXECUTING",
+            "commanded": a.get("state") == "EXECUTING" or is_sent,
         },
     }

@@ -55,8 +55,6 @@ def test_the_plan_sent_is_commanded_until_its_answer_and_another_plan_is_not() -
         await feed._ask_plan()
         assert pushed[-1]["plan"]["commanded"] is False  # planned: the ghost
 
-        feed.command_sent("cdra_filter:0", "ready")  # another instance's motion: not this plan
-        assert pushed[-1]["plan"]["commanded"] is False
         feed.command_sent("ready_pose:0", "ready")
         assert pushed[-1]["plan"]["commanded"] is True and pushed[-1]["plan"]["trajectory"] == "ready"
         await feed._ask_plan()  # the habitat still says PLANNED (its news is a light time old)
@@ -71,5 +69,44 @@ def test_the_plan_sent_is_commanded_until_its_answer_and_another_plan_is_not() -
         bridge.answer = _get_plan("PLANNED")
         await feed._ask_plan()  # planned again after the motion: the ghost, not commanded
         assert pushed[-1]["plan"]["commanded"] is False
+
+    asyncio.run(walk())
+
+
+def test_a_motion_sent_before_its_plan_came_is_drawn_commanded_even_if_already_executed_there() -> None:
+    """Across the light time the run sends a short motion before the feed has the plan (its
+    refresh is a round trip behind) and the habitat has executed it before the feed's question
+    arrives: the path is still the one the arm drawn (a light time old) follows, until the
+    command's answer comes down."""
+
+    async def walk() -> None:
+        feed = SpatialFeed(ViewLink(Endpoint("ws://127.0.0.1:9"), "/"), camera_url="/camera")
+        bridge = PlanBridge()
+        asked: list[dict[str, Any]] = []
+        answer_of = bridge.call
+
+        async def call(service: str, request: dict[str, Any]) -> dict[str, Any]:
+            asked.append(request)
+            return await answer_of(service, request)
+
+        bridge.call = call  # type: ignore[method-assign]
+        feed.rosbridge = bridge  # type: ignore[assignment]
+        pushed: list[dict[str, Any]] = []
+        feed._push = pushed.append  # type: ignore[method-assign]
+        feed.active_template = "ready_pose:0"  # the status still names the last instance
+        bridge.answer = _get_plan("EXECUTED", trajectory="approach")
+
+        feed.command_sent("cdra_filter:0", "approach")
+        assert pushed[-1] == {"kind": "plan", "plan": None}  # nothing to draw yet: asked at once
+        assert feed._refreshing is not None
+        await feed._refreshing
+        assert asked == [{"name": "cdra_filter:0", "trajectory_name": "approach"}]
+        plan = pushed[-1]["plan"]
+        assert plan["instance"] == "cdra_filter:0" and plan["trajectory"] == "approach" and plan["commanded"] is True
+
+        feed.command_ended()  # the answer came down: the habitat's state is shown again
+        await feed._refreshing
+        assert asked[-1] == {"name": "ready_pose:0", "trajectory_name": ""}
+        assert pushed[-1] == {"kind": "plan", "plan": None}
 
     asyncio.run(walk())
