@@ -11,7 +11,7 @@ from __future__ import annotations
 from caretaker_sim_msgs.msg import CollisionObject, CollisionShape, CollisionWorld
 from geometry_msgs.msg import Pose as PoseMsg
 
-from sim.scene import Pose, Scene, Shape, filter_parts
+from sim.scene import Pose, Scene, Shape, filter_parts, slot_body
 
 __all__ = ["collision_world", "pose_message", "shape_message"]
 
@@ -35,7 +35,8 @@ def shape_message(shape: Shape, rgba: tuple[float, float, float, float]) -> Coll
 
 
 def collision_world(scene: Scene) -> CollisionWorld:
-    """The static bodies and the filters (graspable, in their starting slots) of ``scene``."""
+    """The static bodies (with the slots fixed to them) and the filters (graspable, in their
+    starting slots) of ``scene``."""
     msg = CollisionWorld()
     msg.scene = scene.name
     msg.robot_name = scene.robot.name
@@ -45,6 +46,7 @@ def collision_world(scene: Scene) -> CollisionWorld:
         obj.name = body.name
         obj.pose = pose_message(body.pose)
         obj.shapes = [shape_message(s, body.color) for s in body.shapes]
+        obj.frames = [slot for slot in scene.slots if slot_body(scene, slot) == body.name]
         msg.objects.append(obj)
     if scene.filter_model is not None:
         for spec in scene.filters:
@@ -53,5 +55,6 @@ def collision_world(scene: Scene) -> CollisionWorld:
             obj.pose = pose_message(scene.slots[spec.slot].pose)
             obj.shapes = [shape_message(s, c) for s, c in filter_parts(scene.filter_model, spec.condition)]
             obj.graspable = True
+            obj.frames = [obj.name]
             msg.objects.append(obj)
     return msg

@@ -46,7 +46,7 @@ def _add_object(scene: PlanningScene, obj: CollisionObject) -> None:
     # the mass is never felt.
     mass = 1.0 if obj.graspable else 0.0
     body = p.createMultiBody(mass, collision, -1, pos.tolist(), quat.tolist(), physicsClientId=scene.client)
-    scene.add_obstacle(obj.name, body, graspable=obj.graspable)
+    scene.add_obstacle(obj.name, body, graspable=obj.graspable, frames=list(obj.frames))
 
 
 def build_planning_scene(config: RobotConfig, world: CollisionWorld) -> PlanningScene:

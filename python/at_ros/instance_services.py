@@ -119,6 +119,9 @@ class InstanceServices:
         for instance, name, registration in updates:
             with core.command_lock(instance.key), core.state_lock:
                 instance.register(name, registration)
+                if registration.frame != WORLD_FRAME:  # the world frame is where it is by definition
+                    core.registered.pop(registration.frame, None)  # the latest last
+                    core.registered[registration.frame] = registration
         done = "registered " + ", ".join(f"{n}:{i.id} to {r.frame}" for i, n, r in updates)
         core.save_instances(done)
         return core.succeed(response, done)

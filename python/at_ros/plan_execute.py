@@ -24,7 +24,7 @@ import uuid
 from typing import Any
 
 from action_msgs.msg import GoalStatus
-from affordance_template_msgs.msg import ServerStatus, WaypointGoal
+from affordance_template_msgs.msg import RegisteredFrame, ServerStatus, WaypointGoal
 from affordance_template_msgs.srv import AffordanceTemplateExecuteCommand, AffordanceTemplatePlanCommand, PlanWaypoints
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.srv import SetGripper
@@ -250,6 +250,14 @@ class PlanExecutor:
         request.start_state.name = list(robot.joint_names)
         request.start_state.position = [float(joints[j]) for j in robot.joint_names]
         request.held_object = held
+        with self.core.state_lock:
+            registered = list(self.core.registered.values())
+        for registration in registered:
+            located = RegisteredFrame()
+            located.frame = registration.frame
+            located.pose = pose_from_matrix(registration.world)
+            located.against = pose_from_matrix(registration.frame_pose)
+            request.registered.append(located)
         for wp in waypoints:
             goal = WaypointGoal()
             goal.label = wp.label

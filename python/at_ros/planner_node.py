@@ -34,6 +34,7 @@ from at_ros.library import LibraryError
 from at_ros.messages import matrix_from_pose, pose_from_matrix
 from at_ros.motion_planner import Goal, MotionPlanner, PlannedWaypoint, WaypointPlanningError
 from at_ros.planning_scene import PlanningScene
+from at_ros.registered_world import RegisteredFrame, located_world
 from at_ros.robot_config import RobotConfig
 from at_ros.time_parameterization import TimedPath
 from at_ros.transforms import invert
@@ -71,6 +72,7 @@ class PlannerNode(Node):
         self.held_object = ""
         self.robot_moving = False
         self.grasp_transform: np.ndarray | None = None  # held object in the tool frame
+        self.frames: dict[str, np.ndarray] = {}  # the world model's named frames (sim/frames), latest
         self.world_subscription = self.create_subscription(
             CollisionWorld, "sim/collision_world", self.world_callback, LATCHED
         )
@@ -127,6 +129,7 @@ class PlannerNode(Node):
         if self.scene is None:
             return
         poses = {name: matrix_from_pose(pose) for name, pose in zip(msg.names, msg.poses, strict=False)}
+        self.frames = poses
         for name, pose in poses.items():
             if name in self.scene.graspable:
                 self.scene.set_obstacle_pose(name, pose)
@@ -146,7 +149,13 @@ class PlannerNode(Node):
             if not goals:
                 raise WaypointPlanningError("no waypoints to plan")
             grasp = self.grasp_transform if request.held_object and request.held_object == self.held_object else None
-            planned = self.motion_planner.plan(start, goals, held_object=request.held_object, held_transform=grasp)
+            registered = [
+                RegisteredFrame(r.frame, matrix_from_pose(r.pose), matrix_from_pose(r.against))
+                for r in request.registered
+            ]
+            held = self.motion_planner.scene.object_name(request.held_object) if request.held_object else None
+            with located_world(self.motion_planner.scene, registered, self.frames, held):
+                planned = self.motion_planner.plan(start, goals, held_object=request.held_object, held_transform=grasp)
         except WaypointPlanningError as exc:
             response.success = False
             response.message = str(exc)

@@ -8,6 +8,7 @@ object in the gripper is attached to the tool link so collision checks include i
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -118,6 +119,7 @@ class PlanningScene:
         self.gripper_link_indices = {self._link_index[n] for n in gripper_links if n in self._link_index}
         self.obstacles: dict[str, int] = {}
         self.graspable: set[str] = set()
+        self.frames_fixed: dict[str, tuple[str, ...]] = {}  # obstacle -> named frames fixed to it
         self.attachment: Attachment | None = None
         self._allowed_self_pairs = self._adjacent_pairs()
         self.set_joints(np.clip(np.zeros(self.dof), lo, hi))
@@ -142,9 +144,11 @@ class PlanningScene:
         pose: np.ndarray = from_xyz_quat(pos, quat) @ invert(from_xyz_quat(local_pos, local_quat))
         return pose
 
-    def add_obstacle(self, name: str, body: int, *, graspable: bool = False) -> None:
-        """Register a body created in this client (by the scene loader) under its frame name."""
+    def add_obstacle(self, name: str, body: int, *, graspable: bool = False, frames: Sequence[str] = ()) -> None:
+        """Register a body created in this client (by the scene loader) under its frame name,
+        with the named frames fixed to it (a registration to one of them moves it)."""
         self.obstacles[name] = body
+        self.frames_fixed[name] = tuple(frames)
         if graspable:
             self.graspable.add(name)
 

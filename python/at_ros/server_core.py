@@ -20,7 +20,7 @@ from typing import Any
 from affordance_template_msgs.msg import AffordanceTemplateStatus, ServerStatus
 
 from at_ros.frames import WORLD_FRAME, FrameTable, UnknownFrame
-from at_ros.instance import InstanceError, StoredPlan, TemplateInstance
+from at_ros.instance import InstanceError, Registration, StoredPlan, TemplateInstance
 from at_ros.instance_store import save_instances
 from at_ros.library import LibraryError, Template, load_library
 from at_ros.robot_config import RobotConfig
@@ -96,6 +96,12 @@ class ServerCore:
         self.state_file = state_file
         self.frames = FrameTable()
         self.state = ServerState(instances=instances)
+        #: The latest registration of each named frame, oldest first: where the runs located things
+        #: (the planner's world follows them, at_ros.registered_world). After a restart, what the
+        #: instances are registered to now (an instance moved on from a frame took that with it).
+        self.registered: dict[str, Registration] = {
+            r.frame: r for i in instances.values() for r in i.registrations.values() if r.frame != WORLD_FRAME
+        }
         self.inputs = RobotInputs()
         self.state_lock = threading.RLock()
         #: Notified (under ``state_lock``) whenever joint states arrive.
