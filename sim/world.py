@@ -26,6 +26,7 @@ from sim.scene import (
     TargetSpec,
     filter_parts,
     filter_shapes,
+    slot_body,
     target_parts,
 )
 
@@ -249,6 +250,34 @@ def build_world(scene: Scene, client: int, *, with_filters: bool = True, with_ta
         for marker_id in world.markers:
             world.print_marker(marker_id, marker_id)
     return world
+
+
+def seated_filter_collisions(scene: Scene, *, depth: float = 1e-3) -> list[str]:
+    """Each seated filter of ``scene`` that goes deeper than ``depth`` into a body other than the
+    one its slot is part of, or into another filter, as "filter/<id> in <body>": a world where
+    that is so cannot be (a displaced cabinet pushed its filter into the wall behind it)."""
+    if not scene.filter_model or not scene.filters:
+        return []
+    client = p.connect(p.DIRECT)
+    try:
+        names = {_static_body(b, client): b.name for b in scene.bodies}
+        seated = {}
+        for f in scene.filters:
+            body = _filter_body(scene.filter_model, f.condition, scene.slots[f.slot].pose, client, ())
+            names[body] = f"filter/{f.id}"
+            seated[body] = slot_body(scene, f.slot)
+        p.performCollisionDetection(physicsClientId=client)
+        found = []
+        for body, carrier in seated.items():
+            into = {
+                names[c[2]]
+                for c in p.getContactPoints(bodyA=body, physicsClientId=client)
+                if c[8] < -depth and c[2] in names and names[c[2]] != carrier
+            }
+            found += [f"{names[body]} in {other}" for other in sorted(into)]
+        return found
+    finally:
+        p.disconnect(client)
 
 
 def _fixed_markers(scene: Scene, world: World) -> None:

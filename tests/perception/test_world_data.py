@@ -8,15 +8,17 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pybullet as p
 import pytest
 import yaml
 
-from sim.displacement import MAX_ANGLE_RAD, MAX_OFFSET_M, displaced_objects
-from sim.scene import SCENES_DIR, SceneError, load_scene
+from sim.displacement import MAX_ANGLE_RAD, MAX_OFFSET_M, compose, displaced_objects, displaced_scene
+from sim.scene import SCENES_DIR, Pose, SceneError, load_scene
 from sim.simulation import Simulation
+from sim.world import seated_filter_collisions
 
 pytestmark = pytest.mark.slow(seconds=10)
 
@@ -63,6 +65,26 @@ def test_a_displaced_iva_moves_rack_and_cabinet_with_their_slots_and_filters() -
             assert said[frame] == real[frame]
     finally:
         sim.close()
+
+
+def test_a_displaced_world_never_puts_a_filter_into_another_body() -> None:
+    """The cabinet is on a wall: moved 4 cm toward it, its seated filter would be 1 cm into the
+    wall, and the pull-out would scrape it out of there. Such a draw is drawn again."""
+    scene = load_scene("iva")
+    assert seated_filter_collisions(scene) == []
+    toward_the_wall = Pose((0.05, 0.0, 0.0), (0.0, 0.0, 0.0))  # the cabinet's x is into its slot, toward the wall
+    cabinet = next(b for b in scene.bodies if b.name == "cabinet")
+    pushed = replace(
+        scene,
+        bodies=tuple(replace(b, pose=compose(b.pose, toward_the_wall)) if b is cabinet else b for b in scene.bodies),
+        slots={
+            **scene.slots,
+            "cabinet/slot": replace(scene.slots["cabinet/slot"], pose=compose(cabinet.pose, toward_the_wall)),
+        },
+    )
+    assert seated_filter_collisions(pushed) == ["filter/CDRA-F-0007 in module"]
+    for seed in range(20):
+        assert seated_filter_collisions(displaced_scene(scene, seed)) == [], seed
 
 
 def test_every_offset_is_within_the_bounds_and_seeds_differ() -> None:
