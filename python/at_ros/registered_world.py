@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from at_ros.planning_scene import PlanningScene
-from at_ros.transforms import invert
+from at_ros.transforms import angle_between, invert
 
 __all__ = ["RegisteredFrame", "located_poses", "located_world", "SAME_POSITION_M", "SAME_ANGLE_RAD"]
 
@@ -55,8 +55,7 @@ class RegisteredFrame:
 def _same_pose(a: np.ndarray, b: np.ndarray) -> bool:
     if np.linalg.norm(a[:3, 3] - b[:3, 3]) > SAME_POSITION_M:
         return False
-    cos = (np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) / 2.0
-    return bool(np.arccos(np.clip(cos, -1.0, 1.0)) <= SAME_ANGLE_RAD)
+    return angle_between(a, b) <= SAME_ANGLE_RAD
 
 
 def located_poses(
