@@ -109,15 +109,19 @@ def test_each_look_locates_its_object_and_the_dirty_filter_is_moved_where_they_w
             found: dict[str, Pose] = {}  # where each object was located, in its frame as drawn
             failures: list[str] = []
 
-            def look_and_locate(trajectory: str, frame: str, obj: str, at_located: bool) -> None:
-                where = found[frame] if at_located else None  # None: at the frame as drawn
+            def register_and_move(trajectory: str, frame: str, where: Pose | None) -> None:
                 registered = at.register("cdra_filter", added.id, "cdra_filter", frame, where)
                 assert registered.success, registered.message
                 for service in ("plan_command", "execute_command"):
                     answer = at.call(
                         service, type="cdra_filter", id=added.id, trajectory_name=trajectory, call_timeout=MOTION_S
                     )
-                    assert answer.success, f"{trajectory} at {frame}: {answer.message}"
+                    assert answer.success, (
+                        f"{trajectory} at {frame}{'' if where is None else ' as located'}: {answer.message}"
+                    )
+
+            def look_and_locate(trajectory: str, frame: str, obj: str, at_located: bool) -> None:
+                register_and_move(trajectory, frame, found[frame] if at_located else None)  # None: as drawn
                 at.fresh_frames(timeout=MOTION_S)  # the arm at rest where the look put it
                 answer = perception.locate(obj, "wrist_camera", frame=obj)
                 assert answer.success, f"{obj} from {trajectory} at {frame}: {answer.message}"
@@ -138,13 +142,7 @@ def test_each_look_locates_its_object_and_the_dirty_filter_is_moved_where_they_w
                 look_and_locate(*look)
             assert at.unlock_filter().success
             for trajectory, frame in (("grasp_and_pull", DIRTY), ("insert_and_release", "rack/slot_3")):
-                registered = at.register("cdra_filter", added.id, "cdra_filter", frame, found[frame])
-                assert registered.success, registered.message
-                for service in ("plan_command", "execute_command"):
-                    answer = at.call(
-                        service, type="cdra_filter", id=added.id, trajectory_name=trajectory, call_timeout=MOTION_S
-                    )
-                    assert answer.success, f"{trajectory} at {frame} as located: {answer.message}"
+                register_and_move(trajectory, frame, found[frame])
             at.wait_for(lambda: at.held_object == "", MOTION_S, "the gripper empty")
             # the simulator puts a seated filter's frame on its slot: anywhere else, it is not in it
             rests, slot = perception.truth(DIRTY), perception.truth("rack/slot_3")
