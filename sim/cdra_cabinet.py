@@ -15,7 +15,7 @@ from sim.filter_slots import FilterSlots
 from sim.scene import CabinetSpec
 from sim.world import World
 
-__all__ = ["CdraCabinet", "CdraTelemetry"]
+__all__ = ["CdraCabinet", "CdraTelemetry", "FilterFound", "find_filter"]
 
 LOG = logging.getLogger(__name__)
 
@@ -30,6 +30,45 @@ class CdraTelemetry:
     installed_filter_id: str
     installed_filter_condition: str
     clean_filter_ids: str  # the clean filters seated outside the cabinet (on the rack), comma-separated
+
+
+@dataclass(frozen=True)
+class FilterFound:
+    """The bay's answer to "which filter is in this slot" or "where is this filter"."""
+
+    found: bool
+    message: str
+    filter_id: str = ""
+    slot: str = ""
+    condition: str = ""
+
+
+def find_filter(filters: FilterSlots, *, filter_id: str = "", slot: str = "") -> FilterFound:
+    """The filter seated in ``slot``, or the slot ``filter_id`` is seated in (name exactly one).
+
+    What the bay's slot sensors and the filters' tags report, so a procedure can look at the
+    filter it means (the markers perception finds are that filter's), not at where the drawings
+    put one. A filter in the gripper or loose is in no slot: not found, with that said.
+    """
+    if bool(filter_id) == bool(slot):
+        return FilterFound(False, "name either a filter id or a slot, not both and not neither")
+    if slot:
+        if slot not in filters.slot_poses:
+            return FilterFound(False, f"no slot {slot!r}; the bay has {', '.join(sorted(filters.slot_poses))}")
+        seated = filters.in_slot(slot)
+        if seated is None:
+            return FilterFound(False, f"{slot} is empty", slot=slot)
+    else:
+        seated = filters.filters.get(filter_id)
+        if seated is None:
+            return FilterFound(False, f"no filter {filter_id!r}; the bay has {', '.join(sorted(filters.filters))}")
+        if seated.slot is None:
+            where = "held by the gripper" if seated.held else "not seated in any slot"
+            return FilterFound(False, f"{filter_id} is {where}", filter_id=filter_id, condition=seated.condition)
+    assert seated.slot is not None
+    return FilterFound(
+        True, f"{seated.id} ({seated.condition}) is seated in {seated.slot}", seated.id, seated.slot, seated.condition
+    )
 
 
 class CdraCabinet:

@@ -23,7 +23,7 @@ import rclpy
 from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import CollisionWorld, Marker, Markers, NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, GetFrames, Halt, PrintMarker, SetGripper
+from caretaker_sim_msgs.srv import CaptureImage, FindFilter, GetFrames, Halt, PrintMarker, SetGripper
 from geometry_msgs.msg import Pose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
@@ -37,6 +37,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, intrinsics, render, write_png
+from sim.cdra_cabinet import find_filter
 from sim.collision_world import collision_world, pose_message
 from sim.publish_gate import PublishGate
 from sim.render_budget import RenderBudget
@@ -147,6 +148,12 @@ class SimNode(Node):
             self.lock_srv = self.create_service(
                 Trigger, "cdra/lock_filter", self.lock_callback, qos_profile=SERVICE_QOS, callback_group=group
             )
+            self.inventory_srvs = [
+                self.create_service(
+                    FindFilter, f"cdra/{name}", self.find_filter_callback, qos_profile=SERVICE_QOS, callback_group=group
+                )
+                for name in ("filter_in_slot", "slot_of_filter")
+            ]
         self._last_status: tuple | None = None
         self._joint_gate = PublishGate(REST_PERIOD)
         self._frames_gate = PublishGate(REST_PERIOD)
@@ -432,6 +439,14 @@ class SimNode(Node):
             response.message = sim.cabinet.set_locked(locked, sim.filters)
             response.success = True
         # The stepper publishes the changed telemetry on its next step (one publishing thread).
+        return response
+
+    def find_filter_callback(self, request: FindFilter.Request, response: FindFilter.Response) -> FindFilter.Response:
+        """Both inventory services: which one was asked shows in which field the request names."""
+        with self.sim.world_lock:
+            found = find_filter(self.sim.filters, filter_id=request.filter_id, slot=request.slot)
+        response.success, response.message = found.found, found.message
+        response.filter_id, response.slot, response.condition = found.filter_id, found.slot, found.condition
         return response
 
     # ------------------------------------------------------------------ cameras

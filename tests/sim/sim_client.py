@@ -14,7 +14,7 @@ import rclpy
 from builtin_interfaces.msg import Duration
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, Halt, SetGripper
+from caretaker_sim_msgs.srv import CaptureImage, FindFilter, Halt, SetGripper
 from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -63,6 +63,8 @@ class SimClient:
         self.capture_client = self.node.create_client(CaptureImage, "/camera/capture")
         self.unlock_client = self.node.create_client(Trigger, "/cdra/unlock_filter")
         self.lock_client = self.node.create_client(Trigger, "/cdra/lock_filter")
+        self.filter_in_slot_client = self.node.create_client(FindFilter, "/cdra/filter_in_slot")
+        self.slot_of_filter_client = self.node.create_client(FindFilter, "/cdra/slot_of_filter")
         self.halt_client = self.node.create_client(Halt, "/robot/halt")
         self.spin_error: BaseException | None = None
         self._spinner = Spinner(self.executor, self.node, name="sim-client", on_error=self._spin_failed)
@@ -260,6 +262,12 @@ class SimClient:
 
     def lock(self) -> Trigger.Response:
         return self._call(self.lock_client, Trigger.Request(), "lock")
+
+    def filter_in_slot(self, slot: str) -> FindFilter.Response:
+        return self._call(self.filter_in_slot_client, FindFilter.Request(slot=slot), f"filter in {slot}")
+
+    def slot_of_filter(self, filter_id: str) -> FindFilter.Response:
+        return self._call(self.slot_of_filter_client, FindFilter.Request(filter_id=filter_id), f"slot of {filter_id}")
 
     def capture(self, camera: str, label: str = "") -> CaptureImage.Response:
         return self._call(self.capture_client, CaptureImage.Request(camera=camera, label=label), f"capture {camera}")

@@ -248,6 +248,17 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     client.wait_value("/cdra/installed_filter_condition", "dirty")
     seated_pose = client.frame(f"filter/{dirty}")
     assert close_to(seated_pose[0], client.frame("cabinet/slot")[0], 1e-4)
+    # the bay's inventory names the filter in a slot and the slot of a filter, or says why not
+    inventory = client.filter_in_slot("cabinet/slot")
+    assert (inventory.success, inventory.filter_id, inventory.condition) == (True, dirty, "dirty"), inventory.message
+    inventory = client.slot_of_filter("CDRA-F-0012")
+    assert (inventory.success, inventory.slot, inventory.condition) == (True, "rack/slot_1", "clean"), inventory.message
+    for refused, because in (
+        (client.filter_in_slot("rack/slot_3"), "rack/slot_3 is empty"),
+        (client.filter_in_slot("rack/slot_9"), "no slot 'rack/slot_9'; the bay has cabinet/slot, rack/slot_1"),
+        (client.slot_of_filter("CDRA-F-9999"), "no filter 'CDRA-F-9999'; the bay has CDRA-F-0007, CDRA-F-0012"),
+    ):
+        assert not refused.success and refused.message.startswith(because), refused.message
 
     # Reach the cabinet handle: pre-grasp 15 cm out, then straight in; close on the handle.
     assert client.gripper("open").success
@@ -273,6 +284,8 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     client.wait_value("/cdra/filter_present", False)
     client.wait_value("/cdra/installed_filter_id", "")
     out_pos = client.frame(f"filter/{dirty}")[0]
+    held = client.slot_of_filter(dirty)
+    assert (held.success, held.message) == (False, f"{dirty} is held by the gripper")
     assert math.dist(out_pos, seated_pose[0]) > 0.25
 
     # Carry it to the empty rack slot 3 and slide it in; opening leaves it seated there.
@@ -286,6 +299,8 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     retreat = model.slot_line("rack/slot_3", 0.0, 0.15, insert[-1])
     assert_ok(move_to(client, model, retreat[1:], 0.2))
     assert close_to(client.frame(f"filter/{dirty}")[0], client.frame("rack/slot_3")[0], 1e-4)
+    assert client.filter_in_slot("rack/slot_3").filter_id == dirty
+    assert client.filter_in_slot("cabinet/slot").message == "cabinet/slot is empty"
     assert_ok(move_to(client, model, [HOME]))
 
 
