@@ -38,6 +38,7 @@ __all__ = [
     "filter_parts",
     "filter_shapes",
     "load_scene",
+    "marker_frame_pose",
     "marker_frames",
     "resolve_scene",
     "slot_body",
@@ -220,6 +221,18 @@ def marker_frames(scene: Scene) -> list[str]:
         + [f"filter/{f.id}" for f in scene.filters]
         + [f"target/{t.name}" for t in scene.targets]
     )
+
+
+def marker_frame_pose(scene: Scene, name: str) -> Pose:
+    """Where ``scene`` puts one of :func:`marker_frames` (a filter: the slot it is seated in)."""
+    if name in scene.slots:
+        return scene.slots[name].pose
+    if name.startswith("filter/"):
+        spec = next(f for f in scene.filters if f"filter/{f.id}" == name)
+        return scene.slots[spec.slot].pose
+    if name.startswith("target/"):
+        return next(t.pose for t in scene.targets if f"target/{t.name}" == name)
+    return next(b.pose for b in scene.bodies if b.name == name)
 
 
 def filter_grasp_offset(model: FilterModel) -> Pose:

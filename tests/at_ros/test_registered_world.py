@@ -3,8 +3,8 @@ collision world as the simulation publishes it: a registered slot moves its body
 seated in it, a filter registered by its own frame moves while it is still where it was, the held
 filter never moves, and the world is as drawn again after the plan.
 
-A unit test of the module alone; tests/perception/test_locate_iva_looks.py plans and moves the
-real arm on displaced worlds with it, to where perception located things.
+A unit test of the module alone; the IVA demo on displaced worlds (tests/interop/test_displaced_demos.py)
+plans and moves the real arm with it, to where perception located things.
 """
 
 from __future__ import annotations

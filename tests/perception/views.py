@@ -17,7 +17,7 @@ import yaml
 
 from at_ros.transforms import angle_between, from_xyz_quat, from_xyz_rpy, quat_from_matrix
 from sim.displacement import compose, displaced_scene
-from sim.scene import SCENES_DIR, Pose, Scene, load_scene
+from sim.scene import SCENES_DIR, Scene, load_scene, marker_frame_pose
 from sim.world import build_world
 
 #: The seed of the displaced world every test here runs on.
@@ -35,21 +35,9 @@ class View:
     elevation_deg: float
 
 
-def frame_pose(scene: Scene, name: str) -> Pose:
-    """Where the scene file puts a frame that markers are fixed to."""
-    if name in scene.slots:
-        return scene.slots[name].pose
-    if name.startswith("filter/"):
-        spec = next(f for f in scene.filters if f"filter/{f.id}" == name)
-        return scene.slots[spec.slot].pose
-    if name.startswith("target/"):
-        return next(t.pose for t in scene.targets if f"target/{t.name}" == name)
-    return next(b.pose for b in scene.bodies if b.name == name)
-
-
 def aim(scene: Scene, obj: str) -> tuple[np.ndarray, np.ndarray]:
     """The middle of an object's markers and their outward normal, in world (nominal)."""
-    frame = frame_pose(scene, obj)
+    frame = marker_frame_pose(scene, obj)
     poses = [compose(frame, m.pose) for m in scene.markers if m.frame == obj]
     centre = np.mean([p.xyz for p in poses], axis=0)
     normal = from_xyz_quat(poses[0].xyz, poses[0].quaternion)[:3, 2]
@@ -114,7 +102,7 @@ def view_pose(scene: Scene, view: View) -> tuple[np.ndarray, np.ndarray]:
     any other is :func:`camera_entry`'s, upright."""
     if view.elevation_deg == 90.0:
         centre, _ = aim(scene, view.obj)
-        marker = next(compose(frame_pose(scene, view.obj), m.pose) for m in scene.markers if m.frame == view.obj)
+        marker = next(compose(marker_frame_pose(scene, view.obj), m.pose) for m in scene.markers if m.frame == view.obj)
         facing = from_xyz_quat(centre, marker.quaternion) @ from_xyz_rpy((0.0, 0.0, view.distance), (math.pi, 0.0, 0.0))
         return facing[:3, 3], quat_from_matrix(facing[:3, :3])
     entry = camera_entry(scene, view)

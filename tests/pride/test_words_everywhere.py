@@ -101,7 +101,7 @@ def test_the_iva_run_reads_in_words_in_the_report_and_on_the_terminal(
         assert 'sent Plan Trajectory "grasp_and_pull" for cdra_filter:0' in text
         assert "sent Unlock Filter" in text
         # the planner's end pose, in millimetres and degrees, in its frame
-        assert "end pose position (150, 450, 300) mm, orientation (0, 90, 90)° in robot_base" in text
+        assert "end pose position (162, 335, 628) mm, orientation (-105, 0, 10)° in robot_base" in text  # look_above
         assert "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack" in text
     assert "saw Plan Valid = true ✓" in report and "recorded clean filter id = CDRA-F-0012" in report
     assert "| Filter Locked | `false` | is false | ok |" in report  # verified telemetry, by its label

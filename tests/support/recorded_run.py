@@ -65,7 +65,7 @@ class RecordedSystems:
         self.sent: list[tuple[str, str, dict[str, Any]]] = []
 
     def system_ids(self) -> frozenset[str]:
-        return frozenset({"affordance_templates", "cdra"})
+        return frozenset({"affordance_templates", "cdra", "perception"})
 
     def robot(self) -> str:
         return str(self._events[0].data.get("robot", "iva"))

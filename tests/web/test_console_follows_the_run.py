@@ -50,7 +50,7 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     alice = sign_in("alice")
     start_run(alice, IVA, "manual")
     texts = sentences(alice)
-    assert len(texts) == 55
+    assert len(texts) == 77
     assert_readable(texts)
     assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:‹cdra_at.id›"  # not known yet
 

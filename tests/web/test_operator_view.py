@@ -88,7 +88,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
     expect(alice.locator("#hold")).to_contain_text("Automation paused at 4.4")
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
-    expect(audit_row(alice, "instruction_started", "4.5", "PAX").locator(".audit-detail")).to_have_text(
+    expect(audit_row(alice, "instruction_started", "4.14", "PAX").locator(".audit-detail")).to_have_text(
         "started: Pick clean filter CDRA-F-0012 from the rack"
     )
     stop_run(alice, "end of the walk-through")
