@@ -356,12 +356,13 @@ def commands(events: list[Event]) -> list[tuple[Event, Event | None]]:
 
 DELAY = 1.3
 #: Arm trajectory goals of one run of the IVA procedure: one per planned waypoint segment that
-#: moves the arm, over the six executions. If the templates change, a clean run shows the new
-#: number (every goal SUCCEEDED once).
-IVA_ARM_GOALS = 14
-#: Commands of one run (adds, poses, plans, executes, unlock, lock, deletes) and its executions.
-IVA_COMMANDS = 23
-IVA_EXECUTIONS = 6
+#: moves the arm, over the eleven executions (six motions and five looks). If the templates
+#: change, a clean run shows the new number (every goal SUCCEEDED once).
+IVA_ARM_GOALS = 19
+#: Commands of one run (adds, poses, plans, executes, the bay's inventory, locates, unlock, lock,
+#: deletes) and its executions.
+IVA_COMMANDS = 45
+IVA_EXECUTIONS = 11
 #: The first placement of a filter on the rack (step 3): the execution after the pull-out.
 PLACE_DIRTY = "insert_and_release"
 

@@ -15,7 +15,7 @@ from pride.events import EventKind
 
 from .flight_support import DELAY, PULL_OUT, assert_flown_exactly_once, assert_in_flight, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240), pytest.mark.timeout(900)]
 
 HOLD_S = 30.0
 

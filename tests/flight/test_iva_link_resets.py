@@ -13,7 +13,7 @@ import pytest
 
 from .flight_support import DELAY, PLACE_DIRTY, PULL_OUT, assert_flown_exactly_once, assert_in_flight, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=210)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=210), pytest.mark.timeout(900)]
 
 
 def test_resets_and_a_bridge_crash_mid_motion_leave_every_motion_done_once(ros_env: dict[str, str]) -> None:

@@ -121,7 +121,7 @@ class SimulatedSystems:
                 self._set("cdra", "filter_locked", False)
             elif command_id == "lock_filter":
                 self._set("cdra", "filter_locked", True)
-            elif command_id in ("filter_in_slot", "slot_of_filter"):  # the dirty one in the cabinet, a clean one on slot 1
+            elif command_id in ("filter_in_slot", "slot_of_filter"):  # the cabinet's dirty one; a clean one in slot 1
                 found = {"filter_id": args.get("filter_id") or "F-DIRTY-07", "slot": args.get("slot") or "rack/slot_1"}
                 return CommandResult(Outcome.SUCCEEDED, "{filter_id} is seated in {slot}".format(**found), found)
             return CommandResult(Outcome.SUCCEEDED, f"{command_id} done")

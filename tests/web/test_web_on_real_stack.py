@@ -49,7 +49,8 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
 
     # the procedure as written: numbering, notes/cautions, automatable icons, live telemetry
     expect(instruction(alice, "2.1")).to_contain_text("2.1")
-    expect(alice.locator("#procedure .notice.note").first).to_contain_text("registered to the filter")
+    expect(alice.locator("#procedure .notice.note").first).to_contain_text("the locate that follows is its check")
+    expect(alice.locator("#procedure .notice.note").nth(1)).to_contain_text("registered to the filter")
     expect(alice.locator("#procedure .notice.caution").first).to_contain_text("within reach of the CDRA cabinet")
     expect(instruction(alice, "1.3").locator(".auto-icon")).to_have_attribute("title", re.compile("PAX can run this"))
     expect(instruction(alice, "1.1").locator(".telemetry")).to_contain_text(
