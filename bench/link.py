@@ -62,7 +62,7 @@ ROBOTS = {
         REPO / "deployments" / "iva-habitat.yaml",
         REPO / "sysrep" / "bindings" / "iva-ground.yaml",
         REPO / "procedures" / "iva_cdra_filter_replacement.xml",
-        ("--set=clean_filter_id=CDRA-F-0012",),
+        ("--set=clean_filter_id=CDRA-F-0012", "--rehearsal"),  # a draft in a fresh database: rehearsed on the simulator
     ),
     # the hull targets located from the arm's camera before each registration (issue 28): with
     # --displace, only the located poses (a few hundred bytes each) cross the link for them
