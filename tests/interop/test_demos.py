@@ -21,7 +21,7 @@ import pytest
 from caretaker.processes import REPO
 from pride.events import EventKind
 from pride.parser import load_procedure
-from support.demos import demo_events, run_demo
+from support.demos import demo_events, run_demo, verified
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
 
@@ -58,11 +58,11 @@ def _every_step_done_and_reported(procedure_file: str, tmp_path: Path, output: l
 
 def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) -> None:
     output = run_demo("iva", tmp_path, ros_env)
-    verified = [line.strip() for line in output if "verified:" in line]
-    assert len(verified) == 3, output[-30:]
-    assert verified[0].startswith("verified: filter/CDRA-F-0007 is at rack/slot_3: "), verified
-    assert verified[0].endswith(" mm from it (within 30 mm)"), verified
-    assert verified[1:] == [
+    checks = verified(output)
+    assert len(checks) == 3, output[-30:]
+    assert checks[0].startswith("verified: filter/CDRA-F-0007 is at rack/slot_3: "), checks
+    assert checks[0].endswith(" mm from it (within 30 mm)"), checks
+    assert checks[1:] == [
         "verified: /cdra/installed_filter_id is 'CDRA-F-0012'",
         "verified: /cdra/filter_locked is True",
     ]
@@ -71,8 +71,8 @@ def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) ->
 
 def test_eva_inspection(tmp_path: Path, ros_env: dict[str, str]) -> None:
     output = run_demo("eva", tmp_path, ros_env)
-    verified = [line.strip() for line in output if "verified:" in line]
-    assert verified == ["verified: images of hull_a, hull_b, hull_c, hull_d captured (4 non-empty files)"], output[-30:]
+    checks = verified(output)
+    assert checks == ["verified: images of hull_a, hull_b, hull_c, hull_d captured (4 non-empty files)"], output[-30:]
     markdown = _every_step_done_and_reported("eva_inspection.xml", tmp_path, output)
     captured = re.findall(r"!\[[^\]]*(hull_[a-d])[^\]]*\]\(([^)]+)\)", markdown)
     assert sorted(target for target, _ in captured) == ["hull_a", "hull_b", "hull_c", "hull_d"]

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from support.demos import demo_events, located_where_it_is, run_demo
+from support.demos import displaced_demo
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
 
@@ -24,12 +24,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
 def test_iva_filter_change_in_a_displaced_habitat_locates_every_object_it_registers(
     seed: int, tmp_path: Path, ros_env: dict[str, str]
 ) -> None:
-    output = run_demo("iva", tmp_path, ros_env, "--displace", str(seed))
-    verified = [line.strip() for line in output if "verified:" in line]
+    checks, located = displaced_demo("iva", seed, tmp_path, ros_env, max_deg=1.0)
     # measured where the objects are (sim/check/frames), not where the drawings put them
-    assert len(verified) == 3, output[-30:]
-    assert verified[0].startswith("verified: filter/CDRA-F-0007 is at rack/slot_3: "), verified
-    located = located_where_it_is(demo_events(tmp_path), "iva", seed, max_deg=1.0)
+    assert len(checks) == 3 and checks[0].startswith("verified: filter/CDRA-F-0007 is at rack/slot_3: "), checks
     assert list(located) == [
         "cabinet/slot",
         "filter/CDRA-F-0007",

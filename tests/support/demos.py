@@ -16,7 +16,7 @@ from sim.displacement import displaced_scene
 from sim.scene import Scene, load_scene, marker_frame_pose
 from support.processes import caretaker
 
-__all__ = ["demo_events", "located_where_it_is", "run_demo"]
+__all__ = ["demo_events", "displaced_demo", "located_where_it_is", "run_demo", "verified"]
 
 
 def run_demo(scenario: str, tmp_path: Path, env: dict[str, str], *more: str) -> list[str]:
@@ -92,3 +92,17 @@ def located_where_it_is(events: list[Event], scenario: str, seed: int, max_deg: 
                     for v in located.values()
                 ), f"{e.instruction} registered at {args['frame']} {pose}: neither as drawn nor as located"
     return located
+
+
+def verified(output: list[str]) -> list[str]:
+    """The demo's world checks as it printed them, one ``verified: ...`` line each."""
+    return [line.strip() for line in output if "verified:" in line]
+
+
+def displaced_demo(
+    scenario: str, seed: int, tmp_path: Path, env: dict[str, str], *, max_deg: float
+) -> tuple[list[str], dict[str, dict]]:
+    """``caretaker demo SCENARIO --displace SEED``: its world checks, and what it located, each
+    checked against where the seed put it (:func:`located_where_it_is`)."""
+    output = run_demo(scenario, tmp_path, env, "--displace", str(seed))
+    return verified(output), located_where_it_is(demo_events(tmp_path), scenario, seed, max_deg=max_deg)
