@@ -367,6 +367,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     # looked at from above the cabinet, near the wall: its housing is between the eye and the
     # gripper while the gripper works at the slot
     alice.evaluate(f"window.caretakerSpatial.look({ABOVE_EYE}, {CABINET_SLOT})")
+    alice.bring_to_front()  # carol's page came and went: a page in the background has its timers throttled
     sight = GripperInSight(alice)
     frame_rate.measure_until("view.state.current === '2.8' && view.state.hold !== null && !view.state.executing")
     # the view draws the arm from what comes down from the habitat: on a loaded machine seconds
