@@ -43,6 +43,7 @@ from console.watchers import Watchers
 from datafile import DataFileError
 from pride.approvals import approval_points, missing_approvals_text
 from pride.audit_log import AuditLog
+from pride.binding import BindingError, read_binding
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
@@ -221,6 +222,8 @@ class RunBoard:
         checked = self._check(procedure_name)
         side = self.catalog.robot_side(binding_name)
         version = self._version(checked, procedure_name, side, rehearsal)
+        if take_over is None:
+            self._refuse_if_controlled(procedure_name, binding_name)
         gateway = self._gateway(checked, procedure_name, binding_name)
         run_id = f"{checked.procedure.id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
         try:
@@ -247,6 +250,21 @@ class RunBoard:
             raise _not_started(procedure_name, exc) from None
         log.info("%s started run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
+
+    def _refuse_if_controlled(self, procedure_name: str, binding_name: str) -> None:
+        """Refuse a start on a robot another run controls before reaching the robot at all.
+
+        Opening a gateway costs seconds of JVM and rosbridge work on a loaded host, and the
+        refusal must not wait on it. The executive's atomic take of control stays the real check
+        (another run may take the robot between this look and the start).
+        """
+        try:
+            robot = read_binding(self.catalog.binding_path(binding_name)).robot
+        except BindingError as exc:
+            raise ActionRefused(422, f"binding {binding_name} cannot be read: {exc}") from None
+        holder = self.control.holder(robot)
+        if holder is not None:
+            raise _not_started(procedure_name, RobotControlled(holder))
 
     def _version(self, checked: CheckedProcedure, procedure_name: str, side: RobotSide, rehearsal: bool) -> RunVersion:
         """The version a run would run, if it may (ActionRefused 409 with the reason if not)."""

@@ -48,6 +48,8 @@ EVA = "eva_inspection.xml"
 MOTION_MS = 240_000
 #: The longest a forwarded action may take by the protocol, and the other page's refresh on loaded cores.
 FORWARDED_MS = int((TAKE_WITHIN_S + ANSWER_WITHIN_S) * 1000) + 30_000
+#: A start's answer: one that would be allowed opens the robot's gateway (JVM and rosbridge work) first.
+START_MS = 120_000
 
 
 @dataclass
@@ -220,7 +222,10 @@ def second_run_on_the_same_robot(page: Page) -> str:
     page.check("#start-form input[name=mode][value=manual]")
     page.check("#start-rehearsal")  # the shipped procedure is a draft here: a rehearsal on the simulator
     page.click("#start-button")
-    page.wait_for_function("() => document.getElementById('start-error').textContent || location.hash.includes('run=')")
+    page.wait_for_function(
+        "() => document.getElementById('start-error').textContent || location.hash.includes('run=')",
+        timeout=START_MS,
+    )
     refusal = page.locator("#start-error").inner_text()
     if "run=" in page.evaluate("location.hash"):  # it started: stop it before it could do anything
         expect(page.locator("#connection")).to_have_attribute("data-state", "open")
