@@ -46,8 +46,9 @@ WEBGL_ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
-#: Generous: other suites share the two cores while these run.
-TIMEOUT_MS = 30_000
+#: Generous: other suites share the two cores while these run (under the whole suite, a CI run
+#: took over 30 s to answer one start).
+TIMEOUT_MS = 60_000
 #: What Playwright's own launch adds for tests, for a Chromium started here: no throttling of
 #: pages it deems in the background, nothing of a user's profile.
 HEADLESS_ARGS = [

@@ -105,6 +105,15 @@ def wait_until(condition: Callable[[], bool], what: str, timeout: float = 60.0) 
         time.sleep(0.1)
 
 
+def drawn_where_the_arm_is(page: Page, habitat: Habitat, where: str) -> None:
+    """Wait until the view's drawn tool is within 5 mm of the habitat's tool0 (the arm at rest)."""
+    wait_until(
+        lambda: distance(inspect(page)["tool_pose"], matrix(habitat.frame("tool0")))[0] <= 5 * MM,
+        f"the view's tool {where}",
+        timeout=TIMEOUT_MS * 3 / 1000,
+    )
+
+
 def distance(a: dict[str, Any], b: np.ndarray) -> tuple[float, float]:
     m = matrix(a)
     return float(np.linalg.norm(m[:3, 3] - b[:3, 3])), float(angle_between(m, b))
@@ -362,23 +371,18 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     act(alice, "continue")
     wait_until_state(alice, "view.state.current === '2.6' && view.state.hold === 'operator_action'")
     assert inspect(alice)["ghost"]["visible"], "the ghost of the plan about to run"
+    # looked at from above the cabinet, near the wall: its housing is between the eye and the
+    # gripper while the gripper works at the slot. The view draws the arm from what comes down
+    # from the habitat, on a loaded machine seconds behind the run's state: the reads go on until
+    # the drawn tool is where the pull-out ended, and the last is taken there, at rest
+    alice.evaluate(f"window.caretakerSpatial.look({ABOVE_EYE}, {CABINET_SLOT})")
+    sight = GripperInSight(alice)
     act(alice, "done", instruction="2.6")
     wait_view(alice, "!v.ghost.visible")
-    # looked at from above the cabinet, near the wall: its housing is between the eye and the
-    # gripper while the gripper works at the slot
-    alice.evaluate(f"window.caretakerSpatial.look({ABOVE_EYE}, {CABINET_SLOT})")
-    alice.bring_to_front()  # carol's page came and went: a page in the background has its timers throttled
-    sight = GripperInSight(alice)
     frame_rate.measure_until("view.state.current === '2.8' && view.state.hold !== null && !view.state.executing")
-    # the view draws the arm from what comes down from the habitat: on a loaded machine seconds
-    # behind the run's state, so the reads go on until the drawn tool is where the arm stopped
-    wait_until(
-        lambda: distance(inspect(alice)["tool_pose"], matrix(habitat.frame("tool0")))[0] <= 5 * MM,
-        "the view's tool where the arm stopped after the pull-out",
-        timeout=TIMEOUT_MS * 3 / 1000,
-    )
+    drawn_where_the_arm_is(alice, habitat, "where the arm stopped after the pull-out")
     frame_rate.report()
-    sight.check()
+    sight.check(at_rest_from=OVER_CABINET_EYE)
     expect(instruction(alice, "2.7").locator(".mark")).to_contain_text("completed", timeout=TIMEOUT_MS)
     assert habitat.plan("cdra_filter:0")["state"] != "PLANNED"
     assert not inspect(alice)["ghost"]["visible"], "no ghost of a plan that ran"
@@ -398,6 +402,8 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
 #: The cabinet's slot (sim/scenes/iva.yaml) and an eye above the cabinet, near the wall it hangs on.
 CABINET_SLOT = [0.15, 0.90, 1.05]
 ABOVE_EYE = [0.15, 1.00, 1.90]
+#: Just over the cabinet's top, by the wall: its housing is between this eye and the filter held out.
+OVER_CABINET_EYE = [0.15, 1.00, 1.45]
 
 
 class GripperInSight:
@@ -405,14 +411,24 @@ class GripperInSight:
     worked inside the cabinet (the pull-out). What is between is worked out here from the scene
     file's boxes (sim/scenes/iva.yaml, as world-aligned boxes like the view's own), independently
     of the view; the page reads the eye, the drawn tool and the names the view faded every 50 ms
-    from the start (``check`` stops it)."""
+    during the motion (a starved page reads little: its timers wait on its frames), and once at
+    rest, looked at from where an object is between (what makes the check certain to see one)."""
 
     START = """() => {
-      window.sightReads = [];
-      window.sightTimer = setInterval(() => {
+      window.sightRead = () => {
         const v = window.caretakerSpatial.inspect();
         window.sightReads.push([v.camera.eye, v.tool_pose.xyz, v.camera.faded]);
-      }, 50);
+      };
+      window.sightReads = [];
+      window.sightTimer = setInterval(window.sightRead, 50);
+    }"""
+    #: Stop the timer, look at the drawn tool from ``eye``, read once more: all the reads.
+    AT_REST = """(eye) => {
+      clearInterval(window.sightTimer);
+      const view = window.caretakerSpatial;
+      view.look(eye, view.inspect().tool_pose.xyz);
+      window.sightRead();
+      return window.sightReads;
     }"""
     #: The view re-checks what hides the tool each time the drawn tool moved 2 cm: a box counts
     #: as in the way when the line of sight crosses it shrunk by this much.
@@ -424,24 +440,32 @@ class GripperInSight:
         self.boxes = [(body["name"], box) for body in scene["bodies"] for box in world_boxes(body)]
         page.evaluate(self.START)
 
-    def check(self) -> None:
-        reads = self.page.evaluate("() => { clearInterval(window.sightTimer); return window.sightReads; }")
+    def check(self, *, at_rest_from: list[float]) -> None:
+        """Every read's objects between the eye and the gripper were faded; the last read (at rest,
+        from ``at_rest_from``) must have had one between, or the check saw nothing to fade."""
+        reads = self.page.evaluate(self.AT_REST, at_rest_from)
         self.reads = [(np.array(eye), np.array(tool), faded) for eye, tool, faded in reads]
         hidden = 0
         for eye, tool, faded in self.reads:
-            between = {
-                name
-                for name, (low, high) in self.boxes
-                if crosses((low + self.MARGIN_M, high - self.MARGIN_M), eye, tool)
-                and not np.all((low <= tool) & (tool <= high))
-            }
+            between = self.between(eye, tool)
             if between:
                 hidden += 1
                 assert between <= set(faded), f"the gripper at {tool.round(3)} is behind {between}, faded: {faded}"
         print(f"gripper in sight: {hidden} of {len(self.reads)} reads had scene objects between it and the eye")
-        assert hidden, "no read had the gripper behind a scene object: the check saw nothing to fade; " + "; ".join(
-            f"eye {eye.round(2)} tool {tool.round(3)} faded {faded}" for eye, tool, faded in self.reads
+        eye, tool, faded = self.reads[-1]
+        assert self.between(eye, tool), (
+            f"at rest, looked at from {eye.round(2)}, no scene object is between the eye and the gripper at "
+            f"{tool.round(3)} (faded {faded}): the check saw nothing to fade"
         )
+
+    def between(self, eye: np.ndarray, tool: np.ndarray) -> set[str]:
+        """The scene objects the line of sight from ``eye`` to the gripper crosses (not one it is in)."""
+        return {
+            name
+            for name, (low, high) in self.boxes
+            if crosses((low + self.MARGIN_M, high - self.MARGIN_M), eye, tool)
+            and not np.all((low <= tool) & (tool <= high))
+        }
 
 
 class FrameRate:
