@@ -11,6 +11,7 @@ from __future__ import annotations
 import getpass
 import sys
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO
@@ -19,9 +20,14 @@ from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
 from pride.model import Procedure, RecordInstruction
 from pride.phrasing import Wording, describe_event, result_text, started_text, telemetry_text
+from pride.states import RecordNotCheckable
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 
+#: How long an unattended run waits at one instruction for a report its answer must be checked
+#: against (stale after a lost link or a restarted bridge: the robot's bridge is restarted and
+#: reconnected within this, then the report crosses the link again), before it stops the run.
+REPORT_WAIT_S = 120.0
 #: A command's outcome as the terminal marks it (short, the failures in capitals to stand out).
 _MARKS = {"succeeded": "ok", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
 
@@ -200,6 +206,7 @@ class OperatorConsole:
         self._read_secret = read_secret
         self._second_operator = second_operator
         self._answering: Snapshot | None = None
+        self._report_waits: dict[str, float] = {}  # instruction: when its answer was first refused as uncheckable
         self._interrupts = 0
 
     def run(self) -> Snapshot:
@@ -214,10 +221,24 @@ class OperatorConsole:
                 self._answer(snap)
             except _Superseded:
                 continue
+            except RecordNotCheckable as exc:
+                self._say(f"  not accepted: {exc}")
+                if not self.interactive and not self._await_report(snap, exc):
+                    self.executive.stop(self.user, str(exc))
             except OperatorActionError as exc:
                 self._say(f"  not accepted: {exc}")
                 if not self.interactive:
                     self.executive.stop(self.user, str(exc))
+
+    def _await_report(self, snap: Snapshot, refused: RecordNotCheckable) -> bool:
+        """Unattended, an answer that could not be checked now is given again once the system
+        reports afresh, for up to :data:`REPORT_WAIT_S` at one instruction; whether it reported."""
+        since = self._report_waits.setdefault(snap.current or "", time.monotonic())
+        remaining = REPORT_WAIT_S - (time.monotonic() - since)
+        if remaining <= 0:
+            return False
+        self._say(f"  waiting up to {remaining:.0f} s for {refused.system} to report {refused.item} afresh")
+        return self.executive.wait_for_report(refused.system, refused.item, remaining)
 
     def interrupt(self) -> None:
         """Ctrl-C: the first halts the robot and holds the run, the next stops the run.

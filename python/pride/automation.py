@@ -45,7 +45,7 @@ from pride.model import (
     lookup,
 )
 from pride.phrasing import record_refusal
-from pride.states import Controller, OperatorActionError
+from pride.states import Controller, OperatorActionError, RecordNotCheckable
 from pride.sysrep import check_value
 from pride.systems import CommandResult, Outcome, SystemGateway
 
@@ -159,7 +159,8 @@ class Automation:
 
     def check_record(self, instruction: RecordInstruction, value: Any) -> tuple[Any, dict[str, Any]]:
         """A record's value converted and checked (including against the telemetry it names), and what
-        to add to its event; OperatorActionError says why a value is refused."""
+        to add to its event; OperatorActionError says why a value is refused (RecordNotCheckable:
+        the telemetry it must be checked against cannot be read now)."""
         try:
             converted = instruction.check(value)
         except ValueError as exc:
@@ -171,10 +172,12 @@ class Automation:
             reading = self._gateway.telemetry(system, item)
         except Exception as exc:
             problem = f"{type(exc).__name__}: {exc}"
-            raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, problem=problem)) from None
+            refusal = record_refusal(converted, system, item, self._sysreps, problem=problem)
+            raise RecordNotCheckable(refusal, system, item) from None
         if reading.stale or reading.value is None:
             problem = "stale" if reading.value is not None else "missing"
-            raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, problem=problem))
+            refusal = record_refusal(converted, system, item, self._sysreps, problem=problem)
+            raise RecordNotCheckable(refusal, system, item)
         allowed = [v.strip() for v in str(reading.value).split(",") if v.strip()]
         if str(converted) not in allowed:
             raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, listed=allowed))

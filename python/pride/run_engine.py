@@ -113,6 +113,8 @@ class RunEngine:
         self._supervisor: threading.Thread | None = None
         self._links = LinkWatch()
         self._wake = threading.Event()  # the supervisor has something to look at
+        self._reported = threading.Condition()  # telemetry changed: counted in _reports
+        self._reports = 0
         self._last = self._build_snapshot()
         gateway.add_listener(self._telemetry_callback)
         gateway.add_link_listener(self._link_callback)
@@ -202,6 +204,31 @@ class RunEngine:
                 if remaining is not None and remaining <= 0:
                     return None
                 self._changed.wait(remaining if remaining is not None else _SUPERVISE_S)
+
+    def wait_for_report(self, system: str, item: str, timeout: float) -> bool:
+        """Block until ``system`` reports ``item`` afresh (a value, not stale); False on timeout.
+
+        For an answer refused because the report it must be checked against was stale or missing
+        (:class:`pride.states.RecordNotCheckable`): a report the link lost comes again once the
+        link or the robot's bridge is back. Woken by the gateway's telemetry listener; the
+        gateway is read outside that wake-up's lock (its listener thread takes the lock).
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._reported:
+                seen = self._reports
+            try:
+                reading = self._gateway.telemetry(system, item)
+                if not reading.stale and reading.value is not None:
+                    return True
+            except Exception as exc:  # the reading failed: as stale, until the deadline says otherwise
+                log.info("reading %s.%s while waiting for its report: %s", system, item, exc)
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            with self._reported:
+                if self._reports == seen:  # nothing reported since the read above
+                    self._reported.wait(remaining)
 
     def join(self, timeout: float | None = None) -> None:
         """Wait for PAX's thread to end (after the run completed or stopped)."""
@@ -387,3 +414,6 @@ class RunEngine:
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
         """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
         self._automation.telemetry_changed.set()
+        with self._reported:
+            self._reports += 1
+            self._reported.notify_all()

@@ -17,6 +17,7 @@ __all__ = [
     "JournalFailure",
     "Mode",
     "OperatorActionError",
+    "RecordNotCheckable",
     "RunStatus",
     "Snapshot",
 ]
@@ -103,6 +104,17 @@ class Hold(enum.Enum):
 
 class OperatorActionError(RuntimeError):
     """An operator action does not apply to the run's current state; the message says why."""
+
+
+class RecordNotCheckable(OperatorActionError):
+    """A record's value could not be checked against the telemetry it must be one of: the report
+    is stale or missing, or reading it failed. Unlike a value refused for what it is, the same
+    value may be accepted once ``system`` reports ``item`` again (after a lost link, a restart)."""
+
+    def __init__(self, message: str, system: str, item: str) -> None:
+        super().__init__(message)
+        self.system = system
+        self.item = item
 
 
 class JournalFailure(OperatorActionError):

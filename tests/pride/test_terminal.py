@@ -10,10 +10,11 @@ from pathlib import Path
 
 import pytest
 
+from caretaker import terminal as terminal_module
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from pride.audit_log import AuditLog
 from pride.events import EventKind
-from pride.executive import Executive, Mode, RunStatus
+from pride.executive import Executive, Mode, RunStatus, Snapshot
 from pride.lint import check_procedure
 from pride.sysrep import SysRep
 from support.audit import RecordedJournal
@@ -21,11 +22,11 @@ from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
 
 
-def _executive(sysreps: dict[str, SysRep], tmp_path: Path, mode: Mode) -> tuple[Executive, RecordedJournal, LabGateway]:
+def _executive(
+    sysreps: dict[str, SysRep], tmp_path: Path, mode: Mode, procedure: str = "lab_all_kinds.xml"
+) -> tuple[Executive, RecordedJournal, LabGateway]:
     journal, gateway = RecordedJournal(AuditLog(f"sqlite:///{tmp_path / 'audit.db'}")), LabGateway(str(tmp_path))
-    executive = Executive(
-        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, run_id="t", mode=mode
-    )
+    executive = Executive(check_procedure(FIXTURES / procedure, sysreps), gateway, journal, run_id="t", mode=mode)
     return executive, journal, gateway
 
 
@@ -97,6 +98,64 @@ def test_operator_can_stop_from_the_prompt_saying_why(
     ).run()
     assert final.status is RunStatus.STOPPED
     assert (journal.events[-1].actor, journal.events[-1].data["reason"]) == ("rita", recorded)
+
+
+class _Heard(TerminalLines):
+    """Terminal lines that tell a test when a line containing ``awaited`` was said."""
+
+    def __init__(self, awaited: str) -> None:
+        super().__init__(io.StringIO())
+        self.awaited = awaited
+        self.heard = threading.Event()
+
+    def say(self, text: str) -> None:
+        super().say(text)
+        if self.awaited in text:
+            self.heard.set()
+
+
+def test_unattended_answer_refused_for_a_stale_report_is_given_again_once_the_system_reports(
+    sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
+    # after a lost link or a restarted bridge the list a record is checked against is stale until
+    # it crosses the link again: an unattended run waits for it, it does not stop
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
+    gateway.stale.add("docks")
+    gateway.values["state"] = "shelf"
+    out = _Heard("waiting up to")
+    console = OperatorConsole(executive, "quinn", Unattended({"dock": "shelf"}), interactive=False, out=out)
+    executive.start("quinn")
+    finals: list[Snapshot] = []
+    running = threading.Thread(target=lambda: finals.append(console.run()))
+    running.start()
+    try:
+        assert out.heard.wait(30), out.stream.getvalue()
+        gateway.stale.discard("docks")
+        gateway.set("docks", "dock, shelf")  # the report comes again: the listener wakes the wait
+    finally:
+        running.join(30)
+    said = out.stream.getvalue()
+    assert [final.status for final in finals] == [RunStatus.COMPLETED], said
+    assert "shelf cannot be checked now: the last report of the" in said and "is stale" in said
+    entered = [e for e in journal.events if e.kind is EventKind.OPERATOR_INPUT]
+    assert [(e.data["value"], e.data["checked_against"]) for e in entered] == [("shelf", "lab.docks")]
+
+
+def test_unattended_answer_stops_the_run_when_the_report_never_comes(
+    sysreps: dict[str, SysRep], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(terminal_module, "REPORT_WAIT_S", 0.2)
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
+    gateway.stale.add("docks")
+    executive.start("quinn")
+    out = io.StringIO()
+    final = OperatorConsole(
+        executive, "quinn", Unattended({"dock": "shelf"}), interactive=False, out=TerminalLines(out)
+    ).run()  # (its wait is cut to 0.2 s above)
+    assert final.status is RunStatus.STOPPED
+    stopped = journal.events[-1]
+    assert stopped.kind is EventKind.RUN_STOPPED and "shelf cannot be checked now" in stopped.data["reason"]
+    assert gateway.sent == [], "nothing was sent with an answer that was never checked"
 
 
 class _YieldingStream(io.StringIO):
