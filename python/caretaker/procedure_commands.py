@@ -288,8 +288,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                     control=control,
                     take_over=args.take_over,
                     approvals=side.approvals,
+                    listeners=(printer, left_behind),  # the resumed run's own events, not the replay
                 )
-                # the printer joins after the replay: the resumed run's own events follow
             else:
                 executive = Executive(
                     checked,
@@ -313,8 +313,6 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
             print(f"caretaker run: {exc}", file=sys.stderr)
             return 2
         if args.resume:
-            executive.add_listener(printer)
-            executive.add_listener(left_behind)
             for number in args.breakpoints:
                 executive.set_breakpoint(args.user, number)
         terminal.say(f"READY run {executive.run_id}")

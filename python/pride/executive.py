@@ -88,7 +88,7 @@ Durability
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -179,9 +179,14 @@ class Executive(RunEngine):
         control: ControlStore | None = None,
         take_over: str | None = None,
         approvals: ApprovalPolicy | None = None,
+        listeners: Sequence[Callable[[Event], None]] = (),
     ) -> Executive:
         """Continue an interrupted run from its recorded events (see Durability above); an
-        approval given before the interruption is not carried over (it is asked again)."""
+        approval given before the interruption is not carried over (it is asked again).
+
+        ``listeners`` get every event of the resumed run, from its ``run_resumed`` on: they are
+        attached before PAX's thread starts, which may at once send again a command in flight.
+        """
         procedure = checked.procedure
         if not events or events[0].kind is not EventKind.RUN_STARTED:
             raise OperatorActionError("the log holds no start of that run")
@@ -218,6 +223,8 @@ class Executive(RunEngine):
             if mode is not None:
                 state.mode = mode
             state.status = RunStatus.ACTIVE
+            for listener in listeners:
+                executive.add_listener(listener)
             executive._emit(
                 EventKind.RUN_RESUMED,
                 user,

@@ -293,7 +293,10 @@ def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_t
     sent = log[-1]
     assert sent.data["key"] == "run-1/2.1/1" and sent.data["confirmed_by"] == "lena"
     journal = new_journal(log)
-    resumed = Executive.resume(check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, log, "mia")
+    heard: list[Event] = []  # a listener given to the resume hears the re-send PAX makes at once
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", sysreps), gateway, journal, log, "mia", listeners=[heard.append]
+    )
     try:
         # the same habitat: the re-send joins the execution still running; nobody had to decide
         assert resumed.wait_for(lambda s: s.executing and s.current == "2.1", TIMEOUT)
@@ -308,6 +311,7 @@ def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_t
         resumed_event = journal.events[0]
         assert resumed_event.kind is EventKind.RUN_RESUMED and resumed_event.data["resend"] == "run-1/2.1/1"
         assert resumed_event.seq == log[-1].seq + 1
+        assert heard[0].seq == resumed_event.seq and resend.seq in [e.seq for e in heard]
     finally:
         resumed.stop("teardown")
 
