@@ -29,7 +29,7 @@ from .flight_support import DELAY, LINK_MS, PULL_OUT, flight, start_from_console
 if TYPE_CHECKING:
     from playwright.sync_api import Page
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=85)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=85), pytest.mark.timeout(900)]
 
 OPERATOR, PASSWORD = "flight", "flight-over-the-link"
 SHOTS = Path(os.environ["CARETAKER_SCREENSHOTS"]) if os.environ.get("CARETAKER_SCREENSHOTS") else None

@@ -13,7 +13,7 @@ from pride.events import EventKind
 
 from .flight_support import DELAY, PULL_OUT, commands, flight
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=115)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=115), pytest.mark.timeout(900)]
 
 
 def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str, str]) -> None:

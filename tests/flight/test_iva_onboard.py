@@ -15,7 +15,7 @@ from pride.audit_chain import verify_chain
 
 from .flight_support import DELAY, assert_flown_exactly_once, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60), pytest.mark.timeout(900)]
 
 
 def test_the_iva_procedure_flown_onboard_completes_and_the_ground_keeps_the_habitats_chain(

@@ -21,7 +21,7 @@ from support.operator_page import expect_current
 
 from .flight_support import DELAY, LINK_MS, PULL_OUT, flight, start_from_console
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60), pytest.mark.timeout(900)]
 
 
 #: From the halt's arrival on the habitat to the arm at rest (the issue's bound for a halt).

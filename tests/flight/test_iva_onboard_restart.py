@@ -15,7 +15,7 @@ from pride.audit_chain import verify_chain
 
 from .flight_support import DELAY, IVA_ARM_GOALS, IVA_COMMANDS, PULL_OUT, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90), pytest.mark.timeout(900)]
 
 
 def test_the_onboard_executive_killed_mid_motion_resumes_and_runs_nothing_twice(ros_env: dict[str, str]) -> None:

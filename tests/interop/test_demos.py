@@ -23,7 +23,7 @@ from pride.events import EventKind
 from pride.parser import load_procedure
 from support.demos import demo_events, run_demo, verified
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120), pytest.mark.timeout(900)]
 
 
 def _reports(output: list[str]) -> list[Path]:

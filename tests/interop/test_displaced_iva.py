@@ -17,7 +17,7 @@ import pytest
 
 from support.demos import displaced_demo
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120), pytest.mark.timeout(900)]
 
 
 @pytest.mark.parametrize("seed", [3, 17, 42])

@@ -53,7 +53,7 @@ from support.operator_page import (
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.timeout(900)]
 
 PULL_OUT = "2.7"
 PLAN_PULL_OUT = "2.2"
@@ -328,7 +328,6 @@ def _pull_out_halted(alice: Page, robot: RobotSide, confirm: Locator) -> Locator
 
 
 @pytest.mark.slow(seconds=90)
-@pytest.mark.timeout(900)
 def test_after_a_halt_mid_motion_re_planning_from_where_the_arm_is_completes_the_run(
     open_page: Callable[[WebServer, str], Page], slow_motion_stack: tuple[WebServer, RobotSide]
 ) -> None:

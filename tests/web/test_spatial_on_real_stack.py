@@ -36,7 +36,7 @@ from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70), pytest.mark.timeout(900)]
 
 TIMEOUT_MS = 60_000
 MM = 1e-3
