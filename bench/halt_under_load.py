@@ -12,6 +12,10 @@ change, an upper bound). A try whose click fell between two segments of the pull
 still) gives no figure and is run again, up to twice ``--tries`` in all. Prints each try and how
 many stayed within 0.5 s (and 0.1 s for
 "halting…"); exit status 1 if a try failed.
+
+``--onboard`` runs the onboard halt instead (tests/flight/test_iva_onboard_halt.py: an onboard
+run halted from the ground console across the 1.3 s link, two network namespaces, root): its
+figure is from the halt's arrival on the habitat to the arm at rest, on the habitat's clock.
 """
 
 from __future__ import annotations
@@ -36,6 +40,12 @@ TIMELINE = re.compile(r"HALT timeline after the press: .*")
 HALTING = re.compile(r"HALT: 'halting…' painted <?(-?[0-9.]+) s after the press")
 BOUND = re.compile(r"the second frame after the change began (-?[0-9.]+) s")
 STILL = "HALT: the arm was still at the press"
+ONBOARD_TEST = (
+    "tests/flight/test_iva_onboard_halt.py::"
+    "test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm_and_says_how_soon"
+)
+ONBOARD_FIGURE = re.compile(r"HALT onboard: the arm at rest \+?(-?[0-9.]+) s after the halt arrived")
+ONBOARD_STILL = "HALT onboard: the arm was between two segments"
 TARGET_S = 0.5
 HALTING_TARGET_S = 0.1
 
@@ -44,7 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench/halt_under_load.py", description=__doc__.splitlines()[0])
     parser.add_argument("--tries", type=int, default=10)
     parser.add_argument("--hogs", type=int, default=2, help="busy processes beside each try")
+    parser.add_argument("--onboard", action="store_true", help="the onboard halt across the link (root)")
     args = parser.parse_args(argv)
+    test, figure, still_text = (ONBOARD_TEST, ONBOARD_FIGURE, ONBOARD_STILL) if args.onboard else (TEST, FIGURE, STILL)
     wall: list[float] = []
     halting: list[float] = []
     failed = still = 0
@@ -53,18 +65,18 @@ def main(argv: list[str] | None = None) -> int:
             break
         with cpu_hogs(args.hogs):
             done = subprocess.run(
-                [str(REPO / ".venv/bin/pytest"), TEST, "-s", "-q"],
+                [str(REPO / ".venv/bin/pytest"), test, "-s", "-q"],
                 cwd=REPO,
                 env={**os.environ, "CARETAKER_HALT_TIME_SCALE": "1"},  # the suite runs it at a quarter
                 capture_output=True,
                 text=True,
                 timeout=900,
             )
-        found = FIGURE.search(done.stdout)
+        found = figure.search(done.stdout)
         shown = HALTING.search(done.stdout)
         if done.returncode == 0 and shown is not None:  # measured whether or not the arm moved
             halting.append(float(shown.group(1)))
-        if done.returncode == 0 and STILL in done.stdout:
+        if done.returncode == 0 and still_text in done.stdout:
             still += 1
             print(f"try {attempt}: the arm was still at the click (between two segments): no figure", flush=True)
             continue
@@ -74,8 +86,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         wall.append(float(found.group(1)))
         timeline = TIMELINE.search(done.stdout)
+        since = "the halt's arrival on the habitat" if args.onboard else f"the press ({found.group(2)} s sim time)"
         print(
-            f"try {attempt}: at rest {found.group(1)} s wall-clock after the press ({found.group(2)} s sim time)"
+            f"try {attempt}: at rest {found.group(1)} s wall-clock after {since}"
             + (f", 'halting…' painted after {shown.group(1)} s" if shown else "")
             + (f" (second frame {bound.group(1)} s)" if (bound := BOUND.search(done.stdout)) else "")
             + (f"\n  {timeline.group(0)}" if timeline else ""),
