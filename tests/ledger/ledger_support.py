@@ -24,6 +24,9 @@ PEER = Path(__file__).with_name("ledger_peer.py")
 EXECUTE = "/command_ledger/execute"
 OUTCOME = "/command_ledger/outcome"
 RESEND_S = 5.0
+#: A ledger just started is found by DDS discovery within this (a guard: under the whole suite's
+#: load a new ledger once went unseen for 30 s).
+DISCOVERY_S = 90.0
 
 
 class LedgerClient:
@@ -48,7 +51,7 @@ class LedgerClient:
         read or release). A re-send is needed when a server has just been restarted: DDS
         still lists the killed one, and a request sent before the new one matched is lost.
         """
-        assert client.wait_for_service(timeout_sec=30), f"{client.srv_name} not discovered"
+        assert client.wait_for_service(timeout_sec=DISCOVERY_S), f"{client.srv_name} not discovered"
         deadline = time.monotonic() + timeout
         while True:
             done = threading.Event()
@@ -77,7 +80,7 @@ class LedgerClient:
 
     def execute_async(self, key: str, service: str, *, epoch: str = "") -> Any:
         """Send an execute request and return its rclpy future without waiting."""
-        assert self.execute_client.wait_for_service(timeout_sec=30), "the ledger is not discovered"
+        assert self.execute_client.wait_for_service(timeout_sec=DISCOVERY_S), "the ledger is not discovered"
         return self.execute_client.call_async(ExecuteOnce.Request(command_key=key, epoch=epoch, service=service))
 
     def outcome(self, key: str) -> Any:
