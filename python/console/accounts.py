@@ -125,6 +125,10 @@ class AccountStore:
         except BaseException:
             self._engine.dispose()
             raise
+        # A change reads its row, then writes: begun deferred, SQLite refuses the write at once
+        # ("database is locked", no busy wait) when a console wrote since the read began. On
+        # SQLite each change takes the write lock first and waits its turn; PostgreSQL ignores it.
+        self._changes = self._engine.execution_options(sqlite_begin="BEGIN IMMEDIATE")
         self._hasher = PasswordHasher()
         # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
         self._decoy = self._hasher.hash("not a password of anyone")
@@ -140,7 +144,7 @@ class AccountStore:
             password_changed=_now(),
         )
         account = row.account()
-        with Session(self._engine) as session, session.begin():
+        with Session(self._changes) as session, session.begin():
             if session.get(_AccountRow, user) is not None:
                 raise AccountsError(f"user {user!r} already has an account: use set-password, set-role or remove")
             session.add(row)
@@ -149,16 +153,16 @@ class AccountStore:
     def set_password(self, user: str, password: str) -> None:
         """Replace a password; the user's sessions end (their stamp changes)."""
         digest = self._hasher.hash(check_password(password))
-        with Session(self._engine) as session, session.begin():
+        with Session(self._changes) as session, session.begin():
             row = self._row(session, user)
             row.password_hash, row.password_changed = digest, _now()
 
     def set_role(self, user: str, role: str) -> None:
-        with Session(self._engine) as session, session.begin():
+        with Session(self._changes) as session, session.begin():
             self._row(session, user).role = check_role(role).value
 
     def remove(self, user: str) -> None:
-        with Session(self._engine) as session, session.begin():
+        with Session(self._changes) as session, session.begin():
             session.delete(self._row(session, user))
 
     def get(self, user: str) -> Account | None:
