@@ -263,10 +263,12 @@ def start_habitat(
     time_scale: str,
     onboard: bool,
     critical_commanding: dict[str, Any] | None = None,
+    verbose: bool = False,
 ) -> Habitat:
     """``caretaker up`` of the IVA habitat deployment on the habitat's address, wss:// and a secret
     (``onboard``: with the onboard executive, serving units that name ``binding``;
-    ``critical_commanding``: the deployment's, which the ground and the habitat both apply)."""
+    ``critical_commanding``: the deployment's, which the ground and the habitat both apply;
+    ``verbose``: echoing its parts' output)."""
     deployment = write_deployment(
         hosts.folder,
         "iva-habitat",
@@ -290,6 +292,7 @@ def start_habitat(
         hosts.habitat.address,
         "--time-scale",
         time_scale,
+        *(["--verbose"] if verbose else []),
         ready=r"^READY stack ",
         timeout=240,
     )
@@ -306,8 +309,10 @@ def flight(
     outage_budget: float = 120.0,
     onboard: bool = False,
     critical_commanding: dict[str, Any] | None = None,
+    verbose: bool = False,
 ) -> Iterator[Flight]:
-    """Both hosts up, the link between them, nothing run yet; everything stopped and removed after."""
+    """Both hosts up, the link between them, nothing run yet; everything stopped and removed after.
+    ``verbose``: the habitat's ``up`` echoes its parts' output (``Habitat.up.output``, its last 400 lines)."""
     with TwoHosts.create(ros_env) as hosts:
         credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address], days=2)
         link_url = f"wss://{hosts.link.address}:{BRIDGE_PORT}"
@@ -323,6 +328,7 @@ def flight(
             time_scale=time_scale,
             onboard=onboard,
             critical_commanding=critical_commanding,
+            verbose=verbose,
         )
         link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
         yield Flight(
