@@ -4,6 +4,7 @@ without TLS and a secret."""
 
 from __future__ import annotations
 
+import faulthandler
 import hashlib
 import hmac
 import json
@@ -280,20 +281,29 @@ def test_insecure_says_an_open_address_is_meant(ros_env: dict[str, str]) -> None
 
 
 @pytest.fixture(scope="module")
-def tls_bridge(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[str, int, Path]]:
+def tls_bridge(
+    ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[tuple[str, int, Path, ManagedProcess]]:
     directory = tmp_path_factory.mktemp("tls")
     cert, key = self_signed_certificate(directory)
     process = caretaker("bridge", "--port", "0", "--certfile", str(cert), "--keyfile", str(key), env=ros_env)
     for host, port in _serve(process):
-        yield host, port, cert
+        yield host, port, cert, process
 
 
-def test_tls_serves_wss(tls_bridge: tuple[str, int, Path]) -> None:
+def test_tls_serves_wss(tls_bridge: tuple[str, int, Path, ManagedProcess]) -> None:
     from websockets.sync.client import connect
 
-    host, port, cert = tls_bridge
+    host, port, cert, bridge = tls_bridge
     context = ssl.create_default_context(cafile=str(cert))
-    with connect(f"wss://{host}:{port}", ssl=context, open_timeout=20) as connection:
+    try:
+        connection = connect(f"wss://{host}:{port}", ssl=context, open_timeout=60)
+    except TimeoutError as exc:
+        # Once, under the whole suite, no answer came in 20 s, and the client's own reader thread
+        # then took 40 s to end: this process's threads, as they stand, say whether it was this side.
+        faulthandler.dump_traceback(all_threads=True)
+        raise AssertionError(f"no WebSocket handshake over TLS in 60 s; the bridge said:\n{bridge.tail(30)}") from exc
+    with connection:
         connection.send('{"op":"call_service","service":"/rosapi/get_ros_version","id":"tls"}')
         assert '"result":true' in connection.recv(timeout=20)
 
