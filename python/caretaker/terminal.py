@@ -20,7 +20,7 @@ from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
 from pride.model import Procedure, RecordInstruction
 from pride.phrasing import Wording, describe_event, result_text, started_text, telemetry_text
-from pride.states import RecordNotCheckable
+from pride.states import RecordNotCheckable, RunEnded
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 
@@ -224,11 +224,20 @@ class OperatorConsole:
             except RecordNotCheckable as exc:
                 self._say(f"  not accepted: {exc}")
                 if not self.interactive and not self._await_report(snap, exc):
-                    self.executive.stop(self.user, str(exc))
+                    self._stop(str(exc))
+            except RunEnded as exc:  # ended elsewhere while this terminal answered: the wait above returns it
+                self._say(f"  not accepted: {exc}")
             except OperatorActionError as exc:
                 self._say(f"  not accepted: {exc}")
                 if not self.interactive:
-                    self.executive.stop(self.user, str(exc))
+                    self._stop(str(exc))
+
+    def _stop(self, reason: str) -> None:
+        """Stop the run unattended, unless another console or host ended it (or is ending it) first."""
+        try:
+            self.executive.stop(self.user, reason)
+        except RunEnded as exc:
+            self._say(f"  not stopped here: {exc}")
 
     def _await_report(self, snap: Snapshot, refused: RecordNotCheckable) -> bool:
         """Unattended, an answer that could not be checked now is given again once the system
@@ -269,7 +278,7 @@ class OperatorConsole:
 
     def _unattended_stop(self, snap: Snapshot, option: str) -> None:
         self._say(f"  {snap.reason}\n  nobody at the terminal to answer: {option}")
-        self.executive.stop(self.user, f"unattended run needs an operator at {snap.current}: {snap.reason}")
+        self._stop(f"unattended run needs an operator at {snap.current}: {snap.reason}")
 
     def _answer(self, snap: Snapshot) -> None:
         ex, user, hold = self.executive, self.user, snap.hold

@@ -111,6 +111,7 @@ from pride.states import (
     JournalFailure,
     Mode,
     OperatorActionError,
+    RunEnded,
     RunStatus,
     Snapshot,
 )
@@ -721,9 +722,9 @@ class Executive(RunEngine):
     # ---- guards and helpers -----------------------------------------------------------------
     def _require_active(self) -> None:
         if self._state.status is not RunStatus.ACTIVE:
-            raise OperatorActionError(f"run {self.run_id} is {self._state.status.value}")
+            raise RunEnded(f"run {self.run_id} is {self._state.status.value}")
         if self._state.stopping:
-            raise OperatorActionError(f"run {self.run_id} is stopping")
+            raise RunEnded(f"run {self.run_id} is stopping")
 
     def _require_idle(self) -> Instruction:
         self._require_active()

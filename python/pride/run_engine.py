@@ -206,7 +206,8 @@ class RunEngine:
                 self._changed.wait(remaining if remaining is not None else _SUPERVISE_S)
 
     def wait_for_report(self, system: str, item: str, timeout: float) -> bool:
-        """Block until ``system`` reports ``item`` afresh (a value, not stale); False on timeout.
+        """Block until ``system`` reports ``item`` afresh (a value, not stale); False on timeout,
+        or at once when the run ends meanwhile (stopped elsewhere: nobody needs the answer now).
 
         For an answer refused because the report it must be checked against was stale or missing
         (:class:`pride.states.RecordNotCheckable`): a report the link lost comes again once the
@@ -224,10 +225,10 @@ class RunEngine:
             except Exception as exc:  # the reading failed: as stale, until the deadline says otherwise
                 log.info("reading %s.%s while waiting for its report: %s", system, item, exc)
             remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if remaining <= 0 or not self._state.going_on:
                 return False
             with self._reported:
-                if self._reports == seen:  # nothing reported since the read above
+                if self._reports == seen:  # nothing reported, and the run went on, since the read above
                     self._reported.wait(remaining)
 
     def join(self, timeout: float | None = None) -> None:
@@ -295,6 +296,7 @@ class RunEngine:
             state.status = RunStatus.STOPPED
             self._automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
             self._changed.notify_all()
+            self._report_changed()
             log.error("run %s stopped: the journal could not store %s: %s", self.run_id, kind.value, exc)
             raise JournalFailure(
                 f"run {self.run_id} stopped: the audit log could not store {kind.value}: {state.error}"
@@ -303,6 +305,8 @@ class RunEngine:
         self._holdings.note(event)
         self._last = self._build_snapshot()  # what readers get while a later append waits for the database
         self._changed.notify_all()  # every event is a change someone may be waiting for
+        if not self._state.going_on:
+            self._report_changed()  # a wait for a report ends with the run
         for listener in list(self._listeners):
             try:
                 listener(event)
@@ -414,6 +418,10 @@ class RunEngine:
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
         """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
         self._automation.telemetry_changed.set()
+        self._report_changed()
+
+    def _report_changed(self) -> None:
+        """Wake :meth:`wait_for_report`: telemetry came, or the run ended."""
         with self._reported:
             self._reports += 1
             self._reported.notify_all()

@@ -18,6 +18,7 @@ __all__ = [
     "Mode",
     "OperatorActionError",
     "RecordNotCheckable",
+    "RunEnded",
     "RunStatus",
     "Snapshot",
 ]
@@ -104,6 +105,11 @@ class Hold(enum.Enum):
 
 class OperatorActionError(RuntimeError):
     """An operator action does not apply to the run's current state; the message says why."""
+
+
+class RunEnded(OperatorActionError):
+    """The run has ended, or is being stopped: another console, host or thread ended it first.
+    Someone who meant to end it too has nothing left to do."""
 
 
 class RecordNotCheckable(OperatorActionError):

@@ -158,6 +158,31 @@ def test_unattended_answer_stops_the_run_when_the_report_never_comes(
     assert gateway.sent == [], "nothing was sent with an answer that was never checked"
 
 
+def test_unattended_wait_for_a_report_ends_when_another_operator_stops_the_run(
+    sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
+    # a console on the ground stops the run while this unattended terminal waits for a report:
+    # the wait ends with the run, and the terminal leaves the stop as that operator made it
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
+    gateway.stale.add("docks")
+    out = _Heard("waiting up to")
+    console = OperatorConsole(executive, "quinn", Unattended({"dock": "shelf"}), interactive=False, out=out)
+    executive.start("quinn")
+    finals: list[Snapshot] = []
+    running = threading.Thread(target=lambda: finals.append(console.run()))
+    running.start()
+    try:
+        assert out.heard.wait(30), out.stream.getvalue()
+        executive.stop("rita", "stopped at the ground console")
+    finally:
+        running.join(30)  # the terminal's own wait is 120 s: it must end with the run, well before
+    assert not running.is_alive(), "the terminal still waits for a report of a stopped run"
+    assert [final.status for final in finals] == [RunStatus.STOPPED], out.stream.getvalue()
+    stops = [e for e in journal.events if e.kind is EventKind.RUN_STOPPED]
+    assert [(e.actor, e.data["reason"]) for e in stops] == [("rita", "stopped at the ground console")]
+    assert gateway.sent == []
+
+
 class _YieldingStream(io.StringIO):
     """A stream that gives the CPU away inside every write, as a loaded machine does."""
 
