@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import itertools
 import os
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -114,14 +116,12 @@ class _Heard(TerminalLines):
             self.heard.set()
 
 
-def test_unattended_answer_refused_for_a_stale_report_is_given_again_once_the_system_reports(
-    sysreps: dict[str, SysRep], tmp_path: Path
-) -> None:
-    # after a lost link or a restarted bridge the list a record is checked against is stale until
-    # it crosses the link again: an unattended run waits for it, it does not stop
-    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
-    gateway.stale.add("docks")
-    gateway.values["state"] = "shelf"
+@contextlib.contextmanager
+def _unattended_waiting_for_a_report(
+    executive: Executive,
+) -> Iterator[tuple[_Heard, list[Snapshot], threading.Thread]]:
+    """The run started, an unattended terminal answering dock=shelf on a thread of its own, once it
+    waits for a report: (what it said, its final snapshot once it returned, its thread); joined after."""
     out = _Heard("waiting up to")
     console = OperatorConsole(executive, "quinn", Unattended({"dock": "shelf"}), interactive=False, out=out)
     executive.start("quinn")
@@ -130,10 +130,22 @@ def test_unattended_answer_refused_for_a_stale_report_is_given_again_once_the_sy
     running.start()
     try:
         assert out.heard.wait(30), out.stream.getvalue()
-        gateway.stale.discard("docks")
-        gateway.set("docks", "dock, shelf")  # the report comes again: the listener wakes the wait
+        yield out, finals, running
     finally:
         running.join(30)
+
+
+def test_unattended_answer_refused_for_a_stale_report_is_given_again_once_the_system_reports(
+    sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
+    # after a lost link or a restarted bridge the list a record is checked against is stale until
+    # it crosses the link again: an unattended run waits for it, it does not stop
+    executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
+    gateway.stale.add("docks")
+    gateway.values["state"] = "shelf"
+    with _unattended_waiting_for_a_report(executive) as (out, finals, _):
+        gateway.stale.discard("docks")
+        gateway.set("docks", "dock, shelf")  # the report comes again: the listener wakes the wait
     said = out.stream.getvalue()
     assert [final.status for final in finals] == [RunStatus.COMPLETED], said
     assert "shelf cannot be checked now: the last report of the" in said and "is stale" in said
@@ -165,17 +177,9 @@ def test_unattended_wait_for_a_report_ends_when_another_operator_stops_the_run(
     # the wait ends with the run, and the terminal leaves the stop as that operator made it
     executive, journal, gateway = _executive(sysreps, tmp_path, Mode.AUTONOMOUS, "lab_records.xml")
     gateway.stale.add("docks")
-    out = _Heard("waiting up to")
-    console = OperatorConsole(executive, "quinn", Unattended({"dock": "shelf"}), interactive=False, out=out)
-    executive.start("quinn")
-    finals: list[Snapshot] = []
-    running = threading.Thread(target=lambda: finals.append(console.run()))
-    running.start()
-    try:
-        assert out.heard.wait(30), out.stream.getvalue()
+    with _unattended_waiting_for_a_report(executive) as (out, finals, running):
         executive.stop("rita", "stopped at the ground console")
-    finally:
-        running.join(30)  # the terminal's own wait is 120 s: it must end with the run, well before
+    # (joined for 30 s: the terminal's own wait is 120 s, and must end with the run well before)
     assert not running.is_alive(), "the terminal still waits for a report of a stopped run"
     assert [final.status for final in finals] == [RunStatus.STOPPED], out.stream.getvalue()
     stops = [e for e in journal.events if e.kind is EventKind.RUN_STOPPED]
