@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             halting.append(float(shown.group(1)))
         if done.returncode == 0 and still_text in done.stdout:
             still += 1
-            print(f"try {attempt}: the arm was still at the click (between two segments): no figure", flush=True)
+            print(f"try {attempt}: the arm was between two motions when the halt came: no figure", flush=True)
             continue
         if done.returncode != 0 or found is None:
             failed += 1
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"\n{args.hogs} hogs, {len(wall)} tries measured: median {statistics.median(wall):.3f} s, "
             f"max {max(wall):.3f} s, {within}/{len(wall)} within {TARGET_S} s; {failed} tries failed, "
-            f"{still} without a figure (the arm still at the click)"
+            f"{still} without a figure (the arm between two motions)"
         )
     if halting:
         print(
