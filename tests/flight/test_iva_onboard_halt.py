@@ -99,15 +99,16 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
             for kind, at in (line.split() for line in f.probe.output if line.startswith(("MOVING ", "STILL ")))
         ]
         assert changes and changes[-1][0] == "STILL", f"the arm is not at rest: {changes[-4:]}"
-        before = [kind for kind, at in changes if at <= halted]
-        still = (
-            next(at for kind, at in changes if kind == "STILL" and at > halted) if before[-1:] == ["MOVING"] else None
-        )
+        # A figure when the halt stopped a motion (the robot says so): the first rest after both the
+        # arrival and the motion's start; it may reach the probe just before the robot's log line.
+        since = max([at for kind, at in changes if kind == "MOVING" and at <= halted][-1:] + [arrived])
+        stopped = "): stopped " in robot[at_halt]
+        still = next((at for kind, at in changes if kind == "STILL" and at > since), None) if stopped else None
         near = [(kind, round(at - arrived, 3)) for kind, at in changes if abs(at - arrived) < 10]
         figure = (
             f"the arm at rest {still - arrived:+.3f} s after the arrival"
             if still is not None
-            else f"the arm was between motions: no figure ({near})"
+            else f"the arm was between motions: no figure ({robot[at_halt].split(': ', 1)[-1]}; {near})"
         )
         print(
             f"HALT onboard: the robot halted {halted - arrived:+.3f} s after the halt arrived on the habitat; {figure}"
