@@ -36,4 +36,12 @@ def test_the_onboard_executive_killed_mid_motion_resumes_and_runs_nothing_twice(
         ground = f.ground_chain(run_id)
         assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat]
         assert verify_chain(run_id, ground).ok
-        assert "no news from the habitat since" in run.tail(400)
+        # The ground's follower says so when a poll of the events fails, and again when the habitat
+        # answers. A restart quick enough for the bridge to hand the next poll to the new executive
+        # leaves no gap to say (once, in a fresh clone); a gap it said must be one it closed.
+        said = run.tail(400)
+        gap = said.find("no news from the habitat since")
+        assert gap < 0 or "the habitat answers again" in said[gap:], said
+        print(
+            "the ground saw a gap and caught up" if gap >= 0 else "the ground's polls never failed across the restart"
+        )
