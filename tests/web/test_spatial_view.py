@@ -190,7 +190,7 @@ def _stream(page: Page, interpolate: bool, values: list[float]) -> dict[str, Any
 
 
 def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callable[..., Page], iva: Habitat) -> None:
-    """States that come as a stream are drawn moving between them at the display's rate, never past
+    """States that come as a stream are drawn moving between them, never past
     the newest one (nothing is extrapolated: an arm that halts is not drawn beyond where it stopped),
     and the arm ends drawn exactly at the last. With interpolation off every frame shows a state as
     it came."""
@@ -220,6 +220,32 @@ def test_a_stream_of_joint_states_is_drawn_moving_between_them(open_view: Callab
         f"without interpolation frames showed {sorted(shown - {sent[-1], *back})}, which no state said"
     )
     assert watched["frames"][-1][0] == back[-1]
+
+
+def test_a_moving_arm_is_drawn_at_most_at_the_frame_cap_and_a_still_view_asks_for_no_frames(
+    open_view: Callable[..., Page], iva: Habitat
+) -> None:
+    """While joint states stream at 10/s the view draws the arm between them at no more than its cap
+    (25 frames/s: each frame is tens of ms of CPU in software), and more often than states come;
+    once the arm is drawn where the last state put it the view stops asking for animation frames
+    (an idle page asking for each one kept Chromium busy)."""
+    page = open_view(iva.document(), clock=True)
+    page.clock.pause_at(page.evaluate("Date.now()") + 1)
+    page.clock.run_for(1000)
+    still = inspect(page)
+    assert still["max_frame_rate"] == 25 and not still["animating"], still
+    start = still["joints"]["wrist_3_joint"]
+    for k in range(1, 21):  # two seconds of states
+        page.evaluate(SEND, start + 0.05 * k)
+        page.clock.run_for(100)
+    frames = inspect(page)["frames"] - still["frames"]
+    assert 20 < frames <= 2 * 25 + 1, f"{frames} frames drawn in 2 s of a stream of 10 states a second"
+    page.clock.run_for(1000)
+    settled = inspect(page)
+    assert settled["settled"] and not settled["animating"], settled
+    assert settled["joints"]["wrist_3_joint"] == start + 0.05 * 20
+    page.clock.run_for(1000)
+    assert inspect(page)["frames"] == settled["frames"], "a still view went on drawing"
 
 
 def test_the_arm_drawn_says_its_age_from_the_moment_a_state_comes(open_view: Callable[..., Page], iva: Habitat) -> None:

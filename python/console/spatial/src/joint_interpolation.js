@@ -1,7 +1,7 @@
 // The drawn arm between the joint states the habitat sends. The ground server forwards them at a
 // bounded rate (10/s over the link), so drawing each one as it comes shows the arm jump ten times a
 // second. Instead each new state starts a straight move in joint space from what is drawn to it,
-// lasting the stream's usual interval: the arm moves at the display's rate and reaches each state
+// lasting the stream's usual interval: the arm moves at the view's frame rate and reaches each state
 // as the next one is due. Every drawn value lies between two states the arm really passed through;
 // nothing is extrapolated, so an arm that halts is never drawn beyond where it stopped. The cost is
 // at most one interval (100 ms at 10/s) more delay than drawing each state as it arrives.

@@ -30,6 +30,13 @@ const FRAME_SLOW_MS = 1000 / 25;
 const FRAME_FAST_MS = 1000 / 45;
 const SCALES = [1, 0.85, 0.7, 0.6, 0.5, 0.4, 0.35];
 const COST_WINDOW = 8;
+// Drawing on demand is capped at this many frames a second (setMaxFrameRate): above the 20 that
+// reads as smooth motion, and 2.5 frames for each 10/s joint state. Without a GPU (software WebGL:
+// these machines, a ground laptop in a VM) a frame costs about 38 ms of CPU: at the display's 60/s
+// the view of a moving arm took nearly two cores, starving the console's other work (docs/benchmarks.md).
+const MAX_FRAME_RATE = 25;
+// Animation frames come at the display's interval, give or take: a frame due within this much is drawn.
+const FRAME_SLACK_MS = 4;
 // The arm's age is said four times a second: fresh enough to read, no layout work per frame.
 const AGE_EVERY_MS = 250;
 // A stamp up to this far ahead of the page's clock is clock error, not a habitat running ahead.
@@ -48,14 +55,17 @@ export class SpatialView {
    *   onPoseCommand(command): a drag was released; send command.command with command.args
    *   onError(message): something in the data or a mesh could not be shown
    *   pendingTimeoutMs: how long a requested pose waits for an update showing it (default 60 s)
-   *   renderOnDemand: draw only when something changed (default); false draws every animation frame
+   *   renderOnDemand: draw only when something changed (default), at most maxFrameRate frames a
+   *     second; false draws every animation frame
+   *   maxFrameRate: the most frames a second drawn on demand (default 25; Infinity: the display's)
    *   adaptiveResolution: draw at a lower resolution while things move when frames are slow (default)
-   *   interpolateJoints: draw the arm moving between joint states at the display's rate (default)
+   *   interpolateJoints: draw the arm moving between joint states (default)
    *   clock: now in ms on the habitat's timeline as this page best knows it (default Date.now;
    *     the console corrects it by its server's clock), for the age of the arm drawn
    */
   constructor(container, { canAct = false, onPoseCommand = () => {}, onError = (m) => console.error(m), pendingTimeoutMs = 60000,
-    renderOnDemand = true, adaptiveResolution = true, interpolateJoints = true, clock = () => Date.now() } = {}) {
+    renderOnDemand = true, maxFrameRate = MAX_FRAME_RATE, adaptiveResolution = true, interpolateJoints = true,
+    clock = () => Date.now() } = {}) {
     injectStyle();
     this.container = container;
     container.classList.add('ct-spatial');
@@ -114,7 +124,6 @@ export class SpatialView {
     container.appendChild(this.ageEl);
     this._clock = clock;
     this._toolSeenAt = null; // where the tool was when what hides it was last worked out
-    this._ageShownAt = -Infinity;
     this._reports = []; // the last REPORTS_KEPT joint states as reported, for inspect()
 
     this._frames = 0;
@@ -125,6 +134,8 @@ export class SpatialView {
     this._jointsSince = null; // when the oldest joint update not yet drawn arrived
     this._latencies = []; // joint update -> end of the frame showing it, ms, the last LATENCY_WINDOW
     this.renderOnDemand = !!renderOnDemand;
+    this.setMaxFrameRate(maxFrameRate);
+    this._dueAt = -Infinity; // when the cap lets the next frame be drawn
     this.adaptiveResolution = !!adaptiveResolution;
     this._interpolateJoints = !!interpolateJoints;
     this._jointMotion = null; // the loaded robot's (load)
@@ -134,12 +145,17 @@ export class SpatialView {
     this._movingUntil = -Infinity;
     this._drawnAt = null; // when the last frame was drawn, until the next animation frame measures its cost
     this._costs = []; // ms from a frame drawn while moving to the next animation frame, the last COST_WINDOW
+    this._loop = this._loop.bind(this);
+    this._raf = null; // the animation frame requested, while the view has something to draw (_wake)
+    // What changes with time alone, with nothing to draw: the arm's age, requests that timed out.
+    this._ticker = setInterval(() => {
+      this._showAge();
+      this.registration?.expire(performance.now());
+    }, AGE_EVERY_MS);
     this._installPicking();
     this._resize = new ResizeObserver(() => this._fitCanvas());
     this._resize.observe(container);
     this._fitCanvas();
-    this._loop = this._loop.bind(this);
-    this._raf = requestAnimationFrame(this._loop);
     window.caretakerSpatial = this; // tests and the console read inspect() here
   }
 
@@ -302,7 +318,7 @@ export class SpatialView {
   stepWaypoint(direction) { this.player?.stepWaypoint(direction); }
 
   /** Something drawn changed outside the view's own paths (the page's doing): draw the next frame. */
-  invalidate() { this._dirty = true; }
+  invalidate() { this._dirty = true; this._wake(); }
 
   /**
    * Draw nothing in the next `frames` animation frames: the frame that shows an operator's
@@ -329,6 +345,13 @@ export class SpatialView {
     this.renderOnDemand = !!onDemand;
     this._latencies = [];
     this.invalidate();
+  }
+
+  /** At most ``fps`` frames a second drawn on demand (Infinity: one every animation frame that has news). */
+  setMaxFrameRate(fps) {
+    if (!(fps > 0)) throw new RangeError(`maxFrameRate: expected a number of frames a second above 0, got ${fps}`);
+    this.maxFrameRate = fps;
+    this._frameEveryMs = 1000 / fps;
   }
 
   setNamesVisible(visible) {
@@ -422,6 +445,7 @@ export class SpatialView {
 
   dispose() {
     cancelAnimationFrame(this._raf);
+    clearInterval(this._ticker);
     this._resize.disconnect();
     document.removeEventListener('keydown', this._onKey);
     this.orbit.dispose();
@@ -468,6 +492,8 @@ export class SpatialView {
       settled: this._frames > 0 && !this._dirty && !this._jointMotion.moving
         && this.robot.meshesLoading + this.player.ghost.meshesLoading === 0,
       render_on_demand: this.renderOnDemand,
+      max_frame_rate: this.maxFrameRate,
+      animating: this._raf !== null, // the loop waits for an animation frame: the view has something to draw
       adaptive_resolution: this.adaptiveResolution,
       joint_interpolation: this._interpolateJoints,
       resolution_scale: this.renderer.getPixelRatio() / this._fullRatio,
@@ -552,7 +578,7 @@ export class SpatialView {
     this.joints.stamp = stamp ?? this.joints.stamp;
     this._reports.push({ ...this.joints.positions });
     if (this._reports.length > REPORTS_KEPT) this._reports.shift();
-    this._showAge(performance.now());
+    this._showAge();
   }
 
   /** Seconds since the arm drawn was where it is (its joint state's stamp), or null before one came. */
@@ -561,8 +587,7 @@ export class SpatialView {
     return this._clock() / 1000 - this.joints.stamp;
   }
 
-  _showAge(now) {
-    this._ageShownAt = now;
+  _showAge() {
     const age = this._age();
     this.ageEl.hidden = age === null;
     if (age === null) return;
@@ -600,21 +625,47 @@ export class SpatialView {
     });
   }
 
-  _loop(now) {
+  /**
+   * Run the loop from the next animation frame, unless it runs. It runs only while the view has
+   * something to draw (_busy): a page asking for every animation frame keeps Chromium making
+   * frames, 5 % of a core for an idle view drawn in software (docs/benchmarks.md).
+   */
+  _wake() {
+    if (this._raf !== null) return;
+    this._last = performance.now();
+    this._drawnAt = null; // the pause since the last frame is not that frame's cost
     this._raf = requestAnimationFrame(this._loop);
+  }
+
+  /** Whether the loop has more to do after the animation frame at ``now``. */
+  _busy(now) {
+    return !this.renderOnDemand || this._dirty || this._yieldFrames > 0 || !!this.player?.playing
+      || !!this._jointMotion?.moving || now < this._movingUntil || this.renderer.getPixelRatio() !== this._fullRatio;
+  }
+
+  _loop(now) {
+    this._raf = null;
+    this._frame(now);
+    if (this._raf === null && this._busy(now)) this._raf = requestAnimationFrame(this._loop);
+  }
+
+  _frame(now) {
+    this._adaptResolution(now);
+    // Within the cap nothing moves either: what inspect() says is drawn has been drawn.
+    if (this.renderOnDemand && now < this._dueAt - FRAME_SLACK_MS) return;
     const dt = Math.min(0.1, (now - this._last) / 1000);
     this._last = now;
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
     const joints = this._jointMotion?.at(now);
     if (joints) { this._drawArm(joints); this._moving(); }
-    if (this.registration) this.registration.expire(now);
-    if (now - this._ageShownAt >= AGE_EVERY_MS) this._showAge(now);
-    this._adaptResolution(now);
     // On demand: a frame only when something changed (a mesh that finished loading says so too).
     // An idle view then costs nothing: drawn in software, each frame of it was tens of ms of CPU.
     if (this._yieldFrames > 0) { this._yieldFrames -= 1; return; } // still dirty: drawn next frame
     if (this.renderOnDemand && !this._dirty) return;
     this._dirty = false;
+    // On the cap's own cadence while frames follow each other (25/s from a 60/s display: every
+    // second or third animation frame); from now after a pause.
+    this._dueAt = (now - this._dueAt > this._frameEveryMs ? now : this._dueAt) + this._frameEveryMs;
     this.renderer.render(this.scene, this.camera);
     this._drawnAt = now;
     if (this.namesVisible) this.labels.render(this.scene, this.camera, this._controlBoxes());
