@@ -10,11 +10,21 @@ files are left to run beside them.
 from __future__ import annotations
 
 import json
+import time
+from collections import OrderedDict
 from pathlib import Path
 
 import pytest
 
-from support.file_schedule import CORE_BUDGET, COSTS, QUICK_S, SLOW_DEFAULT_S, FileCost, file_cost
+from support.file_schedule import (
+    CORE_BUDGET,
+    COSTS,
+    QUICK_S,
+    SLOW_DEFAULT_S,
+    CostAwareFileScheduling,
+    FileCost,
+    file_cost,
+)
 
 pytest_plugins = ["pytester"]
 pytestmark = pytest.mark.slow(seconds=30)  # three small suites, each starting pytest-xdist workers
@@ -158,3 +168,34 @@ def test_a_file_costs_what_was_measured_or_what_its_mark_declares(tmp_path: Path
         (tmp_path / name).write_text(text)
         assert file_cost(tmp_path / name, tmp_path) == cost, name
     assert file_cost(tmp_path / "missing.py", tmp_path) == FileCost(QUICK_S)
+
+
+class Worker:
+    """A stand-in for pytest-xdist's WorkerController: what the scheduler reads of one."""
+
+    shutting_down = False
+
+
+def test_a_worker_whose_file_ran_faster_than_measured_gets_the_longest_file_left(pytester: pytest.Pytester) -> None:
+    """A file measured at 100 s has run three of its four tests at once: its worker is nearly free,
+    sooner than the other worker's 50 s file, so it gets the longest file left, not the shortest
+    (by the stale measure it would be busy longer, and the long file would wait for the end). The
+    workers are stand-ins: this is the scheduler's own arithmetic."""
+    costs = {"busy.py": FileCost(50, 0.2), "stale.py": FileCost(100, 0.2), "long.py": FileCost(40, 0.2)}
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    (pytester.path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
+    scheduler = CostAwareFileScheduling(pytester.parseconfig("-p", "xdist", "--tx", "2*popen"))
+    busy, fast = Worker(), Worker()
+    now = time.monotonic()
+    scheduler._free_at = {busy: now + 50, fast: now + 100}
+    scheduler.assigned_work = {
+        busy: {"busy.py": {"busy.py::test": False}},
+        fast: {"stale.py": {f"stale.py::test_{i}": i < 3 for i in range(4)}},
+    }
+    scheduler.workqueue = OrderedDict([("long.py", {"long.py::test": False}), ("quick.py", {"quick.py::test": False})])
+    free_at = scheduler._free_from(fast, now)
+    assert free_at == pytest.approx(now + 25)
+    assert scheduler._choose(fast, free_at, now) == "long.py"
+    # none of its tests finished yet: the estimate made when it was given stands
+    scheduler.assigned_work[fast] = {"stale.py": {f"stale.py::test_{i}": False for i in range(4)}}
+    assert scheduler._choose(fast, scheduler._free_from(fast, now), now) == "quick.py"

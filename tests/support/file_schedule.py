@@ -121,8 +121,29 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
                 total += self._cost(current).cores
         return total
 
+    def _free_from(self, node: WorkerController, now: float) -> float:
+        """When ``node`` will be free, as best known now. Once its running file has finished some of
+        its tests, what is left of it is the share of its cost its other tests stand for, and the
+        files queued behind it their whole cost: measured costs go stale (a file that got faster
+        would otherwise keep its worker on the shortest files until its old length had passed, while
+        the long files wait for the end). Before that, the estimate made when its files were given."""
+        unfinished = [
+            (scope, tests) for scope, tests in self.assigned_work.get(node, {}).items() if not all(tests.values())
+        ]
+        if not unfinished or not any(unfinished[0][1].values()):
+            return max(self._free_at.get(node, now), now)
+        (running, tests), *queued = unfinished
+        left = len(tests) - sum(tests.values())
+        return (
+            now
+            + self._cost(running).seconds * left / len(tests)
+            + sum(self._cost(scope).seconds for scope, _ in queued)
+        )
+
     def _choose(self, node: WorkerController, free_at: float, now: float) -> str:
-        others = [max(t, now) for other, t in self._free_at.items() if other is not node and not other.shutting_down]
+        others = [
+            self._free_from(other, now) for other in self._free_at if other is not node and not other.shutting_down
+        ]
         if others and free_at > min(others):
             return str(next(reversed(self.workqueue)))  # busy longer than another worker: the shortest file
         room = CORE_BUDGET - self._cores_running(besides=node)
@@ -131,7 +152,7 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
 
     def _assign_work_unit(self, node: WorkerController) -> None:
         now = time.monotonic()
-        free_at = max(self._free_at.get(node, now), now)
+        free_at = self._free_from(node, now)
         scope = self._choose(node, free_at, now)
         work_unit = self.workqueue.pop(scope)
         self._free_at[node] = free_at + self._cost(scope).seconds
