@@ -8,9 +8,10 @@ seconds, sorted by wall time, and the sums. ``make test``'s length is set by how
 pack onto the workers beside the longest one, and on two cores by the CPU they need together.
 
 CPU is the worker's own plus that of every child it reaped during the file (a child's figure
-includes the grandchildren it reaped: a robot stack's parts, a browser's renderers). A process
-that outlives the file (the session's PostgreSQL server) is not counted; a file's figure is
-therefore a floor.
+includes the grandchildren it reaped: a robot stack's parts) plus what its live descendants used
+meanwhile (the worker's shared Chromium, with the renderers it reaped). A process that is not the
+worker's descendant (the session's PostgreSQL server, started detached) is not counted; a file's
+figure is therefore a floor.
 
 ``--save-costs`` writes each file's wall time and share of a core (CPU over wall) into
 ``tests/file_costs.json``, which the suite's scheduler reads (tests/support/file_schedule.py): run
@@ -31,19 +32,43 @@ import time
 from collections.abc import Generator
 from pathlib import Path
 
+import psutil
 import pytest
 
 #: The plugin's output file, set by ``main`` for the pytest it starts (and inherited by workers).
 OUT_ENV = "CARETAKER_SUITE_PROFILE"
 COSTS = Path(__file__).resolve().parents[1] / "tests" / "file_costs.json"
 
-_started: dict[str, tuple[float, float, float]] = {}
+_started: dict[str, tuple[float, float, float, dict[tuple[int, float], float]]] = {}
 
 
 def _cpu_seconds() -> float:
+    """This process's CPU and that of the children it reaped (a child's figure includes the
+    grandchildren it reaped: a robot stack's parts)."""
     own = resource.getrusage(resource.RUSAGE_SELF)
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def _live_descendants() -> dict[tuple[int, float], float]:
+    """CPU seconds of each live descendant (with what it reaped), by pid and start time."""
+    found = {}
+    for process in psutil.Process().children(recursive=True):
+        try:
+            times = process.cpu_times()
+            found[(process.pid, process.create_time())] = (
+                times.user + times.system + times.children_user + times.children_system
+            )
+        except psutil.Error:
+            continue  # ended meanwhile
+    return found
+
+
+def _grown(before: dict[tuple[int, float], float]) -> float:
+    """What the live descendants used since ``before``: a worker's shared Chromium lives from file
+    to file, so only its growth during a file is that file's. One that ended meanwhile is left out
+    (reaped by the worker, it is in :func:`_cpu_seconds`)."""
+    return sum(cpu - before.get(key, 0.0) for key, cpu in _live_descendants().items())
 
 
 def _file_of(item: pytest.Item | None) -> str | None:
@@ -56,16 +81,16 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     name = _file_of(item)
     assert name is not None
     if name not in _started:
-        _started[name] = (time.time(), time.monotonic(), _cpu_seconds())
+        _started[name] = (time.time(), time.monotonic(), _cpu_seconds(), _live_descendants())
     yield
     out = os.environ.get(OUT_ENV)
     if out and _file_of(nextitem) != name:
-        began, wall0, cpu0 = _started[name]
+        began, wall0, cpu0, live0 = _started[name]
         record = {
             "file": name,
             "began": round(began, 1),  # the clock's time, so the workers' files line up on one timeline
             "wall_s": round(time.monotonic() - wall0, 1),
-            "cpu_s": round(_cpu_seconds() - cpu0, 1),
+            "cpu_s": round(_cpu_seconds() - cpu0 + _grown(live0), 1),
             "worker": os.environ.get("PYTEST_XDIST_WORKER", "main"),
         }
         with open(out, "a", encoding="utf-8") as stream:  # one short line per write: appends do not interleave
