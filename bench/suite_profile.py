@@ -121,8 +121,12 @@ def main() -> int:
     print(f"{total_wall:8.1f} {total_cpu:8.1f}  (sums over {len(records)} files; pytest ran {wall:.0f} s)")
     print(f"records: {out}")
     if args.save_costs:
+        cores = float(os.cpu_count() or 1)  # a file of a few ms has a ratio of CPU to wall time that means nothing
         costs = {
-            r["file"]: {"seconds": round(r["wall_s"]), "cores": round(r["cpu_s"] / max(r["wall_s"], 0.1), 2)}
+            r["file"]: {
+                "seconds": round(r["wall_s"]),
+                "cores": round(min(cores, r["cpu_s"] / max(r["wall_s"], 0.1)), 2),
+            }
             for r in sorted(records, key=lambda r: r["file"])
         }
         lines = ",\n".join(f" {json.dumps(name)}: {json.dumps(cost)}" for name, cost in costs.items())
