@@ -539,10 +539,11 @@ export class SpatialView {
     this.invalidate();
   }
 
-  /** The pixel ratio to draw this frame at: lower while moving if frames are slow, full when still. */
-  _adaptResolution(now) {
-    const moving = now < this._movingUntil || !!this.player?.playing;
-    if (this._drawnAt !== null && moving) {
+  _isMoving(now) { return now < this._movingUntil || !!this.player?.playing; }
+
+  /** The cost of the frame drawn last (from its draw to this animation frame), counted while things move. */
+  _measureCost(now) {
+    if (this._drawnAt !== null && this._isMoving(now)) {
       this._costs.push(now - this._drawnAt);
       if (this._costs.length >= COST_WINDOW) {
         const cost = median(this._costs);
@@ -552,7 +553,11 @@ export class SpatialView {
       }
     }
     this._drawnAt = null;
-    const ratio = this._fullRatio * (this.adaptiveResolution && moving ? SCALES[this._scale] : 1);
+  }
+
+  /** The pixel ratio to draw this frame at: lower while moving if frames are slow, full when still. */
+  _adaptResolution(now) {
+    const ratio = this._fullRatio * (this.adaptiveResolution && this._isMoving(now) ? SCALES[this._scale] : 1);
     if (ratio !== this.renderer.getPixelRatio()) {
       this.renderer.setPixelRatio(ratio); // resizes the drawing buffer, not the canvas on the page
       this._dirty = true; // settling: one sharp frame
@@ -650,7 +655,7 @@ export class SpatialView {
   }
 
   _frame(now) {
-    this._adaptResolution(now);
+    this._measureCost(now);
     // Within the cap nothing moves either: what inspect() says is drawn has been drawn.
     if (this.renderOnDemand && now < this._dueAt - FRAME_SLACK_MS) return;
     const dt = Math.min(0.1, (now - this._last) / 1000);
@@ -658,6 +663,7 @@ export class SpatialView {
     if (this.player?.playing) { this.player.tick(dt); this._dirty = true; }
     const joints = this._jointMotion?.at(now);
     if (joints) { this._drawArm(joints); this._moving(); }
+    this._adaptResolution(now); // after the arm's step: a frame that moves it is drawn as moving
     // On demand: a frame only when something changed (a mesh that finished loading says so too).
     // An idle view then costs nothing: drawn in software, each frame of it was tens of ms of CPU.
     if (this._yieldFrames > 0) { this._yieldFrames -= 1; return; } // still dirty: drawn next frame
