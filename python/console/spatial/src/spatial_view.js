@@ -644,8 +644,8 @@ export class SpatialView {
 
   /** Whether the loop has more to do after the animation frame at ``now``. */
   _busy(now) {
-    return !this.renderOnDemand || this._dirty || this._yieldFrames > 0 || !!this.player?.playing
-      || !!this._jointMotion?.moving || now < this._movingUntil || this.renderer.getPixelRatio() !== this._fullRatio;
+    return !this.renderOnDemand || this._dirty || this._yieldFrames > 0 || !!this._jointMotion?.moving
+      || this._isMoving(now) || this.renderer.getPixelRatio() !== this._fullRatio;
   }
 
   _loop(now) {
