@@ -29,6 +29,8 @@ FORBIDDEN = {
     "at_ros": ("pride", "sim"),
     "sim": ("pride",),
     "perception": ("pride", "sim"),
+    # the conformance suite judges servers: it shares no code with the one it judges, nor with its clients
+    "interop": ("bridge", "rosbridge_wire", "pride", "rclpy"),
 }
 
 
@@ -48,7 +50,9 @@ MAY_IMPORT = {
     "at_ros": {"datafile", "ros_process"},
     "sim": {"datafile"},
     "perception": {"at_ros", "ros_process"},
+    "interop": set(),
     "caretaker": {
+        "interop",
         "datafile",
         "rosbridge_wire",
         "pride",
