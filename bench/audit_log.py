@@ -1,7 +1,7 @@
 """Audit log: append rate and latency on SQLite and PostgreSQL, 1 and 4 concurrent runs; report time.
 
 Each writer is its own process (as runners are) appending its own run's events through
-:class:`pride.audit_log.AuditLog` with full durability (SQLite WAL + ``synchronous=FULL``,
+:class:`records.audit_log.AuditLog` with full durability (SQLite WAL + ``synchronous=FULL``,
 PostgreSQL ``synchronous_commit=on``, ``fsync=on``); the time of every ``append`` is what PAX
 waits for an event. Back to back (every writer appending as fast as it can: the throughput)
 and paced (``--paced-rate`` events per second per run, far more than a run emits: the latency
@@ -39,10 +39,10 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
-from pride.audit_chain import GENESIS, StoredEvent  # noqa: E402
-from pride.audit_log import AuditLog, database_url  # noqa: E402
-from pride.audit_schema import audit_records  # noqa: E402
 from pride.events import PAX, Event, EventKind  # noqa: E402
+from records.audit_chain import GENESIS, StoredEvent  # noqa: E402
+from records.audit_log import AuditLog, database_url  # noqa: E402
+from records.audit_schema import audit_records  # noqa: E402
 from support.postgres import OWNER, RUNNER, postgres_server  # noqa: E402
 
 _DATA = {

@@ -162,8 +162,8 @@ def fly(
     from caretaker.certs import make_link_credentials
     from caretaker.link import LinkControl
     from caretaker.processes import caretaker
-    from pride.audit_log import AuditLog
     from pride.events import EventKind
+    from records.audit_log import AuditLog
 
     with tempfile.TemporaryDirectory(prefix="caretaker-bench-link-") as tmp:
         folder = Path(tmp)

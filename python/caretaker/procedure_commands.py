@@ -24,8 +24,6 @@ from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, 
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
 from pride.approvals import APPROVER_PASSWORD_ENV
-from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
-from pride.audit_schema import AuditSchemaError, head_revision
 from pride.binding import read_binding
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
@@ -33,11 +31,14 @@ from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure, lint_file
 from pride.phrasing import Wording
-from pride.releases import ReleaseRefused, ReleaseStore, RunVersion, resume_refusal, version_for_run
-from pride.robot_control import RobotControl
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
+from pride.run_version import RunVersion
 from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
+from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from records.audit_schema import AuditSchemaError, head_revision
+from records.releases import ReleaseRefused, ReleaseStore, resume_refusal, version_for_run
+from records.robot_control import RobotControl
 
 __all__ = ["LeftBehind", "db_main", "lint_main", "report_main", "run_main"]
 

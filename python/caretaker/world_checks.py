@@ -467,8 +467,8 @@ def _telemetry(check: TelemetryCheck, world: _World) -> Verdict:
 
 def _images(check: ImagesCheck, scene: Scene, db_url: str, run_id: str) -> Verdict:
     """From the run's audit log: each target's last successful capture, and its file on disk."""
-    from pride.audit_log import AuditLog
     from pride.events import EventKind
+    from records.audit_log import AuditLog
 
     targets = list(check.targets) if check.targets is not None else [t.name for t in scene.targets]
     audit = AuditLog(db_url)

@@ -9,7 +9,7 @@ convenience, never the protection.
 Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
 next sign-in when those defaults grow, where the console's role may write the table). The table
 ``console_accounts(user_id PK, name, role, password_hash, created, password_changed)`` belongs to
-the ground database's schema (revision 0004 of :mod:`pride.migrations`): on PostgreSQL the
+the ground database's schema (revision 0004 of :mod:`records.migrations`): on PostgreSQL the
 consoles' role only reads it and ``caretaker accounts``, run as the database owner, changes it. A
 change NOTIFYs every console (:mod:`console.ground.change_feed`), which ends that user's sessions.
 """
@@ -24,13 +24,14 @@ from datetime import UTC, datetime
 
 from argon2 import PasswordHasher
 from argon2.exceptions import InvalidHashError, VerificationError, VerifyMismatchError
-from sqlalchemy import DateTime, String, select, update
+from sqlalchemy import select, update
 from sqlalchemy.engine import Engine, make_url
 from sqlalchemy.exc import DBAPIError
-from sqlalchemy.orm import DeclarativeBase, Mapped, Session, mapped_column
+from sqlalchemy.orm import DeclarativeBase, Mapped, Session
 
-from pride.audit_log import database_url, open_engine
-from pride.audit_schema import ensure_schema
+from records.audit_log import database_url, open_engine
+from records.audit_schema import ensure_schema
+from records.console_tables import console_accounts
 
 __all__ = ["Account", "AccountStore", "AccountsError", "Role", "TABLE"]
 
@@ -41,7 +42,7 @@ _USER_ID = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
 MIN_PASSWORD = 8
 MAX_PASSWORD = 1024
 #: The table's name in the ground database.
-TABLE = "console_accounts"
+TABLE = console_accounts.name
 
 
 class Role(str, enum.Enum):
@@ -76,14 +77,14 @@ class _Base(DeclarativeBase):
 
 
 class _AccountRow(_Base):
-    __tablename__ = TABLE
+    __table__ = console_accounts  # the columns are defined once, in records.console_tables
 
-    user_id: Mapped[str] = mapped_column(String(64), primary_key=True)
-    name: Mapped[str] = mapped_column(String(200), default="")
-    role: Mapped[str] = mapped_column(String(16))
-    password_hash: Mapped[str] = mapped_column(String(255))
-    created: Mapped[datetime] = mapped_column(DateTime(timezone=True))
-    password_changed: Mapped[datetime] = mapped_column(DateTime(timezone=True))
+    user_id: Mapped[str]
+    name: Mapped[str]
+    role: Mapped[str]
+    password_hash: Mapped[str]
+    created: Mapped[datetime]
+    password_changed: Mapped[datetime]
 
     def account(self) -> Account:
         changed = self.password_changed if self.password_changed.tzinfo else self.password_changed.replace(tzinfo=UTC)

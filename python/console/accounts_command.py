@@ -14,7 +14,7 @@ import sys
 from sqlalchemy.exc import OperationalError
 
 from console.accounts import AccountsError, AccountStore, Role
-from pride.audit_log import DEFAULT_DB
+from records.audit_log import DEFAULT_DB
 
 __all__ = ["main"]
 

@@ -19,8 +19,8 @@ from typing import Any
 from console.accounts import Account
 from console.ground.run_hosts import HostRecord, RunHosting
 from console.watchers import Watcher, Watchers
-from pride.audit_log import AuditLog
 from pride.events import Event
+from records.audit_log import AuditLog
 
 __all__ = ["RemoteRun"]
 

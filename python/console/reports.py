@@ -11,8 +11,8 @@ import importlib.util
 from collections.abc import Callable
 from pathlib import Path
 
-from pride.audit_log import AuditLog
 from pride.phrasing import Wording
+from records.audit_log import AuditLog
 
 __all__ = ["report_writer"]
 

@@ -42,27 +42,27 @@ from console.remote_run import RemoteRun
 from console.watchers import Watchers
 from datafile import DataFileError
 from pride.approvals import approval_points, missing_approvals_text
-from pride.audit_log import AuditLog
 from pride.binding import BindingError, read_binding
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure
-from pride.releases import (
+from pride.robot_sides import RobotSide, robot_side_for
+from pride.run_control import RobotControlled
+from pride.run_version import RunVersion
+from pride.sysrep import SysRep, load_sysrep_dir
+from pride.systems import SystemGateway
+from records.audit_log import AuditLog
+from records.releases import (
     ReleaseRefused,
     ReleaseStore,
-    RunVersion,
     procedure_digest,
     resume_refusal,
     short,
     version_for_run,
 )
-from pride.robot_control import RobotControl
-from pride.robot_sides import RobotSide, robot_side_for
-from pride.run_control import RobotControlled
-from pride.sysrep import SysRep, load_sysrep_dir
-from pride.systems import SystemGateway
+from records.robot_control import RobotControl
 
 __all__ = ["CameraSettings", "Catalog", "RunBoard", "RunView"]
 
@@ -214,7 +214,7 @@ class RunBoard:
         says what to fix.
 
         A draft or a file changed since its release runs only as a ``rehearsal``, and a rehearsal
-        only on a simulator (:mod:`pride.releases`). A robot controlled by another run refuses the
+        only on a simulator (:mod:`records.releases`). A robot controlled by another run refuses the
         start (409, naming the controller) unless ``take_over`` gives the reason to take it over:
         the other run then holds.
         """

@@ -28,8 +28,8 @@ from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.reports import report_writer
 from console.run_board import CameraSettings, Catalog, RunBoard
 from console.sign_in import SessionLimits, SignIns
-from pride.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
-from pride.audit_schema import AuditSchemaError
+from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from records.audit_schema import AuditSchemaError
 
 __all__ = ["main"]
 

@@ -36,11 +36,11 @@ from console.ground.change_feed import open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
 from console.live_run import LiveRun
 from console.onboard_view import OnboardView
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.executive import Executive
 from pride.lint import CheckedProcedure
 from pride.systems import SystemGateway
+from records.audit_log import AuditLog
 
 __all__ = ["HostedElsewhere", "TerminalHost"]
 

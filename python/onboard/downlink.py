@@ -26,11 +26,11 @@ from pathlib import Path
 from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
-from pride.audit_chain import GENESIS, link_hash
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.lint import CheckedProcedure
-from pride.releases import RunVersion
+from pride.run_version import RunVersion
+from records.audit_chain import GENESIS, link_hash
+from records.audit_log import AuditLog
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
 
 from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign

@@ -4,7 +4,7 @@ One :class:`HabitatRuns` per habitat (``caretaker onboard`` holds it). It keeps,
 folder:
 
 - ``onboard.sqlite``: every onboard run's events in the audit log's own append-only, hash-chained
-  table (:class:`pride.audit_log.AuditLog` on SQLite), and robot control as on the ground: the
+  table (:class:`records.audit_log.AuditLog` on SQLite), and robot control as on the ground: the
   record that survives a restart, and the one the ground's copy must equal hash for hash;
 - ``units/<hash>/``: each accepted unit as it arrived (``unit.json``) and its procedure files;
 - ``actions.jsonl``: every operator action by key (when it arrived and was answered, on the
@@ -28,18 +28,18 @@ from pathlib import Path
 from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, command_name
-from pride.audit_chain import StoredEvent, utc
-from pride.audit_log import AuditLog
 from pride.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
 from pride.lint import check_procedure
 from pride.model import CommandInstruction, RecordInstruction
-from pride.robot_control import RobotControl
 from pride.robot_sides import robot_side_for
 from pride.sysrep import SysRep
 from pride.systems import SystemGateway
+from records.audit_chain import StoredEvent, utc
+from records.audit_log import AuditLog
+from records.robot_control import RobotControl
 
 from .unit import OperatorAction, Unit, UnitError, digest, signed_by
 

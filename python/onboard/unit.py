@@ -22,7 +22,7 @@ from pathlib import PurePosixPath
 from typing import Any
 
 from pride.approvals import CarriedApproval
-from pride.releases import RunVersion
+from pride.run_version import RunVersion
 
 __all__ = [
     "ACTIONS",
@@ -100,7 +100,7 @@ class Unit:
     ``--confirm-hazardous``): any other hold waits for the ground. ``approvals`` are the second
     operator's approvals of the commands that need one (:class:`pride.approvals.CarriedApproval`),
     given on the ground before the unit went up and signed with it. ``version`` is the procedure
-    version the ground let it run (:class:`pride.releases.RunVersion`: its release, or a
+    version the ground let it run (:class:`pride.run_version.RunVersion`: its release, or a
     rehearsal), recorded in its ``run_started``.
     """
 

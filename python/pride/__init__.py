@@ -1,6 +1,7 @@
 """pride: PRIDE-like electronic procedures and PAX, the executive that runs them with operators.
 
-The procedure side (ground): it never imports rclpy nor habitat code (tests/foundation/test_package_graph.py).
+The procedure side: it never imports rclpy, habitat code, nor the ground's records and their
+database libraries (tests/foundation/test_package_graph.py).
 
 Modules, by concept:
 
@@ -18,13 +19,12 @@ Modules, by concept:
   observable states, :mod:`pride.automation` the part that acts on systems.
 - :mod:`pride.systems` — the gateway shape and its result types; :mod:`pride.gateways` opens one;
   :mod:`pride.pax_host` and :mod:`pride.jvm` — the Java PAX plugins hosted through JPype.
-- :mod:`pride.events`, :mod:`pride.audit_log` — every action, append-only, committed per action;
-  :mod:`pride.audit_chain` its hash chain, :mod:`pride.audit_schema` and :mod:`pride.migrations`
-  its tables and their Alembic migrations.
+- :mod:`pride.events` — every action as an event; a :class:`pride.events.Journal` stores them
+  (the audit log, :mod:`records.audit_log`, is not part of this package).
 - :mod:`pride.report` — after-action reports (the commands that use all this, ``caretaker lint``,
   ``run``, ``report`` and ``db``, are :mod:`caretaker.procedure_commands`).
-- :mod:`pride.run_control` — a run's control of its robot; :mod:`pride.robot_control` its store
-  in the ground database.
+- :mod:`pride.run_control` — a run's control of its robot (its store in the ground database is
+  :mod:`records.robot_control`); :mod:`pride.run_version` the version a run runs.
 
 The ground console that serves all this in the browser is its own package, :mod:`console`.
 """

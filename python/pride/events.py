@@ -1,7 +1,7 @@
 """What happened during a run: the records the audit log keeps and observers receive.
 
 Every action of a run is one :class:`Event`, numbered per run. The executive creates them; the
-audit log (:mod:`pride.audit_log`) stores them before anyone else sees them; reports and views
+audit log (:mod:`records.audit_log`) stores them before anyone else sees them; reports and views
 read them. Events are immutable: observing a run never changes it.
 """
 

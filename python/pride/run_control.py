@@ -1,7 +1,7 @@
 """A run's control of its robot: taken when the run starts, checked before each command, given up at the end.
 
 Where control is recorded is a :class:`ControlStore`: on the ground, the ground database
-(:class:`pride.robot_control.RobotControl`). It is kept apart from that store so the executive
+(:class:`records.robot_control.RobotControl`). It is kept apart from that store so the executive
 imports no database library (an onboard executive has none).
 """
 

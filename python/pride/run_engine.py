@@ -40,7 +40,7 @@ from pride.states import (
 from pride.systems import LinkState, SystemGateway, TelemetryValue
 
 if TYPE_CHECKING:  # the release history is the ground database's: the executive only carries a run's version
-    from pride.releases import RunVersion
+    from pride.run_version import RunVersion
 
 __all__ = ["RunEngine"]
 
@@ -82,7 +82,7 @@ class RunEngine:
                 critical commanding, :mod:`pride.approvals`); None: off, a hazardous command
                 needs its operator's confirmation only (a bench).
             version: the procedure version it runs (its release, or a rehearsal), recorded in
-                ``run_started`` (:mod:`pride.releases`); None: not recorded (a bench).
+                ``run_started`` (:mod:`records.releases`); None: not recorded (a bench).
         """
         self.procedure = checked.procedure
         self.run_id = run_id

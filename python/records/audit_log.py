@@ -2,7 +2,7 @@
 
 SQLAlchemy over a SQLite file (``var/caretaker.db``, the default for one machine) or PostgreSQL
 (``postgresql://role@host/db``, a shared ground segment; docs/ground-segment.md). The schema is
-migrated at open (:mod:`pride.audit_schema`). Rows are only ever inserted: triggers refuse
+migrated at open (:mod:`records.audit_schema`). Rows are only ever inserted: triggers refuse
 UPDATE and DELETE, and on PostgreSQL the runner's role holds no such grant.
 
 Durability: :meth:`AuditLog.append` returns only after its transaction committed with the
@@ -10,7 +10,7 @@ database's full durability (SQLite in WAL mode with ``synchronous=FULL``: the WA
 every commit; PostgreSQL with its default ``synchronous_commit=on``). So killing the runner,
 or the machine losing power, loses no event that was reported as done.
 
-Tamper evidence: each event carries the hash of its run's previous event (:mod:`pride.audit_chain`).
+Tamper evidence: each event carries the hash of its run's previous event (:mod:`records.audit_chain`).
 The last hash of every run this process writes stays in memory, so an append costs one INSERT
 and no read; :meth:`AuditLog.verify` checks a run's chain.
 
@@ -43,9 +43,9 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError, SQLAlchemyError
 from sqlalchemy.pool import StaticPool
 
-from pride.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
-from pride.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
 from pride.events import Availability, Event, EventKind
+from records.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
+from records.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
 
 __all__ = [
     "DEFAULT_DB",
@@ -251,7 +251,7 @@ class AuditLog:
         return [_event(row) for row in self.stored_events(run_id, after=after)]
 
     def verify(self, run_id: str) -> ChainCheck:
-        """Check the run's hash chain as stored (see :mod:`pride.audit_chain`)."""
+        """Check the run's hash chain as stored (see :mod:`records.audit_chain`)."""
         return verify_chain(run_id, self.stored_events(run_id))
 
     def stored_events(self, run_id: str, *, after: int = 0) -> list[StoredEvent]:
@@ -447,7 +447,7 @@ SQLITE_BUSY_TIMEOUT_S = 60.0
 def open_engine(url: str) -> Engine:
     """An engine on the ground database at ``url`` (any form :func:`database_url` takes), set up as the
     audit log needs it: a connect timeout on PostgreSQL; on SQLite WAL, full durability, and
-    transactions begun by SQLAlchemy (see :mod:`pride.audit_schema`)."""
+    transactions begun by SQLAlchemy (see :mod:`records.audit_schema`)."""
     url = database_url(url)
     if not url.startswith("sqlite"):
         return create_engine(url, connect_args={"connect_timeout": 5, "application_name": "caretaker"})

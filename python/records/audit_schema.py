@@ -1,7 +1,7 @@
 """The audit log's tables and how a database gets to them: Alembic migrations run at open.
 
 :func:`ensure_schema` brings any audit-log database to the newest revision the running code
-knows (scripts in :mod:`pride.migrations`; no alembic.ini): an empty database gets the whole
+knows (scripts in :mod:`records.migrations`; no alembic.ini): an empty database gets the whole
 schema, a log written before migrations existed (an ``audit_records`` table without the
 ``audit_schema_version`` table) is recognised as revision 0001 and upgraded in place. The
 upgrade runs in one transaction under a lock (SQLite ``BEGIN IMMEDIATE``, a PostgreSQL advisory
@@ -90,7 +90,7 @@ def _scripts() -> ScriptDirectory:
 def head_revision() -> str:
     """The newest schema revision this code knows."""
     head = _scripts().get_current_head()
-    assert head is not None, "pride/migrations has no revisions"
+    assert head is not None, "records/migrations has no revisions"
     return head
 
 

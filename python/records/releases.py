@@ -31,12 +31,12 @@ from sqlalchemy.engine import Engine
 
 from pride.lint import CheckedProcedure
 from pride.robot_sides import RobotSide
+from pride.run_version import RunVersion
 
 __all__ = [
     "Release",
     "ReleaseRefused",
     "ReleaseStore",
-    "RunVersion",
     "VersionState",
     "procedure_digest",
     "procedure_releases",
@@ -48,7 +48,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 _metadata = MetaData()
-#: The history of versions (revision 0005 of :mod:`pride.migrations`); rows are only ever added.
+#: The history of versions (revision 0005 of :mod:`records.migrations`); rows are only ever added.
 procedure_releases = Table(
     "procedure_releases",
     _metadata,
@@ -127,19 +127,6 @@ class VersionState:
             "requested_by": self.requested_by,
             "saved_by": self.saved_by,
         }
-
-
-@dataclass(frozen=True)
-class RunVersion:
-    """The version a run runs: its hash, its release (None: a rehearsal of a draft or of a changed file)."""
-
-    sha256: str
-    release: int | None
-    rehearsal: bool
-
-    def data(self) -> dict[str, Any]:
-        """What ``run_started`` records of it."""
-        return {"sha256": self.sha256, "release": self.release, "rehearsal": self.rehearsal}
 
 
 class ReleaseStore:

@@ -1,6 +1,6 @@
 """Which run controls which robot, decided in the ground database so every console and runner agrees.
 
-One row per controlled robot in ``robot_control`` (revision 0003 of :mod:`pride.migrations`), in
+One row per controlled robot in ``robot_control`` (revision 0003 of :mod:`records.migrations`), in
 the audit log's database: ``robot`` (the binding's ``robot:``, primary key), ``run_id``,
 ``user_id``, ``since``, ``reason``. Every change is one atomic statement, so two processes can
 never both hold a robot:
@@ -42,10 +42,10 @@ from sqlalchemy import (
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError, InterfaceError, OperationalError
 
-from pride.audit_chain import utc
-from pride.audit_log import DEFAULT_OUTAGE_BUDGET, SQLITE_BUSY_TIMEOUT_S, AuditLogUnavailable, database_url
 from pride.run_control import RobotControlled
 from pride.states import Controller, OperatorActionError
+from records.audit_chain import utc
+from records.audit_log import DEFAULT_OUTAGE_BUDGET, SQLITE_BUSY_TIMEOUT_S, AuditLogUnavailable, database_url
 
 __all__ = ["TABLE", "RobotControl", "robot_control"]
 

@@ -30,9 +30,9 @@ import yaml
 from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess
 from console.accounts import AccountStore
-from pride.audit_chain import StoredEvent
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
+from records.audit_chain import StoredEvent
+from records.audit_log import AuditLog
 from support.stack import write_deployment
 from support.two_hosts import LinkProcess, TwoHosts
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from pride.audit_chain import verify_chain
+from records.audit_chain import verify_chain
 
 from .flight_support import DELAY, assert_flown_exactly_once, flight, result_of
 

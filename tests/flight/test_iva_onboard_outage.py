@@ -14,7 +14,7 @@ from datetime import UTC, datetime, timedelta
 
 import pytest
 
-from pride.audit_chain import utc
+from records.audit_chain import utc
 
 from .flight_support import DELAY, PULL_OUT, flight, result_of
 

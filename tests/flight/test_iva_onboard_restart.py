@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from pride.audit_chain import verify_chain
+from records.audit_chain import verify_chain
 
 from .flight_support import DELAY, IVA_ARM_GOALS, IVA_COMMANDS, PULL_OUT, flight, result_of
 

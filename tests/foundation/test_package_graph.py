@@ -21,7 +21,21 @@ REPO = Path(__file__).resolve().parents[2]
 #: procedure side (ground) never reaches ROS or habitat code; the habitat side never knows
 #: procedures; the robot's planner and AT server run on a real robot too, so they never need the simulator.
 FORBIDDEN = {
-    "pride": ("rclpy", "bridge", "at_ros", "sim", "starlette", "uvicorn"),
+    # the executive runs onboard too: the ground's records (and their database libraries) are not its
+    "pride": (
+        "rclpy",
+        "bridge",
+        "at_ros",
+        "sim",
+        "starlette",
+        "uvicorn",
+        "records",
+        "sqlalchemy",
+        "alembic",
+        "psycopg",
+    ),
+    # the ground's records are a store: no web server, no ROS, no console above them
+    "records": ("rclpy", "bridge", "at_ros", "sim", "console", "onboard", "starlette", "uvicorn"),
     "console": ("rclpy", "bridge", "at_ros", "sim"),
     # the onboard executive runs PAX on the habitat: procedures, but no web or ROS stack of its own
     "onboard": ("rclpy", "bridge", "at_ros", "sim", "console", "starlette", "uvicorn"),
@@ -36,15 +50,17 @@ FORBIDDEN = {
 
 #: The allowed import order: each package and the Caretaker packages it may import. Two columns
 #: on two leaves, ``datafile`` (the reader of every user file) and ``rosbridge_wire`` (the rosbridge
-#: vocabulary and login of the bridge and its clients): the procedure side (``pride``: procedures, the
-#: executive, the record; the ground ``console`` on top of it) and the robot side (``at_ros``,
-#: ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
+#: vocabulary and login of the bridge and its clients): the procedure side (``pride``: procedures and
+#: the executive; ``records``: the audit log, releases, robot control and the consoles' tables in the
+#: ground database, also the onboard executive's SQLite log; the ground ``console`` on top of them)
+#: and the robot side (``at_ros``, ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
 MAY_IMPORT = {
     "datafile": set(),
     "rosbridge_wire": set(),
     "pride": {"datafile", "rosbridge_wire"},
-    "console": {"datafile", "pride", "rosbridge_wire"},
-    "onboard": {"datafile", "pride", "rosbridge_wire"},
+    "records": {"pride"},
+    "console": {"datafile", "pride", "records", "rosbridge_wire"},
+    "onboard": {"datafile", "pride", "records", "rosbridge_wire"},
     "ros_process": set(),
     "bridge": {"datafile", "rosbridge_wire", "ros_process"},
     "at_ros": {"datafile", "ros_process"},
@@ -56,6 +72,7 @@ MAY_IMPORT = {
         "datafile",
         "rosbridge_wire",
         "pride",
+        "records",
         "console",
         "onboard",
         "bridge",

@@ -25,10 +25,10 @@ from console.ground.run_hosts import RunHosting
 from console.onboard_launch import LaunchRefused, launch_onboard
 from console.onboard_view import OnboardView
 from console.terminal_host import TerminalHost
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
 from pride.lint import check_procedure
 from pride.sysrep import load_sysrep_dir
+from records.audit_log import AuditLog
 from support.procedures import REPO
 
 PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"

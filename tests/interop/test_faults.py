@@ -23,8 +23,8 @@ import pytest
 from caretaker.processes import REPO, VENV_BIN, caretaker
 from caretaker.stack import Stack
 from interop.terminal_session import TerminalSession
-from pride.audit_log import AuditLog
 from pride.events import EventKind
+from records.audit_log import AuditLog
 from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90)]

@@ -17,8 +17,8 @@ import pytest
 import roslibpy
 
 from caretaker.processes import REPO, caretaker
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
+from records.audit_log import AuditLog
 from rosbridge.rosbridge_support import wait_until_discovered
 from support.stack import stack_up, write_deployment
 

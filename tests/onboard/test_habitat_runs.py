@@ -21,10 +21,10 @@ from onboard.downlink import Downlink, DownlinkError, build_unit
 from onboard.habitat_runs import HabitatRuns
 from onboard.unit import OperatorAction, Unit, sign
 from pride.approvals import ApprovalPolicy, CriticalLevel
-from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.lint import check_procedure
 from pride.sysrep import SysRep, load_sysrep_dir
+from records.audit_log import AuditLog
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO
 

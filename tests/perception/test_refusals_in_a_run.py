@@ -22,8 +22,8 @@ import pytest
 from perception_client import PerceptionClient
 
 from caretaker.stack import Stack
-from pride.audit_log import AuditLog
 from pride.events import EventKind
+from records.audit_log import AuditLog
 from support.procedures import REPO
 from support.stack import robot_parts
 

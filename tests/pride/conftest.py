@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 
 from pride.approvals import ApprovalPolicy
-from pride.audit_log import AuditLog
 from pride.events import Event
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
-from pride.robot_control import RobotControl
 from pride.sysrep import SysRep, load_sysrep_dir
+from records.audit_log import AuditLog
+from records.robot_control import RobotControl
 from support.audit import AuditDatabase, RecordedJournal
 from support.executive_runs import TIMEOUT, Bench
 from support.lab_gateway import LabGateway

@@ -20,10 +20,10 @@ from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text,
 from sqlalchemy.exc import DBAPIError, IntegrityError
 from sqlalchemy.pool import ConnectionPoolEntry
 
-from pride.audit_chain import GENESIS
-from pride.audit_log import AuditLog, AuditSequenceError, database_url
-from pride.audit_schema import AuditSchemaError, head_revision
 from pride.events import PAX, Event, EventKind
+from records.audit_chain import GENESIS
+from records.audit_log import AuditLog, AuditSequenceError, database_url
+from records.audit_schema import AuditSchemaError, head_revision
 from support.audit import AuditDatabase
 from support.postgres import OWNER, RUNNER, PostgresServer
 

@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-from pride.audit_log import AuditLog, Availability
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, RunStatus, Snapshot
 from pride.lint import check_procedure
 from pride.sysrep import SysRep
+from records.audit_log import AuditLog, Availability
 from support.lab_gateway import LabGateway
 from support.postgres import RUNNER, PostgresServer
 from support.procedures import FIXTURES

@@ -14,10 +14,10 @@ from datetime import UTC, datetime
 
 import pytest
 
-from pride.audit_log import Availability
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus
 from pride.systems import Outcome
+from records.audit_log import Availability
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
 

@@ -11,10 +11,12 @@ import pytest
 from alembic import command
 from sqlalchemy import create_engine, select
 
-from pride.audit_log import AuditLog, database_url
-from pride.audit_schema import _config, head_revision
 from pride.lint import check_procedure
-from pride.releases import (
+from pride.robot_sides import RobotSide
+from pride.sysrep import SysRep
+from records.audit_log import AuditLog, database_url
+from records.audit_schema import _config, head_revision
+from records.releases import (
     ReleaseRefused,
     ReleaseStore,
     RunVersion,
@@ -22,8 +24,6 @@ from pride.releases import (
     procedure_releases,
     version_for_run,
 )
-from pride.robot_sides import RobotSide
-from pride.sysrep import SysRep
 from support.audit import AuditDatabase
 from support.procedures import FIXTURES
 

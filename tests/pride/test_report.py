@@ -8,10 +8,10 @@ from pathlib import Path
 
 from lxml import etree
 
-from pride.audit_log import AuditLog
 from pride.executive import Executive, Hold, Mode, RunStatus
 from pride.lint import check_procedure
 from pride.sysrep import SysRep
+from records.audit_log import AuditLog
 from support.audit import AuditDatabase
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO

@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 
 from console.accounts import AccountStore
-from pride.audit_log import AuditLog
 from pride.events import PAX, EventKind
+from records.audit_log import AuditLog
 from support import lab_gateway
 from support.audit import AuditDatabase
 from support.procedures import FIXTURES, REPO

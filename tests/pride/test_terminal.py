@@ -14,11 +14,11 @@ import pytest
 
 from caretaker import terminal as terminal_module
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
-from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus, Snapshot
 from pride.lint import check_procedure
 from pride.sysrep import SysRep
+from records.audit_log import AuditLog
 from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES

@@ -16,13 +16,13 @@ from pathlib import Path
 import pytest
 
 from caretaker.terminal import ProgressPrinter, TerminalLines
-from pride.audit_log import AuditLog
 from pride.events import Event
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
 from pride.phrasing import Wording
 from pride.report import write_report
 from pride.sysrep import SysRep
+from records.audit_log import AuditLog
 from support.executive_runs import finished, held
 from support.procedures import REPO
 from support.recorded_run import RecordedSystems, recorded_events

@@ -10,8 +10,8 @@ import sqlite3
 from contextlib import closing
 from dataclasses import dataclass
 
-from pride.audit_log import AuditLog, Availability
 from pride.events import Event, EventKind
+from records.audit_log import AuditLog, Availability
 from support.postgres import PostgresServer
 
 __all__ = ["AuditDatabase", "RecordedJournal"]

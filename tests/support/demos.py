@@ -10,8 +10,8 @@ import pytest
 
 from at_ros.transforms import angle_between, from_xyz_quat, from_xyz_rpy
 from caretaker.processes import REPO
-from pride.audit_log import AuditLog
 from pride.events import Event, EventKind
+from records.audit_log import AuditLog
 from sim.displacement import displaced_scene
 from sim.scene import Scene, load_scene, marker_frame_pose
 from support.processes import caretaker

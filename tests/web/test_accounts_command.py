@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from sqlalchemy import event
 
-import pride.audit_log
+import records.audit_log
 from console.accounts import AccountStore
 from console.accounts_command import main
 
@@ -24,7 +24,7 @@ def test_a_database_locked_past_the_wait_is_refused_with_the_reason(
         store.add("bob", "operator", "first password", name="Bob")
     finally:
         store.close()
-    monkeypatch.setattr(pride.audit_log, "SQLITE_BUSY_TIMEOUT_S", 0.2)  # not the minute a console waits
+    monkeypatch.setattr(records.audit_log, "SQLITE_BUSY_TIMEOUT_S", 0.2)  # not the minute a console waits
     monkeypatch.setattr("sys.stdin", io.StringIO("second password\n"))
     writer = sqlite3.connect(db)
     try:

@@ -24,10 +24,10 @@ from playwright.sync_api import Locator, Page, expect
 
 from console.authoring import check_document, read_document
 from console.procedure_view import procedure_json
-from pride.audit_log import AuditLog
 from pride.events import EventKind
 from pride.parser import load_procedure
 from pride.sysrep import load_sysrep_dir
+from records.audit_log import AuditLog
 from support.operator_page import (
     audit_row,
     expect_current,

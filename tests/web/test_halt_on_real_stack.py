@@ -39,8 +39,8 @@ import pytest
 import roslibpy
 from playwright.sync_api import Locator, Page, expect
 
-from pride.audit_log import AuditLog
 from pride.events import EventKind
+from records.audit_log import AuditLog
 from support.operator_page import (
     IVA,
     audit_row,

@@ -15,8 +15,8 @@ from pathlib import Path
 
 from playwright.sync_api import Browser, Page, expect
 
-from pride.audit_log import AuditLog
 from pride.phrasing import format_value
+from records.audit_log import AuditLog
 from support.operator_page import (
     IVA,
     audit_row,

@@ -30,8 +30,8 @@ from spatial_names import names_hide_nothing
 
 from at_ros.transforms import angle_between
 from console.spatial_world import compose
-from pride.audit_log import AuditLog
 from pride.events import EventKind
+from records.audit_log import AuditLog
 from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server

@@ -19,7 +19,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Page, expect
 
-from pride.audit_log import AuditLog
+from records.audit_log import AuditLog
 from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
 from support.web_server import REPO, WebServer, server_on_real_stack
 

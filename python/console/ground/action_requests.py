@@ -27,13 +27,14 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any
 
-from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, insert, select, update
+from sqlalchemy import insert, select, update
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
 from console.ground.change_feed import ChangeNotice
+from records.console_tables import run_action_requests
 
-__all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction", "run_action_requests"]
+__all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction"]
 
 log = logging.getLogger(__name__)
 
@@ -42,21 +43,6 @@ TAKE_WITHIN_S = 5.0
 #: How long a taken request may go unanswered before its outcome is reported unknown.
 ANSWER_WITHIN_S = 30.0
 
-run_action_requests = Table(
-    "run_action_requests",
-    MetaData(),
-    Column("id", Integer, primary_key=True, autoincrement=True),
-    Column("run_id", String(120), nullable=False),
-    Column("host_id", String(64), nullable=False),
-    Column("user_id", String(64), nullable=False),
-    Column("console", String(200), nullable=False),
-    Column("action", Text, nullable=False),
-    Column("state", String(16), nullable=False),
-    Column("requested", DateTime(timezone=True), nullable=False),
-    Column("status", Integer, nullable=True),
-    Column("answer", Text, nullable=True),
-    Column("answered", DateTime(timezone=True), nullable=True),
-)
 _R = run_action_requests.c
 
 

@@ -3,8 +3,8 @@
 A console must learn within a second that another process appended to a run, started, ended or
 took over hosting a run, asked it to act, or changed an account. Notices name what changed; the
 subscriber reads the rest from the tables (a notice is a wake-up, never the data). Channels and
-payloads (the appending :class:`~pride.audit_log.AuditLog` announces events after its commit;
-the triggers of revision 0004 of :mod:`pride.migrations` announce the rest):
+payloads (the appending :class:`~records.audit_log.AuditLog` announces events after its commit;
+the triggers of revision 0004 of :mod:`records.migrations` announce the rest):
 
 =========== ================================= =================================================
 channel     payload                           when

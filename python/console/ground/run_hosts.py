@@ -27,25 +27,12 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import (
-    Column,
-    DateTime,
-    Integer,
-    LargeBinary,
-    MetaData,
-    String,
-    Table,
-    Text,
-    delete,
-    func,
-    insert,
-    select,
-    update,
-)
+from sqlalchemy import delete, func, insert, select, update
 from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import IntegrityError, SQLAlchemyError
 
-from pride.audit_chain import utc
+from records.audit_chain import utc
+from records.console_tables import run_camera_frames, run_hosts
 
 __all__ = [
     "DEFAULT_LEASE_S",
@@ -53,8 +40,6 @@ __all__ = [
     "HostedElsewhere",
     "PublishedView",
     "RunHosting",
-    "run_camera_frames",
-    "run_hosts",
 ]
 
 log = logging.getLogger(__name__)
@@ -68,33 +53,6 @@ PUBLISH_PERIOD_S = 1.0
 FRAME_PERIOD_S = 1.0
 _COALESCE_S = 0.05  # a burst of events is published once
 
-_metadata = MetaData()
-_WHEN = DateTime(timezone=True)
-
-#: The tables at the newest revision (revision 0004 creates them).
-run_hosts = Table(
-    "run_hosts",
-    _metadata,
-    Column("run_id", String(120), primary_key=True),
-    Column("host_id", String(64), nullable=False),
-    Column("host", String(200), nullable=False),
-    Column("binding", String(200), nullable=False),
-    Column("started_by", String(120), nullable=False),
-    Column("claimed", _WHEN, nullable=False),
-    Column("lease_until", _WHEN, nullable=False),
-    Column("status", String(16), nullable=False),
-    Column("mode", String(16), nullable=False),
-    Column("procedure_view", Text, nullable=False),
-    Column("view", Text, nullable=False),
-    Column("view_seq", Integer, nullable=False),
-)
-run_camera_frames = Table(
-    "run_camera_frames",
-    _metadata,
-    Column("run_id", String(120), primary_key=True),
-    Column("version", String(64), nullable=False),
-    Column("image", LargeBinary, nullable=False),
-)
 _H = run_hosts.c
 _SUMMARY = (_H.run_id, _H.host_id, _H.host, _H.binding, _H.started_by, _H.claimed, _H.lease_until, _H.status, _H.mode)
 

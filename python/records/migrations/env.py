@@ -1,10 +1,10 @@
-"""Alembic environment: migrate the connection :func:`pride.audit_schema.ensure_schema` hands over."""
+"""Alembic environment: migrate the connection :func:`records.audit_schema.ensure_schema` hands over."""
 
 from __future__ import annotations
 
 from alembic import context
 
-from pride.audit_schema import VERSION_TABLE
+from records.audit_schema import VERSION_TABLE
 
 connection = context.config.attributes["connection"]
 context.configure(

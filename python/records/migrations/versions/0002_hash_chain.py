@@ -1,7 +1,7 @@
 """Tamper evidence: a hash chain per run, append-only triggers, and (PostgreSQL) the runner's grants.
 
 Existing events are linked in sequence order, run by run, exactly as new ones are
-(:mod:`pride.audit_chain`), so an upgraded log verifies like a new one. Triggers then refuse
+(:mod:`records.audit_chain`), so an upgraded log verifies like a new one. Triggers then refuse
 UPDATE and DELETE (and TRUNCATE on PostgreSQL) for everyone, the owner included; on PostgreSQL
 the group role ``caretaker_runner`` may SELECT and INSERT events and nothing else.
 
@@ -14,8 +14,8 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-from pride.audit_chain import GENESIS, link_hash
-from pride.audit_schema import RUNNER_ROLE, VERSION_TABLE
+from records.audit_chain import GENESIS, link_hash
+from records.audit_schema import RUNNER_ROLE, VERSION_TABLE
 
 revision = "0002"
 down_revision = "0001"

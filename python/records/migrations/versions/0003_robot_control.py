@@ -1,4 +1,4 @@
-"""Control of robots in the ground database: one row per controlled robot (:mod:`pride.robot_control`).
+"""Control of robots in the ground database: one row per controlled robot (:mod:`records.robot_control`).
 
 The primary key on ``robot`` is what makes control exclusive across processes: a second INSERT
 for a robot fails. On PostgreSQL the runner's role (``caretaker_runner``) may read and change
@@ -13,7 +13,7 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-from pride.audit_schema import RUNNER_ROLE
+from records.audit_schema import RUNNER_ROLE
 
 revision = "0003"
 down_revision = "0002"

@@ -1,5 +1,7 @@
 """Several consoles on one database: accounts, run hosts with leases, forwarded actions, change notices.
 
+The tables are those of :mod:`records.console_tables`.
+
 - ``console_accounts`` (:mod:`console.accounts`): consoles read it, the owner (``caretaker
   accounts``) changes it. A log whose accounts table the web view created before this revision
   keeps it as it is.
@@ -10,7 +12,7 @@
   hosted elsewhere, and its answer.
 - PostgreSQL: triggers NOTIFY the consoles (:mod:`console.ground.change_feed`) of changed hosts,
   requests and answers, and changed accounts (new events are announced by the appending process,
-  after its commit: :class:`pride.audit_log.AuditLog`); the runner role may read accounts and read
+  after its commit: :class:`records.audit_log.AuditLog`); the runner role may read accounts and read
   and write the three tables.
 
 Revision ID: 0004
@@ -19,17 +21,15 @@ Revises: 0002
 
 from __future__ import annotations
 
-import sqlalchemy as sa
 from alembic import op
 
-from pride.audit_schema import RUNNER_ROLE
+from records import console_tables
+from records.audit_schema import RUNNER_ROLE
 
 revision = "0004"
 down_revision = "0003"
 branch_labels = None
 depends_on = None
-
-_WHEN = sa.DateTime(timezone=True)
 
 #: table -> what the runner role may do with it
 _GRANTS = {
@@ -62,52 +62,9 @@ _NOTICES = [
 
 def upgrade() -> None:
     bind = op.get_bind()
-    if not sa.inspect(bind).has_table("console_accounts"):
-        op.create_table(
-            "console_accounts",
-            sa.Column("user_id", sa.String(64), primary_key=True),
-            sa.Column("name", sa.String(200), nullable=False),
-            sa.Column("role", sa.String(16), nullable=False),
-            sa.Column("password_hash", sa.String(255), nullable=False),
-            sa.Column("created", _WHEN, nullable=False),
-            sa.Column("password_changed", _WHEN, nullable=False),
-        )
-    op.create_table(
-        "run_hosts",
-        sa.Column("run_id", sa.String(120), primary_key=True),
-        sa.Column("host_id", sa.String(64), nullable=False),
-        sa.Column("host", sa.String(200), nullable=False),
-        sa.Column("binding", sa.String(200), nullable=False),
-        sa.Column("started_by", sa.String(120), nullable=False),
-        sa.Column("claimed", _WHEN, nullable=False),
-        sa.Column("lease_until", _WHEN, nullable=False),
-        sa.Column("status", sa.String(16), nullable=False),
-        sa.Column("mode", sa.String(16), nullable=False),
-        sa.Column("procedure_view", sa.Text, nullable=False),
-        sa.Column("view", sa.Text, nullable=False),
-        sa.Column("view_seq", sa.Integer, nullable=False),
-    )
-    op.create_table(
-        "run_camera_frames",
-        sa.Column("run_id", sa.String(120), primary_key=True),
-        sa.Column("version", sa.String(64), nullable=False),
-        sa.Column("image", sa.LargeBinary, nullable=False),
-    )
-    op.create_table(
-        "run_action_requests",
-        sa.Column("id", sa.Integer, primary_key=True, autoincrement=True),
-        sa.Column("run_id", sa.String(120), nullable=False),
-        sa.Column("host_id", sa.String(64), nullable=False),
-        sa.Column("user_id", sa.String(64), nullable=False),
-        sa.Column("console", sa.String(200), nullable=False),
-        sa.Column("action", sa.Text, nullable=False),
-        sa.Column("state", sa.String(16), nullable=False),
-        sa.Column("requested", _WHEN, nullable=False),
-        sa.Column("status", sa.Integer, nullable=True),
-        sa.Column("answer", sa.Text, nullable=True),
-        sa.Column("answered", _WHEN, nullable=True),
-    )
-    op.create_index("ix_run_action_requests_host_state", "run_action_requests", ["host_id", "state"])
+    # the tables as records.console_tables defines them; an accounts table the web view created
+    # before this revision is kept as it is (checkfirst)
+    console_tables.metadata.create_all(bind, checkfirst=True)
     op.create_index("ix_audit_records_kind", "audit_records", ["kind"])  # the runs list reads the run starts
     if bind.dialect.name == "postgresql":
         _postgresql_notices_and_grants()

@@ -1,4 +1,4 @@
-"""Released procedures: the history of each procedure's versions (:mod:`pride.releases`).
+"""Released procedures: the history of each procedure's versions (:mod:`records.releases`).
 
 ``procedure_releases`` holds, per procedure id, who saved a version on the Author page, who asked
 for a version's release and who released it, each with the version's sha256 (a released row also
@@ -15,7 +15,7 @@ from __future__ import annotations
 import sqlalchemy as sa
 from alembic import op
 
-from pride.audit_schema import RUNNER_ROLE
+from records.audit_schema import RUNNER_ROLE
 
 revision = "0005"
 down_revision = "0004"
