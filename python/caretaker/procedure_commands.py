@@ -176,6 +176,14 @@ def run_main(argv: list[str] | None = None) -> int:
         metavar="PATH",
         help="the deployment of the robot side the binding reaches, or a folder of deployments (a simulator? "
         "which commands need approval?), when it is neither shipped nor beside the binding",
+    parser.add_argument(
+        "--unit-lifetime",
+        type=float,
+        default=UNIT_LIFETIME_S,
+        metavar="S",
+        help="with --onboard: how long the unit may take to reach the habitat and start, beyond the link's round "
+        f"trip (default {UNIT_LIFETIME_S:.0f} s); past it the habitat refuses it as expired",
+    )
     )
     parser.add_argument(
         "--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N"
@@ -431,7 +439,7 @@ def _run_onboard(
             confirm_manual=args.confirm_manual,
             confirm_hazardous=args.confirm_hazardous,
             breakpoints=args.breakpoints,
-            lifetime_s=UNIT_LIFETIME_S + 2 * endpoint.one_way_delay,
+            lifetime_s=args.unit_lifetime + 2 * endpoint.one_way_delay,
             now=time.time(),
             version=version,
             policy=side.approvals,

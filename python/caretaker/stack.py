@@ -191,20 +191,27 @@ class StackFailed(RuntimeError):
     """A part of the stack did not start, or died while running."""
 
 
+#: How a part prints a security event (a refused unit or action): shown even when parts are not echoed.
+SECURITY_LINE = "SECURITY "
+
+
 class PartEcho:
-    """Echoes the parts' output, each line after its part's name (``[at-server] ...``).
+    """Echoes the parts' output, each line after its part's name (``[at-server] ...``): every line
+    (``everything``), or only the security events (:data:`SECURITY_LINE`), which are always shown.
 
     The parts print from their own reader threads, so their lines interleave: the name says who
     wrote each, and one column as wide as the longest name keeps the lines themselves aligned.
     """
 
-    def __init__(self, names: Sequence[str], out: TerminalLines) -> None:
+    def __init__(self, names: Sequence[str], out: TerminalLines, *, everything: bool) -> None:
         self.out = out
+        self.everything = everything
         self.width = max((len(name) for name in names), default=0) + 2  # the brackets
 
     def __call__(self, name: str, line: str) -> None:
-        """``ManagedProcess``'s ``on_line``: print one line of part ``name``."""
-        self.out.say(f"{f'[{name}]':<{self.width}} {line}")
+        """``ManagedProcess``'s ``on_line``: print one line of part ``name``, if it is to be shown."""
+        if self.everything or line.startswith(SECURITY_LINE):
+            self.out.say(f"{f'[{name}]':<{self.width}} {line}")
 
 
 class Stack:
@@ -268,7 +275,7 @@ class Stack:
         self.restarts: dict[str, deque[float]] = {p.name: deque() for p in self.parts}
         self._exited = threading.Event()
         self.terminal = TerminalLines()  # the parts' echoed lines come from their reader threads
-        self._echo = PartEcho([p.name for p in self.parts], self.terminal) if echo else None
+        self._echo = PartEcho([p.name for p in self.parts], self.terminal, everything=echo)
 
     @property
     def bridge_url(self) -> str:

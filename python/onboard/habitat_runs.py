@@ -21,6 +21,7 @@ import json
 import logging
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -32,9 +33,9 @@ from pride.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
-from pride.lint import check_procedure
 from pride.model import CommandInstruction, RecordInstruction
-from pride.robot_sides import robot_side_for
+from pride.robot_sides import RobotSide, robot_side_for
+from pride.run_setup import RunSetup
 from pride.sysrep import SysRep
 from pride.systems import SystemGateway
 from records.audit_chain import StoredEvent, utc
@@ -42,23 +43,20 @@ from records.audit_log import AuditLog
 from records.robot_control import RobotControl
 
 from .unit import OperatorAction, Unit, UnitError, digest, signed_by
+from .unit_answers import UnitAnswers, UplinkAnswer
 
-__all__ = ["ActionAnswer", "EventsAnswer", "HabitatRuns", "UplinkAnswer"]
+__all__ = ["SECURITY_LOG", "ActionAnswer", "EventsAnswer", "HabitatRuns", "HabitatStatus", "UplinkAnswer"]
 
 log = logging.getLogger(__name__)
+#: The logger of security events (refused units and actions): ``caretaker onboard`` prints its records
+#: as ``SECURITY ...`` lines, which ``caretaker up`` shows whether or not it echoes its parts.
+SECURITY_LOG = "caretaker.security"
+security = logging.getLogger(SECURITY_LOG)
 
 #: The most events one answer carries (a long run is caught up in several).
 MAX_EVENTS = 200
 #: The longest a request for events waits for the next one.
 MAX_WAIT_S = 30.0
-
-
-@dataclass(frozen=True)
-class UplinkAnswer:
-    state: str  # ACCEPTED | REFUSED | EXPIRED
-    unit_hash: str
-    run_id: str
-    message: str
 
 
 @dataclass(frozen=True)
@@ -76,6 +74,18 @@ class EventsAnswer:
 class ActionAnswer:
     state: str  # DONE | REFUSED | EXPIRED
     message: str
+
+
+@dataclass(frozen=True)
+class HabitatStatus:
+    """What the onboard executive says of itself (``/caretaker_onboard/status``): its active run,
+    how many units it has answered in all, and the refusals since it started (security events)."""
+
+    active_run: str  # "" when none
+    units_answered: int
+    units_refused: int
+    actions_refused: int
+    since: str  # when this executive started (ISO 8601, UTC): the refusals are counted from then
 
 
 @dataclass
@@ -142,6 +152,12 @@ class HabitatRuns:
         self._accepted = {
             path.parent.name: Unit.from_json(path.read_text()) for path in self.units_dir.glob("*/unit.json")
         }
+        self._answers = UnitAnswers(
+            state_dir / "answers.jsonl",
+            (UplinkAnswer("ACCEPTED", h, u.run_id, f"started {u.procedure}") for h, u in self._accepted.items()),
+        )
+        self._refusals: Counter[str] = Counter()  # refused units and actions since this executive started
+        self._started_at = datetime.now(UTC)
         self._actions_file = state_dir / "actions.jsonl"
         self._actions: dict[str, ActionAnswer] = {}
         if self._actions_file.exists():
@@ -151,60 +167,87 @@ class HabitatRuns:
 
     # ---- uplink -----------------------------------------------------------------------------
     def uplink(self, unit_json: str, signature: str) -> UplinkAnswer:
-        """Take a unit: check its signature, lifetime, binding and lint, then start its run.
+        """Take a unit: check its signature, that it was never answered, its lifetime, binding and
+        lint, then start its run.
 
-        The same unit again is answered as the first time and starts nothing (its answer may have
-        been lost on the link); anything refused starts nothing.
+        Every signed unit is answered once for good (:mod:`onboard.unit_answers`): the same unit again
+        gets the first answer (it may have been lost on the link) and starts nothing, and a run id
+        that was answered before never starts a run. Refusals are security events: logged always
+        (:data:`SECURITY_LOG`) and counted in :meth:`status`.
         """
         unit_hash = digest(unit_json)
-
-        def refused(message: str, state: str = "REFUSED", run_id: str = "") -> UplinkAnswer:
-            log.warning("unit %s %s: %s", unit_hash[:12], state.lower(), message)
-            return UplinkAnswer(state, unit_hash, run_id, message)
-
         if not signed_by(unit_json, signature, self._secret):
-            return refused("the unit's signature is not the link's: it was not signed with this habitat's secret")
+            return self._refused(
+                UplinkAnswer(
+                    "REFUSED",
+                    unit_hash,
+                    "",
+                    "the unit's signature does not match its contents: changed on the way, or signed with "
+                    "another key; not started",
+                )
+            )
+        with self._lock:
+            known = self._answers.of_unit(unit_hash)
+            if known is None:
+                answer = self._answer_unit(unit_json, unit_hash)
+                self._answers.keep(answer)
+        if known is not None:
+            return known if known.state == "ACCEPTED" else self._refused(known, again=True)
+        if answer.state == "ACCEPTED":
+            log.info("unit %s accepted: onboard run %s (%s)", unit_hash[:12], answer.run_id, answer.message)
+            return answer
+        return self._refused(answer)
+
+    def _answer_unit(self, unit_json: str, unit_hash: str) -> UplinkAnswer:
+        """The one answer to a signed unit never answered before (under ``_lock``)."""
         try:
             unit = Unit.from_json(unit_json)
         except UnitError as exc:
-            return refused(f"the unit cannot be read: {exc}")
-        with self._lock:
-            if unit_hash in self._accepted:
-                return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, "already accepted: the run was started then")
-            now = self._clock()
-            if now > unit.expires_at:
-                late = now - unit.expires_at
-                return refused(f"the unit ran out {late:.1f} s before it arrived; not started", "EXPIRED", unit.run_id)
-            busy = [r for r in self._runs.values() if r.executive.snapshot().status is RunStatus.ACTIVE]
-            if busy:
-                return refused(
-                    f"onboard run {busy[0].executive.run_id} is active on this habitat; one unit runs at a time",
-                    run_id=unit.run_id,
-                )
-            if self.audit.events(unit.run_id):
-                return refused(
-                    f"run {unit.run_id} already has events here; a unit starts a new run", run_id=unit.run_id
-                )
-            binding = self._bindings.get(unit.binding)
-            if binding is None:
-                known = ", ".join(sorted(self._bindings)) or "none"
-                return refused(f"no binding {unit.binding!r} on this habitat (it has: {known})", run_id=unit.run_id)
-            folder = self.units_dir / unit_hash
-            try:
-                run = self._start(unit, unit_hash, folder, binding)
-            except ProcedureError as exc:
-                # as the ground knows the files: by their path in the unit
-                problems = "\n".join(str(p).replace(f"{folder}/", "") for p in exc.problems)
-                return refused(
-                    f"the unit does not lint against this habitat's SysReps:\n{problems}", run_id=unit.run_id
-                )
-            except RobotControlled as exc:
-                return refused(str(exc), run_id=unit.run_id)
-            (folder / "unit.json").write_text(unit_json)
-            self._accepted[unit_hash] = unit
-            self._runs[unit.run_id] = run
-        log.info("unit %s accepted: onboard run %s of %s", unit_hash[:12], unit.run_id, unit.procedure)
+            return UplinkAnswer("REFUSED", unit_hash, "", f"the unit cannot be read: {exc}")
+
+        def refused(message: str, state: str = "REFUSED") -> UplinkAnswer:
+            return UplinkAnswer(state, unit_hash, unit.run_id, message)
+
+        earlier = self._answers.of_run(unit.run_id)
+        if earlier is not None:
+            return refused(
+                f"run {unit.run_id} was answered before ({earlier.state} for unit {earlier.unit_hash[:12]}): "
+                "a run id starts at most one run; not started"
+            )
+        now = self._clock()
+        if now > unit.expires_at:
+            return refused(f"the unit ran out {now - unit.expires_at:.1f} s before it arrived; not started", "EXPIRED")
+        busy = [r for r in self._runs.values() if r.executive.snapshot().status is RunStatus.ACTIVE]
+        if busy:
+            return refused(f"onboard run {busy[0].executive.run_id} is active on this habitat; one unit runs at a time")
+        if self.audit.events(unit.run_id):
+            return refused(f"run {unit.run_id} already has events here; a unit starts a new run")
+        binding = self._bindings.get(unit.binding)
+        if binding is None:
+            known = ", ".join(sorted(self._bindings)) or "none"
+            return refused(f"no binding {unit.binding!r} on this habitat (it has: {known})")
+        folder = self.units_dir / unit_hash
+        try:
+            run = self._start(unit, unit_hash, folder, binding)
+        except ProcedureError as exc:
+            # as the ground knows the files: by their path in the unit
+            problems = "\n".join(str(p).replace(f"{folder}/", "") for p in exc.problems)
+            return refused(f"the unit does not lint against this habitat's SysReps:\n{problems}")
+        except RobotControlled as exc:
+            return refused(str(exc))
+        (folder / "unit.json").write_text(unit_json)
+        self._accepted[unit_hash] = unit
+        self._runs[unit.run_id] = run
         return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, f"started {unit.procedure}")
+
+    def _refused(self, answer: UplinkAnswer, *, again: bool = False) -> UplinkAnswer:
+        """Log and count a refused unit (a security event: a stale, forged or replayed order)."""
+        with self._lock:
+            self._refusals["unit"] += 1
+        repeat = "sent again, refused as before" if again else answer.state.lower()
+        run = f" (run {answer.run_id})" if answer.run_id else ""
+        security.warning("unit %s%s %s: %s", answer.unit_hash[:12], run, repeat, answer.message.splitlines()[0])
+        return answer
 
     def _start(self, unit: Unit, unit_hash: str, folder: Path, binding: Path) -> _Run:
         for name, text in unit.files.items():
@@ -212,21 +255,18 @@ class HabitatRuns:
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(text, encoding="utf-8")
         try:
-            checked = check_procedure(folder / unit.procedure, self._sysreps)
+            setup = RunSetup.prepare(
+                folder / unit.procedure,
+                self._side(binding),
+                self._sysreps,
+                version=lambda *_: unit.version,
+                run_id=unit.run_id,
+            )
         except ProcedureError:
             _remove(folder)
             raise
         gateway = self._open_gateway(str(binding), self._rosbridge_url)
-        executive = Executive(
-            checked,
-            gateway,
-            self.audit,
-            run_id=unit.run_id,
-            mode=Mode(unit.mode),
-            control=self.control,
-            version=unit.version,
-            approvals=self._policy_for(binding),
-        )
+        executive = setup.executive(gateway, self.audit, mode=Mode(unit.mode), control=self.control)
         executive.add_listener(lambda event: self._wake())
         try:
             for number in unit.breakpoints:
@@ -237,6 +277,10 @@ class HabitatRuns:
             _remove(folder)
             raise
         return self._answering(_Run(unit, unit_hash, executive, gateway))
+
+    def _side(self, binding: Path) -> RobotSide:
+        """The robot side a habitat binding reaches: the habitat's robot, with its deployment's approvals."""
+        return RobotSide(binding, None, simulator=False, approvals=self._policy_for(binding))
 
     def _answering(self, run: _Run) -> _Run:
         run.answerer = threading.Thread(
@@ -260,17 +304,11 @@ class HabitatRuns:
             try:
                 if binding is None:
                     raise OperatorActionError(f"its binding {unit.binding} is no longer one of this habitat's")
-                checked = check_procedure(self.units_dir / unit_hash / unit.procedure, self._sysreps)
-                gateway = self._open_gateway(str(binding), self._rosbridge_url)
-                executive = Executive.resume(
-                    checked,
-                    gateway,
-                    self.audit,
-                    events,
-                    "onboard",
-                    control=self.control,
-                    approvals=self._policy_for(binding),
+                setup = RunSetup.resuming(
+                    self.units_dir / unit_hash / unit.procedure, self._side(binding), self._sysreps, events
                 )
+                gateway = self._open_gateway(str(binding), self._rosbridge_url)
+                executive = setup.resumed(gateway, self.audit, events, "onboard", control=self.control)
             except (OperatorActionError, ProcedureError, RobotControlled) as exc:
                 log.error("onboard run %s cannot be resumed: %s", unit.run_id, exc)
                 continue
@@ -403,11 +441,18 @@ class HabitatRuns:
         """Take an operator's action on an onboard run (a key already taken is answered as then)."""
         received = self._clock()
         if not signed_by(action_json, signature, self._secret):
-            return ActionAnswer("REFUSED", "the action's signature is not the link's; not acted on")
+            return self._action_refused(
+                "?",
+                ActionAnswer(
+                    "REFUSED",
+                    "the action's signature does not match its contents: changed on the way, or signed with "
+                    "another key; not acted on",
+                ),
+            )
         try:
             action = OperatorAction.from_json(action_json)
         except UnitError as exc:
-            return ActionAnswer("REFUSED", f"the action cannot be read: {exc}")
+            return self._action_refused("?", ActionAnswer("REFUSED", f"the action cannot be read: {exc}"))
         with self._lock:
             known = self._actions.get(action.key)
         if known is not None:
@@ -430,7 +475,27 @@ class HabitatRuns:
             }
             with self._actions_file.open("a") as file:
                 file.write(json.dumps(record) + "\n")
+        return answer if answer.state == "DONE" else self._action_refused(f"{action.action} {action.key}", answer)
+
+    def _action_refused(self, what: str, answer: ActionAnswer) -> ActionAnswer:
+        """Log and count a refused action (a security event, as a refused unit is)."""
+        with self._lock:
+            self._refusals["action"] += 1
+        security.warning("action %s %s: %s", what, answer.state.lower(), answer.message)
         return answer
+
+    def status(self) -> HabitatStatus:
+        """The active run, the units answered in all, and the refusals since this executive started."""
+        with self._lock:
+            active = [r.unit.run_id for r in self._runs.values() if r.executive.snapshot().status is RunStatus.ACTIVE]
+            refusals = dict(self._refusals)
+        return HabitatStatus(
+            active[0] if active else "",
+            len(self._answers),
+            refusals.get("unit", 0),
+            refusals.get("action", 0),
+            self._started_at.isoformat(timespec="seconds"),
+        )
 
     def _perform(self, action: OperatorAction) -> ActionAnswer:
         with self._lock:

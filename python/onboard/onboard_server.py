@@ -6,7 +6,11 @@ habitat's own bridge, logged in with the link's secret, and advertises three ser
 
 - ``/caretaker_onboard/uplink`` (``Uplink``): take a signed unit, answer with its hash;
 - ``/caretaker_onboard/events`` (``RunEvents``): a run's events above a number, waiting for the next;
-- ``/caretaker_onboard/action`` (``OperatorAction``): an operator's keyed action (Halt first).
+- ``/caretaker_onboard/action`` (``OperatorAction``): an operator's keyed action (Halt first);
+- ``/caretaker_onboard/status`` (``HabitatStatus``): the active run, units answered, refusals counted.
+
+Refused units and actions are security events: printed as ``SECURITY ...`` lines whatever the log
+level, which ``caretaker up`` shows even when it does not echo its parts.
 
 It opens no port: the bridge stays the one service the link reaches. Each request runs on a thread
 of its own (an uplink starts a JVM, a request for events waits for the next one), so a Halt is
@@ -29,11 +33,12 @@ from typing import Any
 
 from datafile import DataFileError
 from pride.binding import read_binding
-from pride.sysrep import SysRepError, load_sysrep_dir
+from pride.run_setup import load_sysreps
+from pride.sysrep import SysRepError
 from rosbridge_wire.client import RosbridgeClient
 
-from .habitat_runs import HabitatRuns
-from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE
+from .habitat_runs import SECURITY_LOG, HabitatRuns
+from .unit import ACTION_SERVICE, EVENTS_SERVICE, STATUS_SERVICE, UPLINK_SERVICE
 
 __all__ = ["main"]
 
@@ -67,9 +72,7 @@ async def serve(args: argparse.Namespace) -> int:
     if endpoint.secret is None:
         print(f"caretaker onboard: {args.binding[0]} gives no secret_file: units are signed with it", file=sys.stderr)
         return 2
-    sysreps: dict[str, Any] = {}
-    for directory in args.sysrep_dir or [str(DEFAULT_SYSREP_DIR)]:
-        sysreps.update(load_sysrep_dir(directory))
+    sysreps = load_sysreps(args.sysrep_dir or [DEFAULT_SYSREP_DIR])  # a duplicate id is refused (main)
     runs = HabitatRuns(
         args.state_dir, secret=endpoint.secret, bindings=bindings, sysreps=sysreps, rosbridge_url=args.bridge
     )
@@ -99,6 +102,9 @@ async def serve(args: argparse.Namespace) -> int:
         ACTION_SERVICE,
         "caretaker_onboard_msgs/srv/OperatorAction",
         threaded(lambda r: runs.act(str(r.get("action_json", "")), str(r.get("signature", "")))),
+    )
+    client.advertise_service(
+        STATUS_SERVICE, "caretaker_onboard_msgs/srv/HabitatStatus", threaded(lambda r: runs.status())
     )
     stop = asyncio.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
@@ -157,6 +163,13 @@ def _events_values(runs: HabitatRuns, request: Mapping[str, Any]) -> _EventsValu
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     logging.basicConfig(level=args.log_level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # security events reach the habitat's log at any level, on a line of their own kind
+    printer = logging.StreamHandler(sys.stdout)
+    printer.setFormatter(logging.Formatter("SECURITY %(asctime)s %(message)s"))
+    security = logging.getLogger(SECURITY_LOG)
+    security.addHandler(printer)
+    security.setLevel(logging.INFO)
+    security.propagate = False
     try:
         return asyncio.run(serve(args))
     except (DataFileError, SysRepError, OSError) as exc:

@@ -28,6 +28,7 @@ __all__ = [
     "ACTIONS",
     "ACTION_SERVICE",
     "EVENTS_SERVICE",
+    "STATUS_SERVICE",
     "UPLINK_SERVICE",
     "OperatorAction",
     "Unit",
@@ -42,6 +43,7 @@ __all__ = [
 UPLINK_SERVICE = "/caretaker_onboard/uplink"
 EVENTS_SERVICE = "/caretaker_onboard/events"
 ACTION_SERVICE = "/caretaker_onboard/action"
+STATUS_SERVICE = "/caretaker_onboard/status"
 
 #: Operators' actions the habitat takes for an onboard run, named as the console names them, with
 #: the arguments each needs. Any may name the ``instruction`` it was clicked on: the habitat then

@@ -34,7 +34,7 @@ def test_a_part_killed_by_a_signal_says_which() -> None:
 
 def test_echoed_lines_say_which_part_printed_them_in_one_column() -> None:
     stream = io.StringIO()
-    echo = PartEcho([part.name for part in PARTS], TerminalLines(stream))
+    echo = PartEcho([part.name for part in PARTS], TerminalLines(stream), everything=True)
     said = {"sim": ["world loaded", "READY sim"], "at-server": ["restored nothing", "READY at-server"]}
     for name, lines in said.items():
         script = "; ".join(f"print({line!r})" for line in lines)
@@ -48,3 +48,11 @@ def test_echoed_lines_say_which_part_printed_them_in_one_column() -> None:
         "[at-server]  restored nothing",
         "[at-server]  READY at-server",
     ]
+
+
+def test_unechoed_parts_still_show_their_security_events() -> None:
+    stream = io.StringIO()
+    echo = PartEcho([part.name for part in PARTS], TerminalLines(stream), everything=False)
+    for line in ("READY onboard", "SECURITY unit 0123456789ab refused: forged", "an ordinary line"):
+        echo("onboard", line)
+    assert stream.getvalue().splitlines() == ["[onboard]    SECURITY unit 0123456789ab refused: forged"]

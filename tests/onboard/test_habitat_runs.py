@@ -9,6 +9,7 @@ across the emulated link, on the real stack, is tests/flight/test_iva_onboard.py
 from __future__ import annotations
 
 import json
+import logging
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
@@ -18,7 +19,7 @@ from typing import Any
 import pytest
 
 from onboard.downlink import Downlink, DownlinkError, build_unit
-from onboard.habitat_runs import HabitatRuns
+from onboard.habitat_runs import SECURITY_LOG, HabitatRuns
 from onboard.unit import OperatorAction, Unit, sign
 from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.events import EventKind
@@ -137,12 +138,57 @@ def test_the_same_unit_again_is_answered_as_before_and_starts_nothing(
     runs, gateways = habitat
     unit = make_unit()
     first, again = uplink(runs, unit), uplink(runs, unit)
-    assert (
-        first == replace(again, message=first.message) and again.message == "already accepted: the run was started then"
-    )
+    assert first.state == "ACCEPTED" and again == first
     until_ended(runs, unit.run_id)
+    assert uplink(runs, unit) == first  # and after the run ended: the same answer, no second run
     assert len(gateways) == 1
     assert [e.kind for e in runs.audit.events(unit.run_id)].count(EventKind.RUN_STARTED) == 1
+
+
+def test_a_refused_unit_sent_again_after_the_run_that_stopped_it_ended_stays_refused(
+    habitat: tuple[HabitatRuns, list[LabGateway]],
+    make_unit: Callable[..., Unit],
+    tmp_path: Path,
+    sysreps: dict[str, SysRep],
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    runs, gateways = habitat
+    running = make_unit()
+    assert uplink(runs, running).state == "ACCEPTED"
+    refused_unit = make_unit()
+    with caplog.at_level(logging.WARNING, logger=SECURITY_LOG):
+        refused = uplink(runs, refused_unit)
+        assert refused.state == "REFUSED" and f"onboard run {running.run_id} is active" in refused.message
+        until_ended(runs, running.run_id)
+
+        # as an attacker on the link would: the same bytes, within the unit's lifetime, the robot idle
+        assert uplink(runs, refused_unit) == refused
+        # nor does another unit under the refused unit's run id start it
+        renamed = replace(refused_unit, issued_at=refused_unit.issued_at + 1)
+        other = uplink(runs, renamed)
+        assert other.state == "REFUSED" and f"run {refused_unit.run_id} was answered before (REFUSED" in other.message
+    assert len(gateways) == 1 and runs.audit.events(refused_unit.run_id) == []
+    said = [r.getMessage() for r in caplog.records if r.name == SECURITY_LOG]
+    assert len(said) == 3 and all(refused.unit_hash[:12] in line for line in said[:2]), said
+    assert "sent again, refused as before" in said[1]
+    status = runs.status()
+    assert (status.active_run, status.units_answered, status.units_refused) == ("", 3, 3)
+
+    # the answers outlive the executive: a restarted one answers the replay as the first did
+    runs.close()
+    again = HabitatRuns(
+        tmp_path / "habitat",
+        secret=SECRET,
+        bindings={"lab.yaml": tmp_path / "lab.yaml"},
+        sysreps=sysreps,
+        gateway_factory=lambda path, url: pytest.fail("a replayed unit opened a gateway"),
+    )
+    try:
+        assert uplink(again, refused_unit) == refused
+        assert uplink(again, running).state == "ACCEPTED"  # accepted then, still: it starts nothing either
+        assert again.status().units_refused == 1
+    finally:
+        again.close()
 
 
 def test_refused_units_start_nothing_and_say_why(
@@ -150,7 +196,9 @@ def test_refused_units_start_nothing_and_say_why(
 ) -> None:
     runs, gateways = habitat
     forged = uplink(runs, make_unit(), secret="not the link's")
-    assert forged.state == "REFUSED" and "not signed with this habitat's secret" in forged.message
+    assert forged.state == "REFUSED" and forged.message.startswith(
+        "the unit's signature does not match its contents: changed on the way, or signed with another key"
+    )
 
     late = uplink(runs, make_unit(expires_at=time.time() - 5))
     assert late.state == "EXPIRED" and "ran out" in late.message and "before it arrived; not started" in late.message
@@ -252,7 +300,7 @@ def test_a_restarted_onboard_executive_resumes_its_run_from_the_chain(
     )
     try:
         assert again.resume_interrupted() == [unit.run_id]
-        assert uplink(again, unit).message == "already accepted: the run was started then"  # it knows the unit
+        assert uplink(again, unit).message == f"started {unit.procedure}"  # it knows the unit: the first answer
         entered = OperatorAction("key-r", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock"})
         assert act(again, entered).state == "DONE"
         events = until_ended(again, unit.run_id)
