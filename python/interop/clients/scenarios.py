@@ -448,7 +448,7 @@ class RefusedAuth(Scenario):
         early = f"; before its auth it sent {', '.join(self.before_auth)}" if self.before_auth else ""
         if refusal:
             outcome = Outcome.NON_STRICT if self.attempts > 1 else Outcome.OK
-            return outcome, f"the program was told: {short(refusal, 120)}{retried}{early}"
+            return outcome, f"the program was told: {short(refusal, 200)}{retried}{early}"
         if run.observed.get("connected"):
             retried += "; afterwards the client is connected again, without a login"
         if closed:
