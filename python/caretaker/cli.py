@@ -34,6 +34,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "new": ("caretaker.scaffold", "main", "write a working robot folder from a URDF, or a template skeleton"),
     "link": ("caretaker.link.cli", "main", "emulate a long, lossy ground-habitat link (--delay 1.3 ...)"),
     "certs": ("caretaker.certs", "main", "make the CA, bridge certificate and secret of a link (DIR --host ADDR)"),
+    "interop": ("interop.cli", "main", "check a rosbridge v2 server against docs/interop.md (ws[s]://HOST:PORT)"),
 }
 
 

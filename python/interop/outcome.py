@@ -34,12 +34,14 @@ class Frame:
     """One WebSocket message of a case, as it crossed the wire.
 
     ``direction`` is ``"sent"`` or ``"received"`` (from the suite's side); ``at`` is seconds since
-    the case started; ``text`` is the message as text (binary frames as ``"<binary N bytes: hex…>"``).
+    the case started; ``text`` is the message as text (binary frames as ``"<binary N bytes: hex…>"``);
+    ``connection`` names which of the case's connections carried it (a case may open several).
     """
 
     direction: str
     at: float
     text: str
+    connection: str = ""
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,155 @@
+"""Cases and how they run: each is a small async function with a number, a title, a profile, the
+statements it cites and a time limit; the runner turns whatever happens into a ``CaseResult``.
+
+A timeout, a dropped connection or an exception inside a case becomes FAILED with what was seen,
+never a traceback: the server under test is the one allowed to misbehave, not the suite.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import os
+import ssl
+import time
+from collections.abc import Awaitable, Callable, Iterable
+from dataclasses import dataclass
+
+from .outcome import CaseResult, Outcome
+from .session import Conversation, Credentials, NotAnswered
+from .wire import Recorder, WebSocket, WireClosed
+
+__all__ = ["Case", "CaseContext", "Deviation", "Target", "Verdict", "run_case", "run_cases"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What a case concluded: its outcome and, in words, what it observed."""
+
+    outcome: Outcome
+    observed: str
+
+
+class Deviation(Exception):
+    """Raised inside a case to end it at once with this verdict."""
+
+    def __init__(self, outcome: Outcome, observed: str) -> None:
+        super().__init__(observed)
+        self.verdict = Verdict(outcome, observed)
+
+
+@dataclass(frozen=True)
+class Target:
+    """The server under test and how to reach it."""
+
+    url: str
+    ssl_context: ssl.SSLContext | None = None
+    credentials: Credentials | None = None
+
+
+class CaseContext:
+    """What a case works with: connections to the target, its recorder, a name space of its own."""
+
+    def __init__(self, target: Target, number: str, run_id: str) -> None:
+        self.target = target
+        self.recorder = Recorder()
+        # ROS names may not hold dots or start a token with a digit: core.3 -> /interop_<run>/core_3
+        self.prefix = f"/interop_{run_id}/{number.replace('.', '_').replace('-', '_')}"
+        self._conversations: list[Conversation] = []
+        self._sockets: list[WebSocket] = []
+
+    def name(self, leaf: str) -> str:
+        """A ROS name no other case (nor another run) uses."""
+        return f"{self.prefix}/{leaf}"
+
+    async def connect(self, label: str = "A", *, authenticate: bool = True) -> Conversation:
+        """A conversation with the target, closed when the case ends (authenticated if a secret is known)."""
+        conversation = await Conversation.open(
+            self.target.url,
+            self.recorder,
+            label,
+            ssl_context=self.target.ssl_context,
+            credentials=self.target.credentials if authenticate else None,
+        )
+        self._conversations.append(conversation)
+        return conversation
+
+    async def raw_socket(self, label: str = "raw") -> WebSocket:
+        """A bare WebSocket (no auth, nothing read for the case): for the framing cases."""
+        socket = await WebSocket.connect(self.target.url, self.recorder, label, ssl_context=self.target.ssl_context)
+        self._sockets.append(socket)
+        return socket
+
+    async def close_all(self) -> None:
+        for conversation in self._conversations:
+            await conversation.close()
+        for socket in self._sockets:
+            await socket.close()
+
+
+CaseFunction = Callable[[CaseContext], Awaitable[Verdict]]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One numbered case of the suite."""
+
+    number: str  # "core.3"
+    title: str
+    profile: str
+    statements: tuple[str, ...]
+    expected: str
+    timeout: float
+    run: CaseFunction
+
+
+async def run_case(case: Case, target: Target, run_id: str) -> CaseResult:
+    """Run one case within its time; every way it can end is a ``CaseResult``."""
+    context = CaseContext(target, case.number, run_id)
+    started = time.monotonic()
+    try:
+        verdict = await asyncio.wait_for(case.run(context), case.timeout)
+    except Deviation as deviation:
+        verdict = deviation.verdict
+    except TimeoutError:
+        verdict = Verdict(Outcome.FAILED, f"the case did not end within {case.timeout:g} s")
+    except NotAnswered as missing:
+        verdict = Verdict(Outcome.FAILED, str(missing))
+    except WireClosed as closed:
+        verdict = Verdict(Outcome.FAILED, f"the server closed the connection (code {closed.code} {closed.reason})")
+    except (OSError, ConnectionError) as error:
+        verdict = Verdict(Outcome.FAILED, f"connection failed: {error}")
+    except Exception as error:  # a case must never end the run: the server's answer may be anything
+        log.debug("case %s raised", case.number, exc_info=True)
+        verdict = Verdict(Outcome.FAILED, f"unexpected answer ({type(error).__name__}: {error})")
+    finally:
+        with contextlib.suppress(TimeoutError, OSError):
+            await asyncio.wait_for(context.close_all(), 5)
+    return CaseResult(
+        case=case.number,
+        title=case.title,
+        statements=case.statements,
+        outcome=verdict.outcome,
+        expected=case.expected,
+        observed=verdict.observed,
+        duration=round(time.monotonic() - started, 3),
+        frames=tuple(context.recorder.frames),
+        extra={"profile": case.profile},
+    )
+
+
+async def run_cases(
+    cases: Iterable[Case], target: Target, on_result: Callable[[CaseResult], None] | None = None
+) -> list[CaseResult]:
+    """Run cases one after another (each has the server to itself); ``on_result`` sees each as it ends."""
+    run_id = os.urandom(3).hex()
+    results = []
+    for case in cases:
+        result = await run_case(case, target, run_id)
+        if on_result is not None:
+            on_result(result)
+        results.append(result)
+    return results
