@@ -329,6 +329,8 @@ class Dropped(Scenario):
                 await asyncio.wait_for(self.service_answered.wait(), 3.0)
 
     def judge(self, run: CaseRun) -> tuple[Outcome, str]:
+        if run.started is None:
+            return Outcome.FAILED, "the client never connected to this case"
         before = sorted(self.registered.get(1, set()))
         if self.dropped_at is None:
             return Outcome.FAILED, f"the driver never said it had registered (seen: {before})"
