@@ -5,7 +5,8 @@ It plays the cases of :mod:`interop.clients.scenarios`, one WebSocket path per c
 ``/interop/report`` with ``{"case": ID, "observed": {...}}``; ``hello`` names the client,
 ``bye`` ends the run). When the driver says bye, or at the overall timeout, every case is judged
 from the frames the server saw and what the driver reported, one line per case is printed, and
-``index.json`` is written (client → case → outcome, expected, observed, duration, frames). The
+the report (:mod:`interop.report`: ``index.json`` client → case → outcome, expected, observed,
+duration, frames; ``index.html``) gets the client's column. The
 server binds 127.0.0.1 unless told otherwise. Until the CLI wires ``--serve``:
 ``python -m interop.scripted_server --port P [--report DIR] [--json]``.
 """
@@ -20,7 +21,6 @@ import logging
 import sys
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -28,9 +28,10 @@ import websockets
 from websockets.asyncio.server import ServerConnection, serve
 
 from interop.clients.scenarios import ECHO, CaseRun, Scenario, answer, call_args, scenarios
-from interop.outcome import CaseResult, Outcome
+from interop.outcome import CaseResult
+from interop.report import case_line, summary, to_json, write_report
 
-__all__ = ["REPORT_PATH", "REPORT_SERVICE", "ScriptedServer", "main", "serve_main"]
+__all__ = ["REPORT_PATH", "REPORT_SERVICE", "ScriptedServer", "main", "serve_clients", "serve_main"]
 
 log = logging.getLogger(__name__)
 
@@ -189,31 +190,10 @@ class ScriptedServer:
                     observed=observed,
                     duration=round(duration, 3),
                     frames=tuple(run.frames),
-                    extra={"connections": run.connections, "reported": run.observed},
+                    extra={"profile": PROFILE, "connections": run.connections, "reported": run.observed},
                 )
             )
         return results
-
-
-def as_json(result: CaseResult) -> dict[str, Any]:
-    record = asdict(result)
-    record["outcome"] = result.outcome.value
-    record["statements"] = list(result.statements)
-    return record
-
-
-def write_report(report_dir: Path, client: str, results: Sequence[CaseResult]) -> Path:
-    """``index.json`` in ``report_dir``: client → case → record; other clients' entries are kept."""
-    report_dir.mkdir(parents=True, exist_ok=True)
-    path = report_dir / "index.json"
-    existing: dict[str, Any] = {}
-    if path.exists():
-        with contextlib.suppress(ValueError):
-            loaded = json.loads(path.read_text(encoding="utf-8"))
-            existing = loaded if isinstance(loaded, dict) else {}
-    existing[client] = {result.case: as_json(result) for result in results}
-    path.write_text(json.dumps(existing, indent=1), encoding="utf-8")
-    return path
 
 
 async def serve_clients(port: int, *, host: str = "127.0.0.1", timeout: float = 300.0) -> tuple[str, list[CaseResult]]:
@@ -246,14 +226,15 @@ def serve_main(
         print(f"cannot serve on {host}:{port}: {exc}", file=sys.stderr)
         return 2
     if json_out:
-        print(json.dumps({client: {result.case: as_json(result) for result in results}}, indent=1))
+        print(json.dumps(to_json(client, results), indent=1))
     else:
         for result in results:
-            print(f"{result.case:<10} {result.outcome.value:<14} {result.title}: {result.observed}")
-        counts = {outcome.value: sum(r.outcome is outcome for r in results) for outcome in Outcome}
-        print(f"{client}: " + ", ".join(f"{n} {name}" for name, n in counts.items() if n))
+            print(case_line(result))
+        print()
+        print(summary(results, [PROFILE]))
     if report_dir is not None:
-        print(f"report: {write_report(report_dir, client, results)}", file=sys.stderr if json_out else sys.stdout)
+        page = write_report(report_dir, client, results)
+        print(f"report: {page}", file=sys.stderr if json_out else sys.stdout)
     return 0 if all(result.outcome.passes for result in results) else 1
 
 

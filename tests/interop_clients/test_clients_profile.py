@@ -48,6 +48,7 @@ def serve_against(driver: Callable[[str], list[str]], report: Path) -> tuple[dic
         if server.poll() is None:
             server.kill()
             server.wait()
+    assert (report / "index.html").is_file()
     index = json.loads((report / "index.json").read_text())
     assert len(index) == 1, f"one client per run, got {list(index)}"
     return next(iter(index.values())), server.returncode, first + output
