@@ -14,27 +14,26 @@ import os
 import signal
 import sys
 import time
-import uuid
 from collections.abc import Mapping, Sequence
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
+from pride import run_setup
 from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.binding import read_binding
 from pride.diagnostics import ProcedureError
 from pride.events import Event, EventKind
-from pride.executive import Executive, Mode, OperatorActionError, RunStatus
+from pride.executive import Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from pride.lint import CheckedProcedure, check_procedure, lint_file
+from pride.lint import CheckedProcedure, lint_file
 from pride.phrasing import Wording
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
-from pride.run_version import RunVersion
-from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
+from pride.run_setup import RunSetup
+from pride.sysrep import SysRep, SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision
 from records.releases import ReleaseRefused, ReleaseStore, resume_refusal, version_for_run
@@ -49,15 +48,9 @@ DEFAULT_SYSREP_DIR = REPO / "sysrep"
 
 
 def load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
-    sysreps: dict[str, SysRep] = {}
-    for directory in directories or [str(DEFAULT_SYSREP_DIR)]:
-        for sysrep_id, sysrep in load_sysrep_dir(directory).items():
-            if sysrep_id in sysreps:
-                raise SysRepError(
-                    sysrep.path, 0, "id", f"duplicate SysRep id {sysrep_id!r} (also in {sysreps[sysrep_id].path})"
-                )
-            sysreps[sysrep_id] = sysrep
-    return sysreps
+    """The SysReps of ``--sysrep-dir`` folders (default: the shipped ones), read as every launcher
+    reads them (:func:`pride.run_setup.load_sysreps`)."""
+    return run_setup.load_sysreps(directories or [DEFAULT_SYSREP_DIR])
 
 
 def _sysrep_option(parser: argparse.ArgumentParser) -> None:
@@ -123,10 +116,6 @@ class LeftBehind:
                 self.out.say(f"LEFT {item['name']} on {item['system']}: {item['why']}")
 
 
-def _new_run_id(procedure_id: str) -> str:
-    return f"{procedure_id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{uuid.uuid4().hex[:4]}"
-
-
 def run_main(argv: list[str] | None = None) -> int:
     """``caretaker run PROC --binding FILE --auto|--manual --user NAME ...``."""
     parser = argparse.ArgumentParser(prog="caretaker run", description="run a procedure with PAX")
@@ -176,14 +165,6 @@ def run_main(argv: list[str] | None = None) -> int:
         metavar="PATH",
         help="the deployment of the robot side the binding reaches, or a folder of deployments (a simulator? "
         "which commands need approval?), when it is neither shipped nor beside the binding",
-    parser.add_argument(
-        "--unit-lifetime",
-        type=float,
-        default=UNIT_LIFETIME_S,
-        metavar="S",
-        help="with --onboard: how long the unit may take to reach the habitat and start, beyond the link's round "
-        f"trip (default {UNIT_LIFETIME_S:.0f} s); past it the habitat refuses it as expired",
-    )
     )
     parser.add_argument(
         "--break", action="append", default=[], dest="breakpoints", metavar="N", help="breakpoint at instruction N"
@@ -194,6 +175,14 @@ def run_main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="uplink the procedure to the habitat's onboard executive and supervise it from here "
         "(docs/deployment.md, Onboard runs)",
+    )
+    parser.add_argument(
+        "--unit-lifetime",
+        type=float,
+        default=UNIT_LIFETIME_S,
+        metavar="S",
+        help="with --onboard: how long the unit may take to reach the habitat and start, beyond the link's round "
+        f"trip (default {UNIT_LIFETIME_S:.0f} s); past it the habitat refuses it as expired",
     )
     parser.add_argument(
         "--at-consoles",
@@ -248,29 +237,34 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         print(exc, file=sys.stderr)
         return 2
     try:
-        checked = check_procedure(path, sysreps)
+        side = robot_side_for(Path(args.binding), deployments=args.deployment)
+    except DataFileError as exc:
+        print(f"caretaker run: the deployment serving {args.binding} cannot be used: {exc}", file=sys.stderr)
+        return 2
+    try:
+        setup = _setup(args, path, side, sysreps, audit, events)
     except ProcedureError as exc:
         for problem in exc.problems:
             print(problem, file=sys.stderr)
         print(f"caretaker run: {path} has errors; it does not start", file=sys.stderr)
         return 1
+    except ReleaseRefused as exc:
+        print(f"caretaker run: {exc}{'' if args.rehearsal else ' (--rehearsal)'}", file=sys.stderr)
+        return 2
+    checked = setup.checked
     procedure = checked.procedure
-    try:
-        side = robot_side_for(Path(args.binding), deployments=args.deployment)
-    except DataFileError as exc:
-        print(f"caretaker run: the deployment serving {args.binding} cannot be used: {exc}", file=sys.stderr)
-        return 2
-    version = _version_or_refusal(args, checked, path, side, audit, events)
-    if isinstance(version, str):
-        print(f"caretaker run: {version}", file=sys.stderr)
-        return 2
+    if events:
+        refusal = resume_refusal(checked, path, events[0].data, side)
+        if refusal is not None:
+            print(f"caretaker run: {refusal}", file=sys.stderr)
+            return 2
     try:
         approver = _approver(args, checked, side)
     except ValueError as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)
         return 2
     if args.onboard:
-        return _run_onboard(args, checked, audit, values, version, side, approver)
+        return _run_onboard(args, setup, audit, values, approver)
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -278,17 +272,16 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         return 2
     control = RobotControl(args.db)
     try:
-        missing = {s for s, _ in procedure.uses} - gateway.system_ids()
-        if missing:
-            print(f"caretaker run: binding {args.binding} serves no {', '.join(sorted(missing))}", file=sys.stderr)
+        unserved = setup.unserved(gateway)
+        if unserved is not None:
+            print(f"caretaker run: {unserved}", file=sys.stderr)
             return 2
         terminal = TerminalLines()
         printer = ProgressPrinter(procedure, terminal, Wording(checked.sysreps, args.raw))
         left_behind = LeftBehind(terminal)
         try:
             if args.resume:
-                executive = Executive.resume(
-                    checked,
+                executive = setup.resumed(
                     gateway,
                     audit,
                     events,
@@ -296,20 +289,10 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                     mode=args.mode,
                     control=control,
                     take_over=args.take_over,
-                    approvals=side.approvals,
                     listeners=(printer, left_behind),  # the resumed run's own events, not the replay
                 )
             else:
-                executive = Executive(
-                    checked,
-                    gateway,
-                    audit,
-                    run_id=_new_run_id(procedure.id),
-                    mode=args.mode or Mode.MANUAL,
-                    control=control,
-                    approvals=side.approvals,
-                    version=version,
-                )
+                executive = setup.executive(gateway, audit, mode=args.mode or Mode.MANUAL, control=control)
                 executive.add_listener(printer)
                 executive.add_listener(left_behind)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
@@ -352,21 +335,26 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         control.close()
 
 
-def _version_or_refusal(
+def _setup(
     args: argparse.Namespace,
-    checked: CheckedProcedure,
     path: str,
     side: RobotSide,
+    sysreps: dict[str, SysRep],
     audit: AuditLog,
     events: list[Event],
-) -> RunVersion | str | None:
-    """The version a new run runs (None for a resume), or why the run may not start (a str)."""
+) -> RunSetup:
+    """The run's set-up: a recorded run's going on (``events``), or a new run's, its version
+    decided by the release history (ReleaseRefused says why it may not run)."""
     if events:
-        return resume_refusal(checked, path, events[0].data, side)
-    try:
-        return version_for_run(ReleaseStore(audit.engine), checked, path, side, rehearsal=args.rehearsal)
-    except ReleaseRefused as exc:
-        return f"{exc} (--rehearsal)" if not args.rehearsal else str(exc)
+        return RunSetup.resuming(path, side, sysreps, events)
+    return RunSetup.prepare(
+        path,
+        side,
+        sysreps,
+        version=lambda checked, side: version_for_run(
+            ReleaseStore(audit.engine), checked, path, side, rehearsal=args.rehearsal
+        ),
+    )
 
 
 def _second_operator(args: argparse.Namespace, user: str, password: str) -> str:
@@ -404,15 +392,14 @@ def _approver(args: argparse.Namespace, checked: CheckedProcedure, side: RobotSi
 
 def _run_onboard(
     args: argparse.Namespace,
-    checked: CheckedProcedure,
+    setup: RunSetup,
     audit: AuditLog,
     values: dict[str, str],
-    version: RunVersion | None,
-    side: RobotSide,
     approver: str | None,
 ) -> int:
     """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record.
     The commands that need a second operator's approval go up approved by ``approver``."""
+    checked = setup.checked
     if args.resume:
         print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
         return 2
@@ -431,7 +418,7 @@ def _run_onboard(
     try:
         unit = build_unit(
             checked,
-            run_id=_new_run_id(checked.procedure.id),
+            run_id=setup.run_id,
             binding=Path(args.binding).name,
             user=args.user,
             mode=(args.mode or Mode.MANUAL).value,
@@ -441,8 +428,8 @@ def _run_onboard(
             breakpoints=args.breakpoints,
             lifetime_s=args.unit_lifetime + 2 * endpoint.one_way_delay,
             now=time.time(),
-            version=version,
-            policy=side.approvals,
+            version=setup.version,
+            policy=setup.side.approvals,
             approver=approver,
         )
     except ValueError as exc:

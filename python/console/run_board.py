@@ -18,12 +18,11 @@ The change feed tells this board what changed (new events, hosts, accounts, requ
 from __future__ import annotations
 
 import logging
-import secrets
 import threading
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -50,8 +49,8 @@ from pride.gateways import open_gateway
 from pride.lint import CheckedProcedure, check_procedure
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
-from pride.run_version import RunVersion
-from pride.sysrep import SysRep, load_sysrep_dir
+from pride.run_setup import RunSetup, load_sysreps
+from pride.sysrep import SysRep
 from pride.systems import SystemGateway
 from records.audit_log import AuditLog
 from records.releases import (
@@ -198,7 +197,7 @@ class RunBoard:
         return self.rosbridge_urls.get(binding, self.rosbridge_urls.get(""))
 
     def sysreps(self) -> dict[str, SysRep]:
-        return load_sysrep_dir(self.catalog.sysreps)
+        return load_sysreps([self.catalog.sysreps])
 
     def start(
         self,
@@ -219,30 +218,19 @@ class RunBoard:
         the other run then holds.
         """
         mode = _mode(mode_name)
-        checked = self._check(procedure_name)
-        side = self.catalog.robot_side(binding_name)
-        version = self._version(checked, procedure_name, side, rehearsal)
+        setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
         if take_over is None:
             self._refuse_if_controlled(procedure_name, binding_name)
-        gateway = self._gateway(checked, procedure_name, binding_name)
-        run_id = f"{checked.procedure.id}-{datetime.now(UTC):%Y%m%dT%H%M%SZ}-{secrets.token_hex(2)}"
+        gateway = self._gateway(setup, binding_name)
+        run_id = setup.run_id
         try:
-            executive = Executive(
-                checked,
-                gateway,
-                self.audit_log,
-                run_id=run_id,
-                mode=mode,
-                control=self.control,
-                approvals=side.approvals,
-                version=version,
-            )
+            executive = setup.executive(gateway, self.audit_log, mode=mode, control=self.control)
         except BaseException as exc:
             gateway.close()
             if isinstance(exc, OperatorActionError):  # e.g. the robot is controlled by another run
                 raise _not_started(procedure_name, exc) from None
             raise
-        live = self._hold(executive, gateway, checked, binding_name, user)
+        live = self._hold(executive, gateway, setup.checked, binding_name, user)
         try:
             executive.start(user, take_over=take_over)
         except OperatorActionError as exc:
@@ -266,13 +254,34 @@ class RunBoard:
         if holder is not None:
             raise _not_started(procedure_name, RobotControlled(holder))
 
-    def _version(self, checked: CheckedProcedure, procedure_name: str, side: RobotSide, rehearsal: bool) -> RunVersion:
-        """The version a run would run, if it may (ActionRefused 409 with the reason if not)."""
+    def _setup(
+        self, procedure_name: str, binding_name: str, *, rehearsal: bool = False, events: list[Event] | None = None
+    ) -> RunSetup:
+        """The run's set-up (:class:`pride.run_setup.RunSetup`): a new run's, its version decided by
+        the release history, or a recorded run's going on (``events``) if it may. ActionRefused 422
+        lists the procedure's problems; 409 says why this version may not run."""
+        side = self.catalog.robot_side(binding_name)
+        shown = self.catalog.shown(procedure_name)
+        path = self.catalog.procedure_path(procedure_name)
         try:
-            shown = self.catalog.shown(procedure_name)
-            return version_for_run(self.releases, checked, shown, side, rehearsal=rehearsal)
+            if events is None:
+                return RunSetup.prepare(
+                    path,
+                    side,
+                    self.sysreps(),
+                    version=lambda checked, side: version_for_run(
+                        self.releases, checked, shown, side, rehearsal=rehearsal
+                    ),
+                )
+            setup = RunSetup.resuming(path, side, self.sysreps(), events)
+        except ProcedureError as exc:
+            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
         except ReleaseRefused as exc:
             raise ActionRefused(409, str(exc)) from None
+        refusal = resume_refusal(setup.checked, shown, events[0].data, side)
+        if refusal is not None:
+            raise ActionRefused(409, f"run {setup.run_id} cannot be resumed: {refusal}")
+        return setup
 
     def start_onboard(
         self,
@@ -292,9 +301,8 @@ class RunBoard:
         on the habitat, the habitat's refusal, an unreachable habitat)."""
         mode = _mode(mode_name)
         path = self.catalog.procedure_path(procedure_name)
-        checked = self._check(procedure_name)
-        side = self.catalog.robot_side(binding_name)
-        self._version(checked, procedure_name, side, rehearsal)
+        setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
+        checked, side = setup.checked, setup.side
         points = approval_points(checked, side.approvals)
         if points and approver is None:
             main = Path(checked.procedure.path).resolve()
@@ -335,27 +343,14 @@ class RunBoard:
         if status == "completed":
             raise ActionRefused(409, f"run {run_id} is completed: there is nothing to resume")
         procedure_name = Path(str(events[0].data.get("path", ""))).name
-        checked = self._check(procedure_name)
-        side = self.catalog.robot_side(binding_name)
-        refusal = resume_refusal(checked, self.catalog.shown(procedure_name), events[0].data, side)
-        if refusal is not None:
-            raise ActionRefused(409, f"run {run_id} cannot be resumed: {refusal}")
-        gateway = self._gateway(checked, procedure_name, binding_name)
+        setup = self._setup(procedure_name, binding_name, events=events)
+        gateway = self._gateway(setup, binding_name)
         try:
-            executive = Executive.resume(
-                checked,
-                gateway,
-                self.audit_log,
-                events,
-                user,
-                mode=mode,
-                control=self.control,
-                approvals=side.approvals,
-            )
+            executive = setup.resumed(gateway, self.audit_log, events, user, mode=mode, control=self.control)
         except (OperatorActionError, ValueError) as exc:
             gateway.close()
             raise ActionRefused(409, f"run {run_id} cannot be resumed: {exc}") from None
-        live = self._hold(executive, gateway, checked, binding_name, events[0].actor, history=events)
+        live = self._hold(executive, gateway, setup.checked, binding_name, events[0].actor, history=events)
         live.catch_up(self.audit_log.events(run_id))  # what the executive recorded before the listener was attached
         log.info("%s resumed run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
@@ -412,10 +407,9 @@ class RunBoard:
         except ProcedureError as exc:
             raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
 
-    def _gateway(self, checked: CheckedProcedure, procedure_name: str, binding_name: str) -> SystemGateway:
+    def _gateway(self, setup: RunSetup, binding_name: str) -> SystemGateway:
         """An open gateway that serves every system the procedure uses."""
         binding = self.catalog.binding_path(binding_name)
-        procedure = checked.procedure
         try:
             gateway = open_gateway(str(binding), rosbridge_url=self.rosbridge_url_for(binding_name))
         except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) refuse the start
@@ -423,12 +417,10 @@ class RunBoard:
             raise ActionRefused(
                 502, f"cannot reach the systems of {binding_name}: {type(exc).__name__}: {exc}"
             ) from None
-        missing = {system for system, _ in procedure.uses} - gateway.system_ids()
-        if missing:
+        unserved = setup.unserved(gateway)
+        if unserved is not None:
             gateway.close()
-            raise ActionRefused(
-                422, f"binding {binding_name} serves no {', '.join(sorted(missing))}, which {procedure_name} uses"
-            )
+            raise ActionRefused(422, unserved)
         return gateway
 
     def _hold(

@@ -17,7 +17,8 @@ from pride.approvals import ApprovalPolicy
 from pride.events import Event
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
 from pride.lint import check_procedure
-from pride.sysrep import SysRep, load_sysrep_dir
+from pride.run_setup import load_sysreps
+from pride.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.robot_control import RobotControl
 from support.audit import AuditDatabase, RecordedJournal
@@ -30,7 +31,7 @@ from support.procedures import FIXTURES, REPO
 @pytest.fixture(scope="session")
 def sysreps() -> dict[str, SysRep]:
     """The repository's SysReps plus the lab bench's."""
-    return {**load_sysrep_dir(REPO / "sysrep"), **load_sysrep_dir(FIXTURES / "sysrep")}
+    return load_sysreps([REPO / "sysrep", FIXTURES / "sysrep"])
 
 
 # ---- the audit log's database: every suite that records runs runs on SQLite and on PostgreSQL ----
