@@ -13,13 +13,18 @@ from geometry_msgs.msg import Pose as PoseMsg
 
 from sim.scene import Pose, Scene, Shape, filter_parts, slot_body
 
-__all__ = ["collision_world", "pose_message", "shape_message"]
+__all__ = ["collision_world", "point_pose", "pose_message", "shape_message"]
 
 
 def pose_message(pose: Pose) -> PoseMsg:
+    return point_pose(pose.xyz, pose.quaternion)
+
+
+def point_pose(position: tuple[float, ...], orientation: tuple[float, ...]) -> PoseMsg:
+    """A geometry_msgs/Pose of a position and an orientation quaternion (x, y, z, w)."""
     msg = PoseMsg()
-    msg.position.x, msg.position.y, msg.position.z = (float(v) for v in pose.xyz)
-    msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = (float(v) for v in pose.quaternion)
+    msg.position.x, msg.position.y, msg.position.z = (float(v) for v in position)
+    msg.orientation.x, msg.orientation.y, msg.orientation.z, msg.orientation.w = (float(v) for v in orientation)
     return msg
 
 

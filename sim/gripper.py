@@ -68,6 +68,7 @@ class Gripper:
             self.motion.message = f"superseded by a move to {pose!r}"
             self.motion.done.set()
         target = self.spec.poses[pose]
+        LOG.info("gripper started: to %r", pose)  # the log says what moved when (a halt's tests read it)
         self.motion = GripperMotion(pose, target)
         self._blocked = [False] * len(self.joints)
         opening = any(t > q for t, q in zip(target, self.positions, strict=False))

@@ -22,9 +22,8 @@ from pathlib import Path
 import rclpy
 from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.action import FollowJointTrajectory
-from caretaker_sim_msgs.msg import CollisionWorld, Marker, Markers, NamedPoses, VisualWorld
+from caretaker_sim_msgs.msg import CollisionWorld, Markers, NamedPoses, VisualWorld
 from caretaker_sim_msgs.srv import CaptureImage, FindFilter, GetFrames, Halt, PrintMarker, SetGripper
-from geometry_msgs.msg import Pose
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -36,13 +35,16 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, intrinsics, render, write_png
+from ros_process.delay_hooks import pause
+from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, render, write_png
 from sim.cdra_cabinet import find_filter
-from sim.collision_world import collision_world, pose_message
+from sim.collision_world import collision_world, point_pose
+from sim.halt_order import HaltOrder
+from sim.perception_model import camera_info, markers_message
 from sim.publish_gate import PublishGate
 from sim.render_budget import RenderBudget
 from sim.robot_description import robot_description
-from sim.scene import CameraSpec, Scene, SceneError, load_scene
+from sim.scene import SceneError, load_scene
 from sim.simulation import Simulation
 from sim.trajectory import ErrorCode, TrajectoryError, validate_trajectory
 from sim.visual_world import visual_world
@@ -114,7 +116,7 @@ class SimNode(Node):
         # a gripper motion or a trajectory that holds the main executor's threads.
         self.halt_node = rclpy.create_node("caretaker_sim_halt", namespace=namespace)
         self.halt_srv = self.halt_node.create_service(Halt, "robot/halt", self.halt_callback, qos_profile=SERVICE_QOS)
-        self._halts_at_arrival: dict[int, int] = {}  # id(goal request) -> sim.halts when it came
+        self.order = HaltOrder()  # under world_lock: the motion requests that crossed a halt never start
         self.trajectory_server = ActionServer(
             self,
             FollowJointTrajectory,
@@ -254,7 +256,7 @@ class SimNode(Node):
         msg.header.frame_id = "world"
         for name, (pos, orn) in frames:
             msg.names.append(name)
-            msg.poses.append(_pose(pos, orn))
+            msg.poses.append(point_pose(pos, orn))
         return msg
 
     def true_frames_callback(self, request: GetFrames.Request, response: GetFrames.Response) -> GetFrames.Response:
@@ -305,11 +307,11 @@ class SimNode(Node):
         # Accept everything: refusals are reported through the result's error_string. Logged, with
         # the start below, so a goal the executor starts late shows in the log with its delay.
         LOG.info("trajectory goal accepted: %d points", len(goal_request.trajectory.points))
-        # The halts so far, noted before the client hears the goal accepted: a halt its client
-        # sends after that answer (at_ros.halt) then keeps the goal from starting, even if this
-        # process's halt thread serves it before the goal's execution begins.
+        # Noted before the client hears the goal accepted: a halt its client sends after that
+        # answer (at_ros.halt) then keeps the goal from starting, even if this process's halt
+        # thread serves it before the goal's execution begins (sim/halt_order.py).
         with self.sim.world_lock:
-            self._halts_at_arrival[id(goal_request)] = self.sim.halts
+            self.order.arrived(id(goal_request), goal_request.issued)
         return GoalResponse.ACCEPT
 
     def cancel_callback(self, goal_handle: ServerGoalHandle) -> CancelResponse:
@@ -325,7 +327,7 @@ class SimNode(Node):
             for pt in goal.trajectory.points
         ]
         with sim.world_lock:
-            halts = self._halts_at_arrival.pop(id(goal), sim.halts)  # the goal is the request accepted
+            ticket = self.order.take(id(goal))  # the goal is the request accepted
         try:
             if not math.isfinite(goal.goal_tolerance) or goal.goal_tolerance < 0:
                 raise TrajectoryError(
@@ -347,9 +349,11 @@ class SimNode(Node):
             result.error_code, result.error_string = exc.code, str(exc)
             return result
         with sim.world_lock:
-            if sim.halts != halts:  # halted between its arrival and its start: it must not move
+            halted = self.order.refusal(ticket)
+            if halted is not None:  # crossed a halt on its way: it must not move
+                LOG.warning("trajectory refused: %s", halted)
                 goal_handle.abort()
-                result.error_code, result.error_string = ErrorCode.HALTED, "halted before it started"
+                result.error_code, result.error_string = ErrorCode.HALTED, halted
                 return result
             if goal_handle.is_cancel_requested:  # cancelled before it started (a client that gave up on it)
                 goal_handle.canceled()
@@ -399,6 +403,7 @@ class SimNode(Node):
     def halt_callback(self, request: Halt.Request, response: Halt.Response) -> Halt.Response:
         reason = request.reason or "no reason given"
         with self.sim.world_lock:
+            self.order.halted(reason, request.arrived)
             stopped = self.sim.halt(reason)
         self.get_logger().warning(
             f"halt ({reason}): stopped {', '.join(stopped)}" if stopped else f"halt ({reason}): nothing was moving"
@@ -413,8 +418,15 @@ class SimNode(Node):
         sim = self.sim
         assert sim.gripper is not None
         with sim.world_lock:
-            motion = sim.gripper.start(request.pose)
-        if not self._wait(motion.done, 2.0):
+            ticket = self.order.ticket(request.issued)
+        pause("sim.gripper")
+        with sim.world_lock:
+            halted = self.order.refusal(ticket)  # crossed a halt on its way: the fingers must not move
+            motion = sim.gripper.start(request.pose) if halted is None else None
+        if motion is None:
+            LOG.warning("gripper refused: %s", halted)
+            response.success, response.message = False, halted
+        elif not self._wait(motion.done, 2.0):
             response.success, response.message = False, f"gripper did not reach {request.pose!r} in time"
         else:
             response.success, response.message, response.held_object = (
@@ -496,7 +508,7 @@ class SimNode(Node):
         assert rendered is not None  # waited for its turn
         image, sim_time, (position, orientation) = rendered
         response.image = self._image_msg(image, sim_time)
-        response.camera_pose = _pose(position, orientation)
+        response.camera_pose = point_pose(position, orientation)
         response.success = True
         if request.label:
             path = self.capture_dir / capture_file_name(self.sim.scene.name, request.camera, request.label, sim_time)
@@ -513,35 +525,6 @@ class SimNode(Node):
 
 
 CameraPose = tuple[tuple[float, ...], tuple[float, ...]]
-
-
-def _pose(position: tuple[float, ...], orientation: tuple[float, ...]) -> Pose:
-    pose = Pose()
-    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in position)
-    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (float(v) for v in orientation)
-    return pose
-
-
-def markers_message(scene: Scene) -> Markers:
-    """The markers the scene declares, where they are on their frames (the world model's)."""
-    msg = Markers(dictionary=scene.marker_dictionary)
-    for spec in scene.markers:
-        msg.markers.append(Marker(id=spec.id, size=float(spec.size), frame=spec.frame, pose=pose_message(spec.pose)))
-    return msg
-
-
-def camera_info(spec: CameraSpec) -> CameraInfo:
-    """``spec``'s calibration: the pinhole it renders with (``sim.cameras.intrinsics``), no distortion."""
-    fx, fy, cx, cy = intrinsics(spec)
-    msg = CameraInfo()
-    msg.header.frame_id = f"camera/{spec.name}"
-    msg.width, msg.height = spec.width, spec.height
-    msg.distortion_model = "plumb_bob"
-    msg.d = [0.0] * 5
-    msg.k = [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0]
-    msg.r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    msg.p = [fx, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0]
-    return msg
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:

@@ -95,7 +95,6 @@ class Simulation:
         )
         self.gripper_joints = tuple(scene.robot.gripper.joints) if scene.robot.gripper else ()
         self.run: TrajectoryRun | None = None
-        self.halts = 0  # robot/halt calls so far: a goal accepted before one must not start after it
         self._link_names = {j: name for name, j in self.world.link_index.items()}
         self._self_pairs = self._self_collision_pairs()
         self._self_links = sorted({link for pair in self._self_pairs for link in pair})
@@ -124,7 +123,6 @@ class Simulation:
         Takes effect before the next physics step (the caller holds ``world_lock``), so nothing
         moves after this returns. Returns what was stopped (empty: nothing was moving).
         """
-        self.halts += 1
         stopped = []
         run = self.run
         if run is not None:

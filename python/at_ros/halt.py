@@ -8,9 +8,14 @@ ground that cannot reach the AT server calls directly, so both paths end in one 
 it stops what a goal cancel cannot (a gripper motion, a goal someone else sent). The goal
 cancel is kept as the stop for a robot without a halt service.
 
-The execution in flight learns of a halt through a count: every command notes the count when
-it starts (:meth:`HaltSwitch.mark`) and checks it before each motion it commands, so a halt
-while it plans, between waypoints or during a gripper motion ends it too. A trajectory goal is
+The execution in flight learns of a halt through a count: every command notes the halts that
+arrived before it was issued (:meth:`HaltSwitch.mark`) and checks the count before each motion it
+commands, so a halt while it plans, between waypoints or during a gripper motion ends it too.
+"Issued" is when the command reached the robot side (:mod:`ros_process.command_order`: the
+command ledger stamps it), not when it reached this server: a halt that overtook a command held
+up in the ledger keeps it from moving. Every trajectory goal and gripper request carries that
+stamp too, and the robot refuses one issued before a halt it has seen, so a motion request that
+crosses the robot's halt on its way never starts either. A trajectory goal is
 sent under the switch's lock (:meth:`HaltSwitch.send_goal`), so a halt either comes first (the
 goal is not sent) or after; after, it waits for the controller to answer the goal before it
 halts the robot, because the controller notes its halts when a goal arrives: a goal that
@@ -24,14 +29,16 @@ from __future__ import annotations
 
 import logging
 import threading
+from dataclasses import dataclass
 from typing import Any
 
 from affordance_template_msgs.srv import Halt
 from caretaker_sim_msgs.srv import Halt as RobotHalt
 
 from at_ros.server_core import CommandRefused, ServerCore
+from ros_process.command_order import arrived_now, issued_at, stamp
 
-__all__ = ["GOAL_ANSWER_WAIT_S", "HALT_TIMEOUT", "HaltSwitch", "Halted"]
+__all__ = ["GOAL_ANSWER_WAIT_S", "HALT_TIMEOUT", "HaltSwitch", "Halted", "Mark"]
 
 LOG = logging.getLogger(__name__)
 
@@ -50,6 +57,15 @@ class Halted(CommandRefused):
         self.reason = reason
 
 
+@dataclass(frozen=True)
+class Mark:
+    """A command against the halts: how many had arrived when it was issued, and when that was
+    (s of the robot side's clock), which its motion requests carry to the robot."""
+
+    halts: int
+    issued: float
+
+
 class HaltSwitch:
     """The halts so far, and the trajectory goal in flight a halt must cancel.
 
@@ -62,41 +78,49 @@ class HaltSwitch:
         self.halt_client = halt_client
         self._lock = threading.Lock()
         self._count = 0
+        self._arrivals: list[float] = []  # when each halt arrived, in order
         self._reason = ""
         self._goal: Any = None  # ClientGoalHandle of the trajectory goal in flight
         self._sending: Any = None  # the future of a goal sent and not yet answered
 
-    def mark(self) -> int:
-        """The number of halts so far: a command notes it when it starts."""
-        with self._lock:
-            return self._count
+    def mark(self, issued: Any = None) -> Mark:
+        """What a command notes when it starts: the halts that arrived before it was issued.
 
-    def halted_since(self, mark: int) -> str | None:
+        ``issued`` is its request's stamp (builtin_interfaces/Time); None or zero: issued now.
+        """
+        now = arrived_now()
+        with self._lock:
+            if issued is None:
+                return Mark(self._count, now)
+            at = issued_at(issued, now)
+            return Mark(sum(1 for arrived in self._arrivals if arrived < at), at)
+
+    def halted_since(self, mark: Mark) -> str | None:
         """The reason of the last halt if one came after ``mark``, else None."""
         with self._lock:
-            return self._reason if self._count != mark else None
+            return self._reason if self._count != mark.halts else None
 
-    def check(self, mark: int, what: str) -> None:
+    def check(self, mark: Mark, what: str) -> None:
         """Raise :class:`Halted` if a halt came after ``mark``; ``what`` is what it stopped."""
         reason = self.halted_since(mark)
         if reason is not None:
             raise Halted(reason, f"halted ({reason}) {what}")
 
-    def send_goal(self, client: Any, goal: Any, mark: int, what: str) -> Any:
+    def send_goal(self, client: Any, goal: Any, mark: Mark, what: str) -> Any:
         """Send trajectory ``goal`` through action ``client`` unless a halt came after ``mark``
         (:class:`Halted`, ``what`` naming the motion); the future of the goal's answer."""
         with self._lock:
-            if self._count != mark:
+            if self._count != mark.halts:
                 raise Halted(self._reason, f"halted ({self._reason}) {what}")
             self._sending = client.send_goal_async(goal)
             return self._sending
 
-    def goal_started(self, handle: Any, mark: int) -> None:
+    def goal_started(self, handle: Any, mark: Mark) -> None:
         """Note the goal in flight; one accepted after a halt that did not wait for it is cancelled now."""
         with self._lock:
             self._sending = None
             self._goal = handle
-            late = self._count != mark
+            late = self._count != mark.halts
         if late:
             handle.cancel_goal_async()
 
@@ -108,9 +132,11 @@ class HaltSwitch:
     def halt(self, request: Halt.Request, response: Halt.Response) -> Any:
         """The halt service: stop everything now, then say what was stopped."""
         core = self.core
+        arrived = arrived_now()
         reason = request.reason.strip() or "no reason given"
         with self._lock:
             self._count += 1
+            self._arrivals.append(arrived)
             self._reason = reason
             goal = self._goal
             sending = self._sending
@@ -127,7 +153,7 @@ class HaltSwitch:
         if goal is not None:
             goal.cancel_goal_async()  # its result tells the execution; nothing to wait for here
         if self.halt_client is not None:
-            confirmed, stopped, said = self._halt_robot(self.halt_client, reason)
+            confirmed, stopped, said = self._halt_robot(self.halt_client, reason, arrived)
         elif goal is not None:
             confirmed, stopped, said = (
                 True,
@@ -154,12 +180,14 @@ class HaltSwitch:
         return response
 
     @staticmethod
-    def _halt_robot(client: Any, reason: str) -> tuple[bool, bool, str]:
-        """(confirmed, something stopped, what the robot said) of the robot's halt service."""
+    def _halt_robot(client: Any, reason: str, arrived: float) -> tuple[bool, bool, str]:
+        """(confirmed, something stopped, what the robot said) of the robot's halt service, told
+        that the halt ``arrived`` then: what was issued before it never starts."""
         if not client.wait_for_service(timeout_sec=0.5):
             return False, False, f"the robot's halt service {client.srv_name} is not available"
         request = RobotHalt.Request()
         request.reason = reason
+        request.arrived = stamp(arrived)
         done = threading.Event()
         future = client.call_async(request)
         future.add_done_callback(lambda _: done.set())

@@ -31,10 +31,12 @@ from caretaker_sim_msgs.srv import SetGripper
 
 from at_ros.action_client import RecordedActionClient
 from at_ros.frames import WORLD_FRAME
-from at_ros.halt import Halted, HaltSwitch
+from at_ros.halt import Halted, HaltSwitch, Mark
 from at_ros.instance import ExecutionOutcome, PlanState, ResolvedWaypoint, StoredPlan, TemplateInstance, path_sequence
 from at_ros.messages import pose_from_matrix
 from at_ros.server_core import CommandRefused, ServerCore
+from ros_process.command_order import stamp
+from ros_process.delay_hooks import pause
 
 __all__ = [
     "CANCEL_WAIT_S",
@@ -181,7 +183,7 @@ class PlanExecutor:
         ee = instance.end_effector(trajectory, list(request.end_effectors))
         group = trajectory.group(ee.id)
         assert group is not None
-        mark = self.halts.mark()  # a halt from now on prevents the execution asked for
+        mark = self.halts.mark(request.issued)  # a halt since the command was issued prevents the execution
         lock = core.command_lock(instance.key)
         if not lock.acquire(timeout=PLAN_TIMEOUT):
             raise CommandRefused(f"{instance.key} is busy with another command")
@@ -289,11 +291,11 @@ class PlanExecutor:
         trajectory = instance.trajectory(request.trajectory_name)
         if request.end_effectors:
             instance.end_effector(trajectory, list(request.end_effectors))
-        message = self._execute(instance, trajectory.name, self.halts.mark())
+        message = self._execute(instance, trajectory.name, self.halts.mark(request.issued))
         response.affordance_template_status = core.instance_status(instance, trajectory.name)
         return core.succeed(response, message)
 
-    def _execute(self, instance: TemplateInstance, trajectory: str, mark: int) -> str:
+    def _execute(self, instance: TemplateInstance, trajectory: str, mark: Mark) -> str:
         """Run the stored plan of ``trajectory``; a halt after ``mark`` stops it (or prevents it)."""
         core = self.core
         if not core.robot_lock.acquire(blocking=False):
@@ -365,7 +367,7 @@ class PlanExecutor:
                 core.state.executing = ""
             core.robot_lock.release()
 
-    def _interrupted(self, instance: TemplateInstance, plan: StoredPlan, exc: Exception, mark: int) -> CommandRefused:
+    def _interrupted(self, instance: TemplateInstance, plan: StoredPlan, exc: Exception, mark: Mark) -> CommandRefused:
         """Record an execution that stopped part-way (halted or failed); the error to answer with."""
         core = self.core
         trajectory = plan.trajectory
@@ -407,9 +409,10 @@ class PlanExecutor:
                 raise
             LOG.error("%s", exc)
 
-    def _run_segment(self, segment: Any, mark: int) -> None:
+    def _run_segment(self, segment: Any, mark: Mark) -> None:
         """One planned waypoint (affordance_template_msgs/PlannedSegment): arm, then gripper.
-        A halt after ``mark`` stops it before each motion, or during one (the robot stops)."""
+        A halt after ``mark`` stops it before each motion, or during one (the robot stops); each
+        motion request says when its command was issued, so the robot refuses it after a halt."""
         robot = self.core.robot
         points = segment.arm_trajectory.points
         if len(points) >= 2:
@@ -426,7 +429,9 @@ class PlanExecutor:
                 )
             goal = FollowJointTrajectory.Goal()
             goal.trajectory = segment.arm_trajectory
+            goal.issued = stamp(mark.issued)
             motion = f"before the motion to waypoint {segment.label}"
+            pause("at_server.send_goal")
             try:
                 handle = wait_for_future(
                     self.halts.send_goal(self.trajectory_client, goal, mark, motion), 10.0, "the trajectory action"
@@ -447,6 +452,7 @@ class PlanExecutor:
                 raise CommandRefused(f"the gripper service {robot.gripper_service} is not available")
             request = SetGripper.Request()
             request.pose = pose
+            request.issued = stamp(mark.issued)
             result = wait_for_future(self.gripper_client.call_async(request), 30.0, "the gripper")
             if not result.success:
                 raise CommandRefused(f"waypoint {segment.label}: gripper {pose!r} failed: {result.message}")

@@ -64,7 +64,7 @@ MAY_IMPORT = {
     "ros_process": set(),
     "bridge": {"datafile", "rosbridge_wire", "ros_process"},
     "at_ros": {"datafile", "ros_process"},
-    "sim": {"datafile"},
+    "sim": {"datafile", "ros_process"},
     "perception": {"at_ros", "ros_process"},
     "interop": set(),
     "caretaker": {

@@ -12,6 +12,11 @@ A key is recorded as in progress (committed) before its service is called, and i
 committed before the answer goes out, so neither a lost answer nor a restart can make a key
 run twice: a restarted ledger answers UNKNOWN for the calls it was running when it stopped.
 
+A request with an ``issued`` field (builtin_interfaces/Time: the AT server's execute and plan)
+is stamped with the time its command reached the ledger, so the robot side orders it against the
+halts that reached it meanwhile (:mod:`ros_process.command_order`): a halt that overtook a command
+still waiting here keeps it from moving the robot.
+
 Threading: a MultiThreadedExecutor; each execute request blocks one of its threads until the
 called service answers, while the answers themselves are taken on other threads.
 ``_calls_lock`` makes "is this key known or running, else claim it" one step.
@@ -30,6 +35,9 @@ from typing import Any
 from caretaker_ledger_msgs.srv import CommandOutcome, ExecuteOnce  # type: ignore[import-untyped]
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+
+from ros_process.command_order import arrived_now
+from ros_process.delay_hooks import pause
 
 from .service_calls import SERVICE_QOS, CallOutcome, Refusal, ServiceCaller, answer_outcome, valid_timeout
 from .store import LedgerStore, Record, State
@@ -81,6 +89,7 @@ class LedgerNode(Node):
     # --- execute ------------------------------------------------------------------------------
     def execute_callback(self, request: Any, response: Any) -> Any:
         key = request.command_key
+        arrived = arrived_now()  # when the command reached the robot side: the order against halts
         response.epoch = self.store.epoch
         try:
             if not _KEY.match(key):
@@ -120,12 +129,13 @@ class LedgerNode(Node):
         if record is not None:
             return _answer(response, self._recorded(key, record, request))
         assert mine is not None  # claimed above: neither running nor recorded
-        return _answer(response, self._perform(key, mine, request, timeout))
+        return _answer(response, self._perform(key, mine, request, timeout, arrived))
 
-    def _perform(self, key: str, mine: RunningCall, request: Any, timeout: float) -> CallOutcome:
+    def _perform(self, key: str, mine: RunningCall, request: Any, timeout: float, arrived: float) -> CallOutcome:
+        pause("ledger.forward")
         log.info("%s: calling %s", key, request.service)
         try:
-            outcome = self.caller.call(request.service, request.type, request.request_json, timeout)
+            outcome = self.caller.call(request.service, request.type, request.request_json, timeout, issued=arrived)
         except Exception as exc:  # the key is claimed: it must end with an answer, whatever failed
             log.exception("%s: the ledger failed during the call", key)
             outcome = CallOutcome(

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from builtin_interfaces.msg import Time
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.exceptions import InvalidServiceNameException
 from rclpy.node import Node
@@ -26,6 +27,7 @@ from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from bridge.rosbridge.conversion import dict_to_message, load_type, message_to_dict, type_name
 from bridge.rosbridge.protocol import BridgeError
+from ros_process.command_order import stamp
 
 from .store import State
 
@@ -93,13 +95,16 @@ class ServiceCaller:
         self._clients: dict[tuple[str, str], Any] = {}
         self._clients_lock = threading.Lock()
 
-    def call(self, service: str, type_text: str, request_json: str, timeout: float) -> CallOutcome:
-        """Call ``service`` once and wait at most ``timeout`` s for its answer."""
+    def call(self, service: str, type_text: str, request_json: str, timeout: float, *, issued: float) -> CallOutcome:
+        """Call ``service`` once and wait at most ``timeout`` s for its answer; a request with an
+        ``issued`` field says the command was issued at ``issued`` (the robot side's clock)."""
         try:
             client, srv_cls = self._client(service, type_text)
             request = request_message(srv_cls, request_json)
         except Refusal as exc:
             return CallOutcome(State.REFUSED, "", str(exc))
+        if isinstance(getattr(request, "issued", None), Time):
+            request.issued = stamp(issued)  # the robot side's, whatever the client wrote there
         future = client.call_async(request)
         answered = threading.Event()
         future.add_done_callback(lambda _: answered.set())
