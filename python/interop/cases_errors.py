@@ -8,7 +8,7 @@ from typing import Any
 
 from .outcome import Outcome
 from .runner import Case, CaseContext, Deviation, Verdict
-from .session import Conversation, auth_message, op_is
+from .session import Conversation, NotAnswered, auth_message, op_is
 from .steps import STRING, call_served, judge_refusal, new_id, publish_until, topic_pair
 from .wire import WireClosed
 
@@ -60,11 +60,19 @@ async def unknown_type(context: CaseContext) -> Verdict:
 async def unknown_topic(context: CaseContext) -> Verdict:
     conversation = await _leveled(context)
     request_id = new_id("unknowntopic")
-    await conversation.send({"op": "subscribe", "id": request_id, "topic": context.name("nobody_publishes")})
+    topic = context.name("nobody_publishes")
+    await conversation.send({"op": "subscribe", "id": request_id, "topic": topic})
     verdict = await judge_refusal(conversation, request_id)
-    if verdict.outcome is Outcome.FAILED and "connection is kept" in verdict.observed:
-        return Verdict(Outcome.INFORMATIONAL, "no status; the subscription is presumably pending the topic")
-    return verdict
+    if verdict.outcome is not Outcome.FAILED or "connection is kept" not in verdict.observed:
+        return verdict
+    # No status: the statement lets the subscription wait for the topic. Does it?
+    publisher = await context.connect("publisher")
+    await publisher.send({"op": "advertise", "id": new_id("adv"), "topic": topic, "type": STRING})
+    try:
+        await publish_until(publisher, conversation, topic, {"data": "late"}, 8)
+    except NotAnswered:
+        return Verdict(Outcome.FAILED, "neither refused with a status nor kept pending until the topic appeared")
+    return Verdict(Outcome.INFORMATIONAL, "no status; the subscription waited for the topic and then delivered")
 
 
 async def out_of_range(context: CaseContext) -> Verdict:
