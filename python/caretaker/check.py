@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from datafile import DataFileError, load_file
-from pride.diagnostics import ProcedureError
+from procedure_language.diagnostics import ProcedureError
 
 __all__ = ["KINDS", "check_file", "detect_kind", "main"]
 
@@ -48,13 +48,13 @@ def _deployment(path: Path) -> Any:
 
 
 def _sysrep(path: Path) -> Any:
-    from pride.sysrep import load_sysrep
+    from procedure_language.sysrep import load_sysrep
 
     return load_sysrep(path)
 
 
 def _binding(path: Path) -> Any:
-    from pride.binding import read_binding
+    from procedure_language.binding import read_binding
 
     return read_binding(path)
 
@@ -74,7 +74,7 @@ def _shipped_sysreps() -> Any:
 
 
 def _procedure(path: Path) -> Any:
-    from pride.lint import lint_file
+    from procedure_language.lint import lint_file
 
     problems = lint_file(path, _shipped_sysreps())
     if problems:

@@ -500,7 +500,7 @@ def _write_new(files: dict[Path, str]) -> None:
 def _check_written(paths: Sequence[Path]) -> None:
     """Every file checks as ``caretaker check`` checks it (a failure is a bug here: say so)."""
     from caretaker.check import check_file
-    from pride.diagnostics import ProcedureError
+    from procedure_language.diagnostics import ProcedureError
 
     for path in paths:
         try:

@@ -3,7 +3,7 @@
 The page edits a *document*: the procedure's elements as plain JSON (tag, attributes in order,
 arguments, text: a record's question, a note's words, or the ``<text>`` sentence of any other
 instruction), so what it opens it can save unchanged, and every meaning check stays in one place,
-:func:`pride.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back with the
+:func:`procedure_language.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back with the
 position (step, item) of the element they concern, found from the line of that element in the XML
 this module writes.
 """
@@ -19,8 +19,8 @@ from typing import Any, cast
 from lxml import etree
 
 from console.actions import ActionRefused
-from pride.lint import lint_file
-from pride.sysrep import SysRep
+from procedure_language.lint import lint_file
+from procedure_language.sysrep import SysRep
 
 __all__ = ["check_document", "document_to_xml", "procedure_inputs", "read_document", "save_document", "sysrep_palette"]
 

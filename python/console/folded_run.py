@@ -13,7 +13,7 @@ from typing import Any
 
 from pride.events import Event, EventKind
 from pride.phrasing import labelled_values
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 
 __all__ = ["InstructionState", "FoldedRun", "fold_events"]
 

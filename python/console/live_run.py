@@ -26,8 +26,8 @@ from console.procedure_view import procedure_json, telemetry_checks
 from console.watchers import Watcher, Watchers
 from pride.events import Event
 from pride.executive import Executive
-from pride.model import Procedure
-from pride.sysrep import SysRep, Telemetry, check_value
+from procedure_language.model import Procedure
+from procedure_language.sysrep import SysRep, Telemetry, check_value
 from pride.systems import SystemGateway
 
 __all__ = ["LiveRun"]

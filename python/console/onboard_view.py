@@ -19,8 +19,8 @@ from console.folded_run import fold_events
 from console.ground.run_hosts import PublishedView
 from console.procedure_view import procedure_json
 from pride.events import Event
-from pride.model import Procedure
-from pride.sysrep import SysRep
+from procedure_language.model import Procedure
+from procedure_language.sysrep import SysRep
 
 __all__ = ["OnboardView"]
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from pride.model import (
+from procedure_language.model import (
     BranchInstruction,
     CallInstruction,
     CommandInstruction,
@@ -27,9 +27,9 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.parser import load_procedure
+from procedure_language.parser import load_procedure
 from pride.phrasing import phrase, raw_form, template_json
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 
 Loader = Callable[[str], Procedure]
 #: Sub-procedures nest at most this deep in the view (lint rejects call cycles; this bounds the rest).

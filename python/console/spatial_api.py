@@ -33,7 +33,7 @@ from console.sign_in import SignInRefused, SignIns
 from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
 from console.spatial_link import read_view_link
 from pride.states import OperatorActionError
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 
 __all__ = ["POSE_COMMANDS", "spatial_routes"]
 

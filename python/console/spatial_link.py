@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from pride.binding import read_binding
+from procedure_language.binding import read_binding
 from rosbridge_wire.client import Endpoint
 
 __all__ = ["ViewLink", "read_view_link"]
@@ -38,7 +38,7 @@ class ViewLink:
 
 
 def read_view_link(path: str | Path, *, rosbridge_url: str | None = None) -> ViewLink | None:
-    """The binding's link for the view (read by :func:`pride.binding.read_binding`), or None when
+    """The binding's link for the view (read by :func:`procedure_language.binding.read_binding`), or None when
     it serves no Affordance Template system (nothing to show in 3D). ``rosbridge_url`` replaces
     the binding's address, as for PAX."""
     binding = read_binding(path)

@@ -38,7 +38,7 @@ from console.live_run import LiveRun
 from console.onboard_view import OnboardView
 from pride.events import Event, EventKind
 from pride.executive import Executive
-from pride.lint import CheckedProcedure
+from procedure_language.lint import CheckedProcedure
 from pride.systems import SystemGateway
 from records.audit_log import AuditLog
 

@@ -27,7 +27,7 @@ from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.events import Event, EventKind
-from pride.lint import CheckedProcedure
+from procedure_language.lint import CheckedProcedure
 from pride.run_version import RunVersion
 from records.audit_chain import GENESIS, link_hash
 from records.audit_log import AuditLog

@@ -29,14 +29,14 @@ from pathlib import Path
 from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, command_name
-from pride.diagnostics import ProcedureError
+from procedure_language.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
-from pride.model import CommandInstruction, RecordInstruction
+from procedure_language.model import CommandInstruction, RecordInstruction
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_setup import RunSetup
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 from pride.systems import SystemGateway
 from records.audit_chain import StoredEvent, utc
 from records.audit_log import AuditLog

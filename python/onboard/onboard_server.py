@@ -32,9 +32,9 @@ from pathlib import Path
 from typing import Any
 
 from datafile import DataFileError
-from pride.binding import read_binding
+from procedure_language.binding import read_binding
 from pride.run_setup import load_sysreps
-from pride.sysrep import SysRepError
+from procedure_language.sysrep import SysRepError
 from rosbridge_wire.client import RosbridgeClient
 
 from .habitat_runs import SECURITY_LOG, HabitatRuns

@@ -5,13 +5,13 @@ database libraries (tests/foundation/test_package_graph.py).
 
 Modules, by concept:
 
-- :mod:`pride.sysrep` — SysRep files: the commands and telemetry procedures may name;
-  :mod:`pride.binding` — binding files: which plugins serve which SysRep, over which bridge.
-- :mod:`pride.xml_reader` — a procedure file from outside into an XML tree (no DTD, no entities).
-- :mod:`pride.model`, :mod:`pride.parser`, :mod:`pride.schema` — procedure XML
+- :mod:`procedure_language.sysrep` — SysRep files: the commands and telemetry procedures may name;
+  :mod:`procedure_language.binding` — binding files: which plugins serve which SysRep, over which bridge.
+- :mod:`procedure_language.xml_reader` — a procedure file from outside into an XML tree (no DTD, no entities).
+- :mod:`procedure_language.model`, :mod:`procedure_language.parser`, :mod:`procedure_language.schema` — procedure XML
   (``procedures/schema/procedure.xsd``) into numbered steps and instructions.
-- :mod:`pride.lint` — meaning checks against SysReps (``caretaker lint``); a run's procedure tree
-  checked once (:class:`pride.lint.CheckedProcedure`).
+- :mod:`procedure_language.lint` — meaning checks against SysReps (``caretaker lint``); a run's procedure tree
+  checked once (:class:`procedure_language.lint.CheckedProcedure`).
 - :mod:`pride.executive` — PAX: manual and autonomous runs, operator actions, observers;
   :mod:`pride.run_engine` the machinery under it (state under one lock, journal first, PAX's
   thread, the supervisor), :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of

@@ -29,9 +29,9 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from datafile import Field
-from pride.lint import CheckedProcedure
-from pride.model import CommandInstruction, Instruction
-from pride.sysrep import SysRep
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import CommandInstruction, Instruction
+from procedure_language.sysrep import SysRep
 
 __all__ = [
     "APPROVER_PASSWORD_ENV",

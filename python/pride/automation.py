@@ -28,8 +28,8 @@ from typing import Any
 
 from pride.approvals import command_hazardous
 from pride.events import EventKind
-from pride.lint import CheckedProcedure
-from pride.model import (
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import (
     BranchInstruction,
     CallInstruction,
     CommandInstruction,
@@ -46,7 +46,7 @@ from pride.model import (
 )
 from pride.phrasing import record_refusal
 from pride.states import Controller, OperatorActionError, RecordNotCheckable
-from pride.sysrep import check_value
+from procedure_language.sysrep import check_value
 from pride.systems import CommandResult, Outcome, SystemGateway
 
 __all__ = ["Automation", "ControlLost", "Halt", "InstructionResult", "Send", "command_key"]

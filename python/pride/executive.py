@@ -97,8 +97,8 @@ from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedAp
 from pride.automation import ControlLost, Halt
 from pride.events import Event, EventKind, Journal
 from pride.leftovers import Leftover, TakenBack, taken_back
-from pride.lint import CheckedProcedure
-from pride.model import Instruction, ManualInstruction, RecordInstruction
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import Instruction, ManualInstruction, RecordInstruction
 from pride.phrasing import filled_sentence
 from pride.replanning import Replan, halted_motion
 from pride.replay import replay

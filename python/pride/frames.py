@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from pride.model import CallInstruction, Instruction, Procedure
+from procedure_language.model import CallInstruction, Instruction, Procedure
 
 __all__ = ["END", "Frame", "UnknownPositionError", "frames_at", "position_of"]
 

@@ -15,7 +15,7 @@ its labels):
 - branch / go-to / call: "If …, go to step 3 (title)", "Go to step 2 (title)", "Run <title> with …";
 - record / manual: their text, which the schema requires.
 
-A sentence is a :class:`~pride.model.Template`: ``${...}`` stay references, which a view fills in
+A sentence is a :class:`~procedure_language.model.Template`: ``${...}`` stay references, which a view fills in
 once the run knows their values. Filled in here (:func:`fill_text`), a value the run does not know
 yet reads "‹cdra at id: not known yet›": people never read ``${...}``.
 
@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from pride.events import Event, EventKind
-from pride.model import (
+from procedure_language.model import (
     ArgumentBinding,
     BranchInstruction,
     CallInstruction,
@@ -67,7 +67,7 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.sysrep import Argument, Command, SysRep
+from procedure_language.sysrep import Argument, Command, SysRep
 
 __all__ = [
     "Wording",

@@ -17,7 +17,7 @@ from typing import Any
 
 from pride.events import Event, EventKind
 from pride.frames import Frame, frames_at
-from pride.model import Procedure
+from procedure_language.model import Procedure
 from pride.states import InstructionStatus, Mode
 
 __all__ = ["Replayed", "replay", "result_values"]

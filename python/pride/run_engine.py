@@ -24,8 +24,8 @@ from pride.automation import Automation, ControlLost, InstructionResult
 from pride.events import PAX, Event, EventKind, Journal
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
-from pride.lint import CheckedProcedure
-from pride.model import Instruction
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import Instruction
 from pride.phrasing import fill_text, phrase
 from pride.run_control import ControlStore, RunControl
 from pride.run_state import RunState
@@ -70,7 +70,7 @@ class RunEngine:
         """Prepare a run (nothing happens until :meth:`start`).
 
         Args:
-            checked: what to run, as :func:`pride.lint.check_procedure` checked it (with its
+            checked: what to run, as :func:`procedure_language.lint.check_procedure` checked it (with its
                 SysReps and sub-procedures): a procedure with errors never gets this far.
             gateway: the systems (the PAX host shape, :mod:`pride.systems`).
             journal: where every event goes first (the audit log).

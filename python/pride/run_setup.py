@@ -1,7 +1,7 @@
 """A run's set-up, done one way by every launcher: the console, ``caretaker run`` and the habitat.
 
 Before a run reaches its robot, three decisions are made once and carried together: what runs
-(the procedure checked against the SysReps, :class:`pride.lint.CheckedProcedure`), where (the
+(the procedure checked against the SysReps, :class:`procedure_language.lint.CheckedProcedure`), where (the
 robot side its binding reaches, :class:`pride.robot_sides.RobotSide`: the binding file, its
 deployment and which commands need a second operator's approval there), and as what (the run id, made here, and the
 version it runs, decided by the launcher's rule: the ground's release history, or the version a
@@ -22,11 +22,11 @@ from pathlib import Path
 
 from pride.events import Event, Journal
 from pride.executive import Executive, Mode
-from pride.lint import CheckedProcedure, check_procedure
+from procedure_language.lint import CheckedProcedure, check_procedure
 from pride.robot_sides import RobotSide
 from pride.run_control import ControlStore
 from pride.run_version import RunVersion
-from pride.sysrep import SysRep, SysRepError, load_sysrep_dir
+from procedure_language.sysrep import SysRep, SysRepError, load_sysrep_dir
 from pride.systems import SystemGateway
 
 __all__ = ["RunSetup", "VersionRule", "load_sysreps", "new_run_id"]
@@ -83,7 +83,7 @@ class RunSetup:
         ``run_id``, which a habitat unit carries).
 
         Raises:
-            pride.diagnostics.ProcedureError: the procedure has errors (all of them listed).
+            procedure_language.diagnostics.ProcedureError: the procedure has errors (all of them listed).
             Whatever ``version`` raises to refuse the run.
         """
         checked = check_procedure(procedure, sysreps)

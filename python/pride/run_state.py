@@ -29,7 +29,7 @@ from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.events import PAX, Event, EventKind
 from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
-from pride.model import (
+from procedure_language.model import (
     CommandInstruction,
     Instruction,
     ManualInstruction,
@@ -41,7 +41,7 @@ from pride.model import (
 from pride.phrasing import filled_sentence
 from pride.replay import Replayed
 from pride.states import Hold, InstructionStatus, Mode, RunStatus
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 
 __all__ = ["Emit", "Job", "Request", "RunState"]
 

@@ -24,9 +24,9 @@ import pytest
 
 from onboard.downlink import build_unit
 from onboard.unit import sign
-from pride.lint import check_procedure
+from procedure_language.lint import check_procedure
 from pride.robot_sides import robot_side_for
-from pride.sysrep import load_sysrep_dir
+from procedure_language.sysrep import load_sysrep_dir
 from records.audit_chain import verify_chain
 
 from .flight_support import DELAY, PROCEDURE, Flight, assert_flown_exactly_once, flight, result_of

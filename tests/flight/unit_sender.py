@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 
 from onboard.unit import STATUS_SERVICE, UPLINK_SERVICE
-from pride.binding import read_binding
+from procedure_language.binding import read_binding
 from rosbridge_wire.client import RosbridgeClient
 
 

@@ -1,4 +1,4 @@
-"""pride.binding against the shared binding fixtures (tests/fixtures/bindings), which the Java
+"""procedure_language.binding against the shared binding fixtures (tests/fixtures/bindings), which the Java
 BindingLoader is tested with too (BindingLoaderTest): both readers accept the same files and
 refuse the same ones, each in one line naming the file and what to fix."""
 
@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from caretaker.processes import REPO
-from pride.binding import BindingError, read_binding
+from procedure_language.binding import BindingError, read_binding
 
 FIXTURES = REPO / "tests" / "fixtures" / "bindings"
 EXPECTED = yaml.safe_load((FIXTURES / "invalid" / "expected_errors.yaml").read_text())

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from loader_fuzz import Loader, fuzz_mutations, fuzz_random_bytes
 
-from pride.lint import lint_file
-from pride.sysrep import load_sysrep_dir
+from procedure_language.lint import lint_file
+from procedure_language.sysrep import load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]
 SYSREPS = load_sysrep_dir(REPO / "sysrep")

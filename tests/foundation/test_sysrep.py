@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pride.sysrep import SysRepError, check_value, load_sysrep, load_sysrep_dir
+from procedure_language.sysrep import SysRepError, check_value, load_sysrep, load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "tests" / "fixtures" / "sysrep"

@@ -26,8 +26,8 @@ from console.onboard_launch import LaunchRefused, launch_onboard
 from console.onboard_view import OnboardView
 from console.terminal_host import TerminalHost
 from pride.events import Event, EventKind
-from pride.lint import check_procedure
-from pride.sysrep import load_sysrep_dir
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
 from support.procedures import REPO
 

@@ -20,7 +20,7 @@ import pytest
 
 from caretaker.processes import REPO
 from pride.events import EventKind
-from pride.parser import load_procedure
+from procedure_language.parser import load_procedure
 from support.demos import demo_events, run_demo, verified
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=120), pytest.mark.timeout(900)]

@@ -12,7 +12,7 @@ import yaml
 
 from caretaker.certs import CertsError, make_link_credentials
 from caretaker.processes import REPO
-from pride.binding import BindingError, read_binding
+from procedure_language.binding import BindingError, read_binding
 
 GROUND = REPO / "sysrep" / "bindings" / "iva-ground.yaml"
 

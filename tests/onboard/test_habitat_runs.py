@@ -23,8 +23,8 @@ from onboard.habitat_runs import SECURITY_LOG, HabitatRuns
 from onboard.unit import OperatorAction, Unit, sign
 from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.events import EventKind
-from pride.lint import check_procedure
-from pride.sysrep import SysRep, load_sysrep_dir
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep, load_sysrep_dir
 from records.audit_log import AuditLog
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO

@@ -14,7 +14,7 @@ from pax_stack import REPO
 
 import pride.jvm
 from pride.pax_host import PaxError, PaxHost, to_java, to_python
-from pride.sysrep import SysRepError, load_sysrep
+from procedure_language.sysrep import SysRepError, load_sysrep
 from pride.systems import CommandResult, TelemetryValue
 from support.stack import robot_parts
 

@@ -16,9 +16,9 @@ import pytest
 from pride.approvals import ApprovalPolicy
 from pride.events import Event
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
-from pride.lint import check_procedure
+from procedure_language.lint import check_procedure
 from pride.run_setup import load_sysreps
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.robot_control import RobotControl
 from support.audit import AuditDatabase, RecordedJournal

@@ -17,8 +17,8 @@ import pytest
 
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, RunStatus, Snapshot
-from pride.lint import check_procedure
-from pride.sysrep import SysRep
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog, Availability
 from support.lab_gateway import LabGateway
 from support.postgres import RUNNER, PostgresServer

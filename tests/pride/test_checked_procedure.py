@@ -14,13 +14,13 @@ from pathlib import Path
 
 import pytest
 
-import pride.lint
-from pride.diagnostics import Problem
+import procedure_language.lint
+from procedure_language.diagnostics import Problem
 from pride.executive import Executive, Hold, Mode, RunStatus
-from pride.lint import check_procedure
-from pride.model import Procedure
-from pride.parser import parse_procedure
-from pride.sysrep import SysRep
+from procedure_language.lint import check_procedure
+from procedure_language.model import Procedure
+from procedure_language.parser import parse_procedure
+from procedure_language.sysrep import SysRep
 from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES
@@ -43,7 +43,7 @@ def test_each_file_is_parsed_once(tmp_path: Path, sysreps: dict[str, SysRep], mo
         parsed[Path(path).name] += 1
         return parse_procedure(path)
 
-    monkeypatch.setattr(pride.lint, "parse_procedure", counting)
+    monkeypatch.setattr(procedure_language.lint, "parse_procedure", counting)
     checked = check_procedure(main, sysreps)
     assert parsed == {"twice.xml": 1, "lab_sub.xml": 1}
     assert checked.load(str((tmp_path / "lab_sub.xml").resolve())).id == "lab_sub"

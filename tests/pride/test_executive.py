@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from pride.diagnostics import ProcedureError
+from procedure_language.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
-from pride.lint import check_procedure
-from pride.sysrep import SysRep
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
 from support.lab_gateway import LabGateway

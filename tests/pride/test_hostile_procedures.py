@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pride.lint import lint_file
-from pride.sysrep import SysRep, load_sysrep_dir
+from procedure_language.lint import lint_file
+from procedure_language.sysrep import SysRep, load_sysrep_dir
 from support.procedures import FIXTURES
 
 HOSTILE = FIXTURES / "hostile"

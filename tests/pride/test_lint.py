@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pride.lint import lint_file
-from pride.sysrep import SysRep
+from procedure_language.lint import lint_file
+from procedure_language.sysrep import SysRep
 from support.procedures import FIXTURES, REPO
 
 BROKEN = FIXTURES / "broken"

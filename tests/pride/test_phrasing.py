@@ -12,8 +12,8 @@ import pytest
 
 from console.authoring import check_document, read_document
 from pride.events import Event, EventKind
-from pride.lint import lint_file
-from pride.parser import load_procedure, parse_procedure
+from procedure_language.lint import lint_file
+from procedure_language.parser import load_procedure, parse_procedure
 from pride.phrasing import (
     Wording,
     command_text,
@@ -25,7 +25,7 @@ from pride.phrasing import (
     raw_form,
     template_json,
 )
-from pride.sysrep import load_sysrep_dir
+from procedure_language.sysrep import load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]
 SYSREPS = load_sysrep_dir(REPO / "sysrep")

@@ -11,9 +11,9 @@ import pytest
 from alembic import command
 from sqlalchemy import create_engine, select
 
-from pride.lint import check_procedure
+from procedure_language.lint import check_procedure
 from pride.robot_sides import RobotSide
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog, database_url
 from records.audit_schema import _config, head_revision
 from records.releases import (

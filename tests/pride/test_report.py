@@ -9,8 +9,8 @@ from pathlib import Path
 from lxml import etree
 
 from pride.executive import Executive, Hold, Mode, RunStatus
-from pride.lint import check_procedure
-from pride.sysrep import SysRep
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from support.audit import AuditDatabase
 from support.lab_gateway import LabGateway

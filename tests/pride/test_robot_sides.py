@@ -11,9 +11,9 @@ import pytest
 from datafile import DataFileError
 from pride.approvals import ApprovalPolicy, CriticalLevel, approval_points, missing_approvals_text
 from pride.gateways import GATEWAY_ENV
-from pride.lint import check_procedure
+from procedure_language.lint import check_procedure
 from pride.robot_sides import robot_side_for
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 from support.procedures import FIXTURES, REPO
 
 BINDINGS = REPO / "sysrep" / "bindings"

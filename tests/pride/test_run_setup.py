@@ -9,12 +9,12 @@ from pathlib import Path
 import pytest
 
 from pride.approvals import ApprovalPolicy
-from pride.diagnostics import ProcedureError
-from pride.lint import CheckedProcedure
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.lint import CheckedProcedure
 from pride.robot_sides import RobotSide
 from pride.run_setup import RunSetup, load_sysreps, new_run_id
 from pride.run_version import RunVersion
-from pride.sysrep import SysRep, SysRepError
+from procedure_language.sysrep import SysRep, SysRepError
 from records.audit_log import AuditLog
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO

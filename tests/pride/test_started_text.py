@@ -13,7 +13,7 @@ from datetime import UTC, datetime
 from caretaker.terminal import ProgressPrinter, TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Hold, Mode, RunStatus
-from pride.model import Template
+from procedure_language.model import Template
 from pride.phrasing import describe_event, fill_text, started_text
 from pride.report import summarize, to_html, to_markdown
 from support.executive_runs import Bench, finished, held

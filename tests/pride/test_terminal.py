@@ -16,8 +16,8 @@ from caretaker import terminal as terminal_module
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from pride.events import EventKind
 from pride.executive import Executive, Mode, RunStatus, Snapshot
-from pride.lint import check_procedure
-from pride.sysrep import SysRep
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from support.audit import RecordedJournal
 from support.lab_gateway import LabGateway

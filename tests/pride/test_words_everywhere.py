@@ -18,10 +18,10 @@ import pytest
 from caretaker.terminal import ProgressPrinter, TerminalLines
 from pride.events import Event
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
-from pride.lint import check_procedure
+from procedure_language.lint import check_procedure
 from pride.phrasing import Wording
 from pride.report import write_report
-from pride.sysrep import SysRep
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from support.executive_runs import finished, held
 from support.procedures import REPO

@@ -21,7 +21,7 @@ from typing import Any
 
 import yaml
 
-from pride.sysrep import SysRep, load_sysrep
+from procedure_language.sysrep import SysRep, load_sysrep
 from pride.systems import CancelResult, CommandResult, LinkListener, Outcome, TelemetryListener, TelemetryValue
 
 __all__ = ["SimulatedSystems", "open_simulated_systems"]

@@ -25,8 +25,8 @@ from playwright.sync_api import Locator, Page, expect
 from console.authoring import check_document, read_document
 from console.procedure_view import procedure_json
 from pride.events import EventKind
-from pride.parser import load_procedure
-from pride.sysrep import load_sysrep_dir
+from procedure_language.parser import load_procedure
+from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
 from support.operator_page import (
     audit_row,

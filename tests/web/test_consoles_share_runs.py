@@ -23,8 +23,8 @@ from simulated_systems import open_simulated_systems
 
 from console.terminal_host import HostedElsewhere, TerminalHost
 from pride.executive import Executive, Mode
-from pride.lint import check_procedure
-from pride.sysrep import load_sysrep_dir
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
 from support.operator_page import audit_row, expect_ended, instruction, start_run
 from support.web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server

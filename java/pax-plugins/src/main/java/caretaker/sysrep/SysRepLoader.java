@@ -29,7 +29,7 @@ import org.yaml.snakeyaml.nodes.Tag;
 
 /**
  * Loads and validates SysRep files. Walks the YAML node tree (not plain maps) so every error can
- * name its line; the checks and their order are those of {@code pride.sysrep._Reader}, so both
+ * name its line; the checks and their order are those of {@code procedure_language.sysrep._Reader}, so both
  * loaders report the same first error with the same text.
  */
 public final class SysRepLoader {

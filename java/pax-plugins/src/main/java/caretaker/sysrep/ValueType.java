@@ -51,7 +51,7 @@ public enum ValueType {
     }
 
     /**
-     * Converts a value to this type, like {@code pride.sysrep.check_value}: strings are accepted
+     * Converts a value to this type, like {@code procedure_language.sysrep.check_value}: strings are accepted
      * for every type (operators type them), so "3" is a valid integer and "true" a valid boolean;
      * a boolean is never taken as a number.
      *

@@ -18,7 +18,7 @@ import org.junit.jupiter.api.TestFactory;
 import org.yaml.snakeyaml.Yaml;
 
 /**
- * The Java loader against the binding fixtures the Python reader (pride.binding) is tested with
+ * The Java loader against the binding fixtures the Python reader (procedure_language.binding) is tested with
  * (tests/fixtures/bindings): both accept the same files and refuse the same ones, saying the same.
  */
 class BindingFixturesTest {

@@ -72,7 +72,7 @@ class SysRepLoaderTest {
         assertEquals(ValueType.REAL, sysRep.command("set_display_object_pose").arg("yaw").type());
         assertEquals(List.of("robot_active", "planner_node_active", "affordance_template_server_active",
                 "execute_status", "plan_status", "plan_valid"), sysRep.telemetry().stream().map(Telemetry::id).toList());
-        assertEquals(6, sysRep.command("add_affordance_template").line(), "the same line pride.sysrep reports");
+        assertEquals(6, sysRep.command("add_affordance_template").line(), "the same line procedure_language.sysrep reports");
     }
 
     @Test

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pride.model import Location
+from procedure_language.model import Location
 
 __all__ = ["Problem", "ProcedureError"]
 

@@ -22,7 +22,7 @@ from pathlib import Path
 from urllib.parse import urlparse
 
 from datafile import DataFileError, Field, load_file
-from pride.sysrep import load_sysrep
+from procedure_language.sysrep import load_sysrep
 from rosbridge_wire.client import Endpoint
 
 __all__ = [

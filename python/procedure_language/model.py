@@ -1,6 +1,6 @@
 """The procedure model: procedure → numbered steps → numbered instructions.
 
-Built by :mod:`pride.parser` from XML, checked by :mod:`pride.lint`, run by
+Built by :mod:`procedure_language.parser` from XML, checked by :mod:`procedure_language.lint`, run by
 :mod:`pride.executive`. Every node keeps the file position it came from so lint errors and
 runtime failures can point at the line an author must fix. Steps are numbered 1, 2, …;
 instructions 1.1, 1.2, … in document order; notes, cautions and warnings are not numbered and
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
-from pride.sysrep import check_value
+from procedure_language.sysrep import check_value
 
 __all__ = [
     "ArgumentBinding",

@@ -1,6 +1,6 @@
 """Meaning checks of a procedure against its SysReps: what ``caretaker lint`` reports.
 
-After the schema and structure (:mod:`pride.parser`), lint checks that every system, command,
+After the schema and structure (:mod:`procedure_language.parser`), lint checks that every system, command,
 telemetry item and argument exists with the right type, that every ``${...}`` is bound on every
 path that reaches it, that go-tos land on a step, that every step can be reached, and that
 sub-procedure calls pass what the callee declares. A procedure with any problem does not start.
@@ -20,8 +20,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from pride.diagnostics import Problem, ProcedureError
-from pride.model import (
+from procedure_language.diagnostics import Problem, ProcedureError
+from procedure_language.model import (
     ArgumentBinding,
     BranchInstruction,
     CallInstruction,
@@ -38,8 +38,8 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.parser import parse_procedure
-from pride.sysrep import SysRep, check_value
+from procedure_language.parser import parse_procedure
+from procedure_language.sysrep import SysRep, check_value
 
 __all__ = ["CheckedProcedure", "check_procedure", "lint_file"]
 

@@ -1,9 +1,9 @@
-"""Procedure XML → :mod:`pride.model`, with file:line:col for every element and attribute.
+"""Procedure XML → :mod:`procedure_language.model`, with file:line:col for every element and attribute.
 
-Loading is two passes: the XSD (:mod:`pride.schema`) checks structure, then this module checks
+Loading is two passes: the XSD (:mod:`procedure_language.schema`) checks structure, then this module checks
 what a schema cannot say (a condition needs a test, a wait needs a duration or a condition, an
 ``if`` reads exactly one thing) and numbers steps and instructions. Meaning against SysReps is
-:mod:`pride.lint`'s job.
+:mod:`procedure_language.lint`'s job.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 from lxml import etree
 
 from pride import schema
-from pride.diagnostics import Problem, ProcedureError
-from pride.model import (
+from procedure_language.diagnostics import Problem, ProcedureError
+from procedure_language.model import (
     ArgumentBinding,
     BranchInstruction,
     CallInstruction,
@@ -37,8 +37,8 @@ from pride.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.sysrep import check_value
-from pride.xml_reader import Positions, read_xml
+from procedure_language.sysrep import check_value
+from procedure_language.xml_reader import Positions, read_xml
 
 __all__ = ["load_procedure", "parse_procedure"]
 

@@ -19,8 +19,8 @@ from typing import cast
 
 from lxml import etree
 
-from pride.diagnostics import Problem
-from pride.xml_reader import Positions
+from procedure_language.diagnostics import Problem
+from procedure_language.xml_reader import Positions
 
 __all__ = ["ROOT", "SCHEMA_PATH", "validate"]
 

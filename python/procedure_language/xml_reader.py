@@ -17,8 +17,8 @@ from typing import cast
 
 from lxml import etree
 
-from pride.diagnostics import Problem
-from pride.model import Location
+from procedure_language.diagnostics import Problem
+from procedure_language.model import Location
 
 __all__ = ["MAX_BYTES", "Positions", "Source", "read_xml"]
 
