@@ -28,7 +28,7 @@ from caretaker.stack import Stack
 from ros_process.delay_hooks import ENVIRONMENT
 from support.stack import robot_parts
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=80)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=40)]
 
 #: s each hooked point holds: time enough for the test's halt to arrive in the gap, under load.
 HOLD = 4
