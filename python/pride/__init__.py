@@ -1,17 +1,13 @@
-"""pride: PRIDE-like electronic procedures and PAX, the executive that runs them with operators.
+"""pride: PAX, the executive that runs PRIDE-like electronic procedures with operators.
 
 The procedure side: it never imports rclpy, habitat code, nor the ground's records and their
 database libraries (tests/foundation/test_package_graph.py).
 
 Modules, by concept:
 
-- :mod:`procedure_language.sysrep` — SysRep files: the commands and telemetry procedures may name;
-  :mod:`procedure_language.binding` — binding files: which plugins serve which SysRep, over which bridge.
-- :mod:`procedure_language.xml_reader` — a procedure file from outside into an XML tree (no DTD, no entities).
-- :mod:`procedure_language.model`, :mod:`procedure_language.parser`, :mod:`procedure_language.schema` — procedure XML
-  (``procedures/schema/procedure.xsd``) into numbered steps and instructions.
-- :mod:`procedure_language.lint` — meaning checks against SysReps (``caretaker lint``); a run's procedure tree
-  checked once (:class:`procedure_language.lint.CheckedProcedure`).
+- What runs is read and checked by :mod:`procedure_language` (procedures, SysReps, bindings,
+  lint), below this package: a run gets a :class:`procedure_language.lint.CheckedProcedure`.
+- :mod:`pride.run_setup` — a run's set-up, one way for the console, ``caretaker run`` and the habitat.
 - :mod:`pride.executive` — PAX: manual and autonomous runs, operator actions, observers;
   :mod:`pride.run_engine` the machinery under it (state under one lock, journal first, PAX's
   thread, the supervisor), :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of

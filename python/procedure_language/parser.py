@@ -14,7 +14,7 @@ from typing import Any
 
 from lxml import etree
 
-from pride import schema
+from procedure_language import schema
 from procedure_language.diagnostics import Problem, ProcedureError
 from procedure_language.model import (
     ArgumentBinding,

@@ -34,6 +34,8 @@ FORBIDDEN = {
         "alembic",
         "psycopg",
     ),
+    # the files people write, read and checked: nothing that runs them, stores them or reaches a robot
+    "procedure_language": ("pride", "records", "rclpy", "bridge", "at_ros", "sim", "starlette", "sqlalchemy"),
     # the ground's records are a store: no web server, no ROS, no console above them
     "records": ("rclpy", "bridge", "at_ros", "sim", "console", "onboard", "starlette", "uvicorn"),
     "console": ("rclpy", "bridge", "at_ros", "sim"),
@@ -50,17 +52,18 @@ FORBIDDEN = {
 
 #: The allowed import order: each package and the Caretaker packages it may import. Two columns
 #: on two leaves, ``datafile`` (the reader of every user file) and ``rosbridge_wire`` (the rosbridge
-#: vocabulary and login of the bridge and its clients): the procedure side (``pride``: procedures and
-#: the executive; ``records``: the audit log, releases, robot control and the consoles' tables in the
+#: vocabulary and login of the bridge and its clients): the procedure side (``procedure_language``:
+#: procedures, SysReps and bindings read and checked; ``pride``: the executive; ``records``: the audit log, releases, robot control and the consoles' tables in the
 #: ground database, also the onboard executive's SQLite log; the ground ``console`` on top of them)
 #: and the robot side (``at_ros``, ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
 MAY_IMPORT = {
     "datafile": set(),
     "rosbridge_wire": set(),
-    "pride": {"datafile", "rosbridge_wire"},
-    "records": {"pride"},
-    "console": {"datafile", "pride", "records", "rosbridge_wire"},
-    "onboard": {"datafile", "pride", "records", "rosbridge_wire"},
+    "procedure_language": {"datafile", "rosbridge_wire"},
+    "pride": {"datafile", "procedure_language", "rosbridge_wire"},
+    "records": {"procedure_language", "pride"},
+    "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
+    "onboard": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
     "ros_process": set(),
     "bridge": {"datafile", "rosbridge_wire", "ros_process"},
     "at_ros": {"datafile", "ros_process"},
@@ -71,6 +74,7 @@ MAY_IMPORT = {
         "interop",
         "datafile",
         "rosbridge_wire",
+        "procedure_language",
         "pride",
         "records",
         "console",
