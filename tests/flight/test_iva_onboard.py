@@ -24,8 +24,8 @@ import pytest
 
 from onboard.downlink import build_unit
 from onboard.unit import sign
-from procedure_language.lint import check_procedure
 from pride.robot_sides import robot_side_for
+from procedure_language.lint import check_procedure
 from procedure_language.sysrep import load_sysrep_dir
 from records.audit_chain import verify_chain
 

@@ -14,8 +14,8 @@ from pax_stack import REPO
 
 import pride.jvm
 from pride.pax_host import PaxError, PaxHost, to_java, to_python
-from procedure_language.sysrep import SysRepError, load_sysrep
 from pride.systems import CommandResult, TelemetryValue
+from procedure_language.sysrep import SysRepError, load_sysrep
 from support.stack import robot_parts
 
 AT_SYSREP = REPO / "sysrep" / "affordance_templates.yaml"

@@ -16,8 +16,8 @@ import pytest
 from pride.approvals import ApprovalPolicy
 from pride.events import Event
 from pride.executive import Executive, Mode, OperatorActionError, RunStatus
-from procedure_language.lint import check_procedure
 from pride.run_setup import load_sysreps
+from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.robot_control import RobotControl

@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 import procedure_language.lint
-from procedure_language.diagnostics import Problem
 from pride.executive import Executive, Hold, Mode, RunStatus
+from procedure_language.diagnostics import Problem
 from procedure_language.lint import check_procedure
 from procedure_language.model import Procedure
 from procedure_language.parser import parse_procedure

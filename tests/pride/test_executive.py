@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from procedure_language.diagnostics import ProcedureError
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
+from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from support.audit import RecordedJournal

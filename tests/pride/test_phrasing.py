@@ -12,8 +12,6 @@ import pytest
 
 from console.authoring import check_document, read_document
 from pride.events import Event, EventKind
-from procedure_language.lint import lint_file
-from procedure_language.parser import load_procedure, parse_procedure
 from pride.phrasing import (
     Wording,
     command_text,
@@ -25,6 +23,8 @@ from pride.phrasing import (
     raw_form,
     template_json,
 )
+from procedure_language.lint import lint_file
+from procedure_language.parser import load_procedure, parse_procedure
 from procedure_language.sysrep import load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]

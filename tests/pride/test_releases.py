@@ -11,8 +11,8 @@ import pytest
 from alembic import command
 from sqlalchemy import create_engine, select
 
-from procedure_language.lint import check_procedure
 from pride.robot_sides import RobotSide
+from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog, database_url
 from records.audit_schema import _config, head_revision

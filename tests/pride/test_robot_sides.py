@@ -11,8 +11,8 @@ import pytest
 from datafile import DataFileError
 from pride.approvals import ApprovalPolicy, CriticalLevel, approval_points, missing_approvals_text
 from pride.gateways import GATEWAY_ENV
-from procedure_language.lint import check_procedure
 from pride.robot_sides import robot_side_for
+from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from support.procedures import FIXTURES, REPO
 

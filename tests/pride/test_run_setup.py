@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from pride.approvals import ApprovalPolicy
-from procedure_language.diagnostics import ProcedureError
-from procedure_language.lint import CheckedProcedure
 from pride.robot_sides import RobotSide
 from pride.run_setup import RunSetup, load_sysreps, new_run_id
 from pride.run_version import RunVersion
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.lint import CheckedProcedure
 from procedure_language.sysrep import SysRep, SysRepError
 from records.audit_log import AuditLog
 from support.lab_gateway import LabGateway

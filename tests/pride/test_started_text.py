@@ -13,9 +13,9 @@ from datetime import UTC, datetime
 from caretaker.terminal import ProgressPrinter, TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Hold, Mode, RunStatus
-from procedure_language.model import Template
 from pride.phrasing import describe_event, fill_text, started_text
 from pride.report import summarize, to_html, to_markdown
+from procedure_language.model import Template
 from support.executive_runs import Bench, finished, held
 
 FILTER = "CDRA-F-0012"

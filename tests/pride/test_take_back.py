@@ -20,9 +20,9 @@ from caretaker.terminal import TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, JournalFailure, Mode, OperatorActionError, RunStatus
 from pride.leftovers import Holdings, Leftover
+from pride.systems import CancelResult, CommandResult, LinkListener, LinkState, Outcome, TelemetryValue
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
-from pride.systems import CancelResult, CommandResult, LinkListener, LinkState, Outcome, TelemetryValue
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
 from support.procedures import FIXTURES

@@ -18,9 +18,9 @@ import pytest
 from caretaker.terminal import ProgressPrinter, TerminalLines
 from pride.events import Event
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
-from procedure_language.lint import check_procedure
 from pride.phrasing import Wording
 from pride.report import write_report
+from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from support.executive_runs import finished, held

@@ -21,8 +21,8 @@ from typing import Any
 
 import yaml
 
-from procedure_language.sysrep import SysRep, load_sysrep
 from pride.systems import CancelResult, CommandResult, LinkListener, Outcome, TelemetryListener, TelemetryValue
+from procedure_language.sysrep import SysRep, load_sysrep
 
 __all__ = ["SimulatedSystems", "open_simulated_systems"]
 
