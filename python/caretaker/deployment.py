@@ -46,8 +46,8 @@ from at_ros.robot_config import RobotConfig, load_robot_config, load_robot_confi
 from caretaker.world_checks import WorldCheck, check_against_scene, load_checks
 from datafile import DataFileError, Field, load_file, shipped_or_path
 from pride.approvals import ApprovalPolicy, policy_from
-from procedure_language.binding import Binding, read_binding
 from pride.robot_sides import simulator_flag
+from procedure_language.binding import Binding, read_binding
 from sim.scene import SCENES_DIR, Scene, load_scene
 
 __all__ = [

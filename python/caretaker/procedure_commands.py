@@ -23,16 +23,16 @@ from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
 from pride import run_setup
 from pride.approvals import APPROVER_PASSWORD_ENV
-from procedure_language.binding import read_binding
-from procedure_language.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from procedure_language.lint import CheckedProcedure, lint_file
 from pride.phrasing import Wording
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.run_setup import RunSetup
+from procedure_language.binding import read_binding
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.lint import CheckedProcedure, lint_file
 from procedure_language.sysrep import SysRep, SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision

@@ -18,9 +18,9 @@ from typing import Any, TextIO
 
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
-from procedure_language.model import Procedure, RecordInstruction
 from pride.phrasing import Wording, describe_event, result_text, started_text, telemetry_text
 from pride.states import RecordNotCheckable, RunEnded
+from procedure_language.model import Procedure, RecordInstruction
 
 __all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 

@@ -43,9 +43,9 @@ from console.run_board import RunBoard
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
 from pride.events import Event
+from pride.phrasing import Wording, describe_event
 from procedure_language.model import Procedure
 from procedure_language.parser import load_procedure
-from pride.phrasing import Wording, describe_event
 
 __all__ = ["build_app"]
 

@@ -26,9 +26,9 @@ from console.procedure_view import procedure_json, telemetry_checks
 from console.watchers import Watcher, Watchers
 from pride.events import Event
 from pride.executive import Executive
+from pride.systems import SystemGateway
 from procedure_language.model import Procedure
 from procedure_language.sysrep import SysRep, Telemetry, check_value
-from pride.systems import SystemGateway
 
 __all__ = ["LiveRun"]
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from pride.phrasing import phrase, raw_form, template_json
 from procedure_language.model import (
     BranchInstruction,
     CallInstruction,
@@ -28,7 +29,6 @@ from procedure_language.model import (
     WaitInstruction,
 )
 from procedure_language.parser import load_procedure
-from pride.phrasing import phrase, raw_form, template_json
 from procedure_language.sysrep import SysRep
 
 Loader = Callable[[str], Procedure]

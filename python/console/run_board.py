@@ -41,17 +41,17 @@ from console.remote_run import RemoteRun
 from console.watchers import Watchers
 from datafile import DataFileError
 from pride.approvals import approval_points, missing_approvals_text
-from procedure_language.binding import BindingError, read_binding
-from procedure_language.diagnostics import ProcedureError
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from procedure_language.lint import CheckedProcedure, check_procedure
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.run_setup import RunSetup, load_sysreps
-from procedure_language.sysrep import SysRep
 from pride.systems import SystemGateway
+from procedure_language.binding import BindingError, read_binding
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.lint import CheckedProcedure, check_procedure
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.releases import (
     ReleaseRefused,

@@ -38,8 +38,8 @@ from console.live_run import LiveRun
 from console.onboard_view import OnboardView
 from pride.events import Event, EventKind
 from pride.executive import Executive
-from procedure_language.lint import CheckedProcedure
 from pride.systems import SystemGateway
+from procedure_language.lint import CheckedProcedure
 from records.audit_log import AuditLog
 
 __all__ = ["HostedElsewhere", "TerminalHost"]

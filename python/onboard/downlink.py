@@ -27,8 +27,8 @@ from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.events import Event, EventKind
-from procedure_language.lint import CheckedProcedure
 from pride.run_version import RunVersion
+from procedure_language.lint import CheckedProcedure
 from records.audit_chain import GENESIS, link_hash
 from records.audit_log import AuditLog
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient

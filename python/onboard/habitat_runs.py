@@ -29,15 +29,15 @@ from pathlib import Path
 from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, command_name
-from procedure_language.diagnostics import ProcedureError
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
-from procedure_language.model import CommandInstruction, RecordInstruction
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_setup import RunSetup
-from procedure_language.sysrep import SysRep
 from pride.systems import SystemGateway
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.model import CommandInstruction, RecordInstruction
+from procedure_language.sysrep import SysRep
 from records.audit_chain import StoredEvent, utc
 from records.audit_log import AuditLog
 from records.robot_control import RobotControl

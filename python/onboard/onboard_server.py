@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import Any
 
 from datafile import DataFileError
-from procedure_language.binding import read_binding
 from pride.run_setup import load_sysreps
+from procedure_language.binding import read_binding
 from procedure_language.sysrep import SysRepError
 from rosbridge_wire.client import RosbridgeClient
 

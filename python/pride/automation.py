@@ -28,6 +28,9 @@ from typing import Any
 
 from pride.approvals import command_hazardous
 from pride.events import EventKind
+from pride.phrasing import record_refusal
+from pride.states import Controller, OperatorActionError, RecordNotCheckable
+from pride.systems import CommandResult, Outcome, SystemGateway
 from procedure_language.lint import CheckedProcedure
 from procedure_language.model import (
     BranchInstruction,
@@ -44,10 +47,7 @@ from procedure_language.model import (
     WaitInstruction,
     lookup,
 )
-from pride.phrasing import record_refusal
-from pride.states import Controller, OperatorActionError, RecordNotCheckable
 from procedure_language.sysrep import check_value
-from pride.systems import CommandResult, Outcome, SystemGateway
 
 __all__ = ["Automation", "ControlLost", "Halt", "InstructionResult", "Send", "command_key"]
 

@@ -97,8 +97,6 @@ from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedAp
 from pride.automation import ControlLost, Halt
 from pride.events import Event, EventKind, Journal
 from pride.leftovers import Leftover, TakenBack, taken_back
-from procedure_language.lint import CheckedProcedure
-from procedure_language.model import Instruction, ManualInstruction, RecordInstruction
 from pride.phrasing import filled_sentence
 from pride.replanning import Replan, halted_motion
 from pride.replay import replay
@@ -116,6 +114,8 @@ from pride.states import (
     Snapshot,
 )
 from pride.systems import CancelResult, CommandResult, Outcome, SystemGateway
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import Instruction, ManualInstruction, RecordInstruction
 
 __all__ = [
     "Executive",

@@ -17,8 +17,8 @@ from typing import Any
 
 from pride.events import Event, EventKind
 from pride.frames import Frame, frames_at
-from procedure_language.model import Procedure
 from pride.states import InstructionStatus, Mode
+from procedure_language.model import Procedure
 
 __all__ = ["Replayed", "replay", "result_values"]
 

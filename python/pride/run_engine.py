@@ -24,8 +24,6 @@ from pride.automation import Automation, ControlLost, InstructionResult
 from pride.events import PAX, Event, EventKind, Journal
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
-from procedure_language.lint import CheckedProcedure
-from procedure_language.model import Instruction
 from pride.phrasing import fill_text, phrase
 from pride.run_control import ControlStore, RunControl
 from pride.run_state import RunState
@@ -38,6 +36,8 @@ from pride.states import (
     Snapshot,
 )
 from pride.systems import LinkState, SystemGateway, TelemetryValue
+from procedure_language.lint import CheckedProcedure
+from procedure_language.model import Instruction
 
 if TYPE_CHECKING:  # the release history is the ground database's: the executive only carries a run's version
     from pride.run_version import RunVersion

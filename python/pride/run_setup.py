@@ -22,12 +22,12 @@ from pathlib import Path
 
 from pride.events import Event, Journal
 from pride.executive import Executive, Mode
-from procedure_language.lint import CheckedProcedure, check_procedure
 from pride.robot_sides import RobotSide
 from pride.run_control import ControlStore
 from pride.run_version import RunVersion
-from procedure_language.sysrep import SysRep, SysRepError, load_sysrep_dir
 from pride.systems import SystemGateway
+from procedure_language.lint import CheckedProcedure, check_procedure
+from procedure_language.sysrep import SysRep, SysRepError, load_sysrep_dir
 
 __all__ = ["RunSetup", "VersionRule", "load_sysreps", "new_run_id"]
 

@@ -29,6 +29,9 @@ from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.events import PAX, Event, EventKind
 from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
+from pride.phrasing import filled_sentence
+from pride.replay import Replayed
+from pride.states import Hold, InstructionStatus, Mode, RunStatus
 from procedure_language.model import (
     CommandInstruction,
     Instruction,
@@ -38,9 +41,6 @@ from procedure_language.model import (
     VerifyInstruction,
     WaitInstruction,
 )
-from pride.phrasing import filled_sentence
-from pride.replay import Replayed
-from pride.states import Hold, InstructionStatus, Mode, RunStatus
 from procedure_language.sysrep import SysRep
 
 __all__ = ["Emit", "Job", "Request", "RunState"]

@@ -29,9 +29,9 @@ from typing import Any
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, insert, select
 from sqlalchemy.engine import Engine
 
-from procedure_language.lint import CheckedProcedure
 from pride.robot_sides import RobotSide
 from pride.run_version import RunVersion
+from procedure_language.lint import CheckedProcedure
 
 __all__ = [
     "Release",
