@@ -164,6 +164,8 @@ class ScriptedServer:
         run.record("received", text)
         await run.report(observed)
         values = await run.scenario.on_report(run, observed)
+        if observed.get("done"):
+            run.end()
         response = answer(message, {"ok": True, **values})
         run.record("sent", json.dumps(response))
         return response

@@ -89,6 +89,8 @@ def test_project_python_client(tmp_path: Path) -> None:
     subscribes = [message for message in received(drop) if message.get("op") == "subscribe"]
     assert len(subscribes) == 2 and subscribes[0]["id"] == subscribes[1]["id"], subscribes
     assert received(cases["clients.6"])[0]["op"] == "auth"  # the login is the first message
+    # after a refusal _run only sleeps RECONNECT_S[0] and logs in again with the same secret
+    assert "sent the refused login again" in cases["clients.6"]["observed"]
 
 
 def test_project_java_client(tmp_path: Path) -> None:

@@ -62,13 +62,14 @@ class CaseRun:
         self.frames.append(Frame(direction, round(self.elapsed(), 4), text))
 
     async def report(self, update: Mapping[str, Any]) -> None:
-        """Merge a driver's report; a report with ``done`` ends the case."""
+        """Merge a driver's report (the case ends with :meth:`end`, once the scenario has seen it)."""
         async with self._update:
             self.observed.update(update)
             self._update.notify_all()
-        if update.get("done"):
-            self.finished_at = self.elapsed()
-            self.ended.set()
+
+    def end(self) -> None:
+        self.finished_at = self.elapsed()
+        self.ended.set()
 
     async def reported(self, key: str, timeout: float) -> bool:
         """Wait until the driver reported ``key``; False when it did not within ``timeout``."""
@@ -419,10 +420,12 @@ class RefusedAuth(Scenario):
     statements = ("P-AUTH-1", "P-AUTH-3", "P-CLI-6")
     expected = "the program is told that the login was refused, and the client stops using the refused login"
     REASON = "authentication failed: wrong mac"
+    RETRY_WINDOW = 2.0  # how long after the refusal a second login is waited for
 
     def __init__(self) -> None:
         self.attempts = 0
         self.before_auth: list[str] = []
+        self.retried = asyncio.Event()
 
     async def on_message(self, run: CaseRun, peer: Peer, message: Mapping[str, Any]) -> bool:
         op = str(message.get("op"))
@@ -431,12 +434,21 @@ class RefusedAuth(Scenario):
                 self.before_auth.append(op)
             return op == "call_service"  # refused with the connection: nothing is served before a login
         self.attempts += 1
+        if self.attempts > 1:
+            self.retried.set()
         status = {"op": "status", "level": "error", "msg": self.REASON}
         if "id" in message:
             status["id"] = message["id"]
         await peer.send(status)
         await peer.close(1008, self.REASON)
         return True
+
+    async def on_report(self, run: CaseRun, update: Mapping[str, Any]) -> dict[str, Any]:
+        """Before the driver closes its client, see whether the client tries the refused login again."""
+        if update.get("done") and self.attempts == 1:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self.retried.wait(), self.RETRY_WINDOW)
+        return {"retried": self.retried.is_set()}
 
     def judge(self, run: CaseRun) -> tuple[Outcome, str]:
         if run.observed.get("auth_offered") is False:
@@ -446,7 +458,7 @@ class RefusedAuth(Scenario):
         if self.attempts == 0:
             return Outcome.FAILED, f"the client sent no auth message (sent: {self.before_auth or 'nothing'})"
         refusal, closed = run.observed.get("refusal"), run.observed.get("closed")
-        retried = f"; it sent the refused login {self.attempts} times" if self.attempts > 1 else ""
+        retried = f"; it sent the refused login again ({self.attempts} logins)" if self.attempts > 1 else ""
         early = f"; before its auth it sent {', '.join(self.before_auth)}" if self.before_auth else ""
         if refusal:
             outcome = Outcome.NON_STRICT if self.attempts > 1 else Outcome.OK
