@@ -51,7 +51,7 @@ def parse(text: str) -> dict[str, Any] | None:
     """A message as a JSON object, or None (hostile input is recorded, never a traceback)."""
     try:
         message = json.loads(text)
-    except ValueError:
+    except (ValueError, RecursionError):
         return None
     return message if isinstance(message, dict) else None
 

@@ -17,7 +17,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import pytest
 from websockets.asyncio.client import ClientConnection, connect
+
+from interop.scripted_server import serve_main
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -27,14 +30,15 @@ class Reporter:
         self.socket = socket
         self.ids = itertools.count()
 
-    async def __call__(self, case: str, observed: dict[str, Any]) -> None:
+    async def __call__(self, case: str, observed: dict[str, Any] | str) -> dict[str, Any]:
         call_id = f"report-{next(self.ids)}"
-        args = {"case": case, "observed": json.dumps(observed)}
+        args = {"case": case, "observed": observed if isinstance(observed, str) else json.dumps(observed)}
         await self.socket.send(
             json.dumps({"op": "call_service", "id": call_id, "service": "/interop/report", "args": args})
         )
-        while json.loads(await self.socket.recv()).get("id") != call_id:
+        while (answer := json.loads(await self.socket.recv())).get("id") != call_id:
             pass
+        return dict(answer)
 
 
 async def until_closed(socket: ClientConnection) -> list[dict[str, Any]]:
@@ -52,6 +56,8 @@ async def until_closed(socket: ClientConnection) -> list[dict[str, Any]]:
 async def faulty_client(url: str) -> None:
     async with connect(f"{url}/report") as report_socket:
         report = Reporter(report_socket)
+        refused = await report("clients.1", "[1, 2")  # a report that is no JSON object
+        assert refused["result"] is False and "observed must be a JSON object" in refused["values"], refused
         await report("hello", {"client": "faulty"})
         async with connect(f"{url}/clients.1") as socket:
             for data in ("first", "second"):
@@ -63,7 +69,9 @@ async def faulty_client(url: str) -> None:
             async with connect(f"{url}/{case}") as socket:
                 subscribe = {"op": "subscribe", "topic": topic, "type": "std_msgs/msg/String"}
                 await socket.send(json.dumps(subscribe))
-                if case == "clients.3":  # status is the one op it ignores
+                if case == "clients.3":  # status is the one op it ignores; its garbage is recorded, not fatal
+                    await socket.send("not json")
+                    await socket.send(b"\x00\x01")
                     received = [json.loads(await socket.recv()) for _ in range(2)][1:]
                 else:
                     received = await asyncio.wait_for(until_closed(socket), 5)
@@ -114,3 +122,10 @@ def test_a_faulty_client_fails_where_it_is_wrong(tmp_path: Path) -> None:
     assert "new call got 'error: the client stopped'" in got["clients.5"][1]
     assert "the program was told nothing" in got["clients.6"][1]
     assert server.returncode == 1
+    texts = [frame["text"] for frame in cases["clients.3"]["frames"]]
+    assert "not json" in texts and "<binary 2 bytes: 0001…>" in texts
+
+
+def test_serve_checks_clients_only(capsys: pytest.CaptureFixture[str]) -> None:
+    assert serve_main(0, ["core"], None, False) == 2
+    assert "profile 'clients' only, not core" in capsys.readouterr().err
