@@ -11,18 +11,21 @@ import asyncio
 import contextlib
 import logging
 import os
+import re
 import ssl
 import time
 from collections.abc import Awaitable, Callable, Iterable
 from dataclasses import dataclass
 
 from .outcome import CaseResult, Outcome
-from .session import Conversation, Credentials, NotAnswered
+from .session import ROSBRIDGE_OPS, Conversation, Credentials, NotAnswered
 from .wire import Recorder, WebSocket, WireClosed
 
 __all__ = ["Case", "CaseContext", "Deviation", "Target", "Verdict", "run_case", "run_cases"]
 
 log = logging.getLogger(__name__)
+
+_UNSUPPORTED = re.compile(r"unknown op|not supported|unsupported|not implemented", re.IGNORECASE)
 
 
 @dataclass(frozen=True)
@@ -83,6 +86,17 @@ class CaseContext:
         self._sockets.append(socket)
         return socket
 
+    def refused_as_unknown(self) -> str | None:
+        """The status text with which the server refused an op of the protocol this case sent as
+        unknown or unsupported (the case is then UNIMPLEMENTED, not FAILED), if it did."""
+        sent = {op for op in ROSBRIDGE_OPS if any(f'"op": "{op}"' in f.text for f in self.recorder.frames)}
+        for conversation in self._conversations:
+            for message in conversation.received:
+                text = str(message.get("msg", "")) if message.get("op") == "status" else ""
+                if _UNSUPPORTED.search(text) and any(re.search(rf"\b{op}\b", text) for op in sent):
+                    return text
+        return None
+
     async def close_all(self) -> None:
         for conversation in self._conversations:
             await conversation.close()
@@ -128,6 +142,10 @@ async def run_case(case: Case, target: Target, run_id: str) -> CaseResult:
     finally:
         with contextlib.suppress(TimeoutError, OSError):
             await asyncio.wait_for(context.close_all(), 5)
+    if verdict.outcome is not Outcome.OK:
+        refusal = context.refused_as_unknown()
+        if refusal is not None:
+            verdict = Verdict(Outcome.UNIMPLEMENTED, f"{refusal!r} ({verdict.observed})")
     return CaseResult(
         case=case.number,
         title=case.title,

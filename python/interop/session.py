@@ -20,9 +20,19 @@ from typing import Any
 
 from .wire import Message, Recorder, WebSocket, WireClosed
 
-__all__ = ["Conversation", "Credentials", "Matcher", "NotAnswered", "auth_message", "op_is"]
+__all__ = ["ROSBRIDGE_OPS", "Conversation", "Credentials", "Matcher", "NotAnswered", "auth_message", "op_is"]
 
 Matcher = Callable[[dict[str, Any]], bool]
+
+#: The ops of the protocol (docs/interop.md); a server that refuses one of these as unknown does
+#: not implement it.
+ROSBRIDGE_OPS = frozenset(
+    {
+        "advertise", "unadvertise", "publish", "subscribe", "unsubscribe", "call_service", "service_response",
+        "advertise_service", "unadvertise_service", "send_action_goal", "cancel_action_goal", "action_feedback",
+        "action_result", "advertise_action", "unadvertise_action", "fragment", "set_level", "auth",
+    }
+)  # fmt: skip
 
 
 class NotAnswered(Exception):

@@ -1,0 +1,72 @@
+"""``caretaker interop`` against a running ``caretaker up`` of the IVA habitat deployment (wss://,
+a secret), from another network namespace than the server: every profile passes.
+
+The habitat namespace runs the stack as tests/flight/ starts it; the suite runs in the link
+namespace, which reaches the habitat's address directly (no relay), so only the network
+namespace boundary and the bridge's TLS and auth stand between them.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from caretaker.certs import make_link_credentials
+from flight.flight_support import BRIDGE_PORT, start_habitat, write_ground_binding
+from interop.catalog import PROFILES
+from support.two_hosts import TwoHosts
+
+from .suite_support import assert_complete, finish_suite, start_suite
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=150)]
+
+
+@dataclass(frozen=True)
+class Habitat:
+    hosts: TwoHosts
+    credentials: dict[str, Path]
+
+    @property
+    def url(self) -> str:
+        return f"wss://{self.hosts.habitat.address}:{BRIDGE_PORT}"
+
+    def auth_options(self) -> list[str]:
+        return ["--secret-file", str(self.credentials["rosbridge.secret"]), "--ca", str(self.credentials["ca.pem"])]
+
+
+@pytest.fixture(scope="module")
+def habitat(ros_env: dict[str, str]) -> Iterator[Habitat]:
+    with TwoHosts.create(ros_env) as hosts:
+        credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address], days=2)
+        binding = write_ground_binding(
+            hosts.folder, f"wss://{hosts.link.address}:{BRIDGE_PORT}", credentials, one_way_delay=0.2, outage_budget=120
+        )
+        start_habitat(hosts, credentials, binding, hosts.folder / "habitat-state", time_scale="1", onboard=False)
+        yield Habitat(hosts, credentials)
+
+
+def test_every_profile_passes_from_another_namespace(habitat: Habitat, tmp_path: Path) -> None:
+    report = tmp_path / "report"
+    run = finish_suite(
+        start_suite(
+            habitat.url,
+            report,
+            "caretaker-iva",
+            "--profile",
+            "all",
+            *habitat.auth_options(),
+            env=dict(os.environ),
+            prefix=["ip", "netns", "exec", habitat.hosts.link.namespace],
+        ),
+        report,
+        "caretaker-iva",
+        timeout=300,
+    )
+    assert_complete(run, PROFILES)
+    not_passing = {case: o for case, o in run.outcomes().items() if o not in ("OK", "NON-STRICT", "INFORMATIONAL")}
+    assert not not_passing, f"{not_passing}\n{run.output[-4000:]}"
+    assert run.returncode == 0, run.output[-2000:]
