@@ -19,7 +19,7 @@ from typing import Any
 
 import pytest
 
-pytestmark = pytest.mark.slow(seconds=25)
+pytestmark = pytest.mark.slow(seconds=35)
 
 REPO = Path(__file__).resolve().parents[2]
 DRIVERS = REPO / "python" / "interop" / "clients"

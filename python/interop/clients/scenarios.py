@@ -142,7 +142,7 @@ class OutOfOrder(Scenario):
     title = "Two calls in flight answered in reverse order"
     statements = ("P-GEN-2", "P-SRV-1", "P-CLI-1")
     expected = 'the call with {"data":"first"} gets "first" and the other "second", though answered second-first'
-    HOLD = 2.0  # how long the first call waits for a second one in flight
+    HOLD = 4.0  # how long the first call waits for a second one in flight
 
     def __init__(self) -> None:
         self.pending: list[tuple[Peer, Mapping[str, Any]]] = []
@@ -261,6 +261,7 @@ class Dropped(Scenario):
     SERVICE = "/interop/drop_service"
     REGISTRATIONS = ("subscribe", "advertise", "advertise_service")
     RECONNECT_WINDOW = 5.0  # seconds after the drop
+    RESTORE_WINDOW = 4.0  # seconds after the reconnection for every registration to come again
     time_limit = 20.0
 
     def __init__(self) -> None:
@@ -316,7 +317,7 @@ class Dropped(Scenario):
         first.drop()
         with contextlib.suppress(TimeoutError):
             await asyncio.wait_for(self.reconnected.wait(), self.RECONNECT_WINDOW)
-            await asyncio.wait_for(self.restored.wait(), 3.0)
+            await asyncio.wait_for(self.restored.wait(), self.RESTORE_WINDOW)
         again = self.peers.get(2)
         if again is None:
             return
@@ -420,7 +421,7 @@ class RefusedAuth(Scenario):
     statements = ("P-AUTH-1", "P-AUTH-3", "P-CLI-6")
     expected = "the program is told that the login was refused, and the client stops using the refused login"
     REASON = "authentication failed: wrong mac"
-    RETRY_WINDOW = 2.0  # how long after the refusal a second login is waited for
+    RETRY_WINDOW = 3.0  # how long after the refusal a second login is waited for
 
     def __init__(self) -> None:
         self.attempts = 0
