@@ -57,7 +57,7 @@ HOSTILE_LIMITS = (
     "--max-total-queued-bytes",
     str(16 * MiB),
     "--read-pause-bytes",
-    str(256 * 1024),
+    str(READ_PAUSE_BYTES := 256 * 1024),
 )
 """Small quotas, so the attacks reach them quickly (the bridge under fuzzing runs with these)."""
 LATENCY_BOUND_S = 2.0

@@ -31,10 +31,10 @@ NODE = "rosbridge_guarded"
 
 
 @pytest.fixture(scope="module")
-def guarded(
+def guarded_bridge(
     ros_env: dict[str, str], peer: ManagedProcess, tmp_path_factory: pytest.TempPathFactory
-) -> Iterator[tuple[str, int]]:
-    """A bridge with allow-lists, a 4 KiB frame limit and a shared secret."""
+) -> Iterator[tuple[ManagedProcess, tuple[str, int]]]:
+    """A bridge with allow-lists, a 4 KiB frame limit and a shared secret, and its address."""
     secret_file = tmp_path_factory.mktemp("secret") / "secret"
     secret_file.write_text(SECRET + "\n")
     process = caretaker(
@@ -61,7 +61,13 @@ def guarded(
         ALLOWED_ORIGIN,
         env=ros_env,
     )
-    yield from _serve(process)
+    for address in _serve(process):
+        yield process, address
+
+
+@pytest.fixture(scope="module")
+def guarded(guarded_bridge: tuple[ManagedProcess, tuple[str, int]]) -> tuple[str, int]:
+    return guarded_bridge[1]
 
 
 def _serve(process: ManagedProcess) -> Iterator[tuple[str, int]]:
@@ -146,6 +152,22 @@ def test_malformed_auth_is_refused_with_1008(guarded: tuple[str, int], auth: str
     now = int(time.time())
     nan_mac = hmac.new(SECRET.encode(), b"cdrnanusernan", hashlib.sha256).hexdigest()
     assert closed_with(guarded, auth % {"now": now, "end": now + 60, "nan_mac": nan_mac, "secret": SECRET}) == 1008
+
+
+@pytest.mark.parametrize("field", ["t", "end"])
+def test_an_auth_time_too_large_for_a_float_is_refused_without_a_traceback(
+    guarded_bridge: tuple[ManagedProcess, tuple[str, int]], field: str
+) -> None:
+    process, address = guarded_bridge
+    now = int(time.time())
+    fields = {"client": "c", "dest": "d", "rand": "r", "t": now, "level": "user", "end": now + 60}
+    fields[field] = 10**400  # a JSON integer no float holds
+    printed = process.printed
+    assert closed_with(address, json.dumps({"op": "auth", "mac": "00" * 32, **fields})) == 1008
+    # the refused client's disconnect is logged after whatever its handler logged
+    process.wait_for_line(r"client \d+ disconnected after ", after=printed)
+    said = list(process.output)[printed - process.printed :]
+    assert not [line for line in said if "Traceback" in line or "Error:" in line], said
 
 
 def test_a_client_that_never_authenticates_is_closed(guarded: tuple[str, int]) -> None:

@@ -9,7 +9,8 @@ Reading pauses for three reasons, and resumes only when none is left: websockets
 is full, the client's unsent answers exceed ``read_pause_bytes`` (backpressure: a client that
 does not read stops being read), or the bridge has handled :data:`FRAMES_PER_TURN` frames of
 this client in one event-loop turn (the rest wait for the next turn, so one client's burst
-cannot stall the others).
+cannot stall the others, and nothing more is read until they are handled: frames that each cost
+an answer, such as pings, never pile up unread faster than they are answered).
 """
 
 from __future__ import annotations
@@ -227,13 +228,30 @@ class BridgeConnection(ServerConnection):
             self._framing = Framing.WEBSOCKETS
 
     def _receive_frames(self, data: bytes) -> None:
-        buffer = self._buffer
-        buffer += data
+        self._buffer += data
         if self.counted.holds & _STOPS_FRAMES:
             return  # taken up again when the hold ends (_released)
+        self._handle_frames()
+
+    def _next_turn(self) -> None:
+        """Handle the frames a turn left in the buffer, still without reading more: the socket is
+        read again only once they are handled, so a burst of frames that each cost an answer (pings)
+        never piles up here faster than it is answered."""
+        if HOLD_TURN not in self.counted.holds or self._framing is not Framing.BRIDGE:
+            return
+        if HOLD_BACKLOG in self.counted.holds:  # the answers are not taken: that hold decides
+            self.counted.hold(HOLD_TURN, False)
+            return
+        self._handle_frames()
+        if self.on_backlog is not None:
+            self.on_backlog()
+
+    def _handle_frames(self) -> None:
+        buffer = self._buffer
         size = len(buffer)
         offset = 0
         handled = 0
+        next_turn = False
         protocol = self.protocol
         on_text = self.on_text
         while size - offset >= 2:
@@ -259,6 +277,7 @@ class BridgeConnection(ServerConnection):
                 self._framing = Framing.WEBSOCKETS
                 rest = bytes(buffer[offset:])
                 buffer.clear()
+                self._end_turn()
                 super().data_received(rest)
                 return
             end = start + 4 + length
@@ -279,10 +298,18 @@ class BridgeConnection(ServerConnection):
             if HOLD_BACKLOG in self.counted.holds:
                 break  # the client's answers pile up: read on once they are sent
             if handled >= FRAMES_PER_TURN and size - offset >= 2:
-                self.counted.hold(HOLD_TURN, True)
-                self.loop.call_soon(self.counted.hold, HOLD_TURN, False)
+                next_turn = True
+                self.counted.hold(HOLD_TURN, True)  # the rest in the next turn (_next_turn), unread meanwhile
+                self.loop.call_soon(self._next_turn)
                 break
         del buffer[:offset]
+        if not next_turn:
+            self._end_turn()
+
+    def _end_turn(self) -> None:
+        """The frames read are handled (or another hold stops them): reading may go on."""
+        if HOLD_TURN in self.counted.holds:
+            self.counted.hold(HOLD_TURN, False)
 
     def process_event(self, event: Any) -> None:
         if isinstance(event, Frame) and event.opcode in DATA_OPCODES:
