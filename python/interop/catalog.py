@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from . import cases_core, cases_errors, cases_fragments, cases_services, cases_websocket
+from . import cases_at, cases_core, cases_errors, cases_fragments, cases_services, cases_websocket
 from .runner import Case
 
 __all__ = ["ALL_CASES", "DEFAULT_PROFILES", "PROFILES", "cases_of"]
@@ -13,13 +13,15 @@ ALL_CASES: tuple[Case, ...] = (
     *cases_fragments.CASES,
     *cases_errors.CASES,
     *cases_websocket.CASES,
+    *cases_at.CASES,
 )
 
 PROFILES: tuple[str, ...] = tuple(dict.fromkeys(case.profile for case in ALL_CASES))
 """Profile names in the order their cases run."""
 
-DEFAULT_PROFILES: tuple[str, ...] = tuple(p for p in PROFILES if p != "auth")
-"""What a server is checked for unless it names its profiles (``auth`` needs a secret)."""
+DEFAULT_PROFILES: tuple[str, ...] = tuple(p for p in PROFILES if p not in ("auth", "at"))
+"""What a server is checked for unless it names its profiles (``auth`` needs a secret, ``at`` an
+Affordance Template server behind the bridge)."""
 
 
 def cases_of(profiles: tuple[str, ...]) -> list[Case]:
