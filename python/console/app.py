@@ -536,7 +536,7 @@ async def author_save(request: Request) -> Response:
         )
     )
     log.info("%s saved procedure %s", account.user, saved["saved"])
-    await run_in_threadpool(board.saved, account.user, saved["saved"])
+    await run_in_threadpool(board.release_desk.saved, account.user, saved["saved"])
     return JSONResponse(saved)
 
 
@@ -545,7 +545,7 @@ async def author_version(request: Request) -> Response:
     """Where a procedure's file stands: its version's hash, its newest release, a request for one."""
     _account(request)
     board: RunBoard = request.app.state.board
-    return JSONResponse(await run_in_threadpool(board.version_state, request.path_params["name"]))
+    return JSONResponse(await run_in_threadpool(board.release_desk.version_state, request.path_params["name"]))
 
 
 @_api
@@ -560,7 +560,7 @@ async def author_release(request: Request) -> Response:
     if not isinstance(body, dict) or body.get("action") not in ("request", "release"):
         raise ActionRefused(400, 'expected {"action": "request" or "release", "sha256": the version you reviewed}')
     seen = str(body.get("sha256", ""))
-    act = board.ask_release if body["action"] == "request" else board.release
+    act = board.release_desk.ask_release if body["action"] == "request" else board.release_desk.release
     state = await run_in_threadpool(act, account.user, request.path_params["name"], seen)
     log.info("%s: %s of %s (sha256 %s)", account.user, body["action"], request.path_params["name"], seen)
     return JSONResponse(state)

@@ -21,7 +21,6 @@ import logging
 import threading
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -31,20 +30,20 @@ from sqlalchemy.exc import SQLAlchemyError
 from console.accounts import Account, AccountStore
 from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
 from console.camera_feed import CameraFeed
+from console.catalog import CameraSettings, Catalog
 from console.folded_run import fold_events
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import ChangeNotice, open_change_feed
 from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from console.live_run import LiveRun
 from console.onboard_launch import LaunchRefused, SecondOperator, launch_onboard
+from console.release_desk import ReleaseDesk
 from console.remote_run import RemoteRun
 from console.watchers import Watchers
-from datafile import DataFileError
 from pride.approvals import approval_points, missing_approvals_text
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
-from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.run_setup import RunSetup, load_sysreps
 from pride.systems import SystemGateway
@@ -56,19 +55,19 @@ from records.audit_log import AuditLog
 from records.releases import (
     ReleaseRefused,
     ReleaseStore,
-    procedure_digest,
     resume_refusal,
-    short,
     version_for_run,
 )
 from records.robot_control import RobotControl
 
-__all__ = ["CameraSettings", "Catalog", "RunBoard", "RunView"]
+__all__ = ["RunBoard", "RunView"]
 
 #: A run as a console shows it: hosted here, or elsewhere and followed through the database.
 RunView = LiveRun | RemoteRun
 
 log = logging.getLogger(__name__)
+
+_NO_CAMERA = CameraSettings()  # no binding has a live feed
 
 #: How long the listing trusts the status it read from the log of a run that is not live here
 #: (another console or a terminal may be running it); a completed run never changes.
@@ -86,69 +85,11 @@ _LISTED = {
 }
 
 
-@dataclass(frozen=True)
-class CameraSettings:
-    """Which camera the live feed captures while each binding's robot moves, and how often.
-
-    ``cameras`` maps a binding file name to a camera of its robot's scene ("" to every binding not
-    named): robots name their cameras differently (IVA's rack camera ``scene``, EVA's ``ee_camera``).
-    A binding without one has no live feed.
-    """
-
-    cameras: Mapping[str, str] = field(default_factory=dict)
-    period: float = 0.5
-
-    def camera_for(self, binding: str) -> str | None:
-        return self.cameras.get(binding, self.cameras.get(""))
-
-
-@dataclass(frozen=True)
-class Catalog:
-    """Where procedures, bindings and SysReps are read from, and the deployments that say what
-    the robot side of each binding is (a simulator? which commands need approval?) besides the
-    shipped ones and those beside a binding (:mod:`pride.robot_sides`)."""
-
-    procedures: Path
-    bindings: Path
-    sysreps: Path
-    deployments: tuple[Path, ...] = ()
-
-    def procedure_files(self) -> list[str]:
-        return sorted(p.name for p in self.procedures.glob("*.xml"))
-
-    def binding_files(self) -> list[str]:
-        return sorted(p.name for p in self.bindings.glob("*.yaml")) if self.bindings.is_dir() else []
-
-    def procedure_path(self, name: str) -> Path:
-        return _choose(self.procedures, name, self.procedure_files(), "procedure")
-
-    def binding_path(self, name: str) -> Path:
-        return _choose(self.bindings, name, self.binding_files(), "binding")
-
-    def shown(self, procedure_name: str) -> str:
-        """A procedure as messages name it: ``procedures/x.xml``."""
-        return f"{self.procedures.name}/{procedure_name}"
-
-    def robot_side(self, binding_name: str) -> RobotSide:
-        """The robot side a binding reaches, as its deployment describes it; ActionRefused when
-        that deployment's simulator or critical_commanding is wrong."""
-        try:
-            return robot_side_for(self.binding_path(binding_name), deployments=self.deployments)
-        except DataFileError as exc:
-            raise ActionRefused(422, f"the deployment serving {binding_name} cannot be used: {exc}") from None
-
-
 def _mode(name: str) -> Mode:
     try:
         return Mode(name)
     except ValueError:
         raise ActionRefused(400, f"mode must be manual or autonomous (got {name!r})") from None
-
-
-def _choose(directory: Path, name: str, known: list[str], what: str) -> Path:
-    if name not in known:
-        raise ActionRefused(400, f"unknown {what} {name!r}; known: {', '.join(known) or 'none'} (in {directory})")
-    return directory / name
 
 
 class RunBoard:
@@ -163,7 +104,7 @@ class RunBoard:
         self,
         catalog: Catalog,
         audit_log: AuditLog,
-        camera: CameraSettings = CameraSettings(),
+        camera: CameraSettings = _NO_CAMERA,
         *,
         accounts: AccountStore,
         console: str,
@@ -177,6 +118,7 @@ class RunBoard:
         self.accounts = accounts
         self.rosbridge_urls = dict(rosbridge_urls or {})
         self.releases = ReleaseStore(audit_log.engine)
+        self.release_desk = ReleaseDesk(catalog, self.releases, self._check)  # the Author page's versions
         self._lock = threading.Lock()  # guards _live, _remote, _statuses, _starts
         self._live: dict[str, LiveRun] = {}
         self._remote: dict[str, RemoteRun] = {}
@@ -354,51 +296,6 @@ class RunBoard:
         live.catch_up(self.audit_log.events(run_id))  # what the executive recorded before the listener was attached
         log.info("%s resumed run %s of %s (%s, %s)", user, run_id, procedure_name, binding_name, mode.value)
         return live
-
-    # ---- released versions (the Author page) -----------------------------------------------------
-    def version_state(self, procedure_name: str) -> dict[str, Any]:
-        """Where the procedure's file stands: its version's hash, its newest release, a request."""
-        checked = self._check(procedure_name)
-        state = self.releases.state(checked.procedure.id, procedure_digest(checked))
-        return {"procedure": checked.procedure.id, "name": procedure_name, **state.to_json()}
-
-    def saved(self, user: str, procedure_name: str) -> None:
-        """``user`` saved the procedure on the Author page: they may not release this version."""
-        checked = self._check(procedure_name)
-        self.releases.saved(checked.procedure.id, procedure_digest(checked), user, self.catalog.shown(procedure_name))
-
-    def ask_release(self, user: str, procedure_name: str, seen: str) -> dict[str, Any]:
-        """``user`` asks a second operator to review and release the version they saw (``seen``: its hash)."""
-        checked = self._current(procedure_name, seen)
-        try:
-            self.releases.request(checked.procedure.id, seen, user, self.catalog.shown(procedure_name))
-        except ReleaseRefused as exc:
-            raise ActionRefused(409, str(exc)) from None
-        return self.version_state(procedure_name)
-
-    def release(self, user: str, procedure_name: str, seen: str) -> dict[str, Any]:
-        """``user`` reviewed the version they saw (``seen``: its hash) and releases it."""
-        checked = self._current(procedure_name, seen)
-        path = self.catalog.procedure_path(procedure_name)
-        try:
-            self.releases.release(
-                checked.procedure.id, seen, user, self.catalog.shown(procedure_name), path.read_text(encoding="utf-8")
-            )
-        except ReleaseRefused as exc:
-            raise ActionRefused(409, str(exc)) from None
-        return self.version_state(procedure_name)
-
-    def _current(self, procedure_name: str, seen: str) -> CheckedProcedure:
-        """The procedure, if its file is still the version the operator saw (ActionRefused 409 if not)."""
-        checked = self._check(procedure_name)
-        now = procedure_digest(checked)
-        if now != seen:
-            raise ActionRefused(
-                409,
-                f"{self.catalog.shown(procedure_name)} changed since you opened it (sha256 {short(seen)} → "
-                f"{short(now)}): open it again and review what is there now",
-            )
-        return checked
 
     def _check(self, procedure_name: str) -> CheckedProcedure:
         """The checked procedure, with its SysReps (ActionRefused 422 listing its problems)."""

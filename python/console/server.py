@@ -24,9 +24,10 @@ from sqlalchemy.exc import OperationalError
 
 from console.accounts import AccountStore
 from console.app import build_app
+from console.catalog import CameraSettings, Catalog
 from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.reports import report_writer
-from console.run_board import CameraSettings, Catalog, RunBoard
+from console.run_board import RunBoard
 from console.sign_in import SessionLimits, SignIns
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError

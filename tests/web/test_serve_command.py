@@ -24,7 +24,7 @@ from websockets.sync.client import connect
 
 from caretaker.demo import DEMO_USER, demo_operator
 from console.accounts import AccountStore, Role
-from console.run_board import CameraSettings
+from console.catalog import CameraSettings
 from console.server import main
 from support.certificates import self_signed_certificate
 from support.processes import caretaker
