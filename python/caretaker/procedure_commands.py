@@ -181,8 +181,9 @@ def run_main(argv: list[str] | None = None) -> int:
         type=float,
         default=UNIT_LIFETIME_S,
         metavar="S",
-        help="with --onboard: how long the unit may take to reach the habitat and start, beyond the link's round "
-        f"trip (default {UNIT_LIFETIME_S:.0f} s); past it the habitat refuses it as expired",
+        help="with --onboard: how long the unit may take to reach the habitat and start, beyond what the link's "
+        f"light time needs to connect and uplink (default {UNIT_LIFETIME_S:.0f} s); past it the habitat refuses "
+        "it as expired",
     )
     parser.add_argument(
         "--at-consoles",
@@ -426,7 +427,7 @@ def _run_onboard(
             confirm_manual=args.confirm_manual,
             confirm_hazardous=args.confirm_hazardous,
             breakpoints=args.breakpoints,
-            lifetime_s=args.unit_lifetime + 2 * endpoint.one_way_delay,
+            lifetime_s=args.unit_lifetime + endpoint.light_time.connect_within + endpoint.light_time.round_trip,
             now=time.time(),
             version=setup.version,
             policy=setup.side.approvals,

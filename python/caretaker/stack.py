@@ -35,10 +35,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from bridge.rosbridge.limits import Limits
+from bridge.rosbridge.limits import option as limit_option
 from caretaker.deployment import Deployment, load_deployment
 from caretaker.processes import ManagedProcess, ProcessFailed, caretaker
 from caretaker.terminal import TerminalLines
 from datafile import DataFileError
+from procedure_language.binding import read_binding
+from rosbridge_wire.light_time import LightTime
 
 __all__ = ["PARTS", "Part", "PartEcho", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
@@ -158,7 +162,20 @@ def _bridge(deployment: Deployment, run: StackRun) -> list[str]:
     ):
         if path is not None:
             args += [option, str(path)]
-    return args
+    return args + _light_time_limits(deployment)
+
+
+def _light_time_limits(deployment: Deployment) -> list[str]:
+    """The bridge's handshake, login and keepalive limits, never shorter than the longest light
+    time of the bindings it serves (a ground 45 s away needs minutes to open a connection)."""
+    delay = max((read_binding(path).link.one_way_delay for path in deployment.bindings), default=0.0)
+    defaults = Limits()
+    return [
+        argument
+        for name, least in LightTime(delay).bridge_limits().items()
+        if least > getattr(defaults, name)
+        for argument in (limit_option(name), f"{least:g}")
+    ]
 
 
 def _onboard(deployment: Deployment, run: StackRun) -> list[str]:

@@ -29,6 +29,7 @@ import websockets
 from websockets.asyncio.client import ClientConnection
 
 from rosbridge_wire import OP_ADVERTISE_SERVICE, OP_CALL_SERVICE, OP_SERVICE_RESPONSE, OP_SUBSCRIBE, signed_login
+from rosbridge_wire.light_time import LightTime
 
 __all__ = ["Endpoint", "LinkError", "RosbridgeClient", "ServiceHandler", "Subscription"]
 
@@ -60,6 +61,11 @@ class Endpoint:
     ca_file: Path | None = None
     secret: str | None = None
     token: str | None = None
+
+    @property
+    def light_time(self) -> LightTime:
+        """What the link's delay makes of every wait across it."""
+        return LightTime(self.one_way_delay)
 
 
 @dataclass
@@ -142,7 +148,7 @@ class RosbridgeClient:
 
     def call_timeout(self, base: float = 10.0) -> float:
         """A call's timeout: ``base`` plus the round trip of the link."""
-        return base + 2 * self.endpoint.one_way_delay
+        return self.endpoint.light_time.answer_within(base)
 
     async def call(self, service: str, args: Mapping[str, Any], *, timeout: float | None = None) -> Mapping[str, Any]:
         """Call a service; its ``values``. LinkError when refused, failed or unanswered."""
@@ -159,7 +165,7 @@ class RosbridgeClient:
                 "id": call_id,
                 "service": service,
                 "args": dict(args),
-                "timeout": max(1.0, wait - 2 * self.endpoint.one_way_delay),
+                "timeout": max(1.0, wait - self.endpoint.light_time.round_trip),
             }
             await self._send(request)
             answer = await asyncio.wait_for(future, wait)
@@ -224,16 +230,15 @@ class RosbridgeClient:
 
     async def _run(self) -> None:
         attempt = 0
-        delay = self.endpoint.one_way_delay
-        keepalive = max(5.0, 4 * delay)
+        light = self.endpoint.light_time
         while not self._closed:
             try:
                 async with websockets.connect(
                     self.endpoint.url,
                     ssl=self._ssl(),
-                    ping_interval=keepalive,
-                    ping_timeout=keepalive + 2 * delay + 10,
-                    open_timeout=10 + 2 * delay,
+                    ping_interval=light.keepalive,
+                    ping_timeout=light.keepalive_timeout,
+                    open_timeout=light.connect_within,
                     max_size=64 * 1024 * 1024,
                 ) as socket:
                     auth = self._auth_message()

@@ -1,0 +1,66 @@
+"""Light time as a parameter: every wait that spans the link, derived from its one-way delay.
+
+A ground and a habitat may be a light-second apart (the Moon), minutes (Mars), or hours through a
+relay that stores and forwards. No wait across the link is a constant: each is a base for the work
+at the far end plus the round trips the exchange needs, so the same code holds at 1.3 s and at
+20 minutes. The rule (docs/deployment.md, "Light time"):
+
+- opening a connection takes three round trips (TCP, TLS 1.3, the WebSocket upgrade), and a login
+  and a first answer one more: :attr:`LightTime.connect_within` allows one round trip more than that;
+- a request is answered within its work plus one round trip (:meth:`LightTime.answer_within`);
+- a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
+  the next one was due;
+- the far end allows a client the same: the bridge's handshake and login limits
+  (:meth:`LightTime.bridge_limits`) are never shorter than the delays its clients are bound to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["LightTime"]
+
+#: What one exchange may take at the far end, with no light time at all (a loaded machine).
+BASE_S = 10.0
+#: Round trips to open a wss:// connection and hear the first answer: TCP, TLS, upgrade, login.
+OPENING_ROUND_TRIPS = 4
+
+
+@dataclass(frozen=True)
+class LightTime:
+    """A link's one-way delay (s) and what it makes of every wait across it."""
+
+    one_way_delay: float = 0.0
+
+    @property
+    def round_trip(self) -> float:
+        return 2 * self.one_way_delay
+
+    @property
+    def connect_within(self) -> float:
+        """How long opening a connection and hearing its first answer may take (one round trip spare)."""
+        return BASE_S + (OPENING_ROUND_TRIPS + 1) * self.round_trip
+
+    def answer_within(self, work: float = BASE_S) -> float:
+        """How long a request whose far end works up to ``work`` s may wait for its answer."""
+        return work + self.round_trip
+
+    @property
+    def keepalive(self) -> float:
+        """Seconds between keepalive pings: never a burden on a long link, never idle on a short one."""
+        return max(5.0, 4 * self.one_way_delay)
+
+    @property
+    def keepalive_timeout(self) -> float:
+        """Seconds without a pong before a connection is given up."""
+        return self.keepalive + self.round_trip + BASE_S
+
+    def bridge_limits(self) -> dict[str, float]:
+        """The least ``--handshake-timeout``, ``--auth-timeout`` and ``--ping-timeout`` a bridge may
+        give clients this far away: the opening handshakes take three round trips, the login comes
+        a round trip after the upgrade's answer, a pong a round trip after its ping."""
+        return {
+            "handshake_timeout": self.connect_within,
+            "auth_timeout": BASE_S + 2 * self.round_trip,
+            "ping_timeout": self.keepalive_timeout + self.round_trip,
+        }
