@@ -45,7 +45,15 @@ from records.robot_control import RobotControl
 from .unit import OperatorAction, Unit, UnitError, digest, signed_by
 from .unit_answers import UnitAnswers, UplinkAnswer
 
-__all__ = ["SECURITY_LOG", "ActionAnswer", "EventsAnswer", "HabitatRuns", "HabitatStatus", "UplinkAnswer"]
+__all__ = [
+    "SECURITY_LOG",
+    "ActionAnswer",
+    "EventsAnswer",
+    "HabitatRuns",
+    "HabitatStatus",
+    "RunUnitAnswer",
+    "UplinkAnswer",
+]
 
 log = logging.getLogger(__name__)
 #: The logger of security events (refused units and actions): ``caretaker onboard`` prints its records
@@ -73,6 +81,15 @@ class EventsAnswer:
 @dataclass(frozen=True)
 class ActionAnswer:
     state: str  # DONE | REFUSED | EXPIRED
+    message: str
+
+
+@dataclass(frozen=True)
+class RunUnitAnswer:
+    """The unit an onboard run started from (``RunUnit.srv``'s response)."""
+
+    unit_json: str  # "" when no unit started the run here
+    unit_hash: str
     message: str
 
 
@@ -483,6 +500,15 @@ class HabitatRuns:
             self._refusals["action"] += 1
         security.warning("action %s %s: %s", what, answer.state.lower(), answer.message)
         return answer
+
+    def unit_of(self, run_id: str) -> RunUnitAnswer:
+        """The unit that started ``run_id`` here, as it arrived (for a ground that attaches to it)."""
+        with self._lock:
+            found = next(((h, u) for h, u in self._accepted.items() if u.run_id == run_id), None)
+        if found is None:
+            return RunUnitAnswer("", "", f"no onboard run {run_id} was started on this habitat")
+        unit_hash, _ = found
+        return RunUnitAnswer((self.units_dir / unit_hash / "unit.json").read_text(), unit_hash, "")
 
     def status(self) -> HabitatStatus:
         """The active run, the units answered in all, and the refusals since this executive started."""

@@ -1,13 +1,14 @@
 """``caretaker onboard``: the habitat's onboard executive, served to the ground through rosbridge.
 
 A part of ``caretaker up`` (when the deployment has ``onboard:``). It is a rosbridge client of the
-habitat's own bridge, logged in with the link's secret, and advertises three services
+habitat's own bridge, logged in with the link's secret, and advertises its services
 (``caretaker_onboard_msgs``) that the ground calls across the link like any other:
 
 - ``/caretaker_onboard/uplink`` (``Uplink``): take a signed unit, answer with its hash;
 - ``/caretaker_onboard/events`` (``RunEvents``): a run's events above a number, waiting for the next;
 - ``/caretaker_onboard/action`` (``OperatorAction``): an operator's keyed action (Halt first);
-- ``/caretaker_onboard/status`` (``HabitatStatus``): the active run, units answered, refusals counted.
+- ``/caretaker_onboard/status`` (``HabitatStatus``): the active run, units answered, refusals counted;
+- ``/caretaker_onboard/unit`` (``RunUnit``): the unit a run started from, for a ground that attaches.
 
 Refused units and actions are security events: printed as ``SECURITY ...`` lines whatever the log
 level, which ``caretaker up`` shows even when it does not echo its parts.

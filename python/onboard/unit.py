@@ -29,6 +29,7 @@ __all__ = [
     "ACTION_SERVICE",
     "EVENTS_SERVICE",
     "STATUS_SERVICE",
+    "UNIT_SERVICE",
     "UPLINK_SERVICE",
     "OperatorAction",
     "Unit",
@@ -44,6 +45,7 @@ UPLINK_SERVICE = "/caretaker_onboard/uplink"
 EVENTS_SERVICE = "/caretaker_onboard/events"
 ACTION_SERVICE = "/caretaker_onboard/action"
 STATUS_SERVICE = "/caretaker_onboard/status"
+UNIT_SERVICE = "/caretaker_onboard/unit"
 
 #: Operators' actions the habitat takes for an onboard run, named as the console names them, with
 #: the arguments each needs. Any may name the ``instruction`` it was clicked on: the habitat then

@@ -247,7 +247,7 @@ def test_a_second_unit_is_refused_while_one_runs_and_the_ground_answers_a_hold_o
     assert act(runs, entered).state == "DONE"  # a resend: answered from the record, not entered again
     until_ended(runs, unit.run_id)
     inputs = [e for e in runs.audit.events(unit.run_id) if e.kind is EventKind.OPERATOR_INPUT]
-    assert [(e.actor, e.data["value"]) for e in inputs] == [("bob", "dock")]
+    assert [(e.actor, e.data.to_json()["value"]) for e in inputs] == [("bob", "dock")]
 
     stale = OperatorAction("key-2", unit.run_id, "halt", "bob", time.time() - 1, {"reason": "late"})
     assert act(runs, stale).state == "EXPIRED"
@@ -365,3 +365,19 @@ def test_an_approval_that_ran_out_on_the_way_is_recorded_and_a_second_operator_a
     given = [(e["actor"], json.loads(e["data"]).get("carried")) for e in events if e["kind"] == "approval_given"]
     assert given == [("carol", None)]
     assert [command for _, command, _ in gateways[0].sent].count("vent") == 1
+
+
+def test_the_unit_a_run_started_from_is_given_to_a_ground_that_attaches(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, _ = habitat
+    unit = make_unit()
+    accepted = uplink(runs, unit)
+    answer = runs.unit_of(unit.run_id)
+    assert (answer.unit_json, answer.unit_hash) == (unit.to_json(), accepted.unit_hash)
+    assert Unit.from_json(answer.unit_json) == unit
+    refused = make_unit()
+    assert uplink(runs, refused).state == "REFUSED"  # the robot is busy: no run of it, so no unit to attach to
+    missing = runs.unit_of(refused.run_id)
+    assert missing.unit_json == "" and f"no onboard run {refused.run_id}" in missing.message
+    until_ended(runs, unit.run_id)
