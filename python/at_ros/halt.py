@@ -89,10 +89,10 @@ class HaltSwitch:
         ``issued`` is its request's stamp (builtin_interfaces/Time); None or zero: issued now.
         """
         now = arrived_now()
+        at = now if issued is None else issued_at(issued, now)
         with self._lock:
-            if issued is None:
+            if at >= now:  # issued now (no stamp, or one from another host's future): after every halt so far
                 return Mark(self._count, now)
-            at = issued_at(issued, now)
             return Mark(sum(1 for arrived in self._arrivals if arrived < at), at)
 
     def halted_since(self, mark: Mark) -> str | None:

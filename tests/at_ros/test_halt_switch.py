@@ -7,12 +7,14 @@ import threading
 
 import pytest
 from affordance_template_msgs.srv import Halt
+from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.srv import Halt as RobotHalt
 from rclpy.task import Future
 
 from at_ros.halt import Halted, HaltSwitch
 from at_ros.robot_config import load_robot_configs
 from at_ros.server_core import ServerCore
+from ros_process.command_order import arrived_now, stamp
 
 
 class GoalHandle:
@@ -58,6 +60,14 @@ def test_a_goal_accepted_after_the_halt_is_cancelled_at_once(switch: HaltSwitch)
     fresh = GoalHandle()
     switch.goal_started(fresh, switch.mark())  # a command begun after the halt runs
     assert fresh.cancels == 0 and switch.halted_since(switch.mark()) is None
+
+
+def test_a_command_issued_before_a_halt_is_halted_however_late_it_reaches_the_server(switch: HaltSwitch) -> None:
+    _halt(switch)
+    held = switch.mark(stamp(arrived_now() - 60.0))  # the ledger had it a minute before the halt came
+    with pytest.raises(Halted, match=r"halted \(ops: Halt\) before executing"):
+        switch.check(held, "before executing")
+    assert switch.halted_since(switch.mark(Time())) is None  # unstamped: issued when it arrives, after the halt
 
 
 def test_with_nothing_moving_it_says_so_and_when_it_cannot_tell_it_says_that(switch: HaltSwitch) -> None:
