@@ -24,6 +24,8 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "onboard": ("onboard.onboard_server", "main", "run the habitat's onboard executive (--bridge URL --binding FILE)"),
     "lint": ("caretaker.procedure_commands", "lint_main", "check procedures against their schema and SysReps"),
     "run": ("caretaker.procedure_commands", "run_main", "run a procedure with PAX (--auto|--manual)"),
+    "release": ("caretaker.release_commands", "release_main", "release a procedure's version (--user A --approver B)"),
+    "releases": ("caretaker.release_commands", "releases_main", "list the released procedure versions (list)"),
     "report": ("caretaker.procedure_commands", "report_main", "write the after-action report of a run"),
     "db": ("caretaker.procedure_commands", "db_main", "create or upgrade the audit log's schema (status: revision)"),
     "serve": ("console.server", "main", "serve the operator web view"),

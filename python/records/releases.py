@@ -6,7 +6,9 @@ hash (:func:`procedure_digest`: the file and every sub-procedure it calls), and 
 keeps, per procedure id, an append-only history in ``procedure_releases``: who saved a version on
 the Author page, who asked for a version's release, and who released it (with its text and a
 release number, 1, 2, ...). Releasing needs a request, by someone else than the releaser; nobody
-releases a version they saved or asked for themselves.
+releases a version they saved or asked for themselves. The Author page asks and releases in two
+acts by two signed-in operators; ``caretaker release`` (:meth:`ReleaseStore.release_by_two`) in
+one act by two authenticated operators, under the same rules and with the same rows.
 
 A run records the version it ran (:class:`RunVersion`, in its ``run_started``): the release, or
 that it is a *rehearsal*. :func:`version_for_run` says whether a run may start: a released version
@@ -21,7 +23,7 @@ import hashlib
 import logging
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -95,6 +97,7 @@ class Release:
     released_by: str
     at: datetime
     requested_by: str
+    path: str  # the file as the releaser named it
 
 
 @dataclass(frozen=True)
@@ -136,69 +139,131 @@ class ReleaseStore:
         self._engine = engine
 
     def state(self, procedure: str, sha256: str) -> VersionState:
+        releases, requested, saved = self._history(procedure)
+        version = (procedure, sha256)
+        return VersionState(sha256, releases[-1] if releases else None, requested.get(version), saved.get(version))
+
+    def releases(self) -> list[Release]:
+        """Every release of every procedure, in the order they were given."""
+        return self._history(None)[0]
+
+    def _history(
+        self, procedure: str | None
+    ) -> tuple[list[Release], dict[tuple[str, str], str], dict[tuple[str, str], str]]:
+        """The releases of ``procedure`` (None: of every one) oldest first, and who asked for and who
+        saved each version, by (procedure, sha256); a release closes the request it answered."""
+        query = select(procedure_releases).order_by(procedure_releases.c.id)
+        if procedure is not None:
+            query = query.where(procedure_releases.c.procedure == procedure)
         with self._engine.connect() as connection:
-            rows = connection.execute(
-                select(procedure_releases)
-                .where(procedure_releases.c.procedure == procedure)
-                .order_by(procedure_releases.c.id)
-            ).all()
-        release = None
-        requested: dict[str, str] = {}
-        saved: dict[str, str] = {}
+            rows = connection.execute(query).all()
+        releases: list[Release] = []
+        requested: dict[tuple[str, str], str] = {}
+        saved: dict[tuple[str, str], str] = {}
         for row in rows:
+            version = (row.procedure, row.sha256)
             if row.kind == "released":
-                release = Release(
-                    procedure, row.release, row.sha256, row.user_id, row.at, requested.get(row.sha256, "")
-                )
-                requested.pop(row.sha256, None)
+                asked = requested.pop(version, "")
+                releases.append(Release(row.procedure, row.release, row.sha256, row.user_id, row.at, asked, row.path))
             elif row.kind == "requested":
-                requested[row.sha256] = row.user_id
+                requested[version] = row.user_id
             else:
-                saved[row.sha256] = row.user_id
-        return VersionState(sha256, release, requested.get(sha256), saved.get(sha256))
+                saved[version] = row.user_id
+        return releases, requested, saved
 
     def saved(self, procedure: str, sha256: str, user: str, path: str) -> None:
         """Someone saved this version on the Author page: they may not release it."""
-        self._add(procedure, "saved", sha256, user, path)
+        self._add(_row(procedure, "saved", sha256, user, path))
 
     def request(self, procedure: str, sha256: str, user: str, path: str) -> VersionState:
         """``user`` asks a second operator to review and release this version."""
         state = self.state(procedure, sha256)
-        if state.released:
-            raise ReleaseRefused(f"this version of {path} is released already")
-        if state.requested_by is not None:
-            raise ReleaseRefused(f"{state.requested_by} already asked for the release of this version of {path}")
-        self._add(procedure, "requested", sha256, user, path)
+        refusal = _request_refusal(state, path)
+        if refusal is not None:
+            raise ReleaseRefused(refusal)
+        self._add(_row(procedure, "requested", sha256, user, path))
         log.info("%s asked for the release of %s (sha256 %s)", user, path, sha256)
         return self.state(procedure, sha256)
 
     def release(self, procedure: str, sha256: str, user: str, path: str, content: str) -> Release:
         """``user`` reviewed this version and releases it; ReleaseRefused says why they may not."""
         state = self.state(procedure, sha256)
-        if state.released and state.release is not None:
-            raise ReleaseRefused(f"{path} is release {state.release.number} already")
-        if state.requested_by is None:
-            raise ReleaseRefused(
-                f"nobody asked for the release of this version of {path}: ask for it first, "
-                "then a second operator reviews and releases it"
-            )
-        for who, did in ((state.requested_by, "asked for its release"), (state.saved_by, "saved it")):
-            if who == user:
-                raise ReleaseRefused(
-                    f"{user} {did}: a second operator must review and release this version of {path}, not {user}"
-                )
-        number = (state.release.number if state.release else 0) + 1
-        self._add(procedure, "released", sha256, user, path, release=number, content=content)
-        log.info("%s released %s as release %d (sha256 %s)", user, path, number, sha256)
-        return Release(procedure, number, sha256, user, datetime.now(UTC), state.requested_by)
+        refusal = _release_refusal(state, user, path)
+        if refusal is not None:
+            raise ReleaseRefused(refusal)
+        return self._release(state, procedure, user, path, content)
 
-    def _add(self, procedure: str, kind: str, sha256: str, user: str, path: str, **more: Any) -> None:
+    def release_by_two(
+        self, procedure: str, sha256: str, author: str, approver: str, path: str, content: str
+    ) -> Release:
+        """``author`` asks for this version's release and ``approver`` reviewed and releases it, in one
+        act (``caretaker release``): the rules of :meth:`request` and :meth:`release`, all checked
+        before a row is written, so a refused act leaves nothing behind. A request ``author``
+        already made (on the Author page) is the one this release answers."""
+        state = self.state(procedure, sha256)
+        asked = state.requested_by == author
+        refusal = None if asked else _request_refusal(state, path)
+        if refusal is None:
+            refusal = _release_refusal(replace(state, requested_by=author), approver, path)
+        if refusal is not None:
+            raise ReleaseRefused(refusal)
+        request = () if asked else (_row(procedure, "requested", sha256, author, path),)
+        release = self._release(replace(state, requested_by=author), procedure, approver, path, content, *request)
+        log.info("%s asked for the release of %s, %s released it", author, path, approver)
+        return release
+
+    def _release(
+        self, state: VersionState, procedure: str, user: str, path: str, content: str, *before: dict[str, Any]
+    ) -> Release:
+        """Write the release of ``state``'s version by ``user`` (after the rows ``before``, in one transaction)."""
+        number = (state.release.number if state.release else 0) + 1
+        released = _row(procedure, "released", state.sha256, user, path, release=number, content=content)
+        self._add(*before, released)
+        log.info("%s released %s as release %d (sha256 %s)", user, path, number, state.sha256)
+        return Release(procedure, number, state.sha256, user, released["at"], state.requested_by or "", path)
+
+    def _add(self, *rows: dict[str, Any]) -> None:
         with self._engine.begin() as connection:
-            connection.execute(
-                insert(procedure_releases).values(
-                    procedure=procedure, kind=kind, sha256=sha256, user_id=user, at=datetime.now(UTC), path=path, **more
-                )
-            )
+            for row in rows:
+                connection.execute(insert(procedure_releases).values(**row))
+
+
+def _row(procedure: str, kind: str, sha256: str, user: str, path: str, **more: Any) -> dict[str, Any]:
+    """A ``procedure_releases`` row, stamped now."""
+    return {
+        "procedure": procedure,
+        "kind": kind,
+        "sha256": sha256,
+        "user_id": user,
+        "at": datetime.now(UTC),
+        "path": path,
+        **more,
+    }
+
+
+def _request_refusal(state: VersionState, path: str) -> str | None:
+    """Why nobody may ask for the release of ``state``'s version now (None: they may)."""
+    if state.released:
+        return f"this version of {path} is released already"
+    if state.requested_by is not None:
+        return f"{state.requested_by} already asked for the release of this version of {path}"
+    return None
+
+
+def _release_refusal(state: VersionState, user: str, path: str) -> str | None:
+    """Why ``user`` may not release ``state``'s version (None: they may): someone asked for it, and
+    the releaser is a second operator, neither who asked nor who saved it."""
+    if state.released and state.release is not None:
+        return f"{path} is release {state.release.number} already"
+    if state.requested_by is None:
+        return (
+            f"nobody asked for the release of this version of {path}: ask for it first, "
+            "then a second operator reviews and releases it"
+        )
+    for who, did in ((state.requested_by, "asked for its release"), (state.saved_by, "saved it")):
+        if who == user:
+            return f"{user} {did}: a second operator must review and release this version of {path}, not {user}"
+    return None
 
 
 def resume_refusal(checked: CheckedProcedure, shown: str, started: Mapping[str, Any], side: RobotSide) -> str | None:
@@ -236,7 +301,7 @@ def version_for_run(
     if release is None:
         raise ReleaseRefused(
             f"{shown} is a draft (never released): a second operator reviews and releases it on the Author "
-            "page, or run it as a rehearsal on a simulator"
+            "page or with caretaker release, or run it as a rehearsal on a simulator"
         )
     raise ReleaseRefused(
         f"{shown} changed since release {release.number} (sha256 {short(release.sha256)} → {short(sha)}); "
