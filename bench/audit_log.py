@@ -39,6 +39,7 @@ from typing import Any
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests"))
 
+from pride.event_payloads import payload_from_json  # noqa: E402
 from pride.events import PAX, Event, EventKind  # noqa: E402
 from records.audit_chain import GENESIS, StoredEvent  # noqa: E402
 from records.audit_log import AuditLog, database_url  # noqa: E402
@@ -54,14 +55,9 @@ _DATA = {
 
 
 def _event(run_id: str, seq: int) -> Event:
-    return Event(
-        run_id,
-        seq,
-        EventKind.RUN_STARTED if seq == 1 else EventKind.COMMAND_SENT,
-        PAX,
-        None if seq == 1 else f"{seq // 40 + 1}.{seq % 40 + 1}",
-        {"procedure": "bench"} if seq == 1 else _DATA,
-    )
+    kind = EventKind.RUN_STARTED if seq == 1 else EventKind.COMMAND_SENT
+    data = payload_from_json(kind, {"procedure": "bench"} if seq == 1 else _DATA)
+    return Event(run_id, seq, kind, PAX, None if seq == 1 else f"{seq // 40 + 1}.{seq % 40 + 1}", data)
 
 
 _BARE_INSERT = (

@@ -23,7 +23,8 @@ from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
 from pride import run_setup
 from pride.approvals import APPROVER_PASSWORD_ENV
-from pride.events import Event, EventKind
+from pride.event_payloads import RunCompleted, RunStopped
+from pride.events import Event, EventKind, run_start
 from pride.executive import Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.phrasing import Wording
@@ -111,9 +112,9 @@ class LeftBehind:
         self.out = out
 
     def __call__(self, event: Event) -> None:
-        if event.kind in (EventKind.RUN_STOPPED, EventKind.RUN_COMPLETED):
-            for item in event.data.get("left_behind", []):
-                self.out.say(f"LEFT {item['name']} on {item['system']}: {item['why']}")
+        if isinstance(event.data, (RunStopped, RunCompleted)):
+            for item in event.data.left_behind:
+                self.out.say(f"LEFT {item.get('name')} on {item.get('system')}: {item.get('why')}")
 
 
 def run_main(argv: list[str] | None = None) -> int:
@@ -229,7 +230,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
     if args.resume and not events:
         print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
         return 2
-    path = args.procedure or (events[0].data.get("path") if events else None)
+    start = run_start(events)
+    path = args.procedure or (start.path if start else None)
     if not path:
         parser.error("give PROC (or --resume RUN)")
     try:

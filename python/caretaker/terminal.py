@@ -14,11 +14,48 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, TextIO
+from typing import Any, TextIO, assert_never
 
-from pride.events import Event, EventKind
+from pride.event_payloads import (
+    ApprovalExpired,
+    ApprovalGiven,
+    ApprovalRequested,
+    AwaitingOperator,
+    BreakpointCleared,
+    BreakpointHit,
+    BreakpointSet,
+    CallEntered,
+    CommandResult,
+    CommandSent,
+    Confirmation,
+    Continued,
+    ControlLost,
+    ControlTaken,
+    Halt,
+    InstructionCompleted,
+    InstructionFailed,
+    InstructionHalted,
+    InstructionSkipped,
+    InstructionStarted,
+    LinkLost,
+    LinkRestored,
+    ModeChanged,
+    OperatorInput,
+    OutcomeResolved,
+    Paused,
+    RecordCorrected,
+    Retry,
+    RunCompleted,
+    RunResumed,
+    RunStarted,
+    RunStopped,
+    SteppedBack,
+    TelemetrySeen,
+)
+from pride.event_words import describe_event, result_text, started_text, telemetry_text
+from pride.events import Event
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
-from pride.phrasing import Wording, describe_event, result_text, started_text, telemetry_text
+from pride.phrasing import Wording
 from pride.states import RecordNotCheckable, RunEnded
 from procedure_language.model import Procedure, RecordInstruction
 
@@ -68,88 +105,73 @@ class ProgressPrinter:
 
     def __call__(self, event: Event) -> None:
         number = event.instruction or ""
-        data = event.data
+        who = f"  {number:<8} {event.actor:<10}"  # an operator's or PAX's action at the instruction
+        pax = f"  {number:<8} {'PAX':<10}"
         line: str | None = None
-        kind = event.kind
-        if kind is EventKind.RUN_STARTED:
-            line = f"Run {event.run_id}: {data['title']} (v{data['version']}) by {event.actor}, {data['mode']} mode"
-        elif kind is EventKind.RUN_RESUMED:
-            line = f"Run {event.run_id} resumed by {event.actor} at {number}, {data['mode']} mode"
-        elif kind is EventKind.INSTRUCTION_STARTED:
-            self._header(number)
-            line = f"  {number:<8} {event.actor:<10} {started_text(event)}"
-        elif kind is EventKind.COMMAND_SENT:
-            line = f"  {number:<8} {event.actor:<10} {describe_event(event, self.wording)}" + (
-                f" [{data['key']}]" if data.get("key") else ""
-            )
-        elif kind is EventKind.COMMAND_RESULT:
-            line = f"  {number:<8} {'':<10} {result_text(data, self.wording, _MARKS)}"
-        elif kind is EventKind.HALT:
-            cancel = data.get("cancel") or {}
-            told = f"; the system: {cancel['message']}" if cancel.get("message") else ""
-            line = f"  {number:<8} {event.actor:<10} HALT{_why(data)}{told}"
-        elif kind is EventKind.INSTRUCTION_HALTED:
-            line = f"  {number:<8} {event.actor:<10} halted before it finished{_why(data)}"
-        elif kind is EventKind.LINK_LOST:
-            n = data.get("in_flight", 0)
-            line = (
-                f"  {number:<8} {'PAX':<10} {'no news' if data.get('quiet') else 'link lost'} since "
-                f"{data['since'][11:19]}Z, {n} command"
-                f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}"
-            )
-        elif kind is EventKind.LINK_RESTORED:
-            line = f"  {number:<8} {'PAX':<10} link restored after {data['seconds']:g} s"
-        elif kind is EventKind.CONTROL_TAKEN:
-            line = (
-                f"  {number:<8} {event.actor:<10} took control of {data['robot']} from run {data['from_run']} "
-                f"({data['from_user']}){_why(data)}"
-            )
-        elif kind is EventKind.CONTROL_LOST:
-            line = (
-                f"  {number:<8} {'PAX':<10} control of {data['robot']} taken over by {data['by_user']} "
-                f"(run {data['by_run']}){_why(data)}"
-            )
-        elif kind in (EventKind.RECORD_CORRECTED, EventKind.OPERATOR_INPUT):
-            if kind is EventKind.OPERATOR_INPUT:  # a correction may be of an earlier step's record
+        match event.data:
+            case RunStarted() as d:
+                line = f"Run {event.run_id}: {d.title} (v{d.version}) by {event.actor}, {d.mode} mode"
+            case RunResumed() as d:
+                line = f"Run {event.run_id} resumed by {event.actor} at {number}, {d.mode} mode"
+            case InstructionStarted():
                 self._header(number)
-            line = f"  {number:<8} {event.actor:<10} {describe_event(event, self.wording)}"
-        elif kind is EventKind.STEPPED_BACK:
-            line = f"  {number:<8} {event.actor:<10} back to {data['next']}{_why(data)}"
-        elif kind is EventKind.OUTCOME_RESOLVED:
-            line = f"  {number:<8} {event.actor:<10} recorded {data['key']} as {data['outcome']}{_why(data)}"
-        elif kind is EventKind.TELEMETRY_SEEN:
-            line = f"  {number:<8} {'':<10} {telemetry_text(data, self.wording)}"
-        elif kind is EventKind.INSTRUCTION_COMPLETED:
-            line = f"  {number:<8} {event.actor:<10} done" + (
-                f", go to step {data['went_to']}" if data.get("went_to") else ""
-            )
-        elif kind is EventKind.INSTRUCTION_FAILED:
-            branch = f"; branching to step {data['branch']}" if data.get("branch") else ""
-            line = f"  {number:<8} {event.actor:<10} FAILED: {data['reason']}{branch}"
-        elif kind is EventKind.INSTRUCTION_SKIPPED:
-            line = f"  {number:<8} {event.actor:<10} skipped: {data['reason']}"
-        elif kind is EventKind.AWAITING_OPERATOR:
-            self._header(number)
-            line = f"  {number:<8} {'PAX':<10} waiting for an operator: {data['reason']}"
-        elif kind is EventKind.RETRY and data.get("same_key"):
-            line = f"  {number:<8} {event.actor:<10} asked again about {data['key']} (same key)"
-        elif kind in (
-            EventKind.CONFIRMATION,
-            EventKind.PAUSED,
-            EventKind.CONTINUED,
-            EventKind.BREAKPOINT_HIT,
-            EventKind.RETRY,
-            EventKind.MODE_CHANGED,
-            EventKind.BREAKPOINT_SET,
-        ):
-            extra = data.get("mode", "")
-            line = f"  {number:<8} {event.actor:<10} {kind.value.replace('_', ' ')} {extra}".rstrip()
-        elif kind is EventKind.RUN_COMPLETED:
-            line = f"Run {event.run_id} completed" + ("" if event.actor == "PAX" else f" by {event.actor}")
-        elif kind is EventKind.RUN_STOPPED:
-            line = f"Run {event.run_id} stopped by {event.actor}" + (
-                f": {data['reason']}" if data.get("reason") else ""
-            )
+                line = f"{who} {started_text(event)}"
+            case CommandSent() as d:
+                line = f"{who} {describe_event(event, self.wording)}" + (f" [{d.key}]" if d.key else "")
+            case CommandResult() as d:
+                line = f"  {number:<8} {'':<10} {result_text(d, self.wording, _MARKS)}"
+            case Halt() as d:
+                told = (d.cancel or {}).get("message")
+                line = f"{who} HALT{_why(d.reason)}" + (f"; the system: {told}" if told else "")
+            case InstructionHalted() as d:
+                line = f"{who} halted before it finished{_why(d.reason)}"
+            case LinkLost() as d:
+                n = d.in_flight
+                line = (
+                    f"{pax} {'no news' if d.quiet else 'link lost'} since {d.since[11:19]}Z, {n} command"
+                    f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}"
+                )
+            case LinkRestored() as d:
+                line = f"{pax} link restored after {d.seconds:g} s"
+            case ControlTaken() as d:
+                line = f"{who} took control of {d.robot} from run {d.from_run} ({d.from_user}){_why(d.reason)}"
+            case ControlLost() as d:
+                line = f"{pax} control of {d.robot} taken over by {d.by_user} (run {d.by_run}){_why(d.reason)}"
+            case OperatorInput():
+                self._header(number)  # a correction, below, may be of an earlier step's record
+                line = f"{who} {describe_event(event, self.wording)}"
+            case RecordCorrected():
+                line = f"{who} {describe_event(event, self.wording)}"
+            case SteppedBack() as d:
+                line = f"{who} back to {d.next}{_why(d.reason)}"
+            case OutcomeResolved() as d:
+                line = f"{who} recorded {d.key} as {d.outcome}{_why(d.reason)}"
+            case TelemetrySeen() as d:
+                line = f"  {number:<8} {'':<10} {telemetry_text(d, self.wording)}"
+            case InstructionCompleted() as d:
+                line = f"{who} done" + (f", go to step {d.went_to}" if d.went_to else "")
+            case InstructionFailed() as d:
+                branch = f"; branching to step {d.branch}" if d.branch else ""
+                line = f"{who} FAILED: {d.reason}{branch}"
+            case InstructionSkipped() as d:
+                line = f"{who} skipped: {d.reason}"
+            case AwaitingOperator() as d:
+                self._header(number)
+                line = f"{pax} waiting for an operator: {d.reason}"
+            case Retry(same_key=True) as d:
+                line = f"{who} asked again about {d.key} (same key)"
+            case ModeChanged() as d:
+                line = f"{who} mode changed {d.mode}"
+            case Confirmation() | Paused() | Continued() | BreakpointHit() | Retry() | BreakpointSet():
+                line = f"{who} {event.kind.value.replace('_', ' ')}"
+            case RunCompleted():
+                line = f"Run {event.run_id} completed" + ("" if event.actor == "PAX" else f" by {event.actor}")
+            case RunStopped() as d:
+                line = f"Run {event.run_id} stopped by {event.actor}" + (f": {d.reason}" if d.reason else "")
+            case CallEntered() | BreakpointCleared() | ApprovalRequested() | ApprovalGiven() | ApprovalExpired():
+                pass  # the lines around them say enough
+            case _:
+                assert_never(event.data)
         if line is not None:
             self.out.say(line)
 
@@ -161,8 +183,8 @@ class ProgressPrinter:
             self.out.say(f"Step {step.number}  {step.title}")
 
 
-def _why(data: dict[str, Any]) -> str:
-    return f": {data['reason']}" if data.get("reason") else ""
+def _why(reason: str) -> str:
+    return f": {reason}" if reason else ""
 
 
 class _Superseded(Exception):

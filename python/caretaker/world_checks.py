@@ -467,7 +467,7 @@ def _telemetry(check: TelemetryCheck, world: _World) -> Verdict:
 
 def _images(check: ImagesCheck, scene: Scene, db_url: str, run_id: str) -> Verdict:
     """From the run's audit log: each target's last successful capture, and its file on disk."""
-    from pride.events import EventKind
+    from pride.event_payloads import CommandResult
     from records.audit_log import AuditLog
 
     targets = list(check.targets) if check.targets is not None else [t.name for t in scene.targets]
@@ -478,9 +478,9 @@ def _images(check: ImagesCheck, scene: Scene, db_url: str, run_id: str) -> Verdi
         audit.close()
     images: dict[str, Path] = {}
     for event in events:
-        if event.kind is EventKind.COMMAND_RESULT and event.data.get("success"):
-            path = (event.data.get("values") or {}).get("path")
-            label = (event.data.get("args") or {}).get("label")
+        data = event.data
+        if isinstance(data, CommandResult) and data.success:
+            path, label = data.values.get("path"), data.args.get("label")
             if path and label:
                 images[label] = Path(path)
     missing = [t for t in targets if t not in images]

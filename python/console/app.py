@@ -42,8 +42,9 @@ from console.procedure_view import procedure_json
 from console.run_board import RunBoard
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
-from pride.events import Event
-from pride.phrasing import Wording, describe_event
+from pride.event_words import describe_event
+from pride.events import Event, run_start
+from pride.phrasing import Wording
 from procedure_language.model import Procedure
 from procedure_language.parser import load_procedure
 
@@ -264,7 +265,8 @@ async def runs_start(request: Request) -> Response:
 
 
 def _past_procedure(events: list[Any]) -> Procedure | None:
-    path = events[0].data.get("path") if events else None
+    start = run_start(events)
+    path = start.path if start else None
     if not path or not Path(path).is_file():
         return None
     try:

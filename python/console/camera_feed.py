@@ -15,7 +15,8 @@ import threading
 import time
 from pathlib import Path
 
-from pride.events import Event, EventKind
+from pride.event_payloads import CommandResult, CommandSent
+from pride.events import Event
 from pride.systems import SystemGateway
 
 __all__ = ["CameraFeed", "LiveImage", "MOTION_COMMAND"]
@@ -61,11 +62,12 @@ class CameraFeed:
 
     def event_callback(self, event: Event) -> None:
         """Start capturing when a motion command is sent, stop when its result arrives."""
-        if (event.data.get("system"), event.data.get("command")) != MOTION_COMMAND:
+        data = event.data
+        if not isinstance(data, (CommandSent, CommandResult)) or (data.system, data.command) != MOTION_COMMAND:
             return
-        if event.kind is EventKind.COMMAND_SENT:
+        if isinstance(data, CommandSent):
             self._moving.set()
-        elif event.kind is EventKind.COMMAND_RESULT:
+        else:
             self._moving.clear()
 
     def latest(self) -> LiveImage | None:

@@ -9,8 +9,44 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, assert_never
 
+from pride.event_payloads import (
+    ApprovalExpired,
+    ApprovalGiven,
+    ApprovalRequested,
+    AwaitingOperator,
+    BreakpointCleared,
+    BreakpointHit,
+    BreakpointSet,
+    CallEntered,
+    CommandResult,
+    CommandSent,
+    Confirmation,
+    Continued,
+    ControlLost,
+    ControlTaken,
+    Halt,
+    InstructionCompleted,
+    InstructionFailed,
+    InstructionHalted,
+    InstructionSkipped,
+    InstructionStarted,
+    LinkLost,
+    LinkRestored,
+    ModeChanged,
+    OperatorInput,
+    OutcomeResolved,
+    Paused,
+    RecordCorrected,
+    Retry,
+    RunCompleted,
+    RunResumed,
+    RunStarted,
+    RunStopped,
+    SteppedBack,
+    TelemetrySeen,
+)
 from pride.events import Event, EventKind
 from pride.phrasing import labelled_values
 from procedure_language.sysrep import SysRep
@@ -122,113 +158,115 @@ class FoldedRun:
     def apply(self, event: Event) -> None:
         """Fold one more event in (events arrive in sequence order)."""
         self.last_seq = max(self.last_seq, event.seq)
-        data = event.data or {}
-        kind = event.kind
         when = event.time.isoformat()
         number = event.instruction
-        entry = self.instructions.setdefault(number, InstructionState()) if number else None
+        # an event of no instruction (an operator's command outside them) changes no instruction's state
+        entry = self.instructions.setdefault(number, InstructionState()) if number else InstructionState()
         frame = number.rsplit("/", 1)[0] + "/" if number and "/" in number else ""
-        if kind in _ARRIVALS:
+        if event.kind in _ARRIVALS:
             self.arrived = when
-        if kind in (EventKind.RUN_STARTED, EventKind.RUN_RESUMED):
-            self.procedure = data.get("procedure", self.procedure)
-            self.mode = data.get("mode", self.mode)
-            self.started_by = self.started_by or event.actor
-            self.status = "running"
-            if kind is EventKind.RUN_STARTED and "sha256" in data:
-                self.version = {key: data.get(key) for key in ("sha256", "release", "rehearsal")}
-        elif kind is EventKind.MODE_CHANGED:
-            self.mode = data.get("mode", data.get("to", self.mode))
-        elif kind is EventKind.RUN_COMPLETED:
-            self.status, self.current, self.awaiting = "completed", None, None
-        elif kind is EventKind.RUN_STOPPED:
-            self.status, self.awaiting = "stopped", None
-            self.stopped = {"by": event.actor, "time": when, "reason": str(data.get("reason") or "")}
-        elif kind is EventKind.PAUSED:
-            self.status, self.paused = "paused", True
-        elif kind is EventKind.CONTINUED:
-            self.status, self.awaiting, self.paused = "running", None, False
-        elif kind is EventKind.RETRY:
-            self.status, self.awaiting = "running", None
-        elif kind is EventKind.BREAKPOINT_SET and number:
-            self.breakpoints.add(number)
-        elif kind is EventKind.BREAKPOINT_CLEARED and number:
-            self.breakpoints.discard(number)
-        elif kind is EventKind.CALL_ENTERED and number:
-            self.envs[number + "/"] = dict(data.get("inputs") or {})
-        elif kind is EventKind.HALT:
-            self.halted = {"by": event.actor, "time": when, "reason": str(data.get("reason") or "")}
-        elif kind is EventKind.LINK_LOST:
-            self.link = {
-                "state": "lost",
-                "since": data.get("since"),
-                "in_flight": data.get("in_flight", 0),
-                "quiet": bool(data.get("quiet")),
-            }
-        elif kind is EventKind.LINK_RESTORED:
-            self.link = {"state": "connected", "since": when}
-        if entry is None:
-            return
-        if kind is EventKind.INSTRUCTION_STARTED:
-            entry.status, entry.actor, entry.time, entry.started, entry.reason = "active", event.actor, when, when, None
-            self.current, self.awaiting = number, None
-            if self.status == "awaiting":
+        match event.data:
+            case RunStarted() | RunResumed() as d:
+                self.procedure = d.procedure if isinstance(d, RunStarted) else self.procedure
+                self.mode = d.mode
+                self.started_by = self.started_by or event.actor
                 self.status = "running"
-        elif kind in (EventKind.AWAITING_OPERATOR, EventKind.BREAKPOINT_HIT):
-            entry.status = "awaiting"
-            entry.reason = data.get("reason") or ("breakpoint" if kind is EventKind.BREAKPOINT_HIT else None)
-            self.current, self.awaiting, self.status = number, entry.reason or "operator", "awaiting"
-        elif kind is EventKind.INSTRUCTION_COMPLETED:
-            entry.status, entry.actor, entry.time, entry.reason = "completed", event.actor, when, None
-        elif kind is EventKind.INSTRUCTION_FAILED:
-            entry.status, entry.actor, entry.time = "failed", event.actor, when
-            entry.reason = data.get("reason")
-        elif kind is EventKind.INSTRUCTION_SKIPPED:
-            entry.status, entry.actor, entry.time = "skipped", event.actor, when
-            entry.reason = data.get("reason")
-        elif kind is EventKind.INSTRUCTION_HALTED:
-            entry.status, entry.actor, entry.time = "halted", event.actor, when
-            entry.reason = data.get("reason")
-        elif kind is EventKind.CONFIRMATION:
-            entry.confirmed_by = event.actor
-        elif kind is EventKind.OUTCOME_RESOLVED:
-            entry.resolved = {"by": event.actor, "outcome": data.get("outcome"), "reason": data.get("reason", "")}
-        elif kind is EventKind.RECORD_CORRECTED:
-            entry.value = data.get("value")
-            entry.corrected = {
-                "by": event.actor,
-                "old": data.get("old"),
-                "value": data.get("value"),
-                "reason": data.get("reason", ""),
-            }
-            self.envs.setdefault(frame, {})[str(data.get("name"))] = data.get("value")
-        elif kind is EventKind.COMMAND_SENT:
-            entry.sent, entry.sent_by = dict(data), event.actor
-        elif kind is EventKind.COMMAND_RESULT:
-            entry.result, entry.outcome = dict(data), data.get("outcome")
-            values: dict[str, Any] = data["values"] if isinstance(data.get("values"), dict) else {}
-            entry.result_lines = labelled_values(values, self.sysreps.get(str(data.get("system"))))
-            if data.get("result"):
-                self.envs.setdefault(frame, {})[data["result"]] = {
-                    "success": data.get("success"),
-                    "message": data.get("message", ""),
-                    **values,
-                }
-            image = _image_path(data)
-            if image:
-                self.latest_image, self.latest_image_event = image, event
-        elif kind is EventKind.OPERATOR_INPUT:
-            entry.value = data.get("value")
-            self.envs.setdefault(frame, {})[str(data.get("name"))] = data.get("value")
-        elif kind is EventKind.TELEMETRY_SEEN:
-            entry.telemetry = dict(data)
+                if isinstance(d, RunStarted) and d.sha256 is not None:
+                    self.version = {"sha256": d.sha256, "release": d.release, "rehearsal": d.rehearsal}
+            case ModeChanged() as d:
+                self.mode = d.new_mode or self.mode
+            case RunCompleted():
+                self.status, self.current, self.awaiting = "completed", None, None
+            case RunStopped() as d:
+                self.status, self.awaiting = "stopped", None
+                self.stopped = {"by": event.actor, "time": when, "reason": d.reason}
+            case Paused():
+                self.status, self.paused = "paused", True
+            case Continued():
+                self.status, self.awaiting, self.paused = "running", None, False
+            case Retry():
+                self.status, self.awaiting = "running", None
+            case BreakpointSet() if number:
+                self.breakpoints.add(number)
+            case BreakpointCleared() if number:
+                self.breakpoints.discard(number)
+            case CallEntered() as d if number:
+                self.envs[number + "/"] = dict(d.inputs)
+            case Halt() as d:
+                self.halted = {"by": event.actor, "time": when, "reason": d.reason}
+            case LinkLost() as d:
+                self.link = {"state": "lost", "since": d.since, "in_flight": d.in_flight, "quiet": d.quiet}
+            case LinkRestored():
+                self.link = {"state": "connected", "since": when}
+            case InstructionStarted() if number:
+                entry.status, entry.actor, entry.time, entry.started, entry.reason = (
+                    "active",
+                    event.actor,
+                    when,
+                    when,
+                    None,
+                )
+                self.current, self.awaiting = number, None
+                if self.status == "awaiting":
+                    self.status = "running"
+            case AwaitingOperator() | BreakpointHit() as d if number:
+                entry.status = "awaiting"
+                entry.reason = d.reason if isinstance(d, AwaitingOperator) and d.reason else None
+                entry.reason = entry.reason or ("breakpoint" if isinstance(d, BreakpointHit) else None)
+                self.current, self.awaiting, self.status = number, entry.reason or "operator", "awaiting"
+            case InstructionCompleted():
+                entry.status, entry.actor, entry.time, entry.reason = "completed", event.actor, when, None
+            case InstructionFailed() | InstructionSkipped() | InstructionHalted() as d:
+                status = {InstructionFailed: "failed", InstructionSkipped: "skipped", InstructionHalted: "halted"}
+                entry.status, entry.actor, entry.time = status[type(d)], event.actor, when
+                entry.reason = d.reason
+            case Confirmation():
+                entry.confirmed_by = event.actor
+            case OutcomeResolved() as d:
+                entry.resolved = {"by": event.actor, "outcome": d.outcome, "reason": d.reason}
+            case RecordCorrected() as d:
+                entry.value = d.value
+                entry.corrected = {"by": event.actor, "old": d.old, "value": d.value, "reason": d.reason}
+                self.envs.setdefault(frame, {})[d.name] = d.value
+            case CommandSent() as d:
+                entry.sent, entry.sent_by = d.to_json(), event.actor
+            case CommandResult() as d if number:  # an operator's command outside the instructions: its log only
+                entry.result, entry.outcome = d.to_json(), d.outcome
+                entry.result_lines = labelled_values(d.values, self.sysreps.get(d.system))
+                if d.result:
+                    self.envs.setdefault(frame, {})[d.result] = {"success": d.success, "message": d.message, **d.values}
+                image = _image_path(d)
+                if image:
+                    self.latest_image, self.latest_image_event = image, event
+            case OperatorInput() as d:
+                entry.value = d.value
+                self.envs.setdefault(frame, {})[d.name] = d.value
+            case TelemetrySeen() as d:
+                entry.telemetry = d.to_json()
+            case (
+                BreakpointSet()
+                | BreakpointCleared()
+                | CallEntered()
+                | InstructionStarted()
+                | AwaitingOperator()
+                | BreakpointHit()
+                | CommandResult()
+                | SteppedBack()
+                | ControlTaken()
+                | ControlLost()
+                | ApprovalRequested()
+                | ApprovalGiven()
+                | ApprovalExpired()
+            ):
+                pass  # without an instruction, or shown through the run's snapshot and its log
+            case _:
+                assert_never(event.data)
 
 
-def _image_path(data: dict[str, Any]) -> str | None:
+def _image_path(data: CommandResult) -> str | None:
     """A PNG path in a command result (the camera SysRep's capture answers with one)."""
-    values = data.get("values") if isinstance(data.get("values"), dict) else data
     for key in _IMAGE_KEYS:
-        value = values.get(key) if isinstance(values, dict) else None
+        value = data.values.get(key)
         if isinstance(value, str) and value.lower().endswith(".png"):
             return value
     return None

@@ -41,7 +41,7 @@ from console.release_desk import ReleaseDesk
 from console.remote_run import RemoteRun
 from console.watchers import Watchers
 from pride.approvals import approval_points, missing_approvals_text
-from pride.events import Event, EventKind
+from pride.events import Event, EventKind, run_start
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
 from pride.run_control import RobotControlled
@@ -284,7 +284,8 @@ class RunBoard:
         status = fold_events(run_id, events).status
         if status == "completed":
             raise ActionRefused(409, f"run {run_id} is completed: there is nothing to resume")
-        procedure_name = Path(str(events[0].data.get("path", ""))).name
+        start = run_start(events)
+        procedure_name = Path(start.path if start else "").name
         setup = self._setup(procedure_name, binding_name, events=events)
         gateway = self._gateway(setup, binding_name)
         try:

@@ -32,6 +32,8 @@ from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
 from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
 from console.spatial_link import read_view_link
+from pride.event_payloads import CommandResult, CommandSent
+from pride.events import Event
 from pride.states import OperatorActionError
 from procedure_language.sysrep import SysRep
 
@@ -69,18 +71,20 @@ class SpatialFeeds:
                 feed.start()
                 loop = asyncio.get_running_loop()
 
-                def on_event(event: Any) -> None:  # the executive's thread: an AT command sent or ended
-                    command = event.data.get("command")
-                    motion = (event.data.get("system"), command) == MOTION_COMMAND
-                    if event.kind.value == "command_sent" and motion:
-                        args = event.data.get("args") or {}
+                def on_event(event: Event) -> None:  # the executive's thread: an AT command sent or ended
+                    data = event.data
+                    if not isinstance(data, (CommandSent, CommandResult)):
+                        return
+                    command, args = data.command, data.args
+                    motion = (data.system, command) == MOTION_COMMAND
+                    if isinstance(data, CommandSent) and motion:
                         sent = (str(args.get("affordance_template", "")), str(args.get("trajectory", "")))
                         loop.call_soon_threadsafe(feed.command_sent, *sent)
-                    elif event.kind.value == "command_result" and motion:
+                    elif isinstance(data, CommandResult) and motion:
                         loop.call_soon_threadsafe(feed.command_ended)
-                    elif event.kind.value == "command_result" and command in AT_COMMANDS_THAT_MOVE_TEMPLATES:
-                        if command == "set_display_object_pose" and event.data.get("success") is True:
-                            loop.call_soon_threadsafe(feed.registered, event.data.get("args") or {})
+                    elif isinstance(data, CommandResult) and command in AT_COMMANDS_THAT_MOVE_TEMPLATES:
+                        if command == "set_display_object_pose" and data.success is True:
+                            loop.call_soon_threadsafe(feed.registered, dict(args))
                         loop.call_soon_threadsafe(feed.refresh)
 
                 live.executive.add_listener(on_event)

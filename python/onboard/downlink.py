@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
+from pride.event_payloads import payload_from_json
 from pride.events import Event, EventKind
 from pride.run_version import RunVersion
 from procedure_language.lint import CheckedProcedure
@@ -74,11 +75,9 @@ def _event(item: Any, run_id: str) -> tuple[Event, str, str, str]:
     try:
         kind_ = EventKind(item["kind"])
         moment = datetime.fromisoformat(item["time"])
-        data = json.loads(item["data"])
+        data = payload_from_json(kind_, json.loads(item["data"]))  # EventDataError: a field of the wrong type
     except ValueError as exc:
         raise DownlinkError(f"event {item['seq']} cannot be read: {exc}") from None
-    if not isinstance(data, dict):
-        raise DownlinkError(f"event {item['seq']}'s data must be an object")
     event = Event(run_id, item["seq"], kind_, item["actor"], instruction, data, moment)
     return event, item["data"], item["prev_hash"], item["hash"]
 

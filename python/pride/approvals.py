@@ -29,6 +29,7 @@ from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from datafile import Field
+from pride.event_payloads import ApprovalExpired
 from procedure_language.lint import CheckedProcedure
 from procedure_language.model import CommandInstruction, Instruction
 from procedure_language.sysrep import SysRep
@@ -123,15 +124,12 @@ class Approval:
     def stale(self, now: datetime) -> bool:
         return now >= self.expires
 
-    def expiry_record(self) -> dict[str, str]:
+    def expiry_record(self) -> ApprovalExpired:
         """What an ``approval_expired`` event records of it."""
         request = self.request
-        return {
-            "approver": self.approver,
-            "sender": request.sender,
-            "command": request.command,
-            "expired": self.expires.isoformat(),
-        }
+        return ApprovalExpired(
+            approver=self.approver, sender=request.sender, command=request.command, expired=self.expires.isoformat()
+        )
 
 
 def command_hazardous(instruction: Instruction, sysreps: Mapping[str, SysRep]) -> bool:

@@ -27,7 +27,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from pride.approvals import command_hazardous
-from pride.events import EventKind
+from pride.event_payloads import CommandResult as CommandResultRecord
+from pride.event_payloads import CommandSent, TelemetrySeen
+from pride.events import Payload
 from pride.phrasing import record_refusal
 from pride.states import Controller, OperatorActionError, RecordNotCheckable
 from pride.systems import CommandResult, Outcome, SystemGateway
@@ -110,11 +112,11 @@ class Automation:
         self,
         gateway: SystemGateway,
         checked: CheckedProcedure,
-        record: Callable[..., None],
+        record: Callable[[str, str | None, Payload], None],
         *,
         may_send: Callable[[], None],
     ) -> None:
-        """``record(kind, actor, number, **data)`` stores an event (the executive's, taking its lock);
+        """``record(actor, number, payload)`` stores an event (the executive's, taking its lock);
         ``may_send()`` raises :class:`ControlLost` when the run must not command its robot."""
         self._gateway = gateway
         self._checked = checked
@@ -157,16 +159,19 @@ class Automation:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
         return command_hazardous(instruction, self._sysreps)
 
-    def check_record(self, instruction: RecordInstruction, value: Any) -> tuple[Any, dict[str, Any]]:
+    def check_record(
+        self, instruction: RecordInstruction, value: Any
+    ) -> tuple[Any, str | None, tuple[str, ...] | None]:
         """A record's value converted and checked (including against the telemetry it names), and what
-        to add to its event; OperatorActionError says why a value is refused (RecordNotCheckable:
+        its event adds: the ``system.item`` it was checked against and the values listed there
+        (None, None: none); OperatorActionError says why a value is refused (RecordNotCheckable:
         the telemetry it must be checked against cannot be read now)."""
         try:
             converted = instruction.check(value)
         except ValueError as exc:
             raise OperatorActionError(str(exc)) from None
         if instruction.one_of_telemetry is None:
-            return converted, {}
+            return converted, None, None
         system, item = instruction.one_of_telemetry
         try:
             reading = self._gateway.telemetry(system, item)
@@ -181,7 +186,7 @@ class Automation:
         allowed = [v.strip() for v in str(reading.value).split(",") if v.strip()]
         if str(converted) not in allowed:
             raise OperatorActionError(record_refusal(converted, system, item, self._sysreps, listed=allowed))
-        return converted, {"checked_against": f"{system}.{item}", "allowed": allowed}
+        return converted, f"{system}.{item}", tuple(allowed)
 
     def carry_out(
         self,
@@ -229,13 +234,18 @@ class Automation:
         args = {binding.name: self._checked.argument(binding, env) for binding in instruction.args}
         self._may_send()
         hazardous = self.is_hazardous(instruction)
-        about = {"system": instruction.system, "command": instruction.command, "args": args, "key": send.key}
-        extra: dict[str, Any] = {"resend": True} if send.resend else {}
-        if hazardous and send.confirmed_by:
-            extra["confirmed_by"] = send.confirmed_by
-        if send.approved_by:
-            extra.update(requested_by=send.requested_by, approved_by=send.approved_by)
-        self._record(EventKind.COMMAND_SENT, actor, number, **about, hazardous=hazardous, **extra)
+        sent = CommandSent(
+            system=instruction.system,
+            command=instruction.command,
+            args=args,
+            key=send.key,
+            hazardous=hazardous,
+            resend=send.resend,
+            confirmed_by=send.confirmed_by if hazardous else None,
+            requested_by=send.requested_by if send.approved_by else None,
+            approved_by=send.approved_by,
+        )
+        self._record(actor, number, sent)
         with self._signal_lock:
             halted_first = self._halt is not None
             if not halted_first:
@@ -252,17 +262,18 @@ class Automation:
                     self._in_flight = None
         outcome = result.outcome
         success = None if outcome is Outcome.UNKNOWN else result.success  # unknown: neither success nor failure
-        self._record(
-            EventKind.COMMAND_RESULT,
-            actor,
-            number,
-            **about,
+        answer = CommandResultRecord(
+            system=sent.system,
+            command=sent.command,
+            args=args,
+            key=send.key,
             outcome=outcome.value,
             success=success,
             message=result.message,
             values=dict(result.values),
             result=instruction.result,
         )
+        self._record(actor, number, answer)
         saved = None
         if instruction.result and outcome is not Outcome.UNKNOWN:
             saved = (instruction.result, {"success": result.success, "message": result.message, **result.values})
@@ -302,10 +313,7 @@ class Automation:
             ok = not stale and value is not None and condition.holds(value, type_name)
             remaining = deadline - time.monotonic()
             if ok or remaining <= 0 or self.interrupt.is_set():
-                self._record(
-                    EventKind.TELEMETRY_SEEN,
-                    actor,
-                    number,
+                seen = TelemetrySeen(
                     system=system,
                     item=subject.name,
                     value=value,
@@ -314,6 +322,7 @@ class Automation:
                     condition=condition.describe(),
                     ok=ok,
                 )
+                self._record(actor, number, seen)
                 if ok:
                     return InstructionResult(True)
                 if self.interrupt.is_set():
@@ -327,16 +336,14 @@ class Automation:
     def _read(self, env: dict[str, Any], subject: Subject, number: str, actor: str) -> Any:
         if subject.source == "telemetry":
             reading = self._gateway.telemetry(_system_of(subject), subject.name)
-            self._record(
-                EventKind.TELEMETRY_SEEN,
-                actor,
-                number,
+            seen = TelemetrySeen(
                 system=subject.system,
                 item=subject.name,
                 value=reading.value,
                 stale=reading.stale,
                 timestamp=reading.timestamp,
             )
+            self._record(actor, number, seen)
             if reading.stale:
                 raise KeyError(f"{subject.describe()} is stale; cannot decide the branch")
             return reading.value

@@ -132,10 +132,15 @@ class RunStopped(Recorded):
 
 @dataclass(frozen=True, kw_only=True)
 class ModeChanged(Recorded):
-    """Manual ↔ autonomous: ``mode`` is the new one."""
+    """Manual ↔ autonomous: ``mode`` is the new one (see :attr:`new_mode`)."""
 
     KIND = EventKind.MODE_CHANGED
     mode: str
+
+    @property
+    def new_mode(self) -> str:
+        """The mode it changed to (the earliest runs recorded it as ``to``)."""
+        return self.mode or str(self.extra.get("to", ""))
 
 
 # ---- instructions ---------------------------------------------------------------------------
@@ -158,11 +163,11 @@ class InstructionStarted(Recorded):
 
 @dataclass(frozen=True, kw_only=True)
 class InstructionCompleted(Recorded):
-    """An instruction finished successfully: ``next`` is where the run goes (null: the end);
+    """An instruction finished successfully: ``next`` is where the run goes (``end``: the run is over);
     ``went_to``: the step a branch or go-to chose, when it chose one."""
 
     KIND = EventKind.INSTRUCTION_COMPLETED
-    next: str | None
+    next: str
     went_to: str | None = optional()
 
 
@@ -173,7 +178,7 @@ class InstructionFailed(Recorded):
 
     KIND = EventKind.INSTRUCTION_FAILED
     reason: str
-    next: str | None
+    next: str
     branch: str | None = optional()
 
 
@@ -183,7 +188,7 @@ class InstructionSkipped(Recorded):
 
     KIND = EventKind.INSTRUCTION_SKIPPED
     reason: str
-    next: str | None
+    next: str
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -195,7 +200,7 @@ class InstructionHalted(Recorded):
     KIND = EventKind.INSTRUCTION_HALTED
     reason: str
     detail: str
-    next: str | None
+    next: str
 
 
 # ---- commands -------------------------------------------------------------------------------
@@ -486,7 +491,7 @@ class Retry(Recorded):
     joins it, never runs it twice."""
 
     KIND = EventKind.RETRY
-    after: str | None
+    after: str
     same_key: bool = optional(False)
     key: str | None = optional()
 

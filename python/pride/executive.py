@@ -95,6 +95,29 @@ from typing import Any
 
 from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
 from pride.automation import ControlLost, Halt
+from pride.event_payloads import (
+    ApprovalGiven,
+    ApprovalRequested,
+    BreakpointCleared,
+    BreakpointSet,
+    CommandSent,
+    Confirmation,
+    Continued,
+    ModeChanged,
+    OperatorInput,
+    Paused,
+    RecordCorrected,
+    Retry,
+    RunResumed,
+    RunStarted,
+    RunStopped,
+)
+from pride.event_payloads import (
+    CommandResult as CommandResultRecord,
+)
+from pride.event_payloads import (
+    Halt as HaltRecord,
+)
 from pride.events import Event, EventKind, Journal
 from pride.leftovers import Leftover, TakenBack, taken_back
 from pride.phrasing import filled_sentence
@@ -150,19 +173,20 @@ class Executive(RunEngine):
             previous = self._control.take(user, take_over)
             state.status = RunStatus.ACTIVE
             procedure = self.procedure
-            self._emit(
-                EventKind.RUN_STARTED,
-                user,
-                None,
+            version = self.version
+            started = RunStarted(
                 procedure=procedure.id,
                 title=procedure.title,
                 version=procedure.version,
                 path=str(Path(procedure.path).resolve()),
                 mode=state.mode.value,
                 robot=self.robot,
-                steps=[{"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps],
-                **(self.version.data() if self.version else {}),
+                steps=tuple({"number": s.number, "id": s.id, "title": s.title} for s in procedure.steps),
+                sha256=version.sha256 if version else None,
+                release=version.release if version else None,
+                rehearsal=version.rehearsal if version else None,
             )
+            self._emit(user, None, started)
             self._record_takeover(user, previous, take_over)
             state.arrive()
             self._launch()
@@ -199,17 +223,17 @@ class Executive(RunEngine):
                 f"run {events[0].run_id} took back what it had added when it stopped ({', '.join(removed)}): "
                 "it cannot go on without it; start the procedure again"
             )
-        started = events[0]
-        if started.data.get("procedure") != procedure.id:
-            raise OperatorActionError(
-                f"run {started.run_id} ran procedure {started.data.get('procedure')!r}, not {procedure.id!r}"
-            )
+        started = events[0].data
+        assert isinstance(started, RunStarted)  # its kind, checked above
+        run_id = events[0].run_id
+        if started.procedure != procedure.id:
+            raise OperatorActionError(f"run {run_id} ran procedure {started.procedure!r}, not {procedure.id!r}")
         executive = cls(
             checked,
             gateway,
             journal,
-            run_id=started.run_id,
-            mode=Mode(started.data.get("mode", "manual")),
+            run_id=run_id,
+            mode=Mode(started.mode or "manual"),
             control=control,
             approvals=approvals,
         )
@@ -226,14 +250,8 @@ class Executive(RunEngine):
             state.status = RunStatus.ACTIVE
             for listener in listeners:
                 executive.add_listener(listener)
-            executive._emit(
-                EventKind.RUN_RESUMED,
-                user,
-                state.frame.number(),
-                mode=state.mode.value,
-                in_flight=state.in_flight,
-                resend=state.resend,
-            )
+            resumed = RunResumed(mode=state.mode.value, in_flight=state.in_flight, resend=state.resend)
+            executive._emit(user, state.frame.number(), resumed)
             executive._record_takeover(user, previous, take_over)
             if state.frame.instruction is None:
                 state.advance(state.frame.position)
@@ -267,7 +285,7 @@ class Executive(RunEngine):
             if mode is self._state.mode:
                 return
             self._state.mode = mode
-            self._emit(EventKind.MODE_CHANGED, user, self._state.current_number(), mode=mode.value)
+            self._emit(user, self._state.current_number(), ModeChanged(mode=mode.value))
             self._state.announce()
 
     def pause(self, user: str) -> None:
@@ -277,7 +295,7 @@ class Executive(RunEngine):
             if self._state.paused:
                 return
             self._state.paused = True
-            self._emit(EventKind.PAUSED, user, self._state.current_number())
+            self._emit(user, self._state.current_number(), Paused())
 
     def resume_automation(self, user: str) -> None:
         """Carry on after a pause, a breakpoint or a halt ("continue")."""
@@ -293,7 +311,7 @@ class Executive(RunEngine):
                 raise OperatorActionError(replan.why_not_again())
             state.paused = state.at_breakpoint = False
             self._clear_halt()
-            self._emit(EventKind.CONTINUED, user, state.current_number())
+            self._emit(user, state.current_number(), Continued())
             state.announce()
 
     def halt(self, user: str, reason: str = "") -> None:
@@ -310,15 +328,8 @@ class Executive(RunEngine):
                 return
             if state.halt is None:
                 state.halt = Halt(user, reason)
-            self._emit(
-                EventKind.HALT,
-                user,
-                state.current_number(),
-                reason=reason,
-                key=key,
-                cancel=_cancel_data(answer),
-                executing=state.executing,
-            )
+            halted = HaltRecord(reason=reason, key=key, cancel=_cancel_data(answer), executing=state.executing)
+            self._emit(user, state.current_number(), halted)
             state.announce()
 
     def stop(self, user: str, reason: str = "", *, take_back: bool = True) -> None:
@@ -345,15 +356,14 @@ class Executive(RunEngine):
             else:
                 ended = self._holdings.left("kept for a resume of the run")
             state.status = RunStatus.STOPPED
-            self._emit(
-                EventKind.RUN_STOPPED,
-                user,
-                state.current_number(),
+            stopped = RunStopped(
                 reason=reason,
                 key=key,
                 cancel=_cancel_data(answer),
-                **ended.data(),
+                taken_back=ended.removed,
+                left_behind=ended.left_json(),
             )
+            self._emit(user, state.current_number(), stopped)
 
     def set_breakpoint(self, user: str, number: str) -> None:
         """Make automation hold when it reaches instruction ``number``."""
@@ -361,13 +371,13 @@ class Executive(RunEngine):
             self._check_number(number)
             if number not in self._state.breakpoints:
                 self._state.breakpoints.add(number)
-                self._emit(EventKind.BREAKPOINT_SET, user, number)
+                self._emit(user, number, BreakpointSet())
 
     def clear_breakpoint(self, user: str, number: str) -> None:
         with self._changed:
             if number in self._state.breakpoints:
                 self._state.breakpoints.discard(number)
-                self._emit(EventKind.BREAKPOINT_CLEARED, user, number)
+                self._emit(user, number, BreakpointCleared())
 
     def perform(self, user: str) -> None:
         """Perform the current instruction as ``user`` ("Send", "Check", "Start"); PAX carries it out."""
@@ -414,13 +424,13 @@ class Executive(RunEngine):
                 if state.approval_request is not None or state.approval is not None:
                     raise OperatorActionError(state.unconfirmed_text(number, instruction))
                 state.approval_request = ApprovalRequest(number or "", user, state.approvals.clock(), said)
-                self._emit(EventKind.APPROVAL_REQUESTED, user, number, command=said, level=state.approvals.level.value)
+                self._emit(user, number, ApprovalRequested(command=said, level=state.approvals.level.value))
                 state.announce()
                 return
             if not self.is_hazardous(instruction):
                 raise OperatorActionError(f"{number} is not a hazardous command")
             state.confirmed_by = user
-            self._emit(EventKind.CONFIRMATION, user, number, command=said)
+            self._emit(user, number, Confirmation(command=said))
             state.announce()
 
     def approve(self, user: str, *, carried: CarriedApproval | None = None) -> None:
@@ -444,21 +454,20 @@ class Executive(RunEngine):
             except ValueError as exc:
                 raise OperatorActionError(str(exc)) from None
             if approval.stale(state.approvals.clock()):
-                self._emit(EventKind.APPROVAL_EXPIRED, user, number, **approval.expiry_record())
+                self._emit(user, number, approval.expiry_record())
                 raise OperatorActionError(
                     f"{user}'s approval of {number}, carried with the unit, ran out at "
                     f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
                 )
             state.approval = approval
-            self._emit(
-                EventKind.APPROVAL_GIVEN,
-                user,
-                number,
+            given = ApprovalGiven(
                 sender=request.sender,
                 command=request.command,
                 expires=approval.expires.isoformat(),
-                **({"given": approval.approved.isoformat(), "carried": True} if carried else {}),
+                given=approval.approved.isoformat() if carried else None,
+                carried=carried is not None,
             )
+            self._emit(user, number, given)
             if state.mode is Mode.MANUAL and state.clear_to_send():  # the sender pressed Send: it goes now, as theirs
                 state.request = Request(request.sender)
             self._changed.notify_all()
@@ -470,12 +479,11 @@ class Executive(RunEngine):
             instruction = self._require_idle()
             if not isinstance(instruction, RecordInstruction):
                 raise OperatorActionError(f"{self._state.current_number()} is a {instruction.kind.value}, not a record")
-            converted, checked = self._automation.check_record(instruction, value)
+            converted, against, allowed = self._automation.check_record(instruction, value)
             frame = self._state.frame
             frame.env[instruction.name] = converted
-            self._emit(
-                EventKind.OPERATOR_INPUT, user, frame.number(), name=instruction.name, value=converted, **checked
-            )
+            entered = OperatorInput(name=instruction.name, value=converted, checked_against=against, allowed=allowed)
+            self._emit(user, frame.number(), entered)
             self._state.complete(user, frame.procedure.following(frame.position))
             return converted
 
@@ -495,19 +503,18 @@ class Executive(RunEngine):
                 raise OperatorActionError(f"{number} is not a record of {frame.procedure.id}")
             if instruction.name not in frame.env or number == frame.number():
                 raise OperatorActionError(f"{number} has not been entered yet: enter it when the run gets there")
-            converted, checked = self._automation.check_record(instruction, value)
+            converted, against, allowed = self._automation.check_record(instruction, value)
             old = frame.env[instruction.name]
             frame.env[instruction.name] = converted
-            self._emit(
-                EventKind.RECORD_CORRECTED,
-                user,
-                number,
+            corrected = RecordCorrected(
                 name=instruction.name,
                 old=old,
                 value=converted,
                 reason=reason,
-                **checked,
+                checked_against=against,
+                allowed=allowed,
             )
+            self._emit(user, number, corrected)
             self._state.announce()
             return converted
 
@@ -538,7 +545,7 @@ class Executive(RunEngine):
                 raise OperatorActionError(replan.why_not_again())
             if state.unconfirmed(instruction):
                 raise OperatorActionError(state.unconfirmed_text(number, instruction))
-            self._emit(EventKind.RETRY, user, number, after=state.failure or state.in_flight or state.halt_text())
+            self._emit(user, number, Retry(after=state.failure or state.in_flight or state.halt_text()))
             state.clear_holds()
             self._clear_halt()
             state.request = Request(user)
@@ -553,14 +560,8 @@ class Executive(RunEngine):
             key = self._pending_key()
             if key is None:
                 raise OperatorActionError(f"{state.current_number()} has no command of unknown outcome")
-            self._emit(
-                EventKind.RETRY,
-                user,
-                state.current_number(),
-                after=state.unknown[1] if state.unknown else f"{key} in flight",
-                same_key=True,
-                key=key,
-            )
+            after = state.unknown[1] if state.unknown else f"{key} in flight"
+            self._emit(user, state.current_number(), Retry(after=after, same_key=True, key=key))
             state.clear_holds()
             self._clear_halt()
             state.resend = key
@@ -654,32 +655,37 @@ class Executive(RunEngine):
         return self._ad_hoc_result(user, about)
 
     def _ad_hoc_sent(
-        self, user: str, kind: str, system: str, command: str, args: Mapping[str, Any], **marks: Any
-    ) -> dict[str, Any]:
-        """Record COMMAND_SENT of a command that is no instruction (the lock is held); return what
-        its result repeats. Its key, ``<run>/<kind>/<seq>``, is its own: the habitat executes it once."""
+        self, user: str, kind: str, system: str, command: str, args: Mapping[str, Any], take_back: str | None = None
+    ) -> CommandSent:
+        """Record COMMAND_SENT of a command that is no instruction (the lock is held) and return it.
+        Its key, ``<run>/<kind>/<seq>``, is its own: the habitat executes it once."""
         key = f"{self.run_id}/{kind}/{self._seq + 1}"
-        about = {"system": system, "command": command, "args": dict(args), "key": key, "ad_hoc": True, **marks}
-        self._emit(EventKind.COMMAND_SENT, user, None, **about, hazardous=False)
-        return about
+        sent = CommandSent(
+            system=system, command=command, args=dict(args), key=key, hazardous=False, ad_hoc=True, take_back=take_back
+        )
+        self._emit(user, None, sent)
+        return sent
 
-    def _ad_hoc_result(self, user: str, about: dict[str, Any]) -> CommandResult:
+    def _ad_hoc_result(self, user: str, sent: CommandSent) -> CommandResult:
         """Send the command :meth:`_ad_hoc_sent` recorded and record its answer (unknown stays unknown)."""
         try:
-            result = self._gateway.execute(about["system"], about["command"], about["args"], key=about["key"])
+            result = self._gateway.execute(sent.system, sent.command, dict(sent.args), key=sent.key)
         except Exception as exc:  # refused before sending (bad argument, unknown command)
             result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
         outcome = result.outcome
-        self._record(
-            EventKind.COMMAND_RESULT,
-            user,
-            None,
-            **about,
+        answer = CommandResultRecord(
+            system=sent.system,
+            command=sent.command,
+            args=sent.args,
+            key=sent.key,
             outcome=outcome.value,
             success=None if outcome is Outcome.UNKNOWN else result.success,
             message=result.message,
             values=dict(result.values),
+            ad_hoc=True,
+            take_back=sent.take_back,
         )
+        self._record(user, None, answer)
         return result
 
     def _take_back(self, user: str) -> TakenBack:

@@ -22,7 +22,8 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from pride.events import Event, EventKind
+from pride.event_payloads import CommandResult, CommandSent, OutcomeResolved
+from pride.events import Event
 
 __all__ = ["UNDOS", "Held", "Holdings", "Leftover", "TakenBack", "Undo", "taken_back"]
 
@@ -79,14 +80,9 @@ class TakenBack:
     removed: tuple[str, ...] = ()
     left: tuple[Leftover, ...] = ()
 
-    def data(self) -> dict[str, Any]:
-        """The end event's fields (``taken_back``, ``left_behind``), only those with something in them."""
-        data: dict[str, Any] = {}
-        if self.removed:
-            data["taken_back"] = list(self.removed)
-        if self.left:
-            data["left_behind"] = [leftover.to_json() for leftover in self.left]
-        return data
+    def left_json(self) -> tuple[dict[str, str], ...]:
+        """What is left behind as the end event's ``left_behind`` records it."""
+        return tuple(leftover.to_json() for leftover in self.left)
 
 
 class Holdings:
@@ -102,31 +98,30 @@ class Holdings:
     def note(self, event: Event) -> None:
         """Take one of the run's events into account (every event may be given; most change nothing)."""
         data = event.data
-        if event.kind is EventKind.OUTCOME_RESOLVED:
-            unsure = self._unsure.get(str(data.get("key")))
+        if isinstance(data, OutcomeResolved):
+            unsure = self._unsure.get(data.key)
             if unsure is None:
                 return
-            if data.get("outcome") == "failed":
-                del self._unsure[str(data["key"])]
+            if data.outcome == "failed":
+                del self._unsure[data.key]
             else:  # the operator saw it succeed; the system's answer, which names the thing, never came
                 why = f"recorded as succeeded by {event.actor}, so its name is not known: check the system"
-                self._unsure[str(data["key"])] = Leftover(unsure.system, unsure.name, why)
+                self._unsure[data.key] = Leftover(unsure.system, unsure.name, why)
             return
-        if event.kind is not EventKind.COMMAND_RESULT:
+        if not isinstance(data, CommandResult):  # only results and resolutions change what is held
             return
-        system, command, key = str(data.get("system")), str(data.get("command")), str(data.get("key"))
-        values = data.get("values") or {}
+        system, command, key, values = data.system, data.command, str(data.key), data.values
         adding, removing = self._adding.get((system, command)), self._removing.get((system, command))
         if adding is not None:
             self._unsure.pop(key, None)  # asked again under the same key: this is its answer
             name = values.get(adding.name)
-            if data.get("success") is True and name is not None:
+            if data.success is True and name is not None:
                 self._held[(system, str(name))] = Held(adding, str(name), adding.arguments(values))
-            elif data.get("success") is True or data.get("outcome") == "unknown":
-                args = ", ".join(f"{k}={v!r}" for k, v in (data.get("args") or {}).items())
-                why = "its answer named nothing" if data.get("success") else f"the outcome of {key} is not known"
+            elif data.success is True or data.outcome == "unknown":
+                args = ", ".join(f"{k}={v!r}" for k, v in data.args.items())
+                why = "its answer named nothing" if data.success else f"the outcome of {key} is not known"
                 self._unsure[key] = Leftover(system, f"{command}({args})", f"{why}: it may have added something")
-        elif removing is not None and data.get("success") is True:
+        elif removing is not None and data.success is True:
             self._held.pop((system, str(values.get(removing.name))), None)
 
     def held(self) -> list[Held]:
@@ -145,4 +140,4 @@ class Holdings:
 
 def taken_back(events: Iterable[Event]) -> list[str]:
     """What a run's events show it sent to take back (it stopped for good): names, in order."""
-    return [str(e.data["take_back"]) for e in events if e.kind is EventKind.COMMAND_SENT and e.data.get("take_back")]
+    return [e.data.take_back for e in events if isinstance(e.data, CommandSent) and e.data.take_back]

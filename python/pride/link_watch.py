@@ -15,9 +15,8 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
 
-from pride.events import EventKind
+from pride.event_payloads import LinkLost, LinkRestored
 from pride.systems import LinkState
 
 __all__ = ["LinkWatch", "Links"]
@@ -57,22 +56,16 @@ class LinkWatch:
         quiet = all(s.connected for s in down)
         return Links(lost_since, sum(s.in_flight for s in down), tuple(sorted(s.link for s in down)), quiet)
 
-    def change(self) -> tuple[EventKind, dict[str, Any]] | None:
+    def change(self) -> LinkLost | LinkRestored | None:
         """The event to record if the links went down or came back since the last one recorded."""
         links = self.now()
         if (links.lost_since is None) == (self._recorded is None):
             return None
         if links.lost_since is not None:
             self._recorded = links.lost_since
-            return EventKind.LINK_LOST, {
-                "links": list(links.down),
-                "since": links.lost_since.isoformat(),
-                "in_flight": links.in_flight,
-                "quiet": links.quiet,
-            }
+            return LinkLost(
+                links=links.down, since=links.lost_since.isoformat(), in_flight=links.in_flight, quiet=links.quiet
+            )
         since, self._recorded = self._recorded, None
         assert since is not None
-        return EventKind.LINK_RESTORED, {
-            "since": since.isoformat(),
-            "seconds": round((datetime.now(UTC) - since).total_seconds(), 1),
-        }
+        return LinkRestored(since=since.isoformat(), seconds=round((datetime.now(UTC) - since).total_seconds(), 1))

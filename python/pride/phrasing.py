@@ -1,6 +1,7 @@
 """How a procedure and its run read to an operator: sentences, rounded values with units and plain
 audit lines, not code. One module phrases all of it, so the procedure view, the audit panel, the
-after-action report and the runner's terminal say the same thing the same way.
+after-action report and the runner's terminal say the same thing the same way (a run's events in
+words: :mod:`pride.event_words`).
 
 An instruction reads as the author's ``<text>`` when there is one. Otherwise its sentence is made
 from the SysRep's labels (an id as title-cased words where no SysRep is at hand, as Fig. 1 writes
@@ -51,7 +52,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from pride.events import Event, EventKind
 from procedure_language.model import (
     ArgumentBinding,
     BranchInstruction,
@@ -71,22 +71,21 @@ from procedure_language.sysrep import Argument, Command, SysRep
 
 __all__ = [
     "Wording",
+    "command_definition",
     "command_text",
-    "describe_event",
-    "version_text",
+    "condition_words",
     "fill_text",
     "filled_sentence",
     "format_value",
     "humanize",
+    "in_order",
     "labelled_values",
     "phrase",
     "raw_call",
     "raw_form",
-    "reading_words",
     "record_refusal",
-    "result_text",
-    "started_text",
-    "telemetry_text",
+    "telemetry_item",
+    "telemetry_label",
     "template_json",
 ]
 
@@ -256,13 +255,13 @@ class _Argument:
     number: float | None = None
 
 
-def _command_definition(system: str, command: str, sysreps: Mapping[str, SysRep]) -> Command | None:
+def command_definition(system: str, command: str, sysreps: Mapping[str, SysRep]) -> Command | None:
     sysrep = sysreps.get(system)
     return sysrep.command(command) if sysrep is not None else None
 
 
 def _command(instruction: CommandInstruction, sysreps: Mapping[str, SysRep]) -> Template:
-    definition = _command_definition(instruction.system, instruction.command, sysreps)
+    definition = command_definition(instruction.system, instruction.command, sysreps)
     arguments = [_written(b, definition.arg(b.name) if definition else None) for b in instruction.args]
     label = definition.label if definition is not None else _titled(instruction.command)
     return _command_sentence(label, definition, arguments)
@@ -285,15 +284,15 @@ def command_text(system: str, command: str, args: Mapping[str, Any], sysreps: Ma
     The audit log keeps arguments sorted by name, so the SysRep's order is taken back; without the
     SysRep, which argument comes first (the target) is not known, and every one reads "name: value".
     """
-    definition = _command_definition(system, command, sysreps)
+    definition = command_definition(system, command, sysreps)
     if definition is None:
         arguments = [_sent(n, v, None) for n, v in args.items()]
         return str(_command_sentence(_titled(command), None, arguments, target=False))
-    ordered = _in_order(args, definition)
+    ordered = in_order(args, definition)
     return str(_command_sentence(definition.label, definition, [_sent(n, v, definition.arg(n)) for n, v in ordered]))
 
 
-def _in_order(args: Mapping[str, Any], definition: Command | None) -> list[tuple[str, Any]]:
+def in_order(args: Mapping[str, Any], definition: Command | None) -> list[tuple[str, Any]]:
     """Arguments in the SysRep's order (any it does not name last), else as given."""
     order = [a.name for a in definition.args] if definition is not None else []
     return sorted(args.items(), key=lambda item: order.index(item[0]) if item[0] in order else len(order))
@@ -382,20 +381,20 @@ def _template(parts: list[str | Reference]) -> Template:
     return Template(tuple(merged) or ("",))
 
 
-def _telemetry(system: str, item: str, sysreps: Mapping[str, SysRep]) -> Any:
+def telemetry_item(system: str, item: str, sysreps: Mapping[str, SysRep]) -> Any:
     sysrep = sysreps.get(system)
     return sysrep.telemetry_item(item) if sysrep is not None else None
 
 
-def _telemetry_label(system: str, item: str, sysreps: Mapping[str, SysRep]) -> str:
+def telemetry_label(system: str, item: str, sysreps: Mapping[str, SysRep]) -> str:
     """A telemetry item as the procedure view names it: its SysRep label."""
-    found = _telemetry(system, item, sysreps)
+    found = telemetry_item(system, item, sysreps)
     return found.label if found is not None else _titled(item)
 
 
 def _subject(subject: Subject, sysreps: Mapping[str, SysRep]) -> str:
     if subject.source == "telemetry":
-        return _telemetry_label(subject.system or "", subject.name, sysreps)
+        return telemetry_label(subject.system or "", subject.name, sysreps)
     if subject.source == "result":
         return f"{humanize(subject.name)} {humanize(subject.field or 'success')}"
     return f"the recorded {humanize(subject.name)}"
@@ -408,7 +407,7 @@ _CONDITION_SYMBOLS = {"=": "equals", "≠": "not_equals", "≥": "minimum", "≤
 
 def _condition(condition: Condition, subject: Subject, sysreps: Mapping[str, SysRep]) -> str:
     """The condition in words ("is at least 2 m"); Condition.describe() has it in symbols."""
-    item = _telemetry(subject.system or "", subject.name, sysreps) if subject.source == "telemetry" else None
+    item = telemetry_item(subject.system or "", subject.name, sysreps) if subject.source == "telemetry" else None
     units = f" {item.units}" if item is not None and item.units else ""
     tolerance = f" ± {format_value(condition.tolerance)}" if condition.tolerance is not None else ""
     return " and ".join(
@@ -418,7 +417,7 @@ def _condition(condition: Condition, subject: Subject, sysreps: Mapping[str, Sys
     )
 
 
-def _condition_words(described: str, units: str | None) -> str:
+def condition_words(described: str, units: str | None) -> str:
     """A condition as a record keeps it (Condition.describe(): ``= true``, ``≥ 2 and ≤ 5``) in
     the words of the procedure view (``is true``, ``is at least 2 degC and is at most 5 degC``)."""
     words = dict(_CONDITION_WORDS)
@@ -502,22 +501,6 @@ def labelled_values(values: Mapping[str, Any], sysrep: SysRep | None = None) -> 
     return lines
 
 
-def _values(data: Mapping[str, Any], wording: Wording) -> str:
-    values = data.get("values")
-    if not isinstance(values, Mapping) or not values:
-        return ""
-    lines = labelled_values(values, wording.sysreps.get(str(data.get("system"))))
-    return " · " + ", ".join(f"{label} {text}" for label, text in lines)
-
-
-#: How a command's outcome reads; an unknown one is neither a success nor a failure.
-_OUTCOME_WORDS = {"succeeded": "succeeded", "failed": "FAILED", "unknown": "OUTCOME UNKNOWN", "halted": "HALTED"}
-
-
-def _reason(data: dict[str, Any]) -> str:
-    return f": {data['reason']}" if data.get("reason") else ""
-
-
 def _not_known(reference: Reference) -> str:
     name = humanize(reference.name) + (f" {humanize(reference.field)}" if reference.field else "")
     return f"‹{name}: not known yet›"  # marked as the page marks a value it does not know yet
@@ -527,56 +510,6 @@ def fill_text(text: str, env: dict[str, Any]) -> str:
     """An instruction's sentence as written, with the values ``env`` holds filled in (written as
     :func:`format_value` writes them); one the run does not know yet is said to be so in words."""
     return Template.parse(text).fill(env, format_value, unknown=_not_known)
-
-
-def started_text(event: Event) -> str:
-    """The sentence of an instruction-started event as people read it: with the values the run knew
-    when it began filled in (``text_filled``), else, in a log recorded before events carried that,
-    the author's text, its references said to be not known (the record does not hold them)."""
-    data = event.data or {}
-    filled = data.get("text_filled")
-    return str(filled) if filled is not None else fill_text(str(data.get("text", "")), {})
-
-
-def _sent_text(data: Mapping[str, Any], wording: Wording) -> str:
-    """A COMMAND_SENT record in words: "sent" (again, when its key was re-sent), the command as its
-    instruction reads, a hazard mark; with the raw switch, the call as sent after it."""
-    system, command, args = str(data.get("system")), str(data.get("command")), data.get("args") or {}
-    text = f"sent{' again' if data.get('resend') else ''} {command_text(system, command, args, wording.sysreps)}"
-    text += " [hazardous]" if data.get("hazardous") else ""
-    if data.get("approved_by"):
-        text += f" (sent by {data.get('requested_by')}, approved by {data['approved_by']})"
-    if not wording.raw:
-        return text
-    ordered = dict(_in_order(args, _command_definition(system, command, wording.sysreps)))
-    return f"{text} · raw: {raw_call(system, command, ordered)}"
-
-
-def result_text(data: Mapping[str, Any], wording: Wording, outcomes: Mapping[str, str] = _OUTCOME_WORDS) -> str:
-    """A COMMAND_RESULT record in words: its outcome (as ``outcomes`` says it), the system's
-    message and the values it returned, labelled and rounded."""
-    success = "succeeded" if data.get("success") else "failed"
-    outcome = outcomes.get(str(data.get("outcome")), outcomes[success])
-    message = f": {data['message']}" if data.get("message") else ""
-    return f"{outcome}{message}{_values(data, wording)}"
-
-
-def reading_words(data: Mapping[str, Any], wording: Wording) -> tuple[str, str, str]:
-    """A TELEMETRY_SEEN record as the procedure view words it: the item's label, the value read
-    (rounded, in its units, "(stale)" when it was) and the condition it was checked against
-    ("" for a branch's reading, which has none of its own)."""
-    system, item = str(data.get("system")), str(data.get("item"))
-    found = _telemetry(system, item, wording.sysreps)
-    units = found.units if found is not None else None
-    value = format_value(data.get("value"), units, name=item) + (" (stale)" if data.get("stale") else "")
-    condition = _condition_words(str(data["condition"]), units) if data.get("condition") else ""
-    return _telemetry_label(system, item, wording.sysreps), value, condition
-
-
-def telemetry_text(data: Mapping[str, Any], wording: Wording) -> str:
-    """A TELEMETRY_SEEN record's reading in words: ``Plan Valid = true (stale)``."""
-    label, value, _ = reading_words(data, wording)
-    return f"{label} = {value}"
 
 
 def record_refusal(
@@ -592,7 +525,7 @@ def record_refusal(
     it is not among them (``listed``: what the system reports), or they could not be read
     (``problem``: "stale", "missing", or what the reading failed with)."""
     sysrep = sysreps.get(system)
-    listing = _telemetry_label(system, item, sysreps).lower()
+    listing = telemetry_label(system, item, sysreps).lower()
     source = f"the {sysrep.name}" if sysrep is not None else system
     if listed is not None:
         return f"{format_value(value)} is not one of the {listing} now; {source} reports {_and(listed)}"
@@ -608,91 +541,3 @@ def _and(items: Sequence[str]) -> str:
     if len(items) < 2:
         return items[0] if items else "none"
     return f"{', '.join(items[:-1])} and {items[-1]}"
-
-
-def version_text(data: Mapping[str, Any]) -> str:
-    """The procedure version of a run_started record: " · release 3 (sha256 ab12cd34…)" or
-    " · REHEARSAL of a draft (…)"; "" for a run recorded without one."""
-    sha = data.get("sha256")
-    if not sha:
-        return ""
-    release = data.get("release")
-    which = f"release {release}" if release else "a draft, not released"
-    what = f"REHEARSAL on a simulator, {which}" if data.get("rehearsal") else which
-    return f" · {what} (sha256 {str(sha)[:8]}…)"
-
-
-def describe_event(event: Event, wording: Wording | None = None) -> str:
-    """One line saying what an audit record was, in words (the web view's log and the report)."""
-    said = wording or Wording()
-    d = event.data
-    kind = event.kind
-    if kind is EventKind.RUN_STARTED:
-        return f"started {d.get('procedure')} v{d.get('version')} in {d.get('mode')} mode{version_text(d)}"
-    if kind is EventKind.RUN_RESUMED:
-        return f"resumed in {d.get('mode')} mode" + (" (a command was in flight)" if d.get("in_flight") else "")
-    if kind is EventKind.COMMAND_SENT:
-        return _sent_text(d, said)
-    if kind is EventKind.COMMAND_RESULT:
-        return result_text(d, said)
-    if kind is EventKind.TELEMETRY_SEEN:
-        verdict = "" if "ok" not in d else (" ✓" if d["ok"] else " ✗")
-        return f"saw {telemetry_text(d, said)}{verdict}"
-    if kind is EventKind.OPERATOR_INPUT:
-        return f"recorded {humanize(str(d.get('name')))} = {format_value(d.get('value'))}"
-    if kind is EventKind.INSTRUCTION_FAILED:
-        return f"failed: {d.get('reason', '')}" + (f" → step {d['branch']}" if d.get("branch") else "")
-    if kind is EventKind.INSTRUCTION_SKIPPED:
-        return f"skipped: {d.get('reason', '')}"
-    if kind is EventKind.INSTRUCTION_COMPLETED:
-        return "completed" + (f" → step {d['went_to']}" if d.get("went_to") else "")
-    if kind is EventKind.INSTRUCTION_STARTED:
-        return f"started: {started_text(event)}"
-    if kind is EventKind.AWAITING_OPERATOR:
-        return f"waiting for an operator: {d.get('reason', '')}"
-    if kind is EventKind.MODE_CHANGED:
-        return f"mode → {d.get('mode')}"
-    if kind is EventKind.RUN_STOPPED:
-        return f"stopped: {d.get('reason', '')}"
-    if kind is EventKind.RETRY:
-        return f"retry after: {d.get('after', '')}"
-    if kind is EventKind.CALL_ENTERED:
-        return f"entered {d.get('procedure')} with {format_value(d.get('inputs') or {}) or 'no inputs'}"
-    if kind is EventKind.CONFIRMATION:
-        return f"confirmed the hazardous command: {fill_text(str(d.get('command', '')), {})}"
-    if kind is EventKind.APPROVAL_REQUESTED:
-        return f"sent for a second operator's approval: {d.get('command', '')}"
-    if kind is EventKind.APPROVAL_GIVEN:
-        until = str(d.get("expires"))[11:19]
-        carried = (
-            f", given on the ground at {str(d.get('given'))[11:19]} UTC and carried up" if d.get("carried") else ""
-        )
-        return f"approved {d.get('sender')}'s command: {d.get('command', '')} (good until {until} UTC{carried})"
-    if kind is EventKind.APPROVAL_EXPIRED:
-        return (
-            f"{d.get('approver')}'s approval of {d.get('sender')}'s command ran out at {str(d.get('expired'))[11:19]} "
-            "UTC before it could be sent: nothing sent, it waits for a new approval"
-        )
-    if kind is EventKind.HALT:
-        told = (d.get("cancel") or {}).get("message")
-        return f"HALT{_reason(d)}" + (f"; the system: {told}" if told else "")
-    if kind is EventKind.INSTRUCTION_HALTED:
-        return f"halted before it finished{_reason(d)}"
-    if kind is EventKind.OUTCOME_RESOLVED:
-        return f"recorded the unknown outcome as {d.get('outcome')}{_reason(d)}"
-    if kind is EventKind.RECORD_CORRECTED:
-        old, new = format_value(d.get("old")), format_value(d.get("value"))
-        return f"corrected {humanize(str(d.get('name')))}: {old} → {new}{_reason(d)}"
-    if kind is EventKind.STEPPED_BACK:
-        return f"went back to {d.get('next')}{_reason(d)}"
-    if kind is EventKind.LINK_LOST:
-        n = d.get("in_flight", 0)
-        what = "no news from the habitat" if d.get("quiet") else "link lost"  # quiet: held, not yet given up
-        return f"{what} since {str(d.get('since', ''))[11:19]} UTC, {n} command{'' if n == 1 else 's'} in flight"
-    if kind is EventKind.LINK_RESTORED:
-        return f"link restored after {d.get('seconds')} s"
-    if kind is EventKind.CONTROL_TAKEN:
-        return f"took control of {d.get('robot')} from run {d.get('from_run')} ({d.get('from_user')}){_reason(d)}"
-    if kind is EventKind.CONTROL_LOST:
-        return f"control of {d.get('robot')} taken over by {d.get('by_user')} (run {d.get('by_run')}){_reason(d)}"
-    return str(kind.value).replace("_", " ")

@@ -13,29 +13,60 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, assert_never
 
-from pride.events import Event, EventKind
+from pride.event_payloads import (
+    ApprovalExpired,
+    ApprovalGiven,
+    ApprovalRequested,
+    AwaitingOperator,
+    BreakpointCleared,
+    BreakpointHit,
+    BreakpointSet,
+    CallEntered,
+    CommandResult,
+    CommandSent,
+    Confirmation,
+    Continued,
+    ControlLost,
+    ControlTaken,
+    Halt,
+    InstructionCompleted,
+    InstructionFailed,
+    InstructionHalted,
+    InstructionSkipped,
+    InstructionStarted,
+    LinkLost,
+    LinkRestored,
+    ModeChanged,
+    OperatorInput,
+    OutcomeResolved,
+    Paused,
+    RecordCorrected,
+    Retry,
+    RunCompleted,
+    RunResumed,
+    RunStarted,
+    RunStopped,
+    SteppedBack,
+    TelemetrySeen,
+)
+from pride.events import Event
 from pride.frames import Frame, frames_at
 from pride.states import InstructionStatus, Mode
 from procedure_language.model import Procedure
 
 __all__ = ["Replayed", "replay", "result_values"]
 
-_ENDED = {
-    EventKind.INSTRUCTION_COMPLETED: InstructionStatus.COMPLETED,
-    EventKind.INSTRUCTION_FAILED: InstructionStatus.FAILED,
-    EventKind.INSTRUCTION_SKIPPED: InstructionStatus.SKIPPED,
-    EventKind.INSTRUCTION_HALTED: InstructionStatus.HALTED,
+#: How an instruction's end leaves it.
+_ENDED: dict[type, InstructionStatus] = {
+    InstructionCompleted: InstructionStatus.COMPLETED,
+    InstructionFailed: InstructionStatus.FAILED,
+    InstructionSkipped: InstructionStatus.SKIPPED,
+    InstructionHalted: InstructionStatus.HALTED,
 }
 #: Operator decisions after which a halt no longer holds the run.
-_HALT_ENDS = (
-    EventKind.RETRY,
-    EventKind.CONTINUED,
-    EventKind.STEPPED_BACK,
-    EventKind.INSTRUCTION_SKIPPED,
-    EventKind.OUTCOME_RESOLVED,
-)
+_HALT_ENDS = (Retry, Continued, SteppedBack, InstructionSkipped, OutcomeResolved)
 
 
 @dataclass
@@ -56,9 +87,9 @@ class Replayed:
     seq: int = 0
 
 
-def result_values(data: dict[str, Any]) -> dict[str, Any]:
+def result_values(data: CommandResult) -> dict[str, Any]:
     """The variables a saved command result provides, from its COMMAND_RESULT event's data."""
-    return {"success": data.get("success"), "message": data.get("message", ""), **(data.get("values") or {})}
+    return {"success": data.success, "message": data.message, **data.values}
 
 
 def _attempt(key: str) -> int:
@@ -85,54 +116,76 @@ def replay(
     for event in events:
         number = event.instruction or ""
         prefix = number.rsplit("/", 1)[0] + "/" if "/" in number else ""
-        kind, data = event.kind, event.data
-        if kind in (EventKind.MODE_CHANGED, EventKind.RUN_RESUMED):
-            state.mode = Mode(data["mode"])
-        elif kind is EventKind.BREAKPOINT_SET:
-            state.breakpoints.add(number)
-        elif kind is EventKind.BREAKPOINT_CLEARED:
-            state.breakpoints.discard(number)
-        elif kind in (EventKind.OPERATOR_INPUT, EventKind.RECORD_CORRECTED):
-            envs.setdefault(prefix, {})[data["name"]] = data["value"]
-        elif kind is EventKind.HALT:
-            state.halt = (event.actor, data.get("reason", ""))
-        elif kind is EventKind.COMMAND_SENT:
-            sent = number
-            key = data.get("key")
-            if key:
-                pending, unknown_why = key, ""
-                state.attempts[number] = max(state.attempts.get(number, 0), _attempt(key))
-        elif kind is EventKind.COMMAND_RESULT:
-            sent = None
-            if data.get("outcome") == "unknown":
-                unknown_why = f"outcome of {data.get('key')} unknown: {data.get('message', '')}"
-                state.statuses[number] = InstructionStatus.OUTCOME_UNKNOWN
-            else:
+        data = event.data
+        match data:
+            case ModeChanged() | RunResumed():
+                state.mode = Mode(data.mode)
+            case BreakpointSet():
+                state.breakpoints.add(number)
+            case BreakpointCleared():
+                state.breakpoints.discard(number)
+            case OperatorInput() | RecordCorrected():
+                envs.setdefault(prefix, {})[data.name] = data.value
+            case Halt():
+                state.halt = (event.actor, data.reason)
+            case CommandSent():
+                sent = number
+                if data.key:
+                    pending, unknown_why = data.key, ""
+                    state.attempts[number] = max(state.attempts.get(number, 0), _attempt(data.key))
+            case CommandResult():
+                sent = None
+                if data.outcome == "unknown":
+                    unknown_why = f"outcome of {data.key} unknown: {data.message}"
+                    state.statuses[number] = InstructionStatus.OUTCOME_UNKNOWN
+                else:
+                    pending = None
+                    if data.result:
+                        envs.setdefault(prefix, {})[data.result] = result_values(data)
+            case OutcomeResolved():
                 pending = None
-                if data.get("result"):
-                    envs.setdefault(prefix, {})[data["result"]] = result_values(data)
-        elif kind is EventKind.OUTCOME_RESOLVED:
-            pending = None
-        elif kind is EventKind.CALL_ENTERED:
-            envs[number + "/"] = dict(data.get("inputs", {}))
-        elif kind is EventKind.INSTRUCTION_STARTED:
-            started = number
-            state.statuses[number] = InstructionStatus.EXECUTING
-        elif kind is EventKind.STEPPED_BACK:
-            for again in data.get("reset", []):
-                state.statuses[again] = InstructionStatus.PENDING
-            cursor, started, sent, pending, state.failure = data["next"], None, None, None, None
-        elif kind in _ENDED:
-            state.statuses[number] = _ENDED[kind]
-            cursor = data["next"]
-            started = sent = pending = None
-            failed_here = kind is EventKind.INSTRUCTION_FAILED and cursor == number
-            if kind is EventKind.INSTRUCTION_FAILED and data.get("branch"):
-                state.branches[number] = state.branches.get(number, 0) + 1
-            state.failure = data.get("reason") if failed_here else None
-            if kind is EventKind.INSTRUCTION_HALTED:
-                state.halt = (event.actor, data.get("reason", ""))
-        if kind in _HALT_ENDS:
+            case CallEntered():
+                envs[number + "/"] = dict(data.inputs)
+            case InstructionStarted():
+                started = number
+                state.statuses[number] = InstructionStatus.EXECUTING
+            case SteppedBack():
+                for again in data.reset:
+                    state.statuses[again] = InstructionStatus.PENDING
+                cursor, started, sent, pending, state.failure = data.next, None, None, None, None
+            case InstructionCompleted() | InstructionFailed() | InstructionSkipped() | InstructionHalted():
+                state.statuses[number] = _ENDED[type(data)]
+                cursor = data.next
+                started = sent = pending = None
+                failed_here = isinstance(data, InstructionFailed) and cursor == number
+                if isinstance(data, InstructionFailed) and data.branch:
+                    state.branches[number] = state.branches.get(number, 0) + 1
+                state.failure = data.reason if failed_here and isinstance(data, InstructionFailed) else None
+                if isinstance(data, InstructionHalted):
+                    state.halt = (event.actor, data.reason)
+            case (
+                RunStarted()
+                | RunCompleted()
+                | RunStopped()
+                | TelemetrySeen()
+                | Confirmation()
+                | ApprovalRequested()
+                | ApprovalGiven()
+                | ApprovalExpired()
+                | AwaitingOperator()
+                | Paused()
+                | Continued()
+                | BreakpointHit()
+                | Retry()
+                | LinkLost()
+                | LinkRestored()
+                | ControlTaken()
+                | ControlLost()
+            ):
+                pass  # they change nothing a resume needs (a halt's end is below)
+            case _:
+                assert_never(data)
+        if isinstance(data, _HALT_ENDS):
             state.halt = None
         state.seq = event.seq
     state.frames = frames_at(procedure, cursor, envs, load)

@@ -15,13 +15,53 @@ import shutil
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
+from typing import assert_never
 
+from pride.event_payloads import (
+    ApprovalExpired,
+    ApprovalGiven,
+    ApprovalRequested,
+    AwaitingOperator,
+    BreakpointCleared,
+    BreakpointHit,
+    BreakpointSet,
+    CallEntered,
+    CommandResult,
+    CommandSent,
+    Confirmation,
+    Continued,
+    ControlLost,
+    ControlTaken,
+    Halt,
+    InstructionCompleted,
+    InstructionFailed,
+    InstructionHalted,
+    InstructionSkipped,
+    InstructionStarted,
+    LinkLost,
+    LinkRestored,
+    ModeChanged,
+    OperatorInput,
+    OutcomeResolved,
+    Paused,
+    RecordCorrected,
+    Retry,
+    RunCompleted,
+    RunResumed,
+    RunStarted,
+    RunStopped,
+    SteppedBack,
+    TelemetrySeen,
+)
+from pride.event_words import describe_event, reading_words, version_text
 from pride.events import PAX, Event, EventKind
-from pride.phrasing import Wording, describe_event, reading_words, version_text
+from pride.phrasing import Wording
 
 __all__ = ["RunSummary", "StepSummary", "summarize", "to_html", "to_markdown", "write_report"]
 
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".gif", ".svg", ".webp"}
+#: What a log that does not begin with its run's start is summarized from.
+_NO_START = RunStarted(procedure="", title="", version="", path="", mode="", robot="", steps=())
 
 
 @dataclass
@@ -77,7 +117,8 @@ class RunSummary:
 def summarize(events: list[Event]) -> RunSummary:
     """Fold a run's events into what the report shows."""
     start = events[0]
-    steps = [StepSummary(s["number"], s["title"]) for s in start.data.get("steps", [])]
+    started = start.data if isinstance(start.data, RunStarted) else _NO_START
+    steps = [StepSummary(s["number"], s["title"]) for s in started.steps]
     by_number = {s.number: s for s in steps}
     last_step: StepSummary | None = None
     for event in events:
@@ -97,39 +138,72 @@ def summarize(events: list[Event]) -> RunSummary:
             step.failed += event.kind is EventKind.INSTRUCTION_FAILED
             step.skipped += event.kind is EventKind.INSTRUCTION_SKIPPED
     outcome = "interrupted"
+    images: list[Image] = []
+    telemetry: list[Event] = []
     for event in events:
-        if event.kind is EventKind.RUN_COMPLETED:
-            outcome = "completed"
-        elif event.kind is EventKind.RUN_STOPPED:
-            outcome = "stopped"
-        elif event.kind is EventKind.RUN_RESUMED:
-            outcome = "interrupted"
-    images = [
-        Image(
-            e.instruction or "",
-            e.time,
-            str(e.data["values"]["path"]),
-            str(e.data["values"].get("label") or Path(str(e.data["values"]["path"])).stem),
-        )
-        for e in events
-        if e.kind is EventKind.COMMAND_RESULT
-        and isinstance(e.data.get("values"), dict)
-        and Path(str(e.data["values"].get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES
-    ]
+        match event.data:
+            case RunCompleted():
+                outcome = "completed"
+            case RunStopped():
+                outcome = "stopped"
+            case RunResumed():
+                outcome = "interrupted"
+            case CommandResult(values=values) if Path(str(values.get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES:
+                path = str(values["path"])
+                images.append(
+                    Image(event.instruction or "", event.time, path, str(values.get("label") or Path(path).stem))
+                )
+            case TelemetrySeen():
+                telemetry.append(event)
+            case (
+                RunStarted()
+                | ModeChanged()
+                | InstructionStarted()
+                | InstructionCompleted()
+                | InstructionFailed()
+                | InstructionSkipped()
+                | InstructionHalted()
+                | CommandSent()
+                | CommandResult()
+                | OutcomeResolved()
+                | Halt()
+                | LinkLost()
+                | LinkRestored()
+                | ControlTaken()
+                | ControlLost()
+                | RecordCorrected()
+                | SteppedBack()
+                | OperatorInput()
+                | Confirmation()
+                | ApprovalRequested()
+                | ApprovalGiven()
+                | ApprovalExpired()
+                | AwaitingOperator()
+                | Paused()
+                | Continued()
+                | BreakpointSet()
+                | BreakpointCleared()
+                | BreakpointHit()
+                | Retry()
+                | CallEntered()
+            ):
+                pass  # in the steps' counts and the actions table only
+            case _:
+                assert_never(event.data)
     return RunSummary(
         run_id=start.run_id,
-        procedure=start.data.get("procedure", ""),
-        title=start.data.get("title", ""),
-        version=start.data.get("version", ""),
+        procedure=started.procedure,
+        title=started.title,
+        version=started.version,
         started=start.time,
         ended=events[-1].time,
         started_by=start.actor,
         outcome=outcome,
         steps=steps,
         events=events,
-        telemetry=[e for e in events if e.kind is EventKind.TELEMETRY_SEEN],
+        telemetry=telemetry,
         images=images,
-        released=version_text(start.data).removeprefix(" · "),
+        released=version_text(started).removeprefix(" · "),
     )
 
 
@@ -220,8 +294,11 @@ def _copy_images(summary: RunSummary, out_dir: Path) -> None:
 def _reading(event: Event, wording: Wording) -> tuple[str, str, str, str]:
     """A verified reading as the report's telemetry table shows it: item, value, condition, result."""
     d = event.data
+    if not isinstance(d, TelemetrySeen):
+        raise TypeError(f"event {event.seq} is a {event.kind.value}, not a reading")
     label, value, condition = reading_words(d, wording)
-    return label, value, condition or "(branch)", "ok" if d.get("ok", True) and not d.get("stale") else "not met"
+    met = d.ok is not False and not d.stale
+    return label, value, condition or "(branch)", "ok" if met else "not met"
 
 
 def to_markdown(summary: RunSummary, wording: Wording | None = None) -> str:

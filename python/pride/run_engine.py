@@ -21,7 +21,9 @@ from typing import TYPE_CHECKING, Any
 
 from pride.approvals import ApprovalPolicy
 from pride.automation import Automation, ControlLost, InstructionResult
-from pride.events import PAX, Event, EventKind, Journal
+from pride.event_payloads import ControlLost as ControlLostRecord
+from pride.event_payloads import ControlTaken, InstructionStarted, Paused
+from pride.events import PAX, Event, Journal, Payload
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
 from pride.phrasing import fill_text, phrase
@@ -247,15 +249,10 @@ class RunEngine:
     # ---- control of the robot -----------------------------------------------------------------
     def _record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
         if previous is not None:
-            self._emit(
-                EventKind.CONTROL_TAKEN,
-                user,
-                self._state.current_number(),
-                robot=self.robot,
-                from_run=previous.run_id,
-                from_user=previous.user,
-                reason=reason or "",
+            taken = ControlTaken(
+                robot=self.robot, from_run=previous.run_id, from_user=previous.user, reason=reason or ""
             )
+            self._emit(user, self._state.current_number(), taken)
 
     def _may_send(self) -> None:
         """Raise ControlLost unless this run controls its robot (asked in the database, not remembered)."""
@@ -269,25 +266,24 @@ class RunEngine:
         if state.control_lost is not None or state.status is not RunStatus.ACTIVE:
             return
         state.control_lost = self._control.lost_text(holder)
-        self._emit(
-            EventKind.CONTROL_LOST,
-            PAX,
-            state.current_number(),
+        lost = ControlLostRecord(
             robot=self.robot,
             by_run=holder.run_id if holder else None,
             by_user=holder.user if holder else None,
             reason=holder.reason if holder else "",
         )
+        self._emit(PAX, state.current_number(), lost)
         state.announce()
 
     # ---- events -----------------------------------------------------------------------------
-    def _emit(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> Event:
+    def _emit(self, actor: str, instruction: str | None, data: Payload) -> Event:
         """Record an event (the lock is held): durably first, then wake waiters and tell listeners.
 
         A journal that cannot store it stops the run at once (:class:`JournalFailure`); its
         sequence number stays free for the event a resume records next.
         """
-        event = Event(self.run_id, self._seq + 1, kind, actor, instruction, data)
+        event = Event.of(self.run_id, self._seq + 1, actor, instruction, data)
+        kind = event.kind
         try:
             self._journal.append(event)  # durable first: if this raises, the action does not happen
         except Exception as exc:
@@ -314,12 +310,12 @@ class RunEngine:
                 log.exception("event listener %r failed on %s", listener, kind.value)
         return event
 
-    def _record(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> None:
+    def _record(self, actor: str, instruction: str | None, data: Payload) -> None:
         """Emit from PAX's thread while it does not hold the lock (automation's callback)."""
         with self._lock:
             if self._state.error is not None:
                 raise JournalFailure(f"run {self.run_id} stopped: {self._state.error}")
-            self._emit(kind, actor, instruction, **data)
+            self._emit(actor, instruction, data)
 
     # ---- PAX's thread -----------------------------------------------------------------------
     def _next_job(self) -> Any:
@@ -339,14 +335,11 @@ class RunEngine:
                     number = state.begin(job)
                     # the sentence the procedure view shows, as written: ${...} stay references
                     text = str(phrase(job.instruction, self._checked.sysreps, job.frame.procedure))
-                    self._emit(
-                        EventKind.INSTRUCTION_STARTED,
-                        job.actor,
-                        number,
-                        instruction_kind=job.instruction.kind.value,
-                        text=text,
-                        text_filled=fill_text(text, job.frame.env),
+                    filled = fill_text(text, job.frame.env)
+                    started = InstructionStarted(
+                        instruction_kind=job.instruction.kind.value, text=text, text_filled=filled
                     )
+                    self._emit(job.actor, number, started)
                 try:
                     outcome = self._automation.carry_out(
                         job.frame.env, job.frame.procedure, job.instruction, number, job.actor, job.send
@@ -365,7 +358,7 @@ class RunEngine:
                     state.finish(job, number, outcome)
                     if job.then_pause and state.going_on and not state.paused:
                         state.paused = True
-                        self._emit(EventKind.PAUSED, job.actor, state.current_number(), after_step=number)
+                        self._emit(job.actor, state.current_number(), Paused(after_step=number))
                     self._changed.notify_all()
         except ControlLost as lost:
             with self._changed:
@@ -399,7 +392,7 @@ class RunEngine:
                     continue
                 with self._changed:
                     if change is not None and self._state.status is RunStatus.ACTIVE:
-                        self._emit(change[0], PAX, self._state.current_number(), **change[1])
+                        self._emit(PAX, self._state.current_number(), change)
                     if lost:
                         self._lose_control(holder)
         except JournalFailure:

@@ -26,7 +26,19 @@ from typing import Any, Protocol
 
 from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest
 from pride.automation import Halt, InstructionResult, Send, command_key
-from pride.events import PAX, Event, EventKind
+from pride.event_payloads import (
+    AwaitingOperator,
+    BreakpointHit,
+    CallEntered,
+    InstructionCompleted,
+    InstructionFailed,
+    InstructionHalted,
+    InstructionSkipped,
+    OutcomeResolved,
+    RunCompleted,
+    SteppedBack,
+)
+from pride.events import PAX, Event, Payload
 from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
 from pride.phrasing import filled_sentence
@@ -49,7 +61,7 @@ __all__ = ["Emit", "Job", "Request", "RunState"]
 class Emit(Protocol):
     """The executive's ``_emit``: records an event durably, then tells observers."""
 
-    def __call__(self, kind: EventKind, actor: str, instruction: str | None, /, **data: Any) -> Event: ...
+    def __call__(self, actor: str, instruction: str | None, data: Payload, /) -> Event: ...
 
 
 @dataclass(frozen=True)
@@ -300,7 +312,7 @@ class RunState:
             return False
         self.approval = self.approval_request = None
         self.request = None
-        self._emit(EventKind.APPROVAL_EXPIRED, PAX, number, **approval.expiry_record())
+        self._emit(PAX, number, approval.expiry_record())
         self.announce()
         return True
 
@@ -334,7 +346,7 @@ class RunState:
         key = (self.current_number() or "", hold)
         if key != self._announced:
             self._announced = key
-            self._emit(EventKind.AWAITING_OPERATOR, PAX, self.current_number(), hold=hold.value, reason=reason)
+            self._emit(PAX, self.current_number(), AwaitingOperator(hold=hold.value, reason=reason))
 
     def arrive(self) -> None:
         """Make the frame's position the current instruction."""
@@ -347,14 +359,15 @@ class RunState:
         self.statuses[number] = InstructionStatus.ACTIVE
         if self.mode is Mode.AUTONOMOUS and number in self.breakpoints:
             self.at_breakpoint = True
-            self._emit(EventKind.BREAKPOINT_HIT, PAX, number)
+            self._emit(PAX, number, BreakpointHit())
         self.announce()
 
-    def complete(self, actor: str, position: int, **data: Any) -> None:
-        """The current instruction is done: record it and go to ``position``."""
+    def complete(self, actor: str, position: int, *, went_to: str | None = None) -> None:
+        """The current instruction is done (``went_to``: the step a branch or go-to chose): record it
+        and go to ``position``."""
         number = self.frame.number()
         self.statuses[number] = InstructionStatus.COMPLETED
-        self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=self.frame.number(position), **data)
+        self._emit(actor, number, InstructionCompleted(next=self.frame.number(position), went_to=went_to))
         self.advance(position, actor)
 
     def clear_holds(self) -> None:
@@ -369,7 +382,7 @@ class RunState:
         self.clear_holds()
         self.statuses[number] = InstructionStatus.SKIPPED
         following = frame.procedure.following(frame.position)
-        self._emit(EventKind.INSTRUCTION_SKIPPED, actor, number, reason=reason, next=frame.number(following))
+        self._emit(actor, number, InstructionSkipped(reason=reason, next=frame.number(following)))
         self.advance(following, actor)
 
     def go_back(self, actor: str, position: int, reason: str) -> None:
@@ -381,13 +394,7 @@ class RunState:
         for again in reset:
             self.statuses[again] = InstructionStatus.PENDING
         self._emit(
-            EventKind.STEPPED_BACK,
-            actor,
-            number,
-            reason=reason,
-            next=frame.number(position),
-            reset=reset,
-            **{"from": number},
+            actor, number, SteppedBack(from_=number, next=frame.number(position), reset=tuple(reset), reason=reason)
         )
         frame.position = position
         self.arrive()
@@ -403,7 +410,7 @@ class RunState:
             if len(self.frames) == 1:
                 self.status = RunStatus.COMPLETED
                 left = self._holdings.left("the procedure completed without removing it")
-                self._emit(EventKind.RUN_COMPLETED, actor, None, **left.data())
+                self._emit(actor, None, RunCompleted(taken_back=left.removed, left_behind=left.left_json()))
                 self._notify()
                 return
             self.frames.pop()
@@ -411,14 +418,14 @@ class RunState:
             number = frame.number()
             self.statuses[number] = InstructionStatus.COMPLETED
             frame.position = frame.procedure.following(frame.position)
-            self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=frame.number())
+            self._emit(actor, number, InstructionCompleted(next=frame.number()))
         self.arrive()
 
     def halted(self, number: str, actor: str, detail: str) -> None:
         """A halt ended the instruction: recorded as halted by whoever halted, never completed."""
         halt = self.halt or Halt(actor, "")
         self.statuses[number] = InstructionStatus.HALTED
-        self._emit(EventKind.INSTRUCTION_HALTED, halt.user, number, reason=halt.reason, detail=detail, next=number)
+        self._emit(halt.user, number, InstructionHalted(reason=halt.reason, detail=detail, next=number))
 
     def resolve(self, actor: str, key: str, succeeded: bool, reason: str) -> None:
         """An operator recorded what became of command ``key`` (outcome unknown); follow it."""
@@ -428,12 +435,7 @@ class RunState:
         number = frame.number()
         self.clear_holds()
         self._emit(
-            EventKind.OUTCOME_RESOLVED,
-            actor,
-            number,
-            key=key,
-            reason=reason,
-            outcome="succeeded" if succeeded else "failed",
+            actor, number, OutcomeResolved(key=key, outcome="succeeded" if succeeded else "failed", reason=reason)
         )
         finding = f"recorded by {actor}: {reason}"
         if isinstance(instruction, CommandInstruction) and instruction.result:
@@ -470,19 +472,18 @@ class RunState:
             self.statuses[number] = InstructionStatus.COMPLETED if outcome.ok else InstructionStatus.FAILED
             if outcome.ok:
                 next_number = frame.number(self.target(frame, instruction, outcome))
-                self._emit(EventKind.INSTRUCTION_COMPLETED, actor, number, next=next_number)
+                self._emit(actor, number, InstructionCompleted(next=next_number))
             else:
-                self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=outcome.reason, next=number)
+                self._emit(actor, number, InstructionFailed(reason=outcome.reason, next=number))
             return
         if outcome.ok:
             if outcome.enter is not None:
                 callee, inputs = outcome.enter
                 self.frames.append(Frame(callee, f"{number}/", 0, dict(inputs)))
-                self._emit(EventKind.CALL_ENTERED, actor, number, procedure=callee.id, inputs=dict(inputs))
+                self._emit(actor, number, CallEntered(procedure=callee.id, inputs=dict(inputs)))
                 self.advance(0, actor)
                 return
-            went = {"went_to": outcome.goto} if outcome.goto else {}
-            self.complete(actor, _onward(frame, outcome), **went)
+            self.complete(actor, _onward(frame, outcome), went_to=outcome.goto or None)
             return
         self._fail(frame, instruction, number, actor, outcome)
 
@@ -501,16 +502,12 @@ class RunState:
             target = None
         if target is not None:
             self.branches[number] = self.branches.get(number, 0) + 1
-            self._emit(
-                EventKind.INSTRUCTION_FAILED,
-                actor,
-                number,
-                reason=outcome.reason,
-                next=frame.number(target),
-                branch=_on_failure(instruction),
+            failed = InstructionFailed(
+                reason=outcome.reason, next=frame.number(target), branch=_on_failure(instruction)
             )
+            self._emit(actor, number, failed)
             self.advance(target, actor)
             return
         self.failure = reason
-        self._emit(EventKind.INSTRUCTION_FAILED, actor, number, reason=reason, next=number)
+        self._emit(actor, number, InstructionFailed(reason=reason, next=number))
         self.announce()

@@ -43,6 +43,7 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError, SQLAlchemyError
 from sqlalchemy.pool import StaticPool
 
+from pride.event_payloads import payload_from_json
 from pride.events import Availability, Event, EventKind
 from records.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
 from records.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
@@ -188,7 +189,7 @@ class AuditLog:
         with self._lock:
             run_lock = self._run_locks.setdefault(record.run_id, threading.Lock())
         with run_lock:
-            data = json.dumps(record.data, default=_json_default, sort_keys=True)
+            data = json.dumps(record.data.to_json(), default=_json_default, sort_keys=True)
             moment = utc(record.time)
             first_failure: float | None = None
             delay = _FIRST_RETRY
@@ -481,9 +482,9 @@ def _head(connection: Connection, run_id: str) -> tuple[int, str]:
 
 
 def _event(row: StoredEvent) -> Event:
-    return Event(
-        row.run_id, row.seq, EventKind(row.kind), row.actor, row.instruction, json.loads(row.data), utc(row.time)
-    )
+    kind = EventKind(row.kind)
+    data = payload_from_json(kind, json.loads(row.data))  # EventDataError names a field of the wrong type
+    return Event(row.run_id, row.seq, kind, row.actor, row.instruction, data, utc(row.time))
 
 
 def _error_text(exc: Exception) -> str:

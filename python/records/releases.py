@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import logging
 import os
-from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -31,6 +30,7 @@ from typing import Any
 from sqlalchemy import Column, DateTime, Integer, MetaData, String, Table, Text, insert, select
 from sqlalchemy.engine import Engine
 
+from pride.event_payloads import Payload, RunStarted
 from pride.robot_sides import RobotSide
 from pride.run_version import RunVersion
 from procedure_language.lint import CheckedProcedure
@@ -266,13 +266,15 @@ def _release_refusal(state: VersionState, user: str, path: str) -> str | None:
     return None
 
 
-def resume_refusal(checked: CheckedProcedure, shown: str, started: Mapping[str, Any], side: RobotSide) -> str | None:
-    """Why a run whose ``run_started`` recorded ``started`` may not be resumed with ``checked`` (None:
+def resume_refusal(checked: CheckedProcedure, shown: str, started: Payload, side: RobotSide) -> str | None:
+    """Why a run whose first event recorded ``started`` may not be resumed with ``checked`` (None:
     it may): it goes on with the version it started with, and a rehearsal stays on a simulator."""
-    sha = started.get("sha256")
+    if not isinstance(started, RunStarted):
+        return "its log does not begin with its start"
+    sha = started.sha256
     if sha is not None and sha != procedure_digest(checked):
-        return f"{shown} changed since the run started (sha256 {short(str(sha))} → {short(procedure_digest(checked))})"
-    if started.get("rehearsal"):
+        return f"{shown} changed since the run started (sha256 {short(sha)} → {short(procedure_digest(checked))})"
+    if started.rehearsal:
         refusal = side.rehearsal_refusal()
         if refusal is not None:
             return f"the run is a rehearsal: {refusal}"

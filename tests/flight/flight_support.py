@@ -382,17 +382,17 @@ def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
     failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
     assert not failed, "\n".join(f"{e.instruction} failed: {e.data}" for e in failed)  # what went wrong, not just that
     sent = commands(events)
-    assert len(sent) == IVA_COMMANDS, [s.data["command"] for s, _ in sent]
+    assert len(sent) == IVA_COMMANDS, [s.data.to_json()["command"] for s, _ in sent]
     unanswered = [s.instruction for s, answer in sent if answer is None]
     assert not unanswered, f"commands without a logged outcome: {unanswered}"
-    assert all(answer is not None and answer.data["success"] for _, answer in sent)
+    assert all(answer is not None and answer.data.to_json()["success"] for _, answer in sent)
     # The habitat's own record: each command executed once, and it succeeded.
     records = f.habitat.ledger_records()
     assert len(records) == IVA_COMMANDS, [(r["command_key"], r["state"]) for r in records]
     assert {r["state"] for r in records} == {"SUCCEEDED"}, [(r["command_key"], r["message"]) for r in records]
     executions = [r for r in records if r["service"].endswith("/execute_command")]
     assert len(executions) == IVA_EXECUTIONS
-    logged = [s.data["command"] for s, _ in sent]
+    logged = [s.data.to_json()["command"] for s, _ in sent]
     assert [r["service"].rsplit("/", 1)[-1] for r in records].count("execute_command") == logged.count("execute_plan")
     # What the arm did: every motion once, each carried out.
     goals = f.goals()
@@ -405,7 +405,7 @@ def assert_in_flight(events: list[Event], trajectory: str, moment: datetime) -> 
     sent, answer = next(
         (s, a)
         for s, a in commands(events)
-        if s.data["command"] == "execute_plan" and s.data["args"]["trajectory"] == trajectory
+        if s.data.to_json()["command"] == "execute_plan" and s.data.to_json()["args"]["trajectory"] == trajectory
     )
     assert answer is not None and sent.time < moment < answer.time, (sent.time, moment, answer and answer.time)
 

@@ -31,10 +31,12 @@ def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str
         pull = next(
             s
             for s, _ in commands(events)
-            if s.data["command"] == "execute_plan" and s.data["args"]["trajectory"] == PULL_OUT
+            if s.data.to_json()["command"] == "execute_plan" and s.data.to_json()["args"]["trajectory"] == PULL_OUT
         )
         answers = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == pull.instruction]
-        assert answers and all(a.data["outcome"] == "unknown" and a.data["success"] is None for a in answers), held
+        assert answers and all(
+            a.data.to_json()["outcome"] == "unknown" and a.data.to_json()["success"] is None for a in answers
+        ), held
         assert not [
             e
             for e in events
@@ -44,7 +46,7 @@ def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str
         # held for an operator, saying why; the pull-out's answer may be recorded again after the
         # hold (unknown again: asserted above), as a fresh clone's run once read it
         holds = [e for e in events if e.kind is EventKind.AWAITING_OPERATOR]
-        assert holds and "unknown" in holds[-1].data["reason"], holds
+        assert holds and "unknown" in holds[-1].data.to_json()["reason"], holds
         after = events[events.index(holds[-1]) + 1 :]
         assert all(e in answers for e in after), [(e.seq, e.kind.value, e.data) for e in after]
         assert run.running, "it holds: no RESULT"

@@ -36,7 +36,10 @@ def test_a_30_s_hold_on_a_lossy_link_mid_motion_is_ridden_out(ros_env: dict[str,
         # once that it had no news, with the pull-out in flight, while the link was still held.
         lost = [e for e in events if e.kind is EventKind.LINK_LOST]
         assert any(
-            e.data["quiet"] and e.data["in_flight"] == 1 and e.time < held_at + timedelta(seconds=HOLD_S) for e in lost
+            e.data.to_json()["quiet"]
+            and e.data.to_json()["in_flight"] == 1
+            and e.time < held_at + timedelta(seconds=HOLD_S)
+            for e in lost
         ), [(e.time, e.data) for e in lost]
         assert EventKind.LINK_RESTORED in {e.kind for e in events}
         stats = f.link.control.stats()

@@ -205,7 +205,7 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(
     log = AuditLog(first.database.url)
     try:
         for run_id, own, foreign in ((iva_run, "cdra", "camera"), (eva_run, "camera", "cdra")):
-            systems = {e.data.get("system") for e in log.events(run_id) if e.kind.value == "command_sent"}
+            systems = {e.data.to_json().get("system") for e in log.events(run_id) if e.kind.value == "command_sent"}
             assert own in systems and foreign not in systems, (run_id, systems)
             assert log.verify(run_id).ok, log.verify(run_id).describe()
     finally:

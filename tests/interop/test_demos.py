@@ -39,12 +39,14 @@ def _every_step_done_and_reported(procedure_file: str, tmp_path: Path, output: l
     completed = {e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED}
     for step in nominal:
         assert {i.number for i in step.instructions} <= completed, f"step {step.number} not completed"
-    plan_checks = [e for e in events if e.kind is EventKind.TELEMETRY_SEEN and e.data["item"] == "plan_valid"]
-    assert plan_checks and all(e.data["value"] is True for e in plan_checks if e.data["ok"])
+    plan_checks = [e for e in events if e.kind is EventKind.TELEMETRY_SEEN and e.data.to_json()["item"] == "plan_valid"]
+    assert plan_checks and all(e.data.to_json()["value"] is True for e in plan_checks if e.data.to_json()["ok"])
     failed = [
         e.data
         for e in events
-        if e.kind is EventKind.COMMAND_RESULT and e.data["command"] != "plan_trajectory" and not e.data["success"]
+        if e.kind is EventKind.COMMAND_RESULT
+        and e.data.to_json()["command"] != "plan_trajectory"
+        and not e.data.to_json()["success"]
     ]
     assert not failed, failed  # a failed plan may only have branched
     reports = _reports(output)

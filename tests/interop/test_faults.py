@@ -200,17 +200,19 @@ def _assert_pull_failed(events: list, reason: str) -> None:
     """The pull-out failed once, for ``reason`` (a regex), and nothing logged it as a success."""
     _assert_log_is_whole(events)
     assert not any(
-        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success") for e in events
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.to_json().get("success")
+        for e in events
     ), "a pull-out that did not finish was logged as a success"
     failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED and e.instruction == EXECUTE_PULL]
-    assert len(failed) == 1 and re.search(reason, failed[0].data["reason"]), failed
+    assert len(failed) == 1 and re.search(reason, failed[0].data.to_json()["reason"]), failed
 
 
 def _assert_pulled_again_and_completed(events: list) -> None:
     """The contingency step pulled the filter out after the operator's check, and the run went on to the end."""
     _assert_log_is_whole(events)
     assert not any(
-        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.get("success") for e in events
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL and e.data.to_json().get("success")
+        for e in events
     ), "the interrupted pull-out was logged as a success after all"
     numbers = [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED]
     assert CHECK_AFTER_INTERRUPTION in numbers and "3.1" in numbers[numbers.index(CHECK_AFTER_INTERRUPTION) :]
@@ -220,7 +222,7 @@ def _assert_pulled_again_and_completed(events: list) -> None:
         if e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == CHECK_AFTER_INTERRUPTION
     ] == ["ops"]
     assert any(
-        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL_AGAIN and e.data.get("success")
+        e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL_AGAIN and e.data.to_json().get("success")
         for e in events
     )
     assert not any(e.kind is EventKind.RETRY for e in events)
@@ -259,9 +261,13 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
     _assert_log_is_whole(after)
     assert after[: len(before)] == before, "the resumed run changed what was already logged"
     sent = [e for e in after if e.kind is EventKind.COMMAND_SENT and e.instruction == EXECUTE_PULL]
-    assert len(sent) == 2 and sent[0].data["key"] == sent[1].data["key"], "asked again under a new key"
+    assert len(sent) == 2 and sent[0].data.to_json()["key"] == sent[1].data.to_json()["key"], (
+        "asked again under a new key"
+    )
     answers = [e for e in after if e.kind is EventKind.COMMAND_RESULT and e.instruction == EXECUTE_PULL]
-    assert len(answers) == 1 and answers[0].data["success"], answers
+    assert len(answers) == 1 and answers[0].data.to_json()["success"], answers
     # the habitat's ledger answered the key from its record: the arm did not pull a second time
-    robot.parts["ledger"].wait_for_line(rf"{re.escape(sent[1].data['key'])}: re-sent: answered from the record", 5)
+    robot.parts["ledger"].wait_for_line(
+        rf"{re.escape(sent[1].data.to_json()['key'])}: re-sent: answered from the record", 5
+    )
     assert after[-1].kind is EventKind.RUN_COMPLETED

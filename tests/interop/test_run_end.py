@@ -99,7 +99,7 @@ def _running(url: str) -> list[str]:
 
 def _added(events: list[Event]) -> object:
     (result,) = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == ADD_FILTER]
-    return result.data["values"]["instance"]
+    return result.data.to_json()["values"]["instance"]
 
 
 def test_a_failed_run_leaves_no_instance_and_the_next_run_gets_id_0(tmp_path: Path, ros_env: dict[str, str]) -> None:
@@ -113,13 +113,13 @@ def test_a_failed_run_leaves_no_instance_and_the_next_run_gets_id_0(tmp_path: Pa
     failed = [e for e in first if e.kind is EventKind.INSTRUCTION_FAILED]
     assert [e.instruction for e in failed] == ["1.4"], failed
     assert _added(first) == "cdra_filter:0"
-    taken = [e for e in first if e.kind is EventKind.COMMAND_RESULT and e.data.get("take_back")]
-    assert [(e.actor, e.data["take_back"], e.data["success"]) for e in taken] == [
+    taken = [e for e in first if e.kind is EventKind.COMMAND_RESULT and e.data.to_json().get("take_back")]
+    assert [(e.actor, e.data.to_json()["take_back"], e.data.to_json()["success"]) for e in taken] == [
         ("ops", "cdra_filter:0", True),
         ("ops", "ready_pose:0", True),
     ]
     assert first[-1].kind is EventKind.RUN_STOPPED
-    assert first[-1].data["taken_back"] == ["cdra_filter:0", "ready_pose:0"]
+    assert first[-1].data.to_json()["taken_back"] == ["cdra_filter:0", "ready_pose:0"]
 
     # the next stack restores what the state folder holds: nothing of the failed run
     with stack_up(deployment, ros_env) as up:

@@ -92,17 +92,21 @@ def test_a_refused_locate_holds_the_run_with_its_reason_and_registers_nothing(
     output = run.stdout[-3000:] + run.stderr[-2000:]
     assert events[-1].kind is EventKind.RUN_STOPPED, output
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
-    locate = next(e for e in results if e.data["command"] == "locate" and e.data["args"]["object"] == "target/hull_a")
-    assert locate.data["success"] is False and said in locate.data["message"], locate.data
-    assert said in events[-1].data["reason"], events[-1].data  # the hold's reason, in the record of the stop
+    locate = next(
+        e
+        for e in results
+        if e.data.to_json()["command"] == "locate" and e.data.to_json()["args"]["object"] == "target/hull_a"
+    )
+    assert locate.data.to_json()["success"] is False and said in locate.data.to_json()["message"], locate.data
+    assert said in events[-1].data.to_json()["reason"], events[-1].data  # the hold's reason, in the record of the stop
     # the template was put on hull_a as drawn before the approach; nothing moved it there after
     registered = [
-        e.data["args"]
+        e.data.to_json()["args"]
         for e in events
         if e.seq > locate.seq
         and e.kind is EventKind.COMMAND_SENT
-        and e.data["command"] == "set_display_object_pose"
-        and e.data["args"]["frame"] == "target/hull_a"
+        and e.data.to_json()["command"] == "set_display_object_pose"
+        and e.data.to_json()["args"]["frame"] == "target/hull_a"
     ]
     assert registered == [], f"registered at hull_a after a refused locate: {registered}"
     assert run.returncode != 0, output

@@ -52,7 +52,7 @@ def test_records_come_back_in_order_with_their_data_and_utc_times(database: Audi
         (1, EventKind.RUN_STARTED, "alice", None),
         (2, EventKind.COMMAND_SENT, PAX, "1.1"),
     ]
-    assert events[1].data == {"args": {"speed": 0.5, "ok": True}}
+    assert events[1].data.to_json() == {"args": {"speed": 0.5, "ok": True}}
     assert events[1].time == datetime(2030, 1, 2, 1, 4, 5, 678901, tzinfo=UTC)
     assert all(e.time.utcoffset() == timedelta(0) for e in events)
     assert [(run, proc) for run, _, proc in log.runs()] == [("run-a", "p"), ("run-b", "q")]
@@ -301,7 +301,7 @@ def test_a_log_from_before_migrations_is_upgraded_in_place(new_database: Callabl
     assert log.schema_revision() == head_revision()
     assert [(run, proc) for run, _, proc in log.runs()] == [("old-1", "lab_all_kinds"), ("old-2", "lab_all_kinds")]
     events = log.events("old-1")
-    assert [(e.seq, e.kind, e.data.get("command")) for e in events] == [
+    assert [(e.seq, e.kind, e.data.to_json().get("command")) for e in events] == [
         (1, EventKind.RUN_STARTED, None),
         (2, EventKind.COMMAND_SENT, "move"),
         (3, EventKind.RUN_STOPPED, None),

@@ -100,7 +100,7 @@ def test_a_postgresql_restart_mid_run_makes_the_run_wait_then_go_on_with_nothing
     events = log.events("outage-run")
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # no gap, nothing twice
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.3"]
-    assert len(results) == 1 and results[0].data["success"] is True
+    assert len(results) == 1 and results[0].data.to_json()["success"] is True
     after = [e.kind for e in events[events.index(results[0]) - 1 :]]
     assert after[:2] == [EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT]  # the waiting event kept its place
     assert Counter(c for _, c, _ in gateway.sent)["capture"] == 1
@@ -133,10 +133,12 @@ def test_an_outage_longer_than_the_budget_stops_the_run_with_the_reason_and_resu
     final = drive(resumed, lambda s: False)
     resumed.join(TIMEOUT)
     assert final.status is RunStatus.COMPLETED, final
-    assert Counter(c for _, c, _ in gateway.sent)["capture"] == 1 and gateway.resent == [logged[-1].data["key"]]
+    assert Counter(c for _, c, _ in gateway.sent)["capture"] == 1 and gateway.resent == [
+        logged[-1].data.to_json()["key"]
+    ]
     events = log.events("outage-run")
     result = next(e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.3")
-    assert (result.actor, result.data["outcome"]) == ("PAX", "succeeded")
+    assert (result.actor, result.data.to_json()["outcome"]) == ("PAX", "succeeded")
     assert [e.seq for e in events] == list(range(1, len(events) + 1))
     assert log.verify("outage-run").ok
     log.close()

@@ -42,7 +42,11 @@ def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the
     )
     assert snap.unknown_key == "run-1/1.3/1" and snap.statuses["1.3"] is InstructionStatus.OUTCOME_UNKNOWN
     (result,) = of(journal, EventKind.COMMAND_RESULT, "1.3")
-    assert (result.data["outcome"], result.data["success"], result.data["key"]) == ("unknown", None, "run-1/1.3/1")
+    assert (result.data.to_json()["outcome"], result.data.to_json()["success"], result.data.to_json()["key"]) == (
+        "unknown",
+        None,
+        "run-1/1.3/1",
+    )
     assert not of(journal, EventKind.INSTRUCTION_FAILED) and not of(journal, EventKind.INSTRUCTION_COMPLETED, "1.3")
     for refused in (
         lambda: executive.retry("alice"),
@@ -56,10 +60,18 @@ def test_an_unknown_outcome_holds_and_asking_again_learns_it_without_running_the
     held(executive, Hold.CONFIRMATION, "2.1")
     assert [c for _, c, _ in gateway.sent].count("move") == 1 and gateway.resent == ["run-1/1.3/1"]
     (asked,) = of(journal, EventKind.RETRY, "1.3")
-    assert (asked.actor, asked.data["same_key"], asked.data["key"]) == ("alice", True, "run-1/1.3/1")
+    assert (asked.actor, asked.data.to_json()["same_key"], asked.data.to_json()["key"]) == (
+        "alice",
+        True,
+        "run-1/1.3/1",
+    )
     resend = of(journal, EventKind.COMMAND_SENT, "1.3")[-1]
-    assert (resend.actor, resend.data["key"], resend.data["resend"]) == ("alice", "run-1/1.3/1", True)
-    assert of(journal, EventKind.COMMAND_RESULT, "1.3")[-1].data["outcome"] == "succeeded"
+    assert (resend.actor, resend.data.to_json()["key"], resend.data.to_json()["resend"]) == (
+        "alice",
+        "run-1/1.3/1",
+        True,
+    )
+    assert of(journal, EventKind.COMMAND_RESULT, "1.3")[-1].data.to_json()["outcome"] == "succeeded"
     assert executive.snapshot().variables["moved"]["arrived"] is True
 
 
@@ -75,7 +87,7 @@ def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench:
         executive.resolve("bob", "halted", "camera")
     executive.resolve("bob", Outcome(found), "the camera shows the arm at the dock")
     (resolved,) = of(journal, EventKind.OUTCOME_RESOLVED, "1.3")
-    assert (resolved.actor, resolved.data) == (
+    assert (resolved.actor, resolved.data.to_json()) == (
         "bob",
         {"key": "run-1/1.3/1", "outcome": found, "reason": "the camera shows the arm at the dock"},
     )
@@ -91,7 +103,10 @@ def test_the_operator_records_what_became_of_a_command_of_unknown_outcome(bench:
     assert "run-1/1.3/1 failed (recorded by bob: the camera shows the arm at the dock)" in snap.reason
     executive.retry("bob")  # a new attempt: a new key, executed
     held(executive, Hold.CONFIRMATION, "2.1")
-    assert [e.data["key"] for e in of(journal, EventKind.COMMAND_SENT, "1.3")] == ["run-1/1.3/1", "run-1/1.3/2"]
+    assert [e.data.to_json()["key"] for e in of(journal, EventKind.COMMAND_SENT, "1.3")] == [
+        "run-1/1.3/1",
+        "run-1/1.3/2",
+    ]
     assert [c for _, c, _ in gateway.sent].count("move") == 2
 
 
@@ -114,15 +129,19 @@ def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_re
     )
     assert gateway.cancels == ["run-1/2.1/1"]
     (halt,) = of(journal, EventKind.HALT)
-    assert (halt.actor, halt.data["key"], halt.data["cancel"]) == (
+    assert (halt.actor, halt.data.to_json()["key"], halt.data.to_json()["cancel"]) == (
         "bob",
         "run-1/2.1/1",
         {"stopped": True, "message": "stopped where it was"},
     )
     (result,) = of(journal, EventKind.COMMAND_RESULT, "2.1")
-    assert (result.data["outcome"], result.data["success"]) == ("halted", False)
+    assert (result.data.to_json()["outcome"], result.data.to_json()["success"]) == ("halted", False)
     (ended,) = of(journal, EventKind.INSTRUCTION_HALTED, "2.1")
-    assert (ended.actor, ended.data["reason"], ended.data["next"]) == ("bob", "the arm is drifting", "2.1")
+    assert (ended.actor, ended.data.to_json()["reason"], ended.data.to_json()["next"]) == (
+        "bob",
+        "the arm is drifting",
+        "2.1",
+    )
     assert not of(journal, EventKind.INSTRUCTION_COMPLETED, "2.1") and not of(journal, EventKind.INSTRUCTION_FAILED)
     assert not of(journal, EventKind.INSTRUCTION_STARTED, "2.2")  # automation holds
     with pytest.raises(OperatorActionError, match="halted by bob: the arm is drifting: continue, retry or skip"):
@@ -134,7 +153,10 @@ def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_re
     executive.retry("bob")
     held(executive, Hold.OPERATOR_ACTION, "2.4")
     sent = of(journal, EventKind.COMMAND_SENT, "2.1")
-    assert [(e.data["key"], e.data["confirmed_by"]) for e in sent] == [("run-1/2.1/1", "carol"), ("run-1/2.1/2", "bob")]
+    assert [(e.data.to_json()["key"], e.data.to_json()["confirmed_by"]) for e in sent] == [
+        ("run-1/2.1/1", "carol"),
+        ("run-1/2.1/2", "bob"),
+    ]
 
 
 def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench: Bench) -> None:
@@ -144,7 +166,12 @@ def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench: Bench
     executive.halt("alice")
     snap = held(executive, Hold.HALTED, "1.2")
     assert snap.reason == "halted by alice (at 1.2)" and gateway.cancels == []
-    assert of(journal, EventKind.HALT)[0].data == {"reason": "", "key": None, "cancel": None, "executing": False}
+    assert of(journal, EventKind.HALT)[0].data.to_json() == {
+        "reason": "",
+        "key": None,
+        "cancel": None,
+        "executing": False,
+    }
     with pytest.raises(OperatorActionError, match="has not failed or been halted"):
         executive.retry("alice")
     executive.resume_automation("alice")
@@ -160,10 +187,10 @@ def test_halt_ends_a_wait_at_once_and_stop_halts_first(bench: Bench) -> None:
     executive.join(TIMEOUT)  # PAX's thread records how the wait ended
     assert finished(executive).status is RunStatus.STOPPED
     (ended,) = of(journal, EventKind.INSTRUCTION_HALTED, "1.4")
-    assert (ended.actor, ended.data["reason"]) == ("dave", "end of the shift")
-    assert "halted while watching telemetry by dave: end of the shift" in ended.data["detail"]
+    assert (ended.actor, ended.data.to_json()["reason"]) == ("dave", "end of the shift")
+    assert "halted while watching telemetry by dave: end of the shift" in ended.data.to_json()["detail"]
     (stopped,) = of(journal, EventKind.RUN_STOPPED)
-    assert (stopped.actor, stopped.data["reason"]) == ("dave", "end of the shift")
+    assert (stopped.actor, stopped.data.to_json()["reason"]) == ("dave", "end of the shift")
 
 
 def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: Bench) -> None:
@@ -180,7 +207,7 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: B
     lost = executive.wait_for(lambda s: EventKind.LINK_LOST in journal.kinds(), TIMEOUT)
     assert lost is not None
     (event,) = of(journal, EventKind.LINK_LOST)
-    assert (event.actor, event.instruction, event.data) == (
+    assert (event.actor, event.instruction, event.data.to_json()) == (
         PAX,
         "1.3",
         {"links": ["ws://lab.bench:9090"], "since": since.isoformat(), "in_flight": 1, "quiet": False},
@@ -191,7 +218,7 @@ def test_a_lost_link_is_a_run_state_and_the_run_goes_on_when_it_is_back(bench: B
     # the supervisor records the link's return on its own thread: it may follow the move's result
     assert executive.wait_for(lambda s: EventKind.LINK_RESTORED in journal.kinds(), TIMEOUT) is not None
     (restored,) = of(journal, EventKind.LINK_RESTORED)
-    assert restored.actor == PAX and restored.data["since"] == since.isoformat()
+    assert restored.actor == PAX and restored.data.to_json()["since"] == since.isoformat()
     assert executive.snapshot().link_summary() == ""
 
 
@@ -217,7 +244,12 @@ def test_a_quiet_link_is_a_lost_link_from_when_it_was_last_heard(bench: Bench) -
     held(executive, Hold.CONFIRMATION, "2.1")
     assert executive.wait_for(lambda s: EventKind.LINK_RESTORED in journal.kinds(), TIMEOUT) is not None
     (lost,) = of(journal, EventKind.LINK_LOST)  # one loss, recorded when the link fell quiet
-    assert lost.data == {"links": ["ws://lab.bench:9090"], "since": heard.isoformat(), "in_flight": 1, "quiet": True}
+    assert lost.data.to_json() == {
+        "links": ["ws://lab.bench:9090"],
+        "since": heard.isoformat(),
+        "in_flight": 1,
+        "quiet": True,
+    }
 
 
 def test_a_verify_counts_the_light_time_into_its_timeout(bench: Bench) -> None:
@@ -229,7 +261,7 @@ def test_a_verify_counts_the_light_time_into_its_timeout(bench: Bench) -> None:
     executive.confirm("alice")
     held(executive, Hold.OPERATOR_ACTION, "3.1")  # the verify failed into its recover step
     (failed,) = of(journal, EventKind.INSTRUCTION_FAILED, "2.2")
-    assert "(waited 2 s + 0.5 s light time)" in failed.data["reason"]
+    assert "(waited 2 s + 0.5 s light time)" in failed.data.to_json()["reason"]
 
 
 def test_a_journal_that_fails_stops_the_run_at_once_with_its_reason_and_burns_no_number(bench: Bench) -> None:

@@ -51,9 +51,16 @@ def test_a_hazardous_command_waits_for_a_second_operator_and_both_are_recorded(b
     by = {(e.kind, e.instruction): e for e in journal.events}
     assert by[(EventKind.APPROVAL_REQUESTED, "2.1")].actor == "alice"
     given = by[(EventKind.APPROVAL_GIVEN, "2.1")]
-    assert given.actor == "bob" and given.data["sender"] == "alice" and "Vent Chamber" in given.data["command"]
+    assert (
+        given.actor == "bob"
+        and given.data.to_json()["sender"] == "alice"
+        and "Vent Chamber" in given.data.to_json()["command"]
+    )
     sent = by[(EventKind.COMMAND_SENT, "2.1")]
-    assert sent.actor == PAX and (sent.data["requested_by"], sent.data["approved_by"]) == ("alice", "bob")
+    assert sent.actor == PAX and (sent.data.to_json()["requested_by"], sent.data.to_json()["approved_by"]) == (
+        "alice",
+        "bob",
+    )
 
 
 def _by_hand_to_the_vent(executive: Executive) -> None:
@@ -78,7 +85,7 @@ def test_in_manual_mode_send_asks_for_approval_and_the_approval_sends_it_as_the_
     executive.approve("dave")
     held(executive, Hold.MANUAL_MODE, "2.2")
     sent = [e for e in journal.events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1"]
-    assert [(e.actor, e.data["approved_by"]) for e in sent] == [("carol", "dave")]
+    assert [(e.actor, e.data.to_json()["approved_by"]) for e in sent] == [("carol", "dave")]
     assert gateway.sent[-1][1] == "vent"
 
 
@@ -98,7 +105,9 @@ def test_an_expired_approval_is_never_sent_on_and_the_command_waits_again(bench:
     assert snap.approval == {"number": "2.1", "state": "needed", "level": "hazardous"}  # asked again, from the start
     assert [c for _, c, _ in gateway.sent] == ["move"]
     expired = [e for e in journal.events if e.kind is EventKind.APPROVAL_EXPIRED]
-    assert [(e.actor, e.data["approver"], e.data["sender"]) for e in expired] == [(PAX, "bob", "alice")]
+    assert [(e.actor, e.data.to_json()["approver"], e.data.to_json()["sender"]) for e in expired] == [
+        (PAX, "bob", "alice")
+    ]
     executive.confirm("alice")
     executive.approve("erin")  # a fresh approval, in time
     held(executive, Hold.OPERATOR_ACTION, "2.4")
@@ -155,7 +164,7 @@ def test_at_a_terminal_a_second_operator_approves_with_their_own_password(bench:
     assert "[a] a second operator approves it here" in prompts[1]
     assert "not approved: bob: unknown user or wrong password" in out.getvalue()
     vent = next(e for e in journal.events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1")
-    assert (vent.data["requested_by"], vent.data["approved_by"]) == ("pat", "bob")
+    assert (vent.data.to_json()["requested_by"], vent.data.to_json()["approved_by"]) == ("pat", "bob")
     assert [c for _, c, _ in gateway.sent].count("vent") == 1
 
 
@@ -176,4 +185,7 @@ def test_after_a_failure_an_approval_lets_the_operator_retry_and_sends_nothing_b
     executive.retry("carol")
     held(executive, Hold.MANUAL_MODE, "2.2")
     sent = [e for e in journal.events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1"]
-    assert [(e.data["key"], e.data["approved_by"]) for e in sent] == [("run-1/2.1/1", "dave"), ("run-1/2.1/2", "dave")]
+    assert [(e.data.to_json()["key"], e.data.to_json()["approved_by"]) for e in sent] == [
+        ("run-1/2.1/1", "dave"),
+        ("run-1/2.1/2", "dave"),
+    ]

@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 
 from pride.event_json import EventDataError
-from pride.event_payloads import LinkLost, payload_from_json
+from pride.event_payloads import LinkLost, RunStopped, payload_from_json
 from pride.events import Event, EventKind
 from records.audit_log import AuditLog
 from support.procedures import FIXTURES, REPO
@@ -36,7 +36,7 @@ def _rows() -> list[dict[str, Any]]:
 
 def _event(row: dict[str, Any]) -> Event:
     kind = EventKind(row["kind"])
-    data = payload_from_json(kind, json.loads(row["data"])).to_json()  # read into its payload, stored as its JSON
+    data = payload_from_json(kind, json.loads(row["data"]))
     return Event(
         row["run_id"], row["seq"], kind, row["actor"], row["instruction"], data, datetime.fromisoformat(row["time"])
     )
@@ -95,6 +95,13 @@ def test_an_older_runs_keys_are_kept_and_a_missing_field_reads_empty() -> None:
 def test_hostile_data_is_refused_saying_which_field_and_type(kind: EventKind, data: Any, says: str) -> None:
     with pytest.raises(EventDataError, match=says.replace(".", r"\.")):
         payload_from_json(kind, data)
+
+
+def test_an_event_carries_only_its_kinds_payload() -> None:
+    stopped = RunStopped(reason="", key=None, cancel=None)
+    with pytest.raises(ValueError, match="a halt event cannot carry RunStopped"):
+        Event("run-1", 1, EventKind.HALT, "ana", None, stopped)
+    assert Event.of("run-1", 1, "ana", None, stopped).kind is EventKind.RUN_STOPPED
 
 
 _FOLD = """

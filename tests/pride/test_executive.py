@@ -50,16 +50,25 @@ def test_autonomous_run_performs_every_kind_and_holds_only_for_the_operator(benc
     assert by[(EventKind.OPERATOR_INPUT, "1.2")].actor == "alice"
     assert by[(EventKind.CONFIRMATION, "2.1")].actor == "bob"
     assert by[(EventKind.INSTRUCTION_COMPLETED, "2.4")].actor == "bob"
-    assert by[(EventKind.COMMAND_SENT, "2.1")].actor == PAX and by[(EventKind.COMMAND_SENT, "2.1")].data["hazardous"]
-    assert by[(EventKind.TELEMETRY_SEEN, "1.1")].data["value"] == 21.5  # verify within tolerance
-    assert by[(EventKind.INSTRUCTION_COMPLETED, "2.6")].data["went_to"] == "finish"  # branch on a command result
-    assert by[(EventKind.INSTRUCTION_COMPLETED, "4.2")].data["went_to"] == "done"  # branch on a recorded input
-    assert by[(EventKind.TELEMETRY_SEEN, "5.2")].data["value"] == 21.5
-    assert by[(EventKind.INSTRUCTION_COMPLETED, "5.2")].data["went_to"] == "settle"  # branch on telemetry
+    assert (
+        by[(EventKind.COMMAND_SENT, "2.1")].actor == PAX
+        and by[(EventKind.COMMAND_SENT, "2.1")].data.to_json()["hazardous"]
+    )
+    assert by[(EventKind.TELEMETRY_SEEN, "1.1")].data.to_json()["value"] == 21.5  # verify within tolerance
+    assert (
+        by[(EventKind.INSTRUCTION_COMPLETED, "2.6")].data.to_json()["went_to"] == "finish"
+    )  # branch on a command result
+    assert (
+        by[(EventKind.INSTRUCTION_COMPLETED, "4.2")].data.to_json()["went_to"] == "done"
+    )  # branch on a recorded input
+    assert by[(EventKind.TELEMETRY_SEEN, "5.2")].data.to_json()["value"] == 21.5
+    assert by[(EventKind.INSTRUCTION_COMPLETED, "5.2")].data.to_json()["went_to"] == "settle"  # branch on telemetry
     assert snap.statuses["6.1"] is InstructionStatus.COMPLETED  # a contingency step, entered by that branch
-    assert by[(EventKind.CALL_ENTERED, "4.1")].data["inputs"] == {"count": 3}
-    assert by[(EventKind.COMMAND_RESULT, "4.1/1.1")].data["values"] == {"total": 6}
-    assert by[(EventKind.COMMAND_RESULT, "2.3")].data["args"] == {"label": "dock_view"}  # a result names its request
+    assert by[(EventKind.CALL_ENTERED, "4.1")].data.to_json()["inputs"] == {"count": 3}
+    assert by[(EventKind.COMMAND_RESULT, "4.1/1.1")].data.to_json()["values"] == {"total": 6}
+    assert by[(EventKind.COMMAND_RESULT, "2.3")].data.to_json()["args"] == {
+        "label": "dock_view"
+    }  # a result names its request
     assert snap.statuses["3.1"] is InstructionStatus.PENDING  # the recover step was branched around
     assert snap.variables["photo"]["path"].endswith("dock_view.png")
     assert journal.events[-1].kind is EventKind.RUN_COMPLETED
@@ -103,7 +112,10 @@ def test_operator_switches_modes_midway(bench: Bench) -> None:
     held(executive, Hold.CONFIRMATION, "2.1")
     executive.set_mode("dave", Mode.MANUAL)
     held(executive, Hold.CONFIRMATION, "2.1")
-    assert [e.data["mode"] for e in journal.events if e.kind is EventKind.MODE_CHANGED] == ["autonomous", "manual"]
+    assert [e.data.to_json()["mode"] for e in journal.events if e.kind is EventKind.MODE_CHANGED] == [
+        "autonomous",
+        "manual",
+    ]
 
 
 def test_breakpoint_holds_then_step_and_continue(bench: Bench) -> None:
@@ -138,7 +150,10 @@ def test_pause_holds_automation_and_stop_ends_the_run(bench: Bench) -> None:
     executive.stop("frank", "end of shift")
     snap = finished(executive)
     assert snap.status is RunStatus.STOPPED
-    assert journal.events[-1].kind is EventKind.RUN_STOPPED and journal.events[-1].data["reason"] == "end of shift"
+    assert (
+        journal.events[-1].kind is EventKind.RUN_STOPPED
+        and journal.events[-1].data.to_json()["reason"] == "end of shift"
+    )
     with pytest.raises(OperatorActionError, match="stopped"):
         executive.perform("frank")
     assert gateway.sent == []
@@ -155,7 +170,7 @@ def test_failed_command_holds_with_the_reason_until_retried(bench: Bench) -> Non
     assert snap.statuses["1.3"] is InstructionStatus.FAILED
     assert snap.statuses["1.4"] is InstructionStatus.PENDING  # never runs on as if it had succeeded
     failed = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED)
-    assert failed.data["next"] == "1.3"
+    assert failed.data.to_json()["next"] == "1.3"
     with pytest.raises(OperatorActionError, match="retry or skip"):
         executive.perform("gina")
     executive.retry("gina")
@@ -174,10 +189,14 @@ def test_failed_verify_branches_where_the_procedure_says(bench: Bench) -> None:
     executive.confirm("hank")
     held(executive, Hold.OPERATOR_ACTION, "3.1")  # the recover step
     failed = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED)
-    assert (failed.instruction, failed.data["branch"], failed.data["next"]) == ("2.2", "recover", "3.1")
-    assert "stale" in failed.data["reason"]
+    assert (failed.instruction, failed.data.to_json()["branch"], failed.data.to_json()["next"]) == (
+        "2.2",
+        "recover",
+        "3.1",
+    )
+    assert "stale" in failed.data.to_json()["reason"]
     seen = [e for e in journal.events if e.kind is EventKind.TELEMETRY_SEEN and e.instruction == "2.2"]
-    assert seen[-1].data["stale"] is True and seen[-1].data["ok"] is False
+    assert seen[-1].data.to_json()["stale"] is True and seen[-1].data.to_json()["ok"] is False
     assert ("lab", "capture", {"label": "dock_view"}) not in gateway.sent
 
 
@@ -192,7 +211,7 @@ def test_a_contingency_looping_back_to_itself_holds_after_three_branches_and_a_r
     assert "blocked by debris" in snap.reason
     failed = [e for e in journal.events if e.kind is EventKind.INSTRUCTION_FAILED]
     # 1.1 into the contingency, then 2.1 back to itself three times, then the hold
-    assert [(e.instruction, e.data.get("branch"), e.data["next"]) for e in failed] == [
+    assert [(e.instruction, e.data.to_json().get("branch"), e.data.to_json()["next"]) for e in failed] == [
         ("1.1", "move_interrupted", "2.1"),
         *[("2.1", "move_interrupted", "2.1")] * 3,
         ("2.1", None, "2.1"),
@@ -227,7 +246,7 @@ def test_skip_needs_a_reason_and_later_use_of_the_skipped_value_fails(bench: Ben
     assert "${target} is not bound" in snap.reason
     assert gateway.sent == []
     skipped = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_SKIPPED)
-    assert (skipped.actor, skipped.data["reason"]) == ("ivy", "target decided later")
+    assert (skipped.actor, skipped.data.to_json()["reason"]) == ("ivy", "target decided later")
     executive.skip("ivy", "move by hand")
     snap = held(executive, Hold.FAILURE, "1.4")  # nobody moved it: the wait for a new state fails
     assert snap.statuses["1.3"] is InstructionStatus.SKIPPED
@@ -291,7 +310,7 @@ def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_t
 ) -> None:
     gateway, log = _crash_while_venting(bench)
     sent = log[-1]
-    assert sent.data["key"] == "run-1/2.1/1" and sent.data["confirmed_by"] == "lena"
+    assert sent.data.to_json()["key"] == "run-1/2.1/1" and sent.data.to_json()["confirmed_by"] == "lena"
     journal = new_journal(log)
     heard: list[Event] = []  # a listener given to the resume hears the re-send PAX makes at once
     resumed = Executive.resume(
@@ -305,11 +324,15 @@ def test_resume_sends_a_command_in_flight_again_with_its_key_and_never_runs_it_t
         assert [c for _, c, _ in gateway.sent].count("vent") == 1  # executed once, whatever was re-sent
         assert gateway.resent == ["run-1/2.1/1"]
         resend = next(e for e in journal.events if e.kind is EventKind.COMMAND_SENT)
-        assert (resend.actor, resend.data["key"], resend.data["resend"]) == (PAX, "run-1/2.1/1", True)
+        assert (resend.actor, resend.data.to_json()["key"], resend.data.to_json()["resend"]) == (
+            PAX,
+            "run-1/2.1/1",
+            True,
+        )
         result = next(e for e in journal.events if e.kind is EventKind.COMMAND_RESULT)
-        assert (result.data["outcome"], result.data["success"]) == ("succeeded", True)
+        assert (result.data.to_json()["outcome"], result.data.to_json()["success"]) == ("succeeded", True)
         resumed_event = journal.events[0]
-        assert resumed_event.kind is EventKind.RUN_RESUMED and resumed_event.data["resend"] == "run-1/2.1/1"
+        assert resumed_event.kind is EventKind.RUN_RESUMED and resumed_event.data.to_json()["resend"] == "run-1/2.1/1"
         assert resumed_event.seq == log[-1].seq + 1
         assert heard[0].seq == resumed_event.seq and resend.seq in [e.seq for e in heard]
     finally:
@@ -320,7 +343,7 @@ def test_resume_of_an_old_log_without_keys_holds_the_in_flight_command(
     bench: Bench, sysreps: dict[str, SysRep], tmp_path: Path, new_journal: Callable[..., RecordedJournal]
 ) -> None:
     gateway, log = _crash_while_venting(bench)
-    unkeyed = {k: v for k, v in log[-1].data.items() if k != "key"}
+    unkeyed = {k: v for k, v in log[-1].data.to_json().items() if k != "key"}
     log[-1] = replace(log[-1], data=unkeyed)  # as runners wrote it before command keys
     second_gateway = LabGateway(str(tmp_path / "images"))
     second_journal = new_journal(log)
@@ -339,7 +362,7 @@ def test_resume_of_an_old_log_without_keys_holds_the_in_flight_command(
         held(resumed, Hold.OPERATOR_ACTION, "2.4")
         assert [c for _, c, _ in second_gateway.sent] == ["vent", "capture"]
         resend = next(e for e in second_journal.events if e.kind is EventKind.COMMAND_SENT)
-        assert (resend.actor, resend.data["key"]) == ("mia", "run-1/2.1/1")  # its first keyed attempt
+        assert (resend.actor, resend.data.to_json()["key"]) == ("mia", "run-1/2.1/1")  # its first keyed attempt
     finally:
         resumed.stop("teardown")
         gateway.release.set()
@@ -424,7 +447,7 @@ def test_stop_while_watching_telemetry_halts_it_and_resume_lets_the_operator_red
     executive.join(TIMEOUT)
     assert EventKind.INSTRUCTION_FAILED not in journal.kinds()  # never the on-failure branch
     halted = next(e for e in journal.events if e.kind is EventKind.INSTRUCTION_HALTED)
-    assert (halted.instruction, halted.actor, halted.data["reason"], halted.data["next"]) == (
+    assert (halted.instruction, halted.actor, halted.data.to_json()["reason"], halted.data.to_json()["next"]) == (
         "2.2",
         "sam",
         "shift change",

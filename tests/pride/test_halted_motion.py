@@ -122,18 +122,20 @@ def test_after_a_halted_motion_re_planning_goes_back_to_its_plan_and_the_run_goe
     # PAX plans the pull again (a new attempt), and holds again for the operator's confirmation
     held(executive, Hold.OPERATOR_ACTION, "2.3")
     (back,) = [e for e in journal.events if e.kind is EventKind.STEPPED_BACK]
-    assert (back.actor, back.instruction, back.data["next"], back.data["reset"]) == (
+    assert (back.actor, back.instruction, back.data.to_json()["next"], back.data.to_json()["reset"]) == (
         "bob",
         "2.4",
         "2.1",
         ["2.1", "2.2", "2.3", "2.4"],
     )
     assert (
-        back.data["reason"]
+        back.data.to_json()["reason"]
         == "re-plan grasp_and_pull of cdra_filter:0 from where the arm is and go on (2.4 was halted)"
     )
     assert back.time is not None  # who, when and why, as every action
-    plans = [e.data["key"] for e in journal.events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1"]
+    plans = [
+        e.data.to_json()["key"] for e in journal.events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1"
+    ]
     assert plans == ["run-1/2.1/1", "run-1/2.1/2"]
     assert executive.snapshot().no_retry == ""  # the halted motion is behind the run now
     motion.moving.clear()
@@ -219,4 +221,4 @@ def test_the_terminal_offers_re_planning_at_a_halted_motion_and_no_retry(bench: 
     assert "retry" not in prompts[0].split("\n", 1)[1]  # neither retry nor continue is offered
     assert f"{PULL}; re-plan from where the arm is (2.1) and go on" in out.getvalue()
     (back,) = [e for e in journal.events if e.kind is EventKind.STEPPED_BACK]
-    assert (back.actor, back.data["next"]) == ("bob", "2.1")
+    assert (back.actor, back.data.to_json()["next"]) == ("bob", "2.1")

@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 
 from console.authoring import check_document, read_document
+from pride.event_words import describe_event
 from pride.events import Event, EventKind
 from pride.phrasing import (
     Wording,
     command_text,
-    describe_event,
     fill_text,
     format_value,
     labelled_values,

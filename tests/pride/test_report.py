@@ -128,7 +128,7 @@ def test_report_of_an_edited_run_says_so_and_verify_names_the_event(
     )  # someone "corrects" the recorded value
     log = AuditLog(db)
     try:
-        seq = next(e.seq for e in log.events(run_id) if e.data.get("value") == "bay")
+        seq = next(e.seq for e in log.events(run_id) if e.data.to_json().get("value") == "bay")
     finally:
         log.close()
 

@@ -110,8 +110,8 @@ def test_unattended_run_completes_with_answers_logged_as_the_user(setup: tuple[d
     approvals = [(e.kind, e.actor) for e in events if e.kind.value.startswith("approval_")]
     assert approvals == [(EventKind.APPROVAL_REQUESTED, "alice"), (EventKind.APPROVAL_GIVEN, "bob")]
     vent = next(e for e in events if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.1")
-    assert (vent.data["requested_by"], vent.data["approved_by"]) == ("alice", "bob")
-    assert events[0].data["rehearsal"] is True and events[0].data["release"] is None
+    assert (vent.data.to_json()["requested_by"], vent.data.to_json()["approved_by"]) == ("alice", "bob")
+    assert events[0].data.to_json()["rehearsal"] is True and events[0].data.to_json()["release"] is None
     assert events[-1].kind is EventKind.RUN_COMPLETED
     assert log.verify(run_id).ok, log.verify(run_id).describe()
 
@@ -171,7 +171,7 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     ((run_id, _, _),) = log.runs()
     before = log.events(run_id)
     assert before[-1].kind is EventKind.COMMAND_SENT and before[-1].instruction == "2.3"
-    key = before[-1].data["key"]
+    key = before[-1].data.to_json()["key"]
 
     # resumed unattended: the capture's key goes again by itself; the habitat answers what it did
     resumed = run(env, "--resume", run_id, "--user", "bob", *common, *ANSWERS[:-2])  # past the vent: no approver
@@ -186,11 +186,13 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
     assert [e.seq for e in events] == list(range(1, len(events) + 1))  # nothing lost, nothing twice
     assert [(e.seq, e.kind, e.data) for e in events[: len(before)]] == [(e.seq, e.kind, e.data) for e in before]
     sent = Counter(
-        (e.instruction, e.data["command"], e.data["key"]) for e in events if e.kind is EventKind.COMMAND_SENT
+        (e.instruction, e.data.to_json()["command"], e.data.to_json()["key"])
+        for e in events
+        if e.kind is EventKind.COMMAND_SENT
     )
     assert sent[("2.3", "capture", key)] == 2 and len({k for (n, _, k) in sent if n == "2.3"}) == 1
     again = [
-        (e.kind, e.actor, e.data.get("resend", False))
+        (e.kind, e.actor, e.data.to_json().get("resend", False))
         for e in events
         if e.instruction == "2.3" and e.kind in (EventKind.COMMAND_SENT, EventKind.COMMAND_RESULT)
     ]
@@ -200,7 +202,7 @@ def test_killed_runner_resumes_and_learns_the_outcome_of_its_command_in_flight_w
         (EventKind.COMMAND_RESULT, PAX, False),
     ]
     result = next(e for e in events if e.instruction == "2.3" and e.kind is EventKind.COMMAND_RESULT)
-    assert result.data["outcome"] == "succeeded" and result.data["values"]["label"] == "dock_view"
+    assert result.data.to_json()["outcome"] == "succeeded" and result.data.to_json()["values"]["label"] == "dock_view"
     assert [e.actor for e in events if e.kind is EventKind.RUN_RESUMED] == ["bob"]
     completed = Counter(e.instruction for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED)
     assert all(count == 1 for count in completed.values()), completed
@@ -226,17 +228,17 @@ def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(
     ((run_id, _, _),) = log.runs()
     events = log.events(run_id)
     halt = next(e for e in events if e.kind is EventKind.HALT)
-    assert (halt.actor, halt.instruction, halt.data["reason"], halt.data["key"]) == (
+    assert (halt.actor, halt.instruction, halt.data.to_json()["reason"], halt.data.to_json()["key"]) == (
         "alice",
         "2.1",
         "Ctrl-C at the terminal",
         f"{run_id}/2.1/1",
     )
-    assert halt.data["cancel"] == {"stopped": True, "message": "stopped where it was"}
+    assert halt.data.to_json()["cancel"] == {"stopped": True, "message": "stopped where it was"}
     result = next(e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == "2.1")
-    assert (result.data["outcome"], result.data["success"]) == ("halted", False)
+    assert (result.data.to_json()["outcome"], result.data.to_json()["success"]) == ("halted", False)
     halted = next(e for e in events if e.kind is EventKind.INSTRUCTION_HALTED)
-    assert (halted.actor, halted.instruction, halted.data["next"]) == ("alice", "2.1", "2.1")
+    assert (halted.actor, halted.instruction, halted.data.to_json()["next"]) == ("alice", "2.1", "2.1")
     assert not any(e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "2.1" for e in events)
-    assert events[-1].kind is EventKind.RUN_STOPPED and "halted by alice" in events[-1].data["reason"]
+    assert events[-1].kind is EventKind.RUN_STOPPED and "halted by alice" in events[-1].data.to_json()["reason"]
     assert log.verify(run_id).ok

@@ -11,9 +11,10 @@ import io
 from datetime import UTC, datetime
 
 from caretaker.terminal import ProgressPrinter, TerminalLines
+from pride.event_words import describe_event, started_text
 from pride.events import Event, EventKind
 from pride.executive import Hold, Mode, RunStatus
-from pride.phrasing import describe_event, fill_text, started_text
+from pride.phrasing import fill_text
 from pride.report import summarize, to_html, to_markdown
 from procedure_language.model import Template
 from support.executive_runs import Bench, finished, held
@@ -34,7 +35,7 @@ def test_the_report_and_the_terminal_show_a_started_sentence_with_the_values_kno
     executive.join(20)
 
     events = journal.log.events("filled")  # as stored: through the database and back
-    started = {e.instruction: e.data for e in events if e.kind is EventKind.INSTRUCTION_STARTED}
+    started = {e.instruction: e.data.to_json() for e in events if e.kind is EventKind.INSTRUCTION_STARTED}
     assert started["1.2"]["text"] == "Pick clean filter ${clean_filter_id} from the rack"  # the author's, as written
     assert started["1.2"]["text_filled"] == f"Pick clean filter {FILTER} from the rack"
 
@@ -76,7 +77,7 @@ def test_a_started_event_logged_before_it_carried_the_filled_text_reads_as_the_a
         EventKind.INSTRUCTION_STARTED,
         "PAX",
         "4.3",
-        {**old.data, "text_filled": "Pick clean filter X"},
+        {**old.data.to_json(), "text_filled": "Pick clean filter X"},
         old.time,
     )
     assert describe_event(new) == "started: Pick clean filter X"

@@ -19,7 +19,7 @@ from caretaker.procedure_commands import LeftBehind
 from caretaker.terminal import TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, JournalFailure, Mode, OperatorActionError, RunStatus
-from pride.leftovers import Holdings, Leftover
+from pride.leftovers import Holdings, Leftover, TakenBack
 from pride.systems import CancelResult, CommandResult, LinkListener, LinkState, Outcome, TelemetryValue
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
@@ -95,7 +95,7 @@ class TemplateBench:
 
 
 def _take_backs(journal: RecordedJournal, kind: EventKind) -> list[Event]:
-    return [e for e in journal.events if e.kind is kind and e.data.get("take_back")]
+    return [e for e in journal.events if e.kind is kind and e.data.to_json().get("take_back")]
 
 
 def _stopped(journal: RecordedJournal) -> Event:
@@ -133,20 +133,20 @@ def test_a_failed_run_stopped_removes_what_it_added_as_the_user_and_cannot_be_re
     assert finished(executive).status is RunStatus.STOPPED
     assert gateway.instances == set()
     sent = _take_backs(journal, EventKind.COMMAND_SENT)
-    assert [(e.actor, e.instruction, e.data["command"], e.data["args"]) for e in sent] == [
+    assert [(e.actor, e.instruction, e.data.to_json()["command"], e.data.to_json()["args"]) for e in sent] == [
         ("ana", None, "delete_affordance_template", {"affordance_template": "cdra_filter:0", "id": 0}),
         ("ana", None, "delete_affordance_template", {"affordance_template": "ready_pose:0", "id": 0}),
     ]
-    assert all(re.fullmatch(r"run-1/take-back/\d+", e.data["key"]) for e in sent)
-    assert len({e.data["key"] for e in sent}) == 2  # each removal under a key of its own
+    assert all(re.fullmatch(r"run-1/take-back/\d+", e.data.to_json()["key"]) for e in sent)
+    assert len({e.data.to_json()["key"] for e in sent}) == 2  # each removal under a key of its own
     results = _take_backs(journal, EventKind.COMMAND_RESULT)
-    assert [(e.actor, e.data["outcome"], e.data["message"]) for e in results] == [
+    assert [(e.actor, e.data.to_json()["outcome"], e.data.to_json()["message"]) for e in results] == [
         ("ana", "succeeded", "deleted cdra_filter:0"),
         ("ana", "succeeded", "deleted ready_pose:0"),
     ]
     stopped = _stopped(journal)
-    assert (stopped.actor, stopped.data["taken_back"]) == ("ana", ["cdra_filter:0", "ready_pose:0"])
-    assert "left_behind" not in stopped.data
+    assert (stopped.actor, stopped.data.to_json()["taken_back"]) == ("ana", ["cdra_filter:0", "ready_pose:0"])
+    assert "left_behind" not in stopped.data.to_json()
 
     with pytest.raises(OperatorActionError, match=r"took back what it had added when it stopped \(cdra_filter:0, "):
         _resume(journal, gateway, sysreps, new_journal)
@@ -162,9 +162,9 @@ def test_a_removal_the_system_refuses_is_listed_with_its_words(bench: Bench) -> 
     executive.stop("ana", "giving up")
     assert gateway.instances == {"ready_pose:0"}
     stopped = _stopped(journal)
-    assert stopped.data["taken_back"] == ["cdra_filter:0"]
+    assert stopped.data.to_json()["taken_back"] == ["cdra_filter:0"]
     why = "delete_affordance_template failed: ready_pose:0 is executing; wait for it to finish before deleting it"
-    assert stopped.data["left_behind"] == [{"system": AT, "name": "ready_pose:0", "why": why}]
+    assert stopped.data.to_json()["left_behind"] == [{"system": AT, "name": "ready_pose:0", "why": why}]
     # the runner's terminal says it too, one line each
     out = io.StringIO()
     LeftBehind(TerminalLines(out))(stopped)
@@ -184,7 +184,7 @@ def _stopped_unremoved(
     executive.stop("ana", "end of shift")
     assert not _take_backs(journal, EventKind.COMMAND_SENT)
     assert gateway.instances == {"cdra_filter:0", "ready_pose:0"}
-    assert _stopped(journal).data["left_behind"] == [
+    assert _stopped(journal).data.to_json()["left_behind"] == [
         {"system": AT, "name": "cdra_filter:0", "why": why},
         {"system": AT, "name": "ready_pose:0", "why": why},
     ]
@@ -231,7 +231,7 @@ def test_a_completed_run_removes_nothing_itself_and_lists_what_its_procedure_lef
     assert not _take_backs(journal, EventKind.COMMAND_SENT)
     completed = journal.events[-1]
     assert completed.kind is EventKind.RUN_COMPLETED
-    assert completed.data == {
+    assert completed.data.to_json() == {
         "left_behind": [{"system": AT, "name": "ready_pose:0", "why": "the procedure completed without removing it"}]
     }
 
@@ -242,7 +242,7 @@ def test_a_run_whose_procedure_removes_its_templates_completes_as_before(bench: 
     executive.start("ana")
     assert finished(executive).status is RunStatus.COMPLETED
     assert gateway.instances == set()
-    assert (journal.events[-1].kind, journal.events[-1].data) == (EventKind.RUN_COMPLETED, {})
+    assert (journal.events[-1].kind, journal.events[-1].data.to_json()) == (EventKind.RUN_COMPLETED, {})
 
 
 def test_a_stop_that_keeps_them_for_a_resume_elsewhere_sends_nothing_and_lists_them(bench: Bench) -> None:
@@ -253,7 +253,9 @@ def test_a_stop_that_keeps_them_for_a_resume_elsewhere_sends_nothing_and_lists_t
     held(executive, Hold.FAILURE, "2.1")
     executive.stop("web-server", "the web server shut down", take_back=False)
     assert gateway.instances == {"cdra_filter:0", "ready_pose:0"}
-    assert [left["why"] for left in _stopped(journal).data["left_behind"]] == ["kept for a resume of the run"] * 2
+    assert [left["why"] for left in _stopped(journal).data.to_json()["left_behind"]] == [
+        "kept for a resume of the run"
+    ] * 2
 
 
 def _result(seq: int, command: str, key: str, outcome: str, **values: Any) -> Event:
@@ -283,7 +285,7 @@ def test_an_add_of_unknown_outcome_is_listed_until_its_answer_names_what_it_adde
     ]
     assert holdings.unsure() == []
     holdings.note(_result(3, "delete_affordance_template", "run-1/3.1/1", "succeeded", instance="cdra_filter:0"))
-    assert holdings.held() == [] and holdings.left("x").data() == {}
+    assert holdings.held() == [] and holdings.left("x") == TakenBack()
 
 
 def test_an_add_an_operator_resolved_is_listed_as_unnamed_or_forgotten() -> None:

@@ -80,7 +80,9 @@ def test_unattended_console_answers_from_options_and_stops_where_it_has_none(
     assert "pass --confirm-hazardous to confirm hazardous commands" in out.getvalue()
     assert [c for _, c, _ in gateway.sent] == ["move"]
     stopped = journal.events[-1]
-    assert stopped.kind is EventKind.RUN_STOPPED and stopped.actor == "quinn" and "2.1" in stopped.data["reason"]
+    assert (
+        stopped.kind is EventKind.RUN_STOPPED and stopped.actor == "quinn" and "2.1" in stopped.data.to_json()["reason"]
+    )
 
 
 @pytest.mark.parametrize("reason, recorded", [("end of shift", "end of shift"), ("", "stopped at the terminal")])
@@ -99,7 +101,7 @@ def test_operator_can_stop_from_the_prompt_saying_why(
         read=lambda prompt: next(answers),
     ).run()
     assert final.status is RunStatus.STOPPED
-    assert (journal.events[-1].actor, journal.events[-1].data["reason"]) == ("rita", recorded)
+    assert (journal.events[-1].actor, journal.events[-1].data.to_json()["reason"]) == ("rita", recorded)
 
 
 class _Heard(TerminalLines):
@@ -150,7 +152,9 @@ def test_unattended_answer_refused_for_a_stale_report_is_given_again_once_the_sy
     assert [final.status for final in finals] == [RunStatus.COMPLETED], said
     assert "shelf cannot be checked now: the last report of the" in said and "is stale" in said
     entered = [e for e in journal.events if e.kind is EventKind.OPERATOR_INPUT]
-    assert [(e.data["value"], e.data["checked_against"]) for e in entered] == [("shelf", "lab.docks")]
+    assert [(e.data.to_json()["value"], e.data.to_json()["checked_against"]) for e in entered] == [
+        ("shelf", "lab.docks")
+    ]
 
 
 def test_unattended_answer_stops_the_run_when_the_report_never_comes(
@@ -166,7 +170,7 @@ def test_unattended_answer_stops_the_run_when_the_report_never_comes(
     ).run()  # (its wait is cut to 0.2 s above)
     assert final.status is RunStatus.STOPPED
     stopped = journal.events[-1]
-    assert stopped.kind is EventKind.RUN_STOPPED and "shelf cannot be checked now" in stopped.data["reason"]
+    assert stopped.kind is EventKind.RUN_STOPPED and "shelf cannot be checked now" in stopped.data.to_json()["reason"]
     assert gateway.sent == [], "nothing was sent with an answer that was never checked"
 
 
@@ -183,7 +187,7 @@ def test_unattended_wait_for_a_report_ends_when_another_operator_stops_the_run(
     assert not running.is_alive(), "the terminal still waits for a report of a stopped run"
     assert [final.status for final in finals] == [RunStatus.STOPPED], out.stream.getvalue()
     stops = [e for e in journal.events if e.kind is EventKind.RUN_STOPPED]
-    assert [(e.actor, e.data["reason"]) for e in stops] == [("rita", "stopped at the ground console")]
+    assert [(e.actor, e.data.to_json()["reason"]) for e in stops] == [("rita", "stopped at the ground console")]
     assert gateway.sent == []
 
 

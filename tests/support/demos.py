@@ -71,9 +71,13 @@ def located_where_it_is(events: list[Event], scenario: str, seed: int, max_deg: 
     truth = displaced_scene(nominal, seed)
     located: dict[str, dict] = {}
     for e in events:
-        if e.kind is not EventKind.COMMAND_RESULT or e.data["command"] != "locate" or not e.data["success"]:
+        if (
+            e.kind is not EventKind.COMMAND_RESULT
+            or e.data.to_json()["command"] != "locate"
+            or not e.data.to_json()["success"]
+        ):
             continue
-        obj, v = e.data["args"]["object"], e.data["values"]
+        obj, v = e.data.to_json()["args"]["object"], e.data.to_json()["values"]
         where = np.linalg.inv(_frame(nominal, v["frame"])) @ _frame(truth, obj)
         found = from_xyz_quat([v["x"], v["y"], v["z"]], [v["qx"], v["qy"], v["qz"], v["qw"]])
         mm = float(np.linalg.norm(found[:3, 3] - where[:3, 3]) * 1000)
@@ -83,8 +87,12 @@ def located_where_it_is(events: list[Event], scenario: str, seed: int, max_deg: 
         located[obj] = v
     marked = {m.frame for m in nominal.markers}  # what perception can locate: the robot's own frames are fixed
     for e in events:
-        if e.kind is EventKind.COMMAND_RESULT and e.data["command"] == "set_display_object_pose" and e.data["success"]:
-            args = e.data["args"]
+        if (
+            e.kind is EventKind.COMMAND_RESULT
+            and e.data.to_json()["command"] == "set_display_object_pose"
+            and e.data.to_json()["success"]
+        ):
+            args = e.data.to_json()["args"]
             pose = [float(args[k]) for k in XYZRPY]
             if args["frame"] in marked and any(pose):
                 assert any(

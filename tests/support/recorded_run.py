@@ -52,7 +52,7 @@ class RecordedSystems:
         self._answers: dict[str, list[int]] = {}  # instruction number -> indexes of its recorded results
         self._readings: dict[tuple[str, str], list[tuple[int, Any]]] = {}  # (system, item) -> (index, value)
         for index, event in enumerate(events):
-            d = event.data
+            d = event.data.to_json()
             if event.kind is EventKind.COMMAND_RESULT and event.instruction:
                 self._answers.setdefault(event.instruction, []).append(index)
             elif event.kind is EventKind.TELEMETRY_SEEN:
@@ -68,7 +68,7 @@ class RecordedSystems:
         return frozenset({"affordance_templates", "cdra", "perception"})
 
     def robot(self) -> str:
-        return str(self._events[0].data.get("robot", "iva"))
+        return str(self._events[0].data.to_json().get("robot", "iva"))
 
     def execute(
         self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None
@@ -80,7 +80,7 @@ class RecordedSystems:
         if not waiting:
             return CommandResult(Outcome.FAILED, f"the recording has no answer to {number}")
         self._now = waiting.pop(0)
-        data = self._events[self._now].data
+        data = self._events[self._now].data.to_json()
         return CommandResult(Outcome(data["outcome"]), data["message"], dict(data.get("values") or {}))
 
     def cancel(self, key: str) -> CancelResult:

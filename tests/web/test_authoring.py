@@ -209,7 +209,7 @@ def test_a_draft_runs_only_as_a_marked_rehearsal_a_second_operator_releases_it_a
         started = log.events(run_id)[0]
     finally:
         log.close()
-    assert (started.data["rehearsal"], started.data["release"]) == (True, None)
+    assert (started.data.to_json()["rehearsal"], started.data.to_json()["release"]) == (True, None)
 
 
 def test_a_hazardous_command_waits_for_a_second_operator_on_another_console_and_never_for_the_senders_own(
@@ -265,7 +265,9 @@ def test_a_hazardous_command_waits_for_a_second_operator_on_another_console_and_
     by_kind = [(e.kind, e.actor) for e in events if e.instruction == UNLOCK and e.kind.value.startswith("approval_")]
     assert by_kind == [(EventKind.APPROVAL_REQUESTED, "alice"), (EventKind.APPROVAL_GIVEN, "bob")]
     sent = [e for e in events if e.kind is EventKind.COMMAND_SENT]
-    assert [(e.instruction, e.data.get("requested_by"), e.data.get("approved_by")) for e in sent] == [
+    assert [
+        (e.instruction, e.data.to_json().get("requested_by"), e.data.to_json().get("approved_by")) for e in sent
+    ] == [
         (UNLOCK, "alice", "bob"),
         ("1.4", None, None),  # lock_filter is no hazardous command
     ]

@@ -291,7 +291,7 @@ def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
         f"a halted {halted_at} was logged as completed"
     )
     results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
-    assert all(not r.data["success"] for r in results), results
+    assert all(not r.data.to_json()["success"] for r in results), results
     if halted_at == PULL_OUT:
         assert results, "the pull-out's halted motion has no result"
 
@@ -393,8 +393,8 @@ def test_after_a_halt_mid_motion_re_planning_from_where_the_arm_is_completes_the
         log.close()
     for name in SERVICE_NAMES:
         assert name not in page_text and name not in report.text()
-        assert not [e for e in events if name in json.dumps(e.data)], name
+        assert not [e for e in events if name in json.dumps(e.data.to_json())], name
     back = [e for e in events if e.kind is EventKind.STEPPED_BACK]
-    assert [(e.actor, e.instruction, e.data["next"]) for e in back] == [("alice", PULL_OUT, PLAN_PULL_OUT)]
+    assert [(e.actor, e.instruction, e.data.to_json()["next"]) for e in back] == [("alice", PULL_OUT, PLAN_PULL_OUT)]
     pulls = [e for e in events if e.kind is EventKind.COMMAND_RESULT and e.instruction == PULL_OUT]
-    assert [e.data["outcome"] for e in pulls] == ["halted", "succeeded"], pulls
+    assert [e.data.to_json()["outcome"] for e in pulls] == ["halted", "succeeded"], pulls

@@ -100,7 +100,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
         sent = [e for e in log.events(run_id) if e.kind.value == "command_sent" and e.instruction == "4.2"]
     finally:
         log.close()
-    assert [(e.actor, e.data["args"]["frame"]) for e in sent] == [("alice", "filter/CDRA-F-0012")]
+    assert [(e.actor, e.data.to_json()["args"]["frame"]) for e in sent] == [("alice", "filter/CDRA-F-0012")]
 
 
 def test_breakpoint_failure_retry_skip_and_hazard_confirmation(

@@ -301,26 +301,26 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
             e
             for e in log.events(run_id)
             if e.kind is EventKind.COMMAND_SENT
-            and e.data.get("command") == "set_display_object_pose"
+            and e.data.to_json().get("command") == "set_display_object_pose"
             and e.actor == "alice"
             and e.instruction is None
         ]
         results = [
             e
             for e in log.events(run_id)
-            if e.kind is EventKind.COMMAND_RESULT and e.data.get("key") == sent[-1].data["key"]
+            if e.kind is EventKind.COMMAND_RESULT and e.data.to_json().get("key") == sent[-1].data.to_json()["key"]
         ]
     finally:
         log.close()
     assert len(sent) == 1, "one drag, one command in the audit log, by alice"
-    args = sent[0].data["args"]
+    args = sent[0].data.to_json()["args"]
     assert args["display_object"] == "cdra_filter" and args["affordance_template"] == "cdra_filter"
     dropped = compose(
         habitat.frame(args["frame"]) if args["frame"] != "world" else {"xyz": [0, 0, 0], "quat": [0, 0, 0, 1]},
         {"xyz": [args["x"], args["y"], args["z"]], "quat": rpy_quat(args["roll"], args["pitch"], args["yaw"])},
     )
     assert_pose(dropped, moved, "the logged pose is where it was dropped")
-    assert results and results[0].data["success"] is True and results[0].actor == "alice"
+    assert results and results[0].data.to_json()["success"] is True and results[0].actor == "alice"
 
     # A re-plan uses the new registration: the drag said where the filter is, and the planner's
     # world follows it (the cabinet with its slot and filter: at_ros/registered_world.py), so the
@@ -665,7 +665,9 @@ def _locate_values(server: WebServer, run_id: str) -> dict[str, float]:
         results = [
             e.data
             for e in log.events(run_id)
-            if e.kind is EventKind.COMMAND_RESULT and e.data.get("command") == "locate" and e.data.get("success")
+            if e.kind is EventKind.COMMAND_RESULT
+            and e.data.to_json().get("command") == "locate"
+            and e.data.to_json().get("success")
         ]
     finally:
         log.close()
@@ -686,9 +688,13 @@ def _registrations_by(server: WebServer, run_id: str, user: str) -> list[tuple[d
         if e.kind is EventKind.COMMAND_SENT
         and e.actor == user
         and e.instruction is None
-        and e.data.get("command") == "set_display_object_pose"
+        and e.data.to_json().get("command") == "set_display_object_pose"
     ]
-    results = {e.data.get("key"): e for e in events if e.kind is EventKind.COMMAND_RESULT}
+    results = {e.data.to_json().get("key"): e for e in events if e.kind is EventKind.COMMAND_RESULT}
     return [
-        (e.data["args"], results[e.data["key"]].data["success"] if e.data["key"] in results else None) for e in sent
+        (
+            e.data.to_json()["args"],
+            results[e.data["key"]].data.to_json()["success"] if e.data.to_json()["key"] in results else None,
+        )
+        for e in sent
     ]

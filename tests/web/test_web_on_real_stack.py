@@ -159,12 +159,17 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     finally:
         log.close()
     inputs = [e for e in events if e.kind.value in ("operator_input", "record_corrected")]
-    assert [(e.instruction, e.actor, e.data.get("value")) for e in inputs] == [
+    assert [(e.instruction, e.actor, e.data.to_json().get("value")) for e in inputs] == [
         ("4.1", "alice", "CDRA-F-0013"),
         ("4.1", "alice", "CDRA-F-0012"),
     ]
-    assert inputs[1].data["old"] == "CDRA-F-0013" and inputs[1].data["reason"] == "0013 is kept for the next swap"
+    assert (
+        inputs[1].data.to_json()["old"] == "CDRA-F-0013"
+        and inputs[1].data.to_json()["reason"] == "0013 is kept for the next swap"
+    )
     actors = {e.actor for e in events}
     assert actors == {"alice", "PAX"}, actors
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]
-    assert [e.actor for e in sent] == ["alice"] and sent[0].data["args"]["affordance_template"] == "cdra_filter"
+    assert [e.actor for e in sent] == ["alice"] and sent[0].data.to_json()["args"][
+        "affordance_template"
+    ] == "cdra_filter"
