@@ -25,23 +25,23 @@ named are checked against the deployment's scene there too.
 
 from __future__ import annotations
 
-import logging
+import asyncio
 import math
 import re
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Coroutine, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
-from urllib.parse import urlparse
+from typing import Any, TypeVar
 
 import numpy as np
 
 from at_ros.transforms import angle_between, from_xyz_quat, from_xyz_rpy
 from datafile import Field
 from datafile.urdf import read_urdf
+from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient, Subscription
 from sim.scene import Scene
 
 __all__ = [
@@ -66,6 +66,8 @@ _INPUT = re.compile(r"\$\{([^}]*)\}")
 TOPIC_TIMEOUT = 20.0
 #: s between asking the simulation's check service again while it is not found yet.
 ASK_AGAIN_S = 0.5
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -283,7 +285,7 @@ def _ros_name(namespace: str, name: str) -> str:
     return name if name.startswith("/") else f"{namespace}/{name}"
 
 
-def _frames(message: dict[str, Any]) -> dict[str, np.ndarray]:
+def _frames(message: Mapping[str, Any]) -> dict[str, np.ndarray]:
     return {
         name: from_xyz_quat([pose["position"][k] for k in "xyz"], [pose["orientation"][k] for k in "xyzw"])
         for name, pose in zip(message["names"], message["poses"], strict=False)
@@ -300,30 +302,46 @@ def _measured(check: FrameCheck, frames: dict[str, np.ndarray]) -> Measured:
 
 
 class _World:
-    """The robot side as the checks read it: one rosbridge connection, and for each check of a
-    moment of the run its best sample so far (a long run keeps no history)."""
+    """The robot side as the checks read it: one rosbridge connection (the project's client, on an
+    event loop of its own thread), and for each check of a moment of the run its best sample so
+    far (a long run keeps no history)."""
 
-    def __init__(self, ros: Any, namespace: str, visits: tuple[FrameCheck, ...]) -> None:
-        self.ros = ros
+    def __init__(self, bridge_url: str, namespace: str, visits: tuple[FrameCheck, ...]) -> None:
         self.namespace = namespace
         self.samples = 0
         self.visits = visits
         self._best: dict[FrameCheck, Measured] = {}
         self._lock = threading.Lock()
-        self._watch: Any = None
+        self._loop = asyncio.new_event_loop()
+        self._thread = threading.Thread(target=self._loop.run_forever, name="world-checks", daemon=True)
+        self._thread.start()
+        self._client = RosbridgeClient(Endpoint(bridge_url), name="caretaker-world-checks")
+
+    def connect(self) -> None:
+        """Connect within :data:`TOPIC_TIMEOUT` (LinkError if the bridge does not answer)."""
+
+        async def connected() -> None:
+            self._client.start()
+            try:
+                await asyncio.wait_for(self._client.ready.wait(), TOPIC_TIMEOUT)
+            except TimeoutError:
+                raise LinkError(self._client.endpoint.url, f"no answer within {TOPIC_TIMEOUT:g} s") from None
+
+        self._run(connected())
+
+    def _run(self, work: Coroutine[Any, Any, T]) -> T:
+        return asyncio.run_coroutine_threadsafe(work, self._loop).result()
 
     def watch(self) -> None:
         """Measure every frames sample from now on, for the checks of a moment of the run."""
-        import roslibpy
-
-        self._watch = roslibpy.Topic(self.ros, self.frames_topic, "caretaker_sim_msgs/NamedPoses")
-        self._watch.subscribe(self._keep)
+        watched = Subscription(self.frames_topic, "caretaker_sim_msgs/NamedPoses", self._keep)
+        self._run(_on_loop(lambda: self._client.subscribe(watched)))
 
     @property
     def frames_topic(self) -> str:
         return _ros_name(self.namespace, "sim/frames")
 
-    def _keep(self, message: dict[str, Any]) -> None:
+    def _keep(self, message: Mapping[str, Any]) -> None:
         frames = _frames(message)
         with self._lock:
             self.samples += 1
@@ -339,47 +357,49 @@ class _World:
 
     def truth(self) -> dict[str, np.ndarray]:
         """Every frame where it really is, from the simulation's ``sim/check/frames``."""
-        import roslibpy
-
         name = _ros_name(self.namespace, "sim/check/frames")
-        service = roslibpy.Service(self.ros, name, "caretaker_sim_msgs/srv/GetFrames")
         deadline = time.monotonic() + TOPIC_TIMEOUT
         while True:
             try:
-                response = service.call(roslibpy.ServiceRequest({}), timeout=max(deadline - time.monotonic(), 0.1))
+                timeout = max(deadline - time.monotonic(), 0.1)
+                response = self._run(self._client.call(name, {}, timeout=timeout))
                 return _frames(response["frames"])
-            except Exception as exc:  # roslibpy's errors have no common base: a failed call, a timeout
+            except LinkError as exc:
                 # A robot side just up may not have found the simulation's service yet ("no server
                 # answering"); the call only reads, so asking again until the deadline is safe.
                 if time.monotonic() >= deadline:
-                    raise LookupError(f"{name} did not answer: {exc or type(exc).__name__}") from None
+                    raise LookupError(f"{name} did not answer: {exc}") from None
                 time.sleep(ASK_AGAIN_S)
 
-    def newest(self, topic: str, msg_type: str | None = None) -> dict[str, Any]:
+    def newest(self, topic: str) -> Mapping[str, Any]:
         """The newest message of a latched topic: a new subscription is sent it at once."""
-        import roslibpy
-
-        received: dict[str, Any] = {}
+        received: list[Mapping[str, Any]] = []
         arrived = threading.Event()
 
-        def take(message: dict[str, Any]) -> None:
+        def take(message: Mapping[str, Any]) -> None:
             if not arrived.is_set():
-                received.update(message)
+                received.append(message)
                 arrived.set()
 
-        subscription = roslibpy.Topic(self.ros, topic, msg_type)
-        subscription.subscribe(take)
+        subscription = Subscription(topic, "", take)  # the bridge knows the topic's type
+        self._run(_on_loop(lambda: self._client.subscribe(subscription)))
         try:
             if not arrived.wait(TOPIC_TIMEOUT):
                 raise LookupError(f"no message on {topic} within {TOPIC_TIMEOUT:g} s")
-            return received
+            return received[0]
         finally:
-            subscription.unsubscribe()
+            self._run(self._client.unsubscribe(subscription))
 
     def stop(self) -> None:
-        if self._watch is not None:
-            self._watch.unsubscribe()
-        self.ros.close()
+        self._run(self._client.close())
+        self._loop.call_soon_threadsafe(self._loop.stop)
+        self._thread.join()
+        self._loop.close()
+
+
+async def _on_loop(call: Callable[[], None]) -> None:
+    """Run ``call`` on the client's loop (the client schedules its sends there)."""
+    call()
 
 
 class WorldWatch:
@@ -416,18 +436,14 @@ def watch_world(checks: tuple[WorldCheck, ...], bridge_url: str, namespace: str,
     """Watch the robot side behind ``bridge_url`` for ``checks`` while the block runs the procedure."""
     world: _World | str = "nothing of the robot side is read"
     if any(not isinstance(c, ImagesCheck) for c in checks):
-        import roslibpy
-
-        # its news of the connection ("WebSocket connection closed") are not the demo's to print
-        logging.getLogger("roslibpy").setLevel(logging.WARNING)
-        url = urlparse(bridge_url)
-        ros = roslibpy.Ros(host=url.hostname, port=url.port, is_secure=url.scheme == "wss")
+        watching = _World(bridge_url, namespace, tuple(c for c in checks if isinstance(c, FrameCheck) and c.during_run))
         try:
-            ros.run(TOPIC_TIMEOUT)
-        except Exception as exc:  # roslibpy's own errors have no common base: any is "unreachable"
-            world = f"cannot watch the robot side through {bridge_url}: {exc or type(exc).__name__}"
+            watching.connect()
+        except LinkError as exc:
+            watching.stop()
+            world = f"cannot watch the robot side through {bridge_url}: {exc}"
         else:
-            world = _World(ros, namespace, tuple(c for c in checks if isinstance(c, FrameCheck) and c.during_run))
+            world = watching
             if world.visits:
                 world.watch()
     try:

@@ -28,7 +28,14 @@ from typing import Any
 import websockets
 from websockets.asyncio.client import ClientConnection
 
-from rosbridge_wire import OP_ADVERTISE_SERVICE, OP_CALL_SERVICE, OP_SERVICE_RESPONSE, OP_SUBSCRIBE, signed_login
+from rosbridge_wire import (
+    OP_ADVERTISE_SERVICE,
+    OP_CALL_SERVICE,
+    OP_SERVICE_RESPONSE,
+    OP_SUBSCRIBE,
+    OP_UNSUBSCRIBE,
+    signed_login,
+)
 from rosbridge_wire.light_time import LightTime
 
 __all__ = ["Endpoint", "LinkError", "RosbridgeClient", "ServiceHandler", "Subscription"]
@@ -73,7 +80,7 @@ class Subscription:
     """One topic read, with the rate asked for."""
 
     topic: str
-    type: str
+    type: str  # "": the bridge reads it from the ROS graph
     on_message: Callable[[Mapping[str, Any]], None]
     throttle_ms: int = 0
     queue_length: int = 1
@@ -121,6 +128,13 @@ class RosbridgeClient:
         self._subscriptions.append(subscription)
         if self._socket is not None:
             asyncio.get_running_loop().create_task(self._send_or_redo(self._subscribe_message(subscription)))
+
+    async def unsubscribe(self, subscription: Subscription) -> None:
+        """Stop reading ``subscription``'s topic (and do not read it again after a reconnect)."""
+        if subscription in self._subscriptions:
+            self._subscriptions.remove(subscription)
+            unsubscribe = {"op": OP_UNSUBSCRIBE, "id": subscription.sub_id, "topic": subscription.topic}
+            await self._send_or_redo(unsubscribe)  # a lost connection has forgotten it already
 
     def advertise_service(self, service: str, type_: str, handler: ServiceHandler) -> None:
         """Serve ``service`` (of ROS type ``type_``) through the bridge from now on (and after every reconnect)."""
@@ -188,7 +202,7 @@ class RosbridgeClient:
             "op": OP_SUBSCRIBE,
             "id": s.sub_id,
             "topic": s.topic,
-            "type": s.type,
+            **({"type": s.type} if s.type else {}),  # none: the bridge reads it from the graph
             "throttle_rate": s.throttle_ms,
             "queue_length": s.queue_length,
         }
