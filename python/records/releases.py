@@ -303,7 +303,7 @@ def version_for_run(
     if release is None:
         raise ReleaseRefused(
             f"{shown} is a draft (never released): a second operator reviews and releases it on the Author "
-            "page or with caretaker release, or run it as a rehearsal on a simulator"
+            "page, or run it as a rehearsal on a simulator"
         )
     raise ReleaseRefused(
         f"{shown} changed since release {release.number} (sha256 {short(release.sha256)} → {short(sha)}); "

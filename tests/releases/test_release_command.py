@@ -87,7 +87,16 @@ def test_a_released_version_runs_on_a_robot_and_its_author_cannot_approve_it(
     accounts.close()
     procedure = tmp_path / "bench_walkround.xml"
     procedure.write_text(PROCEDURE)
-    run = ("run", str(procedure), "--binding", str(binding), "--deployment", str(deployment), "--rosbridge", url)
+    run: tuple[str, ...] = (
+        "run",
+        str(procedure),
+        "--binding",
+        str(binding),
+        "--deployment",
+        str(deployment),
+        "--rosbridge",
+        url,
+    )
     run += ("--auto", "--confirm-manual", "--user", "alice", "--db", db)
 
     draft = _caretaker(*run)
