@@ -88,11 +88,12 @@ Durability
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from pride.ad_hoc_commands import record_sent, send_recorded
+from pride.ad_hoc_commands import take_back as take_back_holdings
 from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
 from pride.automation import ControlLost, Halt
 from pride.event_payloads import (
@@ -100,7 +101,6 @@ from pride.event_payloads import (
     ApprovalRequested,
     BreakpointCleared,
     BreakpointSet,
-    CommandSent,
     Confirmation,
     Continued,
     ModeChanged,
@@ -112,27 +112,21 @@ from pride.event_payloads import (
     RunStarted,
     RunStopped,
 )
-from pride.event_payloads import (
-    CommandResult as CommandResultRecord,
-)
-from pride.event_payloads import (
-    Halt as HaltRecord,
-)
+from pride.event_payloads import Halt as HaltRecord
 from pride.events import Event, EventKind, Journal
-from pride.leftovers import Leftover, TakenBack, taken_back
+from pride.leftovers import taken_back
 from pride.phrasing import filled_sentence
-from pride.replanning import Replan, halted_motion
 from pride.replay import replay
 from pride.run_control import ControlStore, RobotControlled
 from pride.run_engine import RunEngine
 from pride.run_state import Request
+from pride.run_version import RunVersion
 from pride.states import (
     Hold,
     InstructionStatus,
     JournalFailure,
     Mode,
     OperatorActionError,
-    RunEnded,
     RunStatus,
     Snapshot,
 )
@@ -155,8 +149,61 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
-class Executive(RunEngine):
+class Executive:
     """Runs one procedure; see the module docstring for the API contract."""
+
+    def __init__(
+        self,
+        checked: CheckedProcedure,
+        gateway: SystemGateway,
+        journal: Journal,
+        *,
+        run_id: str,
+        mode: Mode = Mode.MANUAL,
+        control: ControlStore | None = None,
+        approvals: ApprovalPolicy | None = None,
+        version: RunVersion | None = None,
+    ) -> None:
+        """Prepare a run (nothing happens until :meth:`start`); the arguments are
+        :class:`pride.run_engine.RunEngine`'s, which carries the run out."""
+        self._engine = RunEngine(
+            checked, gateway, journal, run_id=run_id, mode=mode, control=control, approvals=approvals, version=version
+        )
+        # the engine's state and the lock and condition that guard it, which every action takes
+        self._state, self._lock, self._changed = self._engine.state, self._engine.lock, self._engine.changed
+        self.procedure, self.run_id, self.robot, self.version = checked.procedure, run_id, self._engine.robot, version
+
+    # ---- observation (the engine's) ---------------------------------------------------------
+    def add_listener(self, callback: Callable[[Event], None]) -> None:
+        """Call ``callback(event)`` for every event from now on (see Observation above)."""
+        self._engine.add_listener(callback)
+
+    def remove_listener(self, callback: Callable[[Event], None]) -> None:
+        self._engine.remove_listener(callback)
+
+    def snapshot(self) -> Snapshot:
+        """The run's state now (never waits for the database)."""
+        return self._engine.snapshot()
+
+    def wait_for(self, predicate: Callable[[Snapshot], bool], timeout: float | None = None) -> Snapshot | None:
+        """Block until ``predicate(snapshot)`` holds; return that snapshot, or None on timeout."""
+        return self._engine.wait_for(predicate, timeout)
+
+    def wait_for_report(self, system: str, item: str, timeout: float) -> bool:
+        """Block until ``system`` reports ``item`` afresh (:meth:`pride.run_engine.RunEngine.wait_for_report`)."""
+        return self._engine.wait_for_report(system, item, timeout)
+
+    def current_instruction(self) -> Instruction | None:
+        """The instruction the run is at (in the innermost sub-procedure), or None when finished."""
+        return self._engine.current_instruction()
+
+    def current_place(self) -> tuple[Path, Instruction] | None:
+        """The file of the (sub-)procedure the run is in and its instruction there, or None when finished."""
+        return self._engine.current_place()
+
+    def join(self, timeout: float | None = None) -> None:
+        """Wait for PAX's thread to end (after the run completed or stopped)."""
+        self._engine.join(timeout)
 
     # ---- lifecycle --------------------------------------------------------------------------
     def start(self, user: str, *, take_over: str | None = None) -> None:
@@ -170,7 +217,7 @@ class Executive(RunEngine):
             state = self._state
             if state.status is not RunStatus.READY:
                 raise OperatorActionError(f"run {self.run_id} was already started")
-            previous = self._control.take(user, take_over)
+            previous = self._engine.control.take(user, take_over)
             state.status = RunStatus.ACTIVE
             procedure = self.procedure
             version = self.version
@@ -186,10 +233,10 @@ class Executive(RunEngine):
                 release=version.release if version else None,
                 rehearsal=version.rehearsal if version else None,
             )
-            self._emit(user, None, started)
-            self._record_takeover(user, previous, take_over)
+            self._engine.emit(user, None, started)
+            self._engine.record_takeover(user, previous, take_over)
             state.arrive()
-            self._launch()
+            self._engine.launch()
 
     @classmethod
     def resume(
@@ -238,21 +285,21 @@ class Executive(RunEngine):
             approvals=approvals,
         )
         for event in events:
-            executive._holdings.note(event)
+            executive._engine.holdings.note(event)
         with executive._changed:
             state = executive._state
             replayed = replay(procedure, events, checked.load, mode=state.mode, statuses=state.statuses)
-            previous = executive._control.take(user, take_over)
+            previous = executive._engine.control.take(user, take_over)
             state.restore(replayed)
-            executive._seq = replayed.seq
+            executive._engine.seq = replayed.seq
             if mode is not None:
                 state.mode = mode
             state.status = RunStatus.ACTIVE
             for listener in listeners:
                 executive.add_listener(listener)
             resumed = RunResumed(mode=state.mode.value, in_flight=state.in_flight, resend=state.resend)
-            executive._emit(user, state.frame.number(), resumed)
-            executive._record_takeover(user, previous, take_over)
+            executive._engine.emit(user, state.frame.number(), resumed)
+            executive._engine.record_takeover(user, previous, take_over)
             if state.frame.instruction is None:
                 state.advance(state.frame.position)
             else:
@@ -260,20 +307,20 @@ class Executive(RunEngine):
                 if state.statuses.get(number) not in (InstructionStatus.HALTED, InstructionStatus.OUTCOME_UNKNOWN):
                     state.statuses[number] = InstructionStatus.ACTIVE
             state.announce()
-            executive._launch()
+            executive._engine.launch()
         return executive
 
     # ---- control of the robot -----------------------------------------------------------------
     def take_control(self, user: str, reason: str) -> None:
         """Take control of the robot back from the run that took it over (``reason`` required)."""
         with self._changed:
-            self._require_active()
-            if self._control.control is None:
+            self._engine.require_active()
+            if self._engine.control.control is None:
                 raise OperatorActionError("this run is not under robot control")
             if self._state.control_lost is None:
                 raise OperatorActionError(f"run {self.run_id} already controls robot {self.robot}")
             _require_reason(reason, "you take control of the robot")
-            self._record_takeover(user, self._control.take(user, reason), reason)
+            self._engine.record_takeover(user, self._engine.control.take(user, reason), reason)
             self._state.control_lost = None
             self._state.announce()
 
@@ -281,37 +328,37 @@ class Executive(RunEngine):
     def set_mode(self, user: str, mode: Mode) -> None:
         """Switch between manual and autonomous execution."""
         with self._changed:
-            self._require_active()
+            self._engine.require_active()
             if mode is self._state.mode:
                 return
             self._state.mode = mode
-            self._emit(user, self._state.current_number(), ModeChanged(mode=mode.value))
+            self._engine.emit(user, self._state.current_number(), ModeChanged(mode=mode.value))
             self._state.announce()
 
     def pause(self, user: str) -> None:
         """Stop automation after the instruction in progress (autonomous mode stays selected)."""
         with self._changed:
-            self._require_active()
+            self._engine.require_active()
             if self._state.paused:
                 return
             self._state.paused = True
-            self._emit(user, self._state.current_number(), Paused())
+            self._engine.emit(user, self._state.current_number(), Paused())
 
     def resume_automation(self, user: str) -> None:
         """Carry on after a pause, a breakpoint or a halt ("continue")."""
         with self._changed:
-            self._require_active()
+            self._engine.require_active()
             state = self._state
             if not (state.paused or state.at_breakpoint or state.halt):
                 raise OperatorActionError("automation is neither paused, halted nor at a breakpoint")
             if state.halt and state.executing:
                 raise OperatorActionError(f"{state.current_number()} is still ending after the halt; wait for it")
-            replan = self._halted_motion() if state.halt else None
+            replan = self._engine.halted_motion() if state.halt else None
             if replan is not None:  # automation would send the halted motion again: it cannot work
                 raise OperatorActionError(replan.why_not_again())
             state.paused = state.at_breakpoint = False
-            self._clear_halt()
-            self._emit(user, state.current_number(), Continued())
+            self._engine.clear_halt()
+            self._engine.emit(user, state.current_number(), Continued())
             state.announce()
 
     def halt(self, user: str, reason: str = "") -> None:
@@ -320,8 +367,8 @@ class Executive(RunEngine):
         The cancel goes to the gateway before the executive's lock is taken, so it reaches the
         robot even while the lock is held by an append that waits for the database.
         """
-        key = self._automation.request_halt(Halt(user, reason)) or self._pending_key()
-        answer = self._cancel(key)
+        key = self._engine.automation.request_halt(Halt(user, reason)) or self._engine.pending_key()
+        answer = self._engine.cancel(key)
         with self._changed:
             state = self._state
             if state.status is not RunStatus.ACTIVE:
@@ -329,7 +376,7 @@ class Executive(RunEngine):
             if state.halt is None:
                 state.halt = Halt(user, reason)
             halted = HaltRecord(reason=reason, key=key, cancel=_cancel_data(answer), executing=state.executing)
-            self._emit(user, state.current_number(), halted)
+            self._engine.emit(user, state.current_number(), halted)
             state.announce()
 
     def stop(self, user: str, reason: str = "", *, take_back: bool = True) -> None:
@@ -342,19 +389,19 @@ class Executive(RunEngine):
         everything for a resume elsewhere (a console shutting down, or one that lost the run to
         another host), listed all the same; such a run can be resumed, one that took back cannot.
         """
-        key = self._automation.request_halt(Halt(user, reason)) or self._pending_key()
-        answer = self._cancel(key)
+        key = self._engine.automation.request_halt(Halt(user, reason)) or self._engine.pending_key()
+        answer = self._engine.cancel(key)
         with self._changed:
-            self._require_active()
+            self._engine.require_active()
             state = self._state
             if take_back:
                 state.stopping = True  # the run moves on no more, and nobody else acts on it
                 self._changed.wait_for(lambda: not state.executing or state.status is not RunStatus.ACTIVE)
                 if state.status is not RunStatus.ACTIVE:  # its journal failed meanwhile: nothing more unrecorded
                     raise JournalFailure(f"run {self.run_id} stopped: {state.error}")
-                ended = self._take_back(user)
+                ended = take_back_holdings(self._engine, user)
             else:
-                ended = self._holdings.left("kept for a resume of the run")
+                ended = self._engine.holdings.left("kept for a resume of the run")
             state.status = RunStatus.STOPPED
             stopped = RunStopped(
                 reason=reason,
@@ -363,7 +410,7 @@ class Executive(RunEngine):
                 taken_back=ended.removed,
                 left_behind=ended.left_json(),
             )
-            self._emit(user, state.current_number(), stopped)
+            self._engine.emit(user, state.current_number(), stopped)
 
     def set_breakpoint(self, user: str, number: str) -> None:
         """Make automation hold when it reaches instruction ``number``."""
@@ -371,13 +418,13 @@ class Executive(RunEngine):
             self._check_number(number)
             if number not in self._state.breakpoints:
                 self._state.breakpoints.add(number)
-                self._emit(user, number, BreakpointSet())
+                self._engine.emit(user, number, BreakpointSet())
 
     def clear_breakpoint(self, user: str, number: str) -> None:
         with self._changed:
             if number in self._state.breakpoints:
                 self._state.breakpoints.discard(number)
-                self._emit(user, number, BreakpointCleared())
+                self._engine.emit(user, number, BreakpointCleared())
 
     def perform(self, user: str) -> None:
         """Perform the current instruction as ``user`` ("Send", "Check", "Start"); PAX carries it out."""
@@ -389,18 +436,18 @@ class Executive(RunEngine):
 
     def _request_perform(self, user: str, *, then_pause: bool) -> None:
         with self._changed:
-            instruction = self._require_idle()
+            instruction = self._engine.require_idle()
             state = self._state
             number = state.current_number()
             if isinstance(instruction, (RecordInstruction, ManualInstruction)):
                 todo = "enter a value" if isinstance(instruction, RecordInstruction) else "mark it done"
                 raise OperatorActionError(f"{number} is a {instruction.kind.value}: {todo}")
             if state.unknown or state.resend:
-                raise OperatorActionError(self._unknown_text())
+                raise OperatorActionError(self._engine.unknown_text())
             if state.failure or state.in_flight:
                 raise OperatorActionError(f"{number} failed or was interrupted: retry or skip it")
             if state.halt:
-                replan = self._halted_motion()
+                replan = self._engine.halted_motion()
                 way = replan.why_not_again() if replan else "continue, retry or skip first"
                 raise OperatorActionError(f"the run is {state.halt_text()}: {way}")
             if state.control_lost:
@@ -415,22 +462,22 @@ class Executive(RunEngine):
         """Confirm the current hazardous command (needed before it is sent, in either mode); under
         critical commanding, send it for a second operator's approval, ``user`` its sender."""
         with self._changed:
-            instruction = self._require_idle()
+            instruction = self._engine.require_idle()
             state = self._state
             number = state.current_number()
             frame = state.frame
-            said = filled_sentence(instruction, self._checked.sysreps, frame.procedure, frame.env)
+            said = filled_sentence(instruction, self._engine.checked.sysreps, frame.procedure, frame.env)
             if state.needs_approval(instruction):
                 if state.approval_request is not None or state.approval is not None:
                     raise OperatorActionError(state.unconfirmed_text(number, instruction))
                 state.approval_request = ApprovalRequest(number or "", user, state.approvals.clock(), said)
-                self._emit(user, number, ApprovalRequested(command=said, level=state.approvals.level.value))
+                self._engine.emit(user, number, ApprovalRequested(command=said, level=state.approvals.level.value))
                 state.announce()
                 return
             if not self.is_hazardous(instruction):
                 raise OperatorActionError(f"{number} is not a hazardous command")
             state.confirmed_by = user
-            self._emit(user, number, Confirmation(command=said))
+            self._engine.emit(user, number, Confirmation(command=said))
             state.announce()
 
     def approve(self, user: str, *, carried: CarriedApproval | None = None) -> None:
@@ -440,7 +487,7 @@ class Executive(RunEngine):
         ``carried``: ``user``'s approval given on the ground before an onboard unit went up; it
         keeps the time it was given and its expiry, and a stale one is refused."""
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             state = self._state
             number = state.current_number()
             request = state.approval_request
@@ -454,7 +501,7 @@ class Executive(RunEngine):
             except ValueError as exc:
                 raise OperatorActionError(str(exc)) from None
             if approval.stale(state.approvals.clock()):
-                self._emit(user, number, approval.expiry_record())
+                self._engine.emit(user, number, approval.expiry_record())
                 raise OperatorActionError(
                     f"{user}'s approval of {number}, carried with the unit, ran out at "
                     f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
@@ -467,7 +514,7 @@ class Executive(RunEngine):
                 given=approval.approved.isoformat() if carried else None,
                 carried=carried is not None,
             )
-            self._emit(user, number, given)
+            self._engine.emit(user, number, given)
             if state.mode is Mode.MANUAL and state.clear_to_send():  # the sender pressed Send: it goes now, as theirs
                 state.request = Request(request.sender)
             self._changed.notify_all()
@@ -476,14 +523,14 @@ class Executive(RunEngine):
     def enter(self, user: str, value: Any) -> Any:
         """Answer the current record; returns the value as recorded (converted to its type)."""
         with self._changed:
-            instruction = self._require_idle()
+            instruction = self._engine.require_idle()
             if not isinstance(instruction, RecordInstruction):
                 raise OperatorActionError(f"{self._state.current_number()} is a {instruction.kind.value}, not a record")
-            converted, against, allowed = self._automation.check_record(instruction, value)
+            converted, against, allowed = self._engine.automation.check_record(instruction, value)
             frame = self._state.frame
             frame.env[instruction.name] = converted
             entered = OperatorInput(name=instruction.name, value=converted, checked_against=against, allowed=allowed)
-            self._emit(user, frame.number(), entered)
+            self._engine.emit(user, frame.number(), entered)
             self._state.complete(user, frame.procedure.following(frame.position))
             return converted
 
@@ -494,7 +541,7 @@ class Executive(RunEngine):
         :meth:`go_back` to perform them again). Returns the value as recorded.
         """
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             _require_reason(reason, "the record is corrected")
             frame = self._state.frame
             local = number.removeprefix(frame.prefix) if number.startswith(frame.prefix) else None
@@ -503,7 +550,7 @@ class Executive(RunEngine):
                 raise OperatorActionError(f"{number} is not a record of {frame.procedure.id}")
             if instruction.name not in frame.env or number == frame.number():
                 raise OperatorActionError(f"{number} has not been entered yet: enter it when the run gets there")
-            converted, against, allowed = self._automation.check_record(instruction, value)
+            converted, against, allowed = self._engine.automation.check_record(instruction, value)
             old = frame.env[instruction.name]
             frame.env[instruction.name] = converted
             corrected = RecordCorrected(
@@ -514,14 +561,14 @@ class Executive(RunEngine):
                 checked_against=against,
                 allowed=allowed,
             )
-            self._emit(user, number, corrected)
+            self._engine.emit(user, number, corrected)
             self._state.announce()
             return converted
 
     def mark_done(self, user: str) -> None:
         """Complete the current manual instruction."""
         with self._changed:
-            instruction = self._require_idle()
+            instruction = self._engine.require_idle()
             if not isinstance(instruction, ManualInstruction):
                 raise OperatorActionError(
                     f"{self._state.current_number()} is a {instruction.kind.value}, not a manual instruction"
@@ -532,22 +579,22 @@ class Executive(RunEngine):
     def retry(self, user: str) -> None:
         """Perform a failed, halted (or interrupted) instruction again, as ``user``: a new attempt."""
         with self._changed:
-            instruction = self._require_idle()
+            instruction = self._engine.require_idle()
             state = self._state
             number = state.current_number()
             if state.unknown or state.resend:
-                raise OperatorActionError(self._unknown_text())
+                raise OperatorActionError(self._engine.unknown_text())
             halted_here = state.statuses.get(state.frame.number()) is InstructionStatus.HALTED
             if not (state.failure or state.in_flight or halted_here):
                 raise OperatorActionError(f"{number} has not failed or been halted")
-            replan = self._halted_motion()
+            replan = self._engine.halted_motion()
             if replan is not None:
                 raise OperatorActionError(replan.why_not_again())
             if state.unconfirmed(instruction):
                 raise OperatorActionError(state.unconfirmed_text(number, instruction))
-            self._emit(user, number, Retry(after=state.failure or state.in_flight or state.halt_text()))
+            self._engine.emit(user, number, Retry(after=state.failure or state.in_flight or state.halt_text()))
             state.clear_holds()
-            self._clear_halt()
+            self._engine.clear_halt()
             state.request = Request(user)
             self._changed.notify_all()
 
@@ -555,15 +602,15 @@ class Executive(RunEngine):
         """Send the command of unknown outcome again with its same key: the habitat answers its
         recorded outcome or joins it, and never runs it twice."""
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             state = self._state
-            key = self._pending_key()
+            key = self._engine.pending_key()
             if key is None:
                 raise OperatorActionError(f"{state.current_number()} has no command of unknown outcome")
             after = state.unknown[1] if state.unknown else f"{key} in flight"
-            self._emit(user, state.current_number(), Retry(after=after, same_key=True, key=key))
+            self._engine.emit(user, state.current_number(), Retry(after=after, same_key=True, key=key))
             state.clear_holds()
-            self._clear_halt()
+            self._engine.clear_halt()
             state.resend = key
             state.request = Request(user)
             self._changed.notify_all()
@@ -581,30 +628,30 @@ class Executive(RunEngine):
         if found not in (Outcome.SUCCEEDED, Outcome.FAILED):
             raise OperatorActionError(f"record succeeded or failed, not {outcome!r}")
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             _require_reason(reason, "you record this outcome (what did you check?)")
-            key = self._pending_key()
+            key = self._engine.pending_key()
             if key is None:
                 raise OperatorActionError(f"{self._state.current_number()} has no command of unknown outcome")
-            self._clear_halt()
+            self._engine.clear_halt()
             self._state.resolve(user, key, found is Outcome.SUCCEEDED, reason)
 
     def skip(self, user: str, reason: str) -> None:
         """Pass over the current instruction without performing it; ``reason`` is required."""
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             _require_reason(reason, "the instruction is skipped")
-            self._clear_halt()
+            self._engine.clear_halt()
             self._state.skip(user, reason)
 
     def go_back(self, user: str, number: str, reason: str) -> None:
         """Go back to the earlier instruction ``number`` of the current step; PAX continues from there."""
         with self._changed:
-            self._require_idle()
+            self._engine.require_idle()
             _require_reason(reason, "the run goes back")
             state = self._state
             if state.unknown or state.resend:
-                raise OperatorActionError(self._unknown_text())
+                raise OperatorActionError(self._engine.unknown_text())
             frame = state.frame
             current = frame.number()
             local = number.removeprefix(frame.prefix) if number.startswith(frame.prefix) else ""
@@ -615,21 +662,21 @@ class Executive(RunEngine):
                 raise OperatorActionError(f"{number} is not an instruction of the current step (at {current})")
             if position >= frame.position:
                 raise OperatorActionError(f"{number} is not before {current}")
-            self._clear_halt()
+            self._engine.clear_halt()
             state.go_back(user, position, reason)
 
     def replan(self, user: str) -> None:
         """After a halted motion, go back to the instruction of its step that planned it, as ``user``:
         the run plans it again from where the arm is and goes on from there (see After a halted motion)."""
         with self._changed:
-            self._require_idle()
-            replan = self._halted_motion()
+            self._engine.require_idle()
+            replan = self._engine.halted_motion()
             number = self._state.current_number()
             if replan is None:
                 raise OperatorActionError(f"{number} is no halted motion to plan again")
             if replan.position is None:
                 raise OperatorActionError(replan.why_not_again())  # no instruction of its step plans it
-            self._clear_halt()
+            self._engine.clear_halt()
             self._state.go_back(user, replan.position, replan.reason())
 
     def operator_command(self, user: str, system: str, command: str, args: dict[str, Any]) -> CommandResult:
@@ -644,150 +691,25 @@ class Executive(RunEngine):
         robot.
         """
         with self._lock:
-            self._require_active()
+            self._engine.require_active()
             if self._state.executing:  # one command at a time on the robot, as the procedure sends them
                 raise OperatorActionError(f"{self._state.current_number()} is being performed; try when it is done")
             try:
-                self._may_send()
+                self._engine.may_send()
             except ControlLost as exc:
                 raise OperatorActionError(str(exc)) from None
-            about = self._ad_hoc_sent(user, "operator", system, command, args)
-        return self._ad_hoc_result(user, about)
+            sent = record_sent(self._engine, user, "operator", system, command, args)
+        return send_recorded(self._engine, user, sent)
 
-    def _ad_hoc_sent(
-        self, user: str, kind: str, system: str, command: str, args: Mapping[str, Any], take_back: str | None = None
-    ) -> CommandSent:
-        """Record COMMAND_SENT of a command that is no instruction (the lock is held) and return it.
-        Its key, ``<run>/<kind>/<seq>``, is its own: the habitat executes it once."""
-        key = f"{self.run_id}/{kind}/{self._seq + 1}"
-        sent = CommandSent(
-            system=system, command=command, args=dict(args), key=key, hazardous=False, ad_hoc=True, take_back=take_back
-        )
-        self._emit(user, None, sent)
-        return sent
-
-    def _ad_hoc_result(self, user: str, sent: CommandSent) -> CommandResult:
-        """Send the command :meth:`_ad_hoc_sent` recorded and record its answer (unknown stays unknown)."""
-        try:
-            result = self._gateway.execute(sent.system, sent.command, dict(sent.args), key=sent.key)
-        except Exception as exc:  # refused before sending (bad argument, unknown command)
-            result = CommandResult(Outcome.FAILED, f"not sent: {type(exc).__name__}: {exc}")
-        outcome = result.outcome
-        answer = CommandResultRecord(
-            system=sent.system,
-            command=sent.command,
-            args=sent.args,
-            key=sent.key,
-            outcome=outcome.value,
-            success=None if outcome is Outcome.UNKNOWN else result.success,
-            message=result.message,
-            values=dict(result.values),
-            ad_hoc=True,
-            take_back=sent.take_back,
-        )
-        self._record(user, None, answer)
-        return result
-
-    def _take_back(self, user: str) -> TakenBack:
-        """Remove, as ``user``, what the run added and still holds (the lock is held, PAX's thread idle).
-
-        A removal that fails, or whose outcome is not known, is listed as left behind with the
-        system's words; where removing could not be honest nothing is sent (:meth:`_may_not_take_back`).
-        """
-        why_not = self._may_not_take_back()
-        if why_not is not None:
-            return self._holdings.left(f"not removed: {why_not}")
-        removed: list[str] = []
-        left = self._holdings.unsure()
-        for held in self._holdings.held():
-            undo = held.undo
-            about = self._ad_hoc_sent(user, "take-back", undo.system, undo.removes, held.arguments, take_back=held.name)
-            result = self._ad_hoc_result(user, about)
-            if result.success:
-                removed.append(held.name)
-            else:
-                log.warning("run %s left %s on %s: %s", self.run_id, held.name, undo.system, result.message)
-                why = f"{undo.removes} {result.outcome.value}: {result.message}"
-                left.append(Leftover(undo.system, held.name, why))
-        return TakenBack(tuple(removed), tuple(left))
-
-    def _may_not_take_back(self) -> str | None:
-        """Why the run must not send removals now, or None: its link is lost (their answers would
-        not be known), a command's outcome is not known (a resume asks about it, and needs what the
-        run added), or another run controls the robot."""
-        if self._links.now().lost_since is not None:
-            return f"the link to robot {self.robot} is lost"
-        pending = self._pending_key()
-        if pending is not None:
-            return f"the outcome of {pending} is not known"
-        if self._state.in_flight:  # a log from before command keys
-            return f"the outcome of the command of {self._state.current_number()} is not known"
-        lost, holder = self._control.lost()
-        return self._control.lost_text(holder) if lost else None
-
-    # ---- guards and helpers -----------------------------------------------------------------
-    def _require_active(self) -> None:
-        if self._state.status is not RunStatus.ACTIVE:
-            raise RunEnded(f"run {self.run_id} is {self._state.status.value}")
-        if self._state.stopping:
-            raise RunEnded(f"run {self.run_id} is stopping")
-
-    def _require_idle(self) -> Instruction:
-        self._require_active()
-        instruction = self._state.frame.instruction
-        if instruction is None:
-            raise OperatorActionError("the run has no current instruction")
-        if self._state.executing or self._state.request is not None:
-            raise OperatorActionError(f"{self._state.current_number()} is being performed; wait for it to finish")
-        return instruction
-
+    # ---- guards -----------------------------------------------------------------------------
     def _check_number(self, number: str) -> None:
         head = number.split("/")[0]
         if self.procedure.instruction(head) is None:
             raise OperatorActionError(f"no instruction {number!r} in {self.procedure.id}")
 
-    def _pending_key(self) -> str | None:
-        """The key of the command whose outcome is not known (read without the lock: one attribute each)."""
-        unknown = self._state.unknown
-        return unknown[0] if unknown else self._state.resend
-
-    def _unknown_text(self) -> str:
-        return (
-            f"the outcome of {self._pending_key()} is unknown: ask again (same key), record what you found "
-            "on the robot, or skip it"
-        )
-
-    def _halted_motion(self) -> Replan | None:
-        """The current instruction's motion if a halt ended it and used up its plan (the lock is held)."""
-        state = self._state
-        if state.statuses.get(state.frame.number()) is not InstructionStatus.HALTED:
-            return None
-        return halted_motion(state.frame, self._checked.argument)
-
-    def _build_snapshot(self) -> Snapshot:
-        """The engine's snapshot with the way on after a halted motion, so views offer what can work."""
-        snap = super()._build_snapshot()
-        replan = self._halted_motion() if snap.current is not None else None
-        if replan is None:
-            return snap
-        return replace(snap, replan_from=replan.plan, no_retry=replan.why_not_again())
-
-    def _clear_halt(self) -> None:
-        self._state.halt = None
-        self._automation.clear_halt()
-
-    def _cancel(self, key: str | None) -> CancelResult | None:
-        if key is None:
-            return None
-        try:
-            return self._gateway.cancel(key)
-        except Exception as exc:  # the halt is still recorded, with why the cancel failed
-            log.exception("cancel of %s failed", key)
-            return CancelResult(False, f"cancel failed: {type(exc).__name__}: {exc}")
-
     def is_hazardous(self, instruction: Instruction) -> bool:
         """Whether an instruction is a command that needs confirmation (marked so, or so in its SysRep)."""
-        return self._automation.is_hazardous(instruction)
+        return self._engine.automation.is_hazardous(instruction)
 
 
 def _cancel_data(answer: CancelResult | None) -> dict[str, Any] | None:

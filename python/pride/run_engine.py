@@ -1,12 +1,17 @@
 """The machinery under :class:`pride.executive.Executive`: one run's state, PAX's thread, the supervisor.
 
 :class:`RunEngine` holds the run's state under one lock, records every event in the journal
-before anything else happens (:meth:`RunEngine._emit`), answers snapshots and waits, runs PAX's
+before anything else happens (:meth:`RunEngine.emit`), answers snapshots and waits, runs PAX's
 thread (which performs the instructions automation or an operator asked for) and the supervisor
 (links and control of the robot). It changes the state only as PAX; the operator's actions, the
 start and the resume are the executive's, and :mod:`pride.executive` documents the whole
 contract. Split so each half can be read on its own: what carries a run out, and what people
 may do to it.
+
+The executive holds one engine (it does not extend it): its public attributes (``state``,
+``lock`` and ``changed``, ``control``, ``automation``, ``holdings``, ``gateway``, ``links``,
+``seq``) and the guards below are what the executive's actions use, always with ``lock`` held
+where they change something; observers use the executive's methods, never these.
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from pride.events import PAX, Event, Journal, Payload
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
 from pride.phrasing import fill_text, phrase
+from pride.replanning import Replan, halted_motion
 from pride.run_control import ControlStore, RunControl
 from pride.run_state import RunState
 from pride.states import (
@@ -34,10 +40,12 @@ from pride.states import (
     InstructionStatus,
     JournalFailure,
     Mode,
+    OperatorActionError,
+    RunEnded,
     RunStatus,
     Snapshot,
 )
-from pride.systems import LinkState, SystemGateway, TelemetryValue
+from pride.systems import CancelResult, LinkState, SystemGateway, TelemetryValue
 from procedure_language.lint import CheckedProcedure
 from procedure_language.model import Instruction
 
@@ -89,31 +97,31 @@ class RunEngine:
         self.procedure = checked.procedure
         self.run_id = run_id
         self.robot = gateway.robot()
-        self._checked = checked
+        self.checked = checked
         self.version = version
-        self._gateway = gateway
+        self.gateway = gateway
         self._journal = journal
-        self._control = RunControl(control, self.robot, run_id)
-        self._lock = threading.RLock()  # guards every field below and the run state
-        self._changed = threading.Condition(self._lock)
-        self._seq = 0
+        self.control = RunControl(control, self.robot, run_id)
+        self.lock = threading.RLock()  # guards every field below and the run state
+        self.changed = threading.Condition(self.lock)
+        self.seq = 0  # the last event's number: a resume starts after the log's
         self._listeners: list[Callable[[Event], None]] = []
-        self._automation = Automation(gateway, checked, self._record, may_send=self._may_send)
-        self._holdings = Holdings()  # what the run added to its systems: a stop takes it back
-        self._state = RunState(
+        self.automation = Automation(gateway, checked, self.record, may_send=self.may_send)
+        self.holdings = Holdings()  # what the run added to its systems: a stop takes it back
+        self.state = RunState(
             self.procedure,
             mode,
             run_id=run_id,
-            emit=self._emit,
-            notify=self._changed.notify_all,
-            hazardous=self._automation.is_hazardous,
+            emit=self.emit,
+            notify=self.changed.notify_all,
+            hazardous=self.automation.is_hazardous,
             sysreps=checked.sysreps,
-            holdings=self._holdings,
+            holdings=self.holdings,
             approvals=approvals or ApprovalPolicy(),
         )
         self._worker: threading.Thread | None = None
         self._supervisor: threading.Thread | None = None
-        self._links = LinkWatch()
+        self.links = LinkWatch()
         self._wake = threading.Event()  # the supervisor has something to look at
         self._reported = threading.Condition()  # telemetry changed: counted in _reports
         self._reports = 0
@@ -124,28 +132,28 @@ class RunEngine:
     # ---- observation ------------------------------------------------------------------------
     def add_listener(self, callback: Callable[[Event], None]) -> None:
         """Call ``callback(event)`` for every event from now on (see the module docstring)."""
-        with self._lock:
+        with self.lock:
             self._listeners.append(callback)
 
     def remove_listener(self, callback: Callable[[Event], None]) -> None:
-        with self._lock:
+        with self.lock:
             self._listeners.remove(callback)
 
     def snapshot(self) -> Snapshot:
         """The run's state now (see the module docstring: never waits for the database)."""
-        if self._lock.acquire(timeout=_SNAPSHOT_WAIT_S):
+        if self.lock.acquire(timeout=_SNAPSHOT_WAIT_S):
             try:
                 self._last = self._build_snapshot()
             finally:
-                self._lock.release()
+                self.lock.release()
         return self._live(self._last)
 
     def _build_snapshot(self) -> Snapshot:
-        state = self._state
+        state = self.state
         hold, reason = state.hold()
         current = state.current_number() if state.status is RunStatus.ACTIVE else None
         pending = state.unknown[0] if state.unknown else None
-        return Snapshot(
+        snap = Snapshot(
             run_id=self.run_id,
             procedure_id=self.procedure.id,
             status=state.status,
@@ -157,19 +165,23 @@ class RunEngine:
             statuses=dict(state.statuses),
             breakpoints=frozenset(state.breakpoints),
             variables=state.variables(),
-            last_seq=self._seq,
+            last_seq=self.seq,
             error=state.error,
             robot=self.robot,
-            has_control=self._control.held and state.control_lost is None,
+            has_control=self.control.held and state.control_lost is None,
             unknown_key=pending,
             halted_by=state.halt.user if state.halt else None,
             halt_reason=state.halt.reason if state.halt else "",
             approval=state.approval_json(),
         )
+        replan = self.halted_motion() if current is not None else None
+        if replan is None:
+            return snap
+        return replace(snap, replan_from=replan.plan, no_retry=replan.why_not_again())
 
     def _live(self, snap: Snapshot) -> Snapshot:
         """``snap`` with the links and the journal as they are now (no executive lock needed)."""
-        links = self._links.now()
+        links = self.links.now()
         availability = self._journal.availability
         return replace(
             snap,
@@ -188,16 +200,16 @@ class RunEngine:
 
     def current_place(self) -> tuple[Path, Instruction] | None:
         """The file of the (sub-)procedure the run is in and its instruction there, or None when finished."""
-        with self._lock:
-            frame = self._state.frame
-            if self._state.status is not RunStatus.ACTIVE or frame.instruction is None:
+        with self.lock:
+            frame = self.state.frame
+            if self.state.status is not RunStatus.ACTIVE or frame.instruction is None:
                 return None
             return Path(frame.procedure.path), frame.instruction
 
     def wait_for(self, predicate: Callable[[Snapshot], bool], timeout: float | None = None) -> Snapshot | None:
         """Block until ``predicate(snapshot)`` holds; return that snapshot, or None on timeout."""
         deadline = None if timeout is None else time.monotonic() + timeout
-        with self._changed:
+        with self.changed:
             while True:
                 snap = self.snapshot()
                 if predicate(snap):
@@ -205,7 +217,7 @@ class RunEngine:
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if remaining is not None and remaining <= 0:
                     return None
-                self._changed.wait(remaining if remaining is not None else _SUPERVISE_S)
+                self.changed.wait(remaining if remaining is not None else _SUPERVISE_S)
 
     def wait_for_report(self, system: str, item: str, timeout: float) -> bool:
         """Block until ``system`` reports ``item`` afresh (a value, not stale); False on timeout,
@@ -221,13 +233,13 @@ class RunEngine:
             with self._reported:
                 seen = self._reports
             try:
-                reading = self._gateway.telemetry(system, item)
+                reading = self.gateway.telemetry(system, item)
                 if not reading.stale and reading.value is not None:
                     return True
             except Exception as exc:  # the reading failed: as stale, until the deadline says otherwise
                 log.info("reading %s.%s while waiting for its report: %s", system, item, exc)
             remaining = deadline - time.monotonic()
-            if remaining <= 0 or not self._state.going_on:
+            if remaining <= 0 or not self.state.going_on:
                 return False
             with self._reported:
                 if self._reports == seen:  # nothing reported, and the run went on, since the read above
@@ -240,68 +252,118 @@ class RunEngine:
         if self._supervisor is not None:
             self._supervisor.join(timeout)
 
-    def _launch(self) -> None:
+    def launch(self) -> None:
         self._worker = threading.Thread(target=self._pax_loop, name=f"pax-{self.run_id}", daemon=True)
         self._worker.start()
         self._supervisor = threading.Thread(target=self._supervise, name=f"pax-watch-{self.run_id}", daemon=True)
         self._supervisor.start()
 
+    # ---- guards and helpers of the executive's actions -------------------------------------------
+    def require_active(self) -> None:
+        """Raise RunEnded unless the run is active and no stop is under way."""
+        if self.state.status is not RunStatus.ACTIVE:
+            raise RunEnded(f"run {self.run_id} is {self.state.status.value}")
+        if self.state.stopping:
+            raise RunEnded(f"run {self.run_id} is stopping")
+
+    def require_idle(self) -> Instruction:
+        """The current instruction, if an operator may act on it now (nothing is being performed)."""
+        self.require_active()
+        instruction = self.state.frame.instruction
+        if instruction is None:
+            raise OperatorActionError("the run has no current instruction")
+        if self.state.executing or self.state.request is not None:
+            raise OperatorActionError(f"{self.state.current_number()} is being performed; wait for it to finish")
+        return instruction
+
+    def pending_key(self) -> str | None:
+        """The key of the command whose outcome is not known (read without the lock: one attribute each)."""
+        unknown = self.state.unknown
+        return unknown[0] if unknown else self.state.resend
+
+    def unknown_text(self) -> str:
+        return (
+            f"the outcome of {self.pending_key()} is unknown: ask again (same key), record what you found "
+            "on the robot, or skip it"
+        )
+
+    def halted_motion(self) -> Replan | None:
+        """The current instruction's motion if a halt ended it and used up its plan (the lock is held)."""
+        state = self.state
+        if state.statuses.get(state.frame.number()) is not InstructionStatus.HALTED:
+            return None
+        return halted_motion(state.frame, self.checked.argument)
+
+    def clear_halt(self) -> None:
+        self.state.halt = None
+        self.automation.clear_halt()
+
+    def cancel(self, key: str | None) -> CancelResult | None:
+        """Cancel the command ``key`` through the gateway (None: nothing in flight); a failure is the answer."""
+        if key is None:
+            return None
+        try:
+            return self.gateway.cancel(key)
+        except Exception as exc:  # the halt is still recorded, with why the cancel failed
+            log.exception("cancel of %s failed", key)
+            return CancelResult(False, f"cancel failed: {type(exc).__name__}: {exc}")
+
     # ---- control of the robot -----------------------------------------------------------------
-    def _record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
+    def record_takeover(self, user: str, previous: Controller | None, reason: str | None) -> None:
         if previous is not None:
             taken = ControlTaken(
                 robot=self.robot, from_run=previous.run_id, from_user=previous.user, reason=reason or ""
             )
-            self._emit(user, self._state.current_number(), taken)
+            self.emit(user, self.state.current_number(), taken)
 
-    def _may_send(self) -> None:
+    def may_send(self) -> None:
         """Raise ControlLost unless this run controls its robot (asked in the database, not remembered)."""
-        lost, holder = self._control.lost()
+        lost, holder = self.control.lost()
         if lost:
-            raise ControlLost(self._control.lost_text(holder), holder)
+            raise ControlLost(self.control.lost_text(holder), holder)
 
     def _lose_control(self, holder: Controller | None) -> None:
         """Another run took the robot: hold and say who (the lock is held)."""
-        state = self._state
+        state = self.state
         if state.control_lost is not None or state.status is not RunStatus.ACTIVE:
             return
-        state.control_lost = self._control.lost_text(holder)
+        state.control_lost = self.control.lost_text(holder)
         lost = ControlLostRecord(
             robot=self.robot,
             by_run=holder.run_id if holder else None,
             by_user=holder.user if holder else None,
             reason=holder.reason if holder else "",
         )
-        self._emit(PAX, state.current_number(), lost)
+        self.emit(PAX, state.current_number(), lost)
         state.announce()
 
     # ---- events -----------------------------------------------------------------------------
-    def _emit(self, actor: str, instruction: str | None, data: Payload) -> Event:
+    def emit(self, actor: str, instruction: str | None, data: Payload) -> Event:
         """Record an event (the lock is held): durably first, then wake waiters and tell listeners.
 
         A journal that cannot store it stops the run at once (:class:`JournalFailure`); its
         sequence number stays free for the event a resume records next.
         """
-        event = Event.of(self.run_id, self._seq + 1, actor, instruction, data)
+        event = Event.of(self.run_id, self.seq + 1, actor, instruction, data)
         kind = event.kind
         try:
             self._journal.append(event)  # durable first: if this raises, the action does not happen
         except Exception as exc:
-            state = self._state
+            state = self.state
             state.error = f"{type(exc).__name__}: {exc}"
             state.status = RunStatus.STOPPED
-            self._automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
-            self._changed.notify_all()
+            self.automation.interrupt.set()  # a watch in progress ends; nothing more is recorded
+            self.changed.notify_all()
             self._report_changed()
             log.error("run %s stopped: the journal could not store %s: %s", self.run_id, kind.value, exc)
             raise JournalFailure(
                 f"run {self.run_id} stopped: the audit log could not store {kind.value}: {state.error}"
             ) from exc
-        self._seq = event.seq
-        self._holdings.note(event)
+        self.seq = event.seq
+        self.holdings.note(event)
         self._last = self._build_snapshot()  # what readers get while a later append waits for the database
-        self._changed.notify_all()  # every event is a change someone may be waiting for
-        if not self._state.going_on:
+        self.changed.notify_all()  # every event is a change someone may be waiting for
+        if not self.state.going_on:
             self._report_changed()  # a wait for a report ends with the run
         for listener in list(self._listeners):
             try:
@@ -310,38 +372,38 @@ class RunEngine:
                 log.exception("event listener %r failed on %s", listener, kind.value)
         return event
 
-    def _record(self, actor: str, instruction: str | None, data: Payload) -> None:
+    def record(self, actor: str, instruction: str | None, data: Payload) -> None:
         """Emit from PAX's thread while it does not hold the lock (automation's callback)."""
-        with self._lock:
-            if self._state.error is not None:
-                raise JournalFailure(f"run {self.run_id} stopped: {self._state.error}")
-            self._emit(actor, instruction, data)
+        with self.lock:
+            if self.state.error is not None:
+                raise JournalFailure(f"run {self.run_id} stopped: {self.state.error}")
+            self.emit(actor, instruction, data)
 
     # ---- PAX's thread -----------------------------------------------------------------------
     def _next_job(self) -> Any:
-        return None if self._automation.interrupt.is_set() else self._state.next_job()
+        return None if self.automation.interrupt.is_set() else self.state.next_job()
 
     def _pax_loop(self) -> None:
-        state = self._state
+        state = self.state
         try:
             while True:
-                with self._changed:
+                with self.changed:
                     job = self._next_job()
                     while job is None and state.status is RunStatus.ACTIVE:
-                        self._changed.wait()
+                        self.changed.wait()
                         job = self._next_job()
                     if job is None:
                         return
                     number = state.begin(job)
                     # the sentence the procedure view shows, as written: ${...} stay references
-                    text = str(phrase(job.instruction, self._checked.sysreps, job.frame.procedure))
+                    text = str(phrase(job.instruction, self.checked.sysreps, job.frame.procedure))
                     filled = fill_text(text, job.frame.env)
                     started = InstructionStarted(
                         instruction_kind=job.instruction.kind.value, text=text, text_filled=filled
                     )
-                    self._emit(job.actor, number, started)
+                    self.emit(job.actor, number, started)
                 try:
-                    outcome = self._automation.carry_out(
+                    outcome = self.automation.carry_out(
                         job.frame.env, job.frame.procedure, job.instruction, number, job.actor, job.send
                     )
                 except (JournalFailure, ControlLost):
@@ -351,17 +413,17 @@ class RunEngine:
                 except Exception as exc:  # a gateway error is a failed instruction, never a success
                     log.exception("%s failed", number)
                     outcome = InstructionResult(False, f"{type(exc).__name__}: {exc}")
-                with self._changed:
+                with self.changed:
                     state.executing = False
                     if state.halt is None:
-                        state.halt = self._automation.halt
+                        state.halt = self.automation.halt
                     state.finish(job, number, outcome)
                     if job.then_pause and state.going_on and not state.paused:
                         state.paused = True
-                        self._emit(job.actor, state.current_number(), Paused(after_step=number))
-                    self._changed.notify_all()
+                        self.emit(job.actor, state.current_number(), Paused(after_step=number))
+                    self.changed.notify_all()
         except ControlLost as lost:
-            with self._changed:
+            with self.changed:
                 state.executing = False
                 state.statuses[state.frame.number()] = InstructionStatus.ACTIVE
                 self._lose_control(lost.holder)
@@ -370,12 +432,12 @@ class RunEngine:
             pass  # the run stopped in _emit, with the journal's reason
         except Exception as exc:  # a bug must not leave a run looking alive
             log.exception("run %s stopped: %s", self.run_id, exc)
-            with self._changed:
+            with self.changed:
                 state.error = f"{type(exc).__name__}: {exc}"
                 state.status = RunStatus.STOPPED
                 state.executing = False
-                self._automation.interrupt.set()
-                self._changed.notify_all()
+                self.automation.interrupt.set()
+                self.changed.notify_all()
         finally:
             self._wake.set()
 
@@ -383,16 +445,16 @@ class RunEngine:
     def _supervise(self) -> None:
         """Record link changes and notice a takeover of the robot until the run ends; then release it."""
         try:
-            while self._state.status is RunStatus.ACTIVE:
+            while self.state.status is RunStatus.ACTIVE:
                 self._wake.wait(_SUPERVISE_S)
                 self._wake.clear()
-                change = self._links.change()
-                lost, holder = self._control.lost() if self._state.control_lost is None else (False, None)
+                change = self.links.change()
+                lost, holder = self.control.lost() if self.state.control_lost is None else (False, None)
                 if change is None and not lost:
                     continue
-                with self._changed:
-                    if change is not None and self._state.status is RunStatus.ACTIVE:
-                        self._emit(PAX, self._state.current_number(), change)
+                with self.changed:
+                    if change is not None and self.state.status is RunStatus.ACTIVE:
+                        self.emit(PAX, self.state.current_number(), change)
                     if lost:
                         self._lose_control(holder)
         except JournalFailure:
@@ -400,17 +462,17 @@ class RunEngine:
         except Exception:
             log.exception("run %s: watching links and control failed", self.run_id)
         finally:
-            if self._state.status is not RunStatus.ACTIVE:
-                self._control.release()
+            if self.state.status is not RunStatus.ACTIVE:
+                self.control.release()
 
     def _link_callback(self, state: LinkState) -> None:
         """Called by the gateway on its own thread: note the link, let the supervisor record it."""
-        self._links.update(state)
+        self.links.update(state)
         self._wake.set()
 
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
         """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
-        self._automation.telemetry_changed.set()
+        self.automation.telemetry_changed.set()
         self._report_changed()
 
     def _report_changed(self) -> None:
