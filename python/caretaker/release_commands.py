@@ -23,6 +23,8 @@ import sys
 from datetime import UTC
 from pathlib import Path
 
+from sqlalchemy.exc import SQLAlchemyError
+
 from caretaker.procedure_commands import load_sysreps
 from pride.approvals import APPROVER_PASSWORD_ENV
 from procedure_language.diagnostics import ProcedureError
@@ -33,8 +35,6 @@ from records.audit_schema import AuditSchemaError
 from records.releases import Release, ReleaseRefused, ReleaseStore, procedure_digest, short
 
 __all__ = ["USER_PASSWORD_ENV", "release_main", "releases_main"]
-
-log = logging.getLogger(__name__)
 
 #: The author's (``--user``'s) password; the approver's is in :data:`pride.approvals.APPROVER_PASSWORD_ENV`.
 USER_PASSWORD_ENV = "CARETAKER_PASSWORD"
@@ -93,19 +93,23 @@ def release_main(argv: list[str] | None = None) -> int:
     except ReleaseRefused as exc:
         print(f"caretaker release: {exc}", file=sys.stderr)
         return 2
-    try:
-        author = _operator(args.db, args.user, _password(args.user, USER_PASSWORD_ENV, "asking for the release"))
-        approver = _operator(args.db, args.approver, _password(args.approver, APPROVER_PASSWORD_ENV, "releasing"))
-        audit = AuditLog(args.db)
-    except (ValueError, AuditSchemaError, AuditLogUnavailable) as exc:
-        print(f"caretaker release: {exc}", file=sys.stderr)
+    audit = _open(args.db, "release")
+    if audit is None:
         return 2
     try:
+        author = _operator(audit, args.user, _password(args.user, USER_PASSWORD_ENV, "asking for the release"))
+        approver = _operator(audit, args.approver, _password(args.approver, APPROVER_PASSWORD_ENV, "releasing"))
         release = ReleaseStore(audit.engine).release_by_two(
             checked.procedure.id, sha, author, approver, args.procedure, content
         )
-    except ReleaseRefused as exc:
+    except (ValueError, AuditSchemaError) as exc:  # ReleaseRefused among them
         print(f"caretaker release: {exc}", file=sys.stderr)
+        return 2
+    except SQLAlchemyError as exc:  # one transaction: nothing half-written
+        print(
+            f"caretaker release: {audit.location} did not take the release ({_first_line(exc)}); nothing changed",
+            file=sys.stderr,
+        )
         return 2
     finally:
         audit.close()
@@ -129,17 +133,33 @@ def _password(user: str, variable: str, doing: str) -> str:
     return line.rstrip("\r\n")
 
 
-def _operator(db: str, user: str, password: str) -> str:
+def _open(db: str, command: str) -> AuditLog | None:
+    """The ground database at ``db``, its schema brought up to date where this role may (None: it
+    cannot be used; the reason is printed)."""
+    try:
+        return AuditLog(db)
+    except (AuditSchemaError, AuditLogUnavailable) as exc:
+        print(f"caretaker {command}: {exc}", file=sys.stderr)
+    except SQLAlchemyError as exc:  # a URL no driver takes, a file that cannot be opened
+        print(f"caretaker {command}: the ground database cannot be opened: {_first_line(exc)}", file=sys.stderr)
+    return None
+
+
+def _first_line(exc: Exception) -> str:
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def _operator(audit: AuditLog, user: str, password: str) -> str:
     """The user id of an operator whose password checks out in the ground database (ValueError: why not)."""
     from console.accounts import AccountStore  # the web stack's accounts, loaded only here
 
-    store = AccountStore(db)
+    store = AccountStore(audit.url)
     try:
         account = store.verify(user, password)
     finally:
         store.close()
     if account is None:
-        raise ValueError(f"{user}: unknown user or wrong password (accounts of {db})")
+        raise ValueError(f"{user}: unknown user or wrong password (accounts of {audit.location})")
     if not account.may_act:
         raise ValueError(f"{user} is an {account.role.value}: only operators ask for and give releases")
     return account.user
@@ -156,13 +176,14 @@ def releases_main(argv: list[str] | None = None) -> int:
     listing.add_argument("--procedure", metavar="ID", help="only the releases of the procedure with this id")
     _db_option(listing)
     args = parser.parse_args(argv)
-    try:
-        audit = AuditLog(args.db)
-    except (AuditSchemaError, AuditLogUnavailable) as exc:
-        print(f"caretaker releases: {exc}", file=sys.stderr)
+    audit = _open(args.db, "releases")
+    if audit is None:
         return 2
     try:
         releases = [r for r in ReleaseStore(audit.engine).releases() if args.procedure in (None, r.procedure)]
+    except SQLAlchemyError as exc:
+        print(f"caretaker releases: {audit.location} cannot be read: {_first_line(exc)}", file=sys.stderr)
+        return 2
     finally:
         audit.close()
     print("\t".join(("procedure", "release", "sha256", "author", "approver", "released", "file")))
