@@ -94,29 +94,24 @@ from typing import Any
 
 from pride.ad_hoc_commands import record_sent, send_recorded
 from pride.ad_hoc_commands import take_back as take_back_holdings
-from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
+from pride.approvals import ApprovalPolicy, CarriedApproval
 from pride.automation import ControlLost, Halt
 from pride.event_payloads import (
-    ApprovalGiven,
-    ApprovalRequested,
     BreakpointCleared,
     BreakpointSet,
-    Confirmation,
     Continued,
     ModeChanged,
     OperatorInput,
     Paused,
     RecordCorrected,
     Retry,
-    RunResumed,
     RunStarted,
     RunStopped,
 )
 from pride.event_payloads import Halt as HaltRecord
-from pride.events import Event, EventKind, Journal
-from pride.leftovers import taken_back
+from pride.events import Event, Journal
 from pride.phrasing import filled_sentence
-from pride.replay import replay
+from pride.replay import resumable_start
 from pride.run_control import ControlStore, RobotControlled
 from pride.run_engine import RunEngine
 from pride.run_state import Request
@@ -259,55 +254,11 @@ class Executive:
         ``listeners`` get every event of the resumed run, from its ``run_resumed`` on: they are
         attached before PAX's thread starts, which may at once send again a command in flight.
         """
-        procedure = checked.procedure
-        if not events or events[0].kind is not EventKind.RUN_STARTED:
-            raise OperatorActionError("the log holds no start of that run")
-        if any(e.kind is EventKind.RUN_COMPLETED for e in events):
-            raise OperatorActionError(f"run {events[0].run_id} is already completed")
-        removed = taken_back(events)
-        if removed:
-            raise OperatorActionError(
-                f"run {events[0].run_id} took back what it had added when it stopped ({', '.join(removed)}): "
-                "it cannot go on without it; start the procedure again"
-            )
-        started = events[0].data
-        assert isinstance(started, RunStarted)  # its kind, checked above
+        started = resumable_start(checked.procedure.id, events)  # OperatorActionError: why it cannot go on
         run_id = events[0].run_id
-        if started.procedure != procedure.id:
-            raise OperatorActionError(f"run {run_id} ran procedure {started.procedure!r}, not {procedure.id!r}")
-        executive = cls(
-            checked,
-            gateway,
-            journal,
-            run_id=run_id,
-            mode=Mode(started.mode or "manual"),
-            control=control,
-            approvals=approvals,
-        )
-        for event in events:
-            executive._engine.holdings.note(event)
-        with executive._changed:
-            state = executive._state
-            replayed = replay(procedure, events, checked.load, mode=state.mode, statuses=state.statuses)
-            previous = executive._engine.control.take(user, take_over)
-            state.restore(replayed)
-            executive._engine.seq = replayed.seq
-            if mode is not None:
-                state.mode = mode
-            state.status = RunStatus.ACTIVE
-            for listener in listeners:
-                executive.add_listener(listener)
-            resumed = RunResumed(mode=state.mode.value, in_flight=state.in_flight, resend=state.resend)
-            executive._engine.emit(user, state.frame.number(), resumed)
-            executive._engine.record_takeover(user, previous, take_over)
-            if state.frame.instruction is None:
-                state.advance(state.frame.position)
-            else:
-                number = state.frame.number()
-                if state.statuses.get(number) not in (InstructionStatus.HALTED, InstructionStatus.OUTCOME_UNKNOWN):
-                    state.statuses[number] = InstructionStatus.ACTIVE
-            state.announce()
-            executive._engine.launch()
+        mode_was = Mode(started.mode or "manual")
+        executive = cls(checked, gateway, journal, run_id=run_id, mode=mode_was, control=control, approvals=approvals)
+        executive._engine.resume_from(events, user, mode=mode, take_over=take_over, listeners=listeners)
         return executive
 
     # ---- control of the robot -----------------------------------------------------------------
@@ -463,22 +414,9 @@ class Executive:
         critical commanding, send it for a second operator's approval, ``user`` its sender."""
         with self._changed:
             instruction = self._engine.require_idle()
-            state = self._state
-            number = state.current_number()
-            frame = state.frame
+            frame = self._state.frame
             said = filled_sentence(instruction, self._engine.checked.sysreps, frame.procedure, frame.env)
-            if state.needs_approval(instruction):
-                if state.approval_request is not None or state.approval is not None:
-                    raise OperatorActionError(state.unconfirmed_text(number, instruction))
-                state.approval_request = ApprovalRequest(number or "", user, state.approvals.clock(), said)
-                self._engine.emit(user, number, ApprovalRequested(command=said, level=state.approvals.level.value))
-                state.announce()
-                return
-            if not self.is_hazardous(instruction):
-                raise OperatorActionError(f"{number} is not a hazardous command")
-            state.confirmed_by = user
-            self._engine.emit(user, number, Confirmation(command=said))
-            state.announce()
+            self._state.confirm(user, instruction, said)
 
     def approve(self, user: str, *, carried: CarriedApproval | None = None) -> None:
         """Approve the command sent for approval, as the second operator: it is sent at once (by
@@ -488,37 +426,7 @@ class Executive:
         keeps the time it was given and its expiry, and a stale one is refused."""
         with self._changed:
             self._engine.require_idle()
-            state = self._state
-            number = state.current_number()
-            request = state.approval_request
-            if request is None or request.number != number:
-                raise OperatorActionError(f"{number} waits for no approval")
-            refusal = self_approval_refusal(request, user)
-            if refusal is not None:
-                raise OperatorActionError(refusal)
-            try:
-                approval = carried.approval(request) if carried else Approval.given(request, user, state.approvals)
-            except ValueError as exc:
-                raise OperatorActionError(str(exc)) from None
-            if approval.stale(state.approvals.clock()):
-                self._engine.emit(user, number, approval.expiry_record())
-                raise OperatorActionError(
-                    f"{user}'s approval of {number}, carried with the unit, ran out at "
-                    f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
-                )
-            state.approval = approval
-            given = ApprovalGiven(
-                sender=request.sender,
-                command=request.command,
-                expires=approval.expires.isoformat(),
-                given=approval.approved.isoformat() if carried else None,
-                carried=carried is not None,
-            )
-            self._engine.emit(user, number, given)
-            if state.mode is Mode.MANUAL and state.clear_to_send():  # the sender pressed Send: it goes now, as theirs
-                state.request = Request(request.sender)
-            self._changed.notify_all()
-            state.announce()
+            self._state.approve(user, carried)
 
     def enter(self, user: str, value: Any) -> Any:
         """Answer the current record; returns the value as recorded (converted to its type)."""

@@ -51,12 +51,13 @@ from pride.event_payloads import (
     SteppedBack,
     TelemetrySeen,
 )
-from pride.events import Event
+from pride.events import Event, EventKind
 from pride.frames import Frame, frames_at
-from pride.states import InstructionStatus, Mode
+from pride.leftovers import taken_back
+from pride.states import InstructionStatus, Mode, OperatorActionError
 from procedure_language.model import Procedure
 
-__all__ = ["Replayed", "replay", "result_values"]
+__all__ = ["Replayed", "replay", "result_values", "resumable_start"]
 
 #: How an instruction's end leaves it.
 _ENDED: dict[type, InstructionStatus] = {
@@ -90,6 +91,30 @@ class Replayed:
 def result_values(data: CommandResult) -> dict[str, Any]:
     """The variables a saved command result provides, from its COMMAND_RESULT event's data."""
     return {"success": data.success, "message": data.message, **data.values}
+
+
+def resumable_start(procedure_id: str, events: Sequence[Event]) -> RunStarted:
+    """The start of the run ``events`` record, if a run of ``procedure_id`` may go on from them.
+
+    Raises:
+        OperatorActionError: the log holds no start, the run completed, it took back what it had
+            added when it stopped (it cannot go on without it), or it ran another procedure.
+    """
+    started = events[0].data if events else None
+    if not isinstance(started, RunStarted):
+        raise OperatorActionError("the log holds no start of that run")
+    run_id = events[0].run_id
+    if any(e.kind is EventKind.RUN_COMPLETED for e in events):
+        raise OperatorActionError(f"run {run_id} is already completed")
+    removed = taken_back(events)
+    if removed:
+        raise OperatorActionError(
+            f"run {run_id} took back what it had added when it stopped ({', '.join(removed)}): "
+            "it cannot go on without it; start the procedure again"
+        )
+    if started.procedure != procedure_id:
+        raise OperatorActionError(f"run {run_id} ran procedure {started.procedure!r}, not {procedure_id!r}")
+    return started
 
 
 def _attempt(key: str) -> int:

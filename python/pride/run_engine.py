@@ -5,8 +5,9 @@ before anything else happens (:meth:`RunEngine.emit`), answers snapshots and wai
 thread (which performs the instructions automation or an operator asked for) and the supervisor
 (links and control of the robot). It changes the state only as PAX; the operator's actions, the
 start and the resume are the executive's, and :mod:`pride.executive` documents the whole
-contract. Split so each half can be read on its own: what carries a run out, and what people
-may do to it.
+contract (the engine restores a resumed run from its log, :meth:`RunEngine.resume_from`, once the
+executive found it may go on). Split so each half can be read on its own: what carries a run out,
+and what people may do to it.
 
 The executive holds one engine (it does not extend it): its public attributes (``state``,
 ``lock`` and ``changed``, ``control``, ``automation``, ``holdings``, ``gateway``, ``links``,
@@ -19,7 +20,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,12 +28,13 @@ from typing import TYPE_CHECKING, Any
 from pride.approvals import ApprovalPolicy
 from pride.automation import Automation, ControlLost, InstructionResult
 from pride.event_payloads import ControlLost as ControlLostRecord
-from pride.event_payloads import ControlTaken, InstructionStarted, Paused
+from pride.event_payloads import ControlTaken, InstructionStarted, Paused, RunResumed
 from pride.events import PAX, Event, Journal, Payload
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
 from pride.phrasing import fill_text, phrase
 from pride.replanning import Replan, halted_motion
+from pride.replay import replay
 from pride.run_control import ControlStore, RunControl
 from pride.run_state import RunState
 from pride.states import (
@@ -257,6 +259,42 @@ class RunEngine:
         self._worker.start()
         self._supervisor = threading.Thread(target=self._supervise, name=f"pax-watch-{self.run_id}", daemon=True)
         self._supervisor.start()
+
+    def resume_from(
+        self,
+        events: Sequence[Event],
+        user: str,
+        *,
+        mode: Mode | None,
+        take_over: str | None,
+        listeners: Sequence[Callable[[Event], None]],
+    ) -> None:
+        """Go on, as ``user``, with the run ``events`` record (:func:`pride.replay.resumable_start`
+        said it may): take control of the robot, restore the state they leave, record RUN_RESUMED
+        (``listeners`` attached first) and start PAX's thread, which sends a command in flight again."""
+        for event in events:
+            self.holdings.note(event)
+        with self.changed:
+            state = self.state
+            replayed = replay(self.procedure, events, self.checked.load, mode=state.mode, statuses=state.statuses)
+            previous = self.control.take(user, take_over)
+            state.restore(replayed)
+            self.seq = replayed.seq
+            if mode is not None:
+                state.mode = mode
+            state.status = RunStatus.ACTIVE
+            self._listeners.extend(listeners)
+            resumed = RunResumed(mode=state.mode.value, in_flight=state.in_flight, resend=state.resend)
+            self.emit(user, state.frame.number(), resumed)
+            self.record_takeover(user, previous, take_over)
+            if state.frame.instruction is None:
+                state.advance(state.frame.position)
+            else:
+                number = state.frame.number()
+                if state.statuses.get(number) not in (InstructionStatus.HALTED, InstructionStatus.OUTCOME_UNKNOWN):
+                    state.statuses[number] = InstructionStatus.ACTIVE
+            state.announce()
+            self.launch()
 
     # ---- guards and helpers of the executive's actions -------------------------------------------
     def require_active(self) -> None:

@@ -24,12 +24,15 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest
+from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
 from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.event_payloads import (
+    ApprovalGiven,
+    ApprovalRequested,
     AwaitingOperator,
     BreakpointHit,
     CallEntered,
+    Confirmation,
     InstructionCompleted,
     InstructionFailed,
     InstructionHalted,
@@ -43,7 +46,7 @@ from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
 from pride.phrasing import filled_sentence
 from pride.replay import Replayed
-from pride.states import Hold, InstructionStatus, Mode, RunStatus
+from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
 from procedure_language.model import (
     CommandInstruction,
     Instruction,
@@ -315,6 +318,55 @@ class RunState:
         self._emit(PAX, number, approval.expiry_record())
         self.announce()
         return True
+
+    def confirm(self, user: str, instruction: Instruction, said: str) -> None:
+        """``user`` confirmed the current hazardous command (``said``: its sentence, filled); under
+        critical commanding, they sent it for a second operator's approval, as its sender."""
+        number = self.current_number()
+        if self.needs_approval(instruction):
+            if self.approval_request is not None or self.approval is not None:
+                raise OperatorActionError(self.unconfirmed_text(number, instruction))
+            self.approval_request = ApprovalRequest(number or "", user, self.approvals.clock(), said)
+            self._emit(user, number, ApprovalRequested(command=said, level=self.approvals.level.value))
+        elif not self._hazardous(instruction):
+            raise OperatorActionError(f"{number} is not a hazardous command")
+        else:
+            self.confirmed_by = user
+            self._emit(user, number, Confirmation(command=said))
+        self.announce()
+
+    def approve(self, user: str, carried: CarriedApproval | None) -> None:
+        """``user`` approved the command sent for approval, as the second operator (``carried``: given
+        on the ground before an onboard unit went up); see :meth:`pride.executive.Executive.approve`."""
+        number = self.current_number()
+        request = self.approval_request
+        if request is None or request.number != number:
+            raise OperatorActionError(f"{number} waits for no approval")
+        refusal = self_approval_refusal(request, user)
+        if refusal is not None:
+            raise OperatorActionError(refusal)
+        try:
+            approval = carried.approval(request) if carried else Approval.given(request, user, self.approvals)
+        except ValueError as exc:
+            raise OperatorActionError(str(exc)) from None
+        if approval.stale(self.approvals.clock()):
+            self._emit(user, number, approval.expiry_record())
+            raise OperatorActionError(
+                f"{user}'s approval of {number}, carried with the unit, ran out at "
+                f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
+            )
+        self.approval = approval
+        given = ApprovalGiven(
+            sender=request.sender,
+            command=request.command,
+            expires=approval.expires.isoformat(),
+            given=approval.approved.isoformat() if carried else None,
+            carried=carried is not None,
+        )
+        self._emit(user, number, given)
+        if self.mode is Mode.MANUAL and self.clear_to_send():  # the sender pressed Send: it goes now, as theirs
+            self.request = Request(request.sender)
+        self.announce()  # wakes PAX's thread too
 
     def begin(self, job: Job) -> str:
         """PAX's thread takes ``job``: the instruction is executing (a command's attempt is counted)."""
