@@ -7,20 +7,17 @@ Exit codes: 0 success; 1 the procedure has errors, the run stopped, or the run f
 from __future__ import annotations
 
 import argparse
-import asyncio
 import getpass
 import logging
 import os
 import signal
 import sys
-import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
-from onboard.downlink import UNIT_LIFETIME_S, DownlinkError, HabitatNews, OnboardSupervisor, build_unit
+from onboard.downlink import UNIT_LIFETIME_S
 from pride import run_setup
 from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.event_payloads import RunCompleted, RunStopped
@@ -31,7 +28,6 @@ from pride.phrasing import Wording
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
 from pride.run_setup import RunSetup
-from procedure_language.binding import read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, lint_file
 from procedure_language.sysrep import SysRep, SysRepError
@@ -178,6 +174,12 @@ def run_main(argv: list[str] | None = None) -> int:
         "(docs/deployment.md, Onboard runs)",
     )
     parser.add_argument(
+        "--attach",
+        metavar="RUN",
+        help="supervise onboard run RUN, already on the habitat, from here (its supervisor stopped): catch its "
+        "record up from the last event stored here and go on (docs/deployment.md, Onboard runs)",
+    )
+    parser.add_argument(
         "--unit-lifetime",
         type=float,
         default=UNIT_LIFETIME_S,
@@ -226,6 +228,12 @@ def run_main(argv: list[str] | None = None) -> int:
 
 
 def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: AuditLog, values: dict[str, str]) -> int:
+    if args.attach:
+        if args.procedure or args.onboard or args.resume:
+            parser.error("--attach RUN supervises a run already on the habitat: no PROC, --onboard or --resume")
+        from caretaker.onboard_commands import attach
+
+        return attach(args, audit)
     events = audit.events(args.resume) if args.resume else []
     if args.resume and not events:
         print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
@@ -267,7 +275,9 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         print(f"caretaker run: {exc}", file=sys.stderr)
         return 2
     if args.onboard:
-        return _run_onboard(args, setup, audit, values, approver)
+        from caretaker.onboard_commands import run_onboard
+
+        return run_onboard(args, setup, audit, values, approver)
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -391,130 +401,6 @@ def _approver(args: argparse.Namespace, checked: CheckedProcedure, side: RobotSi
     approver = _second_operator(args, args.approver, password)
     log.info("%s approves the commands that need approval (%s)", approver, side.approvals.describe())
     return approver
-
-
-def _run_onboard(
-    args: argparse.Namespace,
-    setup: RunSetup,
-    audit: AuditLog,
-    values: dict[str, str],
-    approver: str | None,
-) -> int:
-    """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record.
-    The commands that need a second operator's approval go up approved by ``approver``."""
-    checked = setup.checked
-    if args.resume:
-        print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
-        return 2
-    try:
-        endpoint = read_binding(args.binding).endpoint(args.rosbridge)
-    except (DataFileError, OSError) as exc:
-        print(f"caretaker run: cannot open binding {args.binding}: {exc}", file=sys.stderr)
-        return 2
-    if endpoint.secret is None:
-        print(
-            f"caretaker run: {args.binding} has no security.secret_file: an onboard unit is signed with the "
-            "link's secret",
-            file=sys.stderr,
-        )
-        return 2
-    try:
-        unit = build_unit(
-            checked,
-            run_id=setup.run_id,
-            binding=Path(args.binding).name,
-            user=args.user,
-            mode=(args.mode or Mode.MANUAL).value,
-            values=values,
-            confirm_manual=args.confirm_manual,
-            confirm_hazardous=args.confirm_hazardous,
-            breakpoints=args.breakpoints,
-            lifetime_s=args.unit_lifetime + endpoint.light_time.connect_within + endpoint.light_time.round_trip,
-            now=time.time(),
-            version=setup.version,
-            policy=setup.side.approvals,
-            approver=approver,
-        )
-    except ValueError as exc:
-        print(
-            f"caretaker run: {checked.procedure.path} cannot go up to the habitat: {exc} "
-            f"(give --approver USER, their password in ${APPROVER_PASSWORD_ENV})",
-            file=sys.stderr,
-        )
-        return 2
-    terminal = TerminalLines()
-    from sqlalchemy.exc import SQLAlchemyError
-
-    from console.ground.action_requests import ANSWER_WITHIN_S
-    from console.onboard_view import OnboardView
-    from console.terminal_host import HostedElsewhere, TerminalHost
-
-    printer = ProgressPrinter(checked.procedure, terminal, Wording(checked.sysreps, args.raw))
-    left_behind = LeftBehind(terminal)
-    # Hosted for the consoles as a ground run is: they show it live and forward operators' actions here.
-    try:
-        host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True)
-    except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
-        print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
-        host = None
-    hosting = host
-    view = OnboardView(
-        unit.run_id,
-        checked.procedure,
-        binding=unit.binding,
-        started_by=args.user,
-        mode=unit.mode,
-        sysreps=dict(checked.sysreps),
-        host=f"{hosting.hosting.host if hosting else 'a runner'} (supervising; the habitat runs it)",
-        on_change=(lambda: hosting.changed(unit.run_id)) if hosting else None,
-    )
-
-    def on_event(event: Event) -> None:
-        printer(event)
-        left_behind(event)
-        view.event(event)
-
-    def on_news(news: HabitatNews) -> None:
-        view.news(
-            snapshot=news.snapshot,
-            habitat_time=news.habitat_time,
-            heard=news.heard,
-            waiting=news.waiting,
-            silent_since=news.silent_since,
-        )
-
-    supervisor = OnboardSupervisor(
-        endpoint,
-        unit,
-        audit,
-        on_event=on_event,
-        say=terminal.say,
-        unattended=not sys.stdin.isatty() and not args.at_consoles,
-        on_news=on_news,
-    )
-
-    def send(action: str, user: str, action_args: Mapping[str, Any]) -> tuple[str, str]:
-        outcome = supervisor.act_from_thread(action, user, action_args, timeout=ANSWER_WITHIN_S - 5.0)
-        return outcome.state, outcome.message
-
-    try:
-        if host is not None:
-            try:
-                host.host_onboard(view, send)
-            except (SQLAlchemyError, HostedElsewhere) as exc:  # as above
-                print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
-        result = asyncio.run(supervisor.run())
-    except DownlinkError as exc:
-        print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        if host is not None:
-            host.close()
-    terminal.say(
-        f"RESULT {result.status} run {unit.run_id} (report: caretaker report {unit.run_id}"
-        f"{'' if args.db == DEFAULT_DB else ' --db ' + args.db})"
-    )
-    return 0 if result.status == RunStatus.COMPLETED.value else 1
 
 
 def report_main(argv: list[str] | None = None) -> int:

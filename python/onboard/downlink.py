@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import contextlib
 import dataclasses
 import json
 import logging
@@ -19,7 +20,7 @@ import os
 import secrets
 import signal
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Coroutine, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -186,7 +187,7 @@ def build_unit(
 class Supervision:
     """How a supervised onboard run ended, as the ground knows it."""
 
-    status: str  # completed | stopped | interrupted | refused | expired | unreachable | unknown
+    status: str  # completed | stopped | interrupted | refused | expired | unreachable | unknown | detached
     run_id: str
     message: str = ""
 
@@ -236,7 +237,10 @@ class OnboardSupervisor:
         say: Callable[[str], None],
         unattended: bool,
         on_news: Callable[[HabitatNews], None] | None = None,
+        operator: str | None = None,
     ) -> None:
+        """``operator``: who acts from this terminal (Ctrl-C's Halt, an unattended stop); by default
+        the unit's user (a supervisor that attached acts as its own)."""
         if endpoint.secret is None:
             raise ValueError("an onboard unit is signed with the link's secret: the endpoint has none")
         self.endpoint = endpoint
@@ -247,29 +251,67 @@ class OnboardSupervisor:
         self._say = say
         self._unattended = unattended
         self._on_news = on_news
-        self._client = RosbridgeClient(endpoint, name=f"caretaker-run-{unit.user}")
+        self._operator = operator or unit.user
+        self._client = RosbridgeClient(endpoint, name=f"caretaker-run-{self._operator}")
         self._loop: asyncio.AbstractEventLoop | None = None
         self._interrupts = 0
 
     async def run(self) -> Supervision:
         """Uplink, then follow the run to its end; Ctrl-C sends a Halt (again: a Stop)."""
-        self._loop = asyncio.get_running_loop()
-        self._client.start()
-        self._loop.add_signal_handler(signal.SIGINT, self._interrupt)
-        try:
-            answer = await _uplink(self._client, self.unit, self._secret, self._say)
-            if answer["state"] != "ACCEPTED":
-                self._say(f"caretaker run: the habitat {answer['state'].lower()} the unit {answer['unit_hash'][:12]}:")
-                self._say(str(answer["message"]))
-                return Supervision(answer["state"].lower(), self.unit.run_id, str(answer["message"]))
+        return await self._supervising(self._uplinked)
+
+    async def attach(self) -> Supervision:
+        """Follow a run already on the habitat (its supervisor stopped) to its end, as :meth:`run`
+        does after the uplink: the ground's record is caught up from the last event it stored, each
+        event checked against the one before, hash for hash."""
+
+        async def caught_up() -> Supervision:
+            await self._client.ready.wait()  # reconnecting until the link lets it through
             self._say(
-                f"uplinked unit {answer['unit_hash']}: the habitat runs {self.unit.procedure} as run {self.unit.run_id}"
+                f"attached to onboard run {self.unit.run_id}: catching up from event {self._downlink.head_seq + 1}"
             )
             self._say(f"READY run {self.unit.run_id}")
             return await self._follow()
+
+        return await self._supervising(caught_up)
+
+    async def _supervising(self, supervise: Callable[[], Coroutine[Any, Any, Supervision]]) -> Supervision:
+        """Run ``supervise`` until it ends, or until SIGTERM ends supervision (never the run: it goes
+        on on the habitat, and ``caretaker run --attach`` follows it again)."""
+        loop = self._loop = asyncio.get_running_loop()
+        self._client.start()
+        detached = asyncio.Event()
+        loop.add_signal_handler(signal.SIGINT, self._interrupt)
+        loop.add_signal_handler(signal.SIGTERM, detached.set)
+        supervising = loop.create_task(supervise())
+        ending = loop.create_task(detached.wait())
+        try:
+            await asyncio.wait((supervising, ending), return_when=asyncio.FIRST_COMPLETED)
+            if supervising.done():
+                return supervising.result()
+            supervising.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await supervising
+            self._say(
+                f"  supervision stopped (SIGTERM) at event {self._downlink.head_seq}: the run goes on on the habitat"
+            )
+            return Supervision("detached", self.unit.run_id, "supervision stopped; the run goes on on the habitat")
         finally:
-            self._loop.remove_signal_handler(signal.SIGINT)
+            ending.cancel()
+            loop.remove_signal_handler(signal.SIGINT)
+            loop.remove_signal_handler(signal.SIGTERM)
             await self._client.close()
+
+    async def _uplinked(self) -> Supervision:
+        answer = await _uplink(self._client, self.unit, self._secret, self._say)
+        if answer["state"] != "ACCEPTED":
+            self._say(f"caretaker run: the habitat {answer['state'].lower()} the unit {answer['unit_hash'][:12]}:")
+            self._say(str(answer["message"]))
+            return Supervision(answer["state"].lower(), self.unit.run_id, str(answer["message"]))
+        unit = self.unit
+        self._say(f"uplinked unit {answer['unit_hash']}: the habitat runs {unit.procedure} as run {unit.run_id}")
+        self._say(f"READY run {self.unit.run_id}")
+        return await self._follow()
 
     async def act(self, action: str, user: str, **args: Any) -> ActionOutcome:
         """Send an operator's action up, under one key until the habitat answers or it runs out."""
@@ -319,7 +361,7 @@ class OnboardSupervisor:
     def _interrupt(self) -> None:
         self._interrupts += 1
         assert self._loop is not None
-        user = self.unit.user
+        user = self._operator
         if self._interrupts == 1:
             self._say("\n  HALT (Ctrl-C): sent to the habitat; Ctrl-C again stops the run")
             self._loop.create_task(self.act("halt", user, reason="Ctrl-C at the ground terminal"))
@@ -331,7 +373,7 @@ class OnboardSupervisor:
         self._say(f"  the onboard run waits for an operator: {where}")
         if self._unattended:
             self._say("  nobody at this terminal to answer: the run is stopped")
-            await self.act("stop", self.unit.user, reason=f"unattended run needs an operator at {where}")
+            await self.act("stop", self._operator, reason=f"unattended run needs an operator at {where}")
 
     def _news(self, news: HabitatNews) -> None:
         if self._on_news is not None:

@@ -39,7 +39,7 @@ from procedure_language.sysrep import SysRepError
 from rosbridge_wire.client import RosbridgeClient
 
 from .habitat_runs import SECURITY_LOG, HabitatRuns
-from .unit import ACTION_SERVICE, EVENTS_SERVICE, STATUS_SERVICE, UPLINK_SERVICE
+from .unit import ACTION_SERVICE, EVENTS_SERVICE, STATUS_SERVICE, UNIT_SERVICE, UPLINK_SERVICE
 
 __all__ = ["main"]
 
@@ -106,6 +106,9 @@ async def serve(args: argparse.Namespace) -> int:
     )
     client.advertise_service(
         STATUS_SERVICE, "caretaker_onboard_msgs/srv/HabitatStatus", threaded(lambda r: runs.status())
+    )
+    client.advertise_service(
+        UNIT_SERVICE, "caretaker_onboard_msgs/srv/RunUnit", threaded(lambda r: runs.unit_of(str(r.get("run_id", ""))))
     )
     stop = asyncio.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
