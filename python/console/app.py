@@ -97,7 +97,11 @@ def _refusal(exc: ActionRefused | SignInRefused) -> JSONResponse:
     return JSONResponse({"error": exc.message, **details}, status_code=exc.status, headers=headers)
 
 
-def _api(handler: Callable[[Request], Awaitable[Response]]) -> Callable[[Request], Awaitable[Response]]:
+#: A route's handler.
+Handler = Callable[[Request], Awaitable[Response]]
+
+
+def _api(handler: Handler) -> Handler:
     """Turn refusals into a JSON error with its status; the page shows the message."""
 
     async def wrapped(request: Request) -> Response:
@@ -107,6 +111,23 @@ def _api(handler: Callable[[Request], Awaitable[Response]]) -> Callable[[Request
             return _refusal(exc)
 
     return wrapped
+
+
+def _operators(may: str) -> Callable[[Callable[[Request, Account], Awaitable[Response]]], Handler]:
+    """The one role check of the console's routes: the handler gets the signed-in operator; an
+    observer is refused (403) before the body is read, the message saying what observers ``may``
+    do instead ("watch, not act")."""
+
+    def only_operators(handler: Callable[[Request, Account], Awaitable[Response]]) -> Handler:
+        async def checked(request: Request) -> Response:
+            account = _account(request)
+            if not account.may_act:
+                raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may {may}")
+            return await handler(request, account)
+
+        return checked
+
+    return only_operators
 
 
 async def _json_body(request: Request) -> Any:
@@ -200,15 +221,12 @@ async def runs_list(request: Request) -> Response:
     return JSONResponse({"runs": await run_in_threadpool(board.listing)})
 
 
-async def _operator_request(request: Request, what: str, fields: str) -> tuple[Account, dict[str, str]]:
-    """The operator making a request about a run, and its fields as strings (mode defaults to manual)."""
-    account = _account(request)
-    if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an observer: observers may watch, not {what}")
+async def _run_request(request: Request, fields: str) -> dict[str, str]:
+    """The fields of a request about a run, as strings (mode defaults to manual)."""
     body = await _json_body(request)
     if not isinstance(body, dict):
         raise ActionRefused(400, f"expected a JSON object with {fields}")
-    return account, {
+    return {
         "procedure": str(body.get("procedure", "")),
         "binding": str(body.get("binding", "")),
         "mode": str(body.get("mode", "manual")),
@@ -241,8 +259,9 @@ async def _second_operator(request: Request, for_user: str) -> SecondOperator | 
 
 
 @_api
-async def runs_start(request: Request) -> Response:
-    account, body = await _operator_request(request, "start runs", "procedure, binding and mode")
+@_operators("watch, not start runs")
+async def runs_start(request: Request, account: Account) -> Response:
+    body = await _run_request(request, "procedure, binding and mode")
     board: RunBoard = request.app.state.board
     if body["onboard"]:
         approver = await _second_operator(request, account.user)
@@ -315,10 +334,8 @@ async def run_get(request: Request) -> Response:
 
 
 @_api
-async def run_action(request: Request) -> Response:
-    account = _account(request)
-    if not account.may_act:  # refused before the body is even read
-        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+@_operators("watch, not act")
+async def run_action(request: Request, account: Account) -> Response:
     board: RunBoard = request.app.state.board
     action = ActionRequest.from_json(await _json_body(request))
     result = await run_in_threadpool(board.act, request.path_params["run_id"], account, action)
@@ -326,9 +343,10 @@ async def run_action(request: Request) -> Response:
 
 
 @_api
-async def run_resume(request: Request) -> Response:
+@_operators("watch, not resume runs")
+async def run_resume(request: Request, account: Account) -> Response:
     """Continue a stopped or interrupted run (what ``caretaker run --resume`` does) on a binding."""
-    account, body = await _operator_request(request, "resume runs", "binding and mode")
+    body = await _run_request(request, "binding and mode")
     board: RunBoard = request.app.state.board
     live = await run_in_threadpool(
         board.resume, account.user, request.path_params["run_id"], body["binding"], body["mode"]
@@ -521,10 +539,8 @@ async def author_check(request: Request) -> Response:
 
 
 @_api
-async def author_save(request: Request) -> Response:
-    account = _account(request)
-    if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an observer: observers may read procedures, not save them")
+@_operators("read procedures, not save them")
+async def author_save(request: Request, account: Account) -> Response:
     board: RunBoard = request.app.state.board
     body = await _json_body(request)
     document = _document(body)
@@ -551,12 +567,10 @@ async def author_version(request: Request) -> Response:
 
 
 @_api
-async def author_release(request: Request) -> Response:
+@_operators("read procedures, not release them")
+async def author_release(request: Request, account: Account) -> Response:
     """``{"action": "request" | "release", "sha256": the version the operator saw}``: ask a second
     operator to review and release it, or (as that second operator) release it."""
-    account = _account(request)
-    if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an observer: observers may read procedures, not release them")
     board: RunBoard = request.app.state.board
     body = await _json_body(request)
     if not isinstance(body, dict) or body.get("action") not in ("request", "release"):
