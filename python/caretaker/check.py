@@ -68,7 +68,7 @@ def _urdf(path: Path) -> Any:
 @functools.cache
 def _shipped_sysreps() -> Any:
     """The shipped SysReps, read once however many procedures one ``check`` is given."""
-    from caretaker.procedure_commands import load_sysreps
+    from caretaker.command_options import load_sysreps
 
     return load_sysreps(None)
 

@@ -19,8 +19,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from caretaker.procedure_commands import DEFAULT_SYSREP_DIR, LeftBehind, load_sysreps
-from caretaker.terminal import ProgressPrinter, TerminalLines
+from caretaker.command_options import DEFAULT_SYSREP_DIR, load_sysreps
+from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from datafile import DataFileError
 from onboard.downlink import DownlinkError, HabitatNews, OnboardSupervisor, build_unit
 from onboard.unit import UNIT_SERVICE, Unit, UnitError

@@ -12,15 +12,13 @@ import logging
 import os
 import signal
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
-from caretaker.terminal import OperatorConsole, ProgressPrinter, TerminalLines, Unattended
+from caretaker.command_options import load_sysreps, raw_option, sysrep_option
+from caretaker.terminal import LeftBehind, OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S
-from pride import run_setup
 from pride.approvals import APPROVER_PASSWORD_ENV
-from pride.event_payloads import RunCompleted, RunStopped
 from pride.events import Event, EventKind, run_start
 from pride.executive import Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
@@ -40,33 +38,6 @@ __all__ = ["LeftBehind", "db_main", "lint_main", "report_main", "run_main"]
 
 log = logging.getLogger(__name__)
 
-REPO = Path(__file__).resolve().parents[2]
-DEFAULT_SYSREP_DIR = REPO / "sysrep"
-
-
-def load_sysreps(directories: Sequence[str] | None) -> dict[str, SysRep]:
-    """The SysReps of ``--sysrep-dir`` folders (default: the shipped ones), read as every launcher
-    reads them (:func:`pride.run_setup.load_sysreps`)."""
-    return run_setup.load_sysreps(directories or [DEFAULT_SYSREP_DIR])
-
-
-def _sysrep_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--sysrep-dir",
-        action="append",
-        metavar="DIR",
-        help=f"directory of SysRep *.yaml files (repeatable; default {DEFAULT_SYSREP_DIR})",
-    )
-
-
-def _raw_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--raw",
-        action="store_true",
-        help="also show each command sent as the call (system.command(arg=value, ...), values in full), "
-        "as the web view's raw-commands switch does",
-    )
-
 
 def lint_main(argv: list[str] | None = None) -> int:
     """``caretaker lint FILE...``: print every problem as file:line:col: message."""
@@ -74,7 +45,7 @@ def lint_main(argv: list[str] | None = None) -> int:
         prog="caretaker lint", description="check procedures against their schema and SysReps"
     )
     parser.add_argument("files", nargs="+", metavar="FILE")
-    _sysrep_option(parser)
+    sysrep_option(parser)
     args = parser.parse_args(argv)
     try:
         sysreps = load_sysreps(args.sysrep_dir)
@@ -93,24 +64,6 @@ def lint_main(argv: list[str] | None = None) -> int:
     if failed:
         print(f"{failed} of {len(args.files)} procedure(s) have errors", file=sys.stderr)
     return 1 if failed else 0
-
-
-class LeftBehind:
-    """An executive listener: once the run ends, one ``LEFT`` line per thing it left on a system.
-
-    A stopped run takes back the Affordance Template instances it added; what it could not (a
-    removal failed, the link was lost, an outcome is not known) or a completed procedure did not
-    remove is listed in the end event (:mod:`pride.leftovers`). Said here too, so an operator at
-    the terminal sees what to clean up without reading the report.
-    """
-
-    def __init__(self, out: TerminalLines) -> None:
-        self.out = out
-
-    def __call__(self, event: Event) -> None:
-        if isinstance(event.data, (RunStopped, RunCompleted)):
-            for item in event.data.left_behind:
-                self.out.say(f"LEFT {item.get('name')} on {item.get('system')}: {item.get('why')}")
 
 
 def run_main(argv: list[str] | None = None) -> int:
@@ -205,8 +158,8 @@ def run_main(argv: list[str] | None = None) -> int:
         metavar="REASON",
         help="take control of the robot from the run that holds it (logged in both runs)",
     )
-    _sysrep_option(parser)
-    _raw_option(parser)
+    sysrep_option(parser)
+    raw_option(parser)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
 
@@ -418,8 +371,8 @@ def report_main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--verify", action="store_true", help="only check the run's hash chain and name the first event that breaks it"
     )
-    _sysrep_option(parser)
-    _raw_option(parser)
+    sysrep_option(parser)
+    raw_option(parser)
     args = parser.parse_args(argv)
     if args.verify and not args.run:
         parser.error("--verify needs RUN")

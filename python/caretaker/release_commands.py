@@ -25,7 +25,7 @@ from pathlib import Path
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from caretaker.procedure_commands import load_sysreps
+from caretaker.command_options import load_sysreps
 from pride.approvals import APPROVER_PASSWORD_ENV
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import check_procedure

@@ -59,7 +59,7 @@ from pride.phrasing import Wording
 from pride.states import RecordNotCheckable, RunEnded
 from procedure_language.model import Procedure, RecordInstruction
 
-__all__ = ["OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
+__all__ = ["LeftBehind", "OperatorConsole", "ProgressPrinter", "TerminalLines", "Unattended"]
 
 #: How long an unattended run waits at one instruction for a report its answer must be checked
 #: against (stale after a lost link or a restarted bridge: the robot's bridge is restarted and
@@ -465,3 +465,21 @@ class OperatorConsole:
             self._say(f"  the run changed meanwhile ({now.reason or now.status.value}): that answer is not applied")
             raise _Superseded
         return answer
+
+
+class LeftBehind:
+    """An executive listener: once the run ends, one ``LEFT`` line per thing it left on a system.
+
+    A stopped run takes back the Affordance Template instances it added; what it could not (a
+    removal failed, the link was lost, an outcome is not known) or a completed procedure did not
+    remove is listed in the end event (:mod:`pride.leftovers`). Said here too, so an operator at
+    the terminal sees what to clean up without reading the report.
+    """
+
+    def __init__(self, out: TerminalLines) -> None:
+        self.out = out
+
+    def __call__(self, event: Event) -> None:
+        if isinstance(event.data, (RunStopped, RunCompleted)):
+            for item in event.data.left_behind:
+                self.out.say(f"LEFT {item.get('name')} on {item.get('system')}: {item.get('why')}")

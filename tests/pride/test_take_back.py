@@ -15,8 +15,7 @@ from typing import Any
 
 import pytest
 
-from caretaker.procedure_commands import LeftBehind
-from caretaker.terminal import TerminalLines
+from caretaker.terminal import LeftBehind, TerminalLines
 from pride.events import Event, EventKind
 from pride.executive import Executive, Hold, JournalFailure, Mode, OperatorActionError, RunStatus
 from pride.leftovers import Holdings, Leftover, TakenBack
