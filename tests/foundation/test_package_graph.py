@@ -53,9 +53,10 @@ FORBIDDEN = {
 #: The allowed import order: each package and the Caretaker packages it may import. Two columns
 #: on two leaves, ``datafile`` (the reader of every user file) and ``rosbridge_wire`` (the rosbridge
 #: vocabulary and login of the bridge and its clients): the procedure side (``procedure_language``:
-#: procedures, SysReps and bindings read and checked; ``pride``: the executive; ``records``: the audit log, releases, robot control and the consoles' tables in the
-#: ground database, also the onboard executive's SQLite log; the ground ``console`` on top of them)
-#: and the robot side (``at_ros``, ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
+#: procedures, SysReps and bindings read and checked; ``pride``: the executive; ``records``: the
+#: audit log, releases, robot control and the consoles' tables in the ground database, also the
+#: onboard executive's SQLite log; the ground ``console`` on top of them) and the robot side
+#: (``at_ros``, ``sim``, ``bridge``), joined only by the launcher ``caretaker``.
 MAY_IMPORT = {
     "datafile": set(),
     "rosbridge_wire": set(),
