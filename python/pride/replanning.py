@@ -28,7 +28,8 @@ from procedure_language.model import ArgumentBinding, CommandInstruction
 
 __all__ = ["MOTIONS", "PlannedMotion", "Replan", "halted_motion"]
 
-#: How a run finds a command argument's value in its variables (:meth:`procedure_language.lint.CheckedProcedure.argument`).
+#: How a run finds a command argument's value in its variables
+#: (:meth:`procedure_language.lint.CheckedProcedure.argument`).
 Argument = Callable[[ArgumentBinding, dict[str, Any]], Any]
 
 
