@@ -1,7 +1,7 @@
 """System Representation (SysRep) files: the commands and telemetry a procedure may name.
 
 A SysRep is the contract between procedure authors and the systems that carry procedures out
-(ARCHITECTURE.md, interface 1). The file form is the paper's Fig. 1::
+(docs/architecture.md, interface 1). The file form is the paper's Fig. 1::
 
     id: affordance_templates
     name: CRAFTSMAN AffordanceTemplates YAML
