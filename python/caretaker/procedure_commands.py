@@ -19,6 +19,7 @@ from caretaker.terminal import LeftBehind, OperatorConsole, ProgressPrinter, Ter
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S
 from pride.approvals import APPROVER_PASSWORD_ENV
+from pride.event_payloads import EventDataError
 from pride.events import Event, EventKind, run_start
 from pride.executive import Mode, OperatorActionError, RunStatus
 from pride.gateways import open_gateway
@@ -386,7 +387,11 @@ def report_main(argv: list[str] | None = None) -> int:
             for run_id, started, procedure_id in audit.runs():
                 print(f"{run_id}  {started:%Y-%m-%d %H:%M:%S}Z  {procedure_id}")
             return 0
-        events = audit.events(args.run)
+        try:
+            events = audit.events(args.run)
+        except EventDataError as exc:  # a stored event that does not fit its kind: its chain says more
+            print(f"caretaker report: {exc}; {audit.verify(args.run).describe()}", file=sys.stderr)
+            return 1
         if not events or events[0].kind is not EventKind.RUN_STARTED:
             print(f"caretaker report: no run {args.run!r} in {args.db}", file=sys.stderr)
             return 2

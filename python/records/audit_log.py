@@ -43,7 +43,7 @@ from sqlalchemy.engine import Connection, Engine
 from sqlalchemy.exc import DBAPIError, IntegrityError, InterfaceError, OperationalError, SQLAlchemyError
 from sqlalchemy.pool import StaticPool
 
-from pride.event_payloads import payload_from_json
+from pride.event_payloads import EventDataError, payload_from_json
 from pride.events import Availability, Event, EventKind
 from records.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
 from records.audit_schema import audit_records, ensure_schema, schema_revision, sqlite_begin, sqlite_transactions
@@ -483,7 +483,10 @@ def _head(connection: Connection, run_id: str) -> tuple[int, str]:
 
 def _event(row: StoredEvent) -> Event:
     kind = EventKind(row.kind)
-    data = payload_from_json(kind, json.loads(row.data))  # EventDataError names a field of the wrong type
+    try:
+        data = payload_from_json(kind, json.loads(row.data))
+    except EventDataError as exc:  # edited in the database, or written by something else: say which
+        raise EventDataError(f"run {row.run_id}, event {row.seq}: {exc}") from None
     return Event(row.run_id, row.seq, kind, row.actor, row.instruction, data, utc(row.time))
 
 

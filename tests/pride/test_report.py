@@ -140,3 +140,18 @@ def test_report_of_an_edited_run_says_so_and_verify_names_the_event(
     assert written.returncode == 1 and "WARNING" in written.stderr
     markdown = Path(written.stdout.split()[1]).read_text()
     assert f"- Audit chain: run {run_id}: event {seq} (operator_input at 1.2) was changed" in markdown
+
+
+def test_an_event_edited_into_data_that_does_not_fit_its_kind_is_named_not_a_traceback(
+    tmp_path: Path, sysreps: dict[str, SysRep], database: AuditDatabase
+) -> None:
+    db, run_id = _complete_run(tmp_path, sysreps, database.url)
+    database.tamper(
+        'UPDATE audit_records SET data = replace(data, \'"name": "\', \'"name": 7, "was": "\') '
+        "WHERE kind = 'operator_input'"
+    )  # a record's name made a number: no operator_input can hold that
+    written = report(run_id, db, "--out", str(tmp_path / "reports"))
+    assert written.returncode == 1 and "Traceback" not in written.stderr
+    assert f"run {run_id}, event " in written.stderr
+    assert "operator_input: data.name must be text, not int" in written.stderr
+    assert "was changed after it was written" in written.stderr  # and what its chain says
