@@ -10,7 +10,8 @@ Modules, by concept:
 - :mod:`pride.run_setup` — a run's set-up, one way for the console, ``caretaker run`` and the habitat.
 - :mod:`pride.executive` — PAX: manual and autonomous runs, operator actions, observers;
   :mod:`pride.run_engine` the machinery it holds (state under one lock, journal first, PAX's
-  thread, the supervisor), :mod:`pride.ad_hoc_commands` commands outside the instructions, :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of
+  thread, the supervisor), :mod:`pride.ad_hoc_commands` commands outside the instructions,
+  :mod:`pride.run_state` where a run is and how it moves, :mod:`pride.frames` its stack of
   (sub-)procedures, :mod:`pride.replay` rebuilding it from the log, :mod:`pride.states` its
   observable states, :mod:`pride.automation` the part that acts on systems.
 - :mod:`pride.systems` — the gateway shape and its result types; :mod:`pride.gateways` opens one;
