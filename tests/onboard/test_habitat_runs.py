@@ -23,8 +23,9 @@ from onboard.habitat_runs import SECURITY_LOG, HabitatRuns
 from onboard.unit import OperatorAction, Unit, sign
 from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.events import EventKind
+from pride.run_setup import load_sysreps
 from procedure_language.lint import check_procedure
-from procedure_language.sysrep import SysRep, load_sysrep_dir
+from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO
@@ -37,7 +38,7 @@ PROCEDURE = FIXTURES / "lab_all_kinds.xml"
 
 @pytest.fixture(scope="module")
 def sysreps() -> dict[str, SysRep]:
-    return {**load_sysrep_dir(REPO / "sysrep"), **load_sysrep_dir(FIXTURES / "sysrep")}
+    return load_sysreps([REPO / "sysrep", FIXTURES / "sysrep"])
 
 
 @pytest.fixture
