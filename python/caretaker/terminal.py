@@ -121,7 +121,7 @@ class ProgressPrinter:
             case CommandResult() as d:
                 line = f"  {number:<8} {'':<10} {result_text(d, self.wording, _MARKS)}"
             case Halt() as d:
-                told = (d.cancel or {}).get("message")
+                told = d.cancel_message
                 line = f"{who} HALT{_why(d.reason)}" + (f"; the system: {told}" if told else "")
             case InstructionHalted() as d:
                 line = f"{who} halted before it finished{_why(d.reason)}"
@@ -481,5 +481,5 @@ class LeftBehind:
 
     def __call__(self, event: Event) -> None:
         if isinstance(event.data, (RunStopped, RunCompleted)):
-            for item in event.data.left_behind:
-                self.out.say(f"LEFT {item.get('name')} on {item.get('system')}: {item.get('why')}")
+            for system, name, why in event.data.leftovers():
+                self.out.say(f"LEFT {name} on {system}: {why}")

@@ -87,6 +87,10 @@ class RunStarted(Recorded):
     def _left_out(self) -> set[str]:
         return {"sha256", "release", "rehearsal"} if self.sha256 is None else set()
 
+    def step_titles(self) -> tuple[tuple[int, str], ...]:
+        """Each step's number and title, in order."""
+        return tuple((int(step.get("number", 0)), str(step.get("title", ""))) for step in self.steps)
+
 
 @dataclass(frozen=True, kw_only=True)
 class RunResumed(Recorded):
@@ -112,6 +116,10 @@ class RunCompleted(Recorded):
     taken_back: tuple[str, ...] = optional(())
     left_behind: tuple[Mapping[str, Any], ...] = optional(())
 
+    def leftovers(self) -> tuple[tuple[str, str, str], ...]:
+        """What is left behind as (system, name, why)."""
+        return _leftovers(self.left_behind)
+
 
 @dataclass(frozen=True, kw_only=True)
 class RunStopped(Recorded):
@@ -128,6 +136,10 @@ class RunStopped(Recorded):
     cancel: Mapping[str, Any] | None
     taken_back: tuple[str, ...] = optional(())
     left_behind: tuple[Mapping[str, Any], ...] = optional(())
+
+    def leftovers(self) -> tuple[tuple[str, str, str], ...]:
+        """What is left behind as (system, name, why)."""
+        return _leftovers(self.left_behind)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -276,6 +288,11 @@ class Halt(Recorded):
     key: str | None
     cancel: Mapping[str, Any] | None
     executing: bool
+
+    @property
+    def cancel_message(self) -> str:
+        """What the system answered to the cancel ("" without one)."""
+        return str((self.cancel or {}).get("message") or "")
 
 
 # ---- links and control ----------------------------------------------------------------------
@@ -545,6 +562,10 @@ Payload: TypeAlias = (
 
 _BY_KIND: dict[EventKind, type[Recorded]] = {cls.KIND: cls for cls in typing.get_args(Payload)}
 assert set(_BY_KIND) == set(EventKind), "every kind has its payload"
+
+
+def _leftovers(left_behind: tuple[Mapping[str, Any], ...]) -> tuple[tuple[str, str, str], ...]:
+    return tuple((str(i.get("system", "")), str(i.get("name", "")), str(i.get("why", ""))) for i in left_behind)
 
 
 def payload_from_json(kind: EventKind, data: object) -> Payload:

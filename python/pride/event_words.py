@@ -195,7 +195,7 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
                 "UTC before it could be sent: nothing sent, it waits for a new approval"
             )
         case Halt() as d:
-            told = (d.cancel or {}).get("message")
+            told = d.cancel_message
             return f"HALT{_reason(d.reason)}" + (f"; the system: {told}" if told else "")
         case InstructionHalted() as d:
             return f"halted before it finished{_reason(d.reason)}"

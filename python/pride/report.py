@@ -118,7 +118,7 @@ def summarize(events: list[Event]) -> RunSummary:
     """Fold a run's events into what the report shows."""
     start = events[0]
     started = start.data if isinstance(start.data, RunStarted) else _NO_START
-    steps = [StepSummary(s["number"], s["title"]) for s in started.steps]
+    steps = [StepSummary(number, title) for number, title in started.step_titles()]
     by_number = {s.number: s for s in steps}
     last_step: StepSummary | None = None
     for event in events:
