@@ -76,7 +76,7 @@ def _bare_commit(url: str) -> Callable[[Event], None]:
             event.actor,
             event.kind.value,
             event.instruction,
-            json.dumps(event.data, sort_keys=True),
+            json.dumps(event.data.to_json(), sort_keys=True),
         )
 
     if url.startswith("sqlite"):
