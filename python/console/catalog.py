@@ -42,7 +42,7 @@ class Catalog:
 
     procedures: Path
     bindings: Path
-    sysreps: Path
+    sysreps: tuple[Path, ...]  # SysRep folders, read as one (a duplicate id refused)
     deployments: tuple[Path, ...] = ()
 
     def procedure_files(self) -> list[str]:

@@ -58,7 +58,7 @@ def launch_onboard(
     rehearsal: bool = False,
     deployments: Sequence[Path] = (),
     db_url: str,
-    sysreps: Path,
+    sysreps: Sequence[Path],
     rosbridge: str | None,
     ready_within: float = READY_WITHIN_S,
 ) -> str:
@@ -86,8 +86,7 @@ def launch_onboard(
         "--user",
         user,
         *(["--approver", approver.user] if approver else []),
-        "--sysrep-dir",
-        str(sysreps),
+        *(option for path in sysreps for option in ("--sysrep-dir", str(path))),
         *(["--rosbridge", rosbridge] if rosbridge else []),
     ]
     with tempfile.NamedTemporaryFile("w", prefix="caretaker-onboard-runner-", suffix=".log", delete=False) as out:

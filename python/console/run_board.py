@@ -139,7 +139,7 @@ class RunBoard:
         return self.rosbridge_urls.get(binding, self.rosbridge_urls.get(""))
 
     def sysreps(self) -> dict[str, SysRep]:
-        return load_sysreps([self.catalog.sysreps])
+        return load_sysreps(self.catalog.sysreps)
 
     def start(
         self,

@@ -29,6 +29,8 @@ from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.reports import report_writer
 from console.run_board import RunBoard
 from console.sign_in import SessionLimits, SignIns
+from pride.run_setup import load_sysreps
+from procedure_language.sysrep import SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError
 
@@ -88,7 +90,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files"
     )
-    parser.add_argument("--sysreps", type=Path, default=REPO / "sysrep", help="directory of SysRep YAML files")
+    parser.add_argument(
+        "--sysreps",
+        type=Path,
+        action="append",
+        metavar="DIR",
+        help=f"directory of SysRep YAML files (repeatable; default {REPO / 'sysrep'}); an id twice is refused",
+    )
     parser.add_argument(
         "--deployments",
         type=Path,
@@ -193,10 +201,16 @@ def main(argv: list[str] | None = None) -> int:
     """Serve until interrupted; returns the exit code."""
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    for directory in (args.procedures, args.sysreps):
+    args.sysreps = args.sysreps or [REPO / "sysrep"]
+    for directory in (args.procedures, *args.sysreps):
         if not directory.is_dir():
             print(f"caretaker serve: {directory} is not a directory", file=sys.stderr)
             return 2
+    try:
+        load_sysreps(args.sysreps)  # read again at each start: this refuses a bad folder at once
+    except SysRepError as exc:
+        print(f"caretaker serve: {exc}", file=sys.stderr)
+        return 2
     problem = _tls_problem(args)
     if problem is not None:
         print(f"caretaker serve: {problem}", file=sys.stderr)
@@ -254,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     catalog = Catalog(
         args.procedures.resolve(),
         args.bindings.resolve(),
-        args.sysreps.resolve(),
+        tuple(path.resolve() for path in args.sysreps),
         tuple(path.resolve() for path in args.deployments),
     )
     board = RunBoard(

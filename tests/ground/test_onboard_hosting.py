@@ -190,7 +190,7 @@ def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_noth
             autonomous=True,
             rehearsal=True,  # the shipped procedure is a draft in this database; the IVA robot side a simulator
             db_url=audit.url,
-            sysreps=REPO / "sysrep",
+            sysreps=[REPO / "sysrep"],
             rosbridge=None,
         )
     said = str(refused.value)

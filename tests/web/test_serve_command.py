@@ -224,6 +224,18 @@ def test_serving_beyond_loopback_needs_tls_unless_told_otherwise(
     assert "not a usable PEM certificate and key" in capsys.readouterr().err
 
 
+def test_sysrep_folders_are_read_as_one_and_an_id_declared_twice_refuses_to_serve(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    again = tmp_path / "again"
+    again.mkdir()
+    (again / "cdra_copy.yaml").write_text((REPO / "sysrep" / "cdra.yaml").read_text())
+    assert main(["--sysreps", str(REPO / "sysrep"), "--sysreps", str(again), "--port", "0"]) == 2
+    said = capsys.readouterr().err
+    assert "duplicate SysRep id 'cdra'" in said and "cdra_copy.yaml" in said
+    assert str(REPO / "sysrep" / "cdra.yaml") in said  # both files named
+
+
 def test_rosbridge_urls_and_cameras_are_given_per_binding_and_checked(capsys: pytest.CaptureFixture[str]) -> None:
     for option, said in (
         (
