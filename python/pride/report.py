@@ -133,15 +133,18 @@ def summarize(events: list[Event]) -> RunSummary:
         step.visits[-1][1] = event.time
         last_step = step
         step.actors.add(event.actor)
-        if "/" not in event.instruction:  # count the step's own instructions, not a sub-procedure's
-            step.completed += event.kind is EventKind.INSTRUCTION_COMPLETED
-            step.failed += event.kind is EventKind.INSTRUCTION_FAILED
-            step.skipped += event.kind is EventKind.INSTRUCTION_SKIPPED
     outcome = "interrupted"
     images: list[Image] = []
     telemetry: list[Event] = []
     for event in events:
+        own = _own_step(event.instruction, by_number)  # a step's own instruction, not a sub-procedure's
         match event.data:
+            case InstructionCompleted() if own:
+                own.completed += 1
+            case InstructionFailed() if own:
+                own.failed += 1
+            case InstructionSkipped() if own:
+                own.skipped += 1
             case RunCompleted():
                 outcome = "completed"
             case RunStopped():
@@ -205,6 +208,12 @@ def summarize(events: list[Event]) -> RunSummary:
         images=images,
         released=version_text(started).removeprefix(" · "),
     )
+
+
+def _own_step(number: str | None, by_number: dict[int, StepSummary]) -> StepSummary | None:
+    """The step whose own instruction ``number`` is (None: none, or one of a sub-procedure)."""
+    head = (number or "").split(".")[0]
+    return by_number.get(int(head)) if head.isdigit() and number and "/" not in number else None
 
 
 def _clock(moment: datetime) -> str:

@@ -65,7 +65,7 @@ _SUPERVISE_S = 0.5
 
 
 class RunEngine:
-    """One run's state, journal, PAX thread and supervisor; :class:`pride.executive.Executive` adds the actions."""
+    """One run's state, journal, PAX thread and supervisor; the executive holding it adds the actions."""
 
     def __init__(
         self,
