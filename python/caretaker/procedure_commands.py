@@ -188,7 +188,11 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         from caretaker.onboard_commands import attach
 
         return attach(args, audit)
-    events = audit.events(args.resume) if args.resume else []
+    try:
+        events = audit.events(args.resume) if args.resume else []
+    except EventDataError as exc:  # a stored event that does not fit its kind: edited, or not a run's own
+        print(f"caretaker run: cannot resume: {exc}; {audit.verify(args.resume).describe()}", file=sys.stderr)
+        return 2
     if args.resume and not events:
         print(f"caretaker run: no run {args.resume!r} in {args.db}", file=sys.stderr)
         return 2
