@@ -162,7 +162,7 @@ def _supervise(
     terminal = TerminalLines()
     from sqlalchemy.exc import SQLAlchemyError
 
-    from console.ground.action_requests import ANSWER_WITHIN_S
+    from console.ground.action_requests import OnItsWay
     from console.onboard_view import OnboardView
     from console.terminal_host import HostedElsewhere, TerminalHost
     from records.audit_schema import AuditSchemaError
@@ -212,8 +212,11 @@ def _supervise(
         operator=args.user,
     )
 
-    def send(action: str, user: str, action_args: Mapping[str, Any]) -> tuple[str, str]:
-        outcome = supervisor.act_from_thread(action, user, action_args, timeout=ANSWER_WITHIN_S - 5.0)
+    def send(action: str, user: str, action_args: Mapping[str, Any], on_its_way: OnItsWay) -> tuple[str, str]:
+        # waits as long as the link's light time makes the answer take (onboard.downlink.ActionTiming)
+        outcome = supervisor.act_from_thread(
+            action, user, action_args, lambda timing: on_its_way(timing.expected_at, timing.gives_up_at)
+        )
         return outcome.state, outcome.message
 
     try:

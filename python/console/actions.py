@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from console.accounts import Account, AccountStore
-from console.ground.action_requests import Answer, ForwardedAction
+from console.ground.action_requests import Answer, ForwardedAction, OnItsWay
 from pride.executive import Executive, Mode, OperatorActionError
 
 __all__ = [
@@ -176,9 +176,10 @@ def _forwarded_account(accounts: AccountStore, request: ForwardedAction) -> Acco
     return account
 
 
-#: Sends an operator's action on an onboard run up the link: (action, user, args) → (state, message),
-#: state DONE | REFUSED | EXPIRED, or UNKNOWN when the habitat did not answer in time.
-OnboardSend = Callable[[str, str, Mapping[str, Any]], tuple[str, str]]
+#: Sends an operator's action on an onboard run up the link: (action, user, args, on its way) →
+#: (state, message), state DONE | REFUSED | EXPIRED, or UNKNOWN when the habitat did not answer in
+#: time; it tells "on its way" when the action went up, and when its answer is due, before that answer.
+OnboardSend = Callable[[str, str, Mapping[str, Any], OnItsWay], tuple[str, str]]
 
 #: Actions the habitat takes on an onboard run, and the arguments each sends up. Those clicked on
 #: an instruction name it: the habitat refuses them if its run has moved on meanwhile (the page
@@ -205,7 +206,8 @@ ONBOARD_ACTIONS: dict[str, Callable[[str, ActionRequest], dict[str, Any]]] = {
 
 def perform_onboard(send: OnboardSend, accounts: AccountStore, request: ForwardedAction) -> Answer:
     """An action on an onboard run, forwarded to the runner that supervises it: the role is checked
-    here, then it goes up to the habitat, which acts on it (or refuses) and says so."""
+    here, then it goes up to the habitat, which acts on it (or refuses) and says so; meanwhile the
+    console hears that it went up and when its answer is due (:meth:`ForwardedAction.on_its_way`)."""
     try:
         account = _forwarded_account(accounts, request)
         _require_operator(account)
@@ -219,7 +221,7 @@ def perform_onboard(send: OnboardSend, accounts: AccountStore, request: Forwarde
         args = arguments(account.user, action)
     except ActionRefused as exc:
         return Answer(exc.status, {"error": exc.message})
-    state, message = send(action.action, account.user, args)
+    state, message = send(action.action, account.user, args, request.on_its_way)
     if state == "DONE":
         return Answer(200, {"ok": True, "action": action.action, "result": f"on the habitat: {message}"})
     if state == "UNKNOWN":

@@ -343,6 +343,18 @@ async def run_action(request: Request, account: Account) -> Response:
 
 
 @_api
+async def run_action_progress(request: Request) -> Response:
+    """What became of an action forwarded to a far host (one answered "on its way, expected at T")."""
+    _account(request)
+    board: RunBoard = request.app.state.board
+    run_id, request_id = request.path_params["run_id"], request.path_params["request_id"]
+    known = await run_in_threadpool(board.forwarding.progress, request_id, run_id)
+    if known is None:
+        raise ActionRefused(404, f"run {run_id!r} has no forwarded action {request_id}")
+    return JSONResponse(known)
+
+
+@_api
 @_operators("watch, not resume runs")
 async def run_resume(request: Request, account: Account) -> Response:
     """Continue a stopped or interrupted run (what ``caretaker run --resume`` does) on a binding."""
@@ -620,6 +632,7 @@ def build_app(
             Route("/api/runs", runs_start, methods=["POST"]),
             Route("/api/runs/{run_id}", run_get),
             Route("/api/runs/{run_id}/actions", run_action, methods=["POST"]),
+            Route("/api/runs/{run_id}/actions/{request_id:int}", run_action_progress),
             Route("/api/runs/{run_id}/resume", run_resume, methods=["POST"]),
             Route("/api/runs/{run_id}/camera", run_camera),
             WebSocketRoute("/ws/runs", runs_socket),

@@ -22,7 +22,7 @@ import signal
 import time
 from collections.abc import Callable, Coroutine, Mapping, Sequence
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +34,13 @@ from procedure_language.lint import CheckedProcedure
 from records.audit_chain import GENESIS, link_hash
 from records.audit_log import AuditLog
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
+from rosbridge_wire.light_time import LightTime
 
 from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign
 
 __all__ = [
     "ActionOutcome",
+    "ActionTiming",
     "Downlink",
     "DownlinkError",
     "HabitatNews",
@@ -54,6 +56,10 @@ POLL_WAIT_S = 10.0
 #: How long an uplinked unit may take to reach the habitat and start, past the link's round trip.
 UNIT_LIFETIME_S = 300.0
 _RETRY_S = (1.0, 2.0, 5.0)
+#: What acting on an operator's action may take on the habitat before it answers (a loaded machine).
+ACTION_WORK_S = 10.0
+#: How long past its round trip an action may still be taken: sent again under its key meanwhile.
+ACTION_SPARE_S = 60.0
 
 
 class DownlinkError(RuntimeError):
@@ -217,6 +223,28 @@ class ActionOutcome:
     message: str
 
 
+@dataclass(frozen=True)
+class ActionTiming:
+    """When an operator's action went up and what the link's light time makes of it (ground clock,
+    epoch s). Nothing here is a constant wait: each is :meth:`LightTime.answer_within` of the link,
+    so an action at 600 s one way is on its way for 20 minutes, not unknown after 30 s."""
+
+    sent: float
+    expected_at: float  # its answer is due: sent + round trip + the habitat's work
+    expires_at: float  # the habitat refuses it after this (its lifetime); sent again until then
+    gives_up_at: float  # the last try before it expired is answered by then, or never
+
+    @classmethod
+    def of(cls, light_time: LightTime, sent: float) -> ActionTiming:
+        expires_at = sent + light_time.answer_within(ACTION_SPARE_S)
+        return cls(
+            sent=sent,
+            expected_at=sent + light_time.answer_within(ACTION_WORK_S),
+            expires_at=expires_at,
+            gives_up_at=expires_at + light_time.answer_within(ACTION_WORK_S),
+        )
+
+
 class OnboardSupervisor:
     """Uplinks ``unit`` and follows its run until it ends (:meth:`run`); operators' actions go up
     keyed (:meth:`act`, or :meth:`act_from_thread` from a console's thread).
@@ -313,14 +341,16 @@ class OnboardSupervisor:
         self._say(f"READY run {self.unit.run_id}")
         return await self._follow()
 
-    async def act(self, action: str, user: str, **args: Any) -> ActionOutcome:
-        """Send an operator's action up, under one key until the habitat answers or it runs out."""
+    async def act(self, action: str, user: str, *, timing: ActionTiming | None = None, **args: Any) -> ActionOutcome:
+        """Send an operator's action up, under one key until the habitat answers or it runs out
+        (``timing``: when it was sent, as :meth:`act_from_thread` told the console; default now)."""
+        timing = timing or ActionTiming.of(self.endpoint.light_time, time.time())
         operator = OperatorAction(
             key=f"{self.unit.run_id}/{action}/{secrets.token_hex(6)}",
             run_id=self.unit.run_id,
             action=action,
             user=user,
-            expires_at=time.time() + 60 + 2 * self.endpoint.one_way_delay,
+            expires_at=timing.expires_at,
             args=args,
         )
         text = operator.to_json()
@@ -338,25 +368,35 @@ class OnboardSupervisor:
         self._say(f"  {message}")
         return ActionOutcome("UNKNOWN", message)
 
-    def act_from_thread(self, action: str, user: str, args: Mapping[str, Any], timeout: float) -> ActionOutcome:
-        """:meth:`act` from another thread (a console's forwarded request), waiting up to ``timeout``."""
+    def act_from_thread(
+        self,
+        action: str,
+        user: str,
+        args: Mapping[str, Any],
+        on_its_way: Callable[[ActionTiming], None] | None = None,
+    ) -> ActionOutcome:
+        """:meth:`act` from another thread (a console's forwarded request), waiting for its answer as
+        long as the light time makes it take; ``on_its_way`` hears when it went up and when its
+        answer is due, before that answer (a console says so meanwhile)."""
         loop = self._loop
         if loop is None:
             return ActionOutcome("REFUSED", "the run is not uplinked yet: not sent")
-        sending = self.act(action, user, **args)
+        timing = ActionTiming.of(self.endpoint.light_time, time.time())
+        sending = self.act(action, user, timing=timing, **args)
         try:
             future = asyncio.run_coroutine_threadsafe(sending, loop)
         except RuntimeError:  # the loop has ended: supervision is over
             sending.close()
             return ActionOutcome("REFUSED", "the ground no longer supervises this run: not sent")
+        if on_its_way is not None:
+            on_its_way(timing)
         try:
-            return future.result(timeout)
+            return future.result(max(0.0, timing.gives_up_at - time.time()) + 1.0)
         except concurrent.futures.CancelledError:  # supervision ended while it was being sent
             return ActionOutcome("UNKNOWN", "supervision ended while it was being sent (see the log)")
         except TimeoutError:
-            return ActionOutcome(
-                "UNKNOWN", f"sent; no answer from the habitat within {timeout:.0f} s (see the run's log)"
-            )
+            given_up = datetime.fromtimestamp(timing.gives_up_at, UTC).strftime("%H:%M:%S UTC")
+            return ActionOutcome("UNKNOWN", f"sent; no answer from the habitat by {given_up} (see the run's log)")
 
     def _interrupt(self) -> None:
         self._interrupts += 1

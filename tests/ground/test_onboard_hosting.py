@@ -53,7 +53,7 @@ class Habitat:
         self.sent: list[tuple[str, str, dict[str, Any]]] = []
         self.answers: dict[str, tuple[str, str]] = {}
 
-    def __call__(self, action: str, user: str, args: Mapping[str, Any]) -> tuple[str, str]:
+    def __call__(self, action: str, user: str, args: Mapping[str, Any], on_its_way: object = None) -> tuple[str, str]:
         self.sent.append((action, user, dict(args)))
         return self.answers.get(action, ("DONE", f"{action} by {user}"))
 

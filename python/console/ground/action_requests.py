@@ -13,6 +13,15 @@ take the request, then withdraws it (``pending`` → ``expired``, atomic too). E
 it first, and then it will answer, or the withdrawal won, and the action was never performed and
 never will be. A taken request unanswered after :data:`ANSWER_WITHIN_S` has an unknown outcome,
 and the requester says so (the run's log shows what happened).
+
+On its way: a host whose answer comes from far away (an onboard run's supervisor, across the
+link's light time) says when it sent the action on and when its answer is due
+(:meth:`ForwardedAction.on_its_way`: ``taken`` → ``sent``, with the answer's due time and the
+time after which none can come). The requester then waits for the answer until it is due, and no
+longer than it would for any host: an answer due later is reported "on its way, expected at T"
+(status 202, with the request's id), and :meth:`ActionRequests.progress` tells what became of it
+afterwards: still on its way, ``unknown`` once it is due and none came (the answer may still come
+until the host gives up), then the answer or a final ``unknown``.
 """
 
 from __future__ import annotations
@@ -23,7 +32,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
@@ -34,14 +43,18 @@ from sqlalchemy.exc import SQLAlchemyError
 from console.ground.change_feed import ChangeNotice
 from records.console_tables import run_action_requests
 
-__all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction"]
+__all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction", "OnItsWay"]
 
 log = logging.getLogger(__name__)
 
 #: How long a host has to take a request before the requester withdraws it (never performed).
 TAKE_WITHIN_S = 5.0
-#: How long a taken request may go unanswered before its outcome is reported unknown.
+#: How long a taken request may go unanswered before its outcome is reported unknown, and how long
+#: a requester waits for any answer (one due later is reported on its way).
 ANSWER_WITHIN_S = 30.0
+
+#: A host says an action went on to where it is done: (its answer due at, none after), epoch s.
+OnItsWay = Callable[[float, float], None]
 
 _R = run_action_requests.c
 
@@ -55,6 +68,13 @@ class ForwardedAction:
     user: str
     console: str
     action: dict[str, Any]
+    told: OnItsWay | None = field(default=None, compare=False, repr=False)
+
+    def on_its_way(self, expected_at: float, gives_up_at: float) -> None:
+        """The host sent the action on: its answer is due at ``expected_at``, none comes after
+        ``gives_up_at`` (epoch s); the requester says so until the answer comes."""
+        if self.told is not None:
+            self.told(expected_at, gives_up_at)
 
 
 @dataclass(frozen=True)
@@ -140,9 +160,17 @@ class ActionRequests:
                     )
                 arrived.clear()
                 state = self._state(request_id)
-            while state == "taken":
-                if not arrived.wait(max(0.0, take_within + answer_within - (time.monotonic() - started))):
+            patience = time.time() + take_within + answer_within - (time.monotonic() - started)
+            while state in ("taken", "sent"):
+                # an answer due (sent) before the requester's patience runs out is waited for until
+                # due; one due later is on its way, and said so at once
+                due = self._due(request_id)[0] if state == "sent" else patience
+                if due > patience:
+                    return Answer(202, {"result": self.progress(request_id)})
+                if not arrived.wait(max(0.0, min(due, patience) - time.time())):
                     state = self._state(request_id)
+                    if state == "sent":
+                        return Answer(202, {"result": self.progress(request_id)})
                     if state == "taken":
                         return Answer(
                             504,
@@ -173,6 +201,46 @@ class ActionRequests:
                     .values(state="expired")
                 ).rowcount
             )
+
+    def _due(self, request_id: int) -> tuple[float, float]:
+        """A sent request's (answer due at, none after), epoch s, as its host said."""
+        with self._engine.connect() as connection:
+            text = connection.scalar(select(_R.answer).where(_R.id == request_id))
+        note = _action(str(text or ""))
+        return float(note.get("expected_at", 0.0)), float(note.get("gives_up_at", 0.0))
+
+    def progress(self, request_id: int, run_id: str | None = None) -> dict[str, Any] | None:
+        """What became of a request (of ``run_id``, when given) so far; None if there is none.
+
+        ``state``: ``pending`` or ``taken`` (not sent on yet), ``on_its_way`` (its answer is due at
+        ``expected_at``), ``unknown`` (due, none came; ``final`` once none can come any more),
+        ``done`` (with ``result``), ``refused`` (with ``status`` and ``error``), ``expired`` (never
+        performed). Times are epoch s of this ground's clock."""
+        with self._engine.connect() as connection:
+            row = connection.execute(
+                select(_R.run_id, _R.state, _R.status, _R.answer, _R.action).where(_R.id == request_id)
+            ).one_or_none()
+        if row is None or (run_id is not None and row.run_id != run_id):
+            return None
+        known: dict[str, Any] = {"request": request_id, "action": _action(row.action).get("action")}
+        body = _action(str(row.answer or ""))
+        if row.state == "sent":
+            expected_at, gives_up_at = float(body.get("expected_at", 0.0)), float(body.get("gives_up_at", 0.0))
+            now = time.time()
+            state = "on_its_way" if now < expected_at else "unknown"
+            return known | {
+                "state": state,
+                "final": now >= gives_up_at,
+                "expected_at": expected_at,
+                "gives_up_at": gives_up_at,
+            }
+        if row.state == "done":
+            return known | {"state": "done", "final": True, "result": body.get("result")}
+        if row.state == "refused":
+            return known | {"state": "refused", "final": True, "status": row.status, "error": body.get("error")}
+        if row.state == "expired":
+            return known | {"state": "expired", "final": True, "error": "its host did not take it: not performed"}
+        return known | {"state": str(row.state), "final": False}
 
     def _answer(self, request_id: int) -> Answer:
         with self._engine.connect() as connection:
@@ -233,7 +301,14 @@ class ActionRequests:
             ).one()
         if not taken:
             return  # withdrawn, or taken already
-        request = ForwardedAction(request_id, row.run_id, row.user_id, row.console, _action(row.action))
+        request = ForwardedAction(
+            request_id,
+            row.run_id,
+            row.user_id,
+            row.console,
+            _action(row.action),
+            told=lambda expected_at, gives_up_at: self._on_its_way(request_id, expected_at, gives_up_at),
+        )
         if self._aside:
             threading.Thread(
                 target=self._perform_and_answer, args=(request,), name=f"forwarded-{request_id}", daemon=True
@@ -261,6 +336,23 @@ class ActionRequests:
             self._write_answer(request.request_id, answer)
         except SQLAlchemyError as exc:
             log.warning("cannot answer forwarded action %s: %s", request.request_id, str(exc).splitlines()[0])
+
+    def _on_its_way(self, request_id: int, expected_at: float, gives_up_at: float) -> None:
+        """Note a taken request sent on, and when its answer is due (``taken`` → ``sent``): its
+        requester says so. A note that cannot be written leaves the requester waiting as for any
+        host; the answer is written all the same."""
+        try:
+            with self._engine.begin() as connection:
+                connection.execute(
+                    update(run_action_requests)
+                    .where(_R.id == request_id, _R.state == "taken")
+                    .values(
+                        state="sent",
+                        answer=json.dumps({"expected_at": expected_at, "gives_up_at": gives_up_at}),
+                    )
+                )
+        except SQLAlchemyError as exc:
+            log.warning("cannot note forwarded action %s on its way: %s", request_id, str(exc).splitlines()[0])
 
     def _write_answer(self, request_id: int, answer: Answer) -> None:
         with self._engine.begin() as connection:

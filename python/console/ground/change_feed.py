@@ -191,7 +191,7 @@ class PollingFeed(ChangeFeed):
         self._hosts = hosts
         floor = (
             min(
-                [i for i, (state, _) in self._requests.items() if state in ("pending", "taken")]
+                [i for i, (state, _) in self._requests.items() if state in ("pending", "taken", "sent")]
                 or [max(self._requests, default=0) + 1]
             )
             - 1

@@ -61,7 +61,10 @@ async function act(action, extra = {}) {
   const field = action === "enter" ? recordError(extra.instruction) : null;
   if (field) field.textContent = "";
   try {
-    await api("POST", `/api/runs/${encodeURIComponent(view.runId)}/actions`, {action, ...extra});
+    const runId = view.runId;
+    const answer = await api("POST", `/api/runs/${encodeURIComponent(runId)}/actions`, {action, ...extra});
+    const known = answer.result;  // an action to a far run: on its way (action_news.js follows it)
+    if (known && typeof known === "object" && known.request !== undefined) followAction(runId, known);
   } catch (error) {
     (field || $("action-error")).textContent = error.message;
   }
@@ -295,6 +298,7 @@ async function openRun(runId) {
   if (!again) view.followed = null;  // a reconnect does not scroll the page under the operator's pointer
   view.envsSeen = "";
   $("action-error").textContent = "";
+  if (!again) clearActionNews();
   let data;
   try {
     data = await api("GET", `/api/runs/${encodeURIComponent(runId)}`);
