@@ -106,7 +106,7 @@ async def oversized(context: CaseContext) -> Verdict:
         try:
             await conversation.send(request)
         except OSError:  # the server may close before it read everything: its close frame tells why
-            await conversation.maybe(lambda m: False, 2)
+            await conversation.poll(lambda m: False, 2)
         answer = await conversation.expect(lambda m: m.get("id") == request_id, 20, "an answer to a 16 MiB request")
     except WireClosed as closed:
         if closed.code == 1009:
@@ -121,7 +121,7 @@ FLOOD = 300
 
 
 async def flood(context: CaseContext) -> Verdict:
-    server, caller = await context.connect("server"), await context.connect("caller")
+    server, caller = await context.connect_pair("server", "caller")
     service = context.name("flooded")
     await server.send(
         {"op": "advertise_service", "id": new_id("adv"), "service": service, "type": "std_srvs/srv/SetBool"}
@@ -154,7 +154,7 @@ async def flood(context: CaseContext) -> Verdict:
             answered = {m.get("id") for m in caller.received if m.get("id") in wanted}
             if answered == wanted or loop.time() > deadline or caller.closed is not None:
                 break
-            await caller.maybe(lambda m: False, 0.2)
+            await caller.poll(lambda m: False, 0.2)
     finally:
         answering.cancel()
     served = sum(1 for m in caller.received if m.get("id") in wanted and m.get("result") is True)
@@ -179,7 +179,7 @@ async def _not_served(context: CaseContext, stranger: Conversation) -> Verdict:
         return Verdict(Outcome.OK, "the server closed the connection")
     await publish_until(friend, friend, topic, {"data": "secret"}, 15)
     await publish_until(friend, friend, topic, {"data": "secret2"}, 5, lambda m: m.get("msg") == {"data": "secret2"})
-    leaked = await stranger.maybe(op_is("publish", topic=topic), 1.0)
+    leaked = await stranger.poll(op_is("publish", topic=topic), 1.0)
     if leaked is not None:
         return Verdict(Outcome.FAILED, "the unauthenticated connection received the topic's messages")
     if stranger.closed is not None:

@@ -70,7 +70,7 @@ async def fragment_missing(context: CaseContext) -> Verdict:
 
 
 async def fragments_out(context: CaseContext) -> Verdict:
-    publisher, subscriber = await context.connect("A"), await context.connect("B")
+    publisher, subscriber = await context.connect_pair("A", "B")
     topic = context.name("fragmented_out")
     await topic_pair(publisher, subscriber, topic, STRING, fragment_size=FRAGMENT_SIZE)
     payload = "x" * BIG
@@ -81,7 +81,7 @@ async def fragments_out(context: CaseContext) -> Verdict:
         return Verdict(Outcome.FAILED, f"a {BIG}-character message came whole despite fragment_size {FRAGMENT_SIZE}")
     message_id = first.get("id")
     loop = asyncio.get_running_loop()
-    deadline = loop.time() + 8
+    deadline = loop.time() + 8 + subscriber.latency + subscriber.outage
     while True:
         parts = [m for m in subscriber.received if m.get("op") == "fragment" and m.get("id") == message_id]
         total = first.get("total")
@@ -92,7 +92,7 @@ async def fragments_out(context: CaseContext) -> Verdict:
             break
         if loop.time() > deadline:
             return Verdict(Outcome.FAILED, f"parts {sorted(map(str, nums))} of {total} arrived; the rest never did")
-        await subscriber.maybe(lambda m: False, 0.1)
+        await subscriber.poll(lambda m: False, 0.1)
     by_num = {m["num"]: m.get("data", "") for m in parts}
     whole = json.loads("".join(by_num[i] for i in range(total)))
     if whole.get("op") != "publish" or whole.get("msg") != {"data": payload}:
@@ -104,7 +104,7 @@ async def fragments_out(context: CaseContext) -> Verdict:
 
 
 async def _compressed(context: CaseContext, compression: str) -> dict[str, Any]:
-    publisher, subscriber = await context.connect("A"), await context.connect("B")
+    publisher, subscriber = await context.connect_pair("A", "B")
     topic = context.name(f"compressed_{compression.replace('-', '_')}")
     await topic_pair(publisher, subscriber, topic, STRING, compression=compression)
     return await publish_until(

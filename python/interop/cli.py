@@ -45,6 +45,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--ca", type=Path, help="PEM CA bundle that verifies a wss:// server's certificate")
     parser.add_argument("--report", type=Path, help="write index.json and index.html into this directory")
     parser.add_argument("--name", help="the server's name in the report (default: the URL)")
+    parser.add_argument(
+        "--link-delay", type=float, default=0.0, help="one-way delay of a link to the server, s (waits grow by it)"
+    )
+    parser.add_argument("--outage", type=float, default=0.0, help="longest outage of that link, s (waits grow by it)")
+    parser.add_argument(
+        "--quiet", type=float, default=30.0, help="how long the link profile's quiet client reads nothing, s (1-60)"
+    )
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
     return parser
 
@@ -117,7 +124,16 @@ def main(argv: list[str]) -> int:
             raise ValueError(f"not a ws:// or wss:// URL: {args.url!r}")
         credentials = Credentials(_secret(args.secret_file)) if args.secret_file else None
         profiles = _profiles(args.profile, credentials is not None)
-        target = Target(args.url, _ssl_context(args.url, args.ca), credentials)
+        if not 0 <= args.link_delay <= 60 or not 0 <= args.outage <= 600 or not 1 <= args.quiet <= 60:
+            raise ValueError("--link-delay must be 0-60 s, --outage 0-600 s, --quiet 1-60 s")
+        target = Target(
+            args.url,
+            _ssl_context(args.url, args.ca),
+            credentials,
+            one_way_delay=args.link_delay,
+            outage=args.outage,
+            quiet=args.quiet,
+        )
     except ValueError as error:
         print(f"{PROG}: {error}", file=sys.stderr)
         return 2

@@ -33,7 +33,7 @@ _COLOURS = {
 
 def case_line(result: CaseResult) -> str:
     """One line for the console: number, outcome, time, title and what was seen."""
-    return f"{result.case:<14} {result.outcome.value:<13} {result.duration:6.1f} s  {result.title}: {result.observed}"
+    return f"{result.case:<17} {result.outcome.value:<13} {result.duration:6.1f} s  {result.title}: {result.observed}"
 
 
 def passed(results: Iterable[CaseResult], claimed: Iterable[str]) -> bool:

@@ -51,6 +51,14 @@ class Target:
     url: str
     ssl_context: ssl.SSLContext | None = None
     credentials: Credentials | None = None
+    one_way_delay: float = 0.0  # of a link between the suite and the server (seconds)
+    outage: float = 0.0  # the longest the link may hold traffic (seconds)
+    quiet: float = 30.0  # how long the link profile's quiet client reads nothing (seconds)
+
+    @property
+    def latency(self) -> float:
+        """What a wait for anything on its way grows by: a round trip of the link."""
+        return 2 * self.one_way_delay
 
 
 class CaseContext:
@@ -60,9 +68,13 @@ class CaseContext:
         self.target = target
         self.recorder = Recorder()
         # ROS names may not hold dots or start a token with a digit: core.3 -> /interop_<run>/core_3
-        self.prefix = f"/interop_{run_id}/{number.replace('.', '_').replace('-', '_')}"
+        self.prefix = f"/interop_{run_id}/{re.sub(r'[^A-Za-z0-9_]', '_', number)}"
         self._conversations: list[Conversation] = []
         self._sockets: list[WebSocket] = []
+
+    async def window(self, seconds: float) -> None:
+        """Wait ``seconds`` (plus the link's latency) for messages that may still be on their way."""
+        await asyncio.sleep(seconds + self.target.latency)
 
     def name(self, leaf: str) -> str:
         """A ROS name no other case (nor another run) uses."""
@@ -76,9 +88,16 @@ class CaseContext:
             label,
             ssl_context=self.target.ssl_context,
             credentials=self.target.credentials if authenticate else None,
+            latency=self.target.latency,
+            outage=self.target.outage,
         )
         self._conversations.append(conversation)
         return conversation
+
+    async def connect_pair(self, first: str, second: str) -> tuple[Conversation, Conversation]:
+        """Two conversations opened at once (over a long link each opening costs round trips)."""
+        one, two = await asyncio.gather(self.connect(first), self.connect(second))
+        return one, two
 
     async def raw_socket(self, label: str = "raw") -> WebSocket:
         """A bare WebSocket (no auth, nothing read for the case): for the framing cases."""
@@ -98,10 +117,7 @@ class CaseContext:
         return None
 
     async def close_all(self) -> None:
-        for conversation in self._conversations:
-            await conversation.close()
-        for socket in self._sockets:
-            await socket.close()
+        await asyncio.gather(*(c.close() for c in self._conversations), *(s.close() for s in self._sockets))
 
 
 CaseFunction = Callable[[CaseContext], Awaitable[Verdict]]
@@ -123,13 +139,15 @@ class Case:
 async def run_case(case: Case, target: Target, run_id: str) -> CaseResult:
     """Run one case within its time; every way it can end is a ``CaseResult``."""
     context = CaseContext(target, case.number, run_id)
+    # a case makes a dozen round trips or so, and one outage may hold any of them
+    limit = case.timeout + 20 * target.latency + 2 * target.outage
     started = time.monotonic()
     try:
-        verdict = await asyncio.wait_for(case.run(context), case.timeout)
+        verdict = await asyncio.wait_for(case.run(context), limit)
     except Deviation as deviation:
         verdict = deviation.verdict
     except TimeoutError:
-        verdict = Verdict(Outcome.FAILED, f"the case did not end within {case.timeout:g} s")
+        verdict = Verdict(Outcome.FAILED, f"the case did not end within {limit:g} s")
     except NotAnswered as missing:
         verdict = Verdict(Outcome.FAILED, str(missing))
     except WireClosed as closed:
@@ -159,15 +177,28 @@ async def run_case(case: Case, target: Target, run_id: str) -> CaseResult:
     )
 
 
+#: Profiles whose cases run all at once, as the clients of a ground share one link: one by one,
+#: round trips of a long link would make them take many minutes.
+TOGETHER = ("link",)
+
+
 async def run_cases(
     cases: Iterable[Case], target: Target, on_result: Callable[[CaseResult], None] | None = None
 ) -> list[CaseResult]:
-    """Run cases one after another (each has the server to itself); ``on_result`` sees each as it ends."""
+    """Run cases one after another (each has the server to itself), those of the profiles in
+    :data:`TOGETHER` all at once; ``on_result`` sees each as it ends. Results in the cases' order."""
     run_id = os.urandom(3).hex()
-    results = []
-    for case in cases:
+    ordered = list(cases)
+    results: dict[str, CaseResult] = {}
+
+    async def one(case: Case) -> None:
         result = await run_case(case, target, run_id)
         if on_result is not None:
             on_result(result)
-        results.append(result)
-    return results
+        results[case.number] = result
+
+    for case in ordered:
+        if case.profile not in TOGETHER:
+            await one(case)
+    await asyncio.gather(*(one(case) for case in ordered if case.profile in TOGETHER))
+    return [results[case.number] for case in ordered]

@@ -77,8 +77,12 @@ def op_is(op: str, **fields: Any) -> Matcher:
 class Conversation:
     """One connection to the server as a case uses it."""
 
-    def __init__(self, socket: WebSocket) -> None:
+    def __init__(self, socket: WebSocket, *, latency: float = 0.0, outage: float = 0.0) -> None:
         self.socket = socket
+        # Over a long link every wait grows: ``latency`` (a round trip) for anything on its way,
+        # twice that and ``outage`` for an answer that must come (a held link delays it that long).
+        self.latency = latency
+        self.outage = outage
         self.received: list[dict[str, Any]] = []
         self.raw: list[str | bytes] = []  # the same messages as they came (a NaN token or null)
         self._taken: set[int] = set()
@@ -94,9 +98,12 @@ class Conversation:
         *,
         ssl_context: ssl.SSLContext | None = None,
         credentials: Credentials | None = None,
+        latency: float = 0.0,
+        outage: float = 0.0,
     ) -> Conversation:
         """Connect, and authenticate first when the server has a secret."""
-        conversation = cls(await WebSocket.connect(url, recorder, label, ssl_context=ssl_context))
+        socket = await WebSocket.connect(url, recorder, label, ssl_context=ssl_context)
+        conversation = cls(socket, latency=latency, outage=outage)
         if credentials is not None:
             await conversation.send(auth_message(credentials.secret))
         return conversation
@@ -130,8 +137,11 @@ class Conversation:
         return None
 
     async def expect(self, match: Matcher, timeout: float, what: str) -> dict[str, Any]:
-        """The first untaken message that matches; ``NotAnswered`` after ``timeout``, ``WireClosed``
-        if the server closed the connection first."""
+        """The first untaken message that matches; ``NotAnswered`` after ``timeout`` (plus the
+        link's latency and outage), ``WireClosed`` if the server closed the connection first."""
+        return await self._wait(match, timeout + 2 * self.latency + self.outage, what)
+
+    async def _wait(self, match: Matcher, timeout: float, what: str) -> dict[str, Any]:
         deadline = time.monotonic() + timeout
         while True:
             found = self._find(match)
@@ -152,6 +162,20 @@ class Conversation:
         """Like ``expect``, but None when nothing matches in time (the connection may have closed)."""
         try:
             return await self.expect(match, timeout, "")
+        except (NotAnswered, WireClosed):
+            return None
+
+    def discard(self, match: Matcher) -> int:
+        """Mark every message received so far that matches as taken (stale requests); how many."""
+        stale = [i for i, m in enumerate(self.received) if i not in self._taken and match(m)]
+        self._taken.update(stale)
+        return len(stale)
+
+    async def poll(self, match: Matcher, timeout: float) -> dict[str, Any] | None:
+        """Like ``maybe`` within exactly ``timeout`` (plus the link's latency only): for loops that
+        repeat a request, and for windows in which nothing should arrive."""
+        try:
+            return await self._wait(match, timeout + self.latency if timeout else 0.0, "")
         except (NotAnswered, WireClosed):
             return None
 

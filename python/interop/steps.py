@@ -57,13 +57,13 @@ async def publish_until(
     default a ``publish`` of ``topic``); the first such message."""
     wanted = match or op_is("publish", topic=topic)
     loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
+    deadline = loop.time() + timeout + subscriber.latency + subscriber.outage
     while True:
         await publisher.send({"op": "publish", "topic": topic, "msg": message})
         remaining = deadline - loop.time()
         if remaining <= 0:
             raise NotAnswered(f"nothing arrived on {topic} within {timeout:g} s of publishing")
-        found = await subscriber.maybe(wanted, min(_REPEAT, remaining))
+        found = await subscriber.poll(wanted, min(_REPEAT, remaining))
         if found is not None:
             return found
         if subscriber.closed is not None:
@@ -86,7 +86,7 @@ async def call_served(
     fails before the serving client saw it (the server had not discovered the service yet) is
     made again, with a fresh id."""
     loop = asyncio.get_running_loop()
-    deadline = loop.time() + timeout
+    deadline = loop.time() + timeout + caller.latency + caller.outage
     service = request["service"]
     while True:
         call_id = new_id("call")
@@ -97,10 +97,10 @@ async def call_served(
             remaining = deadline - loop.time()
             if remaining <= 0:
                 raise NotAnswered(f"neither the serving client nor the caller heard of the call to {service}")
-            incoming = await server.maybe(seen, min(0.1, remaining))
+            incoming = await server.poll(seen, min(0.1, remaining))
             if incoming is not None:
                 break
-            early = await caller.maybe(answered, 0)
+            early = await caller.poll(answered, 0)
             if early is not None:
                 if early.get("result") is True:
                     raise Deviation(Outcome.FAILED, f"answered without the serving client: {early}")
@@ -134,7 +134,7 @@ async def judge_refusal(conversation: Conversation, request_id: str | None, time
     except WireClosed as closed:
         return Verdict(Outcome.FAILED, f"the server closed the connection (code {closed.code}) instead of refusing")
     except NotAnswered:
-        other = await conversation.maybe(is_status, 0)
+        other = await conversation.poll(is_status, 0)
         if other is not None:
             status = other
         elif await conversation.still_serves(10):

@@ -120,6 +120,8 @@ class WebSocket:
         self.pongs: asyncio.Queue[bytes] = asyncio.Queue()
         self.closed: WireClosed | None = None
         self._sent_close = False
+        self._awake = asyncio.Event()
+        self._awake.set()
         self._task = asyncio.ensure_future(self._read_loop())
 
     @classmethod
@@ -192,6 +194,21 @@ class WebSocket:
             self._task.cancel()
             self._writer.close()
 
+    async def go_quiet(self, seconds: float) -> None:
+        """Read nothing for ``seconds``, as a client behind a link outage: no pongs, and the TCP
+        window closes once the kernel's buffers are full, so the server's writes back up."""
+        self.recorder.record("sent", self.label, f"<quiet: reading nothing for {seconds:g} s>")
+        transport = self._writer.transport
+        assert isinstance(transport, asyncio.ReadTransport)  # a socket's transport reads and writes
+        self._awake.clear()
+        transport.pause_reading()
+        try:
+            await asyncio.sleep(seconds)
+        finally:
+            transport.resume_reading()
+            self._awake.set()
+            self.recorder.record("sent", self.label, "<reading again>")
+
     # --- receiving -------------------------------------------------------------------------------
 
     async def receive(self) -> Message:
@@ -220,6 +237,7 @@ class WebSocket:
         kind = TEXT
         try:
             while True:
+                await self._awake.wait()
                 fin, opcode, payload = await self._read_frame()
                 if opcode == PING:
                     self.recorder.record("received", self.label, _describe(PING, payload))

@@ -1,9 +1,12 @@
 """``caretaker interop`` against a running ``caretaker up`` of the IVA habitat deployment (wss://,
-a secret), from another network namespace than the server: every profile passes.
+a secret), from another network namespace than the server: every profile passes, the ``at``
+profile on the IVA robot, and the ``link`` profile through ``caretaker link`` at 1.3 s one way
+with loss and a 30 s outage.
 
-The habitat namespace runs the stack as tests/flight/ starts it; the suite runs in the link
-namespace, which reaches the habitat's address directly (no relay), so only the network
-namespace boundary and the bridge's TLS and auth stand between them.
+The habitat namespace runs the stack as tests/flight/ starts it. The direct run is made from the
+link namespace, which reaches the habitat's address without a relay, so only the network
+namespace boundary and the bridge's TLS and auth stand between them; the ``link`` run is made
+from the ground namespace, whose only way to the habitat is the link.
 """
 
 from __future__ import annotations
@@ -22,7 +25,10 @@ from support.two_hosts import TwoHosts
 
 from .suite_support import assert_complete, finish_suite, start_suite
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=150)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=240)]
+
+DELAY = 1.3
+OUTAGE = 30
 
 
 @dataclass(frozen=True)
@@ -67,6 +73,37 @@ def test_every_profile_passes_from_another_namespace(habitat: Habitat, tmp_path:
         timeout=300,
     )
     assert_complete(run, PROFILES)
+    not_passing = {case: o for case, o in run.outcomes().items() if o not in ("OK", "NON-STRICT", "INFORMATIONAL")}
+    assert not not_passing, f"{not_passing}\n{run.output[-4000:]}"
+    assert run.returncode == 0, run.output[-2000:]
+
+
+def test_the_link_profile_passes_across_a_long_lossy_link_with_an_outage(habitat: Habitat, tmp_path: Path) -> None:
+    hosts = habitat.hosts
+    # the hold starts once the cases' connections are open (all run at once), so several of them
+    # must ride it out (the bridge closes a client that has not authenticated within 20 s)
+    options = ["--loss", "0.05", "--seed", "43", "--outage", f"hold:{OUTAGE}@40"]
+    link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=DELAY, options=options)
+    report = tmp_path / "report"
+    link_options = ["--link-delay", str(DELAY), "--outage", str(OUTAGE), "--quiet", str(OUTAGE)]
+    run = finish_suite(
+        start_suite(
+            f"wss://{link.address[0]}:{link.address[1]}",
+            report,
+            "caretaker-iva-over-the-link",
+            "--profile",
+            "link",
+            *habitat.auth_options(),
+            *link_options,
+            env=dict(os.environ),
+            prefix=["ip", "netns", "exec", hosts.ground.namespace],
+        ),
+        report,
+        "caretaker-iva-over-the-link",
+        timeout=900,
+    )
+    assert_complete(run, ("link",))
+    assert link.control.stats().holds >= 1, "the outage never happened during the run"
     not_passing = {case: o for case, o in run.outcomes().items() if o not in ("OK", "NON-STRICT", "INFORMATIONAL")}
     assert not not_passing, f"{not_passing}\n{run.output[-4000:]}"
     assert run.returncode == 0, run.output[-2000:]
