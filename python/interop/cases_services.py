@@ -166,9 +166,12 @@ async def goal_succeeds(context: CaseContext) -> Verdict:
 
 
 async def goal_canceled(context: CaseContext) -> Verdict:
-    server, client, action, goal_id, goal = await _goal_reached(context, feedback=False)
+    server, client, action, goal_id, goal = await _goal_reached(context, feedback=True)
     if not goal:
         return Verdict(Outcome.FAILED, "the goal was answered without reaching the serving client")
+    # A goal in progress: its feedback reached the sender, so the goal was accepted.
+    await server.send({"op": "action_feedback", "id": goal.get("id"), "action": action, "values": FEEDBACK})
+    await client.maybe(op_is("action_feedback", id=goal_id), 5)
     await client.send({"op": "cancel_action_goal", "id": goal_id, "action": action})
     cancel = await server.expect(op_is("cancel_action_goal", action=action), 10, "cancel_action_goal to the server")
     await server.send(
