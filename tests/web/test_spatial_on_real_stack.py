@@ -663,7 +663,7 @@ def _locate_values(server: WebServer, run_id: str) -> dict[str, float]:
     log = AuditLog(server.database.url)
     try:
         results = [
-            e.data
+            e.data.to_json()
             for e in log.events(run_id)
             if e.kind is EventKind.COMMAND_RESULT
             and e.data.to_json().get("command") == "locate"

@@ -158,6 +158,7 @@ class BridgeConnection(ServerConnection):
     _request_ended = False  # the blank line ending the HTTP request has been received
     _tail = b""  # the last bytes of the request so far, to find its end across reads
     _admitted = False
+    _ended = False  # the client's EOF has come, or the connection is lost
     _buffer: bytearray
     counted: CountedTransport
 
@@ -171,7 +172,13 @@ class BridgeConnection(ServerConnection):
         if not self._admitted:
             self.counted.abort()
 
+    # Both end websockets' stream: frames a later turn still holds are dropped after them (_handle_frames).
+    def eof_received(self) -> None:
+        self._ended = True
+        super().eof_received()
+
     def connection_lost(self, exc: Exception | None) -> None:
+        self._ended = True
         if self._admitted and self.gate is not None:
             self.gate.leave()
             self._admitted = False
@@ -237,10 +244,10 @@ class BridgeConnection(ServerConnection):
         """Handle the frames a turn left in the buffer, still without reading more: the socket is
         read again only once they are handled, so a burst of frames that each cost an answer (pings)
         never piles up here faster than it is answered."""
-        if HOLD_TURN not in self.counted.holds or self._framing is not Framing.BRIDGE:
+        if HOLD_TURN not in self.counted.holds:
             return
-        if HOLD_BACKLOG in self.counted.holds:  # the answers are not taken: that hold decides
-            self.counted.hold(HOLD_TURN, False)
+        if HOLD_BACKLOG in self.counted.holds or self._framing is not Framing.BRIDGE:
+            self._end_turn()  # the answers are not taken (that hold decides), or websockets frames now
             return
         self._handle_frames()
         if self.on_backlog is not None:
@@ -278,7 +285,8 @@ class BridgeConnection(ServerConnection):
                 rest = bytes(buffer[offset:])
                 buffer.clear()
                 self._end_turn()
-                super().data_received(rest)
+                if not self._ended:  # after the stream's end, websockets takes no more bytes
+                    super().data_received(rest)
                 return
             end = start + 4 + length
             if end > size:
