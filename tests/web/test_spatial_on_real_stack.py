@@ -694,7 +694,7 @@ def _registrations_by(server: WebServer, run_id: str, user: str) -> list[tuple[d
     return [
         (
             e.data.to_json()["args"],
-            results[e.data["key"]].data.to_json()["success"] if e.data.to_json()["key"] in results else None,
+            results[e.data.to_json()["key"]].data.to_json()["success"] if e.data.to_json()["key"] in results else None,
         )
         for e in sent
     ]
