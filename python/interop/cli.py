@@ -2,6 +2,8 @@
 
 Prints one line per case and a summary table; exits 0 only if every case of the claimed profiles
 is OK, NON-STRICT or INFORMATIONAL (1 otherwise, 2 for bad arguments or an unreachable server).
+``caretaker interop --serve PORT --profile clients`` turns it round: a scripted rosbridge server
+on PORT that checks a client (:mod:`interop.scripted_server`), with the same report.
 """
 
 from __future__ import annotations
@@ -34,7 +36,14 @@ class _Parser(argparse.ArgumentParser):
 
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description=__doc__.split("\n\n")[0] if __doc__ else None)
-    parser.add_argument("url", help="the server, ws://HOST:PORT or wss://HOST:PORT")
+    parser.add_argument("url", nargs="?", help="the server, ws://HOST:PORT or wss://HOST:PORT")
+    parser.add_argument(
+        "--serve",
+        type=int,
+        metavar="PORT",
+        help="instead of checking a server, serve a scripted one on 127.0.0.1:PORT that checks a client "
+        "(profile clients; docs/interop.md, Clients)",
+    )
     parser.add_argument(
         "--profile",
         default="",
@@ -119,7 +128,18 @@ def main(argv: list[str]) -> int:
     """Run the suite against one server (see the module docstring)."""
     args = _parser().parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if args.serve is not None:
+        if args.url:
+            why = "give a server's URL to check it, or --serve PORT to check a client, not both"
+            print(f"{PROG}: {why}", file=sys.stderr)
+            return 2
+        from .scripted_server import serve_main
+
+        claimed = [name.strip() for name in args.profile.split(",") if name.strip()] or ["clients"]
+        return serve_main(args.serve, claimed, args.report, args.json)
     try:
+        if not args.url:
+            raise ValueError("give the server's URL (ws://HOST:PORT or wss://HOST:PORT), or --serve PORT")
         if not args.url.startswith(("ws://", "wss://")):
             raise ValueError(f"not a ws:// or wss:// URL: {args.url!r}")
         credentials = Credentials(_secret(args.secret_file)) if args.secret_file else None

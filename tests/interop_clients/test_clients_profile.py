@@ -1,10 +1,10 @@
 """``--serve`` checks real clients: roslibpy, roslibjs (Node), the project's Python and Java clients.
 
-Each test starts the scripted server (``python -m interop.scripted_server``, what ``caretaker
-interop --serve`` runs) as a process, runs one client's driver against it as another process, and
-reads the report the server wrote. The report must be complete (every case an outcome, the frames
-that show it), and the outcomes must be what each client really does: for the project's clients
-they are read from their code (cited per case), for roslibpy 2.1.0 and roslib 2.1.0 from theirs.
+Each test starts the scripted server (``caretaker interop --serve``) as a process, runs one
+client's driver against it as another process, and reads the report the server wrote. The report
+must be complete (every case an outcome, the frames that show it), and the outcomes must be what
+each client really does: for the project's clients they are read from their code (cited per
+case), for roslibpy 2.1.0 and roslib 2.1.0 from theirs.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ OUTCOMES = {"OK", "NON-STRICT", "INFORMATIONAL", "UNIMPLEMENTED", "FAILED"}
 def serve_against(driver: Callable[[str], list[str]], report: Path) -> tuple[dict[str, Any], int, str]:
     """Run the scripted server and one driver; the server's report of that client, its exit code, its output."""
     server = subprocess.Popen(
-        [sys.executable, "-m", "interop.scripted_server", "--port", "0", "--report", str(report), "--timeout", "60"],
+        [str(REPO / ".venv" / "bin" / "caretaker"), "interop", "--serve", "0", "--report", str(report)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
