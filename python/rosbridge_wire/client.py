@@ -246,14 +246,18 @@ class RosbridgeClient:
         attempt = 0
         light = self.endpoint.light_time
         while not self._closed:
+            tls = self._ssl()
+            # asyncio gives a TLS handshake 60 s of its own: too short past about 20 s one way
+            handshake: dict[str, Any] = {"ssl_handshake_timeout": light.connect_within} if tls is not None else {}
             try:
                 async with websockets.connect(
                     self.endpoint.url,
-                    ssl=self._ssl(),
+                    ssl=tls,
                     ping_interval=light.keepalive,
                     ping_timeout=light.keepalive_timeout,
                     open_timeout=light.connect_within,
                     max_size=64 * 1024 * 1024,
+                    **handshake,
                 ) as socket:
                     auth = self._auth_message()
                     if auth is not None:

@@ -300,12 +300,15 @@ async def run(args: argparse.Namespace) -> int:
         origins: list[Any] = [None, *args.allow_origin]  # None: clients that send no Origin
         handler: Any = server.connection  # takes the BridgeConnection that make_connection creates
         factory: Any = server.make_connection
+        # the TLS handshake has the same limit (asyncio's own is 60 s): round trips of a long link
+        handshake: dict[str, Any] = {"ssl_handshake_timeout": limits.handshake_timeout} if tls else {}
         async with serve(
             handler,
             args.address,
             args.port,
             ssl=tls,
             open_timeout=limits.handshake_timeout,
+            **handshake,
             max_size=limits.max_message_size,
             compression=None,
             ping_interval=limits.ping_interval or None,
