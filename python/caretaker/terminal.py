@@ -16,42 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TextIO, assert_never
 
-from pride.event_payloads import (
-    ApprovalExpired,
-    ApprovalGiven,
-    ApprovalRequested,
-    AwaitingOperator,
-    BreakpointCleared,
-    BreakpointHit,
-    BreakpointSet,
-    CallEntered,
-    CommandResult,
-    CommandSent,
-    Confirmation,
-    Continued,
-    ControlLost,
-    ControlTaken,
-    Halt,
-    InstructionCompleted,
-    InstructionFailed,
-    InstructionHalted,
-    InstructionSkipped,
-    InstructionStarted,
-    LinkLost,
-    LinkRestored,
-    ModeChanged,
-    OperatorInput,
-    OutcomeResolved,
-    Paused,
-    RecordCorrected,
-    Retry,
-    RunCompleted,
-    RunResumed,
-    RunStarted,
-    RunStopped,
-    SteppedBack,
-    TelemetrySeen,
-)
+from pride import event_payloads as ep
 from pride.event_words import describe_event, result_text, started_text, telemetry_text
 from pride.events import Event
 from pride.executive import Executive, Hold, InstructionStatus, Mode, OperatorActionError, Snapshot
@@ -109,66 +74,74 @@ class ProgressPrinter:
         pax = f"  {number:<8} {'PAX':<10}"
         line: str | None = None
         match event.data:
-            case RunStarted() as d:
+            case ep.RunStarted() as d:
                 line = f"Run {event.run_id}: {d.title} (v{d.version}) by {event.actor}, {d.mode} mode"
-            case RunResumed() as d:
+            case ep.RunResumed() as d:
                 line = f"Run {event.run_id} resumed by {event.actor} at {number}, {d.mode} mode"
-            case InstructionStarted():
+            case ep.InstructionStarted():
                 self._header(number)
                 line = f"{who} {started_text(event)}"
-            case CommandSent() as d:
+            case ep.CommandSent() as d:
                 line = f"{who} {describe_event(event, self.wording)}" + (f" [{d.key}]" if d.key else "")
-            case CommandResult() as d:
+            case ep.CommandResult() as d:
                 line = f"  {number:<8} {'':<10} {result_text(d, self.wording, _MARKS)}"
-            case Halt() as d:
+            case ep.Halt() as d:
                 told = d.cancel_message
                 line = f"{who} HALT{_why(d.reason)}" + (f"; the system: {told}" if told else "")
-            case InstructionHalted() as d:
+            case ep.InstructionHalted() as d:
                 line = f"{who} halted before it finished{_why(d.reason)}"
-            case LinkLost() as d:
+            case ep.LinkLost() as d:
                 n = d.in_flight
                 line = (
                     f"{pax} {'no news' if d.quiet else 'link lost'} since {d.since[11:19]}Z, {n} command"
                     f"{'' if n == 1 else 's'} in flight{': waiting for it' if n else ''}"
                 )
-            case LinkRestored() as d:
+            case ep.LinkRestored() as d:
                 line = f"{pax} link restored after {d.seconds:g} s"
-            case ControlTaken() as d:
+            case ep.ControlTaken() as d:
                 line = f"{who} took control of {d.robot} from run {d.from_run} ({d.from_user}){_why(d.reason)}"
-            case ControlLost() as d:
+            case ep.ControlLost() as d:
                 line = f"{pax} control of {d.robot} taken over by {d.by_user} (run {d.by_run}){_why(d.reason)}"
-            case OperatorInput():
+            case ep.OperatorInput():
                 self._header(number)  # a correction, below, may be of an earlier step's record
                 line = f"{who} {describe_event(event, self.wording)}"
-            case RecordCorrected():
+            case ep.RecordCorrected():
                 line = f"{who} {describe_event(event, self.wording)}"
-            case SteppedBack() as d:
+            case ep.SteppedBack() as d:
                 line = f"{who} back to {d.next}{_why(d.reason)}"
-            case OutcomeResolved() as d:
+            case ep.OutcomeResolved() as d:
                 line = f"{who} recorded {d.key} as {d.outcome}{_why(d.reason)}"
-            case TelemetrySeen() as d:
+            case ep.TelemetrySeen() as d:
                 line = f"  {number:<8} {'':<10} {telemetry_text(d, self.wording)}"
-            case InstructionCompleted() as d:
+            case ep.InstructionCompleted() as d:
                 line = f"{who} done" + (f", go to step {d.went_to}" if d.went_to else "")
-            case InstructionFailed() as d:
+            case ep.InstructionFailed() as d:
                 branch = f"; branching to step {d.branch}" if d.branch else ""
                 line = f"{who} FAILED: {d.reason}{branch}"
-            case InstructionSkipped() as d:
+            case ep.InstructionSkipped() as d:
                 line = f"{who} skipped: {d.reason}"
-            case AwaitingOperator() as d:
+            case ep.AwaitingOperator() as d:
                 self._header(number)
                 line = f"{pax} waiting for an operator: {d.reason}"
-            case Retry(same_key=True) as d:
+            case ep.Retry(same_key=True) as d:
                 line = f"{who} asked again about {d.key} (same key)"
-            case ModeChanged() as d:
+            case ep.ModeChanged() as d:
                 line = f"{who} mode changed {d.mode}"
-            case Confirmation() | Paused() | Continued() | BreakpointHit() | Retry() | BreakpointSet():
+            case (
+                ep.Confirmation() | ep.Paused() | ep.Continued() | ep.BreakpointHit() | ep.Retry() | ep.BreakpointSet()
+            ):
                 line = f"{who} {event.kind.value.replace('_', ' ')}"
-            case RunCompleted():
+            case ep.RunCompleted():
                 line = f"Run {event.run_id} completed" + ("" if event.actor == "PAX" else f" by {event.actor}")
-            case RunStopped() as d:
+            case ep.RunStopped() as d:
                 line = f"Run {event.run_id} stopped by {event.actor}" + (f": {d.reason}" if d.reason else "")
-            case CallEntered() | BreakpointCleared() | ApprovalRequested() | ApprovalGiven() | ApprovalExpired():
+            case (
+                ep.CallEntered()
+                | ep.BreakpointCleared()
+                | ep.ApprovalRequested()
+                | ep.ApprovalGiven()
+                | ep.ApprovalExpired()
+            ):
                 pass  # the lines around them say enough
             case _:
                 assert_never(event.data)
@@ -480,6 +453,6 @@ class LeftBehind:
         self.out = out
 
     def __call__(self, event: Event) -> None:
-        if isinstance(event.data, (RunStopped, RunCompleted)):
+        if isinstance(event.data, (ep.RunStopped, ep.RunCompleted)):
             for system, name, why in event.data.leftovers():
                 self.out.say(f"LEFT {name} on {system}: {why}")

@@ -11,42 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, assert_never
 
-from pride.event_payloads import (
-    ApprovalExpired,
-    ApprovalGiven,
-    ApprovalRequested,
-    AwaitingOperator,
-    BreakpointCleared,
-    BreakpointHit,
-    BreakpointSet,
-    CallEntered,
-    CommandResult,
-    CommandSent,
-    Confirmation,
-    Continued,
-    ControlLost,
-    ControlTaken,
-    Halt,
-    InstructionCompleted,
-    InstructionFailed,
-    InstructionHalted,
-    InstructionSkipped,
-    InstructionStarted,
-    LinkLost,
-    LinkRestored,
-    ModeChanged,
-    OperatorInput,
-    OutcomeResolved,
-    Paused,
-    RecordCorrected,
-    Retry,
-    RunCompleted,
-    RunResumed,
-    RunStarted,
-    RunStopped,
-    SteppedBack,
-    TelemetrySeen,
-)
+from pride import event_payloads as ep
 from pride.events import Event, EventKind
 from pride.phrasing import labelled_values
 from procedure_language.sysrep import SysRep
@@ -166,39 +131,39 @@ class FoldedRun:
         if event.kind in _ARRIVALS:
             self.arrived = when
         match event.data:
-            case RunStarted() | RunResumed() as d:
-                self.procedure = d.procedure if isinstance(d, RunStarted) else self.procedure
+            case ep.RunStarted() | ep.RunResumed() as d:
+                self.procedure = d.procedure if isinstance(d, ep.RunStarted) else self.procedure
                 self.mode = d.mode
                 self.started_by = self.started_by or event.actor
                 self.status = "running"
-                if isinstance(d, RunStarted) and d.sha256 is not None:
+                if isinstance(d, ep.RunStarted) and d.sha256 is not None:
                     self.version = {"sha256": d.sha256, "release": d.release, "rehearsal": d.rehearsal}
-            case ModeChanged() as d:
+            case ep.ModeChanged() as d:
                 self.mode = d.new_mode or self.mode
-            case RunCompleted():
+            case ep.RunCompleted():
                 self.status, self.current, self.awaiting = "completed", None, None
-            case RunStopped() as d:
+            case ep.RunStopped() as d:
                 self.status, self.awaiting = "stopped", None
                 self.stopped = {"by": event.actor, "time": when, "reason": d.reason}
-            case Paused():
+            case ep.Paused():
                 self.status, self.paused = "paused", True
-            case Continued():
+            case ep.Continued():
                 self.status, self.awaiting, self.paused = "running", None, False
-            case Retry():
+            case ep.Retry():
                 self.status, self.awaiting = "running", None
-            case BreakpointSet() if number:
+            case ep.BreakpointSet() if number:
                 self.breakpoints.add(number)
-            case BreakpointCleared() if number:
+            case ep.BreakpointCleared() if number:
                 self.breakpoints.discard(number)
-            case CallEntered() as d if number:
+            case ep.CallEntered() as d if number:
                 self.envs[number + "/"] = dict(d.inputs)
-            case Halt() as d:
+            case ep.Halt() as d:
                 self.halted = {"by": event.actor, "time": when, "reason": d.reason}
-            case LinkLost() as d:
+            case ep.LinkLost() as d:
                 self.link = {"state": "lost", "since": d.since, "in_flight": d.in_flight, "quiet": d.quiet}
-            case LinkRestored():
+            case ep.LinkRestored():
                 self.link = {"state": "connected", "since": when}
-            case InstructionStarted() if number:
+            case ep.InstructionStarted() if number:
                 entry.status, entry.actor, entry.time, entry.started, entry.reason = (
                     "active",
                     event.actor,
@@ -209,28 +174,32 @@ class FoldedRun:
                 self.current, self.awaiting = number, None
                 if self.status == "awaiting":
                     self.status = "running"
-            case AwaitingOperator() | BreakpointHit() as d if number:
+            case ep.AwaitingOperator() | ep.BreakpointHit() as d if number:
                 entry.status = "awaiting"
-                entry.reason = d.reason if isinstance(d, AwaitingOperator) and d.reason else None
-                entry.reason = entry.reason or ("breakpoint" if isinstance(d, BreakpointHit) else None)
+                entry.reason = d.reason if isinstance(d, ep.AwaitingOperator) and d.reason else None
+                entry.reason = entry.reason or ("breakpoint" if isinstance(d, ep.BreakpointHit) else None)
                 self.current, self.awaiting, self.status = number, entry.reason or "operator", "awaiting"
-            case InstructionCompleted():
+            case ep.InstructionCompleted():
                 entry.status, entry.actor, entry.time, entry.reason = "completed", event.actor, when, None
-            case InstructionFailed() | InstructionSkipped() | InstructionHalted() as d:
-                status = {InstructionFailed: "failed", InstructionSkipped: "skipped", InstructionHalted: "halted"}
+            case ep.InstructionFailed() | ep.InstructionSkipped() | ep.InstructionHalted() as d:
+                status = {
+                    ep.InstructionFailed: "failed",
+                    ep.InstructionSkipped: "skipped",
+                    ep.InstructionHalted: "halted",
+                }
                 entry.status, entry.actor, entry.time = status[type(d)], event.actor, when
                 entry.reason = d.reason
-            case Confirmation():
+            case ep.Confirmation():
                 entry.confirmed_by = event.actor
-            case OutcomeResolved() as d:
+            case ep.OutcomeResolved() as d:
                 entry.resolved = {"by": event.actor, "outcome": d.outcome, "reason": d.reason}
-            case RecordCorrected() as d:
+            case ep.RecordCorrected() as d:
                 entry.value = d.value
                 entry.corrected = {"by": event.actor, "old": d.old, "value": d.value, "reason": d.reason}
                 self.envs.setdefault(frame, {})[d.name] = d.value
-            case CommandSent() as d:
+            case ep.CommandSent() as d:
                 entry.sent, entry.sent_by = d.to_json(), event.actor
-            case CommandResult() as d if number:  # an operator's command outside the instructions: its log only
+            case ep.CommandResult() as d if number:  # an operator's command outside the instructions: its log only
                 entry.result, entry.outcome = d.to_json(), d.outcome
                 entry.result_lines = labelled_values(d.values, self.sysreps.get(d.system))
                 if d.result:
@@ -238,32 +207,32 @@ class FoldedRun:
                 image = _image_path(d)
                 if image:
                     self.latest_image, self.latest_image_event = image, event
-            case OperatorInput() as d:
+            case ep.OperatorInput() as d:
                 entry.value = d.value
                 self.envs.setdefault(frame, {})[d.name] = d.value
-            case TelemetrySeen() as d:
+            case ep.TelemetrySeen() as d:
                 entry.telemetry = d.to_json()
             case (
-                BreakpointSet()
-                | BreakpointCleared()
-                | CallEntered()
-                | InstructionStarted()
-                | AwaitingOperator()
-                | BreakpointHit()
-                | CommandResult()
-                | SteppedBack()
-                | ControlTaken()
-                | ControlLost()
-                | ApprovalRequested()
-                | ApprovalGiven()
-                | ApprovalExpired()
+                ep.BreakpointSet()
+                | ep.BreakpointCleared()
+                | ep.CallEntered()
+                | ep.InstructionStarted()
+                | ep.AwaitingOperator()
+                | ep.BreakpointHit()
+                | ep.CommandResult()
+                | ep.SteppedBack()
+                | ep.ControlTaken()
+                | ep.ControlLost()
+                | ep.ApprovalRequested()
+                | ep.ApprovalGiven()
+                | ep.ApprovalExpired()
             ):
                 pass  # without an instruction, or shown through the run's snapshot and its log
             case _:
                 assert_never(event.data)
 
 
-def _image_path(data: CommandResult) -> str | None:
+def _image_path(data: ep.CommandResult) -> str | None:
     """A PNG path in a command result (the camera SysRep's capture answers with one)."""
     for key in _IMAGE_KEYS:
         value = data.values.get(key)

@@ -12,42 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import assert_never
 
-from pride.event_payloads import (
-    ApprovalExpired,
-    ApprovalGiven,
-    ApprovalRequested,
-    AwaitingOperator,
-    BreakpointCleared,
-    BreakpointHit,
-    BreakpointSet,
-    CallEntered,
-    CommandResult,
-    CommandSent,
-    Confirmation,
-    Continued,
-    ControlLost,
-    ControlTaken,
-    Halt,
-    InstructionCompleted,
-    InstructionFailed,
-    InstructionHalted,
-    InstructionSkipped,
-    InstructionStarted,
-    LinkLost,
-    LinkRestored,
-    ModeChanged,
-    OperatorInput,
-    OutcomeResolved,
-    Paused,
-    RecordCorrected,
-    Retry,
-    RunCompleted,
-    RunResumed,
-    RunStarted,
-    RunStopped,
-    SteppedBack,
-    TelemetrySeen,
-)
+from pride import event_payloads as ep
 from pride.events import Event
 from pride.phrasing import (
     Wording,
@@ -79,19 +44,19 @@ def started_text(event: Event) -> str:
     when it began filled in (``text_filled``), else, in a log recorded before events carried that,
     the author's text, its references said to be not known (the record does not hold them)."""
     data = event.data
-    if not isinstance(data, InstructionStarted):
+    if not isinstance(data, ep.InstructionStarted):
         return ""
     return data.text_filled if data.text_filled is not None else fill_text(data.text, {})
 
 
-def _values(data: CommandResult, wording: Wording) -> str:
+def _values(data: ep.CommandResult, wording: Wording) -> str:
     if not data.values:
         return ""
     lines = labelled_values(data.values, wording.sysreps.get(data.system))
     return " · " + ", ".join(f"{label} {text}" for label, text in lines)
 
 
-def _sent_text(data: CommandSent, wording: Wording) -> str:
+def _sent_text(data: ep.CommandSent, wording: Wording) -> str:
     """A COMMAND_SENT record in words: "sent" (again, when its key was re-sent), the command as its
     instruction reads, a hazard mark; with the raw switch, the call as sent after it."""
     system, command, args = data.system, data.command, data.args
@@ -105,7 +70,7 @@ def _sent_text(data: CommandSent, wording: Wording) -> str:
     return f"{text} · raw: {raw_call(system, command, ordered)}"
 
 
-def result_text(data: CommandResult, wording: Wording, outcomes: Mapping[str, str] = _OUTCOME_WORDS) -> str:
+def result_text(data: ep.CommandResult, wording: Wording, outcomes: Mapping[str, str] = _OUTCOME_WORDS) -> str:
     """A COMMAND_RESULT record in words: its outcome (as ``outcomes`` says it), the system's
     message and the values it returned, labelled and rounded."""
     success = "succeeded" if data.success else "failed"
@@ -114,7 +79,7 @@ def result_text(data: CommandResult, wording: Wording, outcomes: Mapping[str, st
     return f"{outcome}{message}{_values(data, wording)}"
 
 
-def reading_words(data: TelemetrySeen, wording: Wording) -> tuple[str, str, str]:
+def reading_words(data: ep.TelemetrySeen, wording: Wording) -> tuple[str, str, str]:
     """A TELEMETRY_SEEN record as the procedure view words it: the item's label, the value read
     (rounded, in its units, "(stale)" when it was) and the condition it was checked against
     ("" for a branch's reading, which has none of its own)."""
@@ -126,13 +91,13 @@ def reading_words(data: TelemetrySeen, wording: Wording) -> tuple[str, str, str]
     return telemetry_label(system, item, wording.sysreps), value, condition
 
 
-def telemetry_text(data: TelemetrySeen, wording: Wording) -> str:
+def telemetry_text(data: ep.TelemetrySeen, wording: Wording) -> str:
     """A TELEMETRY_SEEN record's reading in words: ``Plan Valid = true (stale)``."""
     label, value, _ = reading_words(data, wording)
     return f"{label} = {value}"
 
 
-def version_text(data: RunStarted) -> str:
+def version_text(data: ep.RunStarted) -> str:
     """The procedure version of a run_started record: " · release 3 (sha256 ab12cd34…)" or
     " · REHEARSAL of a draft (…)"; "" for a run recorded without one."""
     if not data.sha256:
@@ -151,72 +116,79 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
     """One line saying what an audit record was, in words (the web view's log and the report)."""
     said = wording or Wording()
     match event.data:
-        case RunStarted() as d:
+        case ep.RunStarted() as d:
             return f"started {d.procedure} v{d.version} in {d.mode} mode{version_text(d)}"
-        case RunResumed() as d:
+        case ep.RunResumed() as d:
             return f"resumed in {d.mode} mode" + (" (a command was in flight)" if d.in_flight else "")
-        case CommandSent() as d:
+        case ep.CommandSent() as d:
             return _sent_text(d, said)
-        case CommandResult() as d:
+        case ep.CommandResult() as d:
             return result_text(d, said)
-        case TelemetrySeen() as d:
+        case ep.TelemetrySeen() as d:
             verdict = "" if d.ok is None else (" ✓" if d.ok else " ✗")
             return f"saw {telemetry_text(d, said)}{verdict}"
-        case OperatorInput() as d:
+        case ep.OperatorInput() as d:
             return f"recorded {humanize(d.name)} = {format_value(d.value)}"
-        case InstructionFailed() as d:
+        case ep.InstructionFailed() as d:
             return f"failed: {d.reason}" + (f" → step {d.branch}" if d.branch else "")
-        case InstructionSkipped() as d:
+        case ep.InstructionSkipped() as d:
             return f"skipped: {d.reason}"
-        case InstructionCompleted() as d:
+        case ep.InstructionCompleted() as d:
             return "completed" + (f" → step {d.went_to}" if d.went_to else "")
-        case InstructionStarted():
+        case ep.InstructionStarted():
             return f"started: {started_text(event)}"
-        case AwaitingOperator() as d:
+        case ep.AwaitingOperator() as d:
             return f"waiting for an operator: {d.reason}"
-        case ModeChanged() as d:
+        case ep.ModeChanged() as d:
             return f"mode → {d.mode}"
-        case RunStopped() as d:
+        case ep.RunStopped() as d:
             return f"stopped: {d.reason}"
-        case Retry() as d:
+        case ep.Retry() as d:
             return f"retry after: {d.after}"
-        case CallEntered() as d:
+        case ep.CallEntered() as d:
             return f"entered {d.procedure} with {format_value(dict(d.inputs)) or 'no inputs'}"
-        case Confirmation() as d:
+        case ep.Confirmation() as d:
             return f"confirmed the hazardous command: {fill_text(d.command or '', {})}"
-        case ApprovalRequested() as d:
+        case ep.ApprovalRequested() as d:
             return f"sent for a second operator's approval: {d.command}"
-        case ApprovalGiven() as d:
+        case ep.ApprovalGiven() as d:
             carried = f", given on the ground at {_clock(d.given)} UTC and carried up" if d.carried else ""
             return f"approved {d.sender}'s command: {d.command} (good until {_clock(d.expires)} UTC{carried})"
-        case ApprovalExpired() as d:
+        case ep.ApprovalExpired() as d:
             return (
                 f"{d.approver}'s approval of {d.sender}'s command ran out at {_clock(d.expired)} "
                 "UTC before it could be sent: nothing sent, it waits for a new approval"
             )
-        case Halt() as d:
+        case ep.Halt() as d:
             told = d.cancel_message
             return f"HALT{_reason(d.reason)}" + (f"; the system: {told}" if told else "")
-        case InstructionHalted() as d:
+        case ep.InstructionHalted() as d:
             return f"halted before it finished{_reason(d.reason)}"
-        case OutcomeResolved() as d:
+        case ep.OutcomeResolved() as d:
             return f"recorded the unknown outcome as {d.outcome}{_reason(d.reason)}"
-        case RecordCorrected() as d:
+        case ep.RecordCorrected() as d:
             old, new = format_value(d.old), format_value(d.value)
             return f"corrected {humanize(d.name)}: {old} → {new}{_reason(d.reason)}"
-        case SteppedBack() as d:
+        case ep.SteppedBack() as d:
             return f"went back to {d.next}{_reason(d.reason)}"
-        case LinkLost() as d:
+        case ep.LinkLost() as d:
             n = d.in_flight
             what = "no news from the habitat" if d.quiet else "link lost"  # quiet: held, not yet given up
             return f"{what} since {_clock(d.since)} UTC, {n} command{'' if n == 1 else 's'} in flight"
-        case LinkRestored() as d:
+        case ep.LinkRestored() as d:
             return f"link restored after {d.seconds} s"
-        case ControlTaken() as d:
+        case ep.ControlTaken() as d:
             return f"took control of {d.robot} from run {d.from_run} ({d.from_user}){_reason(d.reason)}"
-        case ControlLost() as d:
+        case ep.ControlLost() as d:
             return f"control of {d.robot} taken over by {d.by_user} (run {d.by_run}){_reason(d.reason)}"
-        case RunCompleted() | Paused() | Continued() | BreakpointSet() | BreakpointCleared() | BreakpointHit():
+        case (
+            ep.RunCompleted()
+            | ep.Paused()
+            | ep.Continued()
+            | ep.BreakpointSet()
+            | ep.BreakpointCleared()
+            | ep.BreakpointHit()
+        ):
             return event.kind.value.replace("_", " ")
         case _:
             assert_never(event.data)

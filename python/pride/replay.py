@@ -15,42 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, assert_never
 
-from pride.event_payloads import (
-    ApprovalExpired,
-    ApprovalGiven,
-    ApprovalRequested,
-    AwaitingOperator,
-    BreakpointCleared,
-    BreakpointHit,
-    BreakpointSet,
-    CallEntered,
-    CommandResult,
-    CommandSent,
-    Confirmation,
-    Continued,
-    ControlLost,
-    ControlTaken,
-    Halt,
-    InstructionCompleted,
-    InstructionFailed,
-    InstructionHalted,
-    InstructionSkipped,
-    InstructionStarted,
-    LinkLost,
-    LinkRestored,
-    ModeChanged,
-    OperatorInput,
-    OutcomeResolved,
-    Paused,
-    RecordCorrected,
-    Retry,
-    RunCompleted,
-    RunResumed,
-    RunStarted,
-    RunStopped,
-    SteppedBack,
-    TelemetrySeen,
-)
+from pride import event_payloads as ep
 from pride.events import Event, EventKind
 from pride.frames import Frame, frames_at
 from pride.leftovers import taken_back
@@ -61,13 +26,13 @@ __all__ = ["Replayed", "replay", "result_values", "resumable_start"]
 
 #: How an instruction's end leaves it.
 _ENDED: dict[type, InstructionStatus] = {
-    InstructionCompleted: InstructionStatus.COMPLETED,
-    InstructionFailed: InstructionStatus.FAILED,
-    InstructionSkipped: InstructionStatus.SKIPPED,
-    InstructionHalted: InstructionStatus.HALTED,
+    ep.InstructionCompleted: InstructionStatus.COMPLETED,
+    ep.InstructionFailed: InstructionStatus.FAILED,
+    ep.InstructionSkipped: InstructionStatus.SKIPPED,
+    ep.InstructionHalted: InstructionStatus.HALTED,
 }
 #: Operator decisions after which a halt no longer holds the run.
-_HALT_ENDS = (Retry, Continued, SteppedBack, InstructionSkipped, OutcomeResolved)
+_HALT_ENDS = (ep.Retry, ep.Continued, ep.SteppedBack, ep.InstructionSkipped, ep.OutcomeResolved)
 
 
 @dataclass
@@ -88,12 +53,12 @@ class Replayed:
     seq: int = 0
 
 
-def result_values(data: CommandResult) -> dict[str, Any]:
+def result_values(data: ep.CommandResult) -> dict[str, Any]:
     """The variables a saved command result provides, from its COMMAND_RESULT event's data."""
     return {"success": data.success, "message": data.message, **data.values}
 
 
-def resumable_start(procedure_id: str, events: Sequence[Event]) -> RunStarted:
+def resumable_start(procedure_id: str, events: Sequence[Event]) -> ep.RunStarted:
     """The start of the run ``events`` record, if a run of ``procedure_id`` may go on from them.
 
     Raises:
@@ -101,7 +66,7 @@ def resumable_start(procedure_id: str, events: Sequence[Event]) -> RunStarted:
             added when it stopped (it cannot go on without it), or it ran another procedure.
     """
     started = events[0].data if events else None
-    if not isinstance(started, RunStarted):
+    if not isinstance(started, ep.RunStarted):
         raise OperatorActionError("the log holds no start of that run")
     run_id = events[0].run_id
     if any(e.kind is EventKind.RUN_COMPLETED for e in events):
@@ -143,22 +108,22 @@ def replay(
         prefix = number.rsplit("/", 1)[0] + "/" if "/" in number else ""
         data = event.data
         match data:
-            case ModeChanged() | RunResumed():
+            case ep.ModeChanged() | ep.RunResumed():
                 state.mode = Mode(data.mode)
-            case BreakpointSet():
+            case ep.BreakpointSet():
                 state.breakpoints.add(number)
-            case BreakpointCleared():
+            case ep.BreakpointCleared():
                 state.breakpoints.discard(number)
-            case OperatorInput() | RecordCorrected():
+            case ep.OperatorInput() | ep.RecordCorrected():
                 envs.setdefault(prefix, {})[data.name] = data.value
-            case Halt():
+            case ep.Halt():
                 state.halt = (event.actor, data.reason)
-            case CommandSent():
+            case ep.CommandSent():
                 sent = number
                 if data.key:
                     pending, unknown_why = data.key, ""
                     state.attempts[number] = max(state.attempts.get(number, 0), _attempt(data.key))
-            case CommandResult():
+            case ep.CommandResult():
                 sent = None
                 if data.outcome == "unknown":
                     unknown_why = f"outcome of {data.key} unknown: {data.message}"
@@ -167,45 +132,45 @@ def replay(
                     pending = None
                     if data.result:
                         envs.setdefault(prefix, {})[data.result] = result_values(data)
-            case OutcomeResolved():
+            case ep.OutcomeResolved():
                 pending = None
-            case CallEntered():
+            case ep.CallEntered():
                 envs[number + "/"] = dict(data.inputs)
-            case InstructionStarted():
+            case ep.InstructionStarted():
                 started = number
                 state.statuses[number] = InstructionStatus.EXECUTING
-            case SteppedBack():
+            case ep.SteppedBack():
                 for again in data.reset:
                     state.statuses[again] = InstructionStatus.PENDING
                 cursor, started, sent, pending, state.failure = data.next, None, None, None, None
-            case InstructionCompleted() | InstructionFailed() | InstructionSkipped() | InstructionHalted():
+            case ep.InstructionCompleted() | ep.InstructionFailed() | ep.InstructionSkipped() | ep.InstructionHalted():
                 state.statuses[number] = _ENDED[type(data)]
                 cursor = data.next
                 started = sent = pending = None
-                failed_here = isinstance(data, InstructionFailed) and cursor == number
-                if isinstance(data, InstructionFailed) and data.branch:
+                failed_here = isinstance(data, ep.InstructionFailed) and cursor == number
+                if isinstance(data, ep.InstructionFailed) and data.branch:
                     state.branches[number] = state.branches.get(number, 0) + 1
-                state.failure = data.reason if failed_here and isinstance(data, InstructionFailed) else None
-                if isinstance(data, InstructionHalted):
+                state.failure = data.reason if failed_here and isinstance(data, ep.InstructionFailed) else None
+                if isinstance(data, ep.InstructionHalted):
                     state.halt = (event.actor, data.reason)
             case (
-                RunStarted()
-                | RunCompleted()
-                | RunStopped()
-                | TelemetrySeen()
-                | Confirmation()
-                | ApprovalRequested()
-                | ApprovalGiven()
-                | ApprovalExpired()
-                | AwaitingOperator()
-                | Paused()
-                | Continued()
-                | BreakpointHit()
-                | Retry()
-                | LinkLost()
-                | LinkRestored()
-                | ControlTaken()
-                | ControlLost()
+                ep.RunStarted()
+                | ep.RunCompleted()
+                | ep.RunStopped()
+                | ep.TelemetrySeen()
+                | ep.Confirmation()
+                | ep.ApprovalRequested()
+                | ep.ApprovalGiven()
+                | ep.ApprovalExpired()
+                | ep.AwaitingOperator()
+                | ep.Paused()
+                | ep.Continued()
+                | ep.BreakpointHit()
+                | ep.Retry()
+                | ep.LinkLost()
+                | ep.LinkRestored()
+                | ep.ControlTaken()
+                | ep.ControlLost()
             ):
                 pass  # they change nothing a resume needs (a halt's end is below)
             case _:

@@ -17,42 +17,7 @@ from datetime import datetime
 from pathlib import Path
 from typing import assert_never
 
-from pride.event_payloads import (
-    ApprovalExpired,
-    ApprovalGiven,
-    ApprovalRequested,
-    AwaitingOperator,
-    BreakpointCleared,
-    BreakpointHit,
-    BreakpointSet,
-    CallEntered,
-    CommandResult,
-    CommandSent,
-    Confirmation,
-    Continued,
-    ControlLost,
-    ControlTaken,
-    Halt,
-    InstructionCompleted,
-    InstructionFailed,
-    InstructionHalted,
-    InstructionSkipped,
-    InstructionStarted,
-    LinkLost,
-    LinkRestored,
-    ModeChanged,
-    OperatorInput,
-    OutcomeResolved,
-    Paused,
-    RecordCorrected,
-    Retry,
-    RunCompleted,
-    RunResumed,
-    RunStarted,
-    RunStopped,
-    SteppedBack,
-    TelemetrySeen,
-)
+from pride import event_payloads as ep
 from pride.event_words import describe_event, reading_words, version_text
 from pride.events import PAX, Event, EventKind
 from pride.phrasing import Wording
@@ -61,7 +26,7 @@ __all__ = ["RunSummary", "StepSummary", "summarize", "to_html", "to_markdown", "
 
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".gif", ".svg", ".webp"}
 #: What a log that does not begin with its run's start is summarized from.
-_NO_START = RunStarted(procedure="", title="", version="", path="", mode="", robot="", steps=())
+_NO_START = ep.RunStarted(procedure="", title="", version="", path="", mode="", robot="", steps=())
 
 
 @dataclass
@@ -117,7 +82,7 @@ class RunSummary:
 def summarize(events: list[Event]) -> RunSummary:
     """Fold a run's events into what the report shows."""
     start = events[0]
-    started = start.data if isinstance(start.data, RunStarted) else _NO_START
+    started = start.data if isinstance(start.data, ep.RunStarted) else _NO_START
     steps = [StepSummary(number, title) for number, title in started.step_titles()]
     by_number = {s.number: s for s in steps}
     last_step: StepSummary | None = None
@@ -139,56 +104,56 @@ def summarize(events: list[Event]) -> RunSummary:
     for event in events:
         own = _own_step(event.instruction, by_number)  # a step's own instruction, not a sub-procedure's
         match event.data:
-            case InstructionCompleted() if own:
+            case ep.InstructionCompleted() if own:
                 own.completed += 1
-            case InstructionFailed() if own:
+            case ep.InstructionFailed() if own:
                 own.failed += 1
-            case InstructionSkipped() if own:
+            case ep.InstructionSkipped() if own:
                 own.skipped += 1
-            case RunCompleted():
+            case ep.RunCompleted():
                 outcome = "completed"
-            case RunStopped():
+            case ep.RunStopped():
                 outcome = "stopped"
-            case RunResumed():
+            case ep.RunResumed():
                 outcome = "interrupted"
-            case CommandResult(values=values) if Path(str(values.get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES:
+            case ep.CommandResult(values=values) if Path(str(values.get("path", ""))).suffix.lower() in _IMAGE_SUFFIXES:
                 path = str(values["path"])
                 images.append(
                     Image(event.instruction or "", event.time, path, str(values.get("label") or Path(path).stem))
                 )
-            case TelemetrySeen():
+            case ep.TelemetrySeen():
                 telemetry.append(event)
             case (
-                RunStarted()
-                | ModeChanged()
-                | InstructionStarted()
-                | InstructionCompleted()
-                | InstructionFailed()
-                | InstructionSkipped()
-                | InstructionHalted()
-                | CommandSent()
-                | CommandResult()
-                | OutcomeResolved()
-                | Halt()
-                | LinkLost()
-                | LinkRestored()
-                | ControlTaken()
-                | ControlLost()
-                | RecordCorrected()
-                | SteppedBack()
-                | OperatorInput()
-                | Confirmation()
-                | ApprovalRequested()
-                | ApprovalGiven()
-                | ApprovalExpired()
-                | AwaitingOperator()
-                | Paused()
-                | Continued()
-                | BreakpointSet()
-                | BreakpointCleared()
-                | BreakpointHit()
-                | Retry()
-                | CallEntered()
+                ep.RunStarted()
+                | ep.ModeChanged()
+                | ep.InstructionStarted()
+                | ep.InstructionCompleted()
+                | ep.InstructionFailed()
+                | ep.InstructionSkipped()
+                | ep.InstructionHalted()
+                | ep.CommandSent()
+                | ep.CommandResult()
+                | ep.OutcomeResolved()
+                | ep.Halt()
+                | ep.LinkLost()
+                | ep.LinkRestored()
+                | ep.ControlTaken()
+                | ep.ControlLost()
+                | ep.RecordCorrected()
+                | ep.SteppedBack()
+                | ep.OperatorInput()
+                | ep.Confirmation()
+                | ep.ApprovalRequested()
+                | ep.ApprovalGiven()
+                | ep.ApprovalExpired()
+                | ep.AwaitingOperator()
+                | ep.Paused()
+                | ep.Continued()
+                | ep.BreakpointSet()
+                | ep.BreakpointCleared()
+                | ep.BreakpointHit()
+                | ep.Retry()
+                | ep.CallEntered()
             ):
                 pass  # in the steps' counts and the actions table only
             case _:
@@ -303,7 +268,7 @@ def _copy_images(summary: RunSummary, out_dir: Path) -> None:
 def _reading(event: Event, wording: Wording) -> tuple[str, str, str, str]:
     """A verified reading as the report's telemetry table shows it: item, value, condition, result."""
     d = event.data
-    if not isinstance(d, TelemetrySeen):
+    if not isinstance(d, ep.TelemetrySeen):
         raise TypeError(f"event {event.seq} is a {event.kind.value}, not a reading")
     label, value, condition = reading_words(d, wording)
     met = d.ok is not False and not d.stale
