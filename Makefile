@@ -24,13 +24,14 @@ test: setup
 test-java: setup
 	@if [ -f pom.xml ]; then $(call held,mvn -q test); fi
 
-# Six workers on the CI machine's 2 cores: the suite waits more than it computes (a link's light
+# Eight workers on the CI machine's 2 cores: the suite waits more than it computes (a link's light
 # time, a ten-minute outage, processes and browsers starting), so more files run at once than there
-# are cores; while lighter files remain, no more than the cores can carry. The scheduler (tests/
+# are cores, but no more of the files that compute than the cores can carry. The scheduler (tests/
 # support/file_schedule.py) hands out whole files, the longest first, within a budget of cores
-# measured per file (tests/file_costs.json), and queues no file behind a long one. A file per
-# worker at a time, so module fixtures (a robot stack, a browser) are built once.
-PYTEST_WORKERS ?= 6
+# measured per file (tests/file_costs.json), holds a worker when nothing left fits, and queues no
+# file behind a long one. A file per worker at a time, so module fixtures (a robot stack, a
+# browser) are built once.
+PYTEST_WORKERS ?= 8
 test-python: setup
 	$(PYTEST) -n $(PYTEST_WORKERS) --dist loadfile --no-loadscope-reorder --durations=25 tests
 

@@ -3,8 +3,8 @@
 Small suites in a temporary folder, run by real pytest-xdist: a long file whose test waits until
 other files have run. pytest-xdist's own scheduling queues a file on the long file's worker, behind
 it, so the long test waits in vain; :class:`CostAwareFileScheduling` gives that worker the
-shortest file instead. And two files that each keep two cores busy never run at once while lighter
-files are left to run beside them.
+shortest file instead. And two files that each keep two cores busy never run at once: lighter
+files run beside them, or the worker waits.
 """
 
 from __future__ import annotations
@@ -153,6 +153,29 @@ def test_two_files_of_two_cores_never_run_at_once_while_lighter_ones_wait(
         not_beside="test_heavy_b.py",
         workers=3,
     ).assert_outcomes(passed=4)
+
+
+def test_a_worker_is_held_rather_than_run_a_file_the_cores_cannot_carry(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Three workers, two heavy files and one light one: the third worker has nothing that fits
+    beside the first heavy file, so it waits (the second heavy file runs after the first, never
+    beside it), where plain cost order would have run both heavy files at once."""
+    run_suite(
+        pytester,
+        monkeypatch,
+        files={"test_heavy_a": WAITING, "test_heavy_b": MARKING, "test_light": MARKING},
+        costs={
+            "test_heavy_a": FileCost(100, HEAVY),
+            "test_heavy_b": FileCost(50, HEAVY),
+            "test_light": FileCost(20, LIGHT),
+        },
+        schedule="ours",
+        patience=120,
+        wait_for="test_light.py",
+        not_beside="test_heavy_b.py",
+        workers=3,
+    ).assert_outcomes(passed=3)
 
 
 def test_a_file_costs_what_was_measured_or_what_its_mark_declares(tmp_path: Path) -> None:

@@ -15,9 +15,14 @@ more workers than cores ran several robot stacks and browsers at once, each slow
 
 :class:`CostAwareFileScheduling` gives the next longest file only to the worker that will be free
 first (a worker still busy for longer than another gets the shortest file instead), and only if
-the cores of the files running then stay within :data:`CORE_BUDGET`; otherwise the file that
-needs the fewest cores. Files that mostly wait (a link's light time, a ten-minute outage) thus run
-beside the ones that compute, on workers that would otherwise be too many.
+the cores of the files running then stay within :data:`CORE_BUDGET`. When no file left fits, the
+worker is held: it gets nothing until a test ends elsewhere, and the last test of its current
+file waits with it (pytest-xdist runs a worker's last test only once it knows the next). A worker
+is never held when no other worker is running a test, so the suite cannot stall. Files that mostly
+wait (a link's light time, a ten-minute outage) thus run beside the ones that compute, on workers
+beyond the cores, while the ones that compute never run more at once than the cores can carry: a
+file stretched by a crowded machine costs more CPU, not less (its simulator, its browser and its
+robot's nodes keep a share of a core for as long as they live).
 """
 
 from __future__ import annotations
@@ -108,16 +113,21 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         super().__init__(config, log)
         self._root = Path(config.rootpath)
         self._free_at: dict[WorkerController, float] = {}
+        self._held: list[WorkerController] = []  # in the order they were held: the first waited longest
 
     def _cost(self, scope: str) -> FileCost:
         return file_cost(self._root / scope, self._root)
+
+    def _running_a_test(self, node: WorkerController) -> bool:
+        """Whether ``node`` runs a test now: a held worker with one test left waits to run it."""
+        return node not in self._held or self._pending_of(self.assigned_work.get(node, {})) >= 2
 
     def _cores_running(self, besides: WorkerController) -> float:
         """The cores of the files the other workers run now (a file queued behind one has not started)."""
         total = 0.0
         for node, work in self.assigned_work.items():
             current = next((scope for scope, tests in work.items() if not all(tests.values())), None)
-            if node is not besides and current is not None:
+            if node is not besides and current is not None and self._running_a_test(node):
                 total += self._cost(current).cores
         return total
 
@@ -140,22 +150,45 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
             + sum(self._cost(scope).seconds for scope, _ in queued)
         )
 
-    def _choose(self, node: WorkerController, free_at: float, now: float) -> str:
+    def _choose(self, node: WorkerController, free_at: float, now: float) -> str | None:
+        """The file ``node`` runs next, or None: hold it until a test ends elsewhere."""
         others = [
             self._free_from(other, now) for other in self._free_at if other is not node and not other.shutting_down
         ]
         if others and free_at > min(others):
             return str(next(reversed(self.workqueue)))  # busy longer than another worker: the shortest file
         room = CORE_BUDGET - self._cores_running(besides=node)
-        fitting = (scope for scope in self.workqueue if self._cost(scope).cores <= room)
-        return str(next(fitting, None) or min(self.workqueue, key=lambda scope: self._cost(scope).cores))
+        fitting = next((scope for scope in self.workqueue if self._cost(scope).cores <= room), None)
+        if fitting is not None:
+            return str(fitting)
+        if any(self._running_a_test(other) for other in self.assigned_work if other is not node):
+            return None
+        return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores))
 
     def _assign_work_unit(self, node: WorkerController) -> None:
         now = time.monotonic()
         free_at = self._free_from(node, now)
         scope = self._choose(node, free_at, now)
+        if scope is None:
+            if node not in self._held:
+                self._held.append(node)
+            return
+        if node in self._held:
+            self._held.remove(node)
         work_unit = self.workqueue.pop(scope)
         self._free_at[node] = free_at + self._cost(scope).seconds
         self.assigned_work.setdefault(node, {})[scope] = work_unit
         collection = self.registered_collections[node]
         node.send_runtest_some([collection.index(nodeid) for nodeid, done in work_unit.items() if not done])
+
+    def mark_test_complete(self, node: WorkerController, item_index: int, duration: float = 0) -> None:
+        """A test ended: its worker may get its next file, and so may the workers held for want of cores."""
+        super().mark_test_complete(node, item_index, duration)
+        for held in list(self._held):
+            if held is not node:
+                self._reschedule(held)
+
+    def remove_node(self, node: WorkerController) -> str | None:
+        if node in self._held:
+            self._held.remove(node)
+        return super().remove_node(node)  # type: ignore[no-any-return]  # an untyped base
