@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from caretaker.terminal import ProgressPrinter, TerminalLines
+from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.events import Event
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
 from pride.phrasing import Wording
@@ -63,11 +64,16 @@ def replayed(tmp_path: Path, sysreps: dict[str, SysRep]) -> tuple[list[Event], s
         log,
         run_id="iva-words",
         mode=Mode.AUTONOMOUS,
+        approvals=ApprovalPolicy(CriticalLevel.HAZARDOUS),  # the IVA deployment's: the unlock waits for bob
     )
     terminal = io.StringIO()
     executive.add_listener(ProgressPrinter(executive.procedure, TerminalLines(terminal), Wording(sysreps)))
     refusals = []
     executive.start("tester")
+    held(executive, Hold.CONFIRMATION, "2.4")
+    executive.confirm("tester")
+    held(executive, Hold.APPROVAL, "2.4")
+    executive.approve("bob")
     held(executive, Hold.OPERATOR_ACTION, "2.6")
     executive.mark_done("tester")
     held(executive, Hold.OPERATOR_INPUT, "4.1")
@@ -99,7 +105,7 @@ def test_the_iva_run_reads_in_words_in_the_report_and_on_the_terminal(
             "(id: 0, frame: filter/CDRA-F-0012, position 0 mm, orientation 0°)" in text
         )
         assert 'sent Plan Trajectory "grasp_and_pull" for cdra_filter:0' in text
-        assert "sent Unlock Filter" in text
+        assert "sent Unlock Filter [hazardous] (sent by tester, approved by bob)" in text
         # the planner's end pose, in millimetres and degrees, in its frame
         assert "end pose position (162, 335, 628) mm, orientation (-105, 0, 10)° in robot_base" in text  # look_above
         assert "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack" in text
