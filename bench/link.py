@@ -160,8 +160,10 @@ def fly(
     """One run of ``robot``'s procedure across ``case``'s link, from the ground or onboard, on its
     world as drawn or (``displace``) displaced by that seed; its figures."""
     from caretaker.certs import make_link_credentials
+    from caretaker.demo import DEMO_APPROVER, demo_approver
     from caretaker.link import LinkControl
     from caretaker.processes import caretaker
+    from pride.approvals import APPROVER_PASSWORD_ENV
     from pride.events import EventKind
     from records.audit_log import AuditLog
 
@@ -175,6 +177,8 @@ def fly(
         try:
             url = up.wait_for_line(r"^READY stack ", 300).split()[-1]
             db = f"sqlite:///{folder / 'audit.db'}"
+            # a hazardous command (the IVA unlock) is approved by the demo's second operator, at once
+            approver = {APPROVER_PASSWORD_ENV: demo_approver(db)}
             started = time.monotonic()
             run = caretaker(
                 "run",
@@ -189,9 +193,10 @@ def fly(
                 "--db",
                 db,
                 "--confirm-manual",
+                *("--confirm-hazardous", "--approver", DEMO_APPROVER),
                 *robot.run_options,
                 *(["--onboard"] if onboard else []),
-                env=env,
+                env={**env, **approver},
                 name="run",
             )
             words = run.wait_for_line(r"^RESULT ", 1800).split()

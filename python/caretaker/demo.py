@@ -1,7 +1,11 @@
 """``caretaker demo DEPLOYMENT``: stack up, the deployment's procedure autonomously, world checks, report.
 
 The procedure runs in its own process (``caretaker run``, with its own JVM), exactly as an
-operator would start it, with the answers the deployment's ``demo.inputs`` give. The demo then
+operator would start it, with the answers the deployment's ``demo.inputs`` give. A command that
+needs a second operator's approval (the IVA unlock: hazardous in the cdra SysRep) waits for it
+as on any run: the demo's operator sends it for approval and a second operator account of the
+demo's database, :data:`DEMO_APPROVER`, approves it (``caretaker run --confirm-hazardous
+--approver``, its password new for each demo, in the runner's environment). The demo then
 checks the *world*, not the procedure's word for it — the deployment's ``demo.checks``
 (:mod:`caretaker.world_checks`), watched from before the procedure starts: a run that says
 COMPLETED while the filter is still in the wrong place is a failed demo.
@@ -26,12 +30,16 @@ from caretaker.stack import Stack, StackFailed, stack_options
 from caretaker.world_checks import watch_world
 from console.accounts import AccountStore
 from datafile import DataFileError
+from pride.approvals import APPROVER_PASSWORD_ENV
 from sim.scene import load_scene
 
-__all__ = ["DEMO_USER", "demo_main", "demo_operator", "demo_home", "run_demo"]
+__all__ = ["DEMO_APPROVER", "DEMO_USER", "demo_approver", "demo_main", "demo_operator", "demo_home", "run_demo"]
 
 #: The operator account ``--serve`` signs in with (an account of the demo's database like any other).
 DEMO_USER = "demo"
+#: The second operator who approves the demo run's commands that need approval: nobody is at an
+#: unattended run to approve them, and the demo's own operator may not.
+DEMO_APPROVER = "demo-approver"
 
 
 def demo_home(deployment: Deployment) -> Path:
@@ -52,6 +60,7 @@ def _run_procedure(
     demo = deployment.demo
     assert demo is not None, "main() runs a demo only for a deployment that has one"
     answers = [f"--set={name}={value}" for name, value in demo.inputs.items()]
+    approver = {APPROVER_PASSWORD_ENV: demo_approver(db_url)}  # never on the command line
     result: dict[str, str] = {}
 
     def show(_: str, line: str) -> None:
@@ -71,15 +80,18 @@ def _run_procedure(
         bridge_url,
         "--auto",
         "--user",
-        "demo",
+        DEMO_USER,
         "--db",
         db_url,
         "--confirm-manual",
+        "--confirm-hazardous",
+        "--approver",
+        DEMO_APPROVER,
         "--deployment",
         str(deployment.path),
         *(["--rehearsal"] if deployment.simulator else []),
         *answers,
-        env=env,
+        env={**env, **approver},
         name="run",
         on_line=show,
     )
@@ -91,13 +103,24 @@ def _run_procedure(
 def demo_operator(db_url: str) -> str:
     """Give the demo operator account (:data:`DEMO_USER`) a new random password, creating the account
     if needed; returns the password, which is shown once and stored only as its hash."""
+    return _new_password(db_url, DEMO_USER, "Demo operator")
+
+
+def demo_approver(db_url: str) -> str:
+    """Give the demo's second operator (:data:`DEMO_APPROVER`) a new random password, creating the
+    account if needed; returns the password, which only the demo's runner is given."""
+    return _new_password(db_url, DEMO_APPROVER, "Demo second operator (approves)")
+
+
+def _new_password(db_url: str, user: str, name: str) -> str:
+    """A new random password for the operator account ``user`` of ``db_url``, made if missing."""
     password = secrets.token_urlsafe(12)
     store = AccountStore(db_url)
     try:
-        if store.get(DEMO_USER) is None:
-            store.add(DEMO_USER, "operator", password, name="Demo operator")
+        if store.get(user) is None:
+            store.add(user, "operator", password, name=name)
         else:
-            store.set_password(DEMO_USER, password)
+            store.set_password(user, password)
     finally:
         store.close()
     return password

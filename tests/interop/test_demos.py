@@ -2,9 +2,10 @@
 
 Each runs ``caretaker demo`` exactly as the README tells a newcomer (simulation as fast as
 possible): separate processes for the simulation, planner, AT server, rosbridge and the
-procedure runner with its JVM. ``caretaker demo`` exits 0 only if the procedure completed AND
-its own checks of the world hold (the deployment's ``demo.checks``, measured by the simulation),
-so these tests also read what it verified: one line per check. The undisplaced runs are the
+procedure runner with its JVM; the IVA unlock, hazardous, is sent only once the demo's second
+operator approved it, and its record and report name both. ``caretaker demo`` exits 0 only if
+the procedure completed AND its own checks of the world hold (the deployment's ``demo.checks``,
+measured by the simulation), so these tests also read what it verified: one line per check. The undisplaced runs are the
 shipped procedures' autonomous runs: their audit log must show every nominal step completed and
 the report every step reached.
 
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from caretaker.demo import DEMO_APPROVER, DEMO_USER
 from caretaker.processes import REPO
 from pride.events import EventKind
 from procedure_language.parser import load_procedure
@@ -68,7 +70,15 @@ def test_iva_cdra_filter_replacement(tmp_path: Path, ros_env: dict[str, str]) ->
         "verified: /cdra/installed_filter_id is 'CDRA-F-0012'",
         "verified: /cdra/filter_locked is True",
     ]
-    _every_step_done_and_reported("iva_cdra_filter_replacement.xml", tmp_path, output)
+    markdown = _every_step_done_and_reported("iva_cdra_filter_replacement.xml", tmp_path, output)
+    # the unlock is hazardous: the demo's operator sent it for approval, its second operator approved it
+    unlock = [
+        e.data.to_json() for e in demo_events(tmp_path) if e.kind is EventKind.COMMAND_SENT and e.instruction == "2.4"
+    ]
+    assert [(d["command"], d["requested_by"], d["approved_by"]) for d in unlock] == [
+        ("unlock_filter", DEMO_USER, DEMO_APPROVER)
+    ]
+    assert f"sent Unlock Filter [hazardous] (sent by {DEMO_USER}, approved by {DEMO_APPROVER})" in markdown
 
 
 def test_eva_inspection(tmp_path: Path, ros_env: dict[str, str]) -> None:

@@ -22,7 +22,7 @@ import pytest
 import websockets
 from websockets.sync.client import connect
 
-from caretaker.demo import DEMO_USER, demo_operator
+from caretaker.demo import DEMO_APPROVER, DEMO_USER, demo_approver, demo_operator
 from console.accounts import AccountStore, Role
 from console.catalog import CameraSettings
 from console.server import main
@@ -307,5 +307,21 @@ def test_demo_serve_gives_its_operator_a_new_password_each_time(tmp_path: Path) 
         assert account is not None and account.may_act
         assert first != second and store.verify(DEMO_USER, first) is None
         assert [a.user for a in store.accounts()] == [DEMO_USER]
+    finally:
+        store.close()
+
+
+def test_a_demo_run_is_approved_by_a_second_operator_account_of_its_own(tmp_path: Path) -> None:
+    db = f"sqlite:///{tmp_path / 'demo.db'}"
+    operator = demo_operator(db)
+    first = demo_approver(db)
+    second = demo_approver(db)  # the next demo on the same database: a new password, the same account
+    store = AccountStore(db)
+    try:
+        approver = store.verify(DEMO_APPROVER, second)
+        assert approver is not None and approver.may_act  # an operator: an observer may not approve
+        assert first != second and store.verify(DEMO_APPROVER, first) is None
+        assert store.verify(DEMO_USER, operator) is not None  # the signed-in operator's account untouched
+        assert sorted(a.user for a in store.accounts()) == sorted([DEMO_USER, DEMO_APPROVER])
     finally:
         store.close()
