@@ -33,6 +33,7 @@ from console.accounts import AccountStore
 from pride.events import Event, EventKind
 from records.audit_chain import StoredEvent
 from records.audit_log import AuditLog
+from support.second_operator import APPROVED_BY_BOB, approver_env
 from support.stack import write_deployment
 from support.two_hosts import LinkProcess, TwoHosts
 
@@ -97,7 +98,8 @@ class Flight:
 
     def run(self, *extra: str, record: bool = True) -> ManagedProcess:
         """``caretaker run`` of the IVA procedure in the ground namespace, autonomous and unattended
-        (``record``: with the clean filter's id, which 4.1 records, given on the command line)."""
+        (``record``: with the clean filter's id, which 4.1 records, given on the command line); bob
+        approves the hazardous unlock, at once (onboard: carried up in the unit)."""
         return self.hosts.caretaker(
             self.hosts.ground,
             "run",
@@ -110,6 +112,7 @@ class Flight:
             "--db",
             self.db_url,
             "--confirm-manual",
+            *APPROVED_BY_BOB,
             "--rehearsal",
             *([f"--set=clean_filter_id={CLEAN_FILTER}"] if record else []),
             *extra,
@@ -312,8 +315,13 @@ def flight(
     verbose: bool = False,
 ) -> Iterator[Flight]:
     """Both hosts up, the link between them, nothing run yet; everything stopped and removed after.
-    ``verbose``: the habitat's ``up`` echoes its parts' output (``Habitat.up.output``, its last 400 lines)."""
+    ``verbose``: the habitat's ``up`` echoes its parts' output (``Habitat.up.output``, its last 400 lines).
+    The ground database has the test people's accounts, and bob's password is in the flight's
+    processes' environment (only a ground runner reads it), so a run approves with
+    :data:`APPROVED_BY_BOB`."""
     with TwoHosts.create(ros_env) as hosts:
+        db_url = f"sqlite:///{hosts.folder / 'audit.db'}"
+        hosts.env = approver_env(db_url, hosts.env)
         credentials = make_link_credentials(hosts.folder / "link", [hosts.habitat.address, hosts.link.address], days=2)
         link_url = f"wss://{hosts.link.address}:{BRIDGE_PORT}"
         binding = write_ground_binding(
@@ -331,9 +339,7 @@ def flight(
             verbose=verbose,
         )
         link = hosts.start_link(target_port=BRIDGE_PORT, port=BRIDGE_PORT, delay=delay, options=link_options)
-        yield Flight(
-            hosts, habitat, probe, link, binding, f"sqlite:///{hosts.folder / 'audit.db'}", credentials, time_scale
-        )
+        yield Flight(hosts, habitat, probe, link, binding, db_url, credentials, time_scale)
 
 
 def result_of(run: ManagedProcess, timeout: float = RUN_TIMEOUT_S) -> tuple[str, str]:

@@ -18,6 +18,7 @@ import time
 import pytest
 
 from support.operator_page import expect_current
+from support.second_operator import APPROVED_BY_BOB
 
 from .flight_support import CLEAN_FILTER, PROCEDURE, flight
 
@@ -44,7 +45,7 @@ def test_an_onboard_action_at_14_s_one_way_is_shown_on_its_way_then_answered(ros
         runner = f.hosts.caretaker(
             f.hosts.ground,
             *("run", str(PROCEDURE), "--binding", str(f.binding), "--auto", "--user", OPERATOR),
-            *("--db", f.db_url, "--confirm-manual", "--rehearsal", "--onboard", "--at-consoles"),
+            *("--db", f.db_url, "--confirm-manual", *APPROVED_BY_BOB, "--rehearsal", "--onboard", "--at-consoles"),
             ready=r"^READY run ",
             timeout=600,  # opening the connection takes four round trips of 28 s
         )

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from support.operator_page import expect_current
+from support.operator_page import expect_current, unlock_approved_by
 
 from .flight_support import DELAY, LINK_MS, PULL_OUT, flight, start_from_console
 
@@ -85,8 +85,10 @@ def test_the_console_shows_a_lost_link_and_the_real_outcome_after_it(ros_env: di
             start_from_console(page, f, onboard=False)  # the PAX host opens its link to the habitat first
             expect(page.locator("#connection")).to_have_attribute("data-state", "open", timeout=LINK_MS)
             expect(page.locator("#robot-link")).to_have_attribute("data-state", "connected", timeout=LINK_MS)
+            # a guard, not a measure: 31 instructions from the ground, one round trip each, 4 motions, 3
+            # locates; on the way the operator sends the hazardous unlock for approval, and bob approves it
+            unlock_approved_by(page, "bob", timeout=480_000)
             confirm = page.locator('#procedure li.instruction[data-number="2.6"]')
-            # a guard, not a measure: 31 instructions from the ground, one round trip each, 4 motions, 3 locates
             expect_current(confirm, timeout=480_000)
             _what_the_view_drew_across_the_link(page)
             confirm.locator("button.done").click()

@@ -6,7 +6,8 @@ PostgreSQL database (as the locked-down runner role), each given the rosbridge U
 robot's binding and nothing about the other console. Console A runs the CDRA filter replacement
 and the EVA inspection at once, autonomously; operators on both consoles answer the holds
 through the page: an action taken in one console shows in the other (forwarded to the run's
-host, console A, through the database). Both runs complete; each run's log, telemetry and
+host, console A, through the database), the IVA unlock sent for approval on A and approved on B.
+Both runs complete; each run's log, telemetry and
 camera stay its own; a second run on a robot already controlled is refused.
 """
 
@@ -24,10 +25,12 @@ from records.audit_log import AuditLog
 from support.browser import signed_in_pages
 from support.operator_page import (
     IVA,
+    UNLOCK,
     audit_row,
     expect_current,
     expect_ended,
     instruction,
+    send_for_approval,
     shown_image_width,
     sign_in_on,
     start_run,
@@ -171,6 +174,14 @@ def test_one_console_runs_both_robots_and_both_consoles_act_on_both_runs(
     alice_eva.click("#continue")
     continued = bob_eva.locator('#audit li[data-kind="continued"][data-actor="alice"]')
     ground.seen_by_the_other(alice_eva, continued, "continued")
+
+    # IVA: alice on A sends the hazardous unlock for approval; bob approves it from B, and it is sent
+    ground.current(alice_iva, UNLOCK)
+    send_for_approval(alice_iva, UNLOCK)
+    ground.current(bob_iva, UNLOCK).locator("button.approve").click()
+    bob_iva.click("#confirm-yes")
+    ground.seen_by_the_other(bob_iva, audit_row(alice_iva, "approval_given", UNLOCK, "bob"), "approved alice's command")
+    expect(audit_row(alice_iva, "command_sent", UNLOCK, "PAX")).to_contain_text("sent by alice, approved by bob")
 
     # IVA: bob confirms the manual instruction from B; the run on A goes on
     ground.current(bob_iva, "2.6").locator("button.done").click()

@@ -25,6 +25,7 @@ from caretaker.stack import Stack
 from interop.terminal_session import TerminalSession
 from pride.events import EventKind
 from records.audit_log import AuditLog
+from support.second_operator import APPROVED_BY_BOB, approver_env
 from support.stack import robot_parts
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90)]
@@ -73,6 +74,7 @@ def _run_argv(robot: RobotSide, db: str, *extra: str) -> list[str]:
         db,
         f"--set=clean_filter_id={CLEAN_FILTER}",
         "--rehearsal",
+        *APPROVED_BY_BOB,  # the unlock, hazardous: bob approves it (the faults come after it)
         *extra,
     ]
 
@@ -139,7 +141,7 @@ def _answer_until(session: TerminalSession, stop_at: str | None = None) -> str |
 
 def test_rosbridge_killed_then_back(robot: RobotSide, tmp_path: Path) -> None:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
-    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), robot.env)
+    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), approver_env(db, robot.env))
     try:
         run_id = session.expect(r"READY run (\S+)").group(1)
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
@@ -163,7 +165,7 @@ def test_rosbridge_killed_then_back(robot: RobotSide, tmp_path: Path) -> None:
 
 def test_at_server_killed_during_execute(robot: RobotSide, tmp_path: Path) -> None:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
-    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), robot.env)
+    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), approver_env(db, robot.env))
     try:
         run_id = session.expect(r"READY run (\S+)").group(1)
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
@@ -232,8 +234,9 @@ def _assert_pulled_again_and_completed(events: list) -> None:
 def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: Path) -> None:
     db = f"sqlite:///{tmp_path / 'audit.db'}"
     status = StatusWatch(robot.url)
+    env = approver_env(db, robot.env)
     runner = caretaker(
-        "run", *_run_argv(robot, db, str(PROCEDURE), "--auto", "--confirm-manual")[2:], env=robot.env, name="runner"
+        "run", *_run_argv(robot, db, str(PROCEDURE), "--auto", "--confirm-manual")[2:], env=env, name="runner"
     )
     try:
         run_id = runner.wait_ready(120).split()[2]
@@ -250,7 +253,7 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
     assert not any(e.kind is EventKind.RUN_COMPLETED for e in before)
     # the command in flight is asked again with its key: the ledger answers its recorded outcome
     resumed = caretaker(
-        "run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual")[2:], env=robot.env, name="resumed"
+        "run", *_run_argv(robot, db, "--resume", run_id, "--confirm-manual")[2:], env=env, name="resumed"
     )
     try:
         resumed.proc.wait(timeout=300)

@@ -24,6 +24,23 @@ else:
     IMAGES = Path(tempfile.mkdtemp(prefix="caretaker-screenshots-"))
     atexit.register(shutil.rmtree, IMAGES, True)
 IVA = "iva_cdra_filter_replacement.xml"
+#: The IVA procedure's unlock of the dirty filter: hazardous in the cdra SysRep, so under the IVA
+#: robot side's critical commanding it is sent only once a second operator approved it.
+UNLOCK = "2.4"
+#: The console's own approval request, made in a page of the console's origin (it must be the
+#: console's origin: the server refuses another site's requests).
+_APPROVE = """async ([user, password, runId, number]) => {
+    const post = async (path, body, csrf) => {
+        const headers = {"Content-Type": "application/json", ...(csrf ? {"X-CSRF-Token": csrf} : {})};
+        const response = await fetch(path, {method: "POST", headers, body: JSON.stringify(body)});
+        return [response.status, await response.json().catch(() => ({}))];
+    };
+    const [signed, session] = await post("/api/session", {user, password});
+    if (signed !== 200) return `sign-in as ${user}: ${signed} ${session.error}`;
+    const [status, answer] = await post(`/api/runs/${encodeURIComponent(runId)}/actions`,
+                                        {action: "approve", instruction: number}, session.csrf);
+    return status === 200 ? "" : `approve: ${status} ${answer.error}`;
+}"""
 
 
 def start_run(page: Page, procedure: str, mode: str, binding: str = "iva.yaml", *, rehearsal: bool = True) -> str:
@@ -54,6 +71,46 @@ def expect_current(item: Locator, timeout: float | None = None) -> None:
         expect(item).to_have_class(re.compile(r"\bcurrent\b"), timeout=timeout)
     except AssertionError as failure:
         raise _with_where_the_run_is(item.page, failure) from None
+
+
+def send_for_approval(page: Page, number: str, timeout: float | None = None) -> None:
+    """Once the hazardous command ``number`` is current (within ``timeout`` ms, else Playwright's
+    wait), the page's operator sends it for a second operator's approval (Send for approval…, Yes),
+    and the request is on the record (a new one: a run that came back to it asks again)."""
+    item = instruction(page, number)
+    expect_current(item, timeout)
+    requests = page.locator(f'#audit li[data-kind="approval_requested"][data-instruction="{number}"]')
+    asked_before = requests.count()
+    item.locator("button.confirm").click()
+    page.click("#confirm-yes")
+    expect(requests).to_have_count(asked_before + 1)
+
+
+def approve_as(page: Page, user: str, number: str, password: str | None = None) -> None:
+    """``user`` (a test person, or an account whose ``password`` is given), signed in in a browser
+    context of their own beside ``page``'s, approves the command ``number`` of ``page``'s run as the
+    console's Approve… does: a second operator at another console, without drawing a console."""
+    origin = re.match(r"https?://[^/#]+", page.url)
+    assert origin is not None, page.url
+    browser = page.context.browser
+    assert browser is not None, "a page of a persistent context: no browser to open another context in"
+    context = browser.new_context()
+    try:
+        beside = context.new_page()
+        beside.goto(f"{origin.group(0)}/api/session")  # a page of the console's origin, its answer unread
+        refused = beside.evaluate(
+            _APPROVE, [user, PEOPLE[user][2] if password is None else password, page.evaluate("view.runId"), number]
+        )
+    finally:
+        context.close()
+    assert not refused, refused
+
+
+def unlock_approved_by(page: Page, approver: str, password: str | None = None, timeout: float | None = None) -> None:
+    """The IVA procedure's unlock, once the run holds there: the page's operator sends it for
+    approval and ``approver`` approves it (:func:`approve_as`), so the run goes on."""
+    send_for_approval(page, UNLOCK, timeout)
+    approve_as(page, approver, UNLOCK, password)
 
 
 def audit_row(page: Page, kind: str, number: str, actor: str) -> Locator:

@@ -1,9 +1,10 @@
 """The smaller defects of the operator console (issue 16, item 8), each shown fixed in a real browser.
 
 On the simulated systems (conftest.py's server): the audit log reads as lines, the runs list
-keeps itself current, Continue only where it can do something, resume from the web view, no
-overflow on narrow screens, a report without Python reprs or clipped labels, and Save that asks
-before it replaces a procedure.
+keeps itself current and marks rehearsals, Continue only where it can do something (and in the
+banner after a halt with nothing moving), a stale click refused and on the record, a refusal's
+words gone once the run moves on, resume from the web view, no overflow on narrow screens, a
+report without Python reprs or clipped labels, and Save that asks before it replaces a procedure.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from support.operator_page import (
     screenshot,
     start_run,
     stop_run,
+    unlock_approved_by,
 )
 from support.web_server import WebServer
 
@@ -30,6 +32,7 @@ from support.web_server import WebServer
 def test_the_audit_log_reads_in_lines_with_values_not_json(sign_in: Callable[[str], Page]) -> None:
     alice = sign_in("alice")
     start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
     sent = audit_row(alice, "command_sent", "1.3", "PAX")
     expect(sent).to_contain_text('sent Add Affordance Template "cdra_filter" (hide waypoints: false)')
@@ -57,6 +60,7 @@ def test_the_runs_list_marks_only_active_runs_live_and_updates_by_itself(
     listed = alice.locator(f'#run-list li[data-run-id="{run_id}"]')
     expect(listed).to_have_class(re.compile(r"\blive\b"))
     expect(listed.locator(".run-status")).to_have_text("running")
+    expect(listed.locator(".badge.version")).to_have_text("REHEARSAL")  # as its header says (a draft, on a simulator)
     alice.goto(f"{server.url}/#")  # alice now watches no run: only the list can tell her
 
     bob = sign_in("bob")
@@ -88,6 +92,32 @@ def test_continue_is_offered_only_where_automation_can_continue(sign_in: Callabl
     expect(alice.locator("#hold")).to_contain_text("2.1 failed")  # PAX went on by itself
     expect(alice.locator("#continue")).to_be_disabled()
     stop_run(alice, "continue checked")
+
+
+def test_a_stale_click_is_refused_on_the_record_and_a_halt_with_nothing_moving_offers_continue(
+    sign_in: Callable[[str], Page],
+) -> None:
+    alice = sign_in("alice")
+    start_run(alice, "web_walkthrough.xml", "manual")
+    instruction(alice, "1.1").locator("button.perform").click()
+    expect_current(instruction(alice, "2.1"))
+    # a click on an instruction the run has left (a page a moment behind): refused, with the rule, on the record
+    alice.evaluate("(number) => act('perform', {instruction: number})", "1.1")
+    expect(alice.locator("#action-error")).to_contain_text("1.1 is not the current instruction (the run is at 2.1)")
+    expect(audit_row(alice, "action_refused", "1.1", "alice")).to_contain_text(
+        "refused perform by the current instruction rule: 1.1 is not the current instruction"
+    )
+    # HALT while nothing moves: the run holds at 2.1, and the banner offers the way on
+    alice.click("#halt")
+    expect(alice.locator("#hold")).to_have_attribute("data-tone", "halted")
+    expect(alice.locator("#action-error")).to_have_text("")  # the run moved on: that refusal is past
+    go_on = alice.locator("#hold-continue")
+    expect(go_on).to_have_text("Continue")
+    go_on.click()
+    expect(audit_row(alice, "continued", "2.1", "alice")).to_have_count(1)
+    expect(alice.locator("#hold")).not_to_have_attribute("data-tone", "halted")
+    expect(go_on).to_be_hidden()
+    stop_run(alice, "halt with nothing moving checked")
 
 
 def test_a_stopped_run_is_resumed_from_the_web_view(sign_in: Callable[[str], Page], server: WebServer) -> None:
@@ -132,6 +162,7 @@ def test_nothing_runs_off_the_screen_at_narrow_widths(sign_in: Callable[[str], P
     alice = sign_in("alice")
     alice.set_viewport_size({"width": width, "height": 900})
     start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
     overflowing = alice.evaluate("""() => {
         const width = document.documentElement.clientWidth;
@@ -163,6 +194,7 @@ def test_the_report_shows_values_as_read_and_whole_step_titles(
 ) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm")
     stop_run(alice, "report checked")
     report = alice.context.new_page()

@@ -14,7 +14,15 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Page, expect
 
-from support.operator_page import IVA, expect_current, instruction, screenshot, start_run, stop_run
+from support.operator_page import (
+    IVA,
+    expect_current,
+    instruction,
+    screenshot,
+    start_run,
+    stop_run,
+    unlock_approved_by,
+)
 from support.web_server import REPO, WebServer, procedure_shelf, start_server
 
 RAW_COMMAND = re.compile(r"\b[a-z_]+\.[a-z_]+\(")
@@ -56,6 +64,7 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
 
     # once PAX has added the template, its instance id is in every sentence that names it
     alice.click("#mode-autonomous")
+    unlock_approved_by(alice, "bob")
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
     texts = sentences(alice)
     assert_readable(texts)
@@ -103,6 +112,7 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(
 ) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob")
     expect_current(instruction(alice, "2.6"))
     expect(instruction(alice, "2.6")).to_be_in_viewport()
     instruction(alice, "2.6").locator("button.done").click()

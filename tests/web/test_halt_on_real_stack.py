@@ -3,13 +3,13 @@ operator's way on completes the run (issue 29).
 
 ``caretaker up iva`` at a quarter of real time (the halt test at real time when
 ``CARETAKER_HALT_TIME_SCALE=1``, as bench/halt_under_load.py runs it: simulation, planner, AT
-server, ledger, rosbridge) and
-``caretaker serve`` with the JVM PAX plugins. PAX runs the IVA procedure autonomously; the
-operator confirms the area is clear (2.6) and, while the arm pulls the dirty filter out (2.7),
-presses HALT. The arm's ``/joint_states``, read over the stack's rosbridge with their sim-time
-stamps, come to rest and stay there; the instruction is recorded as halted by the operator, never
-as completed. A second run on the robot is then refused, naming the
-run that controls it, and taken over with a reason logged in both runs.
+server, ledger, rosbridge) and ``caretaker serve`` with the JVM PAX plugins. PAX runs the IVA
+procedure autonomously; the operator sends the unlock for approval (bob approves it), confirms
+the area is clear (2.6) and, while the arm pulls the dirty filter out (2.7), presses HALT. The
+arm's ``/joint_states``, read over the stack's rosbridge with their sim-time stamps, come to rest
+and stay there; the instruction is recorded as halted by the operator, never as completed. A
+second run on the robot is then refused, naming the run that controls it, and taken over with a
+reason logged in both runs.
 
 It also reports the wall-clock time from the press to the arm at rest (HALT acts on the press, not
 on the release): from the pointerdown event in the page (its timestamp) until the first joint
@@ -49,6 +49,7 @@ from support.operator_page import (
     instruction,
     start_run,
     stop_run,
+    unlock_approved_by,
 )
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
@@ -167,6 +168,7 @@ def _at_the_confirmation(open_page: Callable[[WebServer, str], Page], server: We
     in front of the cabinet is clear (2.6, before the pull-out): her page, the run's id, that instruction."""
     alice = open_page(server, "alice")
     run_id = start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob", timeout=240_000)  # hazardous in the cdra SysRep: bob approves it
     confirm = instruction(alice, "2.6")
     expect_current(confirm, timeout=240_000)
     return alice, run_id, confirm
@@ -369,6 +371,7 @@ def test_after_a_halt_mid_motion_re_planning_from_where_the_arm_is_completes_the
         f"went back to {PLAN_PULL_OUT}: re-plan grasp_and_pull of cdra_filter:0 from where the arm is and go on"
     )
     expect(replan).to_be_hidden()
+    unlock_approved_by(alice, "bob", timeout=MOTION_MS)  # the unlock again: each sending is approved
     expect_current(confirm, timeout=MOTION_MS)
     expect(audit_row(alice, "command_result", PLAN_PULL_OUT, "PAX").first).to_contain_text("succeeded")
     confirm.locator("button.done").click()

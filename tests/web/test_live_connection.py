@@ -1,9 +1,9 @@
 """The run's live connection: a page that opens its run again, or loses its connection, still shows
 every audit event and keeps what its operator has entered and not yet recorded.
 
-On the simulated systems (simulated_systems.py). The IVA procedure holds at 2.6 (an operator's
-Done) and records nothing more while it waits, so the audit list can be compared with the run's
-whole record.
+On the simulated systems (simulated_systems.py). The IVA procedure, its unlock approved by a
+second operator, holds at 2.6 (an operator's Done) and records nothing more while it waits, so
+the audit list can be compared with the run's whole record.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Page, Route, expect
 
-from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run
+from support.operator_page import IVA, audit_row, expect_current, instruction, start_run, stop_run, unlock_approved_by
 
 
 @pytest.fixture
@@ -23,6 +23,7 @@ def held(sign_in: Callable[[str], Page]) -> Iterator[tuple[Page, int]]:
     afterwards (the suite's server has one IVA robot, which a run left live would keep controlling)."""
     page = sign_in("alice")
     start_run(page, IVA, "autonomous")
+    unlock_approved_by(page, "bob")  # hazardous: bob approves it
     expect_current(instruction(page, "2.6"))
     yield page, int(page.evaluate("view.state.last_seq"))
     stop_run(page, "test done")

@@ -32,7 +32,7 @@ from at_ros.transforms import angle_between
 from console.spatial_world import compose
 from pride.events import EventKind
 from records.audit_log import AuditLog
-from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run
+from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run, unlock_approved_by
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
@@ -365,10 +365,12 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     # a console of its own machine: two 3D views on these two cores would halve the frame rate measured below
     carol.close()
 
-    # Execute: PAX runs on to the operator's manual check (2.6); once she marks it done, PAX executes
-    # the pull-out (2.7), the ghost goes (the live arm shows what happens) and stays gone after
+    # Execute: PAX runs on, past the unlock a second operator approves, to the operator's manual
+    # check (2.6); once she marks it done, PAX executes the pull-out (2.7), the ghost goes (the live
+    # arm shows what happens) and stays gone after
     act(alice, "set_breakpoint", instruction="2.8")
     act(alice, "continue")
+    unlock_approved_by(alice, "bob", timeout=TIMEOUT_MS)  # hazardous in the cdra SysRep: bob approves it
     wait_until_state(alice, "view.state.current === '2.6' && view.state.hold === 'operator_action'")
     assert inspect(alice)["ghost"]["visible"], "the ghost of the plan about to run"
     # looked at from above the cabinet, near the wall: its housing is between the eye and the
