@@ -3,11 +3,14 @@
 ``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge: separate processes) and
 ``caretaker serve`` with the JVM-hosted PAX plugins behind the executive: sign in; start the IVA
 procedure in manual mode; Send the first command and see its result and the audit record with the
-user's id; switch to autonomous and watch PAX stop at the manual instruction; let PAX carry the
+user's id; switch to autonomous: the hazardous unlock waits for a second operator (the sender is
+offered no Approve…, her own approval through the API is refused and recorded), bob approves it
+from his console; watch PAX stop at the manual instruction; let PAX carry the
 real arm through steps 2 and 3 to the record of the clean filter's id, enter it, and see PAX send
 it in the next command (an id the rack does not report as a clean filter is refused; one the
-operator re-enters is used, both values logged), and the run completes; an observer watching the
-same run cannot Send, and the server refuses it when forced. (test_operator_view.py covers the rest
+operator re-enters is used, both values logged), and the run completes, its report naming both
+operators of the unlock; an observer watching the same run cannot Send, and the server refuses
+it when forced, on the record. (test_operator_view.py covers the rest
 of the page on simulated systems.)
 """
 
@@ -20,7 +23,17 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from records.audit_log import AuditLog
-from support.operator_page import IVA, audit_row, expect_current, expect_ended, instruction, screenshot, start_run
+from support.operator_page import (
+    IVA,
+    UNLOCK,
+    audit_row,
+    expect_current,
+    expect_ended,
+    instruction,
+    screenshot,
+    send_for_approval,
+    start_run,
+)
 from support.web_server import REPO, WebServer, server_on_real_stack
 
 #: PAX plans and moves the arm on the way to a hold: real motion, as slow as the machine's load makes it.
@@ -97,9 +110,36 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
         == 403
     )
 
-    # autonomous: PAX runs on and holds at the manual instruction 2.6; both browsers see it
+    # autonomous: PAX runs on to the unlock, hazardous in the cdra SysRep: under the IVA robot
+    # side's critical commanding it waits for a second operator. alice sends it for approval; she
+    # is offered no Approve… of her own request, and her approval forced through the API is
+    # refused and on the record; bob, at his console, approves it and PAX sends it at once
     alice.click("#mode-autonomous")
     expect(alice.locator("#run-mode")).to_have_text("autonomous")
+    unlock = instruction(alice, UNLOCK)
+    expect_current(unlock, timeout=MOTION_MS)
+    expect(alice.locator("#hold")).to_contain_text(f"Hazardous command {UNLOCK}: Unlock Filter")
+    send_for_approval(alice, UNLOCK)
+    expect(unlock.locator("button.approve")).to_be_hidden()
+    expect(unlock.locator(".approval-wait")).to_be_visible()
+    expect(unlock.locator(".approval-wait")).to_have_text("waiting for another operator")
+    own = alice.request.post(
+        f"{server.url}/api/runs/{run_id}/actions",
+        data={"action": "approve", "instruction": UNLOCK},
+        headers={"X-CSRF-Token": alice.evaluate("view.me.csrf")},
+    )
+    assert own.status == 409, own.text()
+    assert "a second operator must approve it, not alice" in own.json()["error"]
+    expect(audit_row(alice, "action_refused", UNLOCK, "alice")).to_have_count(1)
+    expect(audit_row(alice, "command_sent", UNLOCK, "PAX")).to_have_count(0)
+    bob = sign_in("bob")
+    bob.goto(f"{server.url}/#run={run_id}")
+    instruction(bob, UNLOCK).locator("button.approve").click()
+    expect(bob.locator("#confirm-text")).to_contain_text("alice sent it for approval")
+    bob.click("#confirm-yes")
+    expect(audit_row(alice, "command_sent", UNLOCK, "PAX")).to_contain_text("sent by alice, approved by bob")
+
+    # PAX runs on and holds at the manual instruction 2.6; both browsers see it
     for page in (alice, carol):
         expect_current(instruction(page, "2.6"), timeout=MOTION_MS)
         expect(page.locator("#hold")).to_contain_text(
@@ -152,7 +192,12 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
         expect_ended(page, "completed", within_ms=MOTION_MS)  # the arm inserts the filter and stows first
     expect(alice.locator('#audit li[data-kind="run_completed"]')).to_have_count(1)
 
-    # the audit log holds every action with its user, and nothing from the observer
+    # the report names both operators of the unlock
+    report = alice.request.get(f"{server.url}/runs/{run_id}/report")
+    assert report.status == 200, report.text()
+    assert "sent Unlock Filter [hazardous] (sent by alice, approved by bob)" in report.text()
+
+    # the audit log holds every action with its user, and nothing from the observer but her refused act
     log = AuditLog(server.database.url)
     try:
         events = log.events(run_id)
@@ -168,7 +213,18 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
         and inputs[1].data.to_json()["reason"] == "0013 is kept for the next swap"
     )
     actors = {e.actor for e in events}
-    assert actors == {"alice", "PAX"}, actors
+    assert actors == {"alice", "bob", "carol", "PAX"}, actors
+    refused = [(e.actor, e.instruction, e.data.to_json()) for e in events if e.kind.value == "action_refused"]
+    assert [(actor, number, d["action"], d["rule"]) for actor, number, d in refused] == [
+        ("carol", "1.4", "perform", "observers_watch"),
+        ("alice", UNLOCK, "approve", "two_person"),
+    ]
+    approvals = [
+        (e.kind.value, e.actor) for e in events if e.instruction == UNLOCK and e.kind.value.startswith("approval")
+    ]
+    assert approvals == [("approval_requested", "alice"), ("approval_given", "bob")]
+    unlocked = next(e.data.to_json() for e in events if e.kind.value == "command_sent" and e.instruction == UNLOCK)
+    assert (unlocked["requested_by"], unlocked["approved_by"]) == ("alice", "bob")
     sent = [e for e in events if e.kind.value == "command_sent" and e.instruction == "1.3"]
     assert [e.actor for e in sent] == ["alice"] and sent[0].data.to_json()["args"][
         "affordance_template"
