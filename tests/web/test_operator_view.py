@@ -28,6 +28,7 @@ from support.operator_page import (
     sign_in_on,
     start_run,
     stop_run,
+    unlock_approved_by,
 )
 from support.web_server import WebServer, procedure_shelf, start_server
 
@@ -37,6 +38,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
 ) -> None:
     alice = sign_in("alice")
     run_id = start_run(alice, IVA, "autonomous")
+    unlock_approved_by(alice, "bob")  # hazardous in the cdra SysRep: bob approves it
 
     # PAX holds at the manual instruction; Done lets it carry on to the record at 4.1
     expect(alice.locator("#hold")).to_contain_text("2.6: Confirm that the area in front of the CDRA cabinet is clear")
