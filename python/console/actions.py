@@ -16,7 +16,9 @@ from typing import Any
 
 from console.accounts import Account, AccountStore
 from console.ground.action_requests import Answer, ForwardedAction, OnItsWay
+from pride import event_payloads as ep
 from pride.executive import Executive, Mode, OperatorActionError
+from pride.states import RefusalRule
 
 __all__ = [
     "ACTIONS",
@@ -32,13 +34,20 @@ __all__ = [
 
 class ActionRefused(Exception):
     """The request cannot be carried out; ``status`` is the HTTP status that says why, ``details``
-    what the page needs to offer a way on (e.g. who controls the robot, to take it over)."""
+    what the page needs to offer a way on (e.g. who controls the robot, to take it over).
 
-    def __init__(self, status: int, message: str, details: dict[str, Any] | None = None) -> None:
+    ``rule``: the rule that refused an operator's act, which is then on the record
+    (``action_refused``); None for a request that is no act (malformed, unknown, a failure to
+    reach something)."""
+
+    def __init__(
+        self, status: int, message: str, details: dict[str, Any] | None = None, *, rule: RefusalRule | None = None
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.message = message
         self.details = details or {}
+        self.rule = rule
 
 
 @dataclass(frozen=True)
@@ -123,15 +132,31 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
 
 def _require_operator(account: Account) -> None:
     if not account.may_act:
-        raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
+        raise ActionRefused(
+            403,
+            f"{account.user} is an {account.role.value}: observers may watch, not act",
+            rule=RefusalRule.OBSERVERS_WATCH,
+        )
 
 
 def perform_action(executive: Executive, account: Account, request: ActionRequest) -> Any:
-    """Carry out ``request`` as ``account``; ActionRefused says why not.
+    """Carry out ``request`` as ``account``; ActionRefused says why not, and a refused act is
+    recorded in the run's log with the rule that refused it (once: the executive records some itself)."""
+    try:
+        return _perform(executive, account, request)
+    except ActionRefused as exc:
+        if exc.rule is not None:
+            asked = {k: v for k, v in request.to_json().items() if k != "action" and v != ""}
+            refused = ep.ActionRefused(
+                action=request.action, rule=exc.rule.value, reason=exc.message, asked=asked or None
+            )
+            executive.record_refusal(account.user, request.instruction, refused)
+        raise
 
-    Actions clicked on an instruction name it, and are refused unless it is still the current
-    one: two operators looking at the same run must not act on an instruction that moved on.
-    """
+
+def _perform(executive: Executive, account: Account, request: ActionRequest) -> Any:
+    """Actions clicked on an instruction name it, and are refused unless it is still the current
+    one: two operators looking at the same run must not act on an instruction that moved on."""
     _require_operator(account)
     entry = ACTIONS.get(request.action)
     if entry is None:
@@ -145,11 +170,12 @@ def perform_action(executive: Executive, account: Account, request: ActionReques
             raise ActionRefused(
                 409,
                 f"{request.instruction} is not the current instruction (the run is at {current or 'no instruction'})",
+                rule=RefusalRule.CURRENT_INSTRUCTION,
             )
     try:
         return action(executive, account.user, request)
     except OperatorActionError as exc:
-        raise ActionRefused(409, str(exc)) from None
+        raise ActionRefused(409, str(exc), rule=None if exc.recorded else exc.rule) from None
 
 
 def perform_forwarded(

@@ -226,6 +226,7 @@ class FoldedRun:
                 | ep.ApprovalRequested()
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
+                | ep.ActionRefused()
             ):
                 pass  # without an instruction, or shown through the run's snapshot and its log
             case _:

@@ -39,6 +39,7 @@ from console.live_run import LiveRun
 from console.onboard_launch import LaunchRefused, SecondOperator, launch_onboard
 from console.release_desk import ReleaseDesk
 from console.remote_run import RemoteRun
+from console.start_refusals import recorded_start_refusals
 from console.watchers import Watchers
 from pride.approvals import approval_points, missing_approvals_text
 from pride.events import Event, EventKind, run_start
@@ -46,6 +47,7 @@ from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatu
 from pride.gateways import open_gateway
 from pride.run_control import RobotControlled
 from pride.run_setup import RunSetup, load_sysreps
+from pride.states import RefusalRule
 from pride.systems import SystemGateway
 from procedure_language.binding import BindingError, read_binding
 from procedure_language.diagnostics import ProcedureError
@@ -123,7 +125,7 @@ class RunBoard:
         self._live: dict[str, LiveRun] = {}
         self._remote: dict[str, RemoteRun] = {}
         self._statuses: dict[str, tuple[str, float]] = {}  # run id -> (status from its log, when read)
-        self._starts: list[tuple[str, datetime, str]] | None = None  # the log's runs, until a new one starts
+        self._starts: list[tuple[str, datetime, dict[str, Any]]] | None = None  # the log's runs, until a new one starts
         self.list_watchers = Watchers()  # browsers showing the runs list
         self.hosting = RunHosting(audit_log.engine, host=console, lease=lease)
         self.hosting.on_lost(self._lost)
@@ -157,9 +159,15 @@ class RunBoard:
         A draft or a file changed since its release runs only as a ``rehearsal``, and a rehearsal
         only on a simulator (:mod:`records.releases`). A robot controlled by another run refuses the
         start (409, naming the controller) unless ``take_over`` gives the reason to take it over:
-        the other run then holds.
+        the other run then holds. A start refused by a rule is recorded (:mod:`console.start_refusals`).
         """
-        mode = _mode(mode_name)
+        asked = {"binding": binding_name, "mode": mode_name, "rehearsal": rehearsal, "take_over": take_over}
+        with recorded_start_refusals(self.audit_log, user, procedure_name, asked):
+            return self._start(user, procedure_name, binding_name, _mode(mode_name), take_over, rehearsal)
+
+    def _start(
+        self, user: str, procedure_name: str, binding_name: str, mode: Mode, take_over: str | None, rehearsal: bool
+    ) -> LiveRun:
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
         if take_over is None:
             self._refuse_if_controlled(procedure_name, binding_name)
@@ -217,9 +225,10 @@ class RunBoard:
                 )
             setup = RunSetup.resuming(path, side, self.sysreps(), events)
         except ProcedureError as exc:
-            raise ActionRefused(422, "the procedure has problems and cannot start:\n" + str(exc)) from None
+            problems = "the procedure has problems and cannot start:\n" + str(exc)
+            raise ActionRefused(422, problems, rule=RefusalRule.VALID_PROCEDURE) from None
         except ReleaseRefused as exc:
-            raise ActionRefused(409, str(exc)) from None
+            raise ActionRefused(409, str(exc), rule=RefusalRule.RELEASED_VERSION) from None
         refusal = resume_refusal(setup.checked, shown, events[0].data, side)
         if refusal is not None:
             raise ActionRefused(409, f"run {setup.run_id} cannot be resumed: {refusal}")
@@ -318,7 +327,7 @@ class RunBoard:
         unserved = setup.unserved(gateway)
         if unserved is not None:
             gateway.close()
-            raise ActionRefused(422, unserved)
+            raise ActionRefused(422, unserved, rule=RefusalRule.BINDING_SERVES)
         return gateway
 
     def _hold(
@@ -447,14 +456,15 @@ class RunBoard:
         return self.hosting.record(run_id)
 
     def act(self, run_id: str, account: Account, request: ActionRequest) -> Any:
-        """Carry out an operator action: here if the run is hosted here, else forwarded to its host."""
+        """Carry out an operator action: here if the run is hosted here, else forwarded to its host
+        (each refuses an observer's, and records it in the run's log)."""
         live = self.live(run_id)
         if live is not None:
             return perform_action(live.executive, account, request)
-        if not account.may_act:
-            raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
         record = self.hosting.record(run_id)
         if record is None or not record.alive:
+            if not account.may_act:  # no live run to record it in
+                raise ActionRefused(403, f"{account.user} is an {account.role.value}: observers may watch, not act")
             raise ActionRefused(
                 404, f"run {run_id!r} is not live on any console (past and interrupted runs are read-only)"
             )
@@ -511,13 +521,18 @@ class RunBoard:
             live = dict(self._live)
             starts = self._starts
         if starts is None:
-            starts = self.audit_log.runs()
+            starts = self.audit_log.starts()
             with self._lock:
                 self._starts = starts
         hosts = self.hosting.records()
         rows = []
-        for run_id, started, procedure in list(reversed(starts))[:limit]:
-            entry: dict[str, Any] = {"run_id": run_id, "started": started.isoformat(), "procedure": procedure}
+        for run_id, started, data in list(reversed(starts))[:limit]:
+            entry: dict[str, Any] = {
+                "run_id": run_id,
+                "started": started.isoformat(),
+                "procedure": data.get("procedure", ""),
+                "rehearsal": data.get("rehearsal") is True,  # the list marks a rehearsal as the run's header does
+            }
             record = hosts.get(run_id)
             if run_id in live:
                 snapshot = live[run_id].executive.snapshot()
@@ -606,7 +621,7 @@ def _not_started(procedure_name: str, exc: OperatorActionError) -> ActionRefused
         if holder
         else None
     )
-    return ActionRefused(409, f"{procedure_name} not started: {exc}", details)
+    return ActionRefused(409, f"{procedure_name} not started: {exc}", details, rule=exc.rule)
 
 
 def _release(live: LiveRun) -> None:

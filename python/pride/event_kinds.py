@@ -65,6 +65,8 @@ class EventKind(str, enum.Enum):
     """A second operator approved it (the actor): :class:`~pride.event_payloads.ApprovalGiven`."""
     APPROVAL_EXPIRED = "approval_expired"
     """An approval ran out before its command was sent: :class:`~pride.event_payloads.ApprovalExpired`."""
+    ACTION_REFUSED = "action_refused"
+    """An operator's act was refused, by the rule named: :class:`~pride.event_payloads.ActionRefused`."""
     AWAITING_OPERATOR = "awaiting_operator"
     """Automation holds at an instruction until an operator acts: :class:`~pride.event_payloads.AwaitingOperator`."""
     PAUSED = "paused"

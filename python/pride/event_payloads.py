@@ -18,6 +18,7 @@ from pride.event_json import JSON_NAME, EventDataError, Recorded, optional, read
 from pride.event_kinds import EventKind
 
 __all__ = [
+    "ActionRefused",
     "ApprovalExpired",
     "ApprovalGiven",
     "ApprovalRequested",
@@ -450,6 +451,22 @@ class ApprovalExpired(Recorded):
     expired: str
 
 
+@dataclass(frozen=True, kw_only=True)
+class ActionRefused(Recorded):
+    """An operator's act was refused (the actor asked): ``action`` (``approve``, ``perform``,
+    ``start`` …), ``rule`` (the value of the :class:`pride.states.RefusalRule` that refused it),
+    ``reason`` (the words the operator was shown); ``asked``: what the request carried besides the
+    action (the instruction clicked, a value, a binding), when it carried anything. The event's
+    instruction is the one the act named. A start refused is recorded under a run id of its own,
+    which holds nothing else (the run never started)."""
+
+    KIND = EventKind.ACTION_REFUSED
+    action: str
+    rule: str
+    reason: str
+    asked: Mapping[str, Any] | None = optional()
+
+
 # ---- automation -----------------------------------------------------------------------------
 
 
@@ -550,6 +567,7 @@ Payload: TypeAlias = (
     | ApprovalRequested
     | ApprovalGiven
     | ApprovalExpired
+    | ActionRefused
     | AwaitingOperator
     | Paused
     | Continued

@@ -159,6 +159,8 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
                 f"{d.approver}'s approval of {d.sender}'s command ran out at {_clock(d.expired)} "
                 "UTC before it could be sent: nothing sent, it waits for a new approval"
             )
+        case ep.ActionRefused() as d:
+            return f"refused {humanize(d.action)} by the {humanize(d.rule)} rule: {d.reason}"
         case ep.Halt() as d:
             told = d.cancel_message
             return f"HALT{_reason(d.reason)}" + (f"; the system: {told}" if told else "")

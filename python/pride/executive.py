@@ -97,6 +97,7 @@ from pride.ad_hoc_commands import take_back as take_back_holdings
 from pride.approvals import ApprovalPolicy, CarriedApproval
 from pride.automation import ControlLost, Halt
 from pride.event_payloads import (
+    ActionRefused,
     BreakpointCleared,
     BreakpointSet,
     Continued,
@@ -420,7 +421,7 @@ class Executive:
 
     def approve(self, user: str, *, carried: CarriedApproval | None = None) -> None:
         """Approve the command sent for approval, as the second operator: it is sent at once (by
-        PAX, or in manual mode as its sender). The sender's own approval is refused.
+        PAX, or in manual mode as its sender). The sender's own approval is refused, and recorded.
 
         ``carried``: ``user``'s approval given on the ground before an onboard unit went up; it
         keeps the time it was given and its expiry, and a stale one is refused."""
@@ -608,6 +609,13 @@ class Executive:
                 raise OperatorActionError(str(exc)) from None
             sent = record_sent(self._engine, user, "operator", system, command, args)
         return send_recorded(self._engine, user, sent)
+
+    def record_refusal(self, user: str, instruction: str | None, refused: ActionRefused) -> None:
+        """Record an act of ``user`` refused before it reached the run (an observer's, a click on an
+        instruction the run has left), so every refused act is on the record; nothing once the run ended."""
+        with self._changed:
+            if self._state.status is RunStatus.ACTIVE and not self._state.stopping:
+                self._engine.emit(user, instruction, refused)
 
     # ---- guards -----------------------------------------------------------------------------
     def _check_number(self, number: str) -> None:

@@ -162,6 +162,7 @@ def replay(
                 | ep.ApprovalRequested()
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
+                | ep.ActionRefused()
                 | ep.AwaitingOperator()
                 | ep.Paused()
                 | ep.Continued()

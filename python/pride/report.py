@@ -146,6 +146,7 @@ def summarize(events: list[Event]) -> RunSummary:
                 | ep.ApprovalRequested()
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
+                | ep.ActionRefused()
                 | ep.AwaitingOperator()
                 | ep.Paused()
                 | ep.Continued()

@@ -10,7 +10,7 @@ from __future__ import annotations
 import logging
 from typing import Protocol
 
-from pride.states import Controller, OperatorActionError
+from pride.states import Controller, OperatorActionError, RefusalRule
 
 __all__ = ["ControlStore", "RobotControlled", "RunControl"]
 
@@ -23,7 +23,8 @@ class RobotControlled(OperatorActionError):
     def __init__(self, holder: Controller) -> None:
         super().__init__(
             f"robot {holder.robot} is controlled by {holder.describe()}: take over with a reason "
-            "to control it from this run"
+            "to control it from this run",
+            rule=RefusalRule.ONE_RUN_PER_ROBOT,
         )
         self.holder = holder
 

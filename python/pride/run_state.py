@@ -27,6 +27,7 @@ from typing import Any, Protocol
 from pride.approvals import Approval, ApprovalPolicy, ApprovalRequest, CarriedApproval, self_approval_refusal
 from pride.automation import Halt, InstructionResult, Send, command_key
 from pride.event_payloads import (
+    ActionRefused,
     ApprovalGiven,
     ApprovalRequested,
     AwaitingOperator,
@@ -46,7 +47,7 @@ from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
 from pride.phrasing import filled_sentence
 from pride.replay import Replayed
-from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RunStatus
+from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RefusalRule, RunStatus
 from procedure_language.model import (
     CommandInstruction,
     Instruction,
@@ -343,8 +344,10 @@ class RunState:
         if request is None or request.number != number:
             raise OperatorActionError(f"{number} waits for no approval")
         refusal = self_approval_refusal(request, user)
-        if refusal is not None:
-            raise OperatorActionError(refusal)
+        if refusal is not None:  # on the record whoever asked: a console, a terminal, the habitat
+            rule = RefusalRule.TWO_PERSON
+            self._emit(user, number, ActionRefused(action="approve", rule=rule.value, reason=refusal))
+            raise OperatorActionError(refusal, rule=rule, recorded=True)
         try:
             approval = carried.approval(request) if carried else Approval.given(request, user, self.approvals)
         except ValueError as exc:

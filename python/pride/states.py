@@ -18,6 +18,7 @@ __all__ = [
     "Mode",
     "OperatorActionError",
     "RecordNotCheckable",
+    "RefusalRule",
     "RunEnded",
     "RunStatus",
     "Snapshot",
@@ -103,8 +104,38 @@ class Hold(enum.Enum):
     """Another run took control of the robot: this run sends nothing until control is taken back."""
 
 
+class RefusalRule(enum.Enum):
+    """The rule that refused an operator's act, named in its ``action_refused`` record."""
+
+    TWO_PERSON = "two_person"
+    """Nobody approves their own command: a second operator must (:mod:`pride.approvals`)."""
+    OBSERVERS_WATCH = "observers_watch"
+    """An observer may watch a run, not act on it."""
+    CURRENT_INSTRUCTION = "current_instruction"
+    """An act clicked on an instruction applies to it only while the run is there."""
+    RUN_STATE = "run_state"
+    """The act does not apply to the run as it is now (the executive says why)."""
+    VALID_PROCEDURE = "valid_procedure"
+    """A procedure with problems never starts."""
+    RELEASED_VERSION = "released_version"
+    """A run runs a released version; a draft or a changed file only as a rehearsal on a simulator."""
+    ONE_RUN_PER_ROBOT = "one_run_per_robot"
+    """One run controls a robot; another takes it over only with a reason."""
+    BINDING_SERVES = "binding_serves"
+    """A run starts only on a binding that serves every system its procedure uses."""
+
+
 class OperatorActionError(RuntimeError):
-    """An operator action does not apply to the run's current state; the message says why."""
+    """An operator action does not apply to the run's current state; the message says why.
+
+    ``rule``: the rule that refused it; ``recorded``: the executive already recorded the refusal
+    (an ``action_refused`` event), so whoever passes it on does not record it twice.
+    """
+
+    def __init__(self, message: str, *, rule: RefusalRule = RefusalRule.RUN_STATE, recorded: bool = False) -> None:
+        super().__init__(message)
+        self.rule = rule
+        self.recorded = recorded
 
 
 class RunEnded(OperatorActionError):

@@ -281,13 +281,17 @@ class AuditLog:
 
     def runs(self) -> list[tuple[str, datetime, str]]:
         """(run id, start time, procedure id) of every run, oldest first."""
+        return [(run_id, started, str(data.get("procedure", ""))) for run_id, started, data in self.starts()]
+
+    def starts(self) -> list[tuple[str, datetime, dict[str, Any]]]:
+        """(run id, start time, its ``run_started`` data as stored) of every run, oldest first."""
         with self._engine.connect() as connection:
             rows = connection.execute(
                 select(_RECORDS.run_id, _RECORDS.time, _RECORDS.data)
                 .where(_RECORDS.kind == EventKind.RUN_STARTED.value)
                 .order_by(_RECORDS.time)
             )
-            return [(row.run_id, utc(row.time), json.loads(row.data).get("procedure", "")) for row in rows]
+            return [(row.run_id, utc(row.time), json.loads(row.data)) for row in rows]
 
     def close(self) -> None:
         """Release the connections; an append still waiting for the database gives up."""

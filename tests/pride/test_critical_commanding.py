@@ -1,5 +1,6 @@
 """Critical commanding in the executive: a command that needs approval is sent only once a second
-operator approved it; the sender's own approval is refused; an approval that ran out is never sent on.
+operator approved it; the sender's own approval is refused, and recorded with the rule that
+refused it; an approval that ran out is never sent on.
 
 The lab bench (its ``vent`` is hazardous in its SysRep), SQLite and PostgreSQL journals in turn.
 """
@@ -50,6 +51,14 @@ def test_a_hazardous_command_waits_for_a_second_operator_and_both_are_recorded(b
     assert [c for _, c, _ in gateway.sent] == ["move", "vent", "capture"]
     by = {(e.kind, e.instruction): e for e in journal.events}
     assert by[(EventKind.APPROVAL_REQUESTED, "2.1")].actor == "alice"
+    # the refused self-approval is on the record, with the rule that refused it
+    refused = by[(EventKind.ACTION_REFUSED, "2.1")]
+    assert refused.actor == "alice" and refused.seq < by[(EventKind.APPROVAL_GIVEN, "2.1")].seq
+    assert (refused.data.to_json()["action"], refused.data.to_json()["rule"]) == ("approve", "two_person")
+    assert "a second operator must approve it, not alice" in refused.data.to_json()["reason"]
+    assert [e.kind for e in journal.events].count(
+        EventKind.ACTION_REFUSED
+    ) == 1  # once (bob's confirm, refused here, is its caller's to record)
     given = by[(EventKind.APPROVAL_GIVEN, "2.1")]
     assert (
         given.actor == "bob"

@@ -1,8 +1,10 @@
 """Typed events keep the JSON, and so the hashes, of every run stored before them.
 
 ``fixtures/stored_runs_every_kind.json`` holds fifteen runs of the lab bench as the audit log
-stored them before events were typed (every field the chain covers, with its hash): together they
-record every event kind and every shape of data a kind takes (optional keys present and absent).
+stored them before events were typed (every field the chain covers, with its hash), and two logs
+of refused acts added with that kind (a refused start under its own id; a self-approval and an
+observer's act): together they record every event kind and every shape of data a kind takes
+(optional keys present and absent).
 Read back into payloads and stored again through the real audit log, each event must get the same
 data text and the same hash; made afresh from its fields (as an emitter makes it), the same JSON.
 """
