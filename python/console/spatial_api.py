@@ -30,7 +30,7 @@ from console.camera_feed import MOTION_COMMAND
 from console.live_run import LiveRun
 from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
-from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, PUSH_INTERVAL_S, SpatialFeed
+from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, LOCATE_COMMAND, PUSH_INTERVAL_S, SpatialFeed
 from console.spatial_link import read_view_link
 from pride.event_payloads import CommandResult, CommandSent
 from pride.events import Event
@@ -73,6 +73,8 @@ class SpatialFeeds:
 
                 def on_event(event: Event) -> None:  # the executive's thread: an AT command sent or ended
                     data = event.data
+                    if _locate(event):
+                        loop.call_soon_threadsafe(feed.locate_sent)
                     if not isinstance(data, (CommandSent, CommandResult)):
                         return
                     command, args = data.command, data.args
@@ -88,6 +90,8 @@ class SpatialFeeds:
                         loop.call_soon_threadsafe(feed.refresh)
 
                 live.executive.add_listener(on_event)
+                if any(_locate(e) for e in live.events_since(0)):  # before the feed: its latched result is this run's
+                    feed.locate_sent()
                 self._feeds[run_id] = (feed, live, on_event)
         self._users[run_id] = self._users.get(run_id, 0) + 1
         return self._feeds[run_id][0]
@@ -104,6 +108,11 @@ class SpatialFeeds:
         del self._users[run_id]
         live.executive.remove_listener(on_event)
         await feed.close()
+
+
+def _locate(event: Event) -> bool:
+    data = event.data
+    return isinstance(data, CommandSent) and (data.system, data.command) == LOCATE_COMMAND
 
 
 def spatial_routes(

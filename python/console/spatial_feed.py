@@ -14,6 +14,10 @@ What it asks the habitat for (names under the robot's namespace), sized for a 1.
 | ``camera/<name>/image`` (camera below) | subscribe, ``throttle_rate`` 2 s, ``queue_length`` 1 | <= 1/2 s |
 | ``perception/last_result`` | subscribe (latched), ``queue_length`` 1 | once per locate (a few hundred bytes) |
 
+Perception's result is latched: a feed subscribing gets the last locate of whatever asked it,
+often the run before. The view shows only this run's results, so a result is taken once the run
+has sent a locate of its own (:meth:`SpatialFeed.locate_sent`).
+
 ``get_template_status`` is asked when ``running_templates``, ``plan_id`` or the execute status
 change, after an AT command of the run, and after a reconnect. The camera is the one
 :func:`~console.spatial_camera.choose_camera` picks.
@@ -39,7 +43,7 @@ from console.spatial_values import SpatialDataError
 from console.spatial_world import plan_from_get_plan, world_document
 from rosbridge_wire.client import LinkError, RosbridgeClient, Subscription
 
-__all__ = ["AT_COMMANDS_THAT_MOVE_TEMPLATES", "PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher"]
+__all__ = ["AT_COMMANDS_THAT_MOVE_TEMPLATES", "LOCATE_COMMAND", "PUSH_INTERVAL_S", "SpatialFeed", "ViewWatcher"]
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +65,9 @@ AT_COMMANDS_THAT_MOVE_TEMPLATES = frozenset(
         MOTION_COMMAND[1],
     }
 )
+
+#: Perception's command (sysrep/perception.yaml) whose results the view proposes registrations from.
+LOCATE_COMMAND = ("perception", "locate")
 
 Json = dict[str, Any]
 
@@ -112,6 +119,7 @@ class SpatialFeed:
         self.registrations: dict[tuple[str, str], str] = {}
         self.located_msg: Mapping[str, Any] | None = None  # perception's last result, as it came
         self.located: Json | None = None  # ... as the update made of it
+        self.locating = False  # the run has sent a locate: results from before it were another run's
         self.status_key: tuple[Any, ...] | None = None
         self.plan_key: tuple[Any, ...] | None = None
         self.active_template = ""
@@ -254,9 +262,16 @@ class SpatialFeed:
                     )
                 )
 
+    def locate_sent(self) -> None:
+        """The run sent a locate (or had sent one when this feed was made): its results are this run's."""
+        self.locating = True
+
     def _on_located(self, msg: Mapping[str, Any]) -> None:
-        """The habitat's last locate: pushed as a proposal, kept for a view that opens later.
+        """The habitat's last locate: pushed as a proposal, kept for a view that opens later; one
+        that came before the run located anything is another run's, latched, and is not shown.
         Its pose may be in a named frame: until ``sim/frames`` has come, it waits for them."""
+        if not self.locating:
+            return
         self.located_msg, self.located = msg, None
         if self.frame_poses:
             self._show_located()

@@ -36,6 +36,10 @@ Values are rounded to what an operator can use, never shown as Python reprs:
 - angles (SysRep units ``rad``; without units, ``roll``/``pitch``/``yaw`` and a pose's
   orientation, radians by REP 103) in degrees, one decimal (``90°``, ``12.5°``): people picture
   90°, not 1.5708 rad, and a tenth of a degree is finer than any check an operator makes;
+- a value already in millimetres or degrees (SysRep units ``mm`` or ``deg``, or a name ending in
+  ``_mm`` or ``_deg``, as perception's ``offset_mm``) rounded as above: ``0.7``, not ``0.6552``;
+- a result's quaternion (``qx``, ``qy``, ``qz``, ``qw``) is not shown beside the roll, pitch and
+  yaw that say the same orientation in degrees;
 - joint values (a list whose name says ``joint``) in degrees like every other angle;
 - a pose (six numbers whose name ends in ``pose``: x, y, z, roll, pitch, yaw) as ``position
   (150, 450, 300) mm, orientation (0, 90, 90)°``, "in <frame>" when a ``<name>_frame`` value
@@ -66,6 +70,7 @@ from procedure_language.model import (
     Template,
     VerifyInstruction,
     WaitInstruction,
+    lookup,
 )
 from procedure_language.sysrep import Argument, Command, SysRep
 
@@ -92,8 +97,14 @@ __all__ = [
 _POSITION = ("x", "y", "z")
 _ORIENTATION = ("roll", "pitch", "yaw")
 _LENGTH, _ANGLE = "length", "angle"
+#: Values already in millimetres or degrees: rounded as lengths and angles, not converted.
+_MILLIMETRES, _DEGREES = "millimetres", "degrees"
 #: What a value measures, by its SysRep units (others keep their units and are plain reals).
-_KIND_OF_UNITS = {"m": _LENGTH, "rad": _ANGLE}
+_KIND_OF_UNITS = {"m": _LENGTH, "rad": _ANGLE, "mm": _MILLIMETRES, "deg": _DEGREES}
+#: ... and by the end of its name where it has no units (the name then says the unit).
+_KIND_OF_SUFFIX = {"_mm": _MILLIMETRES, "_deg": _DEGREES}
+#: A quaternion's components, left out of a result that says its orientation as roll, pitch and yaw.
+_QUATERNION = ("qx", "qy", "qz", "qw")
 #: The units a length or an angle is written in where it is not a number yet (a ``${...}``):
 #: the SI units the run sends, so the value filled in later reads right.
 _SI = {_LENGTH: "m", _ANGLE: "rad"}
@@ -140,24 +151,28 @@ def _kind(name: str, units: str | None) -> str | None:
     """Whether a value is a length or an angle: by its units, else by its name (REP 103)."""
     if units:
         return _KIND_OF_UNITS.get(units)
-    return _LENGTH if name in _POSITION else _ANGLE if name in _ORIENTATION else None
+    if name in _POSITION:
+        return _LENGTH
+    if name in _ORIENTATION:
+        return _ANGLE
+    return next((kind for suffix, kind in _KIND_OF_SUFFIX.items() if name.endswith(suffix)), None)
 
 
 def _suffix(kind: str | None, units: str | None) -> str:
     if kind == _LENGTH:
         return " mm"
-    if kind == _ANGLE:
+    if kind == _ANGLE or (kind == _DEGREES and units):
         return "°"
     return f" {units}" if units else ""
 
 
 def _number(value: float, kind: str | None) -> str:
     """A number without its units: metres as millimetres, radians as degrees, other reals rounded."""
-    if kind == _LENGTH:
-        millimetres = value * 1000
+    if kind in (_LENGTH, _MILLIMETRES):
+        millimetres = value * 1000 if kind == _LENGTH else value
         return _fixed(millimetres, 1 if abs(millimetres) < 10 else 0)
-    if kind == _ANGLE:
-        return _fixed(math.degrees(value), 1)
+    if kind in (_ANGLE, _DEGREES):
+        return _fixed(math.degrees(value) if kind == _ANGLE else value, 1)
     if not math.isfinite(value) or value == 0:
         return _fixed(value, 0)
     if abs(value) < 10**-_SIGNIFICANT:
@@ -489,10 +504,13 @@ def labelled_values(values: Mapping[str, Any], sysrep: SysRep | None = None) -> 
     value shares a telemetry item's id (``plan_status`` → "Plan Status"), else the key as words.
     A pose is said in its frame (``end_pose`` with ``end_pose_frame``), the frame not again."""
     lines = []
+    angles = all(name in values for name in _ORIENTATION)
     for key, value in values.items():
         pose = key.removesuffix("_frame")
         if pose != key and isinstance(values.get(pose), (list, tuple)):
             continue  # said with its pose
+        if angles and key in _QUATERNION:
+            continue  # roll, pitch and yaw say it in degrees
         item = sysrep.telemetry_item(key) if sysrep is not None else None
         label = item.label if item is not None else humanize(key)
         text = format_value(value, item.units if item is not None else None, name=key)
@@ -508,8 +526,18 @@ def _not_known(reference: Reference) -> str:
 
 def fill_text(text: str, env: dict[str, Any]) -> str:
     """An instruction's sentence as written, with the values ``env`` holds filled in (written as
-    :func:`format_value` writes them); one the run does not know yet is said to be so in words."""
-    return Template.parse(text).fill(env, format_value, unknown=_not_known)
+    :func:`format_value` writes them, by the name of what each measures: ``${cabinet.offset_mm}``
+    as millimetres); one the run does not know yet is said to be so in words."""
+    texts = []
+    for part in Template.parse(text).parts:
+        if isinstance(part, str):
+            texts.append(part)
+            continue
+        try:
+            texts.append(format_value(lookup(env, part), name=part.field or part.name))
+        except KeyError:
+            texts.append(_not_known(part))
+    return "".join(texts)
 
 
 def record_refusal(

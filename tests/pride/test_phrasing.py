@@ -184,6 +184,10 @@ def test_the_author_page_keeps_the_text_when_it_opens_and_saves(procedure_file: 
         ([0.62, -0.18, 0.95000001], None, "", "(0.62, -0.18, 0.95)"),
         (None, "m", "", "—"),
         ({"plan_valid": True, "x": 0.25}, None, "", "plan valid true, x 250 mm"),
+        (0.6552, None, "offset_mm", "0.7"),  # already millimetres (the sentence says "mm"): to 0.1 mm
+        (12.3456, "mm", "", "12 mm"),
+        (1.23456, None, "offset_deg", "1.2"),  # already degrees: to 0.1°
+        (0.04, "deg", "", "0°"),
     ],
 )
 def test_values_read_rounded_with_units_and_never_as_reprs(
@@ -203,6 +207,10 @@ def test_results_are_labelled_from_the_sysrep_and_audit_records_read_as_words() 
     assert labelled_values({"end_pose": pose, "end_pose_frame": "robot_base"}, at) == [
         ("end pose", "position (450, 350, 350) mm, orientation (0, 90, 45)° in robot_base")  # one line, its frame
     ]
+    # a located pose: its orientation in degrees, not again as a quaternion
+    located = {"x": 0.5, "roll": 0.0, "pitch": 0.0, "yaw": 0.0001, "qx": 0.0, "qy": 0.0, "qz": 8.9e-05, "qw": 1.0}
+    assert [label for label, _ in labelled_values(located)] == ["x", "roll", "pitch", "yaw"]
+    assert labelled_values({"qx": 8.9e-05}) == [("qx", "8.9e-05")]  # without an angle to say it, it stays
     seen = Event(
         "r",
         3,
@@ -260,6 +268,11 @@ def test_a_sent_command_reads_as_its_instruction_with_the_values_sent_and_its_ca
     raw = describe_event(sent, Wording(SYSREPS, raw=True))
     assert raw.startswith(f"sent again {said} · raw: affordance_templates.set_display_object_pose(")
     assert "x=0.35000000000000003" in raw and "frame=cabinet/slot" in raw  # the call, values in full
+    assert fill_text(
+        "as located (${seen.offset_mm} mm, ${seen.offset_deg}°)", {"seen": {"offset_mm": 0.6552, "offset_deg": 0.04}}
+    ) == (
+        "as located (0.7 mm, 0°)"  # each value by what its name says it measures
+    )
     assert fill_text("Remove cdra_filter:${at.id} from ${frame}", {"frame": "rack/slot_3"}) == (
         "Remove cdra_filter:‹at id: not known yet› from rack/slot_3"
     )

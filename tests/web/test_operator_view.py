@@ -301,6 +301,8 @@ ROUNDING: list[tuple[object, str]] = [
     (2, "x"),
     ({"x": 0.35, "y": 0.0049, "yaw": 0.0, "plan_valid": True}, ""),
     (0.5, "speed"),
+    (0.6552, "offset_mm"),  # perception's offset, already in millimetres (its sentence says "mm")
+    (1.23456, "offset_deg"),
 ]
 
 
@@ -309,3 +311,4 @@ def test_the_page_rounds_values_as_the_report_and_the_terminal_do(sign_in: Calla
     shown = page.evaluate("cases => cases.map(([value, name]) => formatValue(value, name))", ROUNDING)
     assert shown == [format_value(value, name=name) for value, name in ROUNDING]
     assert shown[0] == "150 mm" and shown[3] == "position (150, 450, 300) mm, orientation (0, 90, 90)°"
+    assert shown[-2:] == ["0.7", "1.2"]  # to 0.1 mm and 0.1°, not 0.6552

@@ -1,4 +1,6 @@
-"""A motion the run sent is drawn as commanded from the moment it is sent, not a light time later.
+"""A motion the run sent is drawn as commanded from the moment it is sent, not a light time later;
+perception's result is shown only once the run located something itself (the latched one before
+is another run's).
 
 A unit test of console/spatial_feed.py alone: its rosbridge client is replaced by one that
 answers ``get_plan`` as the AT server does; the real link is exercised by
@@ -110,3 +112,27 @@ def test_a_motion_sent_before_its_plan_came_is_drawn_commanded_even_if_already_e
         assert pushed[-1] == {"kind": "plan", "plan": None}
 
     asyncio.run(walk())
+
+
+def test_a_perception_result_from_before_the_run_located_anything_is_not_shown() -> None:
+    """``perception/last_result`` is latched: a new run's feed is handed the previous run's locate
+    as it subscribes. The view shows only this run's: results count once the run sent a locate."""
+    feed = SpatialFeed(ViewLink(Endpoint("ws://127.0.0.1:9"), "/"), camera_url="/camera")
+    pushed: list[dict[str, Any]] = []
+    feed._push = pushed.append  # type: ignore[method-assign]
+    feed.frame_poses = {"world": {"xyz": [0.0, 0.0, 0.0], "quat": [0.0, 0.0, 0.0, 1.0]}}
+    result = {
+        "header": {"stamp": {"sec": 12, "nanosec": 0}, "frame_id": "world"},
+        "object": "cabinet/slot",
+        "camera": "wrist_camera",
+        "success": True,
+        "message": "cabinet/slot located",
+        "xyz": [0.5, 0.0, 1.0],
+        "quaternion": [0.0, 0.0, 0.0, 1.0],
+        "offset_mm": 0.6552,
+    }
+    feed._on_located(result)  # the previous run's, latched
+    assert pushed == [] and feed.located is None and feed.watch().pending == {}
+    feed.locate_sent()
+    feed._on_located({**result, "offset_mm": 1.5})  # this run's own locate
+    assert [update["located"]["offset_mm"] for update in pushed] == [1.5]

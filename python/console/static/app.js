@@ -190,12 +190,19 @@ function showRuns(runs) {
     const open = element("a", "", run.run_id);
     open.href = `#run=${encodeURIComponent(run.run_id)}`;
     const status = element("span", "run-status", STATUS_WORDS[run.status] || run.status);
+    const line = element("span", "run-line");
+    line.append(status);
+    if (run.rehearsal) {  // marked as in the run's header: a draft or changed file, run on a simulator
+      const badge = element("span", "badge version", "REHEARSAL");
+      badge.dataset.rehearsal = "true";
+      line.append(" ", badge);
+    }
     const meta = element("span", "meta", `${run.procedure} · ${new Date(run.started).toLocaleString()}` +
       (run.live ? ` · ${run.mode}, started by ${run.started_by}` : "") + hostWords(run));
     const report = element("a", "report-link", "report");
     report.href = `/runs/${encodeURIComponent(run.run_id)}/report`;
     report.target = "_blank";
-    item.append(open, status, meta, report);
+    item.append(open, line, meta, report);
     if (run.approval) {
       // every console lists it: a second operator need not have the run open to see it waits for them
       const wanted = element("span", "approval-wanted",
@@ -393,8 +400,13 @@ function noteServerTime(serverTime) {
 
 // ---- applying updates ------------------------------------------------------------------------
 function applyUpdate(data) {
-  const before = view.state ? view.state.status : null;
+  const was = view.state;
+  const before = was ? was.status : null;
   view.state = data.state;
+  // a refusal says why an act could not be done there and then: once the run moved on, it is past
+  if (was && ["current", "hold", "status"].some((key) => was[key] !== data.state[key])) {
+    for (const refusal of document.querySelectorAll("#action-error, #procedure .record-error")) refusal.textContent = "";
+  }
   if (data.server_time) noteServerTime(data.server_time);
   const seen = new Set(view.events.map((e) => e.seq));
   const fresh = (data.events || []).filter((e) => !seen.has(e.seq));
@@ -415,6 +427,7 @@ for (const id of ["mode-manual", "mode-autonomous"]) {
 }
 $("pause").addEventListener("click", () => act("pause"));
 $("continue").addEventListener("click", () => act("continue"));
+$("hold-continue").addEventListener("click", () => act("continue"));  // the banner's way on after a halt
 $("step").addEventListener("click", () => act("step"));
 // HALT acts at once: no dialog between the operator and the arm stopping (the reason is optional).
 // It acts on the press, as an emergency stop does, not on the release a person makes a tenth of a

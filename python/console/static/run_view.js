@@ -110,6 +110,7 @@ function buildInstruction(instruction, prefix = "") {
   controls.append(
     button("Confirm", "confirm", () => confirmHazard(instruction, number, false)),
     button("Approve…", "approve", () => approve(number)),
+    element("span", "approval-wait", "waiting for another operator"),  // to the sender, in place of Approve…
     button("Retry", "retry", () => act("retry", {instruction: number})),
     button("Skip…", "skip", () => skip(number)),
     button("Go back here…", "go-back", () => goBack(number)),
@@ -298,7 +299,11 @@ function renderRun() {
   const replan = mayAct && state.hold === "halted" && Boolean(state.replan_from) && !state.executing;
   $("replan").hidden = !replan;
   $("replan").title = replan ? `back to ${state.replan_from}: it plans the motion again from where the arm is, and the run goes on from there` : "";
-  $("hold-actions").hidden = !(unknown || lost || replan);
+  // any other halt (nothing was moving, or what moved can be sent again): Continue goes on from here
+  const goOn = mayAct && state.hold === "halted" && !state.no_retry && !state.executing;
+  $("hold-continue").hidden = !goOn;
+  $("hold-continue").textContent = goOn ? "Continue" : "";  // the banner's words are only what can be done now
+  $("hold-actions").hidden = !(unknown || lost || replan || goOn);
   $("past-controls").hidden = Boolean(state.live) || !(view.me && view.me.may_act) || shownStatus === "completed";
   const envs = JSON.stringify(state.envs || {});
   const envsChanged = envs !== view.envsSeen;
@@ -379,7 +384,9 @@ function renderInstruction(item, state, mayAct, envsChanged) {
   show(".confirm", running && current && (state.hold === "confirmation" || approvalNeeded(number)), idle);
   own(".instruction-controls > .confirm").textContent = current && approvalNeeded(number) ? "Send for approval…" : "Confirm";
   const requested = state.approval && state.approval.number === number && state.approval.state === "requested";
-  show(".approve", running && current && Boolean(requested), idle);
+  const sentByMe = Boolean(requested) && Boolean(view.me) && state.approval.sender === view.me.user;  // nobody approves their own
+  show(".approve", running && current && Boolean(requested) && !sentByMe, idle);
+  show(".approval-wait", running && current && sentByMe, false);
   show(".done", running, idle && kind === "manual");
   show(".record", running, idle);
   const input = own(".instruction-controls > .record-value");

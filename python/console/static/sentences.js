@@ -5,11 +5,17 @@
 // ---- values and sentences --------------------------------------------------------------------
 // A value as an operator reads it, by pride.phrasing's rules (the report and the terminal read the
 // same): lengths (x, y, z) in mm, angles (roll, pitch, yaw, joints) in degrees, a 6-number pose as
-// position/orientation, other reals to 4 significant digits. ``name``: the value's id, which says
-// what it measures.
+// position/orientation, a value already in mm or degrees (a name ending _mm or _deg) rounded as
+// those, other reals to 4 significant digits. ``name``: the value's id, which says what it measures.
 const LENGTHS = ["x", "y", "z"];
 const ANGLES = ["roll", "pitch", "yaw"];
 const SIGNIFICANT = 4;
+
+function kindOf(name) {
+  if (LENGTHS.includes(name)) return "length";
+  if (ANGLES.includes(name)) return "angle";
+  return name.endsWith("_mm") ? "millimetres" : name.endsWith("_deg") ? "degrees" : null;
+}
 
 function fixed(value, decimals) {
   let text = value.toFixed(decimals);
@@ -18,11 +24,11 @@ function fixed(value, decimals) {
 }
 
 function numberText(value, kind) {
-  if (kind === "length") {
-    const millimetres = value * 1000;
+  if (kind === "length" || kind === "millimetres") {
+    const millimetres = kind === "length" ? value * 1000 : value;
     return fixed(millimetres, Math.abs(millimetres) < 10 ? 1 : 0);
   }
-  if (kind === "angle") return fixed(value * 180 / Math.PI, 1);
+  if (kind === "angle" || kind === "degrees") return fixed(kind === "angle" ? value * 180 / Math.PI : value, 1);
   if (!Number.isFinite(value) || value === 0) return fixed(value, 0);
   if (Math.abs(value) < 10 ** -SIGNIFICANT) return value.toExponential(1).replace(/e([+-])(\d)$/, "e$10$2");
   const whole = Math.floor(Math.log10(Math.abs(value))) + 1;
@@ -39,7 +45,7 @@ function group(word, numbers, kind) {
 }
 
 function formatValue(value, name = "") {
-  const kind = LENGTHS.includes(name) ? "length" : ANGLES.includes(name) ? "angle" : null;
+  const kind = kindOf(name);
   if (typeof value === "boolean") return value ? "true" : "false";
   if (typeof value === "number") return Number.isInteger(value) && !kind ? String(value) : numberText(value, kind) + unitOf(kind);
   if (Array.isArray(value)) {
