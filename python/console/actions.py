@@ -29,6 +29,7 @@ __all__ = [
     "perform_action",
     "perform_forwarded",
     "perform_onboard",
+    "record_refused",
 ]
 
 
@@ -145,13 +146,24 @@ def perform_action(executive: Executive, account: Account, request: ActionReques
     try:
         return _perform(executive, account, request)
     except ActionRefused as exc:
-        if exc.rule is not None:
-            asked = {k: v for k, v in request.to_json().items() if k != "action" and v != ""}
-            refused = ep.ActionRefused(
-                action=request.action, rule=exc.rule.value, reason=exc.message, asked=asked or None
-            )
-            executive.record_refusal(account.user, request.instruction, refused)
+        asked = {k: v for k, v in request.to_json().items() if k != "action" and v != ""}
+        record_refused(executive, account.user, request.action, exc, request.instruction, asked)
         raise
+
+
+def record_refused(
+    executive: Executive,
+    user: str,
+    action: str,
+    refused: ActionRefused,
+    instruction: str | None = None,
+    asked: Mapping[str, Any] | None = None,
+) -> None:
+    """Put a refused act in the run's log with the rule that refused it (a refusal without a rule,
+    of a malformed request, is no act and is not recorded)."""
+    if refused.rule is not None:
+        data = ep.ActionRefused(action=action, rule=refused.rule.value, reason=refused.message, asked=asked or None)
+        executive.record_refusal(user, instruction, data)
 
 
 def _perform(executive: Executive, account: Account, request: ActionRequest) -> Any:

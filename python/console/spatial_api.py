@@ -6,7 +6,7 @@ habitat (one feed per live run, shared by its browsers, closed with its last one
 ``POST /api/runs/{run_id}/spatial/pose`` is a registration drag: operators only (403 for an
 observer, checked before the body is read), CSRF like every change, sent as that operator through
 the run's executive (:meth:`pride.executive.Executive.operator_command`) so the audit log records
-who moved what where.
+who moved what where; a refused one (an observer's, one the run cannot take now) is recorded too.
 """
 
 from __future__ import annotations
@@ -25,16 +25,17 @@ from starlette.routing import BaseRoute, Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from console.accounts import Account
-from console.actions import ActionRefused
+from console.actions import ActionRefused, record_refused
 from console.camera_feed import MOTION_COMMAND
 from console.live_run import LiveRun
 from console.run_board import RunBoard
 from console.sign_in import SignInRefused, SignIns
 from console.spatial_feed import AT_COMMANDS_THAT_MOVE_TEMPLATES, LOCATE_COMMAND, PUSH_INTERVAL_S, SpatialFeed
 from console.spatial_link import read_view_link
+from pride import systems
 from pride.event_payloads import CommandResult, CommandSent
 from pride.events import Event
-from pride.states import OperatorActionError
+from pride.states import OperatorActionError, RefusalRule
 from procedure_language.sysrep import SysRep
 
 __all__ = ["POSE_COMMANDS", "spatial_routes"]
@@ -110,6 +111,26 @@ class SpatialFeeds:
         await feed.close()
 
 
+async def _moved(request: Request, user: Account, live: LiveRun) -> tuple[str, systems.CommandResult]:
+    """The drag's command, sent through the run as ``user``, and its result; ActionRefused says why not."""
+    if not user.may_act:  # refused before the body is even read
+        raise ActionRefused(
+            403,
+            f"{user.user} is an {user.role.value}: observers may watch the 3D view, not move things",
+            rule=RefusalRule.OBSERVERS_WATCH,
+        )
+    try:
+        body = await request.json()
+    except ValueError:
+        raise ActionRefused(400, "the request body must be JSON") from None
+    system, sysrep = _at_system(live)
+    command, args = _pose_command(body, sysrep)
+    try:
+        return command, await run_in_threadpool(live.executive.operator_command, user.user, system, command, args)
+    except OperatorActionError as exc:
+        raise ActionRefused(409, str(exc), rule=exc.rule) from None
+
+
 def _locate(event: Event) -> bool:
     data = event.data
     return isinstance(data, CommandSent) and (data.system, data.command) == LOCATE_COMMAND
@@ -127,24 +148,15 @@ def spatial_routes(
 
     async def pose(request: Request) -> Response:
         user = account(request)
-        if not user.may_act:  # refused before the body is even read
-            raise ActionRefused(
-                403, f"{user.user} is an {user.role.value}: observers may watch the 3D view, not move things"
-            )
         board: RunBoard = request.app.state.board
         live = board.live(request.path_params["run_id"])
         if live is None:  # a run hosted by another console is moved from that console
             raise ActionRefused(404, f"run {request.path_params['run_id']!r} is not live on this console")
         try:
-            body = await request.json()
-        except ValueError:
-            raise ActionRefused(400, "the request body must be JSON") from None
-        system, sysrep = _at_system(live)
-        command, args = _pose_command(body, sysrep)
-        try:
-            result = await run_in_threadpool(live.executive.operator_command, user.user, system, command, args)
-        except OperatorActionError as exc:
-            raise ActionRefused(409, str(exc)) from None
+            command, result = await _moved(request, user, live)
+        except ActionRefused as exc:  # a refused move is on the run's record, as every refused act
+            await run_in_threadpool(record_refused, live.executive, user.user, "move", exc)
+            raise
         outcome = result.outcome.value
         return JSONResponse(
             {"ok": True, "command": command, "outcome": outcome, "success": result.success, "message": result.message}
