@@ -602,7 +602,7 @@ function renderTelemetry() {
     const units = chip.dataset.units ? ` ${chip.dataset.units}` : "";
     const verdict = state === "out" ? ` (outside its limits: ${reading.out})` :
       state === "unexpected" ? ` (expected ${chip.dataset.expected.replace(/^= /, "")})` : "";
-    chip.textContent = `${CHIP_ICON[state]} ${label} = ${formatValue(reading.value)}${units}${verdict}` +
+    chip.textContent = `${CHIP_ICON[state]} ${label} = ${formatValue(reading.value, reading.item)}${units}${verdict}` +
       (age === null ? "" : ` · ${age.toFixed(1)} s ago`) + (reading.stale ? " · STALE" : "");
     chip.dataset.state = state;
     chip.dataset.stale = String(Boolean(reading.stale));
