@@ -139,6 +139,8 @@ class ProgressPrinter:
                 line = f"Run {event.run_id} stopped by {event.actor}" + (f": {d.reason}" if d.reason else "")
             case (
                 ep.CallEntered()
+                | ep.ValueSet()
+                | ep.CallReturned()
                 | ep.BreakpointCleared()
                 | ep.ApprovalRequested()
                 | ep.ApprovalGiven()

@@ -157,6 +157,10 @@ class FoldedRun:
                 self.breakpoints.discard(number)
             case ep.CallEntered() as d if number:
                 self.envs[number + "/"] = dict(d.inputs)
+            case ep.ValueSet() as d:
+                self.envs.setdefault(frame, {})[d.name] = d.value
+            case ep.CallReturned() as d if d.result:
+                self.envs.setdefault(frame, {})[d.result] = dict(d.outputs)
             case ep.Halt() as d:
                 self.halted = {"by": event.actor, "time": when, "reason": d.reason}
             case ep.LinkLost() as d:
@@ -216,6 +220,7 @@ class FoldedRun:
                 ep.BreakpointSet()
                 | ep.BreakpointCleared()
                 | ep.CallEntered()
+                | ep.CallReturned()
                 | ep.InstructionStarted()
                 | ep.AwaitingOperator()
                 | ep.BreakpointHit()

@@ -162,6 +162,7 @@ def _instruction(
         }
     elif isinstance(instruction, CallInstruction):
         view["procedure"] = instruction.procedure
+        view["result"] = instruction.result
         if callee is not None:
             view["callee"] = procedure_json(callee, load, sysreps=sysreps, _depth=depth + 1)
     return view

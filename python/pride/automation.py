@@ -28,7 +28,7 @@ from typing import Any
 
 from pride.approvals import command_hazardous
 from pride.event_payloads import CommandResult as CommandResultRecord
-from pride.event_payloads import CommandSent, TelemetrySeen
+from pride.event_payloads import CommandSent, TelemetrySeen, ValueSet
 from pride.events import Payload
 from pride.phrasing import record_refusal
 from pride.states import Controller, OperatorActionError, RecordNotCheckable
@@ -44,6 +44,7 @@ from procedure_language.model import (
     Procedure,
     RecordInstruction,
     Reference,
+    SetInstruction,
     Subject,
     VerifyInstruction,
     WaitInstruction,
@@ -72,7 +73,7 @@ class InstructionResult:
     ok: bool
     reason: str = ""
     goto: str | None = None  # a step reference to continue at
-    result: tuple[str, dict[str, Any]] | None = None  # a saved command result: (name, values)
+    result: tuple[str, Any] | None = None  # a saved command result (name, values) or a set output (name, value)
     enter: tuple[Procedure, dict[str, Any]] | None = None  # a sub-procedure to run, with its inputs
     unknown_key: str | None = None  # its command's outcome is unknown: neither done nor failed
     halted: bool = False  # a halt ended it before it finished
@@ -218,6 +219,8 @@ class Automation:
             return InstructionResult(True, goto=instruction.goto if holds else instruction.else_goto)
         if isinstance(instruction, GoToInstruction):
             return InstructionResult(True, goto=instruction.step)
+        if isinstance(instruction, SetInstruction):
+            return self._set(env, procedure, instruction, number, actor)
         if isinstance(instruction, CallInstruction):
             callee = self._checked.load(instruction.resolved_path)
             declared = {i.name: i.type for i in callee.inputs}
@@ -227,6 +230,18 @@ class Automation:
             }
             return InstructionResult(True, enter=(callee, inputs))
         raise OperatorActionError(f"{number} is performed by an operator")
+
+    def _set(
+        self, env: dict[str, Any], procedure: Procedure, instruction: SetInstruction, number: str, actor: str
+    ) -> InstructionResult:
+        """``<set>``: the output gets its value, converted to the output's type, for the caller to read."""
+        output_type = next((o.type for o in procedure.outputs if o.name == instruction.name), "string")
+        try:
+            value = check_value(instruction.name, output_type, instruction.value.resolve(env))
+        except (KeyError, ValueError) as exc:  # lint rules both out; a run must still not go on with a wrong value
+            return InstructionResult(False, f"cannot set {instruction.name}: {exc.args[0] if exc.args else exc}")
+        self._record(actor, number, ValueSet(name=instruction.name, value=value))
+        return InstructionResult(True, result=(instruction.name, value))
 
     def _send(
         self, env: dict[str, Any], instruction: CommandInstruction, number: str, actor: str, send: Send

@@ -83,3 +83,7 @@ class EventKind(str, enum.Enum):
     """An operator asked to perform an instruction again: :class:`~pride.event_payloads.Retry`."""
     CALL_ENTERED = "call_entered"
     """A sub-procedure started with its inputs: :class:`~pride.event_payloads.CallEntered`."""
+    VALUE_SET = "value_set"
+    """A procedure set one of its outputs: :class:`~pride.event_payloads.ValueSet`."""
+    CALL_RETURNED = "call_returned"
+    """A sub-procedure ended and handed its outputs to its caller: :class:`~pride.event_payloads.CallReturned`."""

@@ -27,6 +27,7 @@ __all__ = [
     "BreakpointHit",
     "BreakpointSet",
     "CallEntered",
+    "CallReturned",
     "CommandResult",
     "CommandSent",
     "Confirmation",
@@ -55,6 +56,7 @@ __all__ = [
     "RunStopped",
     "SteppedBack",
     "TelemetrySeen",
+    "ValueSet",
     "payload_from_json",
 ]
 
@@ -539,6 +541,28 @@ class CallEntered(Recorded):
     inputs: Mapping[str, Any]
 
 
+@dataclass(frozen=True, kw_only=True)
+class ValueSet(Recorded):
+    """A ``<set>`` gave an output of the procedure it is in a value: ``name`` (the output's),
+    ``value`` (converted to its type)."""
+
+    KIND = EventKind.VALUE_SET
+    name: str
+    value: Any
+
+
+@dataclass(frozen=True, kw_only=True)
+class CallReturned(Recorded):
+    """A sub-procedure ended (the event's instruction is the call): ``procedure`` (its id),
+    ``result`` (the name its caller reads them under, null if the call names none) and ``outputs``
+    (name → value)."""
+
+    KIND = EventKind.CALL_RETURNED
+    procedure: str
+    result: str | None
+    outputs: Mapping[str, Any]
+
+
 #: What an event's ``data`` is: one of these, by its kind.
 Payload: TypeAlias = (
     RunStarted
@@ -576,6 +600,8 @@ Payload: TypeAlias = (
     | BreakpointHit
     | Retry
     | CallEntered
+    | ValueSet
+    | CallReturned
 )
 
 _BY_KIND: dict[EventKind, type[Recorded]] = {cls.KIND: cls for cls in typing.get_args(Payload)}

@@ -147,6 +147,10 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
             return f"retry after: {d.after}"
         case ep.CallEntered() as d:
             return f"entered {d.procedure} with {format_value(dict(d.inputs)) or 'no inputs'}"
+        case ep.ValueSet() as d:
+            return f"set {humanize(d.name)} to {format_value(d.value)}"
+        case ep.CallReturned() as d:
+            return f"{d.procedure} returned {format_value(dict(d.outputs)) or 'no outputs'}"
         case ep.Confirmation() as d:
             return f"confirmed the hazardous command: {fill_text(d.command or '', {})}"
         case ep.ApprovalRequested() as d:

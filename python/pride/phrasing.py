@@ -66,6 +66,7 @@ from procedure_language.model import (
     Instruction,
     Procedure,
     Reference,
+    SetInstruction,
     Subject,
     Template,
     VerifyInstruction,
@@ -249,6 +250,8 @@ def phrase(
             parts.append(" with ")
             parts += _join([[f"{humanize(a.name)}: ", *a.value.parts] for a in instruction.args])
         return _template(parts)
+    if isinstance(instruction, SetInstruction):
+        return _template([f"Set {humanize(instruction.name)} to ", *instruction.value.parts])
     return Template((instruction.describe(),))
 
 
@@ -468,9 +471,12 @@ def raw_form(instruction: Instruction) -> str:
             f"if {instruction.subject.describe()} {instruction.condition.describe()} goto {instruction.goto}{otherwise}"
         )
     if isinstance(instruction, CallInstruction):
-        return "call " + _call(instruction.procedure, {a.name: a.value for a in instruction.args})
+        called = "call " + _call(instruction.procedure, {a.name: a.value for a in instruction.args})
+        return f"{instruction.result} = {called}" if instruction.result else called
     if isinstance(instruction, GoToInstruction):
         return f"goto {instruction.step}"
+    if isinstance(instruction, SetInstruction):
+        return f"set {instruction.name} = {instruction.value}"
     if isinstance(instruction, WaitInstruction):
         return f"wait {instruction.seconds:g} s"
     return f"{instruction.kind.value}: {instruction.text}"

@@ -136,6 +136,11 @@ def replay(
                 pending = None
             case ep.CallEntered():
                 envs[number + "/"] = dict(data.inputs)
+            case ep.ValueSet():
+                envs.setdefault(prefix, {})[data.name] = data.value
+            case ep.CallReturned():
+                if data.result:
+                    envs.setdefault(prefix, {})[data.result] = dict(data.outputs)
             case ep.InstructionStarted():
                 started = number
                 state.statuses[number] = InstructionStatus.EXECUTING

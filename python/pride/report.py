@@ -155,6 +155,8 @@ def summarize(events: list[Event]) -> RunSummary:
                 | ep.BreakpointHit()
                 | ep.Retry()
                 | ep.CallEntered()
+                | ep.ValueSet()
+                | ep.CallReturned()
             ):
                 pass  # in the steps' counts and the actions table only
             case _:

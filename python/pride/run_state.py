@@ -33,6 +33,7 @@ from pride.event_payloads import (
     AwaitingOperator,
     BreakpointHit,
     CallEntered,
+    CallReturned,
     Confirmation,
     InstructionCompleted,
     InstructionFailed,
@@ -49,6 +50,7 @@ from pride.phrasing import filled_sentence
 from pride.replay import Replayed
 from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RefusalRule, RunStatus
 from procedure_language.model import (
+    CallInstruction,
     CommandInstruction,
     Instruction,
     ManualInstruction,
@@ -468,13 +470,25 @@ class RunState:
                 self._emit(actor, None, RunCompleted(taken_back=left.removed, left_behind=left.left_json()))
                 self._notify()
                 return
-            self.frames.pop()
+            done = self.frames.pop()
             frame = self.frame
             number = frame.number()
+            self._hand_back(done, frame, number, actor)
             self.statuses[number] = InstructionStatus.COMPLETED
             frame.position = frame.procedure.following(frame.position)
             self._emit(actor, number, InstructionCompleted(next=frame.number()))
         self.arrive()
+
+    def _hand_back(self, done: Frame, caller: Frame, number: str, actor: str) -> None:
+        """A sub-procedure that declares outputs ended: its caller reads them under the call's ``result``."""
+        if not done.procedure.outputs:
+            return
+        outputs = {o.name: done.env[o.name] for o in done.procedure.outputs if o.name in done.env}
+        call = caller.instruction
+        result = call.result if isinstance(call, CallInstruction) else None
+        if result:
+            caller.env[result] = outputs
+        self._emit(actor, number, CallReturned(procedure=done.procedure.id, result=result, outputs=outputs))
 
     def halted(self, number: str, actor: str, detail: str) -> None:
         """A halt ended the instruction: recorded as halted by whoever halted, never completed."""

@@ -33,6 +33,7 @@ from procedure_language.model import (
     Procedure,
     RecordInstruction,
     Reference,
+    SetInstruction,
     Subject,
     Template,
     VerifyInstruction,
@@ -49,10 +50,11 @@ _UNTYPED = object()  # check_value's answer for a value known only at run time, 
 
 @dataclass(frozen=True)
 class _Variable:
-    """A name a procedure defines: an input/record (typed value) or a saved command result."""
+    """A name a procedure defines: an input, record or output (a typed value), a saved command
+    result, or a called sub-procedure's outputs."""
 
     name: str
-    source: str  # "input" | "record" | "result"
+    source: str  # "input" | "record" | "output" | "result" | "call"
     type: str | None
     where: Location
 
@@ -133,6 +135,7 @@ class _Linter:
         self.flat = procedure.instructions
         self.index = {i.number: n for n, i in enumerate(self.flat)}
         self.variables: dict[str, _Variable] = {}
+        self.call_outputs: dict[str, tuple[str, dict[str, str]]] = {}  # call result → (callee id, output types)
 
     def fail(self, where: Location, message: str) -> None:
         self.problems.append(Problem(where, message))
@@ -156,11 +159,14 @@ class _Linter:
     # ---- names ------------------------------------------------------------------------------
     def collect_variables(self) -> None:
         defs: list[_Variable] = [_Variable(i.name, "input", i.type, i.where) for i in self.proc.inputs]
+        defs += [_Variable(o.name, "output", o.type, o.where) for o in self.proc.outputs]
         for i in self.flat:
             if isinstance(i, RecordInstruction):
                 defs.append(_Variable(i.name, "record", i.type, i.at("name")))
             elif isinstance(i, CommandInstruction) and i.result:
                 defs.append(_Variable(i.result, "result", None, i.at("result")))
+            elif isinstance(i, CallInstruction) and i.result:
+                defs.append(_Variable(i.result, "call", None, i.at("result")))
         for var in defs:
             first = self.variables.get(var.name)
             if first is None:
@@ -204,8 +210,26 @@ class _Linter:
             self.step_target(i, "step", i.step)
         elif isinstance(i, CallInstruction):
             self.check_call(i)
+        elif isinstance(i, SetInstruction):
+            self.check_set(i)
         elif isinstance(i, RecordInstruction) and i.one_of_telemetry is not None:
             self.check_listed_values(i, *i.one_of_telemetry)
+
+    def check_set(self, i: SetInstruction) -> None:
+        """``<set>`` names a declared output, and its value fits the output's type."""
+        output = next((o for o in self.proc.outputs if o.name == i.name), None)
+        if output is None:
+            declared = ", ".join(o.name for o in self.proc.outputs) or "none"
+            self.fail(
+                i.at("name"),
+                f"<set> names no output of {self.proc.id}: {i.name!r} (declared outputs: {declared}; "
+                f'declare it with <output name="{i.name}" type="..."/>)',
+            )
+            return
+        binding = ArgumentBinding(i.name, i.value, i.at("value"))
+        self.check_value(
+            binding, output.type, f"output {i.name!r}", functools.partial(check_value, i.name, output.type)
+        )
 
     def check_listed_values(self, i: RecordInstruction, system: str, item_id: str) -> None:
         """``one-of-telemetry``: a string item of a used system that lists the acceptable values."""
@@ -264,8 +288,12 @@ class _Linter:
         whole = binding.value.whole_reference
         if whole is not None:
             var = self.variables.get(whole.name)
-            if var is not None and var.type is not None and var.type != type_name and type_name != "string":
-                self.fail(binding.where, f"{what}: expected {type_name}, but {whole} is a {var.type} {var.source}")
+            var_type, source = (var.type, var.source) if var is not None else (None, "")
+            if var is not None and var.source == "call" and whole.field is not None:
+                callee, outputs = self.call_outputs.get(whole.name, ("", {}))
+                var_type, source = outputs.get(whole.field), f"output of {callee}"
+            if var_type is not None and var_type != type_name and type_name != "string":
+                self.fail(binding.where, f"{what}: expected {type_name}, but {whole} is a {var_type} {source}")
             return _UNTYPED
         if binding.value.references:
             if type_name != "string":
@@ -302,12 +330,15 @@ class _Linter:
                 self.fail(i.at("input"), f'{subject.name!r} is a command result; write result="{subject.name}.success"')
         elif subject.source == "result":
             var = self.variables.get(subject.name)
-            if var is not None and var.source != "result":
+            if var is not None and var.source not in ("result", "call"):
                 self.fail(
                     i.at("result"),
                     f'{subject.name!r} is a {var.source}, not a command result; write input="{subject.name}"',
                 )
-            type_name = "boolean" if subject.field == "success" else None
+            if var is not None and var.source == "call":
+                type_name = self.call_outputs.get(subject.name, ("", {}))[1].get(subject.field or "")
+            else:
+                type_name = "boolean" if subject.field == "success" else None
         if type_name is None:
             return
         for attribute, text in (
@@ -366,6 +397,10 @@ class _Linter:
             self.fail(
                 i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}"
             )
+        if i.result:
+            self.call_outputs[i.result] = (callee.id, {o.name: o.type for o in callee.outputs})
+            if not callee.outputs:
+                self.fail(i.at("result"), f"{callee.id} declares no output: result={i.result!r} would hold nothing")
 
     # ---- control flow -----------------------------------------------------------------------
     def first_of(self, ref: str | None) -> int | None:
@@ -439,31 +474,66 @@ class _Linter:
                 if new != defined_in[n]:
                     defined_in[n] = new
                     changed = True
+        self.check_outputs_set(successors, reachable, defined_in)
         for n in sorted(reachable):
             for ref, where in self.uses(self.flat[n]):
                 if ref.name not in self.variables:
-                    self.fail(where, f"unbound variable {ref.name!r}: no input, record or command result of that name")
+                    self.fail(
+                        where,
+                        f"unbound variable {ref.name!r}: no input, record, output, command result or call result "
+                        "of that name",
+                    )
                 elif ref.name not in defined_in[n]:
                     self.fail(
                         where,
                         f"unbound variable {ref.name!r}: not recorded or returned before "
                         f"{self.flat[n].number} on every path",
                     )
-                elif ref.field is not None and self.variables[ref.name].source != "result":
-                    self.fail(
-                        where, f"{ref}: {ref.name!r} is a {self.variables[ref.name].source}, write ${{{ref.name}}}"
-                    )
-                elif ref.field is None and self.variables[ref.name].source == "result":
-                    self.fail(
-                        where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}"
-                    )
+                else:
+                    self.check_reference(ref, where)
+
+    def check_reference(self, ref: Reference, where: Location) -> None:
+        """A bound reference names a value the way its variable holds it (a call's outputs by name)."""
+        source = self.variables[ref.name].source
+        if source == "call":
+            callee, outputs = self.call_outputs.get(ref.name, ("", {}))
+            if ref.field is None:
+                listed = ", ".join(outputs) or "none"
+                self.fail(where, f"{ref}: {ref.name!r} holds {callee}'s outputs; name one ({listed})")
+            elif callee and ref.field not in outputs:
+                listed = ", ".join(outputs) or "none"
+                self.fail(where, f"{ref}: {callee} declares no output {ref.field!r} (its outputs: {listed})")
+        elif ref.field is not None and source != "result":
+            self.fail(where, f"{ref}: {ref.name!r} is a {source}, write ${{{ref.name}}}")
+        elif ref.field is None and source == "result":
+            self.fail(where, f"{ref}: {ref.name!r} is a command result; name a value, e.g. ${{{ref.name}.success}}")
+
+    def check_outputs_set(
+        self, successors: list[list[int]], reachable: set[int], defined_in: dict[int, frozenset[str]]
+    ) -> None:
+        """Every declared output is set on every path that ends the procedure (its caller reads them)."""
+        end = len(self.flat)
+        ends = [n for n in sorted(reachable) if end in successors[n]]
+        if not ends or not self.proc.outputs:
+            return
+        for output in self.proc.outputs:
+            unset = [n for n in ends if output.name not in self.defined_out(n, defined_in[n])]
+            if unset:
+                self.fail(
+                    output.where,
+                    f"output {output.name!r} is not set on every path that ends {self.proc.id}: not set when it "
+                    f"ends after {', '.join(self.flat[n].number for n in unset)} "
+                    f'(add <set name="{output.name}">...</set> on that path)',
+                )
 
     def defined_out(self, n: int, defined: frozenset[str]) -> frozenset[str]:
         i = self.flat[n]
         if isinstance(i, RecordInstruction):
             return defined | {i.name}
-        if isinstance(i, CommandInstruction) and i.result:
+        if isinstance(i, (CommandInstruction, CallInstruction)) and i.result:
             return defined | {i.result}
+        if isinstance(i, SetInstruction):
+            return defined | {i.name}
         return defined
 
     @staticmethod
@@ -471,6 +541,8 @@ class _Linter:
         found: list[tuple[Reference, Location]] = []
         if isinstance(i, (CommandInstruction, CallInstruction)):
             found += [(ref, b.where) for b in i.args for ref in b.value.references]
+        if isinstance(i, SetInstruction):
+            found += [(ref, i.at("value")) for ref in i.value.references]
         if isinstance(i, BranchInstruction) and i.subject.source in ("input", "result"):
             ref = Reference(i.subject.name, i.subject.field if i.subject.source == "result" else None)
             found.append((ref, i.at(i.subject.source)))

@@ -31,9 +31,11 @@ __all__ = [
     "Location",
     "ManualInstruction",
     "Notice",
+    "Output",
     "Procedure",
     "RecordInstruction",
     "Reference",
+    "SetInstruction",
     "Step",
     "Subject",
     "Template",
@@ -73,6 +75,8 @@ class Kind(enum.Enum):
     """Continue at another step."""
     CALL = "call"
     """Run a sub-procedure, then continue."""
+    SET = "set"
+    """Set an output of this procedure, which its caller reads."""
 
 
 _REFERENCE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z_][A-Za-z0-9_]*))?\}")
@@ -80,7 +84,8 @@ _REFERENCE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Za-z_][A-Za-z0-9_
 
 @dataclass(frozen=True)
 class Reference:
-    """``${name}`` (a recorded input) or ``${name.field}`` (a value of a saved command result)."""
+    """``${name}`` (a recorded input) or ``${name.field}`` (a value of a saved command result, or
+    an output of a called sub-procedure)."""
 
     name: str
     field: str | None = None
@@ -375,9 +380,21 @@ class CallInstruction(Instruction):
     procedure: str  # file path as written, relative to the calling procedure
     args: tuple[ArgumentBinding, ...]
     resolved_path: str = ""
+    result: str | None = None  # the name the caller reads the callee's outputs under: ${result.output}
 
     def describe(self) -> str:
         return self.text or f"Run sub-procedure {self.procedure}"
+
+
+@dataclass(frozen=True, kw_only=True)
+class SetInstruction(Instruction):
+    """``<set name="x">${located.x}</set>``: sets output ``x`` of this procedure for its caller."""
+
+    name: str
+    value: Template
+
+    def describe(self) -> str:
+        return self.text or f"Set {self.name} to {self.value}"
 
 
 @dataclass(frozen=True)
@@ -403,6 +420,15 @@ class Input:
 
 
 @dataclass(frozen=True)
+class Output:
+    """A value a sub-procedure hands back to its caller: ``<output name="..." type="..."/>``."""
+
+    name: str
+    type: str
+    where: Location
+
+
+@dataclass(frozen=True)
 class Procedure:
     """One procedure file."""
 
@@ -415,6 +441,7 @@ class Procedure:
     steps: tuple[Step, ...]
     where: Location
     description: str = ""
+    outputs: tuple[Output, ...] = ()
 
     @cached_property
     def instructions(self) -> tuple[Instruction, ...]:

@@ -29,8 +29,10 @@ from procedure_language.model import (
     Location,
     ManualInstruction,
     Notice,
+    Output,
     Procedure,
     RecordInstruction,
+    SetInstruction,
     Step,
     Subject,
     Template,
@@ -74,6 +76,14 @@ class _Builder:
             Input(self.required(i, "name"), i.get("type", "string"), self.pos.attribute(i, "name"))
             for i in root.findall("input")
         )
+        outputs = tuple(
+            Output(self.required(o, "name"), o.get("type", "string"), self.pos.attribute(o, "name"))
+            for o in root.findall("output")
+        )
+        for n, output in enumerate(outputs):
+            first = next((o for o in outputs[:n] if o.name == output.name), None)
+            if first is not None:
+                self.fail(output.where, f"output {output.name!r} is declared twice (first at line {first.where.line})")
         steps = []
         seen_ids: dict[str, Location] = {}
         for number, el in enumerate(root.findall("step"), start=1):
@@ -96,6 +106,7 @@ class _Builder:
             steps=tuple(steps),
             where=self.pos.element(root),
             description=" ".join(description.split()),
+            outputs=outputs,
         )
 
     def step(self, el: etree._Element, number: int) -> Step:
@@ -181,12 +192,19 @@ class _Builder:
             )
         if tag == "goto":
             return GoToInstruction(kind=Kind.GOTO, step=self.required(el, "step"), **common)
+        if tag == "set":
+            value = (el.text or "").strip()
+            if not value:
+                self.fail(common["where"], f"<set name={el.get('name')!r}> needs a value: write it inside the element")
+            common["attrs"].setdefault("value", self.pos.text(el))
+            return SetInstruction(kind=Kind.SET, name=self.required(el, "name"), value=Template.parse(value), **common)
         procedure = self.required(el, "procedure")
         return CallInstruction(
             kind=Kind.CALL,
             procedure=procedure,
             args=self.arguments(el),
             resolved_path=str((self.path.parent / procedure).resolve()),
+            result=el.get("result"),
             **common,
         )
 
