@@ -15,10 +15,11 @@ more workers than cores ran several robot stacks and browsers at once, each slow
 
 :class:`CostAwareFileScheduling` gives the next longest file only to the worker that will be free
 first (a worker still busy for longer than another gets the shortest file instead), and only if
-the cores of the files running then stay within :data:`CORE_BUDGET`. When no file left fits, the
-worker is held: it gets nothing until a test ends elsewhere, and the last test of its current
-file waits with it (pytest-xdist runs a worker's last test only once it knows the next). A worker
-is never held when no other worker is running a test, so the suite cannot stall. Files that mostly
+the cores of the files running then stay within :data:`CORE_BUDGET`. When no file left fits, a
+worker between files is held: it gets nothing until a test ends elsewhere (pytest-xdist runs a
+worker's last test only once it knows the next, so a worker in the middle of a file is never held:
+its last test would wait with the file's robot stack or browser alive). A worker is never held
+when no other worker is running a test, so the suite cannot stall. Files that mostly
 wait (a link's light time, a ten-minute outage) thus run beside the ones that compute, on workers
 beyond the cores, while the ones that compute never run more at once than the cores can carry: a
 file stretched by a crowded machine costs more CPU, not less (its simulator, its browser and its
@@ -118,6 +119,11 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
     def _cost(self, scope: str) -> FileCost:
         return file_cost(self._root / scope, self._root)
 
+    def _between_files(self, node: WorkerController) -> bool:
+        """Whether ``node`` has no file under way: what it has left is files of one test, none started."""
+        unfinished = [tests for tests in self.assigned_work.get(node, {}).values() if not all(tests.values())]
+        return all(len(tests) == 1 for tests in unfinished)
+
     def _running_a_test(self, node: WorkerController) -> bool:
         """Whether ``node`` runs a test now: a held worker with one test left waits to run it."""
         return node not in self._held or self._pending_of(self.assigned_work.get(node, {})) >= 2
@@ -161,7 +167,7 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         fitting = next((scope for scope in self.workqueue if self._cost(scope).cores <= room), None)
         if fitting is not None:
             return str(fitting)
-        if any(self._running_a_test(other) for other in self.assigned_work if other is not node):
+        if self._between_files(node) and any(self._running_a_test(o) for o in self.assigned_work if o is not node):
             return None
         return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores))
 
