@@ -319,13 +319,14 @@ class Executive:
         The cancel goes to the gateway before the executive's lock is taken, so it reaches the
         robot even while the lock is held by an append that waits for the database.
         """
+        carried_on = self._state.carried_on
         key = self._engine.automation.request_halt(Halt(user, reason)) or self._engine.pending_key()
         answer = self._engine.cancel(key)
         with self._changed:
             state = self._state
             if state.status is not RunStatus.ACTIVE:
                 return
-            if state.halt is None:
+            if state.halt is None and state.carried_on == carried_on:  # not after an operator carried on
                 state.halt = Halt(user, reason)
             halted = HaltRecord(reason=reason, key=key, cancel=_cancel_data(answer), executing=state.executing)
             self._engine.emit(user, state.current_number(), halted)

@@ -140,6 +140,9 @@ class RunState:
         self.unknown: tuple[str, str] | None = None  # (key, why) of the command whose outcome is unknown
         self.resend: str | None = None  # a key to send again as it is (in flight when the runner died)
         self.halt: Halt | None = None
+        #: How many times an operator decided what to do about a hold: a halt whose robot answers after
+        #: an operator already carried on must not hold the run again.
+        self.carried_on = 0
         self.control_lost: str | None = None  # why this run may not command its robot
         self.attempts: dict[str, int] = {}  # instruction number -> attempts at its command so far
         self.branches: dict[str, int] = {}  # instruction number -> times its on-failure branch was taken
@@ -431,6 +434,7 @@ class RunState:
         """An operator decided what to do about the current instruction: no failure, halt or unknown stays."""
         self.failure = self.in_flight = self.unknown = self.resend = None
         self.halt = None
+        self.carried_on += 1
 
     def skip(self, actor: str, reason: str) -> None:
         """Pass over the current instruction without performing it."""

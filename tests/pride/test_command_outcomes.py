@@ -11,15 +11,17 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from datetime import UTC, datetime
+from pathlib import Path
 
 import pytest
 
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus
-from pride.systems import Outcome
+from pride.systems import CancelResult, Outcome
 from records.audit_log import Availability
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
+from support.lab_gateway import LabGateway
 
 
 def at_move(executive: Executive) -> None:
@@ -157,6 +159,46 @@ def test_halt_cancels_the_command_in_flight_records_it_halted_by_the_user_and_re
         ("run-1/2.1/1", "carol"),
         ("run-1/2.1/2", "bob"),
     ]
+
+
+class SlowToAnswerCancels(LabGateway):
+    """The robot stops at once, but its answer to the cancel comes only when ``answer`` is set (a
+    loaded machine, a long link): the operator may carry on before the halt's record is written."""
+
+    def __init__(self, images: str) -> None:
+        super().__init__(images)
+        self.answer = threading.Event()
+
+    def cancel(self, key: str) -> CancelResult:
+        stopped = super().cancel(key)
+        assert self.answer.wait(TIMEOUT)
+        return stopped
+
+
+def test_a_halt_answered_after_the_operator_carried_on_does_not_hold_the_run_again(
+    bench: Bench, tmp_path: Path
+) -> None:
+    gateway = SlowToAnswerCancels(str(tmp_path / "images"))
+    executive, _, journal = bench(gateway=gateway)
+    gateway.block.add("vent")
+    at_move(executive)
+    held(executive, Hold.CONFIRMATION, "2.1")
+    executive.confirm("carol")
+    assert gateway.blocking.wait(TIMEOUT)
+    halting = threading.Thread(target=executive.halt, args=("bob", "the arm is drifting"))
+    halting.start()
+    held(executive, Hold.HALTED, "2.1")  # the vent ended halted; the robot's answer is still on its way
+    gateway.blocking.clear()
+    executive.confirm("bob")
+    executive.retry("bob")  # the operator carries on: a new attempt, executing
+    assert gateway.blocking.wait(TIMEOUT)
+    gateway.answer.set()
+    halting.join(TIMEOUT)
+    assert not halting.is_alive()
+    (halt,) = of(journal, EventKind.HALT)  # the halt is on the record all the same
+    assert halt.actor == "bob" and halt.data.to_json()["cancel"] == {"stopped": True, "message": "stopped where it was"}
+    gateway.release.set()
+    held(executive, Hold.OPERATOR_ACTION, "2.4")  # not held as halted at 2.2
 
 
 def test_halt_when_nothing_moves_holds_until_the_operator_continues(bench: Bench) -> None:
