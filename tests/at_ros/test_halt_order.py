@@ -142,6 +142,8 @@ def test_a_halt_that_crosses_set_gripper_keeps_the_fingers_still(robot: tuple[St
     worker.join(120)
     executed = answer["result"]
     assert not executed.success and f"halted ({reason})" in executed.message, executed.message
+    # the held gripper request comes out of its hook after the halt (the execute may answer first)
+    parts.processes["sim"].wait_for_line(r"gripper refused: halted", 60, after=printed["sim"])
     after = _after_halt(parts.processes["sim"], reason)
     assert not _started(after), f"a motion started after the halt: {after}"
     assert any("gripper refused: halted" in line for line in after), after
