@@ -12,6 +12,7 @@ stack shows the EVA arm and the hull targets. The frame rate while the arm moves
 
 from __future__ import annotations
 
+import json
 import os
 import statistics
 import time
@@ -251,9 +252,10 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
     slot = matrix(habitat.frame("cabinet/slot"))
     wait_view(alice, "v.templates['cdra_filter:0'] !== undefined")
     wait_for_pose(alice, "cdra_filter:0", slot)
-    templates = inspect(alice)["templates"]
     assert_pose(
-        templates["cdra_filter:0"]["pose"], slot, "the filter display object at its registration (cabinet/slot)"
+        inspect(alice)["templates"]["cdra_filter:0"]["pose"],
+        slot,
+        "the filter display object at its registration (cabinet/slot)",
     )
     status = habitat.call(
         f"{AT}/get_template_status",
@@ -267,10 +269,12 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
         for w in s["waypoint_info"]
         for k in range(len(w["waypoint_poses"]))
     }
+    assert expected_waypoints
+    # each waypoint reaches the view in an update of its own: wait for them all, then check their kind
+    wait_view(alice, f"{json.dumps(sorted(expected_waypoints))}.every(name => v.templates[name] !== undefined)")
+    templates = inspect(alice)["templates"]
     shown = {name for name, t in templates.items() if t["kind"] == "waypoint" and t["template"] == "cdra_filter:0"}
-    assert expected_waypoints and expected_waypoints <= shown, (
-        f"waypoints: habitat {sorted(expected_waypoints)}, view {sorted(shown)}"
-    )
+    assert expected_waypoints <= shown, f"waypoints: habitat {sorted(expected_waypoints)}, view {sorted(shown)}"
 
     plan = habitat.plan("cdra_filter:0")
     assert plan["state"] == "PLANNED", plan["message"]
