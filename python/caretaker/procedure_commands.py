@@ -26,6 +26,7 @@ from pride.gateways import open_gateway
 from pride.phrasing import Wording
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
+from pride.run_section import RunSection, SectionError
 from pride.run_setup import RunSetup
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, lint_file
@@ -92,7 +93,18 @@ def run_main(argv: list[str] | None = None) -> int:
         help=f"audit log SQLAlchemy URL (default $CARETAKER_DB, else {DEFAULT_DB}: a URL with a password "
         "is better in the environment than on a command line others can read)",
     )
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="answer the record NAME")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="answer the record NAME; with --from, also what the skipped steps would have bound (a record, or "
+        "a command result's value as RESULT.VALUE)",
+    )
+    parser.add_argument(
+        "--from", dest="from_step", metavar="STEP", help="start at this step (its id or number), not the first"
+    )
+    parser.add_argument("--to", dest="to_step", metavar="STEP", help="end the run after this step")
     parser.add_argument("--confirm-manual", action="store_true", help="mark manual instructions done unattended")
     parser.add_argument("--confirm-hazardous", action="store_true", help="confirm hazardous commands unattended")
     parser.add_argument(
@@ -181,6 +193,13 @@ def run_main(argv: list[str] | None = None) -> int:
         audit.close()
 
 
+def _section(args: argparse.Namespace, setup: RunSetup, values: dict[str, str]) -> RunSection | None:
+    """``--from``/``--to``: the part of the procedure to run, with ``--set``'s values for what it skips."""
+    if args.from_step is None and args.to_step is None:
+        return None
+    return RunSection(args.from_step or setup.checked.procedure.steps[0].id, args.to_step, values)
+
+
 def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: AuditLog, values: dict[str, str]) -> int:
     if args.attach:
         if args.procedure or args.onboard or args.resume:
@@ -188,6 +207,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         from caretaker.onboard_commands import attach
 
         return attach(args, audit)
+    if (args.from_step or args.to_step) and (args.resume or args.onboard):
+        parser.error("--from and --to start a new run of part of a procedure here: not with --resume or --onboard")
     try:
         events = audit.events(args.resume) if args.resume else []
     except EventDataError as exc:  # a stored event that does not fit its kind: edited, or not a run's own
@@ -268,11 +289,11 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                 executive.add_listener(left_behind)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
                     executive.set_breakpoint(args.user, number)
-                executive.start(args.user, take_over=args.take_over)
+                executive.start(args.user, take_over=args.take_over, section=_section(args, setup, values))
         except RobotControlled as exc:
             print(f"caretaker run: {exc} (--take-over REASON)", file=sys.stderr)
             return 2
-        except OperatorActionError as exc:
+        except (OperatorActionError, SectionError) as exc:
             print(f"caretaker run: {exc}", file=sys.stderr)
             return 2
         if args.resume:

@@ -70,9 +70,11 @@ class RunStarted(Recorded):
 
     ``procedure``, ``title``, ``version``, ``path`` (the file, resolved): what it runs; ``mode``
     (``manual`` or ``autonomous``); ``robot``: the binding's robot; ``steps``: each step's
-    ``number``, ``id`` and ``title``. With a recorded version (:mod:`pride.run_version`):
-    ``sha256`` of the file, ``release`` (its release number, null for a rehearsal) and
-    ``rehearsal``; all three or none.
+    ``number``, ``id`` and ``title``; ``section``, for a run of part of the procedure
+    (:class:`pride.run_section.RunSection`): the step it started at (``from``), the step it stops
+    after (``to``, null: the end) and the values given for what the steps before would have
+    bound. With a recorded version (:mod:`pride.run_version`): ``sha256`` of the file, ``release``
+    (its release number, null for a rehearsal) and ``rehearsal``; all three or none.
     """
 
     KIND = EventKind.RUN_STARTED
@@ -86,9 +88,11 @@ class RunStarted(Recorded):
     sha256: str | None = optional()
     release: int | None = optional()
     rehearsal: bool | None = optional()
+    section: Mapping[str, Any] | None = optional()
 
     def _left_out(self) -> set[str]:
-        return {"sha256", "release", "rehearsal"} if self.sha256 is None else set()
+        versioned = {"sha256", "release", "rehearsal"} if self.sha256 is None else set()
+        return versioned | ({"section"} if self.section is None else set())
 
     def step_titles(self) -> tuple[tuple[int, str], ...]:
         """Each step's number and title, in order."""

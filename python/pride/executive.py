@@ -115,6 +115,7 @@ from pride.phrasing import filled_sentence
 from pride.replay import resumable_start
 from pride.run_control import ControlStore, RobotControlled
 from pride.run_engine import RunEngine
+from pride.run_section import RunSection
 from pride.run_state import Request
 from pride.run_version import RunVersion
 from pride.states import (
@@ -202,17 +203,22 @@ class Executive:
         self._engine.join(timeout)
 
     # ---- lifecycle --------------------------------------------------------------------------
-    def start(self, user: str, *, take_over: str | None = None) -> None:
+    def start(self, user: str, *, take_over: str | None = None, section: RunSection | None = None) -> None:
         """Begin the run (called once, by whoever launches it); take control of the robot first.
+        ``section``: run part of the procedure (:mod:`pride.run_section`).
 
         Raises:
             RobotControlled: another run controls the robot (and ``take_over`` gives no reason to
                 take it from that run); nothing is recorded then.
+            SectionError: the section cannot start (what to fix); nothing is recorded then.
         """
         with self._changed:
             state = self._state
             if state.status is not RunStatus.READY:
                 raise OperatorActionError(f"run {self.run_id} was already started")
+            if section is not None:
+                variables = section.check(self._engine.checked)
+                state.enter_section(section.start, variables, section.stops_after(self.procedure))
             previous = self._engine.control.take(user, take_over)
             state.status = RunStatus.ACTIVE
             procedure = self.procedure
@@ -228,6 +234,7 @@ class Executive:
                 sha256=version.sha256 if version else None,
                 release=version.release if version else None,
                 rehearsal=version.rehearsal if version else None,
+                section=section.to_json() if section else None,
             )
             self._engine.emit(user, None, started)
             self._engine.record_takeover(user, previous, take_over)

@@ -17,8 +17,9 @@ from typing import Any, assert_never
 
 from pride import event_payloads as ep
 from pride.events import Event, EventKind
-from pride.frames import Frame, frames_at
+from pride.frames import Frame, frames_at, position_of
 from pride.leftovers import taken_back
+from pride.run_section import RunSection
 from pride.states import InstructionStatus, Mode, OperatorActionError
 from procedure_language.model import Procedure
 
@@ -50,6 +51,7 @@ class Replayed:
     halt: tuple[str, str] | None = None  # (who, why) when the run was halted
     attempts: dict[str, int] = field(default_factory=dict)
     branches: dict[str, int] = field(default_factory=dict)  # times each instruction's on-failure branch was taken
+    stops_after: int | None = None  # a run of part of the procedure: the last step it performs
     seq: int = 0
 
 
@@ -108,6 +110,11 @@ def replay(
         prefix = number.rsplit("/", 1)[0] + "/" if "/" in number else ""
         data = event.data
         match data:
+            case ep.RunStarted() if data.section:
+                section = RunSection.from_json(data.section)
+                cursor = procedure.instructions[position_of(procedure, section.start)].number
+                envs[""] = section.variables(procedure)
+                state.stops_after = section.stops_after(procedure)
             case ep.ModeChanged() | ep.RunResumed():
                 state.mode = Mode(data.mode)
             case ep.BreakpointSet():

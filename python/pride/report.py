@@ -73,6 +73,8 @@ class RunSummary:
     """What checking the run's hash chain found (empty: not checked)."""
     released: str = ""
     """The version it ran: its release, or a rehearsal (empty: recorded without one)."""
+    section: str = ""
+    """Where a run of part of the procedure started and stopped, in words (empty: the whole procedure)."""
 
     @property
     def seconds(self) -> float:
@@ -175,7 +177,28 @@ def summarize(events: list[Event]) -> RunSummary:
         telemetry=telemetry,
         images=images,
         released=version_text(started).removeprefix(" · "),
+        section=_section_words(started),
     )
+
+
+def _section_words(started: ep.RunStarted) -> str:
+    """ "from step 4 (Finish) to step 4 (Finish)", with what was given for the steps skipped."""
+    if not started.section:
+        return ""
+    numbers = {str(s.get("id")): (s.get("number"), s.get("title")) for s in started.steps}
+    numbers.update({str(number): (number, title) for number, title in numbers.values()})
+
+    def step(ref: object) -> str:
+        number, title = numbers.get(str(ref), (ref, ""))
+        return f"step {number} ({title})" if title else f"step {number}"
+
+    words = f"started at {step(started.section.get('from'))}"
+    if started.section.get("to"):
+        words += f", to end after {step(started.section.get('to'))}"
+    given = started.section.get("given") or {}
+    if given:
+        words += "; given for the steps before: " + ", ".join(f"{k} = {v}" for k, v in given.items())
+    return words
 
 
 def _own_step(number: str | None, by_number: dict[int, StepSummary]) -> StepSummary | None:
@@ -287,6 +310,7 @@ def to_markdown(summary: RunSummary, wording: Wording | None = None) -> str:
         f"- Run: `{summary.run_id}`",
         f"- Procedure: `{summary.procedure}` version {summary.version}",
         *([f"- Ran: **{summary.released}**"] if summary.released else []),
+        *([f"- Part of the procedure: {summary.section}"] if summary.section else []),
         f"- Started: {summary.started:%Y-%m-%d %H:%M:%S} UTC by {summary.started_by}",
         f"- Duration: {_duration(summary.seconds)}",
         f"- Outcome: **{summary.outcome}**",
@@ -377,6 +401,7 @@ figure{{display:inline-block;margin:0 1em 1em 0}}
 started {summary.started:%Y-%m-%d %H:%M:%S} UTC by {esc(summary.started_by)} · {_duration(summary.seconds)} ·
 outcome <b>{esc(summary.outcome)}</b></p>
 {f"<p>Ran: <b>{esc(summary.released)}</b></p>" if summary.released else ""}
+{f"<p>Part of the procedure: {esc(summary.section)}</p>" if summary.section else ""}
 {f"<p>Audit chain: {esc(summary.integrity)}</p>" if summary.integrity else ""}
 <h2>Steps</h2>
 <table><tr><th>step</th><th>title</th><th>time</th><th>completed</th><th>failed</th><th>skipped</th><th>by</th></tr>{rows}</table>

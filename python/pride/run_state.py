@@ -143,6 +143,7 @@ class RunState:
         #: How many times an operator decided what to do about a hold: a halt whose robot answers after
         #: an operator already carried on must not hold the run again.
         self.carried_on = 0
+        self.stops_after: int | None = None  # a run of part of the procedure ends after this step
         self.control_lost: str | None = None  # why this run may not command its robot
         self.attempts: dict[str, int] = {}  # instruction number -> attempts at its command so far
         self.branches: dict[str, int] = {}  # instruction number -> times its on-failure branch was taken
@@ -163,6 +164,7 @@ class RunState:
         self.unknown, self.resend, self.attempts = replayed.unknown, replayed.resend, replayed.attempts
         self.branches = replayed.branches
         self.halt = Halt(*replayed.halt) if replayed.halt else None
+        self.stops_after = replayed.stops_after
 
     # ---- queries ----------------------------------------------------------------------------
     @property
@@ -430,6 +432,21 @@ class RunState:
         self._emit(actor, number, InstructionCompleted(next=self.frame.number(position), went_to=went_to))
         self.advance(position, actor)
 
+    def enter_section(self, step: str, variables: dict[str, Any], stops_after: int | None) -> None:
+        """Start at ``step`` with ``variables`` bound, and end after step ``stops_after`` (None: at the end)."""
+        frame = self.frames[0]
+        frame.position, self.stops_after = position_of(frame.procedure, step), stops_after
+        frame.env.update(variables)
+
+    def _beyond_section(self, frame: Frame) -> bool:
+        """Whether the main procedure moved past the last step of the run's section (a contingency
+        step anywhere is still the section's: an off-nominal path of a step in it)."""
+        instruction = frame.instruction
+        if self.stops_after is None or len(self.frames) > 1 or instruction is None:
+            return False
+        step = frame.procedure.step_of(instruction.number)
+        return step.number > self.stops_after and not step.contingency
+
     def clear_holds(self) -> None:
         """An operator decided what to do about the current instruction: no failure, halt or unknown stays."""
         self.failure = self.in_flight = self.unknown = self.resend = None
@@ -467,7 +484,7 @@ class RunState:
         """
         frame = self.frame
         frame.position = position
-        while frame.instruction is None:
+        while frame.instruction is None or self._beyond_section(frame):
             if len(self.frames) == 1:
                 self.status = RunStatus.COMPLETED
                 left = self._holdings.left("the procedure completed without removing it")

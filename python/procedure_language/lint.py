@@ -14,7 +14,7 @@ converted to their SysRep types here, so a run sends typed values without checki
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
@@ -42,7 +42,7 @@ from procedure_language.model import (
 from procedure_language.parser import parse_procedure
 from procedure_language.sysrep import SysRep, check_value
 
-__all__ = ["CheckedProcedure", "check_procedure", "lint_file"]
+__all__ = ["CheckedProcedure", "Unbound", "check_procedure", "lint_file", "section_needs"]
 
 
 _UNTYPED = object()  # check_value's answer for a value known only at run time, or wrong
@@ -101,6 +101,45 @@ def check_procedure(path: str | Path, sysreps: Mapping[str, SysRep]) -> CheckedP
     return CheckedProcedure(
         procedure, MappingProxyType(dict(sysreps)), MappingProxyType(callees), MappingProxyType(session.literals)
     )
+
+
+@dataclass(frozen=True)
+class Unbound:
+    """A value a run started at a step needs but never bound: ``name`` or ``name.field``, and where it is read."""
+
+    name: str
+    where: Location
+
+    def __str__(self) -> str:
+        return f"{self.where}: {self.name}"
+
+
+def section_needs(checked: CheckedProcedure, start_step: str, given: Collection[str] = ()) -> list[Unbound]:
+    """What a run started at ``start_step`` reads that only the part it skips would have bound, less
+    what ``given`` names (``name``, or ``name.field`` of a result, as ``caretaker run --set`` gives
+    them): each once, where it is first read.
+
+    Raises:
+        KeyError: the procedure has no step ``start_step``.
+    """
+    procedure = checked.procedure
+    step = procedure.step(start_step)
+    if step is None:
+        raise KeyError(f"no step {start_step!r} (steps: {', '.join(s.id for s in procedure.steps)})")
+    linter = _Linter(procedure, _Session(checked.sysreps), frozenset())
+    linter.collect_variables()
+    start = linter.index[step.instructions[0].number]
+    successors = linter.control_flow()
+    reachable = linter.reached_from(successors, start)
+    defined_in = linter.defined_before(successors, reachable, start, frozenset(i.name for i in procedure.inputs))
+    needs: dict[str, Unbound] = {}
+    for n in sorted(reachable):
+        for ref, where in linter.uses(linter.flat[n]):
+            name = f"{ref.name}.{ref.field}" if ref.field else ref.name
+            bound = ref.name in defined_in[n] or name in given
+            if ref.name in linter.variables and not bound:
+                needs.setdefault(name, Unbound(name, where))
+    return list(needs.values())
 
 
 @dataclass
@@ -425,15 +464,19 @@ class _Linter:
             successors.append(sorted({t if t is not None else end for t in targets if t is not None}))
         return successors
 
-    def reachability(self, successors: list[list[int]]) -> set[int]:
+    def reached_from(self, successors: list[list[int]], start: int) -> set[int]:
         reached: set[int] = set()
-        todo = [0] if self.flat else []
+        todo = [start] if self.flat else []
         while todo:
             n = todo.pop()
             if n in reached or n >= len(self.flat):
                 continue
             reached.add(n)
             todo.extend(successors[n])
+        return reached
+
+    def reachability(self, successors: list[list[int]]) -> set[int]:
+        reached = self.reached_from(successors, 0)
         for step in self.proc.steps:
             numbers = [self.index[i.number] for i in step.instructions]
             if numbers and not any(n in reached for n in numbers):
@@ -451,13 +494,14 @@ class _Linter:
                     )
         return reached
 
-    def check_variables(self, successors: list[list[int]], reachable: set[int]) -> None:
-        """Every ``${...}`` and condition input must be defined on every path that reaches it."""
+    def defined_before(
+        self, successors: list[list[int]], reachable: set[int], start: int, entry: frozenset[str]
+    ) -> dict[int, frozenset[str]]:
+        """The names bound on every path from ``start`` (where ``entry`` is bound) to each reachable instruction."""
         everything = frozenset(self.variables)
-        entry = frozenset(inp.name for inp in self.proc.inputs)
         defined_in: dict[int, frozenset[str]] = {n: everything for n in reachable}
-        if 0 in reachable:
-            defined_in[0] = entry
+        if start in reachable:
+            defined_in[start] = entry
         predecessors: dict[int, list[int]] = {n: [] for n in reachable}
         for n in reachable:
             for s in successors[n]:
@@ -468,12 +512,18 @@ class _Linter:
             changed = False
             for n in sorted(reachable):
                 sets = [self.defined_out(p, defined_in[p]) for p in predecessors[n]]
-                if n == 0:
+                if n == start:
                     sets.append(entry)
                 new = frozenset.intersection(*sets) if sets else entry
                 if new != defined_in[n]:
                     defined_in[n] = new
                     changed = True
+        return defined_in
+
+    def check_variables(self, successors: list[list[int]], reachable: set[int]) -> None:
+        """Every ``${...}`` and condition input must be defined on every path that reaches it."""
+        entry = frozenset(inp.name for inp in self.proc.inputs)
+        defined_in = self.defined_before(successors, reachable, 0, entry)
         self.check_outputs_set(successors, reachable, defined_in)
         for n in sorted(reachable):
             for ref, where in self.uses(self.flat[n]):

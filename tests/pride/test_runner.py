@@ -242,3 +242,37 @@ def test_ctrl_c_halts_the_command_in_flight_and_an_unattended_run_then_stops(
     assert not any(e.kind is EventKind.INSTRUCTION_COMPLETED and e.instruction == "2.1" for e in events)
     assert events[-1].kind is EventKind.RUN_STOPPED and "halted by alice" in events[-1].data.to_json()["reason"]
     assert log.verify(run_id).ok
+
+
+def test_a_run_from_a_step_needs_what_the_skipped_steps_bound_and_its_report_says_where_it_started(
+    setup: tuple[dict[str, str], str, list[str]],
+) -> None:
+    env, db, common = setup
+    refused = run(env, PROCEDURE, "--auto", "--user", "alice", *common, "--from", "finish")
+    assert refused.returncode == 2, refused.stdout + refused.stderr
+    assert "--from finish: the steps it skips would have bound target (read at " in refused.stderr
+    assert "give it with --set NAME=VALUE" in refused.stderr
+    log = AuditLog(db)
+    assert log.runs() == []  # nothing started, nothing recorded
+    proc = run(env, PROCEDURE, "--auto", "--user", "alice", *common, *ANSWERS, "--from", "finish", "--to", "4")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "RESULT completed" in proc.stdout and "Step 2  Inspect" not in proc.stdout
+    ((run_id, _, _),) = log.runs()
+    events = log.events(run_id)
+    assert events[0].data.to_json()["section"] == {"from": "finish", "to": "4", "given": {"target": "dock"}}
+    assert [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_STARTED][0] == "4.1"
+    assert not [e for e in events if e.instruction and e.instruction.startswith("5.")]
+    out = Path(env["LAB_GATEWAY_IMAGES"]).parent / "reports"
+    subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, "--out", str(out)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    report = (out / f"{run_id}.md").read_text(encoding="utf-8")
+    assert (
+        "Part of the procedure: started at step 4 (Finish), to end after step 4 (Finish); given for the steps "
+        "before: target = dock" in report
+    ), report
