@@ -159,6 +159,8 @@ class FoldedRun:
                 self.envs[number + "/"] = dict(d.inputs)
             case ep.ValueSet() as d:
                 self.envs.setdefault(frame, {})[d.name] = d.value
+            case ep.WentTo() as d:
+                self.current, self.awaiting = d.next, None
             case ep.CallReturned() as d if d.result:
                 self.envs.setdefault(frame, {})[d.result] = dict(d.outputs)
             case ep.Halt() as d:
@@ -221,6 +223,8 @@ class FoldedRun:
                 | ep.BreakpointCleared()
                 | ep.CallEntered()
                 | ep.CallReturned()
+                | ep.MonitorViolated()
+                | ep.MonitorCleared()
                 | ep.InstructionStarted()
                 | ep.AwaitingOperator()
                 | ep.BreakpointHit()

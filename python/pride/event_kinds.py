@@ -87,3 +87,10 @@ class EventKind(str, enum.Enum):
     """A procedure set one of its outputs: :class:`~pride.event_payloads.ValueSet`."""
     CALL_RETURNED = "call_returned"
     """A sub-procedure ended and handed its outputs to its caller: :class:`~pride.event_payloads.CallReturned`."""
+    MONITOR_VIOLATED = "monitor_violated"
+    """A monitored item went out of its condition or limits: :class:`~pride.event_payloads.MonitorViolated`."""
+    MONITOR_CLEARED = "monitor_cleared"
+    """A violated monitor's item came back: :class:`~pride.event_payloads.MonitorCleared`."""
+    WENT_TO = "went_to"
+    """The run went to a step by no instruction of its own (a monitor's go-to):
+    :class:`~pride.event_payloads.WentTo`."""

@@ -3,8 +3,8 @@
 Each class's docstring is the contract of its kind's ``data``: the audit log, replay, the
 downlink, the console, the terminal and the report read these fields and nothing else, and fold
 events with one ``match`` over :data:`Payload` ending in ``typing.assert_never``, so a kind added
-here and forgotten by a fold fails mypy. How a payload is stored as JSON and read back, the same
-byte for byte, is :mod:`pride.event_json`'s.
+here and forgotten by a fold fails mypy (the monitors' payloads are in :mod:`pride.monitor_events`).
+How a payload is stored as JSON and read back, the same byte for byte, is :mod:`pride.event_json`'s.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import Any, TypeAlias
 
 from pride.event_json import JSON_NAME, EventDataError, Recorded, optional, read_payload
 from pride.event_kinds import EventKind
+from pride.monitor_events import MonitorCleared, MonitorViolated, WentTo
 
 __all__ = [
     "ActionRefused",
@@ -43,6 +44,8 @@ __all__ = [
     "InstructionStarted",
     "LinkLost",
     "LinkRestored",
+    "MonitorCleared",
+    "MonitorViolated",
     "ModeChanged",
     "OperatorInput",
     "OutcomeResolved",
@@ -57,6 +60,7 @@ __all__ = [
     "SteppedBack",
     "TelemetrySeen",
     "ValueSet",
+    "WentTo",
     "payload_from_json",
 ]
 
@@ -606,6 +610,9 @@ Payload: TypeAlias = (
     | CallEntered
     | ValueSet
     | CallReturned
+    | MonitorViolated
+    | MonitorCleared
+    | WentTo
 )
 
 _BY_KIND: dict[EventKind, type[Recorded]] = {cls.KIND: cls for cls in typing.get_args(Payload)}

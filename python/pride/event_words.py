@@ -147,6 +147,14 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
             return f"retry after: {d.after}"
         case ep.CallEntered() as d:
             return f"entered {d.procedure} with {format_value(dict(d.inputs)) or 'no inputs'}"
+        case ep.MonitorViolated() as d:
+            then = f"HALT, then go to step {d.action.partition(':')[2]}"
+            acts = {"hold": "the run holds", "halt": "HALT"}.get(d.action, then)
+            return f"monitor violated: {d.system}.{d.telemetry} = {format_value(d.value)} ({d.limit}): {acts}"
+        case ep.MonitorCleared() as d:
+            return f"monitor cleared: {d.system}.{d.telemetry} = {format_value(d.value)}"
+        case ep.WentTo() as d:
+            return f"went to {d.next}{_reason(d.reason)}"
         case ep.ValueSet() as d:
             return f"set {humanize(d.name)} to {format_value(d.value)}"
         case ep.CallReturned() as d:

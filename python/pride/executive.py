@@ -20,11 +20,9 @@ Operator actions (raise :class:`OperatorActionError` saying why when not applica
     ask_again, resolve, skip, go_back, replan, take_control.
 
 Critical commanding (:mod:`pride.approvals`)
-    With a policy whose level is not off, a command that needs approval holds until an operator
-    sends it for approval (:meth:`confirm`, the sender) and a different operator approves it
-    (:meth:`approve`; the sender's own is refused); it is then sent at once, ``command_sent``
-    naming both. An approval that runs out before the command could be sent is recorded
-    (APPROVAL_EXPIRED) and the command waits for a new one.
+    A command that needs approval holds until its sender sends it for approval (:meth:`confirm`)
+    and another operator approves it (:meth:`approve`); then it is sent, ``command_sent`` naming
+    both. An approval that runs out first is recorded (APPROVAL_EXPIRED); a new one is needed.
 
 Commands and their outcomes
     Every command carries a key ``run/instruction/attempt`` (:func:`pride.automation.command_key`);
@@ -43,24 +41,24 @@ Halt and stop
     or completed, is listed in its end event (``left_behind``), never passed over.
 
 After a halted motion
-    A halted motion's plan ended with the halt (:mod:`pride.replanning`): retry and continue
-    cannot work and are refused, saying what can. :meth:`replan` goes back to the instruction of
-    the step that planned it (recorded as the operator's step back), so the run plans again from
-    where the arm is and goes on from there; the snapshot names that instruction
-    (``replan_from``) and why the motion cannot be sent again (``no_retry``).
+    Its plan ended with the halt (:mod:`pride.replanning`): retry and continue are refused, saying
+    why. :meth:`replan` steps back to the instruction that planned it, so the run plans again from
+    where the arm is (the snapshot's ``replan_from``, and ``no_retry`` saying why).
+
+Monitors
+    A step's ``<monitor>`` is watched on every telemetry update while active (:mod:`pride.monitoring`):
+    violated, the run holds, halts, or halts and goes to a contingency step (:meth:`divert`).
 
 Control of the robot
-    With a :class:`pride.run_control.ControlStore`, a run takes control of its robot (the
-    binding's ``robot:``) when it starts or resumes, is refused (:class:`RobotControlled`, naming
-    the holder) when another run holds it unless it takes over with a reason, checks it still
-    holds control before every command, and holds (Hold.CONTROL_LOST) when another run took over.
-    It releases the robot when it completes or stops.
+    With a :class:`pride.run_control.ControlStore`, a run takes control of its robot when it starts
+    or resumes (refused, :class:`RobotControlled`, while another run holds it, unless it takes over
+    with a reason), checks it before every command, holds (Hold.CONTROL_LOST) when another run took
+    over, and releases it when it completes or stops.
 
 Links
-    The gateway reports its links; a lost link is recorded (LINK_LOST, LINK_RESTORED) and shown
-    in the snapshot ("link lost since T, N commands in flight"). Commands in flight wait for the
-    link (the gateway re-sends their keys within the binding's outage budget); past it they come
-    back UNKNOWN. Verifies and waits count the link's one-way delay into their timeout.
+    A lost link is recorded (LINK_LOST, LINK_RESTORED) and shown in the snapshot. Commands in flight
+    wait for it within the binding's outage budget (their keys sent again), past it they come back
+    UNKNOWN. Verifies and waits count the link's one-way delay into their timeout.
 
 Failure
     A failed command, verify or wait (or an unbound variable) never counts as done: the run goes
@@ -89,6 +87,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -111,6 +110,7 @@ from pride.event_payloads import (
 )
 from pride.event_payloads import Halt as HaltRecord
 from pride.events import Event, Journal
+from pride.monitoring import respond
 from pride.phrasing import filled_sentence
 from pride.replay import resumable_start
 from pride.run_control import ControlStore, RobotControlled
@@ -168,6 +168,7 @@ class Executive:
         )
         # the engine's state and the lock and condition that guard it, which every action takes
         self._state, self._lock, self._changed = self._engine.state, self._engine.lock, self._engine.changed
+        self._engine.on_monitor = partial(respond, self)
         self.procedure, self.run_id, self.robot, self.version = checked.procedure, run_id, self._engine.robot, version
 
     # ---- observation (the engine's) ---------------------------------------------------------
@@ -371,6 +372,10 @@ class Executive:
                 left_behind=ended.left_json(),
             )
             self._engine.emit(user, state.current_number(), stopped)
+
+    def divert(self, step: str, reason: str) -> bool:
+        """A monitor's go-to: to ``step`` once what runs ends (True: halt it), at once if nothing runs."""
+        return self._engine.divert(step, reason)
 
     def set_breakpoint(self, user: str, number: str) -> None:
         """Make automation hold when it reaches instruction ``number``."""

@@ -33,7 +33,7 @@ _ENDED: dict[type, InstructionStatus] = {
     ep.InstructionHalted: InstructionStatus.HALTED,
 }
 #: Operator decisions after which a halt no longer holds the run.
-_HALT_ENDS = (ep.Retry, ep.Continued, ep.SteppedBack, ep.InstructionSkipped, ep.OutcomeResolved)
+_HALT_ENDS = (ep.Retry, ep.Continued, ep.SteppedBack, ep.WentTo, ep.InstructionSkipped, ep.OutcomeResolved)
 
 
 @dataclass
@@ -143,6 +143,8 @@ def replay(
                 pending = None
             case ep.CallEntered():
                 envs[number + "/"] = dict(data.inputs)
+            case ep.MonitorViolated() | ep.MonitorCleared():
+                pass  # what a monitor saw; the halt or hold it caused is recorded by itself
             case ep.ValueSet():
                 envs.setdefault(prefix, {})[data.name] = data.value
             case ep.CallReturned():
@@ -154,6 +156,8 @@ def replay(
             case ep.SteppedBack():
                 for again in data.reset:
                     state.statuses[again] = InstructionStatus.PENDING
+                cursor, started, sent, pending, state.failure = data.next, None, None, None, None
+            case ep.WentTo():
                 cursor, started, sent, pending, state.failure = data.next, None, None, None, None
             case ep.InstructionCompleted() | ep.InstructionFailed() | ep.InstructionSkipped() | ep.InstructionHalted():
                 state.statuses[number] = _ENDED[type(data)]

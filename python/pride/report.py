@@ -75,6 +75,8 @@ class RunSummary:
     """The version it ran: its release, or a rehearsal (empty: recorded without one)."""
     section: str = ""
     """Where a run of part of the procedure started and stopped, in words (empty: the whole procedure)."""
+    monitors: list[str] = field(default_factory=list)
+    """What the run's monitors saw, in words: each violation (and the value's return), when and where."""
 
     @property
     def seconds(self) -> float:
@@ -103,6 +105,7 @@ def summarize(events: list[Event]) -> RunSummary:
     outcome = "interrupted"
     images: list[Image] = []
     telemetry: list[Event] = []
+    monitors: list[str] = []
     for event in events:
         own = _own_step(event.instruction, by_number)  # a step's own instruction, not a sub-procedure's
         match event.data:
@@ -125,6 +128,8 @@ def summarize(events: list[Event]) -> RunSummary:
                 )
             case ep.TelemetrySeen():
                 telemetry.append(event)
+            case ep.MonitorViolated() | ep.MonitorCleared():
+                monitors.append(f"{event.time:%H:%M:%S} at {event.instruction or '—'}: {describe_event(event)}")
             case (
                 ep.RunStarted()
                 | ep.ModeChanged()
@@ -159,6 +164,7 @@ def summarize(events: list[Event]) -> RunSummary:
                 | ep.CallEntered()
                 | ep.ValueSet()
                 | ep.CallReturned()
+                | ep.WentTo()
             ):
                 pass  # in the steps' counts and the actions table only
             case _:
@@ -178,6 +184,7 @@ def summarize(events: list[Event]) -> RunSummary:
         images=images,
         released=version_text(started).removeprefix(" · "),
         section=_section_words(started),
+        monitors=monitors,
     )
 
 
@@ -325,6 +332,8 @@ def to_markdown(summary: RunSummary, wording: Wording | None = None) -> str:
         by = ", ".join(sorted(s.actors)) or "—"
         when = _duration(s.seconds) if s.visits else "not reached"
         lines.append(f"| {s.number} | {s.title} | {when} | {s.completed} | {s.failed} | {s.skipped} | {by} |")
+    if summary.monitors:
+        lines += ["", "## Monitors", "", *(f"- {said_of}" for said_of in summary.monitors)]
     lines += [
         "",
         "## Timeline",
@@ -403,7 +412,7 @@ outcome <b>{esc(summary.outcome)}</b></p>
 {f"<p>Ran: <b>{esc(summary.released)}</b></p>" if summary.released else ""}
 {f"<p>Part of the procedure: {esc(summary.section)}</p>" if summary.section else ""}
 {f"<p>Audit chain: {esc(summary.integrity)}</p>" if summary.integrity else ""}
-<h2>Steps</h2>
+{_monitors_html(summary)}<h2>Steps</h2>
 <table><tr><th>step</th><th>title</th><th>time</th><th>completed</th><th>failed</th><th>skipped</th><th>by</th></tr>{rows}</table>
 <h2>Timeline</h2>
 {timeline_svg(summary, wording=said)}
@@ -435,3 +444,10 @@ def write_report(
     md_path.write_text(to_markdown(summary, wording), encoding="utf-8")
     (out_dir / f"{summary.run_id}-timeline.svg").write_text(timeline_svg(summary, wording=wording), encoding="utf-8")
     return html_path, md_path
+
+
+def _monitors_html(summary: RunSummary) -> str:
+    """The monitors' section of the HTML report (empty when no monitor was violated)."""
+    if not summary.monitors:
+        return ""
+    return "<h2>Monitors</h2><ul>" + "".join(f"<li>{html.escape(said)}</li>" for said in summary.monitors) + "</ul>\n"

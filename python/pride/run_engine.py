@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -28,10 +29,11 @@ from typing import TYPE_CHECKING, Any
 from pride.approvals import ApprovalPolicy
 from pride.automation import Automation, ControlLost, InstructionResult
 from pride.event_payloads import ControlLost as ControlLostRecord
-from pride.event_payloads import ControlTaken, InstructionStarted, Paused, RunResumed
+from pride.event_payloads import ControlTaken, InstructionStarted, MonitorCleared, MonitorViolated, Paused, RunResumed
 from pride.events import PAX, Event, Journal, Payload
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
+from pride.monitoring import MonitorChange
 from pride.phrasing import fill_text, phrase
 from pride.replanning import Replan, halted_motion
 from pride.replay import replay
@@ -127,6 +129,9 @@ class RunEngine:
         self._wake = threading.Event()  # the supervisor has something to look at
         self._reported = threading.Condition()  # telemetry changed: counted in _reports
         self._reports = 0
+        self._monitored: deque[tuple[str, str, Any]] = deque()  # updates of monitored items, for the supervisor
+        #: acts on a violated monitor (:func:`pride.monitoring.respond`), on a thread of its own: a halt waits
+        self.on_monitor: Callable[[MonitorChange], None] | None = None
         self._last = self._build_snapshot()
         gateway.add_listener(self._telemetry_callback)
         gateway.add_link_listener(self._link_callback)
@@ -456,6 +461,8 @@ class RunEngine:
                     if state.halt is None:
                         state.halt = self.automation.halt
                     state.finish(job, number, outcome)
+                    if state.diverted is not None and state.going_on:
+                        self._go_to_diverted()
                     if job.then_pause and state.going_on and not state.paused:
                         state.paused = True
                         self.emit(job.actor, state.current_number(), Paused(after_step=number))
@@ -488,13 +495,17 @@ class RunEngine:
                 self._wake.clear()
                 change = self.links.change()
                 lost, holder = self.control.lost() if self.state.control_lost is None else (False, None)
-                if change is None and not lost:
+                updates = [self._monitored.popleft() for _ in range(len(self._monitored))]
+                if change is None and not lost and not updates:
                     continue
                 with self.changed:
                     if change is not None and self.state.status is RunStatus.ACTIVE:
                         self.emit(PAX, self.state.current_number(), change)
                     if lost:
                         self._lose_control(holder)
+                    violated = self._watch_monitors(updates)
+                for monitor in violated:  # a halt waits for the robot's answer: never on this thread
+                    threading.Thread(target=self.on_monitor, args=(monitor,), name="pax-monitor", daemon=True).start()
         except JournalFailure:
             pass  # the run stopped in _emit, with the journal's reason
         except Exception:
@@ -509,9 +520,62 @@ class RunEngine:
         self._wake.set()
 
     def _telemetry_callback(self, sysrep_id: str, item_id: str, value: TelemetryValue) -> None:
-        """Called by the gateway on its own thread when telemetry changes: wake any watcher."""
+        """Called by the gateway on its own thread when telemetry changes: wake any watcher, and the
+        supervisor when a monitor reads the item."""
         self.automation.telemetry_changed.set()
+        if self.state.monitors.watches(sysrep_id, item_id):
+            self._monitored.append((sysrep_id, item_id, value.value))
+            self._wake.set()
         self._report_changed()
+
+    def _watch_monitors(self, updates: list[tuple[str, str, Any]]) -> list[MonitorChange]:
+        """Record what the monitors made of ``updates`` (the lock is held); the violations to act on."""
+        violated: list[MonitorChange] = []
+        for system, item, value in updates:
+            if self.state.status is not RunStatus.ACTIVE:
+                break
+            for change in self.state.monitors.update(system, item, value):
+                monitor = change.monitor
+                if change.violated:
+                    action = monitor.on_violation + (f":{monitor.goto}" if monitor.goto else "")
+                    payload: Payload = MonitorViolated(
+                        monitor=monitor.name,
+                        system=system,
+                        telemetry=item,
+                        value=value,
+                        limit=change.limit,
+                        action=action,
+                        text=monitor.describe(),
+                    )
+                else:
+                    payload = MonitorCleared(monitor=monitor.name, system=system, telemetry=item, value=value)
+                self.emit(PAX, self.state.current_number(), payload)
+                if change.violated and monitor.on_violation == "hold":  # with the violation, before anything moves on
+                    if not self.state.paused:
+                        self.state.paused = True
+                        self.emit(PAX, self.state.current_number(), Paused())
+                elif change.violated:
+                    violated.append(change)
+        return violated if self.on_monitor is not None else []
+
+    def divert(self, step: str, reason: str) -> bool:
+        """A monitor's go-to: the run goes to ``step`` once what is in progress ended (True: it must be
+        halted first), at once if nothing is (False)."""
+        with self.changed:
+            if not self.state.going_on:
+                return False
+            self.state.diverted = (step, reason)
+            if self.state.executing:
+                return True
+            self._go_to_diverted()
+            return False
+
+    def _go_to_diverted(self) -> None:
+        step, reason = self.state.diverted or ("", "")
+        self.state.diverted = None
+        self.automation.clear_halt()  # the halt that stopped the motion ends here: the run goes on there
+        self.state.go_to(step, PAX, reason)
+        self.changed.notify_all()
 
     def _report_changed(self) -> None:
         """Wake :meth:`wait_for_report`: telemetry came, or the run ended."""

@@ -42,10 +42,12 @@ from pride.event_payloads import (
     OutcomeResolved,
     RunCompleted,
     SteppedBack,
+    WentTo,
 )
 from pride.events import PAX, Event, Payload
 from pride.frames import Frame, position_of
 from pride.leftovers import Holdings
+from pride.monitoring import MonitorBoard
 from pride.phrasing import filled_sentence
 from pride.replay import Replayed
 from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RefusalRule, RunStatus
@@ -144,6 +146,8 @@ class RunState:
         #: an operator already carried on must not hold the run again.
         self.carried_on = 0
         self.stops_after: int | None = None  # a run of part of the procedure ends after this step
+        self.monitors = MonitorBoard(procedure, sysreps)
+        self.diverted: tuple[str, str] | None = None  # a monitor's go-to (step, why), once what runs has ended
         self.control_lost: str | None = None  # why this run may not command its robot
         self.attempts: dict[str, int] = {}  # instruction number -> attempts at its command so far
         self.branches: dict[str, int] = {}  # instruction number -> times its on-failure branch was taken
@@ -418,6 +422,7 @@ class RunState:
         number = self.current_number()
         if number is None:
             return
+        self.monitors.enter(int(self.frames[0].number().split(".")[0]))
         self.statuses[number] = InstructionStatus.ACTIVE
         if self.mode is Mode.AUTONOMOUS and number in self.breakpoints:
             self.at_breakpoint = True
@@ -446,6 +451,16 @@ class RunState:
             return False
         step = frame.procedure.step_of(instruction.number)
         return step.number > self.stops_after and not step.contingency
+
+    def go_to(self, step: str, actor: str, reason: str) -> None:
+        """Go to ``step`` of the main procedure (leaving any sub-procedure) by no instruction's doing."""
+        was = self.frame.number()
+        del self.frames[1:]
+        main = self.frames[0]
+        main.position = position_of(main.procedure, step)
+        self.clear_holds()
+        self._emit(actor, was, WentTo(from_=was, next=main.number(), reason=reason))
+        self.arrive()
 
     def clear_holds(self) -> None:
         """An operator decided what to do about the current instruction: no failure, halt or unknown stays."""
@@ -552,7 +567,8 @@ class RunState:
             return
         if outcome.halted:
             self.halted(number, actor, outcome.reason)
-            self.announce()
+            if self.diverted is None:  # a monitor's go-to takes the run on from here
+                self.announce()
             return
         if not self.going_on:
             # stopped meanwhile: record how it ended so a resume knows, but go nowhere. A failure is

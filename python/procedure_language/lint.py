@@ -18,7 +18,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, Protocol
 
 from procedure_language.diagnostics import Problem, ProcedureError
 from procedure_language.model import (
@@ -30,6 +30,7 @@ from procedure_language.model import (
     GoToInstruction,
     Instruction,
     Location,
+    Monitor,
     Procedure,
     RecordInstruction,
     Reference,
@@ -46,6 +47,12 @@ __all__ = ["CheckedProcedure", "Unbound", "check_procedure", "lint_file", "secti
 
 
 _UNTYPED = object()  # check_value's answer for a value known only at run time, or wrong
+
+
+class _Placed(Protocol):
+    """What lint can point at: an instruction or a monitor, each attribute where it is written."""
+
+    def at(self, attribute: str) -> Location: ...
 
 
 @dataclass(frozen=True)
@@ -190,6 +197,8 @@ class _Linter:
         self.collect_variables()
         for instruction in self.flat:
             self.check(instruction)
+        for monitor in (m for step in self.proc.steps for m in step.monitors):
+            self.check_monitor(monitor)
         successors = self.control_flow()
         reachable = self.reachability(successors)
         self.check_variables(successors, reachable)
@@ -217,7 +226,7 @@ class _Linter:
                     f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name",
                 )
 
-    def system(self, instruction: Instruction, system: str | None) -> SysRep | None:
+    def system(self, instruction: _Placed, system: str | None) -> SysRep | None:
         where = instruction.at("system")
         if system is None or system not in self.sysreps:
             known = ", ".join(sorted(self.sysreps)) or "none"
@@ -227,7 +236,7 @@ class _Linter:
             self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
         return self.sysreps[system]
 
-    def step_target(self, instruction: Instruction, attribute: str, ref: str | None) -> None:
+    def step_target(self, instruction: _Placed, attribute: str, ref: str | None) -> None:
         if ref is not None and self.proc.step(ref) is None:
             known = ", ".join(s.id for s in self.proc.steps)
             self.fail(instruction.at(attribute), f"go-to to nowhere: no step {ref!r} (steps: {known})")
@@ -253,6 +262,30 @@ class _Linter:
             self.check_set(i)
         elif isinstance(i, RecordInstruction) and i.one_of_telemetry is not None:
             self.check_listed_values(i, *i.one_of_telemetry)
+
+    def check_monitor(self, m: Monitor) -> None:
+        """A monitor watches an item its SysRep has: its condition fits the item's type, or the item
+        has the limits it names; a go-to on violation lands on a step."""
+        if m.on_violation == "goto":
+            self.step_target(m, "on-violation", m.goto)
+        if m.condition is not None:
+            self.check_condition(m, Subject("telemetry", m.telemetry, system=m.system), m.condition)
+            return
+        sysrep = self.system(m, m.system)
+        item = sysrep.telemetry_item(m.telemetry) if sysrep is not None else None
+        if sysrep is None:
+            return
+        if item is None:
+            known = ", ".join(t.id for t in sysrep.telemetry)
+            self.fail(m.at("telemetry"), f"unknown telemetry {m.telemetry!r} in {m.system} (telemetry: {known})")
+        elif item.limits is None:
+            self.fail(
+                m.at("limit"),
+                f"{m.system}.{m.telemetry} has no limits in its SysRep ({sysrep.path}): watch a condition "
+                "(min, max, equals) or give the item limits: {red_high: ...}",
+            )
+        elif m.limit == "yellow" and item.limits.equals is not None:
+            self.fail(m.at("limit"), f"{m.system}.{m.telemetry}'s limit is an equals: it has no yellow band; use red")
 
     def check_set(self, i: SetInstruction) -> None:
         """``<set>`` names a declared output, and its value fits the output's type."""
@@ -347,7 +380,7 @@ class _Linter:
             self.fail(binding.where, f"{what}: {str(exc).split(': ', 1)[-1]}")
             return _UNTYPED
 
-    def check_condition(self, i: Instruction, subject: Subject, condition: Condition) -> None:
+    def check_condition(self, i: _Placed, subject: Subject, condition: Condition) -> None:
         type_name: str | None = None
         if subject.source == "telemetry":
             sysrep = self.system(i, subject.system)
@@ -461,8 +494,20 @@ class _Linter:
                 targets = [following, self.first_of(i.on_failure)]
             else:
                 targets = [following]
+            targets += self.monitor_targets(i)
             successors.append(sorted({t if t is not None else end for t in targets if t is not None}))
         return successors
+
+    def monitor_targets(self, i: Instruction) -> list[int | None]:
+        """Where a monitor active at ``i`` may send the run: any moment of its step (or after, for one
+        of the whole procedure) may go to its contingency."""
+        step = int(i.number.split(".")[0])
+        return [
+            self.first_of(m.goto)
+            for s in self.proc.steps
+            for m in s.monitors
+            if m.on_violation == "goto" and (m.step == step or (m.scope == "procedure" and m.step <= step))
+        ]
 
     def reached_from(self, successors: list[list[int]], start: int) -> set[int]:
         reached: set[int] = set()

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
+from procedure_language.limits import Persistence
 from procedure_language.sysrep import check_value
 
 __all__ = [
@@ -30,6 +31,7 @@ __all__ = [
     "Kind",
     "Location",
     "ManualInstruction",
+    "Monitor",
     "Notice",
     "Output",
     "Procedure",
@@ -397,6 +399,43 @@ class SetInstruction(Instruction):
         return self.text or f"Set {self.name} to {self.value}"
 
 
+@dataclass(frozen=True, kw_only=True)
+class Monitor:
+    """A condition watched on every telemetry update while it is active, whatever instruction runs:
+    ``<monitor system=... telemetry=... (min|max|equals|not-equals | limit="red|yellow")>``.
+
+    Active while the run is in its step (``scope="step"``), or from its step to the run's end
+    (``scope="procedure"``). Out of its condition (or its SysRep limits at ``limit`` or worse) for
+    its ``persistence``, it is violated: the run holds, halts, or halts and goes to step ``goto``
+    (``on_violation``: ``hold``, ``halt``, ``goto``).
+    """
+
+    system: str
+    telemetry: str
+    condition: Condition | None
+    limit: str | None
+    scope: str
+    on_violation: str
+    goto: str | None
+    persistence: Persistence | None  # None: as the item's SysRep limits say (one sample without them)
+    text: str
+    step: int
+    where: Location
+    attrs: dict[str, Location] = field(default_factory=dict, compare=False, hash=False)
+
+    def at(self, attribute: str) -> Location:
+        return self.attrs.get(attribute, self.where)
+
+    @property
+    def name(self) -> str:
+        """How the record and the console name it: its item and step."""
+        return f"{self.system}.{self.telemetry} (step {self.step})"
+
+    def describe(self) -> str:
+        watched = self.condition.describe() if self.condition is not None else f"within its {self.limit} limits"
+        return self.text or f"{self.system}.{self.telemetry} {watched}"
+
+
 @dataclass(frozen=True)
 class Step:
     """A numbered step: a title and its instructions. ``id`` is what go-tos name."""
@@ -408,6 +447,7 @@ class Step:
     where: Location
     notices: tuple[Notice, ...] = ()
     contingency: bool = False
+    monitors: tuple[Monitor, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from lxml import etree
 
 from procedure_language import schema
 from procedure_language.diagnostics import Problem, ProcedureError
+from procedure_language.limits import Persistence, parse_persistence
 from procedure_language.model import (
     ArgumentBinding,
     BranchInstruction,
@@ -28,6 +29,7 @@ from procedure_language.model import (
     Kind,
     Location,
     ManualInstruction,
+    Monitor,
     Notice,
     Output,
     Procedure,
@@ -112,9 +114,13 @@ class _Builder:
     def step(self, el: etree._Element, number: int) -> Step:
         instructions: list[Instruction] = []
         pending: list[Notice] = []
+        monitors: list[Monitor] = []
         for child in el:
             if not isinstance(child.tag, str):
                 continue  # comments
+            if child.tag == "monitor":
+                monitors.append(self.monitor(child, number))
+                continue
             if child.tag in _NOTICES:
                 pending.append(Notice(child.tag, _clean(child.text), self.pos.element(child)))
                 continue
@@ -132,6 +138,39 @@ class _Builder:
             where,
             tuple(pending),
             contingency=_bool(el.get("contingency", "false")),
+            monitors=tuple(monitors),
+        )
+
+    def monitor(self, el: etree._Element, step: int) -> Monitor:
+        """A ``<monitor>``: a condition or a SysRep limit, never both."""
+        where = self.pos.element(el)
+        condition = self.condition(el, required=False)
+        limit = el.get("limit")
+        if (condition is None) == (limit is None):
+            self.fail(
+                where, '<monitor> watches a condition (equals, not-equals, min, max) or limit="red|yellow": one of them'
+            )
+        action, _, goto = el.get("on-violation", "halt").partition(":")
+        persistence: Persistence | None = None
+        if el.get("persistence") is not None:
+            try:
+                persistence = parse_persistence(el.get("persistence"))
+            except ValueError as exc:
+                self.fail(self.pos.attribute(el, "persistence"), str(exc))
+        sentence = el.find("text")
+        return Monitor(
+            system=self.required(el, "system"),
+            telemetry=self.required(el, "telemetry"),
+            condition=condition,
+            limit=limit,
+            scope=el.get("scope", "step"),
+            on_violation=action,
+            goto=goto or None,
+            persistence=persistence,
+            text=_clean(sentence.text if sentence is not None else ""),
+            step=step,
+            where=where,
+            attrs=self.attrs(el),
         )
 
     def instruction(self, el: etree._Element, number: str, notices: tuple[Notice, ...]) -> Instruction:

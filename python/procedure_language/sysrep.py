@@ -15,7 +15,8 @@ Optional extensions never change that form; they ride in a trailing mapping:
 
 - command: ``[id, label, args, {hazardous: true, description: "..."}]``
 - argument: ``[name, type, {units: m, min: 0, max: 1, enum: [...], description: "..."}]``
-- telemetry: ``[id, label, type, {units: ..., min: ..., max: ..., enum: [...], description: ...}]``
+- telemetry: ``[id, label, type, {units: ..., min: ..., max: ..., enum: [...], description: ...,
+  limits: {...}}]`` (limits: :mod:`procedure_language.limits`)
 - top level: ``description``, ``version``.
 
 Every error is one line, ``file:line: where: problem``, naming the entry and what to fix. The
@@ -35,6 +36,7 @@ from typing import Any
 
 from datafile import DataFileError, Node, load_file
 from datafile.nodes import MAPPING, SCALAR, SEQUENCE
+from procedure_language.limits import Limits, parse_limits
 
 __all__ = [
     "TYPES",
@@ -110,6 +112,7 @@ class Telemetry:
     max: float | None = None
     enum: tuple[Any, ...] | None = None
     description: str | None = None
+    limits: Limits | None = None  # what a monitor with limit="red" (and the console's colours) reads
     line: int = 0
 
 
@@ -231,8 +234,8 @@ class _Reader:
                 raise self.fail(node, where, f"extension {key!r} must be a string, got {data[key]!r}")
         return data
 
-    def value_extensions(self, node: Node, where: str, type_name: str) -> dict[str, Any]:
-        data = self.extensions(node, where, _VALUE_EXTENSIONS)
+    def value_extensions(self, node: Node, where: str, type_name: str, *, limits: bool = False) -> dict[str, Any]:
+        data = self.extensions(node, where, _VALUE_EXTENSIONS | ({"limits"} if limits else set()))
         if ("min" in data or "max" in data) and type_name not in ("integer", "real"):
             raise self.fail(node, where, f"min/max apply to integer or real, not {type_name}")
         if "enum" in data:
@@ -282,7 +285,12 @@ class _Reader:
         where = f"{where} {item_id!r}"
         label = self.scalar(node.items[1], where, "label")
         type_name = self.type_name(node.items[2], where)
-        ext = self.value_extensions(node.items[3], where, type_name) if len(node.items) == 4 else {}
+        ext = self.value_extensions(node.items[3], where, type_name, limits=True) if len(node.items) == 4 else {}
+        if "limits" in ext:
+            try:
+                ext["limits"] = parse_limits(ext["limits"], type_name, lambda v: check_value("equals", type_name, v))
+            except ValueError as exc:
+                raise self.fail(node.items[3], where, str(exc)) from None
         return Telemetry(item_id, label, type_name, line=node.line, **ext)
 
     def sysrep(self, root: Node) -> SysRep:

@@ -1,0 +1,72 @@
+"""Monitors: what PAX watches on every telemetry update while the arm moves (pride/monitoring.py).
+
+The lab bench (its gateway a double: a unit test of the executive); ``lab_monitors.xml`` watches
+the bench temperature against its SysRep's red limit (above 40 for 2 samples: go to ``cool``) and
+the door (it must stay shut: hold). The real-stack gripper monitor is in tests/interop.
+"""
+
+from __future__ import annotations
+
+from pride.events import PAX, Event, EventKind
+from pride.executive import Hold, InstructionStatus, Mode, RunStatus
+from pride.report import summarize, to_markdown
+from support.audit import RecordedJournal
+from support.executive_runs import TIMEOUT, Bench, finished, held
+
+
+def of(journal: RecordedJournal, kind: EventKind) -> list[Event]:
+    return [e for e in journal.events if e.kind is kind]
+
+
+def test_a_red_limit_during_a_motion_halts_it_and_goes_to_the_contingency_step(bench: Bench) -> None:
+    executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_monitors.xml")
+    gateway.block.add("move")
+    executive.start("alice")
+    assert gateway.blocking.wait(TIMEOUT)  # the arm moves
+    gateway.set("temperature", 45.0)  # one sample out: within the item's persistence (2 samples)
+    gateway.set("temperature", 25.0)
+    gateway.set("temperature", 46.0)
+    gateway.set("temperature", 47.0)  # two in a row: violated
+    snap = finished(executive)
+    assert snap.status is RunStatus.COMPLETED
+    (violated,) = of(journal, EventKind.MONITOR_VIOLATED)
+    assert violated.instruction == "1.1" and violated.actor == PAX
+    assert violated.data.to_json() == {
+        "monitor": "lab.temperature (step 1)",
+        "system": "lab",
+        "telemetry": "temperature",
+        "value": 47.0,
+        "limit": "red above 40",
+        "action": "goto:cool",
+        "text": "The bench stays below its red temperature",
+    }
+    (halt,) = of(journal, EventKind.HALT)
+    assert halt.actor == PAX and "The bench stays below its red temperature" in halt.data.to_json()["reason"]
+    assert gateway.cancels == ["run-1/1.1/1"]  # the motion in flight was cancelled
+    assert snap.statuses["1.1"] is InstructionStatus.HALTED and snap.statuses["1.2"] is InstructionStatus.PENDING
+    (went,) = of(journal, EventKind.WENT_TO)
+    assert went.data.to_json() == {"from": "1.1", "next": "2.1", "reason": halt.data.to_json()["reason"]}
+    assert snap.statuses["2.1"] is InstructionStatus.COMPLETED
+    assert [c for _, c, _ in gateway.sent] == ["move"]  # never the capture
+    said = to_markdown(summarize(list(journal.events)))
+    assert "## Monitors" in said
+    assert "at 1.1: monitor violated: lab.temperature = 47 (red above 40): HALT, then go to step cool" in said, said
+
+
+def test_a_door_that_opens_holds_the_run_after_the_motion_and_its_return_is_recorded(bench: Bench) -> None:
+    executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_monitors.xml")
+    gateway.block.add("move")
+    executive.start("alice")
+    assert gateway.blocking.wait(TIMEOUT)
+    gateway.set("door_open", True)
+    assert executive.wait_for(lambda s: any(e.kind is EventKind.MONITOR_VIOLATED for e in journal.events), TIMEOUT)
+    gateway.release.set()  # the motion ends normally: a hold is not a halt
+    snap = held(executive, Hold.PAUSED, "1.2")
+    assert snap.statuses["1.1"] is InstructionStatus.COMPLETED and [c for _, c, _ in gateway.sent] == ["move"]
+    gateway.set("door_open", False)
+    assert executive.wait_for(lambda s: any(e.kind is EventKind.MONITOR_CLEARED for e in journal.events), TIMEOUT)
+    (cleared,) = of(journal, EventKind.MONITOR_CLEARED)
+    assert cleared.data.to_json()["value"] is False
+    executive.resume_automation("alice")
+    assert finished(executive).status is RunStatus.COMPLETED
+    assert [c for _, c, _ in gateway.sent] == ["move", "capture"]
