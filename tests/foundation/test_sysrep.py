@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from procedure_language.limits import Limits, Persistence
 from procedure_language.sysrep import SysRepError, check_value, load_sysrep, load_sysrep_dir
 
 REPO = Path(__file__).resolve().parents[2]
@@ -94,6 +95,11 @@ def test_extensions_are_read() -> None:
     assert x is not None and (x.units, x.min, x.max) == ("m", -2.0, 2.0)
     assert move.arg("mode").enum == ("fast", "slow")
     assert sysrep.telemetry_item("state").enum == ("IDLE", "BUSY")
+    force, grasped = sysrep.telemetry_item("force").limits, sysrep.telemetry_item("grasped").limits
+    assert force == Limits(yellow_high=30.0, red_high=40.0, persistence=Persistence(seconds=2.0))
+    assert [force.state(v) for v in (25, 35, 45)] == ["green", "yellow", "red"]
+    assert grasped == Limits(equals=True, persistence=Persistence(samples=3))
+    assert (grasped.state(True), grasped.state(False), force.describe("red")) == ("green", "red", "red above 40")
     assert sysrep.version == "1.2"
     assert load_sysrep(FIXTURES / "valid" / "telemetry_only.yaml").commands == ()
 

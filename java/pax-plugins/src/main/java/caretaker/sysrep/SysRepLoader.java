@@ -37,6 +37,9 @@ public final class SysRepLoader {
     private static final Set<String> TOP_LEVEL_KEYS = Set.of("id", "name", "commands", "telemetry", "description",
             "version");
     private static final Set<String> VALUE_EXTENSIONS = Set.of("units", "min", "max", "enum", "description");
+    /** A telemetry item may also state its limits (see {@link Limits}). */
+    private static final Set<String> TELEMETRY_EXTENSIONS = Set.of("units", "min", "max", "enum", "description",
+            "limits");
     private static final Set<String> COMMAND_EXTENSIONS = Set.of("hazardous", "description");
 
     private final String path;
@@ -169,7 +172,11 @@ public final class SysRepLoader {
     }
 
     private Map<String, Object> valueExtensions(Node node, String where, ValueType type) {
-        Map<String, Object> data = extensions(node, where, VALUE_EXTENSIONS);
+        return valueExtensions(node, where, type, VALUE_EXTENSIONS);
+    }
+
+    private Map<String, Object> valueExtensions(Node node, String where, ValueType type, Set<String> allowed) {
+        Map<String, Object> data = extensions(node, where, allowed);
         if ((data.containsKey("min") || data.containsKey("max")) && !type.isNumeric()) {
             throw fail(node, where, "min/max apply to integer or real, not " + type.id());
         }
@@ -247,9 +254,18 @@ public final class SysRepLoader {
         where = where + " " + PyRepr.of(itemId);
         String label = scalar(items.get(1), where, "label");
         ValueType type = typeName(items.get(2), where);
-        Map<String, Object> ext = items.size() == 4 ? valueExtensions(items.get(3), where, type) : Map.of();
+        Map<String, Object> ext = items.size() == 4 ? valueExtensions(items.get(3), where, type, TELEMETRY_EXTENSIONS)
+                : Map.of();
+        Limits limits = null;
+        if (ext.containsKey("limits")) {
+            try {
+                limits = Limits.parse(ext.get("limits"), type);
+            } catch (IllegalArgumentException e) {
+                throw fail(items.get(3), where, e.getMessage());
+            }
+        }
         return new Telemetry(itemId, label, type, (String) ext.get("units"), (Number) ext.get("min"),
-                (Number) ext.get("max"), allowedValues(ext), (String) ext.get("description"),
+                (Number) ext.get("max"), allowedValues(ext), (String) ext.get("description"), limits,
                 node.getStartMark().getLine() + 1);
     }
 

@@ -91,6 +91,10 @@ class SysRepLoaderTest {
         assertEquals(List.of("fast", "slow"), move.arg("mode").allowed());
         assertEquals("1.2", sysRep.version());
         assertNull(sysRep.command("nope"));
+        Telemetry force = sysRep.telemetry().stream().filter(t -> t.id().equals("force")).findFirst().orElseThrow();
+        assertEquals(new Limits(null, null, 30.0, 40.0, null, 1, 2.0), force.limits());
+        Telemetry grasped = sysRep.telemetry().stream().filter(t -> t.id().equals("grasped")).findFirst().orElseThrow();
+        assertEquals(new Limits(null, null, null, null, true, 3, 0.0), grasped.limits());
     }
 
     @Test
