@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from caretaker.command_options import DEFAULT_SYSREP_DIR, load_sysreps
+from caretaker.command_options import DEFAULT_SYSREP_DIR, load_sysreps, section_of
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from datafile import DataFileError
 from onboard.downlink import DownlinkError, HabitatNews, OnboardSupervisor, build_unit
@@ -28,6 +28,7 @@ from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.events import Event
 from pride.executive import Mode, RunStatus
 from pride.phrasing import Wording
+from pride.run_section import SectionError
 from pride.run_setup import RunSetup
 from procedure_language.binding import read_binding
 from procedure_language.diagnostics import ProcedureError
@@ -88,7 +89,11 @@ def run_onboard(
             version=setup.version,
             policy=setup.side.approvals,
             approver=approver,
+            section=section_of(args, checked, values),
         )
+    except SectionError as exc:
+        print(f"caretaker run: {exc}", file=sys.stderr)
+        return 2
     except ValueError as exc:
         print(
             f"caretaker run: {checked.procedure.path} cannot go up to the habitat: {exc} "

@@ -14,7 +14,7 @@ import signal
 import sys
 from pathlib import Path
 
-from caretaker.command_options import load_sysreps, raw_option, sysrep_option
+from caretaker.command_options import load_sysreps, raw_option, section_of, sysrep_option
 from caretaker.terminal import LeftBehind, OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S
@@ -26,7 +26,7 @@ from pride.gateways import open_gateway
 from pride.phrasing import Wording
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_control import RobotControlled
-from pride.run_section import RunSection, SectionError
+from pride.run_section import SectionError
 from pride.run_setup import RunSetup
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, lint_file
@@ -193,13 +193,6 @@ def run_main(argv: list[str] | None = None) -> int:
         audit.close()
 
 
-def _section(args: argparse.Namespace, setup: RunSetup, values: dict[str, str]) -> RunSection | None:
-    """``--from``/``--to``: the part of the procedure to run, with ``--set``'s values for what it skips."""
-    if args.from_step is None and args.to_step is None:
-        return None
-    return RunSection(args.from_step or setup.checked.procedure.steps[0].id, args.to_step, values)
-
-
 def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: AuditLog, values: dict[str, str]) -> int:
     if args.attach:
         if args.procedure or args.onboard or args.resume:
@@ -207,8 +200,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         from caretaker.onboard_commands import attach
 
         return attach(args, audit)
-    if (args.from_step or args.to_step) and (args.resume or args.onboard):
-        parser.error("--from and --to start a new run of part of a procedure here: not with --resume or --onboard")
+    if (args.from_step or args.to_step) and args.resume:
+        parser.error("--from and --to start a new run of part of a procedure: not with --resume")
     try:
         events = audit.events(args.resume) if args.resume else []
     except EventDataError as exc:  # a stored event that does not fit its kind: edited, or not a run's own
@@ -289,7 +282,7 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                 executive.add_listener(left_behind)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
                     executive.set_breakpoint(args.user, number)
-                executive.start(args.user, take_over=args.take_over, section=_section(args, setup, values))
+                executive.start(args.user, take_over=args.take_over, section=section_of(args, setup.checked, values))
         except RobotControlled as exc:
             print(f"caretaker run: {exc} (--take-over REASON)", file=sys.stderr)
             return 2

@@ -29,6 +29,7 @@ from typing import Any
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.event_payloads import payload_from_json
 from pride.events import Event, EventKind
+from pride.run_section import RunSection
 from pride.run_version import RunVersion
 from procedure_language.lint import CheckedProcedure
 from records.audit_chain import GENESIS, link_hash
@@ -150,14 +151,18 @@ def build_unit(
     policy: ApprovalPolicy,
     version: RunVersion | None = None,
     approver: str | None = None,
+    section: RunSection | None = None,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
     the folder that holds them all; under ``policy``, ``approver``'s approval of each command that
-    needs one, given now.
+    needs one, given now; ``section``: the part of the procedure to run (checked here first).
 
     Raises:
         ValueError: a command needs approval and no ``approver`` is given, or it is ``user``.
+        SectionError: the section cannot start (what the skipped steps bind is not given).
     """
+    if section is not None:
+        section.check(checked)
     paths = [Path(checked.procedure.path).resolve(), *(Path(p).resolve() for p in checked.callees)]
     root = Path(os.path.commonpath([p.parent for p in paths]))
     files = {p.relative_to(root).as_posix(): p.read_text(encoding="utf-8") for p in paths}
@@ -186,6 +191,7 @@ def build_unit(
         breakpoints=tuple(breakpoints),
         version=version,
         approvals=approvals,
+        section={"from": section.start, "to": section.stop} if section else None,
     )
 
 

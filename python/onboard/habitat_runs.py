@@ -33,6 +33,7 @@ from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RobotControlled, RunStatus, Snapshot
 from pride.gateways import open_gateway
 from pride.robot_sides import RobotSide, robot_side_for
+from pride.run_section import RunSection, SectionError
 from pride.run_setup import RunSetup
 from pride.systems import SystemGateway
 from procedure_language.diagnostics import ProcedureError
@@ -252,6 +253,8 @@ class HabitatRuns:
             return refused(f"the unit does not lint against this habitat's SysReps:\n{problems}")
         except RobotControlled as exc:
             return refused(str(exc))
+        except SectionError as exc:
+            return refused(f"the unit's section cannot start: {exc}")
         (folder / "unit.json").write_text(unit_json)
         self._accepted[unit_hash] = unit
         self._runs[unit.run_id] = run
@@ -288,8 +291,11 @@ class HabitatRuns:
         try:
             for number in unit.breakpoints:
                 executive.set_breakpoint(unit.user, number)
-            executive.start(unit.user)
-        except (RobotControlled, OperatorActionError):
+            section = unit.section
+            executive.start(
+                unit.user, section=RunSection(str(section["from"]), section["to"], unit.values) if section else None
+            )
+        except (RobotControlled, OperatorActionError, SectionError):
             gateway.close()
             _remove(folder)
             raise

@@ -105,7 +105,9 @@ class Unit:
     operator's approvals of the commands that need one (:class:`pride.approvals.CarriedApproval`),
     given on the ground before the unit went up and signed with it. ``version`` is the procedure
     version the ground let it run (:class:`pride.run_version.RunVersion`: its release, or a
-    rehearsal), recorded in its ``run_started``.
+    rehearsal), recorded in its ``run_started``. ``section``: a run of part of the procedure
+    (``{"from": STEP, "to": STEP or null}``, :class:`pride.run_section.RunSection`), ``values``
+    then also giving what the steps it skips would have bound; absent: the whole procedure.
     """
 
     run_id: str
@@ -122,9 +124,15 @@ class Unit:
     breakpoints: tuple[str, ...] = ()
     version: RunVersion | None = None
     approvals: tuple[CarriedApproval, ...] = ()
+    section: Mapping[str, str | None] | None = None
 
     def to_json(self) -> str:
-        return canonical({**asdict(self), "files": dict(self.files), "values": dict(self.values)})
+        data = {**asdict(self), "files": dict(self.files), "values": dict(self.values)}
+        if self.section is None:
+            del data["section"]  # a whole-procedure unit reads (and hashes) as before sections
+        else:
+            data["section"] = dict(self.section)
+        return canonical(data)
 
     def approval_of(self, procedure: str, instruction: str, command: str) -> CarriedApproval | None:
         """The carried approval of that command (``procedure``: its file within the unit), if any."""
@@ -170,6 +178,7 @@ class Unit:
                     _field(data, "approvals", list, "a list of approvals") if "approvals" in data else []
                 )
             ),
+            section=_section(data.get("section")),
         )
 
 
@@ -214,6 +223,18 @@ def _object(text: str, what: str) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise UnitError(f"the {what} must be a JSON object, not {type(data).__name__}")
     return data
+
+
+def _section(data: Any) -> dict[str, str | None] | None:
+    """The unit's ``section`` (absent: the whole procedure): the step it starts at, the step it ends after."""
+    if data is None:
+        return None
+    if not isinstance(data, dict) or set(data) - {"from", "to"}:
+        raise UnitError('section must be an object of "from" (a step) and "to" (a step or null)')
+    start, stop = data.get("from"), data.get("to")
+    if not isinstance(start, str) or not (stop is None or isinstance(stop, str)):
+        raise UnitError("section.from must name a step, and section.to a step or null")
+    return {"from": start, "to": stop}
 
 
 def _version(data: Any) -> RunVersion | None:

@@ -382,3 +382,22 @@ def test_the_unit_a_run_started_from_is_given_to_a_ground_that_attaches(
     missing = runs.unit_of(refused.run_id)
     assert missing.unit_json == "" and f"no onboard run {refused.run_id}" in missing.message
     until_ended(runs, unit.run_id)
+
+
+def test_a_unit_of_part_of_a_procedure_runs_that_part_and_one_missing_what_it_skips_is_refused(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit]
+) -> None:
+    runs, gateways = habitat
+    missing = make_unit(section={"from": "finish", "to": "finish"}, values={})
+    refused = uplink(runs, missing)
+    assert refused.state == "REFUSED", refused
+    assert "the unit's section cannot start: --from finish: the steps it skips would have bound target" in (
+        refused.message
+    )
+    unit = make_unit(section={"from": "finish", "to": "finish"})
+    assert uplink(runs, unit).state == "ACCEPTED"
+    events = until_ended(runs, unit.run_id)
+    assert json.loads(events[0]["data"])["section"] == {"from": "finish", "to": "finish", "given": {"target": "dock"}}
+    started = [e["instruction"] for e in events if e["kind"] == "instruction_started"]
+    assert started[0] == "4.1" and not [n for n in started if n.startswith(("1.", "2.", "5."))]
+    assert events[-1]["kind"] == "run_completed"

@@ -128,3 +128,13 @@ def test_an_action_names_a_known_action_with_its_arguments() -> None:
         with pytest.raises(UnitError) as refused:
             OperatorAction.from_json(json.dumps({**halt, **change}))
         assert said in str(refused.value)
+
+
+def test_a_unit_of_part_of_a_procedure_carries_its_section_and_a_whole_one_reads_as_before() -> None:
+    part = {**UNIT, "section": {"from": "finish", "to": None}}
+    unit = Unit.from_json(json.dumps(part))
+    assert unit.section == {"from": "finish", "to": None} and unit.to_json() == canonical(part)
+    assert "section" not in json.loads(Unit.from_json(json.dumps(UNIT)).to_json())  # hashed as before
+    for bad in ({"from": 3}, {"from": "finish", "to": 4}, {"start": "finish"}, "finish"):
+        with pytest.raises(UnitError, match="section"):
+            Unit.from_json(json.dumps({**UNIT, "section": bad}))
