@@ -57,6 +57,16 @@ class Gripper:
     def moving(self) -> bool:
         return self.motion is not None
 
+    def grasp_state(self) -> str:
+        """``moving``, ``holding``, ``open``, or ``empty`` (closed on nothing: a missed grasp or a slip)."""
+        if self.motion is not None:
+            return "moving"
+        if self._filters.held() is not None:
+            return "holding"
+        opened = self.spec.poses.get("open")
+        at_open = opened is not None and all(abs(q - t) < 1e-4 for q, t in zip(self.positions, opened, strict=False))
+        return "open" if at_open else "empty"
+
     def start(self, pose: str) -> GripperMotion:
         """Begin moving to a named pose; the returned motion's ``done`` is set when it ends."""
         if pose not in self.spec.poses:

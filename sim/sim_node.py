@@ -23,7 +23,7 @@ import rclpy
 from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import CollisionWorld, Markers, NamedPoses, VisualWorld
-from caretaker_sim_msgs.srv import CaptureImage, FindFilter, GetFrames, Halt, PrintMarker, SetGripper
+from caretaker_sim_msgs.srv import CaptureImage, FindFilter, GetFrames, Halt, PrintMarker
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -35,10 +35,10 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
-from ros_process.delay_hooks import pause
 from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, render, write_png
 from sim.cdra_cabinet import find_filter
 from sim.collision_world import collision_world, point_pose
+from sim.gripper_node import GripperInterface
 from sim.halt_order import HaltOrder
 from sim.perception_model import camera_info, markers_message
 from sim.publish_gate import PublishGate
@@ -133,11 +133,11 @@ class SimNode(Node):
         self.image_pubs = {name: self.create_publisher(Image, f"camera/{name}/image", 2) for name in sim.scene.cameras}
         if camera_period > 0:
             self.camera_timer = self.create_timer(camera_period, self.camera_timer_callback, callback_group=group)
-        if sim.gripper is not None:
-            self.held_pub = self.create_publisher(String, "gripper/held_object", LATCHED)
-            self.gripper_srv = self.create_service(
-                SetGripper, "gripper/set", self.gripper_callback, qos_profile=SERVICE_QOS, callback_group=group
-            )
+        self.gripper = (
+            GripperInterface(self, sim, self.order, self._wait, latched=LATCHED, services=SERVICE_QOS, group=group)
+            if sim.gripper is not None
+            else None
+        )
         if sim.cabinet is not None:
             self.cdra_locked_pub = self.create_publisher(Bool, "cdra/filter_locked", LATCHED)
             self.cdra_present_pub = self.create_publisher(Bool, "cdra/filter_present", LATCHED)
@@ -281,14 +281,14 @@ class SimNode(Node):
     def _status(self) -> tuple:
         sim = self.sim
         cdra = sim.cabinet.telemetry(sim.filters) if sim.cabinet else None
-        return (sim.moving, sim.held_object(), cdra)
+        return (sim.moving, sim.held_object(), sim.gripper.grasp_state() if sim.gripper else "", cdra)
 
     def _publish_status(self, status: tuple) -> None:
-        moving, held, cdra = status
+        moving, held, grasp, cdra = status
         self._last_status = status
         self.moving_pub.publish(Bool(data=moving))
-        if self.sim.gripper is not None:
-            self.held_pub.publish(String(data=held))
+        if self.gripper is not None:
+            self.gripper.publish(held, grasp)
         if cdra is not None:
             self.cdra_locked_pub.publish(Bool(data=cdra.filter_locked))
             self.cdra_present_pub.publish(Bool(data=cdra.filter_present))
@@ -410,30 +410,6 @@ class SimNode(Node):
         )
         response.success, response.stopped = True, bool(stopped)
         response.message = f"halted {' and '.join(stopped)}" if stopped else "nothing was moving"
-        return response
-
-    # ------------------------------------------------------------------ gripper
-
-    def gripper_callback(self, request: SetGripper.Request, response: SetGripper.Response) -> SetGripper.Response:
-        sim = self.sim
-        assert sim.gripper is not None
-        with sim.world_lock:
-            ticket = self.order.ticket(request.issued)
-        pause("sim.gripper")
-        with sim.world_lock:
-            halted = self.order.refusal(ticket)  # crossed a halt on its way: the fingers must not move
-            motion = sim.gripper.start(request.pose) if halted is None else None
-        if motion is None:
-            LOG.warning("gripper refused: %s", halted)
-            response.success, response.message = False, halted
-        elif not self._wait(motion.done, 2.0):
-            response.success, response.message = False, f"gripper did not reach {request.pose!r} in time"
-        else:
-            response.success, response.message, response.held_object = (
-                motion.success,
-                motion.message,
-                motion.held_object,
-            )
         return response
 
     # ------------------------------------------------------------------ CDRA cabinet

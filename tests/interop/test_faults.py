@@ -274,3 +274,63 @@ def test_runner_killed_during_execute_then_resumed(robot: RobotSide, tmp_path: P
         rf"{re.escape(sent[1].data.to_json()['key'])}: re-sent: answered from the record", 5
     )
     assert after[-1].kind is EventKind.RUN_COMPLETED
+
+
+def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_the_contingency(
+    robot: RobotSide, tmp_path: Path
+) -> None:
+    """The procedure's monitor on the gripper (its grasp never ``empty`` while the filter is taken
+    out): the simulator's test service lets the held filter slip out as soon as it is held; PAX
+    halts what is in progress (the pull-out, or the check after it if the 1.3 s pull ended first),
+    records the violation with the value, and goes to step ``filter_slipped``: nothing is placed."""
+    import roslibpy
+
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    parsed = urlparse(robot.url)
+    ros = roslibpy.Ros(host=parsed.hostname, port=parsed.port)
+    ros.run(30)
+    grasps: list[str] = []
+    holding = threading.Event()
+
+    def took(message: dict) -> None:
+        grasps.append(message["data"])
+        if message["data"] == "holding":
+            holding.set()
+
+    grasp = roslibpy.Topic(ros, "/gripper/grasp", "std_msgs/msg/String")
+    grasp.subscribe(took)
+    session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), approver_env(db, robot.env))
+    try:
+        run_id = session.expect(r"READY run (\S+)").group(1)
+        assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
+        printed = robot.parts["sim"].printed
+        session.send("")  # the area is clear: the arm moves in, grasps the filter and pulls
+        assert holding.wait(120), f"the gripper never held the filter: {grasps}"
+        slipped = roslibpy.Service(ros, "/sim/check/slip", "std_srvs/srv/Trigger").call(
+            roslibpy.ServiceRequest({}), timeout=30
+        )
+        assert slipped["success"], slipped
+        session.expect(
+            r"monitor violated: gripper\.grasp = empty \(must be ≠ empty\): HALT, then go to step filter_slipped"
+        )
+        session.expect(r"went to 9\.1")
+        # the arm came to rest: the robot's own log of the halt of the pull-out in flight
+        # the robot's own log of the halt (the pull-out stopped, or at its end by then: 1.3 s long)
+        halt = rf"\]: halt \(halt of {re.escape(run_id)}/2\.\d+/1\): (stopped the arm|nothing was moving)"
+        robot.parts["sim"].wait_for_line(halt, 60, after=printed)
+        session.expect(r"9\.1[^\n]*\n[^\n]*\[Enter\] done")  # the contingency holds for the operator
+    finally:
+        session.close(5)
+        grasp.unsubscribe()
+        ros.close()
+    events = _events(db, run_id)
+    _assert_log_is_whole(events)
+    (violated,) = [e for e in events if e.kind is EventKind.MONITOR_VIOLATED]
+    assert violated.data.to_json()["value"] == "empty" and (violated.instruction or "").startswith("2."), violated
+    (went,) = [e for e in events if e.kind is EventKind.WENT_TO]
+    # from what was in progress when the halt took effect (the pull-out, or the check after it)
+    assert went.data.to_json()["from"].startswith("2.") and went.data.to_json()["next"] == "9.1", went
+    started = [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_STARTED]
+    assert not [n for n in started if n and n.startswith("3.")], started  # the filter was never placed
+    awaiting = [e.instruction for e in events if e.kind is EventKind.AWAITING_OPERATOR]
+    assert awaiting[-1] == "9.1", awaiting  # the contingency's check, for the operator

@@ -48,7 +48,7 @@ class PaxHostTest {
         assertEquals(ivaAt.sysRep(), evaAt.sysRep());
         assertEquals(List.of("at_commands", "at_telemetry"), ivaAt.plugins());
         assertFalse(ivaAt.rosbridge().equals(evaAt.rosbridge()));
-        assertEquals(List.of("affordance_templates", "cdra", "camera", "perception"), iva.systems().stream().map(s -> s.sysRep().id()).toList());
+        assertEquals(List.of("affordance_templates", "cdra", "gripper", "camera", "perception"), iva.systems().stream().map(s -> s.sysRep().id()).toList());
         assertEquals(List.of("affordance_templates", "camera", "perception"), eva.systems().stream().map(s -> s.sysRep().id()).toList());
         URI test = URI.create("ws://127.0.0.1:1234");
         assertTrue(BindingLoader.load(BINDINGS.resolve("iva.yaml"), test).systems().stream()
@@ -146,7 +146,7 @@ class PaxHostTest {
             });
             server.respond(habitat);
             try (PaxHost host = PaxHost.open(BINDINGS.resolve("iva.yaml"), server.uri())) {
-                assertEquals(List.of("affordance_templates", "cdra", "camera", "perception"), host.sysReps().stream().map(SysRep::id).toList());
+                assertEquals(List.of("affordance_templates", "cdra", "gripper", "camera", "perception"), host.sysReps().stream().map(SysRep::id).toList());
                 CommandResult result = host.execute(CommandKey.parse("run/1.1/1"), "cdra", "unlock_filter", Map.of());
                 assertTrue(result.success());
                 assertEquals("unlocked", result.message());
