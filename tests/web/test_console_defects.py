@@ -95,10 +95,10 @@ def test_continue_is_offered_only_where_automation_can_continue(sign_in: Callabl
 
 
 def test_a_stale_click_is_refused_on_the_record_and_a_halt_with_nothing_moving_offers_continue(
-    sign_in: Callable[[str], Page],
+    sign_in: Callable[[str], Page], server: WebServer
 ) -> None:
     alice = sign_in("alice")
-    start_run(alice, "web_walkthrough.xml", "manual")
+    run_id = start_run(alice, "web_walkthrough.xml", "manual")
     instruction(alice, "1.1").locator("button.perform").click()
     expect_current(instruction(alice, "2.1"))
     # a click on an instruction the run has left (a page a moment behind): refused, with the rule, on the record
@@ -107,10 +107,14 @@ def test_a_stale_click_is_refused_on_the_record_and_a_halt_with_nothing_moving_o
     expect(audit_row(alice, "action_refused", "1.1", "alice")).to_contain_text(
         "refused perform by the current instruction rule: 1.1 is not the current instruction"
     )
-    # HALT while nothing moves: the run holds at 2.1, and the banner offers the way on
-    alice.click("#halt")
+    # bob, at his console, HALTs while nothing moves: the run holds at 2.1; on alice's page the
+    # refusal goes (the run moved on) and the banner offers the way on
+    bob = sign_in("bob")
+    bob.goto(f"{server.url}/#run={run_id}")
+    expect(bob.locator("#connection")).to_have_attribute("data-state", "open")
+    bob.click("#halt")
     expect(alice.locator("#hold")).to_have_attribute("data-tone", "halted")
-    expect(alice.locator("#action-error")).to_have_text("")  # the run moved on: that refusal is past
+    expect(alice.locator("#action-error")).to_have_text("")
     go_on = alice.locator("#hold-continue")
     expect(go_on).to_have_text("Continue")
     go_on.click()

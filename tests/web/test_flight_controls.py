@@ -3,17 +3,24 @@
 HALT during a motion (the simulated arm moves until a cancel reaches it), an outcome that is not
 known (a capture whose first reply is lost: the page says so in neither green nor red, and
 "Ask again" sends the same key), a record re-entered with both values in the log, a step back,
-an observer who can act on nothing, and a second run on a controlled robot refused with who
-controls it, then taken over with a reason logged in both runs. The same on the real IVA stack,
+an observer who can act on nothing (the act refused on the record), and a second run on a
+controlled robot refused with who controls it (the refused start on the record), then taken over
+with a reason logged in both runs. The same on the real IVA stack,
 with the arm's joint states, is in test_web_on_real_stack.py.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
+from typing import Any
 
 from playwright.sync_api import Page, expect
+from sqlalchemy import select
 
+from pride.events import EventKind
+from records.audit_log import AuditLog
+from records.audit_schema import audit_records
 from support.operator_page import audit_row, expect_current, instruction, screenshot, start_run, stop_run
 from support.web_server import WebServer
 
@@ -117,18 +124,36 @@ def test_halt_unknown_outcome_correction_and_step_back(sign_in: Callable[[str], 
         data={"action": "halt", "reason": "not mine to halt"},
     )
     assert refused.status == 403 and "observer" in refused.json()["error"], refused.text()
+    expect(audit_row(alice, "action_refused", "", "carol")).to_contain_text(
+        "refused halt by the observers watch rule: carol is an observer"
+    )
     stop_run(alice, "flight controls checked")
 
 
-def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in: Callable[[str], Page]) -> None:
+def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(
+    sign_in: Callable[[str], Page], server: WebServer
+) -> None:
     alice = sign_in("alice")
     first = start_run(alice, WALKTHROUGH, "manual")
     bob = sign_in("bob")
     bob.select_option("#start-procedure", WALKTHROUGH)
     bob.select_option("#start-binding", "iva.yaml")
     bob.check("#start-rehearsal")
+    before = _refusals(server, "bob")
     bob.click("#start-button")
     expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {first} (user alice")
+    # the refused start is on the record, under an id of its own (no run started)
+    assert [
+        (run_id.split("-refused-")[0], data["rule"], data["asked"])
+        for run_id, data in _refusals(server, "bob")
+        if (run_id, data) not in before
+    ] == [
+        (
+            "web_walkthrough",
+            "one_run_per_robot",
+            {"procedure": WALKTHROUGH, "binding": "iva.yaml", "mode": "manual", "rehearsal": True},
+        )
+    ]
     take_over = bob.locator("#take-over")
     expect(take_over).to_have_text("Take over iva from alice…")
     take_over.click()
@@ -150,3 +175,18 @@ def test_a_second_run_on_a_controlled_robot_is_refused_then_taken_over(sign_in: 
     expect(alice.locator("#take-control")).to_be_visible()
     stop_run(bob, "takeover checked")
     stop_run(alice, "takeover checked")
+
+
+def _refusals(server: WebServer, actor: str) -> list[tuple[str, dict[str, Any]]]:
+    """The run id and data of every refused act of ``actor`` in the server's audit log."""
+    log = AuditLog(server.database.url)
+    try:
+        with log.engine.connect() as connection:
+            rows = connection.execute(
+                select(audit_records.c.run_id, audit_records.c.data).where(
+                    audit_records.c.kind == EventKind.ACTION_REFUSED.value, audit_records.c.actor == actor
+                )
+            ).all()
+    finally:
+        log.close()
+    return [(row.run_id, json.loads(row.data)) for row in rows]
