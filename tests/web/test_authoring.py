@@ -227,12 +227,15 @@ def test_a_hazardous_command_waits_for_a_second_operator_on_another_console_and_
         alice.click("#confirm-yes")
         expect(alice.locator("#hold")).to_contain_text("Waits for a second operator's approval")
 
-        # alice's own approval is refused, with the reason, and nothing is sent
-        unlock.locator("button.approve").click()
-        alice.click("#confirm-yes")
+        # alice sent it: she is offered no Approve…, and her approval through the console's API
+        # all the same is refused, with the reason, on the record; nothing is sent
+        expect(unlock.locator(".approval-wait")).to_have_text("waiting for another operator")
+        expect(unlock.locator("button.approve")).to_be_hidden()
+        alice.evaluate("(number) => act('approve', {instruction: number})", UNLOCK)
         expect(alice.locator("#action-error")).to_contain_text(
             f"alice asked for {UNLOCK} to be sent: a second operator must approve it, not alice"
         )
+        expect(audit_row(alice, "action_refused", UNLOCK, "alice")).to_contain_text("by the two person rule")
         expect(audit_row(alice, "approval_requested", UNLOCK, "alice")).to_contain_text("Unlock Filter")
         expect(audit_row(alice, "command_sent", UNLOCK, "PAX")).to_have_count(0)
 
@@ -253,6 +256,7 @@ def test_a_hazardous_command_waits_for_a_second_operator_on_another_console_and_
         expect_ended(alice, "completed")
         expect(audit_row(alice, "command_sent", UNLOCK, "PAX")).to_contain_text("sent by alice, approved by bob")
         expect(unlock.locator(".mark")).to_contain_text("sent for approval by alice, approved by bob")
+        expect(alice.locator("#action-error")).to_have_text("")  # the run moved on: her refusal is past
     finally:
         second.process.stop()
 
