@@ -118,7 +118,9 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     expect(alice.locator("#run-mode")).to_have_text("autonomous")
     unlock = instruction(alice, UNLOCK)
     expect_current(unlock, timeout=MOTION_MS)
-    expect(alice.locator("#hold")).to_contain_text(f"Hazardous command {UNLOCK}: Unlock Filter")
+    expect(alice.locator("#hold")).to_contain_text(
+        f"Hazardous command {UNLOCK}: Unlock the dirty filter in the CDRA cabinet"
+    )
     send_for_approval(alice, UNLOCK)
     expect(unlock.locator("button.approve")).to_be_hidden()
     expect(unlock.locator(".approval-wait")).to_be_visible()
@@ -218,6 +220,7 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     assert [(actor, number, d["action"], d["rule"]) for actor, number, d in refused] == [
         ("carol", "1.4", "perform", "observers_watch"),
         ("alice", UNLOCK, "approve", "two_person"),
+        ("alice", "4.1", "enter", "run_state"),  # the id of no clean filter on the rack
     ]
     approvals = [
         (e.kind.value, e.actor) for e in events if e.instruction == UNLOCK and e.kind.value.startswith("approval")
