@@ -109,9 +109,9 @@ export class SpatialView {
     this._pendingTimeoutMs = pendingTimeoutMs;
     this.registration = null;
 
-    this.statusEl = document.createElement('div');
-    this.statusEl.className = 'ct-spatial-status';
-    container.appendChild(this.statusEl);
+    // the arm's age above the status line, stacked: a long one pushes the other down (style.js)
+    const notes = container.appendChild(Object.assign(document.createElement('div'), { className: 'ct-spatial-notes' }));
+    this.statusEl = notes.appendChild(Object.assign(document.createElement('div'), { className: 'ct-spatial-status' }));
     this.cameraImg = document.createElement('img');
     this.cameraImg.className = 'ct-spatial-camera';
     this.cameraImg.alt = 'robot camera';
@@ -121,7 +121,7 @@ export class SpatialView {
     this.ageEl = document.createElement('div');
     this.ageEl.className = 'ct-spatial-age';
     this.ageEl.hidden = true;
-    container.appendChild(this.ageEl);
+    notes.prepend(this.ageEl);
     this._clock = clock;
     this._toolSeenAt = null; // where the tool was when what hides it was last worked out
     this._reports = []; // the last REPORTS_KEPT joint states as reported, for inspect()

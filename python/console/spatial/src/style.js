@@ -15,14 +15,18 @@ const CSS = `
 .ct-spatial-bar button { background: #2d333b; color: #eee; border: 1px solid #555; border-radius: 4px; padding: 3px 8px; cursor: pointer; }
 .ct-spatial-bar button[aria-pressed="true"] { background: #3d6fb4; }
 .ct-spatial-bar button:disabled { opacity: 0.4; cursor: default; }
-.ct-spatial-plan { display: flex; gap: 6px; align-items: center; flex: 1; color: #eee; }
+/* the player wraps (its readout under its buttons) rather than run past the view's edge */
+.ct-spatial-plan { display: flex; flex-wrap: wrap; gap: 6px; align-items: center; flex: 1 1 240px; min-width: 0; color: #eee; }
 .ct-spatial-plan[hidden] { display: none; }
-.ct-spatial-plan input[type=range] { flex: 1; min-width: 120px; }
-.ct-spatial-camera { position: absolute; top: 6px; right: 6px; max-width: 30%; border: 1px solid #555; }
+.ct-spatial-plan input[type=range] { flex: 1 1 120px; min-width: 120px; }
+.ct-spatial-plan span { overflow-wrap: anywhere; background: rgba(0,0,0,0.5); padding: 1px 4px; border-radius: 3px; }
+/* the camera picture top right; the notes (the arm's age, the status line) stacked top left and
+   wrapped short of it: at most 70% of the view less both margins and a gap */
+.ct-spatial-camera { position: absolute; top: 6px; right: 6px; max-width: 30%; max-height: 45%; border: 1px solid #555; }
 .ct-spatial-camera[hidden] { display: none; }
-.ct-spatial-age { position: absolute; top: 6px; left: 6px; color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; }
+.ct-spatial-notes { position: absolute; top: 6px; left: 6px; max-width: calc(70% - 18px); display: flex; flex-direction: column; align-items: flex-start; gap: 4px; }
+.ct-spatial-age, .ct-spatial-status { color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; overflow-wrap: anywhere; }
 .ct-spatial-age[hidden] { display: none; }
-.ct-spatial-status { position: absolute; top: 30px; left: 6px; color: #eee; background: rgba(0,0,0,0.5); padding: 2px 6px; border-radius: 3px; }
 .ct-spatial-status:empty { display: none; }
 .ct-spatial-error { color: #ff8a80; }
 `;
