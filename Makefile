@@ -42,7 +42,8 @@ demo: setup
 # test run writes them to a temporary folder and never touches tracked files).
 docs: setup
 	CARETAKER_SCREENSHOTS=$(CURDIR)/docs/images $(PYTEST) tests/web/test_operator_view.py \
-		tests/web/test_flight_controls.py tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py
+		tests/web/test_flight_controls.py tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py \
+		tests/web/test_console_layout.py
 
 # Every benchmark; the harnesses that run another command (cpu_load.py, cpu_by_part.py,
 # suite_profile.py) are tools for any of them, not benchmarks themselves.
