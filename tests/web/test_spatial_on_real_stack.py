@@ -33,7 +33,7 @@ from at_ros.transforms import angle_between
 from console.spatial_world import compose
 from pride.events import EventKind
 from records.audit_log import AuditLog
-from support.operator_page import IVA, instruction, sign_in_on, start_run, stop_run, unlock_approved_by
+from support.operator_page import IVA, audit_row, instruction, sign_in_on, start_run, stop_run, unlock_approved_by
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
@@ -366,6 +366,7 @@ def run_iva(open_as: Callable[[WebServer, str], Page], server: WebServer, habita
         data={"command": "set_display_object_pose", "args": args},
     )
     assert forced.status == 403 and "observer" in forced.json()["error"], forced.text()
+    expect(audit_row(alice, "action_refused", "", "carol")).to_contain_text("refused move by the observers watch rule")
     # a console of its own machine: two 3D views on these two cores would halve the frame rate measured below
     carol.close()
 
