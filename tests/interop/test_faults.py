@@ -299,11 +299,20 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
 
     grasp = roslibpy.Topic(ros, "/gripper/grasp", "std_msgs/msg/String")
     grasp.subscribe(took)
+    moving: list[bool] = []
+    moved = threading.Condition()
+
+    def saw_motion(message: dict) -> None:
+        with moved:
+            moving.append(message["data"])
+            moved.notify_all()
+
+    motion = roslibpy.Topic(ros, "/robot/moving", "std_msgs/msg/Bool")
+    motion.subscribe(saw_motion)
     session = TerminalSession(_run_argv(robot, db, str(PROCEDURE), "--auto"), approver_env(db, robot.env))
     try:
         run_id = session.expect(r"READY run (\S+)").group(1)
         assert _answer_until(session, stop_at=CONFIRM_CLEAR) is None
-        printed = robot.parts["sim"].printed
         session.send("")  # the area is clear: the arm moves in, grasps the filter and pulls
         assert holding.wait(120), f"the gripper never held the filter: {grasps}"
         slipped = roslibpy.Service(ros, "/sim/check/slip", "std_srvs/srv/Trigger").call(
@@ -314,23 +323,26 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
             r"monitor violated: gripper\.grasp = empty \(must be ≠ empty\): HALT, then go to step filter_slipped"
         )
         session.expect(r"went to 9\.1")
-        # the arm came to rest: the robot's own log of the halt of the pull-out in flight
-        # the robot's own log of the halt (the pull-out stopped, or at its end by then: 1.3 s long)
-        halt = rf"\]: halt \(halt of {re.escape(run_id)}/2\.\d+/1\): (stopped the arm|nothing was moving)"
-        robot.parts["sim"].wait_for_line(halt, 60, after=printed)
+        with moved:  # the arm at rest (halted mid-motion, or already still when the slip was seen)
+            assert moved.wait_for(lambda: moving and moving[-1] is False, 60), moving
         session.expect(r"9\.1[^\n]*\n[^\n]*\[Enter\] done")  # the contingency holds for the operator
     finally:
         session.close(5)
         grasp.unsubscribe()
+        motion.unsubscribe()
         ros.close()
     events = _events(db, run_id)
     _assert_log_is_whole(events)
+    # seen during the pull-out, or just after it (the 1.3 s pull may end first): steps 2 and 3 watch
     (violated,) = [e for e in events if e.kind is EventKind.MONITOR_VIOLATED]
-    assert violated.data.to_json()["value"] == "empty" and (violated.instruction or "").startswith("2."), violated
+    assert violated.data.to_json()["value"] == "empty" and (violated.instruction or "")[:2] in ("2.", "3."), violated
     (went,) = [e for e in events if e.kind is EventKind.WENT_TO]
-    # from what was in progress when the halt took effect (the pull-out, or the check after it)
-    assert went.data.to_json()["from"].startswith("2.") and went.data.to_json()["next"] == "9.1", went
-    started = [e.instruction for e in events if e.kind is EventKind.INSTRUCTION_STARTED]
-    assert not [n for n in started if n and n.startswith("3.")], started  # the filter was never placed
+    assert went.data.to_json()["from"][:2] in ("2.", "3.") and went.data.to_json()["next"] == "9.1", went
+    placed = [
+        e
+        for e in events
+        if e.kind is EventKind.COMMAND_SENT and e.data.to_json()["command"] == "execute_plan" and e.seq > violated.seq
+    ]
+    assert not placed, placed  # no motion after the violation: the filter was never carried to the rack
     awaiting = [e.instruction for e in events if e.kind is EventKind.AWAITING_OPERATOR]
     assert awaiting[-1] == "9.1", awaiting  # the contingency's check, for the operator

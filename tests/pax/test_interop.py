@@ -127,7 +127,7 @@ def _fresh(host: PaxHost, sysrep: str, item: str) -> object:
 
 
 def test_sysreps_of_the_binding(host: PaxHost) -> None:
-    assert host.system_ids() == {AT, "cdra", "camera", "perception"}
+    assert host.system_ids() == {AT, "cdra", "gripper", "camera", "perception"}
 
 
 def test_telemetry_follows_the_status_topic(host: PaxHost, probe: RobotProbe) -> None:
