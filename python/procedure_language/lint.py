@@ -469,6 +469,9 @@ class _Linter:
             self.fail(
                 i.where, f"{callee.id}: missing input{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}"
             )
+        for monitor in (m for step in callee.steps for m in step.monitors):  # never silently unwatched
+            why = f"{callee.id} is called ({i.where}): a called procedure's monitors are not watched"
+            self.fail(monitor.where, f"{why}; put this monitor in the calling step")
         if i.result:
             self.call_outputs[i.result] = (callee.id, {o.name: o.type for o in callee.outputs})
             if not callee.outputs:

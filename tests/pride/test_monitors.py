@@ -10,8 +10,11 @@ from __future__ import annotations
 from pride.events import PAX, Event, EventKind
 from pride.executive import Hold, InstructionStatus, Mode, RunStatus
 from pride.report import summarize, to_markdown
+from procedure_language.lint import lint_file
+from procedure_language.sysrep import SysRep
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
+from support.procedures import FIXTURES
 
 
 def of(journal: RecordedJournal, kind: EventKind) -> list[Event]:
@@ -70,3 +73,11 @@ def test_a_door_that_opens_holds_the_run_after_the_motion_and_its_return_is_reco
     executive.resume_automation("alice")
     assert finished(executive).status is RunStatus.COMPLETED
     assert [c for _, c, _ in gateway.sent] == ["move", "capture"]
+
+
+def test_a_monitor_in_a_called_procedure_is_an_error_not_silently_unwatched(sysreps: dict[str, SysRep]) -> None:
+    problems = [str(p) for p in lint_file(FIXTURES / "lab_calls_monitored.xml", sysreps)]
+    assert len(problems) == 2, problems
+    for problem, line in zip(problems, (7, 10), strict=True):
+        assert f"lab_monitors.xml:{line}:5: lab_monitors is called (" in problem, problem
+        assert problem.endswith("a called procedure's monitors are not watched; put this monitor in the calling step")
