@@ -24,12 +24,14 @@ from builtin_interfaces.msg import Time
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import CollisionWorld, Markers, NamedPoses, VisualWorld
 from caretaker_sim_msgs.srv import CaptureImage, FindFilter, GetFrames, Halt, PrintMarker
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, String
@@ -80,7 +82,12 @@ class SimNode(Node):
     ) -> None:
         super().__init__("caretaker_sim", namespace=namespace)
         self.sim = sim
+        # A parameter, so that a test (or an operator's tool) can slow one motion down to watch it
+        # or halt it mid-way, and run the rest flat out: ``ros2 param set /caretaker_sim time_scale 0.25``.
         self.time_scale = time_scale
+        # dynamic typing: ``time_scale 1`` (an integer) is as good as 1.0; the callback checks the value
+        self.declare_parameter("time_scale", time_scale, ParameterDescriptor(dynamic_typing=True))
+        self.add_on_set_parameters_callback(self._on_time_scale)
         self.capture_dir = capture_dir
         group = ReentrantCallbackGroup()
         # Latched: at rest they are published once a second (publish_gate.py), and a part that
@@ -179,6 +186,7 @@ class SimNode(Node):
         next_joint_states = next_frames = next_status = 0.0
         frames_wall = 0.0
         wall_origin, sim_origin = time.monotonic(), sim.time
+        paced_at = self.time_scale
         steps = 0
         moved_at = sim.time
         try:
@@ -209,6 +217,9 @@ class SimNode(Node):
                         frames_wall = time.monotonic()
                         self._publish_frames()
                 steps += 1
+                if self.time_scale != paced_at:  # changed at run time: pace from here at the new scale
+                    paced_at = self.time_scale
+                    wall_origin, sim_origin = time.monotonic(), now
                 if self.time_scale > 0 or not busy:
                     # Idle at time scale 0 still runs at real time: nothing changes, and a
                     # simulator spinning flat out for nothing would starve the other processes.
@@ -295,6 +306,17 @@ class SimNode(Node):
             self.cdra_id_pub.publish(String(data=cdra.installed_filter_id))
             self.cdra_condition_pub.publish(String(data=cdra.installed_filter_condition))
             self.cdra_clean_pub.publish(String(data=cdra.clean_filter_ids))
+
+    def _on_time_scale(self, parameters: list[Parameter]) -> SetParametersResult:
+        """Refuse a time scale that is not a finite number >= 0 (the pacing would divide by it)."""
+        for parameter in parameters:
+            if parameter.name != "time_scale":
+                continue
+            value = parameter.value
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) or value < 0:
+                return SetParametersResult(successful=False, reason=f"time_scale must be a number >= 0, got {value!r}")
+            self.time_scale = float(value)
+        return SetParametersResult(successful=True)
 
     def _wait(self, done: threading.Event, sim_seconds: float) -> bool:
         """Wait for a physics-thread event; the timeout follows the time scale, generously."""

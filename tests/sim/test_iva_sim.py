@@ -113,6 +113,19 @@ def test_halt_service_stops_the_arm_at_once_and_says_so(client: SimClient) -> No
     assert_ok(client.follow(ARM, [(2.0, start)]))
 
 
+def test_the_time_scale_is_a_parameter_that_refuses_what_cannot_pace(client: SimClient) -> None:
+    """``time_scale`` may change while the simulator runs (a test slows one motion down to halt it
+    mid-way); a value the pacing cannot divide by is refused with the reason, and leaves it as it was."""
+    for wrong, said in ((-1.0, "-1.0"), (math.inf, "inf"), ("fast", "'fast'"), (True, "True")):
+        refused = client.set_time_scale(wrong)
+        assert not refused.successful and refused.reason == f"time_scale must be a number >= 0, got {said}"
+    assert client.set_time_scale(2).successful  # an integer is a number
+    start = client.joint_positions(ARM)
+    assert_ok(client.follow(ARM, [(1.0, [start[0] + 0.1] + start[1:])]))  # paced at the new scale
+    assert client.set_time_scale(0.0).successful
+    assert_ok(client.follow(ARM, [(1.0, start)]))
+
+
 def test_stamps_are_sim_time(client: SimClient) -> None:
     """joint_states come on the 1/60 s grid of sim time (4 physics steps of 1/240 s, 5 when
     rounding falls short), at rest once a second (sim/publish_gate.py): their stamps step by whole
