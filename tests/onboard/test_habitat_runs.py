@@ -61,11 +61,11 @@ def habitat(tmp_path: Path, sysreps: dict[str, SysRep]) -> Iterator[tuple[Habita
 
 @pytest.fixture
 def make_unit(sysreps: dict[str, SysRep]) -> Callable[..., Unit]:
-    checked = check_procedure(PROCEDURE, sysreps)
+    """A unit of ``procedure`` (default :data:`PROCEDURE`), with ``changes`` to its fields."""
 
-    def make(**changes: Any) -> Unit:
+    def make(procedure: Path = PROCEDURE, **changes: Any) -> Unit:
         unit = build_unit(
-            checked,
+            check_procedure(procedure, sysreps),
             run_id=f"lab-{time.monotonic_ns()}",
             binding="lab.yaml",
             user="alice",
@@ -401,3 +401,39 @@ def test_a_unit_of_part_of_a_procedure_runs_that_part_and_one_missing_what_it_sk
     started = [e["instruction"] for e in events if e["kind"] == "instruction_started"]
     assert started[0] == "4.1" and not [n for n in started if n.startswith(("1.", "2.", "5."))]
     assert events[-1]["kind"] == "run_completed"
+
+
+def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and_goes_to_the_contingency(
+    habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit], tmp_path: Path
+) -> None:
+    """The habitat's executive watches a unit's monitors itself: no ground is in the loop of a
+    violation, which must halt the motion within the habitat's own reaction time, not a round trip."""
+    runs, gateways = habitat
+    unit = make_unit(FIXTURES / "lab_monitors.xml", values={}, breakpoints=("1.1",))
+    assert uplink(runs, unit).state == "ACCEPTED"
+    while not any(e["kind"] == "breakpoint_hit" for e in runs.events(unit.run_id, 0, wait_s=5).events):
+        pass  # at the breakpoint before the motion: the bench's motion is made to last until halted
+    gateway = gateways[0]
+    gateway.block.add("move")
+    assert act(runs, OperatorAction("key-m", unit.run_id, "continue", "bob", time.time() + 60, {})).state == "DONE"
+    assert gateway.blocking.wait(10)  # the arm moves
+    gateway.set("temperature", 46.0)
+    gateway.set("temperature", 47.0)  # two samples above the red limit: the item's persistence
+    assert gateway.cancel_seen.wait(10), "the motion was never halted"
+    events = until_ended(runs, unit.run_id)
+    kinds = [e["kind"] for e in events]
+    violated = events[kinds.index("monitor_violated")]
+    assert violated["instruction"] == "1.1" and violated["actor"] == "PAX"
+    assert json.loads(violated["data"])["value"] == 47.0
+    assert json.loads(violated["data"])["action"] == "goto:cool"
+    assert gateway.cancels == [f"{unit.run_id}/1.1/1"]  # the motion in flight was cancelled, here
+    went = json.loads(events[kinds.index("went_to")]["data"])
+    assert (went["from"], went["next"]) == ("1.1", "2.1")
+    assert kinds[-1] == "run_completed" and [c for _, c, _ in gateway.sent] == ["move"]  # never the capture
+    ground = AuditLog(f"sqlite:///{tmp_path / 'ground.sqlite'}")
+    try:
+        Downlink(ground, unit.run_id).take(events)
+        here, there = ground.stored_events(unit.run_id), runs.audit.stored_events(unit.run_id)
+        assert [(e.kind, e.hash) for e in here] == [(e.kind, e.hash) for e in there]
+    finally:
+        ground.close()
