@@ -55,7 +55,8 @@ GOAL_STATUS_ABORTED = 6
 MAC_FIELDS = ("client", "dest", "rand", "t", "level", "end")
 """The fields of a MAC login, in the order the MAC covers them (rosauth's)."""
 LOGIN_LIFETIME_S = 60.0
-"""How long a login a client signs stays valid."""
+"""How long a login a client signs stays valid once it has arrived (its trip across the link comes
+on top: :attr:`rosbridge_wire.light_time.LightTime.login_lifetime`)."""
 
 
 def login_mac(secret: str | bytes, fields: Mapping[str, Any]) -> str:
@@ -65,15 +66,18 @@ def login_mac(secret: str | bytes, fields: Mapping[str, Any]) -> str:
     return hmac.new(key, text.encode("utf-8", "replace"), hashlib.sha256).hexdigest()
 
 
-def signed_login(secret: str, client: str, dest: str, now: float, *, level: str = "user") -> dict[str, Any]:
+def signed_login(
+    secret: str, client: str, dest: str, now: float, *, level: str = "user", lifetime: float = LOGIN_LIFETIME_S
+) -> dict[str, Any]:
     """An ``auth`` message for ``dest`` (the bridge's URL) signed with ``secret``, valid from
-    ``now`` (Unix seconds) for :data:`LOGIN_LIFETIME_S`."""
+    ``now`` (Unix seconds) for ``lifetime`` s (across a long link: its light time's
+    ``login_lifetime``, or it expires on the way)."""
     fields: dict[str, Any] = {
         "client": client,
         "dest": dest,
         "rand": secrets.token_hex(16),
         "t": now,
         "level": level,
-        "end": now + LOGIN_LIFETIME_S,
+        "end": now + lifetime,
     }
     return {"op": OP_AUTH, "mac": login_mac(secret, fields), **fields}

@@ -216,7 +216,8 @@ class RosbridgeClient:
             return {"op": "auth", "token": self.endpoint.token}
         if self.endpoint.secret is None:
             return None
-        return signed_login(self.endpoint.secret, self.name, self.endpoint.url, time.time())
+        lifetime = self.endpoint.light_time.login_lifetime  # it must arrive valid
+        return signed_login(self.endpoint.secret, self.name, self.endpoint.url, time.time(), lifetime=lifetime)
 
     def _ssl(self) -> ssl.SSLContext | None:
         if not self.endpoint.url.startswith("wss://"):

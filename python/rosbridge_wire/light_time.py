@@ -10,13 +10,18 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 - a request is answered within its work plus one round trip (:meth:`LightTime.answer_within`);
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;
-- the far end allows a client the same: the bridge's handshake and login limits
-  (:meth:`LightTime.bridge_limits`) are never shorter than the delays its clients are bound to.
+- a signed login stays valid for its trip across the link and then as long as on a short one
+  (:attr:`LightTime.login_lifetime`);
+- the far end allows a client the same: the bridge's handshake and login limits, and the age of a
+  signed login it accepts (:meth:`LightTime.bridge_limits`), are never shorter than the delays its
+  clients are bound to.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from rosbridge_wire import LOGIN_LIFETIME_S
 
 __all__ = ["LightTime"]
 
@@ -46,6 +51,11 @@ class LightTime:
         return work + self.round_trip
 
     @property
+    def login_lifetime(self) -> float:
+        """Seconds a signed login is valid from its signing: it arrives one delay old."""
+        return LOGIN_LIFETIME_S + self.one_way_delay
+
+    @property
     def keepalive(self) -> float:
         """Seconds between keepalive pings: never a burden on a long link, never idle on a short one."""
         return max(5.0, 4 * self.one_way_delay)
@@ -56,11 +66,13 @@ class LightTime:
         return self.keepalive + self.round_trip + BASE_S
 
     def bridge_limits(self) -> dict[str, float]:
-        """The least ``--handshake-timeout``, ``--auth-timeout`` and ``--ping-timeout`` a bridge may
-        give clients this far away: the opening handshakes take three round trips, the login comes
-        a round trip after the upgrade's answer, a pong a round trip after its ping."""
+        """The least ``--handshake-timeout``, ``--auth-timeout``, ``--ping-timeout`` and
+        ``--login-max-age`` a bridge may give clients this far away: the opening handshakes take
+        three round trips, the login comes a round trip after the upgrade's answer, a pong a round
+        trip after its ping, and a signed login is one delay old when it arrives."""
         return {
             "handshake_timeout": self.connect_within,
             "auth_timeout": BASE_S + 2 * self.round_trip,
             "ping_timeout": self.keepalive_timeout + self.round_trip,
+            "login_max_age": self.login_lifetime,
         }

@@ -66,6 +66,11 @@ class Limits:
         "of a lossy 1.3 s link, or a starved bridge, need more than websockets' 10 s",
     )
     auth_timeout: float = _limit(20.0, "seconds a client has to authenticate (with --auth-secret-file)")
+    login_max_age: float = _limit(
+        60.0,
+        "seconds a signed login (its t) may be old when it arrives: the clocks' difference and, from "
+        "a client far away, its one-way delay",
+    )
     ping_interval: float = _limit(30.0, "seconds between keepalive pings (0: none)")
     ping_timeout: float = _limit(
         180.0,

@@ -17,12 +17,13 @@ connection must be an ``auth`` message, either
 * ``{"op": "auth", "token": SECRET}`` (a bearer token; use with TLS), or
 * ``{"op": "auth", "mac": HEX, "client": C, "dest": D, "rand": R, "t": T, "level": L, "end": E}``
   where HEX = HMAC-SHA256(SECRET, C + D + R + str(T) + L + str(E)) (rosauth's fields), T is
-  the client's Unix time in seconds within :data:`MAX_CLOCK_SKEW_S` of the server's, and E the
-  end of validity (Unix seconds, not yet passed).
+  the client's Unix time in seconds, at most :data:`MAX_CLOCK_SKEW_S` ahead of the server's and
+  at most ``--login-max-age`` behind it (a login from far away arrives one light time old), and
+  E the end of validity (Unix seconds, not yet passed).
 
 A MAC is accepted once: the bridge remembers each one until it could no longer be accepted
-anyway (``t`` + :data:`MAX_CLOCK_SKEW_S`, or ``end`` if earlier), so a recorded auth message
-cannot be replayed.  ``t`` and ``end`` must be finite numbers, the other fields strings.
+anyway (``t`` + the largest age, or ``end`` if earlier), so a recorded auth message cannot be
+replayed.  ``t`` and ``end`` must be finite numbers, the other fields strings.
 
 Anything else first, or a wrong token or MAC, closes the connection with 1008 (policy violation).
 """
@@ -86,8 +87,10 @@ class Policy:
 class Authenticator:
     """Checks ``auth`` messages against the shared secret and remembers the MACs used."""
 
-    def __init__(self, secret: str) -> None:
+    def __init__(self, secret: str, *, max_age: float = MAX_CLOCK_SKEW_S) -> None:
+        """``max_age``: how old a signed login may be when it arrives (``--login-max-age``)."""
         self._secret = secret.encode()
+        self._max_age = max_age
         self._used: dict[str, float] = {}  # MAC -> when it stops being acceptable anyway
 
     def check(self, message: Any) -> None:
@@ -109,7 +112,7 @@ class Authenticator:
         ):
             raise Refused("authentication failed: mac, client, dest, rand and level must be strings")
         now = time.time()
-        if abs(now - t) > MAX_CLOCK_SKEW_S or end < now:
+        if t - now > MAX_CLOCK_SKEW_S or now - t > self._max_age or end < now:
             raise Refused("authentication failed: the auth message is expired or its clock is off")
         expected = login_mac(self._secret, message)
         if not hmac.compare_digest(expected.encode(), mac.lower().encode("utf-8", "replace")):
@@ -117,7 +120,7 @@ class Authenticator:
         self._forget_expired(now)
         if expected in self._used:
             raise Refused("authentication failed: this mac was already used (replay)")
-        self._used[expected] = min(t + MAX_CLOCK_SKEW_S, end)
+        self._used[expected] = min(t + self._max_age, end)
 
     def _forget_expired(self, now: float) -> None:
         for used in [m for m, until in self._used.items() if until < now]:

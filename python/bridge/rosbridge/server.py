@@ -180,7 +180,7 @@ class RosbridgeServer:
 
     def __init__(self, bridge: Bridge, auth_secret: str | None, limits: Limits) -> None:
         self.bridge = bridge
-        self.authenticator = Authenticator(auth_secret) if auth_secret else None
+        self.authenticator = Authenticator(auth_secret, max_age=limits.login_max_age) if auth_secret else None
         self.limits = limits
         self.budget = OutputBudget(limits.max_total_queued_bytes)
         self.gate = ConnectionGate(2 * limits.max_connections)

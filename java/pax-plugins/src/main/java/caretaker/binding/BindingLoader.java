@@ -106,7 +106,7 @@ public final class BindingLoader {
         KeyLines lines = new KeyLines(text);
         LinkOptions link = link(path, lines, top.get("link"));
         Map<?, ?> security = section(path, lines, "security", top.get("security"), SECURITY_KEYS);
-        return new Binding(robot, systems, path, link, auth(file, lines, security), tls(file, lines, security),
+        return new Binding(robot, systems, path, link, auth(file, lines, security, link), tls(file, lines, security),
                 top.get("link") != null, ledgerNamespace(path, lines, top.get("ledger_namespace")));
     }
 
@@ -161,13 +161,14 @@ public final class BindingLoader {
         return Duration.ofNanos(Math.round(number.doubleValue() * 1e9));
     }
 
-    private static RosAuth auth(Path file, KeyLines lines, Map<?, ?> security) {
+    private static RosAuth auth(Path file, KeyLines lines, Map<?, ?> security, LinkOptions link) {
         if (security.containsKey("secret_file") && security.containsKey("token_file")) {
             throw new BindingException(lines.where(file.toString(), "security.token_file")
                     + ": give secret_file (HMAC) or token_file (bearer token), not both");
         }
         if (security.containsKey("secret_file")) {
-            return RosAuth.hmac(secret(file, lines, "security.secret_file", security.get("secret_file")));
+            return RosAuth.hmac(secret(file, lines, "security.secret_file", security.get("secret_file")),
+                    link.loginValidity());
         }
         if (security.containsKey("token_file")) {
             return RosAuth.token(secret(file, lines, "security.token_file", security.get("token_file")));

@@ -13,6 +13,8 @@ import java.time.Duration;
 public record LinkOptions(Duration oneWayDelay, Duration outageBudget) {
     /** The floor of {@link #pingInterval()}: pings are cheap, not free. */
     private static final Duration MIN_PING_INTERVAL = Duration.ofSeconds(5);
+    /** How long a signed login stays valid once it has arrived (the bridge's default age limit). */
+    private static final Duration LOGIN_VALIDITY = Duration.ofSeconds(60);
 
     /** Checks the delay is not negative and the budget positive. */
     public LinkOptions {
@@ -32,6 +34,14 @@ public record LinkOptions(Duration oneWayDelay, Duration outageBudget) {
     /** @return the time for a request to go and its answer to come back, without processing */
     public Duration roundTrip() {
         return oneWayDelay.multipliedBy(2);
+    }
+
+    /**
+     * @return how long a login signed now stays valid: it arrives one delay old, then 60 s (the
+     *     Python client's {@code LightTime.login_lifetime}, the same rule)
+     */
+    public Duration loginValidity() {
+        return LOGIN_VALIDITY.plus(oneWayDelay);
     }
 
     /** @return every 5 s, or every four one-way delays on a longer link */

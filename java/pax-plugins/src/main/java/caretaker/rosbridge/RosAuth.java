@@ -30,7 +30,17 @@ public sealed interface RosAuth {
      * @return HMAC authentication as client {@code caretaker-pax}, level {@code user}, valid 60 s
      */
     static RosAuth hmac(String secret) {
-        return new Hmac(secret, "caretaker-pax", "user", Duration.ofSeconds(60));
+        return hmac(secret, Duration.ofSeconds(60));
+    }
+
+    /**
+     * @param secret the bridge's shared secret
+     * @param validity how long a login stays valid from its signing (across a long link:
+     *     {@link LinkOptions#loginValidity()}, or it expires on the way)
+     * @return HMAC authentication as client {@code caretaker-pax}, level {@code user}
+     */
+    static RosAuth hmac(String secret, Duration validity) {
+        return new Hmac(secret, "caretaker-pax", "user", validity);
     }
 
     /**

@@ -41,6 +41,9 @@ class BindingLoaderTest {
         assertEquals(new LinkOptions(Duration.ofMillis(1300), Duration.ofSeconds(90)), binding.link());
         RosAuth.Hmac auth = assertInstanceOf(RosAuth.Hmac.class, binding.auth());
         assertEquals("s3cret", auth.secret());
+        assertEquals(Duration.ofMillis(61_300), auth.validity()); // a login arrives one delay old, then 60 s
+        assertEquals(Duration.ofSeconds(120),
+                new LinkOptions(Duration.ofSeconds(60), Duration.ofSeconds(1)).loginValidity());
         assertNotNull(binding.tls());
         assertEquals(binding.link().pingTimeout(), binding.rosOptions().pingTimeout());
         assertEquals(binding.auth(), binding.rosOptions().auth());
