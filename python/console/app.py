@@ -35,7 +35,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
-from console.authoring import check_document, procedure_inputs, read_document, save_document, sysrep_palette
+from console.authoring import check_document, procedure_signatures, read_document, save_document, sysrep_palette
 from console.folded_run import fold_events
 from console.onboard_launch import SecondOperator
 from console.procedure_view import procedure_json
@@ -521,8 +521,8 @@ async def author_palette(request: Request) -> Response:
     board: RunBoard = request.app.state.board
     sysreps = await run_in_threadpool(board.sysreps)
     procedures = board.catalog.procedure_files()
-    signatures = await run_in_threadpool(procedure_inputs, board.catalog.procedures, procedures)
-    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": procedures, "procedure_inputs": signatures})
+    signatures = await run_in_threadpool(procedure_signatures, board.catalog.procedures, procedures)
+    return JSONResponse({"sysreps": sysrep_palette(sysreps), "procedures": procedures, "signatures": signatures})
 
 
 @_api

@@ -2,10 +2,12 @@
 
 The page edits a *document*: the procedure's elements as plain JSON (tag, attributes in order,
 arguments, text: a record's question, a note's words, or the ``<text>`` sentence of any other
-instruction), so what it opens it can save unchanged, and every meaning check stays in one place,
-:func:`procedure_language.lint.lint_file`, the checker ``caretaker lint`` uses. Problems come back with the
-position (step, item) of the element they concern, found from the line of that element in the XML
-this module writes.
+instruction or monitor; a ``<set>``'s value; the declared inputs and outputs), so what it opens it
+can save unchanged, and every meaning check stays in one place,
+:func:`procedure_language.lint.check_procedure`, the checker ``caretaker lint`` and every run use.
+Problems come back with the position of the element they concern (step and item, or an output),
+found from the line of that element in the XML this module writes. A document that passes lint
+also gets, for each step, what a run started there (``caretaker run --from``) would need given.
 """
 
 from __future__ import annotations
@@ -13,16 +15,27 @@ from __future__ import annotations
 import os
 import re
 import secrets
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, cast
 
 from lxml import etree
 
 from console.actions import ActionRefused
-from procedure_language.lint import lint_file
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.limits import RED, YELLOW, Limits
+from procedure_language.lint import CheckedProcedure, check_procedure, section_needs
+from procedure_language.model import Location
 from procedure_language.sysrep import SysRep
 
-__all__ = ["check_document", "document_to_xml", "procedure_inputs", "read_document", "save_document", "sysrep_palette"]
+__all__ = [
+    "check_document",
+    "document_to_xml",
+    "procedure_signatures",
+    "read_document",
+    "save_document",
+    "sysrep_palette",
+]
 
 _FILE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*\.xml$")
 _WITH_ARGS = ("command", "call")
@@ -51,25 +64,39 @@ def sysrep_palette(sysreps: dict[str, SysRep]) -> list[dict[str, Any]]:
                 {"id": c.id, "label": c.label, "hazardous": c.hazardous, "args": [value(a) for a in c.args]}
                 for c in s.commands
             ],
-            "telemetry": [{"id": t.id, "label": t.label, "type": t.type} for t in s.telemetry],
+            "telemetry": [
+                {"id": t.id, "label": t.label, "type": t.type, "limits": _limits(t.limits)} for t in s.telemetry
+            ],
         }
         for s in sorted(sysreps.values(), key=lambda s: s.id)
     ]
 
 
-def procedure_inputs(directory: Path, names: list[str]) -> dict[str, list[dict[str, str]]]:
-    """The declared inputs (name, type) of each procedure a ``call`` may name, to prefill its arguments.
+def _limits(limits: Limits | None) -> dict[str, str | None] | None:
+    """The limits a monitor may name (``limit="red"``/``"yellow"``), in words; None: the item has none."""
+    if limits is None:
+        return None
+    yellow = limits.equals is None and (limits.yellow_low is not None or limits.yellow_high is not None)
+    return {RED: limits.describe(RED), YELLOW: limits.describe(YELLOW) if yellow else None}
+
+
+def procedure_signatures(directory: Path, names: list[str]) -> dict[str, dict[str, list[dict[str, str]]]]:
+    """The declared inputs and outputs (name, type) of each procedure a ``call`` may name: its
+    arguments are prefilled from the inputs, and ``${result.output}`` offered from the outputs.
 
     A file that cannot be read is left out: the page then takes free-form arguments, and lint
     reports the broken callee on the call itself.
     """
-    signatures: dict[str, list[dict[str, str]]] = {}
+    signatures: dict[str, dict[str, list[dict[str, str]]]] = {}
     for name in names:
         try:
-            inputs = read_document(directory / name)["inputs"]
+            document = read_document(directory / name)
         except ActionRefused:
             continue
-        signatures[name] = [{"name": i.get("name", ""), "type": i.get("type", "string")} for i in inputs]
+        signatures[name] = {
+            kind: [{"name": d.get("name", ""), "type": d.get("type", "string")} for d in document[kind]]
+            for kind in ("inputs", "outputs")
+        }
     return signatures
 
 
@@ -80,6 +107,8 @@ def _item(element: etree._Element) -> dict[str, Any]:
         item["args"] = [{"name": arg.get("name", ""), "value": arg.text or ""} for arg in element if arg.tag == "arg"]
     if element.tag in _WITH_TEXT:
         item["text"] = " ".join((element.text or "").split())
+    elif element.tag == "set":  # its value is its content (its sentence, if any, the text attribute)
+        item["value"] = (element.text or "").strip()
     elif element.find("text") is not None:  # the sentence the instruction reads as
         item["text"] = " ".join((element.findtext("text") or "").split())
     return item
@@ -91,14 +120,21 @@ def read_document(path: Path) -> dict[str, Any]:
         root = etree.parse(str(path), etree.XMLParser(remove_comments=True)).getroot()
     except (OSError, etree.XMLSyntaxError) as exc:
         raise ActionRefused(422, f"{path.name}: cannot be opened: {exc}") from None
-    document: dict[str, Any] = {"attrs": dict(root.attrib), "description": "", "uses": [], "inputs": [], "steps": []}
+    document: dict[str, Any] = {
+        "attrs": dict(root.attrib),
+        "description": "",
+        "uses": [],
+        "inputs": [],
+        "outputs": [],
+        "steps": [],
+    }
     for child in root:
         if child.tag == "description":
             document["description"] = " ".join((child.text or "").split())
         elif child.tag == "uses":
             document["uses"].append(child.get("system", ""))
-        elif child.tag == "input":
-            document["inputs"].append(dict(child.attrib))
+        elif child.tag in ("input", "output"):
+            document[f"{child.tag}s"].append(dict(child.attrib))
         elif child.tag == "step":
             document["steps"].append({"attrs": dict(child.attrib), "items": [_item(item) for item in child]})
     return document
@@ -117,7 +153,7 @@ def _element(parent: etree._Element, tag: str, attrs: dict[str, Any]) -> etree._
     return element
 
 
-def _tree(document: dict[str, Any]) -> tuple[etree._Element, list[tuple[etree._Element, tuple[int, int]]]]:
+def _tree(document: dict[str, Any]) -> etree._Element:
     try:
         root = etree.Element("procedure")
         for name, value in document.get("attrs", {}).items():
@@ -127,13 +163,12 @@ def _tree(document: dict[str, Any]) -> tuple[etree._Element, list[tuple[etree._E
             etree.SubElement(root, "description").text = _text(document["description"])
         for system in document.get("uses", []):
             _element(root, "uses", {"system": system})
-        for declared in document.get("inputs", []):
-            _element(root, "input", declared)
-        positions: list[tuple[etree._Element, tuple[int, int]]] = []
-        for s, step in enumerate(document.get("steps", [])):
+        for kind in ("input", "output"):
+            for declared in document.get(f"{kind}s", []):
+                _element(root, kind, declared)
+        for step in document.get("steps", []):
             step_element = _element(root, "step", step.get("attrs", {}))
-            positions.append((step_element, (s, -1)))
-            for i, item in enumerate(step.get("items", [])):
+            for item in step.get("items", []):
                 element = _element(step_element, str(item["kind"]), item.get("attrs", {}))
                 if item["kind"] not in _WITH_TEXT and item.get("text"):
                     etree.SubElement(element, "text").text = _text(item["text"])
@@ -141,49 +176,81 @@ def _tree(document: dict[str, Any]) -> tuple[etree._Element, list[tuple[etree._E
                     _element(element, "arg", {"name": arg.get("name")}).text = _text(arg.get("value"))
                 if item["kind"] in _WITH_TEXT:
                     element.text = _text(item.get("text"))
-                positions.append((element, (s, i)))
+                elif item["kind"] == "set":
+                    element.text = _text(item.get("value"))
     except (AttributeError, KeyError, TypeError, ValueError) as exc:
         raise ActionRefused(400, f"the document is malformed: {type(exc).__name__}: {exc}") from None
-    return root, positions
+    return root
 
 
 def document_to_xml(document: dict[str, Any]) -> str:
     """The procedure XML of a document (what Save writes)."""
-    root, _ = _tree(document)
+    root = _tree(document)
     etree.indent(root, space="  ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + etree.tostring(root, encoding="unicode") + "\n"
 
 
-def _line_positions(xml: str) -> list[tuple[int, tuple[int, int]]]:
-    """(line, (step, item)) of every step and item in ``xml`` as written, in order."""
+#: Where a problem is on the page: ``[step, item]`` (item -1: the step itself), or ``["outputs", n]``.
+Place = list[int | str]
+
+
+def _placer(xml: str, scratch: Path) -> Callable[[Location], Place | None]:
+    """Where on the page a position in ``xml`` (checked as the file ``scratch``) is: the last output,
+    step or item that starts at or before its line; None in the procedure's head, or in another file."""
     root = etree.fromstring(xml.encode())
-    found: list[tuple[int, tuple[int, int]]] = []
+
+    def line(element: etree._Element) -> int:
+        return cast(int | None, element.sourceline) or 0  # lxml-stubs mistype sourceline
+
+    starts: list[tuple[int, Place]] = [(line(o), ["outputs", n]) for n, o in enumerate(root.findall("output"))]
     for s, step in enumerate(root.findall("step")):
-        found.append((cast(int | None, step.sourceline) or 0, (s, -1)))  # lxml-stubs mistype sourceline
-        for i, item in enumerate(step):
-            found.append((cast(int | None, item.sourceline) or 0, (s, i)))
-    return found
+        starts.append((line(step), [s, -1]))
+        starts += [(line(item), [s, i]) for i, item in enumerate(step)]
+
+    def place(where: Location) -> Place | None:
+        owners = [at for start, at in starts if start <= where.line] if where.path == str(scratch) else []
+        return owners[-1] if owners else None
+
+    return place
+
+
+def _sections(checked: CheckedProcedure, place: Callable[[Location], Place | None]) -> list[dict[str, Any]]:
+    """For each step, what a run started there (``--from``) must be given: what only the steps it skips bind."""
+    return [
+        {
+            "from": step.id,
+            "needs": [
+                {"name": u.name, "line": u.where.line, "at": place(u.where)} for u in section_needs(checked, step.id)
+            ],
+        }
+        for step in checked.procedure.steps
+    ]
 
 
 def check_document(document: dict[str, Any], directory: Path, sysreps: dict[str, SysRep]) -> dict[str, Any]:
-    """Lint the document as if saved in ``directory``: its XML and its problems, placed on items."""
+    """Lint the document as if saved in ``directory``: its XML, its problems placed on the page, and
+    (when there are none) what a start at each step needs."""
     xml = document_to_xml(document)
     scratch = directory / f".author-{secrets.token_hex(4)}.xml"  # calls resolve relative to the directory
+    checked: CheckedProcedure | None = None
     try:
         scratch.write_text(xml, encoding="utf-8")
-        problems = lint_file(scratch, sysreps)
+        checked, problems = check_procedure(scratch, sysreps), []
+    except ProcedureError as exc:
+        problems = exc.problems
     finally:
         scratch.unlink(missing_ok=True)
-    lines = _line_positions(xml)
-    placed = []
-    for problem in problems:
-        at = None
-        if problem.where.path == str(scratch):
-            owners = [position for line, position in lines if line <= problem.where.line]
-            at = list(owners[-1]) if owners else None
-        message = problem.message if problem.where.path == str(scratch) else str(problem)
-        placed.append({"line": problem.where.line, "col": problem.where.col, "message": message, "at": at})
-    return {"xml": xml, "problems": placed}
+    place = _placer(xml, scratch)
+    placed = [
+        {
+            "line": problem.where.line,
+            "col": problem.where.col,
+            "message": problem.message if problem.where.path == str(scratch) else str(problem),
+            "at": place(problem.where),
+        }
+        for problem in problems
+    ]
+    return {"xml": xml, "problems": placed, "sections": _sections(checked, place) if checked is not None else None}
 
 
 def save_document(

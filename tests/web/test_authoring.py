@@ -19,11 +19,10 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from author_page import bind_arg, card, drop, set_arg, set_attr
+from author_page import bind_arg, card, drop, meaning, set_arg, set_attr
 from playwright.sync_api import Locator, Page, expect
 
 from console.authoring import check_document, read_document
-from console.procedure_view import procedure_json
 from pride.events import EventKind
 from procedure_language.parser import load_procedure
 from procedure_language.sysrep import load_sysrep_dir
@@ -37,9 +36,12 @@ from support.operator_page import (
     start_run,
     stop_run,
 )
+from support.procedures import FIXTURES
 from support.web_server import REPO, WebServer, server_on_real_stack, start_server
 
 SHIPPED = sorted(p.name for p in (REPO / "procedures").glob("*.xml"))
+#: The lab bench's procedures with monitors (a SysRep limit, a condition), outputs, sets and call results.
+LAB = ["lab_monitors.xml", "lab_outputs.xml", "lab_locate.xml"]
 #: The latch: a hazardous command (1.2) between verifies, no arm motion.
 CRITICAL = "web_critical.xml"
 UNLOCK = "1.2"
@@ -56,16 +58,20 @@ def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) ->
         yield served
 
 
-@pytest.mark.parametrize("name", SHIPPED)
-def test_opening_and_saving_a_shipped_procedure_changes_nothing(name: str, tmp_path: Path) -> None:
-    source = REPO / "procedures" / name
-    for sibling in (REPO / "procedures").glob("*.xml"):  # calls resolve next to the saved file
+@pytest.mark.parametrize(
+    ("shelf", "sysreps", "name"),
+    [*((REPO / "procedures", REPO / "sysrep", n) for n in SHIPPED), *((FIXTURES, FIXTURES / "sysrep", n) for n in LAB)],
+    ids=[*SHIPPED, *LAB],
+)
+def test_opening_and_saving_a_procedure_changes_nothing(shelf: Path, sysreps: Path, name: str, tmp_path: Path) -> None:
+    source = shelf / name
+    for sibling in shelf.glob("*.xml"):  # calls resolve next to the saved file
         (tmp_path / sibling.name).symlink_to(sibling)
-    checked = check_document(read_document(source), tmp_path, load_sysrep_dir(REPO / "sysrep"))
+    checked = check_document(read_document(source), tmp_path, load_sysrep_dir(sysreps))
     assert checked["problems"] == []
     saved = tmp_path / f"saved_{name}"
     saved.write_text(checked["xml"])
-    assert procedure_json(load_procedure(saved)) == procedure_json(load_procedure(source))
+    assert meaning(load_procedure(saved)) == meaning(load_procedure(source))
 
 
 def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(
@@ -110,6 +116,7 @@ def test_author_a_procedure_by_drag_and_drop_save_it_and_run_it(
 
     expect(alice.locator("#check-state")).to_have_text("lint: no problems")
     expect(alice.locator("#canvas .card.has-problem")).to_have_count(0)
+    alice.evaluate("window.scrollTo(0, 0)")  # the picture from the top: the file, its lint state, the procedure
     screenshot(alice, "web_author.png")
     alice.fill("#save-name", "authored_pick.xml")
     alice.click("#save")

@@ -1,4 +1,4 @@
-// Caretaker Author page: palette → drag onto the canvas → typed forms → live lint → save.
+// Caretaker Author page: palette → drag onto the canvas → typed forms (author_forms.js) → live lint → save.
 //
 // The page edits a document (elements as JSON: kind, attributes, args, text); the server turns
 // it into procedure XML and checks it with the same lint as `caretaker lint`, so every rule of
@@ -10,9 +10,10 @@ const $ = (id) => document.getElementById(id);
 const author = {
   me: null,
   sysreps: [],          // palette: [{id, name, commands: [{id, label, args}], telemetry}]
-  procedureInputs: {},  // file → declared inputs [{name, type}], what a call passes
+  signatures: {},       // file → declared {inputs, outputs} [{name, type}]: what a call passes and reads back
   doc: null,            // the document being edited
   problems: [],
+  sections: null,       // per step, what a start there needs ({from, needs}); null while lint finds problems
   checkTimer: null,
   dragging: false,
   paletteKey: null,
@@ -26,15 +27,17 @@ const KINDS = {
   manual: {label: "manual (operator marks done)", attrs: [], text: true},
   if: {label: "branch (if)", attrs: ["input", "system", "telemetry", "result", "equals", "not-equals", "goto", "else"], flags: ["automatable"]},
   goto: {label: "go to step", attrs: ["step"]},
-  call: {label: "call sub-procedure", attrs: ["procedure"]},
+  call: {label: "call sub-procedure", attrs: ["procedure", "result"]},
+  set: {label: "set an output", attrs: []},
+  monitor: {label: "monitor (watched while its step runs)", attrs: []},
   note: {label: "note", attrs: [], text: true},
   caution: {label: "caution", attrs: [], text: true},
   warning: {label: "warning", attrs: [], text: true},
 };
 const NOTICES = new Set(["note", "caution", "warning"]);
 const DEFAULTS = {verify: {timeout: "10"}, wait: {seconds: "1"}, record: {name: "", type: "string"}};
-// kinds whose sentence may be written as a <text> element (records, manual steps and notices are text already)
-const SENTENCE = new Set(["command", "verify", "wait", "if", "goto", "call"]);
+// kinds with an optional sentence (records, manual steps and notices are text already)
+const SENTENCE = new Set(["command", "verify", "wait", "if", "goto", "call", "set", "monitor"]);
 
 async function api(method, path, body) {
   const headers = body === undefined ? {} : {"Content-Type": "application/json"};
@@ -127,7 +130,25 @@ function newItem(spec) {
   if (spec.kind === "verify" && spec.system) {
     item.attrs = {system: spec.system, telemetry: spec.telemetry, equals: "", timeout: "10"};
   }
+  if (spec.kind === "monitor") item.attrs = newMonitor();
+  if (spec.kind === "set") {  // the first declared output, with a value of its type
+    const output = author.doc.outputs[0];
+    item.attrs.name = output ? output.name : "";
+    item.value = defaultValue(output);
+  }
   return item;
+}
+
+// A new monitor watches the first used SysRep's first item with limits (its red limit), or its first
+// item (a condition to fill in); the card's pickers choose another.
+function newMonitor() {
+  const sysrep = author.sysreps.find((s) => s.id === author.doc.uses[0]);
+  const items = sysrep ? sysrep.telemetry : [];
+  const watched = items.find((t) => t.limits) || items[0];
+  const attrs = {system: sysrep ? sysrep.id : "", telemetry: watched ? watched.id : ""};
+  if (watched && watched.limits) attrs.limit = "red";
+  else attrs.equals = "";
+  return attrs;
 }
 
 function commandOf(system, name) {
@@ -184,16 +205,19 @@ function numbers() {
   // what the executive will number: steps 1, 2, …; instructions n.1, n.2, … (notices unnumbered)
   return author.doc.steps.map((step, s) => {
     let n = 0;
-    return step.items.map((item) => (NOTICES.has(item.kind) ? null : `${s + 1}.${++n}`));
+    return step.items.map((item) => (NOTICES.has(item.kind) || item.kind === "monitor" ? null : `${s + 1}.${++n}`));
   });
 }
 
 function scope(stepIndex, itemIndex) {
-  // names an argument may be bound to at this point: inputs, earlier records and results
+  // names an argument may be bound to at this point: inputs, earlier records, outputs set, results
   const names = author.doc.inputs.map((i) => `\${${i.name}}`);
   author.doc.steps.forEach((step, s) => step.items.forEach((item, i) => {
     if (s > stepIndex || (s === stepIndex && i >= itemIndex)) return;
-    if (item.kind === "record" && item.attrs.name) names.push(`\${${item.attrs.name}}`);
+    if (["record", "set"].includes(item.kind) && item.attrs.name) names.push(`\${${item.attrs.name}}`);
+    if (item.kind === "call" && item.attrs.result) {
+      for (const output of signature(item.attrs.procedure).outputs) names.push(`\${${item.attrs.result}.${output.name}}`);
+    }
     if (item.kind === "command" && item.attrs.result) {
       for (const field of ["id", "instance", "success", "message", "path"]) names.push(`\${${item.attrs.result}.${field}}`);
     }
@@ -213,16 +237,48 @@ function renderCanvas() {
     dragSource(handle, MOVE_STEP, s, "move");
     header.append(handle, element("span", "number", `${s + 1}.`),
       input("step title", step.attrs.title || "", (v) => { step.attrs.title = v; }, "step-title"),
-      input("step id", step.attrs.id || "", (v) => { step.attrs.id = v; }, "step-id"),
+      input("step id", step.attrs.id || "", (v) => { step.attrs.id = v; }, "step-id"), contingencyField(step),
       button("↑", "move step up", () => move(author.doc.steps, s, -1)),
       button("↓", "move step down", () => move(author.doc.steps, s, 1)),
       button("✕", "delete step", () => { author.doc.steps.splice(s, 1); changed(); }));
-    box.append(header, ...problemsAt(s, -1), dropZone(s, 0));
+    box.append(header, sectionStart(s, numbering), ...problemsAt(s, -1), dropZone(s, 0));
     step.items.forEach((item, i) => box.append(card(item, s, i, numbering[s][i]), dropZone(s, i + 1)));
     return [box, stepDropZone(s + 1)];
   }));
 }
 
+// A contingency step is entered only by a go-to (a branch's, a failure's, a monitor's): the flow passes over it.
+function contingencyField(step) {
+  const label = element("label", "contingency", "contingency");
+  const box = document.createElement("input");
+  box.type = "checkbox";
+  box.checked = ["true", "1"].includes(step.attrs.contingency);
+  box.addEventListener("change", () => {
+    step.attrs.contingency = box.checked ? "true" : "";
+    changed();
+  });
+  label.prepend(box);
+  return label;
+}
+
+// What a run started at this step (caretaker run --from) must be given: what only the steps it skips bind.
+function sectionStart(s, numbering) {
+  const line = element("div", "section-start");
+  const section = author.sections && author.sections[s];
+  if (!section) {
+    line.textContent = "a start here (--from): shown when lint finds no problem";
+    return line;
+  }
+  line.dataset.ok = String(!section.needs.length);
+  const read = (need) => (need.at && numbering[need.at[0]] && numbering[need.at[0]][need.at[1]]) || `line ${need.line}`;
+  line.textContent = section.needs.length ?
+    `a start here (--from ${section.from}) must be given ${section.needs.map((n) => `${n.name} (read at ${read(n)})`).join(", ")}` +
+      " with --set NAME=VALUE" :
+    `a run may start here: --from ${section.from}`;
+  return line;
+}
+
+// Problems placed on a step (i = -1), an item, or an output (s = "outputs", i its index).
 function problemsAt(s, i) {
   return author.problems.filter((p) => p.at && p.at[0] === s && p.at[1] === i).map((p) => element("div", "problem", `line ${p.line}: ${p.message}`));
 }
@@ -267,167 +323,12 @@ function move(list, index, delta) {
   changed();
 }
 
-function card(item, s, i, number) {
-  const box = element("div", `card kind-${item.kind}`);
-  box.dataset.number = number || "";
-  box.dataset.kind = item.kind;
-  const problems = problemsAt(s, i);
-  if (problems.length) box.classList.add("has-problem");
-  const title = item.kind === "command" ? `${item.attrs.system}.${item.attrs.name}` : KINDS[item.kind].label;
-  const header = element("header");
-  header.append(element("span", "number", number || ""), element("span", "title", title),
-    button("↑", "move up", () => move(author.doc.steps[s].items, i, -1)),
-    button("↓", "move down", () => move(author.doc.steps[s].items, i, 1)),
-    button("✕", "delete", () => { author.doc.steps[s].items.splice(i, 1); changed(); }));
-  header.title = "drag to move";  // the header is the handle: the fields stay selectable
-  dragSource(header, MOVE_ITEM, {step: s, index: i}, "move");
-  const fields = element("div", "fields");
-  const info = KINDS[item.kind];
-  for (const name of info.attrs) {
-    if (item.kind === "command" && (name === "system" || name === "name")) continue;
-    fields.append(attrField(item, name));
-  }
-  for (const flag of info.flags || []) fields.append(flagField(item, flag));
-  if (item.kind === "command") {
-    const command = commandOf(item.attrs.system, item.attrs.name);
-    for (const arg of item.args) fields.append(argField(arg, command && command.args.find((a) => a.name === arg.name), s, i));
-  }
-  if (item.kind === "call") {
-    const declared = author.procedureInputs[item.attrs.procedure] || [];
-    for (const arg of item.args) {
-      fields.append(argField(arg, declared.find((d) => d.name === arg.name), s, i, () => {
-        item.args.splice(item.args.indexOf(arg), 1);
-        changed();
-      }));
-    }
-    fields.append(button("+ argument", "add an argument", () => { item.args.push({name: "", value: ""}); changed(); }));
-  }
-  if (SENTENCE.has(item.kind)) {
-    const sentence = document.createElement("input");
-    sentence.value = item.text || "";
-    sentence.placeholder = "how it reads (optional: made from the SysRep's labels when empty)";
-    sentence.setAttribute("aria-label", `${item.kind} sentence`);
-    sentence.className = "item-sentence";
-    edits(sentence, () => { item.text = sentence.value; });
-    fields.append(sentence);
-  }
-  if (info.text) {
-    const text = document.createElement("textarea");
-    text.value = item.text || "";
-    text.setAttribute("aria-label", `${item.kind} text`);
-    text.className = "item-text";
-    edits(text, () => { item.text = text.value; });
-    fields.append(text);
-  }
-  box.append(header, fields, ...problems);
-  return box;
-}
-
-function attrField(item, name) {
-  const label = element("label", "", name);
-  let node;
-  if (name === "type") {
-    node = document.createElement("select");
-    for (const type of ["string", "boolean", "integer", "real"]) node.append(new Option(type, type));
-    node.value = item.attrs.type || "string";
-  } else {
-    node = document.createElement("input");
-    node.value = item.attrs[name] || "";
-  }
-  node.dataset.attr = name;
-  if (name === "procedure") {
-    node.setAttribute("list", "procedure-files");
-    node.addEventListener("change", () => declareArgs(item));  // before edits() redraws the card
-  }
-  edits(node, () => { item.attrs[name] = node.value; });
-  label.append(node);
-  return label;
-}
-
-// A call names a known procedure: it gets a row for each input that procedure declares.
-function declareArgs(item) {
-  for (const input of author.procedureInputs[item.attrs.procedure] || []) {
-    if (!item.args.some((a) => a.name === input.name)) item.args.push({name: input.name, value: defaultValue(input)});
-  }
-}
-
-function defaultValue(spec) {
-  if (!spec || spec.type === "string") return "";
-  return spec.type === "boolean" ? "false" : "0";
-}
-
-function flagField(item, flag) {
-  const label = element("label", "", flag);
-  const box = document.createElement("input");
-  box.type = "checkbox";
-  box.dataset.flag = flag;
-  box.checked = flag === "automatable" ? item.attrs.automatable !== "false" : item.attrs[flag] === "true";
-  box.addEventListener("change", () => {
-    if (flag === "automatable") item.attrs.automatable = box.checked ? "" : "false";  // true is the default
-    else item.attrs[flag] = box.checked ? "true" : "";
-    changed();
-  });
-  label.prepend(box);
-  return label;
-}
-
-// One argument: a control typed by the SysRep (or the called procedure's inputs), or a binding to
-// something in scope. An argument nothing declares gets its name typed; call arguments can go.
-function argField(arg, spec, s, i, remove) {
-  const box = element("span", "arg");
-  box.dataset.arg = arg.name;
-  if (spec || !remove) {
-    box.append(element("span", "", `${arg.name}${spec ? ` (${spec.type})` : ""}`));
-  } else {
-    const name = input("argument name", arg.name, (v) => { arg.name = v; }, "arg-name");
-    box.append(name);
-  }
-  const bound = /^\$\{[^}]+\}$/.test(arg.value);
-  let control;
-  if (bound || !spec) {
-    control = document.createElement("input");
-    control.value = arg.value;
-    control.readOnly = bound;
-  } else if (spec.type === "boolean") {
-    control = document.createElement("input");
-    control.type = "checkbox";
-    control.checked = arg.value === "true";
-  } else {
-    control = document.createElement("input");
-    if (spec.type === "integer" || spec.type === "real") {
-      control.type = "number";
-      control.step = spec.type === "integer" ? "1" : "any";
-      if (spec.min != null) control.min = spec.min;
-      if (spec.max != null) control.max = spec.max;
-    }
-    control.value = arg.value;
-  }
-  control.className = "arg-value";
-  control.setAttribute("aria-label", arg.name);
-  edits(control, () => {
-    if (control.type === "checkbox") arg.value = control.checked ? "true" : "false";
-    else if (control.type === "number" && !control.checkValidity()) return false;  // the browser shows why
-    else arg.value = control.value;
-  });
-  const bind = document.createElement("select");
-  bind.className = "arg-bind";
-  bind.setAttribute("aria-label", `bind ${arg.name}`);
-  bind.append(new Option(bound ? "literal value" : "bind to…", ""));
-  for (const name of scope(s, i)) bind.append(new Option(name, name));
-  if (bound) bind.value = arg.value;
-  bind.addEventListener("change", () => {
-    arg.value = bind.value || defaultValue(spec);
-    changed();
-  });
-  box.append(control, bind);
-  if (remove) box.append(button("✕", `remove argument ${arg.name}`, remove));
-  return box;
-}
-
 // ---- document, checking, saving --------------------------------------------------------------
 function renderAttributes() {
   for (const node of document.querySelectorAll(".proc-attrs input[data-attr]")) node.value = author.doc.attrs[node.dataset.attr] || "";
   $("proc-description").value = author.doc.description || "";
+  renderDeclared("inputs");
+  renderDeclared("outputs");
   $("proc-uses").replaceChildren(element("span", "", "uses: "), ...author.sysreps.map((sysrep) => {
     const label = element("label", "", sysrep.id);
     const box = document.createElement("input");
@@ -473,6 +374,7 @@ async function check() {
     const result = await api("POST", "/api/author/check", {document: author.doc});
     if (JSON.stringify(author.doc) !== sent) return;  // edited meanwhile: a newer check follows
     author.problems = result.problems;
+    author.sections = result.sections;
     $("xml").textContent = result.xml;
     $("check-state").textContent = result.problems.length ? `${result.problems.length} problem(s)` : "lint: no problems";
     $("check-state").dataset.ok = String(!result.problems.length);
@@ -487,7 +389,7 @@ async function check() {
 }
 
 function blank() {
-  return {attrs: {id: "new_procedure", title: "New procedure", version: "1"}, description: "", uses: [], inputs: [],
+  return {attrs: {id: "new_procedure", title: "New procedure", version: "1"}, description: "", uses: [], inputs: [], outputs: [],
           steps: [{attrs: {title: "First step"}, items: []}]};
 }
 
@@ -505,6 +407,8 @@ $("open").addEventListener("click", async () => {
   try {
     const name = $("open-name").value;
     author.doc = await api("GET", `/api/author/procedures/${encodeURIComponent(name)}`);
+    author.version = null;  // the bar shows this file's version, or none while lint refuses it
+    renderVersion();
     $("save-name").value = name;
     changed();
     await showVersion(name);
@@ -604,7 +508,7 @@ async function start() {
   $("save").disabled = !author.me.may_act;
   const palette = await api("GET", "/api/author/palette");
   author.sysreps = palette.sysreps;
-  author.procedureInputs = palette.procedure_inputs;
+  author.signatures = palette.signatures;
   $("procedure-files").replaceChildren(...palette.procedures.map((name) => new Option(name, name)));
   $("open-name").replaceChildren(...palette.procedures.map((name) => new Option(name, name)));
   author.doc = blank();
