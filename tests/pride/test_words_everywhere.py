@@ -108,7 +108,11 @@ def test_the_iva_run_reads_in_words_in_the_report_and_on_the_terminal(
         assert "sent Unlock Filter [hazardous] (sent by tester, approved by bob)" in text
         # the planner's end pose, in millimetres and degrees, in its frame
         assert "end pose position (162, 335, 628) mm, orientation (-105, 0, 10)° in robot_base" in text  # look_above
-        assert "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack" in text
+        # a called sub-procedure's sentence, with the values its caller passed (the recorded id among them)
+        assert (
+            "Register the CDRA filter AT at clean filter CDRA-F-0012 where the drawings put it, to look at rack/slot_1"
+            in text
+        )
     assert "saw Plan Valid = true ✓" in report and "recorded clean filter id = CDRA-F-0012" in report
     assert "| Filter Locked | `false` | is false | ok |" in report  # verified telemetry, by its label
     assert "  2.5                 Filter Locked = false" in printed

@@ -73,9 +73,10 @@ class RecordedSystems:
     def execute(
         self, sysrep_id: str, command_id: str, args: dict[str, Any], *, key: str | None = None
     ) -> CommandResult:
-        """The recorded answer to the instruction the key names (``run/<number>/<attempt>``)."""
+        """The recorded answer to the instruction the key names (``run/<number>/<attempt>``; a
+        sub-procedure's number, ``1.11/2.1``, is written ``1.11:2.1`` there: automation.command_key)."""
         self.sent.append((sysrep_id, command_id, dict(args)))
-        number = (key or "").split("/")[1]
+        number = (key or "").split("/")[1].replace(":", "/")
         waiting = self._answers.get(number)
         if not waiting:
             return CommandResult(Outcome.FAILED, f"the recording has no answer to {number}")
