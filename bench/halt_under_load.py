@@ -34,8 +34,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 from bench.cpu_load import cpu_hogs
 
 REPO = Path(__file__).resolve().parents[1]
-#: The HALT test alone (the file's other test, the way on after a halt, runs the whole procedure).
-TEST = "tests/web/test_halt_on_real_stack.py::test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon"
+#: The HALT test (its second half, the way on after the halt, runs the rest of the procedure).
+TEST = (
+    "tests/web/test_halt_on_real_stack.py::"
+    "test_halt_during_the_pull_out_stops_the_arm_then_re_planning_from_where_it_is_completes_the_run"
+)
 FIGURE = re.compile(r"HALT: the arm at rest (-?[0-9.]+) s wall-clock after the press \((-?[0-9.]+) s of sim time")
 TIMELINE = re.compile(r"HALT timeline after the press: .*")
 HALTING = re.compile(r"HALT: 'halting…' painted <?(-?[0-9.]+) s after the press")

@@ -15,7 +15,6 @@ from builtin_interfaces.msg import Duration
 from caretaker_sim_msgs.action import FollowJointTrajectory
 from caretaker_sim_msgs.msg import NamedPoses, VisualWorld
 from caretaker_sim_msgs.srv import CaptureImage, FindFilter, Halt, SetGripper
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.action import ActionClient
 from rclpy.context import Context
@@ -26,6 +25,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectoryPoint
 
+from support.sim_pace import SIM_PARAMETERS, time_scale_request
 from support.spinner import Spinner
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -68,7 +68,7 @@ class SimClient:
         self.filter_in_slot_client = self.node.create_client(FindFilter, "/cdra/filter_in_slot")
         self.slot_of_filter_client = self.node.create_client(FindFilter, "/cdra/slot_of_filter")
         self.halt_client = self.node.create_client(Halt, "/robot/halt")
-        self.parameters_client = self.node.create_client(SetParameters, "/caretaker_sim/set_parameters")
+        self.parameters_client = self.node.create_client(SetParameters, SIM_PARAMETERS)
         self.spin_error: BaseException | None = None
         self._spinner = Spinner(self.executor, self.node, name="sim-client", on_error=self._spin_failed)
 
@@ -262,16 +262,7 @@ class SimClient:
 
     def set_time_scale(self, value: float | str | bool) -> SetParameters.Response:
         """Set the simulator's ``time_scale`` parameter (of any type, to see a wrong one refused)."""
-        if isinstance(value, str):
-            typed = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
-        elif isinstance(value, bool):
-            typed = ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=value)
-        elif isinstance(value, int):
-            typed = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
-        else:
-            typed = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
-        request = SetParameters.Request(parameters=[Parameter(name="time_scale", value=typed)])
-        return self._call(self.parameters_client, request, f"time_scale {value!r}").results[0]
+        return self._call(self.parameters_client, time_scale_request(value), f"time_scale {value!r}").results[0]
 
     def unlock(self) -> Trigger.Response:
         return self._call(self.unlock_client, Trigger.Request(), "unlock")

@@ -1,15 +1,15 @@
-"""HALT from the console stops the real arm (issue 16), measured on the robot side; after it, the
-operator's way on completes the run (issue 29).
+"""HALT from the console stops the real arm, measured on the robot side; after it, the operator's
+way on completes the run.
 
-``caretaker up iva`` at a quarter of real time (the halt test at real time when
-``CARETAKER_HALT_TIME_SCALE=1``, as bench/halt_under_load.py runs it: simulation, planner, AT
-server, ledger, rosbridge) and ``caretaker serve`` with the JVM PAX plugins. PAX runs the IVA
-procedure autonomously; the operator sends the unlock for approval (bob approves it), confirms
-the area is clear (2.6) and, while the arm pulls the dirty filter out (2.7), presses HALT. The
-arm's ``/joint_states``, read over the stack's rosbridge with their sim-time stamps, come to rest
-and stay there; the instruction is recorded as halted by the operator, never as completed. A
-second run on the robot is then refused, naming the run that controls it, and taken over with a
-reason logged in both runs.
+``caretaker up iva`` (simulation, planner, AT server, ledger, rosbridge) and ``caretaker serve``
+with the JVM PAX plugins. PAX runs the IVA procedure autonomously, the simulator flat out; the
+operator sends the unlock for approval (bob approves it) and, at the confirmation that the area is
+clear (2.6), the test slows the simulator to a quarter of real time (real time when
+``CARETAKER_HALT_TIME_SCALE=1``, as bench/halt_under_load.py runs it: the simulator's
+``time_scale`` parameter). While the arm pulls the dirty filter out (2.7) the operator presses
+HALT. The arm's ``/joint_states``, read over the stack's rosbridge with their sim-time stamps,
+come to rest and stay there; the instruction is recorded as halted by the operator, never as
+completed. A second run on the robot is then refused, naming the run that controls it.
 
 It also reports the wall-clock time from the press to the arm at rest (HALT acts on the press, not
 on the release): from the pointerdown event in the page (its timestamp) until the first joint
@@ -21,6 +21,7 @@ After a Halt mid-motion the plan of the pull-out has ended with it: the banner o
 from where the arm is and go on (no retry or continue of the halted motion, which cannot work);
 that goes back to the plan instruction, the AT server plans the rest of the pull-out from where
 the arm stopped, and the run completes. No text the operator sees names an AT server service.
+One robot stack serves both halves: the halt, then the way on from it.
 """
 
 from __future__ import annotations
@@ -31,7 +32,6 @@ import re
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -48,9 +48,9 @@ from support.operator_page import (
     expect_ended,
     instruction,
     start_run,
-    stop_run,
     unlock_approved_by,
 )
+from support.sim_pace import set_sim_time_scale
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
@@ -74,22 +74,13 @@ class RobotSide:
         self.changed = threading.Condition()
         self.samples: list[tuple[float, tuple[float, ...]]] = []
         self.received: list[float] = []  # time.time() each sample arrived here
-        self.executing = False
         roslibpy.Topic(self.ros, "/joint_states", "sensor_msgs/msg/JointState").subscribe(self._on_joints)
-        roslibpy.Topic(
-            self.ros, "/affordance_template_server/status", "affordance_template_msgs/msg/ServerStatus"
-        ).subscribe(self._on_status)
 
     def _on_joints(self, msg: dict[str, Any]) -> None:
         stamp = msg["header"]["stamp"]
         with self.changed:
             self.samples.append((stamp["sec"] + stamp["nanosec"] * 1e-9, tuple(msg["position"])))
             self.received.append(time.time())
-            self.changed.notify_all()
-
-    def _on_status(self, msg: dict[str, Any]) -> None:
-        with self.changed:
-            self.executing = msg["execute_status"] == "EXECUTING" and msg["active_trajectory"] == "grasp_and_pull"
             self.changed.notify_all()
 
     def wait(self, condition: Any, what: str, timeout: float = 120.0) -> None:
@@ -100,10 +91,6 @@ class RobotSide:
     def latest_stamp(self) -> float:
         with self.changed:
             return self.samples[-1][0]
-
-    def moving(self) -> bool:
-        """The arm changed between the last two samples."""
-        return len(self.samples) >= 2 and self.samples[-1][1] != self.samples[-2][1]
 
     def at(self, moment: float) -> tuple[float, bool]:
         """The stamp of the last sample that arrived before ``moment`` (time.time()), and whether
@@ -129,9 +116,18 @@ class RobotSide:
         self.ros.close()
 
 
-@contextmanager
-def _iva_and_console(tmp_path: Path, ros_env: dict[str, str], time_scale: str) -> Iterator[tuple[WebServer, RobotSide]]:
-    with stack_up("iva", ros_env, time_scale=time_scale) as stack:
+#: The pull-out's time scale: a quarter of real time in the suite, so that a press while it moves
+#: reaches the robot before it ends on a starved machine (at real time its 4 s were twice over
+#: first); bench/halt_under_load.py sets 1, as the halt's timing is measured. The rest of the run
+#: goes as fast as the simulator can.
+HALT_TIME_SCALE = float(os.environ.get("CARETAKER_HALT_TIME_SCALE", "0.25"))
+
+
+@pytest.fixture
+def iva_and_console(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[WebServer, RobotSide]]:
+    """The IVA robot side flat out (its pace set per motion by :func:`set_sim_time_scale`)
+    and ``caretaker serve`` on it."""
+    with stack_up("iva", ros_env) as stack:
         server = start_server(tmp_path, REPO / "procedures", rosbridge=[stack.url])
         robot = RobotSide(stack.url)
         try:
@@ -139,28 +135,6 @@ def _iva_and_console(tmp_path: Path, ros_env: dict[str, str], time_scale: str) -
         finally:
             robot.close()
             server.process.stop()
-
-
-#: The halt test's time scale: a quarter of real time in the suite, so that a press while the
-#: pull-out moves reaches the robot before it ends on a starved machine (at real time its 4 s were
-#: twice over first); bench/halt_under_load.py sets 1, as the halt's timing is measured.
-HALT_TIME_SCALE = os.environ.get("CARETAKER_HALT_TIME_SCALE", "0.25")
-
-
-@pytest.fixture
-def halt_stack(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[WebServer, RobotSide]]:
-    """The IVA robot side at :data:`HALT_TIME_SCALE`."""
-    with _iva_and_console(tmp_path, ros_env, HALT_TIME_SCALE) as stack:
-        yield stack
-
-
-@pytest.fixture
-def slow_motion_stack(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[tuple[WebServer, RobotSide]]:
-    """The IVA robot side at a quarter of real time: the pull-out lasts about 16 s of wall time, so
-    a press while it moves reaches the robot before it ends, however late the loaded machine
-    delivers the press (at real time its 4 s were once over before the halt arrived)."""
-    with _iva_and_console(tmp_path, ros_env, "0.25") as stack:
-        yield stack
 
 
 def _at_the_confirmation(open_page: Callable[[WebServer, str], Page], server: WebServer) -> tuple[Page, str, Locator]:
@@ -174,13 +148,28 @@ def _at_the_confirmation(open_page: Callable[[WebServer, str], Page], server: We
     return alice, run_id, confirm
 
 
-def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
-    open_page: Callable[[WebServer, str], Page], halt_stack: tuple[WebServer, RobotSide]
+def _pull_out_halted(alice: Page, confirm: Locator) -> Locator:
+    """alice confirms the area is clear, then halts the pull-out in flight; returns the pull-out.
+
+    The press comes as soon as her page shows the pull-out executing, not once the robot side's
+    samples show the arm moving: under the suite's load those came so late that the press reached
+    the robot after the pull-out's end. The halt then stops the motion early in its 16 s (at a
+    quarter of real time), or cancels the goal before it moves: either way it is halted."""
+    confirm.locator("button.done").click()
+    alice.wait_for_function(f"view.state && view.state.current === '{PULL_OUT}' && view.state.executing")
+    alice.click("#halt")
+    pull = instruction(alice, PULL_OUT)
+    expect(pull).to_have_attribute("data-status", "halted")
+    return pull
+
+
+def test_halt_during_the_pull_out_stops_the_arm_then_re_planning_from_where_it_is_completes_the_run(
+    open_page: Callable[[WebServer, str], Page], iva_and_console: tuple[WebServer, RobotSide]
 ) -> None:
-    server, robot = halt_stack
+    server, robot = iva_and_console
     alice, run_id, confirm = _at_the_confirmation(open_page, server)
-    # Ready before the arm moves, so the press follows the first moving sample at once (a press
-    # later could fall between two segments of the pull-out, with the arm still).
+    set_sim_time_scale(HALT_TIME_SCALE)  # the pull-out slowed down, so that the press reaches it moving
+    # Ready beforehand: the press is all that is left to do once the pull-out executes.
     alice.fill("#halt-reason", "crew member at the cabinet")
     # what the button says after the press, in order: the press is acknowledged before any answer
     alice.evaluate("""() => {
@@ -209,11 +198,10 @@ def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
                               (event) => { window.haltClickedAt = performance.timeOrigin + event.timeStamp; },
                               {capture: true});
     }""")
-    confirm.locator("button.done").click()
-    _press_halt_while_the_pull_out_moves(alice, robot)
+    pull = _pull_out_halted(alice, confirm)
+    clicked = alice.evaluate("window.haltClickedAt") / 1000  # the page's clock is this machine's
     pressed_after = robot.latest_stamp()
     robot.wait(lambda: robot.samples[-1][0] >= pressed_after + 3.0, "3 s of sim time after the halt", timeout=60)
-    clicked = alice.evaluate("window.haltClickedAt") / 1000  # the page's clock is this machine's
     alice.wait_for_function("window.haltDrawnAt !== null")
     shown = alice.evaluate("performance.timeOrigin + window.haltDrawnAt") / 1000
     painted = alice.evaluate("window.haltPainted")
@@ -242,43 +230,17 @@ def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
         # reached this test before the press, which a loaded machine delivers late (0.65 s here
         # with the arm at rest 0.36 s wall-clock after the press, on a quiet machine).
     else:
-        # A press between two segments: the next segment does not start (at_ros.halt), so there
-        # is no motion to time (bench/halt_under_load.py counts such tries apart).
+        # A press before the goal moved, or between two segments: the next segment does not start
+        # (at_ros.halt), so there is no motion to time (bench/halt_under_load.py counts such tries apart).
         print("HALT: the arm was still at the press (between two segments of the pull-out): no figure")
 
-    # The instruction the halt reached: the pull-out, unless the load delayed the robot side's
-    # samples past its end (seen once: then the halt stopped the next motion, 3.4, as it must).
-    halted_at = _halted_instruction(alice)
-    if halted_at != PULL_OUT:
-        print(f"HALT: the pull-out had ended before the press reached the robot; it halted {halted_at}")
-    pull = instruction(alice, halted_at)
-    expect(pull).to_have_attribute("data-status", "halted")
     expect(alice.locator("#halt")).to_have_text("HALT")  # once the console has answered
     assert alice.evaluate("window.haltSaid") == ["halting…", "HALT"]
     expect(pull.locator(".mark")).to_contain_text("halted by alice")
-    expect(audit_row(alice, "halt", halted_at, "alice")).to_contain_text("HALT: crew member at the cabinet")
-
-    # a second run on the robot is refused, naming alice's run; bob takes over with a reason
-    bob = open_page(server, "bob")
-    bob.select_option("#start-procedure", IVA)
-    bob.select_option("#start-binding", "iva.yaml")
-    bob.check("#start-rehearsal")
-    bob.click("#start-button")
-    expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {run_id} (user alice")
-    bob.click("#take-over")
-    bob.fill("#reason-input", "alice handed over at shift change")
-    bob.click("#reason-yes")
-    expect(bob.locator("#run-id")).not_to_have_text(run_id)
-    expect(bob.locator('#audit li[data-kind="control_taken"][data-actor="bob"]')).to_contain_text(
-        f"took control of iva from run {run_id} (alice): alice handed over at shift change"
-    )
-    expect(alice.locator('#audit li[data-kind="control_lost"]')).to_contain_text("taken over by bob")
-    stop_run(bob, "takeover checked")
-    stop_run(alice, "halt checked")
-
+    expect(audit_row(alice, "halt", PULL_OUT, "alice")).to_contain_text("HALT: crew member at the cabinet")
     log = AuditLog(server.database.url)
     try:
-        events = [e for e in log.events(run_id) if e.instruction == halted_at]
+        events = [e for e in log.events(run_id) if e.instruction == PULL_OUT]
     finally:
         log.close()
     recorded = next(e.time.timestamp() for e in events if e.kind is EventKind.HALT)
@@ -287,54 +249,17 @@ def test_halt_during_the_pull_out_stops_the_arm_and_says_how_soon(
             f"HALT timeline after the press: console recorded it {recorded - clicked:+.3f} s, "
             f"arm at rest (sim stamp) {still - clicked:+.3f} s, that state arrived here {arrived - clicked:+.3f} s"
         )
-    halted = [e for e in events if e.kind is EventKind.INSTRUCTION_HALTED]
-    assert [e.actor for e in halted] == ["alice"], events
-    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], (
-        f"a halted {halted_at} was logged as completed"
-    )
-    results = [e for e in events if e.kind is EventKind.COMMAND_RESULT]
-    assert all(not r.data.to_json()["success"] for r in results), results
-    if halted_at == PULL_OUT:
-        assert results, "the pull-out's halted motion has no result"
+    assert [e.actor for e in events if e.kind is EventKind.INSTRUCTION_HALTED] == ["alice"], events
+    assert not [e for e in events if e.kind is EventKind.INSTRUCTION_COMPLETED], "a halted pull-out logged as completed"
+    set_sim_time_scale(0)  # the rest as fast as the simulator can
 
-
-def _press_halt_while_the_pull_out_moves(alice: Page, robot: RobotSide) -> None:
-    """Press HALT once the robot side sees the pull-out move (its samples reach this test over the
-    bridge, late when the machine is loaded: once past the pull-out's end)."""
-    robot.wait(lambda: robot.executing and robot.moving(), "the pull-out moving the arm")
-    alice.click("#halt")
-
-
-def _halted_instruction(alice: Page) -> str:
-    """The number of the instruction the page shows halted (exactly one)."""
-    halted = alice.locator('#procedure li.instruction[data-status="halted"]')
-    expect(halted).to_have_count(1)
-    return str(halted.get_attribute("data-number"))
-
-
-def _pull_out_halted(alice: Page, confirm: Locator) -> Locator:
-    """alice confirms the area is clear, then halts the pull-out in flight; returns the pull-out.
-
-    The press comes as soon as her page shows the pull-out executing, not once the robot side's
-    samples show the arm moving: under the suite's load those came so late that the press reached
-    the robot after the pull-out's end. The halt then stops the motion early in its 16 s (at a
-    quarter of real time), or cancels the goal before it moves: either way it is halted."""
-    alice.fill("#halt-reason", "crew member at the cabinet")  # beforehand: the press is all that is left to do
-    confirm.locator("button.done").click()
-    alice.wait_for_function(f"view.state && view.state.current === '{PULL_OUT}' && view.state.executing")
-    alice.click("#halt")
-    pull = instruction(alice, PULL_OUT)
-    expect(pull).to_have_attribute("data-status", "halted")
-    return pull
-
-
-@pytest.mark.slow(seconds=90)
-def test_after_a_halt_mid_motion_re_planning_from_where_the_arm_is_completes_the_run(
-    open_page: Callable[[WebServer, str], Page], slow_motion_stack: tuple[WebServer, RobotSide]
-) -> None:
-    server, _ = slow_motion_stack
-    alice, run_id, confirm = _at_the_confirmation(open_page, server)
-    pull = _pull_out_halted(alice, confirm)
+    # a second run on the robot is refused, naming alice's run (taking over: test_flight_controls.py)
+    bob = open_page(server, "bob")
+    bob.select_option("#start-procedure", IVA)
+    bob.select_option("#start-binding", "iva.yaml")
+    bob.check("#start-rehearsal")
+    bob.click("#start-button")
+    expect(bob.locator("#start-error")).to_contain_text(f"controlled by run {run_id} (user alice")
 
     # the banner offers what can work, in the operator's words; not the retry or continue of the
     # halted pull-out, whose plan ended with the halt
