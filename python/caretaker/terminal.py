@@ -123,7 +123,9 @@ class ProgressPrinter:
             case ep.AwaitingOperator() as d:
                 self._header(number)
                 line = f"{pax} waiting for an operator: {d.reason}"
-            case ep.ActionRefused() | ep.MonitorViolated() | ep.MonitorCleared() | ep.WentTo():
+            case (
+                ep.ActionRefused() | ep.SupervisorAttached() | ep.MonitorViolated() | ep.MonitorCleared() | ep.WentTo()
+            ):
                 line = f"{who} {describe_event(event, self.wording)}"
             case ep.Retry(same_key=True) as d:
                 line = f"{who} asked again about {d.key} (same key)"

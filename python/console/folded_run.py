@@ -236,6 +236,7 @@ class FoldedRun:
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
                 | ep.ActionRefused()
+                | ep.SupervisorAttached()
             ):
                 pass  # without an instruction, or shown through the run's snapshot and its log
             case _:

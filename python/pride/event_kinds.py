@@ -94,3 +94,6 @@ class EventKind(str, enum.Enum):
     WENT_TO = "went_to"
     """The run went to a step by no instruction of its own (a monitor's go-to):
     :class:`~pride.event_payloads.WentTo`."""
+    SUPERVISOR_ATTACHED = "supervisor_attached"
+    """A new supervising runner took over an onboard run whose supervisor was gone:
+    :class:`~pride.event_payloads.SupervisorAttached`."""

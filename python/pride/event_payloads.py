@@ -58,6 +58,7 @@ __all__ = [
     "RunStarted",
     "RunStopped",
     "SteppedBack",
+    "SupervisorAttached",
     "TelemetrySeen",
     "ValueSet",
     "WentTo",
@@ -468,13 +469,26 @@ class ActionRefused(Recorded):
     ``reason`` (the words the operator was shown); ``asked``: what the request carried besides the
     action (the instruction clicked, a value, a binding), when it carried anything. The event's
     instruction is the one the act named. A start refused is recorded under a run id of its own,
-    which holds nothing else (the run never started)."""
+    which holds nothing else (the run never started); so is a refused attach (``attach``: an
+    onboard run's log is the habitat's chain)."""
 
     KIND = EventKind.ACTION_REFUSED
     action: str
     rule: str
     reason: str
     asked: Mapping[str, Any] | None = optional()
+
+
+@dataclass(frozen=True, kw_only=True)
+class SupervisorAttached(Recorded):
+    """The actor attached a new supervising runner to onboard run ``run``, whose supervisor was
+    gone; ``supervisor``: that runner, as the consoles name its host. Recorded under a run id of
+    its own, ``<run>-attach-<UTC>-<hex>``, which holds nothing else: the onboard run's own log is
+    the habitat's chain, which the ground keeps hash for hash."""
+
+    KIND = EventKind.SUPERVISOR_ATTACHED
+    run: str
+    supervisor: str
 
 
 # ---- automation -----------------------------------------------------------------------------
@@ -600,6 +614,7 @@ Payload: TypeAlias = (
     | ApprovalGiven
     | ApprovalExpired
     | ActionRefused
+    | SupervisorAttached
     | AwaitingOperator
     | Paused
     | Continued

@@ -173,6 +173,8 @@ def describe_event(event: Event, wording: Wording | None = None) -> str:
             )
         case ep.ActionRefused() as d:
             return f"refused {humanize(d.action)} by the {humanize(d.rule)} rule: {d.reason}"
+        case ep.SupervisorAttached() as d:
+            return f"attached {d.supervisor} to supervise onboard run {d.run}"
         case ep.Halt() as d:
             told = d.cancel_message
             return f"HALT{_reason(d.reason)}" + (f"; the system: {told}" if told else "")

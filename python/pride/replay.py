@@ -179,6 +179,7 @@ def replay(
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
                 | ep.ActionRefused()
+                | ep.SupervisorAttached()
                 | ep.AwaitingOperator()
                 | ep.Paused()
                 | ep.Continued()

@@ -154,6 +154,7 @@ def summarize(events: list[Event]) -> RunSummary:
                 | ep.ApprovalGiven()
                 | ep.ApprovalExpired()
                 | ep.ActionRefused()
+                | ep.SupervisorAttached()
                 | ep.AwaitingOperator()
                 | ep.Paused()
                 | ep.Continued()

@@ -123,6 +123,8 @@ class RefusalRule(enum.Enum):
     """One run controls a robot; another takes it over only with a reason."""
     BINDING_SERVES = "binding_serves"
     """A run starts only on a binding that serves every system its procedure uses."""
+    ONE_SUPERVISOR = "one_supervisor"
+    """An onboard run has one supervising runner: another attaches only once it is gone."""
 
 
 class OperatorActionError(RuntimeError):

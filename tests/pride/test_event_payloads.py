@@ -5,8 +5,9 @@ stored them before events were typed (every field the chain covers, with its has
 of refused acts added with that kind (a refused start under its own id; a self-approval and an
 observer's act): together they record every event kind and every shape of data a kind takes
 (optional keys present and absent). A run of ``lab_outputs.xml`` adds the outputs a
-sub-procedure sets and hands back (``value_set``, ``call_returned``), and a run of part of a
-procedure the ``section`` its start records.
+sub-procedure sets and hands back (``value_set``, ``call_returned``), a run of part of a
+procedure the ``section`` its start records, and two attaches to an onboard run, each under an id
+of its own, the ``supervisor_attached`` of one and the refusal of the other.
 Read back into payloads and stored again through the real audit log, each event must get the same
 data text and the same hash; made afresh from its fields (as an emitter makes it), the same JSON.
 """
