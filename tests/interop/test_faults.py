@@ -8,6 +8,10 @@ procedure's contingency step "removal_interrupted", which holds for the operator
 the removal again from where the arm is (the restarted AT server keeps its instances). A pull-out
 whose outcome is not known holds as unknown, and asking again with the same key gets the
 habitat ledger's answer; it never moves the arm a second time.
+
+A procedure is also taken up part way: a run that ended after the clean filter's pick leaves the
+world at the insertion, and a run ``--from`` the insertion, given what lint says the skipped steps
+would have bound, finishes the work as the deployment's world checks measure it.
 """
 
 from __future__ import annotations
@@ -16,15 +20,22 @@ import re
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlparse
 
 import pytest
 
 from caretaker.processes import REPO, VENV_BIN, caretaker
 from caretaker.stack import Stack
+from caretaker.world_checks import watch_world
 from interop.terminal_session import TerminalSession
-from pride.events import EventKind
+from pride.events import Event, EventKind
+from pride.executive import Mode
+from pride.replay import replay
+from procedure_language.lint import check_procedure, section_needs
+from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
+from sim.scene import load_scene
 from support.second_operator import APPROVED_BY_BOB, approver_env
 from support.stack import robot_parts
 
@@ -346,3 +357,72 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
     assert not placed, placed  # no motion after the violation: the filter was never carried to the rack
     awaiting = [e.instruction for e in events if e.kind is EventKind.AWAITING_OPERATOR]
     assert awaiting[-1] == "9.1", awaiting  # the contingency's check, for the operator
+
+
+def test_a_run_from_the_insertion_on_a_world_left_there_completes_and_its_report_says_where_it_started(
+    robot: RobotSide, tmp_path: Path
+) -> None:
+    """The world is brought to the insertion by the procedure itself: a run ``--to pick_clean``
+    (the spent filter on the rack, the clean one in the gripper where its pick ended, the templates
+    on the AT server: a completed run takes nothing back). A second run ``--from insert_clean``
+    gets, with ``--set``, what :func:`section_needs` lists, read from the first run's record; it
+    completes, the deployment's world checks that the insertion's part of them failed before now
+    hold, and its report says where it started."""
+    db = f"sqlite:///{tmp_path / 'audit.db'}"
+    checked = check_procedure(PROCEDURE, load_sysrep_dir(REPO / "sysrep"))
+    steps = {step.id: step for step in checked.procedure.steps}
+    insertion = steps["insert_clean"]
+    deployment = robot.stack.deployment
+    assert deployment.demo is not None and deployment.demo.inputs == {"clean_filter_id": CLEAN_FILTER}
+    with watch_world(deployment.demo.checks, robot.url, deployment.namespace, load_scene(deployment.scene)) as world:
+        env = approver_env(db, robot.env)
+        prepared = _run_to_end(robot, db, env, str(PROCEDURE), "--to", "pick_clean")
+        events = _events(db, prepared)
+        assert events[-1].kind is EventKind.RUN_COMPLETED
+        assert not [e for e in events if e.kind is EventKind.INSTRUCTION_STARTED and _step_of(e) >= insertion.number]
+        before = [v.holds for v in world.judge(db, prepared)]
+        assert before == [True, False, False], before  # the dirty filter on the rack; the cabinet empty
+        held = replay(checked.procedure, events, checked.load, mode=Mode.AUTONOMOUS, statuses={}).frames[0].env
+        needs = [u.name for u in section_needs(checked, insertion.id)]
+        assert needs, "lint says the insertion reads nothing the steps before it bind"
+        given = [f"--set={name}={_value(held, name)}" for name in needs]
+        run_id = _run_to_end(robot, db, env, str(PROCEDURE), "--from", insertion.id, *given)
+        verdicts = world.judge(db, run_id)
+    assert all(v.holds for v in verdicts), [v.words for v in verdicts]
+    events = _events(db, run_id)
+    _assert_log_is_whole(events)
+    assert events[0].data.to_json()["section"]["from"] == insertion.id
+    started = {_step_of(e) for e in events if e.kind is EventKind.INSTRUCTION_STARTED}
+    assert min(started) == insertion.number, started
+    assert events[-1].kind is EventKind.RUN_COMPLETED
+    report = caretaker("report", run_id, "--db", db, "--out", str(tmp_path / "reports"), env=robot.env, name="report")
+    try:
+        assert report.proc.wait(timeout=120) == 0, report.tail()
+    finally:
+        report.stop()
+    markdown = (tmp_path / "reports" / f"{run_id}.md").read_text()
+    where = f"- Part of the procedure: started at step {insertion.number} ({insertion.title}); given for the steps"
+    assert f"{where} before: " in markdown, markdown[:2000]
+
+
+def _run_to_end(robot: RobotSide, db: str, env: dict[str, str], *extra: str) -> str:
+    """``caretaker run`` unattended to its end (it must complete); its run id."""
+    runner = caretaker("run", *_run_argv(robot, db, "--auto", "--confirm-manual", *extra)[2:], env=env, name="runner")
+    try:
+        words = runner.wait_for_line(r"^RESULT ", 600).split()
+        assert runner.proc.wait(timeout=60) == 0, runner.tail()
+    finally:
+        runner.stop()
+    assert words[1] == "completed", runner.tail()
+    return words[3]
+
+
+def _step_of(event: Event) -> int:
+    """The step number of an event's instruction (``5`` of ``5.2``)."""
+    return int((event.instruction or "0").split(".")[0])
+
+
+def _value(variables: dict[str, Any], name: str) -> Any:
+    """A variable's value as ``--set`` names it: ``name``, or ``result.field`` of a command's result."""
+    base, _, field = name.partition(".")
+    return variables[base][field] if field else variables[base]
