@@ -11,6 +11,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, assert_never
 
+from console.monitor_states import MonitorNews, limit_state
 from pride import event_payloads as ep
 from pride.events import Event, EventKind
 from pride.phrasing import labelled_values
@@ -87,6 +88,7 @@ class FoldedRun:
     version: dict[str, Any] | None = None  # the procedure version it runs: sha256, release, rehearsal
     #: the values ``${...}`` take, per procedure frame: "" for the main one, "2.1/" in the one 2.1 called
     envs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    monitors: MonitorNews = field(default_factory=MonitorNews)  # what the monitors saw, where the run is
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -108,6 +110,7 @@ class FoldedRun:
             "halted": self.halted,
             "link": self.link,
             "version": self.version,
+            "monitors": self.monitors.to_dict(),
         }
 
     def camera_json(self) -> dict[str, Any] | None:
@@ -130,6 +133,7 @@ class FoldedRun:
         frame = number.rsplit("/", 1)[0] + "/" if number and "/" in number else ""
         if event.kind in _ARRIVALS:
             self.arrived = when
+        self.monitors.apply(event)
         match event.data:
             case ep.RunStarted() | ep.RunResumed() as d:
                 self.procedure = d.procedure if isinstance(d, ep.RunStarted) else self.procedure
@@ -217,7 +221,9 @@ class FoldedRun:
                 entry.value = d.value
                 self.envs.setdefault(frame, {})[d.name] = d.value
             case ep.TelemetrySeen() as d:
-                entry.telemetry = d.to_json()
+                sysrep = self.sysreps.get(d.system or "")
+                item = sysrep.telemetry_item(d.item) if sysrep is not None else None
+                entry.telemetry = {**d.to_json(), "limit": limit_state(item, d.value)}
             case (
                 ep.BreakpointSet()
                 | ep.BreakpointCleared()
@@ -238,7 +244,7 @@ class FoldedRun:
                 | ep.ActionRefused()
                 | ep.SupervisorAttached()
             ):
-                pass  # without an instruction, or shown through the run's snapshot and its log
+                pass  # without an instruction, in self.monitors, or shown through the run's snapshot and its log
             case _:
                 assert_never(event.data)
 

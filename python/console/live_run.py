@@ -22,7 +22,8 @@ from console.accounts import Account
 from console.camera_feed import CameraFeed
 from console.folded_run import fold_events
 from console.ground.run_hosts import PublishedView
-from console.procedure_view import procedure_json, telemetry_checks
+from console.monitor_states import limit_state
+from console.procedure_view import monitor_checks, procedure_json, telemetry_checks
 from console.watchers import Watcher, Watchers
 from pride.events import Event
 from pride.executive import Executive
@@ -62,7 +63,7 @@ class LiveRun:
         self.camera_feed = camera_feed
         self.sysreps = dict(sysreps)
         self.procedure_view = procedure_json(procedure, sysreps=sysreps)
-        self._checks = telemetry_checks(procedure)
+        self._checks = telemetry_checks(procedure) | monitor_checks(procedure)
         self._references = sorted({(system, item) for system, item, _ in self._checks.values()})
         self.host = host
         self._on_change = on_change
@@ -184,8 +185,9 @@ class LiveRun:
         }
 
     def telemetry_json(self) -> dict[str, Any]:
-        """The value, age and staleness of every telemetry item the procedure reads, whether it is
-        within its SysRep limits (``out``: why not), and whether each instruction's test of it holds now."""
+        """The value, age and staleness of every telemetry item the procedure reads or monitors,
+        whether it is within its SysRep min, max or enum (``out``: why not), its state against its
+        SysRep limits (``limit``), and whether each instruction's or monitor's test of it holds now."""
         now = time.time()
         readings = []
         values: dict[tuple[str, str], Any] = {}
@@ -210,6 +212,7 @@ class LiveRun:
                     "age": (now - timestamp) if timestamp else None,
                     "stale": stale,
                     "out": _out_of_limits(self._item(system, item), value),
+                    "limit": limit_state(self._item(system, item), value),
                 }
             )
         checks = {}

@@ -4,7 +4,8 @@ The page gets plain JSON so it never re-derives procedure meaning: each instruct
 (:mod:`pride.phrasing`, with ``${...}`` as references the page fills in once the run knows them)
 and its raw form, which instructions get a Send button (commands), a typed input (records, with
 their constraints), a Done control (manual), the automatable mark, a hazard mark, the telemetry to
-embed live with its SysRep label, units and limits, and the timeout a verify counts down.
+embed live with its SysRep label, units and limits, and the timeout a verify counts down;
+and its monitors (``<monitor>``), each with the telemetry test the live run evaluates for it.
 A call carries its sub-procedure (``callee``), whose instructions the executive numbers
 ``<call>/<number>`` (e.g. ``2.1/1.3``), so the page can draw and act on them in place.
 """
@@ -21,6 +22,7 @@ from procedure_language.model import (
     CommandInstruction,
     Condition,
     Instruction,
+    Monitor,
     Notice,
     Procedure,
     RecordInstruction,
@@ -35,7 +37,7 @@ Loader = Callable[[str], Procedure]
 #: Sub-procedures nest at most this deep in the view (lint rejects call cycles; this bounds the rest).
 _MAX_DEPTH = 4
 
-__all__ = ["TelemetryCheck", "check_key", "procedure_json", "telemetry_checks"]
+__all__ = ["TelemetryCheck", "check_key", "monitor_checks", "procedure_json", "telemetry_checks"]
 
 #: (system, telemetry item, the condition an instruction tests it with, or None)
 TelemetryCheck = tuple[str, str, Condition | None]
@@ -62,6 +64,7 @@ def procedure_json(
             }
             for step in procedure.steps
         ],
+        "monitors": [_monitor(m, procedure, sysreps) for step in procedure.steps for m in step.monitors],
     }
 
 
@@ -83,6 +86,42 @@ def telemetry_checks(
         if isinstance(instruction, CallInstruction) and _depth < _MAX_DEPTH:
             checks.update(telemetry_checks(load(instruction.resolved_path), load, _depth=_depth + 1))
     return checks
+
+
+#: What a monitor's violation does, in the panel's words (a go-to names its step).
+_ON_VIOLATION = {"hold": "the run holds", "halt": "the run halts (the command in flight is cancelled)"}
+
+
+def monitor_checks(procedure: Procedure) -> dict[str, TelemetryCheck]:
+    """Every monitor's telemetry test by check key, for the live run to read and evaluate (a
+    monitor of its item's limits reads the item, with no condition of its own)."""
+    return {
+        check_key(m.system, m.telemetry, m.condition): (m.system, m.telemetry, m.condition)
+        for step in procedure.steps
+        for m in step.monitors
+    }
+
+
+def _monitor(monitor: Monitor, procedure: Procedure, sysreps: Mapping[str, SysRep]) -> dict[str, Any]:
+    """A monitor as the Monitors panel lists it; ``check``: its test's key (None: its item's limits)."""
+    sysrep = sysreps.get(monitor.system)
+    item = sysrep.telemetry_item(monitor.telemetry) if sysrep is not None else None
+    goto = procedure.step(monitor.goto) if monitor.goto else None
+    return {
+        "name": monitor.name,
+        "text": monitor.describe(),
+        "system": monitor.system,
+        "telemetry": monitor.telemetry,
+        "label": item.label if item is not None else monitor.telemetry,
+        "units": item.units if item is not None else None,
+        "step": monitor.step,
+        "scope": monitor.scope,
+        "check": check_key(monitor.system, monitor.telemetry, monitor.condition) if monitor.condition else None,
+        "limit": monitor.limit,
+        "on_violation": f"the run halts and goes to {goto.number}. {goto.title}"
+        if goto
+        else _ON_VIOLATION.get(monitor.on_violation, monitor.on_violation),
+    }
 
 
 def _notice(notice: Notice) -> dict[str, str]:

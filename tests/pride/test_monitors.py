@@ -2,16 +2,21 @@
 
 The lab bench (its gateway a double: a unit test of the executive); ``lab_monitors.xml`` watches
 the bench temperature against its SysRep's red limit (above 40 for 2 samples: go to ``cool``) and
-the door (it must stay shut: hold). The real-stack gripper monitor is in tests/interop.
+the door (it must stay shut: hold). The console's fold of what monitors saw and its words for a
+value's limit state are checked here too (its Monitors panel: tests/web/test_console_follows_the_run.py).
+The real-stack gripper monitor is in tests/interop.
 """
 
 from __future__ import annotations
 
+from console.folded_run import fold_events
+from console.monitor_states import limit_state
 from pride.events import PAX, Event, EventKind
 from pride.executive import Hold, InstructionStatus, Mode, RunStatus
 from pride.report import summarize, to_markdown
+from procedure_language.limits import Limits
 from procedure_language.lint import lint_file
-from procedure_language.sysrep import SysRep
+from procedure_language.sysrep import SysRep, Telemetry
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
 from support.procedures import FIXTURES
@@ -73,6 +78,32 @@ def test_a_door_that_opens_holds_the_run_after_the_motion_and_its_return_is_reco
     executive.resume_automation("alice")
     assert finished(executive).status is RunStatus.COMPLETED
     assert [c for _, c, _ in gateway.sent] == ["move", "capture"]
+    # the console's fold of the record: the door's last word is its clear, after one violation
+    seen = fold_events("run-1", list(journal.events)).to_dict()["monitors"]["seen"]
+    assert seen["lab.door_open (step 1)"] | {"time": "T"} == {
+        "violated": False,
+        "value": False,
+        "limit": None,
+        "action": None,
+        "time": "T",
+        "instruction": cleared.instruction,
+        "seq": cleared.seq,
+        "violations": 1,
+    }
+
+
+def test_the_console_says_a_values_limit_state_in_words_not_by_colour_alone() -> None:
+    bands = Telemetry("t", "T", "real", limits=Limits(red_low=5, yellow_low=10, yellow_high=30, red_high=40))
+    said = {value: limit_state(bands, value) for value in (20, 35, 45, 7, 2, "warm")}
+    assert said[20] == {"state": "green", "words": "GREEN", "limit": None}
+    assert said[35] == {"state": "yellow", "words": "YELLOW HIGH", "limit": "yellow below 10 or above 30"}
+    assert said[45] == {"state": "red", "words": "RED HIGH", "limit": "red below 5 or above 40"}
+    assert said[7] == {"state": "yellow", "words": "YELLOW LOW", "limit": "yellow below 10 or above 30"}
+    assert said[2] == {"state": "red", "words": "RED LOW", "limit": "red below 5 or above 40"}
+    assert said["warm"] == {"state": "red", "words": "RED", "limit": "red below 5 or above 40"}  # no side to name
+    shut = Telemetry("door_open", "Door Open", "boolean", limits=Limits(equals=False))
+    assert limit_state(shut, True) == {"state": "red", "words": "RED", "limit": "not false"}
+    assert limit_state(shut, None) is None and limit_state(Telemetry("x", "X", "real"), 3.0) is None
 
 
 def test_a_monitor_in_a_called_procedure_is_an_error_not_silently_unwatched(sysreps: dict[str, SysRep]) -> None:

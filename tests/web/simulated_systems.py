@@ -4,7 +4,8 @@ The browser tests are about the web view, so the server under test opens this ga
 of the JVM-hosted PAX plugins (``PRIDE_GATEWAY=simulated_systems:open_simulated_systems``, see
 pride/systems.py). It serves the SysReps the binding file names, with the state changes a
 procedure checks: plans become valid, executions succeed, the CDRA latch locks and unlocks, the
-camera writes a real PNG, perception finds objects where the drawings put them. The robot side
+camera writes a real PNG, perception finds objects where the drawings put them, the test bench's
+plate (fixtures/sysrep/bench.yaml) takes the temperature its heater is set to. The robot side
 itself is tested by its own suites.
 """
 
@@ -66,6 +67,7 @@ class SimulatedSystems:
             ("cdra", "installed_filter_id"): "F-DIRTY-07",
             ("cdra", "installed_filter_condition"): "dirty",
             ("cdra", "clean_filter_ids"): "CDRA-F-0012, CDRA-F-0013",
+            ("bench", "temperature"): 21.0,
         }
         #: a sensor that stopped reporting: its last value is served, marked stale
         self._stale = {("cdra", "installed_filter_condition")}
@@ -125,6 +127,9 @@ class SimulatedSystems:
                 found = {"filter_id": args.get("filter_id") or "F-DIRTY-07", "slot": args.get("slot") or "rack/slot_1"}
                 return CommandResult(Outcome.SUCCEEDED, "{filter_id} is seated in {slot}".format(**found), found)
             return CommandResult(Outcome.SUCCEEDED, f"{command_id} done")
+        if sysrep_id == "bench" and command_id == "heat":
+            self._set("bench", "temperature", float(args["celsius"]))
+            return CommandResult(Outcome.SUCCEEDED, f"plate at {args['celsius']} degC")
         if sysrep_id == "camera":
             if args.get("label") == "unanswered" and key not in self._unanswered:  # the reply is lost once
                 self._unanswered.add(str(key))

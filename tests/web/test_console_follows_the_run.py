@@ -1,8 +1,9 @@
 """The console a flight controller reads: sentences, a page that follows the run, telemetry against its limits.
 
 On the simulated systems (simulated_systems.py), through a server of this module's own whose
-SysReps give ``cdra.installed_filter_id`` an enum (the shipped SysReps carry no limits), so a value
-outside its limits can be shown.
+SysReps give ``cdra.installed_filter_id`` an enum and add the test bench (fixtures/sysrep: a plate
+with yellow and red limits, on a binding of its own; the shipped SysReps carry no limits), so
+values outside their limits and the Monitors panel can be shown.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from support.operator_page import (
     stop_run,
     unlock_approved_by,
 )
-from support.web_server import REPO, WebServer, procedure_shelf, start_server
+from support.web_server import REPO, WEB, WebServer, procedure_shelf, start_server
 
 RAW_COMMAND = re.compile(r"\b[a-z_]+\.[a-z_]+\(")
 
@@ -39,7 +40,8 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[WebServer]:
     known = "{description: empty when no filter is installed}"
     assert known in text
     cdra.write_text(text.replace(known, "{description: the filter's label, enum: [CDRA-F-0012, CDRA-F-0013]}"))
-    served = start_server(tmp, procedure_shelf(tmp), sysreps=sysreps)
+    shutil.copytree(WEB / "fixtures" / "sysrep", sysreps, dirs_exist_ok=True)  # the bench and its binding
+    served = start_server(tmp, procedure_shelf(tmp), sysreps=sysreps, options=["--bindings", str(sysreps / "bindings")])
     yield served
     served.process.stop()
 
@@ -185,3 +187,66 @@ def test_telemetry_is_coloured_by_its_limits_and_expectation_and_a_verify_counts
     assert int(countdown.inner_text().split()[1]) < first
     stop_run(alice, "countdown seen")
     expect(countdown).to_have_text("")
+
+
+def test_monitors_and_values_show_their_limits_in_colour_and_in_words(sign_in: Callable[[str], Page]) -> None:
+    """The bench plate heated through its bands (yellow above 40, red above 50) while a monitor
+    watches its red limit: the Monitors panel, the verify's live value and the value it decided
+    on say green, yellow or red in colour and in words; a violation and its clear come from the
+    record, so the past run shows them too."""
+    alice = sign_in("alice")
+    start_run(alice, "web_monitors.xml", "manual", binding="bench.yaml")
+    monitor = alice.locator('#monitors li.monitor[data-monitor="bench.temperature (step 1)"]')
+    value = monitor.locator(".monitor-value .limit-value")
+    chip = instruction(alice, "1.4").locator(".line > .telemetry")  # the verify's live value
+    expect(monitor.locator(".monitor-text")).to_have_text("The plate stays below its red temperature")
+    expect(monitor.locator(".monitor-meta")).to_have_text("step 1 · when violated, the run holds")
+    colours: dict[str, tuple[str, ...]] = {}
+
+    def crossed(limit: str, words: str, state: str, said: str) -> None:
+        """The plate's value reads ``limit`` in the panel and on the verify, the monitor ``state``."""
+        for shown in (value, chip):
+            expect(shown).to_have_attribute("data-limit", limit)
+            expect(shown).to_contain_text(f"Plate Temperature = {words}")
+        expect(monitor).to_have_attribute("data-state", state)
+        expect(monitor.locator(".monitor-state")).to_have_text(said)
+        colours[limit] = tuple(
+            node.evaluate("node => getComputedStyle(node).backgroundColor + ' ' + getComputedStyle(node).color")
+            for node in (monitor, value, chip)
+        )
+
+    def send(number: str) -> None:
+        instruction(alice, number).locator("button.perform").click()
+        expect(instruction(alice, number)).to_have_attribute("data-status", "completed")
+
+    crossed("green", "21 degC GREEN", "green", "✓ GREEN")
+    send("1.1")  # 45
+    crossed("yellow", "45 degC YELLOW HIGH (yellow above 40)", "yellow", "▲ YELLOW")
+    send("1.2")  # 55: out of the monitor's red limit, violated: the run holds (automation pauses)
+    crossed("red", "55 degC RED HIGH (red above 50)", "red", "⚠ RED · violated")
+    news = monitor.locator(".monitor-news")
+    expect(news).to_have_text(re.compile(r"^violated at .+: 55 \(red above 50\) · the run held$"))
+    assert len({colours[limit] for limit in ("green", "yellow", "red")}) == 3, colours
+    expect(alice.locator('#audit li[data-kind="monitor_violated"][data-actor="PAX"]')).to_have_count(1)
+    screenshot(alice, "console-monitors.png")
+    send("1.3")  # 30: back within, cleared
+    crossed("green", "30 degC GREEN", "green", "✓ GREEN")
+    expect(news).to_have_text(re.compile(r"^cleared at .+: 30$"))
+
+    # the verify decides on the value as it was then, and its row keeps it with its limit state
+    instruction(alice, "1.4").locator("button.perform").click()
+    seen = instruction(alice, "1.4").locator(".detail .limit-value")
+    expect(seen).to_have_text("saw Plate Temperature = 30 GREEN")
+    expect(seen).to_have_attribute("data-limit", "green")
+    send("1.5")  # 60: violated again
+    expect(monitor).to_have_attribute("data-state", "red")
+    again = r"^violated at .+: 60 \(red above 50\) · the run held · violated 2 times in this run$"
+    expect(news).to_have_text(re.compile(again))
+
+    # the past run, drawn from the record alone: the violation as it ended, no live value
+    stop_run(alice, "limits seen")
+    expect(monitor).to_have_attribute("data-state", "red")
+    expect(monitor).to_have_attribute("data-active", "false")
+    expect(news).to_contain_text("violated 2 times in this run")
+    expect(value).to_have_count(0)
+    expect(seen).to_have_attribute("data-limit", "green")

@@ -1,8 +1,8 @@
 // Caretaker operator view, the run itself: the procedure as sentences, each instruction's state and
 // controls, the hold banner, following the current instruction, telemetry against its limits,
 // countdowns, camera, planned end pose and the audit log. Loaded after app.js (its `view`, `$`,
-// `element`, `act` and `api`) and sentences.js (values and sentences as operators read them); plain
-// JS, no build step.
+// `element`, `act` and `api`) and sentences.js (values and sentences as operators read them);
+// monitors.js (limits in words, the Monitors panel) after it. Plain JS, no build step.
 "use strict";
 
 function appendAudit(events) {
@@ -314,6 +314,7 @@ function renderRun() {
   renderCountdowns();
   renderCamera();
   renderTrajectory();
+  renderMonitors();
   follow(state);
 }
 
@@ -407,12 +408,12 @@ function renderInstruction(item, state, mayAct, envsChanged) {
       (lines.length ? ` · ${lines.join(" · ")}` : ""));
   }
   if (details.value !== undefined) parts.push(`recorded ${formatValue(details.value)}`);
-  if (details.telemetry) {
+  if (details.telemetry) {  // the value it decided on, coloured by its limits (and saying so) as it was then
     const seen = details.telemetry;
-    parts.push(`saw ${item.querySelector(":scope > .line > .telemetry")?.dataset.label || seen.item} = ${formatValue(seen.value)}` +
-      (seen.stale ? " (stale)" : ""));
+    const label = item.querySelector(":scope > .line > .telemetry")?.dataset.label || seen.item;
+    parts.push(limitedValue(`saw ${label} = ${formatValue(seen.value)}${seen.stale ? " (stale)" : ""}`, seen.stale ? null : seen.limit));
   }
-  own(".detail").textContent = parts.join(" · ");
+  own(".detail").replaceChildren(...joined(parts));
   own(".raw-detail").textContent = details.sent ? `sent ${details.sent.system}.${details.sent.command}(${formatArgs(details.sent.args)})` : "";
 }
 
@@ -579,7 +580,7 @@ $("follow").addEventListener("change", () => {
 $("show-raw").addEventListener("change", () => document.body.classList.toggle("show-raw", $("show-raw").checked));
 
 // ---- telemetry, countdowns -------------------------------------------------------------------
-const CHIP_ICON = {ok: "✓", unexpected: "≠", out: "⚠", stale: "◌", none: ""};
+const CHIP_ICON = {ok: "✓", unexpected: "≠", out: "⚠", red: "⚠", yellow: "▲", stale: "◌", none: ""};
 
 function renderTelemetry() {
   const now = performance.now();
@@ -597,14 +598,18 @@ function renderTelemetry() {
       continue;
     }
     const check = view.checks[chip.dataset.check];
-    const state = reading.stale ? "stale" : reading.out ? "out" : check === false ? "unexpected" : "ok";
+    const limit = readingLimit(reading);  // its SysRep limits: red or yellow colour the chip, and say so in words
+    const state = reading.stale ? "stale" : reading.out ? "out" : limit && limit.state !== "green" ? limit.state :
+      check === false ? "unexpected" : "ok";
     const age = reading.age === null || reading.age === undefined ? null : reading.age + (now - reading.receivedAt) / 1000;
     const units = chip.dataset.units ? ` ${chip.dataset.units}` : "";
     const verdict = state === "out" ? ` (outside its limits: ${reading.out})` :
       state === "unexpected" ? ` (expected ${chip.dataset.expected.replace(/^= /, "")})` : "";
-    chip.textContent = `${CHIP_ICON[state]} ${label} = ${formatValue(reading.value, reading.item)}${units}${verdict}` +
+    chip.textContent = `${CHIP_ICON[state]} ${label} = ${formatValue(reading.value, reading.item)}${units}` +
+      `${limit ? " " + limitWords(limit) : ""}${verdict}` +
       (age === null ? "" : ` · ${age.toFixed(1)} s ago`) + (reading.stale ? " · STALE" : "");
     chip.dataset.state = state;
+    chip.dataset.limit = limit ? limit.state : "";
     chip.dataset.stale = String(Boolean(reading.stale));
   }
 }
@@ -648,10 +653,10 @@ function renderTrajectory() {
   const box = $("trajectory");
   const plans = view.events.filter((e) => e.kind === "command_result" && e.data.values && e.data.values.end_pose);
   const planTelemetry = [...view.telemetry.values()].filter((r) => r.item === "plan_valid" || r.item === "plan_status");
-  const lines = planTelemetry.map((r) => `${r.item.replaceAll("_", " ")} = ${formatValue(r.value, r.item)}${r.stale ? " (stale)" : ""}`);
+  const lines = planTelemetry.map((r) =>
+    limitedValue(`${r.item.replaceAll("_", " ")} = ${formatValue(r.value, r.item)}${r.stale ? " (stale)" : ""}`, readingLimit(r)));
   if (!plans.length) {
-    box.textContent = (lines.length ? lines.join(" · ") + ". " : "") +
-      "No end pose yet: it is drawn when a plan result carries one (values.end_pose).";
+    box.replaceChildren(...joined(lines), lines.length ? ". " : "", "No end pose yet: it is drawn when a plan result carries one (values.end_pose).");
     return;
   }
   const latest = plans[plans.length - 1];
@@ -668,10 +673,11 @@ function renderTrajectory() {
     <circle cx="${cx}" cy="${cy}" r="4" class="base"/>
     <line x1="${x}" y1="${y}" x2="${x + dx}" y2="${y + dy}" class="heading"/>
     <circle cx="${x}" cy="${y}" r="6" class="end"/></svg>`;
-  box.append(element("p", "pose-text",
+  const text = element("p", "pose-text",
     `${latest.instruction}: end pose x ${pose.x.toFixed(3)}, y ${pose.y.toFixed(3)}, z ${pose.z.toFixed(3)} m, ` +
-    `yaw ${(pose.yaw * 180 / Math.PI).toFixed(1)}° (top view, robot base at the centre, ±${(100 / scale).toFixed(2)} m shown)` +
-    (lines.length ? ` · ${lines.join(" · ")}` : "")));
+    `yaw ${(pose.yaw * 180 / Math.PI).toFixed(1)}° (top view, robot base at the centre, ±${(100 / scale).toFixed(2)} m shown)`);
+  text.append(...joined(["", ...lines]));
+  box.append(text);
 }
 
 function normalizePose(pose) {
