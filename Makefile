@@ -43,7 +43,8 @@ demo: setup
 docs: setup
 	CARETAKER_SCREENSHOTS=$(CURDIR)/docs/images $(PYTEST) tests/web/test_operator_view.py \
 		tests/web/test_flight_controls.py tests/web/test_authoring.py tests/web/test_web_on_real_stack.py tests/web/test_spatial_on_real_stack.py \
-		tests/web/test_console_layout.py
+		tests/web/test_console_layout.py \
+		tests/web/test_console_follows_the_run.py::test_monitors_and_values_show_their_limits_in_colour_and_in_words
 
 # Every benchmark; the harnesses that run another command (cpu_load.py, cpu_by_part.py,
 # suite_profile.py) are tools for any of them, not benchmarks themselves.
