@@ -90,6 +90,7 @@ def run_onboard(
             policy=setup.side.approvals,
             approver=approver,
             section=section_of(args, checked, values),
+            in_transit=endpoint.light_time.uplink_within,
         )
     except SectionError as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)

@@ -152,10 +152,12 @@ def build_unit(
     version: RunVersion | None = None,
     approver: str | None = None,
     section: RunSection | None = None,
+    in_transit: float = 0.0,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
     the folder that holds them all; under ``policy``, ``approver``'s approval of each command that
-    needs one, given now; ``section``: the part of the procedure to run (checked here first).
+    needs one, given now and good from ``in_transit`` s on (how long the unit may take to reach the
+    habitat); ``section``: the part of the procedure to run (checked here first).
 
     Raises:
         ValueError: a command needs approval and no ``approver`` is given, or it is ``user``.
@@ -173,7 +175,9 @@ def build_unit(
             "each, so a second operator approves them before the unit goes up"
         )
     approvals = tuple(
-        CarriedApproval.given(point, point.procedure.relative_to(root).as_posix(), user, str(approver), policy)
+        CarriedApproval.given(
+            point, point.procedure.relative_to(root).as_posix(), user, str(approver), policy, in_transit=in_transit
+        )
         for point in points
     )
     return Unit(

@@ -182,7 +182,8 @@ class CarriedApproval:
 
     ``procedure`` is the file's path within the unit, ``instruction`` its number there; the
     approval covers that command each time the run reaches it until ``expires_at`` (Unix seconds,
-    the habitat's clock). Once stale the command waits for a live approval from the ground.
+    the habitat's clock): the policy's time from when the unit is expected on the habitat. Once stale
+    the command waits for a live approval from the ground.
     """
 
     procedure: str
@@ -195,13 +196,23 @@ class CarriedApproval:
 
     @classmethod
     def given(
-        cls, point: ApprovalPoint, procedure: str, sender: str, approver: str, policy: ApprovalPolicy
+        cls,
+        point: ApprovalPoint,
+        procedure: str,
+        sender: str,
+        approver: str,
+        policy: ApprovalPolicy,
+        *,
+        in_transit: float = 0.0,
     ) -> CarriedApproval:
-        """``approver``'s approval of ``point`` (``procedure``: its path within the unit), now."""
+        """``approver``'s approval of ``point`` (``procedure``: its path within the unit), now;
+        ``in_transit``: how long the unit may take to reach the habitat (the light time's
+        ``uplink_within``): the approval is good for the policy's time after that, not during it."""
         if approver == sender:
             raise ValueError(f"{sender} uplinks this unit: a second operator must approve, not {sender}")
         now = policy.clock().timestamp()
-        return cls(procedure, point.number, point.command, sender, approver, now, now + policy.expires_s)
+        expires = now + in_transit + policy.expires_s
+        return cls(procedure, point.number, point.command, sender, approver, now, expires)
 
     def covers(self, procedure: str, instruction: str, command: str) -> bool:
         return (self.procedure, self.instruction, self.command) == (procedure, instruction, command)

@@ -11,7 +11,8 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;
 - a signed login stays valid for its trip across the link and then as long as on a short one
-  (:attr:`LightTime.login_lifetime`);
+  (:attr:`LightTime.login_lifetime`); what goes up over a new connection (an onboard unit and the
+  approvals it carries) arrives after opening it and one delay (:attr:`LightTime.uplink_within`);
 - the far end allows a client the same: the bridge's handshake and login limits, and the age of a
   signed login it accepts (:meth:`LightTime.bridge_limits`), are never shorter than the delays its
   clients are bound to.
@@ -49,6 +50,11 @@ class LightTime:
     def answer_within(self, work: float = BASE_S) -> float:
         """How long a request whose far end works up to ``work`` s may wait for its answer."""
         return work + self.round_trip
+
+    @property
+    def uplink_within(self) -> float:
+        """How long what is sent up as soon as a connection opens may take to arrive: opening it, one way."""
+        return self.connect_within + self.one_way_delay
 
     @property
     def login_lifetime(self) -> float:

@@ -1,10 +1,12 @@
 """Light time as a parameter: waits across the link grow with its delay, and a habitat's bridge gives
 clients bound to a long link the time their handshakes need and takes their logins, which arrive
-one light time old."""
+one light time old; an approval carried up in an onboard unit is good for as long after the unit's
+trip as on a short link."""
 
 from __future__ import annotations
 
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -15,10 +17,14 @@ from bridge.rosbridge.protocol import Refused
 from bridge.rosbridge.security import Authenticator
 from caretaker.deployment import load_deployment
 from caretaker.stack import _light_time_limits
+from onboard.downlink import build_unit
+from pride.approvals import ApprovalPolicy, CriticalLevel
+from pride.run_setup import load_sysreps
+from procedure_language.lint import check_procedure
 from rosbridge_wire import LOGIN_LIFETIME_S, signed_login
 from rosbridge_wire.client import Endpoint, RosbridgeClient
 from rosbridge_wire.light_time import LightTime
-from support.procedures import REPO
+from support.procedures import FIXTURES, REPO
 
 SECRET = "shared-with-the-habitat"
 
@@ -33,6 +39,33 @@ def test_every_wait_across_the_link_covers_the_round_trips_it_needs(delay: float
     assert limits["handshake_timeout"] >= 3 * 2 * delay and limits["auth_timeout"] >= 2 * delay
     assert limits["ping_timeout"] > light.keepalive + 2 * delay
     assert light.login_lifetime == limits["login_max_age"] == LOGIN_LIFETIME_S + delay
+    assert light.uplink_within == light.connect_within + delay  # a unit goes up once connected, one way
+
+
+@pytest.mark.parametrize("delay", [0.0, 60.0, 600.0])
+def test_an_approval_carried_up_is_good_for_its_time_after_the_units_trip(delay: float) -> None:
+    light, given = LightTime(delay), datetime(2031, 5, 1, 12, tzinfo=UTC)
+    policy = ApprovalPolicy(CriticalLevel.HAZARDOUS, expires_s=300, clock=lambda: given)
+    unit = build_unit(
+        check_procedure(FIXTURES / "lab_all_kinds.xml", load_sysreps([REPO / "sysrep", FIXTURES / "sysrep"])),
+        run_id="lab-far",
+        binding="lab.yaml",
+        user="alice",
+        mode="autonomous",
+        values={},
+        confirm_manual=True,
+        confirm_hazardous=True,
+        breakpoints=(),
+        lifetime_s=300 + light.uplink_within,
+        now=given.timestamp(),
+        policy=policy,
+        approver="bob",
+        in_transit=light.uplink_within,
+    )
+    assert unit.approvals, "the lab procedure's hazardous vent goes up approved"
+    for approval in unit.approvals:
+        assert approval.approved_at == given.timestamp()
+        assert approval.expires_at == given.timestamp() + light.uplink_within + 300
 
 
 @pytest.mark.parametrize("delay", [1.3, 14.0, 60.0, 600.0])
