@@ -4,7 +4,9 @@ Accounts live in the same database as the audit log (``--db``), so every console
 segment signs people in against one list, and ``caretaker accounts`` (:mod:`console.accounts_command`)
 manages it. An *operator* may act on runs (start, send, record, skip, ...); an *observer* may
 only watch. The server checks the role on every action, so hiding buttons in the page is a
-convenience, never the protection.
+convenience, never the protection. An *agent* is an assistant program, not a person: it has no
+password and never signs in to the console; it reaches the ground through ``caretaker agent``
+with a token (:mod:`agent.agent_tokens`), and may read, propose runs and ask for a halt, nothing more.
 
 Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
 next sign-in when those defaults grow, where the console's role may write the table). The table
@@ -43,6 +45,8 @@ MIN_PASSWORD = 8
 MAX_PASSWORD = 1024
 #: The table's name in the ground database.
 TABLE = console_accounts.name
+#: The password hash of an agent: no hash at all, so no password ever verifies against it.
+NO_PASSWORD = "!agent: authenticates with tokens, never a password"
 
 
 class Role(str, enum.Enum):
@@ -52,6 +56,8 @@ class Role(str, enum.Enum):
     """May start runs and act on them; every action is logged with the user id."""
     OBSERVER = "observer"
     """May watch runs, their telemetry, camera and audit log; never act."""
+    AGENT = "agent"
+    """An assistant program (``caretaker agent``, with a token): reads, proposes runs, asks for a halt."""
 
 
 class AccountsError(ValueError):
@@ -70,6 +76,11 @@ class Account:
     @property
     def may_act(self) -> bool:
         return self.role is Role.OPERATOR
+
+    @property
+    def may_halt(self) -> bool:
+        """A halt is the safe direction: an agent may ask for one, as an operator may."""
+        return self.role in (Role.OPERATOR, Role.AGENT)
 
 
 class _Base(DeclarativeBase):
@@ -134,13 +145,26 @@ class AccountStore:
         # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
         self._decoy = self._hasher.hash("not a password of anyone")
 
-    def add(self, user: str, role: str, password: str, *, name: str = "") -> Account:
-        """Create an account; AccountsError when the user id is taken or a value is invalid."""
+    @property
+    def engine(self) -> Engine:
+        """The ground database's engine (the agents' tokens live beside the accounts)."""
+        return self._engine
+
+    def add(self, user: str, role: str, password: str | None, *, name: str = "") -> Account:
+        """Create an account; AccountsError when the user id is taken or a value is invalid. An agent
+        has no password (``None``); everyone else must have one."""
+        checked_role = check_role(role)
+        if (checked_role is Role.AGENT) != (password is None):
+            raise AccountsError(
+                "an agent has no password: it authenticates with tokens (caretaker accounts token)"
+                if password is not None
+                else f"an {checked_role.value} needs a password"
+            )
         row = _AccountRow(
             user_id=check_user_id(user),
             name=name,
-            role=check_role(role).value,
-            password_hash=self._hasher.hash(check_password(password)),
+            role=checked_role.value,
+            password_hash=NO_PASSWORD if password is None else self._hasher.hash(check_password(password)),
             created=_now(),
             password_changed=_now(),
         )
@@ -152,15 +176,23 @@ class AccountStore:
         return account
 
     def set_password(self, user: str, password: str) -> None:
-        """Replace a password; the user's sessions end (their stamp changes)."""
+        """Replace a password; the user's sessions end (their stamp changes). An agent has none."""
         digest = self._hasher.hash(check_password(password))
         with Session(self._changes) as session, session.begin():
             row = self._row(session, user)
+            if row.role == Role.AGENT.value:
+                raise AccountsError(f"{user} is an agent: it has no password, only tokens (caretaker accounts token)")
             row.password_hash, row.password_changed = digest, _now()
 
     def set_role(self, user: str, role: str) -> None:
+        """Change a role. Made an agent, the account loses its password (its sessions end); an agent
+        made a person needs a password set before it can sign in."""
+        checked = check_role(role)
         with Session(self._changes) as session, session.begin():
-            self._row(session, user).role = check_role(role).value
+            row = self._row(session, user)
+            row.role = checked.value
+            if checked is Role.AGENT and row.password_hash != NO_PASSWORD:
+                row.password_hash, row.password_changed = NO_PASSWORD, _now()
 
     def remove(self, user: str) -> None:
         with Session(self._changes) as session, session.begin():
@@ -181,7 +213,7 @@ class AccountStore:
         password = password[: MAX_PASSWORD + 1]  # longer never matches a stored one; this bounds the hashing
         with Session(self._engine) as session:
             row = session.get(_AccountRow, user) if _USER_ID.match(user) else None
-            if row is None:
+            if row is None or row.role == Role.AGENT.value:  # an agent never signs in to the console
                 _matches(self._hasher, self._decoy, password)
                 return None
             if not _matches(self._hasher, row.password_hash, password):

@@ -2,7 +2,8 @@
 
 Passwords come from a prompt (typed twice, not echoed) or, when stdin is not a terminal, from
 its first line, so scripts pipe them in. Never from the command line: argv is visible to every
-user of the machine (``ps``) and lands in shell histories.
+user of the machine (``ps``) and lands in shell histories. An agent has no password: ``token``
+prints a new token of it once (:mod:`agent.agent_tokens`), ``tokens`` lists them, ``revoke`` ends them.
 """
 
 from __future__ import annotations
@@ -10,9 +11,11 @@ from __future__ import annotations
 import argparse
 import getpass
 import sys
+from datetime import UTC, datetime
 
 from sqlalchemy.exc import OperationalError
 
+from agent.agent_tokens import TokenStore, parse_duration
 from console.accounts import AccountsError, AccountStore, Role
 from records.audit_log import DEFAULT_DB
 
@@ -33,16 +36,25 @@ def _parser() -> argparse.ArgumentParser:
         "--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})"
     )
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    add = commands.add_parser("add", help="create an account (asks for its password)")
+    add = commands.add_parser("add", help="create an account (asks for its password; an agent has none)")
     add.add_argument("user")
     add.add_argument("--role", required=True, choices=[r.value for r in Role])
     add.add_argument("--name", default="", help="the person's name as the page shows it")
     commands.add_parser("set-password", help="replace a password (the user's sessions end)").add_argument("user")
-    role = commands.add_parser("set-role", help="make a user an operator or an observer")
+    role = commands.add_parser("set-role", help="make a user an operator, an observer or an agent")
     role.add_argument("user")
     role.add_argument("role", choices=[r.value for r in Role])
     commands.add_parser("remove", help="delete an account (its sessions end)").add_argument("user")
     commands.add_parser("list", help="every account with its role")
+    token = commands.add_parser("token", help="print a new token of an agent, once (only its hash is kept)")
+    token.add_argument("user")
+    token.add_argument("--expires-in", metavar="DURATION", help="e.g. 7d, 12h, 30m (default: until revoked)")
+    commands.add_parser("tokens", help="an agent's tokens: number, issued, valid, expired or revoked").add_argument(
+        "user"
+    )
+    revoke = commands.add_parser("revoke", help="revoke an agent's token (NUMBER) or all of its tokens")
+    revoke.add_argument("user")
+    revoke.add_argument("number", nargs="?", type=int, help="the token's number (see tokens); default: all")
     return parser
 
 
@@ -58,6 +70,22 @@ def _password(user: str) -> str:
     return first
 
 
+def _tokens(tokens: TokenStore, args: argparse.Namespace) -> None:
+    if args.command == "token":
+        issued = tokens.issue(args.user, parse_duration(args.expires_in) if args.expires_in else None)
+        until = f"until {issued.expires:%Y-%m-%d %H:%M}Z" if issued.expires else "until revoked"
+        print(f"token {issued.token_id} of {issued.user}, valid {until} (shown once, keep it secret):", file=sys.stderr)
+        print(issued.token)
+    elif args.command == "tokens":
+        now = datetime.now(UTC)
+        for info in tokens.tokens(args.user):
+            print(f"{info.token_id}\tissued {info.created:%Y-%m-%d %H:%M}Z\t{info.state(now)}")
+    else:
+        revoked = tokens.revoke(args.user, args.number)
+        which = f"token {args.number}" if args.number is not None else "tokens"
+        print(f"revoked {revoked} {which} of {args.user}" if revoked else f"{args.user} had no valid {which} to revoke")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one accounts command; returns the exit code (2 with a message on any refusal)."""
     args = _parser().parse_args(argv)
@@ -65,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         store = AccountStore(args.db)  # its schema check writes too
         if args.command == "add":
-            account = store.add(args.user, args.role, _password(args.user), name=args.name)
+            password = None if args.role == Role.AGENT.value else _password(args.user)
+            account = store.add(args.user, args.role, password, name=args.name)
             print(f"added {account.user} ({account.role.value})")
         elif args.command == "set-password":
             if store.get(args.user) is None:  # before asking for a password that would be thrown away
@@ -78,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
         elif args.command == "remove":
             store.remove(args.user)
             print(f"removed {args.user}")
+        elif args.command in ("token", "tokens", "revoke"):
+            _tokens(TokenStore(store.engine, store), args)
         else:
             for account in store.accounts():
                 print(f"{account.user}\t{account.role.value}\t{account.name}")
