@@ -30,6 +30,7 @@ from pride.executive import Mode, RunStatus
 from pride.phrasing import Wording
 from pride.run_section import SectionError
 from pride.run_setup import RunSetup
+from pride.states import RefusalRule
 from procedure_language.binding import read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
@@ -168,6 +169,7 @@ def _supervise(
     terminal = TerminalLines()
     from sqlalchemy.exc import SQLAlchemyError
 
+    from console.attach_records import record_attach_refused, record_attached
     from console.ground.action_requests import OnItsWay
     from console.onboard_view import OnboardView
     from console.terminal_host import HostedElsewhere, TerminalHost
@@ -177,7 +179,7 @@ def _supervise(
     left_behind = LeftBehind(terminal)
     # Hosted for the consoles as a ground run is: they show it live and forward operators' actions here.
     try:
-        host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True)
+        host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True, operator=args.user)
     except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
         print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
         host = None
@@ -192,6 +194,8 @@ def _supervise(
         host=f"{hosting.hosting.host if hosting else 'a runner'} (supervising; the habitat runs it)",
         on_change=(lambda: hosting.changed(unit.run_id)) if hosting else None,
     )
+    if attaching:  # the consoles show the run from its start, not from where this runner caught up
+        view.stored_before(audit.events(unit.run_id))
 
     def on_event(event: Event) -> None:
         printer(event)
@@ -232,10 +236,13 @@ def _supervise(
             except HostedElsewhere as exc:
                 if attaching:  # one supervisor per run: the one that holds it goes on
                     print(f"caretaker run: --attach refused: {exc}", file=sys.stderr)
+                    record_attach_refused(audit, args.user, unit.run_id, RefusalRule.ONE_SUPERVISOR, str(exc))
                     return 2
                 print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
             except SQLAlchemyError as exc:  # as above
                 print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
+        if attaching:  # who took it over, and when (the run's own log is the habitat's)
+            record_attached(audit, args.user, unit.run_id, host.hosting.host if host else "a runner at a terminal")
         result = asyncio.run(supervisor.attach() if attaching else supervisor.run())
     except DownlinkError as exc:
         print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)

@@ -1,15 +1,14 @@
 """The web view's routes: the page, its JSON API, the live WebSocket, camera images, reports.
 
 Reading is open to every signed-in person; changing anything (starting or resuming a run, any
-operator action, saving a procedure) needs the operator role and goes through
-:mod:`console.actions` to the executive — of this console, or, for a run another console hosts, of
-that console, through the database (:meth:`RunBoard.act`). Two WebSockets push news: one run's
-state, events and telemetry (``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that
-changes state carries the session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends
-one, an ``Origin`` of this server; the WebSocket only reports (actions go over HTTP) and checks the
-session and the Origin when it opens. Blocking work (password hashing, executive calls that take
-its lock, gateway reads, opening a gateway, the audit log) runs in the thread pool so one slow
-robot never stalls the other browsers.
+operator action, saving a procedure) needs the operator role and goes through :mod:`console.actions`
+to the executive — of this console, or, for a run another console hosts, of that console, through the
+database (:meth:`RunBoard.act`). Two WebSockets push news: one run's state, events and telemetry
+(``/ws/runs/ID``), and the runs list (``/ws/runs``). Every request that changes state carries the
+session's CSRF token (header ``X-CSRF-Token``) and, when a browser sends one, an ``Origin`` of this
+server; the WebSocket only reports (actions go over HTTP) and checks the session and the Origin when
+it opens. Blocking work (password hashing, executive calls that take its lock, gateway reads, opening
+a gateway, the audit log) runs in the thread pool so one slow robot never stalls the other browsers.
 """
 
 from __future__ import annotations
@@ -35,6 +34,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
+from console.attach import attach_routes
 from console.authoring import check_document, procedure_signatures, read_document, save_document, sysrep_palette
 from console.folded_run import fold_events
 from console.onboard_launch import SecondOperator
@@ -637,6 +637,7 @@ def build_app(
             WebSocketRoute("/ws/runs", runs_socket),
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
             *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
+            *attach_routes(api=_api, operators=_operators),  # a new supervisor for an onboard run (attach.py)
             Route("/favicon.ico", favicon),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from datetime import UTC, datetime
 from typing import Any
 
@@ -68,6 +68,14 @@ class OnboardView:
             self._last_age = max(time.time() - event.time.timestamp(), 0.0)
         self._changed()
 
+    def stored_before(self, events: Iterable[Event]) -> None:
+        """The events the ground stored before this view began (an attach: by the run's earlier
+        supervisors), folded without an arrival age: they did not arrive now."""
+        with self._lock:
+            for event in events:
+                self._folded.apply(event)
+        self._changed()
+
     def news(
         self,
         *,
@@ -86,6 +94,12 @@ class OnboardView:
             self._waiting = waiting
             self._silent_since = silent_since
         self._changed()
+
+    def goes_on(self) -> bool:
+        """Whether the run started on the habitat and the ground holds no end of it: a supervisor
+        that stops now leaves it to run on without one."""
+        with self._lock:
+            return self._folded.last_seq > 0 and self._folded.status not in ("completed", "stopped")
 
     def _changed(self) -> None:
         if self._on_change is not None:

@@ -58,14 +58,17 @@ class TerminalHost:
         lease: float = DEFAULT_LEASE_S,
         name: str | None = None,
         onboard: bool = False,
+        operator: str | None = None,
     ) -> None:
-        """``name``: how consoles name this runner (default ``runner HOST pid PID``); ``onboard``: it
-        will host an onboard run, whose actions each wait for the habitat's answer side by side."""
+        """``name``: how consoles name this runner (default ``runner HOST pid PID``, and ``for
+        OPERATOR`` with an ``operator``, who answers at it: a refused attach names them); ``onboard``:
+        it will host an onboard run, whose actions each wait for the habitat's answer side by side."""
         self.binding = binding
         self._audit_log = audit_log
         self._accounts = AccountStore(audit_log.url)
+        whose = f" for {operator}" if operator else ""
         self.hosting = RunHosting(
-            audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}", lease=lease
+            audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}{whose}", lease=lease
         )
         self._live: LiveRun | None = None
         self._onboard: tuple[OnboardView, OnboardSend] | None = None
@@ -157,9 +160,19 @@ class TerminalHost:
         return perform_forwarded(executive, self._accounts, request, self.hosting.host)
 
     def close(self) -> None:
-        """Stop hosting: the run's row goes (consoles then read the run from its log)."""
+        """Stop hosting: the run's row goes (consoles then read the run from its log), but for an
+        onboard run that goes on on the habitat: its lease ends now and its row stays, saying
+        who supervised it, so the consoles offer to attach a new supervisor (:mod:`console.attach`)."""
         self._feed.close()
         self._forwarding.close()
-        self._release()
+        onboard = self._onboard
         self.hosting.close()
+        if onboard is not None and onboard[0].goes_on():
+            self._onboard = None
+            try:
+                self.hosting.lapse(onboard[0].run_id)
+            except SQLAlchemyError:  # its lease runs out instead
+                log.exception("ending the lease of run %s", onboard[0].run_id)
+        else:
+            self._release()
         self._accounts.close()

@@ -19,16 +19,21 @@ from typing import Any
 import pytest
 
 from console.accounts import AccountStore
+from console.actions import ActionRefused
+from console.attach import attach
+from console.catalog import Catalog
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import open_change_feed
 from console.ground.run_hosts import RunHosting
 from console.onboard_launch import LaunchRefused, launch_onboard
 from console.onboard_view import OnboardView
+from console.run_board import RunBoard
 from console.terminal_host import TerminalHost
 from pride.events import Event, EventKind
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
+from support.audit import attach_records
 from support.procedures import REPO
 
 PROCEDURE = REPO / "procedures" / "iva_cdra_filter_replacement.xml"
@@ -196,3 +201,89 @@ def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_noth
     said = str(refused.value)
     assert "iva.yaml has no security.secret_file: an onboard unit is signed with the link's secret" in said, said
     assert audit.runs() == []  # nothing started, nothing logged
+
+
+def test_a_supervisor_gone_while_the_run_goes_on_is_offered_for_attach_and_an_attach_while_one_holds_it_is_refused(
+    audit: AuditLog,
+) -> None:
+    """The runs list of a console (console B) and its attach (console/attach.py) against a runner
+    that hosts an onboard run: refused, naming the runner, while it holds the run; offered once it
+    stopped with the run going on; the attach then starts ``caretaker run --attach`` with the run's
+    binding (here one without the link's secret, so the runner says why it cannot)."""
+    sysreps = load_sysrep_dir(REPO / "sysrep")
+    checked = check_procedure(str(PROCEDURE), sysreps)
+    host = TerminalHost(audit, binding="iva.yaml", onboard=True, operator="alice")
+    view = OnboardView(
+        RUN,
+        checked.procedure,
+        binding="iva.yaml",
+        started_by="alice",
+        mode="autonomous",
+        sysreps=dict(checked.sysreps),
+        host=host.hosting.host,
+        on_change=lambda: host.changed(RUN),
+    )
+    host.host_onboard(view, Habitat())
+    started = Event(RUN, 1, EventKind.RUN_STARTED, "alice", None, {"procedure": "iva"}, datetime.now(UTC))
+    audit.append(started)  # as the downlink stores what came down
+    view.event(started)
+    catalog = Catalog(REPO / "procedures", REPO / "sysrep" / "bindings", (REPO / "sysrep",))
+    board = RunBoard(catalog, audit, accounts=AccountStore(audit.url), console="console B")
+    try:
+        reader = RunHosting(audit.engine, host="reader")
+        try:
+            _published_state(audit, reader, lambda s: s.get("onboard", {}).get("last_seq") == 1)
+        finally:
+            reader.close()
+        (line,) = board.listing()
+        assert line["host"] == host.hosting.host and "unsupervised" not in line  # supervised
+        with pytest.raises(ActionRefused) as held:
+            attach(board, "bob", RUN)
+        assert held.value.status == 409 and held.value.details["held_by"]["host"] == host.hosting.host
+        assert f"{RUN} has a supervisor: {host.hosting.host} holds it" in held.value.message
+        assert host.hosting.host.endswith(" for alice")  # who answers at it
+        assert attach_records(audit, RUN) == [
+            (
+                "action_refused",
+                "bob",
+                {"action": "attach", "rule": "one_supervisor", "reason": held.value.message, "asked": {"run": RUN}},
+            )
+        ]
+        host.close()  # the supervisor stops; the habitat's run goes on
+        (line,) = board.listing()
+        assert line["status"] == "interrupted" and line["host_lost"]["host"] == host.hosting.host
+        assert line["unsupervised"] == {"supervisor": host.hosting.host, "binding": "iva.yaml"}
+        with pytest.raises(ActionRefused, match="runs on the habitat: attach a supervisor"):
+            board.resume("bob", RUN, "iva.yaml", "manual")  # never a second executor of it on the ground
+        with pytest.raises(ActionRefused) as failed:
+            attach(board, "bob", RUN)
+        assert failed.value.status == 502, failed.value.message
+        assert "iva.yaml has no security.secret_file" in failed.value.message, failed.value.message
+        assert len(attach_records(audit, RUN)) == 1  # the runner never attached: nothing more recorded
+    finally:
+        board.close()
+
+
+def test_a_supervisor_whose_run_ended_or_never_started_leaves_no_row(audit: AuditLog) -> None:
+    """Only a run that goes on on the habitat keeps its row after its supervisor: one whose end
+    came down, or one that never started there (the unit refused), is gone from the hosts."""
+    sysreps = load_sysrep_dir(REPO / "sysrep")
+    checked = check_procedure(str(PROCEDURE), sysreps)
+    for run_id, kinds in (("ended", [EventKind.RUN_STARTED, EventKind.RUN_COMPLETED]), ("refused", [])):
+        host = TerminalHost(audit, binding="iva.yaml", onboard=True)
+        view = OnboardView(
+            run_id,
+            checked.procedure,
+            binding="iva.yaml",
+            started_by="alice",
+            mode="manual",
+            sysreps=dict(checked.sysreps),
+            host=host.hosting.host,
+        )
+        host.host_onboard(view, Habitat())
+        for seq, kind in enumerate(kinds, 1):
+            view.event(
+                Event(run_id, seq, kind, "alice", None, {"procedure": "iva"} if seq == 1 else {}, datetime.now(UTC))
+            )
+        host.close()
+        assert host.hosting.record(run_id) is None, run_id

@@ -6,15 +6,20 @@ tests/pride/conftest.py makes an :class:`AuditDatabase` of each kind in turn).
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from contextlib import closing
 from dataclasses import dataclass
+from typing import Any
+
+from sqlalchemy import select
 
 from pride.events import Event, EventKind
 from records.audit_log import AuditLog, Availability
+from records.audit_schema import audit_records
 from support.postgres import PostgresServer
 
-__all__ = ["AuditDatabase", "RecordedJournal"]
+__all__ = ["AuditDatabase", "RecordedJournal", "attach_records"]
 
 
 @dataclass
@@ -60,3 +65,15 @@ class RecordedJournal:
 
     def kinds(self, number: str | None = None) -> list[EventKind]:
         return [e.kind for e in self.events if number is None or e.instruction == number]
+
+
+def attach_records(log: AuditLog, run_id: str) -> list[tuple[str, str, dict[str, Any]]]:
+    """(kind, actor, data) of each record of an attach to onboard run ``run_id``, oldest first:
+    each is the only event of an id of its own, ``<run_id>-attach-<UTC>-<hex>``."""
+    with log.engine.connect() as connection:
+        rows = connection.execute(
+            select(audit_records.c.kind, audit_records.c.actor, audit_records.c.data)
+            .where(audit_records.c.run_id.startswith(f"{run_id}-attach-", autoescape=True))
+            .order_by(audit_records.c.time)
+        ).all()
+    return [(row.kind, row.actor, json.loads(row.data)) for row in rows]

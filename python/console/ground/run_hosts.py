@@ -203,6 +203,20 @@ class RunHosting:
             if gone:
                 connection.execute(delete(run_camera_frames).where(run_camera_frames.c.run_id == run_id))
 
+    def lapse(self, run_id: str) -> None:
+        """Stop hosting a run that goes on without this process (an onboard run's supervisor that
+        stops; the habitat runs it): its row stays with its lease ended now, so the consoles show
+        at once that nobody holds it, and which host did, and an attach may claim it. Call it
+        after :meth:`close`: a renewal in flight would extend the lease once more."""
+        with self._lock:
+            self._runs.pop(run_id, None)
+        with self._engine.begin() as connection:
+            connection.execute(
+                update(run_hosts)
+                .where(_H.run_id == run_id, _H.host_id == self.host_id)
+                .values(lease_until=_clock(connection), view_seq=_H.view_seq + 1)  # announced as a change
+            )
+
     def on_lost(self, listener: LostListener) -> None:
         """Call ``listener(run_id, reason)`` when a run hosted here was claimed by another process."""
         with self._lock:

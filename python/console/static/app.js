@@ -203,6 +203,7 @@ function showRuns(runs) {
     report.href = `/runs/${encodeURIComponent(run.run_id)}/report`;
     report.target = "_blank";
     item.append(open, line, meta, report);
+    if (run.unsupervised && view.me && view.me.may_act) item.append(attachButton(run));  // attach.js
     if (run.approval) {
       // every console lists it: a second operator need not have the run open to see it waits for them
       const wanted = element("span", "approval-wanted",
