@@ -14,6 +14,7 @@ Modules, by concept:
   :mod:`records.migrations` its tables and their Alembic migrations.
 - :mod:`records.releases` — released procedure versions and whether a version may run.
 - :mod:`records.robot_control` — which run controls each robot.
+- :mod:`records.onboard_handoffs` — onboard runs handed to a supervising ground process.
 - :mod:`records.console_tables` — the consoles' own tables (accounts, run hosts, camera frames,
   forwarded actions), defined once for the console and the migration that creates them.
 """

@@ -95,7 +95,7 @@ def test_a_database_from_before_releases_is_upgraded_to_them(tmp_path: Path) -> 
         command.upgrade(_config(connection), "0004")
     engine.dispose()
     log = AuditLog(url)
-    assert log.schema_revision() == head_revision() == "0005"
+    assert log.schema_revision() == head_revision() >= "0005"
     store = ReleaseStore(log.engine)
     store.request("p", "ab" * 32, "alice", "p.xml")
     assert store.release("p", "ab" * 32, "bob", "p.xml", "<procedure/>").number == 1

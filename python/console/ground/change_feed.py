@@ -14,6 +14,8 @@ hosts       ``<run id>``                      a run's host row was created, remo
                                               or its published view changed
 actions     ``<state> <request id> <host>``   an action request was made or changed state
 accounts    ``<user id>``                     an account was changed or removed
+handoffs    ``<state> <run id>``              an onboard run was handed to a supervisor, or its
+                                              handoff changed state (:mod:`records.onboard_handoffs`)
 resync      ``""``                            the feed lost the database and is back: notices may
                                               have been missed, so re-read what you show
 =========== ================================= =================================================
@@ -47,6 +49,7 @@ CHANNELS = {
     "caretaker_hosts": "hosts",
     "caretaker_actions": "actions",
     "caretaker_accounts": "accounts",
+    "caretaker_handoffs": "handoffs",
 }
 #: Seconds between readings of a SQLite file.
 POLL_S = 0.25
@@ -56,6 +59,7 @@ _records = sa.table("audit_records", sa.column("id"), sa.column("seq"), sa.colum
 _hosts = sa.table("run_hosts", sa.column("run_id"), sa.column("host_id"), sa.column("view_seq"))
 _requests = sa.table("run_action_requests", sa.column("id"), sa.column("state"), sa.column("host_id"))
 _accounts = sa.table("console_accounts", sa.column("user_id"), sa.column("role"), sa.column("password_changed"))
+_handoffs = sa.table("onboard_handoffs", sa.column("run_id"), sa.column("state"))
 
 
 @dataclass(frozen=True)
@@ -157,6 +161,7 @@ class PollingFeed(ChangeFeed):
         self._hosts: dict[str, tuple[Any, ...]] = {}
         self._requests: dict[int, tuple[Any, ...]] = {}
         self._accounts: dict[str, tuple[Any, ...]] = {}
+        self._handoffs: dict[str, str] = {}
 
     def _run(self) -> None:
         failing = False
@@ -211,6 +216,9 @@ class PollingFeed(ChangeFeed):
             ChangeNotice("accounts", user) for user in _changed(self._accounts, accounts) if user in self._accounts
         ]
         self._accounts = accounts
+        handoffs = {row.run_id: row.state for row in connection.execute(sa.select(_handoffs))}
+        notices += [ChangeNotice("handoffs", f"{handoffs[run]} {run}") for run in _changed(self._handoffs, handoffs)]
+        self._handoffs = handoffs
         return notices if announce else []
 
 
