@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterator
 import pytest
 from playwright.sync_api import Page, expect
 
+from procedure_language.model import CallInstruction
 from procedure_language.parser import load_procedure
 from support.operator_page import (
     IVA,
@@ -61,7 +62,11 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     alice = sign_in("alice")
     start_run(alice, IVA, "manual")
     texts = sentences(alice)
-    assert len(texts) == len(load_procedure(REPO / "procedures" / IVA).instructions)  # every one of them
+    iva = load_procedure(REPO / "procedures" / IVA)
+    called = [
+        load_procedure(REPO / "procedures" / i.procedure) for i in iva.instructions if isinstance(i, CallInstruction)
+    ]
+    assert len(texts) == len(iva.instructions) + sum(len(c.instructions) for c in called)  # each call draws its own
     assert_readable(texts)
     assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:‹cdra_at.id›"  # not known yet
 
@@ -73,7 +78,8 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     assert_readable(texts)
     assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:0"
     assert texts["6.5"] == "Remove the CDRA filter AT (cdra_filter:0)"
-    assert texts["4.2"] == "Align the CDRA filter AT with clean filter ‹clean_filter_id› on the rack"
+    assert texts["4.2"] == "Read which rack slot filter ‹clean_filter_id› is seated in"
+    assert texts["1.13/2.1"] == "Locate rack slot 3 from its markers in the wrist camera"  # the caller's words
     expect(instruction(alice, "2.2").locator(".detail")).to_contain_text(
         "Result: succeeded — planned · Plan Status: PLANNED"
     )
@@ -151,7 +157,7 @@ def test_the_page_follows_the_run_to_a_hold_far_down_and_shows_who_watches(
         "act('enter', {instruction: '4.1', value: 'CDRA-F-0012'})"
     )  # the Record button, without scrolling to it
     expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
-        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+        "Read which rack slot filter CDRA-F-0012 is seated in"
     )
     expect_current(instruction(alice, "5.1"))
     expect(instruction(alice, "5.1")).not_to_be_in_viewport()

@@ -63,34 +63,34 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
 
     # the next instructions read with the recorded id in their sentences; Send puts it into the command
     expect(instruction(alice, "4.2").locator(".line > .text")).to_have_text(
-        "Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+        "Read which rack slot filter CDRA-F-0012 is seated in"
     )
     instruction(alice, "4.2").locator("button.perform").click()
-    expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("frame=filter/CDRA-F-0012")
+    expect(instruction(alice, "4.2").locator(".raw-detail")).to_contain_text("filter_id=CDRA-F-0012")
     expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_hidden()  # the raw command only on demand
     alice.check("#show-raw")
     expect(instruction(alice, "4.2").locator(".raw-detail")).to_be_visible()
-    expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(
-        re.compile(r"^affordance_templates\.set_display_object_pose\(")
-    )
+    expect(instruction(alice, "4.2").locator(".raw").first).to_have_text(re.compile(r"^cdra\.slot_of_filter\("))
     alice.uncheck("#show-raw")
-    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("frame: filter/CDRA-F-0012")
+    expect(audit_row(alice, "command_sent", "4.2", "alice")).to_contain_text("Slot Of Filter for CDRA-F-0012")
     # the audit log reads the started instruction with the value it was started with, not the author's ${...}
     expect(audit_row(alice, "instruction_started", "4.2", "alice").locator(".audit-detail")).to_have_text(
-        "started: Align the CDRA filter AT with clean filter CDRA-F-0012 on the rack"
+        "started: Read which rack slot filter CDRA-F-0012 is seated in"
     )
     screenshot(alice, "web_manual_record.png")
 
     # step, pause, continue and stop, each recorded as alice's
+    alice.click("#step")  # 4.3 calls the look, locate, register sub-procedure: a step goes into it
+    expect_current(instruction(alice, "4.3/1.1"))
     alice.click("#step")
-    expect(instruction(alice, "4.3").locator(".mark")).to_contain_text("completed by alice")
+    expect(instruction(alice, "4.3/1.1").locator(".mark")).to_contain_text("completed by alice")
     alice.click("#pause")
-    expect(audit_row(alice, "paused", "4.4", "alice")).to_have_count(1)
+    expect(audit_row(alice, "paused", "4.3/1.2", "alice")).to_have_count(1)
     alice.click("#mode-autonomous")
-    expect(alice.locator("#hold")).to_contain_text("Automation paused at 4.4")
+    expect(alice.locator("#hold")).to_contain_text("Automation paused at 4.3/1.2")
     alice.click("#continue")
     expect(alice.locator("#hold")).to_contain_text("5.1: Confirm the cabinet slot is empty")
-    expect(audit_row(alice, "instruction_started", "4.14", "PAX").locator(".audit-detail")).to_have_text(
+    expect(audit_row(alice, "instruction_started", "4.7", "PAX").locator(".audit-detail")).to_have_text(
         "started: Pick clean filter CDRA-F-0012 from the rack"
     )
     stop_run(alice, "end of the walk-through")
@@ -102,7 +102,7 @@ def test_a_recorded_value_goes_into_the_next_command_of_the_iva_procedure(
         sent = [e for e in log.events(run_id) if e.kind.value == "command_sent" and e.instruction == "4.2"]
     finally:
         log.close()
-    assert [(e.actor, e.data.to_json()["args"]["frame"]) for e in sent] == [("alice", "filter/CDRA-F-0012")]
+    assert [(e.actor, e.data.to_json()["args"]["filter_id"]) for e in sent] == [("alice", "CDRA-F-0012")]
 
 
 def test_breakpoint_failure_retry_skip_and_hazard_confirmation(
