@@ -13,7 +13,7 @@ The executive is the same on the ground and onboard, so both watch alike.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -76,6 +76,12 @@ class MonitorBoard:
         for watch in self._watches:
             if not self._active(watch.monitor):
                 watch.out_samples, watch.out_since, watch.violated = 0, None, False
+
+    def resume(self, entered: Iterable[int], current: int | None) -> None:
+        """A resumed run: the steps its record shows it was in (their procedure-scoped monitors are
+        watched again: a resume must not leave one silently unwatched) and the step it is in now."""
+        self._entered = set(entered) | ({current} if current is not None else set())
+        self._step = current
 
     def _active(self, monitor: Monitor) -> bool:
         if monitor.scope == "procedure":

@@ -169,6 +169,9 @@ class RunState:
         self.branches = replayed.branches
         self.halt = Halt(*replayed.halt) if replayed.halt else None
         self.stops_after = replayed.stops_after
+        in_steps = {int(n.split(".")[0]) for n, s in self.statuses.items() if s is not InstructionStatus.PENDING}
+        current = self.frames[0].number() if self.frames and self.frames[0].instruction is not None else None
+        self.monitors.resume(in_steps, int(current.split(".")[0]) if current else None)
 
     # ---- queries ----------------------------------------------------------------------------
     @property

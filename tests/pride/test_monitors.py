@@ -9,13 +9,15 @@ The real-stack gripper monitor is in tests/interop.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from console.folded_run import fold_events
 from console.monitor_states import limit_state
 from pride.events import PAX, Event, EventKind
-from pride.executive import Hold, InstructionStatus, Mode, RunStatus
+from pride.executive import Executive, Hold, InstructionStatus, Mode, RunStatus
 from pride.report import summarize, to_markdown
 from procedure_language.limits import Limits
-from procedure_language.lint import lint_file
+from procedure_language.lint import check_procedure, lint_file
 from procedure_language.sysrep import SysRep, Telemetry
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
@@ -112,3 +114,30 @@ def test_a_monitor_in_a_called_procedure_is_an_error_not_silently_unwatched(sysr
     for problem, line in zip(problems, (7, 10), strict=True):
         assert f"lab_monitors.xml:{line}:5: lab_monitors is called (" in problem, problem
         assert problem.endswith("a called procedure's monitors are not watched; put this monitor in the calling step")
+
+
+def test_a_resumed_run_watches_the_monitors_of_the_steps_it_was_in_before(
+    bench: Bench, sysreps: dict[str, SysRep], new_journal: Callable[..., RecordedJournal]
+) -> None:
+    """A procedure-scoped monitor of step 1 still watches after a resume in step 2: the resume
+    rebuilds which steps the run was in from its record."""
+    executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_monitor_resumed.xml")
+    executive.start("alice")
+    held(executive, Hold.OPERATOR_ACTION, "2.1")
+    executive.stop("alice", "runner restarted")
+    executive.join(TIMEOUT)
+    resumed = Executive.resume(
+        check_procedure(FIXTURES / "lab_monitor_resumed.xml", sysreps),
+        gateway,
+        again := new_journal(journal.events),
+        list(journal.events),
+        "alice",
+    )
+    try:
+        held(resumed, Hold.OPERATOR_ACTION, "2.1")
+        gateway.set("door_open", True)
+        assert resumed.wait_for(lambda s: bool(of(again, EventKind.MONITOR_VIOLATED)), TIMEOUT)
+        (violated,) = of(again, EventKind.MONITOR_VIOLATED)
+        assert violated.data.to_json()["monitor"] == "lab.door_open (step 1)"
+    finally:
+        resumed.stop("teardown")
