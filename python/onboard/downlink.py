@@ -1,8 +1,9 @@
 """The ground's side of an onboard run: uplink the unit, then keep the run's record exactly.
 
 :class:`OnboardSupervisor` sends the unit (again, unchanged, until the habitat answers: it answers a repeat
-as the first time), then asks the habitat for the run's events above the last one the ground has
-stored, each request waiting on the habitat for the next event. :class:`Downlink` stores each event
+as the first time) and, right behind it, requests for the run's events, kept going so that one is
+always waiting on the habitat (:mod:`onboard.follow_requests`): the ground hears of each event, the
+run's end among them, one light time after it happened. :class:`Downlink` stores each event
 once, in order, in the ground's audit log, checking that it links to the one before and that its
 hash is the habitat's: the ground's log is a verified copy of the habitat's chain, never a guess.
 While the habitat does not answer, the ground says since when it has no news, and asks again.
@@ -20,7 +21,7 @@ import os
 import secrets
 import signal
 import time
-from collections.abc import Callable, Coroutine, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -37,7 +38,8 @@ from records.audit_log import AuditLog
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
 from rosbridge_wire.light_time import LightTime
 
-from .unit import ACTION_SERVICE, EVENTS_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign
+from .follow_requests import FollowAnswer, FollowRequests
+from .unit import ACTION_SERVICE, UPLINK_SERVICE, OperatorAction, Unit, sign
 
 __all__ = [
     "ActionOutcome",
@@ -52,8 +54,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-#: How long a request for events waits on the habitat for the next one.
-POLL_WAIT_S = 10.0
 #: How long an uplinked unit may take to reach the habitat and start, past the link's round trip.
 UNIT_LIFETIME_S = 300.0
 _RETRY_S = (1.0, 2.0, 5.0)
@@ -256,8 +256,9 @@ class ActionTiming:
 
 
 class OnboardSupervisor:
-    """Uplinks ``unit`` and follows its run until it ends (:meth:`run`); operators' actions go up
-    keyed (:meth:`act`, or :meth:`act_from_thread` from a console's thread).
+    """Uplinks ``unit`` and follows its run until it ends (:meth:`run`, or :meth:`supervise` on a
+    session a long-lived supervisor keeps open); operators' actions go up keyed (:meth:`act`, or
+    :meth:`act_from_thread` from a console's thread).
 
     ``unattended`` (nobody at this terminal): a hold the unit did not answer stops the run, as an
     unattended ``caretaker run`` does on the ground; otherwise the run waits on the habitat for an
@@ -276,9 +277,14 @@ class OnboardSupervisor:
         unattended: bool,
         on_news: Callable[[HabitatNews], None] | None = None,
         operator: str | None = None,
+        client: RosbridgeClient | None = None,
+        on_uplinked: Callable[[str], None] | None = None,
     ) -> None:
         """``operator``: who acts from this terminal (Ctrl-C's Halt, an unattended stop); by default
-        the unit's user (a supervisor that attached acts as its own)."""
+        the unit's user (a supervisor that attached acts as its own). ``client``: a session to the
+        habitat that its owner keeps open (``caretaker supervise``); by default one of its own,
+        opened and closed with :meth:`run` or :meth:`attach`. ``on_uplinked`` hears the unit's hash
+        when the habitat accepted it."""
         if endpoint.secret is None:
             raise ValueError("an onboard unit is signed with the link's secret: the endpoint has none")
         self.endpoint = endpoint
@@ -290,39 +296,45 @@ class OnboardSupervisor:
         self._unattended = unattended
         self._on_news = on_news
         self._operator = operator or unit.user
-        self._client = RosbridgeClient(endpoint, name=f"caretaker-run-{self._operator}")
+        self._own_client = client is None
+        self._client = client or RosbridgeClient(endpoint, name=f"caretaker-run-{self._operator}")
         self._loop: asyncio.AbstractEventLoop | None = None
         self._interrupts = 0
+        self._on_uplinked = on_uplinked
 
     async def run(self) -> Supervision:
         """Uplink, then follow the run to its end; Ctrl-C sends a Halt (again: a Stop)."""
-        return await self._supervising(self._uplinked)
+        return await self._supervising(attaching=False)
 
     async def attach(self) -> Supervision:
         """Follow a run already on the habitat (its supervisor stopped) to its end, as :meth:`run`
         does after the uplink: the ground's record is caught up from the last event it stored, each
         event checked against the one before, hash for hash."""
+        return await self._supervising(attaching=True)
 
-        async def caught_up() -> Supervision:
-            await self._client.ready.wait()  # reconnecting until the link lets it through
-            self._say(
-                f"attached to onboard run {self.unit.run_id}: catching up from event {self._downlink.head_seq + 1}"
-            )
-            self._say(f"READY run {self.unit.run_id}")
-            return await self._follow()
-
-        return await self._supervising(caught_up)
-
-    async def _supervising(self, supervise: Callable[[], Coroutine[Any, Any, Supervision]]) -> Supervision:
-        """Run ``supervise`` until it ends, or until SIGTERM ends supervision (never the run: it goes
-        on on the habitat, and ``caretaker run --attach`` follows it again)."""
-        loop = self._loop = asyncio.get_running_loop()
-        self._client.start()
+    async def _supervising(self, *, attaching: bool) -> Supervision:
+        """:meth:`supervise` at a terminal: Ctrl-C halts the run, SIGTERM ends supervision."""
+        loop = asyncio.get_running_loop()
+        if self._own_client:
+            self._client.start()
         detached = asyncio.Event()
         loop.add_signal_handler(signal.SIGINT, self._interrupt)
         loop.add_signal_handler(signal.SIGTERM, detached.set)
-        supervising = loop.create_task(supervise())
-        ending = loop.create_task(detached.wait())
+        try:
+            return await self.supervise(attaching=attaching, detach=detached)
+        finally:
+            loop.remove_signal_handler(signal.SIGINT)
+            loop.remove_signal_handler(signal.SIGTERM)
+            if self._own_client:
+                await self._client.close()
+
+    async def supervise(self, *, attaching: bool = False, detach: asyncio.Event | None = None) -> Supervision:
+        """Uplink the unit (``attaching``: catch up with a run already on the habitat) and follow
+        the run to its end, or until ``detach`` is set: that ends supervision, never the run (it goes
+        on on the habitat, and ``caretaker run --attach`` follows it again)."""
+        loop = self._loop = asyncio.get_running_loop()
+        supervising = loop.create_task(self._caught_up() if attaching else self._uplinked())
+        ending = loop.create_task((detach or asyncio.Event()).wait())
         try:
             await asyncio.wait((supervising, ending), return_when=asyncio.FIRST_COMPLETED)
             if supervising.done():
@@ -330,26 +342,43 @@ class OnboardSupervisor:
             supervising.cancel()
             with contextlib.suppress(asyncio.CancelledError):
                 await supervising
-            self._say(
-                f"  supervision stopped (SIGTERM) at event {self._downlink.head_seq}: the run goes on on the habitat"
-            )
+            self._say(f"  supervision stopped at event {self._downlink.head_seq}: the run goes on on the habitat")
             return Supervision("detached", self.unit.run_id, "supervision stopped; the run goes on on the habitat")
         finally:
             ending.cancel()
-            loop.remove_signal_handler(signal.SIGINT)
-            loop.remove_signal_handler(signal.SIGTERM)
-            await self._client.close()
+
+    def _requests(self) -> FollowRequests:
+        light_time = self.endpoint.light_time
+        return FollowRequests(self._client, self.unit.run_id, light_time, lambda: self._downlink.head_seq)
+
+    async def _caught_up(self) -> Supervision:
+        await self._client.ready.wait()  # reconnecting until the link lets it through
+        self._say(f"attached to onboard run {self.unit.run_id}: catching up from event {self._downlink.head_seq + 1}")
+        self._say(f"READY run {self.unit.run_id}")
+        requests = self._requests()
+        requests.catch_up()
+        return await self._follow(requests, accepted_at=None)
 
     async def _uplinked(self) -> Supervision:
-        answer = await _uplink(self._client, self.unit, self._secret, self._say)
+        self._say(f"the unit of run {self.unit.run_id} goes up to {self.endpoint.url}")
+        requests = self._requests()
+        try:
+            answer = await _uplink(self._client, self.unit, self._secret, self._say, sent=requests.start)
+        except BaseException:
+            requests.close()
+            raise
+        accepted_at = asyncio.get_running_loop().time()
         if answer["state"] != "ACCEPTED":
+            requests.close()
             self._say(f"caretaker run: the habitat {answer['state'].lower()} the unit {answer['unit_hash'][:12]}:")
             self._say(str(answer["message"]))
             return Supervision(answer["state"].lower(), self.unit.run_id, str(answer["message"]))
         unit = self.unit
         self._say(f"uplinked unit {answer['unit_hash']}: the habitat runs {unit.procedure} as run {unit.run_id}")
+        if self._on_uplinked is not None:
+            self._on_uplinked(str(answer["unit_hash"]))
         self._say(f"READY run {self.unit.run_id}")
-        return await self._follow()
+        return await self._follow(requests, accepted_at=accepted_at)
 
     async def act(self, action: str, user: str, *, timing: ActionTiming | None = None, **args: Any) -> ActionOutcome:
         """Send an operator's action up, under one key until the habitat answers or it runs out
@@ -429,52 +458,56 @@ class OnboardSupervisor:
         if self._on_news is not None:
             self._on_news(news)
 
-    async def _follow(self) -> Supervision:
-        """Store the run's events as they come, until it ended and the ground has them all."""
-        client, downlink = self._client, self._downlink
+    async def _follow(self, requests: FollowRequests, *, accepted_at: float | None) -> Supervision:
+        """Store the run's events as they come, until it ended and the ground has them all
+        (``accepted_at``: when the habitat accepted the unit, on the loop's clock; a request that
+        went before it may have reached the habitat before the unit did)."""
+        downlink = self._downlink
         heard = time.time()
         last = HabitatNews(None, "", heard, "")
         silent = False
         waited = ""
-        while True:
-            try:
-                values = await client.call(
-                    EVENTS_SERVICE,
-                    {"run_id": downlink.run_id, "after_seq": downlink.head_seq, "wait_s": POLL_WAIT_S, "max_events": 0},
-                    timeout=client.call_timeout(POLL_WAIT_S + 10.0),
-                )
-                items = json.loads(str(values.get("events_json", "[]")))
-                if not isinstance(items, list):
-                    raise ValueError("events_json must be a list")
-            except (LinkError, ValueError) as exc:
-                if not silent:
-                    since = time.strftime("%H:%M:%S", time.gmtime(heard))
-                    self._say(f"  no news from the habitat since {since} UTC (at event {downlink.head_seq}): {exc}")
-                    silent = True
-                    last = dataclasses.replace(last, silent_since=heard)
-                    self._news(last)
-                await asyncio.sleep(1.0)
-                continue
-            heard = time.time()
-            if silent:
-                self._say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
-                silent = False
-            for event in downlink.take(items):
-                self._on_event(event)
-            status, head = str(values.get("status")), values.get("head_seq")
-            waiting = str(values.get("waiting", ""))
-            caught_up = isinstance(head, int) and downlink.head_seq >= head
-            snapshot = _snapshot(values.get("snapshot_json"), downlink.head_seq) or last.snapshot
-            last = HabitatNews(snapshot, str(values.get("habitat_time", "")), heard, waiting)
-            self._news(last)
-            if waiting != waited and caught_up:
-                waited = waiting
-                if waiting:
-                    await self._waiting(waiting)
-            if status == "unknown":
-                return Supervision("unknown", downlink.run_id, str(values.get("message")))
-            if status != "active" and caught_up:
-                return Supervision(status, downlink.run_id)
+        try:
+            while True:
+                try:
+                    answer: FollowAnswer = await requests.next()
+                except LinkError as exc:
+                    if not silent:
+                        since = time.strftime("%H:%M:%S", time.gmtime(heard))
+                        self._say(f"  no news from the habitat since {since} UTC (at event {downlink.head_seq}): {exc}")
+                        silent = True
+                        last = dataclasses.replace(last, silent_since=heard)
+                        self._news(last)
+                    await asyncio.sleep(1.0)
+                    requests.catch_up()  # what the lost answers carried
+                    continue
+                values = answer.values
+                status, head = str(values.get("status")), values.get("head_seq")
+                if status == "unknown" and accepted_at is not None and answer.sent_at < accepted_at:
+                    continue  # it reached the habitat before the unit
+                heard = time.time()
+                if silent:
+                    self._say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
+                    silent = False
+                for event in downlink.take(answer.events):
+                    self._on_event(event)
+                waiting = str(values.get("waiting", ""))
+                caught_up = isinstance(head, int) and downlink.head_seq >= head
+                if not caught_up:
+                    requests.catch_up()  # a gap: an answer lost with its connection, or taken by another
+                snapshot = _snapshot(values.get("snapshot_json"), downlink.head_seq) or last.snapshot
+                last = HabitatNews(snapshot, str(values.get("habitat_time", "")), heard, waiting)
+                self._news(last)
+                if waiting != waited and caught_up:
+                    waited = waiting
+                    if waiting:
+                        await self._waiting(waiting)
+                if status == "unknown":
+                    return Supervision("unknown", downlink.run_id, str(values.get("message")))
+                if status != "active" and caught_up:
+                    return Supervision(status, downlink.run_id)
+        finally:
+            requests.close()
 
 
 def _snapshot(text: Any, head_seq: int) -> Mapping[str, Any] | None:
@@ -493,8 +526,11 @@ def _snapshot(text: Any, head_seq: int) -> Mapping[str, Any] | None:
     return value if value.get("last_seq", 0) <= head_seq else None
 
 
-async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callable[[str], None]) -> Mapping[str, Any]:
-    """The habitat's answer to the unit, asked again (the same unit) until one comes or it runs out."""
+async def _uplink(
+    client: RosbridgeClient, unit: Unit, secret: str, say: Callable[[str], None], *, sent: Callable[[], None]
+) -> Mapping[str, Any]:
+    """The habitat's answer to the unit, asked again (the same unit) until one comes or it runs out;
+    ``sent`` is called as each try goes (the requests for the run's events follow it)."""
     text = unit.to_json()
     request = {"unit_json": text, "signature": sign(text, secret)}
     attempt = 0
@@ -508,7 +544,9 @@ async def _uplink(client: RosbridgeClient, unit: Unit, secret: str, say: Callabl
             }
         try:
             await asyncio.wait_for(client.ready.wait(), left)
-            return await client.call(UPLINK_SERVICE, request, timeout=client.call_timeout(60.0))
+            answer = asyncio.ensure_future(client.call(UPLINK_SERVICE, request, timeout=client.call_timeout(60.0)))
+            sent()
+            return await answer
         except (LinkError, TimeoutError) as exc:
             say(f"  uplink not answered yet ({exc or 'not connected'}); sending the same unit again")
             await asyncio.sleep(_RETRY_S[min(attempt, len(_RETRY_S) - 1)])

@@ -43,6 +43,7 @@ from records.audit_chain import StoredEvent, utc
 from records.audit_log import AuditLog
 from records.robot_control import RobotControl
 
+from .followers import Followers, Following
 from .unit import OperatorAction, Unit, UnitError, digest, signed_by
 from .unit_answers import UnitAnswers, UplinkAnswer
 
@@ -166,6 +167,7 @@ class HabitatRuns:
         self._lock = threading.Lock()  # units, runs and actions
         self._news = threading.Condition()  # a run's new event: a run emits while _lock may be held
         self._wakes = 0  # how often _news was notified
+        self._followers = Followers(self._wake)
         self._runs: dict[str, _Run] = {}
         self._accepted = {
             path.parent.name: Unit.from_json(path.read_text()) for path in self.units_dir.glob("*/unit.json")
@@ -402,8 +404,23 @@ class HabitatRuns:
     # ---- downlink ---------------------------------------------------------------------------
     def events(self, run_id: str, after_seq: int, wait_s: float = 0.0, max_events: int = 0) -> EventsAnswer:
         """The run's stored events numbered above ``after_seq``; with none, wait up to ``wait_s`` for one."""
+        return self._events(run_id, after_seq, wait_s, max_events, None)
+
+    def follow(self, run_id: str, after_seq: int, wait_s: float = 0.0, max_events: int = 0) -> EventsAnswer:
+        """As :meth:`events`, for a ground that keeps several requests waiting: each event goes down
+        once, and the newest request waits for the run's end (:mod:`onboard.followers`)."""
+        with self._followers.waiting(run_id, after_seq) as following:
+            return self._events(run_id, after_seq, wait_s, max_events, following)
+
+    def _events(
+        self, run_id: str, after_seq: int, wait_s: float, max_events: int, following: Following | None
+    ) -> EventsAnswer:
         limit = max_events if 0 < max_events <= MAX_EVENTS else MAX_EVENTS
         deadline = time.monotonic() + min(max(wait_s, 0.0), MAX_WAIT_S)
+
+        def read(after: int) -> list[StoredEvent]:
+            return self.audit.stored_events(run_id, after=after)
+
         while True:
             # read outside the lock: a run's every event wakes waiters (_wake), and its PAX thread
             # must not wait for a database read; the count tells a wake-up that came meanwhile
@@ -411,15 +428,22 @@ class HabitatRuns:
                 seen = self._wakes
             status = self._status(run_id)  # first: the events read next include its last one
             snapshot = self._snapshot(run_id)  # so too: its last_seq is at most the head sent
-            stored = self.audit.stored_events(run_id, after=max(after_seq, 0))
-            if stored or status != "active" or time.monotonic() >= deadline:
-                break
+            due = time.monotonic() >= deadline
+            if following is None:
+                stored = read(max(after_seq, 0))
+                sent, head = stored[:limit], stored[-1].seq if stored else max(after_seq, 0)
+                if stored or status != "active" or due:
+                    break
+            else:
+                taken = self._followers.take(following, read, ended=status != "active", due=due, limit=limit)
+                if taken is not None:
+                    sent, head = taken
+                    break
             with self._news:
                 if self._wakes == seen:
                     self._news.wait(deadline - time.monotonic())
-        head = stored[-1].seq if stored else max(after_seq, 0)
         return EventsAnswer(
-            [stored_event_json(e) for e in stored[:limit]],
+            [stored_event_json(e) for e in sent],
             head,
             status,
             datetime.now(UTC).isoformat(timespec="microseconds"),

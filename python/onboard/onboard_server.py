@@ -6,6 +6,8 @@ habitat's own bridge, logged in with the link's secret, and advertises its servi
 
 - ``/caretaker_onboard/uplink`` (``Uplink``): take a signed unit, answer with its hash;
 - ``/caretaker_onboard/events`` (``RunEvents``): a run's events above a number, waiting for the next;
+- ``/caretaker_onboard/follow`` (``RunEvents``): the same for a ground that keeps several requests
+  waiting, so that one is here whenever an event happens: each event goes down once (:mod:`.followers`);
 - ``/caretaker_onboard/action`` (``OperatorAction``): an operator's keyed action (Halt first);
 - ``/caretaker_onboard/status`` (``HabitatStatus``): the active run, units answered, refusals counted;
 - ``/caretaker_onboard/unit`` (``RunUnit``): the unit a run started from, for a ground that attaches.
@@ -28,7 +30,7 @@ import json
 import logging
 import signal
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -38,10 +40,10 @@ from procedure_language.binding import read_binding
 from procedure_language.sysrep import SysRepError
 from rosbridge_wire.client import RosbridgeClient
 
-from .habitat_runs import SECURITY_LOG, HabitatRuns
-from .unit import ACTION_SERVICE, EVENTS_SERVICE, STATUS_SERVICE, UNIT_SERVICE, UPLINK_SERVICE
+from .habitat_runs import SECURITY_LOG, EventsAnswer, HabitatRuns
+from .unit import ACTION_SERVICE, EVENTS_SERVICE, FOLLOW_SERVICE, STATUS_SERVICE, UNIT_SERVICE, UPLINK_SERVICE
 
-__all__ = ["main"]
+__all__ = ["events_values", "main"]
 
 log = logging.getLogger("caretaker.onboard")
 
@@ -97,7 +99,12 @@ async def serve(args: argparse.Namespace) -> int:
     client.advertise_service(
         EVENTS_SERVICE,
         "caretaker_onboard_msgs/srv/RunEvents",
-        threaded(lambda r: _events_values(runs, r)),
+        threaded(lambda r: events_values(runs.events, r)),
+    )
+    client.advertise_service(
+        FOLLOW_SERVICE,
+        "caretaker_onboard_msgs/srv/RunEvents",
+        threaded(lambda r: events_values(runs.follow, r)),
     )
     client.advertise_service(
         ACTION_SERVICE,
@@ -140,14 +147,17 @@ class _EventsValues:
     snapshot_json: str
 
 
-def _events_values(runs: HabitatRuns, request: Mapping[str, Any]) -> _EventsValues:
-    """RunEvents' response: the events as one JSON text (the srv carries strings)."""
+def events_values(
+    answer_of: Callable[[str, int, float, int], EventsAnswer], request: Mapping[str, Any]
+) -> _EventsValues:
+    """RunEvents' response (``answer_of``: :meth:`HabitatRuns.events` or ``follow``): the events as one
+    JSON text (the srv carries strings)."""
 
     def number(name: str, kind: type) -> Any:
         value = request.get(name, 0)
         return value if isinstance(value, (int, float)) and not isinstance(value, bool) else kind(0)
 
-    answer = runs.events(
+    answer = answer_of(
         str(request.get("run_id", "")),
         int(number("after_seq", int)),
         float(number("wait_s", float)),

@@ -28,6 +28,7 @@ __all__ = [
     "ACTIONS",
     "ACTION_SERVICE",
     "EVENTS_SERVICE",
+    "FOLLOW_SERVICE",
     "STATUS_SERVICE",
     "UNIT_SERVICE",
     "UPLINK_SERVICE",
@@ -43,6 +44,8 @@ __all__ = [
 #: The onboard executive's services on the habitat's bridge (caretaker_onboard_msgs).
 UPLINK_SERVICE = "/caretaker_onboard/uplink"
 EVENTS_SERVICE = "/caretaker_onboard/events"
+#: RunEvents for a ground that keeps several requests waiting: each event goes down once (onboard.followers).
+FOLLOW_SERVICE = "/caretaker_onboard/follow"
 ACTION_SERVICE = "/caretaker_onboard/action"
 STATUS_SERVICE = "/caretaker_onboard/status"
 UNIT_SERVICE = "/caretaker_onboard/unit"

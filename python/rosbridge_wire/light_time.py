@@ -10,6 +10,9 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 - a request is answered within its work plus one round trip (:meth:`LightTime.answer_within`);
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;
+- a ground following an onboard run sends a request for its events every quarter round trip (at
+  least 0.5 s, at most 15 s), each waiting on the habitat two of those: one waits there whenever an
+  event happens (:attr:`LightTime.follow_every`, :attr:`LightTime.follow_wait`);
 - a signed login stays valid for its trip across the link and then as long as on a short one
   (:attr:`LightTime.login_lifetime`); what goes up over a new connection (an onboard unit and the
   approvals it carries) arrives after opening it and one delay (:attr:`LightTime.uplink_within`);
@@ -30,6 +33,9 @@ __all__ = ["LightTime"]
 BASE_S = 10.0
 #: Round trips to open a wss:// connection and hear the first answer: TCP, TLS, upgrade, login.
 OPENING_ROUND_TRIPS = 4
+#: The shortest and longest time between a ground's requests for an onboard run's events: no busier
+#: than twice a second on a short link; on a long one within the habitat's longest wait (30 s) for two.
+FOLLOW_EVERY_S = (0.5, 15.0)
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,19 @@ class LightTime:
     def answer_within(self, work: float = BASE_S) -> float:
         """How long a request whose far end works up to ``work`` s may wait for its answer."""
         return work + self.round_trip
+
+    @property
+    def follow_every(self) -> float:
+        """Seconds between a ground's requests for an onboard run's events, whatever comes back: a
+        quarter round trip, so one arrives on the habitat at least that often."""
+        least, most = FOLLOW_EVERY_S
+        return min(max(self.round_trip / 4, least), most)
+
+    @property
+    def follow_wait(self) -> float:
+        """How long each of those requests waits on the habitat for an event: two intervals, so
+        another has arrived before it gives up (and the habitat holds two at a time, not more)."""
+        return 2 * self.follow_every
 
     @property
     def uplink_within(self) -> float:

@@ -1,0 +1,65 @@
+"""Several requests following an onboard run at once (``/caretaker_onboard/follow``, onboard/followers.py):
+each event goes down once, and the newest request waiting stays for the run's end.
+
+The lab bench's habitat (tests/onboard/test_habitat_runs.py's fixtures); the ground's side, which
+keeps such requests going across the link: tests/onboard/test_follow_requests.py.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from typing import Any
+
+from onboard.habitat_runs import EventsAnswer, HabitatRuns
+from onboard.unit import OperatorAction, Unit
+
+from .test_habitat_runs import act, habitat, make_unit, sysreps, uplink
+
+__all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
+
+
+def _following(runs: HabitatRuns, run_id: str, answers: queue.Queue[EventsAnswer], wait_s: float) -> None:
+    """A request to follow ``run_id`` on a thread of its own, as the bridge hands each request one."""
+    threading.Thread(target=lambda: answers.put(runs.follow(run_id, 0, wait_s)), daemon=True).start()
+
+
+def test_two_requests_waiting_share_the_events_and_the_newest_waits_for_the_runs_end(
+    habitat: tuple[HabitatRuns, list[Any]], make_unit: Any
+) -> None:
+    runs, _ = habitat
+    unit: Unit = make_unit(values={})  # it holds at the record 1.2 until the ground enters it
+    assert uplink(runs, unit).state == "ACCEPTED"
+    while not any(e["kind"] == "awaiting_operator" for e in runs.events(unit.run_id, 0, wait_s=5).events):
+        pass
+    answers: queue.Queue[EventsAnswer] = queue.Queue()
+    _following(runs, unit.run_id, answers, wait_s=20)
+    _following(runs, unit.run_id, answers, wait_s=20)
+    first = answers.get(timeout=10)  # the older one answers once a newer one waits behind it
+    assert first.status == "active" and [e["seq"] for e in first.events] == list(range(1, first.head_seq + 1))
+    enter = {"value": "dock", "instruction": "1.2"}
+    assert act(runs, OperatorAction("key-1", unit.run_id, "enter", "bob", time.time() + 60, enter)).state == "DONE"
+    last = answers.get(timeout=10)  # the newest held what came after, until the run ended
+    assert last.status == "completed" and last.events[-1]["kind"] == "run_completed"
+    after = [e["seq"] for e in last.events]
+    assert len(after) > 1 and after == list(range(first.head_seq + 1, last.head_seq + 1))  # each event once
+    # every event is still there for a request to /events: the ground's catch-up after a lost answer
+    everything = runs.events(unit.run_id, 0)
+    assert [e["seq"] for e in everything.events] == list(range(1, last.head_seq + 1))
+    again = runs.follow(unit.run_id, 0, wait_s=20)  # the run is over: answered at once, nothing sent twice
+    assert (again.status, again.events, again.head_seq) == ("completed", [], last.head_seq)
+
+
+def test_a_request_alone_with_news_answers_when_its_wait_is_over(
+    habitat: tuple[HabitatRuns, list[Any]], make_unit: Any
+) -> None:
+    runs, _ = habitat
+    unit: Unit = make_unit(values={})
+    assert uplink(runs, unit).state == "ACCEPTED"
+    while not any(e["kind"] == "awaiting_operator" for e in runs.events(unit.run_id, 0, wait_s=5).events):
+        pass
+    alone = runs.follow(unit.run_id, 0, wait_s=0.5)  # nobody came behind it: what it held goes down
+    assert alone.status == "active" and [e["seq"] for e in alone.events] == list(range(1, alone.head_seq + 1))
+    quiet = runs.follow(unit.run_id, 0, wait_s=0.5)  # nothing new since: an empty answer at the end of its wait
+    assert (quiet.events, quiet.head_seq) == ([], alone.head_seq)
