@@ -30,6 +30,7 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "db": ("caretaker.procedure_commands", "db_main", "create or upgrade the audit log's schema (status: revision)"),
     "serve": ("console.server", "main", "serve the operator web view"),
     "accounts": ("console.accounts_command", "main", "add, change, remove and list the web view's accounts"),
+    "agent": ("agent.mcp_server", "main", "serve an assistant over MCP as an agent account (CARETAKER_AGENT_TOKEN)"),
     "up": ("caretaker.stack", "up_main", "start a robot side and its rosbridge server (DEPLOYMENT)"),
     "demo": ("caretaker.demo", "demo_main", "run a deployment's demonstration end to end (DEPLOYMENT)"),
     "check": ("caretaker.check", "main", "check data files (scenes, robots, templates, deployments, procedures...)"),

@@ -14,7 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from console.accounts import Account, AccountStore
+from console.accounts import Account, AccountStore, Role
 from console.ground.action_requests import Answer, ForwardedAction, OnItsWay
 from pride import event_payloads as ep
 from pride.executive import Executive, Mode, OperatorActionError
@@ -131,11 +131,15 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
 }
 
 
-def _require_operator(account: Account) -> None:
+def _require_operator(account: Account, action: str = "") -> None:
+    """Only an operator acts on a run; an agent may ask for its HALT (the safe direction), no more."""
+    if action == "halt" and account.may_halt:
+        return
     if not account.may_act:
+        why = "an agent asks for a halt, never acts" if account.role is Role.AGENT else "observers may watch, not act"
         raise ActionRefused(
             403,
-            f"{account.user} is an {account.role.value}: observers may watch, not act",
+            f"{account.user} is an {account.role.value}: {why}",
             rule=RefusalRule.OBSERVERS_WATCH,
         )
 
@@ -169,7 +173,7 @@ def record_refused(
 def _perform(executive: Executive, account: Account, request: ActionRequest) -> Any:
     """Actions clicked on an instruction name it, and are refused unless it is still the current
     one: two operators looking at the same run must not act on an instruction that moved on."""
-    _require_operator(account)
+    _require_operator(account, request.action)
     entry = ACTIONS.get(request.action)
     if entry is None:
         raise ActionRefused(400, f"unknown action {request.action!r} (known: {', '.join(ACTIONS)})")
@@ -248,8 +252,8 @@ def perform_onboard(send: OnboardSend, accounts: AccountStore, request: Forwarde
     console hears that it went up and when its answer is due (:meth:`ForwardedAction.on_its_way`)."""
     try:
         account = _forwarded_account(accounts, request)
-        _require_operator(account)
         action = ActionRequest.from_json(request.action)
+        _require_operator(account, action.action)
         arguments = ONBOARD_ACTIONS.get(action.action)
         if arguments is None:
             raise ActionRefused(

@@ -1,0 +1,375 @@
+"""``caretaker agent`` over stdio, driven by the MCP SDK's own client, on a real ground database.
+
+The server is the real command in a subprocess (as a desktop assistant starts it), connecting as
+the consoles' role; procedures are the shipped ones (the IVA filter change released by two
+operators, the EVA inspection left a draft); the runs are the recorded IVA run's records and, for
+the HALT, a live run of the executive on the lab bench hosted by a "console" that serves
+forwarded actions exactly as ``caretaker serve`` does (:func:`console.actions.perform_forwarded`).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mcp import Client, StdioServerParameters
+from mcp.types import CallToolResult
+from sqlalchemy import insert, select, update
+
+from agent.agent_audit import AgentRecords
+from agent.agent_tokens import TokenStore, token_hash
+from agent.mcp_server import TOKEN_ENV
+from console.accounts import AccountStore
+from console.actions import perform_forwarded
+from console.ground.action_requests import ActionRequests
+from console.ground.change_feed import open_change_feed
+from pride.events import EventKind
+from pride.executive import Executive, Hold, Mode
+from pride.run_setup import load_sysreps
+from procedure_language.lint import check_procedure
+from records.agent_tables import agent_proposals, agent_tokens
+from records.audit_log import AuditLog
+from records.console_tables import run_hosts
+from records.releases import ReleaseStore, procedure_digest
+from records.robot_control import RobotControl
+from support.audit import RecordedJournal
+from support.executive_runs import held
+from support.lab_gateway import LabGateway
+from support.procedures import FIXTURES, REPO
+from support.recorded_run import recorded_events
+from support.web_server import GroundDatabase, new_ground_database
+
+CARETAKER = Path(sys.executable).with_name("caretaker")
+IVA = "iva_cdra_filter_replacement.xml"
+EVA = "eva_inspection.xml"
+#: Everything an agent can call: nothing that starts, approves, answers, confirms, takes or corrects.
+TOOLS = {
+    "list_procedures",
+    "list_robots",
+    "list_runs",
+    "explain_run",
+    "propose_run",
+    "withdraw_proposal",
+    "list_proposals",
+    "request_halt",
+}
+
+
+@dataclass
+class Ground:
+    """A ground database with two agents, a released IVA procedure and the recorded IVA run."""
+
+    database: GroundDatabase
+    procedures: Path
+    sha256: str
+    tokens: dict[str, str]
+    run_id: str
+
+    def server(self, token: str, *extra: str) -> StdioServerParameters:
+        args = ["agent", "--db", self.database.url, "--procedures", str(self.procedures), *extra]
+        return StdioServerParameters(command=str(CARETAKER), args=args, env={**os.environ, TOKEN_ENV: token})
+
+
+@pytest.fixture
+def ground(request: pytest.FixtureRequest, tmp_path: Path) -> Ground:
+    kind = getattr(request, "param", "sqlite")
+    database = new_ground_database(
+        kind, tmp_path, request.getfixturevalue("postgres") if kind == "postgresql" else None
+    )
+    procedures = tmp_path / "procedures"
+    shutil.copytree(REPO / "procedures", procedures)
+    accounts = AccountStore(database.owner_url)
+    tokens = TokenStore(accounts.engine, accounts)
+    log = AuditLog(database.url)
+    try:
+        issued = {}
+        for agent in ("daphne", "hal"):
+            accounts.add(agent, "agent", None)
+            issued[agent] = tokens.issue(agent, timedelta(days=7)).token
+        checked = check_procedure(procedures / IVA, load_sysreps([REPO / "sysrep"]))
+        sha = procedure_digest(checked)
+        ReleaseStore(log.engine).release_by_two(
+            checked.procedure.id, sha, "alice", "bob", f"procedures/{IVA}", (procedures / IVA).read_text()
+        )
+        events = recorded_events()
+        for event in events:
+            log.append(event)
+    finally:
+        log.close()
+        accounts.close()
+    return Ground(database, procedures, sha, issued, events[0].run_id)
+
+
+def with_agent(params: StdioServerParameters, scenario: Callable[[Client], Awaitable[None]]) -> None:
+    async def run() -> None:
+        async with Client(params) as client:
+            await scenario(client)
+
+    asyncio.run(run())
+
+
+def refused(result: CallToolResult) -> str:
+    """The rule a refused call names, and its message."""
+    assert result.is_error, result.structured_content
+    text = result.content[0].text  # type: ignore[union-attr]
+    assert "refused by rule " in text, text
+    return str(text.split("refused by rule ", 1)[1])
+
+
+def agent_records(ground: Ground, agent: str) -> list[tuple[str, str, dict[str, Any]]]:
+    """``agent``'s records (kind, tool, data), its chain checked first."""
+    log = AuditLog(ground.database.url)
+    try:
+        records = AgentRecords(log.engine)
+        check = records.verify(agent)
+        assert check.ok, check.describe()
+        return [(r.kind, r.instruction or "", json.loads(r.data)) for r in records.records(agent)]
+    finally:
+        log.close()
+
+
+@pytest.mark.parametrize("ground", ["sqlite", "postgresql"], indirect=True)
+def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(ground: Ground) -> None:
+    control = RobotControl(ground.database.url)
+    answers: dict[str, Any] = {}
+
+    async def scenario(client: Client) -> None:
+        assert {tool.name for tool in (await client.list_tools()).tools} == TOOLS
+        listed = (await client.call_tool("list_procedures", {})).structured_content
+        assert listed is not None
+        assert [(p["file"], p["release"], p["sha256"], p["released_by"]) for p in listed["procedures"]] == [
+            (IVA, 1, ground.sha256, "bob")
+        ]  # the EVA inspection is a draft: not offered
+        iva = listed["procedures"][0]
+        assert "cdra" in iva["systems"]
+        assert {"name": "clean_filter_id", "type": "string", "pattern": "CDRA-F-[0-9]{4}"} in iva["records"]
+        robots = (await client.call_tool("list_robots", {})).structured_content
+        assert robots is not None and {r["robot"] for r in robots["robots"]} == {"iva", "eva"}
+        runs = (await client.call_tool("list_runs", {})).structured_content
+        assert runs is not None and [r["run_id"] for r in runs["runs"]] == [ground.run_id]
+        told = (await client.call_tool("explain_run", {"run_id": ground.run_id})).structured_content
+        assert told is not None
+        assert (told["procedure"], told["outcome"]) == ("iva_cdra_filter_replacement", "completed")
+        assert told["words"].startswith(f"run {ground.run_id} of iva_cdra_filter_replacement by ")
+        assert told["recent"][-1]["words"] == "run completed" and told["steps"][0]["completed"] > 0
+
+        good = {
+            "procedure": IVA,
+            "sha256": ground.sha256,
+            "robot": "iva",
+            "reason": "cabin CO2 above its yellow limit: the seated filter is saturated",
+            "inputs": {"clean_filter_id": "CDRA-F-0042"},
+        }
+        proposed = (await client.call_tool("propose_run", good)).structured_content
+        assert proposed is not None and (proposed["state"], proposed["release"]) == ("open", 1)
+        answers["proposal"] = proposed["proposal_id"]
+        refusals = {
+            "draft": await client.call_tool("propose_run", good | {"procedure": EVA}),
+            "forged": await client.call_tool("propose_run", good | {"sha256": "0" * 64}),
+            "robot": await client.call_tool("propose_run", good | {"robot": "hal9000"}),
+            "pattern": await client.call_tool("propose_run", good | {"inputs": {"clean_filter_id": "F-42"}}),
+            "unknown input": await client.call_tool("propose_run", good | {"inputs": {"valve": "open"}}),
+            "no reason": await client.call_tool("propose_run", good | {"reason": "  "}),
+        }
+        control.acquire("iva", "run-of-bob", "bob")  # another operator's run holds the robot
+        refusals["held"] = await client.call_tool("propose_run", good)
+        answers["refusals"] = {name: refused(result) for name, result in refusals.items()}
+        withdrawn = (
+            await client.call_tool("withdraw_proposal", {"proposal_id": proposed["proposal_id"]})
+        ).structured_content
+        assert withdrawn is not None and withdrawn["state"] == "withdrawn"
+        answers["again"] = refused(
+            await client.call_tool("withdraw_proposal", {"proposal_id": proposed["proposal_id"]})
+        )
+        mine = (await client.call_tool("list_proposals", {})).structured_content
+        assert mine is not None and [(p["proposal_id"], p["state"]) for p in mine["proposals"]] == [
+            (proposed["proposal_id"], "withdrawn")
+        ]
+
+    try:
+        with_agent(ground.server(ground.tokens["daphne"]), scenario)
+        # hal may not withdraw daphne's proposal (and it was withdrawn already)
+        hal: dict[str, str] = {}
+
+        async def hal_tries(client: Client) -> None:
+            hal["withdraw"] = refused(await client.call_tool("withdraw_proposal", {"proposal_id": answers["proposal"]}))
+
+        with_agent(ground.server(ground.tokens["hal"]), hal_tries)
+    finally:
+        control.close()
+    rules = {name: text.split(":", 1)[0] for name, text in answers["refusals"].items()}
+    assert rules == {
+        "draft": "released_version",
+        "forged": "released_version",
+        "robot": "known_robot",
+        "pattern": "input_pattern",
+        "unknown input": "known_input",
+        "no reason": "reason_given",
+        "held": "one_run_per_robot",
+    }
+    assert "a draft (never released)" in answers["refusals"]["draft"]
+    assert "no version ever released" in answers["refusals"]["forged"]
+    assert "does not match the pattern CDRA-F-[0-9]{4}" in answers["refusals"]["pattern"]
+    assert "run run-of-bob (user bob" in answers["refusals"]["held"]
+    assert answers["again"] == f"open_proposal: proposal {answers['proposal']} is withdrawn"
+    assert hal["withdraw"] == f"own_proposal: hal has no proposal {answers['proposal']} (an agent withdraws its own)"
+
+    log = AuditLog(ground.database.url)
+    try:
+        with log.engine.connect() as connection:
+            stored = connection.execute(select(agent_proposals)).one()
+    finally:
+        log.close()
+    assert (stored.agent, stored.state, stored.closed_by, stored.robot, stored.binding) == (
+        "daphne",
+        "withdrawn",
+        "daphne",
+        "iva",
+        "iva.yaml",
+    )
+    assert stored.expires - stored.created == timedelta(minutes=15)
+    records = agent_records(ground, "daphne")
+    assert [(kind, tool) for kind, tool, _ in records[:7]] == [
+        ("answered", "connect"),
+        ("answered", "list_procedures"),
+        ("answered", "list_robots"),
+        ("answered", "list_runs"),
+        ("answered", "explain_run"),
+        ("answered", "propose_run"),
+        ("refused", "propose_run"),
+    ]
+    refusals = [data for kind, _, data in records if kind == "refused"]
+    assert [r["rule"] for r in refusals] == [*rules.values(), "open_proposal"]
+    assert refusals[0]["arguments"]["procedure"] == EVA and "draft" in refusals[0]["refusal"]
+    assert records[5][2]["answer"]["inputs"] == {"clean_filter_id": "CDRA-F-0042"}
+    assert [(kind, tool, data.get("rule")) for kind, tool, data in agent_records(ground, "hal")] == [
+        ("answered", "connect", None),
+        ("refused", "withdraw_proposal", "own_proposal"),
+    ]
+
+
+def test_a_token_refused_at_start_or_revoked_mid_session_is_recorded_and_stops_the_agent(ground: Ground) -> None:
+    accounts = AccountStore(ground.database.owner_url)
+    tokens = TokenStore(accounts.engine, accounts)
+    outcome: dict[str, str] = {}
+    try:
+        expired = tokens.issue("daphne", timedelta(hours=1)).token
+        with accounts.engine.begin() as connection:  # an hour on
+            connection.execute(
+                update(agent_tokens)
+                .where(agent_tokens.c.token_sha256 == token_hash(expired))
+                .values(expires=datetime.now(UTC) - timedelta(seconds=1))
+            )
+        for token, expected in (
+            (ground.tokens["hal"], "agent_token: this token belongs to another account, not to daphne"),
+            ("ctk_" + "x" * 43, "agent_token: unknown token"),
+            (expired, "agent_token: the token of daphne expired at "),
+        ):
+            params = ground.server(token, "--agent", "daphne")
+            started = subprocess.run(
+                [params.command, *params.args], env=params.env, capture_output=True, text=True, timeout=120, check=False
+            )
+            assert started.returncode == 2, started.stderr
+            assert f"caretaker agent: refused by rule {expected}" in started.stderr, started.stderr
+
+        async def revoked_meanwhile(client: Client) -> None:
+            assert not (await client.call_tool("list_robots", {})).is_error
+            tokens.revoke("daphne")
+            outcome["after"] = refused(await client.call_tool("list_robots", {}))
+
+        with_agent(ground.server(ground.tokens["daphne"]), revoked_meanwhile)
+    finally:
+        accounts.close()
+    assert outcome["after"].startswith("agent_token: the token of daphne was revoked at ")
+    assert [(kind, tool, data.get("rule")) for kind, tool, data in agent_records(ground, "daphne")] == [
+        ("refused", "connect", "agent_token"),
+        ("refused", "connect", "agent_token"),
+        ("refused", "connect", "agent_token"),
+        ("answered", "connect", None),
+        ("answered", "list_robots", None),
+        ("refused", "list_robots", "agent_token"),
+    ]
+
+
+def test_a_halt_an_agent_asks_for_reaches_the_console_hosting_the_run_and_is_recorded_as_the_agents(
+    ground: Ground, tmp_path: Path
+) -> None:
+    log = AuditLog(ground.database.url)
+    control = RobotControl(ground.database.url)
+    accounts = AccountStore(ground.database.url)
+    gateway = LabGateway(str(tmp_path / "images"))
+    gateway.robot_name = "iva"
+    checked = check_procedure(FIXTURES / "lab_all_kinds.xml", load_sysreps([REPO / "sysrep", FIXTURES / "sysrep"]))
+    executive = Executive(checked, gateway, RecordedJournal(log), run_id="run-lab", mode=Mode.MANUAL, control=control)
+    # a console hosts the run and serves the actions forwarded to it, as caretaker serve does
+    console = ActionRequests(
+        log.engine,
+        host_id="console-a",
+        console="console a",
+        perform=lambda request: perform_forwarded(executive, accounts, request, "console a"),
+    )
+    feed = open_change_feed(log.engine)
+    feed.subscribe(console.notice)
+    outcome: dict[str, Any] = {}
+    try:
+        executive.start("alice")
+        held(executive, Hold.MANUAL_MODE, "1.1")
+        now = datetime.now(UTC)
+        with log.engine.begin() as connection:
+            connection.execute(
+                insert(run_hosts).values(
+                    run_id="run-lab",
+                    host_id="console-a",
+                    host="console a",
+                    binding="iva.yaml",
+                    started_by="alice",
+                    claimed=now,
+                    lease_until=now + timedelta(hours=1),
+                    status="active",
+                    mode="manual",
+                    procedure_view="{}",
+                    view="{}",
+                    view_seq=0,
+                )
+            )
+
+        async def halts(client: Client) -> None:
+            outcome["nothing"] = refused(await client.call_tool("request_halt", {"robot": "eva", "reason": "why not"}))
+            outcome["halt"] = (
+                await client.call_tool("request_halt", {"robot": "iva", "reason": "cabin CO2 rising fast"})
+            ).structured_content
+
+        with_agent(ground.server(ground.tokens["daphne"]), halts)
+        halts_recorded = [e for e in log.events("run-lab") if e.kind is EventKind.HALT]
+    finally:
+        feed.close()
+        console.close()
+        executive.stop("alice", "end of test")
+        executive.join(20)
+        accounts.close()
+        control.close()
+        log.close()
+    assert outcome["nothing"] == "run_state: no run controls eva: there is nothing to halt"
+    assert outcome["halt"] == {
+        "words": "run run-lab on iva halted",
+        "robot": "iva",
+        "run_id": "run-lab",
+        "outcome": "halted",
+    }
+    assert [(e.actor, e.data.reason) for e in halts_recorded] == [  # type: ignore[union-attr]
+        ("daphne", "halt asked by agent daphne: cabin CO2 rising fast")
+    ]
+    assert [(kind, tool, data.get("rule")) for kind, tool, data in agent_records(ground, "daphne")][1:] == [
+        ("refused", "request_halt", "run_state"),
+        ("answered", "request_halt", None),
+    ]
