@@ -26,6 +26,11 @@ SUBCOMMANDS: dict[str, tuple[str, str, str]] = {
     "run": ("caretaker.procedure_commands", "run_main", "run a procedure with PAX (--auto|--manual)"),
     "release": ("caretaker.release_commands", "release_main", "release a procedure's version (--user A --approver B)"),
     "releases": ("caretaker.release_commands", "releases_main", "list the released procedure versions (list)"),
+    "supervise": (
+        "caretaker.supervise_command",
+        "main",
+        "keep the habitat's session open and supervise the onboard runs handed to it (--binding FILE)",
+    ),
     "report": ("caretaker.procedure_commands", "report_main", "write the after-action report of a run"),
     "db": ("caretaker.procedure_commands", "db_main", "create or upgrade the audit log's schema (status: revision)"),
     "serve": ("console.server", "main", "serve the operator web view"),

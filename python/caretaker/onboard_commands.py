@@ -13,16 +13,13 @@ from __future__ import annotations
 import argparse
 import asyncio
 import sys
-import tempfile
 import time
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from caretaker.command_options import DEFAULT_SYSREP_DIR, load_sysreps, section_of
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from datafile import DataFileError
-from onboard.downlink import DownlinkError, HabitatNews, OnboardSupervisor, build_unit
+from onboard.downlink import DownlinkError, OnboardSupervisor, build_unit
 from onboard.unit import UNIT_SERVICE, Unit, UnitError
 from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.events import Event
@@ -33,7 +30,7 @@ from pride.run_setup import RunSetup
 from pride.states import RefusalRule
 from procedure_language.binding import read_binding
 from procedure_language.diagnostics import ProcedureError
-from procedure_language.lint import CheckedProcedure, check_procedure
+from procedure_language.lint import CheckedProcedure
 from procedure_language.sysrep import SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog
 from rosbridge_wire.client import Endpoint, LinkError, RosbridgeClient
@@ -103,6 +100,10 @@ def run_onboard(
             file=sys.stderr,
         )
         return 2
+    if args.via_supervisor:  # its session is open already: it uplinks the unit (caretaker supervise)
+        from caretaker.via_supervisor import hand_to_supervisor
+
+        return hand_to_supervisor(args, audit, unit, checked)
     return _supervise(args, audit, endpoint, unit, checked, attaching=False)
 
 
@@ -119,21 +120,18 @@ def attach(args: argparse.Namespace, audit: AuditLog) -> int:
     if isinstance(found, str):
         print(f"caretaker run: {found}", file=sys.stderr)
         return 2
-    with tempfile.TemporaryDirectory(prefix="caretaker-attach-") as folder:
-        for name, text in found.files.items():  # relative paths, checked by Unit.from_json
-            path = Path(folder) / name
-            path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text, encoding="utf-8")
-        try:
-            checked = check_procedure(Path(folder) / found.procedure, load_sysreps(args.sysrep_dir))
-        except (ProcedureError, SysRepError) as exc:
-            print(
-                f"caretaker run: run {args.attach}'s procedure does not lint against this ground's SysReps "
-                f"({args.sysrep_dir or DEFAULT_SYSREP_DIR}): {exc}",
-                file=sys.stderr,
-            )
-            return 2
-        return _supervise(args, audit, endpoint, found, checked, attaching=True)
+    from caretaker.onboard_hosting import unit_checked
+
+    try:
+        with unit_checked(found, load_sysreps(args.sysrep_dir)) as checked:
+            return _supervise(args, audit, endpoint, found, checked, attaching=True)
+    except (ProcedureError, SysRepError) as exc:
+        print(
+            f"caretaker run: run {args.attach}'s procedure does not lint against this ground's SysReps "
+            f"({args.sysrep_dir or DEFAULT_SYSREP_DIR}): {exc}",
+            file=sys.stderr,
+        )
+        return 2
 
 
 async def _unit_of(endpoint: Endpoint, run_id: str) -> Unit | str:
@@ -169,11 +167,13 @@ def _supervise(
     terminal = TerminalLines()
     from sqlalchemy.exc import SQLAlchemyError
 
+    from caretaker.onboard_hosting import OnboardHosting
     from console.attach_records import record_attach_refused, record_attached
-    from console.ground.action_requests import OnItsWay
-    from console.onboard_view import OnboardView
     from console.terminal_host import HostedElsewhere, TerminalHost
     from records.audit_schema import AuditSchemaError
+
+    def warn(text: str) -> None:
+        print(f"caretaker run: {text}", file=sys.stderr)
 
     printer = ProgressPrinter(checked.procedure, terminal, Wording(checked.sysreps, args.raw))
     left_behind = LeftBehind(terminal)
@@ -181,35 +181,16 @@ def _supervise(
     try:
         host: TerminalHost | None = TerminalHost(audit, binding=unit.binding, onboard=True, operator=args.user)
     except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
-        print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
+        warn(f"the onboard run is not shown on the consoles: {exc}")
         host = None
-    hosting = host
-    view = OnboardView(
-        unit.run_id,
-        checked.procedure,
-        binding=unit.binding,
-        started_by=unit.user,
-        mode=unit.mode,
-        sysreps=dict(checked.sysreps),
-        host=f"{hosting.hosting.host if hosting else 'a runner'} (supervising; the habitat runs it)",
-        on_change=(lambda: hosting.changed(unit.run_id)) if hosting else None,
-    )
+    hosting = OnboardHosting(host, unit, checked, warn)
     if attaching:  # the consoles show the run from its start, not from where this runner caught up
-        view.stored_before(audit.events(unit.run_id))
+        hosting.view.stored_before(audit.events(unit.run_id))
 
     def on_event(event: Event) -> None:
         printer(event)
         left_behind(event)
-        view.event(event)
-
-    def on_news(news: HabitatNews) -> None:
-        view.news(
-            snapshot=news.snapshot,
-            habitat_time=news.habitat_time,
-            heard=news.heard,
-            waiting=news.waiting,
-            silent_since=news.silent_since,
-        )
+        hosting.view.event(event)
 
     supervisor = OnboardSupervisor(
         endpoint,
@@ -218,38 +199,26 @@ def _supervise(
         on_event=on_event,
         say=terminal.say,
         unattended=not sys.stdin.isatty() and not args.at_consoles,
-        on_news=on_news,
+        on_news=hosting.news,
         operator=args.user,
     )
-
-    def send(action: str, user: str, action_args: Mapping[str, Any], on_its_way: OnItsWay) -> tuple[str, str]:
-        # waits as long as the link's light time makes the answer take (onboard.downlink.ActionTiming)
-        outcome = supervisor.act_from_thread(
-            action, user, action_args, lambda timing: on_its_way(timing.expected_at, timing.gives_up_at)
-        )
-        return outcome.state, outcome.message
-
     try:
-        if host is not None:
-            try:
-                host.host_onboard(view, send)
-            except HostedElsewhere as exc:
-                if attaching:  # one supervisor per run: the one that holds it goes on
-                    print(f"caretaker run: --attach refused: {exc}", file=sys.stderr)
-                    record_attach_refused(audit, args.user, unit.run_id, RefusalRule.ONE_SUPERVISOR, str(exc))
-                    return 2
-                print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
-            except SQLAlchemyError as exc:  # as above
-                print(f"caretaker run: the onboard run is not shown on the consoles: {exc}", file=sys.stderr)
+        try:
+            hosting.hold(supervisor)
+        except HostedElsewhere as exc:
+            if attaching:  # one supervisor per run: the one that holds it goes on
+                warn(f"--attach refused: {exc}")
+                record_attach_refused(audit, args.user, unit.run_id, RefusalRule.ONE_SUPERVISOR, str(exc))
+                return 2
+            warn(f"the onboard run is not shown on the consoles: {exc}")
         if attaching:  # who took it over, and when (the run's own log is the habitat's)
             record_attached(audit, args.user, unit.run_id, host.hosting.host if host else "a runner at a terminal")
         result = asyncio.run(supervisor.attach() if attaching else supervisor.run())
     except DownlinkError as exc:
-        print(f"caretaker run: the onboard run's record cannot be kept: {exc}", file=sys.stderr)
+        warn(f"the onboard run's record cannot be kept: {exc}")
         return 1
     finally:
-        if host is not None:
-            host.close()
+        hosting.close()
     db = "" if args.db == DEFAULT_DB else f" --db {args.db}"
     if result.status == "detached":
         terminal.say(f"follow it again: caretaker run --attach {unit.run_id} --binding {args.binding}{db} --user USER")

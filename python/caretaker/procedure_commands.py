@@ -33,6 +33,7 @@ from procedure_language.lint import CheckedProcedure, lint_file
 from procedure_language.sysrep import SysRep, SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision
+from records.onboard_handoffs import SUPERVISOR_WITHIN_S
 from records.releases import ReleaseRefused, ReleaseStore, resume_refusal, version_for_run
 from records.robot_control import RobotControl
 
@@ -146,6 +147,21 @@ def run_main(argv: list[str] | None = None) -> int:
         "record up from the last event stored here and go on (docs/deployment.md, Onboard runs)",
     )
     parser.add_argument(
+        "--via-supervisor",
+        action="store_true",
+        help="with --onboard: hand the unit to the supervisor that keeps the habitat's session open "
+        "(caretaker supervise --binding FILE, on this --db) instead of opening one, and follow the run from the "
+        "database (docs/deployment.md, Onboard runs)",
+    )
+    parser.add_argument(
+        "--supervisor-within",
+        type=float,
+        default=SUPERVISOR_WITHIN_S,
+        metavar="S",
+        help=f"with --via-supervisor: how long a supervisor may take to take the run (default "
+        f"{SUPERVISOR_WITHIN_S:.0f} s); past it the run is withdrawn, nothing went up, and the runner says so",
+    )
+    parser.add_argument(
         "--unit-lifetime",
         type=float,
         default=UNIT_LIFETIME_S,
@@ -200,6 +216,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         from caretaker.onboard_commands import attach
 
         return attach(args, audit)
+    if args.via_supervisor and not args.onboard:
+        parser.error("--via-supervisor hands an onboard unit to a supervisor: give --onboard")
     if (args.from_step or args.to_step) and args.resume:
         parser.error("--from and --to start a new run of part of a procedure: not with --resume")
     try:

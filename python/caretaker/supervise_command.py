@@ -1,0 +1,233 @@
+"""``caretaker supervise``: a ground process that keeps its session to the habitat open and supervises
+the onboard runs handed to it.
+
+``caretaker run --onboard`` opens a session of its own to the habitat for each run: across the
+link that costs the opening's round trips (TCP, TLS, the WebSocket upgrade, the login) before
+the unit can go up. A supervisor opens the habitat's session once, keeps it alive (keepalive
+pings; when it drops, :class:`~rosbridge_wire.client.RosbridgeClient` opens it again, and the
+runs it follows catch up) and takes the runs handed to it through the ground database
+(``caretaker run --onboard --via-supervisor``, :mod:`records.onboard_handoffs`): those whose
+unit names the binding it serves, each taken by one supervisor. For each it signs and uplinks
+the unit on the open session, with the requests for its events right behind it, hosts the run
+for the consoles under a lease (the lease an attach respects: one supervisor per run), keeps its
+record in the audit log and says how it ended in the handoff, where the runner that handed it
+reads it. It learns of handed runs from the database's change notices (LISTEN on PostgreSQL; on
+SQLite the change feed reads the file).
+
+SIGTERM (or Ctrl-C) ends supervision, never a run: each goes on on the habitat, its handoff says
+``detached``, and ``caretaker run --attach RUN`` (or the consoles' Attach) follows it again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import signal
+import socket
+import sys
+from collections.abc import Callable, Coroutine
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy.exc import SQLAlchemyError
+
+from caretaker.command_options import load_sysreps, sysrep_option
+from caretaker.onboard_hosting import OnboardHosting, unit_checked
+from console.ground.change_feed import ChangeNotice, open_change_feed
+from console.terminal_host import HostedElsewhere, TerminalHost
+from datafile import DataFileError
+from onboard.downlink import DownlinkError, OnboardSupervisor, Supervision
+from onboard.unit import Unit, UnitError
+from procedure_language.binding import read_binding
+from procedure_language.diagnostics import ProcedureError
+from procedure_language.lint import CheckedProcedure
+from procedure_language.sysrep import SysRep, SysRepError
+from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
+from records.audit_schema import AuditSchemaError
+from records.onboard_handoffs import Handoff, OnboardHandoffs
+from rosbridge_wire.client import Endpoint, RosbridgeClient
+
+__all__ = ["Supervisor", "main"]
+
+Say = Callable[[str], None]
+
+
+class Supervisor:
+    """Takes the runs handed to ``binding``'s supervisors and supervises each on one session to the
+    habitat: ``client``'s, or (by default) one it opens itself and keeps open until it stops."""
+
+    def __init__(
+        self,
+        endpoint: Endpoint,
+        binding: str,
+        audit: AuditLog,
+        sysreps: dict[str, SysRep],
+        client: RosbridgeClient | None = None,
+    ) -> None:
+        self.endpoint = endpoint
+        self.binding = binding
+        self.audit = audit
+        self.sysreps = sysreps
+        self.name = f"supervisor {socket.gethostname()} pid {os.getpid()}"  # as the consoles name it
+        self.handoffs = OnboardHandoffs(audit.engine)
+        self._own_client = client is None
+        self.client = client or RosbridgeClient(endpoint, name="caretaker-supervise", on_state=self._session)
+        self._runs: set[asyncio.Task[None]] = set()
+        self._stopping = asyncio.Event()  # SIGTERM: every run's supervision ends, the runs go on
+        self._serving = False  # READY said: the session was open
+        self._lost = False  # the session dropped and is being opened again
+
+    def stop(self) -> None:
+        """End supervision (SIGTERM, Ctrl-C): the runs go on on the habitat, their handoffs ``detached``."""
+        self._stopping.set()
+
+    async def serve(self) -> int:
+        loop = asyncio.get_running_loop()
+        handed = asyncio.Event()
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            loop.add_signal_handler(signum, self.stop)
+
+        def notice(change: ChangeNotice) -> None:  # the feed's thread
+            if change.channel in ("handoffs", "resync"):
+                loop.call_soon_threadsafe(handed.set)
+
+        if self._own_client:
+            self.client.start()
+        feed = open_change_feed(self.audit.engine)
+        feed.subscribe(notice)
+        try:
+            await _first(self.client.ready.wait(), self._stopping.wait())
+            if self._stopping.is_set():
+                return 0
+            await asyncio.to_thread(feed.connected.wait, 30)  # listening before the first look: no notice missed
+            self._serving = True
+            print(f"READY supervise {self.binding} {self.endpoint.url} as {self.name}", flush=True)
+            while not self._stopping.is_set():
+                handed.clear()
+                try:
+                    for handoff in self.handoffs.waiting(self.binding):
+                        if self.handoffs.take(handoff.run_id, self.name):
+                            task = loop.create_task(self._supervise(handoff))
+                            self._runs.add(task)
+                            task.add_done_callback(self._runs.discard)
+                except SQLAlchemyError as exc:  # looked at again when the feed is back (resync)
+                    print(f"caretaker supervise: cannot read the handed runs: {exc}", file=sys.stderr, flush=True)
+                await _first(handed.wait(), self._stopping.wait())
+            if self._runs:
+                await asyncio.wait(self._runs)
+            print("supervision stopped: the runs go on on the habitat", flush=True)
+            return 0
+        finally:
+            for signum in (signal.SIGTERM, signal.SIGINT):
+                loop.remove_signal_handler(signum)
+            feed.close()
+            if self._own_client:
+                await self.client.close()
+
+    def _session(self, state: str) -> None:
+        """The session's changes, said once each (a reconnecting client says so at every try)."""
+        if state == "connected" and self._lost:
+            print("SESSION open again", flush=True)
+        elif state == "reconnecting" and self._serving and not self._lost:
+            print(f"SESSION lost: opening it again ({self.endpoint.url})", flush=True)
+        self._lost = state == "reconnecting" and self._serving
+
+    async def _supervise(self, handoff: Handoff) -> None:
+        """Uplink one handed unit on the open session and follow its run until it ends or supervision stops."""
+        run_id = handoff.run_id
+
+        def say(line: str) -> None:
+            print(f"{run_id}: {line.strip()}", flush=True)
+
+        say(f"TAKEN from {handoff.handed_by}")
+        try:
+            unit = Unit.from_json(handoff.unit_json)
+            with unit_checked(unit, self.sysreps) as checked:
+                result = await self._follow(unit, checked, handoff, say)
+        except (UnitError, ProcedureError, SysRepError) as exc:
+            result = Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}")
+        except DownlinkError as exc:
+            result = Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}")
+        say(f"ENDED {result.status}{': ' + result.message if result.message else ''}")
+        self.handoffs.end(run_id, detached=result.status == "detached", result=result.status, message=result.message)
+
+    async def _follow(self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say) -> Supervision:
+        try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
+            host: TerminalHost | None = TerminalHost(self.audit, binding=unit.binding, onboard=True, name=self.name)
+        except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
+            say(f"the onboard run is not shown on the consoles: {exc}")
+            host = None
+        hosting = OnboardHosting(host, unit, checked, say)
+        supervisor = OnboardSupervisor(
+            self.endpoint,
+            unit,
+            self.audit,
+            on_event=hosting.view.event,
+            say=say,
+            unattended=not handoff.at_consoles,
+            on_news=hosting.news,
+            client=self.client,
+            on_uplinked=lambda _: self._uplinked(unit.run_id),
+        )
+        try:
+            try:
+                hosting.hold(supervisor)
+            except HostedElsewhere as exc:  # one supervisor per run: the one that holds it goes on
+                return Supervision("refused", unit.run_id, str(exc))
+            return await supervisor.supervise(detach=self._stopping)
+        finally:
+            hosting.close()
+
+    def _uplinked(self, run_id: str) -> None:
+        """The habitat accepted the run's unit: the handoff says so (its runner prints READY)."""
+        self.handoffs.uplinked(run_id)
+
+
+async def _first(*waits: Coroutine[Any, Any, Any]) -> None:
+    """Until the first of ``waits`` is over (the others are cancelled)."""
+    tasks = [asyncio.ensure_future(wait) for wait in waits]
+    try:
+        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for task in tasks:
+            task.cancel()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``caretaker supervise --binding FILE [--db URL] [--rosbridge URL]``."""
+    parser = argparse.ArgumentParser(
+        prog="caretaker supervise",
+        description="keep the habitat's session open and supervise the onboard runs handed to this binding",
+    )
+    parser.add_argument("--binding", required=True, metavar="FILE", help="the ground binding of the habitat")
+    parser.add_argument(
+        "--db",
+        default=os.environ.get("CARETAKER_DB", DEFAULT_DB),
+        metavar="URL",
+        help=f"the ground database the runs are handed through (default $CARETAKER_DB, else {DEFAULT_DB})",
+    )
+    parser.add_argument("--rosbridge", metavar="URL", help="override the binding's rosbridge URL")
+    sysrep_option(parser)
+    args = parser.parse_args(argv)
+    try:
+        endpoint = read_binding(args.binding).endpoint(args.rosbridge)
+        sysreps = load_sysreps(args.sysrep_dir)
+    except (DataFileError, OSError, SysRepError) as exc:
+        print(f"caretaker supervise: {exc}", file=sys.stderr)
+        return 2
+    if endpoint.secret is None:
+        print(
+            f"caretaker supervise: {args.binding} has no security.secret_file: units are signed with it",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        audit = AuditLog(args.db)
+    except (AuditSchemaError, AuditLogUnavailable) as exc:
+        print(f"caretaker supervise: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return asyncio.run(Supervisor(endpoint, Path(args.binding).name, audit, sysreps).serve())
+    finally:
+        audit.close()

@@ -1,0 +1,121 @@
+"""``caretaker run --onboard --via-supervisor``: hand the unit to the supervisor that keeps the habitat's
+session open (``caretaker supervise``), and follow the run from the ground database.
+
+The runner builds and checks the unit as ``--onboard`` does, then hands it over
+(:mod:`records.onboard_handoffs`) instead of opening a session to the habitat: a supervisor of the
+unit's binding takes it, uplinks it at once on its open session and keeps the run's record in
+the audit log of the same database. The runner shows that record here as it is stored (woken by
+the database's change notices) and ends with the run. If no supervisor takes the run within
+``--supervisor-within`` seconds the runner withdraws it and says so; nothing went up.
+Ctrl-C stops following, never the run: its supervisor goes on (the consoles show it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+
+from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
+from console.ground.change_feed import ChangeNotice, open_change_feed
+from onboard.unit import Unit
+from pride.executive import RunStatus
+from pride.phrasing import Wording
+from procedure_language.lint import CheckedProcedure
+from records.audit_log import DEFAULT_DB, AuditLog
+from records.onboard_handoffs import DETACHED, ENDED, HANDED, UPLINKED, Handoff, OnboardHandoffs
+
+__all__ = ["hand_to_supervisor"]
+
+
+def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, checked: CheckedProcedure) -> int:
+    """Hand ``unit`` to a supervisor through ``audit``'s database and follow its run to the end."""
+    terminal = TerminalLines(sys.stdout)  # as it is now (a test captures it)
+    printer = ProgressPrinter(checked.procedure, terminal, Wording(checked.sysreps, args.raw))
+    left_behind = LeftBehind(terminal)
+    handoffs = OnboardHandoffs(audit.engine)
+    run_id = unit.run_id
+    news = threading.Event()
+
+    def notice(change: ChangeNotice) -> None:
+        about = change.payload.split()[-1:] == [run_id]  # handoffs: "<state> <run>", events: "<seq> <kind> <run>"
+        if change.channel == "resync" or (change.channel in ("handoffs", "events") and about):
+            news.set()
+
+    feed = open_change_feed(audit.engine)
+    feed.subscribe(notice)
+    db = "" if args.db == DEFAULT_DB else f" --db {args.db}"
+    handoff: Handoff | None = None
+    try:
+        feed.connected.wait(30)  # listening before the handoff: no notice of it is missed
+        handoffs.hand(
+            run_id, binding=unit.binding, unit_json=unit.to_json(), user=unit.user, at_consoles=args.at_consoles
+        )
+        terminal.say(
+            f"handed run {run_id} to the supervisors of {unit.binding}; waiting up to "
+            f"{args.supervisor_within:g} s for one to take it"
+        )
+        deadline = time.monotonic() + args.supervisor_within
+        while (handoff := handoffs.get(run_id)) is not None and handoff.state == HANDED:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            news.wait(left)
+            news.clear()
+        if handoff is None or (handoff.state == HANDED and handoffs.withdraw(run_id)):
+            terminal.say(
+                f"caretaker run: no supervisor took run {run_id} within {args.supervisor_within:g} s: withdrawn, "
+                f"nothing went up (is `caretaker supervise --binding {args.binding}{db}` running?)"
+            )
+            return 2
+        handoff = _followed(handoffs, audit, run_id, news, printer, left_behind, terminal)
+    except KeyboardInterrupt:
+        if handoffs.withdraw(run_id):
+            terminal.say(f"\n  run {run_id} withdrawn before a supervisor took it: nothing went up")
+        else:
+            terminal.say(f"\n  stopped following run {run_id}: its supervisor goes on (the consoles show it)")
+        return 130
+    finally:
+        feed.close()
+    if handoff.state == DETACHED:
+        terminal.say(f"{handoff.supervisor} stopped supervising: the run goes on on the habitat")
+        terminal.say(f"follow it again: caretaker run --attach {run_id} --binding {args.binding}{db} --user USER")
+    elif handoff.result != RunStatus.COMPLETED.value and handoff.message:
+        terminal.say(f"caretaker run: {handoff.message}")
+    result = handoff.result or handoff.state
+    terminal.say(f"RESULT {result} run {run_id} (report: caretaker report {run_id}{db})")
+    return 0 if result == RunStatus.COMPLETED.value else 1
+
+
+def _followed(
+    handoffs: OnboardHandoffs,
+    audit: AuditLog,
+    run_id: str,
+    news: threading.Event,
+    printer: ProgressPrinter,
+    left_behind: LeftBehind,
+    terminal: TerminalLines,
+) -> Handoff:
+    """Show the run's record as its supervisor stores it, until supervision ends; the handoff then."""
+    head = 0
+    ready = False
+    handoff = handoffs.get(run_id)
+    assert handoff is not None  # handoffs are never removed
+    terminal.say(f"taken by {handoff.supervisor}: it uplinks the unit on the session it keeps open")
+    while True:
+        news.clear()
+        handoff = handoffs.get(run_id)
+        assert handoff is not None
+        events = audit.events(run_id, after=head)  # read after the state: all of an ended run's events
+        if not ready and (handoff.state == UPLINKED or events):
+            terminal.say(f"the habitat took the unit: it runs {run_id}")
+            terminal.say(f"READY run {run_id}")
+            ready = True
+        for event in events:
+            printer(event)
+            left_behind(event)
+            head = event.seq
+        if handoff.state in (ENDED, DETACHED):
+            return handoff
+        news.wait()

@@ -1,0 +1,108 @@
+"""Onboard runs handed to a supervisor through the ground database (``caretaker run --onboard
+--via-supervisor``, caretaker/via_supervisor.py) and supervised by ``caretaker supervise``
+(caretaker/supervise_command.py), in one process on a SQLite ground database.
+
+The habitat is the lab bench's behind the link emulated in tests/onboard/test_follow_requests.py:
+the supervisor's session. A run handed with no supervisor is withdrawn; one handed to a
+supervisor runs on its session and the runner shows it from the database to its end; a
+supervisor that stops leaves a run holding on the habitat, its handoff ``detached``. The real
+processes across the real link: tests/flight/test_onboard_supervise.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from caretaker.supervise_command import Supervisor
+from caretaker.via_supervisor import hand_to_supervisor
+from onboard.habitat_runs import HabitatRuns
+from onboard.unit import Unit
+from procedure_language.lint import check_procedure
+from procedure_language.sysrep import SysRep
+from records.audit_log import AuditLog
+from records.onboard_handoffs import OnboardHandoffs
+
+from .test_follow_requests import LinkedHabitat
+from .test_habitat_runs import PROCEDURE, habitat, make_unit, sysreps
+
+__all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def _runner(tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False) -> argparse.Namespace:
+    """``caretaker run``'s options as the runner reads them."""
+    db = f"sqlite:///{tmp_path / 'ground.db'}"
+    return argparse.Namespace(db=db, binding="lab.yaml", raw=False, at_consoles=at_consoles, supervisor_within=within)
+
+
+def test_a_run_no_supervisor_takes_is_withdrawn_and_the_runner_says_so(
+    make_unit: Callable[..., Unit], sysreps: dict[str, SysRep], tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    args = _runner(tmp_path, within=0.5)
+    audit = AuditLog(args.db)
+    try:
+        unit = make_unit()
+        assert hand_to_supervisor(args, audit, unit, check_procedure(PROCEDURE, sysreps)) == 2
+        handoff = OnboardHandoffs(audit.engine).get(unit.run_id)
+        assert handoff is not None and handoff.state == "withdrawn"
+    finally:
+        audit.close()
+    said = capfd.readouterr().out
+    assert f"no supervisor took run {unit.run_id} within 0.5 s: withdrawn, nothing went up" in said
+    assert "caretaker supervise --binding lab.yaml --db sqlite:///" in said
+
+
+def test_a_handed_run_goes_up_on_the_supervisors_session_and_its_runner_follows_it_from_the_database(
+    habitat: tuple[HabitatRuns, list[Any]],
+    make_unit: Callable[..., Unit],
+    sysreps: dict[str, SysRep],
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    runs, _ = habitat
+    args = _runner(tmp_path)
+    audit = AuditLog(args.db)
+    link = LinkedHabitat(runs)
+    supervisor = Supervisor(link.endpoint, "lab.yaml", audit, sysreps, client=link)
+    checked = check_procedure(PROCEDURE, sysreps)
+    completed, holding = make_unit(), make_unit(values={})  # the second holds at the record 1.2
+
+    async def fly() -> tuple[int, int]:
+        serving = asyncio.create_task(supervisor.serve())
+        first = await asyncio.to_thread(hand_to_supervisor, args, audit, completed, checked)
+        attended = argparse.Namespace(**{**vars(args), "at_consoles": True})  # the hold waits for a console
+        second = asyncio.create_task(asyncio.to_thread(hand_to_supervisor, attended, audit, holding, checked))
+        while not any(e["kind"] == "awaiting_operator" for e in runs.events(holding.run_id, 0).events):
+            await asyncio.to_thread(runs.events, holding.run_id, 0, 5)  # wait on the habitat for its next event
+        supervisor.stop()  # SIGTERM
+        assert await serving == 0
+        return first, await second
+
+    try:
+        first, second = asyncio.run(fly())
+        assert first == 0 and second == 1
+        here, there = audit.stored_events(completed.run_id), runs.audit.stored_events(completed.run_id)
+        assert [(e.seq, e.hash) for e in here] == [(e.seq, e.hash) for e in there] and there[-1].kind == "run_completed"
+        handoffs = OnboardHandoffs(audit.engine)
+        done, held = handoffs.get(completed.run_id), handoffs.get(holding.run_id)
+        assert done is not None and (done.state, done.result, done.supervisor) == (
+            "ended",
+            "completed",
+            supervisor.name,
+        )
+        assert held is not None and held.state == "detached"
+        assert runs.status().active_run == holding.run_id  # it goes on on the habitat, holding for an operator
+    finally:
+        audit.close()
+    said = capfd.readouterr().out
+    assert f"READY run {completed.run_id}" in said and f"RESULT completed run {completed.run_id}" in said
+    assert f"RESULT detached run {holding.run_id}" in said
+    assert f"follow it again: caretaker run --attach {holding.run_id} --binding lab.yaml" in said
+    assert len([c for c in link.crossings if c.service == "/caretaker_onboard/uplink"]) == 2  # one session, two units
