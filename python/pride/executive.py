@@ -337,7 +337,7 @@ class Executive:
             if state.halt is None and state.carried_on == carried_on:  # not after an operator carried on
                 state.halt = Halt(user, reason)
             halted = HaltRecord(reason=reason, key=key, cancel=_cancel_data(answer), executing=state.executing)
-            self._engine.emit(user, state.current_number(), halted)
+            self._engine.record_halt(user, halted)
             state.announce()
 
     def stop(self, user: str, reason: str = "", *, take_back: bool = True) -> None:

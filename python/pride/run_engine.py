@@ -30,6 +30,7 @@ from pride.approvals import ApprovalPolicy
 from pride.automation import Automation, ControlLost, InstructionResult
 from pride.event_payloads import ControlLost as ControlLostRecord
 from pride.event_payloads import ControlTaken, InstructionStarted, MonitorCleared, MonitorViolated, Paused, RunResumed
+from pride.event_payloads import Halt as HaltRecord
 from pride.events import PAX, Event, Journal, Payload
 from pride.leftovers import Holdings
 from pride.link_watch import LinkWatch
@@ -132,6 +133,7 @@ class RunEngine:
         self._monitored: deque[tuple[str, str, Any]] = deque()  # updates of monitored items, for the supervisor
         #: acts on a violated monitor (:func:`pride.monitoring.respond`), on a thread of its own: a halt waits
         self.on_monitor: Callable[[MonitorChange], None] | None = None
+        self._halt_unrecorded = False  # a monitor's go-to waits for the record of the halt it asked for
         self._last = self._build_snapshot()
         gateway.add_listener(self._telemetry_callback)
         gateway.add_link_listener(self._link_callback)
@@ -461,7 +463,7 @@ class RunEngine:
                     if state.halt is None:
                         state.halt = self.automation.halt
                     state.finish(job, number, outcome)
-                    if state.diverted is not None and state.going_on:
+                    if state.diverted is not None and state.going_on and not self._halt_unrecorded:
                         self._go_to_diverted()
                     if job.then_pause and state.going_on and not state.paused:
                         state.paused = True
@@ -566,9 +568,19 @@ class RunEngine:
                 return False
             self.state.diverted = (step, reason)
             if self.state.executing:
+                self._halt_unrecorded = True
                 return True
             self._go_to_diverted()
             return False
+
+    def record_halt(self, user: str, halted: HaltRecord) -> None:
+        """Record a halt (the lock is held). A monitor's go-to waits for it: the robot answers a halt
+        once the motion stopped, and the run, gone on to a contingency that nothing holds, could have
+        ended by then with the halt never on its record. It goes now if what it halted has ended."""
+        self.emit(user, self.state.current_number(), halted)
+        self._halt_unrecorded = False
+        if self.state.diverted is not None and self.state.going_on and not self.state.executing:
+            self._go_to_diverted()
 
     def _go_to_diverted(self) -> None:
         step, reason = self.state.diverted or ("", "")

@@ -407,7 +407,9 @@ def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and
     habitat: tuple[HabitatRuns, list[LabGateway]], make_unit: Callable[..., Unit], tmp_path: Path
 ) -> None:
     """The habitat's executive watches a unit's monitors itself: no ground is in the loop of a
-    violation, which must halt the motion within the habitat's own reaction time, not a round trip."""
+    violation, which must halt the motion within the habitat's own reaction time, not a round trip.
+    The robot answers the halt after the motion ended, and the unit answers nothing in the
+    contingency that would hold the run there: the halt must still be on the record, before the go-to."""
     runs, gateways = habitat
     unit = make_unit(FIXTURES / "lab_monitors.xml", values={}, breakpoints=("1.1",))
     assert uplink(runs, unit).state == "ACCEPTED"
@@ -415,6 +417,15 @@ def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and
         pass  # at the breakpoint before the motion: the bench's motion is made to last until halted
     gateway = gateways[0]
     gateway.block.add("move")
+    stop = gateway.cancel
+
+    def answered_once_the_run_saw_the_motion_end(key: str) -> Any:
+        answer = stop(key)  # the motion stops now; the answer comes once the run has nothing else to do
+        while (said := runs.events(unit.run_id, 0)).status == "active" and not said.waiting:
+            pass
+        return answer
+
+    gateway.cancel = answered_once_the_run_saw_the_motion_end
     assert act(runs, OperatorAction("key-m", unit.run_id, "continue", "bob", time.time() + 60, {})).state == "DONE"
     assert gateway.blocking.wait(10)  # the arm moves
     gateway.set("temperature", 46.0)
@@ -427,6 +438,8 @@ def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and
     assert json.loads(violated["data"])["value"] == 47.0
     assert json.loads(violated["data"])["action"] == "goto:cool"
     assert gateway.cancels == [f"{unit.run_id}/1.1/1"]  # the motion in flight was cancelled, here
+    halt = events[kinds.index("halt")]
+    assert halt["actor"] == "PAX" and kinds.index("halt") < kinds.index("went_to"), kinds
     went = json.loads(events[kinds.index("went_to")]["data"])
     assert (went["from"], went["next"]) == ("1.1", "2.1")
     assert kinds[-1] == "run_completed" and [c for _, c, _ in gateway.sent] == ["move"]  # never the capture
