@@ -1,6 +1,6 @@
 """``caretaker agent``: an MCP server through which an assistant acts with an agent's rights, and no more.
 
-The server is authenticated as one account of role ``agent`` (:mod:`agent.agent_tokens`): over
+The server is authenticated as one account of role ``agent`` (:mod:`records.agent_tokens`): over
 stdio (a local assistant starts it) its token comes from ``CARETAKER_AGENT_TOKEN``. The token is
 checked again on every call, so a token that expires or is revoked mid-session stops working at
 the next call.
@@ -32,11 +32,10 @@ from pydantic import BaseModel, Field
 
 from agent.agent_audit import ANSWERED, REFUSED, AgentRecords
 from agent.agent_desk import AgentDesk, AgentRefused, ProcedureFacts, run_words
-from agent.agent_tokens import TokenRefused, TokenStore
 from agent.proposals import Proposal, ProposalStore
-from console.accounts import AccountStore
 from console.catalog import Catalog
 from procedure_language.model import RecordInstruction
+from records.agent_tokens import TokenRefused, TokenStore
 from records.audit_log import DEFAULT_DB, AuditLog
 
 __all__ = ["TOKEN_ENV", "AgentSession", "build_server", "main"]
@@ -430,11 +429,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     token = os.environ.get(TOKEN_ENV, "")
     audit = AuditLog(args.db)
-    accounts = AccountStore(args.db)
-    tokens, records = TokenStore(audit.engine, accounts), AgentRecords(audit.engine)
+    tokens, records = TokenStore(audit.engine), AgentRecords(audit.engine)
     try:
         try:
-            account = tokens.authenticate(token, agent=args.agent)
+            agent = tokens.authenticate(token, agent=args.agent)
         except TokenRefused as refused:
             records.append(
                 args.agent or UNKNOWN_AGENT, REFUSED, "connect", {"rule": refused.rule, "refusal": refused.message}
@@ -443,13 +441,12 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         catalog = Catalog(args.procedures, args.bindings, tuple(args.sysreps or [REPO / "sysrep"]))
         proposals = ProposalStore(audit.engine, expiry=timedelta(minutes=args.proposal_expiry))
-        desk = AgentDesk(account.user, audit, catalog, proposals)
+        desk = AgentDesk(agent, audit, catalog, proposals)
         try:
-            records.append(account.user, ANSWERED, "connect", {"transport": "stdio"})
+            records.append(agent, ANSWERED, "connect", {"transport": "stdio"})
             build_server(AgentSession(tokens, records, desk, lambda: os.environ.get(TOKEN_ENV, ""))).run("stdio")
         finally:
             desk.close()
     finally:
-        accounts.close()
         audit.close()
     return 0

@@ -6,7 +6,7 @@ manages it. An *operator* may act on runs (start, send, record, skip, ...); an *
 only watch. The server checks the role on every action, so hiding buttons in the page is a
 convenience, never the protection. An *agent* is an assistant program, not a person: it has no
 password and never signs in to the console; it reaches the ground through ``caretaker agent``
-with a token (:mod:`agent.agent_tokens`), and may read, propose runs and ask for a halt, nothing more.
+with a token (:mod:`records.agent_tokens`), and may read, propose runs and ask for a halt, nothing more.
 
 Passwords are never stored: only their argon2id hash (argon2-cffi's defaults, re-hashed at the
 next sign-in when those defaults grow, where the console's role may write the table). The table

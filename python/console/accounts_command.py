@@ -3,7 +3,7 @@
 Passwords come from a prompt (typed twice, not echoed) or, when stdin is not a terminal, from
 its first line, so scripts pipe them in. Never from the command line: argv is visible to every
 user of the machine (``ps``) and lands in shell histories. An agent has no password: ``token``
-prints a new token of it once (:mod:`agent.agent_tokens`), ``tokens`` lists them, ``revoke`` ends them.
+prints a new token of it once (:mod:`records.agent_tokens`), ``tokens`` lists them, ``revoke`` ends them.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from datetime import UTC, datetime
 
 from sqlalchemy.exc import OperationalError
 
-from agent.agent_tokens import TokenStore, parse_duration
 from console.accounts import AccountsError, AccountStore, Role
+from records.agent_tokens import TokenError, TokenStore, parse_duration
 from records.audit_log import DEFAULT_DB
 
 __all__ = ["main"]
@@ -108,11 +108,11 @@ def main(argv: list[str] | None = None) -> int:
             store.remove(args.user)
             print(f"removed {args.user}")
         elif args.command in ("token", "tokens", "revoke"):
-            _tokens(TokenStore(store.engine, store), args)
+            _tokens(TokenStore(store.engine), args)
         else:
             for account in store.accounts():
                 print(f"{account.user}\t{account.role.value}\t{account.name}")
-    except (AccountsError, _PasswordError) as exc:
+    except (AccountsError, TokenError, _PasswordError) as exc:
         print(f"caretaker accounts: {exc}", file=sys.stderr)
         return 2
     except OperationalError as exc:  # a transaction rolls back whole: nothing half-changed

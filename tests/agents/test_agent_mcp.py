@@ -27,7 +27,6 @@ from mcp.types import CallToolResult
 from sqlalchemy import insert, select, update
 
 from agent.agent_audit import AgentRecords
-from agent.agent_tokens import TokenStore, token_hash
 from agent.mcp_server import TOKEN_ENV
 from console.accounts import AccountStore
 from console.actions import perform_forwarded
@@ -38,6 +37,7 @@ from pride.executive import Executive, Hold, Mode
 from pride.run_setup import load_sysreps
 from procedure_language.lint import check_procedure
 from records.agent_tables import agent_proposals, agent_tokens
+from records.agent_tokens import TokenStore, token_hash
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest
@@ -64,6 +64,8 @@ TOOLS = {
     "request_halt",
 }
 
+pytestmark = pytest.mark.slow(seconds=50)
+
 
 @dataclass
 class Ground:
@@ -89,7 +91,7 @@ def ground(request: pytest.FixtureRequest, tmp_path: Path) -> Ground:
     procedures = tmp_path / "procedures"
     shutil.copytree(REPO / "procedures", procedures)
     accounts = AccountStore(database.owner_url)
-    tokens = TokenStore(accounts.engine, accounts)
+    tokens = TokenStore(accounts.engine)
     log = AuditLog(database.url)
     try:
         issued = {}
@@ -260,7 +262,7 @@ def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(gr
 
 def test_a_token_refused_at_start_or_revoked_mid_session_is_recorded_and_stops_the_agent(ground: Ground) -> None:
     accounts = AccountStore(ground.database.owner_url)
-    tokens = TokenStore(accounts.engine, accounts)
+    tokens = TokenStore(accounts.engine)
     outcome: dict[str, str] = {}
     try:
         expired = tokens.issue("daphne", timedelta(hours=1)).token

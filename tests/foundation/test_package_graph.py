@@ -39,6 +39,8 @@ FORBIDDEN = {
     # the ground's records are a store: no web server, no ROS, no console above them
     "records": ("rclpy", "bridge", "at_ros", "sim", "console", "onboard", "starlette", "uvicorn"),
     "console": ("rclpy", "bridge", "at_ros", "sim"),
+    # an agent reaches the ground only: never a robot, a bridge or the habitat's executive directly
+    "agent": ("rclpy", "bridge", "at_ros", "sim", "onboard"),
     # the onboard executive runs PAX on the habitat: procedures, but no web or ROS stack of its own
     "onboard": ("rclpy", "bridge", "at_ros", "sim", "console", "starlette", "uvicorn"),
     "bridge": ("pride",),
@@ -65,6 +67,8 @@ MAY_IMPORT = {
     "records": {"procedure_language", "pride"},
     "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
     "onboard": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
+    # assistant agents reach the ground as a console does, through its records and its forwarding
+    "agent": {"datafile", "procedure_language", "pride", "records", "console"},
     "ros_process": set(),
     "bridge": {"datafile", "rosbridge_wire", "ros_process"},
     "at_ros": {"datafile", "ros_process"},
@@ -79,6 +83,7 @@ MAY_IMPORT = {
         "pride",
         "records",
         "console",
+        "agent",
         "onboard",
         "bridge",
         "at_ros",

@@ -1,7 +1,8 @@
 """The tokens an agent authenticates with: printed once, stored only as their hash, expiring, revocable.
 
 ``caretaker accounts token NAME [--expires-in 7d]`` issues one for an account of role ``agent``
-(:class:`console.accounts.Role`). The token is 32 random bytes (``ctk_`` and URL-safe base64);
+(:class:`console.accounts.Role`; read here from the accounts table, this store being below the
+console). The token is 32 random bytes (``ctk_`` and URL-safe base64);
 the table ``agent_tokens`` (:mod:`records.agent_tables`) keeps its SHA-256, who it belongs to,
 when it expires and whether it was revoked. A fast hash suffices where a password needs argon2:
 a token is never chosen by a person, so no guess can be tried against its hash.
@@ -23,17 +24,24 @@ from datetime import UTC, datetime, timedelta
 from sqlalchemy import insert, select, update
 from sqlalchemy.engine import Engine
 
-from console.accounts import Account, AccountsError, AccountStore, Role
 from records.agent_tables import agent_tokens
 from records.audit_chain import utc
+from records.console_tables import console_accounts
 
-__all__ = ["TOKEN_PREFIX", "IssuedToken", "TokenRefused", "TokenStore", "TokenInfo", "parse_duration"]
+__all__ = ["AGENT_ROLE", "TOKEN_PREFIX", "IssuedToken", "TokenError", "TokenInfo", "TokenRefused", "TokenStore"]
+
+#: The role of an agent's account (``console.accounts.Role.AGENT``).
+AGENT_ROLE = "agent"
 
 #: What every token starts with, so one pasted in the wrong place is recognisable (and greppable).
 TOKEN_PREFIX = "ctk_"
 _T = agent_tokens.c
 _DURATION = re.compile(r"^(\d+)([smhd])$")
 _UNITS = {"s": 1, "m": 60, "h": 3600, "d": 86400}
+
+
+class TokenError(ValueError):
+    """A token cannot be issued or revoked as asked; the message says what to fix."""
 
 
 class TokenRefused(Exception):
@@ -74,10 +82,10 @@ class TokenInfo:
 
 
 def parse_duration(text: str) -> timedelta:
-    """``7d``, ``12h``, ``30m``, ``90s`` as a duration; AccountsError says what one looks like."""
+    """``7d``, ``12h``, ``30m``, ``90s`` as a duration; TokenError says what one looks like."""
     match = _DURATION.match(text.strip())
     if match is None or int(match.group(1)) == 0:
-        raise AccountsError(f"duration {text!r}: write a positive number and a unit, e.g. 7d, 12h, 30m or 90s")
+        raise TokenError(f"duration {text!r}: write a positive number and a unit, e.g. 7d, 12h, 30m or 90s")
     return timedelta(seconds=int(match.group(1)) * _UNITS[match.group(2)])
 
 
@@ -88,17 +96,21 @@ def token_hash(token: str) -> str:
 class TokenStore:
     """The ``agent_tokens`` table of one ground database, with the accounts they belong to."""
 
-    def __init__(self, engine: Engine, accounts: AccountStore) -> None:
+    def __init__(self, engine: Engine) -> None:
         self._engine = engine
-        self._accounts = accounts
+
+    def _role(self, user: str) -> str | None:
+        with self._engine.connect() as connection:
+            role = connection.scalar(select(console_accounts.c.role).where(console_accounts.c.user_id == user))
+        return None if role is None else str(role)
 
     def issue(self, user: str, expires_in: timedelta | None = None) -> IssuedToken:
-        """A new token for the agent ``user``; AccountsError when ``user`` is no agent."""
-        account = self._accounts.get(user)
-        if account is None:
-            raise AccountsError(f"no account {user!r} (see `caretaker accounts list`)")
-        if account.role is not Role.AGENT:
-            raise AccountsError(f"{user} is an {account.role.value}: only an agent has tokens")
+        """A new token for the agent ``user``; TokenError when ``user`` is no agent."""
+        role = self._role(user)
+        if role is None:
+            raise TokenError(f"no account {user!r} (see `caretaker accounts list`)")
+        if role != AGENT_ROLE:
+            raise TokenError(f"{user} is an {role}: only an agent has tokens")
         token = TOKEN_PREFIX + secrets.token_urlsafe(32)
         now = datetime.now(UTC)
         expires = now + expires_in if expires_in is not None else None
@@ -118,17 +130,17 @@ class TokenStore:
 
     def revoke(self, user: str, token_id: int | None = None) -> int:
         """Revoke one of ``user``'s tokens (``token_id``) or all of them; how many were still unrevoked.
-        AccountsError when ``token_id`` is not one of ``user``'s."""
+        TokenError when ``token_id`` is not one of ``user``'s."""
         query = update(agent_tokens).where(_T.user_id == user, _T.revoked.is_(None))
         if token_id is not None:
             if all(info.token_id != token_id for info in self.tokens(user)):
-                raise AccountsError(f"{user} has no token {token_id} (see `caretaker accounts tokens {user}`)")
+                raise TokenError(f"{user} has no token {token_id} (see `caretaker accounts tokens {user}`)")
             query = query.where(_T.id == token_id)
         with self._engine.begin() as connection:
             return int(connection.execute(query.values(revoked=datetime.now(UTC))).rowcount)
 
-    def authenticate(self, token: str, *, agent: str | None = None) -> Account:
-        """The agent whose valid token this is (of ``agent``, when given); TokenRefused says why not."""
+    def authenticate(self, token: str, *, agent: str | None = None) -> str:
+        """The agent (its user id) whose valid token this is (of ``agent``, when given); TokenRefused says why not."""
         if not token:
             raise TokenRefused("agent_token", "no token: give the agent's (CARETAKER_AGENT_TOKEN, or a bearer token)")
         with self._engine.connect() as connection:
@@ -145,12 +157,12 @@ class TokenStore:
         expires = _utc(row.expires)
         if expires is not None and expires <= datetime.now(UTC):
             raise TokenRefused("agent_token", f"the token of {row.user_id} expired at {expires:%Y-%m-%d %H:%M:%S}Z")
-        account = self._accounts.get(row.user_id)
-        if account is None:
+        role = self._role(row.user_id)
+        if role is None:
             raise TokenRefused("agent_token", f"the account {row.user_id} no longer exists")
-        if account.role is not Role.AGENT:
-            raise TokenRefused("agent_role", f"{row.user_id} is an {account.role.value} now, not an agent")
-        return account
+        if role != AGENT_ROLE:
+            raise TokenRefused("agent_role", f"{row.user_id} is an {role} now, not an agent")
+        return str(row.user_id)
 
 
 def _utc(moment: datetime | None) -> datetime | None:
