@@ -31,6 +31,8 @@ from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess
 from console.accounts import AccountStore
 from pride.events import Event, EventKind
+from procedure_language.model import CallInstruction, CommandInstruction
+from procedure_language.parser import load_procedure
 from records.audit_chain import StoredEvent
 from records.audit_log import AuditLog
 from support.second_operator import APPROVED_BY_BOB, approver_env
@@ -371,9 +373,26 @@ DELAY = 1.3
 #: moves the arm, over the eleven executions (six motions and five looks). If the templates
 #: change, a clean run shows the new number (every goal SUCCEEDED once).
 IVA_ARM_GOALS = 19
+
+
+def nominal_commands(path: Path) -> int:
+    """The commands a run of the procedure sends when nothing goes wrong: those of its nominal
+    steps (none branches), each call counting its sub-procedure's."""
+    count = 0
+    for step in load_procedure(path).steps:
+        if step.contingency:
+            continue
+        for i in step.instructions:
+            if isinstance(i, CommandInstruction):
+                count += 1
+            elif isinstance(i, CallInstruction):
+                count += nominal_commands(path.parent / i.procedure)
+    return count
+
+
 #: Commands of one run (adds, poses, plans, executes, the bay's inventory, locates, unlock, lock,
-#: deletes) and its executions.
-IVA_COMMANDS = 45
+#: deletes), as the procedure and its look, locate, register calls write them; and its executions.
+IVA_COMMANDS = nominal_commands(PROCEDURE)
 IVA_EXECUTIONS = 11
 #: The first placement of a filter on the rack (step 3): the execution after the pull-out.
 PLACE_DIRTY = "insert_and_release"
