@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -22,6 +23,7 @@ def test_a_procedure_given_to_check_is_linted_one_line_per_problem(tmp_path: Pat
     text = PROCEDURE.read_text().replace('name="plan_trajectory"', 'name="plan_trajectry"', 1)
     assert text != PROCEDURE.read_text()
     broken.write_text(text)
+    shutil.copy(PROCEDURE.parent / "iva_look_locate_register.xml", tmp_path)  # its call resolves next to it
     line = next(n for n, row in enumerate(text.splitlines(), 1) if "plan_trajectry" in row)
     proc = caretaker("check", str(PROCEDURE), str(broken))
     assert proc.returncode == 1, proc.stdout + proc.stderr
