@@ -483,8 +483,8 @@ class OnboardSupervisor:
                     continue
                 values = answer.values
                 status, head = str(values.get("status")), values.get("head_seq")
-                if status == "unknown" and accepted_at is not None and answer.sent_at < accepted_at:
-                    continue  # it reached the habitat before the unit
+                # one that went before the unit was accepted may have found no run yet (its events count)
+                early = status == "unknown" and accepted_at is not None and answer.sent_at < accepted_at
                 heard = time.time()
                 if silent:
                     self._say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
@@ -498,6 +498,8 @@ class OnboardSupervisor:
                 snapshot = _snapshot(values.get("snapshot_json"), downlink.head_seq) or last.snapshot
                 last = HabitatNews(snapshot, str(values.get("habitat_time", "")), heard, waiting)
                 self._news(last)
+                if early:
+                    continue
                 if waiting != waited and caught_up:
                     waited = waiting
                     if waiting:

@@ -3,12 +3,15 @@
 One request at a time leaves the habitat without one for a round trip after each answer: an event
 then (the run's end among them) waits for the next request to arrive, up to a round trip and a
 half after it happened before the ground hears of it. So :class:`FollowRequests` sends a request
-to ``/caretaker_onboard/follow`` every :attr:`LightTime.follow_every` (a quarter round trip),
-whatever came back, and another at once in place of each that an event took; each waits on the
-habitat :attr:`LightTime.follow_wait`. The habitat gives each event to one of them only, and keeps
-the newest waiting for the run's end (:mod:`onboard.followers`), so the end comes down one light
-time after it happened. What an answer lost with its connection leaves out, :meth:`catch_up`
-asks for: every event above the ground's head, from ``/caretaker_onboard/events``, at once.
+to ``/caretaker_onboard/follow`` every :attr:`LightTime.follow_every` (half a round trip),
+whatever came back, each waiting on the habitat :attr:`LightTime.follow_wait` (two intervals).
+The habitat gives each event to one of them only, and keeps the newest waiting until the next
+arrives (:mod:`onboard.followers`): one is always there, so the run's end comes down one light
+time after it happened, and any other event within one interval more. No request is sent in
+place of one answered: each arrival already lets the one before it answer, and a request per
+answer would make answers beget requests. What an answer lost with its connection leaves out,
+:meth:`catch_up` asks for: every event above the ground's head, from ``/caretaker_onboard/events``,
+at once.
 """
 
 from __future__ import annotations
@@ -90,8 +93,6 @@ class FollowRequests:
             events = None
         if not isinstance(events, list):
             raise LinkError(FOLLOW_SERVICE if follows else EVENTS_SERVICE, "events_json is not a JSON list")
-        if follows and events:
-            self._send(follows=True)  # in place of the request that event took from the habitat
         return FollowAnswer(values, events, sent_at)
 
     def close(self) -> None:

@@ -408,7 +408,8 @@ class HabitatRuns:
 
     def follow(self, run_id: str, after_seq: int, wait_s: float = 0.0, max_events: int = 0) -> EventsAnswer:
         """As :meth:`events`, for a ground that keeps several requests waiting: each event goes down
-        once, and the newest request waits for the run's end (:mod:`onboard.followers`)."""
+        once, the newest request waits for the run's end (:mod:`onboard.followers`), and an answer
+        without events carries no snapshot (the ground has the one before)."""
         with self._followers.waiting(run_id, after_seq) as following:
             return self._events(run_id, after_seq, wait_s, max_events, following)
 
@@ -438,6 +439,7 @@ class HabitatRuns:
                 taken = self._followers.take(following, read, ended=status != "active", due=due, limit=limit)
                 if taken is not None:
                     sent, head = taken
+                    snapshot = snapshot if sent else None  # the ground has it from the answer before
                     break
             with self._news:
                 if self._wakes == seen:

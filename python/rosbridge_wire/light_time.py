@@ -10,9 +10,9 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 - a request is answered within its work plus one round trip (:meth:`LightTime.answer_within`);
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;
-- a ground following an onboard run sends a request for its events every quarter round trip (at
-  least 0.5 s, at most 15 s), each waiting on the habitat two of those: one waits there whenever an
-  event happens (:attr:`LightTime.follow_every`, :attr:`LightTime.follow_wait`);
+- a ground following an onboard run sends a request for its events every half round trip (at
+  least 0.25 s, at most 15 s), each waiting on the habitat two of those: one waits there whenever
+  an event happens (:attr:`LightTime.follow_every`, :attr:`LightTime.follow_wait`);
 - a signed login stays valid for its trip across the link and then as long as on a short one
   (:attr:`LightTime.login_lifetime`); what goes up over a new connection (an onboard unit and the
   approvals it carries) arrives after opening it and one delay (:attr:`LightTime.uplink_within`);
@@ -34,8 +34,8 @@ BASE_S = 10.0
 #: Round trips to open a wss:// connection and hear the first answer: TCP, TLS, upgrade, login.
 OPENING_ROUND_TRIPS = 4
 #: The shortest and longest time between a ground's requests for an onboard run's events: no busier
-#: than twice a second on a short link; on a long one within the habitat's longest wait (30 s) for two.
-FOLLOW_EVERY_S = (0.5, 15.0)
+#: than four a second on a short link; on a long one within the habitat's longest wait (30 s) for two.
+FOLLOW_EVERY_S = (0.25, 15.0)
 
 
 @dataclass(frozen=True)
@@ -59,10 +59,12 @@ class LightTime:
 
     @property
     def follow_every(self) -> float:
-        """Seconds between a ground's requests for an onboard run's events, whatever comes back: a
-        quarter round trip, so one arrives on the habitat at least that often."""
+        """Seconds between a ground's requests for an onboard run's events, whatever comes back: half
+        a round trip. The habitat keeps the newest waiting, so the run's end comes down at once
+        whatever the interval; an event before it waits at most an interval more (and each
+        answer carries the executive's state: the interval is what the downlink pays for it)."""
         least, most = FOLLOW_EVERY_S
-        return min(max(self.round_trip / 4, least), most)
+        return min(max(self.round_trip / 2, least), most)
 
     @property
     def follow_wait(self) -> float:

@@ -55,6 +55,8 @@ class LinkedHabitat(RosbridgeClient):
         self.runs = runs
         self.crossings: list[Crossing] = []
         self.lost: set[int] = set()
+        self.unit_held = asyncio.Event()  # cleared: the unit reaches the habitat after the first follow request
+        self.unit_held.set()
         self.ready.set()
 
     async def call(self, service: str, args: Mapping[str, Any], *, timeout: float | None = None) -> Mapping[str, Any]:
@@ -64,8 +66,12 @@ class LinkedHabitat(RosbridgeClient):
             FOLLOW_SERVICE: lambda: events_values(self.runs.follow, args),
         }
         await asyncio.sleep(ONE_WAY_S)  # on its way up
+        if service == UPLINK_SERVICE:
+            await self.unit_held.wait()
         arrived = time.time()
         answer = dataclasses.asdict(await asyncio.to_thread(handlers[service]))
+        if service == FOLLOW_SERVICE:
+            self.unit_held.set()
         crossing = Crossing(service, args, arrived, answer)
         self.crossings.append(crossing)
         carried = [c for c in self.crossings if c.service == FOLLOW_SERVICE and c.answer["events_json"] != "[]"]
@@ -123,6 +129,24 @@ def test_the_ground_hears_of_the_runs_end_from_a_request_waiting_there_when_it_e
         carried = [seq for c in follows for seq in _seqs(c.answer)]
         assert sorted(carried) == [e.seq for e in there]
         assert not [c for c in link.crossings if c.service == EVENTS_SERVICE]  # nothing was lost to catch up
+    finally:
+        ground.close()
+
+
+def test_a_request_that_reached_the_habitat_before_the_unit_did_is_not_taken_for_the_runs_end(
+    habitat: tuple[HabitatRuns, list[Any]], make_unit: Callable[..., Unit], tmp_path: Path
+) -> None:
+    runs, _ = habitat
+    unit = make_unit(values={})
+    link = LinkedHabitat(runs)
+    link.unit_held.clear()  # the first request for events overtakes the unit on the way up
+    result, said, ground = _supervised(runs, unit, tmp_path, link)
+    try:
+        first = next(c for c in link.crossings if c.service == FOLLOW_SERVICE)
+        assert first.answer["status"] == "unknown" and link.crossings.index(first) == 0
+        assert result.status == "completed", said
+        here, there = ground.stored_events(unit.run_id), runs.audit.stored_events(unit.run_id)
+        assert [(e.seq, e.hash) for e in here] == [(e.seq, e.hash) for e in there]
     finally:
         ground.close()
 
