@@ -19,10 +19,20 @@ the delay, and reports from the run's audit log, the ledger's records and the li
 
 ``onboard`` rows run the same procedure with ``caretaker run --onboard`` (the habitat deployment
 with ``onboard: true``): N is then the round trips the ground needs at all (the uplink, and the
-first and last requests for events), so the bound is habitat + 3 round trips.
+first and last requests for events), so the bound is habitat + 3 round trips. ``supervised`` rows
+run it onboard with the supervisor's session already open: ``caretaker supervise`` has opened its
+session to the habitat before ``caretaker run --onboard --via-supervisor`` hands it the unit. Both
+onboard modes also report what the ground sees against the habitat's own time:
 
-    .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16] [--modes ground,onboard] [--time-scale 1]
-                                   [--robot iva|eva] [--displace SEED]
+- ``seen``: from the unit leaving the runner (its ``goes up`` or ``handed`` line) to its ``RESULT``
+  line, the ground's clock: the ground has stored the run's last event;
+- ``on habitat``: from the unit's arrival on the habitat (its files written there) to
+  RUN_COMPLETED, the habitat's clock (one machine here: the same clock);
+- ``limit`` = on habitat + 1.5 round trips: a way up, the run, the way down, and half a round
+  trip spare.
+
+    .venv/bin/python bench/link.py [--cases 0,1.3,1.3+loss,2.6@64/16|45] [--modes ground,onboard|supervised]
+                                   [--time-scale 1] [--robot iva|eva] [--displace SEED]
 
 ``--robot eva --displace SEED`` flies the EVA inspection on a displaced Gateway: each hull target
 is located from the arm's camera on the habitat, and only the located pose crosses the link.
@@ -93,7 +103,13 @@ CASES = {
     # accepting it to the WebSocket upgrade, and TLS + upgrade take four one-way delays after the
     # accept here (10.4 s): the bridge resets the connection.
     "2.6@64/16": Case("2.6 s, 64/16 kbit/s, ws://", 2.6, down_kbps=64, up_kbps=16, tls=False),
+    "45": Case("45 s one way", 45.0),  # Mars at its closest is 3 minutes: a long link, in a bench's time
 }
+#: What a run of the bench flies by default: a ground run at 45 s would take over an hour.
+DEFAULT_CASES = ("0", "1.3", "1.3+loss", "2.6@64/16")
+#: The ways of flying a case: from the ground, onboard with a session of the runner's own, and
+#: onboard handed to the supervisor whose session is open already.
+MODES = ("ground", "onboard", "supervised")
 
 
 def _ground_binding(
@@ -153,12 +169,12 @@ def fly(
     seed: int,
     env: dict[str, str],
     status_throttle: float | None = None,
-    onboard: bool = False,
+    mode: str = "ground",
     robot: Robot = ROBOTS["iva"],
     displace: int | None = None,
 ) -> dict[str, Any]:
-    """One run of ``robot``'s procedure across ``case``'s link, from the ground or onboard, on its
-    world as drawn or (``displace``) displaced by that seed; its figures."""
+    """One run of ``robot``'s procedure across ``case``'s link, flown as ``mode`` says (:data:`MODES`),
+    on its world as drawn or (``displace``) displaced by that seed; its figures."""
     from caretaker.certs import make_link_credentials
     from caretaker.demo import DEMO_APPROVER, demo_approver
     from caretaker.link import LinkControl
@@ -171,14 +187,21 @@ def fly(
         folder = Path(tmp)
         credentials = make_link_credentials(folder / "link", ["127.0.0.1"], days=1)
         binding = _ground_binding(folder, robot, case, credentials, status_throttle)
+        onboard = mode != "ground"
         deployment = _deployment(folder, robot, case, credentials, binding, seed, onboard, displace)
         up = caretaker("up", str(deployment), "--time-scale", time_scale, env=env, name="up")
-        run = None
+        run = supervisor = None
+        lines: list[tuple[float, str]] = []  # the runner's, each with the ground's clock when it came
         try:
             url = up.wait_for_line(r"^READY stack ", 300).split()[-1]
             db = f"sqlite:///{folder / 'audit.db'}"
             # a hazardous command (the IVA unlock) is approved by the demo's second operator, at once
             approver = {APPROVER_PASSWORD_ENV: demo_approver(db)}
+            if mode == "supervised":  # its session open before the run: the opening is not the run's
+                supervisor = caretaker(
+                    "supervise", "--binding", str(binding), "--rosbridge", url, "--db", db, env=env, name="supervise"
+                )
+                supervisor.wait_for_line(r"^READY supervise ", case.delay * 10 + 120)
             started = time.monotonic()
             run = caretaker(
                 "run",
@@ -196,10 +219,12 @@ def fly(
                 *("--confirm-hazardous", "--approver", DEMO_APPROVER),
                 *robot.run_options,
                 *(["--onboard"] if onboard else []),
+                *(["--via-supervisor"] if mode == "supervised" else []),
                 env={**env, **approver},
                 name="run",
+                on_line=lambda _, line: lines.append((time.time(), line)),
             )
-            words = run.wait_for_line(r"^RESULT ", 1800).split()
+            words = run.wait_for_line(r"^RESULT ", 1800 + case.delay * 20).split()
             wall = time.monotonic() - started
             if words[1] != "completed":
                 raise RuntimeError(f"{case.name}: the run ended {words[1]}:\n{run.tail(40)}")
@@ -211,9 +236,11 @@ def fly(
             stats = LinkControl(folder / "state" / "link.sock").stats()
             with contextlib.closing(sqlite3.connect(folder / "state" / "ledger" / "command_ledger.sqlite")) as ledger:
                 records = ledger.execute("SELECT service, finished - started FROM commands").fetchall()
+            arrived = _unit_arrival(folder / "state" / "onboard") if onboard else None
         finally:
-            if run is not None:
-                run.stop()
+            for process in (run, supervisor):
+                if process is not None:
+                    process.stop()
             up.stop()
     first = next(e.time for e in events if e.kind is EventKind.RUN_STARTED)
     last = next(e.time for e in events if e.kind is EventKind.RUN_COMPLETED)
@@ -222,9 +249,18 @@ def fly(
     motion = sum(seconds for service, seconds in records if service.endswith("/execute_command"))
     run_s = (last - first).total_seconds()
     bound = habitat + answers * 2 * case.delay
+    seen = on_habitat = limit = None
+    if arrived is not None:
+        sent = next(t for t, line in lines if " goes up to " in line or line.startswith("handed run "))
+        seen = next(t for t, line in lines if line.startswith("RESULT ")) - sent
+        on_habitat = last.timestamp() - arrived
+        limit = on_habitat + 1.5 * 2 * case.delay
     return {
         "case": case.name,
-        "mode": "onboard" if onboard else "ground",
+        "mode": mode,
+        "seen": seen,
+        "on_habitat": on_habitat,
+        "limit": limit,
         "wall": wall,
         "run": run_s,
         "habitat": habitat,
@@ -239,10 +275,24 @@ def fly(
     }
 
 
+def _unit_arrival(onboard_state: Path) -> float:
+    """When the unit reached the habitat (epoch s): its files were written there as it arrived,
+    before the habitat started its run."""
+    return min(path.stat().st_mtime for path in onboard_state.glob("units/*/*") if path.name != "unit.json")
+
+
+def _seconds(value: float | None) -> str:
+    return "–" if value is None else f"{value:.1f} s"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", default=",".join(CASES), help=f"comma-separated, of {', '.join(CASES)}")
-    parser.add_argument("--modes", default="ground,onboard", help="comma-separated, of ground, onboard")
+    parser.add_argument(
+        "--cases",
+        default=",".join(DEFAULT_CASES),
+        help=f"comma-separated, of {', '.join(CASES)} (default {','.join(DEFAULT_CASES)})",
+    )
+    parser.add_argument("--modes", default="ground,onboard", help=f"comma-separated, of {', '.join(MODES)}")
     parser.add_argument("--time-scale", default="1", help="simulation speed (1: real motion time; default 1)")
     parser.add_argument("--seed", type=int, default=7, help="the link's loss seed (default 7)")
     parser.add_argument("--robot", choices=sorted(ROBOTS), default="iva", help="whose procedure to fly (default iva)")
@@ -260,10 +310,13 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(101, 200)))
     env = dict(os.environ)
     modes = args.modes.split(",")
-    if not set(modes) <= {"ground", "onboard"}:
-        parser.error(f"--modes takes ground and onboard, not {args.modes}")
-    print("| link | mode | run | wall | habitat (motion) | N | bound | ratio | bytes up | bytes down | stalls |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    if not set(modes) <= set(MODES):
+        parser.error(f"--modes takes {', '.join(MODES)}, not {args.modes}")
+    print(
+        "| link | mode | run | wall | habitat (motion) | N | bound | ratio | seen | on habitat | limit "
+        "| bytes up | bytes down | stalls |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for name in args.cases.split(","):
         for mode in modes:
             r = fly(
@@ -272,13 +325,14 @@ def main(argv: list[str] | None = None) -> int:
                 seed=args.seed,
                 env=env,
                 status_throttle=args.status_throttle,
-                onboard=mode == "onboard",
+                mode=mode,
                 robot=ROBOTS[args.robot],
                 displace=args.displace,
             )
             print(
                 f"| {r['case']} | {r['mode']} | {r['run']:.1f} s | {r['wall']:.1f} s "
                 f"| {r['habitat']:.1f} s ({r['motion']:.1f} s) | {r['N']} | {r['bound']:.1f} s | {r['ratio']:.2f}× "
+                f"| {_seconds(r['seen'])} | {_seconds(r['on_habitat'])} | {_seconds(r['limit'])} "
                 f"| {r['up'] / 1024:.1f} KiB | {r['down'] / 1024:.1f} KiB | {r['stalls']} |",
                 flush=True,
             )
