@@ -16,9 +16,11 @@ import argparse
 import sys
 import threading
 import time
+from datetime import UTC, datetime
 
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from console.ground.change_feed import ChangeNotice, open_change_feed
+from console.ground.run_hosts import DEFAULT_LEASE_S, RunHosting
 from onboard.unit import Unit
 from pride.executive import RunStatus
 from pride.phrasing import Wording
@@ -79,7 +81,7 @@ def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, ch
     finally:
         feed.close()
     if handoff.state == DETACHED:
-        terminal.say(f"{handoff.supervisor} stopped supervising: the run goes on on the habitat")
+        terminal.say(f"its supervisor, {handoff.supervisor}, no longer follows it: {handoff.message}")
         terminal.say(f"follow it again: caretaker run --attach {run_id} --binding {args.binding}{db} --user USER")
     elif handoff.result != RunStatus.COMPLETED.value and handoff.message:
         terminal.say(f"caretaker run: {handoff.message}")
@@ -97,25 +99,41 @@ def _followed(
     left_behind: LeftBehind,
     terminal: TerminalLines,
 ) -> Handoff:
-    """Show the run's record as its supervisor stores it, until supervision ends; the handoff then."""
-    head = 0
-    ready = False
-    handoff = handoffs.get(run_id)
-    assert handoff is not None  # handoffs are never removed
-    terminal.say(f"taken by {handoff.supervisor}: it uplinks the unit on the session it keeps open")
-    while True:
-        news.clear()
+    """Show the run's record as its supervisor stores it, until supervision ends; the handoff then.
+    A supervisor whose lease on the run ran out is gone (killed, or it lost the database): the
+    handoff is then ``detached`` here, as the supervisor would have left it."""
+    hosting = RunHosting(audit.engine, host=f"runner following {run_id}")  # it reads the supervisor's lease
+    try:
+        head = 0
+        ready = False
         handoff = handoffs.get(run_id)
-        assert handoff is not None
-        events = audit.events(run_id, after=head)  # read after the state: all of an ended run's events
-        if not ready and (handoff.state == UPLINKED or events):
-            terminal.say(f"the habitat took the unit: it runs {run_id}")
-            terminal.say(f"READY run {run_id}")
-            ready = True
-        for event in events:
-            printer(event)
-            left_behind(event)
-            head = event.seq
-        if handoff.state in (ENDED, DETACHED):
-            return handoff
-        news.wait()
+        assert handoff is not None  # handoffs are never removed
+        terminal.say(f"taken by {handoff.supervisor}: it uplinks the unit on the session it keeps open")
+        while True:
+            news.clear()
+            handoff = handoffs.get(run_id)
+            assert handoff is not None
+            events = audit.events(run_id, after=head)  # read after the state: all of an ended run's events
+            if not ready and (handoff.state == UPLINKED or events):
+                terminal.say(f"the habitat took the unit: it runs {run_id}")
+                terminal.say(f"READY run {run_id}")
+                ready = True
+            for event in events:
+                printer(event)
+                left_behind(event)
+                head = event.seq
+            if handoff.state in (ENDED, DETACHED):
+                return handoff
+            lease = hosting.record(run_id)
+            if lease is not None and not lease.alive:
+                gone = (
+                    f"its lease on the run ran out at {lease.lease_until:%H:%M:%S}Z (it stopped, or lost the "
+                    "database); the run goes on on the habitat"
+                )
+                handoffs.end(run_id, detached=True, result=DETACHED, message=gone)
+                continue  # read as it ended: detached, or ended just before
+            # a live supervisor renews its lease every second: a check as it runs out
+            until = (lease.lease_until - datetime.now(UTC)).total_seconds() if lease else DEFAULT_LEASE_S
+            news.wait(min(max(until, 0.5), DEFAULT_LEASE_S))
+    finally:
+        hosting.close()

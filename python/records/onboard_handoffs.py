@@ -8,8 +8,8 @@ keeping the run's record in the audit log of the same database, where the runner
 A handoff's ``state`` goes ``handed`` → ``taken`` (by one supervisor) → ``uplinked`` (the habitat
 accepted the unit) → ``ended`` (``result``: the run's status, or why the habitat did not take
 it); ``withdrawn`` when its runner stopped waiting before any supervisor took it; ``detached``
-when its supervisor stopped and the run goes on on the habitat (``caretaker run --attach``, or a
-supervisor taking it again, catches its record up). Each step is one conditional UPDATE from the
+when its supervisor stopped and the run goes on on the habitat (``caretaker run --attach`` catches
+its record up and follows it). Each step is one conditional UPDATE from the
 state before it, so a run is taken by one supervisor only, and a runner withdrawing it races a
 supervisor taking it safely. The supervisor that took a run also holds it as any host holds a
 live run, under a lease it renews (``run_hosts``, :mod:`console.ground.run_hosts`): what lets a
@@ -22,7 +22,6 @@ reads the table (:mod:`console.ground.change_feed`). The runner role may read, a
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
@@ -103,20 +102,17 @@ class OnboardHandoffs:
             row = connection.execute(select(*_COLUMNS).where(_T.run_id == run_id)).first()
         return Handoff(**row._asdict()) if row is not None else None
 
-    def waiting(self, binding: str, states: Iterable[str] = (HANDED,)) -> list[Handoff]:
-        """The handoffs of ``binding`` in ``states``, oldest first."""
+    def waiting(self, binding: str) -> list[Handoff]:
+        """The runs handed to ``binding``'s supervisors that none has taken yet, oldest first."""
         with self._engine.connect() as connection:
             rows = connection.execute(
-                select(*_COLUMNS)
-                .where(_T.binding == binding, _T.state.in_(list(states)))
-                .order_by(_T.handed_at, _T.run_id)
+                select(*_COLUMNS).where(_T.binding == binding, _T.state == HANDED).order_by(_T.handed_at, _T.run_id)
             ).all()
         return [Handoff(**row._asdict()) for row in rows]
 
-    def take(self, run_id: str, supervisor: str, *, again: bool = False) -> bool:
-        """Whether ``supervisor`` took the run (from ``handed``; ``again``: from ``detached``): one does."""
-        when = {"taken_at": datetime.now(UTC), "ended_at": None, "result": None, "message": None}
-        return self._step(run_id, DETACHED if again else HANDED, TAKEN, supervisor=supervisor, **when)
+    def take(self, run_id: str, supervisor: str) -> bool:
+        """Whether ``supervisor`` took the handed run: one supervisor does."""
+        return self._step(run_id, HANDED, TAKEN, supervisor=supervisor, taken_at=datetime.now(UTC))
 
     def uplinked(self, run_id: str) -> bool:
         """The habitat accepted the run's unit."""

@@ -21,6 +21,8 @@ import pytest
 
 from caretaker.supervise_command import Supervisor
 from caretaker.via_supervisor import hand_to_supervisor
+from console.ground.change_feed import ChangeNotice, open_change_feed
+from console.ground.run_hosts import PublishedView, RunHosting
 from onboard.habitat_runs import HabitatRuns
 from onboard.unit import Unit
 from procedure_language.lint import check_procedure
@@ -106,3 +108,37 @@ def test_a_handed_run_goes_up_on_the_supervisors_session_and_its_runner_follows_
     assert f"RESULT detached run {holding.run_id}" in said
     assert f"follow it again: caretaker run --attach {holding.run_id} --binding lab.yaml" in said
     assert len([c for c in link.crossings if c.service == "/caretaker_onboard/uplink"]) == 2  # one session, two units
+
+
+def test_a_supervisor_whose_lease_runs_out_is_gone_and_its_runner_says_the_run_goes_on(
+    make_unit: Callable[..., Unit], sysreps: dict[str, SysRep], tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """A supervisor killed while it follows a run: nothing says ``detached`` but its lease running out."""
+    args = _runner(tmp_path)
+    audit = AuditLog(args.db)
+    unit = make_unit()
+    handoffs = OnboardHandoffs(audit.engine)
+    dying = RunHosting(audit.engine, host="supervisor elsewhere", lease=3.0)
+
+    def supervisor_that_dies(notice: ChangeNotice) -> None:  # takes the run, claims it, then renews nothing
+        if notice.payload == f"handed {unit.run_id}" and handoffs.take(unit.run_id, dying.host):
+            view = PublishedView({}, "active", "autonomous")
+            dying.claim(unit.run_id, binding="lab.yaml", started_by="alice", procedure_view={}, source=lambda: view)
+            handoffs.uplinked(unit.run_id)
+            dying.close()
+
+    feed = open_change_feed(audit.engine)
+    feed.subscribe(supervisor_that_dies)
+    try:
+        assert feed.connected.wait(10)
+        assert hand_to_supervisor(args, audit, unit, check_procedure(PROCEDURE, sysreps)) == 1
+        handoff = handoffs.get(unit.run_id)
+        assert (
+            handoff is not None and handoff.state == "detached" and "lease on the run ran out" in str(handoff.message)
+        )
+    finally:
+        feed.close()
+        audit.close()
+    said = capfd.readouterr().out
+    assert "its supervisor, supervisor elsewhere, no longer follows it: its lease on the run ran out at" in said
+    assert f"RESULT detached run {unit.run_id}" in said

@@ -39,15 +39,18 @@ def test_a_handed_run_is_taken_by_one_supervisor_and_each_step_is_a_notice(datab
         assert handoffs.uplinked("run-1") and notice() == "uplinked run-1"
         assert handoffs.end("run-1", detached=True, result="detached", message="supervision stopped")
         assert notice() == "detached run-1"
-        assert handoffs.take("run-1", "supervisor B", again=True) and notice() == "taken run-1"
-        assert handoffs.end("run-1", detached=False, result="completed") and notice() == "ended run-1"
-        ended = handoffs.get("run-1")
-        assert ended is not None and (ended.state, ended.supervisor, ended.result) == (
-            "ended",
-            "supervisor B",
-            "completed",
-        )
-        assert not handoffs.end("run-1", detached=False, result="stopped")  # ended once
+        assert not handoffs.end("run-1", detached=False, result="completed")  # its supervision is over
+        detached = handoffs.get("run-1")
+        assert detached is not None and (detached.state, detached.supervisor) == ("detached", "supervisor A")
+
+        handoffs.hand("run-3", binding="iva-ground.yaml", unit_json="{}", user="bob", at_consoles=False)
+        assert notice() == "handed run-3"
+        assert handoffs.take("run-3", "supervisor B") and notice() == "taken run-3"
+        assert handoffs.end("run-3", detached=False, result="refused", message="no binding lab.yaml")
+        assert notice() == "ended run-3"
+        ended = handoffs.get("run-3")
+        assert ended is not None and (ended.state, ended.result) == ("ended", "refused")
+        assert (ended.supervisor, ended.message) == ("supervisor B", "no binding lab.yaml")
 
         handoffs.hand("run-2", binding="iva-ground.yaml", unit_json="{}", user="alice", at_consoles=False)
         assert notice() == "handed run-2"
