@@ -144,15 +144,13 @@ class Supervisor:
         try:
             unit = Unit.from_json(handoff.unit_json)
             with unit_checked(unit, self.sysreps) as checked:
-                result = await self._follow(unit, checked, handoff, say)
+                await self._follow(unit, checked, handoff, say)
         except (UnitError, ProcedureError, SysRepError) as exc:
-            result = Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}")
+            self._end(Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}"), say)
         except DownlinkError as exc:
-            result = Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}")
-        say(f"ENDED {result.status}{': ' + result.message if result.message else ''}")
-        self.handoffs.end(run_id, detached=result.status == "detached", result=result.status, message=result.message)
+            self._end(Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}"), say)
 
-    async def _follow(self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say) -> Supervision:
+    async def _follow(self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say) -> None:
         try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
             host: TerminalHost | None = TerminalHost(self.audit, binding=unit.binding, onboard=True, name=self.name)
         except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
@@ -174,10 +172,18 @@ class Supervisor:
             try:
                 hosting.hold(supervisor)
             except HostedElsewhere as exc:  # one supervisor per run: the one that holds it goes on
-                return Supervision("refused", unit.run_id, str(exc))
-            return await supervisor.supervise(detach=self._stopping)
+                self._end(Supervision("refused", unit.run_id, str(exc)), say)
+                return
+            # ended before the lease goes: the runner reads how it ended, not a lease run out
+            self._end(await supervisor.supervise(detach=self._stopping), say)
         finally:
             hosting.close()
+
+    def _end(self, result: Supervision, say: Say) -> None:
+        """Supervision of the run is over: its handoff says how (where its runner reads it)."""
+        say(f"ENDED {result.status}{': ' + result.message if result.message else ''}")
+        detached = result.status == "detached"
+        self.handoffs.end(result.run_id, detached=detached, result=result.status, message=result.message)
 
     def _uplinked(self, run_id: str) -> None:
         """The habitat accepted the run's unit: the handoff says so (its runner prints READY)."""
