@@ -47,9 +47,9 @@ CLEAN_FILTER = "CDRA-F-0012"
 # The manual instruction just before the arm moves in to pull the dirty filter.
 CONFIRM_CLEAR = "2.6"
 EXECUTE_PULL = "2.7"
-# Step 8, removal_interrupted: the operator's check, then plan and execute the pull-out again.
-CHECK_AFTER_INTERRUPTION = "8.1"
-EXECUTE_PULL_AGAIN = "8.6"
+# Step 9, removal_interrupted: the operator's check, then plan and execute the pull-out again.
+CHECK_AFTER_INTERRUPTION = "9.1"
+EXECUTE_PULL_AGAIN = "9.6"
 
 
 class RobotSide:
@@ -348,7 +348,7 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
     (violated,) = [e for e in events if e.kind is EventKind.MONITOR_VIOLATED]
     assert violated.data.to_json()["value"] == "empty" and (violated.instruction or "")[:2] in ("2.", "3."), violated
     (went,) = [e for e in events if e.kind is EventKind.WENT_TO]
-    assert went.data.to_json()["from"][:2] in ("2.", "3.") and went.data.to_json()["next"] == "9.1", went
+    assert went.data.to_json()["from"][:2] in ("2.", "3.") and went.data.to_json()["next"] == "10.1", went
     placed = [
         e
         for e in events
@@ -356,7 +356,7 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
     ]
     assert not placed, placed  # no motion after the violation: the filter was never carried to the rack
     awaiting = [e.instruction for e in events if e.kind is EventKind.AWAITING_OPERATOR]
-    assert awaiting[-1] == "9.1", awaiting  # the contingency's check, for the operator
+    assert awaiting[-1] == "10.1", awaiting  # the contingency's check, for the operator
 
 
 def test_a_run_from_the_insertion_on_a_world_left_there_completes_and_its_report_says_where_it_started(

@@ -15,13 +15,14 @@ from console.folded_run import fold_events
 from console.monitor_states import limit_state
 from pride.events import PAX, Event, EventKind
 from pride.executive import Executive, Hold, InstructionStatus, Mode, RunStatus
+from pride.monitoring import MonitorBoard
 from pride.report import summarize, to_markdown
 from procedure_language.limits import Limits
 from procedure_language.lint import check_procedure, lint_file
 from procedure_language.sysrep import SysRep, Telemetry
 from support.audit import RecordedJournal
 from support.executive_runs import TIMEOUT, Bench, finished, held
-from support.procedures import FIXTURES
+from support.procedures import FIXTURES, REPO
 
 
 def of(journal: RecordedJournal, kind: EventKind) -> list[Event]:
@@ -106,6 +107,27 @@ def test_the_console_says_a_values_limit_state_in_words_not_by_colour_alone() ->
     shut = Telemetry("door_open", "Door Open", "boolean", limits=Limits(equals=False))
     assert limit_state(shut, True) == {"state": "red", "words": "RED", "limit": "not false"}
     assert limit_state(shut, None) is None and limit_state(Telemetry("x", "X", "real"), 3.0) is None
+
+
+def test_the_iva_insertion_watches_the_cabinet_lock_open_and_its_own_lock_step_is_not_watched(
+    sysreps: dict[str, SysRep],
+) -> None:
+    """The shipped IVA procedure halts if the cabinet's lock closes while the clean filter goes in;
+    the lock the procedure closes itself is a step of its own, where that monitor no longer watches."""
+    procedure = check_procedure(REPO / "procedures" / "iva_cdra_filter_replacement.xml", sysreps).procedure
+    steps = {step.id: step.number for step in procedure.steps}
+    assert steps["lock_clean"] == steps["insert_clean"] + 1
+    board = MonitorBoard(procedure, sysreps)
+    board.enter(steps["insert_clean"])
+    assert board.update("cdra", "filter_locked", False, now=0.0) == []
+    (closed,) = board.update("cdra", "filter_locked", True, now=1.0)
+    assert closed.violated and closed.monitor.on_violation == "halt"
+    assert closed.reason == (
+        "monitor The cabinet's lock stays open while the clean filter goes in: "
+        "cdra.filter_locked = True (must be = false)"
+    )
+    board.enter(steps["lock_clean"])
+    assert board.update("cdra", "filter_locked", True, now=2.0) == []
 
 
 def test_a_monitor_in_a_called_procedure_is_an_error_not_silently_unwatched(sysreps: dict[str, SysRep]) -> None:

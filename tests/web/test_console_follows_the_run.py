@@ -77,7 +77,7 @@ def test_every_instruction_of_the_shipped_procedures_reads_as_a_sentence(sign_in
     texts = sentences(alice)
     assert_readable(texts)
     assert texts["2.2"] == "Plan the grasp-and-pull trajectory for cdra_filter:0"
-    assert texts["6.5"] == "Remove the CDRA filter AT (cdra_filter:0)"
+    assert texts["7.5"] == "Remove the CDRA filter AT (cdra_filter:0)"
     assert texts["4.2"] == "Read which rack slot filter ‹clean_filter_id› is seated in"
     assert texts["1.13/2.1"] == "Locate rack slot 3 from its markers in the wrist camera"  # the caller's words
     expect(instruction(alice, "2.2").locator(".detail")).to_contain_text(
