@@ -37,6 +37,7 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
+from sim.cabin_air_node import CabinAirInterface
 from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, render, write_png
 from sim.cdra_cabinet import find_filter
 from sim.collision_world import collision_world, point_pose
@@ -151,6 +152,7 @@ class SimNode(Node):
             self.cdra_id_pub = self.create_publisher(String, "cdra/installed_filter_id", LATCHED)
             self.cdra_condition_pub = self.create_publisher(String, "cdra/installed_filter_condition", LATCHED)
             self.cdra_clean_pub = self.create_publisher(String, "cdra/clean_filter_ids", LATCHED)
+            self.cabin_air = CabinAirInterface(self, sim, latched=LATCHED, group=group)
             self.unlock_srv = self.create_service(
                 Trigger, "cdra/unlock_filter", self.unlock_callback, qos_profile=SERVICE_QOS, callback_group=group
             )

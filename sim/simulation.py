@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as p
 
+from sim.cabin_air import CabinAir
 from sim.cameras import fixed_camera_pose
 from sim.cdra_cabinet import CdraCabinet
 from sim.displacement import displaced_scene
@@ -34,6 +35,8 @@ LOG = logging.getLogger(__name__)
 PENETRATION = 0.001
 #: Default goal tolerance (rad) when a goal gives 0.
 DEFAULT_GOAL_TOLERANCE = 0.01
+#: s of sim time between advances of the cabin's CO2: a lock or a seating counts at most this late.
+AIR_PERIOD = 0.1
 
 Pose = tuple[tuple[float, float, float], tuple[float, float, float, float]]
 
@@ -90,6 +93,9 @@ class Simulation:
         self.cabinet = CdraCabinet(self.physical.cabinet, self.world) if self.physical.cabinet else None
         locked = self.cabinet.is_locked if self.cabinet else (lambda slot: False)
         self.filters = FilterSlots(self.physical, self.world, locked)
+        self.cabin_air = (
+            CabinAir.for_filters((f.id, f.condition) for f in self.physical.filters) if self.cabinet else None
+        )
         self.gripper = (
             Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
         )
@@ -220,12 +226,22 @@ class Simulation:
                 p.resetJointState(self.robot, joint, q, physicsClientId=self.client)
         self.filters.hold_kinematic(self.link_pose(self.tool_link))
         self.time += self.dt
+        self._breathe()
 
     def rest(self, steps: int) -> None:
         """Let ``steps`` physics steps of time pass in a world at rest (not :attr:`busy`, and settled):
         only the clock moves. Stepping bodies that do not move would change nothing but the CPU
         spent (caller holds ``world_lock``)."""
         self.time += steps * self.dt
+        self._breathe()
+
+    def _breathe(self) -> None:
+        """Advance the cabin's CO2 to now, with the filter seated and locked in the cabinet removing it."""
+        air, cabinet = self.cabin_air, self.cabinet
+        if air is None or cabinet is None or self.time - air.time < AIR_PERIOD:
+            return
+        seated = self.filters.in_slot(cabinet.slot)
+        air.advance(self.time, seated.id if seated is not None and cabinet.locked else None)
 
     def _advance_arm(self, run: TrajectoryRun) -> None:
         # The trajectory's clock stops at its end: a clock summed from steps can pass the end by a

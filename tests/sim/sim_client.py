@@ -21,7 +21,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import Bool, String
+from std_msgs.msg import Bool, Float64, String
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectoryPoint
 
@@ -54,6 +54,7 @@ class SimClient:
             ("/cdra/filter_present", Bool, LATCHED),
             ("/cdra/installed_filter_id", String, LATCHED),
             ("/cdra/installed_filter_condition", String, LATCHED),
+            ("/cdra/co2_partial_pressure", Float64, LATCHED),
             ("/robot_description", String, LATCHED),
             ("/sim/visual_world", VisualWorld, LATCHED),
         ]:

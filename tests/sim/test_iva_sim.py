@@ -21,6 +21,7 @@ from sim.trajectory import ErrorCode
 SCENE = "iva"
 ARM = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint", "wrist_3_joint"]
 HOME = [0.0, -1.9, 1.9, -1.570796, -1.570796, 0.0]
+CO2 = "/cdra/co2_partial_pressure"
 
 
 @pytest.fixture(scope="module")
@@ -314,6 +315,45 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     assert close_to(client.frame(f"filter/{dirty}")[0], client.frame("rack/slot_3")[0], 1e-4)
     assert client.filter_in_slot("rack/slot_3").filter_id == dirty
     assert client.filter_in_slot("cabinet/slot").message == "cabinet/slot is empty"
+    assert_ok(move_to(client, model, [HOME]))
+
+
+def test_the_cabin_co2_rises_with_the_cabinet_empty_and_falls_once_a_clean_filter_is_locked_in(
+    client: SimClient, model: ArmModel
+) -> None:
+    """After the swap above the cabinet is empty: nothing removes the crew's CO2. Each sample is a
+    sim second after the one before (sim/cabin_air_node.py), so two in a row say which way it goes."""
+    clean = "CDRA-F-0012"
+    client.wait_value("/cdra/filter_present", False)
+    before = client.fresh(CO2).data
+    assert client.fresh(CO2).data > before
+
+    # Pick the clean filter from rack slot 1, as the dirty one came out of the cabinet.
+    assert client.gripper("open").success
+    approach = model.slot_line("rack/slot_1", 0.15, 0.0, HOME)
+    assert_ok(move_to(client, model, [approach[0]]))
+    assert_ok(move_to(client, model, approach[1:], 0.2))
+    grasp = client.gripper("closed")
+    assert grasp.success and grasp.held_object == clean, grasp.message
+    pull = model.slot_line("rack/slot_1", 0.0, 0.45, approach[-1])
+    assert_ok(move_to(client, model, pull[1:], 0.2))
+
+    # Into the cabinet, released there, and locked.
+    insert = model.slot_line("cabinet/slot", 0.30, 0.0, HOME)
+    assert_ok(move_to(client, model, [HOME, insert[0]]))
+    assert_ok(move_to(client, model, insert[1:], 0.2))
+    release = client.gripper("open")
+    assert release.success and "seated in cabinet/slot" in release.message, release.message
+    retreat = model.slot_line("cabinet/slot", 0.0, 0.15, insert[-1])
+    assert_ok(move_to(client, model, retreat[1:], 0.2))
+    client.wait_value("/cdra/installed_filter_id", clean)
+    assert client.fresh(CO2).data > before  # still above where the cabin was when it emptied
+    assert client.lock().success
+    client.wait_value("/cdra/filter_locked", True)
+    locked_in = client.fresh(CO2).data  # a sample that may straddle the lock
+    after = client.fresh(CO2).data
+    assert after < locked_in
+    assert client.fresh(CO2).data < after
     assert_ok(move_to(client, model, [HOME]))
 
 
