@@ -169,6 +169,7 @@ class HabitatRuns:
         self._wakes = 0  # how often _news was notified
         self._followers = Followers(self._wake)
         self._runs: dict[str, _Run] = {}
+        self._starting: set[str] = set()  # the run of a unit being started (under _lock, read without it)
         self._accepted = {
             path.parent.name: Unit.from_json(path.read_text()) for path in self.units_dir.glob("*/unit.json")
         }
@@ -247,6 +248,7 @@ class HabitatRuns:
             known = ", ".join(sorted(self._bindings)) or "none"
             return refused(f"no binding {unit.binding!r} on this habitat (it has: {known})")
         folder = self.units_dir / unit_hash
+        self._starting.add(unit.run_id)  # requests for its events wait for it meanwhile (_status)
         try:
             run = self._start(unit, unit_hash, folder, binding)
         except ProcedureError as exc:
@@ -257,10 +259,13 @@ class HabitatRuns:
             return refused(str(exc))
         except SectionError as exc:
             return refused(f"the unit's section cannot start: {exc}")
-        (folder / "unit.json").write_text(unit_json)
-        self._accepted[unit_hash] = unit
-        self._runs[unit.run_id] = run
-        return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, f"started {unit.procedure}")
+        else:
+            (folder / "unit.json").write_text(unit_json)
+            self._accepted[unit_hash] = unit
+            self._runs[unit.run_id] = run
+            return UplinkAnswer("ACCEPTED", unit_hash, unit.run_id, f"started {unit.procedure}")
+        finally:  # after the run is in _runs: never a moment where a request finds neither
+            self._starting.discard(unit.run_id)
 
     def _refused(self, answer: UplinkAnswer, *, again: bool = False) -> UplinkAnswer:
         """Log and count a refused unit (a security event: a stale, forged or replayed order)."""
@@ -454,15 +459,19 @@ class HabitatRuns:
             snapshot,
         )
 
+    def _run_of(self, run_id: str) -> _Run | None:
+        """The run ``run_id`` if it runs here, read without ``_lock``: an uplink holds that while it
+        starts its run (a JVM: seconds, minutes on a loaded habitat), and a request for events must
+        neither wait for it nor keep a request thread from a Halt meanwhile (one dict read is atomic)."""
+        return self._runs.get(run_id)
+
     def _snapshot(self, run_id: str) -> dict[str, Any] | None:
-        with self._lock:
-            run = self._runs.get(run_id)
+        run = self._run_of(run_id)
         return run.executive.snapshot().to_json() if run is not None else None
 
     def _waiting(self, run_id: str) -> str:
         """ "N: why" when the run holds and its answerer left the hold for an operator, else ""."""
-        with self._lock:
-            run = self._runs.get(run_id)
+        run = self._run_of(run_id)
         if run is None:
             return ""
         snap = run.executive.snapshot()
@@ -472,18 +481,19 @@ class HabitatRuns:
         return snap.reason if snap.reason.startswith(f"{number}:") else f"{number}: {snap.reason or snap.hold.value}"
 
     def _status(self, run_id: str) -> str:
-        """The run's status as its stored events show it: ended only once its last event is stored."""
-        with self._lock:
-            run = self._runs.get(run_id)
+        """The run's status as its stored events show it: ended only once its last event is stored
+        (a unit being started: active, its events to come)."""
+        run = self._run_of(run_id)
         # a running run's newest events only (asked on every request for events); another's all
         after = max(run.executive.snapshot().last_seq - 1, 0) if run is not None else 0
+        live = run is not None or run_id in self._starting
         events = self.audit.stored_events(run_id, after=after)
         if not events:
-            return "active" if run is not None else "unknown"
+            return "active" if live else "unknown"
         ended = {EventKind.RUN_COMPLETED.value: "completed", EventKind.RUN_STOPPED.value: "stopped"}.get(
             events[-1].kind
         )
-        return ended or ("active" if run is not None else "interrupted")
+        return ended or ("active" if live else "interrupted")
 
     # ---- operators' actions -----------------------------------------------------------------
     def act(self, action_json: str, signature: str) -> ActionAnswer:

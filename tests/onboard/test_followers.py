@@ -10,12 +10,15 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
 from onboard.habitat_runs import EventsAnswer, HabitatRuns
 from onboard.unit import OperatorAction, Unit
+from procedure_language.sysrep import SysRep
+from support.lab_gateway import LabGateway
 
-from .test_habitat_runs import act, habitat, make_unit, sysreps, uplink
+from .test_habitat_runs import SECRET, act, habitat, make_unit, sysreps, uplink
 
 __all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
 
@@ -63,3 +66,40 @@ def test_a_request_alone_with_news_answers_when_its_wait_is_over(
     assert alone.status == "active" and [e["seq"] for e in alone.events] == list(range(1, alone.head_seq + 1))
     quiet = runs.follow(unit.run_id, 0, wait_s=0.5)  # nothing new since: an empty answer at the end of its wait
     assert (quiet.events, quiet.head_seq) == ([], alone.head_seq)
+
+
+def test_a_request_for_events_while_a_unit_starts_waits_for_its_run_and_not_for_the_start(
+    tmp_path: Path, sysreps: dict[str, SysRep], make_unit: Any
+) -> None:
+    """Starting a unit takes the habitat's lock for as long as its JVM starts (minutes on a loaded
+    habitat); requests for the run's events meanwhile must wait as for a run, each for its own
+    wait, not pile up behind the start holding request threads a Halt needs."""
+    binding = tmp_path / "lab.yaml"
+    binding.write_text("robot: lab\n")
+    starting, started = threading.Event(), threading.Event()
+
+    def slow_to_start(path: str, url: str | None) -> LabGateway:
+        starting.set()  # the uplink holds the habitat's lock from here until the run started
+        assert started.wait(20), "the test never let the gateway start"
+        return LabGateway()
+
+    runs = HabitatRuns(
+        tmp_path / "habitat",
+        secret=SECRET,
+        bindings={"lab.yaml": binding},
+        sysreps=sysreps,
+        gateway_factory=slow_to_start,
+    )
+    try:
+        unit: Unit = make_unit()
+        uplinked: queue.Queue[Any] = queue.Queue()
+        threading.Thread(target=lambda: uplinked.put(uplink(runs, unit)), daemon=True).start()
+        assert starting.wait(20)
+        during = runs.follow(unit.run_id, 0, wait_s=0.3)  # answered when its wait is over, the start still going
+        assert (during.status, during.events) == ("active", [])
+        started.set()
+        assert uplinked.get(timeout=20).state == "ACCEPTED"
+        assert runs.follow(unit.run_id, 0, wait_s=5).events[0]["kind"] == "run_started"
+    finally:
+        started.set()
+        runs.close()
