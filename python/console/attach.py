@@ -3,7 +3,7 @@
 An onboard run's supervising runner (``caretaker run --onboard``) hosts it for the consoles. When
 the runner stops (``RESULT detached``) or dies, the run goes on on the habitat, and its host row
 stays with its lease run out (:meth:`RunHosting.lapse`), its last published view saying it is an
-onboard run. The runs list offers such a run to operators (:func:`unsupervised`; the page shows
+onboard run. The runs list offers such a run to operators (:meth:`RunHosting.unsupervised`; the page shows
 the offer to operators only, the route refuses observers as a start does); Attach starts
 ``caretaker run --attach RUN`` on this console's host with the binding and rosbridge URL this
 console uses for onboard starts (:func:`console.onboard_launch.attach_onboard`), which catches the
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Awaitable, Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import Request
@@ -26,35 +26,19 @@ from starlette.routing import BaseRoute, Route
 from console.accounts import Account
 from console.actions import ActionRefused
 from console.attach_records import record_attach_refused
-from console.ground.run_hosts import HostRecord, RunHosting
 from console.onboard_launch import LaunchRefused, attach_onboard
 from pride.states import RefusalRule
 
 if TYPE_CHECKING:  # the board lists runs with this module's offer
     from console.run_board import RunBoard
 
-__all__ = ["attach", "attach_routes", "unsupervised"]
+__all__ = ["attach", "attach_routes"]
 
 log = logging.getLogger(__name__)
 
 #: A route's handler, and one only operators may call (given the signed-in operator).
 Handler = Callable[[Request], Awaitable[Response]]
 OperatorHandler = Callable[[Request, Account], Awaitable[Response]]
-
-
-def unsupervised(hosting: RunHosting, record: HostRecord) -> dict[str, Any]:
-    """What the runs list adds to a run its log leaves interrupted and whose host row is ``record``:
-    ``unsupervised`` (the supervisor that is gone, the binding) for an onboard run nobody holds."""
-    if record.alive or not _onboard(hosting, record.run_id):
-        return {}
-    return {"unsupervised": {"supervisor": record.host, "binding": record.binding}}
-
-
-def _onboard(hosting: RunHosting, run_id: str) -> bool:
-    """Whether the run's host last published it as an onboard run (its view says what came down)."""
-    published = hosting.published(run_id)
-    state = published[2].get("state") if published is not None else None
-    return isinstance(state, dict) and isinstance(state.get("onboard"), dict)
 
 
 def attach(board: RunBoard, user: str, run_id: str) -> None:
@@ -66,7 +50,7 @@ def attach(board: RunBoard, user: str, run_id: str) -> None:
             does not offer; 502 with the runner's words when it did not attach.
     """
     record = board.hosting.record(run_id)
-    if record is None or not _onboard(board.hosting, run_id):
+    if record is None or not board.hosting.onboard(run_id):
         raise ActionRefused(404, f"run {run_id!r} is no onboard run hosted on this ground: nothing to attach to")
     if record.alive:
         refused = ActionRefused(

@@ -29,7 +29,6 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from console.accounts import Account, AccountStore
 from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
-from console.attach import unsupervised
 from console.camera_feed import CameraFeed
 from console.catalog import CameraSettings, Catalog
 from console.folded_run import fold_events
@@ -290,7 +289,7 @@ class RunBoard:
         record = self.hosting.record(run_id)
         if record is not None and record.alive:
             raise ActionRefused(409, f"run {run_id} is live on {record.host}: act on it as on any live run")
-        if record is not None and unsupervised(self.hosting, record):  # a second executor would fork its record
+        if record is not None and self.hosting.unsupervised(record):  # a second executor would fork its record
             raise ActionRefused(409, f"run {run_id} runs on the habitat: attach a supervisor to it (runs list)")
         events = self.past_events(run_id)
         status = fold_events(run_id, events).status
@@ -564,7 +563,7 @@ class RunBoard:
                 entry.update(status=self._logged_status(run_id), live=False)
                 if record is not None and entry["status"] == "interrupted":
                     entry["host_lost"] = {"host": record.host, "since": record.lease_until.isoformat()}
-                    entry.update(unsupervised(self.hosting, record))  # an onboard run: Attach
+                    entry.update(self.hosting.unsupervised(record))  # an onboard run: Attach
             rows.append(entry)
         return rows
 

@@ -248,6 +248,20 @@ class RunHosting:
                 return None
             return _record(row, _clock(connection)), json.loads(row.procedure_view), json.loads(row.view)
 
+    def onboard(self, run_id: str) -> bool:
+        """Whether the run's host last published it as an onboard run (its view says what came down)."""
+        published = self.published(run_id)
+        state = published[2].get("state") if published is not None else None
+        return isinstance(state, dict) and isinstance(state.get("onboard"), dict)
+
+    def unsupervised(self, record: HostRecord) -> dict[str, Any]:
+        """What the runs list adds to a run its log leaves interrupted and whose host row is ``record``:
+        ``unsupervised`` (the supervisor that is gone, the binding) for an onboard run nobody holds,
+        which an operator may attach a supervisor to (console/attach.py)."""
+        if record.alive or not self.onboard(record.run_id):
+            return {}
+        return {"unsupervised": {"supervisor": record.host, "binding": record.binding}}
+
     def camera_frame(self, run_id: str) -> bytes | None:
         """The newest camera image the run's host copied into the database (PNG)."""
         with self._engine.connect() as connection:
