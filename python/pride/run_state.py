@@ -263,6 +263,8 @@ class RunState:
             return Hold.OUTCOME_UNKNOWN, f"{number}: {self.unknown[1]}"
         if self.in_flight:
             return Hold.IN_FLIGHT, self.in_flight
+        if self.halt and self.diverted is not None:
+            return None, ""  # a monitor's go-to takes the run on once its halt is recorded: nobody answers it
         if self.halt:
             halted_here = self.statuses.get(self.frame.number()) is InstructionStatus.HALTED
             where = f"{number} was halted before it finished" if halted_here else f"at {number}"

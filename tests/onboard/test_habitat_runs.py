@@ -420,9 +420,10 @@ def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and
     stop = gateway.cancel
 
     def answered_once_the_run_saw_the_motion_end(key: str) -> Any:
-        answer = stop(key)  # the motion stops now; the answer comes once the run has nothing else to do
-        while (said := runs.events(unit.run_id, 0)).status == "active" and not said.waiting:
-            pass
+        answer = stop(key)  # the motion stops now; the answer comes once the run recorded its end
+        seq = 0
+        while not _recorded(runs, unit, "command_result"):
+            seq = runs.events(unit.run_id, seq, wait_s=1.0).head_seq  # until a newer event is stored
         return answer
 
     gateway.cancel = answered_once_the_run_saw_the_motion_end
@@ -450,3 +451,8 @@ def test_an_onboard_run_watches_its_monitors_a_red_limit_mid_motion_halts_it_and
         assert [(e.kind, e.hash) for e in here] == [(e.kind, e.hash) for e in there]
     finally:
         ground.close()
+
+
+def _recorded(runs: HabitatRuns, unit: Unit, kind: str) -> bool:
+    """Whether the run's stored events hold one of ``kind``."""
+    return any(e["kind"] == kind for e in runs.events(unit.run_id, 0).events)

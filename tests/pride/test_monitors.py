@@ -10,6 +10,7 @@ The real-stack gripper monitor is in tests/interop.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from console.folded_run import fold_events
 from console.monitor_states import limit_state
@@ -32,6 +33,14 @@ def of(journal: RecordedJournal, kind: EventKind) -> list[Event]:
 def test_a_red_limit_during_a_motion_halts_it_and_goes_to_the_contingency_step(bench: Bench) -> None:
     executive, gateway, journal = bench(Mode.AUTONOMOUS, "lab_monitors.xml")
     gateway.block.add("move")
+    stop, held_meanwhile = gateway.cancel, []
+
+    def answered_after_the_motion_ended(key: str) -> Any:  # as a robot does: once the arm is at rest
+        answer = stop(key)
+        held_meanwhile.append(executive.wait_for(lambda s: not s.executing, TIMEOUT).hold)
+        return answer
+
+    gateway.cancel = answered_after_the_motion_ended
     executive.start("alice")
     assert gateway.blocking.wait(TIMEOUT)  # the arm moves
     gateway.set("temperature", 45.0)  # one sample out: within the item's persistence (2 samples)
@@ -54,6 +63,9 @@ def test_a_red_limit_during_a_motion_halts_it_and_goes_to_the_contingency_step(b
     (halt,) = of(journal, EventKind.HALT)
     assert halt.actor == PAX and "The bench stays below its red temperature" in halt.data.to_json()["reason"]
     assert gateway.cancels == ["run-1/1.1/1"]  # the motion in flight was cancelled
+    # the motion ended before the robot answered the halt: the run then waited for the halt's record
+    # to go on to the contingency, and asked no operator to answer the halt (no prompt left behind)
+    assert held_meanwhile == [None]
     assert snap.statuses["1.1"] is InstructionStatus.HALTED and snap.statuses["1.2"] is InstructionStatus.PENDING
     (went,) = of(journal, EventKind.WENT_TO)
     assert went.data.to_json() == {"from": "1.1", "next": "2.1", "reason": halt.data.to_json()["reason"]}
