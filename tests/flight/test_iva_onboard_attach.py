@@ -1,16 +1,18 @@
 """A ground that re-attaches: the supervising runner stops mid-run, the run goes on on the habitat,
 and an operator attaches a new supervisor from the console's runs list.
 
-The first runner (``caretaker run --onboard`` at a terminal) is stopped (SIGTERM) at the run's
-first motion (the simulation at half speed, so the rest of the run outlasts the attaches). The
-habitat never waits for the ground, so the run goes on; the runner ends its lease as it goes, so
+The first runner (``caretaker run --onboard`` at a terminal, without the clean filter's id that
+4.1 records: the habitat's run holds there for an operator, so it outlasts the attaches however
+loaded the machine) is stopped (SIGTERM) at the run's first motion. The habitat never waits for
+the ground, so the run goes on to 4.1; the runner ends its lease as it goes, so
 the consoles list the run as one whose supervisor is gone, and offer Attach to operators (not to
 observers, whom the console refuses all the same). Attach, in Chromium on the ground network,
 starts ``caretaker run --attach RUN`` on the console's host with the console's binding and
 rosbridge URL: it gets the unit the run started from from the habitat, catches the ground's
 record up from the last event the first runner stored, hash for hash, hosts the run for the
-consoles again and follows it to its end. A second attach while it holds the run, from the console
-and from a terminal, is refused and told who holds it; each attach and refusal is on the record.
+consoles again. A second attach while it holds the run, from the console and from a terminal, is
+refused and told who holds it; each attach and refusal is on the record. The operator then records
+the clean filter's id on the console, across the link, and the run completes.
 """
 
 from __future__ import annotations
@@ -26,8 +28,17 @@ from console.accounts import AccountStore
 from records.audit_chain import verify_chain
 from records.audit_log import AuditLog
 from support.audit import attach_records
+from support.operator_page import expect_current, instruction
 
-from .flight_support import DELAY, LINK_MS, RUN_TIMEOUT_S, assert_flown_exactly_once, flight, result_of
+from .flight_support import (
+    CLEAN_FILTER,
+    DELAY,
+    LINK_MS,
+    RUN_TIMEOUT_S,
+    assert_flown_exactly_once,
+    flight,
+    result_of,
+)
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=110), pytest.mark.timeout(900)]
 
@@ -40,8 +51,8 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
 ) -> None:
     from playwright.sync_api import expect
 
-    with flight(ros_env, delay=DELAY, time_scale="0.5", onboard=True) as f:
-        first = f.run("--onboard")
+    with flight(ros_env, delay=DELAY, time_scale="0", onboard=True) as f:
+        first = f.run("--onboard", record=False)
         run_id = first.wait_for_line(r"^READY run ", 120).split()[2]
         serve, url = f.serve_console(OPERATOR, PASSWORD)
         accounts = AccountStore(f.db_url)
@@ -102,6 +113,11 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
             assert second.returncode == 2 and "--attach refused" in second.stderr, said
             assert f"run {run_id} is live on runner " in second.stderr and f" for {OPERATOR} " in second.stderr, said
 
+            # the run waited at 4.1 for an operator all along: the attached supervisor carries the answer up
+            record = instruction(page, "4.1")
+            expect_current(record, timeout=RUN_TIMEOUT_S * 1000)
+            record.locator("input.record-value").fill(CLEAN_FILTER)
+            record.locator("button.record").click()
             expect(page.locator("#run-status")).to_have_text("completed", timeout=RUN_TIMEOUT_S * 1000)
         serve.stop()
         ground, habitat = f.ground_chain(run_id), f.habitat.onboard_chain(run_id)
