@@ -333,10 +333,10 @@ def test_the_filter_slipping_out_during_the_pull_out_halts_the_arm_and_goes_to_t
         session.expect(
             r"monitor violated: gripper\.grasp = empty \(must be ≠ empty\): HALT, then go to step filter_slipped"
         )
-        session.expect(r"went to 9\.1")
+        session.expect(r"went to 10\.1")
         with moved:  # the arm at rest (halted mid-motion, or already still when the slip was seen)
             assert moved.wait_for(lambda: moving and moving[-1] is False, 60), moving
-        session.expect(r"9\.1[^\n]*\n[^\n]*\[Enter\] done")  # the contingency holds for the operator
+        session.expect(r"10\.1[^\n]*\n[^\n]*\[Enter\] done")  # the contingency holds for the operator
     finally:
         session.close(5)
         grasp.unsubscribe()
