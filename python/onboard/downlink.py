@@ -57,6 +57,10 @@ log = logging.getLogger(__name__)
 #: How long an uplinked unit may take to reach the habitat and start, past the link's round trip.
 UNIT_LIFETIME_S = 300.0
 _RETRY_S = (1.0, 2.0, 5.0)
+#: What accepting a unit may take on the habitat before it answers: its checks and starting the run's
+#: executive, a JVM among them, on a loaded machine (past a minute under the suite's load). A unit
+#: not answered in time is sent again, but across a long link each try costs a round trip.
+UNIT_WORK_S = 120.0
 #: What acting on an operator's action may take on the habitat before it answers (a loaded machine).
 ACTION_WORK_S = 10.0
 #: How long past its round trip an action may still be taken: sent again under its key meanwhile.
@@ -546,7 +550,9 @@ async def _uplink(
             }
         try:
             await asyncio.wait_for(client.ready.wait(), left)
-            answer = asyncio.ensure_future(client.call(UPLINK_SERVICE, request, timeout=client.call_timeout(60.0)))
+            answer = asyncio.ensure_future(
+                client.call(UPLINK_SERVICE, request, timeout=client.call_timeout(UNIT_WORK_S))
+            )
             sent()
             return await answer
         except (LinkError, TimeoutError) as exc:
