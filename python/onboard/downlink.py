@@ -361,6 +361,7 @@ class OnboardSupervisor:
         self._say(f"READY run {self.unit.run_id}")
         requests = self._requests()
         requests.catch_up()
+        requests.start()
         return await self._follow(requests, accepted_at=None)
 
     async def _uplinked(self) -> Supervision:

@@ -3,11 +3,13 @@
 One request at a time leaves the habitat without one for a round trip after each answer: an event
 then (the run's end among them) waits for the next request to arrive, up to a round trip and a
 half after it happened before the ground hears of it. So :class:`FollowRequests` sends a request
-to ``/caretaker_onboard/follow`` every :attr:`LightTime.follow_every` (half a round trip),
-whatever came back, each waiting on the habitat :attr:`LightTime.follow_wait` (two intervals).
-The habitat gives each event to one of them only, and keeps the newest waiting until the next
-arrives (:mod:`onboard.followers`): one is always there, so the run's end comes down one light
-time after it happened, and any other event within one interval more. No request is sent in
+to ``/caretaker_onboard/follow`` every :attr:`LightTime.follow_every` (half a round trip) from
+the unit on, whatever came back and whether or not anyone reads the answers yet (the unit's own
+answer takes a round trip, and a short run ends before it), each waiting on the habitat
+:attr:`LightTime.follow_wait` (three intervals). The habitat gives each event to one of them
+only, and keeps the newest waiting until the next arrives (:mod:`onboard.followers`): one is
+always there, so the run's end comes down one light time after it happened, and any other event
+within one interval more. No request is sent in
 place of one answered: each arrival already lets the one before it answer, and a request per
 answer would make answers beget requests. What an answer lost with its connection leaves out,
 :meth:`catch_up` asks for: every event above the ground's head, from ``/caretaker_onboard/events``,
@@ -18,7 +20,6 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import contextlib
 import json
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -58,13 +59,14 @@ class FollowRequests:
         self._flying: dict[asyncio.Task[Mapping[str, Any]], tuple[float, bool]] = {}  # -> (sent at, follows)
         self._answered: collections.deque[asyncio.Task[Mapping[str, Any]]] = collections.deque()  # as they came
         self._came_back = asyncio.Event()
-        self._sent_at = float("-inf")  # the newest follow request's
+        self._sender: asyncio.Task[None] | None = None
 
     def start(self) -> None:
-        """Send the first request now unless one is on its way (right behind a unit: the run's
-        first events come down as soon as it starts)."""
-        if not any(follows for _, follows in self._flying.values()):
-            self._send(follows=True)
+        """Start sending: the first request now (right behind a unit: the run's first events come
+        down as soon as it starts), then one every interval until :meth:`close`, whether or not
+        anyone is reading the answers yet (the unit's own answer takes a round trip)."""
+        if self._sender is None:
+            self._sender = asyncio.get_running_loop().create_task(self._sending())
 
     def catch_up(self) -> None:
         """Ask at once for every event above the ground's head (a gap, an answer lost), unless that is asked already."""
@@ -72,18 +74,14 @@ class FollowRequests:
             self._send(follows=False)
 
     async def next(self) -> FollowAnswer:
-        """The next answer to come, sending follow requests meanwhile as the rule says.
+        """The next answer to come, in the order they came.
 
         Raises:
             LinkError: a request failed (not connected, lost, unanswered), or its answer is not one.
         """
-        loop = asyncio.get_running_loop()
         while not self._answered:
-            if loop.time() >= self._sent_at + self._every:
-                self._send(follows=True)
             self._came_back.clear()
-            with contextlib.suppress(TimeoutError):  # time for the next request
-                await asyncio.wait_for(self._came_back.wait(), self._sent_at + self._every - loop.time())
+            await self._came_back.wait()
         task = self._answered.popleft()
         sent_at, follows = self._flying.pop(task)
         values = task.result()
@@ -97,9 +95,19 @@ class FollowRequests:
 
     def close(self) -> None:
         """Stop asking (the habitat lets the requests waiting there run out)."""
+        if self._sender is not None:
+            self._sender.cancel()
         for task in self._flying:
             task.cancel()
         self._flying.clear()
+
+    async def _sending(self) -> None:
+        """A follow request every interval while the session is open (none while it is down:
+        the catch-up after it asks for what was missed)."""
+        while True:
+            await self._client.ready.wait()
+            self._send(follows=True)
+            await asyncio.sleep(self._every)
 
     def _send(self, *, follows: bool) -> None:
         loop = asyncio.get_running_loop()
@@ -109,8 +117,6 @@ class FollowRequests:
         timeout = self._client.call_timeout(wait + _ANSWER_WORK_S)
         task = loop.create_task(self._client.call(service, request, timeout=timeout))
         self._flying[task] = (loop.time(), follows)
-        if follows:
-            self._sent_at = loop.time()
         task.add_done_callback(self._came)
 
     def _came(self, task: asyncio.Task[Mapping[str, Any]]) -> None:

@@ -9,7 +9,7 @@ event goes down once: a request is answered only with events no earlier answer o
 carried (an answer lost with its connection leaves a gap, which the ground closes with a request
 to ``/caretaker_onboard/events``: every event above its number). And the newest request waiting
 holds what came while it is alone, until the next one arrives behind it or its wait is over (at
-most two intervals), so that one is always here for the run's end, which it answers at once.
+most three intervals), so that one is always here for the run's end, which it answers at once.
 """
 
 from __future__ import annotations

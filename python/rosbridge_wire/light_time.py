@@ -11,7 +11,7 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;
 - a ground following an onboard run sends a request for its events every half round trip (at
-  least 0.25 s, at most 15 s), each waiting on the habitat two of those: one waits there whenever
+  least 0.25 s, at most 10 s), each waiting on the habitat three of those: one waits there whenever
   an event happens (:attr:`LightTime.follow_every`, :attr:`LightTime.follow_wait`);
 - a signed login stays valid for its trip across the link and then as long as on a short one
   (:attr:`LightTime.login_lifetime`); what goes up over a new connection (an onboard unit and the
@@ -34,8 +34,8 @@ BASE_S = 10.0
 #: Round trips to open a wss:// connection and hear the first answer: TCP, TLS, upgrade, login.
 OPENING_ROUND_TRIPS = 4
 #: The shortest and longest time between a ground's requests for an onboard run's events: no busier
-#: than four a second on a short link; on a long one within the habitat's longest wait (30 s) for two.
-FOLLOW_EVERY_S = (0.25, 15.0)
+#: than four a second on a short link; on a long one three within the habitat's longest wait (30 s).
+FOLLOW_EVERY_S = (0.25, 10.0)
 
 
 @dataclass(frozen=True)
@@ -68,9 +68,10 @@ class LightTime:
 
     @property
     def follow_wait(self) -> float:
-        """How long each of those requests waits on the habitat for an event: two intervals, so
-        another has arrived before it gives up (and the habitat holds two at a time, not more)."""
-        return 2 * self.follow_every
+        """How long each of those requests waits on the habitat for an event: three intervals, so
+        another has arrived before it gives up even when the ground sends it an interval late (busy
+        storing what came); the habitat holds three at a time, not more."""
+        return 3 * self.follow_every
 
     @property
     def uplink_within(self) -> float:

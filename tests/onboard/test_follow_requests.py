@@ -57,6 +57,9 @@ class LinkedHabitat(RosbridgeClient):
         self.lost: set[int] = set()
         self.unit_held = asyncio.Event()  # cleared: the unit reaches the habitat after the first follow request
         self.unit_held.set()
+        self.acceptance_after = 0  # the unit's answer reaches the ground once this many follow requests arrived
+        self.follows_arrived = 0
+        self._follow_came = asyncio.Event()
         self.ready.set()
 
     async def call(self, service: str, args: Mapping[str, Any], *, timeout: float | None = None) -> Mapping[str, Any]:
@@ -68,6 +71,9 @@ class LinkedHabitat(RosbridgeClient):
         await asyncio.sleep(ONE_WAY_S)  # on its way up
         if service == UPLINK_SERVICE:
             await self.unit_held.wait()
+        if service == FOLLOW_SERVICE:
+            self.follows_arrived += 1
+            self._follow_came.set()
         arrived = time.time()
         answer = dataclasses.asdict(await asyncio.to_thread(handlers[service]))
         if service == FOLLOW_SERVICE:
@@ -76,16 +82,19 @@ class LinkedHabitat(RosbridgeClient):
         self.crossings.append(crossing)
         carried = [c for c in self.crossings if c.service == FOLLOW_SERVICE and c.answer["events_json"] != "[]"]
         await asyncio.sleep(ONE_WAY_S)  # and down
+        while service == UPLINK_SERVICE and self.follows_arrived < self.acceptance_after:
+            self._follow_came.clear()
+            await self._follow_came.wait()
         if carried and carried[-1] is crossing and len(carried) in self.lost:
             raise LinkError(service, "the rosbridge connection was lost")
         return answer
 
 
 def _supervised(
-    runs: HabitatRuns, unit: Unit, tmp_path: Path, link: LinkedHabitat
+    runs: HabitatRuns, unit: Unit, tmp_path: Path, link: LinkedHabitat, *, holds: bool = True
 ) -> tuple[Supervision, list[str], AuditLog]:
     """Supervise ``unit`` from a ground across ``link``; the operator enters the record the run
-    holds at, on the habitat, once the ground has heard that it holds."""
+    holds at (``holds``), on the habitat, once the ground has heard that it holds."""
     ground = AuditLog(f"sqlite:///{tmp_path / 'ground.db'}")
     said: list[str] = []
 
@@ -100,6 +109,8 @@ def _supervised(
             link.endpoint, unit, ground, on_event=on_event, say=said.append, unattended=False, client=link
         )
         supervising = asyncio.create_task(supervisor.supervise())
+        if not holds:
+            return await supervising
         await held.wait()
         enter = {"value": "dock", "instruction": "1.2"}
         entered = OperatorAction("key-1", unit.run_id, "enter", "bob", time.time() + 60, enter)
@@ -130,6 +141,27 @@ def test_the_ground_hears_of_the_runs_end_from_a_request_waiting_there_when_it_e
         carried = [seq for c in follows for seq in _seqs(c.answer)]
         assert sorted(carried) == [e.seq for e in there]
         assert not [c for c in link.crossings if c.service == EVENTS_SERVICE]  # nothing was lost to catch up
+    finally:
+        ground.close()
+
+
+def test_requests_keep_going_while_the_units_answer_is_on_its_way_down(
+    habitat: tuple[HabitatRuns, list[Any]], make_unit: Callable[..., Unit], tmp_path: Path
+) -> None:
+    """A run shorter than the unit's round trip ends before the ground hears that it started: a
+    request for its events must be there all the same, so none waits for the unit's answer."""
+    runs, _ = habitat
+    unit = make_unit()  # nothing to answer on the way: it runs to its end
+    link = LinkedHabitat(runs)
+    link.acceptance_after = 3  # the unit's answer comes down after three requests for events went up
+    result, said, ground = _supervised(runs, unit, tmp_path, link, holds=False)
+    try:
+        assert result.status == "completed", said
+        here, there = ground.stored_events(unit.run_id), runs.audit.stored_events(unit.run_id)
+        assert [(e.seq, e.hash) for e in here] == [(e.seq, e.hash) for e in there]
+        uplink = next(c for c in link.crossings if c.service == UPLINK_SERVICE)
+        follows = [c for c in link.crossings if c.service == FOLLOW_SERVICE]
+        assert len([c for c in follows if c.arrived < uplink.arrived + 2 * ONE_WAY_S]) >= 2
     finally:
         ground.close()
 
