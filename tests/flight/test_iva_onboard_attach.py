@@ -3,7 +3,8 @@ and an operator attaches a new supervisor from the console's runs list.
 
 The first runner (``caretaker run --onboard`` at a terminal, without the clean filter's id that
 4.1 records: the habitat's run holds there for an operator, so it outlasts the attaches however
-loaded the machine) is stopped (SIGTERM) at the run's first motion. The habitat never waits for
+loaded the machine) is stopped (SIGTERM) at the run's first motion, the simulation at half speed
+so that this comes long before 4.1 (unattended, it would stop the run there). The habitat never waits for
 the ground, so the run goes on to 4.1; the runner ends its lease as it goes, so
 the consoles list the run as one whose supervisor is gone, and offer Attach to operators (not to
 observers, whom the console refuses all the same). Attach, in Chromium on the ground network,
@@ -51,7 +52,8 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
 ) -> None:
     from playwright.sync_api import expect
 
-    with flight(ros_env, delay=DELAY, time_scale="0", onboard=True) as f:
+    # half speed: the first runner, unattended, would stop the run at 4.1 had it got there before the SIGTERM
+    with flight(ros_env, delay=DELAY, time_scale="0.5", onboard=True) as f:
         first = f.run("--onboard", record=False)
         run_id = first.wait_for_line(r"^READY run ", 120).split()[2]
         serve, url = f.serve_console(OPERATOR, PASSWORD)
