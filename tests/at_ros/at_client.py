@@ -11,7 +11,7 @@ from typing import Any
 import rclpy
 from affordance_template_msgs.msg import DisplayObjectInfo, ServerStatus
 from caretaker_sim_msgs.msg import NamedPoses
-from caretaker_sim_msgs.srv import CaptureImage
+from caretaker_sim_msgs.srv import CaptureImage, GetFrames
 from geometry_msgs.msg import Pose
 from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
@@ -40,7 +40,6 @@ class AtClient:
         self.status: ServerStatus | None = None
         self.status_count = 0
         self.frames: dict[str, Any] = {}
-        self.frames_count = 0
         self.held_object = ""
         self.cdra_present: bool | None = None
         self.joints: dict[str, float] = {}
@@ -50,6 +49,7 @@ class AtClient:
         self.node.create_subscription(String, "/gripper/held_object", self._held_callback, LATCHED)
         self.node.create_subscription(Bool, "/cdra/filter_present", self._present_callback, LATCHED)
         self.node.create_subscription(JointState, "/joint_states", self._joints_callback, 10)
+        self.true_frames_client = self.node.create_client(GetFrames, "/sim/check/frames", qos_profile=SERVICE_QOS)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
         self._spinner = Spinner(self.executor, self.node, name="at-client")
@@ -65,15 +65,15 @@ class AtClient:
 
     def _frames_callback(self, msg: NamedPoses) -> None:
         self.frames = dict(zip(msg.names, msg.poses, strict=False))
-        self.frames_count += 1
         self._notify()
 
     def fresh_frames(self, timeout: float = 10.0) -> dict[str, Any]:
-        """Frames published once the robot is at rest (the last ones received may predate a motion's end)."""
+        """Where every named frame is once the robot is at rest, asked of the simulator then (its
+        ground truth, ``sim/check/frames``): counting /sim/frames messages that arrive afterwards
+        took, on a loaded machine, ones published before the motion's end and still queued."""
         self.wait_for(lambda: self.status is not None and not self.status.robot_active, timeout, "robot at rest")
-        count = self.frames_count
-        self.wait_for(lambda: self.frames_count >= count + 2, timeout, "fresh /sim/frames")
-        return self.frames
+        answer = self._call(self.true_frames_client, GetFrames.Request(), timeout, "sim/check/frames")
+        return dict(zip(answer.frames.names, answer.frames.poses, strict=True))
 
     def _joints_callback(self, msg: JointState) -> None:
         self.joints = dict(zip(msg.name, msg.position, strict=False))
