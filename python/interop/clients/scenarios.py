@@ -16,6 +16,7 @@ import contextlib
 import json
 import logging
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from typing import Any, Protocol
 
@@ -103,7 +104,7 @@ def short(value: Any, limit: int = 60) -> str:
     return repr(value)
 
 
-class Scenario:
+class Scenario(ABC):
     """A case: how the server answers the client, and how the evidence is judged."""
 
     case = ""
@@ -113,7 +114,7 @@ class Scenario:
     time_limit = 8.0
     """Seconds from the case's first connection until it is judged with whatever was reported."""
 
-    async def on_open(self, run: CaseRun, peer: Peer) -> None:
+    async def on_open(self, run: CaseRun, peer: Peer) -> None:  # noqa: B027 (optional: most cases ignore it)
         """A connection of the client under test to this case's path has opened."""
 
     async def on_message(self, run: CaseRun, peer: Peer, message: Mapping[str, Any]) -> bool:
@@ -124,8 +125,9 @@ class Scenario:
         """The driver reported; the report's call is answered when this returns, with these values."""
         return {}
 
+    @abstractmethod
     def judge(self, run: CaseRun) -> tuple[Outcome, str]:
-        raise NotImplementedError
+        """The case's outcome from the evidence, and why in words."""
 
 
 def no_report(run: CaseRun) -> tuple[Outcome, str] | None:
