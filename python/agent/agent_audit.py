@@ -22,7 +22,7 @@ from sqlalchemy.exc import IntegrityError
 from records.agent_tables import agent_records
 from records.audit_chain import GENESIS, ChainCheck, StoredEvent, utc, verify_chain
 
-__all__ = ["ANSWERED", "REFUSED", "AgentRecords"]
+__all__ = ["ANSWERED", "REFUSED", "AgentRecords", "record_line"]
 
 #: A call answered, and a call refused (its data names the rule).
 ANSWERED = "answered"
@@ -82,3 +82,18 @@ class AgentRecords:
 def _head(connection: Connection, agent: str) -> tuple[int, str]:
     last = connection.execute(select(_R.seq, _R.hash).where(_R.agent == agent).order_by(_R.seq.desc()).limit(1)).first()
     return (0, GENESIS) if last is None else (int(last.seq), str(last.hash))
+
+
+def record_line(record: StoredEvent) -> str:
+    """One agent record as ``caretaker report --agent`` lists it.
+
+    What the agent sent and what it was told are printed as JSON, never as raw text: an agent's
+    strings (and the habitat's, quoted in answers) cannot move a terminal's cursor or fake a line.
+    """
+    data = json.loads(record.data)
+    said = json.dumps(data.get("arguments", {}), sort_keys=True, ensure_ascii=False)
+    if record.kind == REFUSED:
+        told = f"refused by rule {data.get('rule')}: {json.dumps(data.get('refusal'), ensure_ascii=False)}"
+    else:
+        told = "answered " + json.dumps(data.get("answer", data), sort_keys=True, ensure_ascii=False)
+    return f"{record.seq:>5}  {record.time:%Y-%m-%d %H:%M:%S}Z  {record.instruction}  {said}  {told}"

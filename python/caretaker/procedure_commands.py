@@ -12,6 +12,7 @@ import logging
 import os
 import signal
 import sys
+from datetime import UTC, datetime
 from pathlib import Path
 
 from caretaker.command_options import load_sysreps, raw_option, section_of, sysrep_option
@@ -31,6 +32,7 @@ from pride.run_setup import RunSetup
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, lint_file
 from procedure_language.sysrep import SysRep, SysRepError
+from records.agent_tokens import TokenError, parse_duration
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision
 from records.onboard_handoffs import SUPERVISOR_WITHIN_S
@@ -401,7 +403,7 @@ def report_main(argv: list[str] | None = None) -> int:
     from pride.report import write_report
 
     parser = argparse.ArgumentParser(prog="caretaker report", description="write the after-action report of a run")
-    parser.add_argument("run", metavar="RUN", nargs="?", help="run id (omit with --list)")
+    parser.add_argument("run", metavar="RUN", nargs="?", help="run id (omit with --list or --agent)")
     parser.add_argument("--db", default=DEFAULT_DB, metavar="URL")
     parser.add_argument("--out", default="var/reports", metavar="DIR", help="where to write RUN.html and RUN.md")
     parser.add_argument("--list", action="store_true", help="list the runs in the audit log")
@@ -410,15 +412,30 @@ def report_main(argv: list[str] | None = None) -> int:
     )
     sysrep_option(parser)
     raw_option(parser)
+    parser.add_argument(
+        "--agent",
+        metavar="NAME",
+        help="list what the agent NAME asked and was answered or refused, and check its chain",
+    )
+    parser.add_argument(
+        "--since",
+        metavar="WHEN",
+        type=_since,
+        help="with --agent: from this UTC time (2026-12-06T20:00) or this long ago (2h, 7d)",
+    )
     args = parser.parse_args(argv)
     if args.verify and not args.run:
         parser.error("--verify needs RUN")
+    if args.since is not None and args.agent is None:
+        parser.error("--since needs --agent")
     try:
         audit = AuditLog(args.db)
     except (AuditSchemaError, AuditLogUnavailable) as exc:
         print(f"caretaker report: {exc}", file=sys.stderr)
         return 2
     try:
+        if args.agent is not None:
+            return _agent_report(audit, args.agent, args.since)
         if args.list or not args.run:
             for run_id, started, procedure_id in audit.runs():
                 print(f"{run_id}  {started:%Y-%m-%d %H:%M:%S}Z  {procedure_id}")
@@ -449,6 +466,39 @@ def report_main(argv: list[str] | None = None) -> int:
         return 0 if check.ok else 1
     finally:
         audit.close()
+
+
+def _since(text: str) -> datetime:
+    """``--since``: an ISO time (UTC unless it says otherwise) or a duration back from now."""
+    try:
+        return datetime.now(UTC) - parse_duration(text)
+    except TokenError:
+        pass
+    try:
+        moment = datetime.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is neither a time (2026-12-06T20:00) nor a duration back from now (2h, 7d)"
+        ) from None
+    return moment if moment.tzinfo else moment.replace(tzinfo=UTC)
+
+
+def _agent_report(audit: AuditLog, agent: str, since: datetime | None) -> int:
+    """``caretaker report --agent NAME``: its calls, one per line, then its chain. Exit 0 intact, 1 broken, 2 none."""
+    from agent.agent_audit import AgentRecords, record_line
+
+    records = AgentRecords(audit.engine)
+    check = records.verify(agent)
+    if check.events == 0 and check.bad_seq is None:
+        print(f"caretaker report: agent {agent!r} made no calls recorded in this database", file=sys.stderr)
+        return 2
+    for record in records.records(agent, since=since):
+        print(record_line(record))
+    if check.ok:
+        print(f"agent {agent}: chain of {check.events} records intact; head {check.head}")
+        return 0
+    print(f"caretaker report: agent {agent}: {check.problem}", file=sys.stderr)
+    return 1
 
 
 def db_main(argv: list[str] | None = None) -> int:

@@ -28,6 +28,7 @@ from sqlalchemy import insert, select, update
 
 from agent.agent_audit import AgentRecords
 from agent.mcp_server import TOKEN_ENV
+from caretaker.procedure_commands import report_main
 from console.accounts import AccountStore
 from console.actions import perform_forwarded
 from console.ground.action_requests import ActionRequests
@@ -141,7 +142,9 @@ def agent_records(ground: Ground, agent: str) -> list[tuple[str, str, dict[str, 
 
 
 @pytest.mark.parametrize("ground", ["sqlite", "postgresql"], indirect=True)
-def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(ground: Ground) -> None:
+def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(
+    ground: Ground, capsys: pytest.CaptureFixture[str]
+) -> None:
     control = RobotControl(ground.database.url)
     answers: dict[str, Any] = {}
 
@@ -258,6 +261,31 @@ def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(gr
         ("answered", "connect", None),
         ("refused", "withdraw_proposal", "own_proposal"),
     ]
+    assert_reported(ground, capsys, "daphne", [tool for _, tool, _ in records])
+
+
+def assert_reported(ground: Ground, capsys: pytest.CaptureFixture[str], agent: str, tools: list[str]) -> None:
+    """``caretaker report --agent`` lists each call once, in order, with its rule when refused, and the chain."""
+    capsys.readouterr()
+    assert report_main(["--db", ground.database.url, "--agent", agent]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[3] for line in lines[:-1]] == tools
+    assert lines[-1].startswith(f"agent {agent}: chain of {len(tools)} records intact")
+    draft = next(line for line in lines if "refused by rule released_version" in line)
+    assert f'"procedure": "{EVA}"' in draft, draft
+    log = AuditLog(ground.database.url)
+    try:
+        fifth = AgentRecords(log.engine).records(agent)[4]
+    finally:
+        log.close()
+    assert report_main(["--db", ground.database.url, "--agent", agent, "--since", fifth.time.isoformat()]) == 0
+    since = capsys.readouterr().out.splitlines()
+    assert [int(line.split()[0]) for line in since[:-1]] == list(range(5, len(tools) + 1))
+    assert report_main(["--db", ground.database.url, "--agent", "nobody"]) == 2
+    assert "agent 'nobody' made no calls" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        report_main(["--db", ground.database.url, "--agent", agent, "--since", "last tuesday"])
+    assert "neither a time (2026-12-06T20:00) nor a duration" in capsys.readouterr().err
 
 
 def test_a_token_refused_at_start_or_revoked_mid_session_is_recorded_and_stops_the_agent(ground: Ground) -> None:
