@@ -139,7 +139,7 @@ async def _unit_of(endpoint: Endpoint, run_id: str) -> Unit | str:
     client = RosbridgeClient(endpoint, name="caretaker-attach")
     client.start()
     try:
-        await asyncio.wait_for(client.ready.wait(), endpoint.light_time.connect_within)
+        await asyncio.wait_for(client.opened.wait(), endpoint.light_time.connect_within)
         answer = await client.call(UNIT_SERVICE, {"run_id": run_id}, timeout=client.call_timeout())
     except TimeoutError:
         raise LinkError(UNIT_SERVICE, "no connection to the habitat in time") from None

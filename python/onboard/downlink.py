@@ -550,7 +550,7 @@ async def _uplink(
                 "message": "no answer from the habitat before the unit ran out",
             }
         try:
-            await asyncio.wait_for(client.ready.wait(), left)
+            await asyncio.wait_for(client.opened.wait(), left)  # right behind the login
             answer = asyncio.ensure_future(
                 client.call(UPLINK_SERVICE, request, timeout=client.call_timeout(UNIT_WORK_S))
             )

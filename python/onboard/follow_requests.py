@@ -105,7 +105,7 @@ class FollowRequests:
         """A follow request every interval while the session is open (none while it is down:
         the catch-up after it asks for what was missed)."""
         while True:
-            await self._client.ready.wait()
+            await self._client.opened.wait()
             self._send(follows=True)
             await asyncio.sleep(self._every)
 

@@ -122,6 +122,13 @@ class RosbridgeClient:
         self._closed = False
         self.ready = asyncio.Event()
         """Set while connected (the bridge answered the greeting)."""
+        self.opened = asyncio.Event()
+        """Set while the socket is open and the login and the greeting have gone out on it.
+
+        A request sent from then on goes right behind them: the bridge takes frames in order, so it
+        is answered after the login is (or lost with the socket when the login is refused). Across
+        a long link that saves the round trip of waiting for :attr:`ready`, for a caller that may
+        send the same request again (an uplinked unit, a request for events)."""
 
     def subscribe(self, subscription: Subscription) -> None:
         """Read a topic from now on (and after every reconnect)."""
@@ -272,6 +279,7 @@ class RosbridgeClient:
                     await self._send(
                         {"op": OP_CALL_SERVICE, "id": _HELLO, "service": "/rosapi/get_ros_version", "args": {}}
                     )
+                    self.opened.set()
                     async for frame in socket:
                         if self._receive(frame):
                             attempt = 0
@@ -285,6 +293,7 @@ class RosbridgeClient:
                 log.warning("%s: rosbridge link to %s: %s", self.name, self.endpoint.url, exc)
             finally:
                 self._socket = None
+                self.opened.clear()
                 self.ready.clear()
                 self._fail_calls("the rosbridge connection was lost")
             if self._closed:

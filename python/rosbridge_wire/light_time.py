@@ -7,6 +7,9 @@ at the far end plus the round trips the exchange needs, so the same code holds a
 
 - opening a connection takes three round trips (TCP, TLS 1.3, the WebSocket upgrade), and a login
   and a first answer one more: :attr:`LightTime.connect_within` allows one round trip more than that;
+  a request that may be sent again (an onboard unit, a request for events) goes right behind the
+  login instead of waiting for that first answer, so it reaches the far end 3.5 round trips after
+  the connection was opened;
 - a request is answered within its work plus one round trip (:meth:`LightTime.answer_within`);
 - a keepalive ping goes every four one-way delays (at least 5 s) and is given up a round trip after
   the next one was due;

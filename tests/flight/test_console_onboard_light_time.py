@@ -1,7 +1,8 @@
 """The IVA procedure onboard across 60 s of light time each way: it completes, and a console action
 sent during it is shown on its way, then answered, never "outcome unknown" nor "no news".
 
-At 60 s one way opening the runner's connection alone takes four round trips of 2 minutes, and
+At 60 s one way the unit reaches the habitat three and a half round trips of 2 minutes after the
+runner opens its connection (TCP, TLS, the upgrade; the unit goes right behind the login), and
 the habitat's answer to an operator's action is due 130 s after it went up (round trip + 10 s of
 work): far later than a console waits for any request (30 s after the host took it). The console
 must show the action on its way, with the ground clock's time its answer is due, and then the

@@ -60,6 +60,7 @@ class LinkedHabitat(RosbridgeClient):
         self.acceptance_after = 0  # the unit's answer reaches the ground once this many follow requests arrived
         self.follows_arrived = 0
         self._follow_came = asyncio.Event()
+        self.opened.set()  # the session is open and answered: requests go out at once
         self.ready.set()
 
     async def call(self, service: str, args: Mapping[str, Any], *, timeout: float | None = None) -> Mapping[str, Any]:

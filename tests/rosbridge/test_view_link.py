@@ -160,3 +160,31 @@ def test_a_client_serves_a_service_and_outlives_a_failing_handler(secure_bridge:
         answer, refused, after = pool.submit(asyncio.run, serve_and_call(url, binding(folder, url, SECRET))).result()
     assert answer == after == {"success": True, "message": "served by the client"}
     assert "Timeout exceeded" in refused or "no answer in time" in refused, refused
+
+
+async def call_behind_the_login(url: str, binding_path: Path) -> tuple[Any, str]:
+    """A call sent as soon as the login has gone out, not waiting for the bridge's first answer:
+    (its answer, or what it ended in)."""
+    link = read_view_link(binding_path)
+    assert link is not None
+    client = RosbridgeClient(link.endpoint, name="pipelining-client")
+    client.start()
+    try:
+        await asyncio.wait_for(client.opened.wait(), 30)
+        try:
+            return await client.call("/rosapi/get_ros_version", {}, timeout=10), ""
+        except LinkError as exc:
+            return None, str(exc)
+    finally:
+        await client.close()
+
+
+def test_a_call_right_behind_the_login_is_answered_after_it_and_never_behind_a_refused_one(
+    secure_bridge: tuple[str, Path],
+) -> None:
+    url, folder = secure_bridge
+    with ThreadPoolExecutor(1) as pool:
+        answer, _ = pool.submit(asyncio.run, call_behind_the_login(url, binding(folder, url, SECRET))).result()
+        refused, why = pool.submit(asyncio.run, call_behind_the_login(url, binding(folder, url, "wrong"))).result()
+    assert answer is not None and answer["version"]
+    assert refused is None and "connection was lost" in why, why  # the bridge closed it unanswered
