@@ -1,9 +1,11 @@
 """``caretaker agent``: an MCP server through which an assistant acts with an agent's rights, and no more.
 
 The server is authenticated as one account of role ``agent`` (:mod:`records.agent_tokens`): over
-stdio (a local assistant starts it) its token comes from ``CARETAKER_AGENT_TOKEN``. The token is
-checked again on every call, so a token that expires or is revoked mid-session stops working at
-the next call.
+stdio (a local assistant starts it) its token comes from ``CARETAKER_AGENT_TOKEN``; over streamable
+HTTP (``--listen``, for a remote assistant; TLS as ``caretaker serve`` does it) every request carries
+it as a bearer token, and one that is not the agent's valid token is answered 401 and recorded.
+The token is checked again on every call, so a token that expires or is revoked mid-session stops
+working at the next call.
 
 Its tools are the methods of :class:`agent.agent_desk.AgentDesk` and nothing else: an agent lists
 released procedures, robots, runs and its proposals, explains a run in the after-action report's
@@ -18,22 +20,30 @@ answer, never in the server's own instructions.
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
 import os
 import sys
+import threading
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
 from typing import Annotated, Any, TypeVar
 
+import anyio
 from mcp.server import MCPServer
+from mcp.server.auth.middleware.auth_context import get_access_token
+from mcp.server.auth.provider import AccessToken
+from mcp.server.auth.settings import AuthSettings
 from mcp.server.mcpserver.exceptions import ResourceError, ToolError
 from pydantic import BaseModel, Field
 
 from agent.agent_audit import ANSWERED, REFUSED, AgentRecords
 from agent.agent_desk import AgentDesk, AgentRefused, ProcedureFacts, run_words
+from agent.call_budget import CallBudget
 from agent.proposals import Proposal, ProposalStore
 from console.catalog import Catalog
+from console.listener import Listener, serve, tls_problem
 from procedure_language.model import RecordInstruction
 from records.agent_tokens import TokenRefused, TokenStore
 from records.audit_log import DEFAULT_DB, AuditLog
@@ -42,6 +52,8 @@ __all__ = ["TOKEN_ENV", "AgentSession", "build_server", "main"]
 
 log = logging.getLogger(__name__)
 
+#: The tool that asks for a HALT: outside the call budget.
+HALT_TOOL = "request_halt"
 #: Where a stdio server reads its token.
 TOKEN_ENV = "CARETAKER_AGENT_TOKEN"
 REPO = Path(__file__).resolve().parents[2]
@@ -173,11 +185,22 @@ class HaltAnswer(BaseModel):
 class AgentSession:
     """One server's agent: its token (read anew for each call), its desk and its record."""
 
-    def __init__(self, tokens: TokenStore, records: AgentRecords, desk: AgentDesk, token: Callable[[], str]) -> None:
+    def __init__(
+        self,
+        tokens: TokenStore,
+        records: AgentRecords,
+        desk: AgentDesk,
+        token: Callable[[], str],
+        budget: CallBudget | None = None,
+    ) -> None:
         self.tokens = tokens
         self.records = records
         self.desk = desk
+        self.budget = budget or CallBudget()
         self._token = token
+        # One call at a time: the SDK runs tools on worker threads, and a burst of concurrent writers
+        # of one chain would only contend for its head (on SQLite, fail with "database is locked").
+        self._one_at_a_time = threading.Lock()
 
     @property
     def agent(self) -> str:
@@ -189,7 +212,13 @@ class AgentSession:
         """Authenticate, answer, record: the one way every tool runs. A refusal is recorded and
         raised as an MCP tool error naming its rule. ``recorded``: the fields of the answer to
         record (default all; a procedure's text is known by its hash)."""
+        with self._one_at_a_time:
+            return self._call(tool, arguments, answer, recorded)
+
+    def _call(self, tool: str, arguments: dict[str, Any], answer: Callable[[], _M], recorded: set[str] | None) -> _M:
         try:
+            if tool != HALT_TOOL and not self.budget.take():  # a HALT is the safe direction: never held back
+                raise AgentRefused("call_rate", f"too many calls: {self.budget.describe()}; wait, then ask again")
             self.tokens.authenticate(self._token(), agent=self.agent)
             result = answer()
         except (AgentRefused, TokenRefused) as refused:
@@ -203,9 +232,41 @@ class AgentSession:
         return result
 
 
-def build_server(session: AgentSession) -> MCPServer:
-    """The MCP server whose tools are the agent's desk, each through :meth:`AgentSession.call`."""
-    server = MCPServer("caretaker", instructions=INSTRUCTIONS)
+class BearerTokens:
+    """How a server over HTTP checks each request's bearer token (mcp's ``TokenVerifier``): a valid
+    token of the server's agent, checked in the database as a stdio call's is; a refusal is recorded
+    under that agent and answered 401 by the SDK before any tool runs."""
+
+    def __init__(self, tokens: TokenStore, records: AgentRecords, agent: str) -> None:
+        self.tokens = tokens
+        self.records = records
+        self.agent = agent
+
+    async def verify_token(self, token: str) -> AccessToken | None:
+        try:
+            agent = await anyio.to_thread.run_sync(functools.partial(self.tokens.authenticate, token, agent=self.agent))
+        except TokenRefused as refused:
+            refusal = {"transport": "http", "rule": refused.rule, "refusal": refused.message}
+            await anyio.to_thread.run_sync(self.records.append, self.agent, REFUSED, "connect", refusal)
+            return None
+        return AccessToken(token=token, client_id=agent, scopes=[])
+
+
+def request_token() -> str:
+    """The bearer token of the HTTP request being answered ("" outside one)."""
+    access = get_access_token()
+    return access.token if access is not None else ""
+
+
+def build_server(session: AgentSession, *, url: str | None = None) -> MCPServer:
+    """The MCP server whose tools are the agent's desk, each through :meth:`AgentSession.call`;
+    with ``url`` (served over HTTP there) every request needs the agent's bearer token."""
+    if url is None:
+        server = MCPServer("caretaker", instructions=INSTRUCTIONS)
+    else:  # tokens are issued by `caretaker accounts token`, not by an OAuth server: the issuer is this one
+        auth = AuthSettings(issuer_url=url, resource_server_url=f"{url}/mcp", validate_token_resource=False)  # type: ignore[arg-type]
+        verifier = BearerTokens(session.tokens, session.records, session.agent)
+        server = MCPServer("caretaker", instructions=INSTRUCTIONS, token_verifier=verifier, auth=auth)
     desk = session.desk
 
     @server.tool()
@@ -327,7 +388,7 @@ def build_server(session: AgentSession) -> MCPServer:
                 raise AgentRefused("halt_refused", f"the console hosting run {run_id}: {reply.body.get('error')}")
             return HaltAnswer(words=f"run {run_id} on {robot} halted", robot=robot, run_id=run_id, outcome="halted")
 
-        return session.call("request_halt", {"robot": robot, "reason": reason}, answer)
+        return session.call(HALT_TOOL, {"robot": robot, "reason": reason}, answer)
 
     @server.resource("procedure://{file}", mime_type="application/xml")
     def procedure_text(file: str) -> str:
@@ -398,7 +459,8 @@ def _proposal_answer(proposal: Proposal, did: str) -> ProposalAnswer:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="caretaker agent",
-        description=f"Serve an assistant over MCP (stdio) as an agent account; its token is read from ${TOKEN_ENV}.",
+        description=f"Serve an assistant over MCP as an agent account: over stdio its token is read from ${TOKEN_ENV}, "
+        "over HTTP (--listen) each request carries it as a bearer token.",
     )
     parser.add_argument(
         "--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})"
@@ -418,35 +480,101 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--proposal-expiry", type=float, default=15.0, metavar="MIN", help="minutes a proposal waits for an operator"
     )
+    parser.add_argument(
+        "--burst", type=int, default=30, metavar="N", help="calls an agent may make at once (default 30)"
+    )
+    parser.add_argument(
+        "--calls-per-second", type=float, default=2.0, metavar="R", help="and at this rate after them (default 2)"
+    )
+    parser.add_argument(
+        "--listen",
+        metavar="HOST:PORT",
+        help="serve over streamable HTTP at http(s)://HOST:PORT/mcp instead of stdio (needs --agent); "
+        "each request carries the agent's token as 'Authorization: Bearer TOKEN'",
+    )
+    parser.add_argument("--certfile", type=Path, help="with --listen: TLS certificate chain (PEM), as caretaker serve")
+    parser.add_argument("--keyfile", type=Path, help="with --listen: TLS private key (PEM)")
+    parser.add_argument(
+        "--insecure", action="store_true", help="with --listen: allow plain http beyond loopback (an encrypted network)"
+    )
     return parser
 
 
+def _listen_address(text: str) -> tuple[str, int]:
+    """``--listen HOST:PORT`` (``[::1]:PORT`` for IPv6); ValueError says what one looks like."""
+    host, sep, port = text.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or int(port) > 65535:
+        raise ValueError(f"--listen {text}: expected HOST:PORT, e.g. 127.0.0.1:8765 (PORT 0: any free port)")
+    return host, int(port)
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Serve one agent over stdio until its client closes it; 2 with the reason when its token is refused."""
+    """Serve one agent over stdio until its client closes it, or over HTTP (``--listen``) until
+    stopped; 2 with the reason when its token or the options are refused."""
     args = _parser().parse_args(argv)
-    if args.proposal_expiry <= 0:
-        print("caretaker agent: --proposal-expiry must be positive", file=sys.stderr)
+    problem = _option_problem(args)
+    if problem is not None:
+        print(f"caretaker agent: {problem}", file=sys.stderr)
         return 2
-    token = os.environ.get(TOKEN_ENV, "")
     audit = AuditLog(args.db)
     tokens, records = TokenStore(audit.engine), AgentRecords(audit.engine)
     try:
-        try:
-            agent = tokens.authenticate(token, agent=args.agent)
-        except TokenRefused as refused:
-            records.append(
-                args.agent or UNKNOWN_AGENT, REFUSED, "connect", {"rule": refused.rule, "refusal": refused.message}
-            )
-            print(f"caretaker agent: refused by rule {refused.rule}: {refused.message}", file=sys.stderr)
-            return 2
+        if args.listen:
+            if tokens.role(args.agent) != "agent":
+                print(f"caretaker agent: --agent {args.agent}: no account of role agent by that name", file=sys.stderr)
+                return 2
+            agent = args.agent
+        else:
+            try:
+                agent = tokens.authenticate(os.environ.get(TOKEN_ENV, ""), agent=args.agent)
+            except TokenRefused as refused:
+                refusal = {"rule": refused.rule, "refusal": refused.message}
+                records.append(args.agent or UNKNOWN_AGENT, REFUSED, "connect", refusal)
+                print(f"caretaker agent: refused by rule {refused.rule}: {refused.message}", file=sys.stderr)
+                return 2
         catalog = Catalog(args.procedures, args.bindings, tuple(args.sysreps or [REPO / "sysrep"]))
         proposals = ProposalStore(audit.engine, expiry=timedelta(minutes=args.proposal_expiry))
         desk = AgentDesk(agent, audit, catalog, proposals)
+        budget = CallBudget(args.burst, args.calls_per_second)
         try:
+            if args.listen:
+                return _serve_http(args, AgentSession(tokens, records, desk, request_token, budget))
             records.append(agent, ANSWERED, "connect", {"transport": "stdio"})
-            build_server(AgentSession(tokens, records, desk, lambda: os.environ.get(TOKEN_ENV, ""))).run("stdio")
+            build_server(AgentSession(tokens, records, desk, _stdio_token, budget)).run("stdio")
         finally:
             desk.close()
     finally:
         audit.close()
+    return 0
+
+
+def _stdio_token() -> str:
+    return os.environ.get(TOKEN_ENV, "")
+
+
+def _option_problem(args: argparse.Namespace) -> str | None:
+    if args.proposal_expiry <= 0:
+        return "--proposal-expiry must be positive"
+    if args.burst < 1 or args.calls_per_second <= 0:
+        return "--burst must be at least 1 and --calls-per-second positive"
+    if not args.listen:
+        return "--certfile, --keyfile and --insecure go with --listen" if args.certfile or args.insecure else None
+    if args.agent is None:
+        return "--listen needs --agent NAME: an HTTP server serves one agent, whose token each request carries"
+    try:
+        args.address, args.port = _listen_address(args.listen)
+    except ValueError as exc:
+        return str(exc)
+    return tls_problem(args.address, args.certfile, args.keyfile, args.insecure, "agents' bearer tokens")
+
+
+def _serve_http(args: argparse.Namespace, session: AgentSession) -> int:
+    try:
+        listener = Listener.bind(args.address, args.port, tls=args.certfile is not None)
+    except OSError as exc:
+        print(f"caretaker agent: cannot bind {args.listen}: {exc.strerror}", file=sys.stderr)
+        return 2
+    app = build_server(session, url=listener.url).streamable_http_app(host=args.address)
+    serve(app, listener, "agent", args.certfile, args.keyfile, lifespan="on")
     return 0

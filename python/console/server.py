@@ -10,22 +10,20 @@ network that is encrypted otherwise (a VPN, a TLS-terminating proxy on the same 
 from __future__ import annotations
 
 import argparse
-import ipaddress
 import logging
 import re
 import socket
-import ssl
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
-import uvicorn
 from sqlalchemy.exc import OperationalError
 
 from console.accounts import AccountStore
 from console.app import build_app
 from console.catalog import CameraSettings, Catalog
 from console.ground.run_hosts import DEFAULT_LEASE_S
+from console.listener import Listener, loopback, serve, tls_problem
 from console.reports import report_writer
 from console.run_board import RunBoard
 from console.sign_in import SessionLimits, SignIns
@@ -39,19 +37,6 @@ __all__ = ["main"]
 log = logging.getLogger(__name__)
 
 REPO = Path(__file__).resolve().parents[2]
-
-
-class _Server(uvicorn.Server):
-    """uvicorn, announcing readiness after its sockets accept connections."""
-
-    def __init__(self, config: uvicorn.Config, url: str) -> None:
-        super().__init__(config)
-        self.url = url
-
-    async def startup(self, sockets: list[socket.socket] | None = None) -> None:
-        await super().startup(sockets=sockets)
-        if not self.should_exit:
-            print(f"READY serve {self.url}", flush=True)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -144,39 +129,6 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _loopback(address: str) -> bool:
-    if address == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(address).is_loopback
-    except ValueError:
-        return False  # a host name: it may resolve to anything
-
-
-def _tls_problem(args: argparse.Namespace) -> str | None:
-    """Why the TLS options cannot be used as given (None: they can, or none were given)."""
-    if (args.certfile is None) != (args.keyfile is None):
-        return "--certfile and --keyfile go together"
-    if args.certfile is None:
-        if _loopback(args.address) or args.insecure:
-            return None
-        return (
-            f"--address {args.address} reaches beyond this machine, and passwords and session cookies must not "
-            "cross a network in clear text: give --certfile and --keyfile (TLS), or --insecure if the network "
-            "is encrypted otherwise (VPN, a TLS proxy on this host)"
-        )
-    try:
-        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(args.certfile, args.keyfile)
-    except ssl.SSLError as exc:  # before OSError, of which it is a kind
-        return (
-            f"--certfile {args.certfile} and --keyfile {args.keyfile} "
-            f"are not a usable PEM certificate and key: {exc.reason or exc}"
-        )
-    except OSError as exc:
-        return f"cannot read the TLS files: {exc.strerror or exc} ({exc.filename or args.certfile})"
-    return None
-
-
 #: A camera's name in a robot's scene (``camera/<name>`` frames of the simulation).
 _CAMERA_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -211,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     except SysRepError as exc:
         print(f"caretaker serve: {exc}", file=sys.stderr)
         return 2
-    problem = _tls_problem(args)
+    problem = tls_problem(args.address, args.certfile, args.keyfile, args.insecure, "passwords and session cookies")
     if problem is not None:
         print(f"caretaker serve: {problem}", file=sys.stderr)
         return 2
@@ -235,23 +187,17 @@ def main(argv: list[str] | None = None) -> int:
         print("caretaker serve: --lease must be at least 3 s (claims are renewed every second)", file=sys.stderr)
         return 2
     tls = args.certfile is not None
-    if not _loopback(args.address):
+    if not loopback(args.address):
         log.warning(
             "serving on %s%s: the web view is reachable beyond this machine",
             args.address,
             "" if tls else " WITHOUT TLS",
         )
-    family = socket.AF_INET6 if ":" in args.address else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
-        sock.bind((args.address, args.port))
+        listener = Listener.bind(args.address, args.port, tls=tls)
     except OSError as exc:
         print(f"caretaker serve: cannot bind {args.address}:{args.port}: {exc.strerror}", file=sys.stderr)
         return 2
-    host, port = sock.getsockname()[:2]
-    scheme = "https" if tls else "http"
-    url = f"{scheme}://[{host}]:{port}" if family == socket.AF_INET6 else f"{scheme}://{host}:{port}"
     try:
         accounts = AccountStore(args.db)
     except (AuditLogUnavailable, AuditSchemaError, OperationalError) as exc:
@@ -276,26 +222,15 @@ def main(argv: list[str] | None = None) -> int:
         audit_log,
         CameraSettings(cameras, args.camera_period),
         accounts=accounts,
-        console=args.console or f"console {socket.gethostname()}:{port}",
+        console=args.console or f"console {socket.gethostname()}:{listener.port}",
         lease=args.lease,
         rosbridge_urls=rosbridge_urls,
     )
     sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
     board.feed.subscribe(sign_ins.notice)
     app = build_app(board, sign_ins, report_writer=report_writer(audit_log, args.reports), secure=tls)
-    config = uvicorn.Config(
-        app,
-        log_level="warning",
-        lifespan="on",
-        ws="websockets-sansio",
-        ssl_certfile=args.certfile,
-        ssl_keyfile=args.keyfile,
-    )
-    server = _Server(config, url)
     try:
-        server.run(sockets=[sock])
-    except KeyboardInterrupt:
-        pass
+        serve(app, listener, "serve", args.certfile, args.keyfile, lifespan="on", ws="websockets-sansio")
     finally:
         audit_log.close()
         accounts.close()

@@ -99,14 +99,15 @@ class TokenStore:
     def __init__(self, engine: Engine) -> None:
         self._engine = engine
 
-    def _role(self, user: str) -> str | None:
+    def role(self, user: str) -> str | None:
+        """``user``'s role, None when there is no such account."""
         with self._engine.connect() as connection:
             role = connection.scalar(select(console_accounts.c.role).where(console_accounts.c.user_id == user))
         return None if role is None else str(role)
 
     def issue(self, user: str, expires_in: timedelta | None = None) -> IssuedToken:
         """A new token for the agent ``user``; TokenError when ``user`` is no agent."""
-        role = self._role(user)
+        role = self.role(user)
         if role is None:
             raise TokenError(f"no account {user!r} (see `caretaker accounts list`)")
         if role != AGENT_ROLE:
@@ -157,7 +158,7 @@ class TokenStore:
         expires = _utc(row.expires)
         if expires is not None and expires <= datetime.now(UTC):
             raise TokenRefused("agent_token", f"the token of {row.user_id} expired at {expires:%Y-%m-%d %H:%M:%S}Z")
-        role = self._role(row.user_id)
+        role = self.role(row.user_id)
         if role is None:
             raise TokenRefused("agent_token", f"the account {row.user_id} no longer exists")
         if role != AGENT_ROLE:

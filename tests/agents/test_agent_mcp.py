@@ -10,12 +10,14 @@ forwarded actions exactly as ``caretaker serve`` does (:func:`console.actions.pe
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
 import shutil
+import ssl
 import subprocess
 import sys
-from collections.abc import Awaitable, Callable
+from collections.abc import AsyncIterator, Awaitable, Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -29,6 +31,7 @@ from sqlalchemy import insert, select, update
 from agent.agent_audit import AgentRecords
 from agent.mcp_server import TOKEN_ENV
 from caretaker.procedure_commands import report_main
+from caretaker.processes import caretaker
 from console.accounts import AccountStore
 from console.actions import perform_forwarded
 from console.ground.action_requests import ActionRequests
@@ -44,6 +47,7 @@ from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest
 from records.robot_control import RobotControl
 from support.audit import RecordedJournal
+from support.certificates import self_signed_certificate
 from support.executive_runs import held
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO
@@ -403,3 +407,107 @@ def test_a_halt_an_agent_asks_for_reaches_the_console_hosting_the_run_and_is_rec
         ("refused", "request_halt", "run_state"),
         ("answered", "request_halt", None),
     ]
+
+
+def revoke(agent: str, database: str) -> None:
+    log = AuditLog(database)
+    try:
+        TokenStore(log.engine).revoke(agent)
+    finally:
+        log.close()
+
+
+@contextlib.asynccontextmanager
+async def over_http(url: str, token: str, ca: Path) -> AsyncIterator[Client]:
+    """The SDK's own client over streamable HTTP, sending ``token`` as its bearer token."""
+    import httpx2
+    from mcp.client.streamable_http import streamable_http_client
+
+    trust = ssl.create_default_context(cafile=str(ca))
+    http = httpx2.AsyncClient(headers={"Authorization": f"Bearer {token}"}, verify=trust)
+    async with http, Client(streamable_http_client(f"{url}/mcp", http_client=http)) as client:
+        yield client
+
+
+def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_one_is_recorded(
+    ground: Ground, tmp_path: Path
+) -> None:
+    cert, key = self_signed_certificate(tmp_path, "ca.pem")
+    common = ("agent", "--db", ground.database.url, "--procedures", str(ground.procedures), "--agent", "daphne")
+    refused_options = {
+        ("--listen", "0.0.0.0:0"): "must not cross a network in clear text",
+        ("--listen", "here"): "expected HOST:PORT",
+        ("--listen", "127.0.0.1:0", "--agent", "nobody"): "no account of role agent",
+        ("--certfile", str(cert), "--keyfile", str(key)): "go with --listen",
+    }
+    for options, why in refused_options.items():
+        done = subprocess.run([str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=60)
+        assert done.returncode == 2 and why in done.stderr, (options, done.stderr)
+    server = caretaker(
+        *common, "--listen", "127.0.0.1:0", "--certfile", str(cert), "--keyfile", str(key), env=dict(os.environ)
+    )
+    try:
+        url = server.wait_ready(60).split()[2]
+        assert url.startswith("https://127.0.0.1:")
+        seen: dict[str, Any] = {}
+
+        async def scenario() -> None:
+            try:
+                async with over_http(url, ground.tokens["daphne"], tmp_path / "ca.pem") as client:
+                    listed = (await client.call_tool("list_procedures", {})).structured_content
+                    assert listed is not None
+                    seen["procedures"] = [p["file"] for p in listed["procedures"]]
+                    explained = (await client.call_tool("explain_run", {"run_id": ground.run_id})).structured_content
+                    assert explained is not None
+                    seen["outcome"] = explained["outcome"]
+                    revoke("daphne", ground.database.url)  # mid-session
+                    await client.call_tool("list_runs", {})
+                    seen["after revoking"] = "answered"
+            except Exception as exc:
+                seen.setdefault("after revoking", repr(exc))
+            for token in (ground.tokens["hal"], "not-a-token"):
+                with pytest.raises(Exception) as failed:
+                    async with over_http(url, token, tmp_path / "ca.pem") as client:
+                        await client.call_tool("list_runs", {})
+                seen.setdefault("refused", []).append(repr(failed.value))
+            import httpx2
+
+            trust = ssl.create_default_context(cafile=str(tmp_path / "ca.pem"))
+            async with httpx2.AsyncClient(verify=trust) as http:  # what any HTTP client is told
+                answer = await http.post(f"{url}/mcp", json={"jsonrpc": "2.0", "id": 1, "method": "tools/list"})
+            seen["raw"] = (answer.status_code, answer.headers.get("www-authenticate", "").split(" ")[0])
+
+        asyncio.run(scenario())
+    finally:
+        server.stop()
+    assert seen.get("procedures") == [IVA] and seen.get("outcome") == "completed", seen
+    # the SDK's client says only that the server answered with an error; the status and the rule are the server's
+    assert "MCPError" in seen["after revoking"], seen["after revoking"]
+    assert all("MCPError" in text for text in seen["refused"]), seen["refused"]
+    assert seen["raw"] == (401, "Bearer"), seen["raw"]
+    records = agent_records(ground, "daphne")
+    assert [(kind, tool) for kind, tool, _ in records[:2]] == [
+        ("answered", "list_procedures"),
+        ("answered", "explain_run"),
+    ]
+    refusals = [(tool, data["rule"]) for kind, tool, data in records[2:] if kind == "refused"]
+    assert len(refusals) >= 3 and {tool for tool, _ in refusals} == {"connect"}, refusals
+    assert all(data.get("transport") == "http" for kind, _, data in records[2:] if kind == "refused")
+
+
+def test_a_burst_of_1000_calls_gets_its_budget_answered_and_every_other_call_refused_and_recorded(
+    ground: Ground,
+) -> None:
+    burst = 5
+    outcomes: list[str] = []
+
+    async def flood(client: Client) -> None:
+        results = await asyncio.gather(*(client.call_tool("list_runs", {}) for _ in range(1000)))
+        outcomes.extend(refused(r).split(":", 1)[0] if r.is_error else "answered" for r in results)
+
+    # a rate this low refills nothing while the burst lasts, so the count is exact
+    with_agent(ground.server(ground.tokens["daphne"], "--burst", str(burst), "--calls-per-second", "0.0001"), flood)
+    assert outcomes.count("answered") == burst and outcomes.count("call_rate") == 1000 - burst, set(outcomes)
+    records = agent_records(ground, "daphne")  # its chain checked
+    assert len(records) == 1 + 1000  # connect, then every call
+    assert sum(kind == "refused" and data["rule"] == "call_rate" for kind, _, data in records) == 1000 - burst
