@@ -17,6 +17,8 @@ from __future__ import annotations
 import itertools
 import os
 import socket
+import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,20 +32,22 @@ from console.ground.change_feed import ChangeFeed, open_change_feed
 from datafile import DataFileError
 from pride.event_words import describe_event
 from pride.events import Event, EventKind
+from pride.gateways import open_gateway
 from pride.phrasing import Wording
 from pride.report import summarize
 from pride.run_setup import load_sysreps
+from pride.systems import SystemGateway
 from procedure_language.binding import BindingError, read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
-from procedure_language.sysrep import check_value
+from procedure_language.sysrep import Telemetry, check_value
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest, short
 from records.robot_control import RobotControl
 
-__all__ = ["AgentDesk", "AgentRefused", "ProcedureFacts", "RunFacts"]
+__all__ = ["AgentDesk", "AgentRefused", "ProcedureFacts", "RunFacts", "TelemetryFacts"]
 
 #: How many of a run's latest records an explanation quotes.
 RECENT = 12
@@ -59,6 +63,24 @@ class AgentRefused(Exception):
         super().__init__(message)
         self.rule = rule
         self.message = message
+
+
+@dataclass(frozen=True)
+class TelemetryFacts:
+    """One telemetry item as an agent sees it: ``value`` None until first heard, ``age`` in s."""
+
+    system: str
+    item: Telemetry
+    value: Any
+    age: float | None
+    stale: bool
+
+    @property
+    def state(self) -> str:
+        """green, yellow or red against the item's limits; ``no limits``; ``no value`` when unknown."""
+        if self.value is None or self.stale:
+            return "no value" if self.value is None else "stale"
+        return self.item.limits.state(self.value) if self.item.limits is not None else "no limits"
 
 
 @dataclass(frozen=True)
@@ -84,8 +106,17 @@ class RunFacts:
 class AgentDesk:
     """One agent's reach into one ground database and the consoles' folders."""
 
-    def __init__(self, agent: str, audit: AuditLog, catalog: Catalog, proposals: ProposalStore) -> None:
+    def __init__(
+        self,
+        agent: str,
+        audit: AuditLog,
+        catalog: Catalog,
+        proposals: ProposalStore,
+        gateways: Callable[[str], SystemGateway] = open_gateway,
+    ) -> None:
         self.agent = agent
+        self._open_gateway = gateways
+        self._gateways: dict[str, SystemGateway] = {}
         self.audit = audit
         self.catalog = catalog
         self.proposals = proposals
@@ -95,6 +126,8 @@ class AgentDesk:
         self._actions: ActionRequests | None = None
 
     def close(self) -> None:
+        for gateway in self._gateways.values():
+            gateway.close()
         if self._actions is not None:
             self._actions.close()
         if self._feed is not None:
@@ -146,6 +179,39 @@ class AgentDesk:
                 continue  # a console cannot use it either
         return robots
 
+    def binding_of(self, robot: str) -> str:
+        """The binding file that reaches ``robot``; AgentRefused (known_robot) when there is none."""
+        robots = self.robots()
+        if robot not in robots:
+            raise AgentRefused(
+                "known_robot", f"no robot {robot!r} here (robots: {', '.join(sorted(robots)) or 'none'})"
+            )
+        return robots[robot]
+
+    # ---- telemetry ----------------------------------------------------------------------------
+    def telemetry(self, robot: str) -> list[TelemetryFacts]:
+        """Every telemetry item ``robot``'s binding serves: its value now, how old, against its limits.
+
+        The robot is read as a console reads it, through the PAX host of its binding (opened at the
+        first ask and kept); an item not heard from yet has no value, and says so.
+        """
+        binding = self.binding_of(robot)
+        gateway = self._gateways.get(binding)
+        if gateway is None:
+            gateway = self._gateways[binding] = self._open_gateway(str(self.catalog.binding_path(binding)))
+        sysreps = load_sysreps(self.catalog.sysreps)
+        now = time.time()
+        facts = []
+        for system in read_binding(self.catalog.binding_path(binding)).systems:
+            sysrep = sysreps.get(system.sysrep)
+            if sysrep is None:  # the binding does not lint: a console refuses it too
+                raise AgentRefused("known_sysrep", f"{binding} names SysRep {system.sysrep!r}, which is not loaded")
+            for item in sysrep.telemetry:
+                reading = gateway.telemetry(sysrep.id, item.id)
+                age = None if reading.timestamp is None else max(0.0, now - reading.timestamp)
+                facts.append(TelemetryFacts(system.sysrep, item, reading.value, age, reading.stale))
+        return facts
+
     # ---- runs ---------------------------------------------------------------------------------
     def runs(self) -> list[RunFacts]:
         """The newest runs first, at most :data:`LISTED_RUNS`."""
@@ -180,11 +246,7 @@ class AgentDesk:
                 + (f"release {match.number}, no longer the current one" if match else "no version ever released")
                 + f"; its released version is release {facts.release}, sha256 {facts.sha256}",
             )
-        robots = self.robots()
-        if robot not in robots:
-            raise AgentRefused(
-                "known_robot", f"no robot {robot!r} here (robots: {', '.join(sorted(robots)) or 'none'})"
-            )
+        binding = self.binding_of(robot)
         holder = self.control.holder(robot)
         if holder is not None:
             raise AgentRefused(
@@ -199,7 +261,7 @@ class AgentDesk:
             facts.sha256,
             facts.release,
             robot,
-            robots[robot],
+            binding,
             checked_inputs,
             reason.strip(),
         )
@@ -223,11 +285,7 @@ class AgentDesk:
         """Ask the console hosting the run that controls ``robot`` to HALT it, as the agent: (run id, its answer)."""
         if not reason.strip():
             raise AgentRefused("reason_given", "a halt request gives its reason in words")
-        robots = self.robots()
-        if robot not in robots:
-            raise AgentRefused(
-                "known_robot", f"no robot {robot!r} here (robots: {', '.join(sorted(robots)) or 'none'})"
-            )
+        self.binding_of(robot)  # known_robot
         holder = self.control.holder(robot)
         if holder is None:
             raise AgentRefused("run_state", f"no run controls {robot}: there is nothing to halt")

@@ -61,6 +61,7 @@ EVA = "eva_inspection.xml"
 TOOLS = {
     "list_procedures",
     "list_robots",
+    "read_telemetry",
     "list_runs",
     "explain_run",
     "propose_run",
