@@ -28,7 +28,7 @@ from support.second_operator import APPROVED_BY_BOB
 
 from .flight_support import CLEAN_FILTER, PROCEDURE, RUN_TIMEOUT_S, assert_flown_exactly_once, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=893), pytest.mark.timeout(3600)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=700), pytest.mark.timeout(3600)]
 
 #: One way, s: Mars at its nearest is three minutes; this is long enough that every wait across
 #: the link is minutes, and the action's answer is due long after a console stops waiting.
