@@ -43,7 +43,7 @@ from agent.agent_audit import ANSWERED, REFUSED, AgentRecords
 from agent.agent_desk import AgentDesk, AgentRefused, ProcedureFacts, TelemetryFacts, run_words
 from agent.call_budget import CallBudget
 from agent.proposals import Proposal, ProposalStore
-from console.catalog import Catalog
+from console.catalog import Catalog, catalog_options
 from console.listener import Listener, serve, tls_problem
 from procedure_language.model import RecordInstruction
 from records.agent_tokens import TokenRefused, TokenStore
@@ -519,17 +519,7 @@ def _parser() -> argparse.ArgumentParser:
         "--db", default=DEFAULT_DB, help=f"the ground database, as for caretaker serve (default: {DEFAULT_DB})"
     )
     parser.add_argument("--agent", metavar="NAME", help="refuse a token that is not this agent's")
-    parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="the consoles' procedures folder")
-    parser.add_argument(
-        "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="the consoles' bindings folder"
-    )
-    parser.add_argument(
-        "--sysreps",
-        type=Path,
-        action="append",
-        metavar="DIR",
-        help=f"SysRep folder (repeatable; default {REPO / 'sysrep'})",
-    )
+    catalog_options(parser)
     parser.add_argument(
         "--proposal-expiry", type=float, default=15.0, metavar="MIN", help="minutes a proposal waits for an operator"
     )

@@ -7,6 +7,7 @@ ones).
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,7 +16,9 @@ from console.actions import ActionRefused
 from datafile import DataFileError
 from pride.robot_sides import RobotSide, robot_side_for
 
-__all__ = ["CameraSettings", "Catalog"]
+__all__ = ["CameraSettings", "Catalog", "catalog_options"]
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @dataclass(frozen=True)
@@ -74,3 +77,19 @@ def _choose(directory: Path, name: str, known: list[str], what: str) -> Path:
     if name not in known:
         raise ActionRefused(400, f"unknown {what} {name!r}; known: {', '.join(known) or 'none'} (in {directory})")
     return directory / name
+
+
+def catalog_options(parser: argparse.ArgumentParser) -> None:
+    """``--procedures``, ``--bindings`` and ``--sysreps``: the folders a console (and an agent,
+    which must see what the consoles see) offers from, with the same defaults everywhere."""
+    parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
+    parser.add_argument(
+        "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files"
+    )
+    parser.add_argument(
+        "--sysreps",
+        type=Path,
+        action="append",
+        metavar="DIR",
+        help=f"directory of SysRep YAML files (repeatable; default {REPO / 'sysrep'}); an id twice is refused",
+    )

@@ -21,7 +21,7 @@ from sqlalchemy.exc import OperationalError
 
 from console.accounts import AccountStore
 from console.app import build_app
-from console.catalog import CameraSettings, Catalog
+from console.catalog import CameraSettings, Catalog, catalog_options
 from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.listener import Listener, loopback, serve, tls_problem
 from console.reports import report_writer
@@ -71,17 +71,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="H",
         help="sign everyone out this many hours after they signed in (default 12: a shift)",
     )
-    parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
-    parser.add_argument(
-        "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files"
-    )
-    parser.add_argument(
-        "--sysreps",
-        type=Path,
-        action="append",
-        metavar="DIR",
-        help=f"directory of SysRep YAML files (repeatable; default {REPO / 'sysrep'}); an id twice is refused",
-    )
+    catalog_options(parser)
     parser.add_argument(
         "--deployments",
         type=Path,
