@@ -11,6 +11,7 @@ reads the new head and links after it.
 from __future__ import annotations
 
 import json
+import threading
 from dataclasses import replace
 from datetime import UTC, datetime
 from typing import Any
@@ -36,9 +37,16 @@ class AgentRecords:
 
     def __init__(self, engine: Engine) -> None:
         self._engine = engine
+        # This process's writers one at a time: a burst of refusals (bad bearer tokens arrive on
+        # many threads) would only contend for the chain's head, and SQLite would give up on it.
+        self._appending = threading.Lock()
 
     def append(self, agent: str, kind: str, tool: str, data: dict[str, Any]) -> StoredEvent:
         """Store one record at the head of ``agent``'s chain and commit it."""
+        with self._appending:
+            return self._append(agent, kind, tool, data)
+
+    def _append(self, agent: str, kind: str, tool: str, data: dict[str, Any]) -> StoredEvent:
         text = json.dumps(data, sort_keys=True, default=str, ensure_ascii=False)
         for _ in range(_ATTEMPTS):
             try:

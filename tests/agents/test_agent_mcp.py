@@ -474,9 +474,14 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
             import httpx2
 
             trust = ssl.create_default_context(cafile=str(tmp_path / "ca.pem"))
+            listing = {"jsonrpc": "2.0", "id": 1, "method": "tools/list"}
             async with httpx2.AsyncClient(verify=trust) as http:  # what any HTTP client is told
-                answer = await http.post(f"{url}/mcp", json={"jsonrpc": "2.0", "id": 1, "method": "tools/list"})
-            seen["raw"] = (answer.status_code, answer.headers.get("www-authenticate", "").split(" ")[0])
+                answer = await http.post(f"{url}/mcp", json=listing)
+                seen["raw"] = (answer.status_code, answer.headers.get("www-authenticate", "").split(" ")[0])
+                forged = {"Authorization": "Bearer forged"}  # 100 at once: each refused and recorded
+                posts = (http.post(f"{url}/mcp", json=listing, headers=forged) for _ in range(100))
+                burst = await asyncio.gather(*posts)
+                seen["burst"] = sorted({a.status_code for a in burst})
 
         asyncio.run(scenario())
     finally:
@@ -492,7 +497,8 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
         ("answered", "explain_run"),
     ]
     refusals = [(tool, data["rule"]) for kind, tool, data in records[2:] if kind == "refused"]
-    assert len(refusals) >= 3 and {tool for tool, _ in refusals} == {"connect"}, refusals
+    assert seen["burst"] == [401], seen["burst"]
+    assert len(refusals) >= 3 + 100 and {tool for tool, _ in refusals} == {"connect"}, refusals
     assert all(data.get("transport") == "http" for kind, _, data in records[2:] if kind == "refused")
 
 
