@@ -24,7 +24,6 @@ from typing import Any
 
 from sqlalchemy import select
 
-from agent.proposals import NewProposal, Proposal, ProposalStore
 from console.actions import ActionRefused
 from console.catalog import Catalog
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
@@ -42,6 +41,7 @@ from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
 from procedure_language.sysrep import Telemetry, check_value
+from records.agent_proposals import NewProposal, Proposal, ProposalStore
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest, short

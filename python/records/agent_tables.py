@@ -7,7 +7,7 @@ An agent is an account of role ``agent`` (:mod:`console.accounts`) that reaches 
   (a token is 32 random bytes, so a fast hash is enough: nobody can guess one to match); each
   may expire and may be revoked. ``caretaker accounts token`` (the owner) writes it, agents read it.
 - ``agent_proposals``: the runs agents propose, for an operator to accept or decline, each with
-  its expiry (:mod:`agent.proposals`).
+  its expiry (:mod:`records.agent_proposals`; consoles answer them, agents make them).
 - ``agent_records``: every call an agent made and its answer or refusal, hash-chained per agent
   exactly as a run's audit records are (:mod:`records.audit_chain`, the agent's id in place of a
   run id) and append-only like them (:mod:`agent.agent_audit`).

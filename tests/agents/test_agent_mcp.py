@@ -518,3 +518,35 @@ def test_a_burst_of_1000_calls_gets_its_budget_answered_and_every_other_call_ref
     records = agent_records(ground, "daphne")  # its chain checked
     assert len(records) == 1 + 1000  # connect, then every call
     assert sum(kind == "refused" and data["rule"] == "call_rate" for kind, _, data in records) == 1000 - burst
+
+
+FORBIDDEN_ACTS = (
+    "start_run",
+    "approve_command",
+    "release_procedure",
+    "answer_record",
+    "confirm_instruction",
+    "take_robot",
+    "set_mode",
+    "correct_record",
+    "run_draft",
+)
+
+
+def test_every_act_an_agent_may_not_do_is_refused_by_its_role_and_recorded(ground: Ground) -> None:
+    told: dict[str, str] = {}
+
+    async def hostile(client: Client) -> None:
+        tools = {tool.name for tool in (await client.list_tools()).tools}
+        assert tools == TOOLS
+        for act in FORBIDDEN_ACTS:
+            told[act] = refused(await client.call_tool(act, {"robot": "iva", "procedure": IVA}))
+
+    with_agent(ground.server(ground.tokens["daphne"]), hostile)
+    assert {act: text.split(":", 1)[0] for act, text in told.items()} == dict.fromkeys(FORBIDDEN_ACTS, "agent_role")
+    assert "'start_run' is not an act an agent may do" in told["start_run"]
+    records = agent_records(ground, "daphne")
+    assert [(kind, tool, data["rule"]) for kind, tool, data in records[1:]] == [
+        ("refused", act, "agent_role") for act in FORBIDDEN_ACTS
+    ]
+    assert records[1][2]["arguments"] == {"robot": "iva", "procedure": IVA}

@@ -17,7 +17,8 @@ from mcp import Client, StdioServerParameters
 
 from agent.agent_audit import AgentRecords
 from agent.agent_desk import TelemetryFacts
-from agent.mcp_server import TOKEN_ENV, telemetry_entry
+from agent.answers import telemetry_entry
+from agent.mcp_server import TOKEN_ENV
 from console.accounts import AccountStore
 from pride.run_setup import load_sysreps
 from records.agent_tokens import TokenStore

@@ -31,7 +31,7 @@ _P = agent_proposals.c
 
 @dataclass(frozen=True)
 class NewProposal:
-    """What an agent proposes, already checked (:mod:`agent.agent_desk`)."""
+    """What an agent proposes, already checked by its desk (:mod:`agent.agent_desk`)."""
 
     agent: str
     procedure: str
