@@ -40,7 +40,7 @@ from procedure_language.binding import BindingError, read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
-from procedure_language.sysrep import Telemetry, check_value
+from procedure_language.sysrep import SysRep, Telemetry, check_value
 from records.agent_proposals import NewProposal, Proposal, ProposalStore
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
@@ -187,6 +187,15 @@ class AgentDesk:
                 "known_robot", f"no robot {robot!r} here (robots: {', '.join(sorted(robots)) or 'none'})"
             )
         return robots[robot]
+
+    def sysrep(self, sysrep_id: str) -> SysRep:
+        """The SysRep ``sysrep_id`` of the consoles' folders; AgentRefused (known_sysrep) when there is none."""
+        sysreps = load_sysreps(self.catalog.sysreps)
+        if sysrep_id not in sysreps:
+            raise AgentRefused(
+                "known_sysrep", f"no SysRep {sysrep_id!r} here (SysReps: {', '.join(sorted(sysreps)) or 'none'})"
+            )
+        return sysreps[sysrep_id]
 
     # ---- telemetry ----------------------------------------------------------------------------
     def telemetry(self, robot: str) -> list[TelemetryFacts]:

@@ -19,10 +19,10 @@ __all__ = [
     "HaltAnswer",
     "NamedValue",
     "ProcedureEntry",
-    "ProcedureText",
     "ProceduresAnswer",
     "ProposalAnswer",
     "ProposalsAnswer",
+    "ResourceText",
     "RecordWords",
     "RobotEntry",
     "RobotsAnswer",
@@ -165,9 +165,11 @@ class HaltAnswer(BaseModel):
     outcome: str = Field(description="halted, on its way, or refused")
 
 
-class ProcedureText(BaseModel):
-    file: str
-    release: int
+class ResourceText(BaseModel):
+    """A resource's text: a released procedure (its release) or a SysRep (no release)."""
+
+    name: str
+    release: int | None
     sha256: str
     text: str
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import hashlib
 import logging
 import os
 import sys
@@ -46,9 +47,9 @@ from agent.agent_desk import AgentDesk, AgentRefused, run_words
 from agent.answers import (
     HaltAnswer,
     ProceduresAnswer,
-    ProcedureText,
     ProposalAnswer,
     ProposalsAnswer,
+    ResourceText,
     RobotEntry,
     RobotsAnswer,
     RunEntry,
@@ -345,19 +346,34 @@ def build_server(session: AgentSession, *, url: str | None = None) -> MCPServer:
 
         return session.call(HALT_TOOL, {"robot": robot, "reason": reason}, answer)
 
+    def resource(tool: str, arguments: dict[str, Any], answer: Callable[[], ResourceText]) -> str:
+        try:  # recorded by name and hash, not by its text
+            return session.call(tool, arguments, answer, recorded={"name", "release", "sha256"}).text
+        except ToolError as exc:
+            raise ResourceError(str(exc)) from None
+
     @server.resource("procedure://{file}", mime_type="application/xml")
     def procedure_text(file: str) -> str:
         """A released procedure's text (its file in the consoles' folder, while it is the released version)."""
 
-        def answer() -> ProcedureText:
+        def answer() -> ResourceText:
             facts = desk.released(file)
             text = Path(facts.checked.procedure.path).read_text(encoding="utf-8")
-            return ProcedureText(file=file, release=facts.release, sha256=facts.sha256, text=text)
+            return ResourceText(name=file, release=facts.release, sha256=facts.sha256, text=text)
 
-        try:
-            return session.call("read_procedure", {"file": file}, answer, recorded={"file", "release", "sha256"}).text
-        except ToolError as exc:
-            raise ResourceError(str(exc)) from None
+        return resource("read_procedure", {"file": file}, answer)
+
+    @server.resource("sysrep://{sysrep_id}", mime_type="application/yaml")
+    def sysrep_text(sysrep_id: str) -> str:
+        """A SysRep the consoles load: its commands and telemetry items, their units and limits."""
+
+        def answer() -> ResourceText:
+            text = Path(desk.sysrep(sysrep_id).path).read_text(encoding="utf-8")
+            return ResourceText(
+                name=sysrep_id, release=None, sha256=hashlib.sha256(text.encode()).hexdigest(), text=text
+            )
+
+        return resource("read_sysrep", {"sysrep": sysrep_id}, answer)
 
     return server
 

@@ -550,3 +550,31 @@ def test_every_act_an_agent_may_not_do_is_refused_by_its_role_and_recorded(groun
         ("refused", act, "agent_role") for act in FORBIDDEN_ACTS
     ]
     assert records[1][2]["arguments"] == {"robot": "iva", "procedure": IVA}
+
+
+def test_released_procedures_and_sysreps_are_resources_and_a_draft_is_not(ground: Ground) -> None:
+    read: dict[str, Any] = {}
+
+    async def reader(client: Client) -> None:
+        for uri in (f"procedure://{IVA}", "sysrep://cdra", f"procedure://{EVA}", "sysrep://warp_drive"):
+            try:
+                contents = (await client.read_resource(uri)).contents
+                read[uri] = contents[0].text  # type: ignore[union-attr]
+            except Exception as exc:  # the SDK raises the server's refusal
+                read[uri] = f"refused: {exc}"
+
+    with_agent(ground.server(ground.tokens["daphne"]), reader)
+    assert read[f"procedure://{IVA}"] == (ground.procedures / IVA).read_text()
+    assert read["sysrep://cdra"] == (REPO / "sysrep" / "cdra.yaml").read_text()
+    assert (
+        read[f"procedure://{EVA}"].startswith("refused:") and "a draft (never released)" in read[f"procedure://{EVA}"]
+    )
+    assert "no SysRep 'warp_drive' here" in read["sysrep://warp_drive"]
+    records = agent_records(ground, "daphne")
+    assert [(kind, tool) for kind, tool, _ in records[1:]] == [
+        ("answered", "read_procedure"),
+        ("answered", "read_sysrep"),
+        ("refused", "read_procedure"),
+        ("refused", "read_sysrep"),
+    ]
+    assert records[1][2]["answer"] == {"name": IVA, "release": 1, "sha256": ground.sha256}  # not its text
