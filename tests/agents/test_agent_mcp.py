@@ -478,8 +478,8 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
             async with httpx2.AsyncClient(verify=trust) as http:  # what any HTTP client is told
                 answer = await http.post(f"{url}/mcp", json=listing)
                 seen["raw"] = (answer.status_code, answer.headers.get("www-authenticate", "").split(" ")[0])
-                forged = {"Authorization": "Bearer forged"}  # 100 at once: each refused and recorded
-                posts = (http.post(f"{url}/mcp", json=listing, headers=forged) for _ in range(100))
+                forged = {"Authorization": "Bearer forged"}  # 40 at once: each refused and recorded
+                posts = (http.post(f"{url}/mcp", json=listing, headers=forged) for _ in range(40))
                 burst = await asyncio.gather(*posts)
                 seen["burst"] = sorted({a.status_code for a in burst})
 
@@ -498,7 +498,7 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
     ]
     refusals = [(tool, data["rule"]) for kind, tool, data in records[2:] if kind == "refused"]
     assert seen["burst"] == [401], seen["burst"]
-    assert len(refusals) >= 3 + 100 and {tool for tool, _ in refusals} == {"connect"}, refusals
+    assert len(refusals) >= 3 + 40 and {tool for tool, _ in refusals} == {"connect"}, refusals
     assert all(data.get("transport") == "http" for kind, _, data in records[2:] if kind == "refused")
 
 
