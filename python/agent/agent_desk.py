@@ -18,14 +18,14 @@ import itertools
 import os
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import select
 
 from console.actions import ActionRefused
-from console.catalog import Catalog
+from console.catalog import Catalog, rosbridge_for
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import ChangeFeed, open_change_feed
 from datafile import DataFileError
@@ -112,9 +112,11 @@ class AgentDesk:
         audit: AuditLog,
         catalog: Catalog,
         proposals: ProposalStore,
-        gateways: Callable[[str], SystemGateway] = open_gateway,
+        rosbridge_urls: Mapping[str, str] | None = None,
+        gateways: Callable[..., SystemGateway] = open_gateway,
     ) -> None:
         self.agent = agent
+        self.rosbridge_urls = dict(rosbridge_urls or {})  # as the consoles' --rosbridge says
         self._open_gateway = gateways
         self._gateways: dict[str, SystemGateway] = {}
         self.audit = audit
@@ -207,7 +209,8 @@ class AgentDesk:
         binding = self.binding_of(robot)
         gateway = self._gateways.get(binding)
         if gateway is None:
-            gateway = self._gateways[binding] = self._open_gateway(str(self.catalog.binding_path(binding)))
+            path, url = str(self.catalog.binding_path(binding)), rosbridge_for(self.rosbridge_urls, binding)
+            gateway = self._gateways[binding] = self._open_gateway(path, rosbridge_url=url)
         sysreps = load_sysreps(self.catalog.sysreps)
         now = time.time()
         facts = []

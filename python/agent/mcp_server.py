@@ -61,7 +61,7 @@ from agent.answers import (
     telemetry_entry,
 )
 from agent.call_budget import CallBudget
-from console.catalog import Catalog, catalog_options
+from console.catalog import Catalog, catalog_options, rosbridge_overrides
 from console.listener import Listener, serve, tls_problem
 from records.agent_proposals import ProposalStore
 from records.agent_tokens import TokenRefused, TokenStore
@@ -448,7 +448,7 @@ def main(argv: list[str] | None = None) -> int:
                 return 2
         catalog = Catalog(args.procedures, args.bindings, tuple(args.sysreps or [REPO / "sysrep"]))
         proposals = ProposalStore(audit.engine, expiry=timedelta(minutes=args.proposal_expiry))
-        desk = AgentDesk(agent, audit, catalog, proposals)
+        desk = AgentDesk(agent, audit, catalog, proposals, args.rosbridge_urls)
         budget = CallBudget(args.burst, args.calls_per_second)
         try:
             if args.listen:
@@ -471,6 +471,10 @@ def _option_problem(args: argparse.Namespace) -> str | None:
         return "--proposal-expiry must be positive"
     if args.burst < 1 or args.calls_per_second <= 0:
         return "--burst must be at least 1 and --calls-per-second positive"
+    try:
+        args.rosbridge_urls = rosbridge_overrides(args.rosbridge)
+    except ValueError as exc:
+        return str(exc)
     if not args.listen:
         return "--certfile, --keyfile and --insecure go with --listen" if args.certfile or args.insecure else None
     if args.agent is None:

@@ -8,7 +8,7 @@ ones).
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -16,7 +16,14 @@ from console.actions import ActionRefused
 from datafile import DataFileError
 from pride.robot_sides import RobotSide, robot_side_for
 
-__all__ = ["CameraSettings", "Catalog", "catalog_options"]
+__all__ = [
+    "CameraSettings",
+    "Catalog",
+    "catalog_options",
+    "per_binding",
+    "rosbridge_for",
+    "rosbridge_overrides",
+]
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -80,8 +87,9 @@ def _choose(directory: Path, name: str, known: list[str], what: str) -> Path:
 
 
 def catalog_options(parser: argparse.ArgumentParser) -> None:
-    """``--procedures``, ``--bindings`` and ``--sysreps``: the folders a console (and an agent,
-    which must see what the consoles see) offers from, with the same defaults everywhere."""
+    """``--procedures``, ``--bindings``, ``--sysreps`` and ``--rosbridge``: what a console (and an
+    agent, which must see what the consoles see) offers, and where its robots are, with the same
+    defaults everywhere."""
     parser.add_argument("--procedures", type=Path, default=REPO / "procedures", help="directory of procedure XML files")
     parser.add_argument(
         "--bindings", type=Path, default=REPO / "sysrep" / "bindings", help="directory of binding files"
@@ -93,3 +101,39 @@ def catalog_options(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help=f"directory of SysRep YAML files (repeatable; default {REPO / 'sysrep'}); an id twice is refused",
     )
+    parser.add_argument(
+        "--rosbridge",
+        metavar="[BINDING=]URL",
+        action="append",
+        default=[],
+        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
+        "or of every binding without BINDING=; repeat for several robots",
+    )
+
+
+def per_binding(flag: str, options: list[str], expected: str, valid: Callable[[str], object]) -> dict[str, str]:
+    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError
+    says what is wrong."""
+    values: dict[str, str] = {}
+    for option in options:
+        binding, _, value = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
+        if not valid(value):
+            raise ValueError(f"{flag} {option}: expected [BINDING=]{expected}")
+        if binding in values:
+            raise ValueError(
+                f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already"
+            )
+        values[binding] = value
+    return values
+
+
+def rosbridge_overrides(options: list[str]) -> dict[str, str]:
+    """``--rosbridge`` options: binding file name (or "" for every binding) -> URL; ValueError says what is wrong."""
+    return per_binding(
+        "--rosbridge", options, "ws://HOST:PORT or wss://HOST:PORT", lambda url: url.startswith(("ws://", "wss://"))
+    )
+
+
+def rosbridge_for(overrides: Mapping[str, str], binding: str) -> str | None:
+    """The rosbridge URL given for a binding file (or for every binding); None: the binding's own."""
+    return overrides.get(binding, overrides.get(""))

@@ -30,7 +30,7 @@ from sqlalchemy.exc import SQLAlchemyError
 from console.accounts import Account, AccountStore
 from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
 from console.camera_feed import CameraFeed
-from console.catalog import CameraSettings, Catalog
+from console.catalog import CameraSettings, Catalog, rosbridge_for
 from console.folded_run import fold_events
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import ChangeNotice, open_change_feed
@@ -138,7 +138,7 @@ class RunBoard:
 
     def rosbridge_url_for(self, binding: str) -> str | None:
         """The rosbridge URL given for a binding file (or for every binding); None: the binding's own."""
-        return self.rosbridge_urls.get(binding, self.rosbridge_urls.get(""))
+        return rosbridge_for(self.rosbridge_urls, binding)
 
     def sysreps(self) -> dict[str, SysRep]:
         return load_sysreps(self.catalog.sysreps)

@@ -14,14 +14,13 @@ import logging
 import re
 import socket
 import sys
-from collections.abc import Callable
 from pathlib import Path
 
 from sqlalchemy.exc import OperationalError
 
 from console.accounts import AccountStore
 from console.app import build_app
-from console.catalog import CameraSettings, Catalog, catalog_options
+from console.catalog import CameraSettings, Catalog, catalog_options, per_binding, rosbridge_overrides
 from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.listener import Listener, loopback, serve, tls_problem
 from console.reports import report_writer
@@ -82,14 +81,6 @@ def _parser() -> argparse.ArgumentParser:
         "which commands need a second operator's approval?) besides the shipped ones and those beside a binding",
     )
     parser.add_argument(
-        "--rosbridge",
-        metavar="[BINDING=]URL",
-        action="append",
-        default=[],
-        help="replace the rosbridge URL of the binding file BINDING (e.g. eva.yaml=ws://127.0.0.1:9091), "
-        "or of every binding without BINDING=; repeat for several robots",
-    )
-    parser.add_argument(
         "--console",
         metavar="NAME",
         help="how other consoles name this one when it hosts a run (default: console HOST:PORT)",
@@ -123,22 +114,6 @@ def _parser() -> argparse.ArgumentParser:
 _CAMERA_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
-def _per_binding(flag: str, options: list[str], expected: str, valid: Callable[[str], object]) -> dict[str, str]:
-    """``[BINDING=]VALUE`` options as binding file name -> value ("" for every binding); ValueError
-    says what is wrong."""
-    values: dict[str, str] = {}
-    for option in options:
-        binding, _, value = option.partition("=") if "=" in option.split("://", 1)[0] else ("", "", option)
-        if not valid(value):
-            raise ValueError(f"{flag} {option}: expected [BINDING=]{expected}")
-        if binding in values:
-            raise ValueError(
-                f"{flag} {option}: {'binding ' + binding if binding else 'every binding'} was given one already"
-            )
-        values[binding] = value
-    return values
-
-
 def main(argv: list[str] | None = None) -> int:
     """Serve until interrupted; returns the exit code."""
     args = _parser().parse_args(argv)
@@ -161,13 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         print("caretaker serve: --session-idle and --session-max must be positive", file=sys.stderr)
         return 2
     try:
-        rosbridge_urls = _per_binding(
-            "--rosbridge",
-            args.rosbridge,
-            "ws://HOST:PORT or wss://HOST:PORT",
-            lambda url: url.startswith(("ws://", "wss://")),
-        )
-        cameras = _per_binding(
+        rosbridge_urls = rosbridge_overrides(args.rosbridge)
+        cameras = per_binding(
             "--camera", args.camera, "NAME (a camera of the robot's scene: scene, ee_camera)", _CAMERA_NAME.fullmatch
         )
     except ValueError as exc:

@@ -440,6 +440,7 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
         ("--listen", "here"): "expected HOST:PORT",
         ("--listen", "127.0.0.1:0", "--agent", "nobody"): "no account of role agent",
         ("--certfile", str(cert), "--keyfile", str(key)): "go with --listen",
+        ("--rosbridge", "iva.yaml=http://127.0.0.1:9090"): "expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT",
     }
     for options, why in refused_options.items():
         done = subprocess.run([str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=60)

@@ -6,7 +6,6 @@ a value is placed against its limits, in the answer's words."""
 from __future__ import annotations
 
 import asyncio
-import shutil
 import sys
 from datetime import timedelta
 from pathlib import Path
@@ -52,14 +51,10 @@ def test_an_agent_reads_the_iva_robots_telemetry_and_the_cabins_co2_against_its_
         token = TokenStore(accounts.engine).issue("daphne", timedelta(hours=1)).token
     finally:
         accounts.close()
-    sysreps = tmp_path / "sysrep"
-    shutil.copytree(REPO / "sysrep", sysreps)
     with stack_up(REPO / "deployments" / "iva.yaml", ros_env) as stack:
-        binding = sysreps / "bindings" / "iva.yaml"
-        binding.write_text(binding.read_text().replace("ws://127.0.0.1:9090", stack.url))
-        server = StdioServerParameters(
+        server = StdioServerParameters(  # the robot where the stack serves it, as for caretaker serve
             command=str(CARETAKER),
-            args=["agent", "--db", database.url, "--bindings", str(binding.parent), "--sysreps", str(sysreps)],
+            args=["agent", "--db", database.url, "--rosbridge", f"iva.yaml={stack.url}"],
             env={**ros_env, TOKEN_ENV: token},
         )
         read: dict[str, Any] = {}
