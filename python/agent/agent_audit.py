@@ -71,13 +71,11 @@ class AgentRecords:
             return row
         raise RuntimeError(f"agent {agent}: could not append a record in {_ATTEMPTS} attempts (too many writers)")
 
-    def records(self, agent: str, *, since: datetime | None = None) -> list[StoredEvent]:
-        """``agent``'s records in order (those at or after ``since``, when given)."""
+    def records(self, agent: str) -> list[StoredEvent]:
+        """``agent``'s records in order."""
         query = select(_R.agent, _R.seq, _R.time, _R.agent, _R.kind, _R.tool, _R.data, _R.prev_hash, _R.hash).where(
             _R.agent == agent
         )
-        if since is not None:
-            query = query.where(_R.time >= since)
         with self._engine.connect() as connection:
             rows = connection.execute(query.order_by(_R.seq)).all()
         return [StoredEvent(row[0], row[1], utc(row[2]), *row[3:]) for row in rows]

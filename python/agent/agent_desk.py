@@ -118,7 +118,7 @@ class AgentDesk:
         self.agent = agent
         self.rosbridge_urls = dict(rosbridge_urls or {})  # as the consoles' --rosbridge says
         self._open_gateway = gateways
-        self._gateways: dict[str, SystemGateway] = {}
+        self._watched: dict[str, tuple[SystemGateway, list[tuple[str, Telemetry]]]] = {}  # by robot
         self.audit = audit
         self.catalog = catalog
         self.proposals = proposals
@@ -128,7 +128,7 @@ class AgentDesk:
         self._actions: ActionRequests | None = None
 
     def close(self) -> None:
-        for gateway in self._gateways.values():
+        for gateway, _ in self._watched.values():
             gateway.close()
         if self._actions is not None:
             self._actions.close()
@@ -206,23 +206,28 @@ class AgentDesk:
         The robot is read as a console reads it, through the PAX host of its binding (opened at the
         first ask and kept); an item not heard from yet has no value, and says so.
         """
-        binding = self.binding_of(robot)
-        gateway = self._gateways.get(binding)
-        if gateway is None:
-            path, url = str(self.catalog.binding_path(binding)), rosbridge_for(self.rosbridge_urls, binding)
-            gateway = self._gateways[binding] = self._open_gateway(path, rosbridge_url=url)
-        sysreps = load_sysreps(self.catalog.sysreps)
+        gateway, items = self._watched.get(robot) or self._watch(robot)
         now = time.time()
         facts = []
+        for sysrep_id, item in items:
+            reading = gateway.telemetry(sysrep_id, item.id)
+            age = None if reading.timestamp is None else max(0.0, now - reading.timestamp)
+            facts.append(TelemetryFacts(sysrep_id, item, reading.value, age, reading.stale))
+        return facts
+
+    def _watch(self, robot: str) -> tuple[SystemGateway, list[tuple[str, Telemetry]]]:
+        """Open ``robot``'s gateway and list the telemetry its binding serves, once for the desk's life."""
+        binding = self.binding_of(robot)
+        sysreps = load_sysreps(self.catalog.sysreps)
+        items = []
         for system in read_binding(self.catalog.binding_path(binding)).systems:
             sysrep = sysreps.get(system.sysrep)
             if sysrep is None:  # the binding does not lint: a console refuses it too
                 raise AgentRefused("known_sysrep", f"{binding} names SysRep {system.sysrep!r}, which is not loaded")
-            for item in sysrep.telemetry:
-                reading = gateway.telemetry(sysrep.id, item.id)
-                age = None if reading.timestamp is None else max(0.0, now - reading.timestamp)
-                facts.append(TelemetryFacts(system.sysrep, item, reading.value, age, reading.stale))
-        return facts
+            items += [(sysrep.id, item) for item in sysrep.telemetry]
+        path, url = str(self.catalog.binding_path(binding)), rosbridge_for(self.rosbridge_urls, binding)
+        self._watched[robot] = (self._open_gateway(path, rosbridge_url=url), items)
+        return self._watched[robot]
 
     # ---- runs ---------------------------------------------------------------------------------
     def runs(self) -> list[RunFacts]:

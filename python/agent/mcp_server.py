@@ -34,7 +34,6 @@ from typing import Annotated, Any, TypeVar
 
 import anyio
 from mcp.server import MCPServer
-from mcp.server.auth.middleware.auth_context import get_access_token
 from mcp.server.auth.provider import AccessToken
 from mcp.server.auth.settings import AuthSettings
 from mcp.server.mcpserver import Context
@@ -92,14 +91,17 @@ INSTRUCTIONS = (
 
 # ---- the session -----------------------------------------------------------------------------
 class AgentSession:
-    """One server's agent: its token (read anew for each call), its desk and its record."""
+    """One server's agent: its token (read anew for each call), its desk and its record.
+
+    ``token`` is None where the transport checks every request's token before a tool runs (HTTP,
+    :class:`BearerTokens`): checking it again here would be the same query twice per call."""
 
     def __init__(
         self,
         tokens: TokenStore,
         records: AgentRecords,
         desk: AgentDesk,
-        token: Callable[[], str],
+        token: Callable[[], str] | None,
         budget: CallBudget | None = None,
     ) -> None:
         self.tokens = tokens
@@ -107,8 +109,8 @@ class AgentSession:
         self.desk = desk
         self.budget = budget or CallBudget()
         self._token = token
-        # One call at a time: the SDK runs tools on worker threads, and a burst of concurrent writers
-        # of one chain would only contend for its head (on SQLite, fail with "database is locked").
+        # One call at a time: the SDK runs tools on worker threads, and the desk's state (the robots'
+        # gateways, opened at the first ask) is one agent's, not meant for calls at once.
         self._one_at_a_time = threading.Lock()
 
     @property
@@ -128,7 +130,8 @@ class AgentSession:
         try:
             if tool != HALT_TOOL and not self.budget.take():  # a HALT is the safe direction: never held back
                 raise AgentRefused("call_rate", f"too many calls: {self.budget.describe()}; wait, then ask again")
-            self.tokens.authenticate(self._token(), agent=self.agent)
+            if self._token is not None:
+                self.tokens.authenticate(self._token(), agent=self.agent)
             result = answer()
         except (AgentRefused, TokenRefused) as refused:
             self.records.append(
@@ -161,12 +164,6 @@ class BearerTokens:
         return AccessToken(token=token, client_id=agent, scopes=[])
 
 
-def request_token() -> str:
-    """The bearer token of the HTTP request being answered ("" outside one)."""
-    access = get_access_token()
-    return access.token if access is not None else ""
-
-
 #: What an agent is told when it asks for an act that is not one of its tools.
 NOT_AN_AGENTS_ACT = (
     "{tool} is not an act an agent may do: an agent lists, reads, explains, proposes a run, withdraws its "
@@ -183,11 +180,14 @@ class AgentServer(MCPServer):
     def __init__(self, session: AgentSession, **settings: Any) -> None:
         super().__init__("caretaker", instructions=INSTRUCTIONS, **settings)
         self.session = session
+        self._tools: frozenset[str] | None = None  # its tools' names, known once they are all added
 
     async def call_tool(
         self, name: str, arguments: dict[str, Any], context: Context[Any, Any] | None = None
     ) -> CallToolResult | InputRequiredResult:
-        if name not in {tool.name for tool in await self.list_tools()}:
+        if self._tools is None:
+            self._tools = frozenset(tool.name for tool in await self.list_tools())
+        if name not in self._tools:
 
             def refuse() -> BaseModel:
                 raise AgentRefused("agent_role", NOT_AN_AGENTS_ACT.format(tool=repr(name)))
@@ -452,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
         budget = CallBudget(args.burst, args.calls_per_second)
         try:
             if args.listen:
-                return _serve_http(args, AgentSession(tokens, records, desk, request_token, budget))
+                return _serve_http(args, AgentSession(tokens, records, desk, None, budget))
             records.append(agent, ANSWERED, "connect", {"transport": "stdio"})
             build_server(AgentSession(tokens, records, desk, _stdio_token, budget)).run("stdio")
         finally:

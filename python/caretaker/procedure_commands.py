@@ -486,14 +486,16 @@ def _since(text: str) -> datetime:
 def _agent_report(audit: AuditLog, agent: str, since: datetime | None) -> int:
     """``caretaker report --agent NAME``: its calls, one per line, then its chain. Exit 0 intact, 1 broken, 2 none."""
     from agent.agent_audit import AgentRecords, record_line
+    from records.audit_chain import verify_chain
 
-    records = AgentRecords(audit.engine)
-    check = records.verify(agent)
-    if check.events == 0 and check.bad_seq is None:
+    stored = AgentRecords(audit.engine).records(agent)
+    if not stored:
         print(f"caretaker report: agent {agent!r} made no calls recorded in this database", file=sys.stderr)
         return 2
-    for record in records.records(agent, since=since):
-        print(record_line(record))
+    for record in stored:
+        if since is None or record.time >= since:
+            print(record_line(record))
+    check = verify_chain(agent, stored)
     if check.ok:
         print(f"agent {agent}: chain of {check.events} records intact; head {check.head}")
         return 0

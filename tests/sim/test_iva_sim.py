@@ -275,12 +275,7 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
         assert not refused.success and refused.message.startswith(because), refused.message
 
     # Reach the cabinet handle: pre-grasp 15 cm out, then straight in; close on the handle.
-    assert client.gripper("open").success
-    approach = model.slot_line("cabinet/slot", 0.15, 0.0, HOME)
-    assert_ok(move_to(client, model, [approach[0]]))
-    assert_ok(move_to(client, model, approach[1:], 0.2))
-    grasp = client.gripper("closed")
-    assert grasp.success and grasp.held_object == dirty, grasp.message
+    approach = grasp_in_slot(client, model, "cabinet/slot", dirty)
     client.wait_value("/gripper/held_object", dirty)
 
     # Locked: pulling stops the arm and the filter stays in place.
@@ -318,6 +313,17 @@ def test_locked_filter_stays_and_unlocked_filter_moves_from_cabinet_to_rack(clie
     assert_ok(move_to(client, model, [HOME]))
 
 
+def grasp_in_slot(client: SimClient, model: ArmModel, slot: str, filter_id: str) -> list[list[float]]:
+    """Open, come to 15 cm out of ``slot``, go straight in and close on ``filter_id``: the approach line."""
+    assert client.gripper("open").success
+    approach = model.slot_line(slot, 0.15, 0.0, HOME)
+    assert_ok(move_to(client, model, [approach[0]]))
+    assert_ok(move_to(client, model, approach[1:], 0.2))
+    grasp = client.gripper("closed")
+    assert grasp.success and grasp.held_object == filter_id, grasp.message
+    return approach
+
+
 def test_the_cabin_co2_rises_with_the_cabinet_empty_and_falls_once_a_clean_filter_is_locked_in(
     client: SimClient, model: ArmModel
 ) -> None:
@@ -329,12 +335,7 @@ def test_the_cabin_co2_rises_with_the_cabinet_empty_and_falls_once_a_clean_filte
     assert client.fresh(CO2).data > before
 
     # Pick the clean filter from rack slot 1, as the dirty one came out of the cabinet.
-    assert client.gripper("open").success
-    approach = model.slot_line("rack/slot_1", 0.15, 0.0, HOME)
-    assert_ok(move_to(client, model, [approach[0]]))
-    assert_ok(move_to(client, model, approach[1:], 0.2))
-    grasp = client.gripper("closed")
-    assert grasp.success and grasp.held_object == clean, grasp.message
+    approach = grasp_in_slot(client, model, "rack/slot_1", clean)
     pull = model.slot_line("rack/slot_1", 0.0, 0.45, approach[-1])
     assert_ok(move_to(client, model, pull[1:], 0.2))
 
