@@ -17,17 +17,17 @@ from __future__ import annotations
 import itertools
 import os
 import socket
-import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy import select
 
 from console.actions import ActionRefused
-from console.catalog import Catalog, rosbridge_for
+from console.catalog import Catalog
 from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
 from console.ground.change_feed import ChangeFeed, open_change_feed
+from console.robot_telemetry import RobotTelemetry, TelemetryFacts, TelemetryRefused
 from datafile import DataFileError
 from pride.event_words import describe_event
 from pride.events import Event, EventKind
@@ -36,12 +36,11 @@ from pride.phrasing import Wording
 from pride.report import summarize
 from pride.run_setup import load_sysreps
 from pride.systems import SystemGateway
-from procedure_language.binding import BindingError, read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
-from procedure_language.sysrep import SysRep, Telemetry, check_value
-from records.agent_proposals import NewProposal, Proposal, ProposalStore
+from procedure_language.sysrep import SysRep, check_value
+from records.agent_proposals import CitedTelemetry, NewProposal, Proposal, ProposalStore
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest, short
@@ -63,24 +62,6 @@ class AgentRefused(Exception):
         super().__init__(message)
         self.rule = rule
         self.message = message
-
-
-@dataclass(frozen=True)
-class TelemetryFacts:
-    """One telemetry item as an agent sees it: ``value`` None until first heard, ``age`` in s."""
-
-    system: str
-    item: Telemetry
-    value: Any
-    age: float | None
-    stale: bool
-
-    @property
-    def state(self) -> str:
-        """green, yellow or red against the item's limits; ``no limits``; ``no value`` when unknown."""
-        if self.value is None or self.stale:
-            return "no value" if self.value is None else "stale"
-        return self.item.limits.state(self.value) if self.item.limits is not None else "no limits"
 
 
 @dataclass(frozen=True)
@@ -116,9 +97,7 @@ class AgentDesk:
         gateways: Callable[..., SystemGateway] = open_gateway,
     ) -> None:
         self.agent = agent
-        self.rosbridge_urls = dict(rosbridge_urls or {})  # as the consoles' --rosbridge says
-        self._open_gateway = gateways
-        self._watched: dict[str, tuple[SystemGateway, list[tuple[str, Telemetry]]]] = {}  # by robot
+        self.robot_telemetry = RobotTelemetry(catalog, rosbridge_urls, gateways)
         self.audit = audit
         self.catalog = catalog
         self.proposals = proposals
@@ -128,8 +107,7 @@ class AgentDesk:
         self._actions: ActionRequests | None = None
 
     def close(self) -> None:
-        for gateway, _ in self._watched.values():
-            gateway.close()
+        self.robot_telemetry.close()
         if self._actions is not None:
             self._actions.close()
         if self._feed is not None:
@@ -173,22 +151,14 @@ class AgentDesk:
 
     def robots(self) -> dict[str, str]:
         """Robot name → the binding file that reaches it, from the consoles' bindings folder."""
-        robots: dict[str, str] = {}
-        for name in self.catalog.binding_files():
-            try:
-                robots.setdefault(read_binding(self.catalog.bindings / name).robot, name)
-            except BindingError:
-                continue  # a console cannot use it either
-        return robots
+        return self.robot_telemetry.robots()
 
     def binding_of(self, robot: str) -> str:
         """The binding file that reaches ``robot``; AgentRefused (known_robot) when there is none."""
-        robots = self.robots()
-        if robot not in robots:
-            raise AgentRefused(
-                "known_robot", f"no robot {robot!r} here (robots: {', '.join(sorted(robots)) or 'none'})"
-            )
-        return robots[robot]
+        try:
+            return self.robot_telemetry.binding_of(robot)
+        except TelemetryRefused as exc:
+            raise AgentRefused(exc.rule, exc.message) from None
 
     def sysrep(self, sysrep_id: str) -> SysRep:
         """The SysRep ``sysrep_id`` of the consoles' folders; AgentRefused (known_sysrep) when there is none."""
@@ -203,31 +173,13 @@ class AgentDesk:
     def telemetry(self, robot: str) -> list[TelemetryFacts]:
         """Every telemetry item ``robot``'s binding serves: its value now, how old, against its limits.
 
-        The robot is read as a console reads it, through the PAX host of its binding (opened at the
-        first ask and kept); an item not heard from yet has no value, and says so.
+        The robot is read as a console reads it (:mod:`console.robot_telemetry`); an item not heard
+        from yet has no value, and says so.
         """
-        gateway, items = self._watched.get(robot) or self._watch(robot)
-        now = time.time()
-        facts = []
-        for sysrep_id, item in items:
-            reading = gateway.telemetry(sysrep_id, item.id)
-            age = None if reading.timestamp is None else max(0.0, now - reading.timestamp)
-            facts.append(TelemetryFacts(sysrep_id, item, reading.value, age, reading.stale))
-        return facts
-
-    def _watch(self, robot: str) -> tuple[SystemGateway, list[tuple[str, Telemetry]]]:
-        """Open ``robot``'s gateway and list the telemetry its binding serves, once for the desk's life."""
-        binding = self.binding_of(robot)
-        sysreps = load_sysreps(self.catalog.sysreps)
-        items = []
-        for system in read_binding(self.catalog.binding_path(binding)).systems:
-            sysrep = sysreps.get(system.sysrep)
-            if sysrep is None:  # the binding does not lint: a console refuses it too
-                raise AgentRefused("known_sysrep", f"{binding} names SysRep {system.sysrep!r}, which is not loaded")
-            items += [(sysrep.id, item) for item in sysrep.telemetry]
-        path, url = str(self.catalog.binding_path(binding)), rosbridge_for(self.rosbridge_urls, binding)
-        self._watched[robot] = (self._open_gateway(path, rosbridge_url=url), items)
-        return self._watched[robot]
+        try:
+            return self.robot_telemetry.read(robot)
+        except TelemetryRefused as exc:
+            raise AgentRefused(exc.rule, exc.message) from None
 
     # ---- runs ---------------------------------------------------------------------------------
     def runs(self) -> list[RunFacts]:
@@ -249,8 +201,17 @@ class AgentDesk:
             return Wording()  # ids as words: the records still read
 
     # ---- proposals ----------------------------------------------------------------------------
-    def propose(self, procedure: str, sha256: str, robot: str, inputs: dict[str, Any], reason: str) -> Proposal:
-        """Propose a run of the released ``procedure`` (its version ``sha256``) on ``robot``."""
+    def propose(
+        self,
+        procedure: str,
+        sha256: str,
+        robot: str,
+        inputs: dict[str, Any],
+        reason: str,
+        cited: Sequence[str] = (),
+    ) -> Proposal:
+        """Propose a run of the released ``procedure`` (its version ``sha256``) on ``robot``,
+        citing the telemetry items ``cited`` (``system.item``), read now and kept with it."""
         if not reason.strip():
             raise AgentRefused("reason_given", "a proposal gives its reason in words, for the operator who answers it")
         facts = self.released(procedure)
@@ -271,6 +232,7 @@ class AgentDesk:
                 f"{robot} is controlled by {holder.describe()}: a run proposed now could not start on it",
             )
         checked_inputs = {name: _checked_input(facts.checked, name, value) for name, value in inputs.items()}
+        citations = self._cite(robot, cited)
         new = NewProposal(
             self.agent,
             facts.checked.procedure.id,
@@ -281,8 +243,27 @@ class AgentDesk:
             binding,
             checked_inputs,
             reason.strip(),
+            citations,
         )
         return self.proposals.propose(new)
+
+    def _cite(self, robot: str, cited: Sequence[str]) -> tuple[CitedTelemetry, ...]:
+        """The items ``cited`` as ``robot`` reports them now; AgentRefused (known_telemetry) names
+        one it does not serve."""
+        if not cited:
+            return ()
+        facts = {f"{fact.system}.{fact.item.id}": fact for fact in self.telemetry(robot)}
+        unknown = [name for name in cited if name not in facts]
+        if unknown:
+            raise AgentRefused(
+                "known_telemetry",
+                f"{robot} serves no telemetry {', '.join(map(repr, unknown))} "
+                "(cite items as SYSTEM.ITEM from read_telemetry)",
+            )
+        return tuple(
+            CitedTelemetry(facts[name].system, facts[name].item.id, facts[name].value, facts[name].state)
+            for name in dict.fromkeys(cited)
+        )
 
     def withdraw(self, proposal_id: int) -> Proposal:
         proposal = self.proposals.get(proposal_id)

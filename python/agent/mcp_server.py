@@ -292,14 +292,30 @@ def build_server(session: AgentSession, *, url: str | None = None) -> MCPServer:
         inputs: Annotated[
             dict[str, Any] | None, Field(description="values for the procedure's inputs or records, by name")
         ] = None,
+        cited: Annotated[
+            list[str] | None,
+            Field(
+                description="telemetry your reason rests on, as SYSTEM.ITEM from read_telemetry: read again now "
+                "and shown to the operator with its value then and now"
+            ),
+        ] = None,
     ) -> ProposalAnswer:
         """Propose a run for an operator to accept or decline (it expires unanswered). Nothing starts until an
         operator with authority over the robot accepts."""
-        arguments = {"procedure": procedure, "sha256": sha256, "robot": robot, "inputs": inputs, "reason": reason}
+        arguments = {
+            "procedure": procedure,
+            "sha256": sha256,
+            "robot": robot,
+            "inputs": inputs,
+            "reason": reason,
+            "cited": cited,
+        }
         return session.call(
             "propose_run",
             arguments,
-            lambda: proposal_answer(desk.propose(procedure, sha256, robot, inputs or {}, reason), "proposed"),
+            lambda: proposal_answer(
+                desk.propose(procedure, sha256, robot, inputs or {}, reason, cited or ()), "proposed"
+            ),
         )
 
     @server.tool()

@@ -21,6 +21,7 @@ from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from datafile import DataFileError
 from onboard.downlink import DownlinkError, OnboardSupervisor, build_unit
 from onboard.unit import UNIT_SERVICE, Unit, UnitError
+from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import APPROVER_PASSWORD_ENV
 from pride.events import Event
 from pride.executive import Mode, RunStatus
@@ -61,9 +62,11 @@ def run_onboard(
     audit: AuditLog,
     values: dict[str, str],
     approver: str | None,
+    proposal: AcceptedProposal | None = None,
 ) -> int:
     """``caretaker run --onboard``: the habitat runs it; this terminal shows it and keeps its record.
-    The commands that need a second operator's approval go up approved by ``approver``."""
+    The commands that need a second operator's approval go up approved by ``approver``; ``proposal``:
+    the agent's proposal it answers, named in its record."""
     checked = setup.checked
     if args.resume:
         print("caretaker run: --onboard starts a new onboard run; it does not --resume one", file=sys.stderr)
@@ -89,6 +92,7 @@ def run_onboard(
             approver=approver,
             section=section_of(args, checked, values),
             in_transit=endpoint.light_time.uplink_within,
+            proposal=proposal,
         )
     except SectionError as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)

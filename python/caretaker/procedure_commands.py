@@ -16,6 +16,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from caretaker.command_options import load_sysreps, raw_option, section_of, sysrep_option
+from caretaker.proposal_runs import ProposalNotRunnable, proposal_taken
 from caretaker.terminal import LeftBehind, OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S
@@ -32,6 +33,7 @@ from pride.run_setup import RunSetup
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, lint_file
 from procedure_language.sysrep import SysRep, SysRepError
+from records.agent_proposals import ProposalStore
 from records.agent_tokens import TokenError, parse_duration
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision
@@ -137,6 +139,13 @@ def run_main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--resume", metavar="RUN", help="continue an interrupted run from the audit log")
     parser.add_argument(
+        "--proposal",
+        type=int,
+        metavar="ID",
+        help="start the run of an agent's proposal you accepted on a console: its values go with the run, whose "
+        "record names the proposal and the agent (a console's acceptance starts this itself)",
+    )
+    parser.add_argument(
         "--onboard",
         action="store_true",
         help="uplink the procedure to the habitat's onboard executive and supervise it from here "
@@ -222,6 +231,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         parser.error("--via-supervisor hands an onboard unit to a supervisor: give --onboard")
     if (args.from_step or args.to_step) and args.resume:
         parser.error("--from and --to start a new run of part of a procedure: not with --resume")
+    if args.proposal is not None and args.resume:
+        parser.error("--proposal starts the run an operator accepted: not with --resume")
     try:
         events = audit.events(args.resume) if args.resume else []
     except EventDataError as exc:  # a stored event that does not fit its kind: edited, or not a run's own
@@ -269,7 +280,12 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
     if args.onboard:
         from caretaker.onboard_commands import run_onboard
 
-        return run_onboard(args, setup, audit, values, approver)
+        try:
+            proposal = proposal_taken(args.proposal, audit, args.user, setup, values)
+        except ProposalNotRunnable as exc:
+            print(f"caretaker run: {exc}", file=sys.stderr)
+            return 2
+        return run_onboard(args, setup, audit, values, approver, proposal)
     try:
         gateway = open_gateway(args.binding, rosbridge_url=args.rosbridge)
     except Exception as exc:  # the host's errors (bad binding, no jar, no rosbridge) end the run here
@@ -302,7 +318,21 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
                 executive.add_listener(left_behind)
                 for number in args.breakpoints:  # before the start: automation must not pass them first
                     executive.set_breakpoint(args.user, number)
-                executive.start(args.user, take_over=args.take_over, section=section_of(args, setup.checked, values))
+                proposal = proposal_taken(args.proposal, audit, args.user, setup, values)
+                try:
+                    executive.start(
+                        args.user,
+                        take_over=args.take_over,
+                        section=section_of(args, checked, values),
+                        proposal=proposal,
+                    )
+                except (OperatorActionError, SectionError) as exc:
+                    if proposal is not None:
+                        ProposalStore(audit.engine).reopen(proposal.id, args.user, str(exc))
+                    raise
+        except ProposalNotRunnable as exc:
+            print(f"caretaker run: {exc}", file=sys.stderr)
+            return 2
         except RobotControlled as exc:
             print(f"caretaker run: {exc} (--take-over REASON)", file=sys.stderr)
             return 2

@@ -27,6 +27,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.event_payloads import payload_from_json
 from pride.events import Event, EventKind
@@ -157,11 +158,13 @@ def build_unit(
     approver: str | None = None,
     section: RunSection | None = None,
     in_transit: float = 0.0,
+    proposal: AcceptedProposal | None = None,
 ) -> Unit:
     """The unit of a checked procedure: it and every sub-procedure it calls, by path relative to
     the folder that holds them all; under ``policy``, ``approver``'s approval of each command that
     needs one, given now and good from ``in_transit`` s on (how long the unit may take to reach the
-    habitat); ``section``: the part of the procedure to run (checked here first).
+    habitat); ``section``: the part of the procedure to run (checked here first); ``proposal``:
+    the agent's proposal an operator accepted to start it.
 
     Raises:
         ValueError: a command needs approval and no ``approver`` is given, or it is ``user``.
@@ -200,6 +203,7 @@ def build_unit(
         version=version,
         approvals=approvals,
         section={"from": section.start, "to": section.stop} if section else None,
+        proposal=proposal,
     )
 
 

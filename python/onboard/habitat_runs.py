@@ -300,7 +300,9 @@ class HabitatRuns:
                 executive.set_breakpoint(unit.user, number)
             section = unit.section
             executive.start(
-                unit.user, section=RunSection(str(section["from"]), section["to"], unit.values) if section else None
+                unit.user,
+                section=RunSection(str(section["from"]), section["to"], unit.values) if section else None,
+                proposal=unit.proposal,
             )
         except (RobotControlled, OperatorActionError, SectionError):
             gateway.close()

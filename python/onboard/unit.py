@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import PurePosixPath
 from typing import Any
 
+from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import CarriedApproval
 from pride.run_version import RunVersion
 
@@ -111,6 +112,8 @@ class Unit:
     rehearsal), recorded in its ``run_started``. ``section``: a run of part of the procedure
     (``{"from": STEP, "to": STEP or null}``, :class:`pride.run_section.RunSection`), ``values``
     then also giving what the steps it skips would have bound; absent: the whole procedure.
+    ``proposal``: the agent's proposal an operator accepted to start the run, recorded in its
+    ``run_started`` (:class:`pride.accepted_proposal.AcceptedProposal`); absent: none.
     """
 
     run_id: str
@@ -128,6 +131,7 @@ class Unit:
     version: RunVersion | None = None
     approvals: tuple[CarriedApproval, ...] = ()
     section: Mapping[str, str | None] | None = None
+    proposal: AcceptedProposal | None = None
 
     def to_json(self) -> str:
         data = {**asdict(self), "files": dict(self.files), "values": dict(self.values)}
@@ -135,6 +139,8 @@ class Unit:
             del data["section"]  # a whole-procedure unit reads (and hashes) as before sections
         else:
             data["section"] = dict(self.section)
+        if self.proposal is None:
+            del data["proposal"]  # as sections: a unit without one reads (and hashes) as before
         return canonical(data)
 
     def approval_of(self, procedure: str, instruction: str, command: str) -> CarriedApproval | None:
@@ -182,6 +188,7 @@ class Unit:
                 )
             ),
             section=_section(data.get("section")),
+            proposal=_proposal(data.get("proposal")),
         )
 
 
@@ -238,6 +245,16 @@ def _section(data: Any) -> dict[str, str | None] | None:
     if not isinstance(start, str) or not (stop is None or isinstance(stop, str)):
         raise UnitError("section.from must name a step, and section.to a step or null")
     return {"from": start, "to": stop}
+
+
+def _proposal(data: Any) -> AcceptedProposal | None:
+    """The unit's ``proposal`` (absent: the run answers none)."""
+    if data is None:
+        return None
+    try:
+        return AcceptedProposal.from_json(data)
+    except ValueError as exc:
+        raise UnitError(str(exc)) from None
 
 
 def _version(data: Any) -> RunVersion | None:

@@ -79,7 +79,8 @@ class RunStarted(Recorded):
     (:class:`pride.run_section.RunSection`): the step it started at (``from``), the step it stops
     after (``to``, null: the end) and the values given for what the steps before would have
     bound. With a recorded version (:mod:`pride.run_version`): ``sha256`` of the file, ``release``
-    (its release number, null for a rehearsal) and ``rehearsal``; all three or none.
+    (its release number, null for a rehearsal) and ``rehearsal``; all three or none. ``proposal``,
+    for a run an operator started by accepting an agent's proposal: its ``id``, ``agent`` and ``reason``.
     """
 
     KIND = EventKind.RUN_STARTED
@@ -94,10 +95,11 @@ class RunStarted(Recorded):
     release: int | None = optional()
     rehearsal: bool | None = optional()
     section: Mapping[str, Any] | None = optional()
+    proposal: Mapping[str, Any] | None = optional()
 
     def _left_out(self) -> set[str]:
         versioned = {"sha256", "release", "rehearsal"} if self.sha256 is None else set()
-        return versioned | ({"section"} if self.section is None else set())
+        return versioned | {name for name in ("section", "proposal") if getattr(self, name) is None}
 
     def step_titles(self) -> tuple[tuple[int, str], ...]:
         """Each step's number and title, in order."""

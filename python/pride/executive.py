@@ -91,6 +91,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from pride.accepted_proposal import AcceptedProposal
 from pride.ad_hoc_commands import record_sent, send_recorded
 from pride.ad_hoc_commands import take_back as take_back_holdings
 from pride.approvals import ApprovalPolicy, CarriedApproval
@@ -118,15 +119,7 @@ from pride.run_engine import RunEngine
 from pride.run_section import RunSection
 from pride.run_state import Request
 from pride.run_version import RunVersion
-from pride.states import (
-    Hold,
-    InstructionStatus,
-    JournalFailure,
-    Mode,
-    OperatorActionError,
-    RunStatus,
-    Snapshot,
-)
+from pride.states import Hold, InstructionStatus, JournalFailure, Mode, OperatorActionError, RunStatus, Snapshot
 from pride.systems import CancelResult, CommandResult, Outcome, SystemGateway
 from procedure_language.lint import CheckedProcedure
 from procedure_language.model import Instruction, ManualInstruction, RecordInstruction
@@ -161,8 +154,7 @@ class Executive:
         approvals: ApprovalPolicy | None = None,
         version: RunVersion | None = None,
     ) -> None:
-        """Prepare a run (nothing happens until :meth:`start`); the arguments are
-        :class:`pride.run_engine.RunEngine`'s, which carries the run out."""
+        """Prepare a run (nothing happens until :meth:`start`); the arguments are those of the engine that runs it."""
         self._engine = RunEngine(
             checked, gateway, journal, run_id=run_id, mode=mode, control=control, approvals=approvals, version=version
         )
@@ -204,9 +196,17 @@ class Executive:
         self._engine.join(timeout)
 
     # ---- lifecycle --------------------------------------------------------------------------
-    def start(self, user: str, *, take_over: str | None = None, section: RunSection | None = None) -> None:
+    def start(
+        self,
+        user: str,
+        *,
+        take_over: str | None = None,
+        section: RunSection | None = None,
+        proposal: AcceptedProposal | None = None,
+    ) -> None:
         """Begin the run (called once, by whoever launches it); take control of the robot first.
-        ``section``: run part of the procedure (:mod:`pride.run_section`).
+        ``section``: run part of the procedure (:mod:`pride.run_section`); ``proposal``: the
+        agent's proposal an operator accepted to start it, recorded with the start.
 
         Raises:
             RobotControlled: another run controls the robot (and ``take_over`` gives no reason to
@@ -222,8 +222,7 @@ class Executive:
                 state.enter_section(section.start, variables, section.stops_after(self.procedure))
             previous = self._engine.control.take(user, take_over)
             state.status = RunStatus.ACTIVE
-            procedure = self.procedure
-            version = self.version
+            procedure, version = self.procedure, self.version
             started = RunStarted(
                 procedure=procedure.id,
                 title=procedure.title,
@@ -236,6 +235,7 @@ class Executive:
                 release=version.release if version else None,
                 rehearsal=version.rehearsal if version else None,
                 section=section.to_json() if section else None,
+                proposal=proposal.to_json() if proposal else None,
             )
             self._engine.emit(user, None, started)
             self._engine.record_takeover(user, previous, take_over)

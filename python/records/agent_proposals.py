@@ -1,8 +1,10 @@
 """Runs an agent proposes: a released version, a robot, inputs and the agent's reason, until an operator answers.
 
 A proposal is a row of ``agent_proposals`` (:mod:`records.agent_tables`), ``open`` until its
-agent withdraws it, an operator accepts (the run starts under the operator's name) or declines it
-with a reason, or it expires (:data:`DEFAULT_EXPIRY`, by default 15 minutes after it was made).
+agent withdraws it, an operator accepts (the run starts under the operator's name, and the row
+keeps its id) or declines it with a reason, or it expires (:data:`DEFAULT_EXPIRY`, by default 15
+minutes after it was made). An acceptance whose run could not start opens the proposal again
+with the reason, so nothing an agent proposed is lost to a failed start.
 Expiry is read from the clock, not written: an open row past its expiry *is* expired, so no
 process has to be alive to expire it. Every change is one UPDATE conditioned on the row still
 being open, so a withdrawal and an acceptance at once cannot both win.
@@ -21,12 +23,26 @@ from sqlalchemy.engine import Engine
 from records.agent_tables import agent_proposals
 from records.audit_chain import utc
 
-__all__ = ["DEFAULT_EXPIRY", "NewProposal", "Proposal", "ProposalStore"]
+__all__ = ["DEFAULT_EXPIRY", "CitedTelemetry", "NewProposal", "Proposal", "ProposalStore"]
 
 #: How long a proposal waits for an operator.
 DEFAULT_EXPIRY = timedelta(minutes=15)
 OPEN = "open"
 _P = agent_proposals.c
+
+
+@dataclass(frozen=True)
+class CitedTelemetry:
+    """A telemetry item an agent cites for its proposal, as it read then: the value (None: not
+    heard yet) and its limit state (green, yellow, red, no limits, no value, stale)."""
+
+    system: str
+    item: str
+    value: Any
+    state: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"system": self.system, "item": self.item, "value": self.value, "state": self.state}
 
 
 @dataclass(frozen=True)
@@ -42,6 +58,7 @@ class NewProposal:
     binding: str
     inputs: dict[str, Any]
     reason: str
+    cited: tuple[CitedTelemetry, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -56,6 +73,7 @@ class Proposal:
     closed: datetime | None
     closed_by: str | None
     answer: str | None
+    run_id: str | None = None
 
 
 class ProposalStore:
@@ -80,6 +98,7 @@ class ProposalStore:
                     binding=new.binding,
                     inputs=json.dumps(new.inputs, sort_keys=True),
                     reason=new.reason,
+                    cited=json.dumps([c.to_json() for c in new.cited]),
                     created=now,
                     expires=now + self.expiry,
                     state=OPEN,
@@ -117,6 +136,32 @@ class ProposalStore:
             ).rowcount
         return bool(changed)
 
+    def started(self, proposal_id: int, by: str, run_id: str) -> bool:
+        """Note ``run_id`` as the run ``by``'s acceptance of ``proposal_id`` starts; False when
+        the proposal is not ``by``'s accepted one or names a run already (one acceptance, one run)."""
+        with self._engine.begin() as connection:
+            changed = connection.execute(
+                update(agent_proposals)
+                .where(_P.id == proposal_id, _P.state == "accepted", _P.closed_by == by, _P.run_id.is_(None))
+                .values(run_id=run_id)
+            ).rowcount
+        return bool(changed)
+
+    def reopen(self, proposal_id: int, by: str, why: str) -> None:
+        """Open again a proposal ``by`` accepted whose run did not start (``why``, for the agent and
+        the next operator); its expiry stands."""
+        with self._engine.begin() as connection:
+            connection.execute(
+                update(agent_proposals)
+                .where(_P.id == proposal_id, _P.state == "accepted", _P.closed_by == by)
+                .values(state=OPEN, closed=None, closed_by=None, run_id=None, answer=f"not started by {by}: {why}")
+            )
+
+
+def _cited(text: str | None) -> tuple[CitedTelemetry, ...]:
+    items = json.loads(text) if text else []
+    return tuple(CitedTelemetry(str(c["system"]), str(c["item"]), c["value"], str(c["state"])) for c in items)
+
 
 def _proposal(row: Any) -> Proposal:
     expires = utc(row.expires)
@@ -131,6 +176,9 @@ def _proposal(row: Any) -> Proposal:
         row.binding,
         json.loads(row.inputs),
         row.reason,
+        _cited(row.cited),
     )
     closed = utc(row.closed) if row.closed is not None else None
-    return Proposal(int(row.id), proposed, utc(row.created), expires, state, closed, row.closed_by, row.answer)
+    return Proposal(
+        int(row.id), proposed, utc(row.created), expires, state, closed, row.closed_by, row.answer, row.run_id
+    )

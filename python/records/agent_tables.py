@@ -1,4 +1,5 @@
-"""The tables of assistant agents in the ground database, defined once (revision 0007 of :mod:`records.migrations`).
+"""The tables of assistant agents in the ground database, defined once (revisions 0007 and 0008
+of :mod:`records.migrations`).
 
 An agent is an account of role ``agent`` (:mod:`console.accounts`) that reaches the ground through
 ``caretaker agent`` (:mod:`agent.mcp_server`), never through the console's sign-in:
@@ -53,7 +54,9 @@ agent_proposals = Table(
     Column("state", String(16), nullable=False),
     Column("closed", _WHEN, nullable=True),
     Column("closed_by", String(64), nullable=True),
-    Column("answer", Text, nullable=True),  # an operator's reason for declining; the run accepted
+    Column("answer", Text, nullable=True),  # an operator's reason for declining
+    Column("cited", Text, nullable=True),  # JSON list: the telemetry the agent cited, as read then (revision 0008)
+    Column("run_id", String(120), nullable=True),  # the run an accepted proposal started (revision 0008)
     Index("ix_agent_proposals_state", "state"),
 )
 
