@@ -41,7 +41,7 @@ from procedure_language.model import (
     WaitInstruction,
 )
 from procedure_language.parser import parse_procedure
-from procedure_language.sysrep import SysRep, check_value
+from procedure_language.sysrep import SysRep, Telemetry, check_value
 
 __all__ = ["CheckedProcedure", "Unbound", "check_procedure", "lint_file", "section_needs"]
 
@@ -194,6 +194,9 @@ class _Linter:
                 self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
             declared.add(system)
         self.declared = declared
+        for response in self.proc.responds_to:
+            advice = "name an item with limits, or give this one limits there: {yellow_high: ..., red_high: ...}"
+            self.check_limits(response, response.system, response.telemetry, response.limit, advice)
         self.collect_variables()
         for instruction in self.flat:
             self.check(instruction)
@@ -226,8 +229,9 @@ class _Linter:
                     f"{' of type ' + first.type if first.type else ''} (line {first.where.line}); use another name",
                 )
 
-    def system(self, instruction: _Placed, system: str | None) -> SysRep | None:
-        where = instruction.at("system")
+    def system(self, placed: _Placed, system: str | None, attribute: str = "system") -> SysRep | None:
+        """The SysRep of a system the procedure uses; None once it said at ``attribute`` that it is unknown."""
+        where = placed.at(attribute)
         if system is None or system not in self.sysreps:
             known = ", ".join(sorted(self.sysreps)) or "none"
             self.fail(where, f"unknown system {system!r} (known SysReps: {known})")
@@ -235,6 +239,28 @@ class _Linter:
         if system not in self.declared:
             self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
         return self.sysreps[system]
+
+    def item(self, placed: _Placed, system: str | None, item_id: str, attribute: str = "telemetry") -> Telemetry | None:
+        """The telemetry item ``system.item_id``; None once it said which name is unknown (the system at
+        its own attribute, unless ``attribute`` names both, as one-of-telemetry does)."""
+        sysrep = self.system(placed, system, "system" if attribute == "telemetry" else attribute)
+        item = sysrep.telemetry_item(item_id) if sysrep is not None else None
+        if sysrep is not None and item is None:
+            known = ", ".join(t.id for t in sysrep.telemetry)
+            self.fail(placed.at(attribute), f"unknown telemetry {item_id!r} in {system} (telemetry: {known})")
+        return item
+
+    def check_limits(self, placed: _Placed, system: str, item_id: str, limit: str | None, advice: str) -> None:
+        """The item has SysRep limits of the colour ``limit`` names (an equals limit has only red);
+        ``advice`` says what to do about an item without limits."""
+        item = self.item(placed, system, item_id)
+        if item is None:
+            return
+        if item.limits is None:
+            path = self.sysreps[system].path
+            self.fail(placed.at("limit"), f"{system}.{item_id} has no limits in its SysRep ({path}): {advice}")
+        elif limit == "yellow" and item.limits.equals is not None:
+            self.fail(placed.at("limit"), f"{system}.{item_id}'s limit is an equals: it has no yellow band; use red")
 
     def step_target(self, instruction: _Placed, attribute: str, ref: str | None) -> None:
         if ref is not None and self.proc.step(ref) is None:
@@ -270,22 +296,9 @@ class _Linter:
             self.step_target(m, "on-violation", m.goto)
         if m.condition is not None:
             self.check_condition(m, Subject("telemetry", m.telemetry, system=m.system), m.condition)
-            return
-        sysrep = self.system(m, m.system)
-        item = sysrep.telemetry_item(m.telemetry) if sysrep is not None else None
-        if sysrep is None:
-            return
-        if item is None:
-            known = ", ".join(t.id for t in sysrep.telemetry)
-            self.fail(m.at("telemetry"), f"unknown telemetry {m.telemetry!r} in {m.system} (telemetry: {known})")
-        elif item.limits is None:
-            self.fail(
-                m.at("limit"),
-                f"{m.system}.{m.telemetry} has no limits in its SysRep ({sysrep.path}): watch a condition "
-                "(min, max, equals) or give the item limits: {red_high: ...}",
-            )
-        elif m.limit == "yellow" and item.limits.equals is not None:
-            self.fail(m.at("limit"), f"{m.system}.{m.telemetry}'s limit is an equals: it has no yellow band; use red")
+        else:
+            advice = "watch a condition (min, max, equals) or give the item limits: {red_high: ...}"
+            self.check_limits(m, m.system, m.telemetry, m.limit, advice)
 
     def check_set(self, i: SetInstruction) -> None:
         """``<set>`` names a declared output, and its value fits the output's type."""
@@ -305,22 +318,10 @@ class _Linter:
 
     def check_listed_values(self, i: RecordInstruction, system: str, item_id: str) -> None:
         """``one-of-telemetry``: a string item of a used system that lists the acceptable values."""
-        where = i.at("one-of-telemetry")
-        sysrep = self.sysreps.get(system)
-        if sysrep is None:
-            self.fail(where, f"unknown system {system!r} (known SysReps: {', '.join(sorted(self.sysreps)) or 'none'})")
-            return
-        if system not in self.declared:
-            self.fail(where, f'system {system!r} is not declared; add <uses system="{system}"/> to the procedure')
-        item = sysrep.telemetry_item(item_id)
-        if item is None:
+        item = self.item(i, system, item_id, "one-of-telemetry")
+        if item is not None and item.type != "string":
             self.fail(
-                where,
-                f"unknown telemetry {item_id!r} in {system} (telemetry: {', '.join(t.id for t in sysrep.telemetry)})",
-            )
-        elif item.type != "string":
-            self.fail(
-                where,
+                i.at("one-of-telemetry"),
                 f"one-of-telemetry needs a string item listing the values (comma-separated); "
                 f"{system}.{item_id} is {item.type}",
             )
@@ -383,16 +384,8 @@ class _Linter:
     def check_condition(self, i: _Placed, subject: Subject, condition: Condition) -> None:
         type_name: str | None = None
         if subject.source == "telemetry":
-            sysrep = self.system(i, subject.system)
-            if sysrep is None:
-                return
-            item = sysrep.telemetry_item(subject.name)
+            item = self.item(i, subject.system, subject.name)
             if item is None:
-                self.fail(
-                    i.at("telemetry"),
-                    f"unknown telemetry {subject.name!r} in {subject.system} "
-                    f"(telemetry: {', '.join(t.id for t in sysrep.telemetry)})",
-                )
                 return
             type_name = item.type
         elif subject.source == "input":

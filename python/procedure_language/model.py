@@ -37,6 +37,7 @@ __all__ = [
     "Procedure",
     "RecordInstruction",
     "Reference",
+    "RespondsTo",
     "SetInstruction",
     "Step",
     "Subject",
@@ -436,6 +437,25 @@ class Monitor:
         return self.text or f"{self.system}.{self.telemetry} {watched}"
 
 
+@dataclass(frozen=True, kw_only=True)
+class RespondsTo:
+    """An anomaly the procedure answers: ``<responds-to system=... telemetry=... limit="red|yellow">``
+    with the reason as its text. The item at its SysRep limits of that colour or worse (as a
+    monitor's ``limit`` reads them) is what this procedure is for, so whoever watches telemetry,
+    an operator or an agent, can find it. Declared, never watched: nothing starts a run by itself.
+    """
+
+    system: str
+    telemetry: str
+    limit: str
+    text: str
+    where: Location
+    attrs: dict[str, Location] = field(default_factory=dict, compare=False, hash=False)
+
+    def at(self, attribute: str) -> Location:
+        return self.attrs.get(attribute, self.where)
+
+
 @dataclass(frozen=True)
 class Step:
     """A numbered step: a title and its instructions. ``id`` is what go-tos name."""
@@ -482,6 +502,7 @@ class Procedure:
     where: Location
     description: str = ""
     outputs: tuple[Output, ...] = ()
+    responds_to: tuple[RespondsTo, ...] = ()
 
     @cached_property
     def instructions(self) -> tuple[Instruction, ...]:

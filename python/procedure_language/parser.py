@@ -34,6 +34,7 @@ from procedure_language.model import (
     Output,
     Procedure,
     RecordInstruction,
+    RespondsTo,
     SetInstruction,
     Step,
     Subject,
@@ -98,6 +99,7 @@ class _Builder:
             seen_ids.setdefault(step.id, step.where)
             steps.append(step)
         description = root.findtext("description") or ""
+        responds_to = tuple(self.responds_to(r) for r in root.findall("responds-to"))
         return Procedure(
             id=self.required(root, "id"),
             title=self.required(root, "title"),
@@ -109,6 +111,22 @@ class _Builder:
             where=self.pos.element(root),
             description=" ".join(description.split()),
             outputs=outputs,
+            responds_to=responds_to,
+        )
+
+    def responds_to(self, el: etree._Element) -> RespondsTo:
+        """A ``<responds-to>``: the telemetry limit it answers, and in words why."""
+        where = self.pos.element(el)
+        text = _clean(el.text)
+        if not text:
+            self.fail(where, "<responds-to> needs text: why the item at that limit calls for this procedure")
+        return RespondsTo(
+            system=self.required(el, "system"),
+            telemetry=self.required(el, "telemetry"),
+            limit=self.required(el, "limit"),
+            text=text,
+            where=where,
+            attrs=self.attrs(el),
         )
 
     def step(self, el: etree._Element, number: int) -> Step:
