@@ -24,6 +24,7 @@ __all__ = [
     "ProposalsAnswer",
     "ResourceText",
     "RecordWords",
+    "ResponseEntry",
     "RobotEntry",
     "RobotsAnswer",
     "RunEntry",
@@ -44,6 +45,15 @@ class NamedValue(BaseModel):
     pattern: str | None = Field(None, description="a regular expression the whole value must match")
 
 
+class ResponseEntry(BaseModel):
+    """An anomaly a procedure answers, as its ``<responds-to>`` declares it."""
+
+    system: str
+    item: str = Field(description="the telemetry item, as read_telemetry names it")
+    state: str = Field(description="yellow: the item yellow or red against its limits; red: the item red")
+    text: str = Field(description="why the procedure answers it, in the procedure's words")
+
+
 class ProcedureEntry(BaseModel):
     file: str = Field(description="what propose_run names as procedure")
     procedure: str
@@ -55,6 +65,9 @@ class ProcedureEntry(BaseModel):
     systems: list[str] = Field(description="the systems (SysReps) the procedure uses")
     inputs: list[NamedValue] = Field(description="values a run is given")
     records: list[NamedValue] = Field(description="values recorded during a run; a proposal may suggest them")
+    responds_to: list[ResponseEntry] = Field(
+        description="telemetry out of limits the procedure is for: an item at that state or worse calls for it"
+    )
 
 
 class ProceduresAnswer(BaseModel):
@@ -192,6 +205,9 @@ def procedure_entry(facts: ProcedureFacts) -> ProcedureEntry:
         systems=[system for system, _ in procedure.uses],
         inputs=[NamedValue(name=i.name, type=i.type, pattern=None) for i in procedure.inputs],
         records=list(records.values()),
+        responds_to=[
+            ResponseEntry(system=r.system, item=r.telemetry, state=r.limit, text=r.text) for r in procedure.responds_to
+        ],
     )
 
 

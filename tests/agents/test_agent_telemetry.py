@@ -1,7 +1,8 @@
 """An agent reads a real robot's telemetry: ``read_telemetry`` through ``caretaker agent`` over
 stdio, the IVA stack (``caretaker up``) reached through its binding's PAX host (a real JVM and
-rosbridge), the cabin's CO2 from the simulator with its state against the SysRep's limits; and how
-a value is placed against its limits, in the answer's words."""
+rosbridge), the cabin's CO2 from the simulator with its state against the SysRep's limits; how
+a value is placed against its limits, in the answer's words; and how the procedure that answers an
+item out of its limits is found among the listed ones."""
 
 from __future__ import annotations
 
@@ -15,11 +16,12 @@ import pytest
 from mcp import Client, StdioServerParameters
 
 from agent.agent_audit import AgentRecords
-from agent.agent_desk import TelemetryFacts
-from agent.answers import telemetry_entry
+from agent.agent_desk import ProcedureFacts, TelemetryFacts
+from agent.answers import procedure_entry, telemetry_entry
 from agent.mcp_server import TOKEN_ENV
 from console.accounts import AccountStore
 from pride.run_setup import load_sysreps
+from procedure_language.lint import check_procedure
 from records.agent_tokens import TokenStore
 from records.audit_log import AuditLog
 from support.procedures import REPO
@@ -27,7 +29,8 @@ from support.stack import stack_up
 from support.web_server import new_ground_database
 
 CARETAKER = Path(sys.executable).with_name("caretaker")
-CO2 = next(item for item in load_sysreps([REPO / "sysrep"])["cdra"].telemetry if item.id == "co2_partial_pressure")
+SYSREPS = load_sysreps([REPO / "sysrep"])
+CO2 = next(item for item in SYSREPS["cdra"].telemetry if item.id == "co2_partial_pressure")
 
 
 @pytest.mark.parametrize(
@@ -37,6 +40,19 @@ CO2 = next(item for item in load_sysreps([REPO / "sysrep"])["cdra"].telemetry if
 def test_a_value_is_placed_against_its_limits(value: float | None, state: str, limit: str | None) -> None:
     entry = telemetry_entry(TelemetryFacts("cdra", CO2, value, None if value is None else 0.4, stale=False))
     assert (entry.state, entry.limit, entry.units) == (state, limit, "mmHg")
+
+
+def test_the_procedure_that_answers_an_item_out_of_limits_says_so_in_its_listing() -> None:
+    high = telemetry_entry(TelemetryFacts("cdra", CO2, 4.4, 0.4, stale=False))  # yellow, as read_telemetry says
+    answering = {}
+    for name in ("iva_cdra_filter_replacement.xml", "eva_inspection.xml"):
+        checked = check_procedure(REPO / "procedures" / name, SYSREPS)
+        entry = procedure_entry(ProcedureFacts(name, checked, "0" * 64, 1, "bob"))  # as list_procedures lists it
+        answering[name] = [(r.state, r.text) for r in entry.responds_to if (r.system, r.item) == ("cdra", high.item)]
+    assert answering["eva_inspection.xml"] == []
+    [(state, text)] = answering["iva_cdra_filter_replacement.xml"]
+    assert state == "yellow" == high.state  # yellow or worse: this reading calls for it
+    assert "the filter locked in the CDRA cabinet is saturated" in text
 
 
 @pytest.mark.ros
