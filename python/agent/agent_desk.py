@@ -9,7 +9,7 @@ allow raises :class:`AgentRefused` naming the rule, which the server records and
 Procedures are read as the consoles read them (the same folders, :class:`console.catalog.Catalog`)
 and a version is what :func:`records.releases.procedure_digest` says, so an agent proposes exactly
 what an operator would start. A halt goes to the console hosting the run that controls the robot,
-as another console's HALT does (:mod:`console.ground.action_requests`), under the agent's id.
+as another console's HALT does (:mod:`ground.action_requests`), under the agent's id.
 """
 
 from __future__ import annotations
@@ -25,10 +25,10 @@ from sqlalchemy import select
 
 from console.actions import ActionRefused
 from console.catalog import Catalog
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import ChangeFeed, open_change_feed
 from console.robot_telemetry import RobotTelemetry, TelemetryFacts, TelemetryRefused
 from datafile import DataFileError
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import ChangeFeed, open_change_feed
 from pride.event_words import describe_event
 from pride.events import Event, EventKind
 from pride.gateways import open_gateway

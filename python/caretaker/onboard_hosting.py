@@ -18,9 +18,9 @@ from typing import Any
 
 from sqlalchemy.exc import SQLAlchemyError
 
-from console.ground.action_requests import OnItsWay
 from console.onboard_view import OnboardView
 from console.terminal_host import TerminalHost
+from ground.action_requests import OnItsWay
 from onboard.downlink import HabitatNews, OnboardSupervisor
 from onboard.unit import Unit
 from procedure_language.lint import CheckedProcedure, check_procedure

@@ -34,9 +34,9 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from caretaker.command_options import load_sysreps, sysrep_option
 from caretaker.onboard_hosting import OnboardHosting, unit_checked
-from console.ground.change_feed import ChangeNotice, open_change_feed
 from console.terminal_host import HostedElsewhere, TerminalHost
 from datafile import DataFileError
+from ground.change_feed import ChangeNotice, open_change_feed
 from onboard.downlink import DownlinkError, OnboardSupervisor, Supervision
 from onboard.unit import Unit, UnitError
 from procedure_language.binding import read_binding

@@ -19,8 +19,8 @@ import time
 from datetime import UTC, datetime
 
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
-from console.ground.change_feed import ChangeNotice, open_change_feed
-from console.ground.run_hosts import DEFAULT_LEASE_S, RunHosting
+from ground.change_feed import ChangeNotice, open_change_feed
+from ground.run_hosts import DEFAULT_LEASE_S, RunHosting
 from onboard.unit import Unit
 from pride.executive import RunStatus
 from pride.phrasing import Wording

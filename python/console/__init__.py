@@ -1,5 +1,5 @@
 """The ground console: the operator web view, watching and running procedures in the browser on
-the PAX executive, and what several consoles share through one ground database (:mod:`console.ground`).
+the PAX executive, and what several consoles share through one ground database (:mod:`ground`).
 
 Kept apart from :mod:`pride`, whose executive must run where no web server or ground database is
 (tests/foundation/test_package_graph.py holds the order: the console imports pride, never the reverse).

@@ -13,7 +13,7 @@ next sign-in when those defaults grow, where the console's role may write the ta
 ``console_accounts(user_id PK, name, role, password_hash, created, password_changed)`` belongs to
 the ground database's schema (revision 0004 of :mod:`records.migrations`): on PostgreSQL the
 consoles' role only reads it and ``caretaker accounts``, run as the database owner, changes it. A
-change NOTIFYs every console (:mod:`console.ground.change_feed`), which ends that user's sessions.
+change NOTIFYs every console (:mod:`ground.change_feed`), which ends that user's sessions.
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from console.accounts import Account, AccountStore, Role
-from console.ground.action_requests import Answer, ForwardedAction, OnItsWay
+from ground.action_requests import Answer, ForwardedAction, OnItsWay
 from pride import event_payloads as ep
 from pride.executive import Executive, Mode, OperatorActionError
 from pride.states import RefusalRule

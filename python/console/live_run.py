@@ -3,7 +3,7 @@
 The executive does the work; this class only observes it. Its listener (called on the
 executive's thread with the executive's lock held) appends the event and wakes the watchers'
 send loops on the asyncio side (:mod:`console.watchers`) and the publisher that shows the run
-to other consoles (:meth:`published_view`, :mod:`console.ground.run_hosts`); they then read
+to other consoles (:meth:`published_view`, :mod:`ground.run_hosts`); they then read
 :meth:`Executive.snapshot`, which takes the lock, so what they draw is a consistent state and
 never a half-applied transition.
 
@@ -21,10 +21,10 @@ from typing import Any
 from console.accounts import Account
 from console.camera_feed import CameraFeed
 from console.folded_run import fold_events
-from console.ground.run_hosts import PublishedView
 from console.monitor_states import limit_state
 from console.procedure_view import monitor_checks, procedure_json, telemetry_checks
 from console.watchers import Watcher, Watchers
+from ground.run_hosts import PublishedView
 from pride.events import Event
 from pride.executive import Executive
 from pride.systems import SystemGateway
@@ -156,7 +156,7 @@ class LiveRun:
         return camera[0] if camera else None
 
     def published_view(self) -> PublishedView:
-        """The run as other consoles show it (:mod:`console.ground.run_hosts` publishes it)."""
+        """The run as other consoles show it (:mod:`ground.run_hosts` publishes it)."""
         state = self.state_json()
         camera = self.camera()
         return PublishedView(

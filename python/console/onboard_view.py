@@ -16,8 +16,8 @@ from datetime import UTC, datetime
 from typing import Any
 
 from console.folded_run import fold_events
-from console.ground.run_hosts import PublishedView
 from console.procedure_view import procedure_json
+from ground.run_hosts import PublishedView
 from pride.events import Event
 from procedure_language.model import Procedure
 from procedure_language.sysrep import SysRep
@@ -140,7 +140,7 @@ class OnboardView:
         }
 
     def published_view(self) -> PublishedView:
-        """The run as consoles show it (:mod:`console.ground.run_hosts` publishes it)."""
+        """The run as consoles show it (:mod:`ground.run_hosts` publishes it)."""
         state = self.state_json()
         telemetry: dict[str, Any] = {"readings": [], "checks": {}}  # the habitat's telemetry stays there
         return PublishedView({"state": state, "telemetry": telemetry}, str(state["status"]), str(state["mode"]))

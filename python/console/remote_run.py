@@ -2,12 +2,12 @@
 
 Everything comes from the ground database: the events from the audit log, the state, telemetry
 and procedure from the view its host publishes, the camera image from the frame its host copies
-(:mod:`console.ground.run_hosts`). The change feed marks it behind (a new event) or stale (a new
+(:mod:`ground.run_hosts`). The change feed marks it behind (a new event) or stale (a new
 view); the watchers' send loops then :meth:`refresh` it, in a worker thread, and see the news. A
 refresh that finds the host row gone (the run ended) or its lease run out (the host died) retires
 it: the page then reloads it as a past run, interrupted and resumable if it did not end.
 
-Actions on it are forwarded to its host (:mod:`console.ground.action_requests`), not done here.
+Actions on it are forwarded to its host (:mod:`ground.action_requests`), not done here.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import time
 from typing import Any
 
 from console.accounts import Account
-from console.ground.run_hosts import HostRecord, RunHosting
 from console.watchers import Watcher, Watchers
+from ground.run_hosts import HostRecord, RunHosting
 from pride.events import Event
 from records.audit_log import AuditLog
 

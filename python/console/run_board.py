@@ -8,10 +8,10 @@ Resuming one is ``caretaker run --resume``: the executive rebuilds the run from 
 (:meth:`Executive.resume`). Procedures and bindings are chosen by file name from the configured
 directories, so a request can never name an arbitrary path on the server.
 
-Consoles share runs only through the ground database (:mod:`console.ground`): a run started here is
+Consoles share runs only through the ground database (:mod:`ground`): a run started here is
 claimed in ``run_hosts`` and its view published there; a run hosted elsewhere is shown as a
 :class:`~console.remote_run.RemoteRun`, and an operator action on it is forwarded to its host
-(:mod:`console.ground.action_requests`), which performs it as that operator, role checked there too.
+(:mod:`ground.action_requests`), which performs it as that operator, role checked there too.
 The change feed tells this board what changed (new events, hosts, accounts, requests).
 """
 
@@ -32,15 +32,15 @@ from console.actions import ActionRefused, ActionRequest, perform_action, perfor
 from console.camera_feed import CameraFeed
 from console.catalog import CameraSettings, Catalog, rosbridge_for
 from console.folded_run import fold_events
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import ChangeNotice, open_change_feed
-from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from console.live_run import LiveRun
 from console.onboard_launch import LaunchRefused, SecondOperator, launch_onboard
 from console.release_desk import ReleaseDesk
 from console.remote_run import RemoteRun
 from console.start_refusals import recorded_start_refusals
 from console.watchers import Watchers
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import ChangeNotice, open_change_feed
+from ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
 from pride.approvals import approval_points, missing_approvals_text
 from pride.events import Event, EventKind, run_start
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus

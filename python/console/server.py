@@ -21,11 +21,11 @@ from sqlalchemy.exc import OperationalError
 from console.accounts import AccountStore
 from console.app import build_app
 from console.catalog import CameraSettings, Catalog, catalog_options, per_binding, rosbridge_overrides
-from console.ground.run_hosts import DEFAULT_LEASE_S
 from console.listener import Listener, loopback, serve, tls_problem
 from console.reports import report_writer
 from console.run_board import RunBoard
 from console.sign_in import SessionLimits, SignIns
+from ground.run_hosts import DEFAULT_LEASE_S
 from pride.run_setup import load_sysreps
 from procedure_language.sysrep import SysRepError
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable

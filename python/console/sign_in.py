@@ -7,7 +7,7 @@ header with every state-changing request: another site can make the browser send
 and no live connection: an open console stays signed in), ``absolute`` seconds after sign-in
 whatever happens, on sign-out, and as soon as the account's password changes or the account is
 removed: the ground database announces every change of an account to every console
-(:mod:`console.ground.change_feed`, :meth:`SignIns.notice`), whose next check of that user's
+(:mod:`ground.change_feed`, :meth:`SignIns.notice`), whose next check of that user's
 sessions (each request, and each second on an open connection) reads the account again; without
 an announcement, sessions are checked against the database every ``recheck`` seconds anyway.
 
@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from starlette.requests import HTTPConnection
 
 from console.accounts import Account, AccountStore
-from console.ground.change_feed import ChangeNotice
 from console.sign_in_throttle import SignInThrottle
+from ground.change_feed import ChangeNotice
 
 __all__ = ["COOKIE", "CSRF_HEADER", "SessionLimits", "SignInRefused", "SignIns", "WebSession"]
 

@@ -1,6 +1,6 @@
 """A run driven outside a console (``caretaker run``) hosted as a console hosts one.
 
-The process that runs a run's executive is its host (:mod:`console.ground.run_hosts`), whether it
+The process that runs a run's executive is its host (:mod:`ground.run_hosts`), whether it
 is a console or a runner at a terminal. A runner that wraps its run in a :class:`TerminalHost`
 claims the run in the ground database, publishes its view there, and performs the operator
 actions that consoles forward to it (as the operator who acted, role checked against the
@@ -31,11 +31,11 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from console.accounts import AccountStore
 from console.actions import OnboardSend, perform_forwarded, perform_onboard
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import open_change_feed
-from console.ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
 from console.live_run import LiveRun
 from console.onboard_view import OnboardView
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import open_change_feed
+from ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, RunHosting
 from pride.events import Event, EventKind
 from pride.executive import Executive
 from pride.systems import SystemGateway

@@ -361,7 +361,7 @@ class _DriverInsert:
 
 
 class _Announcer:
-    """NOTIFY ``caretaker_events`` of committed appends, for the consoles (:mod:`console.ground.change_feed`).
+    """NOTIFY ``caretaker_events`` of committed appends, for the consoles (:mod:`ground.change_feed`).
 
     Not in the append's own transaction (a trigger): PostgreSQL holds a database-wide lock from a
     notifying transaction's commit to its end, fsync included, so with four runners appending flat

@@ -3,8 +3,8 @@
 Several consoles share one database (docs/ground-segment.md): the accounts they sign people in
 with, which process hosts each live run (with its lease and the view it publishes), the newest
 camera image of each hosted run, and operator actions forwarded to a run hosted elsewhere. The
-console reads and writes them (:mod:`console.accounts`, :mod:`console.ground.run_hosts`,
-:mod:`console.ground.action_requests`); revision 0004 of :mod:`records.migrations` creates them
+console reads and writes them (:mod:`console.accounts`, :mod:`ground.run_hosts`,
+:mod:`ground.action_requests`); revision 0004 of :mod:`records.migrations` creates them
 from these definitions. So a later change to one of them is a new revision that looks at what
 the database holds (as 0004 does for an accounts table made before it) and alters it.
 """

@@ -12,12 +12,12 @@ when its supervisor stopped and the run goes on on the habitat (``caretaker run 
 its record up and follows it). Each step is one conditional UPDATE from the
 state before it, so a run is taken by one supervisor only, and a runner withdrawing it races a
 supervisor taking it safely. The supervisor that took a run also holds it as any host holds a
-live run, under a lease it renews (``run_hosts``, :mod:`console.ground.run_hosts`): what lets a
+live run, under a lease it renews (``run_hosts``, :mod:`ground.run_hosts`): what lets a
 later supervisor tell a run whose supervisor died from one that is being supervised.
 
 PostgreSQL: a trigger NOTIFYs ``caretaker_handoffs`` with ``<state> <run id>`` at every row added
 and every change of state (revision 0006 of :mod:`records.migrations`); on SQLite the change feed
-reads the table (:mod:`console.ground.change_feed`). The runner role may read, add and update rows.
+reads the table (:mod:`ground.change_feed`). The runner role may read, add and update rows.
 """
 
 from __future__ import annotations

@@ -34,8 +34,8 @@ from caretaker.procedure_commands import report_main
 from caretaker.processes import caretaker
 from console.accounts import AccountStore
 from console.actions import perform_forwarded
-from console.ground.action_requests import ActionRequests
-from console.ground.change_feed import open_change_feed
+from ground.action_requests import ActionRequests
+from ground.change_feed import open_change_feed
 from pride.events import EventKind
 from pride.executive import Executive, Hold, Mode
 from pride.run_setup import load_sysreps

@@ -39,6 +39,8 @@ FORBIDDEN = {
     # the ground's records are a store: no web server, no ROS, no console above them
     "records": ("rclpy", "bridge", "at_ros", "sim", "console", "onboard", "starlette", "uvicorn"),
     "console": ("rclpy", "bridge", "at_ros", "sim"),
+    # what consoles, runners and agents agree on through the ground database: no web server, no ROS
+    "ground": ("rclpy", "bridge", "at_ros", "sim", "console", "onboard", "starlette", "uvicorn"),
     # an agent reaches the ground only: never a robot, a bridge or the habitat's executive directly
     "agent": ("rclpy", "bridge", "at_ros", "sim", "onboard"),
     # the onboard executive runs PAX on the habitat: procedures, but no web or ROS stack of its own
@@ -65,10 +67,11 @@ MAY_IMPORT = {
     "procedure_language": {"datafile", "rosbridge_wire"},
     "pride": {"datafile", "procedure_language", "rosbridge_wire"},
     "records": {"procedure_language", "pride"},
-    "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
+    "ground": {"records"},
+    "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire", "ground"},
     "onboard": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
     # assistant agents reach the ground as a console does, through its records and its forwarding
-    "agent": {"datafile", "procedure_language", "pride", "records", "console"},
+    "agent": {"datafile", "procedure_language", "pride", "records", "console", "ground"},
     "ros_process": set(),
     "bridge": {"datafile", "rosbridge_wire", "ros_process"},
     "at_ros": {"datafile", "ros_process"},
@@ -83,6 +86,7 @@ MAY_IMPORT = {
         "pride",
         "records",
         "console",
+        "ground",
         "agent",
         "onboard",
         "bridge",

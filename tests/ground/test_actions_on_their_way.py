@@ -15,8 +15,8 @@ from pathlib import Path
 
 import pytest
 
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import ChangeNotice, open_change_feed
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import ChangeNotice, open_change_feed
 from onboard.downlink import ActionTiming
 from records.audit_log import AuditLog
 from rosbridge_wire.light_time import LightTime

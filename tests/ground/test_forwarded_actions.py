@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import ChangeNotice, open_change_feed
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import ChangeNotice, open_change_feed
 from records.audit_log import AuditLog
 from records.console_tables import run_action_requests
 from support.web_server import GroundDatabase, new_ground_database

@@ -22,13 +22,13 @@ from console.accounts import AccountStore
 from console.actions import ActionRefused
 from console.attach import attach
 from console.catalog import Catalog
-from console.ground.action_requests import ActionRequests, Answer, ForwardedAction
-from console.ground.change_feed import open_change_feed
-from console.ground.run_hosts import RunHosting
 from console.onboard_launch import LaunchRefused, launch_onboard
 from console.onboard_view import OnboardView
 from console.run_board import RunBoard
 from console.terminal_host import TerminalHost
+from ground.action_requests import ActionRequests, Answer, ForwardedAction
+from ground.change_feed import open_change_feed
+from ground.run_hosts import RunHosting
 from pride.events import Event, EventKind
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import load_sysrep_dir

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import pytest
 from playwright.sync_api import Browser, Locator, Page, expect
 
-from console.ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
+from ground.action_requests import ANSWER_WITHIN_S, TAKE_WITHIN_S
 from records.audit_log import AuditLog
 from support.browser import signed_in_pages
 from support.operator_page import (

@@ -21,8 +21,8 @@ import pytest
 
 from caretaker.supervise_command import Supervisor
 from caretaker.via_supervisor import hand_to_supervisor
-from console.ground.change_feed import ChangeNotice, open_change_feed
-from console.ground.run_hosts import PublishedView, RunHosting
+from ground.change_feed import ChangeNotice, open_change_feed
+from ground.run_hosts import PublishedView, RunHosting
 from onboard.habitat_runs import HabitatRuns
 from onboard.unit import Unit
 from procedure_language.lint import check_procedure

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import queue
 
-from console.ground.change_feed import ChangeNotice, open_change_feed
+from ground.change_feed import ChangeNotice, open_change_feed
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
 from support.audit import AuditDatabase

@@ -13,9 +13,9 @@ import pytest
 from starlette.requests import Request
 
 from console.accounts import AccountStore
-from console.ground.change_feed import ChangeNotice
 from console.sign_in import COOKIE, SessionLimits, SignInRefused, SignIns
 from console.sign_in_throttle import Allowance, SignInThrottle
+from ground.change_feed import ChangeNotice
 
 
 class Clock:

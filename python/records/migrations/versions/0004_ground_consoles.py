@@ -5,12 +5,12 @@ The tables are those of :mod:`records.console_tables`.
 - ``console_accounts`` (:mod:`console.accounts`): consoles read it, the owner (``caretaker
   accounts``) changes it. A log whose accounts table the web view created before this revision
   keeps it as it is.
-- ``run_hosts`` (:mod:`console.ground.run_hosts`): which process runs each live run's executive,
+- ``run_hosts`` (:mod:`ground.run_hosts`): which process runs each live run's executive,
   its lease (renewed by heartbeats), and the view it publishes for other consoles;
   ``run_camera_frames``: the newest camera image of each hosted run.
-- ``run_action_requests`` (:mod:`console.ground.action_requests`): an operator action on a run
+- ``run_action_requests`` (:mod:`ground.action_requests`): an operator action on a run
   hosted elsewhere, and its answer.
-- PostgreSQL: triggers NOTIFY the consoles (:mod:`console.ground.change_feed`) of changed hosts,
+- PostgreSQL: triggers NOTIFY the consoles (:mod:`ground.change_feed`) of changed hosts,
   requests and answers, and changed accounts (new events are announced by the appending process,
   after its commit: :class:`records.audit_log.AuditLog`); the runner role may read accounts and read
   and write the three tables.

@@ -3,7 +3,7 @@
 ``onboard_handoffs`` holds, per run id, the unit a runner handed over, which supervisor took it
 and how supervision ended. PostgreSQL: a trigger NOTIFYs ``caretaker_handoffs`` with ``<state>
 <run id>`` when a row is added or its state changes (the supervisors and the waiting runner listen,
-:mod:`console.ground.change_feed`); the runner role may read, add and update rows.
+:mod:`ground.change_feed`); the runner role may read, add and update rows.
 
 Revision ID: 0006
 Revises: 0005

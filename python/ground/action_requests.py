@@ -1,8 +1,8 @@
 """Operator actions on a run hosted elsewhere: forwarded to its host through the database, answered back.
 
-A console whose operator acts on a run that another process hosts (:mod:`console.ground.run_hosts`)
+A console whose operator acts on a run that another process hosts (:mod:`ground.run_hosts`)
 inserts a row into ``run_action_requests`` (state ``pending``, the host's id, the user and the
-action as JSON); the insert NOTIFYs the host (:mod:`console.ground.change_feed`). The host *takes*
+action as JSON); the insert NOTIFYs the host (:mod:`ground.change_feed`). The host *takes*
 the request (``pending`` → ``taken``, one atomic UPDATE), performs it as that user — checking
 the user's role itself, against the accounts table — and writes the answer (``done`` with the
 result, or ``refused`` with the HTTP status and message the host's own page would have had),
@@ -40,7 +40,7 @@ from sqlalchemy import insert, select, update
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import SQLAlchemyError
 
-from console.ground.change_feed import ChangeNotice
+from ground.change_feed import ChangeNotice
 from records.console_tables import run_action_requests
 
 __all__ = ["ANSWER_WITHIN_S", "TAKE_WITHIN_S", "ActionRequests", "Answer", "ForwardedAction", "OnItsWay"]
