@@ -124,6 +124,7 @@ def read_document(path: Path) -> dict[str, Any]:
         "attrs": dict(root.attrib),
         "description": "",
         "uses": [],
+        "responds_to": [],
         "inputs": [],
         "outputs": [],
         "steps": [],
@@ -133,6 +134,8 @@ def read_document(path: Path) -> dict[str, Any]:
             document["description"] = " ".join((child.text or "").split())
         elif child.tag == "uses":
             document["uses"].append(child.get("system", ""))
+        elif child.tag == "responds-to":  # kept as written: the page does not edit it
+            document["responds_to"].append({"attrs": dict(child.attrib), "text": " ".join((child.text or "").split())})
         elif child.tag in ("input", "output"):
             document[f"{child.tag}s"].append(dict(child.attrib))
         elif child.tag == "step":
@@ -163,6 +166,8 @@ def _tree(document: dict[str, Any]) -> etree._Element:
             etree.SubElement(root, "description").text = _text(document["description"])
         for system in document.get("uses", []):
             _element(root, "uses", {"system": system})
+        for response in document.get("responds_to", []):
+            _element(root, "responds-to", response.get("attrs", {})).text = _text(response.get("text"))
         for kind in ("input", "output"):
             for declared in document.get(f"{kind}s", []):
                 _element(root, kind, declared)
