@@ -12,6 +12,10 @@ unlocked one is open to the cabin), and with no filter there is no bed at all. T
 small habitat's, not a tuned plant model: GENERATION is four crew (about 1 kg CO2 each a day) in
 some 60 m3 of free volume, so an IVA filter change (minutes) moves ``p`` by hundredths of a mmHg
 while a saturated filter left in place takes the cabin past its red limit within hours.
+
+``chemistry_scale`` runs all of it (the crew's CO2, the removal, the saturation) that many times
+faster than sim time, and ``ppco2`` may be put anywhere: a demonstration shows in a minute what the
+cabin does in an hour, the robot's motion unchanged (sim/cabin_knobs.py).
 """
 
 from __future__ import annotations
@@ -55,6 +59,8 @@ class CabinAir:
     saturation: dict[str, float]
     ppco2: float = START_PPCO2
     time: float = 0.0
+    #: seconds of the cabin's chemistry per second of sim time
+    chemistry_scale: float = 1.0
     _bed: str | None = field(default=None, repr=False)
 
     @classmethod
@@ -64,12 +70,13 @@ class CabinAir:
 
     def advance(self, now: float, bed: str | None) -> None:
         """Integrate up to sim time ``now`` with ``bed`` (the filter seated and locked in the
-        cabinet, or None) removing since the last call; a bed change counts from this call on."""
+        cabinet, or None) removing since the last call; a bed change counts from this call on.
+        A change of :attr:`chemistry_scale` counts from the last call."""
         if bed is not None and bed not in self.saturation:
             raise ValueError(f"no filter {bed!r}; the cabin knows {', '.join(sorted(self.saturation))}")
         if now < self.time:
             raise ValueError(f"sim time runs forward: {now} s is before {self.time} s")
-        span = now - self.time
+        span = (now - self.time) * self.chemistry_scale  # the chemistry's seconds: MAX_STEP bounds those
         steps = math.ceil(span / MAX_STEP)
         for _ in range(steps):
             dt = span / steps

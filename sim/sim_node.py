@@ -38,6 +38,7 @@ from std_msgs.msg import Bool, String
 from std_srvs.srv import Trigger
 
 from sim.cabin_air_node import CabinAirInterface
+from sim.cabin_knobs import add_options, given
 from sim.cameras import CameraImage, capture_file_name, fixed_camera_pose, render, write_png
 from sim.cdra_cabinet import find_filter
 from sim.collision_world import collision_world, point_pose
@@ -539,6 +540,7 @@ def _parse(argv: list[str]) -> argparse.Namespace:
         help="sim seconds per wall second; 0 = as fast as possible while anything moves",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed for every random generator")
+    add_options(parser)  # the cabin's air, for a demonstration (sim/cabin_knobs.py)
     parser.add_argument(
         "--displace",
         type=int,
@@ -601,7 +603,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.snapshot:
             print(f"wrote {snapshot(args.scene, args.snapshot, seed=args.seed)}")
             return 0
-        sim = Simulation(load_scene(args.scene), seed=args.seed, displace=args.displace)
+        sim = Simulation(load_scene(args.scene), seed=args.seed, displace=args.displace, cabin=given(args))
     except SceneError as exc:
         print(f"caretaker sim: {exc}", file=sys.stderr)
         return 2

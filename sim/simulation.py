@@ -11,18 +11,20 @@ from __future__ import annotations
 import logging
 import random
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pybullet as p
 
 from sim.cabin_air import CabinAir
+from sim.cabin_knobs import set_knobs
 from sim.cameras import fixed_camera_pose
 from sim.cdra_cabinet import CdraCabinet
 from sim.displacement import displaced_scene
 from sim.filter_slots import FilterSlots, SlotBlocked
 from sim.gripper import Gripper
-from sim.scene import Scene
+from sim.scene import Scene, SceneError
 from sim.trajectory import ErrorCode, JointLimit, Trajectory
 from sim.world import World, build_world
 from sim.world_lock import WorldLock
@@ -63,9 +65,15 @@ class Simulation:
     With ``displace`` (a seed) the physical world is ``sim.displacement.displaced_scene``: things
     are not where ``scene`` says, while :meth:`frames` still says what ``scene`` says (the world
     model) and only :meth:`true_frames` (the ground truth, for checks) says where they are.
+    ``cabin``: knobs of the cabin's air by name (sim/cabin_knobs.py, values checked), for a scene
+    with a CDRA cabinet.
     """
 
-    def __init__(self, scene: Scene, *, seed: int = 0, displace: int | None = None) -> None:
+    def __init__(
+        self, scene: Scene, *, seed: int = 0, displace: int | None = None, cabin: Mapping[str, float] | None = None
+    ) -> None:
+        if cabin and scene.cabinet is None:
+            raise SceneError(scene.path, 0, "", f"no CDRA cabinet, hence no cabin air to set {', '.join(cabin)}")
         # Seeded although the dynamics are deterministic anyway: any randomness added later
         # (sensor noise, perturbations) stays reproducible under the same --seed.
         random.seed(seed)
@@ -96,6 +104,8 @@ class Simulation:
         self.cabin_air = (
             CabinAir.for_filters((f.id, f.condition) for f in self.physical.filters) if self.cabinet else None
         )
+        if self.cabin_air is not None:
+            set_knobs(self.cabin_air, cabin or {})
         self.gripper = (
             Gripper(scene.robot.gripper, self.world, self.filters, self.tool_link) if scene.robot.gripper else None
         )

@@ -25,7 +25,7 @@ from std_msgs.msg import Bool, Float64, String
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectoryPoint
 
-from support.sim_pace import SIM_PARAMETERS, time_scale_request
+from support.sim_pace import SIM_PARAMETERS, parameter_request
 from support.spinner import Spinner
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
@@ -263,7 +263,11 @@ class SimClient:
 
     def set_time_scale(self, value: float | str | bool) -> SetParameters.Response:
         """Set the simulator's ``time_scale`` parameter (of any type, to see a wrong one refused)."""
-        return self._call(self.parameters_client, time_scale_request(value), f"time_scale {value!r}").results[0]
+        return self.set_parameter("time_scale", value)
+
+    def set_parameter(self, name: str, value: float | str | bool) -> SetParameters.Response:
+        """Set the simulator's parameter ``name`` (to a value of any type, to see a wrong one refused)."""
+        return self._call(self.parameters_client, parameter_request(name, value), f"{name} {value!r}").results[0]
 
     def unlock(self) -> Trigger.Response:
         return self._call(self.unlock_client, Trigger.Request(), "unlock")

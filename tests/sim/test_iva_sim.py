@@ -358,6 +358,31 @@ def test_the_cabin_co2_rises_with_the_cabinet_empty_and_falls_once_a_clean_filte
     assert_ok(move_to(client, model, [HOME]))
 
 
+def test_the_cabin_knobs_are_parameters_that_move_what_is_published_and_refuse_what_is_out_of_range(
+    client: SimClient,
+) -> None:
+    """``cabin_start_ppco2`` puts the cabin's CO2 there at once, ``cabin_chemistry_scale`` runs it
+    faster (sim/cabin_knobs.py). The clean filter locked in above brings the cabin down: at its own
+    rate by under a thousandth of a mmHg a sim second, 60 times faster by a few hundredths."""
+    client.wait_value("/cdra/filter_locked", True)
+    for name, wrong, said in (
+        ("cabin_start_ppco2", -1.0, "cabin_start_ppco2 must be a number >= 0, got -1.0"),
+        ("cabin_start_ppco2", math.nan, "cabin_start_ppco2 must be a number >= 0, got nan"),
+        ("cabin_chemistry_scale", 0.0, "cabin_chemistry_scale must be a number > 0 and <= 3600, got 0.0"),
+        ("cabin_chemistry_scale", "fast", "cabin_chemistry_scale must be a number > 0 and <= 3600, got 'fast'"),
+    ):
+        refused = client.set_parameter(name, wrong)
+        assert not refused.successful and refused.reason == said
+    assert 1.0 < client.fresh(CO2).data < 4.0  # as it was: where the clean filter keeps it
+    assert client.set_parameter("cabin_start_ppco2", 4.5).successful
+    first, second = client.fresh(CO2).data, client.fresh(CO2).data
+    assert 4.49 < second < first <= 4.5
+    assert client.set_parameter("cabin_chemistry_scale", 60).successful  # an integer is a number
+    fast, faster = client.fresh(CO2).data, client.fresh(CO2).data
+    assert fast - faster > 0.015
+    assert client.set_parameter("cabin_chemistry_scale", 1.0).successful
+
+
 def test_scene_camera_capture_saves_a_png(client: SimClient, capture_dir: Path) -> None:
     response = client.capture("scene", "after swap")
     assert response.success, response.message

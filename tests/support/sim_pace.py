@@ -1,4 +1,4 @@
-"""Set the simulator's pace from a test: its ``time_scale`` parameter, over ROS.
+"""Set the simulator's pace from a test: its ``time_scale`` parameter (or another), over ROS.
 
 Why over ROS and not the stack's rosbridge: the bridge lets no client set parameters unless its
 ``--set-params-glob`` allows them, and the shipped deployments allow none (an operator's console
@@ -13,7 +13,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-__all__ = ["SIM_PARAMETERS", "set_sim_time_scale", "time_scale_request"]
+__all__ = ["SIM_PARAMETERS", "parameter_request", "set_sim_time_scale", "time_scale_request"]
 
 #: The simulator node's parameter service (``caretaker sim``'s node, namespace of the deployment).
 SIM_PARAMETERS = "/caretaker_sim/set_parameters"
@@ -21,6 +21,11 @@ SIM_PARAMETERS = "/caretaker_sim/set_parameters"
 
 def time_scale_request(value: float | str | bool) -> SetParameters.Request:
     """A request setting ``time_scale`` to ``value``, typed as given (a wrong type, to see it refused)."""
+    return parameter_request("time_scale", value)
+
+
+def parameter_request(name: str, value: float | str | bool) -> SetParameters.Request:
+    """A request setting the simulator's parameter ``name`` to ``value``, typed as given."""
     if isinstance(value, str):
         typed = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
     elif isinstance(value, bool):
@@ -29,7 +34,7 @@ def time_scale_request(value: float | str | bool) -> SetParameters.Request:
         typed = ParameterValue(type=ParameterType.PARAMETER_INTEGER, integer_value=value)
     else:
         typed = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
-    return SetParameters.Request(parameters=[Parameter(name="time_scale", value=typed)])
+    return SetParameters.Request(parameters=[Parameter(name=name, value=typed)])
 
 
 def set_sim_time_scale(scale: float, *, service: str = SIM_PARAMETERS, timeout: float = 60.0) -> None:
