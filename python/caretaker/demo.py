@@ -31,6 +31,7 @@ from caretaker.world_checks import watch_world
 from console.accounts import AccountStore
 from datafile import DataFileError
 from pride.approvals import APPROVER_PASSWORD_ENV
+from sim import cabin_knobs
 from sim.scene import load_scene
 
 __all__ = ["DEMO_APPROVER", "DEMO_USER", "demo_approver", "demo_main", "demo_operator", "demo_home", "run_demo"]
@@ -163,6 +164,7 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
         bridge_address=args.bridge_address,
         bridge_port=args.bridge_port,
         displace=args.displace,
+        cabin=cabin_knobs.given(args),
         echo=args.verbose,
     )
     print(f"Starting the {deployment.name} stack: {', '.join(p.name for p in stack.parts)}", flush=True)

@@ -31,8 +31,8 @@ import tempfile
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from bridge.rosbridge.limits import Limits
@@ -43,6 +43,7 @@ from caretaker.terminal import TerminalLines
 from datafile import DataFileError
 from procedure_language.binding import read_binding
 from rosbridge_wire.light_time import LightTime
+from sim import cabin_knobs
 
 __all__ = ["PARTS", "Part", "PartEcho", "Stack", "StackFailed", "StackRun", "stack_options", "up_main"]
 
@@ -63,6 +64,7 @@ class StackRun:
     state_dir: Path
     link_port: int = 0  # the emulated link's listening port (0 until it picked one, if asked to)
     displace: int | None = None  # the seed of a displaced world (sim --displace), None: as the scene says
+    cabin: dict[str, float] = field(default_factory=dict)  # the cabin's air knobs (sim/cabin_knobs.py) given
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,7 @@ def _sim(deployment: Deployment, run: StackRun) -> list[str]:
         args += ["--capture-dir", str(deployment.capture_dir)]
     if run.displace is not None:
         args += ["--displace", str(run.displace)]
-    return args
+    return args + cabin_knobs.command_line(run.cabin)
 
 
 def _perception(deployment: Deployment, run: StackRun) -> list[str]:
@@ -246,13 +248,16 @@ class Stack:
         bridge_address: str | None = None,
         bridge_port: int | None = None,
         displace: int | None = None,
+        cabin: Mapping[str, float] | None = None,
         parts: Sequence[str] | None = None,
         env: dict[str, str] | None = None,
         ready_timeout: float = 120.0,
         echo: bool = False,
         respawn: bool = False,
     ) -> None:
-        """Overrides (``time_scale``, ``bridge_*``, ``displace``) replace the deployment's values; ``parts``
+        """Overrides (``time_scale``, ``bridge_*``, ``displace``) replace the deployment's values; ``cabin``
+        sets the simulated cabin's air (sim/cabin_knobs.py, by parameter name; the simulation refuses a value
+        out of range); ``parts``
         names a subset of :data:`PARTS` to run (tests); ``echo``: print every line the parts print,
         after the part's name (:class:`PartEcho`); ``respawn``: :meth:`supervise` restarts parts that
         die (all but the world).
@@ -284,6 +289,7 @@ class Stack:
             bridge_port=deployment.bridge.port if bridge_port is None else bridge_port,
             state_dir=state_dir,
             displace=deployment.displace if displace is None else displace,
+            cabin=dict(cabin or {}),
         )
         self.ready_timeout = ready_timeout
         self.respawn = respawn
@@ -430,6 +436,7 @@ def stack_options(prog: str) -> argparse.ArgumentParser:
         help="a world not where the scene file puts it: the slot bodies and targets moved by a random offset of"
         " this seed, found only by perception (default: the deployment's displace, else none)",
     )
+    cabin_knobs.add_options(parser)  # the simulated cabin's CO2, for a demonstration of an anomaly
     parser.add_argument("--verbose", "-v", action="store_true", help="echo every part's output")
     return parser
 
@@ -465,6 +472,7 @@ def up_main(argv: list[str] | None = None) -> int:
             bridge_address=args.bridge_address,
             bridge_port=args.bridge_port,
             displace=args.displace,
+            cabin=cabin_knobs.given(args),
             echo=args.verbose,
             respawn=True,
         )

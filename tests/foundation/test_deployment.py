@@ -123,7 +123,7 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         displace=7,
     )
     deployment = load_deployment(path, check_files=False)
-    stack = Stack(deployment, time_scale=0.0, env={})
+    stack = Stack(deployment, time_scale=0.0, env={}, cabin={"cabin_start_ppco2": 3.95, "cabin_chemistry_scale": 30})
     try:
         lines = {part.name: part.command(deployment, stack.run) for part in stack.parts}
     finally:
@@ -159,7 +159,16 @@ def test_the_stack_command_lines_carry_the_deployment(tmp_path: Path) -> None:
         str(secret),
     ]
     assert lines["sim"][:4] == ["sim", "--scene", str(deployment.scene), "--time-scale"] and "/iva" in lines["sim"]
-    assert ["--capture-dir", str(tmp_path / "captures"), "--displace", "7"] == lines["sim"][-4:]
+    assert lines["sim"][-8:] == [
+        "--capture-dir",
+        str(tmp_path / "captures"),
+        "--displace",
+        "7",
+        "--cabin-start-ppco2",
+        "3.95",
+        "--cabin-chemistry-scale",
+        "30.0",
+    ]
     assert lines["perception"] == ["perception", "--namespace", "/iva"]
     for part in ("planner", "at-server"):
         assert lines[part][1:5] == ["--robot", str(deployment.robot), "--templates", str(deployment.templates)]
@@ -261,6 +270,15 @@ def test_robots_sharing_a_ros_graph_never_share_a_command_ledger(tmp_path: Path)
 def test_an_unknown_option_is_an_error_for_every_part(argv: list[str]) -> None:
     proc = _caretaker(*argv)
     assert proc.returncode == 2 and "unrecognized arguments: --bogus" in proc.stderr, proc.stderr
+
+
+def test_a_cabin_knob_out_of_range_is_refused_before_anything_starts() -> None:
+    proc = _caretaker("up", "iva", "--cabin-chemistry-scale", "nan")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.splitlines()[-1] == (
+        "caretaker up: error: argument --cabin-chemistry-scale: cabin_chemistry_scale must be a number > 0 and "
+        "<= 3600, got nan"
+    )
 
 
 def test_caretaker_up_refuses_a_broken_deployment_before_starting_anything(tmp_path: Path) -> None:
