@@ -150,6 +150,13 @@ class RunExplanation(BaseModel):
     monitors: list[str]
 
 
+class CitedEntry(BaseModel):
+    system: str
+    item: str
+    value: Any = Field(description="as read when you proposed; null: no value then")
+    state: str
+
+
 class ProposalAnswer(BaseModel):
     words: str
     proposal_id: int
@@ -163,7 +170,10 @@ class ProposalAnswer(BaseModel):
     reason: str
     created: str
     expires: str
-    answer: str | None = Field(None, description="an operator's reason for declining, or the run accepted")
+    cited: list[CitedEntry] = Field(default_factory=list, description="the telemetry you cited, as read then")
+    answered_by: str | None = Field(None, description="the operator who accepted or declined it")
+    answer: str | None = Field(None, description="the operator's reason for declining (or why its run did not start)")
+    run_id: str | None = Field(None, description="the run an operator started by accepting it")
 
 
 class ProposalsAnswer(BaseModel):
@@ -227,7 +237,10 @@ def proposal_answer(proposal: Proposal, did: str) -> ProposalAnswer:
         reason=new.reason,
         created=proposal.created.isoformat(),
         expires=proposal.expires.isoformat(),
+        cited=[CitedEntry(system=c.system, item=c.item, value=c.value, state=c.state) for c in new.cited],
+        answered_by=proposal.closed_by if proposal.state in ("accepted", "declined") else None,
         answer=proposal.answer,
+        run_id=proposal.run_id,
     )
 
 

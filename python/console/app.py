@@ -39,6 +39,7 @@ from console.authoring import check_document, procedure_signatures, read_documen
 from console.folded_run import fold_events
 from console.onboard_launch import SecondOperator
 from console.procedure_view import procedure_json
+from console.proposals import proposal_routes
 from console.run_board import RunBoard
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
@@ -57,10 +58,8 @@ STATIC = Path(__file__).with_name("static")
 _TELEMETRY_REFRESH_S = 1.0
 #: How often the runs list is recomputed when nothing announced a change (a host's lease running out).
 _LIST_REFRESH_S = 2.0
-#: WebSocket close code for "not signed in" (RFC 6455 policy violation).
-_CLOSE_POLICY = 1008
-#: WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure).
-_CLOSE_ENDED = 1000
+_CLOSE_POLICY = 1008  # WebSocket close code for "not signed in" (RFC 6455 policy violation)
+_CLOSE_ENDED = 1000  # WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure)
 _SAFE_METHODS = ("GET", "HEAD")
 
 
@@ -601,9 +600,7 @@ def build_app(
     secure: bool = False,
 ) -> Starlette:
     """The Starlette app; at shutdown it stops its live runs (resumable) and closes their gateways.
-
-    ``secure``: served over TLS, so the session cookie is marked Secure (never sent in clear text).
-    """
+    ``secure``: served over TLS, so the session cookie is marked Secure (never sent in clear text)."""
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette) -> AsyncIterator[None]:
@@ -611,7 +608,9 @@ def build_app(
             yield
         finally:
             await run_in_threadpool(board.close)
+            await run_in_threadpool(proposals.close)
 
+    proposals, proposal_api = proposal_routes(board, api=_api, account=_account, operators=_operators, body=_json_body)
     app = Starlette(
         routes=[
             Route("/", index),
@@ -638,6 +637,7 @@ def build_app(
             WebSocketRoute("/ws/runs/{run_id}", run_socket),
             *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
             *attach_routes(api=_api, operators=_operators),  # a new supervisor for an onboard run (attach.py)
+            *proposal_api,  # agents' proposals, accepted or declined (proposals.py)
             Route("/favicon.ico", favicon),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

@@ -45,8 +45,13 @@ class SecondOperator:
 
 
 class LaunchRefused(RuntimeError):
-    """The runner ended before the habitat accepted the unit, or has not heard yet: the text is
-    what it said (lint errors, the habitat's refusal, an unreachable habitat) and where its log is."""
+    """The runner ended before the habitat accepted the unit (``ended``: nothing will run), or has
+    not heard yet: the text is what it said (lint errors, the habitat's refusal, an unreachable
+    habitat) and where its log is."""
+
+    def __init__(self, message: str, *, ended: bool = True) -> None:
+        super().__init__(message)
+        self.ended = ended
 
 
 def launch_onboard(
@@ -62,8 +67,10 @@ def launch_onboard(
     sysreps: Sequence[Path],
     rosbridge: str | None,
     ready_within: float = READY_WITHIN_S,
+    proposal: int | None = None,
 ) -> str:
     """Start the supervising runner and wait until the habitat accepted the unit; the run's id.
+    ``proposal``: the accepted proposal the run answers, its values going up with it.
 
     Raises:
         LaunchRefused: as :func:`_launch` says.
@@ -77,6 +84,7 @@ def launch_onboard(
         *(["--rehearsal"] if rehearsal else []),
         *(option for path in deployments for option in ("--deployment", str(path))),
         *(["--approver", approver.user] if approver else []),
+        *(["--proposal", str(proposal)] if proposal is not None else []),
     ]
     secrets = {APPROVER_PASSWORD_ENV: approver.password} if approver else {}
     still = "keeps sending the unit until it expires, and the run appears in the list if the habitat accepts it"
@@ -171,7 +179,8 @@ def _launch(
     if run_id is None:
         raise LaunchRefused(
             f"no answer from the habitat within {within:.0f} s; the runner (pid {runner.pid}) {still_trying} "
-            f"(runner log: {logfile}):\n{said}"
+            f"(runner log: {logfile}):\n{said}",
+            ended=False,
         )
     log.info("onboard run %s supervised for %s (runner pid %d)", run_id, user, runner.pid)
     return run_id

@@ -41,6 +41,7 @@ from console.watchers import Watchers
 from ground.action_requests import ActionRequests, Answer, ForwardedAction
 from ground.change_feed import ChangeNotice, open_change_feed
 from ground.run_hosts import DEFAULT_LEASE_S, HostedElsewhere, HostRecord, RunHosting
+from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import approval_points, missing_approvals_text
 from pride.events import Event, EventKind, run_start
 from pride.executive import Executive, Hold, Mode, OperatorActionError, RunStatus
@@ -54,12 +55,7 @@ from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
-from records.releases import (
-    ReleaseRefused,
-    ReleaseStore,
-    resume_refusal,
-    version_for_run,
-)
+from records.releases import ReleaseRefused, ReleaseStore, resume_refusal, version_for_run
 from records.robot_control import RobotControl
 
 __all__ = ["RunBoard", "RunView"]
@@ -152,6 +148,7 @@ class RunBoard:
         *,
         take_over: str | None = None,
         rehearsal: bool = False,
+        proposal: AcceptedProposal | None = None,
     ) -> LiveRun:
         """Lint, check the version may run, open the gateway, start the executive; ActionRefused
         says what to fix.
@@ -160,13 +157,21 @@ class RunBoard:
         only on a simulator (:mod:`records.releases`). A robot controlled by another run refuses the
         start (409, naming the controller) unless ``take_over`` gives the reason to take it over:
         the other run then holds. A start refused by a rule is recorded (:mod:`console.start_refusals`).
+        ``proposal``: the agent's proposal ``user`` accepted, named in the run's record.
         """
         asked = {"binding": binding_name, "mode": mode_name, "rehearsal": rehearsal, "take_over": take_over}
         with recorded_start_refusals(self.audit_log, user, procedure_name, asked):
-            return self._start(user, procedure_name, binding_name, _mode(mode_name), take_over, rehearsal)
+            return self._start(user, procedure_name, binding_name, _mode(mode_name), take_over, rehearsal, proposal)
 
     def _start(
-        self, user: str, procedure_name: str, binding_name: str, mode: Mode, take_over: str | None, rehearsal: bool
+        self,
+        user: str,
+        procedure_name: str,
+        binding_name: str,
+        mode: Mode,
+        take_over: str | None,
+        rehearsal: bool,
+        proposal: AcceptedProposal | None,
     ) -> LiveRun:
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
         if take_over is None:
@@ -182,7 +187,7 @@ class RunBoard:
             raise
         live = self._hold(executive, gateway, setup.checked, binding_name, user)
         try:
-            executive.start(user, take_over=take_over)
+            executive.start(user, take_over=take_over, proposal=proposal)
         except OperatorActionError as exc:
             self._drop(live)
             raise _not_started(procedure_name, exc) from None
@@ -243,13 +248,15 @@ class RunBoard:
         *,
         rehearsal: bool = False,
         approver: SecondOperator | None = None,
+        proposal: int | None = None,
     ) -> str:
         """Start an onboard run ("run on the habitat"): its supervising runner, on this host
         (:mod:`console.onboard_launch`), hosts it for the consoles; the run's id once the habitat
         accepted it. The commands that need a second operator's approval go up approved by
         ``approver`` (the habitat cannot wait a round trip for each); without one, ActionRefused
         409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here or
-        on the habitat, the habitat's refusal, an unreachable habitat)."""
+        on the habitat, the habitat's refusal, an unreachable habitat). ``proposal``: the id of the
+        agent's proposal ``user`` accepted, whose values go up with the unit (``caretaker run --proposal``)."""
         mode = _mode(mode_name)
         path = self.catalog.procedure_path(procedure_name)
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
@@ -275,9 +282,12 @@ class RunBoard:
                 db_url=self.audit_log.url,
                 sysreps=self.catalog.sysreps,
                 rosbridge=self.rosbridge_url_for(binding_name),
+                proposal=proposal,
             )
         except LaunchRefused as exc:
-            raise ActionRefused(502, f"{procedure_name} did not start on the habitat:\n{exc}") from None
+            raise ActionRefused(
+                502, f"{procedure_name} did not start on the habitat:\n{exc}", {"ended": exc.ended}
+            ) from None
 
     def resume(self, user: str, run_id: str, binding_name: str, mode_name: str) -> LiveRun:
         """Continue a stopped or interrupted run from its log on ``binding_name``; ActionRefused says why not."""

@@ -59,6 +59,7 @@ class WebServer:
         self.url = url
         self.database = database
         self.procedures = procedures
+        self.rosbridge: str | None = None  # on a real stack: its rosbridge URL, which the server uses
 
 
 def start_server(
@@ -133,6 +134,7 @@ def server_on_real_stack(tmp: Path, procedures: Path, env: dict[str, str]) -> It
     """``caretaker up iva`` (simulation, planner, AT server, rosbridge) and a server on it."""
     with stack_up("iva", env) as stack:
         served = start_server(tmp, procedures, rosbridge=[stack.url])
+        served.rosbridge = stack.url
         try:
             yield served
         finally:

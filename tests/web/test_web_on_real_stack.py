@@ -1,8 +1,13 @@
-"""Issue #6's acceptance run, in a real browser, on the real robot stack.
+"""The IVA procedure in a real browser, on the real robot stack, started from an agent's proposal.
 
 ``caretaker up --scene iva`` (simulation, planner, AT server, rosbridge: separate processes) and
-``caretaker serve`` with the JVM-hosted PAX plugins behind the executive: sign in; start the IVA
-procedure in manual mode; Send the first command and see its result and the audit record with the
+``caretaker serve`` with the JVM-hosted PAX plugins behind the executive. An assistant agent
+(``caretaker agent`` over stdio, driven by the MCP SDK's own client) lists the released IVA
+procedure, reads the robot's telemetry against its limits (the cabin's CO2 from the simulator),
+and proposes the filter change twice, citing the CO2; every console lists the proposals with the
+cited values then and now, observers without answers. alice declines one with a reason the agent
+reads back, and accepts the other in manual mode: the run starts under her name. Then: Send the
+first command and see its result and the audit record with the
 user's id; switch to autonomous: the hazardous unlock waits for a second operator (the sender is
 offered no Approve…, her own approval through the API is refused and recorded), bob approves it
 from his console; watch PAX stop at the manual instruction; let PAX carry the
@@ -10,19 +15,32 @@ real arm through steps 2 and 3 to the record of the clean filter's id, enter it,
 it in the next command (an id the rack does not report as a clean filter is refused; one the
 operator re-enters is used, both values logged), and the run completes, its report naming both
 operators of the unlock; an observer watching the same run cannot Send, and the server refuses
-it when forced, on the record. (test_operator_view.py covers the rest
-of the page on simulated systems.)
+it when forced, on the record. The run's record names the proposal and the agent; the agent reads
+what became of both proposals. (test_operator_view.py covers the rest of the page on simulated systems.)
 """
 
 from __future__ import annotations
 
+import asyncio
 import re
-from collections.abc import Callable, Iterator
+import sys
+from collections.abc import Awaitable, Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
 
 import pytest
+from mcp import Client, StdioServerParameters
 from playwright.sync_api import Page, expect
 
+from agent.mcp_server import TOKEN_ENV
+from console.accounts import AccountStore
+from pride.run_setup import load_sysreps
+from procedure_language.lint import check_procedure
+from records.agent_tokens import TokenStore
 from records.audit_log import AuditLog
+from records.releases import ReleaseStore, procedure_digest
 from support.operator_page import (
     IVA,
     UNLOCK,
@@ -32,7 +50,6 @@ from support.operator_page import (
     instruction,
     screenshot,
     send_for_approval,
-    start_run,
 )
 from support.web_server import REPO, WebServer, server_on_real_stack
 
@@ -44,6 +61,86 @@ MOTION_MS = 180_000
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60), pytest.mark.timeout(900)]
 
 
+CARETAKER = Path(sys.executable).with_name("caretaker")
+REASON = "cabin CO2 is rising: the filter seated in the CDRA cabinet is near saturation"
+CITED = ["cdra.co2_partial_pressure", "cdra.installed_filter_id"]
+
+
+def released_iva(server: WebServer) -> str:
+    """Release the IVA procedure in the server's ground database (alice and bob); its sha256."""
+    checked = check_procedure(server.procedures / IVA, load_sysreps([REPO / "sysrep"]))
+    sha = procedure_digest(checked)
+    log = AuditLog(server.database.url)
+    try:
+        text = (server.procedures / IVA).read_text()
+        ReleaseStore(log.engine).release_by_two(checked.procedure.id, sha, "alice", "bob", f"procedures/{IVA}", text)
+    finally:
+        log.close()
+    return sha
+
+
+def agent_session(server: WebServer, env: dict[str, str], scenario: Callable[[Client], Awaitable[None]]) -> None:
+    """Run ``scenario`` with the MCP SDK's client on ``caretaker agent`` as daphne (its account made at first use),
+    reaching the server's ground database and, as the server does, its robot."""
+    accounts = AccountStore(server.database.owner_url)
+    try:
+        if accounts.get("daphne") is None:
+            accounts.add("daphne", "agent", None)
+        token = TokenStore(accounts.engine).issue("daphne", timedelta(hours=1)).token
+    finally:
+        accounts.close()
+    arguments = ["agent", "--db", server.database.url, "--procedures", str(server.procedures)]
+    params = StdioServerParameters(
+        command=str(CARETAKER),
+        args=[*arguments, "--rosbridge", f"iva.yaml={server.rosbridge}"],
+        env={**env, TOKEN_ENV: token},
+    )
+
+    async def run() -> None:
+        async with Client(params) as client:
+            await scenario(client)
+
+    with ThreadPoolExecutor(1) as thread:  # Playwright's sync API holds this thread's event loop
+        thread.submit(asyncio.run, asyncio.wait_for(run(), 180)).result()
+
+
+async def answer(client: Client, tool: str, **arguments: Any) -> dict[str, Any]:
+    """A tool's structured answer (the call must not be refused)."""
+    result = await client.call_tool(tool, arguments)
+    assert not result.is_error and result.structured_content is not None, result.content
+    return result.structured_content
+
+
+def agent_proposes(server: WebServer, env: dict[str, str]) -> dict[str, Any]:
+    """daphne reads the IVA robot's telemetry and proposes the filter change twice; what she saw and made."""
+    seen: dict[str, Any] = {}
+
+    async def scenario(client: Client) -> None:
+        [iva] = (await answer(client, "list_procedures"))["procedures"]
+        assert iva["file"] == IVA and [(r["system"], r["item"]) for r in iva["responds_to"]] == [
+            ("cdra", "co2_partial_pressure")
+        ]
+        while True:  # the PAX host connects and subscribes at the first ask; its values follow
+            read = await answer(client, "read_telemetry", robot="iva")
+            items = {f"{i['system']}.{i['item']}": i for i in read["items"]}
+            if all(items[name]["value"] is not None for name in CITED):
+                break
+            await asyncio.sleep(0.5)  # nothing to await across MCP: ask again, within the call budget
+        unknown = await client.call_tool("read_telemetry", {"robot": "hal9000"})
+        miscited = await client.call_tool(
+            "propose_run",
+            {"procedure": IVA, "sha256": iva["sha256"], "robot": "iva", "reason": REASON, "cited": ["cdra.nope"]},
+        )
+        proposal = {"procedure": IVA, "sha256": iva["sha256"], "robot": "iva"}
+        first = await answer(client, "propose_run", **proposal, reason=REASON, cited=CITED)
+        second = await answer(client, "propose_run", **proposal, reason="swap it now, to be safe")
+        seen.update(items=items, read=read, first=first, second=second)
+        seen["refused"] = [r.content[0].text for r in (unknown, miscited)]  # type: ignore[union-attr]
+
+    agent_session(server, env, scenario)
+    return seen
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) -> Iterator[WebServer]:
     """The IVA stack and a web server on it (overrides conftest's simulated one for this module)."""
@@ -52,11 +149,51 @@ def server(tmp_path_factory: pytest.TempPathFactory, ros_env: dict[str, str]) ->
 
 
 def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
-    sign_in: Callable[[str], Page], server: WebServer
+    sign_in: Callable[[str], Page], server: WebServer, ros_env: dict[str, str]
 ) -> None:
+    released_iva(server)
+    seen = agent_proposes(server, ros_env)
+    co2 = seen["items"]["cdra.co2_partial_pressure"]
+    assert 2.0 <= co2["value"] <= 3.0 and co2["units"] == "mmHg", co2  # the cabin as the ISS keeps it
+    assert (co2["state"], co2["limit"]) == ("green", None) and seen["read"]["out_of_limits"] == []
+    assert seen["items"]["cdra.filter_locked"]["value"] is True  # the dirty filter is locked in its cabinet
+    assert "refused by rule known_robot" in seen["refused"][0]
+    assert "refused by rule known_telemetry" in seen["refused"][1] and "cdra.nope" in seen["refused"][1]
+    first, second = seen["first"], seen["second"]
+    assert [(c["item"], c["state"]) for c in first["cited"]] == [
+        ("co2_partial_pressure", "green"),
+        ("installed_filter_id", "no limits"),
+    ]
+
+    # every console lists the proposals; alice declines one with a reason and accepts the other
     alice = sign_in("alice")
     expect(alice.locator("#who")).to_have_text("alice (operator)")
-    run_id = start_run(alice, IVA, "manual")
+    card = alice.locator(f'#proposal-list li[data-proposal-id="{first["proposal_id"]}"]')
+    expect(card).to_have_attribute("data-state", "open")
+    expect(card).to_contain_text(f"daphne proposes {IVA} (release 1) on iva")
+    expect(card.locator(".reason")).to_have_text(REASON)
+    expect(card.locator(".cited").first).to_contain_text(
+        re.compile(r"cdra\.co2_partial_pressure: [0-9.]+ mmHg \(green\) when proposed · now [0-9.]+ mmHg \(green\)")
+    )
+    other = alice.locator(f'#proposal-list li[data-proposal-id="{second["proposal_id"]}"]')
+    other.locator("button.decline").click()
+    alice.fill("#reason-input", "one swap at a time")
+    alice.click("#reason-yes")
+    expect(other).to_have_attribute("data-state", "declined")
+    expect(other).to_contain_text("declined by alice")
+    card.locator("select[name=mode]").select_option("manual")
+    card.locator("button.accept").click()
+    expect(alice.locator("#run-id")).to_have_text(re.compile("^iva_cdra_filter_replacement-"))
+    expect(alice.locator("#connection")).to_have_attribute("data-state", "open")
+    run_id = alice.locator("#run-id").inner_text()
+    expect(card).to_have_attribute("data-state", "accepted")
+    expect(card.locator("a")).to_have_text(f"run {run_id}")
+    again = alice.request.post(
+        f"{server.url}/api/proposals/{first['proposal_id']}/accept",
+        data={"mode": "manual"},
+        headers={"X-CSRF-Token": alice.evaluate("view.me.csrf")},
+    )
+    assert again.status == 409 and "accepted" in again.json()["error"], again.text()  # one acceptance, one run
     expect(alice.locator("#run-mode")).to_have_text("manual")
     expect(alice.locator("#proc-title")).to_contain_text("IVA CDRA Filter Replacement")
 
@@ -92,6 +229,10 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     # an observer opens the same run in another browser and sees it live, without controls
     carol = sign_in("carol")
     expect(carol.locator("#start-panel")).to_be_hidden()
+    expect(carol.locator(f'#proposal-list li[data-proposal-id="{first["proposal_id"]}"]')).to_contain_text(
+        "accepted by alice"
+    )
+    expect(carol.locator("#proposal-list .proposal-answers")).to_have_count(0)  # observers answer nothing
     carol.goto(f"{server.url}/#run={run_id}")
     expect(carol.locator("#connection")).to_have_attribute("data-state", "open")
     expect(instruction(carol, "1.3").locator(".mark")).to_contain_text("completed by alice")
@@ -218,6 +359,29 @@ def test_operator_runs_the_iva_procedure_and_an_observer_only_watches(
     )
     actors = {e.actor for e in events}
     assert actors == {"alice", "bob", "carol", "PAX"}, actors
+    started = events[0].data.to_json()
+    assert (events[0].actor, started["proposal"]) == (
+        "alice",
+        {"id": first["proposal_id"], "agent": "daphne", "reason": REASON},
+    )
+    assert (started["release"], started["rehearsal"]) == (1, False)
+
+    # the agent reads what became of its proposals, and the run it started
+    told: dict[str, Any] = {}
+
+    async def follow_up(client: Client) -> None:
+        told["proposals"] = (await answer(client, "list_proposals"))["proposals"]
+        told["run"] = await answer(client, "explain_run", run_id=run_id)
+
+    agent_session(server, ros_env, follow_up)
+    answered = {p["proposal_id"]: p for p in told["proposals"]}
+    assert (answered[first["proposal_id"]]["state"], answered[first["proposal_id"]]["run_id"]) == ("accepted", run_id)
+    assert answered[first["proposal_id"]]["answered_by"] == "alice"
+    assert (answered[second["proposal_id"]]["state"], answered[second["proposal_id"]]["answer"]) == (
+        "declined",
+        "one swap at a time",
+    )
+    assert told["run"]["outcome"] == "completed" and told["run"]["started_by"] == "alice"
     refused = [(e.actor, e.instruction, e.data.to_json()) for e in events if e.kind.value == "action_refused"]
     assert [(actor, number, d["action"], d["rule"]) for actor, number, d in refused] == [
         ("carol", "1.4", "perform", "observers_watch"),

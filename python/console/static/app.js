@@ -87,6 +87,7 @@ async function loadSession() {
     $("start-panel").hidden = !view.me.may_act;
     await Promise.all([loadCatalog(), loadRuns()]);
     connectRuns();
+    loadProposals();  // proposals.js
     openRunFromHash();
   }
 }
