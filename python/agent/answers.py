@@ -43,6 +43,9 @@ class NamedValue(BaseModel):
     name: str
     type: str
     pattern: str | None = Field(None, description="a regular expression the whole value must match")
+    one_of: str | None = Field(
+        None, description="SYSTEM.ITEM: the telemetry listing, comma-separated, the values it may take now"
+    )
 
 
 class ResponseEntry(BaseModel):
@@ -200,7 +203,12 @@ class ResourceText(BaseModel):
 def procedure_entry(facts: ProcedureFacts) -> ProcedureEntry:
     procedure = facts.checked.procedure
     records = {
-        i.name: NamedValue(name=i.name, type=i.type, pattern=i.pattern)
+        i.name: NamedValue(
+            name=i.name,
+            type=i.type,
+            pattern=i.pattern,
+            one_of=".".join(i.one_of_telemetry) if i.one_of_telemetry else None,
+        )
         for i in procedure.instructions
         if isinstance(i, RecordInstruction)
     }
@@ -213,7 +221,7 @@ def procedure_entry(facts: ProcedureFacts) -> ProcedureEntry:
         sha256=facts.sha256,
         released_by=facts.released_by,
         systems=[system for system, _ in procedure.uses],
-        inputs=[NamedValue(name=i.name, type=i.type, pattern=None) for i in procedure.inputs],
+        inputs=[NamedValue(name=i.name, type=i.type, pattern=None, one_of=None) for i in procedure.inputs],
         records=list(records.values()),
         responds_to=[
             ResponseEntry(system=r.system, item=r.telemetry, state=r.limit, text=r.text) for r in procedure.responds_to

@@ -41,6 +41,7 @@ from mcp.server.mcpserver.exceptions import ResourceError, ToolError
 from mcp.types import CallToolResult, InputRequiredResult
 from pydantic import BaseModel, Field
 
+from agent import reference_agent
 from agent.agent_audit import ANSWERED, REFUSED, AgentRecords
 from agent.agent_desk import AgentDesk, AgentRefused, run_words
 from agent.answers import (
@@ -60,6 +61,7 @@ from agent.answers import (
     telemetry_entry,
 )
 from agent.call_budget import CallBudget
+from agent.reference_agent import server_arguments
 from console.catalog import Catalog, catalog_options, rosbridge_overrides
 from console.listener import Listener, serve, tls_problem
 from records.agent_proposals import ProposalStore
@@ -426,6 +428,20 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--insecure", action="store_true", help="with --listen: allow plain http beyond loopback (an encrypted network)"
     )
+    reference = parser.add_argument_group(
+        "the reference agent", "a deterministic MCP client of this server that answers a robot's first anomaly"
+    )
+    reference.add_argument(
+        "--reference",
+        action="store_true",
+        help="watch --robot's telemetry, propose the released procedure that responds to an item out of its limits, "
+        "follow its run and say when the item is within its limits again (TIMELINE lines)",
+    )
+    reference.add_argument("--robot", metavar="NAME", help="the robot the reference agent watches")
+    reference.add_argument(
+        "--watch-every", type=float, default=2.0, metavar="S", help="seconds between its reads (default 2)"
+    )
+    reference.add_argument("--within", type=float, metavar="S", help="give up (exit 1) after this many seconds")
     return parser
 
 
@@ -441,11 +457,14 @@ def _listen_address(text: str) -> tuple[str, int]:
 def main(argv: list[str] | None = None) -> int:
     """Serve one agent over stdio until its client closes it, or over HTTP (``--listen``) until
     stopped; 2 with the reason when its token or the options are refused."""
+    argv = sys.argv[2:] if argv is None else argv
     args = _parser().parse_args(argv)
     problem = _option_problem(args)
     if problem is not None:
         print(f"caretaker agent: {problem}", file=sys.stderr)
         return 2
+    if args.reference:
+        return reference_agent.run(server_arguments(argv), args.robot, args.watch_every, args.within)
     audit = AuditLog(args.db)
     tokens, records = TokenStore(audit.engine), AgentRecords(audit.engine)
     try:
@@ -483,6 +502,8 @@ def _stdio_token() -> str:
 
 
 def _option_problem(args: argparse.Namespace) -> str | None:
+    if args.reference and (args.listen or not args.robot or args.watch_every <= 0):
+        return "--reference watches one --robot NAME over stdio, reading every --watch-every S (> 0), without --listen"
     if args.proposal_expiry <= 0:
         return "--proposal-expiry must be positive"
     if args.burst < 1 or args.calls_per_second <= 0:

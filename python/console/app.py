@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import json
 import logging
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable
@@ -37,9 +36,9 @@ from console.actions import ActionRefused, ActionRequest
 from console.attach import attach_routes
 from console.authoring import check_document, procedure_signatures, read_document, save_document, sysrep_palette
 from console.folded_run import fold_events
-from console.onboard_launch import SecondOperator
 from console.procedure_view import procedure_json
 from console.proposals import proposal_routes
+from console.request_bodies import json_body, second_operator
 from console.run_board import RunBoard
 from console.sign_in import COOKIE, CSRF_HEADER, SignInRefused, SignIns, WebSession
 from console.spatial_api import spatial_routes
@@ -129,13 +128,6 @@ def _operators(may: str) -> Callable[[Callable[[Request, Account], Awaitable[Res
     return only_operators
 
 
-async def _json_body(request: Request) -> Any:
-    try:
-        return await request.json()
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise ActionRefused(400, "the request body must be JSON") from None
-
-
 # ---- pages and session ----------------------------------------------------------------------
 async def index(request: Request) -> Response:
     return FileResponse(STATIC / "index.html")
@@ -167,7 +159,7 @@ async def session_post(request: Request) -> Response:
     """Sign in with a user id and password (JSON); the reply carries the CSRF token for later requests."""
     if not _same_origin(request):
         raise ActionRefused(403, "this request came from another site's page: refused")
-    body = await _json_body(request)
+    body = await json_body(request)
     if not isinstance(body, dict) or not isinstance(body.get("user"), str) or not isinstance(body.get("password"), str):
         raise ActionRefused(400, "expected a JSON object with 'user' and 'password' strings")
     address = request.client.host if request.client else "unknown"
@@ -222,7 +214,7 @@ async def runs_list(request: Request) -> Response:
 
 async def _run_request(request: Request, fields: str) -> dict[str, str]:
     """The fields of a request about a run, as strings (mode defaults to manual)."""
-    body = await _json_body(request)
+    body = await json_body(request)
     if not isinstance(body, dict):
         raise ActionRefused(400, f"expected a JSON object with {fields}")
     return {
@@ -235,35 +227,13 @@ async def _run_request(request: Request, fields: str) -> dict[str, str]:
     }
 
 
-async def _second_operator(request: Request, for_user: str) -> SecondOperator | None:
-    """The second operator approving, at ``for_user``'s console, the commands of an onboard unit
-    (the body's ``approver`` and ``approver_password``), signed in here for that alone; None if
-    the body names none. A wrong password is refused as at sign-in (throttled), but as 403: the
-    operator at the console stays signed in."""
-    body = await _json_body(request)
-    user, password = body.get("approver"), body.get("approver_password")
-    if not user:
-        return None
-    if not isinstance(user, str) or not isinstance(password, str):
-        raise ActionRefused(400, "approver and approver_password must be strings")
-    address = request.client.host if request.client else "unknown"
-    sign_ins: SignIns = request.app.state.sign_ins
-    try:
-        account = await run_in_threadpool(sign_ins.second_operator, user.strip(), password, address, for_user)
-    except SignInRefused as exc:
-        log.warning("approval by %r at %s's console refused: %s", user[:64], for_user, exc.message)
-        raise ActionRefused(429 if exc.status == 429 else 403, f"the second operator: {exc.message}") from None
-    log.info("%s approves, at %s's console, the commands of an onboard unit", account.user, for_user)
-    return SecondOperator(account.user, password)
-
-
 @_api
 @_operators("watch, not start runs")
 async def runs_start(request: Request, account: Account) -> Response:
     body = await _run_request(request, "procedure, binding and mode")
     board: RunBoard = request.app.state.board
     if body["onboard"]:
-        approver = await _second_operator(request, account.user)
+        approver = await second_operator(request, account.user)
         run_id = await run_in_threadpool(
             partial(board.start_onboard, rehearsal=bool(body["rehearsal"]), approver=approver),
             account.user,
@@ -335,7 +305,7 @@ async def run_get(request: Request) -> Response:
 @_api
 async def run_action(request: Request) -> Response:  # the board refuses an observer, and records it in the run
     account, board = _account(request), request.app.state.board
-    action = ActionRequest.from_json(await _json_body(request))
+    action = ActionRequest.from_json(await json_body(request))
     result = await run_in_threadpool(board.act, request.path_params["run_id"], account, action)
     return JSONResponse({"ok": True, "action": action.action, "result": result})
 
@@ -543,7 +513,7 @@ def _document(body: Any) -> dict[str, Any]:
 async def author_check(request: Request) -> Response:
     _account(request)
     board: RunBoard = request.app.state.board
-    document = _document(await _json_body(request))
+    document = _document(await json_body(request))
     checked = await run_in_threadpool(check_document, document, board.catalog.procedures, board.sysreps())
     return JSONResponse(checked)
 
@@ -552,7 +522,7 @@ async def author_check(request: Request) -> Response:
 @_operators("read procedures, not save them")
 async def author_save(request: Request, account: Account) -> Response:
     board: RunBoard = request.app.state.board
-    body = await _json_body(request)
+    body = await json_body(request)
     document = _document(body)
     saved = await run_in_threadpool(
         lambda: save_document(
@@ -582,7 +552,7 @@ async def author_release(request: Request, account: Account) -> Response:
     """``{"action": "request" | "release", "sha256": the version the operator saw}``: ask a second
     operator to review and release it, or (as that second operator) release it."""
     board: RunBoard = request.app.state.board
-    body = await _json_body(request)
+    body = await json_body(request)
     if not isinstance(body, dict) or body.get("action") not in ("request", "release"):
         raise ActionRefused(400, 'expected {"action": "request" or "release", "sha256": the version you reviewed}')
     seen = str(body.get("sha256", ""))
@@ -610,7 +580,7 @@ def build_app(
             await run_in_threadpool(board.close)
             await run_in_threadpool(proposals.close)
 
-    proposals, proposal_api = proposal_routes(board, api=_api, account=_account, operators=_operators, body=_json_body)
+    proposals, proposal_api = proposal_routes(board, api=_api, account=_account, operators=_operators)
     app = Starlette(
         routes=[
             Route("/", index),

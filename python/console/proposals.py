@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Awaitable, Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from starlette.concurrency import run_in_threadpool
@@ -29,6 +30,8 @@ from starlette.routing import BaseRoute, Route
 
 from console.accounts import Account
 from console.actions import ActionRefused
+from console.onboard_launch import SecondOperator
+from console.request_bodies import json_body, second_operator
 from console.robot_telemetry import RobotTelemetry, TelemetryFacts, TelemetryRefused
 from pride.accepted_proposal import AcceptedProposal
 from procedure_language.diagnostics import ProcedureError
@@ -73,8 +76,11 @@ class ProposalDesk:
                 now[robot] = self._read(robot)
         return [_proposal_json(p, now.get(p.proposed.robot)) for p in waiting + answered]
 
-    def accept(self, user: str, proposal_id: int, mode: str, onboard: bool) -> str:
-        """Accept proposal ``proposal_id`` as ``user`` and start its run; the run's id.
+    def accept(
+        self, user: str, proposal_id: int, mode: str, onboard: bool, *, approver: SecondOperator | None = None
+    ) -> str:
+        """Accept proposal ``proposal_id`` as ``user`` and start its run (``onboard``: on the habitat,
+        its commands that need approval approved by ``approver``); the run's id.
 
         Raises:
             ActionRefused: 404 no such proposal; 409 it is not open, its version is not the
@@ -100,7 +106,8 @@ class ProposalDesk:
             raise ActionRefused(409, f"proposal {proposal_id} is {self._state(proposal_id)}: it cannot be accepted")
         try:
             if onboard:  # the runner takes the proposal itself (caretaker run --proposal)
-                run_id = self.board.start_onboard(user, new.procedure_file, new.binding, mode, proposal=proposal_id)
+                start = partial(self.board.start_onboard, approver=approver, proposal=proposal_id)
+                run_id = start(user, new.procedure_file, new.binding, mode)
             else:
                 accepted = AcceptedProposal(proposal_id, new.agent, new.reason)
                 run_id = self.board.start(user, new.procedure_file, new.binding, mode, proposal=accepted).run_id
@@ -194,11 +201,11 @@ def proposal_routes(
     api: Callable[[Handler], Handler],
     account: Callable[[Request], Account],
     operators: Callable[[str], Callable[[OperatorHandler], Handler]],
-    body: Callable[[Request], Awaitable[Any]],
 ) -> tuple[ProposalDesk, list[BaseRoute]]:
-    """The desk and its routes, given the app's refusal handling (``api``), session (``account``),
-    role check (``operators``) and JSON body reader (``body``): ``GET /api/proposals``, ``POST
-    /api/proposals/ID/accept`` (``{"mode": "manual"|"autonomous", "onboard": bool}``) and ``POST
+    """The desk and its routes, given the app's refusal handling (``api``), session (``account``)
+    and role check (``operators``): ``GET /api/proposals``, ``POST /api/proposals/ID/accept``
+    (``{"mode": "manual"|"autonomous", "onboard": bool}``, and for an onboard run whose commands
+    need approval ``approver`` and ``approver_password``, as a start from the form) and ``POST
     /api/proposals/ID/decline`` (``{"reason": text}``)."""
     desk = ProposalDesk(board)
 
@@ -210,12 +217,14 @@ def proposal_routes(
     @api
     @operators("watch, not answer proposals")
     async def accept(request: Request, operator: Account) -> Response:
-        asked = await body(request)
+        asked = await json_body(request)
         if not isinstance(asked, dict) or asked.get("mode") not in ("manual", "autonomous"):
             raise ActionRefused(400, 'expected {"mode": "manual" or "autonomous", "onboard": true or false}')
-        proposal_id = request.path_params["proposal_id"]
+        onboard = asked.get("onboard") is True
+        approver = await second_operator(request, operator.user) if onboard else None
+        accept_it = partial(desk.accept, approver=approver)
         run_id = await run_in_threadpool(
-            desk.accept, operator.user, proposal_id, asked["mode"], asked.get("onboard") is True
+            accept_it, operator.user, request.path_params["proposal_id"], asked["mode"], onboard
         )
         board.list_watchers.wake()
         return JSONResponse({"run_id": run_id}, status_code=201)
@@ -223,7 +232,7 @@ def proposal_routes(
     @api
     @operators("watch, not answer proposals")
     async def decline(request: Request, operator: Account) -> Response:
-        asked = await body(request)
+        asked = await json_body(request)
         if not isinstance(asked, dict) or not isinstance(asked.get("reason"), str):
             raise ActionRefused(400, 'expected {"reason": why you decline it, for the agent}')
         await run_in_threadpool(desk.decline, operator.user, request.path_params["proposal_id"], asked["reason"])

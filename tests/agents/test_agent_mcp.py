@@ -162,7 +162,12 @@ def test_an_agent_reads_proposes_and_withdraws_and_every_call_is_on_its_chain(
         ]  # the EVA inspection is a draft: not offered
         iva = listed["procedures"][0]
         assert "cdra" in iva["systems"]
-        assert {"name": "clean_filter_id", "type": "string", "pattern": "CDRA-F-[0-9]{4}"} in iva["records"]
+        assert {
+            "name": "clean_filter_id",
+            "type": "string",
+            "pattern": "CDRA-F-[0-9]{4}",
+            "one_of": "cdra.clean_filter_ids",
+        } in iva["records"]
         robots = (await client.call_tool("list_robots", {})).structured_content
         assert robots is not None and {r["robot"] for r in robots["robots"]} == {"iva", "eva"}
         runs = (await client.call_tool("list_runs", {})).structured_content

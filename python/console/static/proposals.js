@@ -77,19 +77,32 @@ function proposalAnswers(p) {
   onboard.name = "onboard";
   const onboardLabel = element("label", "", " on the habitat");
   onboardLabel.prepend(onboard);
+  // on the habitat, commands that need approval go up approved by a second operator (as from the start form)
+  const approver = element("input");
+  approver.name = "approver";
+  approver.placeholder = "second operator";
+  approver.autocomplete = "off";
+  const password = element("input");
+  password.name = "approver_password";
+  password.type = "password";
+  password.placeholder = "their password";
+  password.autocomplete = "off";
+  approver.hidden = password.hidden = true;
+  onboard.addEventListener("change", () => { approver.hidden = password.hidden = !onboard.checked; });
   const accept = element("button", "accept", "Accept and start");
   accept.type = "submit";
   const decline = element("button", "decline", "Decline…");
   decline.type = "button";
   const error = element("span", "error");
   error.setAttribute("role", "alert");
-  form.append(mode, onboardLabel, accept, decline, error);
+  form.append(mode, onboardLabel, approver, password, accept, decline, error);
   form.addEventListener("submit", async (event) => {
     event.preventDefault();
     accept.disabled = decline.disabled = true;
     try {
+      const second = onboard.checked && approver.value ? {approver: approver.value, approver_password: password.value} : {};
       const {run_id: runId} = await api("POST", `/api/proposals/${p.id}/accept`,
-        {mode: mode.value, onboard: onboard.checked});
+        {mode: mode.value, onboard: onboard.checked, ...second});
       location.hash = `#run=${encodeURIComponent(runId)}`;
     } catch (failed) {
       error.textContent = failed.message;
