@@ -9,6 +9,7 @@ import hashlib
 import hmac
 import json
 import re
+import socket
 import ssl
 import subprocess
 import sys
@@ -270,14 +271,34 @@ def test_browser_origins_are_refused_unless_allowed(guarded: tuple[str, int]) ->
         assert '"result":true' in allowed.recv(timeout=20)
 
 
-def test_a_disconnect_logs_the_bytes_each_way(ros_env: dict[str, str]) -> None:
-    process = caretaker("bridge", "--port", "0", env=ros_env)
-    for host, port in _serve(process):
-        client = RawClient(host, port)
-        client.request({"op": "call_service", "service": "/rosapi/get_ros_version"}, "service_response")
-        client.close()
-        line = process.wait_for_line(r"client \d+ disconnected after [\d.]+ s: \d+ bytes in, \d+ out")
-        assert re.search(r"1 messages in, 1 out", line), line
+@pytest.fixture(scope="module")
+def plain_bridge(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, tuple[str, int]]]:
+    """A bridge without TLS or a secret that waits 5 s for an upgrade request, and its address."""
+    process = caretaker("bridge", "--port", "0", "--handshake-timeout", "5", env=ros_env)
+    for address in _serve(process):
+        yield process, address
+
+
+def test_a_disconnect_logs_the_bytes_each_way(plain_bridge: tuple[ManagedProcess, tuple[str, int]]) -> None:
+    process, address = plain_bridge
+    before = process.printed
+    client = RawClient(*address)
+    client.request({"op": "call_service", "service": "/rosapi/get_ros_version"}, "service_response")
+    client.close()
+    line = process.wait_for_line(r"client \d+ disconnected after [\d.]+ s: \d+ bytes in, \d+ out", after=before)
+    assert re.search(r"1 messages in, 1 out", line), line
+
+
+def test_a_connection_that_never_asks_to_upgrade_is_dropped_and_logged(
+    plain_bridge: tuple[ManagedProcess, tuple[str, int]],
+) -> None:
+    process, address = plain_bridge
+    before = process.printed
+    with socket.create_connection(address, timeout=30) as raw:
+        raw.sendall(b"GET / HTTP/1.1\r\n")  # the request's first line, and never its end
+        line = process.wait_for_line(r"dropped after 5 s \(--handshake-timeout\)", after=before)
+        assert raw.recv(1) == b""  # closed by the bridge
+    assert line.endswith("without its WebSocket upgrade request: 16 bytes of it came"), line
 
 
 @pytest.mark.parametrize("address", ["0.0.0.0", "192.0.2.1", "::", "bridge.example"])

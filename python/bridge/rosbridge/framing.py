@@ -152,6 +152,10 @@ class BridgeConnection(ServerConnection):
     on_backlog: Callable[[], None] | None = None
     """Called when the socket's write buffer drained: the session may let reading resume."""
     gate: ConnectionGate | None = None
+    on_no_request: Callable[[BridgeConnection], None] | None = None
+    """Called when the opening handshake timed out before the client's upgrade request had come:
+    otherwise nothing would tell a client that never asked (or whose request was lost) from one
+    the bridge never heard from."""
     _queued = 0  # messages put in the queue and not yet read by the handler (see message_read)
     _fragmented = False  # the queue holds the first frames of a fragmented message
     _framing = Framing.HANDSHAKE
@@ -171,6 +175,14 @@ class BridgeConnection(ServerConnection):
         self._admitted = self.gate is None or self.gate.admit()
         if not self._admitted:
             self.counted.abort()
+
+    async def handshake(self, *args: Any, **kwargs: Any) -> None:
+        try:
+            await super().handshake(*args, **kwargs)
+        except asyncio.CancelledError:  # websockets' --handshake-timeout, or the bridge stopping
+            if self.request is None and self.server.is_serving() and self.on_no_request is not None:
+                self.on_no_request(self)
+            raise
 
     # Both end websockets' stream: frames a later turn still holds are dropped after them (_handle_frames).
     def eof_received(self) -> None:

@@ -191,7 +191,16 @@ class RosbridgeServer:
         """websockets' connection factory: a :class:`BridgeConnection` under this server's gate."""
         connection = BridgeConnection(*args, **kwargs)
         connection.gate = self.gate
+        connection.on_no_request = self._no_request
         return connection
+
+    def _no_request(self, connection: BridgeConnection) -> None:
+        after_tls = " after the TLS handshake" if connection.transport.get_extra_info("ssl_object") else ""
+        self._peer_log(connection)(
+            logging.WARNING,
+            f"dropped after {self.limits.handshake_timeout:g} s (--handshake-timeout) without its WebSocket "
+            f"upgrade request: {connection.traffic.bytes_received} bytes of it came{after_tls}",
+        )
 
     def process_request(self, connection: ServerConnection, request: Request) -> Response | None:
         """Refuse a WebSocket handshake beyond ``--max-connections`` (HTTP 503)."""
