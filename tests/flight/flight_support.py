@@ -311,12 +311,16 @@ def flight(
     delay: float,
     link_options: Sequence[str] = (),
     time_scale: str = "1",
+    paced: Mapping[str, float] | None = None,
     outage_budget: float = 120.0,
     onboard: bool = False,
     critical_commanding: dict[str, Any] | None = None,
     verbose: bool = False,
 ) -> Iterator[Flight]:
     """Both hosts up, the link between them, nothing run yet; everything stopped and removed after.
+    ``paced`` (trajectory → time scale): the simulation at that pace while the AT server executes
+    the trajectory, at ``time_scale`` otherwise (the probe sets it: :mod:`habitat_probe`), so that
+    a fault struck at the start of that execution falls mid-motion in a flight otherwise flat out.
     ``verbose``: the habitat's ``up`` echoes its parts' output (``Habitat.up.output``, its last 400 lines).
     The ground database has the test people's accounts, and bob's password is in the flight's
     processes' environment (only a ground runner reads it), so a run approves with
@@ -329,7 +333,10 @@ def flight(
         binding = write_ground_binding(
             hosts.folder, link_url, credentials, one_way_delay=delay, outage_budget=outage_budget
         )
-        probe = hosts.python(hosts.habitat, str(PROBE), ready=r"^READY probe")
+        paces = [f"--pace={trajectory}={scale:g}" for trajectory, scale in (paced or {}).items()]
+        probe = hosts.python(
+            hosts.habitat, str(PROBE), *paces, *([f"--then={time_scale}"] if paces else []), ready=r"^READY probe"
+        )
         habitat = start_habitat(
             hosts,
             credentials,
@@ -369,59 +376,84 @@ def commands(events: list[Event]) -> list[tuple[Event, Event | None]]:
 # ------------------------------------------------------------- what the IVA runs must show
 
 DELAY = 1.3
-#: Arm trajectory goals of one run of the IVA procedure: one per planned waypoint segment that
-#: moves the arm, over the eleven executions (six motions and five looks). If the templates
-#: change, a clean run shows the new number (every goal SUCCEEDED once).
-IVA_ARM_GOALS = 19
+#: Arm trajectory goals of each nominal step of the IVA procedure: one per planned waypoint segment
+#: that moves the arm (the gripper's close and release move none): the ready pose and each look
+#: one, a pull-out or a placement three. If the templates change, a clean run shows the new
+#: numbers (every goal SUCCEEDED once).
+IVA_ARM_GOALS_BY_STEP = {
+    "prepare": 4,
+    "remove_dirty": 3,
+    "place_dirty": 3,
+    "pick_clean": 5,
+    "insert_clean": 3,
+    "lock_clean": 0,
+    "complete": 1,
+}
+#: Arm trajectory goals of one whole run, over its eleven executions (six motions and five looks).
+IVA_ARM_GOALS = sum(IVA_ARM_GOALS_BY_STEP.values())
 
 
-def nominal_commands(path: Path) -> int:
-    """The commands a run of the procedure sends when nothing goes wrong: those of its nominal
-    steps (none branches), each call counting its sub-procedure's."""
-    count = 0
+def nominal_commands(path: Path, *, to: str | None = None) -> list[str]:
+    """The commands (their names, in order) a run of the procedure sends when nothing goes wrong:
+    those of its nominal steps (none branches) up to and with step ``to`` (None: to the end), each
+    call counting its sub-procedure's."""
+    names: list[str] = []
     for step in load_procedure(path).steps:
         if step.contingency:
             continue
         for i in step.instructions:
             if isinstance(i, CommandInstruction):
-                count += 1
+                names.append(i.command)
             elif isinstance(i, CallInstruction):
-                count += nominal_commands(path.parent / i.procedure)
-    return count
+                names += nominal_commands(path.parent / i.procedure)
+        if step.id == to:
+            return names
+    if to is not None:
+        raise ValueError(f"{path.name} has no nominal step {to!r}")
+    return names
+
+
+def arm_goals(to: str | None = None) -> int:
+    """The arm trajectory goals of a run of the IVA procedure up to and with step ``to`` (None: all)."""
+    steps = list(IVA_ARM_GOALS_BY_STEP)
+    return sum(IVA_ARM_GOALS_BY_STEP[step] for step in steps[: steps.index(to) + 1 if to else None])
 
 
 #: Commands of one run (adds, poses, plans, executes, the bay's inventory, locates, unlock, lock,
-#: deletes), as the procedure and its look, locate, register calls write them; and its executions.
-IVA_COMMANDS = nominal_commands(PROCEDURE)
-IVA_EXECUTIONS = 11
+#: deletes), as the procedure and its look, locate, register calls write them.
+IVA_COMMANDS = len(nominal_commands(PROCEDURE))
 #: The first placement of a filter on the rack (step 3): the execution after the pull-out.
 PLACE_DIRTY = "insert_and_release"
+#: That step's id: a run ``--to`` it does what the pull-out needs, the pull-out and one motion after.
+PLACE_DIRTY_STEP = "place_dirty"
 
 
-def assert_flown_exactly_once(f: Flight, run_id: str, status: str) -> None:
-    """The run completed; every command ran once on the habitat and was logged with its real outcome."""
+def assert_flown_exactly_once(f: Flight, run_id: str, status: str, *, to: str | None = None) -> None:
+    """The run (of the procedure up to and with step ``to``: ``--to``; None: all of it) completed;
+    every command ran once on the habitat and was logged with its real outcome."""
     events = f.events(run_id)
     assert status == "completed", "\n".join(
         f"{e.instruction or '-'} {e.kind.value} {e.data}" for e in events[-12:]
     )  # the last events: the hold that stopped an unattended run, or the failure
     failed = [e for e in events if e.kind is EventKind.INSTRUCTION_FAILED]
     assert not failed, "\n".join(f"{e.instruction} failed: {e.data}" for e in failed)  # what went wrong, not just that
+    expected = nominal_commands(PROCEDURE, to=to)
     sent = commands(events)
-    assert len(sent) == IVA_COMMANDS, [s.data.to_json()["command"] for s, _ in sent]
+    logged = [s.data.to_json()["command"] for s, _ in sent]
+    assert logged == expected, logged
     unanswered = [s.instruction for s, answer in sent if answer is None]
     assert not unanswered, f"commands without a logged outcome: {unanswered}"
     assert all(answer is not None and answer.data.to_json()["success"] for _, answer in sent)
     # The habitat's own record: each command executed once, and it succeeded.
     records = f.habitat.ledger_records()
-    assert len(records) == IVA_COMMANDS, [(r["command_key"], r["state"]) for r in records]
+    assert len(records) == len(expected), [(r["command_key"], r["state"]) for r in records]
     assert {r["state"] for r in records} == {"SUCCEEDED"}, [(r["command_key"], r["message"]) for r in records]
     executions = [r for r in records if r["service"].endswith("/execute_command")]
-    assert len(executions) == IVA_EXECUTIONS
-    logged = [s.data.to_json()["command"] for s, _ in sent]
+    assert len(executions) == expected.count("execute_plan")
     assert [r["service"].rsplit("/", 1)[-1] for r in records].count("execute_command") == logged.count("execute_plan")
     # What the arm did: every motion once, each carried out.
     goals = f.goals()
-    assert len({goal for goal, _ in goals}) == len(goals) == IVA_ARM_GOALS, goals
+    assert len({goal for goal, _ in goals}) == len(goals) == arm_goals(to), goals
     assert {status for _, status in goals} == {4}, goals
 
 

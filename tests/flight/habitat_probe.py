@@ -10,20 +10,33 @@ Runs in the habitat's network namespace next to ``caretaker up`` and prints one 
   :data:`MOVED_RAD` from where it came to rest) and stop changing (``time``: this host's clock when
   the first such sample arrived, Unix seconds).
 
+With ``--pace TRAJECTORY=SCALE`` (repeatable) and ``--then SCALE`` it paces the simulation (its
+``time_scale`` parameter, :mod:`support.sim_pace`) at ``SCALE`` while the AT server executes
+``TRAJECTORY``, and at ``--then`` once that execution ends (a ``PACE <scale> set`` line each time):
+a flight flat out but for the motion its fault must fall in. The request goes before the
+``EXECUTING`` line, so a test that acts on that line acts on a motion already paced.
+
 Prints ``READY probe`` once both subscriptions exist.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import rclpy
 from action_msgs.msg import GoalStatusArray
 from affordance_template_msgs.msg import ServerStatus
+from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/, for the support package
+from support.sim_pace import SIM_PARAMETERS, time_scale_request
 
 TERMINAL = {4, 5, 6}
 #: How far a joint must get from where the arm came to rest for it to be moving again: a goal that
@@ -33,8 +46,12 @@ MOVED_RAD = 1e-4
 
 
 class HabitatProbe(Node):
-    def __init__(self, status_topic: str, action: str, joints_topic: str) -> None:
+    def __init__(
+        self, status_topic: str, action: str, joints_topic: str, paces: dict[str, float], then: float | None
+    ) -> None:
         super().__init__("flight_habitat_probe")
+        self.paces, self.then = paces, then
+        self.parameters = self.create_client(SetParameters, SIM_PARAMETERS)
         self.executing: tuple[str, str] | None = None
         self.ended: set[str] = set()
         self.positions: tuple[float, ...] | None = None
@@ -50,10 +67,22 @@ class HabitatProbe(Node):
     def on_status(self, status: ServerStatus) -> None:
         if status.execute_status == ServerStatus.EXECUTE_EXECUTING and self.executing is None:
             self.executing = (status.active_template, status.active_trajectory)
+            if status.active_trajectory in self.paces:
+                self.set_pace(self.paces[status.active_trajectory])
             print(f"EXECUTING {self.executing[0]} {self.executing[1]}", flush=True)
         elif status.execute_status != ServerStatus.EXECUTE_EXECUTING and self.executing is not None:
             print(f"EXECUTED {self.executing[0]} {self.executing[1]} {status.execute_status}", flush=True)
+            if self.executing[1] in self.paces and self.then is not None:
+                self.set_pace(self.then)
             self.executing = None
+
+    def set_pace(self, scale: float) -> None:
+        def said(future: Future) -> None:
+            result = future.result()
+            assert isinstance(result, SetParameters.Response)
+            print(f"PACE {scale:g} {'set' if result.results[0].successful else 'refused'}", flush=True)
+
+        self.parameters.call_async(time_scale_request(scale)).add_done_callback(said)
 
     def on_joints(self, message: JointState) -> None:
         positions = tuple(message.position)
@@ -81,9 +110,14 @@ def main() -> None:
     parser.add_argument("--status-topic", default="/affordance_template_server/status")
     parser.add_argument("--action", default="/arm_controller/follow_joint_trajectory")
     parser.add_argument("--joints", default="/joint_states")
+    parser.add_argument(
+        "--pace", action="append", default=[], metavar="TRAJECTORY=SCALE", help="the time scale while it executes"
+    )
+    parser.add_argument("--then", type=float, help="the time scale once a paced execution ends")
     args = parser.parse_args()
+    paces = {trajectory: float(scale) for trajectory, _, scale in (pace.partition("=") for pace in args.pace)}
     rclpy.init()
-    node = HabitatProbe(args.status_topic, args.action, args.joints)
+    node = HabitatProbe(args.status_topic, args.action, args.joints, paces, args.then)
     print("READY probe", flush=True)
     try:
         rclpy.spin(node)
