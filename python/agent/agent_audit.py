@@ -50,7 +50,10 @@ class AgentRecords:
         text = json.dumps(data, sort_keys=True, default=str, ensure_ascii=False)
         for _ in range(_ATTEMPTS):
             try:
-                with self._engine.begin() as connection:
+                # the head is read, then written after: on SQLite the write lock is taken first (BEGIN
+                # IMMEDIATE waits for it), or a writer that commits between the two fails this one at once
+                immediate = self._engine.connect().execution_options(sqlite_begin="BEGIN IMMEDIATE")
+                with immediate as connection, connection.begin():
                     seq, prev = _head(connection, agent)
                     unlinked = StoredEvent(agent, seq + 1, datetime.now(UTC), agent, kind, tool, text, prev)
                     row = replace(unlinked, hash=unlinked.expected_hash())

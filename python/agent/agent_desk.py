@@ -19,6 +19,7 @@ import os
 import socket
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import select
@@ -41,6 +42,7 @@ from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
 from procedure_language.sysrep import SysRep, check_value
 from records.agent_proposals import CitedTelemetry, NewProposal, Proposal, ProposalStore
+from records.audit_chain import utc
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest, short
@@ -82,6 +84,7 @@ class RunFacts:
     run_id: str
     events: list[Event]
     wording: Wording
+    live: bool = False  # hosted now (a lease renewed): a run without an end is running, not interrupted
 
 
 class AgentDesk:
@@ -186,13 +189,21 @@ class AgentDesk:
         """The newest runs first, at most :data:`LISTED_RUNS`."""
         wording = self.wording()
         newest = [run_id for run_id, _, _ in self.audit.runs()][-LISTED_RUNS:][::-1]
-        return [RunFacts(run_id, self.audit.events(run_id), wording) for run_id in newest]
+        live = self._live(newest)
+        return [RunFacts(run_id, self.audit.events(run_id), wording, run_id in live) for run_id in newest]
 
     def run(self, run_id: str) -> RunFacts:
         events = self.audit.events(run_id) if run_id else []
         if not events:
             raise AgentRefused("known_run", f"no run {run_id!r} in the record (list_runs names them)")
-        return RunFacts(run_id, events, self.wording())
+        return RunFacts(run_id, events, self.wording(), bool(self._live([run_id])))
+
+    def _live(self, run_ids: list[str]) -> set[str]:
+        """Which of ``run_ids`` a console or runner hosts now (its lease not run out)."""
+        query = select(run_hosts.c.run_id, run_hosts.c.lease_until).where(run_hosts.c.run_id.in_(run_ids))
+        now = datetime.now(UTC)
+        with self.audit.engine.connect() as connection:
+            return {row.run_id for row in connection.execute(query) if utc(row.lease_until) > now}
 
     def wording(self) -> Wording:
         try:
@@ -337,9 +348,11 @@ def _checked_input(checked: CheckedProcedure, name: str, value: Any) -> Any:
         raise AgentRefused("input_pattern", f"{exc}") from None
 
 
-def run_words(events: list[Event], wording: Wording) -> dict[str, Any]:
-    """A run in the report's words: what it is, how it went, where it is and what it waits for."""
+def run_words(events: list[Event], wording: Wording, live: bool = False) -> dict[str, Any]:
+    """A run in the report's words: what it is, how it went (``running`` when ``live`` and not
+    ended), where it is and what it waits for."""
     summary = summarize(events)
+    outcome = "running" if live and summary.outcome == "interrupted" else summary.outcome
     last = events[-1]
     waiting = (
         describe_event(last, wording)
@@ -354,8 +367,8 @@ def run_words(events: list[Event], wording: Wording) -> dict[str, Any]:
         "version": summary.released,
         "started": summary.started.isoformat(),
         "started_by": summary.started_by,
-        "outcome": summary.outcome,
-        "at_instruction": at if summary.outcome not in ("completed",) else None,
+        "outcome": outcome,
+        "at_instruction": at if outcome != "completed" else None,
         "waiting_for": waiting,
         "steps": [
             {"number": s.number, "title": s.title, "completed": s.completed, "failed": s.failed, "skipped": s.skipped}

@@ -145,7 +145,7 @@ class RunExplanation(BaseModel):
     version: str
     started: str
     started_by: str
-    outcome: str = Field(description="completed, stopped or interrupted (also: still running)")
+    outcome: str = Field(description="running, completed, stopped, or interrupted (ended without an end record)")
     at_instruction: str | None
     waiting_for: str
     steps: list[StepEntry]

@@ -265,7 +265,7 @@ def build_server(session: AgentSession, *, url: str | None = None) -> MCPServer:
         def answer() -> RunsAnswer:
             entries = []
             for run in desk.runs():
-                told = run_words(run.events, run.wording)
+                told = run_words(run.events, run.wording, run.live)
                 entries.append(RunEntry(**{k: told[k] for k in RunEntry.model_fields}))
             return RunsAnswer(words=f"{len(entries)} run(s), newest first", runs=entries)
 
@@ -277,7 +277,7 @@ def build_server(session: AgentSession, *, url: str | None = None) -> MCPServer:
 
         def answer() -> RunExplanation:
             run = desk.run(run_id)
-            told = run_words(run.events, run.wording)
+            told = run_words(run.events, run.wording, run.live)
             where = f", at {told['at_instruction']}" if told["at_instruction"] else ""
             waiting = f", waiting: {told['waiting_for']}" if told["waiting_for"] else ""
             words = f"run {run_id} of {told['procedure']} by {told['started_by']}: {told['outcome']}{where}{waiting}"

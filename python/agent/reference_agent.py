@@ -107,7 +107,7 @@ class ReferenceAgent:
                     name = f"{entry['system']}.{entry['item']}"
                     say(
                         "alarm",
-                        f"{name} = {entry['value']} {entry['units'] or ''} is {entry['limit']}".replace("  ", " "),
+                        f"{name} = {shown(entry)} is {entry['limit']}",
                     )
                     return {**entry, "name": name}
             await asyncio.sleep(self.every)  # nothing pushes telemetry over MCP: read it again
@@ -137,7 +137,7 @@ class ReferenceAgent:
         response = next(
             r for r in procedure["responds_to"] if (r["system"], r["item"]) == (item["system"], item["item"])
         )
-        reason = f"{item['name']} is {item['limit']} ({item['value']} {item['units'] or ''}): {response['text']}"
+        reason = f"{item['name']} is {item['limit']} ({shown(item)}): {response['text']}"
         cited = [item["name"], *(record["one_of"] for record in procedure["records"] if record["one_of"] in now)]
         proposal = await self.call(
             "propose_run",
@@ -168,7 +168,13 @@ class ReferenceAgent:
     async def _run_ended(self, run_id: str) -> None:
         started = False
         while True:
-            told = await self.call("explain_run", run_id=run_id)
+            try:
+                told = await self.call("explain_run", run_id=run_id)
+            except AgentStopped as exc:
+                if "rule known_run" not in str(exc):
+                    raise
+                await asyncio.sleep(self.every)  # its first records are on their way down from the habitat
+                continue
             if not started:
                 say("start", f"run {run_id} started by {told['started_by']} at {told['started']}")
                 started = True
@@ -184,9 +190,16 @@ class ReferenceAgent:
             read = await self.call("read_telemetry", robot=self.robot)
             entry = next(e for e in read["items"] if (e["system"], e["item"]) == (item["system"], item["item"]))
             if entry["state"] == "green":
-                say("cleared", f"{item['name']} = {entry['value']} {entry['units'] or ''} is within its limits")
+                say("cleared", f"{item['name']} = {shown(entry)} is within its limits")
                 return
             await asyncio.sleep(self.every)
+
+
+def shown(entry: dict[str, Any]) -> str:
+    """A telemetry entry's value with its units, a number to four significant digits."""
+    value = entry["value"]
+    text = f"{value:.4g}" if isinstance(value, float) else str(value)
+    return f"{text} {entry['units']}" if entry["units"] else text
 
 
 def say(event: str, words: str) -> None:
@@ -199,17 +212,22 @@ def run(argv: Sequence[str], robot: str, every: float, within: float | None) -> 
     caretaker = str(Path(sys.executable).with_name("caretaker"))
     params = StdioServerParameters(command=caretaker, args=["agent", *argv], env=dict(os.environ))
 
+    stopped: list[AgentStopped] = []
+
     async def answer() -> None:
         async with Client(params) as client:
-            await ReferenceAgent(client, robot, every).answer_anomaly()
+            try:
+                await ReferenceAgent(client, robot, every).answer_anomaly()
+            except AgentStopped as exc:  # here, not through the client's task group, which would wrap it
+                stopped.append(exc)
 
     started = time.monotonic()
     try:
         asyncio.run(asyncio.wait_for(answer(), within))
-    except AgentStopped as exc:
-        print(f"caretaker agent --reference: {exc}", file=sys.stderr)
-        return 2 if "refused by rule" in str(exc) else 1
     except (TimeoutError, MCPError, OSError) as exc:
         print(f"caretaker agent --reference: gave up after {time.monotonic() - started:.0f} s: {exc}", file=sys.stderr)
         return 1
+    if stopped:
+        print(f"caretaker agent --reference: {stopped[0]}", file=sys.stderr)
+        return 2 if "refused by rule" in str(stopped[0]) else 1
     return 0

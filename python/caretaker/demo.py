@@ -235,6 +235,10 @@ def demo_main(argv: list[str] | None = None) -> int:
     parser.set_defaults(time_scale=0.0)
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    if args.deployment == "anomaly":
+        from caretaker.anomaly_demo import anomaly_demo
+
+        return anomaly_demo(args)
     try:
         deployment = load_deployment(args.deployment)
     except DataFileError as exc:

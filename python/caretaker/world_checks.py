@@ -306,7 +306,7 @@ class _World:
     event loop of its own thread), and for each check of a moment of the run its best sample so
     far (a long run keeps no history)."""
 
-    def __init__(self, bridge_url: str, namespace: str, visits: tuple[FrameCheck, ...]) -> None:
+    def __init__(self, bridge_url: str | Endpoint, namespace: str, visits: tuple[FrameCheck, ...]) -> None:
         self.namespace = namespace
         self.samples = 0
         self.visits = visits
@@ -315,7 +315,8 @@ class _World:
         self._loop = asyncio.new_event_loop()
         self._thread = threading.Thread(target=self._loop.run_forever, name="world-checks", daemon=True)
         self._thread.start()
-        self._client = RosbridgeClient(Endpoint(bridge_url), name="caretaker-world-checks")
+        endpoint = bridge_url if isinstance(bridge_url, Endpoint) else Endpoint(bridge_url)
+        self._client = RosbridgeClient(endpoint, name="caretaker-world-checks")
 
     def connect(self) -> None:
         """Connect within :data:`TOPIC_TIMEOUT` (LinkError if the bridge does not answer)."""
@@ -432,8 +433,11 @@ class WorldWatch:
 
 
 @contextmanager
-def watch_world(checks: tuple[WorldCheck, ...], bridge_url: str, namespace: str, scene: Scene) -> Iterator[WorldWatch]:
-    """Watch the robot side behind ``bridge_url`` for ``checks`` while the block runs the procedure."""
+def watch_world(
+    checks: tuple[WorldCheck, ...], bridge_url: str | Endpoint, namespace: str, scene: Scene
+) -> Iterator[WorldWatch]:
+    """Watch the robot side behind ``bridge_url`` (or a bridge that wants TLS trust and a login:
+    its :class:`Endpoint`) for ``checks`` while the block runs the procedure."""
     world: _World | str = "nothing of the robot side is read"
     if any(not isinstance(c, ImagesCheck) for c in checks):
         watching = _World(bridge_url, namespace, tuple(c for c in checks if isinstance(c, FrameCheck) and c.during_run))
@@ -441,7 +445,7 @@ def watch_world(checks: tuple[WorldCheck, ...], bridge_url: str, namespace: str,
             watching.connect()
         except LinkError as exc:
             watching.stop()
-            world = f"cannot watch the robot side through {bridge_url}: {exc}"
+            world = f"cannot watch the robot side through {getattr(bridge_url, 'url', bridge_url)}: {exc}"
         else:
             world = watching
             if world.visits:

@@ -68,9 +68,11 @@ def launch_onboard(
     rosbridge: str | None,
     ready_within: float = READY_WITHIN_S,
     proposal: int | None = None,
+    confirm_manual: bool = False,
 ) -> str:
     """Start the supervising runner and wait until the habitat accepted the unit; the run's id.
-    ``proposal``: the accepted proposal the run answers, its values going up with it.
+    ``proposal``: the accepted proposal the run answers, its values going up with it;
+    ``confirm_manual``: the habitat marks manual instructions done by itself.
 
     Raises:
         LaunchRefused: as :func:`_launch` says.
@@ -85,6 +87,7 @@ def launch_onboard(
         *(option for path in deployments for option in ("--deployment", str(path))),
         *(["--approver", approver.user] if approver else []),
         *(["--proposal", str(proposal)] if proposal is not None else []),
+        *(["--confirm-manual"] if confirm_manual else []),
     ]
     secrets = {APPROVER_PASSWORD_ENV: approver.password} if approver else {}
     still = "keeps sending the unit until it expires, and the run appears in the list if the habitat accepts it"

@@ -77,10 +77,18 @@ class ProposalDesk:
         return [_proposal_json(p, now.get(p.proposed.robot)) for p in waiting + answered]
 
     def accept(
-        self, user: str, proposal_id: int, mode: str, onboard: bool, *, approver: SecondOperator | None = None
+        self,
+        user: str,
+        proposal_id: int,
+        mode: str,
+        onboard: bool,
+        *,
+        approver: SecondOperator | None = None,
+        confirm_manual: bool = False,
     ) -> str:
         """Accept proposal ``proposal_id`` as ``user`` and start its run (``onboard``: on the habitat,
-        its commands that need approval approved by ``approver``); the run's id.
+        its commands that need approval approved by ``approver``, its manual instructions marked
+        done there with ``confirm_manual``); the run's id.
 
         Raises:
             ActionRefused: 404 no such proposal; 409 it is not open, its version is not the
@@ -106,7 +114,9 @@ class ProposalDesk:
             raise ActionRefused(409, f"proposal {proposal_id} is {self._state(proposal_id)}: it cannot be accepted")
         try:
             if onboard:  # the runner takes the proposal itself (caretaker run --proposal)
-                start = partial(self.board.start_onboard, approver=approver, proposal=proposal_id)
+                start = partial(
+                    self.board.start_onboard, approver=approver, proposal=proposal_id, confirm_manual=confirm_manual
+                )
                 run_id = start(user, new.procedure_file, new.binding, mode)
             else:
                 accepted = AcceptedProposal(proposal_id, new.agent, new.reason)
@@ -205,7 +215,8 @@ def proposal_routes(
     """The desk and its routes, given the app's refusal handling (``api``), session (``account``)
     and role check (``operators``): ``GET /api/proposals``, ``POST /api/proposals/ID/accept``
     (``{"mode": "manual"|"autonomous", "onboard": bool}``, and for an onboard run whose commands
-    need approval ``approver`` and ``approver_password``, as a start from the form) and ``POST
+    need approval ``approver`` and ``approver_password``, as a start from the form, and
+    ``confirm_manual``: the habitat marks its manual instructions done) and ``POST
     /api/proposals/ID/decline`` (``{"reason": text}``)."""
     desk = ProposalDesk(board)
 
@@ -222,7 +233,9 @@ def proposal_routes(
             raise ActionRefused(400, 'expected {"mode": "manual" or "autonomous", "onboard": true or false}')
         onboard = asked.get("onboard") is True
         approver = await second_operator(request, operator.user) if onboard else None
-        accept_it = partial(desk.accept, approver=approver)
+        accept_it = partial(
+            desk.accept, approver=approver, confirm_manual=onboard and asked.get("confirm_manual") is True
+        )
         run_id = await run_in_threadpool(
             accept_it, operator.user, request.path_params["proposal_id"], asked["mode"], onboard
         )

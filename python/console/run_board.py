@@ -249,14 +249,14 @@ class RunBoard:
         rehearsal: bool = False,
         approver: SecondOperator | None = None,
         proposal: int | None = None,
+        confirm_manual: bool = False,
     ) -> str:
-        """Start an onboard run ("run on the habitat"): its supervising runner, on this host
-        (:mod:`console.onboard_launch`), hosts it for the consoles; the run's id once the habitat
-        accepted it. The commands that need a second operator's approval go up approved by
-        ``approver`` (the habitat cannot wait a round trip for each); without one, ActionRefused
-        409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here or
-        on the habitat, the habitat's refusal, an unreachable habitat). ``proposal``: the id of the
-        agent's proposal ``user`` accepted, whose values go up with the unit (``caretaker run --proposal``)."""
+        """Start an onboard run ("run on the habitat"): its supervising runner on this host (onboard_launch.py)
+        hosts it for the consoles; the run's id once the habitat accepted it. The commands that need a second
+        operator's approval go up approved by ``approver`` (the habitat cannot wait a round trip for each); without
+        one, ActionRefused 409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here
+        or on the habitat, the habitat's refusal, an unreachable habitat). ``proposal``: the agent's proposal
+        ``user`` accepted (``run --proposal``); ``confirm_manual``: the habitat marks manual instructions done."""
         mode = _mode(mode_name)
         path = self.catalog.procedure_path(procedure_name)
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
@@ -283,6 +283,7 @@ class RunBoard:
                 sysreps=self.catalog.sysreps,
                 rosbridge=self.rosbridge_url_for(binding_name),
                 proposal=proposal,
+                confirm_manual=confirm_manual,
             )
         except LaunchRefused as exc:
             raise ActionRefused(
