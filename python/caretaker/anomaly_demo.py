@@ -16,8 +16,9 @@ the CO2 is within its limits again.
 The demo prints the timeline (alarm, proposal, acceptance, start, completion, cleared) and exits 0
 only if the run completed, the world is as the IVA demo's checks say (the dirty filter on the rack,
 the clean one locked in the cabinet) and the CO2 came back within its limits. Everything it writes
-is in ``var/anomaly/RUN/`` (the ground database, the generated binding and deployment, the logs);
-the link's credentials in ``var/anomaly/link/`` are made once and kept.
+is in ``var/anomaly/RUN/`` (``--reports DIR``: ``DIR/RUN/``): the ground database (unless ``--db``
+names one), the generated binding and deployment, the habitat's state; the link's credentials in
+``var/anomaly/link/`` (``DIR/link/``) are made once and kept.
 """
 
 from __future__ import annotations
@@ -67,13 +68,13 @@ EVENTS = ("alarm", "proposal", "acceptance", "start", "completion", "cleared")
 
 def anomaly_demo(args: argparse.Namespace) -> int:
     """Run the demo (``args``: ``caretaker demo``'s stack options); 0 only if every check holds."""
-    home = REPO / "var" / "anomaly"
+    home = Path(args.reports) if args.reports else REPO / "var" / "anomaly"
     folder = home / datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder.mkdir(parents=True)
     credentials = _credentials(home / "link")
     binding = _ground_binding(folder / "bindings", credentials, "wss://127.0.0.1:9")  # its URL: once the link is up
     deployment = load_deployment(_habitat_deployment(folder, credentials, binding))
-    db_url = f"sqlite:///{folder / 'ground.db'}"
+    db_url = args.db or f"sqlite:///{folder / 'ground.db'}"
     passwords = _accounts(db_url)
     stack = Stack(deployment, time_scale=args.time_scale, echo=args.verbose)
     print(f"Starting the IVA habitat behind a {ONE_WAY_DELAY} s link: {', '.join(p.name for p in stack.parts)}")

@@ -215,8 +215,14 @@ def run_demo(deployment: Deployment, args: argparse.Namespace) -> int:
 
 
 def demo_main(argv: list[str] | None = None) -> int:
-    """``caretaker demo DEPLOYMENT``: bring the stack up, run its procedure autonomously, report."""
+    """``caretaker demo DEPLOYMENT``: bring the stack up, run its procedure autonomously, report;
+    ``caretaker demo anomaly``: an alarm answered end to end (:mod:`caretaker.anomaly_demo`)."""
     parser = stack_options("caretaker demo")
+    parser.description = (
+        "Bring a deployment's stack up, run its procedure autonomously, check the world and report. "
+        "DEPLOYMENT 'anomaly': the IVA habitat behind a 1.3 s link, a console and the reference agent answer a "
+        "CO2 alarm end to end (--reports DIR: where it writes; --db: its ground database)."
+    )
     parser.add_argument(
         "--serve",
         action="store_true",
