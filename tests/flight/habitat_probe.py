@@ -12,9 +12,10 @@ Runs in the habitat's network namespace next to ``caretaker up`` and prints one 
 
 With ``--pace TRAJECTORY=SCALE`` (repeatable) and ``--then SCALE`` it paces the simulation (its
 ``time_scale`` parameter, :mod:`support.sim_pace`) at ``SCALE`` while the AT server executes
-``TRAJECTORY``, and at ``--then`` once that execution ends (a ``PACE <scale> set`` line each time):
-a flight flat out but for the motion its fault must fall in. The request goes before the
-``EXECUTING`` line, so a test that acts on that line acts on a motion already paced.
+``TRAJECTORY``, and at ``--then`` once that execution ends (a ``PACE <scale> set`` line each time;
+refused, the probe exits saying why): a flight flat out but for the motion its fault must fall
+in. The ``EXECUTING`` line of a paced execution comes once its pace is set, so a test that acts
+on that line acts on a motion already paced.
 
 Prints ``READY probe`` once both subscriptions exist.
 """
@@ -67,20 +68,28 @@ class HabitatProbe(Node):
     def on_status(self, status: ServerStatus) -> None:
         if status.execute_status == ServerStatus.EXECUTE_EXECUTING and self.executing is None:
             self.executing = (status.active_template, status.active_trajectory)
+            said = f"EXECUTING {self.executing[0]} {self.executing[1]}"
             if status.active_trajectory in self.paces:
-                self.set_pace(self.paces[status.active_trajectory])
-            print(f"EXECUTING {self.executing[0]} {self.executing[1]}", flush=True)
+                self.set_pace(self.paces[status.active_trajectory], then_print=said)
+            else:
+                print(said, flush=True)
         elif status.execute_status != ServerStatus.EXECUTE_EXECUTING and self.executing is not None:
             print(f"EXECUTED {self.executing[0]} {self.executing[1]} {status.execute_status}", flush=True)
             if self.executing[1] in self.paces and self.then is not None:
                 self.set_pace(self.then)
             self.executing = None
 
-    def set_pace(self, scale: float) -> None:
+    def set_pace(self, scale: float, *, then_print: str = "") -> None:
+        """Pace the simulation at ``scale``; once it is, print ``then_print`` too."""
+
         def said(future: Future) -> None:
             result = future.result()
             assert isinstance(result, SetParameters.Response)
-            print(f"PACE {scale:g} {'set' if result.results[0].successful else 'refused'}", flush=True)
+            if not result.results[0].successful:
+                raise SystemExit(f"PACE {scale:g} refused: {result.results[0].reason}")
+            print(f"PACE {scale:g} set", flush=True)
+            if then_print:
+                print(then_print, flush=True)
 
         self.parameters.call_async(time_scale_request(scale)).add_done_callback(said)
 

@@ -3,6 +3,8 @@
 One scenario of the IVA procedure flown autonomously from the ground host to the habitat host
 (1.3 s each way); how a flight is set up, and how what the arm did is counted on the habitat,
 is flight_support.py's docstring. One file per scenario, so parallel workers fly them side by side.
+The simulation runs flat out but for the pull-out, which it carries out at real pace, so that the
+habitat dies mid-motion.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ def test_an_outcome_lost_with_the_habitat_is_unknown_and_holds(ros_env: dict[str
     """The whole habitat side dies during the pull-out and comes back with its memory lost (a new
     ledger epoch): what became of the pull-out cannot be learnt. The run says so and holds for an
     operator; it never logs the pull-out as a success (nor as a failure)."""
-    with flight(ros_env, delay=DELAY, time_scale="1", outage_budget=120) as f:
+    with flight(ros_env, delay=DELAY, time_scale="0", paced={PULL_OUT: 1.0}, outage_budget=120) as f:
         run = f.run()
         f.await_execution(PULL_OUT)
         f.habitat.up.kill()
