@@ -4,7 +4,10 @@ It resumes the run from its own chain: the command in flight at the crash is sen
 key, so the ledger answers what became of it instead of running it again. The run completes,
 every command was executed once and every motion done once (counted on the habitat), and the
 ground's copy of the record, caught up after the gap, is the habitat's chain hash for hash.
-How a flight is set up: flight_support.py.
+The run is the procedure's steps 1 to 3 (``--to place_dirty``): what the pull-out needs, the
+pull-out, and a motion the resumed executive commands after it; the simulation flat out but for
+the pull-out, paced at real time, so that the kill falls mid-motion. How a flight is set up:
+flight_support.py.
 """
 
 from __future__ import annotations
@@ -13,14 +16,14 @@ import pytest
 
 from records.audit_chain import verify_chain
 
-from .flight_support import DELAY, IVA_ARM_GOALS, IVA_COMMANDS, PULL_OUT, flight, result_of
+from .flight_support import DELAY, PLACE_DIRTY_STEP, PROCEDURE, PULL_OUT, arm_goals, flight, nominal_commands, result_of
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90), pytest.mark.timeout(900)]
 
 
 def test_the_onboard_executive_killed_mid_motion_resumes_and_runs_nothing_twice(ros_env: dict[str, str]) -> None:
-    with flight(ros_env, delay=DELAY, time_scale="1", onboard=True) as f:
-        run = f.run("--onboard")
+    with flight(ros_env, delay=DELAY, time_scale="0", paced={PULL_OUT: 1.0}, onboard=True) as f:
+        run = f.run("--onboard", "--to", PLACE_DIRTY_STEP, record=False)
         f.await_execution(PULL_OUT)
         killed = f.kill_part("onboard")
         f.habitat.up.wait_for_line(r"^restarted onboard", 120)
@@ -30,9 +33,11 @@ def test_the_onboard_executive_killed_mid_motion_resumes_and_runs_nothing_twice(
         resumed = [e for e in habitat if e.kind == "run_resumed"]
         assert [e.actor for e in resumed] == ["onboard"], f"onboard executive {killed} was not resumed once"
         records = f.habitat.ledger_records()  # each command key executed at most once, whatever was re-sent
-        assert len(records) == IVA_COMMANDS and {r["state"] for r in records} == {"SUCCEEDED"}, records
+        assert len(records) == len(nominal_commands(PROCEDURE, to=PLACE_DIRTY_STEP)), records
+        assert {r["state"] for r in records} == {"SUCCEEDED"}, records
         goals = f.goals()
-        assert len({goal for goal, _ in goals}) == len(goals) == IVA_ARM_GOALS and {s for _, s in goals} == {4}, goals
+        assert len({goal for goal, _ in goals}) == len(goals) == arm_goals(PLACE_DIRTY_STEP), goals
+        assert {s for _, s in goals} == {4}, goals
         ground = f.ground_chain(run_id)
         assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat]
         assert verify_chain(run_id, ground).ok
