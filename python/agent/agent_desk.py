@@ -19,7 +19,6 @@ import os
 import socket
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from datetime import UTC, datetime
 from typing import Any
 
 from sqlalchemy import select
@@ -30,6 +29,7 @@ from console.robot_telemetry import RobotTelemetry, TelemetryFacts, TelemetryRef
 from datafile import DataFileError
 from ground.action_requests import ActionRequests, Answer, ForwardedAction
 from ground.change_feed import ChangeFeed, open_change_feed
+from ground.run_hosts import live_runs
 from pride.event_words import describe_event
 from pride.events import Event, EventKind
 from pride.gateways import open_gateway
@@ -42,7 +42,6 @@ from procedure_language.lint import CheckedProcedure, check_procedure
 from procedure_language.model import RecordInstruction
 from procedure_language.sysrep import SysRep, check_value
 from records.agent_proposals import CitedTelemetry, NewProposal, Proposal, ProposalStore
-from records.audit_chain import utc
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
 from records.releases import ReleaseStore, procedure_digest, short
@@ -189,21 +188,14 @@ class AgentDesk:
         """The newest runs first, at most :data:`LISTED_RUNS`."""
         wording = self.wording()
         newest = [run_id for run_id, _, _ in self.audit.runs()][-LISTED_RUNS:][::-1]
-        live = self._live(newest)
+        live = live_runs(self.audit.engine, newest)
         return [RunFacts(run_id, self.audit.events(run_id), wording, run_id in live) for run_id in newest]
 
     def run(self, run_id: str) -> RunFacts:
         events = self.audit.events(run_id) if run_id else []
         if not events:
             raise AgentRefused("known_run", f"no run {run_id!r} in the record (list_runs names them)")
-        return RunFacts(run_id, events, self.wording(), bool(self._live([run_id])))
-
-    def _live(self, run_ids: list[str]) -> set[str]:
-        """Which of ``run_ids`` a console or runner hosts now (its lease not run out)."""
-        query = select(run_hosts.c.run_id, run_hosts.c.lease_until).where(run_hosts.c.run_id.in_(run_ids))
-        now = datetime.now(UTC)
-        with self.audit.engine.connect() as connection:
-            return {row.run_id for row in connection.execute(query) if utc(row.lease_until) > now}
+        return RunFacts(run_id, events, self.wording(), bool(live_runs(self.audit.engine, [run_id])))
 
     def wording(self) -> Wording:
         try:

@@ -16,6 +16,13 @@ SQLite the change feed reads the file).
 
 SIGTERM (or Ctrl-C) ends supervision, never a run: each goes on on the habitat, its handoff says
 ``detached``, and ``caretaker run --attach RUN`` (or the consoles' Attach) follows it again.
+
+Several supervisors of one binding, on several hosts, share its runs through the database: each
+run is held by one, under its lease. A supervisor that stops or dies leaves its runs detached
+or with its lease run out; another supervisor of the binding takes each over (one does: the
+takeover is a conditional UPDATE) and follows it as an attach does, catching the ground's record
+up from the last event stored, hash for hash. A run taken but not yet uplinked is uplinked again:
+the habitat answers the same signed unit with its first answer and starts nothing twice.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import signal
 import socket
 import sys
 from collections.abc import Callable, Coroutine
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -37,15 +45,17 @@ from caretaker.onboard_hosting import OnboardHosting, unit_checked
 from console.terminal_host import HostedElsewhere, TerminalHost
 from datafile import DataFileError
 from ground.change_feed import ChangeNotice, open_change_feed
+from ground.run_hosts import DEFAULT_LEASE_S, live_runs
 from onboard.downlink import DownlinkError, OnboardSupervisor, Supervision
 from onboard.unit import Unit, UnitError
 from procedure_language.binding import read_binding
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.lint import CheckedProcedure
 from procedure_language.sysrep import SysRep, SysRepError
+from records.audit_chain import utc
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError
-from records.onboard_handoffs import Handoff, OnboardHandoffs
+from records.onboard_handoffs import DETACHED, TAKEN, Handoff, OnboardHandoffs
 from rosbridge_wire.client import Endpoint, RosbridgeClient
 
 __all__ = ["Supervisor", "main"]
@@ -64,8 +74,11 @@ class Supervisor:
         audit: AuditLog,
         sysreps: dict[str, SysRep],
         client: RosbridgeClient | None = None,
+        *,
+        lease: float = DEFAULT_LEASE_S,
     ) -> None:
         self.endpoint = endpoint
+        self.lease = lease  # how long a run's host lease lasts unrenewed: a supervisor gone after it
         self.binding = binding
         self.audit = audit
         self.sysreps = sysreps
@@ -74,6 +87,7 @@ class Supervisor:
         self._own_client = client is None
         self.client = client or RosbridgeClient(endpoint, name="caretaker-supervise", on_state=self._session)
         self._runs: set[asyncio.Task[None]] = set()
+        self._held: set[str] = set()  # the runs this supervisor follows
         self._stopping = asyncio.Event()  # SIGTERM: every run's supervision ends, the runs go on
         self._serving = False  # READY said: the session was open
         self._lost = False  # the session dropped and is being opened again
@@ -108,12 +122,17 @@ class Supervisor:
                 try:
                     for handoff in self.handoffs.waiting(self.binding):
                         if self.handoffs.take(handoff.run_id, self.name):
-                            task = loop.create_task(self._supervise(handoff))
-                            self._runs.add(task)
-                            task.add_done_callback(self._runs.discard)
+                            self._start(loop, handoff, attaching=False)
+                    for handoff in self._orphans():
+                        if self.handoffs.take_over(handoff, self.name):
+                            print(
+                                f"{handoff.run_id}: TAKEN OVER from {handoff.supervisor} ({handoff.state})", flush=True
+                            )
+                            self._start(loop, handoff, attaching=handoff.state != TAKEN)
                 except SQLAlchemyError as exc:  # looked at again when the feed is back (resync)
                     print(f"caretaker supervise: cannot read the handed runs: {exc}", file=sys.stderr, flush=True)
-                await _first(handed.wait(), self._stopping.wait())
+                # a lease that runs out sends no notice: look again within a lease's tenth
+                await _first(handed.wait(), self._stopping.wait(), asyncio.sleep(self.lease / 10))
             if self._runs:
                 await asyncio.wait(self._runs)
             print("supervision stopped: the runs go on on the habitat", flush=True)
@@ -125,6 +144,26 @@ class Supervisor:
             if self._own_client:
                 await self.client.close()
 
+    def _start(self, loop: asyncio.AbstractEventLoop, handoff: Handoff, *, attaching: bool) -> None:
+        task = loop.create_task(self._supervise(handoff, attaching=attaching))
+        self._runs.add(task)
+        task.add_done_callback(self._runs.discard)
+        self._held.add(handoff.run_id)
+        task.add_done_callback(lambda _: self._held.discard(handoff.run_id))
+
+    def _orphans(self) -> list[Handoff]:
+        """This binding's runs whose supervisor is gone: detached, or its lease on the run ran out
+        (taken and not yet held: once a lease's time has passed since it was taken)."""
+        found = [h for h in self.handoffs.supervised(self.binding) if h.run_id not in self._held]
+        live = live_runs(self.audit.engine, [h.run_id for h in found])
+        now = datetime.now(UTC)
+        return [
+            h
+            for h in found
+            if h.state == DETACHED
+            or (h.run_id not in live and (h.taken_at is None or (now - utc(h.taken_at)).total_seconds() > self.lease))
+        ]
+
     def _session(self, state: str) -> None:
         """The session's changes, said once each (a reconnecting client says so at every try)."""
         if state == "connected" and self._lost:
@@ -133,8 +172,9 @@ class Supervisor:
             print(f"SESSION lost: opening it again ({self.endpoint.url})", flush=True)
         self._lost = state == "reconnecting" and self._serving
 
-    async def _supervise(self, handoff: Handoff) -> None:
-        """Uplink one handed unit on the open session and follow its run until it ends or supervision stops."""
+    async def _supervise(self, handoff: Handoff, *, attaching: bool) -> None:
+        """Uplink one handed unit on the open session (``attaching``: catch up with the run it
+        started, taken over) and follow its run until it ends or supervision stops."""
         run_id = handoff.run_id
 
         def say(line: str) -> None:
@@ -144,13 +184,15 @@ class Supervisor:
         try:
             unit = Unit.from_json(handoff.unit_json)
             with unit_checked(unit, self.sysreps) as checked:
-                await self._follow(unit, checked, handoff, say)
+                await self._follow(unit, checked, handoff, say, attaching=attaching)
         except (UnitError, ProcedureError, SysRepError) as exc:
             self._end(Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}"), say)
         except DownlinkError as exc:
             self._end(Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}"), say)
 
-    async def _follow(self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say) -> None:
+    async def _follow(
+        self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say, *, attaching: bool
+    ) -> None:
         try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
             host: TerminalHost | None = TerminalHost(self.audit, binding=unit.binding, onboard=True, name=self.name)
         except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
@@ -175,7 +217,7 @@ class Supervisor:
                 self._end(Supervision("refused", unit.run_id, str(exc)), say)
                 return
             # ended before the lease goes: the runner reads how it ended, not a lease run out
-            self._end(await supervisor.supervise(detach=self._stopping), say)
+            self._end(await supervisor.supervise(attaching=attaching, detach=self._stopping), say)
         finally:
             hosting.close()
 
@@ -183,7 +225,9 @@ class Supervisor:
         """Supervision of the run is over: its handoff says how (where its runner reads it)."""
         say(f"ENDED {result.status}{': ' + result.message if result.message else ''}")
         detached = result.status == "detached"
-        self.handoffs.end(result.run_id, detached=detached, result=result.status, message=result.message)
+        self.handoffs.end(
+            result.run_id, detached=detached, result=result.status, message=result.message, supervisor=self.name
+        )
 
     def _uplinked(self, run_id: str) -> None:
         """The habitat accepted the run's unit: the handoff says so (its runner prints READY)."""

@@ -130,7 +130,8 @@ def _followed(
                     f"its lease on the run ran out at {lease.lease_until:%H:%M:%S}Z (it stopped, or lost the "
                     "database); the run goes on on the habitat"
                 )
-                handoffs.end(run_id, detached=True, result=DETACHED, message=gone)
+                # the supervisor whose lease it was: not one that took the run over meanwhile
+                handoffs.end(run_id, detached=True, result=DETACHED, message=gone, supervisor=handoff.supervisor)
                 continue  # read as it ended: detached, or ended just before
             # a live supervisor renews its lease every second: a check as it runs out
             until = (lease.lease_until - datetime.now(UTC)).total_seconds() if lease else DEFAULT_LEASE_S

@@ -21,7 +21,7 @@ import logging
 import secrets
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -36,6 +36,7 @@ from records.console_tables import run_camera_frames, run_hosts
 
 __all__ = [
     "DEFAULT_LEASE_S",
+    "live_runs",
     "HostRecord",
     "HostedElsewhere",
     "PublishedView",
@@ -357,6 +358,18 @@ class RunHosting:
                 listener(run_id, reason)
             except Exception:
                 log.exception("lost-run listener %r failed", listener)
+
+
+def live_runs(engine: Engine, run_ids: Collection[str]) -> set[str]:
+    """Which of ``run_ids`` a console, runner or supervisor hosts now (its lease not run out), read
+    without holding anything (an agent asking whether a run without an end is running, a
+    supervisor looking for runs whose supervisor is gone)."""
+    if not run_ids:
+        return set()
+    with engine.connect() as connection:
+        clock = _clock(connection)
+        rows = connection.execute(select(_H.run_id, _H.lease_until).where(_H.run_id.in_(list(run_ids))))
+        return {row.run_id for row in rows if utc(row.lease_until) > clock}
 
 
 def _clock(connection: Connection) -> datetime:

@@ -9,11 +9,13 @@ A handoff's ``state`` goes ``handed`` → ``taken`` (by one supervisor) → ``up
 accepted the unit) → ``ended`` (``result``: the run's status, or why the habitat did not take
 it); ``withdrawn`` when its runner stopped waiting before any supervisor took it; ``detached``
 when its supervisor stopped and the run goes on on the habitat (``caretaker run --attach`` catches
-its record up and follows it). Each step is one conditional UPDATE from the
-state before it, so a run is taken by one supervisor only, and a runner withdrawing it races a
-supervisor taking it safely. The supervisor that took a run also holds it as any host holds a
-live run, under a lease it renews (``run_hosts``, :mod:`ground.run_hosts`): what lets a
-later supervisor tell a run whose supervisor died from one that is being supervised.
+its record up and follows it, or another supervisor of the binding takes it over). Each step is
+one conditional UPDATE from the state (and supervisor) before it, so a run is taken by one
+supervisor only, a runner withdrawing it races a supervisor taking it safely, and of the
+supervisors that find a run whose supervisor is gone, one takes it over. The supervisor that
+took a run also holds it as any host holds a live run, under a lease it renews (``run_hosts``,
+:mod:`ground.run_hosts`): what lets a later supervisor tell a run whose supervisor died from one
+that is being supervised.
 
 PostgreSQL: a trigger NOTIFYs ``caretaker_handoffs`` with ``<state> <run id>`` at every row added
 and every change of state (revision 0006 of :mod:`records.migrations`); on SQLite the change feed
@@ -28,7 +30,7 @@ from datetime import UTC, datetime
 from sqlalchemy import Boolean, Column, DateTime, MetaData, String, Table, Text, insert, select, update
 from sqlalchemy.engine import Engine
 
-__all__ = ["HANDED", "SUPERVISOR_WITHIN_S", "Handoff", "OnboardHandoffs", "onboard_handoffs"]
+__all__ = ["DETACHED", "HANDED", "SUPERVISOR_WITHIN_S", "TAKEN", "Handoff", "OnboardHandoffs", "onboard_handoffs"]
 
 _metadata = MetaData()
 _WHEN = DateTime(timezone=True)
@@ -74,6 +76,7 @@ class Handoff:
     supervisor: str | None
     result: str | None
     message: str | None
+    taken_at: datetime | None = None
 
 
 class OnboardHandoffs:
@@ -110,6 +113,36 @@ class OnboardHandoffs:
             ).all()
         return [Handoff(**row._asdict()) for row in rows]
 
+    def supervised(self, binding: str) -> list[Handoff]:
+        """The runs of ``binding`` a supervisor took and whose supervision has not ended (detached
+        ones too: they go on on the habitat), oldest first."""
+        with self._engine.connect() as connection:
+            rows = connection.execute(
+                select(*_COLUMNS)
+                .where(_T.binding == binding, _T.state.in_([TAKEN, UPLINKED, DETACHED]))
+                .order_by(_T.handed_at, _T.run_id)
+            ).all()
+        return [Handoff(**row._asdict()) for row in rows]
+
+    def take_over(self, handoff: Handoff, supervisor: str) -> bool:
+        """Whether ``supervisor`` took over the run ``handoff`` says another supervisor had (as it
+        says: the same state and supervisor still); a detached run is uplinked (it runs on)."""
+        state = TAKEN if handoff.state == TAKEN else UPLINKED
+        with self._engine.begin() as connection:
+            done = connection.execute(
+                update(onboard_handoffs)
+                .where(_T.run_id == handoff.run_id, _T.state == handoff.state, _T.supervisor == handoff.supervisor)
+                .values(
+                    state=state,
+                    supervisor=supervisor,
+                    taken_at=datetime.now(UTC),
+                    result=None,
+                    message=None,
+                    ended_at=None,
+                )
+            ).rowcount
+        return bool(done)
+
     def take(self, run_id: str, supervisor: str) -> bool:
         """Whether ``supervisor`` took the handed run: one supervisor does."""
         return self._step(run_id, HANDED, TAKEN, supervisor=supervisor, taken_at=datetime.now(UTC))
@@ -122,15 +155,18 @@ class OnboardHandoffs:
         """Whether the run was withdrawn before any supervisor took it (False: one took it first)."""
         return self._step(run_id, HANDED, WITHDRAWN, ended_at=datetime.now(UTC))
 
-    def end(self, run_id: str, *, detached: bool, result: str, message: str = "") -> bool:
-        """Supervision of the run is over: it ended (``result``: its status), or (``detached``) its
-        supervisor stopped while it goes on on the habitat."""
+    def end(self, run_id: str, *, detached: bool, result: str, message: str = "", supervisor: str | None) -> bool:
+        """``supervisor``'s supervision of the run is over (None: whoever's): it ended (``result``:
+        its status), or (``detached``) its supervisor stopped while it goes on on the habitat."""
         state = DETACHED if detached else ENDED
         ended_at = datetime.now(UTC)
+        condition = [_T.run_id == run_id, _T.state.in_([TAKEN, UPLINKED])]
+        if supervisor is not None:  # not a supervisor's that took it over meanwhile
+            condition.append(_T.supervisor == supervisor)
         with self._engine.begin() as connection:
             done = connection.execute(
                 update(onboard_handoffs)
-                .where(_T.run_id == run_id, _T.state.in_([TAKEN, UPLINKED]))
+                .where(*condition)
                 .values(state=state, result=result, message=message, ended_at=ended_at)
             ).rowcount
         return bool(done)
@@ -154,4 +190,5 @@ _COLUMNS = (
     _T.supervisor,
     _T.result,
     _T.message,
+    _T.taken_at,
 )

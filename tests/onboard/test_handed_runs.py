@@ -5,7 +5,8 @@
 The habitat is the lab bench's behind the link emulated in tests/onboard/test_follow_requests.py:
 the supervisor's session. A run handed with no supervisor is withdrawn; one handed to a
 supervisor runs on its session and the runner shows it from the database to its end; a
-supervisor that stops leaves a run holding on the habitat, its handoff ``detached``. The real
+supervisor that stops leaves a run holding on the habitat, its handoff ``detached``; one that dies
+has its run taken over by another supervisor of the binding. The real
 processes across the real link: tests/flight/test_onboard_supervise.py.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -24,14 +26,14 @@ from caretaker.via_supervisor import hand_to_supervisor
 from ground.change_feed import ChangeNotice, open_change_feed
 from ground.run_hosts import PublishedView, RunHosting
 from onboard.habitat_runs import HabitatRuns
-from onboard.unit import Unit
+from onboard.unit import OperatorAction, Unit
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
 
 from .test_follow_requests import LinkedHabitat
-from .test_habitat_runs import PROCEDURE, habitat, make_unit, sysreps
+from .test_habitat_runs import PROCEDURE, act, habitat, make_unit, sysreps, uplink
 
 __all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
 
@@ -142,3 +144,75 @@ def test_a_supervisor_whose_lease_runs_out_is_gone_and_its_runner_says_the_run_g
     said = capfd.readouterr().out
     assert "its supervisor, supervisor elsewhere, no longer follows it: its lease on the run ran out at" in said
     assert f"RESULT detached run {unit.run_id}" in said
+
+
+@pytest.mark.timeout(180)  # a lease to run out, and the run's records across the emulated link
+def test_a_run_whose_supervisor_died_is_taken_over_by_another_and_its_ground_chain_ends_equal_to_the_habitats(
+    habitat: tuple[HabitatRuns, list[Any]],
+    make_unit: Callable[..., Unit],
+    sysreps: dict[str, SysRep],
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    """Supervisor A takes a handed run, uplinks it and dies (its lease is never renewed) while the
+    run holds on the habitat; supervisor B of the same binding takes it over, catches the ground's
+    record up and follows it to its end once an operator answers the hold on the habitat."""
+    runs, _ = habitat
+    args = _runner(tmp_path)
+    audit = AuditLog(args.db)
+    unit = make_unit(values={})  # it holds at the record 1.2 until the operator enters it
+    handoffs = OnboardHandoffs(audit.engine)
+    dying = RunHosting(audit.engine, host="supervisor A", lease=3.0)
+
+    def supervisor_a(notice: ChangeNotice) -> None:  # takes the run, uplinks it, holds it, then renews nothing
+        if notice.payload == f"handed {unit.run_id}" and handoffs.take(unit.run_id, dying.host):
+            view = PublishedView({}, "active", "autonomous")
+            dying.claim(unit.run_id, binding="lab.yaml", started_by="alice", procedure_view={}, source=lambda: view)
+            assert uplink(runs, unit).state == "ACCEPTED"
+            handoffs.uplinked(unit.run_id)
+            dying.close()
+
+    feed = open_change_feed(audit.engine)
+    feed.subscribe(supervisor_a)
+    supervisor_b = Supervisor(
+        LinkedHabitat(runs).endpoint, "lab.yaml", audit, sysreps, client=LinkedHabitat(runs), lease=3.0
+    )
+
+    async def fly() -> int:
+        runner = asyncio.create_task(
+            asyncio.to_thread(hand_to_supervisor, args, audit, unit, check_procedure(PROCEDURE, sysreps))
+        )
+        while (h := handoffs.get(unit.run_id)) is None or h.state != "uplinked":  # A has it: B starts
+            await asyncio.to_thread(runs.events, unit.run_id, 0, 1)
+        serving = asyncio.create_task(supervisor_b.serve())
+        deadline = time.monotonic() + 60  # A's lease is 3 s: B takes over soon after, or never
+        while (h := handoffs.get(unit.run_id)) is not None and h.supervisor != supervisor_b.name:
+            assert time.monotonic() < deadline, f"nobody took over the run: {h}"
+            await asyncio.sleep(0.1)  # the handoff row has no event of its own to await here
+        entered = OperatorAction(
+            "key-1", unit.run_id, "enter", "bob", time.time() + 60, {"value": "dock", "instruction": "1.2"}
+        )
+        assert (await asyncio.to_thread(act, runs, entered)).state == "DONE"
+        while (h := handoffs.get(unit.run_id)) is not None and h.state != "ended":
+            await asyncio.to_thread(runs.events, unit.run_id, 0, 1)
+        supervisor_b.stop()
+        assert await serving == 0
+        return await runner
+
+    try:
+        assert feed.connected.wait(10)
+        asyncio.run(fly())
+        ended = handoffs.get(unit.run_id)
+        assert ended is not None and (ended.state, ended.result, ended.supervisor) == (
+            "ended",
+            "completed",
+            supervisor_b.name,
+        )
+        here, there = audit.stored_events(unit.run_id), runs.audit.stored_events(unit.run_id)
+        assert [(e.seq, e.hash) for e in here] == [(e.seq, e.hash) for e in there] and there[-1].kind == "run_completed"
+    finally:
+        feed.close()
+        audit.close()
+    said = capfd.readouterr().out
+    assert f"{unit.run_id}: TAKEN OVER from supervisor A (" in said
+    assert f"{unit.run_id}: ENDED completed" in said

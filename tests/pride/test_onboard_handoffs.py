@@ -37,16 +37,25 @@ def test_a_handed_run_is_taken_by_one_supervisor_and_each_step_is_a_notice(datab
         assert notice() == "taken run-1"
         assert not handoffs.withdraw("run-1")  # the runner waited too long, but a supervisor had taken it
         assert handoffs.uplinked("run-1") and notice() == "uplinked run-1"
-        assert handoffs.end("run-1", detached=True, result="detached", message="supervision stopped")
+        assert handoffs.end("run-1", detached=True, result="detached", message="supervision stopped", supervisor=None)
         assert notice() == "detached run-1"
-        assert not handoffs.end("run-1", detached=False, result="completed")  # its supervision is over
+        assert not handoffs.end("run-1", detached=False, result="completed", supervisor=None)  # its supervision is over
         detached = handoffs.get("run-1")
         assert detached is not None and (detached.state, detached.supervisor) == ("detached", "supervisor A")
+        # it goes on on the habitat: another supervisor of the binding takes it over, one only
+        assert [h.run_id for h in handoffs.supervised("iva-ground.yaml")] == ["run-1"]
+        assert handoffs.take_over(detached, "supervisor B") and notice() == "uplinked run-1"
+        assert not handoffs.take_over(detached, "supervisor C")  # B was first: A's run is no more
+        assert not handoffs.end("run-1", detached=True, result="detached", supervisor="supervisor A")  # not A's now
+        taken_over = handoffs.get("run-1")
+        assert taken_over is not None and (taken_over.state, taken_over.supervisor) == ("uplinked", "supervisor B")
+        assert handoffs.end("run-1", detached=False, result="completed", supervisor="supervisor B")
+        assert notice() == "ended run-1" and handoffs.supervised("iva-ground.yaml") == []
 
         handoffs.hand("run-3", binding="iva-ground.yaml", unit_json="{}", user="bob", at_consoles=False)
         assert notice() == "handed run-3"
         assert handoffs.take("run-3", "supervisor B") and notice() == "taken run-3"
-        assert handoffs.end("run-3", detached=False, result="refused", message="no binding lab.yaml")
+        assert handoffs.end("run-3", detached=False, result="refused", message="no binding lab.yaml", supervisor=None)
         assert notice() == "ended run-3"
         ended = handoffs.get("run-3")
         assert ended is not None and (ended.state, ended.result) == ("ended", "refused")
