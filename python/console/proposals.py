@@ -19,6 +19,7 @@ not a run that did not start, and leaves the proposal accepted.
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Awaitable, Callable
 from functools import partial
 from typing import TYPE_CHECKING, Any
@@ -48,6 +49,8 @@ log = logging.getLogger(__name__)
 
 #: How many answered proposals the list shows beside the open ones.
 ANSWERED_SHOWN = 10
+#: s before a robot whose telemetry could not be read is tried again.
+RETRY_UNREACHABLE_S = 30.0
 
 Handler = Callable[[Request], Awaitable[Response]]
 OperatorHandler = Callable[[Request, Account], Awaitable[Response]]
@@ -60,6 +63,7 @@ class ProposalDesk:
         self.board = board
         self.store = ProposalStore(board.audit_log.engine)
         self.telemetry = RobotTelemetry(board.catalog, board.rosbridge_urls)
+        self._unreachable: dict[str, tuple[float, str]] = {}  # robot -> (when its reading failed, why)
 
     def close(self) -> None:
         self.telemetry.close()
@@ -159,14 +163,20 @@ class ProposalDesk:
             raise ActionRefused(409, f"{procedure_file} has problems now and cannot run:\n{exc}") from None
 
     def _read(self, robot: str) -> dict[str, TelemetryFacts] | str:
-        """``robot``'s telemetry now by ``system.item``, or why it cannot be read (shown as such)."""
+        """``robot``'s telemetry now by ``system.item``, or why it cannot be read (shown as such; a
+        robot that could not be reached is not tried again for :data:`RETRY_UNREACHABLE_S`, so a
+        list every browser reads every few seconds does not open a PAX host each time)."""
+        failed = self._unreachable.get(robot)
+        if failed is not None and time.monotonic() - failed[0] < RETRY_UNREACHABLE_S:
+            return failed[1]
         try:
             return {f"{fact.system}.{fact.item.id}": fact for fact in self.telemetry.read(robot)}
         except TelemetryRefused as exc:
             return exc.message
         except Exception as exc:  # the robot's PAX host or rosbridge: the card says so, the list still shows
             log.warning("cannot read %s's telemetry for its proposals", robot, exc_info=True)
-            return f"{robot}'s telemetry cannot be read: {exc}"
+            self._unreachable[robot] = (time.monotonic(), f"{robot}'s telemetry cannot be read: {exc}")
+            return self._unreachable[robot][1]
 
 
 def _proposal_json(proposal: Proposal, now: dict[str, TelemetryFacts] | str | None) -> dict[str, Any]:
