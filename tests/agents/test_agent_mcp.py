@@ -556,6 +556,17 @@ def test_every_act_an_agent_may_not_do_is_refused_by_its_role_and_recorded(groun
         ("refused", act, "agent_role") for act in FORBIDDEN_ACTS
     ]
     assert records[1][2]["arguments"] == {"robot": "iva", "procedure": IVA}
+    # and nothing moved: no run but the recorded one, no robot controlled, nothing proposed
+    log = AuditLog(ground.database.url)
+    control = RobotControl(ground.database.url)
+    try:
+        assert [run_id for run_id, _, _ in log.runs()] == [ground.run_id]
+        assert control.holder("iva") is None and control.holder("eva") is None
+        with log.engine.connect() as connection:
+            assert connection.execute(select(agent_proposals.c.id)).all() == []
+    finally:
+        control.close()
+        log.close()
 
 
 def test_released_procedures_and_sysreps_are_resources_and_a_draft_is_not(ground: Ground) -> None:
