@@ -3,8 +3,11 @@ and an operator attaches a new supervisor from the console's runs list.
 
 The first runner (``caretaker run --onboard`` at a terminal, without the clean filter's id that
 4.1 records: the habitat's run holds there for an operator, so it outlasts the attaches however
-loaded the machine) is stopped (SIGTERM) at the run's first motion, the simulation at half speed
-so that this comes long before 4.1 (unattended, it would stop the run there). The habitat never waits for
+loaded the machine) is stopped (SIGTERM) at the run's first motion, with the console already
+open at the runs list: long before it could hear of the hold at 4.1 (unattended, it would stop
+the run there). That motion, the move to the ready pose, is paced at a tenth of real time, and
+after it come five more executions, three locates and their plans on the habitat (flat out),
+and the news of the hold a light time later. The habitat never waits for
 the ground, so the run goes on to 4.1; the runner ends its lease as it goes, so
 the consoles list the run as one whose supervisor is gone, and offer Attach to operators (not to
 observers, whom the console refuses all the same). Attach, in Chromium on the ground network,
@@ -13,7 +16,9 @@ rosbridge URL: it gets the unit the run started from from the habitat, catches t
 record up from the last event the first runner stored, hash for hash, hosts the run for the
 consoles again. A second attach while it holds the run, from the console and from a terminal, is
 refused and told who holds it; each attach and refusal is on the record. The operator then records
-the clean filter's id on the console, across the link, and the run completes.
+the clean filter's id on the console, across the link, and the run completes: the procedure's
+steps 1 to 4 (``--to pick_clean``), to the pick of the filter recorded; the steps after it would
+add motions, not news of the attach.
 """
 
 from __future__ import annotations
@@ -45,6 +50,10 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=110), pytest.mark.timeou
 
 OPERATOR, PASSWORD = "attach-op", "attaches-from-the-console"
 OBSERVER, OBSERVER_PASSWORD = "watcher", "watches-the-habitat"
+#: The last step run: the pick of the clean filter whose id the operator records at 4.1.
+PICK_CLEAN_STEP = "pick_clean"
+#: The run's first motion (to the ready pose), during which the first runner is stopped, and its pace.
+FIRST_MOTION, FIRST_MOTION_PACE = "ready", 0.1
 
 
 def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_second_attach_is_refused(
@@ -52,10 +61,7 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
 ) -> None:
     from playwright.sync_api import expect
 
-    # half speed: the first runner, unattended, would stop the run at 4.1 had it got there before the SIGTERM
-    with flight(ros_env, delay=DELAY, time_scale="0.5", onboard=True) as f:
-        first = f.run("--onboard", record=False)
-        run_id = first.wait_for_line(r"^READY run ", 120).split()[2]
+    with flight(ros_env, delay=DELAY, time_scale="0", paced={FIRST_MOTION: FIRST_MOTION_PACE}, onboard=True) as f:
         serve, url = f.serve_console(OPERATOR, PASSWORD)
         accounts = AccountStore(f.db_url)
         try:
@@ -63,10 +69,13 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
         finally:
             accounts.close()
         with f.console_page(url, OPERATOR, PASSWORD) as page:
+            first = f.run("--onboard", "--to", PICK_CLEAN_STEP, record=False)
+            run_id = first.wait_for_line(r"^READY run ", 120).split()[2]
+            page.click("#refresh-runs")  # the list as it is now, the run in it
             line = page.locator(f'#run-list li[data-run-id="{run_id}"]')
             expect(line).to_have_attribute("data-host", re.compile(r"^runner .* for flight$"))  # who answers at it
             expect(line.locator("button.attach")).to_have_count(0)  # it has its supervisor
-            f.await_execution(r"\S+")  # the first motion
+            f.await_execution(FIRST_MOTION)
             os.kill(first.proc.pid, signal.SIGTERM)  # supervision ends; the run does not
             assert result_of(first, 120) == (run_id, "detached")
             assert first.proc.wait(60) != 0
@@ -140,4 +149,4 @@ def test_a_run_whose_supervisor_stopped_is_attached_from_the_runs_list_and_a_sec
         supervisor = records[0][2]["supervisor"]
         assert records[0][2] == {"run": run_id, "supervisor": supervisor} and supervisor.endswith(f" for {OPERATOR}")
         assert f"{supervisor} holds it" in records[1][2]["reason"] and supervisor in records[2][2]["reason"]
-        assert_flown_exactly_once(f, run_id, "completed")
+        assert_flown_exactly_once(f, run_id, "completed", to=PICK_CLEAN_STEP)
