@@ -42,6 +42,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from caretaker.command_options import load_sysreps, sysrep_option
 from caretaker.onboard_hosting import OnboardHosting, unit_checked
+from console.catalog import rosbridge_for, rosbridge_overrides
 from console.terminal_host import HostedElsewhere, TerminalHost
 from datafile import DataFileError
 from ground.change_feed import ChangeNotice, open_change_feed
@@ -58,7 +59,7 @@ from records.audit_schema import AuditSchemaError
 from records.onboard_handoffs import DETACHED, TAKEN, Handoff, OnboardHandoffs
 from rosbridge_wire.client import Endpoint, RosbridgeClient
 
-__all__ = ["Supervisor", "main"]
+__all__ = ["Supervisor", "main", "serve_all"]
 
 Say = Callable[[str], None]
 
@@ -96,10 +97,12 @@ class Supervisor:
         """End supervision (SIGTERM, Ctrl-C): the runs go on on the habitat, their handoffs ``detached``."""
         self._stopping.set()
 
-    async def serve(self) -> int:
+    async def serve(self, *, signals: bool = True) -> int:
+        """Supervise until :meth:`stop` (``signals``: SIGTERM and Ctrl-C stop it; a process serving
+        several bindings handles them once for all, :func:`serve_all`)."""
         loop = asyncio.get_running_loop()
         handed = asyncio.Event()
-        for signum in (signal.SIGTERM, signal.SIGINT):
+        for signum in (signal.SIGTERM, signal.SIGINT) if signals else ():
             loop.add_signal_handler(signum, self.stop)
 
         def notice(change: ChangeNotice) -> None:  # the feed's thread
@@ -138,7 +141,7 @@ class Supervisor:
             print("supervision stopped: the runs go on on the habitat", flush=True)
             return 0
         finally:
-            for signum in (signal.SIGTERM, signal.SIGINT):
+            for signum in (signal.SIGTERM, signal.SIGINT) if signals else ():
                 loop.remove_signal_handler(signum)
             feed.close()
             if self._own_client:
@@ -234,6 +237,23 @@ class Supervisor:
         self.handoffs.uplinked(run_id)
 
 
+async def serve_all(supervisors: list[Supervisor]) -> int:
+    """Serve several bindings' supervisors in one process until SIGTERM or Ctrl-C stops them all."""
+    loop = asyncio.get_running_loop()
+
+    def stop_all() -> None:
+        for supervisor in supervisors:
+            supervisor.stop()
+
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        loop.add_signal_handler(signum, stop_all)
+    try:
+        return max(await asyncio.gather(*(supervisor.serve(signals=False) for supervisor in supervisors)))
+    finally:
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            loop.remove_signal_handler(signum)
+
+
 async def _first(*waits: Coroutine[Any, Any, Any]) -> None:
     """Until the first of ``waits`` is over (the others are cancelled)."""
     tasks = [asyncio.ensure_future(wait) for wait in waits]
@@ -245,30 +265,53 @@ async def _first(*waits: Coroutine[Any, Any, Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``caretaker supervise --binding FILE [--db URL] [--rosbridge URL]``."""
+    """``caretaker supervise --binding FILE [--binding FILE]... [--db URL] [--rosbridge [BINDING=]URL]...``."""
     parser = argparse.ArgumentParser(
         prog="caretaker supervise",
-        description="keep the habitat's session open and supervise the onboard runs handed to this binding",
+        description="keep each habitat's session open and supervise the onboard runs handed to its binding",
     )
-    parser.add_argument("--binding", required=True, metavar="FILE", help="the ground binding of the habitat")
+    parser.add_argument(
+        "--binding",
+        required=True,
+        action="append",
+        metavar="FILE",
+        help="the ground binding of a habitat; repeat for several habitats (one session each, in one process)",
+    )
     parser.add_argument(
         "--db",
         default=os.environ.get("CARETAKER_DB", DEFAULT_DB),
         metavar="URL",
         help=f"the ground database the runs are handed through (default $CARETAKER_DB, else {DEFAULT_DB})",
     )
-    parser.add_argument("--rosbridge", metavar="URL", help="override the binding's rosbridge URL")
+    parser.add_argument(
+        "--rosbridge",
+        action="append",
+        default=[],
+        metavar="[BINDING=]URL",
+        help="override the rosbridge URL of the binding file BINDING, or of every binding without BINDING=",
+    )
     sysrep_option(parser)
     args = parser.parse_args(argv)
+    names = [Path(binding).name for binding in args.binding]
+    if len(set(names)) != len(names):
+        print(
+            "caretaker supervise: two --binding files of one name: a handoff names its binding by file name",
+            file=sys.stderr,
+        )
+        return 2
+    endpoints = []
     try:
-        endpoint = read_binding(args.binding).endpoint(args.rosbridge)
+        overrides = rosbridge_overrides(args.rosbridge)
         sysreps = load_sysreps(args.sysrep_dir)
-    except (DataFileError, OSError, SysRepError) as exc:
+        for binding, name in zip(args.binding, names, strict=True):
+            endpoints.append(read_binding(binding).endpoint(rosbridge_for(overrides, name)))
+    except (DataFileError, OSError, SysRepError, ValueError) as exc:
         print(f"caretaker supervise: {exc}", file=sys.stderr)
         return 2
-    if endpoint.secret is None:
+    unsigned = [binding for binding, endpoint in zip(args.binding, endpoints, strict=True) if endpoint.secret is None]
+    if unsigned:
         print(
-            f"caretaker supervise: {args.binding} has no security.secret_file: units are signed with it",
+            f"caretaker supervise: {', '.join(unsigned)} has no security.secret_file: units are signed with it",
             file=sys.stderr,
         )
         return 2
@@ -278,6 +321,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker supervise: {exc}", file=sys.stderr)
         return 2
     try:
-        return asyncio.run(Supervisor(endpoint, Path(args.binding).name, audit, sysreps).serve())
+        supervisors = [
+            Supervisor(endpoint, name, audit, sysreps) for endpoint, name in zip(endpoints, names, strict=True)
+        ]
+        return asyncio.run(serve_all(supervisors))
     finally:
         audit.close()

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import os
+import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -21,7 +23,8 @@ from typing import Any
 
 import pytest
 
-from caretaker.supervise_command import Supervisor
+from caretaker.supervise_command import Supervisor, serve_all
+from caretaker.supervise_command import main as supervise_main
 from caretaker.via_supervisor import hand_to_supervisor
 from ground.change_feed import ChangeNotice, open_change_feed
 from ground.run_hosts import PublishedView, RunHosting
@@ -31,6 +34,7 @@ from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
+from support.procedures import REPO
 
 from .test_follow_requests import LinkedHabitat
 from .test_habitat_runs import PROCEDURE, act, habitat, make_unit, sysreps, uplink
@@ -216,3 +220,39 @@ def test_a_run_whose_supervisor_died_is_taken_over_by_another_and_its_ground_cha
     said = capfd.readouterr().out
     assert f"{unit.run_id}: TAKEN OVER from supervisor A (" in said
     assert f"{unit.run_id}: ENDED completed" in said
+
+
+def test_one_process_supervises_several_bindings_each_taking_only_its_own_runs_and_sigterm_stops_them_all(
+    habitat: tuple[HabitatRuns, list[Any]], make_unit: Callable[..., Unit], sysreps: dict[str, SysRep], tmp_path: Path
+) -> None:
+    runs, _ = habitat
+    args = _runner(tmp_path)
+    audit = AuditLog(args.db)
+    lab = Supervisor(LinkedHabitat(runs).endpoint, "lab.yaml", audit, sysreps, client=LinkedHabitat(runs))
+    other = Supervisor(LinkedHabitat(runs).endpoint, "other.yaml", audit, sysreps, client=LinkedHabitat(runs))
+    unit = make_unit()
+
+    async def fly() -> tuple[int, int]:
+        serving = asyncio.create_task(serve_all([lab, other]))
+        handed = await asyncio.to_thread(hand_to_supervisor, args, audit, unit, check_procedure(PROCEDURE, sysreps))
+        os.kill(os.getpid(), signal.SIGTERM)  # as `kill PID` stops the process: both supervisors
+        return handed, await serving
+
+    try:
+        assert asyncio.run(fly()) == (0, 0)
+        handoff = OnboardHandoffs(audit.engine).get(unit.run_id)
+        assert handoff is not None and (handoff.state, handoff.result) == ("ended", "completed")
+    finally:
+        audit.close()
+
+
+def test_supervise_refuses_two_bindings_of_one_name_and_a_binding_without_the_links_secret(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    twice = supervise_main(
+        ["--binding", str(tmp_path / "a" / "lab.yaml"), "--binding", str(tmp_path / "b" / "lab.yaml")]
+    )
+    assert twice == 2 and "two --binding files of one name" in capsys.readouterr().err
+    local = REPO / "sysrep" / "bindings" / "iva.yaml"  # the simulator's own: no link, no secret
+    assert supervise_main(["--binding", str(local), "--db", f"sqlite:///{tmp_path / 'g.db'}"]) == 2
+    assert f"{local} has no security.secret_file: units are signed with it" in capsys.readouterr().err
