@@ -41,7 +41,7 @@ from .test_habitat_runs import PROCEDURE, act, habitat, make_unit, sysreps, upli
 
 __all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
 
-pytestmark = pytest.mark.timeout(60)
+pytestmark = [pytest.mark.timeout(60), pytest.mark.slow(seconds=70)]
 
 
 def _runner(tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False) -> argparse.Namespace:
