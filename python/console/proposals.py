@@ -70,9 +70,9 @@ class ProposalDesk:
 
     def listing(self) -> list[dict[str, Any]]:
         """Open proposals first (oldest first: the one waiting longest), then the newest answered."""
-        proposals = self.store.proposals()
-        waiting = [p for p in reversed(proposals) if p.state == "open"]
-        answered = [p for p in proposals if p.state != "open"][:ANSWERED_SHOWN]
+        waiting = list(reversed(self.store.proposals(open_only=True)))
+        answered = [p for p in self.store.proposals(limit=len(waiting) + ANSWERED_SHOWN) if p.state != "open"]
+        answered = answered[:ANSWERED_SHOWN]
         now: dict[str, dict[str, TelemetryFacts] | str] = {}
         for proposal in waiting:
             robot = proposal.proposed.robot

@@ -114,9 +114,11 @@ class ProposalStore:
             row = connection.execute(select(agent_proposals).where(_P.id == proposal_id)).first()
         return None if row is None else _proposal(row)
 
-    def proposals(self, *, agent: str | None = None, open_only: bool = False) -> list[Proposal]:
-        """Proposals, newest first (of ``agent``; only those still open)."""
-        query = select(agent_proposals).order_by(_P.id.desc())
+    def proposals(
+        self, *, agent: str | None = None, open_only: bool = False, limit: int | None = None
+    ) -> list[Proposal]:
+        """Proposals, newest first (of ``agent``; only those still open; the ``limit`` newest)."""
+        query = select(agent_proposals).order_by(_P.id.desc()).limit(limit)
         if agent is not None:
             query = query.where(_P.agent == agent)
         if open_only:
