@@ -35,18 +35,21 @@ from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
 from support.procedures import REPO
+from support.web_server import new_ground_database
 
 from .test_follow_requests import LinkedHabitat
 from .test_habitat_runs import PROCEDURE, act, habitat, make_unit, sysreps, uplink
 
 __all__ = ["habitat", "make_unit", "sysreps"]  # the fixtures, used here by name
 
-pytestmark = [pytest.mark.timeout(60), pytest.mark.slow(seconds=70)]
+pytestmark = [pytest.mark.timeout(60), pytest.mark.slow(seconds=80)]
 
 
-def _runner(tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False) -> argparse.Namespace:
-    """``caretaker run``'s options as the runner reads them."""
-    db = f"sqlite:///{tmp_path / 'ground.db'}"
+def _runner(
+    tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False, db: str | None = None
+) -> argparse.Namespace:
+    """``caretaker run``'s options as the runner reads them (``db``: a SQLite file in ``tmp_path`` by default)."""
+    db = db or f"sqlite:///{tmp_path / 'ground.db'}"
     return argparse.Namespace(db=db, binding="lab.yaml", raw=False, at_consoles=at_consoles, supervisor_within=within)
 
 
@@ -151,18 +154,23 @@ def test_a_supervisor_whose_lease_runs_out_is_gone_and_its_runner_says_the_run_g
 
 
 @pytest.mark.timeout(180)  # a lease to run out, and the run's records across the emulated link
+@pytest.mark.parametrize("kind", ["sqlite", "postgresql"])
 def test_a_run_whose_supervisor_died_is_taken_over_by_another_and_its_ground_chain_ends_equal_to_the_habitats(
     habitat: tuple[HabitatRuns, list[Any]],
     make_unit: Callable[..., Unit],
     sysreps: dict[str, SysRep],
     tmp_path: Path,
     capfd: pytest.CaptureFixture[str],
+    request: pytest.FixtureRequest,
+    kind: str,
 ) -> None:
     """Supervisor A takes a handed run, uplinks it and dies (its lease is never renewed) while the
     run holds on the habitat; supervisor B of the same binding takes it over, catches the ground's
-    record up and follows it to its end once an operator answers the hold on the habitat."""
+    record up and follows it to its end once an operator answers the hold on the habitat. On a
+    SQLite file, and on PostgreSQL as supervisors on several hosts share one."""
     runs, _ = habitat
-    args = _runner(tmp_path)
+    postgres = request.getfixturevalue("postgres") if kind == "postgresql" else None
+    args = _runner(tmp_path, db=new_ground_database(kind, tmp_path, postgres).url)
     audit = AuditLog(args.db)
     unit = make_unit(values={})  # it holds at the record 1.2 until the operator enters it
     handoffs = OnboardHandoffs(audit.engine)
