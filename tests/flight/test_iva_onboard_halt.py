@@ -27,10 +27,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60), pytest.mark.timeout
 
 #: From the halt's arrival on the habitat to the arm at rest (the issue's bound for a halt, beside two hogs).
 HALT_WITHIN_S = 0.5
-#: The simulation's speed during the pull-out (flat out before and after it: the probe paces it).
-#: At 1 (the suite's) the halt, 1.3 s and more across the link, mostly arrives between two motions
-#: of the pull-out, so there is no figure; bench/halt_under_load.py --onboard runs it at 0.5,
-#: where it lands mid-motion.
+#: The simulation's speed. At 1 (the suite's) the halt, 1.3 s and more across the link, mostly
+#: arrives between two motions of the pull-out, so there is no figure; bench/halt_under_load.py
+#: --onboard runs it at 0.5, where it lands mid-motion.
 TIME_SCALE = os.environ.get("CARETAKER_HALT_TIME_SCALE", "1")
 OPERATOR, PASSWORD = "console-op", "halts-from-the-ground"
 APPROVER, APPROVER_PASSWORD = "second-op", "approves-before-the-uplink"
@@ -44,13 +43,7 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
     from playwright.sync_api import expect
 
     with flight(
-        ros_env,
-        delay=DELAY,
-        time_scale="0",
-        paced={PULL_OUT: float(TIME_SCALE)},
-        onboard=True,
-        critical_commanding=EVERY_COMMAND,
-        verbose=True,
+        ros_env, delay=DELAY, time_scale=TIME_SCALE, onboard=True, critical_commanding=EVERY_COMMAND, verbose=True
     ) as f:
         serve, url = f.serve_console(OPERATOR, PASSWORD, others={APPROVER: APPROVER_PASSWORD})
         with f.console_page(url, OPERATOR, PASSWORD) as page:
