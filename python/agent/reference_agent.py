@@ -15,7 +15,8 @@ alarm cleared):
    listing its allowed values (``one_of``), the first value listed now.
 4. **Follow**: ``list_proposals`` until an operator answers. Declined or expired: it says why and
    watches again (it does not propose the same thing twice for one alarm). Accepted:
-   ``explain_run`` of the run until it ends.
+   ``explain_run`` of the run until it ends, saying each time the run starts to wait for an
+   operator (a hold, a question, an approval) and what it waits for.
 5. **Confirm**: ``read_telemetry`` until the item is within its limits again: the alarm cleared.
 
 Each milestone is one line, ``TIMELINE EVENT ISO-TIME words``, so a demo or a test reads the
@@ -167,6 +168,7 @@ class ReferenceAgent:
 
     async def _run_ended(self, run_id: str) -> None:
         started = False
+        waiting = ""  # what the run waits for, as last said
         while True:
             try:
                 told = await self.call("explain_run", run_id=run_id)
@@ -178,6 +180,9 @@ class ReferenceAgent:
             if not started:
                 say("start", f"run {run_id} started by {told['started_by']} at {told['started']}")
                 started = True
+            if told["waiting_for"] and told["waiting_for"] != waiting:
+                say("waiting", f"run {run_id} waits for an operator: {told['waiting_for']}")
+            waiting = told["waiting_for"]
             if told["outcome"] in ENDED:
                 if told["outcome"] != "completed":
                     raise AgentStopped(f"run {run_id} {told['outcome']}: {told['words']}")

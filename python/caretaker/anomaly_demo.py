@@ -116,7 +116,7 @@ def anomaly_demo(args: argparse.Namespace) -> int:
             fault = f"{FAULT['cabin_start_ppco2']} mmHg, its chemistry x{FAULT['cabin_chemistry_scale']:g}"
             print(f"[{_stamp()}] the cabin's CO2 set to {fault}", flush=True)
             run_id = _operator_accepts(console_url, passwords, agent)
-            code = agent.proc.wait(timeout=WITHIN_S)
+            code = _agent_ends(agent) if run_id else agent.proc.wait(timeout=WITHIN_S)
             timeline = _timeline(told)
             verdicts = world.judge(db_url, run_id) if run_id else []
         return _verdict(code, timeline, verdicts, fault_at, run_id, db_url, agent)
@@ -257,6 +257,23 @@ def _operator_accepts(console_url: str, passwords: Mapping[str, str], agent: Man
             return str(accepted["run_id"])
         time.sleep(0.5)  # as an operator glances at the list: the console pushes no proposals
     return None
+
+
+def _agent_ends(agent: ManagedProcess) -> int | None:
+    """The agent's exit code once the alarm cleared or the agent gave up; None (the agent stopped)
+    when the run waits for an operator first: the demo's operator only accepts proposals, so a run
+    that holds would wait for the whole of :data:`WITHIN_S` for an answer that never comes."""
+    try:
+        line = agent.wait_for_line(r"^TIMELINE (cleared|waiting) ", WITHIN_S)
+    except ProcessFailed:
+        if agent.proc.poll() is None:
+            raise  # neither ended nor cleared in the time given
+        return agent.proc.returncode
+    if line.startswith("TIMELINE waiting "):
+        print(f"caretaker demo anomaly: {line.split(' ', 3)[3]}; the demo's operator only accepts proposals")
+        agent.stop()
+        return None
+    return agent.proc.wait(timeout=60)  # it exits as soon as it said so
 
 
 def _told(lines: list[str]) -> Callable[[str, str], None]:
