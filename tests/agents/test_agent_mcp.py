@@ -70,7 +70,7 @@ TOOLS = {
     "request_halt",
 }
 
-pytestmark = pytest.mark.slow(seconds=50)
+pytestmark = [pytest.mark.slow(seconds=50), pytest.mark.timeout(900)]
 
 
 @dataclass

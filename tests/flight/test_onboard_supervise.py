@@ -25,7 +25,7 @@ from records.onboard_handoffs import OnboardHandoffs
 
 from .flight_support import DELAY, Flight, flight, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130), pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=130), pytest.mark.timeout(1500)]
 
 
 def _ground_is_habitat(f: Flight, run_id: str) -> None:

@@ -44,7 +44,7 @@ from support.web_server import REPO, WebServer, new_ground_database, start_serve
 
 #: Two robots' procedures run at once: the inner waits below (MOTION_MS each) must be what fails
 #: first, with what the page and the processes show, not the suite's 300 s per test.
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=180), pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=180), pytest.mark.timeout(1500)]
 
 EVA = "eva_inspection.xml"
 #: An arm's motions at full simulation speed still take minutes on two loaded cores.
