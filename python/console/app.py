@@ -35,6 +35,7 @@ from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
 from console.attach import attach_routes
 from console.authoring import check_document, procedure_signatures, read_document, save_document, sysrep_palette
+from console.fleet import fleet_routes
 from console.folded_run import fold_events
 from console.procedure_view import procedure_json
 from console.proposals import proposal_routes
@@ -608,6 +609,7 @@ def build_app(
             *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
             *attach_routes(api=_api, operators=_operators),  # a new supervisor for an onboard run (attach.py)
             *proposal_api,  # agents' proposals, accepted or declined (proposals.py)
+            *fleet_routes(board.catalog, board.hosting, api=_api, account=_account),  # every robot (fleet.py)
             Route("/favicon.ico", favicon),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

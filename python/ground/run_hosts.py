@@ -236,6 +236,14 @@ class RunHosting:
             clock = _clock(connection)
             return {row.run_id: _record(row, clock) for row in connection.execute(select(*_SUMMARY))}
 
+    def views(self) -> tuple[list[tuple[HostRecord, dict[str, Any]]], datetime]:
+        """Every hosted run's row and latest view, in one read (a fleet view of fifty runs polls it),
+        and the database's time of that read."""
+        with self._engine.connect() as connection:
+            clock = _clock(connection)
+            rows = connection.execute(select(*_SUMMARY, _H.view)).all()
+        return [(_record(row, clock), json.loads(row.view)) for row in rows], clock
+
     def record(self, run_id: str) -> HostRecord | None:
         with self._engine.connect() as connection:
             row = connection.execute(select(*_SUMMARY).where(_H.run_id == run_id)).first()
