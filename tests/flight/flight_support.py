@@ -63,11 +63,7 @@ class Habitat:
 
     def onboard_chain(self, run_id: str) -> list[StoredEvent]:
         """The onboard run's events as the habitat's own store holds them."""
-        store = AuditLog(f"sqlite:///{self.state_dir / 'onboard' / 'onboard.sqlite'}")
-        try:
-            return store.stored_events(run_id)
-        finally:
-            store.close()
+        return onboard_chain(self.state_dir / "onboard", run_id)
 
     def onboard_actions(self) -> list[dict[str, Any]]:
         """Every operator action the onboard executive took, as it recorded them."""
@@ -244,17 +240,35 @@ class Flight:
         return [int(pid) for pid in listed]
 
 
+def onboard_chain(state_dir: Path, run_id: str) -> list[StoredEvent]:
+    """The onboard run's events as the store of the onboard executive (``--state-dir``) holds them."""
+    store = AuditLog(f"sqlite:///{state_dir / 'onboard.sqlite'}")
+    try:
+        return store.stored_events(run_id)
+    finally:
+        store.close()
+
+
 def write_ground_binding(
-    folder: Path, url: str, credentials: dict[str, Path], *, one_way_delay: float, outage_budget: float
+    folder: Path,
+    url: str,
+    credentials: dict[str, Path],
+    *,
+    one_way_delay: float,
+    outage_budget: float,
+    robot: str = "iva",
 ) -> Path:
-    """The shipped ground binding with this flight's URL, link and credentials (paths made absolute)."""
+    """The shipped ground binding with this flight's URL, link and credentials (paths made absolute),
+    naming ``robot``: ``iva-ground.yaml`` for the shipped ``iva``, else ``<robot>.yaml``, so that
+    several habitats' bindings have names of their own (a handoff names its binding by file name)."""
     data = yaml.safe_load(GROUND_BINDING.read_text())
+    data["robot"] = robot
     data["rosbridge"] = url
     data["link"] = {"one_way_delay": one_way_delay, "outage_budget": outage_budget}
     data["security"] = {"ca_file": str(credentials["ca.pem"]), "secret_file": str(credentials["rosbridge.secret"])}
     for system in data["systems"]:
         system["sysrep"] = str((GROUND_BINDING.parent / system["sysrep"]).resolve())
-    path = folder / "iva-ground.yaml"
+    path = folder / ("iva-ground.yaml" if robot == "iva" else f"{robot}.yaml")
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
 

@@ -22,7 +22,7 @@ from pride.events import Event, EventKind
 from pride.systems import CancelResult, CommandResult, LinkListener, Outcome, TelemetryListener, TelemetryValue
 from support.procedures import FIXTURES
 
-__all__ = ["IVA_RUN", "RecordedSystems", "recorded_events"]
+__all__ = ["IVA_RUN", "RecordedSystems", "command_durations", "recorded_events"]
 
 #: The recorded IVA run (see the module docstring).
 IVA_RUN = FIXTURES / "iva_recorded_run.json"
@@ -42,6 +42,21 @@ def recorded_events(path: Path = IVA_RUN) -> list[Event]:
         )
         for row in json.loads(path.read_text(encoding="utf-8"))
     ]
+
+
+def command_durations(events: list[Event]) -> dict[str, list[float]]:
+    """How long the recorded robot side took to answer each command, by command name, in the order
+    sent (s, from its sent to its result): the pace a stand-in robot can take the same commands at."""
+    sent: dict[str, Event] = {}
+    durations: dict[str, list[float]] = {}
+    for event in events:
+        if event.kind is EventKind.COMMAND_SENT and event.instruction:
+            sent[event.instruction] = event
+        elif event.kind is EventKind.COMMAND_RESULT and event.instruction in sent:
+            command = sent.pop(event.instruction)
+            seconds = (event.time - command.time).total_seconds()
+            durations.setdefault(str(command.data.to_json()["command"]), []).append(seconds)
+    return durations
 
 
 class RecordedSystems:

@@ -15,7 +15,8 @@ from support.processes import ManagedProcess, caretaker
 from support.stack import stack_up
 
 REPO = Path(__file__).resolve().parents[2]
-WEB = REPO / "tests" / "web"  # the web suite's simulated systems and procedure fixtures
+TESTS = REPO / "tests"  # on the server's path: its simulated systems are support.simulated_systems
+WEB = TESTS / "web"  # the web suite's procedure fixtures
 
 #: The people of the browser tests: user id -> (role, name, password).
 PEOPLE = {
@@ -88,8 +89,8 @@ def start_server(
         *options,
     ]
     if rosbridge is None:
-        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(WEB), env.get("PYTHONPATH", "")]))
-        env["PRIDE_GATEWAY"] = "simulated_systems:open_simulated_systems"
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(TESTS), env.get("PYTHONPATH", "")]))
+        env["PRIDE_GATEWAY"] = "support.simulated_systems:open_simulated_systems"
         env["SIMULATED_MOTION_S"] = "0.6"
         env["SIMULATED_CAMERA_DIR"] = str(tmp)
     else:

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import pytest
 from playwright.sync_api import Locator, Page, expect
-from simulated_systems import open_simulated_systems
 
 from console.terminal_host import HostedElsewhere, TerminalHost
 from pride.executive import Executive, Mode
@@ -27,6 +26,7 @@ from procedure_language.lint import check_procedure
 from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
 from support.operator_page import audit_row, expect_ended, instruction, start_run
+from support.simulated_systems import open_simulated_systems
 from support.web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 
 WALKTHROUGH = "web_walkthrough.xml"

@@ -1,12 +1,14 @@
 """Simulated systems behind the executive for the browser tests: the PAX host shape in-process.
 
 The browser tests are about the web view, so the server under test opens this gateway instead
-of the JVM-hosted PAX plugins (``PRIDE_GATEWAY=simulated_systems:open_simulated_systems``, see
+of the JVM-hosted PAX plugins (``PRIDE_GATEWAY=support.simulated_systems:open_simulated_systems``, see
 pride/systems.py). It serves the SysReps the binding file names, with the state changes a
 procedure checks: plans become valid, executions succeed, the CDRA latch locks and unlocks, the
 camera writes a real PNG, perception finds objects where the drawings put them, the test bench's
-plate (fixtures/sysrep/bench.yaml) takes the temperature its heater is set to. The robot side
-itself is tested by its own suites.
+plate (tests/web/fixtures/sysrep/bench.yaml) takes the temperature its heater is set to. The robot
+side itself is tested by its own suites. ``SIMULATED_PACE`` (a recorded run's JSON,
+support/recorded_run.py) makes each command take as long as the recorded robot side took for it:
+the emulated habitats of support/emulated_habitat.py run at a real robot's pace.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import yaml
 
 from pride.systems import CancelResult, CommandResult, LinkListener, Outcome, TelemetryListener, TelemetryValue
 from procedure_language.sysrep import SysRep, load_sysrep
+from support.recorded_run import command_durations, recorded_events
 
 __all__ = ["SimulatedSystems", "open_simulated_systems"]
 
@@ -77,6 +80,10 @@ class SimulatedSystems:
         self._started = time.time()
         #: how long an execute_plan "moves the robot" (the web view's live camera captures meanwhile)
         self._motion_s = float(os.environ.get("SIMULATED_MOTION_S", "0"))
+        pace = os.environ.get("SIMULATED_PACE")
+        #: each command's recorded durations, by name: its n-th call takes the n-th (cycling)
+        self._pace = command_durations(recorded_events(Path(pace))) if pace else {}
+        self._calls: dict[str, int] = {}  # calls so far, by command name
         self._halt = threading.Event()  # set by a cancel: the motion in progress ends halted
         self._moving: str | None = None  # the key of the execute_plan in progress
         self._unanswered: set[str] = set()  # keys of captures whose first answer was lost
@@ -116,8 +123,11 @@ class SimulatedSystems:
         sysrep = self._sysreps.get(sysrep_id)
         if sysrep is None or sysrep.command(command_id) is None:
             return CommandResult(Outcome.FAILED, f"{sysrep_id}.{command_id} is not served here")
+        paced = self._paced(command_id)
+        if command_id != "execute_plan":
+            time.sleep(paced or 0.0)  # the robot side at work (a motion waits in _at, where a cancel halts it)
         if sysrep_id == "affordance_templates":
-            return self._at(command_id, args, key or "")
+            return self._at(command_id, args, key or "", self._motion_s if paced is None else paced)
         if sysrep_id == "cdra":
             if command_id == "unlock_filter":
                 self._set("cdra", "filter_locked", False)
@@ -148,7 +158,17 @@ class SimulatedSystems:
             )
         return CommandResult(Outcome.SUCCEEDED, "ok")
 
-    def _at(self, command_id: str, args: dict[str, Any], key: str) -> CommandResult:
+    def _paced(self, command_id: str) -> float | None:
+        """How long this call of ``command_id`` takes at the recorded pace (None: not paced)."""
+        durations = self._pace.get(command_id)
+        if not durations:
+            return None
+        with self._lock:
+            calls = self._calls[command_id] = self._calls.get(command_id, 0) + 1
+        return durations[(calls - 1) % len(durations)]
+
+    def _at(self, command_id: str, args: dict[str, Any], key: str, seconds: float) -> CommandResult:
+        """An AT command; ``seconds``: how long an execute_plan moves (unless halted)."""
         template = str(args.get("affordance_template", "")).split(":")[0]
         if command_id == "add_affordance_template":
             self._instances[template] = len(self._instances)
@@ -175,8 +195,8 @@ class SimulatedSystems:
             with self._lock:
                 self._moving = key
                 self._halt.clear()
-            # a long reach moves until halted (for the halt tests); others take SIMULATED_MOTION_S
-            halted = self._halt.wait(600.0 if args.get("trajectory") == "long_reach" else self._motion_s)
+            # a long reach moves until halted (for the halt tests); others move ``seconds``
+            halted = self._halt.wait(600.0 if args.get("trajectory") == "long_reach" else seconds)
             with self._lock:
                 self._moving = None
             if halted:

@@ -1,0 +1,133 @@
+"""Emulated habitats for the ground: the real onboard services on a robot that costs nothing.
+
+One ground serves many habitats (``caretaker supervise`` keeps a session to each); testing or
+measuring that with a real robot side per habitat (simulation, planner, JVM) costs a machine per
+habitat. An emulated habitat is the habitat's own processes minus the robot: a real
+``caretaker bridge`` (wss:// on loopback, the link's secret, as a flight's habitat serves it,
+flight_support.py) and a real ``caretaker onboard`` whose gateway is the in-process simulated IVA
+robot (``PRIDE_GATEWAY``, support/simulated_systems.py), answering each command as long after as
+the real robot side took in the recorded IVA run (tests/pride/fixtures/iva_recorded_run.json,
+``SIMULATED_PACE``); the ground reaches it through ``caretaker link --delay``. The onboard executive
+runs the real IVA procedure, so a run's chain is a real chain with real hashes. For tests and
+benches of the ground only: never a way to show a robot that is not there.
+
+Each habitat has its own ground binding, ``<name>.yaml`` naming robot ``<name>`` (a supervisor
+serves several, a handoff names its binding by file name), its own link credentials and its own
+ROS domain (the bridges' services are ROS services: two habitats on one domain would answer each
+other's calls).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from caretaker.certs import make_link_credentials
+from caretaker.processes import REPO, ManagedProcess, caretaker
+from flight.flight_support import onboard_chain, write_ground_binding
+from records.audit_chain import StoredEvent
+from support.recorded_run import IVA_RUN
+from support.ros_domain import claim_ros_domain
+from support.stack import write_deployment
+
+__all__ = ["EmulatedHabitat", "emulated_habitat", "fleet"]
+
+HOST = "127.0.0.1"
+#: How long a part may take to say READY (a bridge loads rclpy; ten habitats start on two cores).
+READY_S = 180.0
+
+
+@dataclass
+class EmulatedHabitat:
+    """One emulated habitat: its processes, the ground binding that reaches it and its onboard store."""
+
+    name: str
+    binding: Path
+    state_dir: Path
+    bridge: ManagedProcess
+    link: ManagedProcess
+    onboard: ManagedProcess
+
+    def onboard_chain(self, run_id: str) -> list[StoredEvent]:
+        """The run's events as the habitat's onboard store holds them."""
+        return onboard_chain(self.state_dir, run_id)
+
+
+def _address(line: str) -> int:
+    """The port of a ``READY bridge wss://HOST:PORT`` or ``READY link HOST:PORT -> ...`` line."""
+    found = re.search(r"\b127\.0\.0\.1:(\d+)", line)
+    if found is None:
+        raise ValueError(f"no {HOST}:PORT in {line!r}")
+    return int(found[1])
+
+
+@contextlib.contextmanager
+def emulated_habitat(
+    name: str, folder: Path, env: dict[str, str], *, delay: float, pace: Path | None = IVA_RUN
+) -> Iterator[EmulatedHabitat]:
+    """The habitat ``name`` serving in ``folder / name`` (which the caller removes), ``delay`` s one
+    way from the ground; ``pace``: a recorded run whose robot pace it keeps (None: flat out).
+    Every process is stopped when the block is left, also when it fails."""
+    home = folder / name
+    home.mkdir(parents=True)
+    env = {
+        **env,
+        "ROS_DOMAIN_ID": str(claim_ros_domain()),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "TMPDIR": str(home),  # what its parts leave, even killed, goes with the folder
+    }
+    credentials = make_link_credentials(home / "link", [HOST], days=2)
+    started: list[ManagedProcess] = []
+
+    def start(*args: str, part: str) -> tuple[ManagedProcess, str]:
+        process = caretaker(*args, env=gateway_env if part == "onboard" else env, name=f"{name}:{part}")
+        started.append(process)
+        return process, process.wait_for_line(r"^READY ", READY_S)
+
+    gateway_env = {
+        **env,
+        "PYTHONPATH": str(REPO / "tests"),  # support.simulated_systems, which PRIDE_GATEWAY names
+        "PRIDE_GATEWAY": "support.simulated_systems:open_simulated_systems",
+        "SIMULATED_CAMERA_DIR": str(home),
+        **({"SIMULATED_PACE": str(pace)} if pace else {}),
+    }
+    try:
+        bridge, ready = start(
+            "bridge",
+            *("--address", HOST, "--port", "0", "--certfile", str(credentials["bridge.pem"])),
+            *("--keyfile", str(credentials["bridge.key"]), "--auth-secret-file", str(credentials["rosbridge.secret"])),
+            part="bridge",
+        )
+        bridge_port = _address(ready)
+        link, ready = start(
+            "link", "--listen", f"{HOST}:0", "--to", f"{HOST}:{bridge_port}", "--delay", f"{delay:g}", part="link"
+        )
+        url = f"wss://{HOST}:{_address(ready)}"
+        binding = write_ground_binding(home, url, credentials, one_way_delay=delay, outage_budget=120.0, robot=name)
+        state_dir = home / "onboard"
+        # beside the binding, where the ground looks: a simulator (rehearsals run), hazardous commands approved
+        write_deployment(home, "iva-habitat", name=f"{name}-habitat", bindings=[str(binding)], onboard=True)
+        onboard, _ = start(
+            "onboard",
+            *("--bridge", f"wss://{HOST}:{bridge_port}", "--binding", str(binding), "--state-dir", str(state_dir)),
+            part="onboard",
+        )
+        yield EmulatedHabitat(name, binding, state_dir, bridge, link, onboard)
+    finally:
+        for process in reversed(started):
+            process.stop()
+
+
+@contextlib.contextmanager
+def fleet(
+    folder: Path, env: dict[str, str], delays: Sequence[float], *, pace: Path | None = IVA_RUN
+) -> Iterator[list[EmulatedHabitat]]:
+    """One emulated habitat per one-way delay in ``delays``, named ``iva-hab01``, ``iva-hab02``..."""
+    with contextlib.ExitStack() as stack:
+        yield [
+            stack.enter_context(emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, pace=pace))
+            for n, delay in enumerate(delays, 1)
+        ]
