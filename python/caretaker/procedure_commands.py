@@ -165,6 +165,12 @@ def run_main(argv: list[str] | None = None) -> int:
         "database (docs/deployment.md, Onboard runs)",
     )
     parser.add_argument(
+        "--no-follow",
+        action="store_true",
+        help="with --via-supervisor: end once the habitat took the unit; its supervisor keeps the record and hosts "
+        "the run for the consoles (how a console hands its onboard starts over: caretaker serve --via-supervisor)",
+    )
+    parser.add_argument(
         "--supervisor-within",
         type=float,
         default=SUPERVISOR_WITHIN_S,
@@ -229,6 +235,8 @@ def _run(args: argparse.Namespace, parser: argparse.ArgumentParser, audit: Audit
         return attach(args, audit)
     if args.via_supervisor and not args.onboard:
         parser.error("--via-supervisor hands an onboard unit to a supervisor: give --onboard")
+    if args.no_follow and not args.via_supervisor:
+        parser.error("--no-follow leaves the run to its supervisor: give --onboard --via-supervisor")
     if (args.from_step or args.to_step) and args.resume:
         parser.error("--from and --to start a new run of part of a procedure: not with --resume")
     if args.proposal is not None and args.resume:

@@ -7,7 +7,9 @@ unit's binding takes it, uplinks it at once on its open session and keeps the ru
 the audit log of the same database. The runner shows that record here as it is stored (woken by
 the database's change notices) and ends with the run. If no supervisor takes the run within
 ``--supervisor-within`` seconds the runner withdraws it and says so; nothing went up.
-Ctrl-C stops following, never the run: its supervisor goes on (the consoles show it).
+Ctrl-C stops following, never the run: its supervisor goes on (the consoles show it). With
+``--no-follow`` (a console's start, ``caretaker serve --via-supervisor``) the runner ends as soon as
+the habitat took the unit: the supervisor hosts the run, and a fleet's ground keeps no follower per run.
 """
 
 from __future__ import annotations
@@ -71,7 +73,7 @@ def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, ch
                 f"nothing went up (is `caretaker supervise --binding {args.binding}{db}` running?)"
             )
             return 2
-        handoff = _followed(handoffs, audit, run_id, news, printer, left_behind, terminal)
+        handoff = _followed(handoffs, audit, run_id, news, printer, left_behind, terminal, until_ready=args.no_follow)
     except KeyboardInterrupt:
         if handoffs.withdraw(run_id):
             terminal.say(f"\n  run {run_id} withdrawn before a supervisor took it: nothing went up")
@@ -80,6 +82,9 @@ def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, ch
         return 130
     finally:
         feed.close()
+    if args.no_follow and handoff.state not in (ENDED, DETACHED):
+        terminal.say(f"followed no further: {handoff.supervisor} keeps its record and hosts it for the consoles")
+        return 0
     if handoff.state == DETACHED:
         terminal.say(f"its supervisor, {handoff.supervisor}, no longer follows it: {handoff.message}")
         terminal.say(f"follow it again: caretaker run --attach {run_id} --binding {args.binding}{db} --user USER")
@@ -98,8 +103,11 @@ def _followed(
     printer: ProgressPrinter,
     left_behind: LeftBehind,
     terminal: TerminalLines,
+    *,
+    until_ready: bool = False,
 ) -> Handoff:
-    """Show the run's record as its supervisor stores it, until supervision ends; the handoff then.
+    """Show the run's record as its supervisor stores it, until supervision ends (``until_ready``: until
+    the habitat took the unit); the handoff then.
     A supervisor whose lease on the run ran out is gone (killed, or it lost the database): the
     handoff is then ``detached`` here, as the supervisor would have left it."""
     hosting = RunHosting(audit.engine, host=f"runner following {run_id}")  # it reads the supervisor's lease
@@ -118,6 +126,8 @@ def _followed(
                 terminal.say(f"the habitat took the unit: it runs {run_id}")
                 terminal.say(f"READY run {run_id}")
                 ready = True
+                if until_ready:
+                    return handoff
             for event in events:
                 printer(event)
                 left_behind(event)

@@ -26,6 +26,7 @@ __all__ = [
     "ActionRefused",
     "ActionRequest",
     "OnboardSend",
+    "mode_named",
     "perform_action",
     "perform_forwarded",
     "perform_onboard",
@@ -80,13 +81,12 @@ class ActionRequest:
         return {name: value for name, value in self.__dict__.items() if value is not None}
 
 
-def _mode(request: ActionRequest) -> Mode:
+def mode_named(name: str | None) -> Mode:
+    """The run mode ``name`` names; ActionRefused 400 naming the modes there are."""
     try:
-        return Mode(request.mode)
+        return Mode(name)
     except ValueError:
-        raise ActionRefused(
-            400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {request.mode!r})"
-        ) from None
+        raise ActionRefused(400, f"mode must be one of {', '.join(m.value for m in Mode)} (got {name!r})") from None
 
 
 def _numbered(request: ActionRequest) -> str:
@@ -113,7 +113,7 @@ ACTIONS: dict[str, tuple[bool, Callable[[Executive, str, ActionRequest], Any]]] 
     "done": (True, lambda ex, user, r: ex.mark_done(user)),
     "retry": (True, lambda ex, user, r: ex.retry(user)),
     "skip": (True, lambda ex, user, r: ex.skip(user, r.reason)),
-    "mode": (False, lambda ex, user, r: ex.set_mode(user, _mode(r))),
+    "mode": (False, lambda ex, user, r: ex.set_mode(user, mode_named(r.mode))),
     "pause": (False, lambda ex, user, r: ex.pause(user)),
     "continue": (False, lambda ex, user, r: ex.resume_automation(user)),
     # An operator's stop keeps the run's templates, listed in its end, so the next shift can

@@ -69,10 +69,12 @@ def launch_onboard(
     ready_within: float = READY_WITHIN_S,
     proposal: int | None = None,
     confirm_manual: bool = False,
+    via_supervisor: bool = False,
 ) -> str:
     """Start the supervising runner and wait until the habitat accepted the unit; the run's id.
     ``proposal``: the accepted proposal the run answers, its values going up with it;
-    ``confirm_manual``: the habitat marks manual instructions done by itself.
+    ``confirm_manual``: the habitat marks manual instructions done by itself; ``via_supervisor``: the
+    runner hands the unit to a ``caretaker supervise`` of the binding and ends once the habitat took it.
 
     Raises:
         LaunchRefused: as :func:`_launch` says.
@@ -88,6 +90,7 @@ def launch_onboard(
         *(["--approver", approver.user] if approver else []),
         *(["--proposal", str(proposal)] if proposal is not None else []),
         *(["--confirm-manual"] if confirm_manual else []),
+        *(["--via-supervisor", "--no-follow"] if via_supervisor else []),
     ]
     secrets = {APPROVER_PASSWORD_ENV: approver.password} if approver else {}
     still = "keeps sending the unit until it expires, and the run appears in the list if the habitat accepts it"

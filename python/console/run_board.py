@@ -28,7 +28,7 @@ from typing import Any
 from sqlalchemy.exc import SQLAlchemyError
 
 from console.accounts import Account, AccountStore
-from console.actions import ActionRefused, ActionRequest, perform_action, perform_forwarded
+from console.actions import ActionRefused, ActionRequest, mode_named, perform_action, perform_forwarded
 from console.camera_feed import CameraFeed
 from console.catalog import CameraSettings, Catalog, rosbridge_for
 from console.folded_run import fold_events
@@ -83,13 +83,6 @@ _LISTED = {
 }
 
 
-def _mode(name: str) -> Mode:
-    try:
-        return Mode(name)
-    except ValueError:
-        raise ActionRefused(400, f"mode must be manual or autonomous (got {name!r})") from None
-
-
 class RunBoard:
     """Live runs by id, hosted here or elsewhere, and the audit log they all write to.
 
@@ -108,8 +101,10 @@ class RunBoard:
         console: str,
         lease: float = DEFAULT_LEASE_S,
         rosbridge_urls: Mapping[str, str] | None = None,
+        via_supervisor: bool = False,
     ) -> None:
         self.catalog = catalog
+        self.via_supervisor = via_supervisor  # onboard starts handed to the binding's ``caretaker supervise``
         self.audit_log = audit_log
         self.control = RobotControl(audit_log.url)  # one controlling run per robot, across consoles
         self.camera = camera
@@ -161,7 +156,8 @@ class RunBoard:
         """
         asked = {"binding": binding_name, "mode": mode_name, "rehearsal": rehearsal, "take_over": take_over}
         with recorded_start_refusals(self.audit_log, user, procedure_name, asked):
-            return self._start(user, procedure_name, binding_name, _mode(mode_name), take_over, rehearsal, proposal)
+            mode = mode_named(mode_name)
+            return self._start(user, procedure_name, binding_name, mode, take_over, rehearsal, proposal)
 
     def _start(
         self,
@@ -257,7 +253,7 @@ class RunBoard:
         one, ActionRefused 409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here
         or on the habitat, the habitat's refusal, an unreachable habitat). ``proposal``: the agent's proposal
         ``user`` accepted (``run --proposal``); ``confirm_manual``: the habitat marks manual instructions done."""
-        mode = _mode(mode_name)
+        mode = mode_named(mode_name)
         path = self.catalog.procedure_path(procedure_name)
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
         checked, side = setup.checked, setup.side
@@ -284,6 +280,7 @@ class RunBoard:
                 rosbridge=self.rosbridge_url_for(binding_name),
                 proposal=proposal,
                 confirm_manual=confirm_manual,
+                via_supervisor=self.via_supervisor,
             )
         except LaunchRefused as exc:
             raise ActionRefused(
@@ -292,7 +289,7 @@ class RunBoard:
 
     def resume(self, user: str, run_id: str, binding_name: str, mode_name: str) -> LiveRun:
         """Continue a stopped or interrupted run from its log on ``binding_name``; ActionRefused says why not."""
-        mode = _mode(mode_name)
+        mode = mode_named(mode_name)
         if self.live(run_id) is not None:  # (a run that has just ended is released in a moment)
             raise ActionRefused(
                 409, f"run {run_id} is live on this server (or ending): resume it once it shows as stopped"

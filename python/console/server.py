@@ -94,6 +94,12 @@ def _parser() -> argparse.ArgumentParser:
         f"stopped renewing its claim (died, lost the database); default {DEFAULT_LEASE_S:g}",
     )
     parser.add_argument(
+        "--via-supervisor",
+        action="store_true",
+        help='hand onboard starts ("run on the habitat") to the supervisors of their binding '
+        "(caretaker supervise on this --db) instead of starting a supervising runner for each",
+    )
+    parser.add_argument(
         "--camera",
         metavar="[BINDING=]NAME",
         action="append",
@@ -185,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         console=args.console or f"console {socket.gethostname()}:{listener.port}",
         lease=args.lease,
         rosbridge_urls=rosbridge_urls,
+        via_supervisor=args.via_supervisor,
     )
     sign_ins = SignIns(accounts, limits=SessionLimits(idle=args.session_idle * 60, absolute=args.session_max * 3600))
     board.feed.subscribe(sign_ins.notice)

@@ -46,11 +46,13 @@ pytestmark = [pytest.mark.timeout(60), pytest.mark.slow(seconds=80)]
 
 
 def _runner(
-    tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False, db: str | None = None
+    tmp_path: Path, *, within: float = 10.0, at_consoles: bool = False, db: str | None = None, no_follow: bool = False
 ) -> argparse.Namespace:
     """``caretaker run``'s options as the runner reads them (``db``: a SQLite file in ``tmp_path`` by default)."""
     db = db or f"sqlite:///{tmp_path / 'ground.db'}"
-    return argparse.Namespace(db=db, binding="lab.yaml", raw=False, at_consoles=at_consoles, supervisor_within=within)
+    return argparse.Namespace(
+        db=db, binding="lab.yaml", raw=False, at_consoles=at_consoles, supervisor_within=within, no_follow=no_follow
+    )
 
 
 def test_a_run_no_supervisor_takes_is_withdrawn_and_the_runner_says_so(
@@ -117,6 +119,42 @@ def test_a_handed_run_goes_up_on_the_supervisors_session_and_its_runner_follows_
     assert f"RESULT detached run {holding.run_id}" in said
     assert f"follow it again: caretaker run --attach {holding.run_id} --binding lab.yaml" in said
     assert len([c for c in link.crossings if c.service == "/caretaker_onboard/uplink"]) == 2  # one session, two units
+
+
+def test_a_console_s_runner_ends_once_the_habitat_took_the_unit_and_the_supervisor_hosts_the_run(
+    habitat: tuple[HabitatRuns, list[Any]],
+    make_unit: Callable[..., Unit],
+    sysreps: dict[str, SysRep],
+    tmp_path: Path,
+    capfd: pytest.CaptureFixture[str],
+) -> None:
+    """``caretaker serve --via-supervisor`` starts its runners with ``--no-follow``: no follower per run."""
+    runs, _ = habitat
+    args = _runner(tmp_path, at_consoles=True, no_follow=True)
+    audit = AuditLog(args.db)
+    link = LinkedHabitat(runs)
+    supervisor = Supervisor(link.endpoint, "lab.yaml", audit, sysreps, client=link)
+    holding = make_unit(values={})  # holds at the record 1.2 for a console: it is not over when the runner ends
+    hosting = RunHosting(audit.engine, host="a console")
+
+    async def fly() -> int:
+        serving = asyncio.create_task(supervisor.serve())
+        code = await asyncio.to_thread(hand_to_supervisor, args, audit, holding, check_procedure(PROCEDURE, sysreps))
+        record = hosting.record(holding.run_id)
+        assert record is not None and record.alive and record.host == supervisor.name  # hosted for the consoles
+        supervisor.stop()
+        assert await serving == 0
+        return code
+
+    try:
+        assert asyncio.run(fly()) == 0
+        assert runs.status().active_run == holding.run_id
+    finally:
+        hosting.close()
+        audit.close()
+    said = capfd.readouterr().out
+    assert f"READY run {holding.run_id}" in said and "RESULT" not in said
+    assert f"followed no further: {supervisor.name} keeps its record and hosts it for the consoles" in said
 
 
 def test_a_supervisor_whose_lease_runs_out_is_gone_and_its_runner_says_the_run_goes_on(
