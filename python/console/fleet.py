@@ -97,14 +97,17 @@ def _link(state: dict[str, Any]) -> tuple[str, bool]:
     return f"{link['state']}{since}", True
 
 
+def _part(view: dict[str, Any], key: str) -> dict[str, Any]:
+    """``view[key]`` if it is an object (a host of another version may publish less), else empty."""
+    part = view.get(key)
+    return part if isinstance(part, dict) else {}
+
+
 def _entry(robot: str, bindings: tuple[str, ...], record: HostRecord, view: dict[str, Any]) -> FleetEntry:
-    state = view.get("state") if isinstance(view.get("state"), dict) else {}
-    assert isinstance(state, dict)
-    telemetry = view.get("telemetry") if isinstance(view.get("telemetry"), dict) else {}
-    assert isinstance(telemetry, dict)
-    needs, limits = _needs(state), _limits_out(telemetry)
+    state = _part(view, "state")
+    needs, limits = _needs(state), _limits_out(_part(view, "telemetry"))
     link, down = _link(state)
-    onboard = state.get("onboard") if isinstance(state.get("onboard"), dict) else None
+    onboard = _part(state, "onboard") if "onboard" in state else None
     urgency = (bool(needs), not record.alive, down, bool(limits), True).index(True)  # URGENCY's order
     return FleetEntry(
         robot=robot,
@@ -136,9 +139,7 @@ def fleet_entries(
     robot_of = {binding: robot for robot, bindings in robots.items() for binding in bindings}
     entries, busy = [], set()
     for record, view in hosted:
-        state = view.get("state")
-        robot = robot_of.get(record.binding) or (str(state.get("robot") or "") if isinstance(state, dict) else "")
-        robot = robot or record.binding
+        robot = robot_of.get(record.binding) or str(_part(view, "state").get("robot") or "") or record.binding
         busy.add(robot)
         entries.append(_entry(robot, robots.get(robot, (record.binding,)), record, view))
     entries += [
@@ -163,7 +164,11 @@ def _robots(catalog: Catalog) -> dict[str, tuple[str, ...]]:
     robots: dict[str, list[str]] = {}
     for name in catalog.binding_files():
         path = catalog.bindings / name
-        robots.setdefault(_robot_named(path, path.stat().st_mtime_ns), []).append(name)
+        try:
+            robot = _robot_named(path, path.stat().st_mtime_ns)
+        except FileNotFoundError:  # removed since it was listed
+            continue
+        robots.setdefault(robot, []).append(name)
     return {robot: tuple(bindings) for robot, bindings in sorted(robots.items())}
 
 
