@@ -19,19 +19,18 @@ from pathlib import Path
 
 import pytest
 
-from caretaker.processes import ManagedProcess, caretaker
+from caretaker.processes import ManagedProcess
 from ground.change_feed import ChangeNotice, open_change_feed
 from pride.approvals import APPROVER_PASSWORD_ENV
 from records.audit_chain import verify_chain
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
-from support.emulated_habitat import EmulatedHabitat, fleet
+from support.emulated_habitat import EmulatedHabitat, fleet, supervise
 from support.postgres import PostgresServer
 from support.recorded_run import command_durations, recorded_events
-from support.second_operator import APPROVED_BY_BOB
 from support.web_server import PEOPLE, new_ground_database
 
-from .flight_support import CLEAN_FILTER, PROCEDURE, RUN_TIMEOUT_S, result_of
+from .flight_support import RUN_TIMEOUT_S, result_of
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70), pytest.mark.timeout(600)]
 
@@ -77,15 +76,6 @@ def habitats(ros_env: dict[str, str], tmp_path: Path) -> Iterator[list[EmulatedH
         yield started
 
 
-def _supervise(db: str, habitats: list[EmulatedHabitat], env: dict[str, str], n: int) -> tuple[ManagedProcess, str]:
-    """A ``caretaker supervise`` of every habitat's binding, serving each; (process, its name)."""
-    bindings = [option for h in habitats for option in ("--binding", str(h.binding))]
-    process = caretaker("supervise", "--db", db, *bindings, env=env, name=f"supervise-{n}")
-    for h in habitats:
-        ready = process.wait_for_line(rf"^READY supervise {re.escape(h.binding.name)} ", 120)
-    return process, ready.split(" as ", 1)[1]
-
-
 def test_a_killed_supervisors_runs_are_taken_over_and_every_ground_chain_ends_equal_to_its_habitats(
     ground_db: str, habitats: list[EmulatedHabitat], ros_env: dict[str, str], tmp_path: Path
 ) -> None:
@@ -101,18 +91,9 @@ def test_a_killed_supervisors_runs_are_taken_over_and_every_ground_chain_ends_eq
     try:
         assert feed.connected.wait(30)
         for n in (1, 2):
-            supervisors.append(_supervise(ground_db, habitats, env, n))
+            supervisors.append(supervise(ground_db, habitats, env, f"supervise-{n}"))
         named = {name: process for process, name in supervisors}
-        for h in habitats:
-            options = ("--auto", "--user", "flight", "--db", ground_db, "--confirm-manual", *APPROVED_BY_BOB)
-            runners.append(
-                caretaker(
-                    *("run", str(PROCEDURE), "--binding", str(h.binding), *options, "--rehearsal"),
-                    *(f"--set=clean_filter_id={CLEAN_FILTER}", "--onboard", "--via-supervisor"),
-                    env=env,
-                    name=f"run-{h.name}",
-                )
-            )
+        runners += [h.hand_run(ground_db, env) for h in habitats]
         run_ids = [runner.wait_for_line(r"^READY run ", 180).split()[-1] for runner in runners]
         held: dict[str, list[str]] = {name: [] for name in named}
         for run_id in run_ids:

@@ -27,13 +27,14 @@ from pathlib import Path
 
 from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess, caretaker
-from flight.flight_support import onboard_chain, write_ground_binding
+from flight.flight_support import CLEAN_FILTER, PROCEDURE, onboard_chain, write_ground_binding
 from records.audit_chain import StoredEvent
 from support.recorded_run import IVA_RUN
 from support.ros_domain import claim_ros_domain
+from support.second_operator import APPROVED_BY_BOB
 from support.stack import write_deployment
 
-__all__ = ["EmulatedHabitat", "emulated_habitat", "fleet"]
+__all__ = ["EmulatedHabitat", "emulated_habitat", "fleet", "supervise"]
 
 HOST = "127.0.0.1"
 #: How long a part may take to say READY (a bridge loads rclpy; ten habitats start on two cores).
@@ -54,6 +55,18 @@ class EmulatedHabitat:
     def onboard_chain(self, run_id: str) -> list[StoredEvent]:
         """The run's events as the habitat's onboard store holds them."""
         return onboard_chain(self.state_dir, run_id)
+
+    def hand_run(self, db: str, env: dict[str, str]) -> ManagedProcess:
+        """``caretaker run`` of the IVA procedure for this habitat, autonomous, handed to the
+        supervisors of ``db`` (``--onboard --via-supervisor``); bob approves the unlock (``env``
+        has his password: support/second_operator.py)."""
+        return caretaker(
+            *("run", str(PROCEDURE), "--binding", str(self.binding), "--auto", "--user", "flight", "--db", db),
+            *("--confirm-manual", *APPROVED_BY_BOB, "--rehearsal", f"--set=clean_filter_id={CLEAN_FILTER}"),
+            *("--onboard", "--via-supervisor"),
+            env=env,
+            name=f"run-{self.name}",
+        )
 
 
 def _address(line: str) -> int:
@@ -131,3 +144,16 @@ def fleet(
             stack.enter_context(emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, pace=pace))
             for n, delay in enumerate(delays, 1)
         ]
+
+
+def supervise(
+    db: str, habitats: Sequence[EmulatedHabitat], env: dict[str, str], name: str
+) -> tuple[ManagedProcess, str]:
+    """``caretaker supervise`` of every habitat's binding on ``db``, once it serves each; (process,
+    the name it supervises as, which handoffs and takeovers name)."""
+    bindings = [option for h in habitats for option in ("--binding", str(h.binding))]
+    process = caretaker("supervise", "--db", db, *bindings, env=env, name=name)
+    ready = ""
+    for h in habitats:
+        ready = process.wait_for_line(rf"^READY supervise {re.escape(h.binding.name)} ", READY_S)
+    return process, ready.split(" as ", 1)[1]
