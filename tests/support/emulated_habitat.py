@@ -79,10 +79,11 @@ def _address(line: str) -> int:
 
 @contextlib.contextmanager
 def emulated_habitat(
-    name: str, folder: Path, env: dict[str, str], *, delay: float, pace: Path | None = IVA_RUN
+    name: str, folder: Path, env: dict[str, str], *, delay: float, loss: float = 0.0, pace: Path | None = IVA_RUN
 ) -> Iterator[EmulatedHabitat]:
     """The habitat ``name`` serving in ``folder / name`` (which the caller removes), ``delay`` s one
-    way from the ground; ``pace``: a recorded run whose robot pace it keeps (None: flat out).
+    way from the ground, losing the share ``loss`` of the link's segments each way (``caretaker
+    link --loss``); ``pace``: a recorded run whose robot pace it keeps (None: flat out).
     Every process is stopped when the block is left, also when it fails."""
     home = folder / name
     home.mkdir(parents=True)
@@ -116,7 +117,9 @@ def emulated_habitat(
         )
         bridge_port = _address(ready)
         link, ready = start(
-            "link", "--listen", f"{HOST}:0", "--to", f"{HOST}:{bridge_port}", "--delay", f"{delay:g}", part="link"
+            *("link", "--listen", f"{HOST}:0", "--to", f"{HOST}:{bridge_port}"),
+            *("--delay", f"{delay:g}", "--loss", f"{loss:g}"),
+            part="link",
         )
         url = f"wss://{HOST}:{_address(ready)}"
         binding = write_ground_binding(home, url, credentials, one_way_delay=delay, outage_budget=120.0, robot=name)
@@ -136,12 +139,13 @@ def emulated_habitat(
 
 @contextlib.contextmanager
 def fleet(
-    folder: Path, env: dict[str, str], delays: Sequence[float], *, pace: Path | None = IVA_RUN
+    folder: Path, env: dict[str, str], delays: Sequence[float], *, loss: float = 0.0, pace: Path | None = IVA_RUN
 ) -> Iterator[list[EmulatedHabitat]]:
-    """One emulated habitat per one-way delay in ``delays``, named ``iva-hab01``, ``iva-hab02``..."""
+    """One emulated habitat per one-way delay in ``delays``, named ``iva-hab01``, ``iva-hab02``...,
+    each link losing the share ``loss`` of its segments."""
     with contextlib.ExitStack() as stack:
         yield [
-            stack.enter_context(emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, pace=pace))
+            stack.enter_context(emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, loss=loss, pace=pace))
             for n, delay in enumerate(delays, 1)
         ]
 
