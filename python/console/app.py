@@ -35,7 +35,7 @@ from console.accounts import Account
 from console.actions import ActionRefused, ActionRequest
 from console.attach import attach_routes
 from console.authoring import check_document, procedure_signatures, read_document, save_document, sysrep_palette
-from console.fleet import fleet_routes
+from console.fleet import Fleet, fleet_routes
 from console.folded_run import fold_events
 from console.procedure_view import procedure_json
 from console.proposals import proposal_routes
@@ -58,6 +58,8 @@ STATIC = Path(__file__).with_name("static")
 _TELEMETRY_REFRESH_S = 1.0
 #: How often the runs list is recomputed when nothing announced a change (a host's lease running out).
 _LIST_REFRESH_S = 2.0
+#: The runs list and the fleet are read at most this often per page (s).
+_LIST_MIN_PERIOD_S = 0.25
 _CLOSE_POLICY = 1008  # WebSocket close code for "not signed in" (RFC 6455 policy violation)
 _CLOSE_ENDED = 1000  # WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure)
 _SAFE_METHODS = ("GET", "HEAD")
@@ -430,15 +432,17 @@ async def run_socket(websocket: WebSocket) -> None:
 
 
 async def runs_socket(websocket: WebSocket) -> None:
-    """Push the runs list whenever it changes (a run started, ended, moved host, or its host went silent)."""
+    """Push the runs list whenever it changes (a run started, ended, moved host, or its host went silent),
+    and the fleet whenever a robot's row changes (fleet.py)."""
     account = await _socket_account(websocket)
     if account is None:
         return
     board: RunBoard = websocket.app.state.board
+    fleet: Fleet = websocket.app.state.fleet
     await websocket.accept()
     watcher = board.list_watchers.add(account)
     receiver = asyncio.create_task(_drain(websocket))
-    sent: list[dict[str, Any]] | None = None
+    sent: dict[str, list[dict[str, Any]]] = {}
     try:
         while not receiver.done():
             with contextlib.suppress(asyncio.TimeoutError):
@@ -446,10 +450,14 @@ async def runs_socket(websocket: WebSocket) -> None:
             watcher.changed.clear()
             if not await _still_signed_in(websocket):
                 return
-            runs = await run_in_threadpool(board.listing)
-            if runs != sent:
-                await websocket.send_json({"type": "runs", "runs": runs})
-                sent = runs
+            read_at = time.monotonic()
+            for kind, read in (("runs", board.listing), ("robots", fleet.read)):
+                now = await run_in_threadpool(read)
+                if now != sent.get(kind):
+                    await websocket.send_json({"type": "fleet" if kind == "robots" else "runs", kind: now})
+                    sent[kind] = now
+            # every live run republishes each second: with fifty, read at most this often, whatever woke it
+            await asyncio.sleep(max(0.0, read_at + _LIST_MIN_PERIOD_S - time.monotonic()))
     except (WebSocketDisconnect, RuntimeError):
         pass
     finally:
@@ -582,6 +590,7 @@ def build_app(
             await run_in_threadpool(proposals.close)
 
     proposals, proposal_api = proposal_routes(board, api=_api, account=_account, operators=_operators)
+    fleet = Fleet(board.catalog, board.hosting)
     app = Starlette(
         routes=[
             Route("/", index),
@@ -609,13 +618,14 @@ def build_app(
             *spatial_routes(account=_account, api=_api, same_origin=_same_origin),  # the 3D view (spatial_api.py)
             *attach_routes(api=_api, operators=_operators),  # a new supervisor for an onboard run (attach.py)
             *proposal_api,  # agents' proposals, accepted or declined (proposals.py)
-            *fleet_routes(board.catalog, board.hosting, api=_api, account=_account),  # every robot (fleet.py)
+            *fleet_routes(fleet, api=_api, account=_account),  # every robot and its run (fleet.py)
             Route("/favicon.ico", favicon),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],
         lifespan=lifespan,
     )
     app.state.board = board
+    app.state.fleet = fleet
     app.state.sign_ins = sign_ins
     app.state.report_writer = report_writer
     app.state.secure = secure

@@ -30,7 +30,7 @@ from datafile import DataFileError
 from ground.run_hosts import HostRecord, RunHosting
 from procedure_language.binding import read_binding
 
-__all__ = ["FleetEntry", "fleet_entries", "fleet_routes"]
+__all__ = ["Fleet", "FleetEntry", "fleet_entries", "fleet_routes"]
 
 Handler = Callable[[Request], Any]
 
@@ -172,18 +172,28 @@ def _robots(catalog: Catalog) -> dict[str, tuple[str, ...]]:
     return {robot: tuple(bindings) for robot, bindings in sorted(robots.items())}
 
 
-def fleet_routes(
-    catalog: Catalog, hosting: RunHosting, *, api: Callable[[Handler], Handler], account: Callable[[Request], Account]
-) -> list[BaseRoute]:
-    """``GET /api/fleet``: ``{"robots": [entry, ...], "time": ISO}``, most urgent first (any signed-in role)."""
+class Fleet:
+    """The fleet as a console reads it: its bindings' robots and every hosted run, in one query."""
 
-    def read() -> dict[str, Any]:
-        hosted, now = hosting.views()
-        return {"robots": [e.to_json() for e in fleet_entries(_robots(catalog), hosted)], "time": now.isoformat()}
+    def __init__(self, catalog: Catalog, hosting: RunHosting) -> None:
+        self._catalog = catalog
+        self._hosting = hosting
+
+    def read(self) -> list[dict[str, Any]]:
+        """Every robot's entry as JSON, most urgent first."""
+        hosted, _ = self._hosting.views()
+        return [entry.to_json() for entry in fleet_entries(_robots(self._catalog), hosted)]
+
+
+def fleet_routes(
+    fleet: Fleet, *, api: Callable[[Handler], Handler], account: Callable[[Request], Account]
+) -> list[BaseRoute]:
+    """``GET /api/fleet``: ``{"robots": [entry, ...]}``, most urgent first (any signed-in role). A console's
+    page has it pushed on the runs list's socket instead (``{"type": "fleet", ...}``, app.py)."""
 
     @api
-    async def fleet(request: Request) -> Response:
+    async def listing(request: Request) -> Response:
         account(request)
-        return JSONResponse(await run_in_threadpool(read))
+        return JSONResponse({"robots": await run_in_threadpool(fleet.read)})
 
-    return [Route("/api/fleet", fleet)]
+    return [Route("/api/fleet", listing)]

@@ -237,7 +237,7 @@ class RunHosting:
             return {row.run_id: _record(row, clock) for row in connection.execute(select(*_SUMMARY))}
 
     def views(self) -> tuple[list[tuple[HostRecord, dict[str, Any]]], datetime]:
-        """Every hosted run's row and latest view, in one read (a fleet view of fifty runs polls it),
+        """Every hosted run's row and latest view, in one read (a console's fleet view of fifty runs),
         and the database's time of that read."""
         with self._engine.connect() as connection:
             clock = _clock(connection)

@@ -106,7 +106,6 @@ async function loadSession() {
     await Promise.all([loadCatalog(), loadRuns()]);
     connectRuns();
     loadProposals();  // proposals.js
-    loadFleet();  // fleet.js
     openRunFromHash();
   }
 }
@@ -179,6 +178,8 @@ function connectRuns() {
     if (data.type === "runs") {
       view.runsPushes += 1;
       showRuns(data.runs);
+    } else if (data.type === "fleet") {
+      showFleet(data.robots);  // fleet.js
     }
   });
   socket.addEventListener("close", (event) => {

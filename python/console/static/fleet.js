@@ -1,11 +1,8 @@
 // The fleet at a glance: every robot and its live run, whoever hosts it, the ones that need an operator first
-// (console/fleet.py orders them). A row opens its run here, where the operator acts on it as on any run.
-// Names and words from the habitat are shown as text (textContent), never as markup.
+// (console/fleet.py orders them), pushed on the runs list's socket whenever a row changes. A row opens its run
+// here, where the operator acts on it as on any run. Names and words from the habitat are shown as text
+// (textContent), never as markup.
 "use strict";
-
-const FLEET_POLL_MS = 2000;  // runs on other consoles and supervisors push nothing here: read the fleet again
-
-const loadFleet = poller("fleet", "/api/fleet", FLEET_POLL_MS, ({robots}) => showFleet(robots));
 
 function fleetRow(robot) {
   const row = element("li", "fleet-robot");
