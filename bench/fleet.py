@@ -1,66 +1,74 @@
-"""One ground supervising N habitats: its CPU and memory per habitat, and how late events reach it.
+"""A ground supervising N habitats over a long, lossy link: its whole cost per habitat and how late events reach it.
 
-Starts N emulated habitats (tests/support/emulated_habitat.py: real ``caretaker bridge``, ``caretaker
-link`` and ``caretaker onboard`` processes, the simulated IVA robot at the recorded robot's pace),
-a ground database on a temporary PostgreSQL cluster and one ``caretaker supervise`` of all N
-bindings, then hands each habitat an IVA run at once (``caretaker run --onboard --via-supervisor``)
-and waits until every run has ended. Reports:
+For each N: N emulated habitats (tests/support/emulated_habitat.py: real ``caretaker bridge``,
+``caretaker link --delay --loss`` and ``caretaker onboard`` processes, the simulated IVA robot at
+the recorded robot's pace), a ground database on a temporary PostgreSQL cluster, one ``caretaker
+supervise`` of all N bindings (two with ``--kill-at``), a console (``caretaker serve
+--via-supervisor``) with its fleet view open in Chromium; then an IVA run handed to each habitat at
+once (``caretaker run --onboard --via-supervisor``), until every run has ended. Reports
+(bench/fleet_ground.py says how each is read):
 
-- ``supervisor CPU``: the supervise process's user + system CPU from READY to the last run's end,
-  in all and per habitat, and as a share of one core over that time;
-- ``RSS``: its resident memory at the end and at its peak (VmHWM): what each habitat adds is the
-  difference between runs of different N;
-- ``event delay``: for every event of every run, from its time on the habitat (the onboard
-  executive's clock; one machine here) to its change notice from the ground database (LISTEN, in
-  this process): p50, p95, max.
+- the ground's CPU from the handing to the last run's end and its memory (peak RSS, and PSS:
+  shared pages once), per habitat, of the supervisors, the console and PostgreSQL together, and
+  which part took what;
+- PostgreSQL's commits and rows written per second over that span;
+- event delay: from each event's time on the habitat (one machine: one clock) to its change notice
+  from the ground database (LISTEN, here), and from each instruction's start on the habitat to the
+  console's fleet view first showing it as the robot's current one: p50, p95, max (and the
+  screen's minus the one-way light time);
+- that every ground chain equals its habitat's, hash for hash, no event twice (fails otherwise).
 
-    .venv/bin/python bench/fleet.py --habitats N [--delay S]
+With ``--kill-at N`` it measures N once more with two supervisors and SIGKILLs the one holding
+more runs once a command result of one of its runs is stored: the takeover time is from the kill
+to the survivor's last ``TAKEN OVER`` line. Each measurement runs in a process of its own (each
+habitat holds one of the machine's ROS domains for the life of its process).
+
+    .venv/bin/python bench/fleet.py --habitats 1 10 25 50 [--delay 1.3] [--loss 1] [--kill-at 25]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
+import signal
 import statistics
+import subprocess
 import sys
 import tempfile
 import threading
 import time
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
+sys.path[:0] = [str(REPO), str(REPO / "tests")]  # bench.fleet_ground; support, as the tests import it
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")  # as the tests' sessions (conftest.py)
 
+from bench.fleet_ground import GroundCost, chain_problems, database_writes, fleet_screen, postmaster_pid  # noqa: E402
 from ground.change_feed import ChangeNotice, open_change_feed  # noqa: E402
 from pride.approvals import APPROVER_PASSWORD_ENV  # noqa: E402
 from records.audit_log import AuditLog  # noqa: E402
-from support.emulated_habitat import fleet, supervise  # noqa: E402
+from records.onboard_handoffs import OnboardHandoffs  # noqa: E402
+from support.emulated_habitat import EmulatedHabitat, fleet, supervise  # noqa: E402
 from support.postgres import OWNER, RUNNER, postgres_server  # noqa: E402
+from support.processes import ManagedProcess, caretaker  # noqa: E402
 from support.web_server import PEOPLE, add_people  # noqa: E402
 
-RUN_TIMEOUT_S = 900.0
-_TICK = os.sysconf("SC_CLK_TCK")
-
-
-def _cpu_s(pid: int) -> float:
-    """User + system CPU seconds of process ``pid`` so far."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / _TICK
-
-
-def _memory_mb(pid: int) -> dict[str, float]:
-    """VmRSS and VmHWM of process ``pid`` (MB)."""
-    status = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
-    return {key: int(status[key].split()[0]) / 1024 for key in ("VmRSS", "VmHWM")}
+RUN_TIMEOUT_S = 1800.0
+TAKEOVER_TIMEOUT_S = 300.0
+_RESULT = "FLEET-RESULT "
 
 
 class Arrivals:
-    """When each event's change notice reached this process: (run, seq) -> time.time()."""
+    """When each event's change notice reached this process ((run, seq) -> time.time()), which
+    kinds were stored per run, and which runs' handoffs ended."""
 
     def __init__(self) -> None:
         self.at: dict[tuple[str, int], float] = {}
+        self.kinds: set[tuple[str, str]] = set()
         self.ended: set[str] = set()
         self.changed = threading.Condition()
 
@@ -70,72 +78,245 @@ class Arrivals:
         with self.changed:
             if change.channel == "events" and len(words) == 3:
                 self.at.setdefault((words[2], int(words[0])), now)
+                self.kinds.add((words[2], words[1]))
             elif change.channel == "handoffs" and words[:1] == ["ended"]:
                 self.ended.add(words[-1])
             self.changed.notify_all()
 
+    def wait_for(self, done: object, what: str, timeout: float = RUN_TIMEOUT_S) -> None:
+        with self.changed:
+            if not self.changed.wait_for(done, timeout):  # type: ignore[arg-type]
+                raise SystemExit(f"not within {timeout:g} s: {what}")
 
-def _percentile(values: list[float], share: float) -> float:
-    return sorted(values)[min(len(values) - 1, round(share * (len(values) - 1)))]
+
+@dataclass
+class Measured:
+    """One measurement, as the child process hands it to the table."""
+
+    habitats: int
+    supervisors: int
+    completed: int
+    up_s: float
+    wall_s: float
+    cpu_s: dict[str, float]  # part (supervisors, console, postgres, ground) -> CPU s over the span
+    peak_rss_mb: dict[str, float]
+    peak_pss_mb: dict[str, float]
+    commits_per_s: float
+    rows_per_s: float
+    db_delay_ms: tuple[float, float, float]
+    screen_delay_ms: tuple[float, float, float]
+    screen_shown: tuple[int, int]  # instructions shown, started
+    chains_equal: int
+    takeover_s: float | None
 
 
-def measure(count: int, delay: float) -> None:
+def _spread_ms(values: list[float]) -> tuple[float, float, float]:
+    """p50, p95, max in ms."""
+    if not values:
+        raise SystemExit("no delays measured")
+    ordered = sorted(values)
+    p95 = ordered[min(len(ordered) - 1, round(0.95 * (len(ordered) - 1)))]
+    return 1000 * statistics.median(ordered), 1000 * p95, 1000 * ordered[-1]
+
+
+def _console(db: str, habitats: list[EmulatedHabitat], folder: Path, env: dict[str, str]) -> tuple[ManagedProcess, str]:
+    """``caretaker serve --via-supervisor`` of every habitat's binding (linked into one folder)."""
+    bindings = folder / "console-bindings"
+    bindings.mkdir()
+    for habitat in habitats:
+        (bindings / habitat.binding.name).symlink_to(habitat.binding)
+    process = caretaker(
+        *("serve", "--via-supervisor", "--db", db, "--bindings", str(bindings), "--port", "0"),
+        *("--reports", str(folder / "reports")),
+        env=env,
+        name="serve",
+    )
+    return process, process.wait_ready(180).split()[-1]
+
+
+def _kill_the_busier(
+    supervisors: list[tuple[ManagedProcess, str]], runs: list[str], audit: AuditLog, arrivals: Arrivals
+) -> float:
+    """SIGKILL the supervisor holding more of ``runs`` once a command result of one of them is
+    stored; the seconds from the kill to the survivor's ``TAKEN OVER`` of the last of them."""
+    handoffs = OnboardHandoffs(audit.engine)
+    named = {name: process for process, name in supervisors}
+    held: dict[str, list[str]] = {name: [] for name in named}
+    for run_id in runs:
+        handoff = handoffs.get(run_id)
+        if handoff is None or handoff.supervisor not in held:
+            raise SystemExit(f"{run_id}: not taken by a supervisor of this bench: {handoff}")
+        held[handoff.supervisor].append(run_id)
+    victim = max(held, key=lambda name: len(held[name]))
+    survivor = next(name for name in named if name != victim)
+    arrivals.wait_for(
+        lambda: any((r, "command_result") in arrivals.kinds for r in held[victim]), "a command result of its runs"
+    )
+    killed = time.monotonic()
+    named[victim].kill()
+    for run_id in held[victim]:
+        named[survivor].wait_for_line(rf"^{run_id}: TAKEN OVER from {re.escape(victim)} ", TAKEOVER_TIMEOUT_S)
+    print(f"  killed {victim} holding {len(held[victim])} of {len(runs)} runs; {survivor} took them over")
+    return time.monotonic() - killed
+
+
+def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
+    """One fleet of ``count`` habitats, each link ``delay`` s one way losing the share ``loss``."""
     with tempfile.TemporaryDirectory(prefix="caretaker-fleet-") as scratch, postgres_server() as server:
         folder = Path(scratch)
         name = server.new_database()
         db, owner = server.url(name, RUNNER), server.url(name, OWNER)
         add_people(owner)
         env = {**os.environ, APPROVER_PASSWORD_ENV: PEOPLE["bob"][2], "TMPDIR": scratch}
-        audit = AuditLog(db)
-        arrivals = Arrivals()
+        audit, arrivals = AuditLog(db), Arrivals()
         feed = open_change_feed(audit.engine)
         feed.subscribe(arrivals.notice)
-        started = time.monotonic()
+        started, takeover = time.monotonic(), None
         try:
-            assert feed.connected.wait(30), "the ground database's change feed did not connect"
-            with fleet(folder, env, [delay] * count) as habitats:
+            if not feed.connected.wait(30):
+                raise SystemExit("the ground database's change feed did not connect")
+            with fleet(folder, env, [delay] * count, loss=loss) as habitats:
                 up = time.monotonic() - started
-                supervisor, _ = supervise(db, habitats, env, "supervise")
-                pid = supervisor.proc.pid
+                print(f"{count} habitat(s) up in {up:.0f} s", flush=True)
+                console, url = _console(db, habitats, folder, env)
+                supervisors = [supervise(db, habitats, env, f"supervise-{n}") for n in range(1, 2 + kill)]
+                runners: list[ManagedProcess] = []
                 try:
-                    cpu0, t0 = _cpu_s(pid), time.monotonic()
-                    runners = [h.hand_run(db, env) for h in habitats]
-                    run_ids = [r.wait_for_line(r"^READY run ", 300).split()[-1] for r in runners]
-                    with arrivals.changed:
-                        if not arrivals.changed.wait_for(lambda: arrivals.ended >= set(run_ids), RUN_TIMEOUT_S):
-                            raise SystemExit(f"runs not ended in {RUN_TIMEOUT_S:g} s: {set(run_ids) - arrivals.ended}")
-                    cpu, wall, memory = _cpu_s(pid) - cpu0, time.monotonic() - t0, _memory_mb(pid)
-                    results = [r.wait_for_line(r"^RESULT ", 60).split()[1] for r in runners]
-                    for runner in runners:
-                        runner.stop()
+                    with fleet_screen(url, [h.name for h in habitats]) as screen:
+                        cost = GroundCost(
+                            {
+                                "supervisors": [p.proc.pid for p, _ in supervisors],
+                                "console": [console.proc.pid],
+                                "postgres": [postmaster_pid(server.data_dir)],
+                            }
+                        )
+                        writes0, t0 = database_writes(owner), time.monotonic()
+                        cost.start()
+                        runners += [h.hand_run(db, env) for h in habitats]
+                        run_ids = [r.wait_for_line(r"^READY run ", 600).split()[-1] for r in runners]
+                        if kill:
+                            takeover = _kill_the_busier(supervisors, run_ids, audit, arrivals)
+                        arrivals.wait_for(lambda: arrivals.ended >= set(run_ids), "every run ended")
+                        costs, wall = cost.stop(), time.monotonic() - t0
+                        time.sleep(1.5)  # pg_stat_database: backends report their counts within a second
+                        writes = [after - before for after, before in zip(database_writes(owner), writes0, strict=True)]
+                        runs = {h.name: run_id for h, run_id in zip(habitats, run_ids, strict=True)}
+                        screen_delays, missed = screen.delays(audit, runs)
                 finally:
-                    supervisor.stop()
-            delays = []
-            for run_id in run_ids:
-                for event in audit.events(run_id):
-                    habitat_time = event.time.astimezone(UTC).timestamp()
-                    delays.append(arrivals.at[(run_id, event.seq)] - habitat_time)
+                    for process in [*runners, *(p for p, _ in supervisors), console]:
+                        process.stop()
+                problems = chain_problems(audit, runs, habitats)
+                handoffs = OnboardHandoffs(audit.engine)
+                results = [getattr(handoffs.get(r), "result", None) for r in run_ids]
+            db_delays = [
+                arrivals.at[(run_id, event.seq)] - event.time.astimezone(UTC).timestamp()
+                for run_id in run_ids
+                for event in audit.stored_events(run_id)
+            ]
         finally:
             feed.close()
             audit.close()
-    print(f"fleet: {count} habitat(s), link {delay:g} s one way, {datetime.now(UTC):%Y-%m-%d %H:%M}Z")
-    print(f"  habitats up in {up:.1f} s; runs: {', '.join(sorted(set(results)))} ({len(results)}); {wall:.1f} s")
-    print(f"  supervisor CPU: {cpu:.2f} s ({cpu / count:.2f} s per habitat, {100 * cpu / wall:.1f} % of a core)")
-    print(f"  supervisor RSS: {memory['VmRSS']:.0f} MB at the end, peak {memory['VmHWM']:.0f} MB")
-    print(
-        f"  event delay habitat -> ground db ({len(delays)} events): p50 {1000 * statistics.median(delays):.0f} ms, "
-        f"p95 {1000 * _percentile(delays, 0.95):.0f} ms, max {1000 * max(delays):.0f} ms"
+    if problems:
+        raise SystemExit("chains not equal:\n" + "\n".join(problems))
+    for part, c in costs.items():
+        print(f"  {part}: CPU {c.cpu_s:.1f} s, peak RSS {c.peak_rss_mb:.0f} MB, PSS {c.peak_pss_mb:.0f} MB", flush=True)
+    return Measured(
+        habitats=count,
+        supervisors=len(supervisors),
+        completed=results.count("completed"),
+        up_s=up,
+        wall_s=wall,
+        cpu_s={part: c.cpu_s for part, c in costs.items()},
+        peak_rss_mb={part: c.peak_rss_mb for part, c in costs.items()},
+        peak_pss_mb={part: c.peak_pss_mb for part, c in costs.items()},
+        commits_per_s=writes[0] / wall,
+        rows_per_s=writes[1] / wall,
+        db_delay_ms=_spread_ms(db_delays),
+        screen_delay_ms=_spread_ms(screen_delays),
+        screen_shown=(len(screen_delays), len(screen_delays) + missed),
+        chains_equal=count - len({p.split(":")[0] for p in problems}),
+        takeover_s=takeover,
     )
+
+
+def _row(m: Measured, delay: float) -> str:
+    """One row of the table (docs/benchmarks.md, "fleet")."""
+    per = m.habitats
+    parts = "/".join(f"{m.cpu_s[p] / per:.2f}" for p in ("supervisors", "console", "postgres"))
+    db = " / ".join(f"{v:.0f}" for v in m.db_delay_ms)
+    screen = " / ".join(f"{v:.0f}" for v in m.screen_delay_ms)
+    beyond = " / ".join(f"{v - 1000 * delay:.0f}" for v in m.screen_delay_ms)
+    kill = f"killed 1 of 2, taken over in {m.takeover_s:.1f} s" if m.takeover_s is not None else f"{m.supervisors}"
+    return (
+        f"| {m.habitats} | {kill} | {m.completed} of {m.habitats} | {m.wall_s:.0f} s "
+        f"| {m.cpu_s['ground'] / per:.2f} s ({parts}) "
+        f"| {m.peak_rss_mb['ground'] / per:.0f} / {m.peak_pss_mb['ground'] / per:.0f} MB "
+        f"| {m.commits_per_s:.0f} / {m.rows_per_s:.0f} | {db} ms "
+        f"| {screen} ms ({beyond}; {m.screen_shown[0]} of {m.screen_shown[1]}) "
+        f"| {m.chains_equal} of {m.habitats} |"
+    )
+
+
+HEADER = (
+    "| habitats | supervisors | runs completed | wall | ground CPU per habitat (supervisors/console/PostgreSQL) "
+    "| ground peak RSS / PSS per habitat | PostgreSQL commits / rows per s | event delay to ground db p50 / p95 / max "
+    "| to the console's screen p50 / p95 / max (beyond the light time; instructions shown) | chains equal |\n"
+    "|---|---|---|---|---|---|---|---|---|---|"
+)
+
+
+def _measure_apart(count: int, args: argparse.Namespace, kill: bool) -> Measured:
+    """:func:`measure` in a child process (its habitats' ROS domains are released when it ends)."""
+    command = [sys.executable, __file__, "--one", str(count), "--delay", str(args.delay), "--loss", str(args.loss)]
+    child = subprocess.Popen([*command, *(["--kill"] if kill else [])], stdout=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    result = None
+    try:
+        for line in child.stdout:
+            if line.startswith(_RESULT):
+                result = Measured(**json.loads(line.removeprefix(_RESULT)))
+            else:
+                print(line, end="", flush=True)
+    except KeyboardInterrupt:
+        child.send_signal(signal.SIGINT)
+        raise
+    if child.wait() != 0 or result is None:
+        raise SystemExit(f"the measurement of {count} habitat(s) failed (exit {child.returncode})")
+    return result
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
-    parser.add_argument("--habitats", type=int, required=True, metavar="N", help="emulated habitats (one run each)")
-    parser.add_argument("--delay", type=float, default=0.1, metavar="S", help="each link's one-way delay (s)")
+    parser.add_argument(
+        "--habitats", type=int, nargs="+", metavar="N", help="fleet sizes to measure, one after another"
+    )
+    parser.add_argument(
+        "--delay", type=float, default=1.3, metavar="S", help="each link's one-way delay (s; Gateway: 1.3)"
+    )
+    parser.add_argument(
+        "--loss", type=float, default=1.0, metavar="PCT", help="each link's segment loss, each way (%%)"
+    )
+    parser.add_argument("--kill-at", type=int, metavar="N", help="also N habitats with two supervisors, one SIGKILLed")
+    parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # a child's single measurement
+    parser.add_argument("--kill", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.habitats < 1:
-        parser.error("--habitats: at least 1")
-    measure(args.habitats, args.delay)
+    if args.one is not None:
+        print(_RESULT + json.dumps(asdict(measure(args.one, args.delay, args.loss / 100, args.kill))), flush=True)
+        return
+    sizes = [(n, False) for n in args.habitats or []] + ([(args.kill_at, True)] if args.kill_at else [])
+    if not sizes or min(n for n, _ in sizes) < 1:
+        parser.error("--habitats and --kill-at: one habitat or more, at least one of them")
+    if not 0 <= args.loss < 100:
+        parser.error("--loss: a percentage from 0 to under 100")
+    print(
+        f"fleet: link {args.delay:g} s one way, {args.loss:g} % loss; {datetime.now(UTC):%Y-%m-%d %H:%M}Z", flush=True
+    )
+    rows = []
+    for count, kill in sizes:
+        measured = _measure_apart(count, args, kill)
+        rows.append(_row(measured, args.delay))
+        print(rows[-1], flush=True)
+    print(HEADER, *rows, sep="\n")
 
 
 if __name__ == "__main__":
