@@ -5,13 +5,13 @@ For each N: N emulated habitats (tests/support/emulated_habitat.py: real ``caret
 the recorded robot's pace), a ground database on a temporary PostgreSQL cluster, one ``caretaker
 supervise`` of all N bindings (two with ``--kill-at``), a console (``caretaker serve
 --via-supervisor``) with its fleet view open in Chromium; then an IVA run handed to each habitat at
-once (``caretaker run --onboard --via-supervisor``), until every run has ended. Reports
-(bench/fleet_ground.py says how each is read):
+once (``caretaker run --onboard --via-supervisor --no-follow``, as a console hands them: no runner
+follows a run), until every run has ended. Reports (bench/fleet_ground.py says how each is read):
 
 - the ground's CPU from the handing to the last run's end and its memory (peak RSS, and PSS:
   shared pages once), per habitat, of the supervisors, the console and PostgreSQL together, and
   which part took what;
-- PostgreSQL's commits and rows written per second over that span;
+- PostgreSQL's transactions (reads too) and rows written (inserted, updated) per second over that span;
 - event delay: from each event's time on the habitat (one machine: one clock) to its change notice
   from the ground database (LISTEN, here), and from each instruction's start on the habitat to the
   console's fleet view first showing it as the robot's current one: p50, p95, max (and the
@@ -192,7 +192,7 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
                         )
                         writes0, t0 = database_writes(owner), time.monotonic()
                         cost.start()
-                        runners += [h.hand_run(db, env) for h in habitats]
+                        runners += [h.hand_run(db, env, follow=False) for h in habitats]
                         run_ids = [r.wait_for_line(r"^READY run ", 600).split()[-1] for r in runners]
                         if kill:
                             takeover = _kill_the_busier(supervisors, run_ids, audit, arrivals)
@@ -259,7 +259,8 @@ def _row(m: Measured, delay: float) -> str:
 
 HEADER = (
     "| habitats | supervisors | runs completed | wall | ground CPU per habitat (supervisors/console/PostgreSQL) "
-    "| ground peak RSS / PSS per habitat | PostgreSQL commits / rows per s | event delay to ground db p50 / p95 / max "
+    "| ground peak RSS / PSS per habitat | PostgreSQL transactions / rows written per s "
+    "| event delay to ground db p50 / p95 / max "
     "| to the console's screen p50 / p95 / max (beyond the light time; instructions shown) | chains equal |\n"
     "|---|---|---|---|---|---|---|---|---|---|"
 )

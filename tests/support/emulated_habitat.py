@@ -56,14 +56,15 @@ class EmulatedHabitat:
         """The run's events as the habitat's onboard store holds them."""
         return onboard_chain(self.state_dir, run_id)
 
-    def hand_run(self, db: str, env: dict[str, str]) -> ManagedProcess:
+    def hand_run(self, db: str, env: dict[str, str], *, follow: bool = True) -> ManagedProcess:
         """``caretaker run`` of the IVA procedure for this habitat, autonomous, handed to the
         supervisors of ``db`` (``--onboard --via-supervisor``); bob approves the unlock (``env``
-        has his password: support/second_operator.py)."""
+        has his password: support/second_operator.py). Without ``follow`` the runner ends once the
+        habitat took the unit (``--no-follow``), as a console's handed starts do."""
         return caretaker(
             *("run", str(PROCEDURE), "--binding", str(self.binding), "--auto", "--user", "flight", "--db", db),
             *("--confirm-manual", *APPROVED_BY_BOB, "--rehearsal", f"--set=clean_filter_id={CLEAN_FILTER}"),
-            *("--onboard", "--via-supervisor"),
+            *("--onboard", "--via-supervisor", *([] if follow else ["--no-follow"])),
             env=env,
             name=f"run-{self.name}",
         )
