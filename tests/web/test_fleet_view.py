@@ -84,20 +84,18 @@ def ground(
             supervisor.stop()
 
 
-def _start_on_the_habitat(page: Page, url: str, robot: str) -> str:
+def _start_on_the_habitat(page: Page, url: str, robot: str) -> None:
+    """The operator starts ``robot``'s run on its habitat. A crowded machine may keep the habitat's
+    answer past the console's wait: the start then says its runner goes on (502, ``ended`` false),
+    and the run shows in the fleet once the habitat took it, as an operator would see it."""
     procedure = "fleet_look.xml" if robot == HOLDING else "fleet_watch.xml"
-    body = {
-        "procedure": procedure,
-        "binding": f"{robot}.yaml",
-        "mode": "autonomous",
-        "onboard": True,
-        "rehearsal": True,
-    }
+    body = {"procedure": procedure, "binding": f"{robot}.yaml", "mode": "autonomous", "onboard": True}
+    body["rehearsal"] = True  # drafts, on emulated robots that say they are simulators
     started = page.request.post(
         f"{url}/api/runs", data=body, headers={"X-CSRF-Token": page.evaluate("view.me.csrf")}, timeout=120_000
     )
-    assert started.status == 201, started.text()
-    return str(started.json()["run_id"])
+    going_on = started.status == 502 and started.json().get("ended") is False
+    assert started.status == 201 or going_on, started.text()
 
 
 def test_the_habitat_that_waits_for_an_operator_is_listed_first_and_acted_on_from_the_fleet(
@@ -110,7 +108,8 @@ def test_the_habitat_that_waits_for_an_operator_is_listed_first_and_acted_on_fro
         fleet_rows = alice.locator("#fleet-list > li")
         expect(fleet_rows).to_have_count(HABITATS)  # every habitat's robot, idle
         expect(alice.locator("#fleet-summary")).to_have_text(f"{HABITATS} robots")
-        runs = {robot: _start_on_the_habitat(alice, console.url, robot) for robot in robots}
+        for robot in robots:
+            _start_on_the_habitat(alice, console.url, robot)
 
         first = fleet_rows.first
         expect(first).to_have_attribute("data-robot", HOLDING)
@@ -119,10 +118,10 @@ def test_the_habitat_that_waits_for_an_operator_is_listed_first_and_acted_on_fro
         expect(first.locator(".meta").first).to_contain_text(f"onboard · {supervisor}")  # hosted by the supervisor
         expect(alice.locator("#fleet-summary")).to_have_text(f"{HABITATS} robots · 1 wait for an operator")
         expect(alice.locator('#fleet-list > li[data-urgency="4"]')).to_have_count(HABITATS - 1)
-        assert first.locator("a").inner_text() == runs[HOLDING]
+        run_id = first.locator("a").inner_text()
 
         first.locator("a").click()  # the fleet's row opens its run; the operator acts there
-        expect(alice.locator("#run-id")).to_have_text(runs[HOLDING])
+        expect(alice.locator("#run-id")).to_have_text(run_id)
         expect_current(instruction(alice, "1.1"))
         instruction(alice, "1.1").locator("button.done").click()  # forwarded to the supervisor, sent up
         expect_current(instruction(alice, "1.2"))
@@ -133,5 +132,5 @@ def test_the_habitat_that_waits_for_an_operator_is_listed_first_and_acted_on_fro
         expect(alice.locator("#fleet-summary")).to_have_text(f"{HABITATS} robots")
         expect(holding).to_have_class(re.compile(r"\bopen\b"))  # the run open on this page
     [habitat] = [h for h in habitats if h.name == HOLDING]
-    done = [e for e in habitat.onboard_chain(runs[HOLDING]) if e.kind == "instruction_completed"]
+    done = [e for e in habitat.onboard_chain(run_id) if e.kind == "instruction_completed"]
     assert [(e.instruction, e.actor) for e in done] == [("1.1", "alice")]  # on the habitat's own record
