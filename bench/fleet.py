@@ -8,6 +8,7 @@ supervise`` of all N bindings (two with ``--kill-at``), a console (``caretaker s
 once (``caretaker run --onboard --via-supervisor --no-follow``, as a console hands them: no runner
 follows a run), until every run has ended. Reports (bench/fleet_ground.py says how each is read):
 
+- the habitats' CPU (bridge, link, onboard: on the same two cores, what the ground competes with);
 - the ground's CPU from the handing to the last run's end and its memory (peak RSS, and PSS:
   shared pages once), per habitat, of the supervisors, the console and PostgreSQL together, and
   which part took what;
@@ -189,7 +190,8 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
                                 "supervisors": [p.proc.pid for p, _ in supervisors],
                                 "console": [console.proc.pid],
                                 "postgres": [postmaster_pid(server.data_dir)],
-                            }
+                            },
+                            beside={"habitats": [p.proc.pid for h in habitats for p in (h.bridge, h.link, h.onboard)]},
                         )
                         writes0, t0 = database_writes(owner), time.monotonic()
                         cost.start()
@@ -225,7 +227,8 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
     if problems:
         raise SystemExit("chains not equal:\n" + "\n".join(problems))
     for part, c in costs.items():
-        print(f"  {part}: CPU {c.cpu_s:.1f} s, peak RSS {c.peak_rss_mb:.0f} MB, PSS {c.peak_pss_mb:.0f} MB", flush=True)
+        memory = f", peak RSS {c.peak_rss_mb:.0f} MB, PSS {c.peak_pss_mb:.0f} MB" if part != "habitats" else ""
+        print(f"  {part}: CPU {c.cpu_s:.1f} s{memory}", flush=True)
     return Measured(
         habitats=count,
         supervisors=len(supervisors),
@@ -253,10 +256,11 @@ def _row(m: Measured, delay: float) -> str:
     db = " / ".join(f"{v:.0f}" for v in m.db_delay_ms) + (f" ({m.unannounced} without notice)" if m.unannounced else "")
     screen = " / ".join(f"{v:.0f}" for v in m.screen_delay_ms)
     beyond = " / ".join(f"{v - 1000 * delay:.0f}" for v in m.screen_delay_ms)
+    cores = sum(m.cpu_s[part] for part in ("ground", "habitats")) / m.wall_s
     kill = f"killed 1 of 2, taken over in {m.takeover_s:.1f} s" if m.takeover_s is not None else f"{m.supervisors}"
     return (
         f"| {m.habitats} | {kill} | {m.completed} of {m.habitats} | {m.wall_s:.0f} s "
-        f"| {m.cpu_s['ground'] / per:.2f} s ({parts}) "
+        f"| {m.cpu_s['ground'] / per:.2f} s ({parts}) | {m.cpu_s['habitats'] / per:.2f} s | {cores:.2f} "
         f"| {m.peak_rss_mb['ground'] / per:.0f} / {m.peak_pss_mb['ground'] / per:.0f} MB "
         f"| {m.commits_per_s:.0f} / {m.rows_per_s:.0f} | {db} ms "
         f"| {screen} ms ({beyond}; {m.screen_shown[0]} of {m.screen_shown[1]}) "
@@ -266,10 +270,11 @@ def _row(m: Measured, delay: float) -> str:
 
 HEADER = (
     "| habitats | supervisors | runs completed | wall | ground CPU per habitat (supervisors/console/PostgreSQL) "
+    "| habitat CPU per habitat | cores busy (ground + habitats) "
     "| ground peak RSS / PSS per habitat | PostgreSQL transactions / rows written per s "
     "| event delay to ground db p50 / p95 / max "
     "| to the console's screen p50 / p95 / max (beyond the light time; instructions shown) | chains equal |\n"
-    "|---|---|---|---|---|---|---|---|---|---|"
+    "|---|---|---|---|---|---|---|---|---|---|---|---|"
 )
 
 

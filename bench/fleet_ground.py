@@ -88,11 +88,13 @@ class PartCost:
 
 @dataclass
 class GroundCost:
-    """The ground's parts (name -> root pids), sampled from :meth:`start` until :meth:`stop`.
+    """The ground's parts (name -> root pids), sampled from :meth:`start` until :meth:`stop`;
+    ``beside``: parts on the same machine that are not the ground's (the habitats), CPU only.
 
     A part whose process is killed keeps the CPU it had used when last sampled."""
 
     parts: dict[str, list[int]]
+    beside: dict[str, list[int]] = field(default_factory=dict)
     costs: dict[str, PartCost] = field(default_factory=dict)
     _cpu0: dict[str, float] = field(default_factory=dict)
     _last_cpu: dict[str, float] = field(default_factory=dict)
@@ -100,7 +102,8 @@ class GroundCost:
     _sampler: threading.Thread | None = None
 
     def _cpu(self, part: str) -> float:
-        return sum(_cpu_s(pid) for root in self.parts[part] for pid in _descendants(root))
+        roots = self.parts.get(part) or self.beside[part]
+        return sum(_cpu_s(pid) for root in roots for pid in _descendants(root))
 
     def _sample(self) -> None:
         total_rss = total_pss = 0.0
@@ -111,6 +114,8 @@ class GroundCost:
             cost.peak_rss_mb, cost.peak_pss_mb = max(cost.peak_rss_mb, cost.rss_mb), max(cost.peak_pss_mb, cost.pss_mb)
             self._last_cpu[part] = max(self._last_cpu.get(part, 0.0), self._cpu(part))
             total_rss, total_pss = total_rss + cost.rss_mb, total_pss + cost.pss_mb
+        for part in self.beside:
+            self._last_cpu[part] = max(self._last_cpu.get(part, 0.0), self._cpu(part))
         whole = self.costs.setdefault("ground", PartCost())
         whole.rss_mb, whole.pss_mb = total_rss, total_pss
         whole.peak_rss_mb, whole.peak_pss_mb = max(whole.peak_rss_mb, total_rss), max(whole.peak_pss_mb, total_pss)
@@ -120,7 +125,7 @@ class GroundCost:
             self._sample()
 
     def start(self) -> None:
-        for part in self.parts:
+        for part in [*self.parts, *self.beside]:
             self.costs[part] = PartCost()
             self._cpu0[part] = self._last_cpu[part] = self._cpu(part)
         self._sample()
@@ -128,12 +133,13 @@ class GroundCost:
         self._sampler.start()
 
     def stop(self) -> dict[str, PartCost]:
-        """The parts' costs and the ground's (``"ground"``: their sums) over the span."""
+        """The parts' costs, the beside parts' (CPU only) and the ground's (``"ground"``: the
+        parts' sums) over the span."""
         self._stopped.set()
         if self._sampler is not None:
             self._sampler.join()
         self._sample()
-        for part in self.parts:
+        for part in [*self.parts, *self.beside]:
             self.costs[part].cpu_s = self._last_cpu[part] - self._cpu0[part]
         self.costs["ground"].cpu_s = sum(self.costs[part].cpu_s for part in self.parts)
         return self.costs
