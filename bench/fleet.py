@@ -24,7 +24,7 @@ more runs once a command result of one of its runs is stored: the takeover time 
 to the survivor's last ``TAKEN OVER`` line. Each measurement runs in a process of its own (each
 habitat holds one of the machine's ROS domains for the life of its process).
 
-    .venv/bin/python bench/fleet.py --habitats 1 10 25 50 [--delay 1.3] [--loss 1] [--kill-at 25]
+    .venv/bin/python bench/fleet.py [--habitats 1 10 25 50] [--delay 1.3] [--loss 1] [--kill-at 25]
 """
 
 from __future__ import annotations
@@ -305,7 +305,7 @@ def _measure_apart(count: int, args: argparse.Namespace, kill: bool) -> Measured
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument(
-        "--habitats", type=int, nargs="+", metavar="N", help="fleet sizes to measure, one after another"
+        "--habitats", type=int, nargs="+", default=[1, 10, 25, 50], metavar="N", help="fleet sizes, one after another"
     )
     parser.add_argument(
         "--delay", type=float, default=1.3, metavar="S", help="each link's one-way delay (s; Gateway: 1.3)"
@@ -313,16 +313,18 @@ def main() -> None:
     parser.add_argument(
         "--loss", type=float, default=1.0, metavar="PCT", help="each link's segment loss, each way (%%)"
     )
-    parser.add_argument("--kill-at", type=int, metavar="N", help="also N habitats with two supervisors, one SIGKILLed")
+    parser.add_argument(
+        "--kill-at", type=int, default=25, metavar="N", help="N habitats, two supervisors, one killed (0: none)"
+    )
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # a child's single measurement
     parser.add_argument("--kill", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one is not None:
         print(_RESULT + json.dumps(asdict(measure(args.one, args.delay, args.loss / 100, args.kill))), flush=True)
         return
-    sizes = [(n, False) for n in args.habitats or []] + ([(args.kill_at, True)] if args.kill_at else [])
-    if not sizes or min(n for n, _ in sizes) < 1:
-        parser.error("--habitats and --kill-at: one habitat or more, at least one of them")
+    if min(args.habitats) < 1 or args.kill_at < 0:
+        parser.error("--habitats: one habitat or more each; --kill-at: one or more, or 0 for none")
+    sizes = [(n, False) for n in args.habitats] + ([(args.kill_at, True)] if args.kill_at else [])
     if not 0 <= args.loss < 100:
         parser.error("--loss: a percentage from 0 to under 100")
     print(
