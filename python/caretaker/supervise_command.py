@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import concurrent.futures
 import os
 import signal
 import socket
 import sys
 from collections.abc import Callable, Coroutine
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -122,12 +124,12 @@ class Supervisor:
             print(f"READY supervise {self.binding} {self.endpoint.url} as {self.name}", flush=True)
             while not self._stopping.is_set():
                 handed.clear()
-                try:
-                    for handoff in self.handoffs.waiting(self.binding):
-                        if self.handoffs.take(handoff.run_id, self.name):
+                try:  # the database is read off the loop: the runs followed on it do not wait for it
+                    for handoff in await asyncio.to_thread(self.handoffs.waiting, self.binding):
+                        if await asyncio.to_thread(self.handoffs.take, handoff.run_id, self.name):
                             self._start(loop, handoff, attaching=False)
-                    for handoff in self._orphans():
-                        if self.handoffs.take_over(handoff, self.name):
+                    for handoff in await asyncio.to_thread(self._orphans):
+                        if await asyncio.to_thread(self.handoffs.take_over, handoff, self.name):
                             print(
                                 f"{handoff.run_id}: TAKEN OVER from {handoff.supervisor} ({handoff.state})", flush=True
                             )
@@ -197,7 +199,9 @@ class Supervisor:
         self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say, *, attaching: bool
     ) -> None:
         try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
-            host: TerminalHost | None = TerminalHost(self.audit, binding=unit.binding, onboard=True, name=self.name)
+            host: TerminalHost | None = await asyncio.to_thread(  # opens connections: off the loop
+                partial(TerminalHost, self.audit, binding=unit.binding, onboard=True, name=self.name)
+            )
         except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
             say(f"the onboard run is not shown on the consoles: {exc}")
             host = None
@@ -237,9 +241,16 @@ class Supervisor:
         self.handoffs.uplinked(run_id)
 
 
+#: Threads that store followed runs' events at once (one pooled database connection each).
+STORE_THREADS = 15
+
+
 async def serve_all(supervisors: list[Supervisor]) -> int:
     """Serve several bindings' supervisors in one process until SIGTERM or Ctrl-C stops them all."""
     loop = asyncio.get_running_loop()
+    # the runs' events are stored off the loop, each store waiting for its commit: as many at once as
+    # the audit log's connection pool holds (5 + 10 overflow), not the default executor's cores + 4
+    loop.set_default_executor(concurrent.futures.ThreadPoolExecutor(STORE_THREADS, thread_name_prefix="store"))
 
     def stop_all() -> None:
         for supervisor in supervisors:

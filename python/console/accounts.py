@@ -19,6 +19,7 @@ change NOTIFYs every console (:mod:`ground.change_feed`), which ends that user's
 from __future__ import annotations
 
 import enum
+import functools
 import logging
 import re
 from dataclasses import dataclass
@@ -142,8 +143,13 @@ class AccountStore:
         # SQLite each change takes the write lock first and waits its turn; PostgreSQL ignores it.
         self._changes = self._engine.execution_options(sqlite_begin="BEGIN IMMEDIATE")
         self._hasher = PasswordHasher()
-        # verified against when the user id is unknown, so a wrong user id costs as much time as a wrong password
-        self._decoy = self._hasher.hash("not a password of anyone")
+
+    @functools.cached_property
+    def _decoy(self) -> str:
+        """Verified against when the user id is unknown, so a wrong user id costs as much time as a wrong
+        password. Made at the first such sign-in, not at every opening: a hash costs as much as a check,
+        and a supervisor opens the accounts for each run it follows."""
+        return self._hasher.hash("not a password of anyone")
 
     @property
     def engine(self) -> Engine:

@@ -498,7 +498,8 @@ class OnboardSupervisor:
                 if silent:
                     self._say(f"  the habitat answers again; catching up from event {downlink.head_seq + 1}")
                     silent = False
-                for event in downlink.take(answer.events):
+                # off the loop: a supervisor follows many runs on it, and each store waits for its commit
+                for event in await asyncio.to_thread(downlink.take, answer.events):
                     self._on_event(event)
                 waiting = str(values.get("waiting", ""))
                 caught_up = isinstance(head, int) and downlink.head_seq >= head
