@@ -32,7 +32,7 @@ from support.web_server import PEOPLE, new_ground_database
 
 from .flight_support import RUN_TIMEOUT_S, result_of
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70), pytest.mark.timeout(600)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70), pytest.mark.timeout(1200)]
 
 #: One-way delays of the three habitats' links (s): each its own.
 DELAYS = (0.1, 0.3, 0.6)

@@ -26,7 +26,7 @@ from support.operator_page import expect_current, instruction, sign_in_on
 from support.postgres import PostgresServer
 from support.web_server import WebServer, new_ground_database, start_server
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=90), pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=300), pytest.mark.timeout(1800)]
 
 HABITATS = 10
 HOLDING = "iva-hab07"
