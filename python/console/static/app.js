@@ -71,24 +71,6 @@ async function act(action, extra = {}) {
 }
 
 // ---- sign-in ---------------------------------------------------------------------------------
-// What the server cannot push (it comes from other processes: agents' proposals, the fleet), read now and then
-// every `ms` while someone is signed in: GET `path`, drawn by `show`, a failure said in `#${name}-error`.
-function poller(name, path, ms, show) {
-  let timer = null;
-  async function read() {
-    clearTimeout(timer);
-    if (!view.me) return;
-    try {
-      show(await api("GET", path));
-      $(`${name}-error`).textContent = "";
-    } catch (error) {
-      $(`${name}-error`).textContent = `${name}: ${error.message}`;
-    }
-    if (view.me) timer = setTimeout(read, ms);
-  }
-  return read;
-}
-
 async function loadSession() {
   try {
     view.me = await api("GET", "/api/session");

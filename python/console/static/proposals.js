@@ -9,7 +9,18 @@ const PROPOSALS_POLL_MS = 3000;  // proposals come from agents' processes, which
 const PROPOSAL_STATE_WORDS = {open: "waits for an operator", accepted: "accepted", declined: "declined",
   withdrawn: "withdrawn by its agent", expired: "expired unanswered"};
 
-const loadProposals = poller("proposals", "/api/proposals", PROPOSALS_POLL_MS, ({proposals}) => showProposals(proposals));
+async function loadProposals() {
+  clearTimeout(view.proposalsTimer);
+  if (!view.me) return;
+  try {
+    const {proposals} = await api("GET", "/api/proposals");
+    showProposals(proposals);
+    $("proposals-error").textContent = "";
+  } catch (error) {
+    $("proposals-error").textContent = `proposals: ${error.message}`;
+  }
+  if (view.me) view.proposalsTimer = setTimeout(loadProposals, PROPOSALS_POLL_MS);
+}
 
 function showProposals(proposals) {
   $("proposals-panel").hidden = proposals.length === 0;
