@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import signal
 import statistics
 import subprocess
@@ -53,7 +52,7 @@ from ground.change_feed import ChangeNotice, open_change_feed  # noqa: E402
 from pride.approvals import APPROVER_PASSWORD_ENV  # noqa: E402
 from records.audit_log import AuditLog  # noqa: E402
 from records.onboard_handoffs import OnboardHandoffs  # noqa: E402
-from support.emulated_habitat import EmulatedHabitat, fleet, supervise  # noqa: E402
+from support.emulated_habitat import EmulatedHabitat, fleet, kill_the_busier, supervise  # noqa: E402
 from support.postgres import OWNER, RUNNER, postgres_server  # noqa: E402
 from support.processes import ManagedProcess, caretaker  # noqa: E402
 from support.web_server import PEOPLE, add_people  # noqa: E402
@@ -136,32 +135,6 @@ def _console(db: str, habitats: list[EmulatedHabitat], folder: Path, env: dict[s
     return process, process.wait_ready(180).split()[-1]
 
 
-def _kill_the_busier(
-    supervisors: list[tuple[ManagedProcess, str]], runs: list[str], audit: AuditLog, arrivals: Arrivals
-) -> float:
-    """SIGKILL the supervisor holding more of ``runs`` once a command result of one of them is
-    stored; the seconds from the kill to the survivor's ``TAKEN OVER`` of the last of them."""
-    handoffs = OnboardHandoffs(audit.engine)
-    named = {name: process for process, name in supervisors}
-    held: dict[str, list[str]] = {name: [] for name in named}
-    for run_id in runs:
-        handoff = handoffs.get(run_id)
-        if handoff is None or handoff.supervisor not in held:
-            raise SystemExit(f"{run_id}: not taken by a supervisor of this bench: {handoff}")
-        held[handoff.supervisor].append(run_id)
-    victim = max(held, key=lambda name: len(held[name]))
-    survivor = next(name for name in named if name != victim)
-    arrivals.wait_for(
-        lambda: any((r, "command_result") in arrivals.kinds for r in held[victim]), "a command result of its runs"
-    )
-    killed = time.monotonic()
-    named[victim].kill()
-    for run_id in held[victim]:
-        named[survivor].wait_for_line(rf"^{run_id}: TAKEN OVER from {re.escape(victim)} ", TAKEOVER_TIMEOUT_S)
-    print(f"  killed {victim} holding {len(held[victim])} of {len(runs)} runs; {survivor} took them over")
-    return time.monotonic() - killed
-
-
 def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
     """One fleet of ``count`` habitats, each link ``delay`` s one way losing the share ``loss``."""
     with tempfile.TemporaryDirectory(prefix="caretaker-fleet-") as scratch, postgres_server() as server:
@@ -198,7 +171,21 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
                         runners += [h.hand_run(db, env, follow=False) for h in habitats]
                         run_ids = [r.wait_for_line(r"^READY run ", 600).split()[-1] for r in runners]
                         if kill:
-                            takeover = _kill_the_busier(supervisors, run_ids, audit, arrivals)
+                            killed = kill_the_busier(
+                                supervisors,
+                                run_ids,
+                                OnboardHandoffs(audit.engine),
+                                lambda runs: arrivals.wait_for(
+                                    lambda: any((r, "command_result") in arrivals.kinds for r in runs),
+                                    "a command result of its runs",
+                                ),
+                                within=TAKEOVER_TIMEOUT_S,
+                            )
+                            print(
+                                f"  killed {killed.victim} holding {len(killed.held[killed.victim])} of "
+                                f"{len(run_ids)} runs; {killed.survivor} took them over"
+                            )
+                            takeover = killed.seconds
                         arrivals.wait_for(lambda: arrivals.ended >= set(run_ids), "every run ended")
                         costs, wall = cost.stop(), time.monotonic() - t0
                         time.sleep(1.5)  # pg_stat_database: backends report their counts within a second

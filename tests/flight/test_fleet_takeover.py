@@ -12,7 +12,6 @@ completes, and every ground chain ends equal to its habitat's, hash for hash, no
 
 from __future__ import annotations
 
-import re
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,7 +24,7 @@ from pride.approvals import APPROVER_PASSWORD_ENV
 from records.audit_chain import verify_chain
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
-from support.emulated_habitat import EmulatedHabitat, fleet, supervise
+from support.emulated_habitat import EmulatedHabitat, fleet, kill_the_busier, supervise
 from support.postgres import PostgresServer
 from support.recorded_run import command_durations, recorded_events
 from support.web_server import PEOPLE, new_ground_database
@@ -95,19 +94,15 @@ def test_a_killed_supervisors_runs_are_taken_over_and_every_ground_chain_ends_eq
         named = {name: process for process, name in supervisors}
         runners += [h.hand_run(ground_db, env) for h in habitats]
         run_ids = [runner.wait_for_line(r"^READY run ", 180).split()[-1] for runner in runners]
-        held: dict[str, list[str]] = {name: [] for name in named}
-        for run_id in run_ids:
-            handoff = handoffs.get(run_id)
-            assert handoff is not None and handoff.supervisor in held, handoff
-            held[handoff.supervisor].append(run_id)
-        victim = max(held, key=lambda name: len(held[name]))  # two of three runs, or all three
-        survivor = next(name for name in named if name != victim)
         # mid-run: a command's result of one of its runs has reached the ground
-        notices.wait_for("events", "command_result", held[victim], every=False, timeout=RUN_TIMEOUT_S)
-        named[victim].kill()
-
-        for run_id in held[victim]:
-            named[survivor].wait_for_line(rf"^{run_id}: TAKEN OVER from {re.escape(victim)} ", 120)
+        takeover = kill_the_busier(  # two of three runs, or all three
+            supervisors,
+            run_ids,
+            handoffs,
+            lambda runs: notices.wait_for("events", "command_result", runs, every=False, timeout=RUN_TIMEOUT_S),
+            within=120,
+        )
+        survivor, held = takeover.survivor, takeover.held[takeover.victim]
         notices.wait_for("handoffs", "ended", run_ids, every=True, timeout=RUN_TIMEOUT_S)
         for run_id in run_ids:
             handoff = handoffs.get(run_id)
@@ -128,7 +123,7 @@ def test_a_killed_supervisors_runs_are_taken_over_and_every_ground_chain_ends_eq
             )
             assert len(motions) == len(recorded) and all(m >= r for m, r in zip(motions, recorded, strict=True))
             # a runner whose supervisor died says the run goes on without it, unless it saw the takeover first
-            ended = {"detached", "completed"} if run_id in held[victim] else {"completed"}
+            ended = {"detached", "completed"} if run_id in held else {"completed"}
             assert result_of(runner)[1] in ended, runner.tail()
     finally:
         for process in runners + [process for process, _ in supervisors]:

@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import contextlib
 import re
-from collections.abc import Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,12 +30,13 @@ from caretaker.certs import make_link_credentials
 from caretaker.processes import REPO, ManagedProcess, caretaker
 from flight.flight_support import CLEAN_FILTER, PROCEDURE, onboard_chain, write_ground_binding
 from records.audit_chain import StoredEvent
+from records.onboard_handoffs import OnboardHandoffs
 from support.recorded_run import IVA_RUN
 from support.ros_domain import claim_ros_domain
 from support.second_operator import APPROVED_BY_BOB
 from support.stack import write_deployment
 
-__all__ = ["EmulatedHabitat", "emulated_habitat", "fleet", "supervise"]
+__all__ = ["EmulatedHabitat", "Takeover", "emulated_habitat", "fleet", "kill_the_busier", "supervise"]
 
 HOST = "127.0.0.1"
 #: How long a part may take to say READY (a bridge loads rclpy; ten habitats start on two cores).
@@ -162,3 +164,46 @@ def supervise(
     for h in habitats:
         ready = process.wait_for_line(rf"^READY supervise {re.escape(h.binding.name)} ", READY_S)
     return process, ready.split(" as ", 1)[1]
+
+
+@dataclass(frozen=True)
+class Takeover:
+    """A supervisor killed and the other taking its runs over: who, which runs, and how long it took (s)."""
+
+    victim: str
+    survivor: str
+    held: dict[str, list[str]]  # supervisor -> the runs it held when the kill came
+    seconds: float
+
+
+def kill_the_busier(
+    supervisors: Sequence[tuple[ManagedProcess, str]],
+    run_ids: Sequence[str],
+    handoffs: OnboardHandoffs,
+    mid_run: Callable[[list[str]], None],
+    *,
+    within: float,
+) -> Takeover:
+    """SIGKILL whichever of two supervisors holds more of ``run_ids``, once ``mid_run(its runs)``
+    returns (it waits until they are under way), and wait up to ``within`` s for the other's
+    ``TAKEN OVER`` of each of them.
+
+    Raises:
+        ValueError: a run was not taken by one of ``supervisors``.
+        ProcessFailed: the survivor did not take a run over in time.
+    """
+    named = {name: process for process, name in supervisors}
+    held: dict[str, list[str]] = {name: [] for name in named}
+    for run_id in run_ids:
+        handoff = handoffs.get(run_id)
+        if handoff is None or handoff.supervisor not in held:
+            raise ValueError(f"{run_id}: not taken by one of {sorted(named)}: {handoff}")
+        held[handoff.supervisor].append(run_id)
+    victim = max(held, key=lambda name: len(held[name]))
+    survivor = next(name for name in named if name != victim)
+    mid_run(held[victim])
+    killed = time.monotonic()
+    named[victim].kill()
+    for run_id in held[victim]:
+        named[survivor].wait_for_line(rf"^{run_id}: TAKEN OVER from {re.escape(victim)} ", within)
+    return Takeover(victim, survivor, held, time.monotonic() - killed)
