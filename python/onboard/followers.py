@@ -57,6 +57,7 @@ class Followers:
                 waiting.remove(following)
                 if not waiting:
                     del self._waiting[run_id]
+            self._wake()  # one behind it may have left to it what was new
 
     def take(
         self,
@@ -69,11 +70,16 @@ class Followers:
     ) -> tuple[list[StoredEvent], int] | None:
         """What to answer ``following`` with now, marked as carried: (events, the habitat's head);
         None while it waits on. ``read(n)`` reads the run's stored events above n; ``ended``: the
-        run is over; ``due``: the request's wait is over."""
+        run is over; ``due``: the request's wait is over. What is new goes to the oldest request
+        waiting: it was there first, so the run's end goes down in answer to one that was waiting
+        when it happened, whichever request's thread the habitat runs first."""
         with self._lock:
             floor = max(following.after_seq, self._sent.get(following.run_id, 0))
             fresh = read(floor)
-            alone = self._waiting[following.run_id][-1] is following
+            waiting = self._waiting[following.run_id]
+            if fresh and waiting[0] is not following and not due:
+                return None
+            alone = waiting[-1] is following
             if not (ended or due or (fresh and (not alone or len(fresh) > limit))):
                 return None
             sent = fresh[:limit]

@@ -10,12 +10,15 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from onboard.followers import Followers
 from onboard.habitat_runs import EventsAnswer, HabitatRuns
 from onboard.unit import OperatorAction, Unit
 from procedure_language.sysrep import SysRep
+from records.audit_chain import StoredEvent
 from support.lab_gateway import LabGateway
 
 from .test_habitat_runs import SECRET, act, habitat, make_unit, sysreps, uplink
@@ -103,3 +106,27 @@ def test_a_request_for_events_while_a_unit_starts_waits_for_its_run_and_not_for_
     finally:
         started.set()
         runs.close()
+
+
+def test_what_is_new_goes_to_the_oldest_request_waiting_whichever_thread_asks_first() -> None:
+    """Under load the habitat may run a newer request's thread before an older one's: the run's end
+    must still go down in answer to the request that was there when it happened."""
+    wakes: list[None] = []
+    followers = Followers(lambda: wakes.append(None))
+    now = datetime.now(UTC)
+    stored = [
+        StoredEvent("r", seq, now, "pax", "run_completed" if seq == 3 else "step", None, "{}", "") for seq in (1, 2, 3)
+    ]
+
+    def read(after: int) -> list[StoredEvent]:
+        return [e for e in stored if e.seq > after]
+
+    with followers.waiting("r", 0) as older:
+        with followers.waiting("r", 0) as newer:
+            assert followers.take(newer, read, ended=True, due=False, limit=10) is None
+            taken = followers.take(older, read, ended=True, due=False, limit=10)
+            assert taken is not None and [e.seq for e in taken[0]] == [1, 2, 3]
+        woken = len(wakes)
+    assert woken == 3  # two came, and the newer one's leaving wakes whoever waits behind
+    with followers.waiting("r", 0) as last:  # what the older carried does not go down again
+        assert followers.take(last, read, ended=True, due=False, limit=10) == ([], 3)
