@@ -44,6 +44,7 @@ from sqlalchemy.exc import SQLAlchemyError
 
 from caretaker.command_options import load_sysreps, sysrep_option
 from caretaker.onboard_hosting import OnboardHosting, unit_checked
+from console.accounts import AccountStore
 from console.catalog import rosbridge_for, rosbridge_overrides
 from console.terminal_host import HostedElsewhere, TerminalHost
 from datafile import DataFileError
@@ -79,7 +80,9 @@ class Supervisor:
         client: RosbridgeClient | None = None,
         *,
         lease: float = DEFAULT_LEASE_S,
+        accounts: AccountStore | None = None,
     ) -> None:
+        self.accounts = accounts  # the process's, shared by the runs it hosts (checked at each forwarded action)
         self.endpoint = endpoint
         self.lease = lease  # how long a run's host lease lasts unrenewed: a supervisor gone after it
         self.binding = binding
@@ -200,7 +203,9 @@ class Supervisor:
     ) -> None:
         try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
             host: TerminalHost | None = await asyncio.to_thread(  # opens connections: off the loop
-                partial(TerminalHost, self.audit, binding=unit.binding, onboard=True, name=self.name)
+                partial(
+                    TerminalHost, self.audit, binding=unit.binding, onboard=True, name=self.name, accounts=self.accounts
+                )
             )
         except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
             say(f"the onboard run is not shown on the consoles: {exc}")
@@ -332,9 +337,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"caretaker supervise: {exc}", file=sys.stderr)
         return 2
     try:
+        accounts = AccountStore(audit.url)
+    except (AuditSchemaError, SQLAlchemyError) as exc:
+        audit.close()
+        print(f"caretaker supervise: {exc}", file=sys.stderr)
+        return 2
+    try:
         supervisors = [
-            Supervisor(endpoint, name, audit, sysreps) for endpoint, name in zip(endpoints, names, strict=True)
+            Supervisor(endpoint, name, audit, sysreps, accounts=accounts)
+            for endpoint, name in zip(endpoints, names, strict=True)
         ]
         return asyncio.run(serve_all(supervisors))
     finally:
+        accounts.close()
         audit.close()

@@ -59,13 +59,16 @@ class TerminalHost:
         name: str | None = None,
         onboard: bool = False,
         operator: str | None = None,
+        accounts: AccountStore | None = None,
     ) -> None:
         """``name``: how consoles name this runner (default ``runner HOST pid PID``, and ``for
         OPERATOR`` with an ``operator``, who answers at it: a refused attach names them); ``onboard``:
-        it will host an onboard run, whose actions each wait for the habitat's answer side by side."""
+        it will host an onboard run, whose actions each wait for the habitat's answer side by side;
+        ``accounts``: the process's accounts, shared by the runs it hosts (else its own, closed with it)."""
         self.binding = binding
         self._audit_log = audit_log
-        self._accounts = AccountStore(audit_log.url)
+        self._own_accounts = accounts is None
+        self._accounts = accounts or AccountStore(audit_log.url)
         whose = f" for {operator}" if operator else ""
         self.hosting = RunHosting(
             audit_log.engine, host=name or f"runner {socket.gethostname()} pid {os.getpid()}{whose}", lease=lease
@@ -175,4 +178,5 @@ class TerminalHost:
                 log.exception("ending the lease of run %s", onboard[0].run_id)
         else:
             self._release()
-        self._accounts.close()
+        if self._own_accounts:
+            self._accounts.close()

@@ -20,9 +20,11 @@ resync      ``""``                            the feed lost the database and is 
                                               have been missed, so re-read what you show
 =========== ================================= =================================================
 
-PostgreSQL: one connection per process LISTENs; NOTIFY is delivered at commit, so what a notice
-names is readable when it arrives. SQLite (one machine, no NOTIFY): a thread reads the file every
-:data:`POLL_S` seconds and makes the same notices from what changed since its last reading.
+PostgreSQL: one connection per process and database LISTENs, for every user of the feed in the
+process (:func:`open_change_feed`: a supervisor's every run, a console's board); NOTIFY is
+delivered at commit, so what a notice names is readable when it arrives. SQLite (one machine, no
+NOTIFY): a thread reads the file every :data:`POLL_S` seconds and makes the same notices from
+what changed since its last reading.
 """
 
 from __future__ import annotations
@@ -73,8 +75,40 @@ class ChangeNotice:
 Subscriber = Callable[[ChangeNotice], None]
 
 
-class ChangeFeed(ABC):
-    """Notices to subscribers, from a thread of the feed's own. Subscribers must return quickly.
+class ChangeFeed:
+    """One user's subscription to its process's watcher of a database (:func:`open_change_feed`).
+
+    Every notice goes to its subscribers, from the watcher's thread: they must return quickly.
+    :meth:`close` ends this subscription; the last one closed stops the watcher.
+    """
+
+    def __init__(self, watcher: _Watcher) -> None:
+        self._watcher = watcher
+        self._subscribers: list[Subscriber] = []
+        self._closed = False
+
+    @property
+    def connected(self) -> threading.Event:
+        """Set while the watcher reaches the database."""
+        return self._watcher.connected
+
+    def subscribe(self, subscriber: Subscriber) -> None:
+        if self._closed:
+            raise RuntimeError("this change feed is closed")
+        self._subscribers.append(subscriber)
+        self._watcher.subscribe(subscriber)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        for subscriber in self._subscribers:
+            self._watcher.unsubscribe(subscriber)
+        _release(self._watcher)
+
+
+class _Watcher(ABC):
+    """Watches one database from a thread of its own and hands each notice to every subscriber.
 
     A subclass's :meth:`_run` is that thread: it watches the database until ``_closed`` is set.
     """
@@ -85,8 +119,9 @@ class ChangeFeed(ABC):
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self.connected = threading.Event()  # set while the feed reaches the database
+        self.users = 0  # open ChangeFeeds on it (under _feeds_lock)
 
-    def start(self) -> ChangeFeed:
+    def start(self) -> _Watcher:
         self._thread.start()
         return self
 
@@ -94,9 +129,13 @@ class ChangeFeed(ABC):
         with self._lock:
             self._subscribers.append(subscriber)
 
+    def unsubscribe(self, subscriber: Subscriber) -> None:
+        with self._lock:
+            self._subscribers.remove(subscriber)
+
     def close(self) -> None:
         self._closed.set()
-        if self._thread.is_alive():
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
             self._thread.join(5)
 
     def _publish(self, notice: ChangeNotice) -> None:
@@ -113,7 +152,7 @@ class ChangeFeed(ABC):
         """Watch the database and :meth:`_publish` what changed, until ``_closed`` is set."""
 
 
-class ListeningFeed(ChangeFeed):
+class ListeningFeed(_Watcher):
     """PostgreSQL: LISTEN on every channel; reconnect with back-off, then say ``resync``."""
 
     def __init__(self, engine: Engine) -> None:
@@ -151,7 +190,7 @@ class ListeningFeed(ChangeFeed):
                 delay = min(delay * 2, _LONGEST_RETRY)
 
 
-class PollingFeed(ChangeFeed):
+class PollingFeed(_Watcher):
     """SQLite: read what changed every :data:`POLL_S` s and publish the notices NOTIFY would have sent."""
 
     def __init__(self, engine: Engine) -> None:
@@ -227,7 +266,36 @@ def _changed(before: dict[Any, Any], after: dict[Any, Any]) -> list[Any]:
     return [key for key in {*before, *after} if before.get(key) != after.get(key)]
 
 
+#: The watchers of this process, by database: one connection LISTENs (or one thread polls) for all
+#: the process's users of a database, however many runs it hosts (a supervisor: one per run).
+_feeds: dict[str, _Watcher] = {}
+_feeds_lock = threading.Lock()
+
+
+def _key(engine: Engine) -> str:
+    url = engine.url.render_as_string(hide_password=False)
+    in_memory = engine.dialect.name == "sqlite" and engine.url.database in (None, "", ":memory:")
+    return f"{url}#{id(engine)}" if in_memory else url  # each in-memory database is its engine's own
+
+
 def open_change_feed(engine: Engine) -> ChangeFeed:
-    """The started feed for the database behind ``engine`` (LISTEN on PostgreSQL, polling on SQLite)."""
-    feed: ChangeFeed = ListeningFeed(engine) if engine.dialect.name == "postgresql" else PollingFeed(engine)
-    return feed.start()
+    """A subscription to the process's watcher of the database behind ``engine`` (LISTEN on
+    PostgreSQL, polling on SQLite), started by the first and stopped by the last to close."""
+    with _feeds_lock:
+        watcher = _feeds.get(_key(engine))
+        if watcher is None:
+            watcher = ListeningFeed(engine) if engine.dialect.name == "postgresql" else PollingFeed(engine)
+            _feeds[_key(engine)] = watcher.start()
+        watcher.users += 1
+    return ChangeFeed(watcher)
+
+
+def _release(watcher: _Watcher) -> None:
+    with _feeds_lock:
+        watcher.users -= 1
+        if watcher.users:
+            return
+        for key, known in list(_feeds.items()):
+            if known is watcher:
+                del _feeds[key]
+    watcher.close()
