@@ -11,7 +11,6 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -20,7 +19,6 @@ from ground.change_feed import ChangeNotice, open_change_feed
 from onboard.downlink import ActionTiming
 from records.audit_log import AuditLog
 from rosbridge_wire.light_time import LightTime
-from support.web_server import GroundDatabase, new_ground_database
 
 
 def test_an_actions_answer_is_due_a_round_trip_and_its_work_after_it_was_sent() -> None:
@@ -28,15 +26,6 @@ def test_an_actions_answer_is_due_a_round_trip_and_its_work_after_it_was_sent() 
     assert mars == ActionTiming(sent=1000.0, expected_at=2210.0, expires_at=2260.0, gives_up_at=3470.0)
     moon = ActionTiming.of(LightTime(1.3), sent=0.0)
     assert (moon.expected_at, moon.expires_at) == pytest.approx((12.6, 62.6))
-
-
-@pytest.fixture(params=["sqlite", "postgresql"])
-def audit(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[AuditLog]:
-    postgres = request.getfixturevalue("postgres") if request.param == "postgresql" else None
-    database: GroundDatabase = new_ground_database(request.param, tmp_path, postgres)
-    log = AuditLog(database.url)
-    yield log
-    log.close()
 
 
 class FarHost:

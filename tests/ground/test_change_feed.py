@@ -8,25 +8,12 @@ Real databases: a SQLite file and the session's PostgreSQL.
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterator
-from pathlib import Path
 
-import pytest
 import sqlalchemy as sa
 
 from ground.change_feed import ChangeNotice, open_change_feed
 from records.audit_log import AuditLog
 from records.onboard_handoffs import OnboardHandoffs
-from support.web_server import GroundDatabase, new_ground_database
-
-
-@pytest.fixture(params=["sqlite", "postgresql"])
-def audit(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[AuditLog]:
-    postgres = request.getfixturevalue("postgres") if request.param == "postgresql" else None
-    database: GroundDatabase = new_ground_database(request.param, tmp_path, postgres)
-    log = AuditLog(database.url)
-    yield log
-    log.close()
 
 
 def _listeners(audit: AuditLog) -> int:
