@@ -43,7 +43,11 @@ def _descendants(pid: int) -> list[int]:
     while queue:
         current = queue.pop()
         found.append(current)
-        for task in Path(f"/proc/{current}/task").glob("*/children"):
+        try:
+            tasks = list(Path(f"/proc/{current}/task").glob("*/children"))
+        except FileNotFoundError:  # the process ended while we looked
+            continue
+        for task in tasks:
             try:
                 queue += [int(child) for child in task.read_text().split()]
             except FileNotFoundError:  # the thread ended while we looked

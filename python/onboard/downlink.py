@@ -105,23 +105,31 @@ class Downlink:
         self.head_seq, self.head_hash = (stored[-1].seq, stored[-1].hash) if stored else (0, GENESIS)
 
     def take(self, items: Sequence[Any]) -> list[Event]:
-        """Store what follows the ground's head; return the events newly stored.
+        """Store what follows the ground's head, in one transaction; return the events newly stored.
 
         Events the ground has are passed over; one after a gap ends the batch (the next request
         asks from the head again).
 
         Raises:
-            DownlinkError: an event does not link to the ground's head, or its hash is not its contents'.
+            DownlinkError: an event cannot be read, does not link to the ground's head, or its hash
+                is not its contents' (those before it are stored).
         """
-        stored: list[Event] = []
+        batch: list[Event] = []
+        head_seq, head_hash = self.head_seq, self.head_hash
+        problem: DownlinkError | None = None
         for item in items:
-            event, data, prev_hash, hash_ = _event(item, self.run_id)
-            if event.seq <= self.head_seq:
-                continue
-            if event.seq != self.head_seq + 1:
+            try:
+                event, data, prev_hash, hash_ = _event(item, self.run_id)
+            except DownlinkError as exc:
+                problem = exc
                 break
-            if prev_hash != self.head_hash:
-                raise DownlinkError(f"event {event.seq} does not link to event {self.head_seq} as the ground has it")
+            if event.seq <= head_seq:
+                continue
+            if event.seq != head_seq + 1:
+                break
+            if prev_hash != head_hash:
+                problem = DownlinkError(f"event {event.seq} does not link to event {head_seq} as the ground has it")
+                break
             expected = link_hash(
                 prev_hash,
                 run_id=event.run_id,
@@ -133,11 +141,15 @@ class Downlink:
                 data=data,
             )
             if expected != hash_:
-                raise DownlinkError(f"event {event.seq}'s contents do not match its hash: not stored")
-            self.audit.append(event)
-            self.head_seq, self.head_hash = event.seq, hash_
-            stored.append(event)
-        return stored
+                problem = DownlinkError(f"event {event.seq}'s contents do not match its hash: not stored")
+                break
+            batch.append(event)
+            head_seq, head_hash = event.seq, hash_
+        self.audit.append_all(batch)
+        self.head_seq, self.head_hash = head_seq, head_hash
+        if problem is not None:
+            raise problem
+        return batch
 
 
 def build_unit(

@@ -156,6 +156,26 @@ def test_a_sequence_number_is_never_written_twice_nor_skipped(database: AuditDat
     other.close()
 
 
+def test_events_appended_together_are_stored_all_in_one_transaction_or_none(database: AuditDatabase) -> None:
+    """A downlinked answer's events go in with one commit: all of them, chained, or none at all."""
+    log = AuditLog(database.url)
+    log.append_all([Event("run-a", seq, EventKind.PAUSED, "hab") for seq in (1, 2, 3)])
+    assert [e.seq for e in log.events("run-a")] == [1, 2, 3] and log.verify("run-a").ok
+    database.tamper(  # event 5 is there already: the batch of 4 and 5 fails on its second event
+        "INSERT INTO audit_records (run_id, seq, time, actor, kind, instruction, data, prev_hash, hash) "
+        "VALUES ('run-a', 5, '2030-01-01 00:00:00', 'mallory', 'paused', NULL, '{}', 'x', 'y')"
+    )
+    with pytest.raises(IntegrityError):
+        log.append_all([Event("run-a", 4, EventKind.PAUSED, "hab"), Event("run-a", 5, EventKind.PAUSED, "hab")])
+    assert [(e.seq, e.actor) for e in log.events("run-a")] == [(1, "hab"), (2, "hab"), (3, "hab"), (5, "mallory")]
+    with pytest.raises(AuditSequenceError, match="event 6 is not the next event \\(expected 5\\)"):
+        log.append_all([Event("run-a", 4, EventKind.PAUSED, "hab"), Event("run-a", 6, EventKind.PAUSED, "hab")])
+    with pytest.raises(ValueError, match="one run"):
+        log.append_all([Event("run-b", 1, EventKind.RUN_STARTED, "hab"), Event("run-a", 4, EventKind.PAUSED, "hab")])
+    assert [e.seq for e in log.events("run-a")] == [1, 2, 3, 5] and log.events("run-b") == []
+    log.close()
+
+
 def test_records_survive_a_new_connection_and_the_chain_goes_on(database: AuditDatabase) -> None:
     first = AuditLog(database.url)
     first.append(Event("run-a", 1, EventKind.RUN_STARTED, "alice"))
