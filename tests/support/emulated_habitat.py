@@ -19,6 +19,7 @@ other's calls).
 
 from __future__ import annotations
 
+import concurrent.futures
 import contextlib
 import re
 import time
@@ -140,17 +141,33 @@ def emulated_habitat(
             process.stop()
 
 
+#: Habitats started at once: each start waits on its processes' READY lines one after another.
+_STARTING_AT_ONCE = 4
+
+
 @contextlib.contextmanager
 def fleet(
     folder: Path, env: dict[str, str], delays: Sequence[float], *, loss: float = 0.0, pace: Path | None = IVA_RUN
 ) -> Iterator[list[EmulatedHabitat]]:
     """One emulated habitat per one-way delay in ``delays``, named ``iva-hab01``, ``iva-hab02``...,
-    each link losing the share ``loss`` of its segments."""
+    each link losing the share ``loss`` of its segments; started a few at once, and every one
+    that started stopped when the block is left (also when another failed to start)."""
+    starts = [
+        emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, loss=loss, pace=pace)
+        for n, delay in enumerate(delays, 1)
+    ]
     with contextlib.ExitStack() as stack:
-        yield [
-            stack.enter_context(emulated_habitat(f"iva-hab{n:02d}", folder, env, delay=delay, loss=loss, pace=pace))
-            for n, delay in enumerate(delays, 1)
-        ]
+        # left last: a process dies with the thread that started it (PR_SET_PDEATHSIG, caretaker.processes)
+        pool = stack.enter_context(concurrent.futures.ThreadPoolExecutor(_STARTING_AT_ONCE, "habitat-start"))
+        entering = [pool.submit(start.__enter__) for start in starts]
+        concurrent.futures.wait(entering)
+        for start, entered in zip(starts, entering, strict=True):
+            if entered.exception() is None:
+                stack.push(start.__exit__)
+        failed = [error for entered in entering if (error := entered.exception()) is not None]
+        if failed:
+            raise failed[0]
+        yield [entered.result() for entered in entering]
 
 
 def supervise(
