@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import concurrent.futures
+import contextlib
 import os
 import signal
 import socket
@@ -82,6 +83,7 @@ class Supervisor:
         lease: float = DEFAULT_LEASE_S,
         accounts: AccountStore | None = None,
     ) -> None:
+        self.setups: asyncio.Semaphore | None = None  # runs set up at once (_setting_up)
         self.accounts = accounts  # the process's, shared by the runs it hosts (checked at each forwarded action)
         self.endpoint = endpoint
         self.lease = lease  # how long a run's host lease lasts unrenewed: a supervisor gone after it
@@ -182,7 +184,10 @@ class Supervisor:
 
     async def _supervise(self, handoff: Handoff, *, attaching: bool) -> None:
         """Uplink one handed unit on the open session (``attaching``: catch up with the run it
-        started, taken over) and follow its run until it ends or supervision stops."""
+        started, taken over) and follow its run until it ends or supervision stops.
+
+        What blocks (linting the unit, the database, opening the run's host) goes to a thread: the
+        loop follows every other run meanwhile, and fifty runs handed at once are fifty lints."""
         run_id = handoff.run_id
 
         def say(line: str) -> None:
@@ -191,71 +196,109 @@ class Supervisor:
         say(f"TAKEN from {handoff.handed_by}")
         try:
             unit = Unit.from_json(handoff.unit_json)
-            with unit_checked(unit, self.sysreps) as checked:
+            with contextlib.ExitStack() as stack:
+                async with self._setting_up():
+                    checked = await asyncio.to_thread(stack.enter_context, unit_checked(unit, self.sysreps))
                 await self._follow(unit, checked, handoff, say, attaching=attaching)
         except (UnitError, ProcedureError, SysRepError) as exc:
-            self._end(Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}"), say)
+            await self._end(Supervision("refused", run_id, f"the handed unit cannot be supervised here: {exc}"), say)
         except DownlinkError as exc:
-            self._end(Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}"), say)
+            await self._end(Supervision("unknown", run_id, f"the onboard run's record cannot be kept: {exc}"), say)
 
     async def _follow(
         self, unit: Unit, checked: CheckedProcedure, handoff: Handoff, say: Say, *, attaching: bool
     ) -> None:
-        try:  # hosted for the consoles as a ground run is: they show it live and forward operators' actions here
-            host: TerminalHost | None = await asyncio.to_thread(  # opens connections: off the loop
-                partial(
-                    TerminalHost, self.audit, binding=unit.binding, onboard=True, name=self.name, accounts=self.accounts
-                )
-            )
-        except (SQLAlchemyError, AuditSchemaError) as exc:  # the run goes on; the consoles do not show it live
-            say(f"the onboard run is not shown on the consoles: {exc}")
-            host = None
-        hosting = OnboardHosting(host, unit, checked, say)
-        supervisor = OnboardSupervisor(
-            self.endpoint,
-            unit,
-            self.audit,
-            on_event=hosting.view.event,
-            say=say,
-            unattended=not handoff.at_consoles,
-            on_news=hosting.news,
-            client=self.client,
-            on_uplinked=lambda _: self._uplinked(unit.run_id),
-        )
+        loop = asyncio.get_running_loop()
+
+        def uplinked(_: str) -> None:  # the habitat accepted the unit: the handoff says so (its runner prints READY)
+            loop.run_in_executor(None, self.handoffs.uplinked, unit.run_id).add_done_callback(noted)
+
+        def noted(done: asyncio.Future[bool]) -> None:
+            if not done.cancelled() and done.exception() is not None:
+                say(f"the handoff cannot say that the habitat took the unit: {done.exception()}")
+
+        async with self._setting_up():
+            hosting = await asyncio.to_thread(self._hosting, unit, checked, say)
         try:
             try:
-                hosting.hold(supervisor)
+                async with self._setting_up():
+                    supervisor = await asyncio.to_thread(  # reads what the ground has of the run
+                        partial(
+                            OnboardSupervisor,
+                            self.endpoint,
+                            unit,
+                            self.audit,
+                            on_event=hosting.view.event,
+                            say=say,
+                            unattended=not handoff.at_consoles,
+                            on_news=hosting.news,
+                            client=self.client,
+                            on_uplinked=uplinked,
+                        )
+                    )
+                    await asyncio.to_thread(hosting.hold, supervisor)
             except HostedElsewhere as exc:  # one supervisor per run: the one that holds it goes on
-                self._end(Supervision("refused", unit.run_id, str(exc)), say)
+                await self._end(Supervision("refused", unit.run_id, str(exc)), say)
                 return
             # ended before the lease goes: the runner reads how it ended, not a lease run out
-            self._end(await supervisor.supervise(attaching=attaching, detach=self._stopping), say)
+            await self._end(await supervisor.supervise(attaching=attaching, detach=self._stopping), say)
         finally:
-            hosting.close()
+            await asyncio.to_thread(hosting.close)
 
-    def _end(self, result: Supervision, say: Say) -> None:
+    def _setting_up(self) -> asyncio.Semaphore:
+        """Held while a run is set up (its lint, its host): fifty handed at once would otherwise be
+        fifty threads computing at once, and the threads that renew the runs' leases and store their
+        events would wait for the interpreter behind them past a lease. One process-wide limit
+        (:func:`serve_all` shares it between the bindings' supervisors)."""
+        if self.setups is None:
+            self.setups = asyncio.Semaphore(SETTING_UP_AT_ONCE)
+        return self.setups
+
+    def _hosting(self, unit: Unit, checked: CheckedProcedure, say: Say) -> OnboardHosting:
+        """The run hosted for the consoles as a ground run is: they show it live and forward
+        operators' actions here (without a host when the database refuses one: the run goes on)."""
+        try:
+            host: TerminalHost | None = TerminalHost(
+                self.audit, binding=unit.binding, onboard=True, name=self.name, accounts=self.accounts
+            )
+        except (SQLAlchemyError, AuditSchemaError) as exc:
+            say(f"the onboard run is not shown on the consoles: {exc}")
+            host = None
+        return OnboardHosting(host, unit, checked, say)
+
+    async def _end(self, result: Supervision, say: Say) -> None:
         """Supervision of the run is over: its handoff says how (where its runner reads it)."""
         say(f"ENDED {result.status}{': ' + result.message if result.message else ''}")
         detached = result.status == "detached"
-        self.handoffs.end(
-            result.run_id, detached=detached, result=result.status, message=result.message, supervisor=self.name
+        await asyncio.to_thread(
+            partial(
+                self.handoffs.end,
+                result.run_id,
+                detached=detached,
+                result=result.status,
+                message=result.message,
+                supervisor=self.name,
+            )
         )
 
-    def _uplinked(self, run_id: str) -> None:
-        """The habitat accepted the run's unit: the handoff says so (its runner prints READY)."""
-        self.handoffs.uplinked(run_id)
 
-
-#: Threads that store followed runs' events at once (one pooled database connection each).
-STORE_THREADS = 15
+#: Threads that store followed runs' events at once (one pooled database connection each): about
+#: half the audit log's pool (5 + 10 overflow), so that a burst of stores leaves connections to
+#: the threads that renew the runs' leases (a lease unrenewed for its 10 s is a supervisor gone).
+STORE_THREADS = 8
+#: Runs set up at once in one supervising process (Supervisor._setting_up).
+SETTING_UP_AT_ONCE = 2
 
 
 async def serve_all(supervisors: list[Supervisor]) -> int:
     """Serve several bindings' supervisors in one process until SIGTERM or Ctrl-C stops them all."""
     loop = asyncio.get_running_loop()
-    # the runs' events are stored off the loop, each store waiting for its commit: as many at once as
-    # the audit log's connection pool holds (5 + 10 overflow), not the default executor's cores + 4
+    # the runs' events are stored off the loop, each store waiting for its commit
     loop.set_default_executor(concurrent.futures.ThreadPoolExecutor(STORE_THREADS, thread_name_prefix="store"))
+
+    setups = asyncio.Semaphore(SETTING_UP_AT_ONCE)
+    for supervisor in supervisors:
+        supervisor.setups = setups
 
     def stop_all() -> None:
         for supervisor in supervisors:
