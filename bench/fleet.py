@@ -4,14 +4,15 @@ For each N: N emulated habitats (tests/support/emulated_habitat.py: real ``caret
 ``caretaker link --delay --loss`` and ``caretaker onboard`` processes, the simulated IVA robot at
 the recorded robot's pace), a ground database on a temporary PostgreSQL cluster, one ``caretaker
 supervise`` of all N bindings (two with ``--kill-at``), a console (``caretaker serve
---via-supervisor``) with its fleet view open in Chromium; then an IVA run handed to each habitat at
-once (``caretaker run --onboard --via-supervisor --no-follow``, as a console hands them: no runner
-follows a run), until every run has ended. Reports (bench/fleet_ground.py says how each is read):
+--via-supervisor``) with its fleet view open in Chromium; then an IVA run handed to each habitat
+(``caretaker run --onboard --via-supervisor --no-follow``, as a console hands them: no runner
+follows a run), all at once or, with ``--hand-over S``, one after another over S seconds, until
+every run has ended. Reports (bench/fleet_ground.py says how each is read):
 
 - the habitats' CPU (bridge, link, onboard: on the same two cores, what the ground competes with);
 - the ground's CPU from the handing to the last run's end and its memory (peak RSS, and PSS:
   shared pages once), per habitat, of the supervisors, the console and PostgreSQL together, and
-  which part took what;
+  which part took what; beside it the CPU of the processes that handed the runs (one each);
 - PostgreSQL's transactions (reads too) and rows written (inserted, updated) per second over that span;
 - event delay: from each event's time on the habitat (one machine: one clock) to its change notice
   from the ground database (LISTEN, here), and from each instruction's start on the habitat to the
@@ -24,7 +25,7 @@ more runs once a command result of one of its runs is stored: the takeover time 
 to the survivor's last ``TAKEN OVER`` line. Each measurement runs in a process of its own (each
 habitat holds one of the machine's ROS domains for the life of its process).
 
-    .venv/bin/python bench/fleet.py [--habitats 1 10 25 50] [--delay 1.3] [--loss 1] [--kill-at 25]
+    .venv/bin/python bench/fleet.py [--habitats 1 10 25 50] [--delay 1.3] [--loss 1] [--kill-at 25] [--hand-over S]
 """
 
 from __future__ import annotations
@@ -47,7 +48,14 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(REPO), str(REPO / "tests")]  # bench.fleet_ground; support, as the tests import it
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")  # as the tests' sessions (conftest.py)
 
-from bench.fleet_ground import GroundCost, chain_problems, database_writes, fleet_screen, postmaster_pid  # noqa: E402
+from bench.fleet_ground import (  # noqa: E402
+    GroundCost,
+    chain_problems,
+    database_writes,
+    fleet_screen,
+    postmaster_pid,
+    process_cpu_s,
+)
 from ground.change_feed import ChangeNotice, open_change_feed  # noqa: E402
 from pride.approvals import APPROVER_PASSWORD_ENV  # noqa: E402
 from records.audit_log import AuditLog  # noqa: E402
@@ -99,6 +107,7 @@ class Measured:
     up_s: float
     wall_s: float
     cpu_s: dict[str, float]  # part (supervisors, console, postgres, ground) -> CPU s over the span
+    handing_cpu_s: float  # the runners that handed the runs, together
     peak_rss_mb: dict[str, float]
     peak_pss_mb: dict[str, float]
     commits_per_s: float
@@ -135,8 +144,9 @@ def _console(db: str, habitats: list[EmulatedHabitat], folder: Path, env: dict[s
     return process, process.wait_ready(180).split()[-1]
 
 
-def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
-    """One fleet of ``count`` habitats, each link ``delay`` s one way losing the share ``loss``."""
+def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float) -> Measured:
+    """One fleet of ``count`` habitats, each link ``delay`` s one way losing the share ``loss``, the
+    runs handed over ``hand_over`` s (0: at once)."""
     with tempfile.TemporaryDirectory(prefix="caretaker-fleet-") as scratch, postgres_server() as server:
         folder = Path(scratch)
         name = server.new_database()
@@ -168,8 +178,13 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
                         )
                         writes0, t0 = database_writes(owner), time.monotonic()
                         cost.start()
-                        runners += [h.hand_run(db, env, follow=False) for h in habitats]
-                        run_ids = [r.wait_for_line(r"^READY run ", 600).split()[-1] for r in runners]
+                        for n, habitat in enumerate(habitats):
+                            time.sleep(max(0.0, t0 + n * hand_over / count - time.monotonic()))  # the load's pace
+                            runners.append(habitat.hand_run(db, env, follow=False))
+                        run_ids, handing = [], 0.0
+                        for runner in runners:  # each ends right after its READY line: its CPU then is its whole
+                            run_ids.append(runner.wait_for_line(r"^READY run ", 600).split()[-1])
+                            handing += process_cpu_s(runner.proc.pid)
                         if kill:
                             killed = kill_the_busier(
                                 supervisors,
@@ -223,6 +238,7 @@ def measure(count: int, delay: float, loss: float, kill: bool) -> Measured:
         up_s=up,
         wall_s=wall,
         cpu_s={part: c.cpu_s for part, c in costs.items()},
+        handing_cpu_s=handing,
         peak_rss_mb={part: c.peak_rss_mb for part, c in costs.items()},
         peak_pss_mb={part: c.peak_pss_mb for part, c in costs.items()},
         commits_per_s=writes[0] / wall,
@@ -247,7 +263,8 @@ def _row(m: Measured, delay: float) -> str:
     kill = f"killed 1 of 2, taken over in {m.takeover_s:.1f} s" if m.takeover_s is not None else f"{m.supervisors}"
     return (
         f"| {m.habitats} | {kill} | {m.completed} of {m.habitats} | {m.wall_s:.0f} s "
-        f"| {m.cpu_s['ground'] / per:.2f} s ({parts}) | {m.cpu_s['habitats'] / per:.2f} s | {cores:.2f} "
+        f"| {m.cpu_s['ground'] / per:.2f} s ({parts}) + {m.handing_cpu_s / per:.2f} s "
+        f"| {m.cpu_s['habitats'] / per:.2f} s | {cores:.2f} "
         f"| {m.peak_rss_mb['ground'] / per:.0f} / {m.peak_pss_mb['ground'] / per:.0f} MB "
         f"| {m.commits_per_s:.0f} / {m.rows_per_s:.0f} | {db} ms "
         f"| {screen} ms ({beyond}; {m.screen_shown[0]} of {m.screen_shown[1]}) "
@@ -256,7 +273,8 @@ def _row(m: Measured, delay: float) -> str:
 
 
 HEADER = (
-    "| habitats | supervisors | runs completed | wall | ground CPU per habitat (supervisors/console/PostgreSQL) "
+    "| habitats | supervisors | runs completed | wall "
+    "| ground CPU per habitat (supervisors/console/PostgreSQL) + handing it its run "
     "| habitat CPU per habitat | cores busy (ground + habitats) "
     "| ground peak RSS / PSS per habitat | PostgreSQL transactions / rows written per s "
     "| event delay to ground db p50 / p95 / max "
@@ -272,6 +290,7 @@ class MeasurementFailed(RuntimeError):
 def _measure_apart(count: int, args: argparse.Namespace, kill: bool) -> Measured:
     """:func:`measure` in a child process (its habitats' ROS domains are released when it ends)."""
     command = [sys.executable, __file__, "--one", str(count), "--delay", str(args.delay), "--loss", str(args.loss)]
+    command += ["--hand-over", str(args.hand_over)]
     child = subprocess.Popen([*command, *(["--kill"] if kill else [])], stdout=subprocess.PIPE, text=True)
     assert child.stdout is not None
     result = None
@@ -303,11 +322,21 @@ def main() -> None:
     parser.add_argument(
         "--kill-at", type=int, default=25, metavar="N", help="N habitats, two supervisors, one killed (0: none)"
     )
+    parser.add_argument(
+        "--hand-over",
+        type=float,
+        default=0.0,
+        metavar="S",
+        help="hand the runs one after another over S s (0: at once)",
+    )
     parser.add_argument("--one", type=int, help=argparse.SUPPRESS)  # a child's single measurement
     parser.add_argument("--kill", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.one is not None:
-        print(_RESULT + json.dumps(asdict(measure(args.one, args.delay, args.loss / 100, args.kill))), flush=True)
+        print(
+            _RESULT + json.dumps(asdict(measure(args.one, args.delay, args.loss / 100, args.kill, args.hand_over))),
+            flush=True,
+        )
         return
     if min(args.habitats) < 1 or args.kill_at < 0:
         parser.error("--habitats: one habitat or more each; --kill-at: one or more, or 0 for none")
@@ -315,7 +344,9 @@ def main() -> None:
     if not 0 <= args.loss < 100:
         parser.error("--loss: a percentage from 0 to under 100")
     print(
-        f"fleet: link {args.delay:g} s one way, {args.loss:g} % loss; {datetime.now(UTC):%Y-%m-%d %H:%M}Z", flush=True
+        f"fleet: link {args.delay:g} s one way, {args.loss:g} % loss, runs handed "
+        f"{f'over {args.hand_over:g} s' if args.hand_over else 'at once'}; {datetime.now(UTC):%Y-%m-%d %H:%M}Z",
+        flush=True,
     )
     rows, failures = [], []
     for count, kill in sizes:  # a size that fails does not keep the others from being measured

@@ -31,7 +31,15 @@ from support.browser import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS
 from support.emulated_habitat import EmulatedHabitat
 from support.operator_page import sign_in_on
 
-__all__ = ["FleetScreen", "GroundCost", "chain_problems", "database_writes", "fleet_screen", "postmaster_pid"]
+__all__ = [
+    "FleetScreen",
+    "GroundCost",
+    "chain_problems",
+    "database_writes",
+    "fleet_screen",
+    "postmaster_pid",
+    "process_cpu_s",
+]
 
 _TICK = os.sysconf("SC_CLK_TCK")
 SAMPLE_S = 1.0
@@ -55,7 +63,7 @@ def _descendants(pid: int) -> list[int]:
     return found
 
 
-def _cpu_s(pid: int) -> float:
+def process_cpu_s(pid: int) -> float:
     """User + system CPU seconds of ``pid`` and of its children it reaped (0 if it is gone)."""
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -107,7 +115,7 @@ class GroundCost:
 
     def _cpu(self, part: str) -> float:
         roots = self.parts.get(part) or self.beside[part]
-        return sum(_cpu_s(pid) for root in roots for pid in _descendants(root))
+        return sum(process_cpu_s(pid) for root in roots for pid in _descendants(root))
 
     def _sample(self) -> None:
         total_rss = total_pss = 0.0
