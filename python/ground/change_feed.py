@@ -119,6 +119,7 @@ class _Watcher(ABC):
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
         self.connected = threading.Event()  # set while the feed reaches the database
+        self.key = ""  # its database in _feeds
         self.users = 0  # open ChangeFeeds on it (under _feeds_lock)
 
     def start(self) -> _Watcher:
@@ -281,11 +282,13 @@ def _key(engine: Engine) -> str:
 def open_change_feed(engine: Engine) -> ChangeFeed:
     """A subscription to the process's watcher of the database behind ``engine`` (LISTEN on
     PostgreSQL, polling on SQLite), started by the first and stopped by the last to close."""
+    key = _key(engine)
     with _feeds_lock:
-        watcher = _feeds.get(_key(engine))
+        watcher = _feeds.get(key)
         if watcher is None:
             watcher = ListeningFeed(engine) if engine.dialect.name == "postgresql" else PollingFeed(engine)
-            _feeds[_key(engine)] = watcher.start()
+            watcher.key = key
+            _feeds[key] = watcher.start()
         watcher.users += 1
     return ChangeFeed(watcher)
 
@@ -295,7 +298,5 @@ def _release(watcher: _Watcher) -> None:
         watcher.users -= 1
         if watcher.users:
             return
-        for key, known in list(_feeds.items()):
-            if known is watcher:
-                del _feeds[key]
+        del _feeds[watcher.key]
     watcher.close()
