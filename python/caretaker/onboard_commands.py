@@ -13,13 +13,12 @@ from __future__ import annotations
 import argparse
 import asyncio
 import sys
-import time
 from pathlib import Path
 
 from caretaker.command_options import DEFAULT_SYSREP_DIR, load_sysreps, section_of
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
 from datafile import DataFileError
-from onboard.downlink import DownlinkError, OnboardSupervisor, build_unit
+from onboard.downlink import DownlinkError, OnboardSupervisor, unit_for_run
 from onboard.unit import UNIT_SERVICE, Unit, UnitError
 from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import APPROVER_PASSWORD_ENV
@@ -75,24 +74,20 @@ def run_onboard(
     if endpoint is None:
         return 2
     try:
-        unit = build_unit(
-            checked,
-            run_id=setup.run_id,
+        unit = unit_for_run(
+            setup,
+            endpoint,
             binding=Path(args.binding).name,
             user=args.user,
-            mode=(args.mode or Mode.MANUAL).value,
+            mode=args.mode or Mode.MANUAL,
             values=values,
+            approver=approver,
+            proposal=proposal,
             confirm_manual=args.confirm_manual,
             confirm_hazardous=args.confirm_hazardous,
             breakpoints=args.breakpoints,
-            lifetime_s=args.unit_lifetime + endpoint.light_time.connect_within + endpoint.light_time.round_trip,
-            now=time.time(),
-            version=setup.version,
-            policy=setup.side.approvals,
-            approver=approver,
             section=section_of(args, checked, values),
-            in_transit=endpoint.light_time.uplink_within,
-            proposal=proposal,
+            lifetime_s=args.unit_lifetime,
         )
     except SectionError as exc:
         print(f"caretaker run: {exc}", file=sys.stderr)

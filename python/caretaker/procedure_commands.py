@@ -16,7 +16,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from caretaker.command_options import load_sysreps, raw_option, section_of, sysrep_option
-from caretaker.proposal_runs import ProposalNotRunnable, proposal_taken
 from caretaker.terminal import LeftBehind, OperatorConsole, ProgressPrinter, TerminalLines, Unattended
 from datafile import DataFileError
 from onboard.downlink import UNIT_LIFETIME_S
@@ -38,6 +37,7 @@ from records.agent_tokens import TokenError, parse_duration
 from records.audit_log import DEFAULT_DB, AuditLog, AuditLogUnavailable
 from records.audit_schema import AuditSchemaError, head_revision
 from records.onboard_handoffs import SUPERVISOR_WITHIN_S
+from records.proposal_runs import ProposalNotRunnable, proposal_taken
 from records.releases import ReleaseRefused, ReleaseStore, resume_refusal, version_for_run
 from records.robot_control import RobotControl
 
@@ -168,7 +168,7 @@ def run_main(argv: list[str] | None = None) -> int:
         "--no-follow",
         action="store_true",
         help="with --via-supervisor: end once the habitat took the unit; its supervisor keeps the record and hosts "
-        "the run for the consoles (how a console hands its onboard starts over: caretaker serve --via-supervisor)",
+        "the run for the consoles",
     )
     parser.add_argument(
         "--supervisor-within",

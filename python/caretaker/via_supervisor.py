@@ -8,27 +8,26 @@ the audit log of the same database. The runner shows that record here as it is s
 the database's change notices) and ends with the run. If no supervisor takes the run within
 ``--supervisor-within`` seconds the runner withdraws it and says so; nothing went up.
 Ctrl-C stops following, never the run: its supervisor goes on (the consoles show it). With
-``--no-follow`` (a console's start, ``caretaker serve --via-supervisor``) the runner ends as soon as
-the habitat took the unit: the supervisor hosts the run, and a fleet's ground keeps no follower per run.
+``--no-follow`` the runner ends as soon as the habitat took the unit and leaves the run to its
+supervisor, which hosts it for the consoles (a console hands its starts the same way, in its own
+process: :func:`console.onboard_launch.hand_onboard`).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-import threading
-import time
 from datetime import UTC, datetime
 
 from caretaker.terminal import LeftBehind, ProgressPrinter, TerminalLines
-from ground.change_feed import ChangeNotice, open_change_feed
+from ground.handed_run import HandedRun
 from ground.run_hosts import DEFAULT_LEASE_S, RunHosting
 from onboard.unit import Unit
 from pride.executive import RunStatus
 from pride.phrasing import Wording
 from procedure_language.lint import CheckedProcedure
 from records.audit_log import DEFAULT_DB, AuditLog
-from records.onboard_handoffs import DETACHED, ENDED, HANDED, UPLINKED, Handoff, OnboardHandoffs
+from records.onboard_handoffs import DETACHED, ENDED, UPLINKED, Handoff
 
 __all__ = ["hand_to_supervisor"]
 
@@ -38,50 +37,30 @@ def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, ch
     terminal = TerminalLines(sys.stdout)  # as it is now (a test captures it)
     printer = ProgressPrinter(checked.procedure, terminal, Wording(checked.sysreps, args.raw))
     left_behind = LeftBehind(terminal)
-    handoffs = OnboardHandoffs(audit.engine)
     run_id = unit.run_id
-    news = threading.Event()
-
-    def notice(change: ChangeNotice) -> None:
-        about = change.payload.split()[-1:] == [run_id]  # handoffs: "<state> <run>", events: "<seq> <kind> <run>"
-        if change.channel == "resync" or (change.channel in ("handoffs", "events") and about):
-            news.set()
-
-    feed = open_change_feed(audit.engine)
-    feed.subscribe(notice)
     db = "" if args.db == DEFAULT_DB else f" --db {args.db}"
-    handoff: Handoff | None = None
+    handed = HandedRun(audit, run_id)
     try:
-        feed.connected.wait(30)  # listening before the handoff: no notice of it is missed
-        handoffs.hand(
-            run_id, binding=unit.binding, unit_json=unit.to_json(), user=unit.user, at_consoles=args.at_consoles
-        )
+        handed.hand(binding=unit.binding, unit_json=unit.to_json(), user=unit.user, at_consoles=args.at_consoles)
         terminal.say(
             f"handed run {run_id} to the supervisors of {unit.binding}; waiting up to "
             f"{args.supervisor_within:g} s for one to take it"
         )
-        deadline = time.monotonic() + args.supervisor_within
-        while (handoff := handoffs.get(run_id)) is not None and handoff.state == HANDED:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            news.wait(left)
-            news.clear()
-        if handoff is None or (handoff.state == HANDED and handoffs.withdraw(run_id)):
+        if handed.taken(args.supervisor_within) is None:
             terminal.say(
                 f"caretaker run: no supervisor took run {run_id} within {args.supervisor_within:g} s: withdrawn, "
                 f"nothing went up (is `caretaker supervise --binding {args.binding}{db}` running?)"
             )
             return 2
-        handoff = _followed(handoffs, audit, run_id, news, printer, left_behind, terminal, until_ready=args.no_follow)
+        handoff = _followed(handed, audit, printer, left_behind, terminal, until_ready=args.no_follow)
     except KeyboardInterrupt:
-        if handoffs.withdraw(run_id):
+        if handed.handoffs.withdraw(run_id):
             terminal.say(f"\n  run {run_id} withdrawn before a supervisor took it: nothing went up")
         else:
             terminal.say(f"\n  stopped following run {run_id}: its supervisor goes on (the consoles show it)")
         return 130
     finally:
-        feed.close()
+        handed.close()
     if args.no_follow and handoff.state not in (ENDED, DETACHED):
         terminal.say(f"followed no further: {handoff.supervisor} keeps its record and hosts it for the consoles")
         return 0
@@ -96,10 +75,8 @@ def hand_to_supervisor(args: argparse.Namespace, audit: AuditLog, unit: Unit, ch
 
 
 def _followed(
-    handoffs: OnboardHandoffs,
+    handed: HandedRun,
     audit: AuditLog,
-    run_id: str,
-    news: threading.Event,
     printer: ProgressPrinter,
     left_behind: LeftBehind,
     terminal: TerminalLines,
@@ -110,6 +87,7 @@ def _followed(
     the habitat took the unit); the handoff then.
     A supervisor whose lease on the run ran out is gone (killed, or it lost the database): the
     handoff is then ``detached`` here, as the supervisor would have left it."""
+    run_id, handoffs = handed.run_id, handed.handoffs
     hosting = RunHosting(audit.engine, host=f"runner following {run_id}")  # it reads the supervisor's lease
     try:
         head = 0
@@ -118,7 +96,6 @@ def _followed(
         assert handoff is not None  # handoffs are never removed
         terminal.say(f"taken by {handoff.supervisor}: it uplinks the unit on the session it keeps open")
         while True:
-            news.clear()
             handoff = handoffs.get(run_id)
             assert handoff is not None
             events = audit.events(run_id, after=head)  # read after the state: all of an ended run's events
@@ -145,6 +122,6 @@ def _followed(
                 continue  # read as it ended: detached, or ended just before
             # a live supervisor renews its lease every second: a check as it runs out
             until = (lease.lease_until - datetime.now(UTC)).total_seconds() if lease else DEFAULT_LEASE_S
-            news.wait(min(max(until, 0.5), DEFAULT_LEASE_S))
+            handed.wait(min(max(until, 0.5), DEFAULT_LEASE_S))
     finally:
         hosting.close()

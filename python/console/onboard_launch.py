@@ -1,13 +1,16 @@
 """Starting an onboard run from the console ("run on the habitat"), and attaching a new supervisor to one.
 
-The console does not supervise the habitat's run itself. It starts, on its own host, the runner
-an operator would start at a terminal (``caretaker run PROC --onboard``, or ``caretaker run
---attach RUN`` for a run whose supervisor is gone), with ``--at-consoles``
-so that a hold waits for an operator at a console instead of stopping the run. The runner lints,
-uplinks, keeps the ground's record and hosts the run in the ground database, so this console (and
-every other) shows it as any hosted run, and operators' actions are forwarded to it. It outlives
-a console that stops: the habitat's run must not lose its supervisor because a browser's server
-restarted.
+The console does not supervise the habitat's run itself. With ``caretaker serve --via-supervisor``
+it builds the unit here and hands it to the ``caretaker supervise`` that keeps the binding's
+habitat session open (:func:`hand_onboard`); the supervisor uplinks it, keeps the ground's record
+and hosts the run in the ground database, and this console waits only until the habitat took the
+unit. A fleet's ground then starts no process per run. Otherwise it starts, on its own host, the
+runner an operator would start at a terminal (``caretaker run PROC --onboard``, or ``caretaker run
+--attach RUN`` for a run whose supervisor is gone), with ``--at-consoles`` so that a hold waits for
+an operator at a console instead of stopping the run. The runner lints, uplinks, keeps the
+ground's record and hosts the run in the ground database, so this console (and every other) shows
+it as any hosted run, and operators' actions are forwarded to it. It outlives a console that
+stops: the habitat's run must not lose its supervisor because a browser's server restarted.
 """
 
 from __future__ import annotations
@@ -23,9 +26,19 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from datafile import DataFileError
+from ground.handed_run import HandedRun
+from onboard.downlink import unit_for_run
 from pride.approvals import APPROVER_PASSWORD_ENV
+from pride.executive import Mode
+from pride.run_section import SectionError
+from pride.run_setup import RunSetup
+from procedure_language.binding import read_binding
+from records.audit_log import AuditLog
+from records.onboard_handoffs import SUPERVISOR_WITHIN_S, TAKEN
+from records.proposal_runs import ProposalNotRunnable, proposal_taken
 
-__all__ = ["LaunchRefused", "SecondOperator", "attach_onboard", "launch_onboard"]
+__all__ = ["LaunchRefused", "SecondOperator", "attach_onboard", "hand_onboard", "launch_onboard"]
 
 log = logging.getLogger(__name__)
 
@@ -69,12 +82,10 @@ def launch_onboard(
     ready_within: float = READY_WITHIN_S,
     proposal: int | None = None,
     confirm_manual: bool = False,
-    via_supervisor: bool = False,
 ) -> str:
     """Start the supervising runner and wait until the habitat accepted the unit; the run's id.
     ``proposal``: the accepted proposal the run answers, its values going up with it;
-    ``confirm_manual``: the habitat marks manual instructions done by itself; ``via_supervisor``: the
-    runner hands the unit to a ``caretaker supervise`` of the binding and ends once the habitat took it.
+    ``confirm_manual``: the habitat marks manual instructions done by itself.
 
     Raises:
         LaunchRefused: as :func:`_launch` says.
@@ -90,13 +101,87 @@ def launch_onboard(
         *(["--approver", approver.user] if approver else []),
         *(["--proposal", str(proposal)] if proposal is not None else []),
         *(["--confirm-manual"] if confirm_manual else []),
-        *(["--via-supervisor", "--no-follow"] if via_supervisor else []),
     ]
     secrets = {APPROVER_PASSWORD_ENV: approver.password} if approver else {}
     still = "keeps sending the unit until it expires, and the run appears in the list if the habitat accepts it"
     return _launch(
         arguments, secrets, still, user=user, db_url=db_url, sysreps=sysreps, rosbridge=rosbridge, within=ready_within
     )
+
+
+def hand_onboard(
+    setup: RunSetup,
+    binding: Path,
+    audit: AuditLog,
+    *,
+    user: str,
+    mode: Mode,
+    approver: SecondOperator | None,
+    rosbridge: str | None,
+    proposal: int | None = None,
+    confirm_manual: bool = False,
+    values: Mapping[str, str] | None = None,
+    supervisor_within: float = SUPERVISOR_WITHIN_S,
+    ready_within: float = READY_WITHIN_S,
+) -> str:
+    """Build the unit of the run ``setup`` prepares and hand it to the supervisors of ``binding``
+    (their holds waiting for an operator at a console); the run's id once the habitat took it.
+    ``approver`` was checked at this console (:func:`console.request_bodies.second_operator`);
+    ``proposal``: the accepted proposal the run answers, taken here as the runner takes it;
+    ``values``: the procedure's inputs going up with it (``--set``; a console's start gives none,
+    and the habitat asks an operator at a console).
+
+    Raises:
+        LaunchRefused: the binding cannot reach the habitat, the proposal or the unit is refused
+            (nothing went up), no supervisor took it within ``supervisor_within`` (withdrawn), or
+            the habitat refused it; ``ended=False`` if the habitat has not answered within
+            ``ready_within`` (its supervisor keeps trying, and the run appears once it is taken).
+    """
+    try:
+        endpoint = read_binding(binding).endpoint(rosbridge)
+    except (DataFileError, OSError) as exc:
+        raise LaunchRefused(f"cannot open binding {binding.name}: {exc}") from None
+    if endpoint.secret is None:
+        raise LaunchRefused(
+            f"{binding.name} has no security.secret_file: an onboard unit is signed with the link's secret"
+        )
+    given = dict(values or {})
+    try:
+        taken = proposal_taken(proposal, audit, user, setup, given)
+        unit = unit_for_run(
+            setup,
+            endpoint,
+            binding=binding.name,
+            user=user,
+            mode=mode,
+            values=given,
+            approver=approver.user if approver else None,
+            proposal=taken,
+            confirm_manual=confirm_manual,
+        )
+    except (ProposalNotRunnable, SectionError, ValueError) as exc:
+        raise LaunchRefused(f"{setup.checked.procedure.path} cannot go up to the habitat: {exc}") from None
+    handed = HandedRun(audit, unit.run_id)
+    try:
+        handed.hand(binding=unit.binding, unit_json=unit.to_json(), user=user, at_consoles=True)
+        if handed.taken(supervisor_within) is None:
+            raise LaunchRefused(
+                f"no supervisor of {binding.name} took run {unit.run_id} within {supervisor_within:g} s: withdrawn, "
+                f"nothing went up (is `caretaker supervise --binding {binding}` running on this database?)"
+            )
+        handoff, ready = handed.ready(ready_within)
+    finally:
+        handed.close()
+    if not ready and handoff.state != TAKEN:  # ended, or left, without the habitat taking it
+        raise LaunchRefused(f"run {unit.run_id} did not start on the habitat: {handoff.message or handoff.state}")
+    if not ready:
+        raise LaunchRefused(
+            f"no answer from the habitat within {ready_within:.0f} s; {handoff.supervisor} keeps sending the unit "
+            "until it expires, and the run appears in the list if the habitat accepts it",
+            ended=False,
+        )
+    log.info("onboard run %s handed by %s to %s", unit.run_id, user, handoff.supervisor)
+    return unit.run_id
 
 
 def attach_onboard(

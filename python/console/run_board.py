@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Mapping
 from datetime import datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,7 @@ from console.camera_feed import CameraFeed
 from console.catalog import CameraSettings, Catalog, rosbridge_for
 from console.folded_run import fold_events
 from console.live_run import LiveRun
-from console.onboard_launch import LaunchRefused, SecondOperator, launch_onboard
+from console.onboard_launch import LaunchRefused, SecondOperator, hand_onboard, launch_onboard
 from console.release_desk import ReleaseDesk
 from console.remote_run import RemoteRun
 from console.start_refusals import recorded_start_refusals
@@ -247,12 +248,11 @@ class RunBoard:
         proposal: int | None = None,
         confirm_manual: bool = False,
     ) -> str:
-        """Start an onboard run ("run on the habitat"): its supervising runner on this host (onboard_launch.py)
-        hosts it for the consoles; the run's id once the habitat accepted it. The commands that need a second
-        operator's approval go up approved by ``approver`` (the habitat cannot wait a round trip for each); without
-        one, ActionRefused 409 lists them in ``approvals_needed``. ActionRefused says what to fix (lint errors here
-        or on the habitat, the habitat's refusal, an unreachable habitat). ``proposal``: the agent's proposal
-        ``user`` accepted (``run --proposal``); ``confirm_manual``: the habitat marks manual instructions done."""
+        """Start an onboard run ("run on the habitat"), handed to the binding's supervisor or to a runner started
+        here (onboard_launch.py); the run's id once the habitat accepted it. Commands that need a second operator's
+        approval go up approved by ``approver`` (else ActionRefused 409 lists them in ``approvals_needed``);
+        ActionRefused says what to fix. ``proposal``: the agent's proposal ``user`` accepted (``run --proposal``);
+        ``confirm_manual``: the habitat marks manual instructions done."""
         mode = mode_named(mode_name)
         path = self.catalog.procedure_path(procedure_name)
         setup = self._setup(procedure_name, binding_name, rehearsal=rehearsal)
@@ -266,21 +266,24 @@ class RunBoard:
                 f"{missing_approvals_text(points, main, side.approvals)}; a second operator approves them here",
                 {"approvals_needed": [point.describe(main) for point in points]},
             )
-        try:
-            return launch_onboard(
+        binding = self.catalog.binding_path(binding_name)
+        if self.via_supervisor:  # handed from this process to the binding's supervisor: no runner
+            start = partial(hand_onboard, setup, binding, self.audit_log, mode=mode)
+        else:  # a runner of its own on this host supervises it
+            start = partial(
+                launch_onboard,
                 path,
-                self.catalog.binding_path(binding_name),
-                user=user,
-                approver=approver if points else None,
+                binding,
                 rehearsal=rehearsal,
                 deployments=self.catalog.deployments,
                 autonomous=mode is Mode.AUTONOMOUS,
                 db_url=self.audit_log.url,
                 sysreps=self.catalog.sysreps,
-                rosbridge=self.rosbridge_url_for(binding_name),
-                proposal=proposal,
-                confirm_manual=confirm_manual,
-                via_supervisor=self.via_supervisor,
+            )
+        rosbridge, approving = self.rosbridge_url_for(binding_name), approver if points else None
+        try:
+            return start(
+                user=user, approver=approving, rosbridge=rosbridge, proposal=proposal, confirm_manual=confirm_manual
             )
         except LaunchRefused as exc:
             raise ActionRefused(

@@ -31,7 +31,9 @@ from pride.accepted_proposal import AcceptedProposal
 from pride.approvals import ApprovalPolicy, CarriedApproval, approval_points, missing_approvals_text
 from pride.event_payloads import payload_from_json
 from pride.events import Event, EventKind
+from pride.executive import Mode
 from pride.run_section import RunSection
+from pride.run_setup import RunSetup
 from pride.run_version import RunVersion
 from procedure_language.lint import CheckedProcedure
 from records.audit_chain import GENESIS, link_hash
@@ -51,6 +53,7 @@ __all__ = [
     "OnboardSupervisor",
     "Supervision",
     "build_unit",
+    "unit_for_run",
 ]
 
 log = logging.getLogger(__name__)
@@ -215,6 +218,48 @@ def build_unit(
         version=version,
         approvals=approvals,
         section={"from": section.start, "to": section.stop} if section else None,
+        proposal=proposal,
+    )
+
+
+def unit_for_run(
+    setup: RunSetup,
+    endpoint: Endpoint,
+    *,
+    binding: str,
+    user: str,
+    mode: Mode,
+    values: Mapping[str, str],
+    approver: str | None,
+    proposal: AcceptedProposal | None = None,
+    confirm_manual: bool = False,
+    confirm_hazardous: bool = False,
+    breakpoints: Sequence[str] = (),
+    section: RunSection | None = None,
+    lifetime_s: float = UNIT_LIFETIME_S,
+) -> Unit:
+    """The unit of the run ``setup`` prepares, going up over ``endpoint``: it lives ``lifetime_s``
+    past what the link's light time takes to connect and answer, and its approvals hold from when
+    the light time lets it arrive (:func:`build_unit`, whose errors it raises). A terminal's
+    ``caretaker run --onboard`` and a console's start on the habitat build it alike."""
+    light = endpoint.light_time
+    return build_unit(
+        setup.checked,
+        run_id=setup.run_id,
+        binding=binding,
+        user=user,
+        mode=mode.value,
+        values=values,
+        confirm_manual=confirm_manual,
+        confirm_hazardous=confirm_hazardous,
+        breakpoints=breakpoints,
+        lifetime_s=lifetime_s + light.connect_within + light.round_trip,
+        now=time.time(),
+        version=setup.version,
+        policy=setup.side.approvals,
+        approver=approver,
+        section=section,
+        in_transit=light.uplink_within,
         proposal=proposal,
     )
 

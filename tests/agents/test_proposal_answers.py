@@ -1,5 +1,5 @@
 """What becomes of an agent's proposal on the ground: a console's answers (console/proposals.py) and
-the runner that takes an accepted one (``caretaker run --proposal``, caretaker/proposal_runs.py).
+the runner that takes an accepted one (``caretaker run --proposal``, records/proposal_runs.py).
 
 A real ground database (SQLite) with the shipped procedures, the IVA filter change released by two
 operators; the proposals are made as an agent's desk stores them. Accepting one through to a run
@@ -17,7 +17,6 @@ from typing import Any
 import pytest
 from sqlalchemy import update
 
-from caretaker.proposal_runs import ProposalNotRunnable, proposal_taken
 from console.accounts import AccountStore
 from console.actions import ActionRefused
 from console.catalog import Catalog
@@ -30,6 +29,7 @@ from procedure_language.lint import check_procedure
 from records.agent_proposals import CitedTelemetry, NewProposal, ProposalStore
 from records.agent_tables import agent_proposals
 from records.audit_log import AuditLog
+from records.proposal_runs import ProposalNotRunnable, proposal_taken
 from records.releases import ReleaseStore, procedure_digest, version_for_run
 from records.robot_control import RobotControl
 from support.procedures import REPO

@@ -68,7 +68,8 @@ MAY_IMPORT = {
     "pride": {"datafile", "procedure_language", "rosbridge_wire"},
     "records": {"procedure_language", "pride"},
     "ground": {"records"},
-    "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire", "ground"},
+    # the console builds the onboard unit it hands to a supervisor
+    "console": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire", "ground", "onboard"},
     "onboard": {"datafile", "procedure_language", "pride", "records", "rosbridge_wire"},
     # assistant agents reach the ground as a console does, through its records and its forwarding
     "agent": {"datafile", "procedure_language", "pride", "records", "console", "ground"},

@@ -121,14 +121,14 @@ def test_a_handed_run_goes_up_on_the_supervisors_session_and_its_runner_follows_
     assert len([c for c in link.crossings if c.service == "/caretaker_onboard/uplink"]) == 2  # one session, two units
 
 
-def test_a_console_s_runner_ends_once_the_habitat_took_the_unit_and_the_supervisor_hosts_the_run(
+def test_a_runner_that_does_not_follow_ends_once_the_habitat_took_the_unit_and_the_supervisor_hosts_the_run(
     habitat: tuple[HabitatRuns, list[Any]],
     make_unit: Callable[..., Unit],
     sysreps: dict[str, SysRep],
     tmp_path: Path,
     capfd: pytest.CaptureFixture[str],
 ) -> None:
-    """``caretaker serve --via-supervisor`` starts its runners with ``--no-follow``: no follower per run."""
+    """``--no-follow``: the runner leaves the run to its supervisor, which hosts it for the consoles."""
     runs, _ = habitat
     args = _runner(tmp_path, at_consoles=True, no_follow=True)
     audit = AuditLog(args.db)

@@ -1,12 +1,14 @@
-"""``caretaker run --proposal ID``: the run an operator accepted an agent's proposal for.
+"""The run an operator accepted an agent's proposal for (``caretaker run --proposal ID``, and a
+console's acceptance of a proposal to run on the habitat).
 
-An operator accepts a proposal on a console (:mod:`console.proposal_routes`); the run then starts
-as any run does, on the ground or, through the runner a console starts, on the habitat. The
-runner finds the proposal in the ground database and takes it only if it is what it is about to
-run: accepted by this user, of this procedure's released version, for this binding, and not yet
-started. Taking it writes the run's id into the proposal in the same conditioned UPDATE, so one
-acceptance starts one run, however often a runner is started with it. The proposal's values go
-with the run as ``--set`` values do, and its ``run_started`` names the proposal and the agent.
+An operator accepts a proposal on a console (:mod:`console.proposals`); the run then starts as any
+run does, on the ground or on the habitat. Whoever sets the run up (the runner, or the console
+that hands an onboard unit to a supervisor) finds the proposal in the ground database and takes it
+only if it is what it is about to run: accepted by this user, of this procedure's released
+version, for this binding, and not yet started. Taking it writes the run's id into the proposal in
+the same conditioned UPDATE, so one acceptance starts one run, however often a start is tried
+with it. The proposal's values go with the run as ``--set`` values do, and its ``run_started``
+names the proposal and the agent.
 """
 
 from __future__ import annotations
