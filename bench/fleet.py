@@ -5,14 +5,14 @@ For each N: N emulated habitats (tests/support/emulated_habitat.py: real ``caret
 the recorded robot's pace), a ground database on a temporary PostgreSQL cluster, one ``caretaker
 supervise`` of all N bindings (two with ``--kill-at``), a console (``caretaker serve
 --via-supervisor``) with its fleet view open in Chromium; then an IVA run handed to each habitat
-(``caretaker run --onboard --via-supervisor --no-follow``, as a console hands them: no runner
-follows a run), all at once or, with ``--hand-over S``, one after another over S seconds, until
-every run has ended. Reports (bench/fleet_ground.py says how each is read):
+as the console hands an operator's start (its set-up, then ``console.onboard_launch.hand_onboard``,
+here in the bench's own process, a thread each), all at once or, with ``--hand-over S``, one
+after another over S seconds, until every run has ended. Reports (bench/fleet_ground.py says how each is read):
 
 - the habitats' CPU (bridge, link, onboard: on the same two cores, what the ground competes with);
 - the ground's CPU from the handing to the last run's end and its memory (peak RSS, and PSS:
   shared pages once), per habitat, of the supervisors, the console and PostgreSQL together, and
-  which part took what; beside it the CPU of the processes that handed the runs (one each);
+  which part took what; beside it the CPU the handing took (the handing threads', summed);
 - PostgreSQL's transactions (reads too) and rows written (inserted, updated) per second over that span;
 - event delay: from each event's time on the habitat (one machine: one clock) to its change notice
   from the ground database (LISTEN, here), and from each instruction's start on the habitat to the
@@ -31,6 +31,7 @@ habitat holds one of the machine's ROS domains for the life of its process).
 from __future__ import annotations
 
 import argparse
+import concurrent.futures
 import json
 import os
 import signal
@@ -54,12 +55,17 @@ from bench.fleet_ground import (  # noqa: E402
     database_writes,
     fleet_screen,
     postmaster_pid,
-    process_cpu_s,
 )
+from caretaker.command_options import DEFAULT_SYSREP_DIR  # noqa: E402
+from console.onboard_launch import SecondOperator, hand_onboard  # noqa: E402
+from flight.flight_support import CLEAN_FILTER, PROCEDURE  # noqa: E402
 from ground.change_feed import ChangeNotice, open_change_feed  # noqa: E402
-from pride.approvals import APPROVER_PASSWORD_ENV  # noqa: E402
+from pride.executive import Mode  # noqa: E402
+from pride.robot_sides import robot_side_for  # noqa: E402
+from pride.run_setup import RunSetup, load_sysreps  # noqa: E402
 from records.audit_log import AuditLog  # noqa: E402
 from records.onboard_handoffs import OnboardHandoffs  # noqa: E402
+from records.releases import ReleaseStore, version_for_run  # noqa: E402
 from support.emulated_habitat import EmulatedHabitat, fleet, kill_the_busier, supervise  # noqa: E402
 from support.postgres import OWNER, RUNNER, postgres_server  # noqa: E402
 from support.processes import ManagedProcess, caretaker  # noqa: E402
@@ -107,7 +113,7 @@ class Measured:
     up_s: float
     wall_s: float
     cpu_s: dict[str, float]  # part (supervisors, console, postgres, ground) -> CPU s over the span
-    handing_cpu_s: float  # the runners that handed the runs, together
+    handing_cpu_s: float  # the threads that handed the runs, together
     peak_rss_mb: dict[str, float]
     peak_pss_mb: dict[str, float]
     commits_per_s: float
@@ -144,6 +150,34 @@ def _console(db: str, habitats: list[EmulatedHabitat], folder: Path, env: dict[s
     return process, process.wait_ready(180).split()[-1]
 
 
+def _hand(habitat: EmulatedHabitat, audit: AuditLog) -> tuple[str, float]:
+    """Hand ``habitat`` its IVA run as a console hands an operator's start (the same set-up, then
+    console.onboard_launch.hand_onboard), autonomous, its manual instructions marked done and the
+    unlock approved by bob; the run's id once the habitat took it, and the CPU this took here."""
+    begun = time.thread_time()
+    setup = RunSetup.prepare(
+        PROCEDURE,
+        robot_side_for(habitat.binding),  # the emulated habitat's deployment beside its binding
+        load_sysreps([DEFAULT_SYSREP_DIR]),
+        version=lambda checked, side: version_for_run(
+            ReleaseStore(audit.engine), checked, PROCEDURE.name, side, rehearsal=True
+        ),
+    )
+    run_id = hand_onboard(
+        setup,
+        habitat.binding,
+        audit,
+        user="flight",
+        mode=Mode.AUTONOMOUS,
+        approver=SecondOperator("bob", PEOPLE["bob"][2]),
+        rosbridge=None,
+        confirm_manual=True,
+        values={"clean_filter_id": CLEAN_FILTER},
+        ready_within=600,
+    )
+    return run_id, time.thread_time() - begun
+
+
 def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float) -> Measured:
     """One fleet of ``count`` habitats, each link ``delay`` s one way losing the share ``loss``, the
     runs handed over ``hand_over`` s (0: at once)."""
@@ -152,7 +186,7 @@ def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float)
         name = server.new_database()
         db, owner = server.url(name, RUNNER), server.url(name, OWNER)
         add_people(owner)
-        env = {**os.environ, APPROVER_PASSWORD_ENV: PEOPLE["bob"][2], "TMPDIR": scratch}
+        env = {**os.environ, "TMPDIR": scratch}
         audit, arrivals = AuditLog(db), Arrivals()
         feed = open_change_feed(audit.engine)
         feed.subscribe(arrivals.notice)
@@ -165,7 +199,6 @@ def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float)
                 print(f"{count} habitat(s) up in {up:.0f} s", flush=True)
                 console, url = _console(db, habitats, folder, env)
                 supervisors = [supervise(db, habitats, env, f"supervise-{n}") for n in range(1, 2 + kill)]
-                runners: list[ManagedProcess] = []
                 try:
                     with fleet_screen(url, [h.name for h in habitats]) as screen:
                         cost = GroundCost(
@@ -178,13 +211,13 @@ def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float)
                         )
                         writes0, t0 = database_writes(owner), time.monotonic()
                         cost.start()
-                        for n, habitat in enumerate(habitats):
-                            time.sleep(max(0.0, t0 + n * hand_over / count - time.monotonic()))  # the load's pace
-                            runners.append(habitat.hand_run(db, env, follow=False))
-                        run_ids, handing = [], 0.0
-                        for runner in runners:  # each ends right after its READY line: its CPU then is its whole
-                            run_ids.append(runner.wait_for_line(r"^READY run ", 600).split()[-1])
-                            handing += process_cpu_s(runner.proc.pid)
+                        with concurrent.futures.ThreadPoolExecutor(count, thread_name_prefix="hand") as pool:
+                            handed = []
+                            for n, habitat in enumerate(habitats):
+                                time.sleep(max(0.0, t0 + n * hand_over / count - time.monotonic()))  # the load's pace
+                                handed.append(pool.submit(_hand, habitat, audit))
+                            run_ids = [future.result()[0] for future in handed]
+                            handing = sum(future.result()[1] for future in handed)
                         if kill:
                             killed = kill_the_busier(
                                 supervisors,
@@ -208,7 +241,7 @@ def measure(count: int, delay: float, loss: float, kill: bool, hand_over: float)
                         runs = {h.name: run_id for h, run_id in zip(habitats, run_ids, strict=True)}
                         screen_delays, missed = screen.delays(audit, runs)
                 finally:
-                    for process in [*runners, *(p for p, _ in supervisors), console]:
+                    for process in [*(p for p, _ in supervisors), console]:
                         process.stop()
                 problems = chain_problems(audit, runs, habitats)
                 handoffs = OnboardHandoffs(audit.engine)

@@ -38,7 +38,6 @@ __all__ = [
     "database_writes",
     "fleet_screen",
     "postmaster_pid",
-    "process_cpu_s",
 ]
 
 _TICK = os.sysconf("SC_CLK_TCK")
@@ -63,7 +62,7 @@ def _descendants(pid: int) -> list[int]:
     return found
 
 
-def process_cpu_s(pid: int) -> float:
+def _process_cpu_s(pid: int) -> float:
     """User + system CPU seconds of ``pid`` and of its children it reaped (0 if it is gone)."""
     try:
         fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
@@ -115,7 +114,7 @@ class GroundCost:
 
     def _cpu(self, part: str) -> float:
         roots = self.parts.get(part) or self.beside[part]
-        return sum(process_cpu_s(pid) for root in roots for pid in _descendants(root))
+        return sum(_process_cpu_s(pid) for root in roots for pid in _descendants(root))
 
     def _sample(self) -> None:
         total_rss = total_pss = 0.0

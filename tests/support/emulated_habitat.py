@@ -59,15 +59,14 @@ class EmulatedHabitat:
         """The run's events as the habitat's onboard store holds them."""
         return onboard_chain(self.state_dir, run_id)
 
-    def hand_run(self, db: str, env: dict[str, str], *, follow: bool = True) -> ManagedProcess:
+    def hand_run(self, db: str, env: dict[str, str]) -> ManagedProcess:
         """``caretaker run`` of the IVA procedure for this habitat, autonomous, handed to the
-        supervisors of ``db`` (``--onboard --via-supervisor``); bob approves the unlock (``env``
-        has his password: support/second_operator.py). Without ``follow`` the runner ends once the
-        habitat took the unit (``--no-follow``), as a console's handed starts do."""
+        supervisors of ``db`` (``--onboard --via-supervisor``) and followed to its end; bob approves
+        the unlock (``env`` has his password: support/second_operator.py)."""
         return caretaker(
             *("run", str(PROCEDURE), "--binding", str(self.binding), "--auto", "--user", "flight", "--db", db),
             *("--confirm-manual", *APPROVED_BY_BOB, "--rehearsal", f"--set=clean_filter_id={CLEAN_FILTER}"),
-            *("--onboard", "--via-supervisor", *([] if follow else ["--no-follow"])),
+            *("--onboard", "--via-supervisor"),
             env=env,
             name=f"run-{self.name}",
         )
