@@ -23,7 +23,7 @@ from sqlalchemy.pool import ConnectionPoolEntry
 from pride.events import PAX, Event, EventKind
 from records.audit_chain import GENESIS
 from records.audit_log import AuditLog, AuditSequenceError, database_url
-from records.audit_schema import AuditSchemaError, head_revision
+from records.audit_schema import AuditSchemaError, _config, _revisions, head_revision
 from support.audit import AuditDatabase
 from support.postgres import OWNER, RUNNER, PostgresServer
 
@@ -345,6 +345,25 @@ def test_a_log_written_by_a_newer_caretaker_is_refused(database: AuditDatabase) 
     engine.dispose()
     with pytest.raises(AuditSchemaError, match="revision '9999' was written by a newer Caretaker"):
         AuditLog(database.url)
+
+
+def test_the_revisions_read_without_alembic_are_alembics() -> None:
+    from alembic.script import ScriptDirectory
+
+    scripts = ScriptDirectory.from_config(_config())
+    assert _revisions() == {script.revision: script.down_revision for script in scripts.walk_revisions()}
+    assert head_revision() == scripts.get_current_head()
+
+
+def test_a_log_at_the_newest_revision_opens_without_alembic(tmp_path: Path) -> None:
+    url = f"sqlite:///{tmp_path / 'audit.db'}"
+    AuditLog(url).close()  # created at the newest revision
+    code = (
+        f"import sys; from records.audit_log import AuditLog; AuditLog({url!r}).close(); "
+        "print(sorted(name for name in sys.modules if name.split('.')[0] in ('alembic', 'mako', 'pygments')))"
+    )
+    opened = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert opened.stdout == "[]\n", opened.stderr
 
 
 def test_a_runner_cannot_upgrade_the_schema_and_is_told_who_can(postgres: PostgresServer) -> None:
