@@ -26,6 +26,11 @@ PLUGIN_JAR = REPO_ROOT / "java" / "pax-plugins" / "target" / "pax-plugins.jar"
 #: same versions the Maven build compiles against (pom.xml pins them to Debian's repository).
 RUNTIME_JARS = (Path("/usr/share/java/gson.jar"), Path("/usr/share/java/snakeyaml.jar"))
 
+#: C1 only, no C2: a process runs little Java (the plugins' JSON and WebSocket calls), so C2 spent
+#: more CPU compiling than its faster code gave back. A ``caretaker run`` of the IVA procedure
+#: used 5.2-6.6 CPU-s with both compilers and 3.3-5.0 with C1 only (docs/benchmarks.md).
+JVM_OPTIONS = ("-XX:TieredStopAtLevel=1",)
+
 _start_lock = threading.Lock()
 
 
@@ -64,7 +69,7 @@ def start_jvm() -> None:
             _LOG.info("starting the JVM with %s", ":".join(path))
             # convertStrings=False: Java strings stay Java objects until converted on purpose,
             # the behaviour JPype recommends and that a later JPype default change cannot alter.
-            jpype.startJVM(classpath=path, convertStrings=False)
+            jpype.startJVM(*JVM_OPTIONS, classpath=path, convertStrings=False)
         try:
             jpype.JClass("caretaker.binding.PaxHost")
         except TypeError as exc:  # JPype raises TypeError for a class it cannot find
