@@ -117,7 +117,7 @@ class ProposalDesk:
         if not self.store.close(proposal_id, "accepted", user):
             raise ActionRefused(409, f"proposal {proposal_id} is {self._state(proposal_id)}: it cannot be accepted")
         try:
-            if onboard:  # the runner takes the proposal itself (caretaker run --proposal)
+            if onboard:  # the onboard start takes the proposal itself (records/proposal_runs.py)
                 start = partial(
                     self.board.start_onboard, approver=approver, proposal=proposal_id, confirm_manual=confirm_manual
                 )
