@@ -28,7 +28,7 @@ RUNTIME_JARS = (Path("/usr/share/java/gson.jar"), Path("/usr/share/java/snakeyam
 
 #: C1 only, no C2: a process runs little Java (the plugins' JSON and WebSocket calls), so C2 spent
 #: more CPU compiling than its faster code gave back. A ``caretaker run`` of the IVA procedure
-#: used 5.2-6.6 CPU-s with both compilers and 3.3-5.0 with C1 only (docs/benchmarks.md).
+#: used 5.2-5.8 CPU-s with both compilers and 3.3-4.1 with C1 only (docs/benchmarks.md).
 JVM_OPTIONS = ("-XX:TieredStopAtLevel=1",)
 
 _start_lock = threading.Lock()
