@@ -261,8 +261,8 @@ def main() -> int:
             f"{rss_end / MiB:.0f} MiB at the end"
         )
         print(
-            f"worst event-loop stall (a well-formed call every 20 ms, {watch.calls:,} calls): {watch.worst:.3f} s; "
-            f"unanswered {watch.unanswered}"
+            f"worst event-loop stall (a well-formed call every 20 ms, {watch.calls:,} calls): {watch.worst:.3f} s, "
+            f"the bridge's CPU during one call at most {watch.busiest:.3f} s; unanswered {watch.unanswered}"
         )
         if log.first_traceback:
             print("the first traceback logged:\n" + "\n".join(log.first_traceback))

@@ -88,7 +88,7 @@ def hostile_bridge(
 @pytest.fixture
 def watch(hostile_bridge: tuple[ManagedProcess, BridgeLog, tuple[str, int]]) -> Iterator[Watch]:
     """A well-formed client calling the hostile bridge while the test attacks it; afterwards the
-    call's worst latency, the RSS growth and the tracebacks logged are checked."""
+    bridge's work while a call waited, the RSS growth and the tracebacks logged are checked."""
     process, bridge_log, address = hostile_bridge
     tracebacks_before = bridge_log.snapshot()[1]
     with Watch(process.proc.pid, address) as watching:
