@@ -20,7 +20,7 @@ import pytest
 
 from support.operator_page import expect_current
 
-from .flight_support import DELAY, LINK_MS, PULL_OUT, flight, start_from_console
+from .flight_support import DELAY, LINK_MS, PULL_OUT, Flight, flight, start_from_console
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=60), pytest.mark.timeout(900)]
 
@@ -82,42 +82,21 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
         assert taken == [(action, OPERATOR, "DONE") for action in ("done", "halt", "stop")], taken  # each once
         arrived = next(a["received"] for a in f.habitat.onboard_actions() if a["action"] == "halt")
         print(f"HALT onboard: clicked on the ground, arrived on the habitat {arrived - clicked:.2f} s later")
-        # The robot's own account, in its order: the simulation logs its halt and each trajectory it
-        # starts. The halt reaches it through the habitat's executive, PAX and bridge, so a motion
-        # whose goal was already on its way may start after the halt arrived on the habitat (CI saw
-        # one start 0.06 s after and stop 0.17 s later), never after the robot halted.
         robot = [line for line in f.habitat.up.output if line.startswith("[sim]")]
         at_halt = next((i for i, line in enumerate(robot) if "[caretaker_sim]: halt (" in line), None)
-        assert at_halt is not None, "the robot never heard the halt:\n" + "\n".join(list(f.habitat.up.output)[-60:])
-        started = [line for line in robot[at_halt:] if "trajectory started" in line]
-        assert not started, f"a motion started after the robot halted: {started}"
-        stamp = re.search(r"\[(\d+\.\d+)\]", robot[at_halt])  # rclpy's stamp, on the probe's clock
-        assert stamp, f"no time in the robot's halt line: {robot[at_halt]}"
-        halted = float(stamp.group(1))
-        changes = [
-            (kind, float(at))
-            for kind, at in (line.split() for line in f.probe.output if line.startswith(("MOVING ", "STILL ")))
-        ]
-        assert changes and changes[-1][0] == "STILL", f"the arm is not at rest: {changes[-4:]}"
-        # A figure when the halt stopped a motion (the robot says so): the first rest after both the
-        # arrival and the motion's start; it may reach the probe just before the robot's log line.
-        since = max([at for kind, at in changes if kind == "MOVING" and at <= halted][-1:] + [arrived])
-        stopped = "): stopped " in robot[at_halt]
-        still = next((at for kind, at in changes if kind == "STILL" and at > since), None) if stopped else None
-        near = [(kind, round(at - arrived, 3)) for kind, at in changes if abs(at - arrived) < 10]
-        figure = (
-            f"the arm at rest {still - arrived:+.3f} s after the arrival"
-            if still is not None
-            else f"the arm was between motions: no figure ({robot[at_halt].split(': ', 1)[-1]}; {near})"
-        )
-        print(
-            f"HALT onboard: the robot halted {halted - arrived:+.3f} s after the halt arrived on the habitat; {figure}"
-        )
-        # Printed, not asserted, as the ground's halt test does: the suite's load stretches any
-        # wall-clock time; the issue's 0.5 s is beside two CPU hogs (bench/halt_under_load.py).
-        # Past it, where the time went, as the habitat logged it.
-        if still is not None and still - arrived > HALT_WITHIN_S:
-            print("\n".join(line for line in f.habitat.up.output if "halt" in line.lower()))
+        if at_halt is not None:
+            _robot_halted(f, robot, at_halt, arrived)
+        else:
+            # Nothing was in flight on the habitat when the halt arrived (a crowded machine took the
+            # click up after the pull-out's last motion): the run held with no command to cancel, so
+            # the robot had nothing to stop; and nothing may have started on it after the arrival.
+            assert json.loads(halt.data)["key"] is None, (
+                "the robot never heard the halt of the command in flight:\n"
+                + ("\n".join(list(f.habitat.up.output)[-60:]))
+            )
+            started = [line for line in robot if "trajectory started" in line and _stamped(line) > arrived]
+            assert not started, f"a motion started after the halt arrived on the habitat: {started}"
+            print("HALT onboard: nothing was in flight when the halt arrived on the habitat: no figure")
         # each command sent on the habitat went on the approval carried up, without a round trip
         # (the run's end removes the templates it added, as the stop's own clean-up: no instruction)
         sent = [
@@ -133,3 +112,44 @@ def test_an_onboard_run_started_and_halted_from_the_ground_console_stops_the_arm
         ground = f.ground_chain(run_id)
         assert [(e.seq, e.hash) for e in ground] == [(e.seq, e.hash) for e in habitat]
         assert next(e for e in ground if e.kind == "halt").actor == OPERATOR  # logged halted by them on both sides
+
+
+def _robot_halted(f: Flight, robot: list[str], at_halt: int, arrived: float) -> None:
+    """The robot heard the halt (line ``at_halt`` of its log ``robot``): nothing started after it,
+    the arm is at rest, and how soon after the halt's ``arrived`` on the habitat, printed."""
+    # The robot's own account, in its order: the simulation logs its halt and each trajectory it
+    # starts. The halt reaches it through the habitat's executive, PAX and bridge, so a motion
+    # whose goal was already on its way may start after the halt arrived on the habitat (CI saw
+    # one start 0.06 s after and stop 0.17 s later), never after the robot halted.
+    started = [line for line in robot[at_halt:] if "trajectory started" in line]
+    assert not started, f"a motion started after the robot halted: {started}"
+    halted = _stamped(robot[at_halt])
+    changes = [
+        (kind, float(at))
+        for kind, at in (line.split() for line in f.probe.output if line.startswith(("MOVING ", "STILL ")))
+    ]
+    assert changes and changes[-1][0] == "STILL", f"the arm is not at rest: {changes[-4:]}"
+    # A figure when the halt stopped a motion (the robot says so): the first rest after both the
+    # arrival and the motion's start; it may reach the probe just before the robot's log line.
+    since = max([at for kind, at in changes if kind == "MOVING" and at <= halted][-1:] + [arrived])
+    stopped = "): stopped " in robot[at_halt]
+    still = next((at for kind, at in changes if kind == "STILL" and at > since), None) if stopped else None
+    near = [(kind, round(at - arrived, 3)) for kind, at in changes if abs(at - arrived) < 10]
+    figure = (
+        f"the arm at rest {still - arrived:+.3f} s after the arrival"
+        if still is not None
+        else f"the arm was between motions: no figure ({robot[at_halt].split(': ', 1)[-1]}; {near})"
+    )
+    print(f"HALT onboard: the robot halted {halted - arrived:+.3f} s after the halt arrived on the habitat; {figure}")
+    # Printed, not asserted, as the ground's halt test does: the suite's load stretches any
+    # wall-clock time; the issue's 0.5 s is beside two CPU hogs (bench/halt_under_load.py).
+    # Past it, where the time went, as the habitat logged it.
+    if still is not None and still - arrived > HALT_WITHIN_S:
+        print("\n".join(line for line in f.habitat.up.output if "halt" in line.lower()))
+
+
+def _stamped(line: str) -> float:
+    """rclpy's stamp of a robot's log line, on the probe's and the habitat's clock."""
+    stamp = re.search(r"\[(\d+\.\d+)\]", line)
+    assert stamp, f"no time in the robot's line: {line}"
+    return float(stamp.group(1))
