@@ -315,13 +315,21 @@ def _verdict(
         print(f"  {shown}  {event}")
     for verdict in verdicts:
         sys.stdout.write(f"  {'verified' if verdict.holds else 'WRONG'}: {verdict.words}\n")
-    ok = code == 0 and set(EVENTS) <= set(timeline) and bool(verdicts) and all(v.holds for v in verdicts)
+    missing = [event for event in EVENTS if event not in timeline]
+    why = [f"wrong: {verdict.words}" for verdict in verdicts if not verdict.holds]
+    if code != 0:
+        why.insert(0, f"the agent exited {code}")
+    if missing:
+        why.append(f"the timeline lacks {', '.join(missing)}")
+    if not verdicts:
+        why.append("the world was not checked")
     if alarm is not None and "cleared" in timeline:
         cleared = (timeline["cleared"] - alarm).total_seconds()
         print(f"  alarm to cleared: {cleared:.1f} s; operator actions: 1 (the acceptance)")
         print(f"  the fault to the alarm: {alarm.timestamp() - fault_at:.1f} s")
-    if not ok:
-        print(f"caretaker demo anomaly: the loop did not close (agent exit {code}):\n{agent.tail()}")
+    if why:  # said last, after the agent's own account, where a reader of a cut log still sees it
+        print(f"the agent's last lines:\n{agent.tail()}")
+        print(f"caretaker demo anomaly: the loop did not close: {'; '.join(why)}")
         return 1
     print(f"anomaly demo complete; run {run_id}; ground database {db_url}")
     return 0

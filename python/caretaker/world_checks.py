@@ -62,8 +62,9 @@ __all__ = [
 SUBJECTS = ("object", "tool", "topic", "images_of")
 EVERY_TARGET = "every target"
 _INPUT = re.compile(r"\$\{([^}]*)\}")
-#: s to wait for a latched topic through rosbridge (it answers at once when the topic exists).
-TOPIC_TIMEOUT = 20.0
+#: s to wait for a latched topic or the simulation's frames through rosbridge: they answer at once
+#: when they exist; the rest is room for a machine so crowded that any answer takes tens of seconds.
+TOPIC_TIMEOUT = 60.0
 #: s between asking the simulation's check service again while it is not found yet.
 ASK_AGAIN_S = 0.5
 

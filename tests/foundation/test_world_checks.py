@@ -16,6 +16,7 @@ import pytest
 
 from caretaker.deployment import DeploymentError, load_deployment
 from caretaker.world_checks import (
+    TOPIC_TIMEOUT,
     FrameCheck,
     ImagesCheck,
     Place,
@@ -184,7 +185,7 @@ class _Recorded(_World):
 
     def newest(self, topic: str, msg_type: str | None = None) -> dict[str, Any]:
         if topic not in self._newest:
-            raise LookupError(f"no message on {topic} within 20 s")
+            raise LookupError(f"no message on {topic} within {TOPIC_TIMEOUT:g} s")
         return self._newest[topic]
 
 
@@ -234,7 +235,7 @@ def test_each_check_is_judged_in_words_with_rounded_values() -> None:
         (False, "tool0 is not at rack/slot_3: 526 mm from it (within 5 mm)"),
         (True, "/cdra/installed_filter_id is 'CDRA-F-0012'"),
         (False, "/cdra/filter_locked is False, expected True"),
-        (False, "no message on /cdra/missing within 20 s"),
+        (False, f"no message on /cdra/missing within {TOPIC_TIMEOUT:g} s"),
     ]
     # the robot side unreachable: every check that reads it says so, nothing is guessed
     unreachable = WorldWatch(checks[:1], "cannot watch the robot side through ws://x:1: refused", scene)
