@@ -44,6 +44,7 @@ from procedure_language.sysrep import SysRep, check_value
 from records.agent_proposals import CitedTelemetry, NewProposal, Proposal, ProposalStore
 from records.audit_log import AuditLog
 from records.console_tables import run_hosts
+from records.refusals import Refused
 from records.releases import ReleaseStore, procedure_digest, short
 from records.robot_control import RobotControl
 
@@ -56,13 +57,8 @@ LISTED_RUNS = 50
 _hosts = itertools.count(1)
 
 
-class AgentRefused(Exception):
+class AgentRefused(Refused):
     """An agent's request the rules do not allow; ``rule`` names the rule, the message says why."""
-
-    def __init__(self, rule: str, message: str) -> None:
-        super().__init__(message)
-        self.rule = rule
-        self.message = message
 
 
 @dataclass(frozen=True)

@@ -21,17 +21,13 @@ from pride.run_setup import load_sysreps
 from pride.systems import SystemGateway
 from procedure_language.binding import BindingError, read_binding
 from procedure_language.sysrep import Telemetry
+from records.refusals import Refused
 
 __all__ = ["RobotTelemetry", "TelemetryFacts", "TelemetryRefused"]
 
 
-class TelemetryRefused(Exception):
+class TelemetryRefused(Refused):
     """A robot or SysRep that cannot be read: ``rule`` names what is missing, the message says what."""
-
-    def __init__(self, rule: str, message: str) -> None:
-        super().__init__(message)
-        self.rule = rule
-        self.message = message
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from sqlalchemy.engine import Engine
 from records.agent_tables import agent_tokens
 from records.audit_chain import utc
 from records.console_tables import console_accounts
+from records.refusals import Refused
 
 __all__ = ["AGENT_ROLE", "TOKEN_PREFIX", "IssuedToken", "TokenError", "TokenInfo", "TokenRefused", "TokenStore"]
 
@@ -44,13 +45,8 @@ class TokenError(ValueError):
     """A token cannot be issued or revoked as asked; the message says what to fix."""
 
 
-class TokenRefused(Exception):
+class TokenRefused(Refused):
     """A token that does not authenticate an agent; ``rule`` names why (as a refusal is recorded)."""
-
-    def __init__(self, rule: str, message: str) -> None:
-        super().__init__(message)
-        self.rule = rule
-        self.message = message
 
 
 @dataclass(frozen=True)
