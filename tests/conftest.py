@@ -58,8 +58,11 @@ def ros_env() -> dict[str, str]:
 
 @pytest.fixture(scope="session")
 def postgres() -> Iterator[PostgresServer]:
-    """This session's PostgreSQL server, shared by every suite (started on first use, removed at the end)."""
-    with postgres_server() as server:
+    """This session's PostgreSQL server, shared by every suite (started on first use, removed at the end).
+
+    It never fsyncs (nor does its initdb): the tests kill processes, never the machine, and on a
+    crowded machine a cluster's initdb ran past its minute."""
+    with postgres_server(settings={"fsync": "off"}) as server:
         yield server
 
 

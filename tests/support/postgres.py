@@ -89,6 +89,7 @@ class PostgresServer:
                 "--encoding=UTF8",
                 "--locale=C.UTF-8",
                 "--no-instructions",
+                "--no-sync",  # a scratch cluster: its files need not reach the disk before it starts
                 "-D",
                 str(server.data_dir),
             )
