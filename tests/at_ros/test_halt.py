@@ -61,6 +61,19 @@ class JointLog:
     def wait_until(self, stamp: float, timeout: float = 30.0) -> None:
         self.at.wait_for(lambda: self.samples[-1][0] >= stamp, timeout, f"joint_states stamped {stamp:.2f}")
 
+    def at_rest(self, for_s: float = 1.0, timeout: float = 60.0) -> tuple[float, ...]:
+        """The arm's positions once it has not moved for ``for_s`` s of sim time (a motion that
+        just ended may still settle; on a crowded machine its samples also arrive late)."""
+
+        def resting() -> bool:
+            if not self.samples:
+                return False
+            latest = self.samples[-1]
+            return latest[0] - self.still_from(latest[0] - 2 * for_s) >= for_s
+
+        self.at.wait_for(resting, timeout, f"the arm at rest for {for_s} s")
+        return self.samples[-1][1]
+
     def still_from(self, after: float) -> float:
         """The stamp from which the arm never moved again (samples after ``after`` only)."""
         later = [s for s in self.samples if s[0] >= after]
@@ -221,7 +234,7 @@ def test_halt_while_planning_with_execute_prevents_the_execution(stack: tuple[St
     planner = parts.processes["planner"].proc.pid
     try:
         assert at.register("ready_pose", added.id, "robot_base", "robot_base").success
-        before = joints.latest()[1]
+        before = joints.at_rest()
         results: dict = {}
         os.kill(planner, signal.SIGSTOP)  # the plan waits in the planner's queue until the halt is in
         try:
