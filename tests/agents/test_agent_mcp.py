@@ -448,7 +448,7 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
         ("--rosbridge", "iva.yaml=http://127.0.0.1:9090"): "expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT",
     }
     for options, why in refused_options.items():
-        done = subprocess.run([str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=60)
+        done = subprocess.run([str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=180)
         assert done.returncode == 2 and why in done.stderr, (options, done.stderr)
     server = caretaker(
         *common, "--listen", "127.0.0.1:0", "--certfile", str(cert), "--keyfile", str(key), env=dict(os.environ)

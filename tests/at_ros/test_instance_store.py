@@ -122,7 +122,7 @@ def test_the_server_refuses_to_start_on_state_it_cannot_restore(tmp_path: Path, 
         env=ros_env,
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert server.returncode == 2
     assert f"{state}:1: robot: state of robot 'eva_arm', but this server serves 'ur10'" in server.stderr

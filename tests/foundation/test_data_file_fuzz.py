@@ -216,7 +216,7 @@ def test_caretaker_check_prints_one_line_per_file_and_no_traceback(tmp_path: Pat
         [sys.executable, "-m", "caretaker.cli", "check", *map(str, shipped), *(str(tmp_path / n) for n in files)],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert proc.returncode == 1
     assert "Traceback" not in proc.stdout + proc.stderr

@@ -31,7 +31,7 @@ def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
             "/affordance_template_server/status",
             "/affordance_template_server/add_template",
             "/affordance_template_server",
-            timeout=60,
+            timeout=180,
         )
         yield up.process, port
 
@@ -117,7 +117,7 @@ def test_a_dead_simulation_ends_the_stack_and_every_part(stack: tuple[ManagedPro
     up, _ = stack
     parts = psutil.Process(up.proc.pid).children(recursive=True)
     _part(up, "sim").send_signal(signal.SIGKILL)
-    assert up.proc.wait(timeout=60) == 1
+    assert up.proc.wait(timeout=180) == 1
     assert "caretaker up: sim died" in up.tail()
     _, alive = psutil.wait_procs(parts, timeout=30)
     assert not alive, [p.cmdline() for p in alive]

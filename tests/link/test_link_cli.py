@@ -96,7 +96,9 @@ def test_link_command_relays_with_delay_and_reports_through_its_control_socket(
     ],
 )
 def test_bad_options_give_one_line_that_names_them(options: list[str], complaint: str) -> None:
-    result = subprocess.run([str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=180
+    )
     assert result.returncode == 2
     assert result.stdout == ""
     assert result.stderr.count("\n") == 1 and complaint in result.stderr, result.stderr

@@ -29,7 +29,7 @@ from support.postgres import OWNER, RUNNER, PostgresServer
 
 
 def caretaker(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=60)
+    return subprocess.run([sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=180)
 
 
 def test_records_come_back_in_order_with_their_data_and_utc_times(database: AuditDatabase) -> None:
@@ -362,7 +362,7 @@ def test_a_log_at_the_newest_revision_opens_without_alembic(tmp_path: Path) -> N
         f"import sys; from records.audit_log import AuditLog; AuditLog({url!r}).close(); "
         "print(sorted(name for name in sys.modules if name.split('.')[0] in ('alembic', 'mako', 'pygments')))"
     )
-    opened = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    opened = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180, check=True)
     assert opened.stdout == "[]\n", opened.stderr
 
 

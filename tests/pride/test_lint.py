@@ -59,7 +59,7 @@ def test_cli_prints_errors_and_exits_nonzero() -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert proc.returncode == 1
     lines = proc.stdout.splitlines()

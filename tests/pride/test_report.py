@@ -51,7 +51,7 @@ def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[s
         [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *sysreps, *options],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
 
 
@@ -112,7 +112,7 @@ def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert proc.returncode == 2
     assert "no run 'nope'" in proc.stderr

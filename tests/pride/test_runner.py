@@ -268,7 +268,7 @@ def test_a_run_from_a_step_needs_what_the_skipped_steps_bound_and_its_report_say
         env=env,
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
         check=True,
     )
     report = (out / f"{run_id}.md").read_text(encoding="utf-8")

@@ -307,7 +307,7 @@ def test_an_open_address_needs_tls_and_a_secret(ros_env: dict[str, str], address
         [str(Path(sys.executable).with_name("caretaker")), "bridge", "--address", address],
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
         env=ros_env,
     )
     assert run.returncode == 2

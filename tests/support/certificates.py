@@ -30,6 +30,6 @@ def self_signed_certificate(folder: Path, cert_name: str = "cert.pem") -> tuple[
         ],
         check=True,
         capture_output=True,
-        timeout=60,
+        timeout=180,
     )
     return cert, key

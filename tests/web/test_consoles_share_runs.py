@@ -102,7 +102,7 @@ def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_the
         input=PEOPLE["bob"][2] + "-new\n",
         capture_output=True,
         text=True,
-        timeout=60,
+        timeout=180,
     )
     assert changed.returncode == 0, changed.stderr
     for page in (bob, bob_on_first):
