@@ -27,8 +27,9 @@ PANDA = Path(pybullet_data.getDataPath()) / "franka_panda" / "panda.urdf"
 
 
 def _caretaker(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    # a hang, not a speed: a search of 4000 configurations ran past 120 s beside a whole suite
     return subprocess.run(
-        [sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=120, cwd=cwd
+        [sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=360, cwd=cwd
     )
 
 
