@@ -52,17 +52,22 @@ class Gripper:
         self.velocities = [0.0] * len(self.joints)
         self.motion: GripperMotion | None = None
         self._blocked = [False] * len(self.joints)
+        self._halted = False  # its last motion was stopped short by a halt
 
     @property
     def moving(self) -> bool:
         return self.motion is not None
 
     def grasp_state(self) -> str:
-        """``moving``, ``holding``, ``open``, or ``empty`` (closed on nothing: a missed grasp or a slip)."""
+        """``moving``, ``holding``, ``open``, ``halted`` (stopped short of its pose by a halt, holding
+        nothing), or ``empty`` (closed on nothing: a missed grasp or a slip). A halt during a close
+        is not a missed grasp: a monitor for slips must not take the operator's halt for one."""
         if self.motion is not None:
             return "moving"
         if self._filters.held() is not None:
             return "holding"
+        if self._halted:
+            return "halted"
         opened = self.spec.poses.get("open")
         at_open = opened is not None and all(abs(q - t) < 1e-4 for q, t in zip(self.positions, opened, strict=False))
         return "open" if at_open else "empty"
@@ -81,6 +86,7 @@ class Gripper:
         LOG.info("gripper started: to %r", pose)  # the log says what moved when (a halt's tests read it)
         self.motion = GripperMotion(pose, target)
         self._blocked = [False] * len(self.joints)
+        self._halted = False
         opening = any(t > q for t, q in zip(target, self.positions, strict=False))
         if opening and self._filters.held() is not None:
             self.motion.message = self._filters.release() + "; "
@@ -91,6 +97,7 @@ class Gripper:
         motion = self.motion
         assert motion is not None
         self._finish(False, f"halted: {reason}")
+        self._halted = True
         return f"the gripper on its way to {motion.pose!r}"
 
     def step(self, dt: float) -> None:

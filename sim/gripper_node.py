@@ -1,8 +1,9 @@
 """The gripper's ROS interface on the simulation node: /gripper/set, what it holds and how.
 
 ``gripper/grasp`` says how the gripper holds, as a real gripper's object status does (Robotiq's
-gOBJ): ``moving``, ``holding`` (closed on an object), ``open``, or ``empty`` (closed on nothing:
-a grasp that missed, or an object that slipped out). A procedure's monitor watches it while the
+gOBJ): ``moving``, ``holding`` (closed on an object), ``open``, ``halted`` (stopped short of its
+pose by a halt, holding nothing), or ``empty`` (closed on nothing: a grasp that missed, or an
+object that slipped out). A procedure's monitor watches it while the
 arm carries a filter (procedures/iva_cdra_filter_replacement.xml). ``sim/check/slip`` lets a
 test make the held filter slip out of the closed fingers, the fault that monitor is for.
 """

@@ -154,8 +154,12 @@ def test_halt_stops_the_arm_and_the_fingers_where_they_are(model: ArmModel) -> N
         for _ in range(240):  # a second later: no drift, no "finishing the segment"
             sim.step()
         assert sim.arm_positions == arm and sim.gripper.positions == gripper and not sim.moving
+        # fingers halted part way closed hold nothing, yet did not miss a grasp: a slip monitor
+        # watching for "empty" must not take the operator's halt for a slip
+        assert sim.gripper.grasp_state() == "halted"
         assert sim.halt("again") == []  # idempotent: nothing was moving
         run_to(sim, [list(current)], model)  # the arm takes new goals after a halt
+        assert set_gripper(sim, "open") == "at open" and sim.gripper.grasp_state() == "open"
     finally:
         sim.close()
 
