@@ -51,6 +51,7 @@ from support.certificates import self_signed_certificate
 from support.executive_runs import held
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO
+from support.processes import COMMAND_HANG_S
 from support.recorded_run import recorded_events
 from support.web_server import GroundDatabase, new_ground_database
 
@@ -448,13 +449,15 @@ def test_over_https_each_request_needs_the_agents_own_valid_token_and_a_refused_
         ("--rosbridge", "iva.yaml=http://127.0.0.1:9090"): "expected [BINDING=]ws://HOST:PORT or wss://HOST:PORT",
     }
     for options, why in refused_options.items():
-        done = subprocess.run([str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=180)
+        done = subprocess.run(
+            [str(CARETAKER), *common, *options], capture_output=True, text=True, timeout=COMMAND_HANG_S
+        )
         assert done.returncode == 2 and why in done.stderr, (options, done.stderr)
     server = caretaker(
         *common, "--listen", "127.0.0.1:0", "--certfile", str(cert), "--keyfile", str(key), env=dict(os.environ)
     )
     try:
-        url = server.wait_ready(180).split()[2]  # a hang, not a slow start on a crowded machine
+        url = server.wait_ready(COMMAND_HANG_S).split()[2]
         assert url.startswith("https://127.0.0.1:")
         seen: dict[str, Any] = {}
 

@@ -16,6 +16,7 @@ from at_ros.instance_store import load_instances, save_instances
 from at_ros.library import LibraryError, Template
 from at_ros.robot_config import RobotConfig
 from at_ros.transforms import from_xyz_rpy
+from support.processes import COMMAND_HANG_S
 
 
 def _worked_instance(library: dict[str, Template], ur10_config: RobotConfig) -> TemplateInstance:
@@ -122,7 +123,7 @@ def test_the_server_refuses_to_start_on_state_it_cannot_restore(tmp_path: Path, 
         env=ros_env,
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     assert server.returncode == 2
     assert f"{state}:1: robot: state of robot 'eva_arm', but this server serves 'ur10'" in server.stderr

@@ -28,6 +28,7 @@ from hypothesis import strategies as st
 
 from caretaker.check import KINDS
 from datafile import DataFileError
+from support.processes import COMMAND_HANG_S
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -216,7 +217,7 @@ def test_caretaker_check_prints_one_line_per_file_and_no_traceback(tmp_path: Pat
         [sys.executable, "-m", "caretaker.cli", "check", *map(str, shipped), *(str(tmp_path / n) for n in files)],
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     assert proc.returncode == 1
     assert "Traceback" not in proc.stdout + proc.stderr

@@ -13,7 +13,7 @@ import pytest
 import roslibpy
 
 from rosbridge.rosbridge_support import wait_until_discovered
-from support.processes import ManagedProcess
+from support.processes import COMMAND_HANG_S, ManagedProcess
 from support.stack import stack_up
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -31,7 +31,7 @@ def stack(ros_env: dict[str, str]) -> Iterator[tuple[ManagedProcess, int]]:
             "/affordance_template_server/status",
             "/affordance_template_server/add_template",
             "/affordance_template_server",
-            timeout=180,
+            timeout=COMMAND_HANG_S,
         )
         yield up.process, port
 
@@ -117,7 +117,7 @@ def test_a_dead_simulation_ends_the_stack_and_every_part(stack: tuple[ManagedPro
     up, _ = stack
     parts = psutil.Process(up.proc.pid).children(recursive=True)
     _part(up, "sim").send_signal(signal.SIGKILL)
-    assert up.proc.wait(timeout=180) == 1
+    assert up.proc.wait(timeout=COMMAND_HANG_S) == 1
     assert "caretaker up: sim died" in up.tail()
     _, alive = psutil.wait_procs(parts, timeout=30)
     assert not alive, [p.cmdline() for p in alive]

@@ -15,7 +15,7 @@ import pytest
 
 from caretaker.link import LinkControl
 from caretaker.processes import VENV_BIN
-from support.processes import caretaker
+from support.processes import COMMAND_HANG_S, caretaker
 
 
 class _Echo(socketserver.BaseRequestHandler):
@@ -97,7 +97,7 @@ def test_link_command_relays_with_delay_and_reports_through_its_control_socket(
 )
 def test_bad_options_give_one_line_that_names_them(options: list[str], complaint: str) -> None:
     result = subprocess.run(
-        [str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=180
+        [str(VENV_BIN / "caretaker"), "link", *options], capture_output=True, text=True, timeout=COMMAND_HANG_S
     )
     assert result.returncode == 2
     assert result.stdout == ""

@@ -26,10 +26,13 @@ from records.audit_log import AuditLog, AuditSequenceError, database_url
 from records.audit_schema import AuditSchemaError, _config, _revisions, head_revision
 from support.audit import AuditDatabase
 from support.postgres import OWNER, RUNNER, PostgresServer
+from support.processes import COMMAND_HANG_S
 
 
 def caretaker(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=180)
+    return subprocess.run(
+        [sys.executable, "-m", "caretaker.cli", *args], capture_output=True, text=True, timeout=COMMAND_HANG_S
+    )
 
 
 def test_records_come_back_in_order_with_their_data_and_utc_times(database: AuditDatabase) -> None:
@@ -362,7 +365,9 @@ def test_a_log_at_the_newest_revision_opens_without_alembic(tmp_path: Path) -> N
         f"import sys; from records.audit_log import AuditLog; AuditLog({url!r}).close(); "
         "print(sorted(name for name in sys.modules if name.split('.')[0] in ('alembic', 'mako', 'pygments')))"
     )
-    opened = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180, check=True)
+    opened = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=COMMAND_HANG_S, check=True
+    )
     assert opened.stdout == "[]\n", opened.stderr
 
 

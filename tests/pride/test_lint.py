@@ -12,6 +12,7 @@ import yaml
 from procedure_language.lint import lint_file
 from procedure_language.sysrep import SysRep
 from support.procedures import FIXTURES, REPO
+from support.processes import COMMAND_HANG_S
 
 BROKEN = FIXTURES / "broken"
 EXPECTED: dict[str, list[str]] = yaml.safe_load((BROKEN / "expected_errors.yaml").read_text())
@@ -59,7 +60,7 @@ def test_cli_prints_errors_and_exits_nonzero() -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     assert proc.returncode == 1
     lines = proc.stdout.splitlines()

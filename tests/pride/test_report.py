@@ -15,6 +15,7 @@ from records.audit_log import AuditLog
 from support.audit import AuditDatabase
 from support.lab_gateway import LabGateway
 from support.procedures import FIXTURES, REPO
+from support.processes import COMMAND_HANG_S
 
 
 def _complete_run(tmp_path: Path, sysreps: dict[str, SysRep], db: str) -> tuple[str, str]:
@@ -51,7 +52,7 @@ def report(run_id: str, db: str, *options: str) -> subprocess.CompletedProcess[s
         [sys.executable, "-m", "caretaker.cli", "report", run_id, "--db", db, *sysreps, *options],
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
 
 
@@ -112,7 +113,7 @@ def test_report_of_an_unknown_run_fails_clearly(tmp_path: Path) -> None:
         ],
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     assert proc.returncode == 2
     assert "no run 'nope'" in proc.stderr

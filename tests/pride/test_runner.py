@@ -25,7 +25,7 @@ from records.audit_log import AuditLog
 from support import lab_gateway
 from support.audit import AuditDatabase
 from support.procedures import FIXTURES, REPO
-from support.processes import ManagedProcess, caretaker
+from support.processes import COMMAND_HANG_S, ManagedProcess, caretaker
 
 PROCEDURE = str(FIXTURES / "lab_all_kinds.xml")
 #: The lab binding has no deployment: hazardous commands need a second operator's approval (bob's).
@@ -268,7 +268,7 @@ def test_a_run_from_a_step_needs_what_the_skipped_steps_bound_and_its_report_say
         env=env,
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
         check=True,
     )
     report = (out / f"{run_id}.md").read_text(encoding="utf-8")

@@ -21,7 +21,7 @@ import pytest
 from websockets.exceptions import ConnectionClosed
 
 from support.certificates import self_signed_certificate
-from support.processes import ManagedProcess, caretaker
+from support.processes import COMMAND_HANG_S, ManagedProcess, caretaker
 
 from .rosbridge_support import RawClient, bridge_url
 
@@ -307,7 +307,7 @@ def test_an_open_address_needs_tls_and_a_secret(ros_env: dict[str, str], address
         [str(Path(sys.executable).with_name("caretaker")), "bridge", "--address", address],
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
         env=ros_env,
     )
     assert run.returncode == 2

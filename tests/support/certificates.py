@@ -5,6 +5,8 @@ from __future__ import annotations
 import subprocess
 from pathlib import Path
 
+from support.processes import COMMAND_HANG_S
+
 
 def self_signed_certificate(folder: Path, cert_name: str = "cert.pem") -> tuple[Path, Path]:
     """Write a one-day certificate for 127.0.0.1 and its key into ``folder``; return both paths."""
@@ -30,6 +32,6 @@ def self_signed_certificate(folder: Path, cert_name: str = "cert.pem") -> tuple[
         ],
         check=True,
         capture_output=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     return cert, key

@@ -26,6 +26,7 @@ from procedure_language.lint import check_procedure
 from procedure_language.sysrep import load_sysrep_dir
 from records.audit_log import AuditLog
 from support.operator_page import audit_row, expect_ended, instruction, start_run
+from support.processes import COMMAND_HANG_S
 from support.simulated_systems import open_simulated_systems
 from support.web_server import PEOPLE, REPO, WebServer, new_ground_database, procedure_shelf, start_server
 
@@ -102,7 +103,7 @@ def test_a_run_started_on_one_console_is_live_on_the_other_and_acted_on_from_the
         input=PEOPLE["bob"][2] + "-new\n",
         capture_output=True,
         text=True,
-        timeout=180,
+        timeout=COMMAND_HANG_S,
     )
     assert changed.returncode == 0, changed.stderr
     for page in (bob, bob_on_first):
