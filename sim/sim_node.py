@@ -71,6 +71,8 @@ IDLE_BATCH = 4
 #: settles; after that a world at rest only has its clock moved (Simulation.rest), which took an
 #: idle simulator from 8 % of a core, most of it pybullet stepping bodies at rest, to next to nothing.
 SETTLE_S = 0.5
+#: s of wall time a trajectory's clock may stand still before its run is given up as stalled.
+STALLED_S = 60.0
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE)
 #: Requests a service keeps queued: ROS's default of 10 drops the rest of a burst silently.
 SERVICE_QOS = QoSProfile(depth=1000, durability=DurabilityPolicy.VOLATILE, reliability=ReliabilityPolicy.RELIABLE)
@@ -392,9 +394,11 @@ class SimNode(Node):
         )
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)
-        deadline_s = trajectory.duration
-        started = time.monotonic()
-        scale = self.time_scale if self.time_scale > 0 else 1.0
+        # A run ends by the sim's clock (at its duration, or on a collision), so it cannot outlast
+        # its trajectory while the physics thread steps; the wall clock only tells a stepper that
+        # stopped: no progress for STALLED_S. A crowded machine slows the sim's clock, it does not
+        # stop it, and a deadline in wall time would abort motions that are merely slow.
+        progressed, progressed_at = run.elapsed, time.monotonic()
         # Feedback at the start and every 50 ms of wall time, so even a trajectory that runs
         # faster than that (time scale 0) reports its progress at least once before its result.
         while True:
@@ -406,7 +410,9 @@ class SimNode(Node):
             goal_handle.publish_feedback(feedback)
             if run.done.wait(0.05):
                 break
-            if goal_handle.is_cancel_requested or time.monotonic() - started > deadline_s / scale + 60.0:
+            if run.elapsed != progressed:
+                progressed, progressed_at = run.elapsed, time.monotonic()
+            if goal_handle.is_cancel_requested or time.monotonic() - progressed_at > STALLED_S:
                 with sim.world_lock:
                     run.cancel_requested = True
         result.error_code, result.error_string = run.error_code, run.error_string
@@ -418,7 +424,7 @@ class SimNode(Node):
             if run.cancel_requested:
                 result.error_code, result.error_string = (
                     ErrorCode.PATH_TOLERANCE_VIOLATED,
-                    "trajectory did not finish in time",
+                    f"the simulator's clock stood still for {STALLED_S:.0f} s: the trajectory did not finish",
                 )
             goal_handle.abort()
         return result
