@@ -35,6 +35,7 @@ from pride.gateways import open_gateway
 from pride.robot_sides import RobotSide, robot_side_for
 from pride.run_section import RunSection, SectionError
 from pride.run_setup import RunSetup
+from pride.states import CarriedApprovalSpent
 from pride.systems import SystemGateway
 from procedure_language.diagnostics import ProcedureError
 from procedure_language.model import CommandInstruction, RecordInstruction
@@ -357,7 +358,7 @@ class HabitatRuns:
         """Answer the run's holds that the unit answered at uplink, until it ends; others wait."""
         executive, unit = run.executive, run.unit
         folder = (self.units_dir / run.unit_hash).resolve()
-        stale: set[CarriedApproval] = set()  # tried once and ran out: the ground approves instead
+        stale: set[CarriedApproval] = set()  # spent: the ground approves instead
         answered = -1
 
         def news(s: Snapshot) -> bool:  # ended, or a hold not looked at yet
@@ -399,8 +400,12 @@ class HabitatRuns:
             elif snap.hold is Hold.APPROVAL and carried is not None and carried not in stale:
                 try:
                     executive.approve(carried.approver, carried=carried)
-                except OperatorActionError:
-                    stale.add(carried)
+                except OperatorActionError as exc:
+                    # Spent for good (ran out, another's, or refused on the record): the ground
+                    # approves instead. A refusal of the moment (the run changed since ``snap``) is
+                    # tried again at the run's next event.
+                    if isinstance(exc, CarriedApprovalSpent) or exc.recorded:
+                        stale.add(carried)
                     raise
 
     def _wake(self) -> None:

@@ -50,7 +50,15 @@ from pride.leftovers import Holdings
 from pride.monitoring import MonitorBoard
 from pride.phrasing import filled_sentence
 from pride.replay import Replayed
-from pride.states import Hold, InstructionStatus, Mode, OperatorActionError, RefusalRule, RunStatus
+from pride.states import (
+    CarriedApprovalSpent,
+    Hold,
+    InstructionStatus,
+    Mode,
+    OperatorActionError,
+    RefusalRule,
+    RunStatus,
+)
 from procedure_language.model import (
     CallInstruction,
     CommandInstruction,
@@ -367,10 +375,10 @@ class RunState:
         try:
             approval = carried.approval(request) if carried else Approval.given(request, user, self.approvals)
         except ValueError as exc:
-            raise OperatorActionError(str(exc)) from None
+            raise (CarriedApprovalSpent if carried else OperatorActionError)(str(exc)) from None
         if approval.stale(self.approvals.clock()):
             self._emit(user, number, approval.expiry_record())
-            raise OperatorActionError(
+            raise CarriedApprovalSpent(
                 f"{user}'s approval of {number}, carried with the unit, ran out at "
                 f"{approval.expires.isoformat()[11:19]} UTC: a second operator approves it again from the ground"
             )

@@ -11,6 +11,7 @@ from datetime import datetime
 from typing import Any
 
 __all__ = [
+    "CarriedApprovalSpent",
     "Controller",
     "Hold",
     "InstructionStatus",
@@ -143,6 +144,12 @@ class OperatorActionError(RuntimeError):
 class RunEnded(OperatorActionError):
     """The run has ended, or is being stopped: another console, host or thread ended it first.
     Someone who meant to end it too has nothing left to do."""
+
+
+class CarriedApprovalSpent(OperatorActionError):
+    """An approval carried with an onboard unit that can no longer send its command: it ran out, or
+    it approves another sender's. Unlike a refusal of the run's state of the moment, it will not
+    change: the command waits for a live approval from the ground."""
 
 
 class RecordNotCheckable(OperatorActionError):

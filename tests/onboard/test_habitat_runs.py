@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -24,6 +25,7 @@ from onboard.unit import OperatorAction, Unit, sign
 from pride.approvals import ApprovalPolicy, CriticalLevel
 from pride.events import EventKind
 from pride.run_setup import load_sysreps
+from pride.states import CarriedApprovalSpent, Hold, OperatorActionError, RefusalRule
 from procedure_language.lint import check_procedure
 from procedure_language.sysrep import SysRep
 from records.audit_log import AuditLog
@@ -366,6 +368,48 @@ def test_an_approval_that_ran_out_on_the_way_is_recorded_and_a_second_operator_a
     given = [(e["actor"], json.loads(e["data"]).get("carried")) for e in events if e["kind"] == "approval_given"]
     assert given == [("carol", None)]
     assert [command for _, command, _ in gateways[0].sent].count("vent") == 1
+
+
+class _RefusingExecutive:
+    """An executive held at PROCEDURE's 2.1 for approval whose ``approve`` refuses with ``refusal``."""
+
+    def __init__(self, path: Path, instruction: Any, refusal: OperatorActionError) -> None:
+        self.place, self.refusal, self.approvers = (path, instruction), refusal, []
+
+    def current_place(self) -> tuple[Path, Any]:
+        return self.place
+
+    def approve(self, user: str, *, carried: Any) -> None:
+        self.approvers.append(user)
+        raise self.refusal
+
+
+@pytest.mark.parametrize(
+    ("refusal", "spent"),
+    [
+        (OperatorActionError("2.1 waits for no approval"), False),
+        (OperatorActionError("2.1 is being performed; wait for it to finish"), False),
+        (CarriedApprovalSpent("bob's approval of 2.1, carried with the unit, ran out"), True),
+        (OperatorActionError("a second operator must approve it", rule=RefusalRule.TWO_PERSON, recorded=True), True),
+    ],
+)
+def test_a_carried_approval_is_given_up_only_for_a_refusal_that_cannot_change(
+    make_unit: Callable[..., Unit],
+    sysreps: dict[str, SysRep],
+    tmp_path: Path,
+    refusal: OperatorActionError,
+    spent: bool,
+) -> None:
+    """A refusal of the run's state of the moment (a snapshot already out of date) leaves the
+    approval to be tried at the run's next event; only one that stays true hands it to the ground."""
+    unit = make_unit()
+    instruction = check_procedure(PROCEDURE, sysreps).procedure.instruction("2.1")
+    executive = _RefusingExecutive(tmp_path / unit.procedure, instruction, refusal)
+    stale: set[Any] = set()
+    with pytest.raises(OperatorActionError):
+        HabitatRuns._answer_hold(executive, unit, SimpleNamespace(hold=Hold.APPROVAL), tmp_path, stale)
+    assert executive.approvers == ["bob"]
+    assert stale == ({unit.approvals[0]} if spent else set())
 
 
 def test_the_unit_a_run_started_from_is_given_to_a_ground_that_attaches(
