@@ -33,13 +33,13 @@ from at_ros.transforms import angle_between
 from console.spatial_world import compose
 from pride.events import EventKind
 from records.audit_log import AuditLog
+from support.browser import TIMEOUT_MS
 from support.operator_page import IVA, audit_row, instruction, sign_in_on, start_run, stop_run, unlock_approved_by
 from support.stack import stack_up
 from support.web_server import REPO, WebServer, start_server
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow(seconds=70), pytest.mark.timeout(900)]
 
-TIMEOUT_MS = 60_000
 MM = 1e-3
 AT = "/affordance_template_server"
 SHOTS = Path(os.environ["CARETAKER_SCREENSHOTS"]) if os.environ.get("CARETAKER_SCREENSHOTS") else None

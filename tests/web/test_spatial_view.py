@@ -23,9 +23,9 @@ from spatial_site import SpatialSite, serve_site
 
 from at_ros.transforms import angle_between, from_xyz_rpy, invert, quat_from_matrix
 from console.spatial_updates import objects_update
+from support.browser import TIMEOUT_MS
 from support.operator_page import shown_image_width
 
-TIMEOUT_MS = 60_000
 MM = 1e-3
 
 pytestmark = pytest.mark.slow
