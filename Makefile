@@ -56,8 +56,8 @@ docs: setup
 		tests/web/test_console_follows_the_run.py::test_monitors_and_values_show_their_limits_in_colour_and_in_words
 
 # Every benchmark; the harnesses that run another command (cpu_load.py, cpu_by_part.py,
-# suite_profile.py, start_cpu.py) are tools for any of them, not benchmarks themselves; fleet_ground.py is part of fleet.py.
-BENCHMARKS := $(filter-out bench/cpu_load.py bench/cpu_by_part.py bench/suite_profile.py bench/start_cpu.py bench/fleet_ground.py,$(wildcard bench/*.py))
+# suite_profile.py, schedule_replay.py, start_cpu.py) are tools for any of them, not benchmarks themselves; fleet_ground.py is part of fleet.py.
+BENCHMARKS := $(filter-out bench/cpu_load.py bench/cpu_by_part.py bench/suite_profile.py bench/schedule_replay.py bench/start_cpu.py bench/fleet_ground.py,$(wildcard bench/*.py))
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== $$b"; $(VENV)/bin/python $$b || exit 1; done
 
