@@ -16,6 +16,9 @@ from caretaker.link.control import MAX_REQUEST, ControlSocketError
 
 from .link_support import EchoTarget, exchange, run
 
+#: s: an outage that outlasts the test, so a slow machine cannot see it end before the next call reads it.
+OUTAGE_S = 600.0
+
 
 def test_outages_and_stats_through_the_client(tmp_path: Path) -> None:
     path = tmp_path / "link.sock"
@@ -26,24 +29,27 @@ def test_outages_and_stats_through_the_client(tmp_path: Path) -> None:
             control = ControlServer(link, path)
             async with link:
                 await control.start()
-                client = LinkControl(path)
-                reader, writer = await asyncio.open_connection(*link.address)
-                assert await exchange(reader, writer, b"0123456789") == b"0123456789"
-                stats = await asyncio.to_thread(client.stats)
-                assert (stats.up_bytes, stats.down_bytes, len(stats.open_connections)) == (10, 10, 1)
-                assert stats.connections[0].peer.startswith("127.0.0.1:")
+                try:
+                    client = LinkControl(path)
+                    reader, writer = await asyncio.open_connection(*link.address)
+                    assert await exchange(reader, writer, b"0123456789") == b"0123456789"
+                    stats = await asyncio.to_thread(client.stats)
+                    assert (stats.up_bytes, stats.down_bytes, len(stats.open_connections)) == (10, 10, 1)
+                    assert stats.connections[0].peer.startswith("127.0.0.1:")
 
-                await asyncio.to_thread(client.hold, 0.5)
-                held = await asyncio.to_thread(client.stats)
-                assert held.holds == 1 and held.holding_for > 0
+                    # outages far longer than the test: each is still on when the next call reads it
+                    await asyncio.to_thread(client.hold, OUTAGE_S)
+                    held = await asyncio.to_thread(client.stats)
+                    assert held.holds == 1 and 0 < held.holding_for <= OUTAGE_S
 
-                await asyncio.to_thread(client.reset, 0.3)
-                with pytest.raises(ConnectionResetError):
-                    await reader.read(1)
-                writer.close()
-                after = await asyncio.to_thread(client.stats)
-                assert after.resets == 1 and after.refusing_for > 0 and not after.open_connections
-                await control.close()
+                    await asyncio.to_thread(client.reset, OUTAGE_S)
+                    with pytest.raises(ConnectionResetError):
+                        await reader.read(1)
+                    writer.close()
+                    after = await asyncio.to_thread(client.stats)
+                    assert after.resets == 1 and 0 < after.refusing_for <= OUTAGE_S and not after.open_connections
+                finally:
+                    await control.close()
         assert not path.exists()
 
     run(body())
