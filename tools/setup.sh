@@ -43,8 +43,10 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 # 2. The virtual environment with pinned Python dependencies.
-if [ ! -x "$VENV/bin/python" ]; then
+# One without pip was left by a set-up stopped while it created it: made again, not used half made.
+if [ ! -x "$VENV/bin/python" ] || [ ! -x "$VENV/bin/pip" ]; then
   log "creating $VENV"
+  rm -rf "$VENV"
   "$PYTHON" -m venv "$VENV"
 fi
 # uv installs the same pins in about half pip's time (from its cache on the next checkout). It
