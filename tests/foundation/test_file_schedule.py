@@ -222,29 +222,3 @@ def test_a_worker_whose_file_ran_faster_than_measured_gets_the_longest_file_left
     # none of its tests finished yet: the estimate made when it was given stands
     scheduler.assigned_work[fast] = {"stale.py": {f"stale.py::test_{i}": False for i in range(4)}}
     assert scheduler._choose(fast, scheduler._free_from(fast, now), now) == "quick.py"
-
-
-class _Worker:
-    """What the scheduler reads of a pytest-xdist worker here (hashable: workers key its state)."""
-
-    shutting_down = False
-
-
-def test_a_worker_busy_longer_than_another_gets_the_shortest_file_only_if_it_fits(tmp_path: Path) -> None:
-    """The choice itself, on a scheduler's state set by hand: ``quiet`` runs a heavy file; ``busy``,
-    between files, is expected free later than ``quiet``, so it would take the shortest file. The
-    shortest is heavy too and does not fit beside the other: it is held, as any worker between files
-    is when nothing fits; once a light file is left, it gets that one."""
-    (tmp_path / COSTS).parent.mkdir(parents=True)
-    costs = {"test_a.py": FileCost(100, HEAVY), "test_b.py": FileCost(5, HEAVY), "test_l.py": FileCost(20, LIGHT)}
-    (tmp_path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
-    quiet, busy = _Worker(), _Worker()
-    scheduler = CostAwareFileScheduling.__new__(CostAwareFileScheduling)  # its state, not a pytest session
-    now = time.monotonic()
-    scheduler._root, scheduler._held = tmp_path, []
-    scheduler._free_at = {quiet: now + 100, busy: now + 200}
-    scheduler.assigned_work = {quiet: {"test_a.py": {"test_a.py::test_one": False}}, busy: {}}
-    scheduler.workqueue = OrderedDict([("test_b.py", {"test_b.py::test_one": False})])
-    assert scheduler._choose(busy, now + 200, now) is None
-    scheduler.workqueue = OrderedDict([(name, {f"{name}::test_one": False}) for name in ("test_l.py", "test_b.py")])
-    assert scheduler._choose(busy, now + 200, now) == "test_l.py"

@@ -164,13 +164,12 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         others = [
             self._free_from(other, now) for other in self._free_at if other is not node and not other.shutting_down
         ]
+        if others and free_at > min(others):
+            return str(next(reversed(self.workqueue)))  # busy longer than another worker: the shortest file
         room = CORE_BUDGET - self._cores_running(besides=node)
-        fitting = [scope for scope in self.workqueue if self._cost(scope).cores <= room]  # the longest first
-        if fitting:
-            # busy longer than another worker: the shortest file that fits. It fits too: at a run's
-            # end the files left are the heavy ones, and each idle worker taking one regardless of
-            # the cores ran browser tests on robot stacks four at once.
-            return str(fitting[-1] if others and free_at > min(others) else fitting[0])
+        fitting = next((scope for scope in self.workqueue if self._cost(scope).cores <= room), None)
+        if fitting is not None:
+            return str(fitting)
         if self._between_files(node) and any(self._running_a_test(o) for o in self.assigned_work if o is not node):
             return None
         return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores))
