@@ -331,8 +331,7 @@ class SimNode(Node):
     # ------------------------------------------------------------------ trajectory action
 
     def goal_callback(self, goal_request: FollowJointTrajectory.Goal) -> GoalResponse:
-        # Accept everything: refusals are reported through the result's error_string. Logged, with
-        # the start below, so a goal the executor starts late shows in the log with its delay.
+        # Accept all (refusals go in the result's error_string); logged, so a late start shows.
         LOG.info("trajectory goal accepted: %d points", len(goal_request.trajectory.points))
         # Noted before the client hears the goal accepted: a halt its client sends after that
         # answer (at_ros.halt) then keeps the goal from starting, even if this process's halt
@@ -394,13 +393,10 @@ class SimNode(Node):
         )
         feedback = FollowJointTrajectory.Feedback()
         feedback.joint_names = list(sim.arm_joints)
-        # A run ends by the sim's clock (at its duration, or on a collision), so it cannot outlast
-        # its trajectory while the physics thread steps; the wall clock only tells a stepper that
-        # stopped: no progress for STALLED_S. A crowded machine slows the sim's clock, it does not
-        # stop it, and a deadline in wall time would abort motions that are merely slow.
+        # A run ends by the sim's clock; the wall clock only tells a stepper that stopped (no
+        # progress for STALLED_S): a crowded machine slows the sim's clock, it does not stop it.
+        # Feedback at the start and every 50 ms of wall time: even a time-scale-0 run reports once.
         progressed, progressed_at = run.elapsed, time.monotonic()
-        # Feedback at the start and every 50 ms of wall time, so even a trajectory that runs
-        # faster than that (time scale 0) reports its progress at least once before its result.
         while True:
             feedback.desired, feedback.actual = (
                 list(run.desired or trajectory.positions[0]),
