@@ -149,7 +149,12 @@ def _robot_halted(f: Flight, robot: list[str], at_halt: int, arrived: float) -> 
 
 
 def _stamped(line: str) -> float:
-    """rclpy's stamp of a robot's log line, on the probe's and the habitat's clock."""
+    """The time of a robot's log line, on the probe's and the habitat's clock: rclpy's stamp
+    (``[1796675033.917]``), or the Python logger's local time (``2026-12-07 20:23:53,917``) of the
+    sim's own lines such as "trajectory started"."""
     stamp = re.search(r"\[(\d+\.\d+)\]", line)
-    assert stamp, f"no time in the robot's line: {line}"
-    return float(stamp.group(1))
+    if stamp:
+        return float(stamp.group(1))
+    logged = re.search(r"(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d),(\d{3})", line)
+    assert logged, f"no time in the robot's line: {line}"
+    return time.mktime(time.strptime(logged.group(1), "%Y-%m-%d %H:%M:%S")) + int(logged.group(2)) / 1000
