@@ -56,14 +56,14 @@ class Recorded:
 
     def _left_out(self) -> set[str]:
         """The fields a payload made now leaves out of its JSON: the optional ones at their default."""
-        return {f.name for f in _fields(type(self)) if f.metadata.get(_OPTIONAL) and getattr(self, f.name) == f.default}
+        fields = _schema(type(self)).fields
+        return {f.name for f, _, _ in fields if f.metadata.get(_OPTIONAL) and getattr(self, f.name) == f.default}
 
     def to_json(self) -> dict[str, Any]:
         """The event's ``data`` as stored (see the module docstring); sequences become lists."""
         left_out = self._left_out() if self.stored is None else set()
         data: dict[str, Any] = {}
-        for f in _fields(type(self)):
-            key = f.metadata.get(JSON_NAME, f.name)
+        for f, key, _ in _schema(type(self)).fields:
             if self.stored is not None and key not in self.stored:
                 continue
             if f.name in left_out:
@@ -74,8 +74,27 @@ class Recorded:
         return data
 
 
-def _fields(cls: type) -> tuple[dataclasses.Field[Any], ...]:
-    return tuple(f for f in dataclasses.fields(cls) if f.name not in ("extra", "stored"))
+@dataclass(frozen=True)
+class _Schema:
+    """What reading a payload class needs, worked out once per class: resolving its annotations
+    (``typing.get_type_hints``) cost more than reading the event itself, and a console lists runs
+    by reading every event of each."""
+
+    fields: tuple[tuple[dataclasses.Field[Any], str, Any], ...]  # a field, its JSON key, its type
+    keys: frozenset[str]
+
+
+_SCHEMAS: dict[type, _Schema] = {}
+
+
+def _schema(cls: type) -> _Schema:
+    schema = _SCHEMAS.get(cls)
+    if schema is None:
+        hints = typing.get_type_hints(cls)
+        declared = [f for f in dataclasses.fields(cls) if f.name not in ("extra", "stored")]
+        fields = tuple((f, f.metadata.get(JSON_NAME, f.name), hints[f.name]) for f in declared)
+        schema = _SCHEMAS[cls] = _Schema(fields, frozenset(key for _, key, _ in fields))
+    return schema
 
 
 def read_payload(cls: type[_R], data: object) -> _R:
@@ -87,25 +106,22 @@ def read_payload(cls: type[_R], data: object) -> _R:
     kind = cls.KIND
     if not isinstance(data, Mapping):
         raise EventDataError(f"{kind.value}: data must be an object, not {type(data).__name__}")
-    hints = typing.get_type_hints(cls)
+    schema = _schema(cls)
     values: dict[str, Any] = {}
     stored: set[str] = set()
-    for f in _fields(cls):
-        key = f.metadata.get(JSON_NAME, f.name)
+    for f, key, hint in schema.fields:
         if key not in data:
             if f.default is dataclasses.MISSING:  # an older run's record: the field reads empty
-                values[f.name] = _empty(hints[f.name])
+                values[f.name] = _empty(hint)
             continue
         value = data[key]
-        if not _fits(value, hints[f.name]):
+        if not _fits(value, hint):
             raise EventDataError(
-                f"{kind.value}: data.{key} must be {_describe(hints[f.name])}, not {type(value).__name__} "
-                f"({str(value)[:60]!r})"
+                f"{kind.value}: data.{key} must be {_describe(hint)}, not {type(value).__name__} ({str(value)[:60]!r})"
             )
-        values[f.name] = tuple(value) if isinstance(value, list) and _is_sequence(hints[f.name]) else value
+        values[f.name] = tuple(value) if isinstance(value, list) and _is_sequence(hint) else value
         stored.add(key)
-    known = {f.metadata.get(JSON_NAME, f.name) for f in _fields(cls)}
-    extra = {k: v for k, v in data.items() if k not in known}
+    extra = {k: v for k, v in data.items() if k not in schema.keys}
     return cls(**values, extra=extra, stored=frozenset(stored))
 
 
