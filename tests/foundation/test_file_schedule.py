@@ -19,6 +19,7 @@ import pytest
 from support.file_schedule import (
     CORE_BUDGET,
     COSTS,
+    LAST_TEST_HELD_S,
     QUICK_S,
     SLOW_DEFAULT_S,
     CostAwareFileScheduling,
@@ -222,3 +223,63 @@ def test_a_worker_whose_file_ran_faster_than_measured_gets_the_longest_file_left
     # none of its tests finished yet: the estimate made when it was given stands
     scheduler.assigned_work[fast] = {"stale.py": {f"stale.py::test_{i}": False for i in range(4)}}
     assert scheduler._choose(fast, scheduler._free_from(fast, now), now) == "quick.py"
+
+
+def test_a_heavy_file_that_does_not_fit_is_reserved_the_cores_the_running_file_frees(
+    pytester: pytest.Pytester,
+) -> None:
+    """A heavy file runs for 100 s more; the next heavy file does not fit beside it, so it is
+    reserved the moment the first ends. A free worker may take a light file that ends before that
+    (30 s), not one that would still run then (150 s): with nothing else it is held. The old rule,
+    the first file that fits, gave it the 150 s file, and the light files kept the heavy ones to the
+    end of the run. Stand-in workers: this is the scheduler's own arithmetic."""
+    costs = {
+        "running.py": FileCost(100, HEAVY),
+        "heavy.py": FileCost(80, HEAVY),
+        "long_light.py": FileCost(150, LIGHT),
+        "short_light.py": FileCost(30, LIGHT),
+    }
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    (pytester.path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
+    scheduler = CostAwareFileScheduling(pytester.parseconfig("-p", "xdist", "--tx", "2*popen"))
+    busy, free = Worker(), Worker()
+    now = time.monotonic()
+    scheduler._free_at = {busy: now + 100, free: now}
+    scheduler.assigned_work = {busy: {"running.py": {"running.py::test": False}}}
+    queue = [(name, {f"{name}::test": False}) for name in ("heavy.py", "long_light.py", "short_light.py")]
+    scheduler.workqueue = OrderedDict(queue)
+    assert scheduler._choose(free, now, now) == "short_light.py"
+    del scheduler.workqueue["short_light.py"]
+    assert scheduler._choose(free, now, now) is None
+    # once the heavy file ran out its time, the next heavy file is the one that fits
+    scheduler.assigned_work[busy]["running.py"]["running.py::test"] = True
+    assert scheduler._choose(free, now, now) == "heavy.py"
+
+
+def test_a_worker_with_one_test_left_is_held_for_cores_only_so_long(pytester: pytest.Pytester) -> None:
+    """A worker whose file has one test left (pytest-xdist keeps it back until the next file is
+    known) is held while nothing fits beside the heavy file running elsewhere, as a worker between
+    files is; past LAST_TEST_HELD_S it gets the file of least CPU, so that test does not wait on,
+    its file's stack alive, for as long as the heavy file runs."""
+    costs = {
+        "running.py": FileCost(600, HEAVY),
+        "heavy.py": FileCost(80, HEAVY),
+        "waiting.py": FileCost(300, 0.05),
+        "mine.py": FileCost(30, LIGHT),
+    }
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    (pytester.path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
+    scheduler = CostAwareFileScheduling(pytester.parseconfig("-p", "xdist", "--tx", "2*popen"))
+    scheduler.budget = HEAVY + 0.01  # nothing fits beside the running heavy file
+    busy, mine = Worker(), Worker()
+    now = time.monotonic()
+    scheduler._free_at = {busy: now + 600, mine: now}
+    scheduler.assigned_work = {
+        busy: {"running.py": {"running.py::test": False}},
+        mine: {"mine.py": {f"mine.py::test_{i}": i < 2 for i in range(3)}},
+    }
+    scheduler.workqueue = OrderedDict((name, {f"{name}::test": False}) for name in ("heavy.py", "waiting.py"))
+    scheduler._held[mine] = now - 10
+    assert scheduler._choose(mine, now, now) is None
+    scheduler._held[mine] = now - LAST_TEST_HELD_S - 1
+    assert scheduler._choose(mine, now, now) == "waiting.py"  # 15 CPU-s, against the heavy file's 60

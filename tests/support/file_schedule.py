@@ -14,16 +14,20 @@ while the other workers ran out of work. And it hands out files in order, whatev
 more workers than cores ran several robot stacks and browsers at once, each slower for it.
 
 :class:`CostAwareFileScheduling` gives the next longest file only to the worker that will be free
-first (a worker still busy for longer than another gets the shortest file instead), and only if
-the cores of the files running then stay within :data:`CORE_BUDGET`. When no file left fits, a
-worker between files is held: it gets nothing until a test ends elsewhere (pytest-xdist runs a
-worker's last test only once it knows the next, so a worker in the middle of a file is never held:
-its last test would wait with the file's robot stack or browser alive). A worker is never held
-when no other worker is running a test, so the suite cannot stall. Files that mostly
-wait (a link's light time, a ten-minute outage) thus run beside the ones that compute, on workers
-beyond the cores, while the ones that compute never run more at once than the cores can carry: a
-file stretched by a crowded machine costs more CPU, not less (its simulator, its browser and its
-robot's nodes keep a share of a core for as long as they live).
+first (a worker still busy for longer than another gets the shortest file that fits instead), and
+only if the cores of the files running then stay within :data:`CORE_BUDGET`. When the longest file
+does not fit, it is reserved the time the running files will have freed its cores, as a batch
+system's backfilling does: until then a worker only takes a file that fits and ends before it, so
+lighter files never keep the heavy ones to the run's end, where they would all run together. A
+worker given nothing is held until a test ends elsewhere: one between files, or with two tests or
+more still to run, for as long as nothing fits; one whose file has a single test left (pytest-xdist
+runs a worker's last test only once it knows the next) for at most :data:`LAST_TEST_HELD_S`, then it
+gets the file of least CPU. A worker is never held when no other worker is running a test, so the
+suite cannot stall. Files that mostly wait (a link's light time, a ten-minute outage) thus run
+beside the ones that compute, on workers beyond the cores, while the ones that compute never run
+more at once than the cores can carry: a file stretched by a crowded machine costs more CPU, not
+less (its simulator, its browser and its robot's nodes keep a share of a core for as long as they
+live). ``bench/schedule_replay.py`` replays this class over the measured costs.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from __future__ import annotations
 import json
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -59,6 +64,11 @@ QUICK_S = 1.0
 #: tests failed on their time limits (docs/benchmarks.md, "The suite's schedule"). A file spends the
 #: same CPU at either budget: the budget decides what contends with what, not what it costs.
 CORE_BUDGET = 1.25
+
+#: How long a worker with one test left of a file under way may be held for want of cores (s).
+#: pytest-xdist runs a worker's last test only once it knows the next one; a file given then starts
+#: when that test ends, whatever the others run by then.
+LAST_TEST_HELD_S = 120.0
 
 _SLOW_MARK = re.compile(r"mark\.slow\b(?:\(\s*seconds\s*=\s*(\d+(?:\.\d*)?)\s*\))?")
 
@@ -113,32 +123,46 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
     The work queue arrives longest first (the workers collect in that order: tests/conftest.py).
     """
 
+    #: The cores the running files may sum to (bench/schedule_replay.py replays other budgets).
+    budget: float = CORE_BUDGET
+
     def __init__(self, config: pytest.Config, log: Producer | None = None) -> None:
         super().__init__(config, log)
         self._root = Path(config.rootpath)
+        self.clock: Callable[[], float] = time.monotonic  # a replay's own clock (bench/schedule_replay.py)
         self._free_at: dict[WorkerController, float] = {}
-        self._held: list[WorkerController] = []  # in the order they were held: the first waited longest
+        self._held: dict[WorkerController, float] = {}  # since when, in the order they were held
 
     def _cost(self, scope: str) -> FileCost:
         return file_cost(self._root / scope, self._root)
 
-    def _between_files(self, node: WorkerController) -> bool:
-        """Whether ``node`` has no file under way: what it has left is files of one test, none started."""
-        unfinished = [tests for tests in self.assigned_work.get(node, {}).values() if not all(tests.values())]
-        return all(len(tests) == 1 for tests in unfinished)
+    def _may_hold(self, node: WorkerController, now: float) -> bool:
+        """Whether ``node`` may be given nothing for now: it has no file under way (what it has left
+        is files of one test, none started), or two tests or more to run (it runs one and keeps the
+        other back, and is asked again when the one ends), or, with one test left of a file under
+        way, for at most :data:`LAST_TEST_HELD_S`: that test waits, the file's robot stack or browser
+        alive, for cores to free. Given a file instead, that file would start unchecked."""
+        work = self.assigned_work.get(node, {})
+        unfinished = [tests for tests in work.values() if not all(tests.values())]
+        if all(len(tests) == 1 for tests in unfinished) or self._pending_of(work) >= 2:
+            return True
+        return now - self._held.get(node, now) < LAST_TEST_HELD_S
 
     def _running_a_test(self, node: WorkerController) -> bool:
         """Whether ``node`` runs a test now: a held worker with one test left waits to run it."""
         return node not in self._held or self._pending_of(self.assigned_work.get(node, {})) >= 2
 
-    def _cores_running(self, besides: WorkerController) -> float:
-        """The cores of the files the other workers run now (a file queued behind one has not started)."""
-        total = 0.0
+    def _occupied(self, besides: WorkerController, now: float) -> list[tuple[float, float]]:
+        """The cores each other worker holds, and until when: the larger of the file it runs and a
+        file queued behind it (given early, as pytest-xdist needs, it starts with no check of its own:
+        counted from the moment it is given, so two workers are never handed the same room)."""
+        held = []
         for node, work in self.assigned_work.items():
-            current = next((scope for scope, tests in work.items() if not all(tests.values())), None)
-            if node is not besides and current is not None and self._running_a_test(node):
-                total += self._cost(current).cores
-        return total
+            unfinished = [scope for scope, tests in work.items() if not all(tests.values())]
+            if node is besides or not unfinished or not self._running_a_test(node):
+                continue
+            held.append((max(self._cost(scope).cores for scope in unfinished), self._free_from(node, now)))
+        return held
 
     def _free_from(self, node: WorkerController, now: float) -> float:
         """When ``node`` will be free, as best known now. Once its running file has finished some of
@@ -160,30 +184,61 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         )
 
     def _choose(self, node: WorkerController, free_at: float, now: float) -> str | None:
-        """The file ``node`` runs next, or None: hold it until a test ends elsewhere."""
+        """The file ``node`` runs next, or None: hold it until a test ends elsewhere.
+
+        The longest file left goes first, to the worker free first, when its cores fit. When they do
+        not, it gets a reservation, as a batch system's backfilling does: the time the running files
+        will have freed its cores. Until then a worker may only take a file that fits now and ends
+        before that time (the longest such), so lighter files never keep a heavy one waiting to the
+        end of the run, where the heavy files left would otherwise all run together.
+        """
+        occupied = self._occupied(besides=node, now=now)
+        room = self.budget - sum(cores for cores, _ in occupied)
+        head = next(iter(self.workqueue))
+        need = self._need(head)
+        reserved = float("inf") if need <= room else self._reservation(need, room, occupied)
+        allowed = [
+            scope
+            for scope in self.workqueue
+            if self._need(scope) <= room and free_at + self._cost(scope).seconds <= reserved
+        ]
         others = [
             self._free_from(other, now) for other in self._free_at if other is not node and not other.shutting_down
         ]
         if others and free_at > min(others):
-            return str(next(reversed(self.workqueue)))  # busy longer than another worker: the shortest file
-        room = CORE_BUDGET - self._cores_running(besides=node)
-        fitting = next((scope for scope in self.workqueue if self._cost(scope).cores <= room), None)
-        if fitting is not None:
-            return str(fitting)
-        if self._between_files(node) and any(self._running_a_test(o) for o in self.assigned_work if o is not node):
+            # busy longer than another worker: the longest file is the other's; this one the shortest
+            chosen = min(allowed, key=lambda scope: self._cost(scope).seconds, default=None)
+        else:
+            chosen = next(iter(allowed), None)  # the longest allowed: the head itself when it fits
+        if chosen is not None:
+            return str(chosen)
+        if self._may_hold(node, now) and occupied:
             return None
-        return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores))
+        # nor is a worker alone held: the file of least CPU (a quick file defers the choice to its end)
+        return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores * self._cost(scope).seconds))
+
+    def _need(self, scope: str) -> float:
+        """The cores a file needs free to start: a file heavier than the budget runs alone."""
+        return min(self._cost(scope).cores, self.budget)
+
+    @staticmethod
+    def _reservation(need: float, room: float, occupied: list[tuple[float, float]]) -> float:
+        """When the running files, ending as estimated, will have freed ``need`` cores beside ``room``."""
+        reserved = 0.0
+        for cores, until in sorted(occupied, key=lambda pair: pair[1]):
+            if room >= need:
+                break
+            room, reserved = room + cores, until
+        return reserved
 
     def _assign_work_unit(self, node: WorkerController) -> None:
-        now = time.monotonic()
+        now = self.clock()
         free_at = self._free_from(node, now)
         scope = self._choose(node, free_at, now)
         if scope is None:
-            if node not in self._held:
-                self._held.append(node)
+            self._held.setdefault(node, now)
             return
-        if node in self._held:
-            self._held.remove(node)
+        self._held.pop(node, None)
         work_unit = self.workqueue.pop(scope)
         self._free_at[node] = free_at + self._cost(scope).seconds
         self.assigned_work.setdefault(node, {})[scope] = work_unit
@@ -198,6 +253,5 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
                 self._reschedule(held)
 
     def remove_node(self, node: WorkerController) -> str | None:
-        if node in self._held:
-            self._held.remove(node)
+        self._held.pop(node, None)
         return super().remove_node(node)  # type: ignore[no-any-return]  # an untyped base
