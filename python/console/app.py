@@ -60,6 +60,10 @@ _TELEMETRY_REFRESH_S = 1.0
 _LIST_REFRESH_S = 2.0
 #: The runs list and the fleet are read at most this often per page (s).
 _LIST_MIN_PERIOD_S = 0.25
+#: A run's page is sent its state at most this often (s): a burst of telemetry and events goes out
+#: as one update (none is lost: each update carries every event since the last), and the page
+#: draws every instruction once per update.
+_RUN_MIN_PERIOD_S = 0.2
 _CLOSE_POLICY = 1008  # WebSocket close code for "not signed in" (RFC 6455 policy violation)
 _CLOSE_ENDED = 1000  # WebSocket close code when the run ended and is now a past run (RFC 6455 normal closure)
 _SAFE_METHODS = ("GET", "HEAD")
@@ -410,6 +414,7 @@ async def run_socket(websocket: WebSocket) -> None:
                 return
             if not await _still_signed_in(websocket):
                 return
+            read_at = time.monotonic()
             state, telemetry = await run_in_threadpool(lambda: (run.state_json(), run.telemetry_json()))
             events = run.events_since(watcher.sent_seq)
             if events:
@@ -423,6 +428,7 @@ async def run_socket(websocket: WebSocket) -> None:
                     "server_time": time.time(),
                 }
             )
+            await asyncio.sleep(max(0.0, read_at + _RUN_MIN_PERIOD_S - time.monotonic()))
     except (WebSocketDisconnect, RuntimeError):
         pass  # the browser left (RuntimeError: send after the client closed)
     finally:
