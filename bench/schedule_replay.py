@@ -6,7 +6,8 @@ drives ``tests/support/file_schedule.py``'s :class:`CostAwareFileScheduling` (th
 uses, its own choices and holds) over ``tests/file_costs.json`` on a clock of its own, with stand-in
 workers that behave as pytest-xdist's do: each file is ``--tests`` tests of equal length, its
 measured seconds times ``--stretch`` in all, and a worker runs a test only once it knows the next
-(or was told to shut down), so a file is asked for while its worker still runs the one before.
+(or was told to shut down), so a file is asked for while its worker still runs the one before;
+held workers are looked at again when a test ends and every ``RETRY_HELD_S``, as in ``make test``.
 Nothing slows a file down here: the minutes are a floor, for comparing budgets, not a forecast.
 Beside them, the most cores the running files summed to, and the share of the run they were above
 the budget (files given to a worker still busy start unchecked; a worker alone takes a file
@@ -26,7 +27,7 @@ sys.path.insert(0, str(REPO / "tests"))
 
 from xdist.remote import Producer  # type: ignore[import-untyped]  # noqa: E402
 
-from support.file_schedule import COSTS, CostAwareFileScheduling, file_cost  # noqa: E402
+from support.file_schedule import COSTS, RETRY_HELD_S, CostAwareFileScheduling, file_cost  # noqa: E402
 
 
 @dataclass
@@ -98,7 +99,12 @@ def replay(budget: float, workers: int, stretch: float, tests: int) -> Replay:
         assert node.running is not None
         nodeid, ends = node.running
         peak = max(peak, cores)
-        over += (ends - now) if cores > budget + 1e-9 else 0.0
+        tick = (now // RETRY_HELD_S + 1) * RETRY_HELD_S  # the controller's retry of held workers
+        over += (min(ends, tick) - now) if cores > budget + 1e-9 else 0.0
+        if tick < ends:
+            now = tick
+            scheduler._retry_held()
+            continue
         now, node.running = ends, None
         node.queue.popleft()
         scheduler.mark_test_complete(node, collection.index(nodeid))

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import pytest
 
-from support.file_schedule import CostAwareFileScheduling, longest_files_first
+from support.file_schedule import RETRY_HELD_S, CostAwareFileScheduling, longest_files_first
 from support.postgres import PostgresServer, postgres_server
 from support.processes import ManagedProcess, caretaker
 from support.ros_domain import claim_ros_domain
@@ -47,7 +47,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @pytest.hookimpl(optionalhook=True)  # only where pytest-xdist runs the session
 def pytest_xdist_make_scheduler(config: pytest.Config, log: Producer) -> CostAwareFileScheduling:
     """Whole files to workers, none queued behind a long one, within the cores (support/file_schedule.py)."""
-    return CostAwareFileScheduling(config, log)
+    scheduler = CostAwareFileScheduling(config, log)
+    scheduler.retry_held_every(RETRY_HELD_S, config.pluginmanager.getplugin("dsession"))
+    return scheduler
 
 
 @pytest.fixture(scope="session")

@@ -10,7 +10,9 @@ files run beside them, or the worker waits.
 from __future__ import annotations
 
 import json
+import queue
 import time
+import types
 from collections import OrderedDict
 from pathlib import Path
 
@@ -37,7 +39,7 @@ HEAVY, LIGHT = 0.6 * CORE_BUDGET, 0.1 * CORE_BUDGET
 CONFTEST = """
 import os
 import pytest
-from support.file_schedule import CostAwareFileScheduling, longest_files_first
+from support.file_schedule import RETRY_HELD_S, CostAwareFileScheduling, longest_files_first
 
 def pytest_collection_modifyitems(config, items):
     longest_files_first(items, config.rootpath)
@@ -45,7 +47,9 @@ def pytest_collection_modifyitems(config, items):
 if os.environ.get("SCHEDULE") == "ours":
     @pytest.hookimpl(optionalhook=True)
     def pytest_xdist_make_scheduler(config, log):
-        return CostAwareFileScheduling(config, log)
+        scheduler = CostAwareFileScheduling(config, log)
+        scheduler.retry_held_every(RETRY_HELD_S, config.pluginmanager.getplugin("dsession"))
+        return scheduler
 """
 
 #: The first test of a file: it waits (a bounded time) until the files named in $WAIT_FOR have run,
@@ -283,3 +287,31 @@ def test_a_worker_with_one_test_left_is_held_for_cores_only_so_long(pytester: py
     assert scheduler._choose(mine, now, now) is None
     scheduler._held[mine] = now - LAST_TEST_HELD_S - 1
     assert scheduler._choose(mine, now, now) == "waiting.py"  # 15 CPU-s, against the heavy file's 60
+
+
+def test_held_workers_are_looked_at_again_on_the_controllers_thread_while_no_test_ends(
+    pytester: pytest.Pytester,
+) -> None:
+    """The retry goes into pytest-xdist's event queue as an event of its own, which its DSession
+    dispatches to ``worker_retry_held`` on its thread; and once the file a reservation waited for
+    outran its estimate, the reservation no longer keeps a light file back. Stand-ins: the
+    controller is a queue, as DSession's is."""
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    costs = {"running.py": FileCost(100, HEAVY), "heavy.py": FileCost(80, HEAVY), "light.py": FileCost(150, LIGHT)}
+    (pytester.path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
+    scheduler = CostAwareFileScheduling(pytester.parseconfig("-p", "xdist", "--tx", "2*popen"))
+    controller = types.SimpleNamespace(queue=queue.Queue())
+    stop = scheduler.retry_held_every(0.01, controller)
+    try:
+        assert controller.queue.get(timeout=60) == ("retry_held", {})
+    finally:
+        stop.set()
+    assert controller.worker_retry_held == scheduler._retry_held
+    busy, free = Worker(), Worker()
+    now = time.monotonic()
+    scheduler.assigned_work = {busy: {"running.py": {"running.py::test": False}}}
+    scheduler.workqueue = OrderedDict((name, {f"{name}::test": False}) for name in ("heavy.py", "light.py"))
+    scheduler._free_at = {busy: now + 100, free: now}
+    assert scheduler._choose(free, now, now) is None  # the light file would end after the reservation
+    scheduler._free_at[busy] = now - 1  # the running file outran its estimate
+    assert scheduler._choose(free, now, now) == "light.py"

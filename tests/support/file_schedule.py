@@ -18,27 +18,31 @@ first (a worker still busy for longer than another gets the shortest file that f
 only if the cores of the files running then stay within :data:`CORE_BUDGET`. When the longest file
 does not fit, it is reserved the time the running files will have freed its cores, as a batch
 system's backfilling does: until then a worker only takes a file that fits and ends before it, so
-lighter files never keep the heavy ones to the run's end, where they would all run together. A
-worker given nothing is held until a test ends elsewhere: one between files, or with two tests or
-more still to run, for as long as nothing fits; one whose file has a single test left (pytest-xdist
-runs a worker's last test only once it knows the next) for at most :data:`LAST_TEST_HELD_S`, then it
-gets the file of least CPU. A worker is never held when no other worker is running a test, so the
-suite cannot stall. Files that mostly wait (a link's light time, a ten-minute outage) thus run
-beside the ones that compute, on workers beyond the cores, while the ones that compute never run
-more at once than the cores can carry: a file stretched by a crowded machine costs more CPU, not
-less (its simulator, its browser and its robot's nodes keep a share of a core for as long as they
-live). ``bench/schedule_replay.py`` replays this class over the measured costs.
+lighter files never keep the heavy ones to the run's end, where they would all run together (a file
+heavier than :data:`HEAVIEST_NEED` of the budget starts once that much is free). A worker given
+nothing is held, and looked at again when a test ends elsewhere and every :data:`RETRY_HELD_S`: one
+between files, or with two tests or more still to run, for as long as nothing fits; one whose file
+has a single test left (pytest-xdist runs a worker's last test only once it knows the next) for at
+most :data:`LAST_TEST_HELD_S`, then it gets the file of least CPU. A worker is never held when no
+other worker is running a test, so the suite cannot stall. Files that mostly wait (a link's light
+time, a ten-minute outage) thus run beside the ones that compute, on workers beyond the cores, while
+the ones that compute never run more at once than the cores can carry: a file stretched by a crowded
+machine costs more CPU, not less (its simulator, its browser and its robot's nodes keep a share of a
+core for as long as they live). ``bench/schedule_replay.py`` replays this class over the measured
+costs.
 """
 
 from __future__ import annotations
 
 import json
 import re
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -68,6 +72,11 @@ CORE_BUDGET = 2.0
 #: when that test ends, whatever the others run by then. Held, the file's robot stack or browser
 #: idles: longer holds keep the budget better (bench/schedule_replay.py) and waste more.
 LAST_TEST_HELD_S = 300.0
+
+#: The share of the budget a file heavier than that needs free to start.
+HEAVIEST_NEED = 0.75
+#: How often held workers are looked at again when no test ends (s).
+RETRY_HELD_S = 10.0
 
 _SLOW_MARK = re.compile(r"mark\.slow\b(?:\(\s*seconds\s*=\s*(\d+(?:\.\d*)?)\s*\))?")
 
@@ -196,6 +205,8 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         head = next(iter(self.workqueue))
         need = self._need(head)
         reserved = float("inf") if need <= room else self._reservation(need, room, occupied)
+        if reserved <= now:  # the files it waits for outran their estimates: when they end is unknown
+            reserved = float("inf")
         allowed = [
             scope
             for scope in self.workqueue
@@ -217,8 +228,10 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         return str(min(self.workqueue, key=lambda scope: self._cost(scope).cores * self._cost(scope).seconds))
 
     def _need(self, scope: str) -> float:
-        """The cores a file needs free to start: a file heavier than the budget runs alone."""
-        return min(self._cost(scope).cores, self.budget)
+        """The cores a file needs free to start: one heavier than :data:`HEAVIEST_NEED` of the budget
+        starts once that much is free (beside files that mostly wait: a budget it can never have
+        would keep it to the run's end)."""
+        return min(self._cost(scope).cores, HEAVIEST_NEED * self.budget)
 
     @staticmethod
     def _reservation(need: float, room: float, occupied: list[tuple[float, float]]) -> float:
@@ -247,9 +260,28 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
     def mark_test_complete(self, node: WorkerController, item_index: int, duration: float = 0) -> None:
         """A test ended: its worker may get its next file, and so may the workers held for want of cores."""
         super().mark_test_complete(node, item_index, duration)
+        self._retry_held(besides=node)
+
+    def _retry_held(self, besides: WorkerController | None = None) -> None:
         for held in list(self._held):
-            if held is not node:
+            if held is not besides:
                 self._reschedule(held)
+
+    def retry_held_every(self, seconds: float, controller: Any) -> threading.Event:
+        """Look at the held workers again every ``seconds`` as well, not only when a test ends: with
+        one ten-minute test running elsewhere, they would be held for its length, whatever
+        :data:`LAST_TEST_HELD_S` says. ``controller`` is pytest-xdist's DSession, which handles its
+        workers' events one at a time in its own thread: the retry is put among them as an event of
+        its own, so it never runs beside another. Returns the event that stops it."""
+        controller.worker_retry_held = self._retry_held
+        stop = threading.Event()
+
+        def tick() -> None:
+            while not stop.wait(seconds):
+                controller.queue.put(("retry_held", {}))
+
+        threading.Thread(target=tick, name="retry-held-workers", daemon=True).start()
+        return stop
 
     def remove_node(self, node: WorkerController) -> str | None:
         self._held.pop(node, None)
