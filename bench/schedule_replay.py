@@ -60,6 +60,8 @@ class _Worker:
 
 @dataclass(frozen=True)
 class Replay:
+    """How one replay went."""
+
     minutes: float
     peak_cores: float
     over_budget: float  # the share of the run the running files' cores were above the budget
@@ -115,7 +117,7 @@ def replay(budget: float, workers: int, stretch: float, tests: int) -> Replay:
 
 
 def _files() -> list[str]:
-    """The test files of the suite: those the costs name and every other test module."""
+    """Every test module of the suite, measured or not (an unmeasured one costs what its mark says)."""
     return sorted({p.relative_to(REPO).as_posix() for p in (REPO / "tests").rglob("test_*.py")})
 
 

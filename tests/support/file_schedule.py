@@ -71,7 +71,7 @@ CORE_BUDGET = 2.0
 #: pytest-xdist runs a worker's last test only once it knows the next one; a file given then starts
 #: when that test ends, whatever the others run by then. Held, the file's robot stack or browser
 #: idles: longer holds keep the budget better (bench/schedule_replay.py) and waste more.
-LAST_TEST_HELD_S = 300.0
+LAST_TEST_HELD_S = 600.0
 
 #: The share of the budget a file heavier than that needs free to start.
 HEAVIEST_NEED = 0.75

@@ -4,7 +4,7 @@ way on completes the run.
 ``caretaker up iva`` (simulation, planner, AT server, ledger, rosbridge) and ``caretaker serve``
 with the JVM PAX plugins. PAX runs the IVA procedure autonomously, the simulator flat out; the
 operator sends the unlock for approval (bob approves it) and, at the confirmation that the area is
-clear (2.6), the test slows the simulator to a quarter of real time (real time when
+clear (2.6), the test slows the simulator to a tenth of real time (real time when
 ``CARETAKER_HALT_TIME_SCALE=1``, as bench/halt_under_load.py runs it: the simulator's
 ``time_scale`` parameter). While the arm pulls the dirty filter out (2.7) the operator presses
 HALT. The arm's ``/joint_states``, read over the stack's rosbridge with their sim-time stamps,
@@ -116,11 +116,12 @@ class RobotSide:
         self.ros.close()
 
 
-#: The pull-out's time scale: a quarter of real time in the suite, so that a press while it moves
+#: The pull-out's time scale: a tenth of real time in the suite, so that a press while it moves
 #: reaches the robot before it ends on a starved machine (at real time its 4 s were twice over
-#: first); bench/halt_under_load.py sets 1, as the halt's timing is measured. The rest of the run
-#: goes as fast as the simulator can.
-HALT_TIME_SCALE = float(os.environ.get("CARETAKER_HALT_TIME_SCALE", "0.25"))
+#: first, at a quarter its 16 s once, at a load of 40); bench/halt_under_load.py sets 1, as the
+#: halt's timing is measured. The halt ends the slow motion early; the rest of the run goes as fast
+#: as the simulator can.
+HALT_TIME_SCALE = float(os.environ.get("CARETAKER_HALT_TIME_SCALE", "0.1"))
 
 
 @pytest.fixture
@@ -153,8 +154,8 @@ def _pull_out_halted(alice: Page, confirm: Locator) -> Locator:
 
     The press comes as soon as her page shows the pull-out executing, not once the robot side's
     samples show the arm moving: under the suite's load those came so late that the press reached
-    the robot after the pull-out's end. The halt then stops the motion early in its 16 s (at a
-    quarter of real time), or cancels the goal before it moves: either way it is halted."""
+    the robot after the pull-out's end. The halt then stops the motion early in its 40 s (at a
+    tenth of real time), or cancels the goal before it moves: either way it is halted."""
     confirm.locator("button.done").click()
     alice.wait_for_function(f"view.state && view.state.current === '{PULL_OUT}' && view.state.executing")
     alice.click("#halt")
@@ -201,7 +202,7 @@ def test_halt_during_the_pull_out_stops_the_arm_then_re_planning_from_where_it_i
     pull = _pull_out_halted(alice, confirm)
     clicked = alice.evaluate("window.haltClickedAt") / 1000  # the page's clock is this machine's
     pressed_after = robot.latest_stamp()
-    robot.wait(lambda: robot.samples[-1][0] >= pressed_after + 3.0, "3 s of sim time after the halt", timeout=60)
+    robot.wait(lambda: robot.samples[-1][0] >= pressed_after + 3.0, "3 s of sim time after the halt", timeout=240)
     alice.wait_for_function("window.haltDrawnAt !== null")
     shown = alice.evaluate("performance.timeOrigin + window.haltDrawnAt") / 1000
     painted = alice.evaluate("window.haltPainted")
