@@ -289,6 +289,35 @@ def test_a_worker_with_one_test_left_is_held_for_cores_only_so_long(pytester: py
     assert scheduler._choose(mine, now, now) == "waiting.py"  # 15 CPU-s, against the heavy file's 60
 
 
+def test_the_hold_limit_counts_from_when_the_worker_is_left_with_its_last_test(pytester: pytest.Pytester) -> None:
+    """Held with two tests left, a worker still runs one: its LAST_TEST_HELD_S counts from its last
+    hold with two left (a test ended, or the retry ran, at most RETRY_HELD_S before its last test
+    began), not from its first hold, which a long test before would have used up."""
+    costs = {"running.py": FileCost(900, HEAVY), "heavy.py": FileCost(80, HEAVY), "mine.py": FileCost(30, LIGHT)}
+    (pytester.path / COSTS).parent.mkdir(parents=True, exist_ok=True)
+    (pytester.path / COSTS).write_text(json.dumps({name: vars(cost) for name, cost in costs.items()}))
+    scheduler = CostAwareFileScheduling(pytester.parseconfig("-p", "xdist", "--tx", "2*popen"))
+    scheduler.budget = HEAVY + 0.01  # nothing fits beside the running heavy file
+    busy, mine = Worker(), Worker()
+    clock = [1000.0]
+    scheduler.clock = lambda: clock[0]
+    scheduler._free_at = {busy: 1900.0, mine: 1000.0}
+    scheduler.assigned_work = {
+        busy: {"running.py": {"running.py::test": False}},
+        mine: {"mine.py": {f"mine.py::test_{i}": i < 1 for i in range(3)}},
+    }
+    scheduler.workqueue = OrderedDict([("heavy.py", {"heavy.py::test": False})])
+    scheduler._assign_work_unit(mine)
+    clock[0] += LAST_TEST_HELD_S + 100  # its test ran long: two are still left
+    scheduler._assign_work_unit(mine)
+    assert scheduler._held[mine] == clock[0]
+    scheduler.assigned_work[mine]["mine.py"]["mine.py::test_1"] = True
+    clock[0] += 10
+    scheduler._assign_work_unit(mine)  # now blocked on its last test: held, its limit starts here
+    assert scheduler._held[mine] == clock[0] - 10
+    assert "heavy.py" in scheduler.workqueue
+
+
 def test_held_workers_are_looked_at_again_on_the_controllers_thread_while_no_test_ends(
     pytester: pytest.Pytester,
 ) -> None:

@@ -160,16 +160,17 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         """Whether ``node`` runs a test now: a held worker with one test left waits to run it."""
         return node not in self._held or self._pending_of(self.assigned_work.get(node, {})) >= 2
 
-    def _occupied(self, besides: WorkerController, now: float) -> list[tuple[float, float]]:
-        """The cores each other worker holds, and until when: the larger of the file it runs and a
-        file queued behind it (given early, as pytest-xdist needs, it starts with no check of its own:
-        counted from the moment it is given, so two workers are never handed the same room)."""
+    def _occupied(self, free: dict[WorkerController, float]) -> list[tuple[float, float]]:
+        """The cores each of the workers in ``free`` (each with when it will be free) holds, and
+        until when: the larger of the file it runs and a file queued behind it (given early, as
+        pytest-xdist needs, it starts with no check of its own: counted from the moment it is given,
+        so two workers are never handed the same room)."""
         held = []
-        for node, work in self.assigned_work.items():
+        for node, free_at in free.items():
+            work = self.assigned_work.get(node, {})
             unfinished = [scope for scope, tests in work.items() if not all(tests.values())]
-            if node is besides or not unfinished or not self._running_a_test(node):
-                continue
-            held.append((max(self._cost(scope).cores for scope in unfinished), self._free_from(node, now)))
+            if unfinished and self._running_a_test(node):
+                held.append((max(self._cost(scope).cores for scope in unfinished), free_at))
         return held
 
     def _free_from(self, node: WorkerController, now: float) -> float:
@@ -177,12 +178,17 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         its tests, what is left of it is the share of its cost its other tests stand for, and the
         files queued behind it their whole cost: measured costs go stale (a file that got faster
         would otherwise keep its worker on the shortest files until its old length had passed, while
-        the long files wait for the end). Before that, the estimate made when its files were given."""
+        the long files wait for the end). Before that, the estimate made when its files were given;
+        once that has passed with no test of them ended, when it will be free is unknown (infinite),
+        not now: a reservation counted on it would keep nothing back."""
         unfinished = [
             (scope, tests) for scope, tests in self.assigned_work.get(node, {}).items() if not all(tests.values())
         ]
-        if not unfinished or not any(unfinished[0][1].values()):
-            return max(self._free_at.get(node, now), now)
+        if not unfinished:
+            return now
+        if not any(unfinished[0][1].values()):
+            estimate = self._free_at.get(node, now)
+            return estimate if estimate > now else float("inf")
         (running, tests), *queued = unfinished
         left = len(tests) - sum(tests.values())
         return (
@@ -200,21 +206,18 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         before that time (the longest such), so lighter files never keep a heavy one waiting to the
         end of the run, where the heavy files left would otherwise all run together.
         """
-        occupied = self._occupied(besides=node, now=now)
+        free = {other: self._free_from(other, now) for other in self.assigned_work if other is not node}
+        occupied = self._occupied(free)
         room = self.budget - sum(cores for cores, _ in occupied)
         head = next(iter(self.workqueue))
         need = self._need(head)
         reserved = float("inf") if need <= room else self._reservation(need, room, occupied)
-        if reserved <= now:  # the files it waits for outran their estimates: when they end is unknown
-            reserved = float("inf")
         allowed = [
             scope
             for scope in self.workqueue
             if self._need(scope) <= room and free_at + self._cost(scope).seconds <= reserved
         ]
-        others = [
-            self._free_from(other, now) for other in self._free_at if other is not node and not other.shutting_down
-        ]
+        others = [until for other, until in free.items() if other in self._free_at and not other.shutting_down]
         if others and free_at > min(others):
             # busy longer than another worker: the longest file is the other's; this one the shortest
             chosen = min(allowed, key=lambda scope: self._cost(scope).seconds, default=None)
@@ -248,7 +251,10 @@ class CostAwareFileScheduling(LoadFileScheduling):  # type: ignore[misc]  # an u
         free_at = self._free_from(node, now)
         scope = self._choose(node, free_at, now)
         if scope is None:
-            self._held.setdefault(node, now)
+            if self._pending_of(self.assigned_work.get(node, {})) >= 2:
+                self._held[node] = now  # a test still runs: the hold's limit counts from the last one
+            else:
+                self._held.setdefault(node, now)
             return
         self._held.pop(node, None)
         work_unit = self.workqueue.pop(scope)
