@@ -44,8 +44,7 @@ class FleetEntry:
 
     robot: str
     bindings: tuple[str, ...]
-    urgency: int
-    state: str  # URGENCY's words for it
+    urgency: int  # an index into URGENCY: the lower, the sooner an operator should look
     run_id: str = ""
     procedure: str = ""
     status: str = ""
@@ -60,8 +59,18 @@ class FleetEntry:
     limits_out: tuple[str, ...] = ()  # SYSTEM.ITEM is RED HIGH, ...
     onboard: bool = False
 
+    @property
+    def state(self) -> str:
+        """URGENCY's words for it."""
+        return URGENCY[self.urgency]
+
     def to_json(self) -> dict[str, Any]:
-        return {**asdict(self), "bindings": list(self.bindings), "limits_out": list(self.limits_out)}
+        return {
+            **asdict(self),
+            "state": self.state,
+            "bindings": list(self.bindings),
+            "limits_out": list(self.limits_out),
+        }
 
 
 def _needs(state: dict[str, Any]) -> str:
@@ -113,7 +122,6 @@ def _entry(robot: str, bindings: tuple[str, ...], record: HostRecord, view: dict
         robot=robot,
         bindings=bindings,
         urgency=urgency,
-        state=URGENCY[urgency],
         run_id=record.run_id,
         procedure=str(state.get("procedure") or ""),
         status=record.status,
@@ -143,9 +151,7 @@ def fleet_entries(
         busy.add(robot)
         entries.append(_entry(robot, robots.get(robot, (record.binding,)), record, view))
     entries += [
-        FleetEntry(robot, bindings, len(URGENCY) - 1, URGENCY[-1])
-        for robot, bindings in robots.items()
-        if robot not in busy
+        FleetEntry(robot, bindings, len(URGENCY) - 1) for robot, bindings in robots.items() if robot not in busy
     ]
     # the longest waiting first within a rank (an ISO time sorts as the time); idle ones by name
     return sorted(entries, key=lambda e: (e.urgency, e.since or "~", e.robot))
