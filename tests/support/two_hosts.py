@@ -131,12 +131,14 @@ class TwoHosts:
         remove_stale_namespaces()
         serial = next(_counter)
         prefix = f"ct2h-{os.getpid()}-{serial}"
+        folder = Path(tempfile.mkdtemp(prefix=f"{prefix}-"))
         hosts = cls(
             Host("ground", f"{prefix}-ground", "10.77.1.2"),
             Host("link", f"{prefix}-link", "10.77.1.1"),
             Host("habitat", f"{prefix}-habitat", "10.77.2.2"),
-            {**env, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"},
-            Path(tempfile.mkdtemp(prefix=f"{prefix}-")),
+            # TMPDIR: what the processes leave behind (a console's runners' logs) goes when the folder goes
+            {**env, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "TMPDIR": str(folder)},
+            folder,
         )
         created: list[str] = []
         try:

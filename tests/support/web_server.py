@@ -81,6 +81,7 @@ def start_server(
     the real PAX host (JVM plugins); without, the simulated systems of simulated_systems.py.
     """
     env = dict(env if env is not None else os.environ)
+    env["TMPDIR"] = str(tmp)  # the runners' logs it starts (kept after it ends) go with the test's files
     arguments = [
         *(f"--camera={camera}" for camera in cameras),
         "--camera-period",
