@@ -103,6 +103,7 @@ class SpatialFeed:
         self.camera: str | None = None
         self.camera_png: bytes | None = None
         self.camera_seq = 0
+        self._camera_shown: tuple[Any, ...] | None = None  # the image message's pixels, as last shown
         self.rosbridge = RosbridgeClient(
             link.endpoint, name="pride-web-view", on_connected=self._refresh_all, on_state=self._link_state
         )
@@ -286,12 +287,17 @@ class SpatialFeed:
         self._push(self.located)
 
     def _on_image(self, msg: Mapping[str, Any]) -> None:
+        # An idle robot's camera sends the same pixels again: encoded and pushed only when they change
+        shown = tuple(msg.get(key) for key in ("encoding", "width", "height", "step", "data"))
+        if shown == self._camera_shown:
+            return
         try:
             self.camera_png = png_from_image(msg)
         except CameraImageError as exc:
             self._report(f"camera {self.camera}: {exc}")
             return
         self.camera_seq += 1
+        self._camera_shown = shown
         self._push({"kind": "camera", "url": self._camera_url()})
 
     def _camera_url(self) -> str | None:

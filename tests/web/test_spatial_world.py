@@ -142,3 +142,29 @@ def test_the_camera_image_becomes_a_png_and_bad_images_are_refused() -> None:
     assert choose_camera(["tool0", "camera/scene", "camera/ee_camera"], "ee_camera") == "ee_camera"
     assert choose_camera(["tool0", "camera/scene"], "ee_camera") == "scene"
     assert choose_camera(["tool0"], "ee_camera") is None
+
+
+def test_a_camera_image_with_the_same_pixels_is_not_encoded_or_pushed_again() -> None:
+    """An idle robot's camera sends the same image every period: the page is told of a new one only
+    when its pixels changed (the page fetches and decodes each it is told of)."""
+    import base64
+
+    from console.spatial_feed import SpatialFeed
+    from console.spatial_link import ViewLink
+    from rosbridge_wire.client import Endpoint
+
+    feed = SpatialFeed(ViewLink(Endpoint("ws://127.0.0.1:9"), "/"), camera_url="/camera")
+    pushed: list[dict[str, Any]] = []
+    feed._push = pushed.append  # type: ignore[method-assign]
+
+    def image(pixels: bytes, sec: int) -> dict[str, Any]:
+        data = base64.b64encode(pixels).decode()
+        return {"header": {"stamp": {"sec": sec}}, "encoding": "rgb8", "width": 1, "height": 1, "step": 3, "data": data}
+
+    feed._on_image(image(b"abc", 1))
+    feed._on_image(image(b"abc", 2))  # the same pixels a period later
+    feed._on_image(image(b"abd", 3))
+    assert pushed == [{"kind": "camera", "url": "/camera?seq=1"}, {"kind": "camera", "url": "/camera?seq=2"}]
+    feed._on_image({**image(b"abe", 4), "encoding": "bgr16"})  # refused: the last good image stays
+    feed._on_image(image(b"abd", 5))
+    assert [update.get("url") for update in pushed[2:]] == [None]  # the refusal's report only
