@@ -23,6 +23,7 @@ import concurrent.futures
 import contextlib
 import re
 import time
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -122,6 +123,7 @@ def emulated_habitat(
         link, ready = start(
             *("link", "--listen", f"{HOST}:0", "--to", f"{HOST}:{bridge_port}"),
             *("--delay", f"{delay:g}", "--loss", f"{loss:g}"),
+            *("--seed", str(zlib.crc32(name.encode()))),  # each habitat's losses its own, not the fleet's in step
             part="link",
         )
         url = f"wss://{HOST}:{_address(ready)}"
