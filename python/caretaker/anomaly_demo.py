@@ -87,7 +87,8 @@ def anomaly_demo(args: argparse.Namespace) -> int:
     try:
         link_url = stack.url  # the link's: where the ground connects
         _ground_binding(folder / "bindings", credentials, link_url)
-        env = {**stack.env, "CARETAKER_DB": db_url}
+        # TMPDIR: the log of the runner the console starts (kept after it ends) goes with the demo's report
+        env = {**stack.env, "CARETAKER_DB": db_url, "TMPDIR": str(folder)}
         if not _release(db_url, passwords, env):
             return 1
         console = caretaker(

@@ -9,6 +9,7 @@ browser over the emulated link: tests/flight/test_iva_onboard_halt.py).
 
 from __future__ import annotations
 
+import tempfile
 import threading
 import time
 from collections.abc import Iterator, Mapping
@@ -182,11 +183,12 @@ def _published_state(audit: AuditLog, reader: RunHosting, ready: Any = None, tim
 
 
 def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_nothing_running(
-    audit: AuditLog,
+    audit: AuditLog, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The console's "run on the habitat" starts the supervising runner; one that ends before the
     habitat accepted the unit (here: a binding with no link secret to sign it with) is a refusal
-    with the runner's own words."""
+    with the runner's own words, and names the runner's log, in the console's temporary folder."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # this process is the console here
     with pytest.raises(LaunchRefused) as refused:
         launch_onboard(
             PROCEDURE,
@@ -200,6 +202,7 @@ def test_a_start_on_the_habitat_that_cannot_be_uplinked_says_why_and_leaves_noth
         )
     said = str(refused.value)
     assert "iva.yaml has no security.secret_file: an onboard unit is signed with the link's secret" in said, said
+    assert f"(runner log: {tmp_path}/caretaker-onboard-runner-" in said, said
     assert audit.runs() == []  # nothing started, nothing logged
 
 
